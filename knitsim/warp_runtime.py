@@ -1,0 +1,74 @@
+"""One place to initialise Warp and pick the device.
+
+Warp compiles kernels on first use and caches the binaries.  The cache lives
+outside the repository: ``$KNITSIM_KERNEL_CACHE`` if set, else Warp's own
+``$WARP_CACHE_PATH``, else ``~/.cache/knitsim/warp``.  It is never cleared by
+knitsim, so tests and runs after the first reuse compiled kernels.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import warp as wp
+
+from .errors import KnitsimInputError
+
+_initialised = False
+
+
+def kernel_cache_dir() -> Path:
+    """The directory Warp caches compiled kernels in."""
+    env = os.environ.get("KNITSIM_KERNEL_CACHE") or os.environ.get("WARP_CACHE_PATH")
+    if env:
+        return Path(env).expanduser()
+    return Path.home() / ".cache" / "knitsim" / "warp"
+
+
+def init() -> None:
+    """Initialise Warp once, quietly, with the stable kernel cache."""
+    global _initialised
+    if _initialised:
+        return
+    wp.config.quiet = True
+    wp.config.kernel_cache_dir = str(kernel_cache_dir())
+    wp.init()
+    _initialised = True
+
+
+def cuda_available() -> bool:
+    """Whether a CUDA device can run kernels."""
+    init()
+    return wp.get_cuda_device_count() > 0
+
+
+def available_devices() -> list[str]:
+    """``["cpu"]`` plus ``"cuda:0"`` when a GPU is present."""
+    init()
+    return ["cpu"] + (["cuda:0"] if cuda_available() else [])
+
+
+def resolve_device(name: str | None = "cpu") -> str:
+    """Validate a device name from a scene or the command line.
+
+    Parameters
+    ----------
+    name : str or None
+        ``"cpu"`` (default), ``"cuda"``, ``"cuda:N"`` or ``"auto"`` (CUDA when
+        present, else CPU).
+
+    Returns
+    -------
+    str
+        A Warp device alias.
+    """
+    init()
+    if name in (None, "", "cpu"):
+        return "cpu"
+    if name == "auto":
+        return "cuda:0" if cuda_available() else "cpu"
+    if name == "cuda" or (isinstance(name, str) and name.startswith("cuda:")):
+        if not cuda_available():
+            raise KnitsimInputError(f"device = {name!r}: no CUDA device is available here (use 'cpu' or 'auto')")
+        return "cuda:0" if name == "cuda" else name
+    raise KnitsimInputError(f"device = {name!r}: expected 'cpu', 'cuda', 'cuda:N' or 'auto'")
