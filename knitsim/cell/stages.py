@@ -1,43 +1,59 @@
 """Stages of the load cycle (Dusserre 2015, Table 4) and the rules where it is silent.
 
-One table shared by the NumPy reference cycle and the Warp cycle kernel.  Under
-strain control the driven quantity of every stage is the course length C
-(change in length = (C - C0) / C0); Table 4 drives phi in the static-friction
-steps instead, which traces the same branch because C is monotonic in phi there.
-Each stage imposes three further conditions; *frozen* values are captured when
-the stage is entered.
+One table shared by the NumPy reference cycle and the Warp cycle kernel.
 
-Jamming (W >= 4d) is treated as a unilateral contact constraint in every stage:
-when a stage's solution would have W < 4d, its *soft* condition (the one that
-is not L, phi or s_BC) is replaced by W = 4d (the jammed variant of the stage),
-and the stage unjams when the soft quantity returns to its frozen value.
+Under strain control the driven quantity of every stage is the course length C
+(change in length = (C - C0) / C0).  Table 4 drives phi in the static-friction
+steps instead; that traces the same branch as long as C is monotonic in phi
+there.  Besides C and the yarn length L, each stage imposes one *hard*
+condition (s_BC in static friction: no slip at B; phi = +/-phimax in sliding)
+and one *soft* condition, whose value is frozen when the stage is entered.
 
-=============  ===========  ======================================  ==========
-stage          label        conditions besides C (Table 4)          soft
-=============  ===========  ======================================  ==========
-SF_LOAD        adherence    s_BC = frozen, Rn = frozen, L           Rn
-S_LOAD         sliding      Rn = frozen, L, phi = +phimax           Rn
-J_LOAD         jamming      W = 4d, L, phi = +phimax                (jammed)
-SF_UNLOAD      adherence    beta = frozen, s_BC = frozen, L         beta
-S_UNLOAD       sliding      T = frozen, L, phi = -phimax            T
-J_UNLOAD       jamming      W = 4d, s_BC = frozen, L                (jammed)
-SLACK          slack        F = 0 reached while unloading: the      --
-                            cell carries no load until reloading
-                            returns to the strain where it went
-                            slack
-=============  ===========  ======================================  ==========
+Jamming is a unilateral contact constraint, W >= 4d (Hong et al. 2002), kept in
+every stage: a cell whose solution would have W < 4d is *jammed*, and its soft
+condition is replaced by W = 4d.  Table 4's J step is therefore "S_LOAD,
+jammed"; unloading from a jammed state is "SF_UNLOAD, jammed" until the
+unjammed solution has W >= 4d again (active-set rule; Table 4 is silent).
 
-Rules where Table 4 is silent (switchable, labelled in every output):
+==========  ============================  ======================  =============
+stage       hard conditions (with C, L)   soft (frozen at entry)  events
+==========  ============================  ======================  =============
+SF_LOAD     s_BC = frozen (stick)         Rn  (Table 4 SF)        phi -> +phimax
+S_LOAD      phi = +phimax                 Rn  (Table 4 S)         jam (W -> 4d)
+SF_UNLOAD   s_BC = frozen (stick)         beta (Table 4 SF-)      phi -> -phimax,
+                                          or T (Hong rule)        F -> 0
+S_UNLOAD    phi = -phimax                 T   (Table 4 S-)        F -> 0
+SLACK       (none: the cell went slack at F = 0 while unloading and carries no
+            load until the imposed C returns to the C where it went slack)
+==========  ============================  ======================  =============
 
-- ``unloading_rule``: ``"dusserre"`` (SF-: beta and s_BC frozen; S-: T frozen)
-  or ``"hong_constant_t"`` (T frozen during the whole unloading, Hong et al. 2002).
-- ``reload_rule`` (reloading from a state whose contact force is ~0, where
-  fixing Rn would reload at zero force for ever): ``"mirror_unloading"``
-  (SF+ freezes beta and s_BC, like SF-) or ``"freeze_rn"`` (Table 4 as printed).
-- ``jamming_criterion``: ``"w_4d"`` (Hong: W = 4d) or ``"head_gap"``
-  (centreline distance between neighbouring loop heads = d).
-- ``force_cap_N``: the jammed branch's force diverges at its limit strain;
-  the cell stops (flagged ``force_cap``) when the force per wale reaches it.
+Output labels: ``jamming`` when jammed, else ``adherence`` (SF_*) or
+``sliding`` (S_*), or ``slack``; with the direction ``load`` / ``unload``.
+
+Rules where Table 4 is silent (switchable; labelled in every output):
+
+``unloading_rule``
+    ``"dusserre"``: SF- freezes beta (Table 4), S- freezes T.
+    ``"hong_constant_t"``: T frozen through the whole unloading (Hong et al. 2002).
+``reload_rule``
+    On reloading from a state whose contact force is ~0 (after going slack),
+    fixing Rn = 0 would reload at zero force for ever.
+    ``"mirror_unloading"``: the reloading SF+ step then freezes beta instead
+    of Rn (the mirror of SF-), and S+ freezes Rn when sliding starts.
+    ``"freeze_rn"``: Table 4 as printed (Rn frozen even if ~0).
+``jamming_criterion``
+    ``"w_4d"``: W = 4d (Hong).  ``"head_gap"``: flag when the centreline
+    distance between the heads of neighbouring loops of a course falls to d
+    (the heads bulge beyond B, so this happens before W = 4d).
+``force_cap_N``
+    The jammed branch's force diverges at its limit strain: a cell stops,
+    flagged ``force_cap``, when its force per wale reaches the cap.
+
+Dahl friction replaces the SF/S switch by one smooth law: tan(phi) follows
+the Dahl update of the slip xi = -s_BC (Dahl 1976; see
+:mod:`knitsim.friction.dahl`); the soft condition is Rn while loading and T
+while unloading; the stage label is ``sliding`` once tan(phi) is within 5 %
+of its saturation +/-m, else ``adherence``.
 """
 from __future__ import annotations
 
@@ -45,33 +61,39 @@ from enum import IntEnum
 
 
 class Stage(IntEnum):
-    """Stage codes (stored per cell as int32)."""
+    """Stage codes (stored per cell as int32; the jammed flag is separate)."""
 
     SF_LOAD = 0
     S_LOAD = 1
-    J_LOAD = 2
-    SF_UNLOAD = 3
-    S_UNLOAD = 4
-    J_UNLOAD = 5
-    SLACK = 6
-
-    @property
-    def label(self) -> str:
-        """Short label for outputs: adherence / sliding / jamming / slack."""
-        return _LABELS[self]
+    SF_UNLOAD = 2
+    S_UNLOAD = 3
+    SLACK = 4
 
     @property
     def loading(self) -> bool:
         """Whether the stage belongs to a loading branch."""
-        return self in (Stage.SF_LOAD, Stage.S_LOAD, Stage.J_LOAD)
+        return self in (Stage.SF_LOAD, Stage.S_LOAD)
+
+    @property
+    def sliding(self) -> bool:
+        """Whether phi sits at +/-phimax (Coulomb sliding)."""
+        return self in (Stage.S_LOAD, Stage.S_UNLOAD)
 
 
-_LABELS = {
-    Stage.SF_LOAD: "adherence", Stage.S_LOAD: "sliding", Stage.J_LOAD: "jamming",
-    Stage.SF_UNLOAD: "adherence", Stage.S_UNLOAD: "sliding", Stage.J_UNLOAD: "jamming",
-    Stage.SLACK: "slack",
-}
+def stage_label(stage: int, jammed: bool) -> str:
+    """Output label of a stage: adherence / sliding / jamming / slack."""
+    stage = Stage(int(stage))
+    if stage is Stage.SLACK:
+        return "slack"
+    if jammed:
+        return "jamming"
+    return "sliding" if stage.sliding else "adherence"
+
+
+#: label codes used in per-cell output arrays and USD primvars
+LABEL_CODES = {"adherence": 0, "sliding": 1, "jamming": 2, "slack": 3}
 
 UNLOADING_RULES = ("dusserre", "hong_constant_t")
 RELOAD_RULES = ("mirror_unloading", "freeze_rn")
 JAMMING_CRITERIA = ("w_4d", "head_gap")
+FRICTION_MODELS = ("coulomb", "dahl")

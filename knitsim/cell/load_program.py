@@ -1,0 +1,116 @@
+"""Strain-controlled load programs.
+
+A load program is a piecewise-linear history of the imposed strain
+(change in length of the course length, (C - C0) / C0, or the grip strain of a
+patch), sampled into increments no larger than ``max_increment``.  Every sample
+carries its cycle number (1-based; a cycle is one loading branch followed by one
+unloading branch) and its direction (+1 loading, -1 unloading).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import KnitsimInputError
+
+
+@dataclass(frozen=True)
+class LoadProgram:
+    """Sampled strain history.
+
+    Attributes
+    ----------
+    strain : ndarray, shape [n]
+        Imposed strain after each increment (the start, strain 0 at rest, is
+        not included).
+    cycle : ndarray of int, shape [n]
+        Cycle number of each increment, from 1.
+    direction : ndarray of int, shape [n]
+        +1 while the strain increases (loading), -1 while it decreases.
+    waypoints : tuple of float
+        The piecewise-linear corners, starting at 0.
+    """
+
+    strain: np.ndarray
+    cycle: np.ndarray
+    direction: np.ndarray
+    waypoints: tuple[float, ...]
+
+    def __len__(self) -> int:
+        return len(self.strain)
+
+
+def piecewise_linear(waypoints, max_increment: float = 0.005, field: str = "load.waypoints") -> LoadProgram:
+    """Sample a piecewise-linear strain history.
+
+    Parameters
+    ----------
+    waypoints : sequence of float
+        Strains to pass through, in order, starting from the rest state
+        (strain 0 is prepended if the first waypoint is not 0).
+    max_increment : float
+        Largest strain increment between samples (> 0).
+    field : str
+        Name used in error messages.
+
+    Returns
+    -------
+    LoadProgram
+    """
+    pts = [float(w) for w in waypoints]
+    if not pts:
+        raise KnitsimInputError(f"{field}: empty strain history")
+    for i, w in enumerate(pts):
+        if not math.isfinite(w):
+            raise KnitsimInputError(f"{field}[{i}] = {w}: not a finite number")
+        if w <= -1.0:
+            raise KnitsimInputError(f"{field}[{i}] = {w}: a strain of -1 or less means a non-positive course length")
+    if not (math.isfinite(max_increment) and max_increment > 0):
+        raise KnitsimInputError(f"load.max_increment = {max_increment}: must be a positive number")
+    if pts[0] != 0.0:
+        pts = [0.0] + pts
+    strain, cycle, direction = [], [], []
+    cyc, last_dir = 1, +1
+    for a, b in zip(pts[:-1], pts[1:]):
+        if b == a:
+            continue
+        d = 1 if b > a else -1
+        if d == 1 and last_dir == -1:
+            cyc += 1  # a new loading branch starts a new cycle
+        last_dir = d
+        n = max(1, math.ceil(abs(b - a) / max_increment - 1e-12))
+        seg = a + (b - a) * np.arange(1, n + 1) / n
+        strain.extend(seg.tolist())
+        cycle.extend([cyc] * n)
+        direction.extend([d] * n)
+    if not strain:
+        raise KnitsimInputError(f"{field} = {list(waypoints)}: the history never moves away from strain 0")
+    return LoadProgram(np.asarray(strain), np.asarray(cycle, dtype=np.int32),
+                       np.asarray(direction, dtype=np.int32), tuple(pts))
+
+
+def monotonic(target: float, max_increment: float = 0.005) -> LoadProgram:
+    """Monotonic loading from rest to ``target`` strain (> 0)."""
+    if not (math.isfinite(target) and target > 0):
+        raise KnitsimInputError(f"load.target_strain = {target}: must be a positive number")
+    return piecewise_linear([0.0, target], max_increment, field="load.target_strain")
+
+
+def cycles(lower: float, upper: float, n_cycles: int, max_increment: float = 0.005) -> LoadProgram:
+    """``n_cycles`` cycles: load to ``upper``, unload to ``lower``, repeat.
+
+    The first loading starts at rest (strain 0); the paper's program is
+    ``cycles(0.10, 0.60, 3)`` (Dusserre 2015, section 2.3).
+    """
+    if not (isinstance(n_cycles, (int, np.integer)) and n_cycles >= 1):
+        raise KnitsimInputError(f"load.cycles = {n_cycles}: must be a whole number >= 1")
+    if not (math.isfinite(upper) and upper > 0):
+        raise KnitsimInputError(f"load.upper_strain = {upper}: must be a positive number")
+    if not (math.isfinite(lower) and 0 <= lower < upper):
+        raise KnitsimInputError(f"load.lower_strain = {lower}: must satisfy 0 <= lower_strain < upper_strain = {upper}")
+    pts = [0.0]
+    for _ in range(int(n_cycles)):
+        pts += [upper, lower]
+    return piecewise_linear(pts, max_increment, field="load")

@@ -1,0 +1,151 @@
+"""``knitsim capstan``: capstan friction law of Dusserre (2015) section 2.4.
+
+Subcommands
+-----------
+fit FILE.csv
+    Identify ``(b, p, n)`` of eq 5 from capstan records (columns ``F0_N``,
+    ``F1_N``, ``V_mm_s``, ``direction``).
+table
+    Table 2 beside the forward law (eqs 2-5) with Table 3 parameters.
+predict
+    ``F1`` and ``mu_k`` (eq 1) for one test condition.
+"""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from ..errors import KnitsimInputError
+from ..friction import capstan
+from .common import add_json_flag, print_json, read_csv_columns
+
+_COLUMNS = ("F0_N", "F1_N", "V_mm_s", "direction")
+
+
+def _add_discretisation(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--strands", type=int, default=capstan.COILS_PER_CYLINDER,
+                        help="strands around each cylinder (default 16 coils)")
+    parser.add_argument("--layout", choices=("aligned", "straddle", "uniform"), default="aligned",
+                        help="crossings per wrap: whole pitches (aligned), half pitches at the wrap ends "
+                             "(straddle), or --steps equal steps (uniform)")
+    parser.add_argument("--steps", type=int, default=24, help="steps per cylinder with --layout uniform")
+    parser.add_argument("--eq4", action="store_true",
+                        help="use the simplified eq 4 at each crossing instead of solving eq 3")
+
+
+def _discretisation(args) -> capstan.Discretisation:
+    if args.strands < 1:
+        raise KnitsimInputError(f"--strands = {args.strands}: must be >= 1")
+    if args.steps < 1:
+        raise KnitsimInputError(f"--steps = {args.steps}: must be >= 1")
+    return capstan.Discretisation(n_strands=args.strands, layout=args.layout, exact=not args.eq4,
+                                  steps=args.steps)
+
+
+def register(subparsers) -> None:
+    """Add ``knitsim capstan`` and its subcommands."""
+    parser = subparsers.add_parser(
+        "capstan", help="capstan friction law (Dusserre 2015, eqs 1-5, Tables 2-3)",
+        description="Capstan friction of yarn on yarn: eq 1, the Howell law crossing by crossing "
+                    "(eqs 2-5), identification of (b, p, n) (Table 3).")
+    sub = parser.add_subparsers(dest="capstan_command", metavar="SUBCOMMAND")
+    sub.required = True
+
+    fit = sub.add_parser("fit", help="fit b, p, n to capstan records",
+                         description="Fit eq 5's (b, p, n) to capstan records by least squares on F1. "
+                                     "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent).")
+    fit.add_argument("file", metavar="FILE.csv", help="capstan records")
+    fit.add_argument("--fix-p", type=float, default=None, metavar="P",
+                     help="hold the velocity exponent p at this value (the paper's basalt: 0)")
+    _add_discretisation(fit)
+    add_json_flag(fit)
+    fit.set_defaults(func=_run_fit)
+
+    table = sub.add_parser("table", help="Table 2 beside the model with Table 3 parameters",
+                           description="Print Table 2 (mu_k from eq 1) beside mu_k predicted by eqs 2-5 "
+                                       "with Table 3 parameters, row by row.")
+    _add_discretisation(table)
+    add_json_flag(table)
+    table.set_defaults(func=_run_table)
+
+    pred = sub.add_parser("predict", help="F1 and mu_k for one test condition",
+                          description="Predict F1 [N] and mu_k (eq 1) from F0, V and the direction, with "
+                                      "Table 3 parameters of --fibre or explicit --b/--p/--n.")
+    pred.add_argument("--F0", type=float, required=True, help="dead weight F0 [N]")
+    pred.add_argument("--V", type=float, required=True, help="sliding velocity [mm/s]")
+    pred.add_argument("--direction", required=True, help="ascent or descent")
+    pred.add_argument("--fibre", choices=capstan.FIBRES, default=None, help="Table 3 parameters of this fibre")
+    pred.add_argument("--b", type=float, default=None, help="eq 5 coefficient b")
+    pred.add_argument("--p", type=float, default=None, help="eq 5 velocity exponent p")
+    pred.add_argument("--n", type=float, default=None, help="eq 5 normal-load exponent n")
+    _add_discretisation(pred)
+    add_json_flag(pred)
+    pred.set_defaults(func=_run_predict)
+
+
+def _run_fit(args) -> int:
+    cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3])
+    if args.fix_p is not None and not np.isfinite(args.fix_p):
+        raise KnitsimInputError(f"--fix-p = {args.fix_p}: not a finite number")
+    res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
+                                   _discretisation(args), fix_p=args.fix_p, source=str(args.file))
+    if args.json:
+        out = res.as_dict()
+        out["records"] = int(len(cols["F0_N"]))
+        print_json(out)
+        return 0
+    b, p, n = res.params
+    sb, sp, sn = res.stderr
+    print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})")
+    print(f"  b = {b:.5g} +/- {sb:.2g}   [s^p mm^-p N^(1-n)]")
+    print(f"  p = {p:.5g} +/- {sp:.2g}" + ("   (fixed)" if args.fix_p is not None else ""))
+    print(f"  n = {n:.5g} +/- {sn:.2g}")
+    print(f"  residual RMS of F1 = {res.rms_N:.3g} N, dof = {res.dof}, corr(b, n) = {res.corr[0, 2]:.3f}")
+    if not res.success:
+        print(f"  warning: {res.message}")
+    return 0
+
+
+def _run_table(args) -> int:
+    disc = _discretisation(args)
+    rows = capstan.table2_reproduction(disc)
+    if args.json:
+        print_json(rows)
+        return 0
+    print(f"Table 2 (eq 1) vs eqs 2-5 with Table 3 parameters ({disc.describe()})")
+    print(f"{'fibre':8s} {'F0_N':>6s} {'direction':9s} {'V_mm_s':>6s} {'paper':>7s} {'model':>7s} {'diff':>8s}")
+    for r in rows:
+        print(f"{r['fibre']:8s} {r['F0_N']:6.2f} {r['direction']:9s} {r['V_mm_s']:6.1f} "
+              f"{r['mu_k_paper']:7.3f} {r['mu_k_model']:7.4f} {r['mu_k_model'] - r['mu_k_paper']:+8.4f}")
+    err = max(abs(r["mu_k_model"] - r["mu_k_paper"]) for r in rows)
+    print(f"max |model - paper| = {err:.4f}")
+    return 0
+
+
+def _run_predict(args) -> int:
+    given = [args.b, args.p, args.n]
+    if args.fibre is not None and any(v is not None for v in given):
+        raise KnitsimInputError("--fibre and --b/--p/--n: give one or the other")
+    if args.fibre is not None:
+        b, p, n = capstan.table3_params(args.fibre)
+    elif all(v is not None for v in given):
+        b, p, n = given
+    else:
+        raise KnitsimInputError("parameters: give --fibre, or all of --b, --p and --n")
+    for name, v in (("--b", b), ("--p", p), ("--n", n)):
+        if not np.isfinite(v):
+            raise KnitsimInputError(f"{name} = {v}: not a finite number")
+    disc = _discretisation(args)
+    F1 = capstan.predict_f1(args.F0, args.V, args.direction, b, p, n, disc)
+    direction = "ascent" if capstan.direction_sign(args.direction) > 0 else "descent"
+    mu = capstan.mu_k_eq1(args.F0, F1, direction)
+    out = {"F0_N": args.F0, "V_mm_s": args.V, "direction": direction, "b": b, "p": p, "n": n,
+           "F1_N": F1, "mu_k": mu, "discretisation": disc.describe()}
+    if args.json:
+        print_json(out)
+        return 0
+    print(f"F0 = {args.F0:g} N, V = {args.V:g} mm/s, {direction}; b = {b:g}, p = {p:g}, n = {n:g} "
+          f"({disc.describe()})")
+    print(f"  F1 = {F1:.5g} N, mu_k (eq 1) = {mu:.5g}")
+    return 0

@@ -1,0 +1,234 @@
+"""``knitsim dahl``: identify Dahl friction from a hysteresis loop, or synthesise one.
+
+``knitsim dahl fit FILE.csv`` fits ``F = B x + F_dahl(x)`` (Dahl 1976, eq 1 of the
+Gemtex KES paper) to a loop and prints the parameters with standard errors;
+``knitsim dahl simulate ... --out FILE.csv`` writes a synthetic KES-like loop.
+
+CSV columns (first row names them, units in the name):
+
+* ``kappa_1_mm`` and ``M_N_mm_per_mm`` (default): a KES pure-bending loop,
+  curvature [1/mm] and bending moment per unit width [N.mm/mm].  Then sigma and
+  B are in N.mm^2/mm, Fc and F0 in N.mm/mm, and the paper's KES units
+  (sigma, B: gf.cm^2/cm; Fc: gf.cm/cm) are printed too.
+* ``x_mm`` and ``F_N``: a displacement [mm] / force [N] loop (sigma, B in N/mm;
+  Fc, F0 in N); used when the defaults are absent.
+* any pair given by ``--columns X,F``: parameters in the units of the columns.
+
+The bundled ``scenes/dahl/kes_yarn_loop.csv`` was written by::
+
+    knitsim dahl simulate --row yarn --noise 0.01 --seed 1 --out scenes/dahl/kes_yarn_loop.csv
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..data import dahl_kes
+from ..errors import KnitsimInputError
+from ..friction.dahl import DahlParams, fit_dahl_loop, kes_loop
+from .common import add_json_flag, print_json, read_csv_columns
+
+KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
+XF_COLUMNS = ("x_mm", "F_N")
+#: gram-force [N] and centimetre [mm]: the KES units of the paper's table
+GF_N = 9.80665e-3
+CM_MM = 10.0
+#: KES-FB2 pure-bending range, +-2.5 1/cm, in 1/mm
+KES_AMPLITUDE_1_MM = 2.5 / CM_MM
+
+
+def register(subparsers) -> None:
+    """Add ``knitsim dahl`` with its ``fit`` and ``simulate`` subcommands."""
+    parser = subparsers.add_parser(
+        "dahl", help="Dahl friction: fit a hysteresis loop (KES bending) or simulate one",
+        description=__doc__.split("\n\n")[0] + "\n\nSee 'knitsim dahl fit --help' and 'knitsim dahl simulate --help'.")
+    sub = parser.add_subparsers(dest="dahl_command", metavar="ACTION")
+    sub.required = True
+
+    fit = sub.add_parser(
+        "fit", help="fit Dahl parameters (sigma, Fc[, alpha][, B], F0) to a loop in a CSV file",
+        description="Fit F = B x + F_dahl(x history) by nonlinear least squares; print parameters with "
+                    "standard errors and write a PNG of data vs fit. Default columns kappa_1_mm, "
+                    "M_N_mm_per_mm (KES bending: curvature 1/mm, moment per width N.mm/mm), else x_mm, F_N.")
+    fit.add_argument("file", metavar="FILE.csv", help="the loop, samples in order of acquisition")
+    fit.add_argument("--columns", metavar="X,F", help="names of the input and output columns "
+                     "(default kappa_1_mm,M_N_mm_per_mm, else x_mm,F_N)")
+    fit.add_argument("--elastic", action="store_true", help="fit an elastic part B x in parallel")
+    fit.add_argument("--alpha", default="1", metavar="free|VALUE",
+                     help="Dahl shape exponent: 'free' to fit it, or a fixed value > 0 (default 1, as in the paper)")
+    fit.add_argument("--png", metavar="OUT.png", help="plot file (default FILE_dahl_fit.png next to the CSV)")
+    fit.add_argument("--no-png", action="store_true", help="do not write a plot")
+    add_json_flag(fit)
+    fit.set_defaults(func=run_fit)
+
+    sim = sub.add_parser(
+        "simulate", help="write a synthetic KES-like Dahl loop to a CSV file",
+        description="Write a loop 0 -> +A -> -A -> ... -> 0 of F = B x + F_dahl(x) (+ noise). Parameters are in "
+                    "the units of the columns (defaults: sigma, B in N.mm^2/mm, Fc in N.mm/mm), or taken from a "
+                    "row of the paper's table (--row, converted from gf.cm^2/cm and gf.cm/cm).")
+    sim.add_argument("--sigma", type=float, help="Dahl stiffness sigma (dF/dx at F = 0)")
+    sim.add_argument("--Fc", type=float, help="Coulomb force Fc")
+    sim.add_argument("--alpha", type=float, default=1.0, help="Dahl shape exponent (default 1)")
+    sim.add_argument("--row", metavar="SAMPLE",
+                     help="take sigma, Fc, alpha from this row of dahl_kes.toml ("
+                          + ", ".join(repr(r["sample"]) for r in dahl_kes()["dahl"]) + ")")
+    sim.add_argument("--B", type=float, default=0.0, help="elastic stiffness in parallel (default 0)")
+    sim.add_argument("--amplitude", type=float, default=KES_AMPLITUDE_1_MM,
+                     help=f"largest |x| (default {KES_AMPLITUDE_1_MM} 1/mm = KES 2.5 1/cm)")
+    sim.add_argument("--cycles", type=int, default=3, help="number of full swings (default 3)")
+    sim.add_argument("--points", type=int, default=100, help="samples per quarter cycle (default 100)")
+    sim.add_argument("--noise", type=float, default=0.0,
+                     help="standard deviation of Gaussian noise on F, as a fraction of Fc (default 0)")
+    sim.add_argument("--seed", type=int, default=1, help="seed of the noise (default 1)")
+    sim.add_argument("--columns", metavar="X,F", default=",".join(KES_COLUMNS),
+                     help="names of the columns written (default kappa_1_mm,M_N_mm_per_mm)")
+    sim.add_argument("--out", required=True, metavar="FILE.csv", help="CSV file to write")
+    sim.set_defaults(func=run_simulate)
+
+
+def _parse_columns(text: str) -> tuple[str, str]:
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2 or not all(parts) or parts[0] == parts[1]:
+        raise KnitsimInputError(f"--columns = {text!r}: expected two different names 'X,F'")
+    return parts[0], parts[1]
+
+
+def _choose_columns(path: Path, columns: str | None) -> tuple[str, str]:
+    if columns:
+        return _parse_columns(columns)
+    if not path.is_file():
+        raise KnitsimInputError(f"{path}: no such file")
+    with path.open(newline="", encoding="utf-8") as fh:
+        header = [h.strip() for h in next(csv.reader(fh), [])]
+    if all(c in header for c in KES_COLUMNS) or not all(c in header for c in XF_COLUMNS):
+        return KES_COLUMNS
+    return XF_COLUMNS
+
+
+def _units(xcol: str, fcol: str) -> dict[str, str]:
+    if (xcol, fcol) == KES_COLUMNS:
+        f_unit, s_unit = "N.mm/mm", "N.mm^2/mm"
+    elif (xcol, fcol) == XF_COLUMNS:
+        f_unit, s_unit = "N", "N/mm"
+    else:
+        f_unit, s_unit = f"[{fcol}]", f"[{fcol}]/[{xcol}]"
+    return {"sigma": s_unit, "Fc": f_unit, "alpha": "", "B": s_unit, "F0": f_unit}
+
+
+def _parse_alpha(text: str) -> float | None:
+    if text.strip().lower() == "free":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise KnitsimInputError(f"--alpha = {text!r}: expected 'free' or a number > 0") from None
+    if not (math.isfinite(value) and value > 0):
+        raise KnitsimInputError(f"--alpha = {text!r}: expected 'free' or a number > 0")
+    return value
+
+
+def _plot(path: Path, x, F, fit, xcol: str, fcol: str) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 4.8))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(x, F, ".", ms=2.5, color="0.45", label="data")
+    ax.plot(x, fit.predict(x), "-", lw=1.2, color="C3",
+            label=f"Dahl fit: sigma={fit.sigma:.4g}, Fc={fit.Fc:.4g}, alpha={fit.alpha:.3g}"
+                  + (f", B={fit.B:.4g}" if "B" in fit.names else ""))
+    ax.set_xlabel(xcol)
+    ax.set_ylabel(fcol)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="center", fontsize=8)  # a Dahl loop is empty inside
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=120)
+    except OSError as exc:
+        raise KnitsimInputError(f"--png = {str(path)!r}: cannot write ({exc.strerror})") from None
+
+
+def run_fit(args) -> int:
+    """``knitsim dahl fit``."""
+    path = Path(args.file)
+    xcol, fcol = _choose_columns(path, args.columns)
+    alpha = _parse_alpha(args.alpha)
+    data = read_csv_columns(path, [xcol, fcol])
+    x, F = data[xcol], data[fcol]
+    try:
+        fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha)
+    except KnitsimInputError as exc:
+        raise KnitsimInputError(f"{path}: {exc}") from None
+    png = None
+    if not args.no_png:
+        png = Path(args.png) if args.png else path.with_name(path.stem + "_dahl_fit.png")
+        _plot(png, x, F, fit, xcol, fcol)
+    units = _units(xcol, fcol)
+    values = {n: getattr(fit, n) for n in ("sigma", "Fc", "alpha", "B", "F0")}
+    kes = None
+    if (xcol, fcol) == KES_COLUMNS:
+        # N.mm^2/mm -> gf.cm^2/cm and N.mm/mm -> gf.cm/cm (the paper's table)
+        to_kes = {"sigma": 1.0 / (GF_N * CM_MM), "B": 1.0 / (GF_N * CM_MM), "Fc": 1.0 / GF_N, "F0": 1.0 / GF_N}
+        kes = {n: {"value": values[n] * f, "stderr": fit.stderr.get(n, 0.0) * f} for n, f in to_kes.items()}
+    if args.json:
+        print_json({
+            "file": str(path), "columns": {"x": xcol, "F": fcol}, "n_points": fit.n_points,
+            "reversals": fit.reversals, "parameters": values, "stderr": fit.stderr, "fixed": fit.fixed,
+            "units": units, "kes_units": kes, "rms": fit.rms, "success": fit.success, "message": fit.message,
+            "png": str(png) if png else None,
+        })
+        return 0
+    print(f"Dahl fit of {path} ({fit.n_points} points, {fit.reversals} reversals; x = {xcol}, F = {fcol})")
+    for n in ("sigma", "Fc", "alpha", "B", "F0"):
+        if n in fit.stderr:
+            line = f"  {n:<6} = {values[n]:.6g} +- {fit.stderr[n]:.2g} {units[n]}".rstrip()
+        else:
+            line = f"  {n:<6} = {values[n]:.6g} {units[n]}".rstrip() + " (fixed)"
+        if kes and n in kes and n in fit.stderr:
+            unit = "gf.cm/cm" if n in ("Fc", "F0") else "gf.cm^2/cm"
+            line += f"   [{kes[n]['value']:.4g} +- {kes[n]['stderr']:.2g} {unit}]"
+        print(line)
+    print(f"  rms residual = {fit.rms:.3g} {units['F0']}" + ("" if fit.success else f"  (optimizer: {fit.message})"))
+    if png:
+        print(f"  plot: {png}")
+    return 0
+
+
+def run_simulate(args) -> int:
+    """``knitsim dahl simulate``."""
+    xcol, fcol = _parse_columns(args.columns)
+    if args.row is not None:
+        if args.sigma is not None or args.Fc is not None:
+            raise KnitsimInputError("--row: give either --row or --sigma/--Fc, not both")
+        rows = {r["sample"]: r for r in dahl_kes()["dahl"]}
+        if args.row not in rows:
+            raise KnitsimInputError(f"--row = {args.row!r}: expected one of {', '.join(map(repr, rows))}")
+        r = rows[args.row]
+        # paper units gf.cm^2/cm and gf.cm/cm -> N.mm^2/mm and N.mm/mm
+        params = DahlParams(r["sigma"] * GF_N * CM_MM, r["Fc"] * GF_N, float(r["alpha"]))
+    else:
+        if args.sigma is None or args.Fc is None:
+            raise KnitsimInputError("--sigma/--Fc: both are required (or use --row SAMPLE)")
+        params = DahlParams(args.sigma, args.Fc, args.alpha)
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        raise KnitsimInputError(f"--noise = {args.noise!r}: must be >= 0")
+    if not math.isfinite(args.B):
+        raise KnitsimInputError(f"--B = {args.B!r}: must be finite")
+    x, F = kes_loop(params, args.amplitude, args.cycles, args.points, B=args.B,
+                    noise=args.noise * params.Fc, seed=args.seed)
+    out = Path(args.out)
+    try:
+        with out.open("w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow([xcol, fcol])
+            for xi, Fi in zip(x, F):
+                w.writerow([f"{xi:.12g}", f"{Fi:.12g}"])
+    except OSError as exc:
+        raise KnitsimInputError(f"--out = {str(out)!r}: cannot write ({exc.strerror})") from None
+    print(f"wrote {x.size} samples to {out} (sigma={params.sigma:.6g}, Fc={params.Fc:.6g}, "
+          f"alpha={params.alpha:g}, B={args.B:g})")
+    return 0

@@ -1,0 +1,567 @@
+"""Dahl (1976) rate-independent friction and its identification from a loop.
+
+Source: ``../seeds/001_2969307b2af435f2.txt`` (Gemtex, "Modeling friction for
+yarn/fabric simulation - application to bending hysteresis"), eqs 1-3, and the
+parameters it identified from KES bending loops (``knitsim/data/dahl_kes.toml``).
+
+The law (eq 1; the extracted text prints ``dF/dt`` on the left, but the paper
+calls the model position dependent and derives eq 2 from ``dF/dx``)::
+
+    dF/dx = sigma (1 - (F/Fc) s)^alpha,     s = sign(dx)
+
+Integration over an increment
+-----------------------------
+Along one increment the direction ``s`` is fixed and ``p = |dx|`` grows.  With
+``u = 1 - s F/Fc`` the law becomes ``du/dp = -(sigma/Fc) u^alpha``: separable.
+
+* ``alpha = 1``: ``u = u0 exp(-sigma p/Fc)``, i.e. the exact update
+  ``F_new = s Fc + (F_old - s Fc) exp(-sigma |dx| / Fc)``.
+* ``alpha != 1``: ``u^(1-alpha) = u0^(1-alpha) + (alpha-1) (sigma/Fc) p``, written
+  without infinities as ``u = u0 (1 + q)^(-1/(alpha-1))`` with
+  ``q = (alpha-1) (sigma/Fc) p |u0|^(alpha-1)``.  For ``alpha > 1`` the force tends
+  to ``s Fc`` only asymptotically; for ``alpha < 1`` it reaches it after the finite
+  travel ``p* = u0^(1-alpha) Fc / ((1-alpha) sigma)`` (``1 + q <= 0``) and stays
+  there (``u = 0`` is the physical branch of the non-Lipschitz ODE).
+* ``|F| > Fc`` in the direction of motion (``u < 0``: a state left over after Fc
+  dropped, e.g. a crossing whose ratio m fell) is not covered by eq 1 for
+  non-integer alpha.  We extend the law oddly, ``dF/dx = sigma sign(u) |u|^alpha``,
+  so the force relaxes back to ``s Fc`` by the same closed form applied to
+  ``|u|``; for ``alpha = 1`` this is eq 1 itself.
+
+``1 + q`` is formed with ``log1p`` so that alpha close to 1 loses no accuracy.
+
+Dahl at the crossing
+--------------------
+The same function updates the friction ratio at a yarn crossing (``model.md``,
+"Dahl at the crossing"): call :func:`dahl_increment` with ``F = tan(phi)``,
+``dx = d xi`` (slip, positive in loading), ``Fc = m`` (the apparent ratio, eq 10
+of Dusserre 2015) and ``sigma`` = the crossing's friction stiffness [1/mm].
+
+Identification
+--------------
+:func:`fit_dahl_loop` fits ``F = B x + F_dahl(x history; sigma, Fc, alpha, F0)``
+to a measured loop by nonlinear least squares (the paper's method) and reports
+standard errors from the Jacobian.  It is unit-agnostic: ``sigma`` and ``B`` come
+out in force-units per x-unit, ``Fc`` and ``F0`` in force-units.  For a KES
+bending loop (M per width vs curvature) the paper's parameters are in
+gf.cm^2/cm (sigma) and gf.cm/cm (Fc); see the module :mod:`knitsim.cli.dahl`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import KnitsimInputError
+
+#: Fewest samples accepted for an identification.
+MIN_FIT_POINTS = 20
+#: A reversal counts when x travels back by this fraction of its range.
+REVERSAL_FRACTION = 0.05
+
+
+@dataclass(frozen=True)
+class DahlParams:
+    """Parameters of the Dahl law, eq 1.
+
+    Attributes
+    ----------
+    sigma : float
+        Stiffness at zero force, dF/dx at F = 0 [force / displacement].
+    Fc : float
+        Coulomb (saturation) force [force].
+    alpha : float
+        Shape exponent (the paper uses 1).
+    """
+
+    sigma: float
+    Fc: float
+    alpha: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("sigma", "Fc", "alpha"):
+            value = getattr(self, name)
+            try:
+                ok = math.isfinite(float(value)) and float(value) > 0.0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise KnitsimInputError(f"Dahl parameter {name} = {value!r}: must be a finite number > 0")
+
+    def response(self, x, F0: float = 0.0) -> np.ndarray:
+        """Force history along the displacement history ``x`` (see :func:`dahl_response`)."""
+        return dahl_response(x, self.sigma, self.Fc, self.alpha, F0)
+
+
+# --------------------------------------------------------------------------
+# eq 1 integrated over an increment
+# --------------------------------------------------------------------------
+def dahl_increment(F, dx, sigma, Fc, alpha=1.0):
+    """Exact update of the Dahl force over a displacement increment (eq 1).
+
+    Parameters
+    ----------
+    F : array_like
+        Force before the increment [force]; at a crossing, ``tan(phi)``.
+    dx : array_like
+        Displacement increment [length]; at a crossing, the slip ``d xi``.
+    sigma, Fc, alpha : array_like
+        Dahl parameters (> 0); at a crossing ``Fc = m`` and ``sigma`` the
+        friction stiffness.  All arguments broadcast together (struct of arrays).
+
+    Returns
+    -------
+    ndarray
+        Force after the increment, float64, broadcast shape.  ``dx = 0`` leaves
+        ``F`` unchanged.  Exact for every alpha (closed form, module docstring).
+    """
+    F, dx, sigma, Fc, alpha = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (F, dx, sigma, Fc, alpha)))
+    s = np.sign(dx)
+    p = np.abs(dx)
+    k = sigma / Fc
+    one = alpha == 1.0
+    # alpha = 1: F_new = s Fc + (F - s Fc) exp(-sigma |dx| / Fc)
+    F1 = s * Fc + (F - s * Fc) * np.exp(-k * p)
+    # alpha != 1: u = 1 - s F/Fc, |u| by the separable closed form, sign kept
+    u = 1.0 - s * F / Fc
+    w = np.abs(u)
+    am1 = np.where(one, 1.0, alpha - 1.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        q = am1 * k * p * w ** am1
+        w_new = np.where(q <= -1.0, 0.0, w * np.exp(-np.log1p(np.maximum(q, -1.0)) / am1))
+    w_new = np.where(w == 0.0, 0.0, w_new)
+    Fa = s * Fc * (1.0 - np.sign(u) * w_new)
+    out = np.where(one, F1, Fa)
+    out = np.where(s == 0.0, F, out)
+    return out[()] if out.ndim == 0 else out
+
+
+def dahl_slope(F, s, sigma, Fc, alpha=1.0):
+    """Right-hand side of eq 1, dF/dx, extended oddly for ``|F| > Fc``.
+
+    Parameters
+    ----------
+    F : array_like
+        Force [force].
+    s : array_like
+        Direction of motion, +1 or -1.
+    sigma, Fc, alpha : array_like
+        Dahl parameters.
+
+    Returns
+    -------
+    ndarray
+        ``sigma sign(u) |u|^alpha`` with ``u = 1 - s F/Fc``.
+    """
+    u = 1.0 - np.asarray(s, dtype=float) * np.asarray(F, dtype=float) / Fc
+    return sigma * np.sign(u) * np.abs(u) ** alpha
+
+
+def dahl_response(x, sigma, Fc, alpha=1.0, F0=0.0):
+    """Run a displacement history and return the Dahl force history.
+
+    Parameters
+    ----------
+    x : array_like, shape (n,)
+        Displacement samples [length].  Only the path matters (rate independence).
+    sigma, Fc, alpha, F0 : array_like
+        Parameters and initial force; they broadcast together to a batch shape S.
+
+    Returns
+    -------
+    ndarray, shape S + (n,)
+        ``F[..., 0] = F0``; later samples follow :func:`dahl_increment`.
+
+    Notes
+    -----
+    Within a monotone run the closed form is applied to the travel since the
+    run's start, which equals stepping sample by sample (the update is the exact
+    flow of eq 1) and costs one vectorised call per run.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 1 or x.size == 0:
+        raise KnitsimInputError(f"displacement history x: expected a non-empty 1-D array, got shape {x.shape}")
+    sigma, Fc, alpha, F0 = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (sigma, Fc, alpha, F0)))
+    shape = sigma.shape
+    F = np.empty(shape + (x.size,))
+    F[..., 0] = F0
+    if x.size == 1:
+        return F
+    step_dir = np.sign(np.diff(x))
+    # zero steps inherit the direction of the run they sit in
+    nz = np.flatnonzero(step_dir)
+    if nz.size == 0:
+        F[...] = F0[..., None]
+        return F
+    idx = np.where(step_dir != 0, np.arange(step_dir.size), -1)
+    idx = np.maximum.accumulate(idx)
+    d = np.where(idx >= 0, step_dir[np.maximum(idx, 0)], step_dir[nz[0]])
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(d)) + 1))
+    ends = np.concatenate((starts[1:], [d.size]))
+    sig_b, Fc_b, al_b = sigma[..., None], Fc[..., None], alpha[..., None]
+    for a, b in zip(starts, ends):
+        travel = x[a + 1:b + 1] - x[a]
+        F[..., a + 1:b + 1] = dahl_increment(F[..., a, None], travel, sig_b, Fc_b, al_b)
+    return F
+
+
+# --------------------------------------------------------------------------
+# loops
+# --------------------------------------------------------------------------
+def steady_loop_peak(sigma, Fc, amplitude):
+    """Peak force of the steady alpha = 1 loop between ``-A`` and ``+A``.
+
+    Returns ``Fc tanh(sigma A / Fc)``: the fixed point of the exact update over
+    one branch, ``F = Fc + (-F - Fc) exp(-2 sigma A / Fc)``.
+    """
+    return Fc * np.tanh(sigma * amplitude / Fc)
+
+
+def steady_loop_energy(sigma, Fc, amplitude):
+    """Energy dissipated per steady alpha = 1 cycle between ``-A`` and ``+A``.
+
+    Integrating the exact ascending branch and using the loop's odd symmetry:
+    ``W = 4 Fc (A - tanh(k A) / k)``, ``k = sigma / Fc``; ``W ~ 4 Fc A`` (Coulomb
+    rectangle) for ``k A >> 1`` and ``4 sigma^2 A^3 / (3 Fc)`` for small loops.
+    """
+    k = sigma / Fc
+    return 4.0 * Fc * (amplitude - np.tanh(k * amplitude) / k)
+
+
+def loop_work(x, F):
+    """Work ``integral F dx`` along a sampled path (trapezoid rule).
+
+    Over a closed cycle this is the loop area, the energy dissipated per cycle.
+    """
+    x = np.asarray(x, dtype=float)
+    F = np.asarray(F, dtype=float)
+    return float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(x)))
+
+
+def kes_loop_path(amplitude, cycles=3, points_per_quarter=100):
+    """Curvature path of a KES pure-bending test: 0 -> +K -> -K -> ... -> 0.
+
+    Parameters
+    ----------
+    amplitude : float
+        Largest |x| (KES: 2.5 1/cm = 0.25 1/mm).
+    cycles : int
+        Number of full +K -> -K swings (each starts at +K and returns to -K).
+    points_per_quarter : int
+        Samples per quarter cycle (a travel of ``amplitude``).
+
+    Returns
+    -------
+    ndarray
+        Piecewise-linear path that hits every turning point exactly.
+    """
+    if not (amplitude > 0 and math.isfinite(amplitude)):
+        raise KnitsimInputError(f"amplitude = {amplitude!r}: must be a finite number > 0")
+    if int(cycles) < 1:
+        raise KnitsimInputError(f"cycles = {cycles!r}: must be >= 1")
+    if int(points_per_quarter) < 2:
+        raise KnitsimInputError(f"points_per_quarter = {points_per_quarter!r}: must be >= 2")
+    n = int(points_per_quarter)
+    vertices = [0.0] + [amplitude, -amplitude] * int(cycles) + [0.0]
+    parts = [np.array([0.0])]
+    for a, b in zip(vertices[:-1], vertices[1:]):
+        m = max(1, int(round(n * abs(b - a) / amplitude)))
+        parts.append(np.linspace(a, b, m + 1)[1:])
+    return np.concatenate(parts)
+
+
+def kes_loop(params: DahlParams, amplitude, cycles=3, points_per_quarter=100, B=0.0, F0=0.0,
+             noise=0.0, seed=None):
+    """Synthetic KES-like loop ``F = B x + F_dahl(x) + noise`` for tests and demos.
+
+    Parameters
+    ----------
+    params : DahlParams
+        Dahl parameters.
+    amplitude, cycles, points_per_quarter
+        See :func:`kes_loop_path`.
+    B : float
+        Elastic stiffness in parallel [force / displacement].
+    F0 : float
+        Initial Dahl force.
+    noise : float
+        Standard deviation of Gaussian noise added to F [force].
+    seed : int, optional
+        Seed of the noise generator.
+
+    Returns
+    -------
+    x, F : ndarray
+    """
+    x = kes_loop_path(amplitude, cycles, points_per_quarter)
+    F = B * x + params.response(x, F0)
+    if noise:
+        F = F + np.random.default_rng(seed).normal(0.0, noise, size=x.size)
+    return x, F
+
+
+def turning_points(x, fraction=REVERSAL_FRACTION):
+    """Indices of the significant reversals of ``x``.
+
+    A reversal counts when ``x`` travels back by more than ``fraction`` of its
+    range from a running extreme, so noise does not create reversals.
+    """
+    x = np.asarray(x, dtype=float)
+    rng = float(np.ptp(x)) if x.size else 0.0
+    if rng == 0.0:
+        return []
+    h = fraction * rng
+    turns: list[int] = []
+    direction = 0  # +1 rising, -1 falling, 0 not yet known
+    ext_i = 0      # index of the running extreme of the current run
+    for i in range(1, x.size):
+        if direction == 0:
+            if x[i] - x[0] > h:
+                direction, ext_i = 1, int(np.argmax(x[: i + 1]))
+            elif x[0] - x[i] > h:
+                direction, ext_i = -1, int(np.argmin(x[: i + 1]))
+        elif direction > 0:
+            if x[i] >= x[ext_i]:
+                ext_i = i
+            elif x[ext_i] - x[i] > h:
+                turns.append(ext_i)
+                direction, ext_i = -1, i
+        else:
+            if x[i] <= x[ext_i]:
+                ext_i = i
+            elif x[i] - x[ext_i] > h:
+                turns.append(ext_i)
+                direction, ext_i = 1, i
+    return turns
+
+
+# --------------------------------------------------------------------------
+# identification
+# --------------------------------------------------------------------------
+@dataclass
+class DahlFit:
+    """Result of :func:`fit_dahl_loop` (fields in the units of the data).
+
+    Attributes
+    ----------
+    sigma, Fc, alpha : float
+        Dahl parameters (eq 1).
+    B : float
+        Elastic stiffness in parallel (0 when not fitted).
+    F0 : float
+        Dahl force at the first sample (the initial friction state).
+    stderr : dict of str to float
+        Standard errors of the fitted parameters (fixed ones are absent).
+    names : tuple of str
+        Fitted parameters, in the order of ``cov``.
+    cov : ndarray
+        Covariance of the fitted parameters, ``s^2 (J^T J)^-1``.
+    rms : float
+        Root-mean-square residual.
+    n_points : int
+        Number of samples.
+    reversals : int
+        Significant reversals found in x.
+    success : bool
+    status : int
+    message : str
+        As reported by :func:`scipy.optimize.least_squares`.
+    nfev : int
+    """
+
+    sigma: float
+    Fc: float
+    alpha: float
+    B: float
+    F0: float
+    stderr: dict
+    names: tuple
+    cov: np.ndarray
+    rms: float
+    n_points: int
+    reversals: int
+    success: bool
+    status: int
+    message: str
+    nfev: int
+    fixed: dict = field(default_factory=dict)
+
+    @property
+    def params(self) -> DahlParams:
+        """The Dahl parameters as a :class:`DahlParams`."""
+        return DahlParams(self.sigma, self.Fc, self.alpha)
+
+    def predict(self, x) -> np.ndarray:
+        """Fitted force ``B x + F_dahl(x)`` along ``x`` starting from ``F0``."""
+        x = np.asarray(x, dtype=float)
+        return self.B * x + dahl_response(x, self.sigma, self.Fc, self.alpha, self.F0)
+
+
+def _validate_loop(x, F):
+    x = np.asarray(x, dtype=float)
+    F = np.asarray(F, dtype=float)
+    if x.ndim != 1 or F.ndim != 1 or x.size != F.size:
+        raise KnitsimInputError(f"loop data: x and F must be 1-D of equal length (got {x.shape} and {F.shape})")
+    if x.size < MIN_FIT_POINTS:
+        raise KnitsimInputError(f"loop data: {x.size} points, need at least {MIN_FIT_POINTS}")
+    for name, a in (("x", x), ("F", F)):
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            raise KnitsimInputError(f"loop data: {name}[{bad[0]}] = {a[bad[0]]!r} is not finite")
+    turns = turning_points(x)
+    if not turns:
+        raise KnitsimInputError("loop data: x has no reversal (a hysteresis loop must go and come back)")
+    return x, F, turns
+
+
+def _local_slope(x, F, idx):
+    """Least-squares slope dF/dx over the samples ``idx``."""
+    xs, Fs = x[idx], F[idx]
+    if xs.size < 2 or np.ptp(xs) == 0:
+        return 0.0
+    return float(np.polyfit(xs, Fs, 1)[0])
+
+
+def initial_guess(x, F, elastic=False, turns=None):
+    """Starting values (sigma, Fc, B, F0) read off a loop.
+
+    * Fc: half the loop width at mid-range (both branches there; the elastic
+      part cancels).  For a steady alpha = 1 loop the width is
+      ``2 Fc (1 - sech(k A))``, close to ``2 Fc`` once ``k A >> 1``.
+    * B: slope just before the last reversal (the Dahl part has saturated).
+    * sigma: slope just after the last reversal is ``B + sigma (1 + F_r/Fc)``
+      (eq 1 with ``s`` flipped at ``F = F_r``), about ``B + 2 sigma`` on a saturated
+      loop.
+    * F0: first sample minus the elastic part, clipped to ``[-Fc, Fc]``.
+    """
+    x = np.asarray(x, dtype=float)
+    F = np.asarray(F, dtype=float)
+    if turns is None:
+        turns = turning_points(x)
+    rng = float(np.ptp(x))
+    mid = 0.5 * (x.max() + x.min())
+    # branch values at mid-range, from the last ascending and descending branches
+    bounds = [0] + list(turns) + [x.size - 1]
+    asc, desc = [], []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        seg_x, seg_F = x[a:b + 1], F[a:b + 1]
+        if seg_x.min() <= mid <= seg_x.max() and np.ptp(seg_x) > 0:
+            order = np.argsort(seg_x, kind="stable")
+            val = float(np.interp(mid, seg_x[order], seg_F[order]))
+            (asc if seg_x[-1] > seg_x[0] else desc).append(val)
+    if asc and desc:
+        Fc0 = 0.5 * abs(desc[-1] - asc[-1])
+    else:
+        Fc0 = 0.25 * float(np.ptp(F))
+    Fc0 = max(Fc0, 1e-6 * max(float(np.ptp(F)), 1e-300))
+    r = turns[-1]
+    window_after = [i for i in range(r, min(x.size, r + 50)) if abs(x[i] - x[r]) <= 0.03 * rng]
+    window_before = [i for i in range(max(0, r - 50), r + 1) if abs(x[i] - x[r]) <= 0.1 * rng]
+    slope_after = abs(_local_slope(x, F, window_after))
+    B0 = max(_local_slope(x, F, window_before), 0.0) if elastic else 0.0
+    ratio = min(abs(F[r] - B0 * x[r]) / Fc0, 1.0)
+    sigma0 = max(slope_after - B0, 0.0) / (1.0 + ratio)
+    if sigma0 <= 0.0:
+        sigma0 = 4.0 * Fc0 / max(rng, 1e-300)
+    F0 = float(np.clip(F[0] - B0 * x[0], -Fc0, Fc0))
+    return sigma0, Fc0, B0, F0
+
+
+def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None):
+    """Identify Dahl parameters from a measured hysteresis loop.
+
+    Model: ``F = B x + F_dahl(x history; sigma, Fc, alpha, F0)`` (B = 0 unless
+    ``elastic``), fitted by nonlinear least squares as in the paper
+    (:func:`scipy.optimize.least_squares`, trust-region reflective with
+    sigma, Fc, alpha > 0), from :func:`initial_guess` and two restarts with
+    sigma scaled by 1/3 and 3 (the best one is kept).
+
+    Parameters
+    ----------
+    x, F : array_like, shape (n,)
+        The loop: displacement-like input (e.g. curvature) and the measured
+        force-like output (e.g. moment per width), in order of acquisition.
+    elastic : bool
+        Fit an elastic part ``B x`` in parallel.
+    alpha : float or None
+        Fixed shape exponent (default 1, as in the paper); ``None`` fits it.
+    initial : dict, optional
+        Starting values overriding the guesses (keys sigma, Fc, alpha, B, F0).
+
+    Returns
+    -------
+    DahlFit
+        Parameters, standard errors ``sqrt(diag(s^2 (J^T J)^-1))`` with
+        ``s^2 = SSR / (n - p)``, fit statistics.
+
+    Raises
+    ------
+    KnitsimInputError
+        Fewer than :data:`MIN_FIT_POINTS` samples, non-finite values, or no
+        reversal in ``x``.
+    """
+    x, F, turns = _validate_loop(x, F)
+    if alpha is not None and not (math.isfinite(alpha) and alpha > 0):
+        raise KnitsimInputError(f"alpha = {alpha!r}: must be a finite number > 0 (or None to fit it)")
+    # work in scaled units so that every parameter is of order one
+    xs = max(float(np.max(np.abs(x))), 1e-300)
+    Fs = max(float(np.max(np.abs(F - np.mean(F)))), 1e-300)
+    xn, Fn = x / xs, F / Fs
+    sigma0, Fc0, B0, F00 = initial_guess(xn, Fn, elastic, turns)
+    scale = {"sigma": Fs / xs, "Fc": Fs, "alpha": 1.0, "B": Fs / xs, "F0": Fs}
+    start = {"sigma": sigma0, "Fc": Fc0, "alpha": 1.0 if alpha is None else alpha, "B": B0, "F0": F00}
+    if initial:
+        for key, value in initial.items():
+            if key not in start:
+                raise KnitsimInputError(f"initial: unknown parameter {key!r}")
+            start[key] = float(value) / scale[key]
+    names = ["sigma", "Fc"] + (["alpha"] if alpha is None else []) + (["B"] if elastic else []) + ["F0"]
+    fixed = {}
+    if alpha is not None:
+        fixed["alpha"] = float(alpha)
+    if not elastic:
+        fixed["B"] = 0.0
+    lower = np.array([1e-12 if n in ("sigma", "Fc") else (0.02 if n == "alpha" else -np.inf) for n in names])
+    upper = np.array([50.0 if n == "alpha" else np.inf for n in names])
+
+    def unpack(theta):
+        v = dict(zip(names, theta))
+        a = v.get("alpha", start["alpha"])
+        b = v.get("B", 0.0)
+        return v["sigma"], v["Fc"], a, b, v["F0"]
+
+    def residual(theta):
+        sg, fc, a, b, f0 = unpack(theta)
+        return b * xn + dahl_response(xn, sg, fc, a, f0) - Fn
+
+    best = None
+    for factor in (1.0, 1.0 / 3.0, 3.0):
+        th0 = np.array([start[n] * (factor if n == "sigma" else 1.0) for n in names])
+        th0 = np.clip(th0, lower + 1e-9, upper - 1e-9)
+        res = least_squares(residual, th0, jac="3-point", bounds=(lower, upper), method="trf",
+                            x_scale="jac", ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=2000)
+        if best is None or res.cost < best.cost:
+            best = res
+    res = best
+    n, p = x.size, len(names)
+    J = res.jac
+    dof = max(n - p, 1)
+    s2 = 2.0 * res.cost / dof
+    _, sv, vt = np.linalg.svd(J, full_matrices=False)
+    tol = np.finfo(float).eps * max(J.shape) * (sv[0] if sv.size else 0.0)
+    inv = np.where(sv > tol, 1.0 / np.where(sv > tol, sv, 1.0) ** 2, np.inf)
+    cov_n = (vt.T * inv) @ vt * s2
+    if np.any(~np.isfinite(inv)):
+        cov_n = np.full((p, p), np.inf)
+    sc = np.array([scale[nm] for nm in names])
+    cov = cov_n * np.outer(sc, sc)
+    sg, fc, a, b, f0 = unpack(res.x)
+    values = {"sigma": sg * scale["sigma"], "Fc": fc * scale["Fc"], "alpha": a, "B": b * scale["B"], "F0": f0 * scale["F0"]}
+    stderr = {nm: float(math.sqrt(cov[i, i])) if math.isfinite(cov[i, i]) else math.inf for i, nm in enumerate(names)}
+    return DahlFit(sigma=float(values["sigma"]), Fc=float(values["Fc"]), alpha=float(values["alpha"]),
+                   B=float(values["B"]), F0=float(values["F0"]), stderr=stderr, names=tuple(names), cov=cov,
+                   rms=float(math.sqrt(2.0 * res.cost / n)) * Fs, n_points=n, reversals=len(turns),
+                   success=bool(res.success), status=int(res.status), message=str(res.message),
+                   nfev=int(res.nfev), fixed=fixed)

@@ -1,0 +1,307 @@
+"""Dahl law (Gemtex KES paper, eqs 1-3): limits, exactness, energy, identification.
+
+Sources of expected values: eq 1 itself (slope), its closed-form integrals
+(derived in knitsim/friction/dahl.py), an independent ODE integration
+(scipy solve_ivp, DOP853), the steady-loop closed forms derived from the exact
+branch (peak Fc tanh(kA), area 4 Fc (A - tanh(kA)/k)), the energy balance of
+eq 3 (stored F^2/(2 sigma), dissipation rate F^2 |v| / Fc), and the parameters
+of knitsim/data/dahl_kes.toml (paper table) for identification.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from knitsim.data import dahl_kes
+from knitsim.errors import KnitsimInputError
+from knitsim.friction.dahl import (
+    DahlParams,
+    dahl_increment,
+    dahl_response,
+    fit_dahl_loop,
+    initial_guess,
+    kes_loop,
+    kes_loop_path,
+    loop_work,
+    steady_loop_energy,
+    steady_loop_peak,
+    turning_points,
+)
+
+ROWS = dahl_kes()["dahl"]
+KES_K = 2.5  # KES-FB2 pure bending range, +-2.5 1/cm (units of the paper's table)
+
+
+def eq1_slope(F, s, sigma, Fc, alpha):
+    """dF/dx of eq 1, extended oddly beyond Fc (sign(u)|u|^alpha)."""
+    u = 1.0 - s * F / Fc
+    return sigma * math.copysign(abs(u) ** alpha, u)
+
+
+def ode_increment(F0, dx, sigma, Fc, alpha):
+    """Independent method: integrate eq 1 over dx with solve_ivp."""
+    s = math.copysign(1.0, dx)
+    sol = solve_ivp(lambda x, F: [eq1_slope(F[0], s, sigma, Fc, alpha)], (0.0, dx), [F0],
+                    method="DOP853", rtol=1e-12, atol=1e-14 * Fc)
+    return sol.y[0, -1]
+
+
+def step_through(x, F0, sigma, Fc, alpha):
+    """Drive the increment update sample by sample (as a cell does)."""
+    F = [F0]
+    for d in np.diff(x):
+        F.append(float(dahl_increment(F[-1], d, sigma, Fc, alpha)))
+    return np.array(F)
+
+
+# ---------------------------------------------------------------- parameters
+@pytest.mark.parametrize("field,kwargs", [
+    ("sigma", dict(sigma=0.0, Fc=1.0)),
+    ("Fc", dict(sigma=1.0, Fc=-1.0)),
+    ("alpha", dict(sigma=1.0, Fc=1.0, alpha=float("nan"))),
+])
+def test_params_validation_names_field(field, kwargs):
+    with pytest.raises(KnitsimInputError, match=field):
+        DahlParams(**kwargs)
+
+
+# ---------------------------------------------------------------- limits
+@pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_small_displacement_stiffness_is_sigma(alpha, sign):
+    # eq 1 at F = 0: dF/dx = sigma for either direction
+    sigma, Fc = 3.0, 0.7
+    dx = sign * 1e-9 * Fc / sigma
+    assert float(dahl_increment(0.0, dx, sigma, Fc, alpha)) / dx == pytest.approx(sigma, rel=1e-7)
+
+
+@pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0])
+@pytest.mark.parametrize("F", [-0.9, 0.4, 1.3])
+def test_local_slope_matches_eq1(alpha, F):
+    # eq 1 away from F = 0, including the odd extension beyond Fc
+    sigma, Fc, s = 2.0, 1.0, 1.0
+    dx = 1e-8
+    slope = (float(dahl_increment(F, dx, sigma, Fc, alpha)) - F) / dx
+    assert slope == pytest.approx(eq1_slope(F, s, sigma, Fc, alpha), rel=1e-6, abs=1e-7)
+
+
+def test_zero_increment_keeps_state():
+    assert float(dahl_increment(0.37, 0.0, 2.0, 1.0, 1.7)) == 0.37
+
+
+@pytest.mark.parametrize("alpha", [1.0, 0.5])
+@pytest.mark.parametrize("s", [1.0, -1.0])
+def test_saturates_at_plus_minus_Fc(alpha, s):
+    # closed form: alpha = 1 decays like exp(-k p); alpha < 1 reaches Fc exactly
+    sigma, Fc = 2.0, 0.5
+    F = dahl_increment(-s * 0.8 * Fc, s * 40.0 * Fc / sigma, sigma, Fc, alpha)
+    assert float(F) == pytest.approx(s * Fc, rel=1e-15, abs=0)
+
+
+def test_alpha_above_one_saturates_asymptotically():
+    # alpha = 2: u = u0 / (1 + k p u0) -> 1/(k p); never quite reaches Fc
+    sigma, Fc, p = 2.0, 0.5, 1e6
+    F = float(dahl_increment(0.0, p, sigma, Fc, 2.0))
+    assert F < Fc
+    assert 1.0 - F / Fc == pytest.approx(1.0 / (1.0 + sigma / Fc * p), rel=1e-9)
+
+
+def test_alpha_below_one_saturation_travel():
+    # alpha < 1: u^(1-alpha) falls linearly, reaching 0 at p* = u0^(1-alpha) Fc / ((1-alpha) sigma)
+    sigma, Fc, alpha, F0 = 2.0, 0.5, 0.5, -0.2
+    u0 = 1.0 - F0 / Fc
+    p_star = u0 ** (1 - alpha) * Fc / ((1 - alpha) * sigma)
+    assert float(dahl_increment(F0, 0.999 * p_star, sigma, Fc, alpha)) < Fc
+    assert float(dahl_increment(F0, 1.001 * p_star, sigma, Fc, alpha)) == Fc
+    assert float(dahl_increment(F0, 0.9 * p_star, sigma, Fc, alpha)) == pytest.approx(
+        ode_increment(F0, 0.9 * p_star, sigma, Fc, alpha), rel=1e-9)
+
+
+def test_coulomb_limit_large_sigma():
+    # sigma -> infinity: F = Fc sign(dx) after an infinitesimal travel, and the
+    # loop becomes the Coulomb rectangle of area 2A x 2Fc
+    Fc, A = 0.3, 1.0
+    sigma = 1e9 * Fc / A
+    for s in (1.0, -1.0):
+        assert float(dahl_increment(0.1, s * 1e-6 * A, sigma, Fc)) == pytest.approx(s * Fc, rel=1e-12)
+    x = kes_loop_path(A, cycles=2, points_per_quarter=400)
+    F = dahl_response(x, sigma, Fc)
+    turns = turning_points(x)
+    cycle = slice(turns[1], turns[3] + 1)
+    assert loop_work(x[cycle], F[cycle]) == pytest.approx(4.0 * Fc * A, rel=1e-2)
+
+
+def test_alpha_near_one_is_continuous():
+    # the general closed form tends to the alpha = 1 exponential (log1p keeps accuracy)
+    args = (0.3, 0.7, 2.0, 0.5)
+    exact = float(dahl_increment(*args, 1.0))
+    for a in (1.0 - 1e-10, 1.0 + 1e-10):
+        assert float(dahl_increment(*args, a)) == pytest.approx(exact, rel=1e-9)
+
+
+def test_crossing_form_of_model_md():
+    # model.md "Dahl at the crossing": tan(phi) driven by slip xi with ratio m
+    tan_phi, dxi, m, stiffness = -0.05, 0.02, 0.21, 30.0
+    s = 1.0
+    expected = s * m + (tan_phi - s * m) * math.exp(-stiffness * abs(dxi) / m)
+    assert float(dahl_increment(tan_phi, dxi, stiffness, m)) == pytest.approx(expected, rel=1e-15)
+
+
+# ---------------------------------------------------------------- exactness
+@pytest.mark.parametrize("alpha", [1.0, 0.5, 0.8, 1.5, 3.0])
+def test_update_matches_solve_ivp(alpha):
+    rng = np.random.default_rng(11)
+    sigma, Fc = 4.0, 0.8
+    for _ in range(12):
+        F0 = rng.uniform(-1.2, 1.2) * Fc  # includes |F| > Fc (u < 0)
+        dx = rng.choice([-1, 1]) * 10 ** rng.uniform(-3, -0.7)
+        if alpha < 1:  # stay short of the finite saturation travel (tested separately)
+            s = math.copysign(1.0, dx)
+            u0 = abs(1.0 - s * F0 / Fc)
+            p_star = u0 ** (1 - alpha) * Fc / ((1 - alpha) * sigma)
+            dx = s * min(abs(dx), 0.9 * p_star)
+        got = float(dahl_increment(F0, dx, sigma, Fc, alpha))
+        assert got == pytest.approx(ode_increment(F0, dx, sigma, Fc, alpha), rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("alpha", [1.0, 2.0, 0.6])
+def test_rate_independence(alpha):
+    # same path sampled at two densities: identical force at the shared samples
+    sigma, Fc, A = 5.0, 1.0, 1.0
+    coarse = kes_loop_path(A, cycles=2, points_per_quarter=5)
+    dense = kes_loop_path(A, cycles=2, points_per_quarter=500)
+    Fc_ = step_through(coarse, 0.0, sigma, Fc, alpha)
+    Fd = step_through(dense, 0.0, sigma, Fc, alpha)
+    np.testing.assert_allclose(Fd[::100], Fc_, rtol=1e-11, atol=1e-13)
+    # the run-wise history equals stepping
+    np.testing.assert_allclose(dahl_response(dense, sigma, Fc, alpha), Fd, rtol=1e-12, atol=1e-14)
+
+
+def test_response_is_vectorised_over_states():
+    x = kes_loop_path(1.0, cycles=1, points_per_quarter=20)
+    sig = np.array([1.0, 3.0, 9.0])
+    al = np.array([1.0, 0.7, 2.0])
+    F = dahl_response(x, sig, 0.5, al, 0.1)
+    assert F.shape == (3, x.size)
+    for i in range(3):
+        np.testing.assert_allclose(F[i], step_through(x, 0.1, sig[i], 0.5, al[i]), rtol=1e-12)
+
+
+# ---------------------------------------------------------------- loops
+def test_steady_loop_peak_and_symmetry_alpha1():
+    sigma, Fc, A = 2.0, 0.5, 0.6
+    Fmax = steady_loop_peak(sigma, Fc, A)
+    up = np.linspace(-A, A, 201)
+    F_up = dahl_response(up, sigma, Fc, F0=-Fmax)
+    assert F_up[-1] == pytest.approx(Fmax, rel=1e-13)  # fixed point of one branch
+    F_down = dahl_response(up[::-1], sigma, Fc, F0=Fmax)[::-1]
+    np.testing.assert_allclose(F_down, -F_up[::-1], rtol=1e-12, atol=1e-15)  # F_desc(x) = -F_asc(-x)
+
+
+@pytest.mark.parametrize("alpha", [0.5, 2.0])
+def test_loop_symmetry_after_transient(alpha):
+    sigma, Fc, A = 4.0, 0.5, 1.0
+    x = kes_loop_path(A, cycles=8, points_per_quarter=50)
+    F = dahl_response(x, sigma, Fc, alpha)
+    t = turning_points(x)
+    asc_x, asc_F = x[t[-3]:t[-2] + 1], F[t[-3]:t[-2] + 1]  # -A -> +A
+    desc_x, desc_F = x[t[-2]:t[-1] + 1], F[t[-2]:t[-1] + 1]  # +A -> -A
+    np.testing.assert_allclose(desc_x, -asc_x, atol=1e-14)
+    np.testing.assert_allclose(desc_F, -asc_F, atol=1e-6 * Fc)
+
+
+@pytest.mark.parametrize("kA", [0.3, 2.0, 12.0])
+def test_loop_energy_equals_closed_form_and_dissipation(kA):
+    sigma, Fc = 1.5, 0.4
+    A = kA * Fc / sigma
+    Fmax = steady_loop_peak(sigma, Fc, A)
+    x = np.concatenate([np.linspace(-A, A, 20001), np.linspace(A, -A, 20001)[1:]])
+    F = dahl_response(x, sigma, Fc, F0=-Fmax)
+    W = loop_work(x, F)
+    assert W > 0
+    assert W == pytest.approx(steady_loop_energy(sigma, Fc, A), rel=1e-6)
+    # eq 3 energy balance: stored F^2/(2 sigma) returns, dissipation F^2 |dx| / Fc
+    F2 = 0.5 * (F[1:] ** 2 + F[:-1] ** 2)
+    assert W == pytest.approx(float(np.sum(F2 * np.abs(np.diff(x)))) / Fc, rel=1e-6)
+
+
+@pytest.mark.parametrize("alpha", [0.5, 2.0])
+@pytest.mark.parametrize("A", [0.05, 1.0])
+def test_loop_energy_nonnegative(alpha, A):
+    x = kes_loop_path(A, cycles=4, points_per_quarter=400)
+    F = dahl_response(x, 3.0, 0.5, alpha)
+    t = turning_points(x)
+    W = loop_work(x[t[-3]:t[-1] + 1], F[t[-3]:t[-1] + 1])
+    assert W > 0
+    assert W <= 4.0 * 0.5 * A  # at most the Coulomb rectangle
+
+
+def test_kes_loop_path_hits_turning_points():
+    x = kes_loop_path(2.5, cycles=3, points_per_quarter=10)
+    assert x[0] == 0.0 and x[-1] == 0.0
+    np.testing.assert_array_equal(x[turning_points(x)], [2.5, -2.5] * 3)
+
+
+# ---------------------------------------------------------------- identification
+def _check_recovered(fit, truth, names, tol_rel):
+    for name in names:
+        got, true, se = getattr(fit, name), truth[name], fit.stderr[name]
+        assert abs(got - true) <= 3.0 * se, f"{name}: {got} vs {true} (se {se})"
+        assert abs(got - true) <= tol_rel * abs(true), f"{name}: {got} vs {true}"
+
+
+@pytest.mark.parametrize("row", ROWS, ids=[r["sample"] for r in ROWS])
+@pytest.mark.parametrize("elastic", [False, True], ids=["dahl", "dahl+B"])
+def test_identification_recovers_paper_rows(row, elastic):
+    p = DahlParams(row["sigma"], row["Fc"], row["alpha"])
+    B = 0.5 * row["sigma"] if elastic else 0.0  # an elastic part comparable to sigma
+    x, M = kes_loop(p, KES_K, cycles=3, points_per_quarter=100, B=B, noise=0.01 * row["Fc"], seed=2024)
+    fit = fit_dahl_loop(x, M, elastic=elastic, alpha=1.0)
+    assert fit.success
+    truth = {"sigma": p.sigma, "Fc": p.Fc, "B": B}
+    _check_recovered(fit, truth, ["sigma", "Fc"] + (["B"] if elastic else []), 0.02)
+    assert fit.rms == pytest.approx(0.01 * row["Fc"], rel=0.1)  # residuals are the added noise
+
+
+@pytest.mark.parametrize("alpha", [1.0, 2.0, 0.6])
+def test_identification_with_free_alpha(alpha):
+    row = ROWS[1]
+    p = DahlParams(row["sigma"], row["Fc"], alpha)
+    x, M = kes_loop(p, KES_K, cycles=3, points_per_quarter=100, B=0.1, noise=0.005 * row["Fc"], seed=7)
+    fit = fit_dahl_loop(x, M, elastic=True, alpha=None)
+    _check_recovered(fit, {"sigma": p.sigma, "Fc": p.Fc, "alpha": alpha, "B": 0.1}, ["sigma", "Fc", "alpha", "B"], 0.03)
+
+
+def test_identification_of_initial_state():
+    # a record that starts at -K on the descending-branch end (F0 = -Fc tanh(kA))
+    p = DahlParams(0.55, 0.16)
+    F0 = -steady_loop_peak(p.sigma, p.Fc, KES_K)
+    x = np.concatenate([np.linspace(-KES_K, KES_K, 201), np.linspace(KES_K, -KES_K, 201)[1:]])
+    M = p.response(x, F0) + np.random.default_rng(3).normal(0, 1e-3, x.size)
+    fit = fit_dahl_loop(x, M)
+    assert abs(fit.F0 - F0) <= 3 * fit.stderr["F0"]
+
+
+def test_initial_guess_reads_loop():
+    # half-width at mid-range = Fc (1 - sech(kA)), close to Fc on a KES loop
+    row = ROWS[0]
+    p = DahlParams(row["sigma"], row["Fc"])
+    x, M = kes_loop(p, KES_K, cycles=2, points_per_quarter=100)
+    sigma0, Fc0, B0, F00 = initial_guess(x, M)
+    kA = p.sigma / p.Fc * KES_K
+    assert Fc0 == pytest.approx(p.Fc * (1 - 1 / math.cosh(kA)), rel=1e-3)
+    assert 0.3 * p.sigma < sigma0 < 3 * p.sigma
+    assert B0 == 0.0
+
+
+@pytest.mark.parametrize("x,F,match", [
+    (np.linspace(0, 1, 10), np.zeros(10), "at least"),
+    (np.linspace(0, 1, 50), np.zeros(50), "no reversal"),
+    (np.r_[np.linspace(0, 1, 30), np.linspace(1, 0, 30)], np.r_[np.zeros(59), np.nan], "not finite"),
+])
+def test_fit_rejects_bad_loops(x, F, match):
+    with pytest.raises(KnitsimInputError, match=match):
+        fit_dahl_loop(x, F)
