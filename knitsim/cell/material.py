@@ -1,0 +1,101 @@
+"""Immutable description of one quarter-stitch cell: yarn, knit, friction, rules.
+
+The evolving state (angles, P, stage, frozen values) lives in
+:mod:`knitsim.cell.cycle`; this module only describes the cell and validates it,
+so that bad input is refused before any solve.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+
+from ..errors import KnitsimInputError
+from .stages import FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
+
+
+@dataclass(frozen=True)
+class CellParams:
+    """One cell's material, knit geometry, friction law and sequencing rules.
+
+    Attributes
+    ----------
+    B : float
+        Yarn bending stiffness [N mm^2] (Dusserre Table 1).
+    d : float
+        Yarn diameter [mm]; jamming at W = 4 d (Hong et al. 2002).
+    L : float
+        Yarn length per stitch [mm] (inextensible).
+    W0, C0 : float
+        Wale width and course length of the knit at rest [mm].
+    m : float
+        Apparent tangent-to-normal ratio at the crossing, m = tan(phimax) (eq 10).
+    phi0 : float
+        Initial friction angle [rad], in [-phimax, phimax] (section 3.3.1).
+    friction : str
+        ``"coulomb"`` (Table 4 switching) or ``"dahl"`` (smooth stick-slip).
+    dahl_sigma : float
+        Dahl stiffness of tan(phi) per unit slip [1/mm] (``friction = "dahl"``).
+    unloading_rule, reload_rule, jamming_criterion : str
+        See :mod:`knitsim.cell.stages`.
+    force_cap_N : float
+        Force per wale at which a jammed cell stops (the jammed branch diverges).
+    """
+
+    B: float
+    d: float
+    L: float
+    W0: float
+    C0: float
+    m: float = 0.0
+    phi0: float = 0.0
+    friction: str = "coulomb"
+    dahl_sigma: float = 0.0
+    unloading_rule: str = "dusserre"
+    reload_rule: str = "mirror_unloading"
+    jamming_criterion: str = "w_4d"
+    force_cap_N: float = 50.0
+
+    @property
+    def phimax(self) -> float:
+        """Friction angle at sliding, atan(m) [rad]."""
+        return math.atan(self.m)
+
+    def replace(self, **changes) -> "CellParams":
+        """A copy with some fields changed (validated)."""
+        return replace(self, **changes).validated()
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def validated(self, where: str = "cell") -> "CellParams":
+        """Check every field; raise :class:`KnitsimInputError` naming the first bad one."""
+        def bad(name, why):
+            raise KnitsimInputError(f"{where}.{name} = {getattr(self, name)!r}: {why}")
+
+        for name in ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma", "force_cap_N"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                bad(name, "must be a finite number")
+        for name in ("B", "d", "L", "W0", "C0", "force_cap_N"):
+            if getattr(self, name) <= 0:
+                bad(name, "must be > 0")
+        if self.m < 0:
+            bad("m", "the friction ratio must be >= 0")
+        if self.W0 < 4.0 * self.d:
+            bad("W0", f"the wale width at rest must be >= 4 d = {4.0 * self.d:.4g} mm (loops jammed already)")
+        lmin = 2.0 * self.C0 + self.W0 - 4.0 * self.d
+        if self.L <= lmin:
+            bad("L", f"too short to close a loop: needs > 2 C0 + W0 - 4 d = {lmin:.4g} mm")
+        if abs(self.phi0) > self.phimax + 1e-12:
+            bad("phi0", f"must lie in [-phimax, phimax] = [{-self.phimax:.4g}, {self.phimax:.4g}] rad (m = {self.m})")
+        if self.friction not in FRICTION_MODELS:
+            bad("friction", f"expected one of {', '.join(FRICTION_MODELS)}")
+        if self.friction == "dahl" and self.dahl_sigma <= 0:
+            bad("dahl_sigma", "Dahl friction needs a stiffness > 0 (1/mm)")
+        if self.unloading_rule not in UNLOADING_RULES:
+            bad("unloading_rule", f"expected one of {', '.join(UNLOADING_RULES)}")
+        if self.reload_rule not in RELOAD_RULES:
+            bad("reload_rule", f"expected one of {', '.join(RELOAD_RULES)}")
+        if self.jamming_criterion not in JAMMING_CRITERIA:
+            bad("jamming_criterion", f"expected one of {', '.join(JAMMING_CRITERIA)}")
+        return self
