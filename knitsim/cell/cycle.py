@@ -28,7 +28,7 @@ last converged state with the flag set: no NaN is reported as a result.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq
@@ -40,16 +40,10 @@ from .material import CellParams
 from .quantities import UNKNOWN_NAMES
 from .stages import Stage, stage_label
 
-#: status codes of a cell (stored per cell as int32)
-STATUS_OK = 0
-STATUS_NO_CONVERGENCE = 1
-STATUS_FORCE_CAP = 2
-STATUS_EVENT_NOT_LOCATED = 3
-STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_CONVERGENCE: "no_convergence",
-                STATUS_FORCE_CAP: "force_cap", STATUS_EVENT_NOT_LOCATED: "event_not_located"}
-
-#: history columns of :class:`CellHistory`
-HISTORY_QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC", "T", "Rn", "F")
+from .history import (  # noqa: E402  (re-exported)
+    HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
+    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory,
+)
 
 
 @dataclass
@@ -76,43 +70,6 @@ class CellState:
     def copy(self) -> "CellState":
         return CellState(self.x.copy(), dict(self.q), self.stage, self.jammed, self.soft,
                          self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason)
-
-
-@dataclass
-class CellHistory:
-    """One row per increment of the load program.
-
-    Attributes
-    ----------
-    strain, cycle, direction : ndarray
-        From the load program (imposed strain of the course length).
-    stage, jammed, status : ndarray of int
-        Stage code (:class:`~knitsim.cell.stages.Stage`), jammed flag, status code.
-    values : dict of str to ndarray
-        :data:`HISTORY_QUANTITIES` after each increment (F = 0 while slack).
-    events : list of dict
-        Located stage changes: increment, kind, strain, stage before/after.
-    params : CellParams
-    """
-
-    strain: np.ndarray
-    cycle: np.ndarray
-    direction: np.ndarray
-    stage: np.ndarray
-    jammed: np.ndarray
-    status: np.ndarray
-    values: dict
-    events: list = field(default_factory=list)
-    params: CellParams | None = None
-
-    @property
-    def force_per_wale(self) -> np.ndarray:
-        """Force per wale [N] after each increment."""
-        return self.values["F"]
-
-    def labels(self) -> list[str]:
-        """Stage labels (adherence / sliding / jamming / slack) per increment."""
-        return [stage_label(s, j) for s, j in zip(self.stage, self.jammed)]
 
 
 class _SolveFailed(Exception):
@@ -374,7 +331,7 @@ class CellCycle:
                 n *= 2
         raise _SolveFailed(f"no convergence from C = {C_from:.6g} to {C_to:.6g} mm after {self.max_halvings} halvings")
 
-    def run(self, program: LoadProgram) -> CellHistory:
+    def run(self, program: LoadProgram) -> BatchHistory:
         """Run the whole program; see :func:`run_cell`."""
         p = self.p
         st = self.initial()
@@ -399,6 +356,8 @@ class CellCycle:
                     st = self.advance(st, C_target, events, i)
             except _SolveFailed as exc:
                 st.status, st.reason = STATUS_NO_CONVERGENCE, str(exc)
+            if p.friction == "dahl":
+                self._label_dahl(st)
             stage[i], jammed[i], status[i] = int(st.stage), int(st.jammed), st.status
             for k in HISTORY_QUANTITIES:
                 vals[k][i] = st.q[k]
@@ -407,10 +366,24 @@ class CellCycle:
             if st.status != STATUS_OK and not any(e.get("kind") == "flag" for e in events):
                 events.append({"increment": i, "kind": "flag", "reason": st.reason,
                                "status": STATUS_NAMES[st.status]})
-        return CellHistory(np.asarray(program.strain), np.asarray(program.cycle),
-                           np.asarray(program.direction), stage, jammed, status, vals, events, p)
+        return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle),
+                            np.asarray(program.direction), stage[:, None], jammed[:, None],
+                            status[:, None], {k: v[:, None] for k, v in vals.items()},
+                            [dict(e, cell=0) for e in events], [p])
 
     # ------------------------------------------------------------------ Dahl
+    def _label_dahl(self, st: CellState) -> None:
+        """Dahl has no switch: label sliding once tan(phi) is within 5 % of +/-m."""
+        if st.stage is Stage.SLACK:
+            return
+        loading = st.stage in (Stage.SF_LOAD, Stage.S_LOAD)
+        sat = self.p.m if loading else -self.p.m
+        sliding = abs(math.tan(st.q["phi"]) - sat) <= 0.05 * self.p.m
+        if loading:
+            st.stage = Stage.S_LOAD if sliding else Stage.SF_LOAD
+        else:
+            st.stage = Stage.S_UNLOAD if sliding else Stage.SF_UNLOAD
+
     def _advance_dahl(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
         """Dahl increment: the Dahl state moves with the solution (sub-stepped events)."""
         if st.status != STATUS_OK:
@@ -466,12 +439,7 @@ class CellCycle:
         return st
 
 
-def dahl_label_sliding(phi: np.ndarray, m: float, direction: np.ndarray) -> np.ndarray:
-    """Dahl stage label: sliding once tan(phi) is within 5 % of its saturation."""
-    return np.abs(np.tan(phi) - direction * m) <= 0.05 * max(m, 1e-300)
-
-
-def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6) -> CellHistory:
+def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6) -> BatchHistory:
     """Run one cell through a strain program (NumPy reference).
 
     Parameters
@@ -485,10 +453,16 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6) ->
 
     Returns
     -------
-    CellHistory
-        One row per increment; ``events`` lists located stage changes.
+    BatchHistory
+        One row per increment, one column; ``events`` lists located stage changes.
     """
     return CellCycle(params, max_halvings).run(program)
+
+
+def run_cells_reference(params: list[CellParams], program: LoadProgram,
+                        max_halvings: int = 6) -> BatchHistory:
+    """Run many cells one at a time with the NumPy reference (the Warp batch's oracle)."""
+    return BatchHistory.stack([run_cell(p, program, max_halvings) for p in params])
 
 
 def dissipated_energy(strain: np.ndarray, force: np.ndarray) -> float:

@@ -1,0 +1,104 @@
+"""Results of running cells through a load program: one structure for every engine.
+
+The NumPy reference (:func:`knitsim.cell.cycle.run_cells_reference`) and the
+Warp batch (:mod:`knitsim.cell.batch`) both return a :class:`BatchHistory`;
+writers (CSV, plots, USD) read only this.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .stages import LABEL_CODES, stage_label
+
+#: per-increment quantities recorded for every cell
+HISTORY_QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC", "T", "Rn", "F")
+
+#: status codes of a cell (stored per cell as int32)
+STATUS_OK = 0
+STATUS_NO_CONVERGENCE = 1
+STATUS_FORCE_CAP = 2
+STATUS_EVENT_NOT_LOCATED = 3
+STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_CONVERGENCE: "no_convergence",
+                STATUS_FORCE_CAP: "force_cap", STATUS_EVENT_NOT_LOCATED: "event_not_located"}
+
+
+@dataclass
+class BatchHistory:
+    """One row per increment of the load program, one column per cell.
+
+    Attributes
+    ----------
+    strain, cycle, direction : ndarray, shape [n_increments]
+        The imposed strain of the course length ((C - C0)/C0), the cycle
+        number (from 1) and the direction (+1 loading, -1 unloading).
+    stage, jammed, status : ndarray of int, shape [n_increments, n_cells]
+        Stage code (:class:`~knitsim.cell.stages.Stage`), jammed flag (0/1) and
+        status code (:data:`STATUS_NAMES`).  A cell whose status is not ok keeps
+        its last converged state in later rows.
+    values : dict of str to ndarray, shape [n_increments, n_cells]
+        :data:`HISTORY_QUANTITIES` (N, mm, rad); the force per wale ``F`` is 0
+        while a cell is slack.
+    events : list of dict
+        Located stage changes: ``cell``, ``increment``, ``kind``, ``C`` ...
+    params : list
+        The :class:`~knitsim.cell.material.CellParams` of each cell.
+    """
+
+    strain: np.ndarray
+    cycle: np.ndarray
+    direction: np.ndarray
+    stage: np.ndarray
+    jammed: np.ndarray
+    status: np.ndarray
+    values: dict
+    events: list = field(default_factory=list)
+    params: list = field(default_factory=list)
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.stage.shape[1])
+
+    @property
+    def force_per_wale(self) -> np.ndarray:
+        """Force per wale [N], shape [n_increments, n_cells]."""
+        return self.values["F"]
+
+    def label_codes(self) -> np.ndarray:
+        """Stage label codes (:data:`~knitsim.cell.stages.LABEL_CODES`) per increment and cell."""
+        out = np.empty(self.stage.shape, np.int32)
+        for s in np.unique(self.stage):
+            for j in (0, 1):
+                mask = (self.stage == s) & (self.jammed == j)
+                out[mask] = LABEL_CODES[stage_label(int(s), bool(j))]
+        return out
+
+    def labels(self, cell: int = 0) -> list[str]:
+        """Stage labels (adherence / sliding / jamming / slack) of one cell."""
+        return [stage_label(s, j) for s, j in zip(self.stage[:, cell], self.jammed[:, cell])]
+
+    def cell(self, i: int) -> "BatchHistory":
+        """The history of cell ``i`` alone (a one-column BatchHistory)."""
+        sl = slice(i, i + 1)
+        return BatchHistory(self.strain, self.cycle, self.direction, self.stage[:, sl],
+                            self.jammed[:, sl], self.status[:, sl],
+                            {k: v[:, sl] for k, v in self.values.items()},
+                            [dict(e, cell=0) for e in self.events if e.get("cell", 0) == i],
+                            self.params[i:i + 1])
+
+    @staticmethod
+    def stack(histories: list["BatchHistory"]) -> "BatchHistory":
+        """Join single- or multi-cell histories of the same program along the cell axis."""
+        h0 = histories[0]
+        events, params, offset = [], [], 0
+        for h in histories:
+            events += [dict(e, cell=e.get("cell", 0) + offset) for e in h.events]
+            params += list(h.params)
+            offset += h.n_cells
+        cat = lambda name: np.concatenate([getattr(h, name) for h in histories], axis=1)  # noqa: E731
+        return BatchHistory(h0.strain, h0.cycle, h0.direction, cat("stage"), cat("jammed"),
+                            cat("status"),
+                            {k: np.concatenate([h.values[k] for h in histories], axis=1)
+                             for k in h0.values},
+                            events, params)
