@@ -8,8 +8,11 @@ stage changes are *events* located inside the increment by a root search on C
 (brentq on the event function along the stage's branch), never overshot:
 
 - ``slide``: phi reaches +phimax (loading) / -phimax (unloading);
-- ``jam``: W reaches 4d (the soft condition is then replaced by W = 4d);
-- ``unjam``: while unloading jammed, the unjammed branch has W >= 4d again;
+- ``jam``: W reaches 4d (``jamming_criterion = "w_4d"``, Hong) or the
+  centreline distance between neighbouring heads reaches d
+  (``"head_gap"``, :mod:`knitsim.cell.head_gap`); the soft condition is then
+  replaced by W = W_jam, W_jam = 4d or the W at which the heads touched;
+- ``unjam``: while unloading jammed, the unjammed branch has W >= W_jam again;
 - ``slack``: the force per wale reaches 0 while unloading;
 - ``force_cap``: the force per wale reaches ``force_cap_N`` (the cell stops).
 
@@ -20,6 +23,18 @@ increment is found by a scalar root search on the slip, each trial a solve
 with s_BC imposed.  This nested method is deliberately different from the Warp
 kernel, which solves the Dahl relation as a fifth Newton residual: the two are
 independent checks of each other.
+
+Every recorded row also carries ``head_gap`` (W - 2 X_max, mm) and
+``interpenetrating`` (1.0 where head_gap < d_jam, else 0.0; d_jam is the
+in-plane width ``jam_width``, d by default) in ``values``: W = 4d
+lets the heads overlap before it is reached (docs/model.md, "Jamming").
+
+Frictionless cells (m = 0, Coulomb) keep the soft condition of the loading
+branch on reversal: without friction nothing can dissipate, and with the
+same four conditions loading and unloading retrace one curve.
+
+A solve that lands on another branch (|phi| >= pi/2: the contact force would
+point out of the loop head) counts as failed and the increment is halved.
 
 A failed solve is retried on halved increments (``max_halvings``); if it still
 fails the cell stops, flagged with its reason, and its later rows repeat the
@@ -34,6 +49,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..friction.dahl import dahl_increment
+from .head_gap import head_gap
 from .inverse import initial_state, solve_state
 from .load_program import LoadProgram
 from .material import CellParams
@@ -66,20 +82,37 @@ class CellState:
     C: float
     status: int = STATUS_OK
     reason: str = ""
+    w_jam: float = math.nan     # W held while jammed (4d, or W when the heads touched)
+    #: Newton guess for reloading from slack: at F = 0 the contact force R vanishes and
+    #: phi is undetermined (singular Jacobian), so reloading starts from the last
+    #: state before the slack event instead
+    x_reload: np.ndarray | None = None
 
     def copy(self) -> "CellState":
         return CellState(self.x.copy(), dict(self.q), self.stage, self.jammed, self.soft,
-                         self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason)
+                         self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason,
+                         self.w_jam, None if self.x_reload is None else self.x_reload.copy())
+
+
+#: per-increment values recorded by the reference only (not by the Warp batch):
+#: the centreline gap between neighbouring heads [mm] and the flag gap < d (1.0/0.0)
+EXTRA_QUANTITIES = ("head_gap", "interpenetrating")
+#: quantities of the located state stored with each stage-change event
+EVENT_QUANTITIES = ("phi", "W", "F", "T", "head_gap")
 
 
 class _SolveFailed(Exception):
     pass
 
 
-def _q(result) -> dict:
+def _q(result, B: float, d: float) -> dict:
     st = result.state
-    return {n: float(getattr(st, n)) for n in
-            ("alpha", "beta", "gamma", "phi", "P", "W", "C", "L", "s_AB", "s_BC", "T", "M", "R", "Rn", "Rt", "F")}
+    q = {n: float(getattr(st, n)) for n in
+         ("alpha", "beta", "gamma", "phi", "P", "W", "C", "L", "s_AB", "s_BC", "T", "M", "R", "Rn", "Rt", "F")}
+    a = float(result.x[0] - result.x[2])
+    q["head_gap"] = float(head_gap(*result.x, B, d, a=a))
+    return q
+
 
 
 class CellCycle:
@@ -105,10 +138,13 @@ class CellCycle:
         res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
         if not res.success:
             raise _SolveFailed("initial state: " + res.message)
-        q = _q(res)
-        st = CellState(res.x, q, Stage.SF_LOAD, False, "Rn", q["Rn"], q["s_BC"], q["C"])
-        if p.friction == "coulomb" and p.phi0 >= self.phimax - 1e-12 and p.m > 0:
-            st.stage = Stage.S_LOAD          # phi0 = phimax: at the sliding limit already
+        q = _q(res, p.B, p.d)
+        st = CellState(res.x, q, Stage.SF_LOAD, False, "Rn", q["Rn"], q["s_BC"], q["C"],
+                       w_jam=4.0 * p.d_jam)
+        if p.friction == "coulomb" and p.phi0 >= self.phimax - 1e-12:
+            # phi0 = phimax: at the sliding limit already; m = 0 (frictionless,
+            # phi0 = 0 = phimax) slides from the start
+            st.stage = Stage.S_LOAD
         return st
 
     # ------------------------------------------------------------ conditions
@@ -123,7 +159,7 @@ class CellCycle:
         elif st.stage is Stage.S_UNLOAD:
             cond["phi"] = -self.phimax
         if st.jammed:
-            cond["W"] = 4.0 * p.d
+            cond["W"] = st.w_jam
         else:
             cond[st.soft] = st.frozen_soft
         return cond
@@ -132,14 +168,19 @@ class CellCycle:
         res = solve_state(cond, guess, self.p.B, self.p.d)
         if not res.success:
             raise _SolveFailed(res.message)
-        return res.x, _q(res)
+        phi = float(res.x[3])
+        # a contact force beyond the tangent plane at B (|phi| >= pi/2) is another
+        # branch of the equations, not the continuation of this one
+        if not abs(phi) < 0.5 * math.pi:
+            raise _SolveFailed(f"solution left the branch (phi = {phi:.4g} rad)")
+        return res.x, _q(res, self.p.B, self.p.d)
 
     def _dahl_solve(self, st: CellState, C: float, guess) -> tuple[np.ndarray, dict]:
         """Solve one Dahl increment: find the slip whose Dahl update matches phi."""
         p = self.p
         base = {"L": p.L, "C": C}
         if st.jammed:
-            base["W"] = 4.0 * p.d
+            base["W"] = st.w_jam
         else:
             base[st.soft] = st.frozen_soft
         t_old = math.tan(st.q["phi"])
@@ -191,7 +232,10 @@ class CellCycle:
             elif st.stage is Stage.SF_UNLOAD and p.m > 0:
                 ev["slide"] = lambda q: -self.phimax - q["phi"]
         if not st.jammed:
-            ev["jam"] = lambda q: 4.0 * p.d - q["W"]
+            if p.jamming_criterion == "head_gap":
+                ev["jam"] = lambda q: p.d_jam - q["head_gap"]  # heads touch (module head_gap)
+            else:
+                ev["jam"] = lambda q: 4.0 * p.d_jam - q["W"]   # Hong's W = 4d
         if loading:
             ev["force_cap"] = lambda q: q["F"] - p.force_cap_N
         else:
@@ -209,6 +253,7 @@ class CellCycle:
             st.frozen_soft = q[st.soft]
         elif kind == "jam":
             st.jammed = True
+            st.w_jam = q["W"] if self.p.jamming_criterion == "head_gap" else 4.0 * self.p.d_jam
         elif kind == "unjam":
             st.jammed = False
         elif kind == "slack":
@@ -220,6 +265,16 @@ class CellCycle:
         """Load reversal: enter SF- (unloading) or SF+ (reloading), freezing values."""
         p, q = self.p, st.q
         st.frozen_sbc = q["s_BC"]
+        if p.friction == "coulomb" and p.m == 0:
+            # frictionless: one curve for loading and unloading (no dissipation),
+            # so the soft condition of the loading branch stays frozen
+            st.stage = Stage.S_LOAD if direction > 0 else Stage.S_UNLOAD
+            return
+        if direction < 0 and abs(q["R"]) <= 1e-9 * max(abs(q["P"]), 1e-12):
+            # no contact force to unload (e.g. reloaded at zero force after going
+            # slack): the cell is slack at once
+            st.stage = Stage.SLACK
+            return
         if direction < 0:
             st.stage = Stage.SF_UNLOAD
             st.soft = "T" if (p.unloading_rule == "hong_constant_t" or p.friction == "dahl") else "beta"
@@ -228,10 +283,6 @@ class CellCycle:
             tiny = abs(q["Rn"]) < 1e-9 * max(q["P"], 1e-12)
             st.soft = "beta" if (tiny and p.reload_rule == "mirror_unloading" and p.friction == "coulomb") else "Rn"
         st.frozen_soft = q[st.soft]
-        if p.friction == "coulomb" and p.m == 0:
-            st.stage = Stage.S_LOAD if direction > 0 else Stage.S_UNLOAD
-            st.soft = "Rn" if direction > 0 else "T"
-            st.frozen_soft = q[st.soft]
 
     # --------------------------------------------------------------- advance
     def _try_unjam(self, st: CellState, C_target: float):
@@ -244,7 +295,7 @@ class CellCycle:
             x, q = self.solve_at(trial, C_target)
         except _SolveFailed:
             return None
-        return (x, q) if q["W"] >= 4.0 * self.p.d else None
+        return (x, q) if q["W"] >= st.w_jam else None
 
     def _locate(self, st: CellState, C_a: float, C_b: float, name: str, fun, unjam=False):
         """Root of an event function on [C_a, C_b] along the stage's branch."""
@@ -255,9 +306,22 @@ class CellCycle:
         def e(C):
             x, q = self.solve_at(trial, C, trial.x)
             trial.x = x                      # continuation guess only (Dahl reads trial.q)
-            return fun(q) if not unjam else q["W"] - 4.0 * self.p.d
+            return fun(q) if not unjam else q["W"] - st.w_jam
 
-        fa, fb = e(C_a), e(C_b)
+        try:
+            fa = e(C_a)
+        except _SolveFailed:
+            fa = None
+        if fa is None and abs(st.q["R"]) <= 1e-9 * max(abs(st.q["P"]), 1e-12):
+            fa = 1.0            # degenerate start: no contact force, phi undetermined
+        if fa is not None and fa > 0:
+            # the new branch starts past the event (e.g. reloading from slack, where
+            # R = 0 and the contact force leaves the friction cone at once): the
+            # event happens at the start of the sub-step
+            return C_a, st.x, dict(st.q)
+        if fa is None:
+            raise _SolveFailed(f"event {name}: no solution at the start of the sub-step")
+        fb = e(C_b)
         if fa * fb > 0:
             raise _SolveFailed(f"event {name} not bracketed")
         try:
@@ -268,32 +332,57 @@ class CellCycle:
         return Ce, x, q
 
     def advance(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
-        """Move the cell from its C to ``C_target`` on its branch, handling events."""
+        """Move the cell from its C to ``C_target`` on its branch, handling events.
+
+        The increment is walked in sub-steps: a failed solve halves the
+        sub-step (up to ``max_halvings`` times in a row), a successful one
+        doubles it back, and events are checked and located on every sub-step,
+        so that an event whose branch ends soon after it (e.g. SF- beyond
+        phi = -phimax) is found from the last converged sub-step.
+        """
         if st.status != STATUS_OK:
             return st
         if st.stage is Stage.SLACK:
             if C_target <= st.C:
                 return st
             self.reverse(st, +1)
+            if st.x_reload is not None:
+                st.x = st.x_reload.copy()
             events.append({"increment": increment, "kind": "reload", "C": st.C})
-        for _ in range(12):                        # at most a few events per increment
+        step = C_target - st.C
+        failures = 0
+        n_events = 0
+        while True:
             C_from = st.C
             if abs(C_target - C_from) <= 1e-15 * C_target:
                 return st
-            x, q = self._solve_halving(st, C_from, C_target)
+            if abs(step) > abs(C_target - C_from):
+                step = C_target - C_from
+            C_goal = C_from + step
+            try:
+                x, q = self.solve_at(st, C_goal)
+            except _SolveFailed:
+                failures += 1
+                if failures > self.max_halvings:
+                    raise _SolveFailed(f"no convergence from C = {C_from:.6g} to {C_goal:.6g} mm "
+                                       f"after {self.max_halvings} halvings") from None
+                step *= 0.5
+                continue
+            failures = 0
             evs = self.event_functions(st)
             fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= 0]
-            unjam = self._try_unjam(st, C_target)
+            unjam = self._try_unjam(st, C_goal)
             if unjam is not None:
                 fired.append(("unjam", None))
             if not fired:
-                st.x, st.q, st.C = x, q, C_target
-                return st
+                st.x, st.q, st.C = x, q, C_goal
+                step *= 2.0
+                continue
             # locate each fired event; the first along the path wins
             best = None
             for kind, fun in fired:
                 try:
-                    Ce, xe, qe = self._locate(st, C_from, C_target, kind, fun, unjam=(kind == "unjam"))
+                    Ce, xe, qe = self._locate(st, C_from, C_goal, kind, fun, unjam=(kind == "unjam"))
                 except _SolveFailed:
                     continue
                 if best is None or abs(Ce - C_from) < abs(best[1] - C_from):
@@ -303,33 +392,19 @@ class CellCycle:
                 return st
             kind, Ce, xe, qe = best
             before = stage_label(st.stage, st.jammed)
+            if kind == "slack":
+                st.x_reload = st.x.copy()
             st.x, st.q, st.C = xe, qe, Ce
             self._transition(st, kind)
             events.append({"increment": increment, "kind": kind, "C": Ce,
-                           "from": before, "to": stage_label(st.stage, st.jammed)})
+                           "from": before, "to": stage_label(st.stage, st.jammed),
+                           **{k: qe[k] for k in EVENT_QUANTITIES}})
             if st.status != STATUS_OK or st.stage is Stage.SLACK:
                 return st
-        return st
-
-    def _solve_halving(self, st: CellState, C_from: float, C_to: float):
-        """Solve at C_to, walking there in halved sub-increments if needed."""
-        try:
-            return self.solve_at(st, C_to)
-        except _SolveFailed:
-            pass
-        n = 2
-        for _ in range(self.max_halvings):
-            x, ok = st.x, True
-            trial = st.copy()
-            try:
-                for k in range(1, n + 1):
-                    x, q = self.solve_at(trial, C_from + (C_to - C_from) * k / n, x)
-                    if self.p.friction == "dahl":
-                        trial.x, trial.q = x, q
-                return x, q
-            except _SolveFailed:
-                n *= 2
-        raise _SolveFailed(f"no convergence from C = {C_from:.6g} to {C_to:.6g} mm after {self.max_halvings} halvings")
+            n_events += 1
+            if n_events >= 12:                    # at most a few events per increment
+                return st
+            step = C_target - st.C
 
     def run(self, program: LoadProgram) -> BatchHistory:
         """Run the whole program; see :func:`run_cell`."""
@@ -339,7 +414,7 @@ class CellCycle:
         stage = np.zeros(n, np.int32)
         jammed = np.zeros(n, np.int32)
         status = np.zeros(n, np.int32)
-        vals = {k: np.zeros(n) for k in HISTORY_QUANTITIES}
+        vals = {k: np.zeros(n) for k in HISTORY_QUANTITIES + EXTRA_QUANTITIES}
         events: list = []
         direction = +1
         for i in range(n):
@@ -361,6 +436,8 @@ class CellCycle:
             stage[i], jammed[i], status[i] = int(st.stage), int(st.jammed), st.status
             for k in HISTORY_QUANTITIES:
                 vals[k][i] = st.q[k]
+            vals["head_gap"][i] = st.q["head_gap"]
+            vals["interpenetrating"][i] = float(st.q["head_gap"] < p.d_jam)
             if st.stage is Stage.SLACK:
                 vals["F"][i] = 0.0
             if st.status != STATUS_OK and not any(e.get("kind") == "flag" for e in events):

@@ -1,0 +1,237 @@
+"""Dusserre (2015) section 4: the model studies behind the paper's claims (E-glass data).
+
+Runs the NumPy reference cycle (:mod:`knitsim.cell.cycle`) for the claims of
+``dusserre2015.toml [claims]`` and the observed cyclic numbers of
+``[tensile_test.observed_cyclic_e_glass]``, and tabulates each claim with the
+paper's value beside ours.  The claims are *reported*, never asserted: the
+point is to see which reading of the model reproduces them.
+
+Studies (E-glass knit: Table 1, section 2.2):
+
+(a) Fig. 7, m = 0.2, phi0 = phimax: stage sequence and linearity before jamming;
+(b) Fig. 7, phi0 = phimax: force gain at change in length 0.45 for m = 0.2, 0.4 vs m = 0;
+(c) Fig. 7b: force and strain at jamming, m = 0.4 vs 0;
+(d) Fig. 8, m = 0.3, phi0 in {-phimax, 0, phimax}: initial slope, sliding onset,
+    strain at jamming, convergence after jamming;
+(e) Fig. 11, three cycles 0.10 -> 0.60, phi0 = 0, m = 0.2: peaks, residual strain,
+    against the experiment (Fig. 10: 5 N then 4 N per wale, residual 0.15),
+    for both unloading rules.
+
+Readings (``variant``): ``jamming_criterion`` (``"w_4d"`` as in the paper,
+``"head_gap"``: the heads actually touch), ``force_cut`` (``"2Psin"``: force
+per wale 2 P sin(gamma), a horizontal cut through the A points crossing two
+legs per wale; ``"2P"``: the whole yarn tension of both legs, an upper bound
+of any cut), both recorded with every row.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..cell.cycle import CellCycle, run_cell
+from ..cell.load_program import cycles, monotonic
+from ..cell.material import CellParams
+from ..data import dusserre2015 as _data
+from ..errors import KnitsimInputError
+
+FORCE_CUTS = ("2Psin", "2P")
+
+
+def eglass(**changes) -> CellParams:
+    """The E-glass cell of Dusserre (2015) Table 1 and section 2.2, with ``changes``."""
+    d = _data()
+    y = d["yarn"]["e_glass"]
+    k = d["knit"]
+    p = CellParams(B=y["bending_stiffness_N_mm2"], d=y["yarn_diameter_mm"],
+                   L=k["stitch_length_mm"]["e_glass"], W0=k["wale_width_mm"],
+                   C0=k["course_length_mm"])
+    return p.replace(**changes)
+
+
+def _force(h, cut: str) -> np.ndarray:
+    if cut == "2Psin":
+        return h.values["F"][:, 0]
+    f = 2.0 * h.values["P"][:, 0]
+    return np.where(h.stage[:, 0] == 4, 0.0, f)        # slack carries no load
+
+
+def _jam(h):
+    """(strain, force index) of the first jam event, or (nan, None)."""
+    for e in h.events:
+        if e["kind"] == "jam":
+            p = h.params[0]
+            return (e["C"] - p.C0) / p.C0, e
+    return math.nan, None
+
+
+def _at(strain, force, s):
+    return float(np.interp(s, strain, force))
+
+
+def _mono(params, target, inc):
+    return run_cell(params, monotonic(target, inc))
+
+
+def run(increment: float = 0.01, jamming_criterion: str = "w_4d", force_cut: str = "2Psin",
+        target: float = 0.8) -> dict:
+    """Run studies (a)-(e); return ``{"variant": ..., "rows": [...], "curves": {...}}``.
+
+    Parameters
+    ----------
+    increment : float
+        Strain increment of the load programs (events are located inside).
+    jamming_criterion : str
+        ``"w_4d"`` or ``"head_gap"`` (:mod:`knitsim.cell.stages`).
+    force_cut : str
+        ``"2Psin"`` or ``"2P"`` (module docstring).
+    target : float
+        Largest change in length of the monotonic runs.
+    """
+    if force_cut not in FORCE_CUTS:
+        raise KnitsimInputError(f"force_cut = {force_cut!r}: expected one of {', '.join(FORCE_CUTS)}")
+    if not (math.isfinite(increment) and 0 < increment <= 0.1):
+        raise KnitsimInputError(f"increment = {increment!r}: must lie in (0, 0.1]")
+    data = _data()
+    claims = data["claims"]
+    obs = data["tensile_test"]["observed_cyclic_e_glass"]
+    base = dict(jamming_criterion=jamming_criterion)
+    rows, curves = [], {}
+
+    def row(claim, quantity, paper, ours, rule="-"):
+        rows.append({"claim": claim, "quantity": quantity, "paper": paper,
+                     "ours": ours, "unloading_rule": rule})
+
+    # (b), (c), (a): m sweep at phi0 = phimax (Fig. 7)
+    mono = {}
+    for m in (0.0, 0.2, 0.4):
+        h = _mono(eglass(m=m, phi0=math.atan(m), **base), target, increment)
+        mono[m] = h
+        curves[f"fig7_m{m}"] = (h.strain, _force(h, force_cut), h.labels())
+    s045 = 0.45
+    f0 = _at(mono[0.0].strain, _force(mono[0.0], force_cut), s045)
+    for m, key in ((0.2, "m_0_2"), (0.4, "m_0_4")):
+        f = _at(mono[m].strain, _force(mono[m], force_cut), s045)
+        row("b", f"force gain at 0.45 vs m=0, m={m}", claims["force_gain_at_strain_0_45"][key], f / f0 - 1.0)
+    row("b", "force per wale at 0.45, m=0 [N]", None, f0)
+    j0, e0 = _jam(mono[0.0])
+    j4, e4 = _jam(mono[0.4])
+    # force at the located jam event (2P sin gamma); the 2P cut reads it at the row after
+    def fj(h, e):
+        if e is None:
+            return math.nan
+        if force_cut == "2Psin":
+            return e["F"]
+        return _at(h.strain, _force(h, force_cut), (e["C"] - h.params[0].C0) / h.params[0].C0)
+    row("c", "force change at jamming, m=0.4 vs 0", claims["force_change_at_jamming_m_0_4"],
+        fj(mono[0.4], e4) / fj(mono[0.0], e0) - 1.0 if e0 and e4 else math.nan)
+    row("c", "strain at jamming m=0 / m=0.4 (paper: slightly earlier with friction)", "earlier", f"{j0:.4f} / {j4:.4f}")
+    # (a): m = 0.2, stage sequence and linearity before jamming
+    h = mono[0.2]
+    seq = []
+    for lab in h.labels():
+        if not seq or seq[-1] != lab:
+            seq.append(lab)
+    ja, _ = _jam(h)
+    pre = h.strain < (ja if math.isfinite(ja) else np.inf)
+    s, f = h.strain[pre], _force(h, force_cut)[pre]
+    slide = pre & (np.array(h.labels()) == "sliding")
+    lin = math.nan
+    if slide.sum() >= 3:
+        c = np.polyfit(h.strain[slide], _force(h, force_cut)[slide], 1)
+        res = _force(h, force_cut)[slide] - np.polyval(c, h.strain[slide])
+        lin = float(np.max(np.abs(res)) / np.ptp(_force(h, force_cut)[slide]))
+    row("a", "stage sequence m=0.2, phi0=phimax", "adherence, sliding, jamming (Fig. 5)", "-".join(seq))
+    row("a", "max deviation from a line before jamming / force range", "nearly linear", lin)
+    row("a", "strain at jamming m=0.2", None, ja)
+    # (d): phi0 sweep at m = 0.3 (Fig. 8)
+    m = 0.3
+    pm = math.atan(m)
+    d_runs = {}
+    for name, phi0 in (("-phimax", -pm), ("0", 0.0), ("+phimax", pm)):
+        hd = _mono(eglass(m=m, phi0=phi0, **base), target, increment / 5 if increment > 0.002 else increment)
+        d_runs[name] = hd
+        curves[f"fig8_phi0_{name}"] = (hd.strain, _force(hd, force_cut), hd.labels())
+    slopes, onsets, jams, ends = {}, {}, {}, {}
+    for name, hd in d_runs.items():
+        F = _force(hd, force_cut)
+        p0 = hd.params[0]
+        F_init = CellCycle(p0).initial().q["F"] if force_cut == "2Psin" else 2 * CellCycle(p0).initial().q["P"]
+        slopes[name] = (F[0] - F_init) / hd.strain[0]
+        ev = [e for e in hd.events if e["kind"] == "slide"]
+        onsets[name] = (ev[0]["C"] - p0.C0) / p0.C0 if ev else (0.0 if name == "+phimax" else math.nan)
+        jams[name] = _jam(hd)[0]
+        ends[name] = F[-1]
+    row("d", "initial slope (first increment) [N]", "same for all phi0",
+        ", ".join(f"{k}: {v:.4g}" for k, v in slopes.items()))
+    row("d", "sliding onset strain", "depends on phi0", ", ".join(f"{k}: {v:.4g}" for k, v in onsets.items()))
+    row("d", "strain at jamming", "higher phi0 -> larger", ", ".join(f"{k}: {v:.4g}" for k, v in jams.items()))
+    spread = (max(ends.values()) - min(ends.values())) / max(ends.values())
+    row("d", f"relative spread of force at {target} (post-jamming convergence)", "curves converge", spread)
+    # (e): cyclic, phi0 = 0, m = 0.2 (Fig. 11) vs experiment (Fig. 10)
+    t = data["tensile_test"]
+    prog = cycles(t["cycle_lower_strain"], t["cycle_upper_strain"], t["cycles"], increment)
+    for rule in ("dusserre", "hong_constant_t"):
+        hc = run_cell(eglass(m=0.2, phi0=0.0, unloading_rule=rule, **base), prog)
+        F = _force(hc, force_cut)
+        curves[f"fig11_{rule}"] = (hc.strain, F, hc.labels())
+        peaks = [float(F[(hc.cycle == c) & (hc.direction > 0)].max()) for c in (1, 2, 3)]
+        slack = [e for e in hc.events if e["kind"] == "slack"]
+        res1 = (slack[0]["C"] - hc.params[0].C0) / hc.params[0].C0 if slack else math.nan
+        ok = bool(np.all(hc.status == 0))
+        row("e", "peak force per wale cycle 1 / 2 / 3 [N]", f"model: 2nd higher; exp: {obs['max_force_per_wale_N']['cycle_1']} / {obs['max_force_per_wale_N']['cycle_2']}",
+            " / ".join(f"{p:.4g}" for p in peaks) + ("" if ok else " (cell stopped: " + str(hc.events[-1].get("reason", "")) + ")"), rule)
+        row("e", "second peak higher than first", True, bool(peaks[1] > peaks[0]), rule)
+        row("e", "residual strain after cycle 1 (F = 0 on unloading)", obs["residual_strain_after_cycle_1"], res1, rule)
+        row("e", "strain at jamming (first loading)", None, _jam(hc)[0], rule)
+        row("e", "force per wale at 0.6, cycle 1 [N]", obs["max_force_per_wale_N"]["cycle_1"], peaks[0], rule)
+    return {"variant": {"jamming_criterion": jamming_criterion, "force_cut": force_cut,
+                        "increment": increment, "target": target},
+            "rows": rows, "curves": curves}
+
+
+def table_text(result: dict) -> str:
+    """Plain-text table of the rows."""
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        return str(v)
+    v = result["variant"]
+    lines = [f"Dusserre (2015) claims, E-glass; jamming_criterion={v['jamming_criterion']}, "
+             f"force_cut={v['force_cut']}, increment={v['increment']}",
+             f"{'claim':5s} {'rule':16s} {'quantity':62s} {'paper':>28s}  ours"]
+    for r in result["rows"]:
+        lines.append(f"{r['claim']:5s} {r['unloading_rule']:16s} {r['quantity']:62s} {fmt(r['paper']):>28s}  {fmt(r['ours'])}")
+    return "\n".join(lines)
+
+
+def figures(result: dict, out_dir) -> list[Path]:
+    """PNG figures like the paper's Figs 7, 8 and 11; returns the paths written."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cut = "force per wale 2P sin(gamma) [N]" if result["variant"]["force_cut"] == "2Psin" else "2P [N]"
+    paths = []
+    for fig_name, prefix, title in (("fig7", "fig7_", "Fig. 7: effect of m, phi0 = phimax"),
+                                    ("fig8", "fig8_", "Fig. 8: effect of phi0, m = 0.3"),
+                                    ("fig11", "fig11_", "Fig. 11: 3 cycles 0.1-0.6, phi0 = 0, m = 0.2")):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for key, (s, f, _) in result["curves"].items():
+            if key.startswith(prefix):
+                x = np.concatenate([[0.0], s])
+                y = np.concatenate([[f[0]], f])
+                ax.plot(x, y, label=key[len(prefix):])
+        ax.set_xlabel("change in length (C - C0) / C0")
+        ax.set_ylabel(cut)
+        ax.set_title(title + f" [{result['variant']['jamming_criterion']}]")
+        ax.legend()
+        fig.tight_layout()
+        p = out_dir / f"dusserre2015_{fig_name}.png"
+        fig.savefig(p, dpi=120)
+        plt.close(fig)
+        paths.append(p)
+    return paths

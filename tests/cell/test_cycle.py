@@ -1,0 +1,217 @@
+"""Tests of the NumPy reference load cycle (Dusserre 2015 Table 4 under strain control).
+
+Expected values come from the event definitions (phi = +/-phimax, W = 4d,
+F = 0, docs/model.md "Table 4"), path independence of equilibrium within a
+stage (refinement), the second law (a closed strain cycle cannot produce
+work), the frictionless limit m = 0 (no dissipation: one curve) and the
+conditions Table 4 freezes in each stage.  E-glass knit of Dusserre (2015)
+Table 1 / section 2.2 throughout.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from knitsim.cell import cycle as cycle_mod
+from knitsim.cell.cycle import CellCycle, dissipated_energy, run_cell
+from knitsim.cell.load_program import cycles, monotonic, piecewise_linear
+from knitsim.cell.material import CellParams
+from knitsim.cell.stages import LABEL_CODES, Stage
+from knitsim.data import dusserre2015
+from knitsim.errors import KnitsimInputError
+
+_D = dusserre2015()
+EGLASS = dict(B=_D["yarn"]["e_glass"]["bending_stiffness_N_mm2"], d=_D["yarn"]["e_glass"]["yarn_diameter_mm"],
+              L=_D["knit"]["stitch_length_mm"]["e_glass"], W0=_D["knit"]["wale_width_mm"],
+              C0=_D["knit"]["course_length_mm"])
+
+
+def cell(**kw) -> CellParams:
+    return CellParams(**{**EGLASS, **kw})
+
+
+def _bracket(h, ev):
+    """Course lengths at the ends of the increment in which event ``ev`` happened."""
+    p = h.params[0]
+    i = ev["increment"]
+    prev = 0.0 if i == 0 else h.strain[i - 1]
+    a, b = p.C0 * (1 + prev), p.C0 * (1 + h.strain[i])
+    return min(a, b), max(a, b)
+
+
+def test_slide_event_located_inside_increment():
+    # SF+ from phi0 = -phimax: slide where phi reaches +phimax (Table 4, B)
+    m = 0.3
+    h = run_cell(cell(m=m, phi0=-math.atan(m)), monotonic(0.1, 0.02))
+    slides = [e for e in h.events if e["kind"] == "slide"]
+    assert len(slides) == 1
+    ev = slides[0]
+    assert ev["phi"] == pytest.approx(math.atan(m), abs=1e-9)
+    lo, hi = _bracket(h, ev)
+    assert lo < ev["C"] < hi
+    # independent re-solve of the adherence branch at the event's C
+    cc = CellCycle(h.params[0])
+    st = cc.initial()
+    _, q = cc.solve_at(st, ev["C"])
+    assert q["phi"] == pytest.approx(math.atan(m), abs=1e-9)
+
+
+def test_jam_event_at_w_4d_and_jammed_branch_holds_it():
+    p = cell(m=0.2, phi0=math.atan(0.2))
+    h = run_cell(p, monotonic(0.76, 0.04))
+    jams = [e for e in h.events if e["kind"] == "jam"]
+    assert len(jams) == 1
+    assert jams[0]["W"] == pytest.approx(4 * p.d, abs=1e-9)          # Hong: W = 4d
+    lo, hi = _bracket(h, jams[0])
+    assert lo < jams[0]["C"] < hi
+    jammed = h.jammed[:, 0] == 1
+    assert jammed.any()
+    np.testing.assert_allclose(h.values["W"][jammed, 0], 4 * p.d, rtol=1e-9)
+
+
+def test_slack_event_at_zero_force():
+    h = run_cell(cell(m=0.2, unloading_rule="hong_constant_t"), piecewise_linear([0, 0.3, 0.0], 0.05))
+    slack = [e for e in h.events if e["kind"] == "slack"]
+    assert len(slack) == 1
+    assert abs(slack[0]["F"]) < 1e-9
+    lo, hi = _bracket(h, slack[0])
+    assert lo < slack[0]["C"] < hi
+    # slack rows report zero force
+    rows = np.array(h.labels()) == "slack"
+    assert rows.any() and np.all(h.values["F"][rows, 0] == 0.0)
+
+
+def test_refinement_same_result_at_shared_strains():
+    # equilibrium within a stage is path independent: halving the increment
+    # must give the same state at the shared strains (events located exactly)
+    p = cell(m=0.3, phi0=-math.atan(0.3))
+    coarse = run_cell(p, monotonic(0.76, 0.04))
+    fine = run_cell(p, monotonic(0.76, 0.02))
+    np.testing.assert_allclose(fine.strain[1::2], coarse.strain, rtol=1e-12)
+    for k in ("F", "W", "phi", "beta", "P"):
+        np.testing.assert_allclose(fine.values[k][1::2, 0], coarse.values[k][:, 0], rtol=1e-7, atol=1e-10)
+    assert coarse.labels() == fine.labels()[1::2]
+
+
+def test_stage_order_monotonic_in_loading():
+    h = run_cell(cell(m=0.3, phi0=-math.atan(0.3)), monotonic(0.76, 0.04))
+    codes = [LABEL_CODES[lab] for lab in h.labels()]
+    assert codes == sorted(codes)                       # adherence -> sliding -> jamming
+    # the adherence stage is short: its end is an event inside the first increments
+    assert [(e["from"], e["to"]) for e in h.events] == [("adherence", "sliding"), ("sliding", "jamming")]
+
+
+@pytest.mark.parametrize("rule", ["hong_constant_t", pytest.param("dusserre", marks=pytest.mark.slow)])
+def test_second_law_closed_strain_cycle(rule):
+    # load 0 -> 0.4 -> 0.1 -> 0.4: the closed strain loop 0.4 -> 0.1 -> 0.4 cannot produce work
+    h = run_cell(cell(m=0.2, unloading_rule=rule), piecewise_linear([0, 0.4, 0.1, 0.4], 0.05))
+    assert np.all(h.status == 0)
+    i0 = int(np.argmax(h.strain >= 0.4 - 1e-12))
+    w = dissipated_energy(h.strain[i0:], h.values["F"][i0:, 0])
+    assert w >= -1e-12
+
+
+def test_frictionless_retraces_loading_curve():
+    # m = 0: no friction, nothing dissipates: unloading and reloading retrace loading
+    h = run_cell(cell(m=0.0), piecewise_linear([0, 0.4, 0.1, 0.4], 0.05))
+    assert np.all(h.status == 0)
+    F, s = h.values["F"][:, 0], h.strain
+    up1 = {round(x, 9): f for x, f, d, c in zip(s, F, h.direction, h.cycle) if d > 0 and c == 1}
+    down = [(round(x, 9), f) for x, f, d in zip(s, F, h.direction) if d < 0]
+    assert down
+    for x, f in down:
+        assert f == pytest.approx(up1[x], rel=1e-7, abs=1e-10)
+    i0 = int(np.argmax(s >= 0.4 - 1e-12))
+    assert abs(dissipated_energy(s[i0:], F[i0:])) < 1e-9
+
+
+def test_sf_plus_keeps_sbc_and_rn():
+    m = 0.3
+    h = run_cell(cell(m=m, phi0=-math.atan(m)), monotonic(0.006, 0.001))
+    st0 = CellCycle(h.params[0]).initial()
+    adh = np.array(h.labels()) == "adherence"
+    assert adh.sum() >= 2
+    np.testing.assert_allclose(h.values["s_BC"][adh, 0], st0.q["s_BC"], rtol=1e-9)
+    np.testing.assert_allclose(h.values["Rn"][adh, 0], st0.q["Rn"], rtol=1e-9)
+
+
+def test_s_minus_keeps_t_dusserre_rule():
+    h = run_cell(cell(m=0.2), piecewise_linear([0, 0.5, 0.3], 0.005))
+    rows = (h.stage[:, 0] == Stage.S_UNLOAD)
+    assert rows.sum() >= 3
+    t = h.values["T"][rows, 0]
+    slide = [e for e in h.events if e["kind"] == "slide" and e["to"] == "sliding" and e["increment"] > 0]
+    np.testing.assert_allclose(t, slide[-1]["T"], rtol=1e-9)
+
+
+def test_hong_rule_keeps_t_through_unloading():
+    h = run_cell(cell(m=0.2, unloading_rule="hong_constant_t"), piecewise_linear([0, 0.5, 0.3], 0.02))
+    i_rev = int(np.argmax(h.direction < 0))
+    t_rev = h.values["T"][i_rev - 1, 0]
+    rows = (h.direction < 0) & (h.stage[:, 0] != Stage.SLACK)
+    assert rows.sum() >= 5
+    np.testing.assert_allclose(h.values["T"][rows, 0], t_rev, rtol=1e-9)
+    # the SF- -> S- switch happened inside the unloading
+    assert any(e["kind"] == "slide" and e["increment"] >= i_rev for e in h.events)
+
+
+def test_deterministic():
+    p, prog = cell(m=0.2, unloading_rule="hong_constant_t"), piecewise_linear([0, 0.3, 0.1], 0.05)
+    a, b = run_cell(p, prog), run_cell(p, prog)
+    for k in a.values:
+        np.testing.assert_array_equal(a.values[k], b.values[k])
+    np.testing.assert_array_equal(a.stage, b.stage)
+    assert a.events == b.events
+
+
+def test_head_gap_recorded_and_interpenetration_flag():
+    p = cell(m=0.2, phi0=math.atan(0.2))
+    h = run_cell(p, monotonic(0.7, 0.05))
+    gap = h.values["head_gap"][:, 0]
+    flag = h.values["interpenetrating"][:, 0]
+    np.testing.assert_array_equal(flag, (gap < p.d).astype(float))
+    # with W = 4d the heads overlap before jamming (docs/model.md "Jamming")
+    assert flag[~h.jammed[:, 0].astype(bool)].any()
+
+
+def test_head_gap_criterion_jams_earlier_at_gap_d():
+    # W decreases monotonically while loading (rows checked below), so jamming
+    # at a W above 4d is jamming earlier than Hong's W = 4d
+    p = cell(m=0.2, phi0=math.atan(0.2), jamming_criterion="head_gap")
+    h = run_cell(p, monotonic(0.6, 0.05))
+    assert np.all(np.diff(h.values["W"][~h.jammed[:, 0].astype(bool), 0]) < 0)
+    hg = [e for e in h.events if e["kind"] == "jam"][0]
+    assert hg["head_gap"] == pytest.approx(p.d, abs=1e-8)
+    assert hg["W"] > 4 * p.d
+    lo, hi = _bracket(h, hg)
+    assert lo < hg["C"] < hi
+    jammed = h.jammed[:, 0] == 1
+    assert jammed.any()
+    np.testing.assert_allclose(h.values["W"][jammed, 0], hg["W"], rtol=1e-9)   # W held at W_jam
+
+
+@pytest.mark.parametrize("bad", [
+    dict(W0=4 * 0.58 - 0.01), dict(L=2 * 2.7 + 4.4 - 4 * 0.58), dict(B=-0.31), dict(m=-0.1),
+    dict(m=0.2, phi0=0.3), dict(unloading_rule="nope"), dict(reload_rule="x"),
+    dict(jamming_criterion="w4d"), dict(friction="stribeck"), dict(d=float("nan")),
+])
+def test_bad_input_refused_before_any_solve(bad, monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("solve called")
+    monkeypatch.setattr(cycle_mod, "initial_state", boom)
+    monkeypatch.setattr(cycle_mod, "solve_state", boom)
+    with pytest.raises(KnitsimInputError):
+        run_cell(cell(**bad), monotonic(0.1))
+
+
+@pytest.mark.slow
+def test_dahl_large_sigma_approaches_coulomb_hong():
+    # Dahl with sigma -> infinity is Coulomb stick/slip; its unloading freezes T (Hong)
+    m = 0.2
+    prog = piecewise_linear([0, 0.06], 0.03)
+    c = run_cell(cell(m=m, unloading_rule="hong_constant_t"), prog)
+    dl = run_cell(cell(m=m, friction="dahl", dahl_sigma=1e4), prog)
+    assert np.all(dl.status == 0)
+    np.testing.assert_allclose(dl.values["F"][-1, 0], c.values["F"][-1, 0], rtol=1e-3)

@@ -1,0 +1,52 @@
+"""Tests of strain-controlled load programs (sampling, cycle numbers, refused input).
+
+Expected values: the paper's cyclic programme 0 -> 0.60 -> 0.10 three times
+(Dusserre 2015 section 2.3, dusserre2015.toml [tensile_test]) and arithmetic
+of the piecewise-linear sampling.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.cell.load_program import cycles, monotonic, piecewise_linear
+from knitsim.data import dusserre2015
+from knitsim.errors import KnitsimInputError
+
+
+def test_paper_cycles():
+    t = dusserre2015()["tensile_test"]
+    prog = cycles(t["cycle_lower_strain"], t["cycle_upper_strain"], t["cycles"], 0.05)
+    assert prog.waypoints == (0.0, 0.6, 0.1, 0.6, 0.1, 0.6, 0.1)
+    # 0.6/0.05 + 5 branches of 0.5/0.05 = 12 + 50 increments
+    assert len(prog) == 62
+    assert prog.cycle.max() == 3 and prog.cycle.min() == 1
+    # direction is +1 exactly where the strain increased
+    steps = np.diff(np.concatenate([[0.0], prog.strain]))
+    np.testing.assert_array_equal(prog.direction, np.sign(steps).astype(int))
+    assert prog.strain[-1] == pytest.approx(0.1)
+
+
+def test_increments_never_exceed_max_and_hit_waypoints():
+    prog = piecewise_linear([0.0, 0.37, 0.05], 0.02)
+    steps = np.abs(np.diff(np.concatenate([[0.0], prog.strain])))
+    assert steps.max() <= 0.02 + 1e-15
+    assert 0.37 in np.round(prog.strain, 15) and prog.strain[-1] == pytest.approx(0.05)
+
+
+def test_monotonic():
+    prog = monotonic(0.45, 0.005)
+    assert len(prog) == 90 and np.all(prog.direction == 1) and np.all(prog.cycle == 1)
+
+
+@pytest.mark.parametrize("call", [
+    lambda: cycles(0.6, 0.6, 3), lambda: cycles(0.7, 0.6, 3), lambda: cycles(-0.1, 0.6, 3),
+    lambda: cycles(0.1, 0.6, 0), lambda: cycles(0.1, float("nan"), 3),
+    lambda: piecewise_linear([0.0, -1.0]), lambda: piecewise_linear([0.0, float("nan")]),
+    lambda: piecewise_linear([]), lambda: piecewise_linear([0.0, 0.0]),
+    lambda: piecewise_linear([0.0, 0.5], max_increment=0.0), lambda: monotonic(-0.2),
+    lambda: monotonic(float("inf")),
+])
+def test_unreachable_programs_refused(call):
+    with pytest.raises(KnitsimInputError):
+        call()

@@ -1,0 +1,43 @@
+"""Tests of CellParams validation (bad input refused with the field named).
+
+Bounds: W0 >= 4d (Hong et al. 2002: loops jammed at W = 4d), L > 2 C0 + W0 - 4d
+(a quarter of the stitch must reach from A to the apex, docs/model.md eq 6),
+|phi0| <= phimax = atan(m) (Dusserre 2015 section 3.3.1).
+"""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from knitsim.cell.material import CellParams
+from knitsim.errors import KnitsimInputError
+
+OK = dict(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7)   # E-glass, Dusserre (2015) Table 1, section 2.2
+
+
+def test_paper_knit_is_valid_and_phimax():
+    p = CellParams(**OK, m=0.2, phi0=math.atan(0.2)).validated()
+    assert p.phimax == pytest.approx(math.atan(0.2))
+
+
+@pytest.mark.parametrize("field,value", [
+    ("W0", 4 * 0.58 - 1e-6), ("L", 2 * 2.7 + 4.4 - 4 * 0.58), ("B", -0.31), ("B", 0.0),
+    ("d", float("nan")), ("C0", float("inf")), ("m", -0.01), ("phi0", 0.5),
+    ("unloading_rule", "hong"), ("reload_rule", "nope"), ("jamming_criterion", "gap"),
+    ("friction", "viscous"), ("force_cap_N", 0.0), ("jam_width", 0.1), ("jam_width", -1.0),
+])
+def test_bad_field_named_in_message(field, value):
+    kw = dict(OK, m=0.2)
+    kw[field] = value
+    with pytest.raises(KnitsimInputError, match=field):
+        CellParams(**kw).validated()
+
+
+def test_dahl_needs_sigma():
+    with pytest.raises(KnitsimInputError, match="dahl_sigma"):
+        CellParams(**OK, m=0.2, friction="dahl").validated()
+
+
+def test_phi0_at_minus_phimax_accepted():
+    CellParams(**OK, m=0.3, phi0=-math.atan(0.3)).validated()
