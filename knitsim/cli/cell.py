@@ -1,0 +1,95 @@
+"""``knitsim cell``: run quarter-stitch cells (Dusserre 2015) through a load program.
+
+``knitsim cell SCENE.toml [--out DIR] [--set key=value ...] [--engine warp|reference]
+[--device cpu|cuda|auto] [--json]``
+
+The scene (:mod:`knitsim.scene.cell_scene`) is read, overridden, validated and
+resolved before anything is solved or written; the results go to ``DIR``
+(default ``<scene stem>_out`` in the working directory): ``curve.csv``,
+``events.csv``, ``scene.resolved.toml``, ``plot.png`` and ``summary.json``
+(:mod:`knitsim.io.results`).  Progress goes to stderr; ``--json`` prints the
+summary on stdout.
+"""
+from __future__ import annotations
+
+import contextlib
+import sys
+import time
+from pathlib import Path
+
+from ..cell.engine import ENGINES, check_engine, simulate
+from ..io.results import check_output_dir, run_info, summarise, write_cell_results
+from ..scene.cell_scene import load_cell_scene
+from .common import add_json_flag, print_json
+
+
+def register(subparsers) -> None:
+    """Add ``knitsim cell``."""
+    parser = subparsers.add_parser(
+        "cell", help="run quarter-stitch cells through a load program (Dusserre 2015)",
+        description="Run one cell or a batch (scene [[cells]]) through a strain program and write "
+                    "curve.csv, events.csv, summary.json, scene.resolved.toml and plot.png.")
+    parser.add_argument("scene", metavar="SCENE.toml", help="cell scene file (see scenes/paper/)")
+    parser.add_argument("--out", metavar="DIR", default=None, help="output directory (default: <scene stem>_out)")
+    parser.add_argument("--set", metavar="KEY=VALUE", action="append", default=[], dest="overrides",
+                        help="override a scene key, type-checked, e.g. --set yarn.B=0.25 "
+                             "or --set cells[1].friction.m=0.3 (repeatable)")
+    parser.add_argument("--engine", choices=ENGINES, default=None, help="override the scene's engine")
+    parser.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:N or auto (warp engine)")
+    add_json_flag(parser)
+    parser.set_defaults(func=_run)
+
+
+def _progress(stream):
+    last = [0.0]
+
+    def report(*args, **kwargs):
+        now = time.monotonic()
+        if now - last[0] < 0.5 and not (len(args) >= 2 and args[0] in (args[1], args[1] - 1)):
+            return
+        last[0] = now
+        if len(args) >= 2 and all(isinstance(a, (int, float)) for a in args[:2]):
+            print(f"knitsim cell: {args[0]}/{args[1]}", file=stream, flush=True)
+        else:
+            print("knitsim cell: " + " ".join(str(a) for a in args), file=stream, flush=True)
+
+    return report
+
+
+def _run(args) -> int:
+    scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
+    out = check_output_dir(args.out or f"{Path(args.scene).stem}_out")
+    # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
+    with contextlib.redirect_stdout(sys.stderr):
+        check_engine(scene.engine)
+        device = scene.device
+        if scene.engine == "warp":
+            from .. import warp_runtime
+            device = warp_runtime.resolve_device(device)
+        else:
+            device = "cpu"
+        n, m = len(scene.params), len(scene.program)
+        print(f"knitsim cell: {n} cell(s) x {m} increments, engine {scene.engine}, device {device}",
+              file=sys.stderr, flush=True)
+        t0 = time.perf_counter()
+        history = simulate(scene.params, scene.program, engine=scene.engine, device=device,
+                           progress=_progress(sys.stderr))
+    wall = time.perf_counter() - t0
+    summary = summarise(history, scene.labels, scene.notes, **run_info(scene, device, wall))
+    files = write_cell_results(out, history, summary, scene.to_toml(), scene.labels, plot=scene.plot,
+                               title=scene.resolved.get("title", ""))
+    print(f"knitsim cell: done in {wall:.2f} s; wrote {', '.join(sorted(files))} to {out}",
+          file=sys.stderr, flush=True)
+    failed = [c["label"] for c in summary["cells"] if not c["expected_end"]]
+    if failed:
+        print(f"knitsim cell: warning: {len(failed)} cell(s) did not reach the end of the program "
+              f"({', '.join(failed[:5])}); see summary.json", file=sys.stderr, flush=True)
+    if args.json:
+        print_json(summary)
+        return 1 if failed else 0
+    for c in summary["cells"]:
+        peaks = ", ".join(f"{cy['peak_force_per_wale_N']:.3g}" for cy in c["cycles"])
+        jam = c["strain_at_first_jamming"]
+        print(f"{c['label']}: {c['end']}; peak force per wale per cycle [N]: {peaks}; "
+              f"first jamming at strain {'-' if jam is None else f'{jam:.4g}'}")
+    return 1 if failed else 0

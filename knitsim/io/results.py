@@ -1,0 +1,378 @@
+"""Result writers for cell runs: curve.csv, events.csv, summary.json, scene.resolved.toml, plot.png.
+
+Every writer reads only a :class:`~knitsim.cell.history.BatchHistory` (the
+structure every engine returns).  Files are written atomically: each is first
+written into a temporary sibling and renamed into place, and
+:func:`write_cell_results` builds the whole set in a hidden sibling directory
+before moving the files into the output directory, ``summary.json`` last; an
+error on the way leaves no half-written file behind.
+
+``curve.csv`` has one row per increment and cell, cell by cell::
+
+    cell, cycle, direction, stage, strain, force_per_wale_N, alpha, beta, gamma,
+    phi, P, W, C, s_BC, status
+
+``direction`` is ``load`` / ``unload``, ``stage`` the label of
+:func:`knitsim.cell.stages.stage_label` (adherence / sliding / jamming /
+slack), ``status`` the cell's status name (ok / force_cap / no_convergence /
+event_not_located).  ``strain`` is the imposed strain of the course length
+((C - C0)/C0 of the program); ``C`` is the cell's own course length [mm], which
+differs from ``C0 (1 + strain)`` only while the cell is slack (it stays where
+the force reached 0) or stopped.  Angles in rad, lengths in mm, forces in N.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cell.cycle import dissipated_energy
+from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
+from ..cell.stages import LABEL_CODES
+from ..errors import KnitsimInputError
+
+CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
+                 "gamma", "phi", "P", "W", "C", "s_BC", "status")
+EVENT_COLUMNS = ("cell", "increment", "strain", "kind", "C", "event_strain", "from", "to", "status", "reason")
+OUTPUT_FILES = ("curve.csv", "events.csv", "scene.resolved.toml", "plot.png", "summary.json")
+_LABELS = {v: k for k, v in LABEL_CODES.items()}
+_QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC")
+
+#: what each rule value means (labelled in summaries and plots)
+RULE_MEANINGS = {
+    "friction": {"coulomb": "Coulomb stick/slide switching (Table 4)",
+                 "dahl": "Dahl smooth stick-slip of tan(phi) with the slip at B"},
+    "unloading_rule": {"dusserre": "SF- freezes beta, S- freezes T (Table 4)",
+                       "hong_constant_t": "T constant through the whole unloading (Hong et al. 2002)"},
+    "reload_rule": {"mirror_unloading": "reloading from Rn ~ 0 freezes beta in SF+ (mirror of SF-)",
+                    "freeze_rn": "SF+ freezes Rn as printed in Table 4"},
+    "jamming_criterion": {"w_4d": "jamming at W = 4 d (Hong et al. 2002)",
+                          "head_gap": "jamming when neighbouring loop heads come within d"},
+}
+
+
+# ------------------------------------------------------------------ atomic I/O
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary sibling and a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write UTF-8 ``text`` to ``path`` atomically (see :func:`atomic_write_bytes`)."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+# ------------------------------------------------------------------- tables
+def _num(v: float) -> str:
+    v = float(v)
+    return repr(v) if math.isfinite(v) else "nan"
+
+
+def curve_csv(history: BatchHistory) -> str:
+    """The text of ``curve.csv`` (see the module docstring)."""
+    h = history
+    labels = h.label_codes()
+    F = h.force_per_wale
+    lines = [",".join(CURVE_COLUMNS)]
+    direction = ["load" if d > 0 else "unload" for d in h.direction]
+    for c in range(h.n_cells):
+        cols = [h.values[q][:, c] for q in _QUANTITIES]
+        for i in range(len(h.strain)):
+            row = [str(c), str(int(h.cycle[i])), direction[i], _LABELS[int(labels[i, c])], _num(h.strain[i]),
+                   _num(F[i, c])] + [_num(col[i]) for col in cols] + [STATUS_NAMES[int(h.status[i, c])]]
+            lines.append(",".join(row))
+    return "\n".join(lines) + "\n"
+
+
+def _csv_cell(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, (float, np.floating)):
+        return _num(v)
+    s = str(v)
+    return '"' + s.replace('"', '""') + '"' if any(ch in s for ch in ',"\n') else s
+
+
+def events_csv(history: BatchHistory) -> str:
+    """The text of ``events.csv``: one row per located event, in order of cell and increment.
+
+    ``strain`` is the imposed strain of the increment, ``event_strain`` the
+    strain of the cell at the event, ``C / C0 - 1``.
+    """
+    h = history
+    lines = [",".join(EVENT_COLUMNS)]
+    evs = sorted(h.events, key=lambda e: (e.get("cell", 0), e.get("increment", 0)))
+    for e in evs:
+        c = int(e.get("cell", 0))
+        inc = int(e.get("increment", 0))
+        C = e.get("C")
+        C0 = h.params[c].C0 if c < len(h.params) else None
+        row = {"cell": c, "increment": inc, "strain": float(h.strain[inc]) if 0 <= inc < len(h.strain) else None,
+               "kind": e.get("kind"), "C": None if C is None else float(C),
+               "event_strain": None if (C is None or C0 is None) else float(C) / C0 - 1.0,
+               "from": e.get("from"), "to": e.get("to"), "status": e.get("status"), "reason": e.get("reason")}
+        lines.append(",".join(_csv_cell(row[k]) for k in EVENT_COLUMNS))
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ summary
+def _stopped_rows(status: np.ndarray) -> int:
+    """Number of meaningful rows of a cell.
+
+    A cell stopped by the force cap holds the located cap state in its first
+    flagged row (kept); a failed cell repeats its last converged state from its
+    first flagged row on (dropped).
+    """
+    bad = np.nonzero(status != STATUS_OK)[0]
+    if not len(bad):
+        return len(status)
+    return int(bad[0]) + (1 if status[bad[0]] == STATUS_FORCE_CAP else 0)
+
+
+def rules_of(params) -> dict:
+    """The rules a cell ran with, each with its meaning."""
+    out = {}
+    for key, attr in (("friction", "friction"), ("unloading_rule", "unloading_rule"),
+                      ("reload_rule", "reload_rule"), ("jamming_criterion", "jamming_criterion")):
+        v = getattr(params, attr)
+        out[key] = {"value": v, "meaning": RULE_MEANINGS[key].get(v, "")}
+    out["force_cap_N"] = {"value": float(params.force_cap_N),
+                          "meaning": "a cell stops when its force per wale reaches this value"}
+    return out
+
+
+def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None) -> dict:
+    """Summary numbers of one cell.
+
+    Per cycle: peak force per wale and the imposed strain where it occurs;
+    residual strain, the strain ``C / C0 - 1`` where the force reaches 0 on
+    the unloading branch (located ``slack`` event; else linear interpolation
+    between the two rows around the zero; null if the force never reaches 0);
+    energy, ``oint F d(strain)`` over the cycle's rows
+    (:func:`~knitsim.cell.cycle.dissipated_energy`, strain = C / C0 - 1 from
+    the cell's own C, starting from the last row of the previous cycle; the
+    first cycle starts at the first increment), also times C0 as N mm.
+
+    Also: strain at the first jamming (located ``jam`` event, else the first
+    jammed row), rows per status, the final status and whether it is the
+    expected end of the run (completed, or stopped at the force cap).
+    """
+    h = history
+    p = h.params[cell]
+    F = h.force_per_wale[:, cell]
+    status = h.status[:, cell]
+    C = h.values["C"][:, cell]
+    eps_cell = C / p.C0 - 1.0
+    n_ok = _stopped_rows(status)
+    events = [e for e in h.events if int(e.get("cell", 0)) == cell]
+    labels = h.labels(cell)
+
+    cycles_out = []
+    for k in np.unique(h.cycle):
+        rows = np.nonzero(h.cycle == k)[0]
+        rows = rows[rows < n_ok]
+        if len(rows) == 0:
+            continue
+        entry: dict[str, Any] = {"cycle": int(k)}
+        j = rows[np.argmax(F[rows])]
+        entry["peak_force_per_wale_N"] = float(F[j])
+        entry["strain_at_peak"] = float(h.strain[j])
+        # residual strain: where F reaches 0 on this cycle's unloading branch
+        unload = rows[h.direction[rows] < 0]
+        res, how = None, None
+        slack = [e for e in events if e.get("kind") == "slack" and "C" in e
+                 and len(unload) and unload[0] <= int(e["increment"]) <= unload[-1]]
+        if slack:
+            res, how = float(slack[0]["C"]) / p.C0 - 1.0, "event"
+        elif len(unload):
+            prev = np.concatenate([[unload[0] - 1], unload]) if unload[0] > 0 else unload
+            for a, b in zip(prev[:-1], prev[1:]):
+                if F[a] > 0 >= F[b]:
+                    t = F[a] / (F[a] - F[b])
+                    res, how = float(eps_cell[a] + t * (eps_cell[b] - eps_cell[a])), "interpolated"
+                    break
+        entry["residual_strain"] = res
+        entry["residual_strain_from"] = how
+        path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
+        w = dissipated_energy(eps_cell[path], F[path]) if len(path) > 1 else 0.0
+        entry["energy_N_per_strain"] = w
+        entry["energy_N_mm"] = w * p.C0
+        cycles_out.append(entry)
+
+    jam = [e for e in events if e.get("kind") == "jam" and "C" in e]
+    if jam:
+        jam_strain, jam_from = float(jam[0]["C"]) / p.C0 - 1.0, "event"
+    else:
+        rows = [i for i in range(n_ok) if labels[i] == "jamming"]
+        jam_strain, jam_from = (float(eps_cell[rows[0]]), "row") if rows else (None, None)
+
+    counts = {STATUS_NAMES[int(s)]: int(np.sum(status == s)) for s in np.unique(status)}
+    final = int(status[-1])
+    flag = next((e for e in events if e.get("kind") == "flag"), None)
+    if final == STATUS_OK:
+        end, expected = "completed the load program", True
+    elif final == STATUS_FORCE_CAP:
+        end, expected = (f"stopped at the force cap (force per wale = {p.force_cap_N:g} N), "
+                         "the expected end of a run to the cap"), True
+    else:
+        reason = flag.get("reason", "") if flag else ""
+        end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
+    flagged = np.nonzero(status != STATUS_OK)[0]
+    stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
+    return {
+        "cell": cell, "label": label,
+        "params": {k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
+                   for k, v in p.as_dict().items()},
+        "notes": notes or {},
+        "rules": rules_of(p),
+        "final_status": STATUS_NAMES[final],
+        "end": end,
+        "expected_end": expected,
+        "stopped_at_strain": None if stop_row is None else float(h.strain[stop_row]),  # imposed strain
+        "final_force_per_wale_N": float(F[n_ok - 1]) if n_ok else None,
+        "status_counts": counts,
+        "strain_at_first_jamming": jam_strain,
+        "strain_at_first_jamming_from": jam_from,
+        "cycles": cycles_out,
+    }
+
+
+def summarise(history: BatchHistory, labels: list[str] | None = None, notes: list[dict] | None = None,
+              **info) -> dict:
+    """The ``summary.json`` document: run information plus :func:`cell_summary` of each cell."""
+    labels = labels or [f"cell {i}" for i in range(history.n_cells)]
+    notes = notes or [{} for _ in range(history.n_cells)]
+    cells = [cell_summary(history, i, labels[i], notes[i]) for i in range(history.n_cells)]
+    out = dict(info)
+    out.update(n_cells=history.n_cells, n_increments=int(len(history.strain)),
+               all_expected_end=all(c["expected_end"] for c in cells), cells=cells)
+    return out
+
+
+def summary_json(summary: dict) -> str:
+    """``summary`` as JSON text (NaN -> null)."""
+    from ..cli.common import _jsonable
+    return json.dumps(_jsonable(summary), indent=2) + "\n"
+
+
+# --------------------------------------------------------------------- plot
+_STAGE_COLOURS = {"adherence": "#1f77b4", "sliding": "#2ca02c", "jamming": "#d62728", "slack": "#7f7f7f"}
+
+
+def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str = "") -> bytes:
+    """PNG of force per wale vs strain: one line per cell, points coloured by stage, rules in the legend."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    h = history
+    labels = labels or [f"cell {i}" for i in range(h.n_cells)]
+    fig = Figure(figsize=(8, 5.5), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    codes = h.label_codes()
+    F = h.force_per_wale
+    handles = []
+    for c in range(h.n_cells):
+        n = _stopped_rows(h.status[:, c])
+        eps = h.values["C"][:n, c] / h.params[c].C0 - 1.0
+        (line,) = ax.plot(eps, F[:n, c], lw=0.8, alpha=0.7)
+        if c < 8:
+            line.set_label(labels[c])
+            handles.append(line)
+        for name, code in LABEL_CODES.items():
+            mask = codes[:n, c] == code
+            if mask.any():
+                ax.scatter(eps[mask], F[:n, c][mask], s=6, color=_STAGE_COLOURS[name], zorder=3)
+    if h.n_cells > 8:
+        handles.append(Line2D([], [], color="none", label=f"... {h.n_cells - 8} more cells"))
+    for name, col in _STAGE_COLOURS.items():
+        handles.append(Line2D([], [], ls="", marker="o", color=col, label=name))
+    rules = sorted({(p.friction, p.unloading_rule, p.reload_rule, p.jamming_criterion, p.force_cap_N)
+                    for p in h.params})
+    for fr, un, re_, jam, cap in rules[:3]:
+        handles.append(Line2D([], [], color="none",
+                              label=f"{fr}, unload {un}, reload {re_}, {jam}, cap {cap:g} N"))
+    ax.legend(handles=handles, fontsize=7, loc="upper left")
+    ax.set_xlabel("strain of the course length, C/C0 - 1")
+    ax.set_ylabel("force per wale [N]")
+    ax.set_title(title or "knitsim cell", fontsize=10)
+    ax.grid(alpha=0.3)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+# --------------------------------------------------------------- whole set
+def check_output_dir(out_dir: str | Path) -> Path:
+    """Refuse an output path that cannot hold the results (before any work)."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise KnitsimInputError(f"--out = {str(out)!r}: exists and is not a directory")
+    parent = out.resolve().parent
+    probe = parent
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir() or not os.access(probe, os.W_OK):
+        raise KnitsimInputError(f"--out = {str(out)!r}: cannot write under {probe}")
+    return out
+
+
+def write_cell_results(out_dir: str | Path, history: BatchHistory, summary: dict, resolved_toml: str,
+                       labels: list[str] | None = None, plot: bool = True, title: str = "") -> dict[str, Path]:
+    """Write the whole result set into ``out_dir``.
+
+    The files are built in a hidden sibling directory, then stale outputs of
+    an earlier run are removed from ``out_dir`` and the new files renamed in,
+    ``summary.json`` last (its presence marks a complete set).
+
+    Returns
+    -------
+    dict of str to Path
+        The written files by name.
+    """
+    out = check_output_dir(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        files = {"curve.csv": curve_csv(history).encode(), "events.csv": events_csv(history).encode(),
+                 "scene.resolved.toml": resolved_toml.encode()}
+        if plot:
+            files["plot.png"] = plot_png(history, labels, title)
+        files["summary.json"] = summary_json(summary).encode()
+        for name, data in files.items():
+            (tmp / name).write_bytes(data)
+        out.mkdir(exist_ok=True)
+        for name in reversed(OUTPUT_FILES):        # summary.json first: the set is incomplete from here
+            (out / name).unlink(missing_ok=True)
+        for name in files:                         # summary.json last
+            os.replace(tmp / name, out / name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {name: out / name for name in files}
+
+
+def run_info(scene, device: str, wall_s: float) -> dict:
+    """Run information for the summary."""
+    from .. import __version__
+    return {"knitsim_version": __version__, "scene": scene.source, "title": scene.resolved.get("title", ""),
+            "engine": scene.engine, "device": device, "load": scene.resolved["load"],
+            "wall_s": wall_s, "written_at": time.strftime("%Y-%m-%dT%H:%M:%S")}

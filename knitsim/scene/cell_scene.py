@@ -1,0 +1,439 @@
+"""Cell scenes: one quarter-stitch cell, or a batch of them, through a load program.
+
+A cell scene is a TOML file (see ``scenes/paper/``)::
+
+    title = "E-glass plain knit, monotonic"
+    engine = "warp"              # or "reference" (NumPy, one cell at a time)
+    device = "cpu"               # cpu, cuda, cuda:N, auto
+
+    [yarn]                       # library yarn, explicit keys override it
+    material = "e_glass"         # d = 0.58 mm, B = 0.31 N mm^2 (Table 1)
+
+    [knit]
+    material = "e_glass_plain"   # L = 14.1, W0 = 4.4, C0 = 2.7 mm (section 2.2)
+
+    [friction]
+    model = "coulomb"            # or "dahl" (needs dahl_sigma [1/mm])
+    m = 0.20                     # or mu_k + coiling_angle_deg (eq 10)
+    phi0 = 0.0                   # [rad], or phi0_deg, or "phimax" / "-phimax"
+
+    [rules]
+    unloading_rule = "dusserre"  # or "hong_constant_t"
+    force_cap_N = 10.0
+
+    [load]
+    type = "monotonic"           # or "cycles" / "piecewise"
+    target_strain = 1.0
+    max_increment = 0.005
+
+    [[cells]]                    # optional: one entry per cell of a batch,
+    label = "m = 0.4"            # each a partial override of the tables above
+    friction = { m = 0.4 }
+
+Every key is checked by :data:`CELL_SCENE` (:mod:`knitsim.scene.schema`);
+cross-field conditions (``W0 >= 4 d``, ``L`` long enough to close a loop,
+``|phi0| <= phimax``, a reachable load program) are checked here, before any
+solve, with messages naming the key path: ``cells[2].knit.W0 = 2.0: must be
+>= 4 d = 2.32 mm``.
+
+Friction ratio ``m``: ``friction.m`` if given; else eq 10
+(:func:`knitsim.friction.coiling.m_eq10`) from ``friction.mu_k`` and
+``friction.coiling_angle_deg`` (default: the yarn material's mean coiling
+angle, section 3.4); else the yarn material's ``m`` (section 3.4).
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .. import materials
+from ..cell.load_program import LoadProgram, cycles, monotonic, piecewise_linear
+from ..cell.material import CellParams
+from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
+from ..errors import KnitsimInputError
+from ..friction.coiling import m_eq10
+from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
+
+ENGINES = ("warp", "reference")
+LOAD_TYPES = ("monotonic", "cycles", "piecewise")
+
+
+def _device_check(v: str) -> str | None:
+    if v in ("cpu", "cuda", "auto") or (v.startswith("cuda:") and v[5:].isdigit()):
+        return None
+    return "expected cpu, cuda, cuda:N or auto"
+
+
+def _pos(doc, unit, default=OPTIONAL):
+    return Field(("float",), default, doc, unit, min=0.0, min_inclusive=False)
+
+
+def _yarn_table() -> Table:
+    return Table({
+        "material": Field(("str",), OPTIONAL, f"library yarn, one of {', '.join(materials.yarn_names())}"),
+        "d": _pos("yarn diameter (Table 1); jamming at W = 4 d", "mm"),
+        "B": _pos("bending stiffness (Table 1)", "N mm^2"),
+    }, "the yarn: a library material and/or explicit d, B")
+
+
+def _knit_table() -> Table:
+    return Table({
+        "material": Field(("str",), OPTIONAL, f"library knit, one of {', '.join(materials.knit_names())}"),
+        "L": _pos("yarn length per stitch (section 2.2)", "mm"),
+        "W0": _pos("wale width at rest (section 2.2)", "mm"),
+        "C0": _pos("course length at rest (section 2.2)", "mm"),
+    }, "the knit geometry at rest: a library knit and/or explicit L, W0, C0")
+
+
+def _friction_table(defaults: bool) -> Table:
+    d = (lambda v: v) if defaults else (lambda v: OPTIONAL)
+    return Table({
+        "model": Field(("str",), d("coulomb"), "friction at the crossing", choices=FRICTION_MODELS),
+        "m": Field(("float",), OPTIONAL, "apparent ratio Rt/Rn = tan(phimax) (eq 10)", min=0.0),
+        "mu_k": Field(("float",), OPTIONAL, "kinetic friction coefficient, with coiling_angle_deg gives m by eq 10",
+                      min=0.0),
+        "coiling_angle_deg": Field(("float",), OPTIONAL, "coiling angle at the crossing for eq 10", "deg",
+                                   min=0.0, max=180.0, min_inclusive=False, max_inclusive=False),
+        "phi0": Field(("float", "str"), OPTIONAL, 'initial friction angle [rad], or "phimax" / "-phimax"', "rad",
+                      check=lambda v: None if not isinstance(v, str) or v in ("phimax", "-phimax")
+                      else 'expected a number [rad], "phimax" or "-phimax"'),
+        "phi0_deg": Field(("float",), OPTIONAL, "initial friction angle in degrees", "deg"),
+        "dahl_sigma": Field(("float",), d(0.0), "Dahl stiffness of tan(phi) per unit slip (model = dahl)",
+                            "1/mm", min=0.0),
+    }, "friction at the loop crossing (section 3.3)")
+
+
+def _rules_table(defaults: bool) -> Table:
+    d = (lambda v: v) if defaults else (lambda v: OPTIONAL)
+    return Table({
+        "unloading_rule": Field(("str",), d("dusserre"), "SF- step: freeze beta (Table 4) or T (Hong)",
+                                choices=UNLOADING_RULES),
+        "reload_rule": Field(("str",), d("mirror_unloading"), "reloading from zero contact force",
+                             choices=RELOAD_RULES),
+        "jamming_criterion": Field(("str",), d("w_4d"), "W = 4 d (Hong) or head-to-head distance d",
+                                   choices=JAMMING_CRITERIA),
+        "force_cap_N": Field(("float",), d(50.0), "force per wale at which a cell stops (jammed branch)", "N",
+                             min=0.0, min_inclusive=False),
+    }, "rules where Table 4 is silent (knitsim.cell.stages)")
+
+
+def _load_table() -> Table:
+    return Table({
+        "type": Field(("str",), REQUIRED, "monotonic, cycles or piecewise", choices=LOAD_TYPES),
+        "target_strain": Field(("float",), OPTIONAL, "monotonic: final change in length (C - C0)/C0",
+                               min=0.0, min_inclusive=False),
+        "lower_strain": Field(("float",), OPTIONAL, "cycles: strain at the end of each unloading", min=0.0),
+        "upper_strain": Field(("float",), OPTIONAL, "cycles: strain at the end of each loading",
+                              min=0.0, min_inclusive=False),
+        "cycles": Field(("int",), OPTIONAL, "cycles: number of load-unload cycles", min=1),
+        "waypoints": Field(("float_list",), OPTIONAL, "piecewise: strains to pass through, from rest"),
+        "max_increment": Field(("float",), 0.005, "largest strain increment", min=0.0, min_inclusive=False),
+    }, "strain-controlled load program of the course length", required=True)
+
+
+def _cell_table(defaults: bool) -> Table:
+    return Table({
+        "label": Field(("str",), OPTIONAL, "name of the cell in outputs"),
+        "yarn": _yarn_table(),
+        "knit": _knit_table(),
+        "friction": _friction_table(defaults),
+        "rules": _rules_table(defaults),
+    })
+
+
+#: the schema of a cell scene file
+CELL_SCENE = Table({
+    "title": Field(("str",), OPTIONAL, "free text"),
+    "engine": Field(("str",), "warp", "warp (batched kernels) or reference (NumPy)", choices=ENGINES),
+    "device": Field(("str",), "cpu", "Warp device", check=_device_check),
+    "yarn": _yarn_table(),
+    "knit": _knit_table(),
+    "friction": _friction_table(True),
+    "rules": _rules_table(True),
+    "load": _load_table(),
+    "output": Table({"plot": Field(("bool",), True, "write plot.png")}, "what to write"),
+    "cells": TableArray(_cell_table(False), "cells of a batch, each overriding the tables above", min_items=1),
+})
+
+_CELL_TABLES = ("yarn", "knit", "friction", "rules")
+# keys that are alternatives: a cell that sets one drops the others inherited from the base
+_ALTERNATIVES = {"friction": (("m",), ("mu_k", "coiling_angle_deg")),
+                 "friction_phi0": (("phi0",), ("phi0_deg",))}
+_LOAD_KEYS = {"monotonic": ("target_strain",), "cycles": ("lower_strain", "upper_strain", "cycles"),
+              "piecewise": ("waypoints",)}
+
+
+@dataclass
+class CellScene:
+    """A validated cell scene, ready to run.
+
+    Attributes
+    ----------
+    params : list of CellParams
+        One per cell (validated).
+    labels : list of str
+        Cell names for outputs.
+    program : LoadProgram
+        The sampled strain history (shared by every cell).
+    engine, device : str
+        ``"warp"`` or ``"reference"``; the Warp device name (not yet resolved).
+    resolved : dict
+        The scene with every default filled and every cell spelled out; a
+        valid scene itself (:meth:`to_toml`).
+    notes : list of dict
+        Per cell, where ``m`` and ``phi0`` came from (for summaries).
+    source : str
+        The scene file, or ``"<dict>"``.
+    """
+
+    params: list
+    labels: list
+    program: LoadProgram
+    engine: str
+    device: str
+    resolved: dict
+    notes: list
+    source: str = "<dict>"
+
+    @property
+    def plot(self) -> bool:
+        return bool(self.resolved["output"]["plot"])
+
+    def to_toml(self) -> str:
+        """The resolved scene as TOML (loads back to the same cells)."""
+        return dumps(self.resolved, header=f"knitsim cell scene, resolved from {self.source}\n"
+                                           "every default filled in; units N, mm, rad (degrees only in *_deg)")
+
+
+def _merge(base: dict, over: dict) -> dict:
+    """Merge one cell's partial override into the base tables, key by key."""
+    out = copy.deepcopy({t: base.get(t, {}) for t in _CELL_TABLES})
+    for t in _CELL_TABLES:
+        o = over.get(t, {})
+        if t == "friction":
+            for groups in (_ALTERNATIVES["friction"], _ALTERNATIVES["friction_phi0"]):
+                for g in groups:
+                    if any(k in o for k in g):
+                        for other in groups:
+                            if other is not g:
+                                for k in other:
+                                    out[t].pop(k, None)
+        out[t].update(o)
+    return out
+
+
+class _Origins:
+    """Key paths of the values of one cell, for messages."""
+
+    def __init__(self, index: int | None, over: dict):
+        self.index, self.over = index, over
+
+    def path(self, table: str, key: str) -> str:
+        if self.index is not None and key in self.over.get(table, {}):
+            return f"cells[{self.index}].{table}.{key}"
+        return f"{table}.{key}"
+
+    def where(self) -> str:
+        return f" (in cells[{self.index}])" if self.index is not None else ""
+
+
+def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
+    """Fill a merged cell from the library and check it; returns (resolved tables, notes)."""
+    y, k, f, r = cell["yarn"], cell["knit"], cell["friction"], cell["rules"]
+    notes: dict = {}
+    ylib = materials.yarn(y["material"], org.path("yarn", "material")) if "material" in y else None
+    klib = materials.knit(k["material"], org.path("knit", "material")) if "material" in k else None
+
+    def take(table, key, lib, name):
+        src = cell[table]
+        if key in src:
+            return src[key]
+        if lib is not None:
+            return getattr(lib, key)
+        raise KnitsimInputError(f"{org.path(table, key)}: missing{org.where()} (give {table}.{key} or "
+                                f"{table}.material = one of {', '.join(name())})")
+
+    d = take("yarn", "d", ylib, materials.yarn_names)
+    B = take("yarn", "B", ylib, materials.yarn_names)
+    L = take("knit", "L", klib, materials.knit_names)
+    W0 = take("knit", "W0", klib, materials.knit_names)
+    C0 = take("knit", "C0", klib, materials.knit_names)
+
+    # geometry (section 3.1): W >= 4 d (Hong), and a loop needs L > 2 C0 + W0 - 4 d
+    if W0 < 4.0 * d:
+        raise error(org.path("knit", "W0"), W0,
+                    f"must be >= 4 d = {4.0 * d:.4g} mm ({org.path('yarn', 'd')} = {fmt(d)}; loops jammed already)"
+                    + org.where())
+    lmin = 2.0 * C0 + W0 - 4.0 * d
+    if L <= lmin:
+        raise error(org.path("knit", "L"), L,
+                    f"too short to close a loop: needs > 2 C0 + W0 - 4 d = {lmin:.4g} mm" + org.where())
+
+    # friction ratio m: explicit, eq 10, or the library yarn's (section 3.4)
+    if "m" in f and ("mu_k" in f or "coiling_angle_deg" in f):
+        other = "mu_k" if "mu_k" in f else "coiling_angle_deg"
+        raise error(org.path("friction", other), f[other], "give either friction.m or friction.mu_k "
+                    "(+ coiling_angle_deg), not both" + org.where())
+    if "m" in f:
+        m = f["m"]
+        notes["m_source"] = "friction.m"
+    elif "mu_k" in f:
+        if "coiling_angle_deg" in f:
+            theta_deg = f["coiling_angle_deg"]
+        elif ylib is not None:
+            theta_deg = ylib.coiling_angle_deg
+        else:
+            raise KnitsimInputError(f"{org.path('friction', 'coiling_angle_deg')}: missing{org.where()} "
+                                    "(eq 10 needs the coiling angle with friction.mu_k)")
+        m = float(m_eq10(math.radians(theta_deg), f["mu_k"]))
+        notes["m_source"] = f"eq 10: mu_k = {f['mu_k']:g}, coiling angle = {theta_deg:g} deg"
+    elif "coiling_angle_deg" in f:
+        raise error(org.path("friction", "coiling_angle_deg"), f["coiling_angle_deg"],
+                    "needs friction.mu_k (eq 10)" + org.where())
+    elif ylib is not None:
+        m = ylib.m
+        notes["m_source"] = f"yarn {ylib.name}: m = {ylib.m:g} (section 3.4)"
+    else:
+        raise KnitsimInputError(f"{org.path('friction', 'm')}: missing{org.where()} (give friction.m, "
+                                "friction.mu_k with coiling_angle_deg, or yarn.material)")
+    phimax = math.atan(m)
+
+    if "phi0" in f and "phi0_deg" in f:
+        raise error(org.path("friction", "phi0_deg"), f["phi0_deg"],
+                    "give either friction.phi0 or friction.phi0_deg, not both" + org.where())
+    if "phi0_deg" in f:
+        phi0, phi_path, phi_val = math.radians(f["phi0_deg"]), org.path("friction", "phi0_deg"), f["phi0_deg"]
+    else:
+        phi_val = f.get("phi0", 0.0)
+        phi_path = org.path("friction", "phi0")
+        phi0 = {"phimax": phimax, "-phimax": -phimax}.get(phi_val, phi_val) if isinstance(phi_val, str) else phi_val
+    if abs(phi0) > phimax + 1e-12:
+        raise error(phi_path, phi_val, f"must lie in [-phimax, phimax] = [{-phimax:.4g}, {phimax:.4g}] rad "
+                    f"(= +/-{math.degrees(phimax):.4g} deg, m = {m:.4g})" + org.where())
+    phi0 = max(-phimax, min(phimax, phi0))
+    notes["phi0_source"] = f"{phi_path} = {fmt(phi_val)}"
+
+    model = f["model"]
+    sigma = f["dahl_sigma"]
+    if model == "dahl" and sigma <= 0:
+        raise error(org.path("friction", "dahl_sigma"), sigma,
+                    "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]" + org.where())
+
+    out = {
+        "yarn": dict(({"material": y["material"]} if "material" in y else {}), d=d, B=B),
+        "knit": dict(({"material": k["material"]} if "material" in k else {}), L=L, W0=W0, C0=C0),
+        "friction": {"model": model, "m": m, "phi0": phi0, "dahl_sigma": sigma},
+        "rules": dict(r),
+    }
+    return out, notes
+
+
+def _program(load: dict, cells: list[dict]) -> tuple[LoadProgram, dict]:
+    kind = load["type"]
+    for key in ("target_strain", "lower_strain", "upper_strain", "cycles", "waypoints"):
+        if key in load and key not in _LOAD_KEYS[kind]:
+            raise error(f"load.{key}", load[key], f"not used by load.type = {fmt(kind)} "
+                        f"(it takes {', '.join('load.' + k for k in _LOAD_KEYS[kind])})")
+    for key in _LOAD_KEYS[kind]:
+        if key not in load:
+            raise KnitsimInputError(f"load.{key}: missing (load.type = {fmt(kind)} needs it)")
+    inc = load["max_increment"]
+    if kind == "monotonic":
+        prog = monotonic(load["target_strain"], inc)
+        top_key = "load.target_strain"
+    elif kind == "cycles":
+        if load["lower_strain"] >= load["upper_strain"]:
+            raise error("load.lower_strain", load["lower_strain"],
+                        f"must be < load.upper_strain = {fmt(load['upper_strain'])}")
+        prog = cycles(load["lower_strain"], load["upper_strain"], load["cycles"], inc)
+        top_key = "load.upper_strain"
+    else:
+        prog = piecewise_linear(load["waypoints"], inc)
+        top_key = "load.waypoints"
+    resolved = {"type": kind, **{k: load[k] for k in _LOAD_KEYS[kind]}, "max_increment": inc}
+    # reachability: a quarter stitch of length L/4 spans C/2, so C < L/2 (straight yarn)
+    top = float(max(prog.strain))
+    for i, c in enumerate(cells):
+        limit = c["knit"]["L"] / (2.0 * c["knit"]["C0"]) - 1.0
+        if top >= limit:
+            where = f" for cells[{i}]" if len(cells) > 1 else ""
+            raise KnitsimInputError(
+                f"{top_key} = {fmt(load[top_key.split('.')[1]])}: strain {top:g} cannot be reached{where}: "
+                f"C = C0 (1 + strain) must stay below L/2 = {c['knit']['L'] / 2:.4g} mm (straight yarn), "
+                f"i.e. strain < {limit:.4g}")
+    if len(prog) > 1_000_000:
+        raise error("load.max_increment", inc, f"gives {len(prog)} increments; use a larger increment")
+    return prog, resolved
+
+
+def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
+                    engine: str | None = None, device: str | None = None) -> CellScene:
+    """Read, override, validate and resolve a cell scene.
+
+    Parameters
+    ----------
+    source : path or dict
+        A TOML file, or an already-parsed document.
+    overrides : list of str
+        ``key.path=value`` assignments (``--set``), applied before validation
+        and type-checked by the schema.
+    engine, device : str, optional
+        Command-line choices that replace the scene's.
+
+    Returns
+    -------
+    CellScene
+
+    Raises
+    ------
+    KnitsimInputError
+        The first problem found, naming the key path and the value; nothing
+        has been solved or written.
+    """
+    if isinstance(source, dict):
+        data, name = copy.deepcopy(source), "<dict>"
+    else:
+        data, name = load_toml(source), str(source)
+    for a in overrides:
+        set_value(data, CELL_SCENE, a)
+    if engine is not None:
+        data["engine"] = engine
+    if device is not None:
+        data["device"] = device
+    # the base tables are merged with each cell's override before defaults are filled
+    base = validate(CELL_SCENE, {k: v for k, v in data.items() if k != "cells"}, fill_defaults=True)
+    raw_base = {t: validate(CELL_SCENE.fields[t], data.get(t, {}), t, fill_defaults=False) for t in _CELL_TABLES}
+    cells_in = data.get("cells")
+    if cells_in is not None:
+        cells_over = validate(Table({"cells": CELL_SCENE.fields["cells"]}), {"cells": cells_in})["cells"]
+    else:
+        cells_over = [None]
+    cell_defaults = _cell_table(True)
+    resolved_cells, params, labels, notes = [], [], [], []
+    for i, over in enumerate(cells_over):
+        index = None if over is None else i
+        merged = _merge(raw_base, over or {})
+        where = "" if index is None else f"cells[{i}]"
+        merged = validate(cell_defaults, merged, where, fill_defaults=True)
+        org = _Origins(index, over or {})
+        tables, note = _resolve_cell(merged, org)
+        label = (over or {}).get("label") or (base.get("title") if over is None else None) or f"cell {i}"
+        p = CellParams(B=tables["yarn"]["B"], d=tables["yarn"]["d"], L=tables["knit"]["L"],
+                       W0=tables["knit"]["W0"], C0=tables["knit"]["C0"], m=tables["friction"]["m"],
+                       phi0=tables["friction"]["phi0"], friction=tables["friction"]["model"],
+                       dahl_sigma=tables["friction"]["dahl_sigma"], **tables["rules"])
+        p.validated(where or "cell")   # backstop: the same checks as the engines
+        params.append(p)
+        labels.append(label)
+        notes.append(note)
+        resolved_cells.append({"label": label, **tables})
+    program, load_resolved = _program(base["load"], resolved_cells)
+    resolved: dict[str, Any] = {}
+    if "title" in base:
+        resolved["title"] = base["title"]
+    resolved.update(engine=base["engine"], device=base["device"], output=base["output"], load=load_resolved,
+                    cells=resolved_cells)
+    return CellScene(params, labels, program, base["engine"], base["device"], resolved, notes, name)

@@ -1,0 +1,206 @@
+"""``knitsim cell`` in-process: paper scenes run small (NumPy reference), bad input refused, outputs checked."""
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from knitsim.cli import main
+from knitsim.io.results import CURVE_COLUMNS
+
+REPO = Path(__file__).resolve().parents[2]
+PAPER = REPO / "scenes" / "paper"
+FILES = {"curve.csv", "events.csv", "scene.resolved.toml", "plot.png", "summary.json"}
+
+# small runs: coarse increments (and fewer cycles) keep each scene to a few seconds
+SMALL = {
+    "e_glass_monotonic": ["load.max_increment=0.025"],
+    "basalt_monotonic": ["load.max_increment=0.025"],
+    "e_glass_cyclic": ["load.max_increment=0.025", "load.cycles=1"],
+    "e_glass_cyclic_constant_t": ["load.max_increment=0.025", "load.cycles=2"],
+}
+
+
+def run(capsys, scene, out, *extra):
+    argv = ["cell", str(scene), "--out", str(out), "--engine", "reference", "--json", *extra]
+    rc = main(argv)
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+def read_curve(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return rows
+
+
+def col(rows, name, cell=0):
+    return np.array([float(r[name]) for r in rows if int(r["cell"]) == cell])
+
+
+@pytest.mark.parametrize("name", sorted(SMALL))
+def test_paper_scene_runs_small(capsys, tmp_path, name):
+    sets = [a for s in SMALL[name] for a in ("--set", s)]
+    rc, out, err = run(capsys, PAPER / f"{name}.toml", tmp_path / "o", *sets)
+    summary = json.loads(out)
+    assert {p.name for p in (tmp_path / "o").iterdir()} == FILES
+    assert "engine reference" in err and "done in" in err
+    rows = read_curve(tmp_path / "o" / "curve.csv")
+    with open(tmp_path / "o" / "curve.csv") as fh:
+        assert tuple(fh.readline().strip().split(",")) == CURVE_COLUMNS
+    assert len(rows) == summary["n_increments"] * summary["n_cells"]
+    cell = summary["cells"][0]
+    assert rc == (0 if cell["expected_end"] else 1)
+    F, C, strain = col(rows, "force_per_wale_N"), col(rows, "C"), col(rows, "strain")
+    C0 = cell["params"]["C0"]
+    cyc = col(rows, "cycle")
+    unloading = np.array([r["direction"] == "unload" for r in rows])
+    stage = [r["stage"] for r in rows]
+    for entry in cell["cycles"]:
+        k = entry["cycle"]
+        idx = np.nonzero(cyc == k)[0]
+        assert entry["peak_force_per_wale_N"] == F[idx].max()
+        # residual strain: where F reached 0 unloading; the slack cell keeps C there, so the
+        # first slack row of the cycle's unloading carries it as C/C0 - 1
+        slack = [i for i in idx if unloading[i] and stage[i] == "slack"]
+        if entry["residual_strain"] is not None:
+            assert entry["residual_strain"] == pytest.approx(C[slack[0]] / C0 - 1, abs=1e-12)
+        else:
+            assert not slack
+        # energy: trapezoids of F over the cell's strain C/C0 - 1 (numpy's trapezoid, from the
+        # last row of the previous cycle)
+        path = np.concatenate([[idx[0] - 1], idx]) if idx[0] > 0 else idx
+        e = np.trapezoid(F[path], C[path] / C0 - 1) if hasattr(np, "trapezoid") else np.trapz(F[path], C[path] / C0 - 1)
+        assert entry["energy_N_per_strain"] == pytest.approx(e, rel=1e-12, abs=1e-15)
+    if "monotonic" in name:
+        # from rest through jamming to the 10 N cap: the cap is the expected end (section 4.1 runs)
+        assert cell["final_status"] == "force_cap" and cell["expected_end"]
+        assert "expected end" in cell["end"]
+        assert F.max() == pytest.approx(10.0, rel=1e-9)
+        jam = cell["strain_at_first_jamming"]
+        first = stage.index("jamming")
+        assert C[first - 1] / C0 - 1 < jam <= C[first] / C0 - 1 + 1e-12
+        # W = 4 d at and after jamming (Hong 2002), d = 0.58 / 0.56 mm (Table 1)
+        assert col(rows, "W")[first] == pytest.approx(4 * cell["params"]["d"], rel=1e-9)
+    else:
+        # section 2.3: cycles up to 0.60; the loop dissipates (second law) and stays below jamming
+        assert strain.max() == pytest.approx(0.6) and cell["strain_at_first_jamming"] is None
+        assert cell["cycles"][0]["residual_strain"] is not None
+        assert cell["cycles"][0]["energy_N_per_strain"] > 0
+
+
+def test_batch_scene_and_text_output(capsys, tmp_path):
+    scene = tmp_path / "batch.toml"
+    scene.write_text((PAPER / "basalt_monotonic.toml").read_text() + """
+[[cells]]
+label = "m = 0.17"
+
+[[cells]]
+label = "stiffer"
+yarn = { B = 0.25 }
+""")
+    rc = main(["cell", str(scene), "--out", str(tmp_path / "o"), "--engine", "reference",
+               "--set", "load.max_increment=0.025", "--set", "load.target_strain=0.3"])
+    cap = capsys.readouterr()
+    assert rc == 0
+    assert cap.out.count("completed the load program") == 2
+    rows = read_curve(tmp_path / "o" / "curve.csv")
+    n = math.ceil(0.3 / 0.025 - 1e-12)
+    assert len(rows) == n * 2
+    # eqs 8-9: lengths scale with sqrt(B/P), so a stiffer yarn needs a larger P for the same
+    # shape: at every imposed strain before jamming the stiffer cell carries more force
+    F0, F1 = col(rows, "force_per_wale_N", 0), col(rows, "force_per_wale_N", 1)
+    assert np.all(F1 > F0)
+
+
+BAD = [
+    ("no_load", lambda t: t.split("[load]")[0], r"^knitsim: error: load: missing required table \[load\]"),
+    ("unknown_key", lambda t: t.replace("[yarn]", "[yarn]\ncolour = \"red\""),
+     r'^knitsim: error: yarn\.colour = "red": unknown key'),
+    ("wrong_type", lambda t: t.replace("\nm = 0.20", '\nm = "high"'), r'^knitsim: error: friction\.m = "high": expected a number$'),
+    ("negative_B", lambda t: t.replace('material = "e_glass"   ', 'B = -0.31\nmaterial = "e_glass" '),
+     r"^knitsim: error: yarn\.B = -0\.31: must be > 0 N mm\^2$"),
+    ("nan_B", lambda t: t.replace('material = "e_glass"   ', 'B = nan\nmaterial = "e_glass" '),
+     r"^knitsim: error: yarn\.B = nan: must be a finite number$"),
+    ("narrow", lambda t: t.replace("[knit]", "[knit]\nW0 = 2.0"),
+     r"^knitsim: error: knit\.W0 = 2\.0: must be >= 4 d = 2\.32 mm"),
+    ("short", lambda t: t.replace("[knit]", "[knit]\nL = 7.0"),
+     r"^knitsim: error: knit\.L = 7\.0: too short to close a loop"),
+    ("material", lambda t: t.replace('material = "e_glass_plain"', 'material = "e_glass_rib"'),
+     r"^knitsim: error: knit\.material = 'e_glass_rib': unknown knit \(known: basalt_plain, e_glass_plain\)$"),
+    ("lower_upper", lambda t: t.replace("lower_strain = 0.10", "lower_strain = 0.70"),
+     r"^knitsim: error: load\.lower_strain = 0\.7: must be < load\.upper_strain = 0\.6$"),
+    ("syntax", lambda t: t.replace("[load]", "[load"), r"^knitsim: error: .*bad\.toml: not valid TOML"),
+]
+
+
+@pytest.mark.parametrize("case, edit, match", BAD, ids=[b[0] for b in BAD])
+def test_bad_scene_exit_2_one_line_nothing_written(capsys, tmp_path, case, edit, match):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(edit((PAPER / "e_glass_cyclic.toml").read_text()))
+    rc = main(["cell", str(bad), "--out", str(tmp_path / "o"), "--engine", "reference"])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    import re
+    assert re.match(match, err.strip()), err
+    assert not (tmp_path / "o").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+
+@pytest.mark.parametrize("sets, match", [
+    (["yarn.B=abc"], r'yarn\.B = "abc": expected a number$'),
+    (["yarn.B=-1"], r"yarn\.B = -1\.0: must be > 0 N mm\^2$"),
+    (["knit.W0=nan"], r"knit\.W0 = nan: must be a finite number$"),
+    (["load.upper_strain=2.0"], r"load\.upper_strain = 2\.0: strain 2 cannot be reached"),
+    (["friction.phi0=1.0"], r"friction\.phi0 = 1\.0: must lie in \[-phimax, phimax\]"),
+    (["yarn.Bee=1"], r"--set yarn\.Bee: unknown key 'yarn\.Bee'"),
+])
+def test_bad_set_exit_2(capsys, tmp_path, sets, match):
+    argv = ["cell", str(PAPER / "e_glass_cyclic.toml"), "--out", str(tmp_path / "o"), "--engine", "reference"]
+    for s in sets:
+        argv += ["--set", s]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    import re
+    assert re.search(match, err), err
+    assert not (tmp_path / "o").exists()
+
+
+def test_missing_scene_and_bad_out(capsys, tmp_path):
+    assert main(["cell", str(tmp_path / "none.toml"), "--engine", "reference"]) == 2
+    assert "none.toml: no such scene file" in capsys.readouterr().err
+    f = tmp_path / "file"
+    f.write_text("")
+    assert main(["cell", str(PAPER / "e_glass_cyclic.toml"), "--out", str(f), "--engine", "reference"]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err
+
+
+def test_warp_engine_missing_is_a_clear_error(capsys, tmp_path, monkeypatch):
+    # None in sys.modules makes the lazy import fail as if knitsim.cell.batch were absent
+    monkeypatch.setitem(sys.modules, "knitsim.cell.batch", None)
+    rc = main(["cell", str(PAPER / "e_glass_cyclic.toml"), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "engine 'warp' is not available" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("knitsim.cell.batch") is None, reason="no Warp batch engine")
+def test_warp_and_reference_agree_on_basalt_monotonic(capsys, tmp_path):
+    # the two engines are independent solvers of the same cell (section 4.1 data): the located
+    # jamming strain and the dissipated energy to the cap agree
+    sets = ["--set", "load.max_increment=0.025"]
+    rc_r, out_r, _ = run(capsys, PAPER / "basalt_monotonic.toml", tmp_path / "r", *sets)
+    rc_w = main(["cell", str(PAPER / "basalt_monotonic.toml"), "--out", str(tmp_path / "w"), "--json", *sets])
+    out_w = capsys.readouterr().out
+    r, w = json.loads(out_r)["cells"][0], json.loads(out_w)["cells"][0]     # stdout is pure JSON
+    assert rc_r == rc_w == 0 and r["final_status"] == w["final_status"] == "force_cap"
+    assert w["strain_at_first_jamming"] == pytest.approx(r["strain_at_first_jamming"], abs=1e-8)
+    assert w["cycles"][0]["energy_N_per_strain"] == pytest.approx(r["cycles"][0]["energy_N_per_strain"], rel=1e-6)

@@ -1,0 +1,162 @@
+"""Result writers on a hand-built BatchHistory (no engine): columns, rows, summary numbers, atomic writes."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+from knitsim.cell.history import HISTORY_QUANTITIES, BatchHistory
+from knitsim.cell.material import CellParams
+from knitsim.cell.stages import Stage
+from knitsim.io import results
+from knitsim.io.results import CURVE_COLUMNS, curve_csv, events_csv, summarise, write_cell_results
+
+C0 = 2.7
+STRAIN = np.array([0.1, 0.2, 0.3, 0.2, 0.1])
+P = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=C0, m=0.2, force_cap_N=3.0)
+
+
+def history() -> BatchHistory:
+    """Three cells on one program: load 0 -> 0.3, unload -> 0.1.
+
+    cell 0: F = 1, 2, 3, 1, 0; goes slack at strain 0.15 (event), C stays there;
+    cell 1: reaches the force cap (3 N) at row 2, later rows repeat its state;
+    cell 2: F = 1, 2, 3, 1, 0 without a slack event, jams at strain 0.25 (event);
+    cell 3: no convergence at row 3, whose row (and the next) repeat row 2.
+    """
+    n, k = len(STRAIN), 4
+    C = np.repeat((C0 * (1 + STRAIN))[:, None], k, axis=1)
+    F = np.array([[1, 1, 1, 1], [2, 2, 2, 2], [3, 3, 3, 3], [1, 3, 1, 3], [0, 3, 0, 3]], float)
+    C[4, 0] = C0 * 1.15
+    C[3:, 1] = C[2, 1]
+    C[3:, 3] = C[2, 3]
+    stage = np.full((n, k), int(Stage.S_LOAD))
+    stage[3, :], stage[4, :] = int(Stage.S_UNLOAD), int(Stage.S_UNLOAD)
+    stage[4, 0] = int(Stage.SLACK)
+    stage[3:, 1] = int(Stage.S_LOAD)
+    stage[3:, 3] = int(Stage.S_LOAD)
+    jammed = np.zeros((n, k), np.int32)
+    jammed[2:, 2] = 1
+    status = np.zeros((n, k), np.int32)
+    status[2:, 1] = 2          # force_cap
+    status[3:, 3] = 1          # no_convergence
+    values = {q: np.full((n, k), 0.5) for q in HISTORY_QUANTITIES}
+    values["F"], values["C"] = F, C
+    events = [{"cell": 0, "increment": 4, "kind": "slack", "C": C0 * 1.15, "from": "sliding", "to": "slack"},
+              {"cell": 1, "increment": 2, "kind": "force_cap", "C": C0 * 1.3},
+              {"cell": 1, "increment": 2, "kind": "flag", "reason": "force per wale reached force_cap_N",
+               "status": "force_cap"},
+              {"cell": 2, "increment": 2, "kind": "jam", "C": C0 * 1.25, "from": "sliding", "to": "jamming"},
+              {"cell": 3, "increment": 3, "kind": "flag", "reason": "no convergence, x", "status": "no_convergence"}]
+    return BatchHistory(STRAIN, np.ones(n, np.int32), np.array([1, 1, 1, -1, -1]), stage, jammed, status,
+                        values, events, [P, P, P.replace(unloading_rule="hong_constant_t"), P])
+
+
+def read(text):
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+def test_curve_columns_rows_and_labels():
+    h = history()
+    text = curve_csv(h)
+    assert text.splitlines()[0] == ("cell,cycle,direction,stage,strain,force_per_wale_N,alpha,beta,gamma,phi,"
+                                    "P,W,C,s_BC,status")
+    rows = read(text)
+    assert len(rows) == 5 * 4                             # increments x cells
+    assert [r["cell"] for r in rows] == ["0"] * 5 + ["1"] * 5 + ["2"] * 5 + ["3"] * 5
+    assert [r["direction"] for r in rows[:5]] == ["load"] * 3 + ["unload"] * 2
+    assert [r["stage"] for r in rows[:5]] == ["sliding"] * 4 + ["slack"]
+    assert [r["stage"] for r in rows[10:15]] == ["sliding", "sliding", "jamming", "jamming", "jamming"]
+    assert [r["status"] for r in rows[15:]] == ["ok", "ok", "ok", "no_convergence", "no_convergence"]
+    assert [r["status"] for r in rows[5:10]] == ["ok", "ok", "force_cap", "force_cap", "force_cap"]
+    assert float(rows[4]["C"]) == C0 * 1.15 and float(rows[2]["force_per_wale_N"]) == 3.0
+    assert float(rows[3]["strain"]) == 0.2                 # full precision
+
+
+def test_events_csv():
+    rows = read(events_csv(history()))
+    assert [r["kind"] for r in rows] == ["slack", "force_cap", "flag", "jam", "flag"]
+    assert float(rows[0]["event_strain"]) == pytest.approx(0.15, abs=1e-15)
+    assert rows[4]["reason"] == "no convergence, x"       # quoted comma survives
+
+
+def test_summary_numbers_by_hand():
+    s = summarise(history(), ["a", "b", "c", "d"])
+    c0, c1, c2, c3 = s["cells"]
+    # cell 0: residual strain from the slack event, C/C0 - 1 = 0.15
+    assert c0["cycles"][0]["residual_strain"] == pytest.approx(0.15, abs=1e-15)
+    assert c0["cycles"][0]["residual_strain_from"] == "event"
+    # loop (0.1,1) (0.2,2) (0.3,3) (0.2,1) (0.15,0), trapezoids: 0.15 + 0.25 - 0.2 - 0.025 = 0.175
+    assert c0["cycles"][0]["energy_N_per_strain"] == pytest.approx(0.175, abs=1e-14)
+    assert c0["cycles"][0]["energy_N_mm"] == pytest.approx(0.175 * C0, abs=1e-14)
+    assert c0["cycles"][0]["peak_force_per_wale_N"] == 3.0 and c0["cycles"][0]["strain_at_peak"] == 0.3
+    assert c0["end"] == "completed the load program" and c0["expected_end"]
+    assert c0["strain_at_first_jamming"] is None
+    # cell 1: stopped at the cap = the expected end; rows after the stop ignored
+    assert c1["final_status"] == "force_cap" and c1["expected_end"]
+    assert "force cap" in c1["end"] and "expected end" in c1["end"]
+    assert c1["stopped_at_strain"] == 0.3
+    assert c1["status_counts"] == {"ok": 2, "force_cap": 3}
+    assert c1["cycles"][0]["energy_N_per_strain"] == pytest.approx(0.15 + 0.25, abs=1e-14)
+    assert c1["cycles"][0]["residual_strain"] is None
+    # cell 2: no slack event: F reaches 0 between rows (0.2, 1) and (0.1, 0) -> 0.1
+    assert c2["cycles"][0]["residual_strain"] == pytest.approx(0.1, abs=1e-15)
+    assert c2["cycles"][0]["residual_strain_from"] == "interpolated"
+    assert c2["strain_at_first_jamming"] == pytest.approx(0.25, abs=1e-15)
+    # cell 3: failed at row 3; its repeated rows are not part of the curve's numbers
+    assert c3["expected_end"] is False and c3["end"] == "FAILED (no_convergence): no convergence, x"
+    assert c3["stopped_at_strain"] == 0.2 and c3["final_force_per_wale_N"] == 3.0
+    assert c3["cycles"][0]["energy_N_per_strain"] == pytest.approx(0.15 + 0.25, abs=1e-14)
+    assert c3["cycles"][0]["residual_strain"] is None
+    assert c2["rules"]["unloading_rule"]["value"] == "hong_constant_t"
+    assert "Hong" in c2["rules"]["unloading_rule"]["meaning"]
+    assert s["all_expected_end"] is False and s["n_cells"] == 4 and s["n_increments"] == 5
+
+
+def test_write_set_is_complete_and_replaces_stale_files(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "plot.png").write_text("stale")
+    h = history()
+    files = write_cell_results(out, h, summarise(h), 'title = "x"\n', plot=False)
+    assert sorted(p.name for p in out.iterdir()) == ["curve.csv", "events.csv", "scene.resolved.toml",
+                                                     "summary.json"]
+    assert set(files) == {"curve.csv", "events.csv", "scene.resolved.toml", "summary.json"}
+    assert json.loads((out / "summary.json").read_text())["n_cells"] == 4
+    assert tomllib.loads((out / "scene.resolved.toml").read_text()) == {"title": "x"}
+    assert list(tmp_path.iterdir()) == [out]              # no temporary sibling left
+
+
+def test_plot_is_a_png(tmp_path):
+    h = history()
+    data = results.plot_png(h, ["a", "b", "c", "d"], "t")
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000
+
+
+def test_error_while_writing_leaves_nothing(tmp_path, monkeypatch):
+    out = tmp_path / "run"
+
+    def boom(*a, **k):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(results, "plot_png", boom)
+    h = history()
+    with pytest.raises(RuntimeError):
+        write_cell_results(out, h, summarise(h), "", plot=True)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_write_text(tmp_path):
+    p = results.atomic_write_text(tmp_path / "a.txt", "hello")
+    assert p.read_text() == "hello" and [x.name for x in tmp_path.iterdir()] == ["a.txt"]
+
+
+def test_output_dir_that_is_a_file_is_refused(tmp_path):
+    f = tmp_path / "f"
+    f.write_text("")
+    with pytest.raises(results.KnitsimInputError, match=r"^--out = .*: exists and is not a directory$"):
+        results.check_output_dir(f)
