@@ -30,7 +30,12 @@ def init() -> None:
     global _initialised
     if _initialised:
         return
-    wp.config.quiet = True
+    # silence the start-up banner and module-load messages (stdout stays clean
+    # for --json output); Warp >= 1.10 uses log_level, older releases quiet
+    if hasattr(wp.config, "log_level"):
+        wp.config.log_level = getattr(wp, "LOG_WARNING", 30)
+    else:  # pragma: no cover
+        wp.config.quiet = True
     wp.config.kernel_cache_dir = str(kernel_cache_dir())
     wp.init()
     _initialised = True
