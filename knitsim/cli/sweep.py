@@ -1,0 +1,112 @@
+"""``knitsim sweep``: a grid or Latin-hypercube sweep of any cell-scene parameter.
+
+``knitsim sweep SCENE.toml [--sweep SWEEP.toml] [--out DIR] [--resume]
+[--workers N] [--scheduler ADDR] [--engine warp|reference] [--device ...]
+[--curves] [--set key=value ...] [--chunk-size N] [--no-plot] [--json]``
+
+The ``[sweep]`` table (in the scene, or a separate file with ``--sweep``) is
+described in :mod:`knitsim.sweep.spec`; every sample is validated before
+anything runs.  Results go to ``DIR`` (default ``<scene stem>_sweep``):
+``sweep.json``, ``chunks/``, ``results.nc``, ``results.csv``,
+``plot_sweep.png`` (:mod:`knitsim.sweep.runner`).  Chunks run on a local Dask
+cluster with one worker process per core unless ``--workers 0`` (in this
+process) or ``--scheduler tcp://host:port`` (an existing cluster).  Killing a
+run keeps the finished chunks; ``--resume`` finishes it.
+"""
+from __future__ import annotations
+
+import contextlib
+import shlex
+import sys
+from pathlib import Path
+
+from ..cell.engine import ENGINES
+from ..errors import KnitsimInputError
+from .common import add_json_flag, print_json
+
+
+def register(subparsers) -> None:
+    """Add ``knitsim sweep``."""
+    parser = subparsers.add_parser(
+        "sweep", help="sweep cell-scene parameters over a grid or a Latin hypercube (batched, Dask)",
+        description="Run a cell scene over a grid or Latin-hypercube sample of any of its parameters "
+                    "([sweep] table); chunks of samples are batched into single engine calls and run on "
+                    "Dask workers; results: results.nc (xarray), results.csv, plot_sweep.png.")
+    parser.add_argument("scene", metavar="SCENE.toml", help="cell scene, with a [sweep] table unless --sweep")
+    parser.add_argument("--sweep", metavar="SWEEP.toml", default=None,
+                        help="separate file holding the [sweep] table (replaces the scene's)")
+    parser.add_argument("--out", metavar="DIR", default=None, help="output directory (default: <scene stem>_sweep)")
+    parser.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="local Dask worker processes (default: one per core); 0: run in this process")
+    parser.add_argument("--scheduler", metavar="ADDR", default=None,
+                        help="address of an existing Dask scheduler, e.g. tcp://host:8786 "
+                             "(workers need knitsim and --out on a shared file system)")
+    parser.add_argument("--engine", choices=ENGINES, default=None, help="override the scene's engine")
+    parser.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:N or auto")
+    parser.add_argument("--curves", action="store_true", help="also keep force per wale vs increment of every cell")
+    parser.add_argument("--chunk-size", type=int, default=None, metavar="N", help="override sweep.chunk_size")
+    parser.add_argument("--set", metavar="KEY=VALUE", action="append", default=[], dest="overrides",
+                        help="override a key of the base scene (repeatable)")
+    parser.add_argument("--no-plot", action="store_true", help="do not write plot_sweep.png")
+    add_json_flag(parser)
+    parser.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from ..sweep.runner import SweepChunkError, plan_sweep, run_sweep
+    from ..sweep.spec import parse_sweep, split_scene
+    from ..scene.schema import load_toml
+
+    if args.workers is not None and args.workers < 0:
+        raise KnitsimInputError(f"--workers = {args.workers}: expected 0 (no Dask) or a positive number")
+    if args.chunk_size is not None and args.chunk_size < 1:
+        raise KnitsimInputError(f"--chunk-size = {args.chunk_size}: expected a whole number >= 1")
+    doc = load_toml(args.scene)
+    _, table, _ = split_scene(doc, args.sweep)
+    if isinstance(table, dict):
+        table = dict(table)
+        if args.curves:
+            table["curves"] = True
+        if args.chunk_size is not None:
+            table["chunk_size"] = args.chunk_size
+    spec = parse_sweep(table)
+    out = Path(args.out or f"{Path(args.scene).stem}_sweep")
+    with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
+        plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
+    workers = args.workers
+    if workers is None and plan.device != "cpu" and not args.scheduler:
+        workers = 1                                   # one GPU: one worker process feeds it
+    resume_cmd = "knitsim sweep " + " ".join(shlex.quote(a) for a in sys.argv[2:] if a != "--resume") \
+        if len(sys.argv) > 2 and sys.argv[1] == "sweep" else f"knitsim sweep {args.scene} --out {out}"
+    try:
+        run = run_sweep(plan, out, resume=args.resume, workers=workers, scheduler=args.scheduler)
+    except KeyboardInterrupt:
+        done = len(list((out / "chunks").glob("chunk_*.npz"))) if (out / "chunks").is_dir() else 0
+        print(f"knitsim sweep: interrupted; {done}/{len(plan.chunks)} finished chunk(s) kept in {out / 'chunks'}; "
+              f"finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
+        return 130
+    except SweepChunkError as exc:
+        done = len(list((out / "chunks").glob("chunk_*.npz")))
+        print(f"knitsim sweep: {exc}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
+              f"after fixing the cause, finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
+        return 1
+    ds = run.dataset
+    n_bad = int((ds["expected_end"].values != 1).sum())
+    summary = {
+        "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
+        "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
+        "computed_chunks": len(run.computed), "skipped_chunks": len(run.skipped), "wall_s": run.wall_s,
+        "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad,
+        "files": {k: str(v) for k, v in run.files.items()},
+    }
+    print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
+          f"{run.wall_s:.1f} s; wrote {', '.join(sorted(run.files))} to {out}", file=sys.stderr, flush=True)
+    if n_bad:
+        print(f"knitsim sweep: warning: {n_bad} cell(s) did not reach the end of the program "
+              "(see final_status in results.nc)", file=sys.stderr, flush=True)
+    if args.json:
+        print_json(summary)
+    else:
+        print(f"{plan.n_samples} samples -> {out / 'results.nc'}")
+    return 0

@@ -1,0 +1,728 @@
+"""Run a parameter sweep of cell scenes: plan, chunks, execution, assembly.
+
+The sweep is a batch axis, not a Python loop: every sample's cells go into one
+list of :class:`~knitsim.cell.material.CellParams`, split into chunks of
+``chunk_size`` samples, and each chunk is ONE call of
+:func:`knitsim.cell.engine.simulate` (one batched Warp run of all its cells).
+Samples whose load program differs (a swept ``load.*`` key) are grouped by
+program first; a chunk never mixes programs.
+
+Output directory ``OUT``::
+
+    OUT/sweep.json                 manifest: spec, hash, base scene, samples, chunks, versions
+    OUT/chunks/chunk_NNNNN.npz     one per chunk, written atomically by whoever ran it
+    OUT/results.nc                 xarray Dataset (netCDF3 through SciPy)
+    OUT/results.csv                one row per sample, cell and cycle
+    OUT/plot_*.png                 (knitsim.sweep.plots)
+
+A chunk file is written through a temporary sibling and a rename, by the
+process that computed it (in-process, or the Dask worker), so a run that is
+killed keeps every finished chunk; ``resume=True`` re-reads the manifest,
+refuses a different sweep (hash of the spec, the scene, the engine, the device
+and the sample table) and computes only the chunks whose file is missing.
+Results do not depend on the order chunks finish in, nor on the backend.
+
+Per cell and cycle the results are those of
+:func:`knitsim.io.results.cell_summary` (one definition of each quantity):
+peak force per wale and the imposed strain where it occurs, residual strain,
+energy per cycle; per cell the strain at the first jamming and the final
+status.  With ``curves`` the force per wale at every increment is kept too.
+
+Execution backends: ``workers=0`` runs chunks in this process; otherwise a
+Dask ``LocalCluster`` with ``workers`` single-threaded worker processes
+(default one per core: Warp's CPU backend runs a launch on one thread), or the
+existing Dask cluster at ``scheduler`` (its workers need knitsim installed and
+``OUT`` on a shared file system).  Each worker process initialises Warp once
+and loads the compiled kernels from the shared on-disk cache.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import io
+import json
+import os
+import platform
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import KnitsimInputError
+from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir
+from ..scene.cell_scene import CELL_SCENE, load_cell_scene
+from ..scene.schema import load_toml, set_value
+from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
+
+MANIFEST = "sweep.json"
+CHUNK_DIR = "chunks"
+FORMAT = "knitsim-sweep/1"
+#: per cell and cycle
+CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
+#: per cell
+CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end")
+
+
+class SweepChunkError(RuntimeError):
+    """A chunk failed while running (not a user mistake); finished chunks are kept."""
+
+
+# ------------------------------------------------------------------ planning
+@dataclass
+class Chunk:
+    """One batched engine call: ``samples`` (indices into the sample table) of one program group."""
+
+    index: int
+    group: int
+    samples: np.ndarray
+
+    @property
+    def name(self) -> str:
+        return f"chunk_{self.index:05d}.npz"
+
+
+@dataclass
+class SweepPlan:
+    """Everything a sweep needs, validated, before anything is solved.
+
+    Attributes
+    ----------
+    spec : SweepSpec
+    scene_doc : dict
+        The scene (without ``[sweep]``), command-line overrides applied.
+    base : CellScene
+        The base scene, resolved.
+    engine, device : str
+        Engine and (resolved) device.
+    table : list of tuple
+        The swept values of every sample.
+    params : list of list of CellParams
+        Per sample, its cells (``n_cells`` each).
+    programs : list of LoadProgram
+        One per program group; ``group[i]`` is sample ``i``'s.
+    loads : list of dict
+        The resolved ``[load]`` table of each group.
+    group : ndarray of int
+    chunks : list of Chunk
+    labels : list of str
+        Cell labels (of the base scene).
+    source : str
+        The scene file.
+    """
+
+    spec: SweepSpec
+    scene_doc: dict
+    base: Any
+    engine: str
+    device: str
+    table: list
+    params: list
+    programs: list
+    loads: list
+    group: np.ndarray
+    chunks: list
+    labels: list
+    source: str = "<dict>"
+    hash: str = ""
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.table)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.labels)
+
+    @property
+    def n_cycles(self) -> int:
+        return max(int(p.cycle.max()) for p in self.programs)
+
+    @property
+    def n_increments(self) -> int:
+        return max(len(p) for p in self.programs)
+
+
+def _text(v: Any) -> str:
+    """A value as ``--set`` text (parsed back exactly by the schema's field types)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def _assignments(keys: list[str], row: tuple) -> list[str]:
+    return [f"{k}={_text(v)}" for k, v in zip(keys, row)]
+
+
+def _check_key(doc: dict, key: str, value: Any) -> None:
+    """Refuse a key path that is not a scalar of the cell scene schema, naming it."""
+    try:
+        set_value(copy.deepcopy(doc), CELL_SCENE, f"{key}={_text(value)}")
+    except KnitsimInputError as exc:
+        msg = str(exc)
+        prefix = f"--set {key}: "
+        msg = msg[len(prefix):] if msg.startswith(prefix) else msg
+        raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: {msg}") from None
+
+
+def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | None = None,
+               overrides: list[str] = (), engine: str | None = None, device: str | None = None,
+               chunk_size: int | None = None) -> SweepPlan:
+    """Read and validate a sweep completely: every sample's scene, before any solve.
+
+    Parameters
+    ----------
+    scene : path or dict
+        The cell scene (TOML file or parsed document); may hold the ``[sweep]`` table.
+    sweep : path, dict or SweepSpec, optional
+        A separate sweep TOML, a ``[sweep]`` table, or a parsed spec; replaces
+        the scene's ``[sweep]``.
+    overrides : list of str
+        ``key=value`` overrides of the base scene (as ``knitsim cell --set``).
+    engine, device : str, optional
+        Replace the scene's engine / device.
+    chunk_size : int, optional
+        Replace ``sweep.chunk_size``.
+
+    Returns
+    -------
+    SweepPlan
+
+    Raises
+    ------
+    KnitsimInputError
+        An unknown key path (named), a bad ``[sweep]`` entry, or a sample whose
+        scene is invalid (the message gives the sample's values).
+    """
+    if isinstance(scene, dict):
+        doc, source = copy.deepcopy(scene), "<dict>"
+    else:
+        doc, source = load_toml(scene), str(scene)
+    if isinstance(sweep, SweepSpec):
+        scene_doc, spec = {k: v for k, v in doc.items() if k != "sweep"}, sweep
+    else:
+        if isinstance(sweep, dict):
+            scene_doc, table = {k: v for k, v in doc.items() if k != "sweep"}, sweep
+        else:
+            scene_doc, table, _ = split_scene(doc, None if sweep is None else str(sweep))
+        if chunk_size is not None:
+            table = dict(table, chunk_size=chunk_size)
+        spec = parse_sweep(table)
+    for a in overrides:
+        set_value(scene_doc, CELL_SCENE, a)
+    base = load_cell_scene(scene_doc, engine=engine, device=device)
+    for p in spec.parameters:
+        _check_key(scene_doc, p.key, p.values[0] if p.values is not None else p.low)
+
+    if base.engine == "warp":
+        from .. import warp_runtime
+        dev = warp_runtime.resolve_device(base.device)
+    else:
+        dev = "cpu"
+
+    table = spec.sample_table()
+    keys = spec.keys
+    params, group, programs, loads, group_of = [], [], [], [], {}
+    n_cells = len(base.params)
+    for i, row in enumerate(table):
+        try:
+            s = load_cell_scene(scene_doc, _assignments(keys, row), engine=engine, device=device)
+        except KnitsimInputError as exc:
+            vals = ", ".join(f"{k} = {_text(v)}" for k, v in zip(keys, row))
+            raise KnitsimInputError(f"sweep sample {i} ({vals}): {exc}") from None
+        if len(s.params) != n_cells:  # pragma: no cover - a scalar key cannot change the cell count
+            raise KnitsimInputError(f"sweep sample {i}: {len(s.params)} cells, the base scene has {n_cells}")
+        gkey = canonical_json(s.resolved["load"])
+        if gkey not in group_of:
+            group_of[gkey] = len(programs)
+            programs.append(s.program)
+            loads.append(s.resolved["load"])
+        group.append(group_of[gkey])
+        params.append(s.params)
+    group = np.asarray(group, dtype=np.int64)
+    chunks = []
+    for g in range(len(programs)):
+        idx = np.nonzero(group == g)[0]
+        for a in range(0, len(idx), spec.chunk_size):
+            chunks.append(Chunk(len(chunks), g, idx[a:a + spec.chunk_size]))
+    plan = SweepPlan(spec, scene_doc, base, base.engine, dev, table, params, programs, loads, group, chunks,
+                     list(base.labels), source)
+    plan.hash = sweep_hash(plan)
+    return plan
+
+
+def sweep_hash(plan: SweepPlan) -> str:
+    """SHA-256 identifying a sweep: spec, scene, engine, device and the sample table."""
+    rows = hashlib.sha256(canonical_json([list(r) for r in plan.table]).encode()).hexdigest()
+    what = {"format": FORMAT, "spec": plan.spec.table, "scene": plan.scene_doc, "engine": plan.engine,
+            "device": plan.device, "samples": rows}
+    return hashlib.sha256(canonical_json(what).encode()).hexdigest()
+
+
+# ----------------------------------------------------------------- reduction
+def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np.ndarray]:
+    """Scalar results of every cell of a history (see :func:`knitsim.io.results.cell_summary`).
+
+    Returns
+    -------
+    dict of str to ndarray
+        :data:`CYCLE_VARS` of shape ``[n_cells, n_cycles]`` (NaN where a cycle
+        was not reached or, for the residual strain, the force never returns
+        to 0), :data:`CELL_VARS` of shape ``[n_cells]`` (``final_status`` as
+        :data:`knitsim.cell.history.STATUS_NAMES` codes, NaN jamming strain
+        if the cell never jams), and with ``curves`` the force per wale
+        ``force_per_wale_N`` of shape ``[n_cells, n_increments]``.
+    """
+    n = history.n_cells
+    out = {k: np.full((n, n_cycles), np.nan) for k in CYCLE_VARS}
+    out["strain_at_first_jamming"] = np.full(n, np.nan)
+    out["final_status"] = np.asarray(history.status[-1, :], dtype=np.int32)
+    out["expected_end"] = np.zeros(n, dtype=np.int8)
+    for c in range(n):
+        s = cell_summary(history, c)
+        for cy in s["cycles"]:
+            j = cy["cycle"] - 1
+            for k in CYCLE_VARS:
+                v = cy[k]
+                out[k][c, j] = np.nan if v is None else v
+        jam = s["strain_at_first_jamming"]
+        out["strain_at_first_jamming"][c] = np.nan if jam is None else jam
+        out["expected_end"][c] = 1 if s["expected_end"] else 0
+    if curves:
+        out["force_per_wale_N"] = np.ascontiguousarray(history.force_per_wale.T, dtype=np.float64)
+    return out
+
+
+def run_chunk(task: dict) -> dict:
+    """Run one chunk (one batched engine call) and write its file atomically.
+
+    ``task`` holds ``path``, ``samples`` (indices), ``params`` (flat list,
+    ``n_cells`` per sample), ``n_cells``, ``program``, ``n_cycles``,
+    ``engine``, ``device``, ``curves``.  Runs in the driver (``workers=0``) or
+    in a Dask worker; returns ``{"chunk", "samples", "wall_s"}``.
+    """
+    from ..cell.engine import simulate
+
+    t0 = time.perf_counter()
+    # Warp's messages must not reach stdout (kept for --json)
+    import contextlib
+    with contextlib.redirect_stdout(sys.stderr):
+        history = simulate(task["params"], task["program"], engine=task["engine"], device=task["device"])
+    red = reduce_history(history, task["n_cycles"], task["curves"])
+    ns, nc = len(task["samples"]), task["n_cells"]
+    arrays = {"samples": np.asarray(task["samples"], dtype=np.int64)}
+    for k, v in red.items():
+        arrays[k] = v.reshape((ns, nc) + v.shape[1:])
+    if task["curves"]:
+        arrays["imposed_strain"] = np.asarray(task["program"].strain, dtype=np.float64)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    atomic_write_bytes(task["path"], buf.getvalue())
+    return {"chunk": task["chunk"], "samples": ns, "wall_s": time.perf_counter() - t0}
+
+
+def _task(plan: SweepPlan, chunk: Chunk, out: Path) -> dict:
+    flat = [p for i in chunk.samples for p in plan.params[i]]
+    return {"chunk": chunk.index, "path": str((out / CHUNK_DIR / chunk.name).resolve()), "samples": chunk.samples.tolist(),
+            "params": flat, "n_cells": plan.n_cells, "program": plan.programs[chunk.group],
+            "n_cycles": plan.n_cycles, "engine": plan.engine, "device": plan.device, "curves": plan.spec.curves}
+
+
+# ------------------------------------------------------------------ manifest
+def versions() -> dict:
+    """Versions of knitsim and the libraries that shape the results."""
+    from importlib import metadata
+
+    out = {"python": platform.python_version()}
+    for name in ("knitsim", "warp-lang", "numpy", "scipy", "dask", "distributed", "xarray"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def manifest(plan: SweepPlan) -> dict:
+    """The ``sweep.json`` document."""
+    return {
+        "format": FORMAT, "hash": plan.hash, "source": plan.source, "spec": plan.spec.table,
+        "engine": plan.engine, "device": plan.device, "scene": plan.scene_doc,
+        "base_resolved": plan.base.resolved, "parameters": plan.spec.keys, "shape": list(plan.spec.shape),
+        "cell_labels": plan.labels, "loads": plan.loads,
+        "samples": [list(r) for r in plan.table], "group": plan.group.tolist(),
+        "chunks": [{"index": c.index, "file": f"{CHUNK_DIR}/{c.name}", "group": c.group,
+                    "samples": c.samples.tolist()} for c in plan.chunks],
+        "versions": versions(), "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }
+
+
+def _prepare_out(plan: SweepPlan, out: Path, resume: bool) -> None:
+    check_output_dir(out)
+    mpath = out / MANIFEST
+    if resume:
+        if not mpath.is_file():
+            raise KnitsimInputError(f"--resume: {mpath} not found (nothing to resume; run without --resume)")
+        try:
+            old = json.loads(mpath.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise KnitsimInputError(f"--resume: {mpath} is not a sweep manifest ({exc})") from None
+        if old.get("hash") != plan.hash:
+            raise KnitsimInputError(
+                f"--resume: {out} holds a different sweep (hash {str(old.get('hash'))[:12]}, this one "
+                f"{plan.hash[:12]}: the sweep spec, scene, engine, device or sample table changed); "
+                "use another --out, or delete the directory")
+        return
+    if mpath.exists() or (out / CHUNK_DIR).exists():
+        raise KnitsimInputError(f"--out = {str(out)!r}: already holds a sweep; add --resume to finish it, "
+                                "or choose another --out")
+    (out / CHUNK_DIR).mkdir(parents=True, exist_ok=True)
+    atomic_write_text(mpath, json.dumps(manifest(plan), indent=1) + "\n")
+
+
+# ----------------------------------------------------------------- execution
+@dataclass
+class SweepRun:
+    """What :func:`run_sweep` did."""
+
+    out: Path
+    computed: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+    wall_s: float = 0.0
+    files: dict = field(default_factory=dict)
+    dataset: Any = None
+
+    @property
+    def samples_per_s(self) -> float:
+        return float("nan") if not self.wall_s else self.n_computed_samples / self.wall_s
+
+    n_computed_samples: int = 0
+
+
+class _Progress:
+    def __init__(self, stream, total_chunks: int, total_samples: int, done_chunks: int):
+        self.stream, self.total, self.total_samples = stream, total_chunks, total_samples
+        self.done, self.samples, self.t0, self.last = done_chunks, 0, time.perf_counter(), 0.0
+
+    def __call__(self, n_samples: int) -> None:
+        self.done += 1
+        self.samples += n_samples
+        now = time.perf_counter()
+        if self.stream is None or (now - self.last < 0.5 and self.done < self.total):
+            return
+        self.last = now
+        rate = self.samples / max(now - self.t0, 1e-9)
+        print(f"knitsim sweep: chunks {self.done}/{self.total}, {rate:.1f} samples/s", file=self.stream, flush=True)
+
+
+def _run_local(tasks: list[dict], progress: _Progress, done: list) -> None:
+    for t in tasks:
+        r = run_chunk(t)
+        done.append(r["chunk"])
+        progress(r["samples"])
+
+
+def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int | None,
+              scheduler: str | None, stream) -> None:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as exc:  # pragma: no cover - a declared dependency
+        raise KnitsimInputError(f"--workers: Dask is not available ({exc}); use --workers 0") from None
+    cluster = None
+    try:
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout="20s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
+        else:
+            n = workers or os.cpu_count() or 1
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+            client = Client(cluster)
+        if stream is not None:
+            nw = len(client.scheduler_info().get("workers", {}))
+            print(f"knitsim sweep: Dask {'cluster ' + scheduler if scheduler else 'local cluster'}, "
+                  f"{nw} worker(s)", file=stream, flush=True)
+        futures = [client.submit(run_chunk, t, key=f"knitsim-sweep-chunk-{t['chunk']}-{os.getpid()}", pure=False)
+                   for t in tasks]
+        failed = []
+        try:
+            for fut in as_completed(futures):
+                if fut.status == "error":
+                    exc = fut.exception()
+                    failed.append((fut.key, exc))
+                    continue
+                r = fut.result()
+                done.append(r["chunk"])
+                progress(r["samples"])
+        except BaseException:
+            client.cancel(futures)
+            raise
+        if failed:
+            key, exc = failed[0]
+            raise SweepChunkError(f"{len(failed)} chunk(s) failed, e.g. {key}: {type(exc).__name__}: {exc}")
+    finally:
+        try:
+            if "client" in locals():
+                client.close()
+        finally:
+            if cluster is not None:
+                cluster.close()
+
+
+def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, workers: int | None = 0,
+              scheduler: str | None = None, progress=sys.stderr, plots: bool = True) -> SweepRun:
+    """Run the chunks of a plan that are not done yet, then assemble the results.
+
+    Parameters
+    ----------
+    plan : SweepPlan
+    out_dir : path
+        The output directory (see the module docstring).
+    resume : bool
+        Continue the sweep in ``out_dir`` (same hash required); skip chunks whose file exists.
+    workers : int or None
+        0: in this process; N > 0: a Dask LocalCluster of N single-threaded
+        worker processes; None: one per core.
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://host:8786``); ``workers`` is then ignored.
+    progress : file or None
+        Where progress lines go (stderr by default).
+    plots : bool
+        Write the PNG plots.
+
+    Returns
+    -------
+    SweepRun
+
+    Raises
+    ------
+    KnitsimInputError
+        Output directory in use, ``--resume`` of a different sweep.
+    SweepChunkError
+        A chunk failed in a Dask worker (finished chunks are kept).
+    """
+    out = Path(out_dir)
+    if workers is not None and workers < 0:
+        raise KnitsimInputError(f"--workers = {workers}: expected 0 (no Dask) or a positive number")
+    _prepare_out(plan, out, resume)
+    run = SweepRun(out)
+    pending = []
+    for c in plan.chunks:
+        if resume and (out / CHUNK_DIR / c.name).is_file():
+            run.skipped.append(c.index)
+        else:
+            pending.append(c)
+    if progress is not None:
+        print(f"knitsim sweep: {plan.n_samples} samples x {plan.n_cells} cell(s), {len(plan.chunks)} chunk(s) "
+              f"({len(run.skipped)} done before), engine {plan.engine}, device {plan.device}",
+              file=progress, flush=True)
+    tasks = [_task(plan, c, out) for c in pending]
+    prog = _Progress(progress, len(plan.chunks), plan.n_samples, len(run.skipped))
+    t0 = time.perf_counter()
+    try:
+        if not tasks:
+            pass
+        elif workers == 0 and not scheduler:
+            _run_local(tasks, prog, run.computed)
+        else:
+            _run_dask(tasks, prog, run.computed, workers, scheduler, progress)
+    finally:
+        run.wall_s = time.perf_counter() - t0
+        run.n_computed_samples = sum(len(plan.chunks[i].samples) for i in run.computed)
+    ds = assemble(out)
+    run.dataset = ds
+    run.files = write_results(out, ds, plots=plots)
+    return run
+
+
+def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path]:
+    """Write ``results.nc``, ``results.csv`` and the plots of an assembled dataset."""
+    from .plots import plot_sweep
+
+    files = {}
+    tmp = out / ".results.nc.tmp"
+    ds.to_netcdf(tmp, engine="scipy")
+    os.replace(tmp, out / "results.nc")
+    files["results.nc"] = out / "results.nc"
+    atomic_write_text(out / "results.csv", dataset_csv(ds))
+    files["results.csv"] = out / "results.csv"
+    if plots:
+        for p in plot_sweep(ds, out):
+            files[p.name] = p
+    return files
+
+
+# ------------------------------------------------------------------ assembly
+def assemble(out_dir: str | Path):
+    """The labelled dataset of a sweep directory, from its manifest and chunk files.
+
+    Grid: one dimension per swept parameter (named by its key path, in the
+    spec's order) with the grid values as coordinates; LHS: a ``sample``
+    dimension with one coordinate per parameter.  Then ``cell`` (only when
+    the scene has several ``[[cells]]``), ``cycle`` (from 1) and, with
+    curves, ``increment``.  Samples of a missing chunk are NaN with
+    ``final_status = -1``.
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    import xarray as xr
+
+    from ..cell.history import STATUS_NAMES
+
+    out = Path(out_dir)
+    man = json.loads((out / MANIFEST).read_text())
+    keys, shape, spec = man["parameters"], tuple(man["shape"]), man["spec"]
+    table = man["samples"]
+    ns, labels = len(table), man["cell_labels"]
+    nc = len(labels)
+    parts, missing = [], []
+    for c in man["chunks"]:
+        f = out / c["file"]
+        if f.is_file():
+            with np.load(f) as z:
+                parts.append({k: z[k] for k in z.files})
+        else:
+            missing.append(c["index"])
+    if parts:
+        ny = parts[0]["peak_force_per_wale_N"].shape[2]
+    else:
+        ny = 1
+    curves = bool(parts) and "force_per_wale_N" in parts[0]
+    ni = max((p["force_per_wale_N"].shape[2] for p in parts), default=0) if curves else 0
+    data = {k: np.full((ns, nc, ny), np.nan) for k in CYCLE_VARS}
+    data["strain_at_first_jamming"] = np.full((ns, nc), np.nan)
+    data["final_status"] = np.full((ns, nc), -1, dtype=np.int32)
+    data["expected_end"] = np.zeros((ns, nc), dtype=np.int8)
+    if curves:
+        data["force_per_wale_N"] = np.full((ns, nc, ni), np.nan)
+        data["imposed_strain"] = np.full((ns, ni), np.nan)
+    for p in parts:
+        idx = p["samples"]
+        for k in CYCLE_VARS + CELL_VARS:
+            data[k][idx] = p[k]
+        if curves:
+            n = p["force_per_wale_N"].shape[2]
+            data["force_per_wale_N"][idx, :, :n] = p["force_per_wale_N"]
+            data["imposed_strain"][idx, :n] = p["imposed_strain"][None, :]
+
+    if spec["method"] == "grid":
+        lead = list(keys)
+        coords = {}
+        for j, k in enumerate(keys):
+            entry = next(e for e in spec["parameters"] if e["key"] == k)
+            vals = entry["values"] if "values" in entry else np.linspace(entry["min"], entry["max"], entry["count"])
+            coords[k] = np.asarray(vals)
+        reshape = lambda a: a.reshape(shape + a.shape[1:])  # noqa: E731
+    else:
+        lead = ["sample"]
+        coords = {"sample": np.arange(ns, dtype=np.int32)}
+        for j, k in enumerate(keys):
+            coords[k] = ("sample", np.asarray([r[j] for r in table], dtype=np.float64))
+        reshape = lambda a: a  # noqa: E731
+    squeeze = nc == 1
+    cell_dims = [] if squeeze else ["cell"]
+    if not squeeze:
+        coords["cell"] = np.arange(nc, dtype=np.int32)
+        coords["cell_label"] = ("cell", np.asarray(labels, dtype=str))
+    coords["cycle"] = np.arange(1, ny + 1, dtype=np.int32)
+    units = {"peak_force_per_wale_N": "N", "strain_at_peak": "1", "residual_strain": "1", "energy_N_mm": "N mm",
+             "energy_N_per_strain": "N", "strain_at_first_jamming": "1", "force_per_wale_N": "N",
+             "imposed_strain": "1"}
+    docs = {
+        "peak_force_per_wale_N": "largest force per wale of the cycle",
+        "strain_at_peak": "imposed strain (C - C0)/C0 at the peak force",
+        "residual_strain": "strain C/C0 - 1 where the force reaches 0 on the cycle's unloading (NaN: never)",
+        "energy_N_mm": "oint F dC over the cycle (hysteresis energy per wale), N mm",
+        "energy_N_per_strain": "oint F d(strain) over the cycle",
+        "strain_at_first_jamming": "strain C/C0 - 1 at the first jamming (NaN: never jammed)",
+        "final_status": "status code at the end: " + ", ".join(f"{k} {v}" for k, v in STATUS_NAMES.items())
+                        + ", -1 not run",
+        "expected_end": "1 if the cell completed the program or stopped at the force cap",
+        "force_per_wale_N": "force per wale at every increment (NaN past the program's end)",
+        "imposed_strain": "imposed strain of the course length at every increment",
+    }
+    vars_ = {}
+    for k in CYCLE_VARS:
+        a = reshape(data[k])
+        vars_[k] = (lead + cell_dims + ["cycle"], a[..., 0, :] if squeeze else a)
+    for k in CELL_VARS:
+        a = reshape(data[k])
+        vars_[k] = (lead + cell_dims, a[..., 0] if squeeze else a)
+    if curves:
+        a = reshape(data["force_per_wale_N"])
+        vars_["force_per_wale_N"] = (lead + cell_dims + ["increment"], a[..., 0, :] if squeeze else a)
+        vars_["imposed_strain"] = (lead + ["increment"], reshape(data["imposed_strain"]))
+        coords["increment"] = np.arange(ni, dtype=np.int32)
+    ds = xr.Dataset(vars_, coords=coords)
+    for k in ds.data_vars:
+        ds[k].attrs["description"] = docs[k]
+        if k in units:
+            ds[k].attrs["units"] = units[k]
+    for k in keys:
+        ds[k].attrs["key_path"] = k
+    ds.attrs.update({
+        "title": str(man["base_resolved"].get("title", "")), "method": spec["method"],
+        "parameters": json.dumps(keys), "spec": json.dumps(spec), "sweep_hash": man["hash"],
+        "engine": man["engine"], "device": man["device"], "source": str(man["source"]),
+        "missing_chunks": json.dumps(missing), "knitsim_version": str(man["versions"].get("knitsim")),
+        "created_by": "knitsim sweep",
+    })
+    return ds
+
+
+def dataset_csv(ds) -> str:
+    """``results.csv``: one row per sample, cell and cycle (parameters first, then the results)."""
+    keys = json.loads(ds.attrs["parameters"])
+    lead = ["sample"] if ds.attrs["method"] == "lhs" else keys
+    has_cell = "cell" in ds.dims
+    order = lead + (["cell"] if has_cell else []) + ["cycle"]
+    cols = ["sample"] + keys + (["cell", "cell_label"] if has_cell else []) + ["cycle"] + list(CYCLE_VARS) \
+        + list(CELL_VARS)
+    parts = {k: ds[k].transpose(*order) for k in CYCLE_VARS}
+    parts.update({k: ds[k].broadcast_like(ds["peak_force_per_wale_N"]).transpose(*order) for k in CELL_VARS})
+    shape = parts["peak_force_per_wale_N"].shape
+    flat = {k: np.asarray(v.values).reshape(-1) for k, v in parts.items()}
+    idx = np.indices(shape).reshape(len(shape), -1)
+    lead_shape = shape[: len(lead)]
+    sample = np.ravel_multi_index(idx[: len(lead)], lead_shape) if lead_shape else np.zeros(idx.shape[1], int)
+    lines = [",".join(cols)]
+    from ..cell.history import STATUS_NAMES
+    names = {**STATUS_NAMES, -1: "not_run"}
+
+    def num(v):
+        v = float(v)
+        return repr(v) if np.isfinite(v) else ""
+
+    for r in range(idx.shape[1]):
+        row = [str(int(sample[r]))]
+        if ds.attrs["method"] == "lhs":
+            row += [num(ds[k].values[idx[0, r]]) for k in keys]
+        else:
+            for j, k in enumerate(keys):
+                v = ds[k].values[idx[j, r]]
+                row.append(num(v) if np.issubdtype(np.asarray(v).dtype, np.number) and not isinstance(v, bool)
+                           else str(v))
+        if has_cell:
+            c = int(idx[len(lead), r])
+            row += [str(c), str(ds["cell_label"].values[c])]
+        row.append(str(int(idx[-1, r]) + 1))
+        row += [num(flat[k][r]) for k in CYCLE_VARS]
+        row += [num(flat["strain_at_first_jamming"][r]), names.get(int(flat["final_status"][r]), "?"),
+                str(int(flat["expected_end"][r]))]
+        lines.append(",".join(row))
+    return "\n".join(lines) + "\n"
+
+
+__all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepChunkError", "plan_sweep",
+           "run_sweep", "run_chunk",
+           "reduce_history", "sweep_hash", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
+           "CYCLE_VARS", "CELL_VARS"]

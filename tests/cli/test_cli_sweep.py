@@ -1,0 +1,108 @@
+"""``knitsim sweep``: exit codes, one-line errors, JSON, interruption and resume."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from knitsim.cli import main
+from knitsim.sweep import runner
+
+SCENE = """
+engine = "warp"
+[yarn]
+material = "e_glass"          # Table 1: d = 0.58 mm
+[knit]
+material = "e_glass_plain"    # section 2.2: W0 = 4.4 mm
+[friction]
+m = 0.2
+[load]
+type = "cycles"
+lower_strain = 0.1
+upper_strain = 0.4
+cycles = 2
+max_increment = 0.1
+"""
+SWEEP = """
+[sweep]
+chunk_size = 2
+[sweep.parameters]
+"friction.m" = { values = [0.1, 0.2, 0.3] }
+"""
+
+
+def _files(tmp_path, sweep=SWEEP, separate=False):
+    scene = tmp_path / "s.toml"
+    if separate:
+        scene.write_text(SCENE)
+        (tmp_path / "w.toml").write_text(sweep)
+    else:
+        scene.write_text(SCENE + sweep)
+    return scene
+
+
+def test_sweep_runs_and_prints_json(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path, separate=True)
+    out = tmp_path / "o"
+    rc = main(["sweep", str(scene), "--sweep", str(tmp_path / "w.toml"), "--out", str(out), "--workers", "0",
+               "--json"])
+    assert rc == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["samples"] == 3 and doc["chunks"] == 2 and doc["parameters"] == ["friction.m"]
+    for f in ("sweep.json", "results.nc", "results.csv", "plot_sweep.png"):
+        assert (out / f).is_file()
+
+
+@pytest.mark.parametrize("sweep,words", [
+    ('[sweep.parameters]\n"friction.mm" = { values = [0.1] }\n', ['"friction.mm"', "unknown key"]),
+    ('[sweep.parameters]\n"knit.W0" = { values = [4.4, 2.0] }\n', ["knit.W0 = 2.0", ">= 4 d", "sample 1"]),
+    ('[sweep.parameters]\n"friction.m" = { values = [] }\n', ['"friction.m"', "values"]),
+    ('[sweep.parameters]\n"knit.L" = { min = 15.0, max = 13.0, count = 3 }\n', ['"knit.L"', "min", "max"]),
+    ('[sweep.parameters]\n"friction.m" = { values = [-0.1] }\n', ["friction.m = -0.1", "sample 0"]),
+])
+def test_bad_input_exits_2_with_one_line_naming_the_key(tmp_path, capsys, sweep, words):
+    scene = _files(tmp_path, "[sweep]\n" + sweep if not sweep.startswith("[sweep]") else sweep)
+    rc = main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    line = [e for e in err if e.startswith("knitsim: error:")]
+    assert len(line) == 1
+    for w in words:
+        assert w in line[0]
+    assert not (tmp_path / "o").exists()          # refused before anything was written
+
+
+def test_interrupt_keeps_finished_chunks_and_tells_how_to_resume(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    out = tmp_path / "o"
+    real = runner.run_chunk
+
+    def interrupted(task):
+        if task["chunk"] == 1:
+            raise KeyboardInterrupt
+        return real(task)
+
+    monkeypatch.setattr(runner, "run_chunk", interrupted)
+    rc = main(["sweep", str(scene), "--out", str(out), "--workers", "0"])
+    err = capsys.readouterr().err
+    assert rc == 130 and "--resume" in err and "1/2" in err
+    assert [p.name for p in (out / "chunks").iterdir()] == ["chunk_00000.npz"]
+    monkeypatch.setattr(runner, "run_chunk", real)
+    rc = main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--resume", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert rc == 0 and doc["computed_chunks"] == 1 and doc["skipped_chunks"] == 1
+
+
+def test_resume_without_a_sweep_and_rerun_over_one_exit_2(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--resume"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--no-plot"]) == 0
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0"]) == 2
+    assert "already holds a sweep" in capsys.readouterr().err
+    (tmp_path / "s.toml").write_text(SCENE + SWEEP.replace("0.3]", "0.25]"))
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--resume"]) == 2
+    assert "different sweep" in capsys.readouterr().err

@@ -1,0 +1,147 @@
+"""Sweep runner: batched chunks, resume, interruption, assembled dataset, Dask."""
+from __future__ import annotations
+
+import copy
+import time
+
+import numpy as np
+import pytest
+
+from knitsim.cell.engine import simulate
+from knitsim.errors import KnitsimInputError
+from knitsim.sweep import runner
+from knitsim.sweep.runner import assemble, plan_sweep, run_sweep
+
+# E-glass cell of Dusserre (2015) (Table 1, section 2.2) with a tiny 2-cycle program
+# (13 increments) to stay fast; the quantities compared do not depend on the resolution.
+SCENE = {
+    "engine": "warp", "device": "cpu",
+    "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+    "friction": {"m": 0.2, "phi0": 0.0},
+    "load": {"type": "cycles", "lower_strain": 0.1, "upper_strain": 0.4, "cycles": 2, "max_increment": 0.1},
+}
+GRID = {"chunk_size": 2, "curves": True,
+        "parameters": {"friction.m": {"values": [0.1, 0.2, 0.3]}, "friction.phi0": {"values": [0.0, 0.05]}}}
+
+
+def _run(tmp_path, sweep=GRID, scene=SCENE, name="out", **kw):
+    plan = plan_sweep(scene, sweep)
+    return plan, run_sweep(plan, tmp_path / name, workers=0, progress=None, plots=False, **kw)
+
+
+def test_grid_dataset_equals_a_direct_simulate(tmp_path):
+    plan, run = _run(tmp_path)
+    ds = run.dataset
+    assert list(ds["peak_force_per_wale_N"].dims) == ["friction.m", "friction.phi0", "cycle"]
+    assert list(ds["friction.m"].values) == [0.1, 0.2, 0.3]
+    assert list(ds["friction.phi0"].values) == [0.0, 0.05]
+    assert list(ds["cycle"].values) == [1, 2]
+    assert len(plan.chunks) == 3                       # 6 samples / chunk_size 2
+    # independent path: the same cells built by hand, one simulate call
+    base = plan.base.params[0]
+    cells = [base.replace(m=m, phi0=p) for m in (0.1, 0.2, 0.3) for p in (0.0, 0.05)]
+    h = simulate(cells, plan.programs[0], engine="warp", device="cpu")
+    F = ds["force_per_wale_N"].values.reshape(6, -1)
+    np.testing.assert_allclose(F, h.force_per_wale.T, rtol=1e-12, atol=1e-14)
+    assert np.array_equal(ds["final_status"].values.reshape(6), h.status[-1])
+    # peak force of cycle 1: the largest force of cycle 1's rows
+    peak1 = np.array([h.force_per_wale[h.cycle == 1, c].max() for c in range(6)])
+    np.testing.assert_allclose(ds["peak_force_per_wale_N"].sel(cycle=1).values.reshape(6), peak1, rtol=1e-12)
+    # the file on disk holds the same
+    import xarray as xr
+    with xr.open_dataset(tmp_path / "out" / "results.nc", engine="scipy") as back:
+        np.testing.assert_array_equal(back["peak_force_per_wale_N"].values, ds["peak_force_per_wale_N"].values)
+    csv = (tmp_path / "out" / "results.csv").read_text().splitlines()
+    assert len(csv) == 1 + 6 * 2                       # samples x cycles
+
+
+def test_delete_one_chunk_and_resume_recomputes_only_it(tmp_path, monkeypatch):
+    plan, run = _run(tmp_path)
+    ref = run.dataset
+    (tmp_path / "out" / "chunks" / "chunk_00001.npz").unlink()
+    calls = []
+    real = runner.run_chunk
+    monkeypatch.setattr(runner, "run_chunk", lambda t: calls.append(t["chunk"]) or real(t))
+    run2 = run_sweep(plan_sweep(SCENE, GRID), tmp_path / "out", resume=True, workers=0, progress=None, plots=False)
+    assert calls == [1] and run2.skipped == [0, 2]
+    assert run2.dataset.identical(ref)
+
+
+def test_failure_in_a_chunk_keeps_earlier_chunks_and_resume_completes(tmp_path, monkeypatch):
+    _, full = _run(tmp_path, name="full")
+    real = runner.run_chunk
+
+    def failing(task):
+        if task["chunk"] == 1:
+            raise RuntimeError("simulated crash in chunk 1")
+        return real(task)
+
+    monkeypatch.setattr(runner, "run_chunk", failing)
+    with pytest.raises(RuntimeError, match="simulated crash"):
+        _run(tmp_path, name="cut")
+    chunks = sorted(p.name for p in (tmp_path / "cut" / "chunks").iterdir())
+    assert chunks == ["chunk_00000.npz"]               # finished, no partial file of chunk 1
+    monkeypatch.setattr(runner, "run_chunk", real)
+    run = run_sweep(plan_sweep(SCENE, GRID), tmp_path / "cut", resume=True, workers=0, progress=None, plots=False)
+    assert run.skipped == [0] and sorted(run.computed) == [1, 2]
+    for k in ("peak_force_per_wale_N", "residual_strain", "energy_N_mm", "force_per_wale_N", "final_status"):
+        np.testing.assert_array_equal(run.dataset[k].values, full.dataset[k].values)
+
+
+def test_resume_of_a_different_sweep_is_refused(tmp_path):
+    _run(tmp_path)
+    other = copy.deepcopy(GRID)
+    other["parameters"]["friction.m"]["values"] = [0.1, 0.25, 0.3]
+    with pytest.raises(KnitsimInputError, match="different sweep"):
+        run_sweep(plan_sweep(SCENE, other), tmp_path / "out", resume=True, workers=0, progress=None)
+    with pytest.raises(KnitsimInputError, match="--resume"):
+        run_sweep(plan_sweep(SCENE, GRID), tmp_path / "out", workers=0, progress=None)   # no silent overwrite
+
+
+def test_unknown_key_path_is_named():
+    with pytest.raises(KnitsimInputError, match=r'"friction\.mm".*unknown key'):
+        plan_sweep(SCENE, {"parameters": {"friction.mm": {"values": [0.1]}}})
+
+
+def test_a_sample_violating_w0_ge_4d_is_refused_before_solving(monkeypatch):
+    # section 3.1 / Hong: W0 >= 4 d = 2.32 mm for E-glass (d = 0.58 mm, Table 1)
+    monkeypatch.setattr(runner, "run_chunk", lambda t: pytest.fail("solved before validation"))
+    with pytest.raises(KnitsimInputError) as exc:
+        plan_sweep(SCENE, {"parameters": {"knit.W0": {"values": [4.4, 2.0]}}})
+    msg = str(exc.value)
+    assert "sample 1" in msg and "knit.W0 = 2.0" in msg and ">= 4 d" in msg
+
+
+def test_lhs_dataset_has_a_sample_dimension_with_parameter_coordinates(tmp_path):
+    sweep = {"method": "lhs", "samples": 5, "seed": 3, "chunk_size": 5,
+             "parameters": {"friction.m": {"min": 0.1, "max": 0.3}, "knit.L": {"min": 13.6, "max": 14.6}}}
+    plan, run = _run(tmp_path, sweep)
+    ds = run.dataset
+    assert ds["peak_force_per_wale_N"].dims == ("sample", "cycle")
+    assert ds["friction.m"].dims == ("sample",)
+    np.testing.assert_array_equal(ds["knit.L"].values, [r[1] for r in plan.table])
+    # the cells ran with those values
+    assert [p[0].L for p in plan.params] == list(ds["knit.L"].values)
+
+
+def test_load_keys_group_samples_by_program_and_cells_multiply(tmp_path):
+    scene = dict(SCENE, cells=[{"label": "a"}, {"label": "b", "friction": {"m": 0.3}}])
+    sweep = {"chunk_size": 8, "curves": True, "parameters": {"load.upper_strain": {"values": [0.3, 0.4]}}}
+    plan, run = _run(tmp_path, sweep, scene)
+    ds = run.dataset
+    assert len(plan.programs) == 2 and len(plan.chunks) == 2      # one chunk per program
+    assert ds["peak_force_per_wale_N"].dims == ("load.upper_strain", "cell", "cycle")
+    assert list(ds["cell_label"].values) == ["a", "b"]
+    # the imposed strain of each sample's program peaks at its upper strain
+    np.testing.assert_allclose(np.nanmax(ds["imposed_strain"].values, axis=1), [0.3, 0.4])
+
+
+def test_two_worker_local_dask_cluster_gives_the_in_process_results(tmp_path):
+    _, ref = _run(tmp_path, name="local")
+    t0 = time.perf_counter()
+    plan = plan_sweep(SCENE, GRID)
+    run = run_sweep(plan, tmp_path / "dask", workers=2, progress=None, plots=False)
+    assert time.perf_counter() - t0 < 60
+    for k in ("peak_force_per_wale_N", "force_per_wale_N", "final_status", "residual_strain"):
+        np.testing.assert_array_equal(run.dataset[k].values, ref.dataset[k].values)
+    assert assemble(tmp_path / "dask").identical(run.dataset)
