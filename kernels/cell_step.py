@@ -1,0 +1,1090 @@
+"""Batched load cycle of quarter-stitch cells (Dusserre 2015 Table 4), float64 Warp.
+
+Device code only; the Python side is :mod:`knitsim.cell.batch`, the NumPy
+oracle :mod:`knitsim.cell.cycle` (``CellCycle.advance`` / ``run``), whose
+semantics this module mirrors cell by cell.
+
+One thread advances one cell by one load increment:
+
+1. *reversal*: when the imposed direction changes, the stage becomes SF- / SF+
+   and s_BC and the soft quantity are frozen (:func:`reverse`);
+2. *trial solve* of the stage's four conditions at the target course length
+   (:func:`stage_conditions`, the table of :mod:`knitsim.cell.stages`); a failed
+   solve is retried on 2, 4, ... sub-increments (``max_halvings``);
+3. *events* (slide, jam, unjam, slack, force_cap) that fire inside the
+   increment are *located* by swapping the driving condition C for the event
+   condition (phi = +/-phimax, W = 4d, F = 0, F = cap) and solving with C free
+   (model.md, numerical hints); the nearest one along the path is applied and
+   the cell goes on toward the target (several events per increment).
+
+Dahl friction (Dahl 1976, alpha = 1) is solved as a residual of the per-cell
+Newton, with the conditions {L, C, soft} (soft = Rn loading, T unloading, W = 4d
+jammed)::
+
+    r_dahl = tan(phi) - [s m + (tan(phi_old) - s m) exp(-sigma s xi / m)],
+    xi = -(s_BC - s_BC_old)
+
+where s (the slip direction, so that s xi = |xi|) is the sign of
+tan(phi_stick) - tan(phi_old) of the stick trial (s_BC frozen), as in the
+reference.  Its derivatives are forward-mode duals like every other residual.
+The reference instead nests a scalar root search on the slip around the
+four-condition solve: the two are independent checks.
+
+Status codes are those of :mod:`knitsim.cell.history`; a failed cell keeps
+its last converged state.
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from knitsim.cell.history import (
+    STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NO_CONVERGENCE, STATUS_OK,
+)
+from knitsim.cell.quantities import (
+    Q_ALPHA, Q_BETA, Q_C, Q_F, Q_GAMMA, Q_L, Q_M, Q_P, Q_PHI, Q_R, Q_RN, Q_RT, Q_S_AB, Q_S_BC, Q_T, Q_W,
+    Q_X_A, Q_X_B, Q_Y_B, Q_Y_C,
+)
+from knitsim.cell.stages import LABEL_CODES, Stage
+
+from .elastica import (
+    PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt,
+    d_sub, d_tan, dual, elastica_ab, elastica_bc, vec5d,
+)
+from .inverse import (
+    _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
+    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
+)
+from .quarter_loop import N_QUANTITIES, CellEval, _put, matQ5d, quantity, vecQd
+
+wp.set_module_options({"max_unroll": 1, "enable_backward": False})
+
+# ------------------------------------------------------------------ codes
+SF_LOAD = wp.constant(int(Stage.SF_LOAD))
+S_LOAD = wp.constant(int(Stage.S_LOAD))
+SF_UNLOAD = wp.constant(int(Stage.SF_UNLOAD))
+S_UNLOAD = wp.constant(int(Stage.S_UNLOAD))
+SLACK = wp.constant(int(Stage.SLACK))
+
+ST_OK = wp.constant(STATUS_OK)
+ST_NO_CONV = wp.constant(STATUS_NO_CONVERGENCE)
+ST_CAP = wp.constant(STATUS_FORCE_CAP)
+ST_NOT_LOCATED = wp.constant(STATUS_EVENT_NOT_LOCATED)
+
+LBL_ADHERENCE = wp.constant(LABEL_CODES["adherence"])
+LBL_SLIDING = wp.constant(LABEL_CODES["sliding"])
+LBL_JAMMING = wp.constant(LABEL_CODES["jamming"])
+LBL_SLACK = wp.constant(LABEL_CODES["slack"])
+
+#: event kinds recorded by the kernel (names in :data:`EVENT_NAMES`)
+EV_SLIDE, EV_JAM, EV_UNJAM, EV_SLACK, EV_FORCE_CAP, EV_REVERSAL, EV_RELOAD = range(7)
+EVENT_NAMES = ("slide", "jam", "unjam", "slack", "force_cap", "reversal", "reload")
+_EV_SLIDE = wp.constant(EV_SLIDE)
+_EV_JAM = wp.constant(EV_JAM)
+_EV_UNJAM = wp.constant(EV_UNJAM)
+_EV_SLACK = wp.constant(EV_SLACK)
+_EV_CAP = wp.constant(EV_FORCE_CAP)
+_EV_REVERSAL = wp.constant(EV_REVERSAL)
+_EV_RELOAD = wp.constant(EV_RELOAD)
+
+#: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
+COND_DAHL = wp.constant(-1)
+#: events kept per cell and increment (more are counted, not stored)
+MAX_EVENTS_PER_STEP = 8
+vec8d = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.float64)
+vec8i = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.int32)
+_MAXEV = wp.constant(MAX_EVENTS_PER_STEP)
+
+NEWTON_MAX_ITER = wp.constant(60)
+_MAX_DANGLE = wp.constant(wp.float64(0.3))
+NEWTON_TOL = wp.constant(wp.float64(1.0e-11))
+#: at most this many events located per increment (as the reference)
+MAX_EVENT_LOOPS = wp.constant(12)
+#: guard on the sub-steps of one increment (the reference has none; it is never reached in practice)
+MAX_SUBSTEPS = wp.constant(4096)
+
+
+# ------------------------------------------------------------------ material
+@wp.struct
+class Material:
+    """One cell's parameters (read from the model arrays, see knitsim.cell.batch)."""
+
+    B: wp.float64
+    d: wp.float64
+    L: wp.float64
+    W0: wp.float64
+    C0: wp.float64
+    m: wp.float64
+    phimax: wp.float64
+    phi0: wp.float64
+    sigma: wp.float64
+    cap: wp.float64
+    w_jam: wp.float64
+    dahl: int
+    hong: int
+    mirror: int
+
+
+# ------------------------------------------------------------------ Newton
+@wp.func
+def dahl_residual(cell: CellEval, dp: vec5d):
+    """Dahl relation (alpha = 1) over the increment as a Dual residual.
+
+    ``dp = (tan(phi_old), s_BC_old, s, sigma, m)``; slip xi = -(s_BC - s_BC_old),
+    so ``s xi = |xi|`` on the branch sought (Dahl 1976; knitsim.friction.dahl).
+    """
+    t_old = dp[0]
+    s = dp[2]
+    m = dp[4]
+    t = d_tan(quantity(cell, Q_PHI))
+    xi = d_sub(d_const(dp[1]), quantity(cell, Q_S_BC))
+    e = d_exp(d_scale(xi, -dp[3] * s / m))
+    return d_sub(t, d_addc(d_scale(e, t_old - s * m), s * m))
+
+
+@wp.func
+def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec5d, B: wp.float64, d: wp.float64):
+    """As kernels.inverse.residuals, with code COND_DAHL meaning the Dahl residual."""
+    r = vec5d()
+    J = mat55d()
+    r[0] = cell.g / d
+    J[0] = cell.dg / d
+    for k in range(4):
+        c = codes[k]
+        if c == COND_DAHL:
+            rd = dahl_residual(cell, dp)
+            r[k + 1] = rd.v
+            J[k + 1] = rd.g
+        else:
+            sc = quantity_scale(c, B, d)
+            qk = quantity(cell, c)
+            r[k + 1] = (qk.v - targets[k]) / sc
+            J[k + 1] = qk.g / sc
+    return r, J
+
+
+@wp.func
+def d_asin(a: Dual):
+    return dual(wp.asin(a.v), a.g / wp.sqrt(wp.float64(1.0) - a.v * a.v))
+
+
+@wp.func
+def sin_gamma(z: vec5d) -> wp.float64:
+    """sin(gamma) = -(R/P) cos(beta + phi) (eq 7, R_Y = P sin gamma)."""
+    return -z[2] * wp.cos(z[1] + z[3])
+
+
+@wp.func
+def quarter_loop_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, B: wp.float64, d: wp.float64):
+    """kernels.quarter_loop.quarter_loop with R/P = rho given instead of gamma (eqs 6-9).
+
+    sin(gamma) = -rho cos(beta + phi), k1' = cos(gamma) - rho sin(beta + phi) and
+    R = P rho (eq 7): no 0/0 where the contact force is horizontal at zero force
+    per wale (beta + phi = pi/2, gamma = 0), a point the slack event and SF+
+    from phi0 < 0 land on.  The assembly otherwise repeats quarter_loop line by
+    line (same elastica_ab / elastica_bc calls); a shared core taking k1' and R
+    would remove the repetition.
+    """
+    half = wp.float64(0.5)
+    hd = half * d
+    bp = d_add(beta, phi)
+    cbp = d_cos(bp)
+    sbp = d_sin(bp)
+    sg = d_neg(d_mul(rho, cbp))
+    gamma = d_asin(sg)
+    cg = d_cos(gamma)
+    alpha = d_add(gamma, a)
+    b = d_sub(beta, gamma)
+    lam = d_sqrt(d_div(d_const(B), P))
+
+    s_ab, x0, y0 = elastica_ab(a, b)  # eq 8
+    s_ab = d_mul(lam, s_ab)
+    x0 = d_mul(lam, x0)
+    y0 = d_mul(lam, y0)
+    dX_ab = d_sub(d_mul(x0, cg), d_mul(y0, sg))
+    Y_B = d_add(d_mul(x0, sg), d_mul(y0, cg))
+
+    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
+    T = d_neg(d_mul(P, k1p))
+    R = d_mul(P, rho)
+    Rn = d_mul(R, d_cos(phi))
+    Rt = d_mul(R, d_sin(phi))
+    F = d_scale(d_mul(P, sg), wp.float64(2.0))
+
+    D = d_scale(d_mul(d_sin(d_scale(d_add(b, a), half)), d_sin(d_scale(d_sub(b, a), half))), wp.float64(2.0))
+    s_bc, xb, dy, thc = elastica_bc(D, k1p, beta)  # eq 9
+    s_bc = d_mul(lam, s_bc)
+    X_B = d_mul(lam, xb)
+    Y_C = d_add(Y_B, d_mul(lam, dy))
+    M = d_mul(P, d_add(y0, d_mul(k1p, d_sub(Y_C, Y_B))))
+
+    sb = d_sin(beta)  # eq 6
+    X_A = d_sub(X_B, dX_ab)
+    W = d_scale(d_sub(X_B, d_scale(sb, hd)), wp.float64(4.0))
+    C = d_scale(d_add(Y_B, d_scale(d_cos(beta), hd)), wp.float64(2.0))
+    L = d_scale(d_add(s_ab, s_bc), wp.float64(4.0))
+    g = d_sub(dX_ab, d_scale(sb, hd))
+
+    q = vecQd()
+    dq = matQ5d()
+    q, dq = _put(q, dq, Q_ALPHA, alpha)
+    q, dq = _put(q, dq, Q_BETA, beta)
+    q, dq = _put(q, dq, Q_GAMMA, gamma)
+    q, dq = _put(q, dq, Q_PHI, phi)
+    q, dq = _put(q, dq, Q_P, P)
+    q, dq = _put(q, dq, Q_W, W)
+    q, dq = _put(q, dq, Q_C, C)
+    q, dq = _put(q, dq, Q_L, L)
+    q, dq = _put(q, dq, Q_S_AB, s_ab)
+    q, dq = _put(q, dq, Q_S_BC, s_bc)
+    q, dq = _put(q, dq, Q_X_A, X_A)
+    q, dq = _put(q, dq, Q_X_B, X_B)
+    q, dq = _put(q, dq, Q_Y_B, Y_B)
+    q, dq = _put(q, dq, Q_Y_C, Y_C)
+    q, dq = _put(q, dq, Q_T, T)
+    q, dq = _put(q, dq, Q_M, M)
+    q, dq = _put(q, dq, Q_R, R)
+    q, dq = _put(q, dq, Q_RN, Rn)
+    q, dq = _put(q, dq, Q_RT, Rt)
+    q, dq = _put(q, dq, Q_F, F)
+    out = CellEval()
+    out.q = q
+    out.dq = dq
+    out.g = g.v
+    out.dg = g.g
+    return out
+
+
+@wp.func
+def evaluate_zr(z: vec5d, B: wp.float64, d: wp.float64):
+    """The cell at z = (ln(alpha - gamma), beta, R/P, phi, ln P), gradients with respect to z.
+
+    R/P replaces gamma (as in knitsim.cell.inverse): with gamma as unknown, R and
+    k1' are 0/0 where the contact force is horizontal (beta + phi = pi/2) at zero
+    force per wale."""
+    a = d_exp(d_seed(z[0], 0))
+    P = d_exp(d_seed(z[4], 4))
+    return quarter_loop_rho(a, d_seed(z[1], 1), d_seed(z[2], 2), d_seed(z[3], 3), P, B, d)
+
+
+@wp.func
+def zr_admissible(z: vec5d) -> wp.bool:
+    """kernels.quarter_loop.admissible in the variables (ln(alpha - gamma), beta, R/P, phi, ln P).
+
+    Same conditions, with k1' = cos(gamma) - (R/P) sin(beta + phi) and without
+    the test cos(beta + phi) != 0, which R/P makes unnecessary (the slack point
+    of S- sits exactly at beta + phi = pi/2)."""
+    ok = bool(False)
+    a = wp.exp(z[0])
+    beta = z[1]
+    phi = z[3]
+    P = wp.exp(z[4])
+    sg = sin_gamma(z)
+    if wp.isfinite(a) and wp.isfinite(beta) and wp.isfinite(z[2]) and wp.isfinite(phi) and wp.isfinite(P) and wp.isfinite(sg):
+        if wp.abs(sg) < wp.float64(1.0) and wp.abs(phi) < wp.float64(0.5) * PI:
+            gamma = wp.asin(sg)
+            b = beta - gamma
+            if a > wp.float64(0.0) and b > a and b < PI and beta < PI and P > wp.float64(0.0):
+                k1p = wp.cos(gamma) - z[2] * wp.sin(beta + phi)
+                D = wp.float64(2.0) * wp.sin(wp.float64(0.5) * (b + a)) * wp.sin(wp.float64(0.5) * (b - a))
+                ok = D + k1p * (wp.float64(1.0) + wp.cos(beta)) > wp.float64(1.0e-12)
+    return ok
+
+
+@wp.func
+def x_of_z(z: vec5d):
+    """(alpha, beta, gamma, phi, P) from the Newton variables."""
+    g = wp.asin(sin_gamma(z))
+    return vec5d(g + wp.exp(z[0]), z[1], g, z[3], wp.exp(z[4]))
+
+
+@wp.func
+def z_of(x: vec5d, q: vecQd):
+    """Newton variables of a state: R/P from the stored quantities (no 0/0)."""
+    return vec5d(wp.log(x[0] - x[2]), x[1], q[Q_R] / q[Q_P], x[3], wp.log(x[4]))
+
+
+@wp.func
+def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec5d, B: wp.float64, d: wp.float64):
+    """Per-cell Newton (the method of kernels.inverse.solve_conditions_kernel, in the
+    variables z = (ln(alpha - gamma), beta, R/P, phi, ln P)).
+
+    Returns (z, q, status): the solution (or last admissible iterate), all
+    quantities at it, and an inverse status code (0 converged).
+    """
+    st = int(STATUS_MAX_ITER)
+    z = z0
+    q = vecQd()
+    if not zr_admissible(z0):
+        st = int(STATUS_DOMAIN)
+    else:
+        cell = evaluate_zr(z, B, d)
+        r, J = residuals_ext(cell, codes, targets, dp, B, d)
+        q = cell.q
+        n = int(0)
+        if not all_finite(r, J):
+            st = int(STATUS_NONFINITE)
+        else:
+            f = wp.dot(r, r)
+            while True:
+                if max_abs5(r) <= NEWTON_TOL:
+                    st = int(STATUS_CONVERGED)
+                    break
+                if n >= NEWTON_MAX_ITER:
+                    st = int(STATUS_MAX_ITER)
+                    break
+                dz, singular = solve5(J, -r)
+                if singular:
+                    st = int(STATUS_SINGULAR)
+                    break
+                mx = max_abs5(dz)
+                if mx > _MAX_DZ:
+                    dz = dz * (_MAX_DZ / mx)
+                # keep the angle steps moderate, as the reference does: the map is only locally smooth
+                ma = wp.max(wp.abs(dz[1]), wp.abs(dz[3]))
+                if ma > _MAX_DANGLE:
+                    dz = dz * (_MAX_DANGLE / ma)
+                lam = wp.float64(1.0)
+                accepted = bool(False)
+                any_adm = bool(False)
+                any_nonfinite = bool(False)
+                for k in range(_MAX_BACKTRACK):
+                    zt = z + dz * lam
+                    if zr_admissible(zt):
+                        any_adm = True
+                        ct = evaluate_zr(zt, B, d)
+                        rt, Jt = residuals_ext(ct, codes, targets, dp, B, d)
+                        if all_finite(rt, Jt):
+                            ft = wp.dot(rt, rt)
+                            if ft <= (wp.float64(1.0) - wp.float64(2.0) * _ARMIJO * lam) * f:
+                                z = zt
+                                r = rt
+                                J = Jt
+                                f = ft
+                                q = ct.q
+                                accepted = True
+                                break
+                        else:
+                            any_nonfinite = True
+                    lam = lam * wp.float64(0.5)
+                n += 1
+                if not accepted:
+                    if not any_adm:
+                        st = int(STATUS_DOMAIN)
+                    elif any_nonfinite:
+                        st = int(STATUS_NONFINITE)
+                    else:
+                        st = int(STATUS_MAX_ITER)
+                    break
+    return z, q, st
+
+
+@wp.func
+def no_dahl():
+    return vec5d()
+
+
+# ------------------------------------------------------------------ Table 4
+@wp.func
+def stage_conditions(stage: int, jammed: int, soft: int, frozen_soft: wp.float64, frozen_sbc: wp.float64,
+                     mat: Material, C: wp.float64):
+    """The four imposed quantities of a stage at course length C (CellCycle.conditions).
+
+    Slots: 0 L, 1 C (the driving condition, swapped for an event condition when
+    an event is located), 2 the hard condition (s_BC, phi = +/-phimax, or the
+    Dahl residual), 3 the soft condition frozen at entry (W = 4d when jammed).
+    """
+    codes = wp.vec4i(Q_L, Q_C, Q_S_BC, soft)
+    tg = vec4d(mat.L, C, frozen_sbc, frozen_soft)
+    if mat.dahl != 0:
+        codes[2] = COND_DAHL
+    elif stage == S_LOAD:
+        codes[2] = Q_PHI
+        tg[2] = mat.phimax
+    elif stage == S_UNLOAD:
+        codes[2] = Q_PHI
+        tg[2] = -mat.phimax
+    if jammed != 0:
+        codes[3] = Q_W
+        tg[3] = mat.w_jam
+    return codes, tg
+
+
+@wp.func
+def is_loading(stage: int) -> wp.bool:
+    return stage == SF_LOAD or stage == S_LOAD
+
+
+@wp.func
+def stage_label(stage: int, jammed: int) -> int:
+    """Label code (knitsim.cell.stages.LABEL_CODES) of a stage."""
+    lbl = int(LBL_ADHERENCE)
+    if stage == SLACK:
+        lbl = int(LBL_SLACK)
+    elif jammed != 0:
+        lbl = int(LBL_JAMMING)
+    elif stage == S_LOAD or stage == S_UNLOAD:
+        lbl = int(LBL_SLIDING)
+    return lbl
+
+
+@wp.func
+def reverse(direction: int, q: vecQd, mat: Material, soft_old: int, fsoft_old: wp.float64):
+    """Load reversal (CellCycle.reverse): returns (stage, soft, frozen_soft, frozen_sbc)."""
+    frozen_sbc = q[Q_S_BC]
+    stage = int(SF_LOAD)
+    soft = int(Q_RN)
+    if direction < 0:
+        stage = int(SF_UNLOAD)
+        soft = int(Q_BETA)
+        if mat.hong != 0 or mat.dahl != 0:
+            soft = int(Q_T)
+    else:
+        tiny = wp.abs(q[Q_RN]) < wp.float64(1.0e-9) * wp.max(q[Q_P], wp.float64(1.0e-12))
+        if tiny and mat.mirror != 0 and mat.dahl == 0:
+            soft = int(Q_BETA)
+    fsoft = q[soft]
+    if mat.dahl == 0 and mat.m == wp.float64(0.0):
+        # frictionless: one curve for loading and unloading, the loading branch's
+        # soft condition stays frozen (CellCycle.reverse)
+        soft = soft_old
+        fsoft = fsoft_old
+        stage = int(S_UNLOAD)
+        if direction > 0:
+            stage = int(S_LOAD)
+    return stage, soft, fsoft, frozen_sbc
+
+
+@wp.func
+def event_value(kind: int, q: vecQd, stage: int, mat: Material) -> wp.float64:
+    """Signed event function, positive once the event happened (CellCycle.event_functions)."""
+    v = wp.float64(0.0)
+    if kind == _EV_SLIDE:
+        if stage == SF_LOAD:
+            v = q[Q_PHI] - mat.phimax
+        else:
+            v = -mat.phimax - q[Q_PHI]
+    elif kind == _EV_JAM:
+        v = mat.w_jam - q[Q_W]
+    elif kind == _EV_CAP:
+        v = q[Q_F] - mat.cap
+    elif kind == _EV_SLACK:
+        v = -q[Q_F]
+    return v
+
+
+@wp.func
+def event_active(kind: int, stage: int, jammed: int, mat: Material) -> wp.bool:
+    ok = bool(False)
+    if kind == _EV_SLIDE:
+        ok = mat.dahl == 0 and mat.m > wp.float64(0.0) and (stage == SF_LOAD or stage == SF_UNLOAD)
+    elif kind == _EV_JAM:
+        ok = jammed == 0
+    elif kind == _EV_CAP:
+        ok = is_loading(stage)
+    elif kind == _EV_SLACK:
+        ok = not is_loading(stage)
+    return ok
+
+
+@wp.func
+def event_condition(kind: int, stage: int, mat: Material):
+    """(code, target) of the condition that replaces C when the event is located."""
+    code = int(Q_W)
+    tg = mat.w_jam  # jam, unjam
+    if kind == _EV_SLIDE:
+        code = int(Q_PHI)
+        tg = mat.phimax
+        if stage == SF_UNLOAD:
+            tg = -mat.phimax
+    elif kind == _EV_CAP:
+        code = int(Q_F)
+        tg = mat.cap
+    elif kind == _EV_SLACK:
+        code = int(Q_F)
+        tg = wp.float64(0.0)
+    return code, tg
+
+
+@wp.func
+def transition(kind: int, stage: int, jammed: int, soft: int, frozen_soft: wp.float64, status: int, q: vecQd):
+    """Stage change of a located event (CellCycle._transition)."""
+    if kind == _EV_SLIDE:
+        if stage == SF_LOAD:
+            stage = int(S_LOAD)
+            soft = int(Q_RN)
+        else:
+            stage = int(S_UNLOAD)
+            soft = int(Q_T)
+        frozen_soft = q[soft]
+    elif kind == _EV_JAM:
+        jammed = 1
+    elif kind == _EV_UNJAM:
+        jammed = 0
+    elif kind == _EV_SLACK:
+        stage = int(SLACK)
+    elif kind == _EV_CAP:
+        status = int(ST_CAP)
+    return stage, jammed, soft, frozen_soft, status
+
+
+@wp.func
+def in_range(C: wp.float64, Ca: wp.float64, Cb: wp.float64) -> wp.bool:
+    lo = wp.min(Ca, Cb)
+    hi = wp.max(Ca, Cb)
+    tol = wp.float64(1.0e-12) * wp.max(wp.float64(1.0), hi)
+    return wp.isfinite(C) and C >= lo - tol and C <= hi + tol
+
+
+# ------------------------------------------------------------------ solves
+@wp.func
+def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                  mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64):
+    """Equilibrium of a Coulomb stage at C (or, with ev_code >= 0, at the event condition, C free)."""
+    codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C)
+    if ev_code >= 0:
+        codes[1] = ev_code
+        tg[1] = ev_target
+    xn, qn, st = newton(x, codes, tg, no_dahl(), mat.B, mat.d)
+    return xn, qn, st == STATUS_CONVERGED
+
+
+@wp.func
+def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                       mat: Material, C_from: wp.float64, C_goal: wp.float64):
+    """solve_coulomb at C_goal; if Newton fails from x, walk there in 4 sub-steps (guesses only:
+    the result is the same equilibrium at C_goal, events are still judged on the endpoints)."""
+    xt, qt, ok = solve_coulomb(x, stage, jammed, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0))
+    good = bool(ok)
+    if not good:
+        xx = x
+        good = bool(True)
+        for k in range(1, 5):
+            if good:
+                Ck = C_from + (C_goal - C_from) * wp.float64(k) * wp.float64(0.25)
+                xx, qt, okk = solve_coulomb(xx, stage, jammed, soft, fs, fsbc, mat, Ck, -1, wp.float64(0.0))
+                good = bool(okk)
+        xt = xx
+    return xt, qt, good
+
+
+@wp.func
+def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
+    """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
+    codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
+    codes[2] = Q_S_BC
+    xs, qs, st = newton(x, codes, tg, no_dahl(), mat.B, mat.d)
+    r0 = wp.tan(qs[Q_PHI]) - wp.tan(q_old[Q_PHI])
+    s = wp.float64(1.0)
+    if r0 < wp.float64(0.0):
+        s = wp.float64(-1.0)
+    elif r0 == wp.float64(0.0):
+        s = wp.float64(0.0)
+    return s, xs, qs, st == STATUS_CONVERGED
+
+
+@wp.func
+def solve_dahl(x: vec5d, q_old: vecQd, s: wp.float64, jammed: int, soft: int, fs: wp.float64,
+               mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64):
+    """Dahl equilibrium from the state q_old at C (or at the event condition): Newton on the
+    intrinsic condition, L, C, the soft condition and the Dahl residual."""
+    codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, wp.float64(0.0), mat, C)
+    codes[2] = COND_DAHL
+    if ev_code >= 0:
+        codes[1] = ev_code
+        tg[1] = ev_target
+    dp = vec5d(wp.tan(q_old[Q_PHI]), q_old[Q_S_BC], s, mat.sigma, mat.m)
+    xn, qn, st = newton(x, codes, tg, dp, mat.B, mat.d)
+    ok = st == STATUS_CONVERGED
+    # the root must lie on the slip branch s xi >= 0 (the reference brackets xi in [0, s hi])
+    xi = q_old[Q_S_BC] - qn[Q_S_BC]
+    if ok and s * xi < -wp.float64(1.0e-12) * mat.d:
+        ok = False
+    return xn, qn, ok
+
+
+@wp.func
+def solve_dahl_at(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
+    """Dahl increment from q_old to C: stick trial for the slip direction, then the Dahl solve.
+
+    Returns (x, q, s, ok)."""
+    s, xs, qs, ok = dahl_sign(x, q_old, jammed, soft, fs, mat, C)
+    xn = xs
+    qn = qs
+    if ok and s != wp.float64(0.0):
+        xn, qn, ok = solve_dahl(xs, q_old, s, jammed, soft, fs, mat, C, -1, wp.float64(0.0))
+        if not ok:
+            xn, qn, ok = solve_dahl(x, q_old, s, jammed, soft, fs, mat, C, -1, wp.float64(0.0))
+    return xn, qn, s, ok
+
+
+@wp.func
+def label_dahl(stage: int, q: vecQd, mat: Material) -> int:
+    """Dahl has no switch: sliding once tan(phi) is within 5 % of +/-m (CellCycle._label_dahl)."""
+    out = stage
+    if stage != SLACK:
+        if is_loading(stage):
+            out = int(SF_LOAD)
+            if wp.abs(wp.tan(q[Q_PHI]) - mat.m) <= wp.float64(0.05) * mat.m:
+                out = int(S_LOAD)
+        else:
+            out = int(SF_UNLOAD)
+            if wp.abs(wp.tan(q[Q_PHI]) + mat.m) <= wp.float64(0.05) * mat.m:
+                out = int(S_UNLOAD)
+    return out
+
+
+@wp.func
+def lerp5(a: vec5d, b: vec5d, t: wp.float64):
+    return a + (b - a) * t
+
+
+@wp.func
+def interp_t(f0: wp.float64, f1: wp.float64) -> wp.float64:
+    t = wp.float64(1.0)
+    den = f1 - f0
+    if den != wp.float64(0.0):
+        t = wp.clamp(-f0 / den, wp.float64(0.0), wp.float64(1.0))
+    return t
+
+
+@wp.func
+def read_material(
+    i: int,
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+    djam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+):
+    mat = Material()
+    mat.B = B[i % B.shape[0]]
+    mat.d = d[i % d.shape[0]]
+    mat.L = L[i % L.shape[0]]
+    mat.W0 = W0[i % W0.shape[0]]
+    mat.C0 = C0[i % C0.shape[0]]
+    mat.m = m[i % m.shape[0]]
+    mat.phimax = wp.atan(mat.m)
+    mat.phi0 = phi0[i % phi0.shape[0]]
+    mat.sigma = sigma[i % sigma.shape[0]]
+    mat.cap = cap[i % cap.shape[0]]
+    mat.w_jam = wp.float64(4.0) * djam[i % djam.shape[0]]  # Hong's W = 4d, d the in-plane jam width
+    mat.dahl = friction[i % friction.shape[0]]
+    mat.hong = unloading[i % unloading.shape[0]]
+    mat.mirror = reload[i % reload.shape[0]]
+    return mat
+
+
+# ------------------------------------------------------------------ initial state
+@wp.func
+def closing_force(al: wp.float64, be: wp.float64, ga: wp.float64, B: wp.float64, d: wp.float64) -> wp.float64:
+    """P that closes g = 0 (eq 6, third line) at phi = 0 (knitsim.cell.quarter_loop.closing_force);
+    -1 where no P does."""
+    P = wp.float64(-1.0)
+    a = al - ga
+    b = be - ga
+    if a > wp.float64(0.0) and b > a and b < PI:
+        s, x0, y0 = elastica_ab(d_const(a), d_const(b))
+        xhat = x0.v * wp.cos(ga) - y0.v * wp.sin(ga)
+        target = wp.float64(0.5) * d * wp.sin(be)
+        if xhat > wp.float64(0.0) and target > wp.float64(0.0):
+            P = B * (xhat / target) * (xhat / target)
+    return P
+
+
+@wp.kernel
+def init_kernel(
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+    djam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    starts: wp.array2d(dtype=wp.float64),
+    x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
+    stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
+    fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
+    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32),
+):
+    """Table 4 initial state {C0, W0, L, phi0}: multistart at phi = 0 (the starts of
+    knitsim.cell.inverse.initial_state, first converged wins), then continuation in phi."""
+    i = wp.tid()
+    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload)
+    codes = wp.vec4i(Q_C, Q_W, Q_L, Q_PHI)
+    tg = vec4d(mat.C0, mat.W0, mat.L, wp.float64(0.0))
+    found = bool(False)
+    # default (alpha - gamma, beta, R/P, phi, P) guess, used only if no start converges
+    x = vec5d(wp.log(wp.float64(1.1)), wp.float64(1.7), -wp.sin(wp.float64(0.1)) / wp.cos(wp.float64(1.7)),
+              wp.float64(0.0), wp.log(wp.float64(0.15)))
+    q = vecQd()
+    for k in range(starts.shape[0]):
+        if not found:
+            al = starts[k, 0]
+            be = starts[k, 1]
+            ga = starts[k, 2]
+            P = closing_force(al, be, ga, mat.B, mat.d)
+            if P > wp.float64(0.0):
+                z0 = vec5d(wp.log(al - ga), be, -wp.sin(ga) / wp.cos(be), wp.float64(0.0), wp.log(P))
+                xk, qk, st = newton(z0, codes, tg, no_dahl(), mat.B, mat.d)
+                if st == STATUS_CONVERGED:
+                    found = True
+                    x = xk
+                    q = qk
+    status = int(ST_OK)
+    if not found:
+        status = int(ST_NO_CONV)
+        xk, qk, st = newton(x, codes, tg, no_dahl(), mat.B, mat.d)
+        x = xk
+        q = qk
+        if not zr_admissible(xk):
+            x = vec5d(wp.log(wp.float64(1.1)), wp.float64(1.7), -wp.sin(wp.float64(0.1)) / wp.cos(wp.float64(1.7)),
+                      wp.float64(0.0), wp.log(wp.float64(0.15)))
+        q = evaluate_zr(x, mat.B, mat.d).q
+    elif mat.phi0 != wp.float64(0.0):
+        # continuation in phi (knitsim.cell.inverse.continue_along, step 0.05 rad, 8 halvings)
+        nsteps = wp.max(1, int(wp.ceil(wp.abs(mat.phi0) / wp.float64(0.05))))
+        h = mat.phi0 / wp.float64(nsteps)
+        value = wp.float64(0.0)
+        halvings = int(0)
+        sgn = wp.sign(h)
+        while (mat.phi0 - value) * sgn > wp.float64(1.0e-14) * wp.max(wp.float64(1.0), wp.abs(mat.phi0)):
+            nxt = value + h
+            if (mat.phi0 - nxt) * sgn < wp.float64(0.0):
+                nxt = mat.phi0
+            tg[3] = nxt
+            xk, qk, st = newton(x, codes, tg, no_dahl(), mat.B, mat.d)
+            if st == STATUS_CONVERGED:
+                x = xk
+                q = qk
+                value = nxt
+            else:
+                halvings += 1
+                if halvings > 8:
+                    status = int(ST_NO_CONV)
+                    break
+                h = h * wp.float64(0.5)
+    stage = int(SF_LOAD)
+    if mat.dahl == 0 and mat.phi0 >= mat.phimax - wp.float64(1.0e-12):
+        stage = int(S_LOAD)  # phi0 = phimax: at the sliding limit already (m = 0: slides from the start)
+    xo = x_of_z(x)
+    for k in range(5):
+        x_out[i, k] = xo[k]
+    for k in range(N_QUANTITIES):
+        q_out[i, k] = q[k]
+    C_out[i] = q[Q_C]
+    stage_out[i] = stage
+    jammed_out[i] = 0
+    soft_out[i] = int(Q_RN)
+    fsoft_out[i] = q[Q_RN]
+    fsbc_out[i] = q[Q_S_BC]
+    status_out[i] = status
+    direction_out[i] = 1
+
+
+# ------------------------------------------------------------------ one increment
+@wp.kernel
+def step_kernel(
+    # model
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+    djam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    max_halvings: int,
+    # state in
+    x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
+    stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
+    fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
+    status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32),
+    # control
+    strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), increment: int,
+    # state out
+    x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
+    stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
+    fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
+    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32),
+    # events (append buffer; ev_count[0] counts every event, stored or not)
+    ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
+    ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
+    ev_to: wp.array(dtype=wp.int32),
+):
+    """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
+    i = wp.tid()
+    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload)
+    q = vecQd()
+    for k in range(N_QUANTITIES):
+        q[k] = q_in[i, k]
+    # the cell travels in Newton variables z (kernels below name them x)
+    x = z_of(vec5d(x_in[i, 0], x_in[i, 1], x_in[i, 2], x_in[i, 3], x_in[i, 4]), q)
+    C = C_in[i]
+    stage = int(stage_in[i])
+    jammed = int(jammed_in[i])
+    soft = int(soft_in[i])
+    fs = fsoft_in[i]
+    fsbc = fsbc_in[i]
+    status = int(status_in[i])
+    dir_old = int(direction_in[i])
+    dir_new = int(direction[i % direction.shape[0]])
+    C_target = mat.C0 * (wp.float64(1.0) + strain[i % strain.shape[0]])
+
+    # events of this increment (kind, C, from-label, to-label), committed at the end
+    n_ev = int(0)
+    e_kind = vec8i()
+    e_C = vec8d()
+    e_from = vec8i()
+    e_to = vec8i()
+
+    # --- reversal (Table 4: SF- on unloading, SF+ on reloading)
+    if dir_new != dir_old and status == ST_OK and stage != SLACK:
+        stage, soft, fs, fsbc = reverse(dir_new, q, mat, soft, fs)
+        if n_ev < _MAXEV:
+            e_kind[n_ev] = _EV_REVERSAL
+            e_C[n_ev] = C
+            e_from[n_ev] = -1
+            e_to[n_ev] = -1
+        n_ev += 1
+
+    go = status == ST_OK
+    # --- slack: no load until the imposed C returns to where the cell went slack
+    if go and stage == SLACK:
+        if C_target <= C:
+            go = False
+        else:
+            stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
+            if n_ev < _MAXEV:
+                e_kind[n_ev] = _EV_RELOAD
+                e_C[n_ev] = C
+                e_from[n_ev] = -1
+                e_to[n_ev] = -1
+            n_ev += 1
+
+    if go and mat.dahl == 0:
+        # ---------------------------------------------------- Coulomb (Table 4)
+        # walked in sub-steps: a failed solve halves the sub-step (at most
+        # max_halvings times in a row), a converged one doubles it back, and
+        # events are checked on every sub-step (CellCycle.advance)
+        step = C_target - C
+        failures = int(0)
+        n_located = int(0)
+        for guard in range(MAX_SUBSTEPS):
+            C_from = C
+            if wp.abs(C_target - C_from) <= wp.float64(1.0e-15) * C_target:
+                break
+            if wp.abs(step) > wp.abs(C_target - C_from):
+                step = C_target - C_from
+            C_goal = C_from + step
+            xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, mat, C_from, C_goal)
+            if not ok:
+                failures += 1
+                if failures > max_halvings:
+                    status = int(ST_NO_CONV)
+                    break
+                step = step * wp.float64(0.5)
+                continue
+            failures = 0
+            # events fired inside the increment
+            best_kind = int(-1)
+            best_C = wp.float64(0.0)
+            best_x = x
+            best_q = q
+            any_fired = bool(False)
+            for kind in range(5):
+                if kind != _EV_UNJAM and event_active(kind, stage, jammed, mat):
+                    f0 = event_value(kind, q, stage, mat)
+                    f1 = event_value(kind, qt, stage, mat)
+                    if f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
+                        any_fired = True
+                        code, etg = event_condition(kind, stage, mat)
+                        xg = lerp5(x, xt, interp_t(f0, f1))
+                        xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                        if not oke:
+                            xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                        if oke and in_range(qe[Q_C], C_from, C_goal):
+                            if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
+                                best_kind = kind
+                                best_C = qe[Q_C]
+                                best_x = xe
+                                best_q = qe
+            # active set while unloading jammed: the unjammed branch at the target
+            if jammed != 0 and not is_loading(stage):
+                xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0))
+                if oku and qu[Q_W] >= mat.w_jam:
+                    any_fired = True
+                    xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, mat, C_goal, Q_W, mat.w_jam)
+                    if oke and in_range(qe[Q_C], C_from, C_goal):
+                        if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
+                            best_kind = int(_EV_UNJAM)
+                            best_C = qe[Q_C]
+                            best_x = xe
+                            best_q = qe
+            if not any_fired:
+                x = xt
+                q = qt
+                C = C_goal
+                step = step * wp.float64(2.0)
+                continue
+            if best_kind < 0:
+                status = int(ST_NOT_LOCATED)
+                break
+            lbl_from = stage_label(stage, jammed)
+            x = best_x
+            q = best_q
+            C = best_C
+            stage, jammed, soft, fs, status = transition(best_kind, stage, jammed, soft, fs, status, q)
+            if n_ev < _MAXEV:
+                e_kind[n_ev] = best_kind
+                e_C[n_ev] = C
+                e_from[n_ev] = lbl_from
+                e_to[n_ev] = stage_label(stage, jammed)
+            n_ev += 1
+            if status != ST_OK or stage == SLACK:
+                break
+            n_located += 1
+            if n_located >= MAX_EVENT_LOOPS:
+                break
+            step = C_target - C
+    elif go:
+        # ---------------------------------------------------- Dahl (sub-stepped on failure)
+        C_start = C
+        n_ev0 = n_ev
+        nsub = int(1)
+        done = bool(False)
+        for attempt in range(max_halvings + 1):
+            if not done:
+                n_ev = n_ev0
+                tx = x
+                tq = q
+                tC = C
+                tstage = stage
+                tjam = jammed
+                tsoft = soft
+                tfs = fs
+                tstatus = status
+                failed = bool(False)
+                for k in range(1, nsub + 1):
+                    if not failed and tstatus == ST_OK and tstage != SLACK:
+                        Ck = C_start + (C_target - C_start) * wp.float64(k) / wp.float64(nsub)
+                        for loop in range(MAX_EVENT_LOOPS):
+                            if not failed:
+                                xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, mat, Ck)
+                                if not ok:
+                                    failed = True
+                                    break
+                                best_kind = int(-1)
+                                best_C = wp.float64(0.0)
+                                best_x = tx
+                                best_q = tq
+                                for kind in range(5):
+                                    if kind != _EV_UNJAM and event_active(kind, tstage, tjam, mat):
+                                        f0 = event_value(kind, tq, tstage, mat)
+                                        f1 = event_value(kind, qt, tstage, mat)
+                                        if f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
+                                            code, etg = event_condition(kind, tstage, mat)
+                                            xg = lerp5(tx, xt, interp_t(f0, f1))
+                                            se = s
+                                            if se == wp.float64(0.0):
+                                                se = wp.float64(1.0)  # stick solved it: xi = 0 either way
+                                            xe, qe, oke = solve_dahl(xg, tq, se, tjam, tsoft, tfs, mat, Ck, code, etg)
+                                            if not oke:
+                                                xe, qe, oke = solve_dahl(xt, tq, se, tjam, tsoft, tfs, mat, Ck, code, etg)
+                                            if not (oke and in_range(qe[Q_C], tC, Ck)):
+                                                failed = True  # the reference's root search raises
+                                            elif best_kind < 0 or wp.abs(qe[Q_C] - tC) < wp.abs(best_C - tC):
+                                                best_kind = kind
+                                                best_C = qe[Q_C]
+                                                best_x = xe
+                                                best_q = qe
+                                if failed:
+                                    break
+                                # unjam (active set): the reference applies it at the target itself
+                                if tjam != 0 and not is_loading(tstage):
+                                    xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, mat, Ck)
+                                    if oku and qu[Q_W] >= mat.w_jam:
+                                        if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
+                                            best_kind = int(_EV_UNJAM)
+                                            best_C = Ck
+                                            best_x = xt
+                                            best_q = qt
+                                if best_kind < 0:
+                                    tx = xt
+                                    tq = qt
+                                    tC = Ck
+                                    break
+                                lbl_from = stage_label(tstage, tjam)
+                                tx = best_x
+                                tq = best_q
+                                tC = best_C
+                                if best_kind == _EV_UNJAM:
+                                    tC = Ck
+                                tstage, tjam, tsoft, tfs, tstatus = transition(best_kind, tstage, tjam, tsoft, tfs, tstatus, tq)
+                                if n_ev < _MAXEV:
+                                    e_kind[n_ev] = best_kind
+                                    e_C[n_ev] = tC
+                                    e_from[n_ev] = lbl_from
+                                    e_to[n_ev] = stage_label(tstage, tjam)
+                                n_ev += 1
+                                if tstatus != ST_OK or tstage == SLACK or tC == Ck:
+                                    break
+                if not failed:
+                    done = True
+                    x = tx
+                    q = tq
+                    C = tC
+                    stage = tstage
+                    jammed = tjam
+                    soft = tsoft
+                    fs = tfs
+                    status = tstatus
+                nsub = nsub * 2
+        if not done:
+            n_ev = n_ev0
+            status = int(ST_NO_CONV)
+    if mat.dahl != 0:
+        stage = label_dahl(stage, q, mat)
+
+    # --- commit
+    xo = x_of_z(x)
+    for k in range(5):
+        x_out[i, k] = xo[k]
+    for k in range(N_QUANTITIES):
+        q_out[i, k] = q[k]
+    C_out[i] = C
+    stage_out[i] = stage
+    jammed_out[i] = jammed
+    soft_out[i] = soft
+    fsoft_out[i] = fs
+    fsbc_out[i] = fsbc
+    status_out[i] = status
+    direction_out[i] = dir_new
+    if n_ev > 0:
+        nk = wp.min(n_ev, _MAXEV)
+        base = wp.atomic_add(ev_count, 0, nk)
+        cap_ev = ev_cell.shape[0]
+        for k in range(nk):
+            j = base + k
+            if j < cap_ev:
+                ev_cell[j] = i
+                ev_incr[j] = increment
+                ev_kind[j] = e_kind[k]
+                ev_C[j] = e_C[k]
+                ev_from[j] = e_from[k]
+                ev_to[j] = e_to[k]
+
+
+@wp.kernel
+def record_kernel(
+    q: wp.array2d(dtype=wp.float64), stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32),
+    status: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32), row: int,
+    hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
+    hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
+):
+    """Write one history row: hist_q[k, row, i] = q[i, codes[k]] (F = 0 while slack)."""
+    i = wp.tid()
+    st = stage[i]
+    for k in range(codes.shape[0]):
+        c = codes[k]
+        v = q[i, c]
+        if c == Q_F and st == SLACK:
+            v = wp.float64(0.0)
+        hist_q[k, row, i] = v
+    hist_stage[row, i] = st
+    hist_jammed[row, i] = jammed[i]
+    hist_status[row, i] = status[i]

@@ -1,0 +1,366 @@
+"""Batched load cycle of N quarter-stitch cells on a Warp device (Dusserre 2015 Table 4).
+
+Model / State / Control, as ``warp.sim``:
+
+- :class:`CellModel`: immutable struct-of-arrays of per-cell parameters, each
+  of shape ``(1 or N,)`` and read in the kernels as ``p[i % p.shape[0]]``;
+- :class:`CellBatchState`: the evolving state of every cell (made by
+  :meth:`CellModel.state`, initialised to Table 4's initial state);
+- :class:`CellControl`: the imposed strain of the course length and the load
+  direction of this increment (shape ``(1 or N,)``, made by :meth:`CellModel.control`);
+- :class:`CellSolver`: ``step(state_in, state_out, control)`` advances every
+  cell by one increment in one kernel launch (:mod:`knitsim.kernels.cell_step`).
+
+Semantics are those of the NumPy reference :class:`knitsim.cell.cycle.CellCycle`
+(its oracle, :func:`knitsim.cell.cycle.run_cells_reference`): reversal, trial
+solve, events located inside the increment, halving, status flags.  Two
+methods differ on purpose: events are located by swapping the driving
+condition C for the event condition (the reference runs a root search on C),
+and Dahl friction is a residual of the per-cell Newton (the reference nests a
+root search on the slip).
+
+:func:`run_batch` runs a whole :class:`~knitsim.cell.load_program.LoadProgram`
+and returns a :class:`~knitsim.cell.history.BatchHistory`; history rows are
+written on the device and copied to the host once at the end.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+import warp as wp
+
+from knitsim import warp_runtime
+from knitsim.errors import KnitsimInputError
+
+from .history import HISTORY_QUANTITIES, STATUS_NAMES, STATUS_OK, BatchHistory
+from .inverse import DEFAULT_STARTS
+from .load_program import LoadProgram
+from .material import CellParams
+from .quantities import CODE, QUANTITY_NAMES
+from .stages import LABEL_CODES
+
+_LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
+
+
+def _k():
+    # imported lazily: ``import knitsim.cell`` must not need Warp initialised
+    from knitsim.kernels import cell_step
+
+    return cell_step
+
+
+_FLOAT_FIELDS = ("B", "d", "L", "W0", "C0", "m", "phi0", "sigma", "cap", "djam")
+_INT_FIELDS = ("friction", "unloading", "reload")
+
+
+class CellModel:
+    """Per-cell parameters as device arrays (immutable after construction).
+
+    Attributes (wp.array, shape ``[1 or cell_count]``)
+    ---------------------------------------------------
+    B : float64
+        Bending stiffness [N mm^2].
+    d : float64
+        Yarn diameter [mm].
+    L, W0, C0 : float64
+        Stitch length, wale width and course length at rest [mm].
+    m : float64
+        Friction ratio tan(phimax) [-].
+    phi0 : float64
+        Initial friction angle [rad].
+    sigma : float64
+        Dahl stiffness [1/mm] (used where friction is Dahl).
+    cap : float64
+        Force per wale at which a cell stops [N].
+    djam : float64
+        In-plane yarn width that jams loops [mm] (``CellParams.d_jam``); jammed at W = 4 djam.
+    friction : int32
+        0 Coulomb (Table 4 switching), 1 Dahl.
+    unloading : int32
+        0 ``"dusserre"``, 1 ``"hong_constant_t"``.
+    reload : int32
+        0 ``"freeze_rn"``, 1 ``"mirror_unloading"``.
+    cell_count : int
+    params : list of CellParams
+        The validated parameters (one per cell).
+    """
+
+    def __init__(self, arrays: dict, cell_count: int, params: list, device: str):
+        self.__dict__["_frozen"] = False
+        for name, arr in arrays.items():
+            setattr(self, name, arr)
+        self.cell_count = int(cell_count)
+        self.params = list(params)
+        self.device = device
+        self.__dict__["_frozen"] = True
+
+    def __setattr__(self, name, value):
+        if self.__dict__.get("_frozen"):
+            raise AttributeError(f"CellModel is immutable (tried to set {name!r})")
+        self.__dict__[name] = value
+
+    @classmethod
+    def from_params(cls, params: Sequence[CellParams], device: str = "cpu") -> "CellModel":
+        """Build the model of ``len(params)`` cells (each validated; errors name the cell)."""
+        warp_runtime.init()
+        device = warp_runtime.resolve_device(device)
+        if isinstance(params, CellParams):
+            params = [params]
+        params = list(params)
+        if not params:
+            raise KnitsimInputError("cells: at least one cell is needed, got an empty list")
+        checked = []
+        for i, p in enumerate(params):
+            if not isinstance(p, CellParams):
+                raise KnitsimInputError(f"cells[{i}] = {p!r}: expected a CellParams")
+            p = p.validated(where=f"cells[{i}]")
+            if p.jamming_criterion != "w_4d":
+                raise KnitsimInputError(
+                    f"cells[{i}].jamming_criterion = {p.jamming_criterion!r}: the batched cycle supports 'w_4d' only")
+            if p.friction == "dahl" and p.m <= 0:
+                raise KnitsimInputError(f"cells[{i}].m = {p.m!r}: Dahl friction needs m > 0 (saturation tan(phi) = m)")
+            checked.append(p)
+        cols = {
+            "B": [p.B for p in checked], "d": [p.d for p in checked], "L": [p.L for p in checked],
+            "W0": [p.W0 for p in checked], "C0": [p.C0 for p in checked], "m": [p.m for p in checked],
+            "phi0": [p.phi0 for p in checked], "sigma": [p.dahl_sigma for p in checked],
+            "cap": [p.force_cap_N for p in checked],
+            "djam": [getattr(p, "d_jam", p.d) for p in checked],
+            "friction": [int(p.friction == "dahl") for p in checked],
+            "unloading": [int(p.unloading_rule == "hong_constant_t") for p in checked],
+            "reload": [int(p.reload_rule == "mirror_unloading") for p in checked],
+        }
+        arrays = {}
+        for name, vals in cols.items():
+            a = np.asarray(vals, dtype=np.float64 if name in _FLOAT_FIELDS else np.int32)
+            if np.all(a == a[0]):
+                a = a[:1]  # broadcast (1 or N): a uniform parameter costs one value
+            arrays[name] = wp.array(a, dtype=wp.float64 if name in _FLOAT_FIELDS else wp.int32, device=device)
+        return cls(arrays, len(checked), checked, device)
+
+    def _arrays(self) -> list:
+        return [getattr(self, n) for n in _FLOAT_FIELDS + _INT_FIELDS]
+
+    def nbytes(self) -> int:
+        """Device bytes of the parameter arrays."""
+        return int(sum(a.capacity for a in self._arrays()))
+
+    def state(self) -> "CellBatchState":
+        """A state initialised to Table 4's initial state (C0, W0, L, phi0), solved on the device."""
+        st = CellBatchState.empty(self.cell_count, self.device)
+        starts = wp.array(np.asarray(DEFAULT_STARTS, dtype=np.float64), dtype=wp.float64, device=self.device)
+        wp.launch(_k().init_kernel, dim=self.cell_count, inputs=self._arrays() + [starts],
+                  outputs=st._arrays(), device=self.device)
+        return st
+
+    def control(self) -> "CellControl":
+        """A control (strain 0, loading) broadcast to every cell."""
+        return CellControl(wp.zeros(1, dtype=wp.float64, device=self.device),
+                           wp.ones(1, dtype=wp.int32, device=self.device))
+
+
+@dataclass
+class CellBatchState:
+    """Evolving state of N cells (device arrays, leading axis N).
+
+    Attributes
+    ----------
+    x : float64 [N, 5]
+        (alpha, beta, gamma, phi, P) [rad, N].
+    q : float64 [N, n_quantities]
+        Every quantity of :data:`~knitsim.cell.quantities.QUANTITY_NAMES` at x.
+    C : float64 [N]
+        Course length of the cell [mm] (stays at C_slack while slack).
+    stage, jammed : int32 [N]
+        :class:`~knitsim.cell.stages.Stage` code and jammed flag.
+    soft : int32 [N]
+        Quantity code of the soft condition (Rn, beta or T).
+    frozen_soft, frozen_sbc : float64 [N]
+        Values frozen at the entry of the stage.
+    status : int32 [N]
+        :data:`~knitsim.cell.history.STATUS_NAMES` code.
+    direction : int32 [N]
+        Direction of the last increment (+1 loading, -1 unloading).
+    """
+
+    x: wp.array
+    q: wp.array
+    C: wp.array
+    stage: wp.array
+    jammed: wp.array
+    soft: wp.array
+    frozen_soft: wp.array
+    frozen_sbc: wp.array
+    status: wp.array
+    direction: wp.array
+
+    @classmethod
+    def empty(cls, n: int, device: str) -> "CellBatchState":
+        f, i = wp.float64, wp.int32
+        return cls(wp.zeros((n, 5), dtype=f, device=device), wp.zeros((n, len(QUANTITY_NAMES)), dtype=f, device=device),
+                   wp.zeros(n, dtype=f, device=device), wp.zeros(n, dtype=i, device=device),
+                   wp.zeros(n, dtype=i, device=device), wp.zeros(n, dtype=i, device=device),
+                   wp.zeros(n, dtype=f, device=device), wp.zeros(n, dtype=f, device=device),
+                   wp.zeros(n, dtype=i, device=device), wp.zeros(n, dtype=i, device=device))
+
+    def _arrays(self) -> list:
+        return [self.x, self.q, self.C, self.stage, self.jammed, self.soft, self.frozen_soft,
+                self.frozen_sbc, self.status, self.direction]
+
+    @property
+    def cell_count(self) -> int:
+        return int(self.C.shape[0])
+
+    def nbytes(self) -> int:
+        return int(sum(a.capacity for a in self._arrays()))
+
+    def values(self) -> dict[str, np.ndarray]:
+        """Host copies of every quantity by name, shape [N]."""
+        q = self.q.numpy()
+        return {name: q[:, k].copy() for k, name in enumerate(QUANTITY_NAMES)}
+
+
+@dataclass
+class CellControl:
+    """Imposed load of one increment.
+
+    Attributes
+    ----------
+    strain : float64 [1 or N]
+        Strain of the course length; each cell is driven to ``C = C0 (1 + strain)``.
+    direction : int32 [1 or N]
+        +1 loading, -1 unloading (a change triggers the Table 4 reversal).
+    """
+
+    strain: wp.array
+    direction: wp.array
+
+    def set(self, strain: float, direction: int) -> None:
+        """Impose one strain and direction on every cell (device fill, no host sync)."""
+        if int(direction) not in (1, -1):
+            raise KnitsimInputError(f"control.direction = {direction!r}: expected +1 or -1")
+        self.strain.fill_(float(strain))
+        self.direction.fill_(int(direction))
+
+
+class CellSolver:
+    """Advance N cells by one load increment (one kernel launch).
+
+    Parameters
+    ----------
+    model : CellModel
+    max_halvings : int
+        Retries of a failed increment on 2, 4, ... sub-increments before the
+        cell is flagged ``no_convergence``.
+    event_capacity : int, optional
+        Events kept on the device (default 64 per cell); more are counted and dropped.
+    """
+
+    def __init__(self, model: CellModel, max_halvings: int = 6, event_capacity: int | None = None):
+        if not (isinstance(max_halvings, (int, np.integer)) and 0 <= max_halvings <= 30):
+            raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..30")
+        self.model = model
+        self.max_halvings = int(max_halvings)
+        cap = 64 * model.cell_count + 64 if event_capacity is None else int(event_capacity)
+        dev = model.device
+        self._ev_count = wp.zeros(1, dtype=wp.int32, device=dev)
+        self._ev = [wp.zeros(max(cap, 1), dtype=t, device=dev)
+                    for t in (wp.int32, wp.int32, wp.int32, wp.float64, wp.int32, wp.int32)]
+
+    def step(self, state_in: CellBatchState, state_out: CellBatchState, control: CellControl,
+             increment: int = 0) -> None:
+        """One increment for all cells; ``increment`` labels the events it records."""
+        n = self.model.cell_count
+        if n == 0:
+            return
+        wp.launch(_k().step_kernel, dim=n,
+                  inputs=self.model._arrays() + [self.max_halvings] + state_in._arrays()
+                  + [control.strain, control.direction, int(increment)],
+                  outputs=state_out._arrays() + [self._ev_count] + self._ev,
+                  device=self.model.device)
+
+    def events(self) -> list[dict]:
+        """Events recorded so far (host copy), ordered by cell, then as they happened."""
+        k = _k()
+        total = int(self._ev_count.numpy()[0])
+        n = min(total, self._ev[0].shape[0])
+        if total > n:
+            raise RuntimeError(f"event buffer overflow: {total} events, capacity {n}; pass event_capacity=")
+        cell, incr, kind, C, lf, lt = (a.numpy()[:n] for a in self._ev)
+        order = np.lexsort((np.arange(n), cell))
+        out = []
+        for j in order:
+            e = {"cell": int(cell[j]), "increment": int(incr[j]), "kind": k.EVENT_NAMES[int(kind[j])], "C": float(C[j])}
+            if lf[j] >= 0:
+                e["from"] = _LABEL_NAMES[int(lf[j])]
+                e["to"] = _LABEL_NAMES[int(lt[j])]
+            out.append(e)
+        return out
+
+
+def run_batch(params, program: LoadProgram, device: str = "cpu",
+              progress: Callable[[int, int], None] | None = None, max_halvings: int = 6) -> BatchHistory:
+    """Run N cells through a strain program on a Warp device.
+
+    Parameters
+    ----------
+    params : list of CellParams, or CellModel
+        The cells (each validated before any solve).
+    program : LoadProgram
+        Imposed strains of the course length, ``C = C0 (1 + strain)``.
+    device : str
+        Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``, ``"auto"``); ignored
+        when ``params`` is a model.
+    progress : callable, optional
+        ``progress(i, n)`` after each increment (no device sync).
+    max_halvings : int
+        See :class:`CellSolver`.
+
+    Returns
+    -------
+    BatchHistory
+        One row per increment, one column per cell; events with their ``cell``;
+        a ``flag`` event at the first increment where a cell's status is not ok.
+    """
+    model = params if isinstance(params, CellModel) else CellModel.from_params(params, device)
+    if not isinstance(program, LoadProgram) or len(program) == 0:
+        raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
+    dev = model.device
+    n, nc = len(program), model.cell_count
+    solver = CellSolver(model, max_halvings)
+    s0, s1 = model.state(), CellBatchState.empty(nc, dev)
+    control = model.control()
+    codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
+    hq = wp.zeros((len(HISTORY_QUANTITIES), n, nc), dtype=wp.float64, device=dev)
+    hs, hj, hst = (wp.zeros((n, nc), dtype=wp.int32, device=dev) for _ in range(3))
+    k = _k()
+    for i in range(n):
+        control.set(float(program.strain[i]), int(program.direction[i]))
+        solver.step(s0, s1, control, i)
+        s0, s1 = s1, s0
+        wp.launch(k.record_kernel, dim=nc, inputs=[s0.q, s0.stage, s0.jammed, s0.status, codes, i],
+                  outputs=[hq, hs, hj, hst], device=dev)
+        if progress is not None:
+            progress(i, n)
+    hqn = hq.numpy()
+    status = hst.numpy()
+    events = solver.events()
+    for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
+        i0 = int(np.argmax(status[:, c] != STATUS_OK))
+        events.append({"cell": int(c), "increment": i0, "kind": "flag",
+                       "reason": STATUS_NAMES[int(status[i0, c])], "status": STATUS_NAMES[int(status[i0, c])]})
+    events.sort(key=lambda e: (e["cell"], e["increment"], e["kind"] == "flag"))
+    return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
+                        hs.numpy(), hj.numpy(), status,
+                        {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)},
+                        events, list(model.params))
+
+
+def memory_per_cell(model: CellModel, state: CellBatchState, n_increments: int) -> dict[str, float]:
+    """Device bytes per cell: model, two states (in/out), history of ``n_increments`` rows."""
+    nc = model.cell_count
+    hist = n_increments * (len(HISTORY_QUANTITIES) * 8 + 3 * 4)
+    return {"model": model.nbytes() / nc, "states": 2 * state.nbytes() / nc, "history": float(hist),
+            "total": model.nbytes() / nc + 2 * state.nbytes() / nc + hist}
