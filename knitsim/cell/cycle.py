@@ -105,13 +105,18 @@ class _SolveFailed(Exception):
     pass
 
 
-def _q(result, B: float, d: float) -> dict:
+def _with_gap(q: dict, x, B: float, d: float) -> dict:
+    """Add the head gap to a solved state's quantities (costly: only where needed)."""
+    if "head_gap" not in q:
+        q["head_gap"] = float(head_gap(*x, B, d, a=float(x[0] - x[2])))
+    return q
+
+
+def _q(result, B: float, d: float, gap: bool = True) -> dict:
     st = result.state
     q = {n: float(getattr(st, n)) for n in
          ("alpha", "beta", "gamma", "phi", "P", "W", "C", "L", "s_AB", "s_BC", "T", "M", "R", "Rn", "Rt", "F")}
-    a = float(result.x[0] - result.x[2])
-    q["head_gap"] = float(head_gap(*result.x, B, d, a=a))
-    return q
+    return _with_gap(q, result.x, B, d) if gap else q
 
 
 
@@ -173,7 +178,9 @@ class CellCycle:
         # branch of the equations, not the continuation of this one
         if not abs(phi) < 0.5 * math.pi:
             raise _SolveFailed(f"solution left the branch (phi = {phi:.4g} rad)")
-        return res.x, _q(res, self.p.B, self.p.d)
+        # the head gap is only needed on every solve by the head-gap criterion;
+        # otherwise it is added to accepted states (rows and events) only
+        return res.x, _q(res, self.p.B, self.p.d, gap=self.p.jamming_criterion == "head_gap")
 
     def _dahl_solve(self, st: CellState, C: float, guess) -> tuple[np.ndarray, dict]:
         """Solve one Dahl increment: find the slip whose Dahl update matches phi."""
@@ -398,7 +405,7 @@ class CellCycle:
             self._transition(st, kind)
             events.append({"increment": increment, "kind": kind, "C": Ce,
                            "from": before, "to": stage_label(st.stage, st.jammed),
-                           **{k: qe[k] for k in EVENT_QUANTITIES}})
+                           **{k: _with_gap(qe, xe, self.p.B, self.p.d)[k] for k in EVENT_QUANTITIES}})
             if st.status != STATUS_OK or st.stage is Stage.SLACK:
                 return st
             n_events += 1
@@ -436,6 +443,7 @@ class CellCycle:
             stage[i], jammed[i], status[i] = int(st.stage), int(st.jammed), st.status
             for k in HISTORY_QUANTITIES:
                 vals[k][i] = st.q[k]
+            _with_gap(st.q, st.x, p.B, p.d)
             vals["head_gap"][i] = st.q["head_gap"]
             vals["interpenetrating"][i] = float(st.q["head_gap"] < p.d_jam)
             if st.stage is Stage.SLACK:
