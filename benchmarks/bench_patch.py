@@ -1,0 +1,87 @@
+"""Patch throughput: the paper's specimen (23 wales x 110 courses = 2,530 E-glass cells) through the
+3-cycle program 0.10-0.60 (Dusserre 2015, section 2.3), wall time and cell-increments per second.
+
+Cases: ``uniform`` (identical cells, solved once per column class: the exact deduplication),
+``uniform-nodedup`` (every cell its own solve: the cost of a fully heterogeneous patch of the
+same behaviour) and ``random-phi0`` (phi0 uniform in [-phimax, phimax]: every cell differs).
+Warp runs one CPU thread per launch on the CPU device.  Prints a table; ``--json PATH`` writes it.
+Not a test.
+
+    python benchmarks/bench_patch.py                                  # CPU, all cases
+    python benchmarks/bench_patch.py --cases uniform-nodedup --increments 60
+    python benchmarks/bench_patch.py --device cuda --size 1000x1000 --cases random-phi0
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from knitsim import warp_runtime
+from knitsim.cell.load_program import LoadProgram, cycles
+from knitsim.cell.material import CellParams
+from knitsim.patch.model import PatchModel
+from knitsim.patch.runner import run_patch
+
+# Table 1, section 2.2, section 3.4 (dusserre2015.toml)
+E_GLASS = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.20, force_cap_N=10.0)
+
+
+def model(case: str, wales: int, courses: int) -> tuple[PatchModel, bool]:
+    pm = PatchModel.uniform(E_GLASS, courses, wales)
+    if case == "random-phi0":
+        rng = np.random.default_rng(2015)
+        fields = dict(pm.fields)
+        fields["phi0"] = rng.uniform(-1, 1, (courses, wales)) * np.arctan(E_GLASS.m)
+        pm = PatchModel(courses, wales, fields, pm.rules)
+    return pm, case != "uniform-nodedup"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--size", default="23x110", help="WALESxCOURSES (default: the paper's 23x110)")
+    ap.add_argument("--cases", nargs="+", default=["uniform", "uniform-nodedup", "random-phi0"])
+    ap.add_argument("--increments", type=int, default=0, help="time only the first K increments (0: all 620)")
+    ap.add_argument("--max-increment", type=float, default=0.005)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args(argv)
+    warp_runtime.init()
+    device = warp_runtime.resolve_device(a.device)
+    wales, courses = (int(v) for v in a.size.lower().split("x"))
+    prog = cycles(0.10, 0.60, 3, a.max_increment)
+    if a.increments:
+        prog = LoadProgram(prog.strain[:a.increments], prog.cycle[:a.increments], prog.direction[:a.increments],
+                           prog.waypoints)
+    # compile once (not timed)
+    run_patch(PatchModel.uniform(E_GLASS, 2, 1), LoadProgram(prog.strain[:2], prog.cycle[:2], prog.direction[:2],
+                                                             prog.waypoints), device=device, dedup=False)
+    rows = []
+    for case in a.cases:
+        pm, dedup = model(case, wales, courses)
+        t0 = time.perf_counter()
+        h = run_patch(pm, prog, device=device, dedup=dedup)
+        wall = time.perf_counter() - t0
+        cells = pm.cell_count
+        rows.append({"case": case, "device": device, "wales": wales, "courses": courses, "cells": cells,
+                     "increments": len(prog), "distinct_solves": h.info["n_groups"], "wall_s": wall,
+                     "cell_increments_per_s": cells * len(prog) / wall,
+                     "solve_increments_per_s": h.info["n_groups"] * len(prog) / wall,
+                     "mean_trials_per_increment": float(h.column_iterations.max(axis=1).mean()),
+                     "non_converged_column_increments": int(np.sum(h.column_status == 1)),
+                     "columns_stopped_at_end": int(np.sum(h.column_status[-1] == 2)),
+                     "peak_force_per_wale_N": float(h.force_per_wale_N.max())})
+    head = ("case", "cells", "increments", "distinct_solves", "wall_s", "cell_increments_per_s",
+            "mean_trials_per_increment", "non_converged_column_increments", "columns_stopped_at_end")
+    print(" | ".join(head))
+    for r in rows:
+        print(" | ".join(f"{r[k]:.4g}" if isinstance(r[k], float) else str(r[k]) for k in head))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(rows, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()

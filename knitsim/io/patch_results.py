@@ -1,0 +1,233 @@
+"""Result writers for patch runs (atomic): curve.csv, columns.csv, cells.nc, summary.json, plots, resolved scene.
+
+- ``curve.csv``: ``increment, cycle, direction, grip_strain, force_N, force_per_wale_N``
+  (grip force = sum of the column forces; per wale = their mean);
+- ``columns.csv``: ``increment, wale, force_per_wale_N, status, iterations, slack_mm``;
+- ``cells.nc``: netCDF-3 (xarray, SciPy engine), dimensions ``increment, course, wale``:
+  ``strain`` ((C - C0)/C0), ``phi`` [rad], ``force_per_wale_N``, ``stage`` (label codes with
+  ``flag_values`` / ``flag_meanings``), ``status``; per column ``column_force_N``,
+  ``column_status``; per cell the parameters (``d, B, m, dahl_sigma, L, W0, C0, phi0``);
+  coordinates ``grip_strain, cycle, direction``; units in attributes;
+- ``summary.json``: see :func:`patch_summary`;
+- ``force_strain.png``, ``strain_map.png``, ``stage_map.png``; ``scene.resolved.toml``.
+
+Files are built in a hidden sibling directory and renamed in, ``summary.json`` last.
+"""
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..cell.cycle import dissipated_energy
+from ..cell.history import STATUS_NAMES, STATUS_OK
+from ..cell.stages import LABEL_CODES
+from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
+from ..patch.model import PARAM_NAMES
+from ..patch.runner import PatchHistory
+from .results import _num, check_output_dir, summary_json
+
+CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
+PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
+                      "strain_map.png", "stage_map.png", "summary.json")
+_LABELS = {v: k for k, v in LABEL_CODES.items()}
+
+
+def curve_csv(h: PatchHistory) -> str:
+    """The text of ``curve.csv``."""
+    lines = [",".join(CURVE_COLUMNS)]
+    for i in range(h.n_increments):
+        lines.append(",".join([str(i), str(int(h.cycle[i])), "load" if h.direction[i] > 0 else "unload",
+                               _num(h.grip_strain[i]), _num(h.force_N[i]), _num(h.force_per_wale_N[i])]))
+    return "\n".join(lines) + "\n"
+
+
+def columns_csv(h: PatchHistory) -> str:
+    """The text of ``columns.csv`` (one row per increment and wale column)."""
+    lines = ["increment,wale,force_per_wale_N,status,iterations,slack_mm"]
+    for i in range(h.n_increments):
+        for j in range(h.shape[1]):
+            lines.append(f"{i},{j},{_num(h.column_force_N[i, j])},{COLUMN_STATUS_NAMES[int(h.column_status[i, j])]},"
+                         f"{int(h.column_iterations[i, j])},{_num(h.column_slack_mm[i, j])}")
+    return "\n".join(lines) + "\n"
+
+
+def cells_dataset(h: PatchHistory, fields: dict | None = None):
+    """The per-cell fields as an :class:`xarray.Dataset` (see the module docstring)."""
+    import xarray as xr
+    dims = ("increment", "course", "wale")
+    meanings = " ".join(_LABELS[k] for k in sorted(_LABELS))
+    ds = xr.Dataset(
+        {"strain": (dims, h.cell_field("strain"), {"long_name": "strain of the course length (C - C0)/C0",
+                                                   "units": "1"}),
+         "phi": (dims, h.cell_field("phi"), {"long_name": "friction angle at the crossing", "units": "rad"}),
+         "force_per_wale_N": (dims, h.cell_field("F"), {"long_name": "force per wale of the cell", "units": "N"}),
+         "stage": (dims, h.cell_field("label").astype(np.int8),
+                   {"long_name": "stage label", "flag_values": np.array(sorted(_LABELS), np.int8),
+                    "flag_meanings": meanings}),
+         "status": (dims, h.cell_field("status").astype(np.int8),
+                    {"long_name": "cell status", "flag_values": np.array(sorted(STATUS_NAMES), np.int8),
+                     "flag_meanings": " ".join(STATUS_NAMES[k] for k in sorted(STATUS_NAMES))}),
+         "column_force_N": (("increment", "wale"), h.column_force_N, {"units": "N"}),
+         "column_status": (("increment", "wale"), h.column_status.astype(np.int8),
+                           {"flag_values": np.array(sorted(COLUMN_STATUS_NAMES), np.int8),
+                            "flag_meanings": " ".join(COLUMN_STATUS_NAMES[k] for k in sorted(COLUMN_STATUS_NAMES))}),
+         "force_N": (("increment",), h.force_N, {"units": "N", "long_name": "grip force"})},
+        coords={"grip_strain": (("increment",), h.grip_strain), "cycle": (("increment",), h.cycle.astype(np.int32)),
+                "direction": (("increment",), h.direction.astype(np.int32))},
+        attrs={"title": "knitsim patch: per-cell fields", "layout": "cell [course, wale]; course 0 at the lower grip",
+               "conventions": "units N, mm, rad"})
+    for n, arr in (fields or {}).items():
+        ds[n] = (("course", "wale"), np.asarray(arr, dtype=np.float64), {"long_name": f"cell parameter {n}"})
+    return ds
+
+
+def cells_nc(h: PatchHistory, fields: dict | None = None) -> bytes:
+    """``cells.nc`` as bytes (netCDF-3 through SciPy)."""
+    return bytes(cells_dataset(h, fields).to_netcdf(engine="scipy"))
+
+
+def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
+    """The ``summary.json`` document.
+
+    Per cycle: peak grip force (and per wale) and the grip strain there;
+    residual grip strain, where the force per wale reaches 0 on the cycle's
+    unloading branch (linear interpolation between rows; null if it never
+    does); hysteresis energy ``oint F_grip du`` over the cycle's rows [N mm]
+    (trapezoids, :func:`~knitsim.cell.cycle.dissipated_energy`, u = grip strain x
+    rest length, from the last row of the previous cycle).  Also the grip
+    strain at the first jamming of any cell, non-converged column increments,
+    cells whose status is not ok, and rows with a non-finite force.
+    """
+    F, e = h.force_N, h.grip_strain
+    cycles = []
+    for k in np.unique(h.cycle):
+        rows = np.nonzero(h.cycle == k)[0]
+        j = rows[np.argmax(F[rows])]
+        entry = {"cycle": int(k), "peak_force_N": float(F[j]), "peak_force_per_wale_N": float(h.force_per_wale_N[j]),
+                 "grip_strain_at_peak": float(e[j])}
+        unload = rows[h.direction[rows] < 0]
+        res = None
+        if len(unload):
+            prev = np.concatenate([[unload[0] - 1], unload]) if unload[0] > 0 else unload
+            for a, b in zip(prev[:-1], prev[1:]):
+                if F[a] > 0 >= F[b]:
+                    t = F[a] / (F[a] - F[b])
+                    res = float(e[a] + t * (e[b] - e[a]))
+                    break
+        entry["residual_grip_strain"] = res
+        path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
+        entry["hysteresis_energy_N_mm"] = dissipated_energy(e[path], F[path]) * ref_length if len(path) > 1 else 0.0
+        cycles.append(entry)
+    jam_rows = np.nonzero(np.any(h.groups["label"] == LABEL_CODES["jamming"], axis=1))[0]
+    nc = np.argwhere(h.column_status == COL_NOT_CONVERGED)
+    bad_cells = np.argwhere(h.cell_field("status")[-1] != STATUS_OK) if h.n_increments else np.zeros((0, 2))
+    nonfinite = np.nonzero(~np.isfinite(F))[0]
+    out = dict(info)
+    out.update(
+        cells=int(h.shape[0] * h.shape[1]), courses=int(h.shape[0]), wales=int(h.shape[1]),
+        n_increments=int(h.n_increments), wall_s=float(h.wall_s),
+        cell_increments_per_s=float(h.shape[0] * h.shape[1] * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
+        solver=h.info, cycles=cycles,
+        grip_strain_at_first_jamming=float(e[jam_rows[0]]) if len(jam_rows) else None,
+        non_converged_column_increments=int(len(nc)),
+        non_converged_first=[{"increment": int(i), "wale": int(j)} for i, j in nc[:20]],
+        columns_stopped_at_end=int(np.sum(h.column_status[-1] != COL_OK)) if h.n_increments else 0,
+        non_ok_cells_at_end=int(len(bad_cells)),
+        non_ok_cells_first=[{"course": int(i), "wale": int(j)} for i, j in bad_cells[:20]],
+        nonfinite_force_rows=[int(i) for i in nonfinite[:20]],
+        all_converged=bool(len(nc) == 0 and len(bad_cells) == 0 and len(nonfinite) == 0),
+    )
+    return out
+
+
+def _png(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def plot_force_strain(h: PatchHistory, title: str = "") -> bytes:
+    """PNG: force per wale vs grip strain (cycles coloured), non-converged increments marked."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(7.5, 5), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    for k in np.unique(h.cycle):
+        r = np.nonzero(h.cycle == k)[0]
+        if r[0] > 0:
+            r = np.concatenate([[r[0] - 1], r])
+        ax.plot(h.grip_strain[r], h.force_per_wale_N[r], lw=1.2, label=f"cycle {int(k)}")
+    bad = np.any(h.column_status != COL_OK, axis=1)
+    if bad.any():
+        ax.scatter(h.grip_strain[bad], h.force_per_wale_N[bad], marker="x", color="red", zorder=3,
+                   label="column not converged / stopped")
+    ax.set_xlabel("grip strain (grip displacement / column rest length)")
+    ax.set_ylabel("force per wale [N]")
+    ax.set_title(title or f"knitsim patch {h.shape[1]} wales x {h.shape[0]} courses", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def plot_map(h: PatchHistory, which: str, title: str = "") -> bytes:
+    """PNG of the final per-cell ``strain`` or ``stage`` map (courses upward, wales across)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(6, 6.5), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    data = h.cell_field(which if which == "strain" else "label")[-1]
+    if which == "strain":
+        im = ax.imshow(data, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest")
+        fig.colorbar(im, ax=ax, label="strain of the course length (C - C0)/C0")
+    else:
+        names = [_LABELS[k] for k in sorted(_LABELS)]
+        cmap = ListedColormap(["#1f77b4", "#2ca02c", "#d62728", "#7f7f7f"])
+        im = ax.imshow(data, origin="lower", aspect="auto", cmap=cmap, interpolation="nearest",
+                       norm=BoundaryNorm(np.arange(-0.5, 4.5), 4))
+        cb = fig.colorbar(im, ax=ax, ticks=range(4))
+        cb.ax.set_yticklabels(names)
+    ax.set_xlabel("wale")
+    ax.set_ylabel("course")
+    ax.set_title(title or f"final {which} (grip strain {h.grip_strain[-1]:.3g})", fontsize=10)
+    return _png(fig)
+
+
+def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, resolved_toml: str,
+                        fields: dict | None = None, plot: bool = True, cell_fields: bool = True,
+                        title: str = "") -> dict[str, Path]:
+    """Write the result set into ``out_dir`` atomically (``summary.json`` last); returns the files by name."""
+    out = check_output_dir(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h).encode(),
+                 "scene.resolved.toml": resolved_toml.encode()}
+        if cell_fields:
+            files["cells.nc"] = cells_nc(h, fields)
+        if plot:
+            files["force_strain.png"] = plot_force_strain(h, title)
+            files["strain_map.png"] = plot_map(h, "strain")
+            files["stage_map.png"] = plot_map(h, "stage")
+        files["summary.json"] = summary_json(summary).encode()
+        for name, data in files.items():
+            (tmp / name).write_bytes(data)
+        out.mkdir(exist_ok=True)
+        for name in reversed(PATCH_OUTPUT_FILES):
+            (out / name).unlink(missing_ok=True)
+        for name in files:
+            os.replace(tmp / name, out / name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {name: out / name for name in files}
+
+
+__all__ = ["CURVE_COLUMNS", "PATCH_OUTPUT_FILES", "curve_csv", "columns_csv", "cells_dataset", "cells_nc",
+           "patch_summary", "plot_force_strain", "plot_map", "write_patch_results", "PARAM_NAMES"]

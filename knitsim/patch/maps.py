@@ -1,0 +1,200 @@
+"""Per-cell parameter maps of a patch: arrays of shape ``(courses, wales)``.
+
+A map is a small table (a scene's ``[maps.<param>]``, see
+:mod:`knitsim.scene.patch_scene`)::
+
+    type = "uniform"   value = 0.58
+    type = "regions"   regions = [{courses = [0, 55], wales = [0, 23], value = 0.56}], default = 0.58
+    type = "gradient"  axis = "courses" | "wales", start = 13.5, end = 14.7,
+                       profile = "linear" | "step", steps = 4
+    type = "file"      path = "phi0.npy" | "phi0.csv"      (shape (courses, wales))
+    type = "random"    low = -1.0, high = 1.0, seed = 7, scale = "absolute" | "phimax"
+
+Index ranges are 0-based and half-open, ``[start, stop)``; course 0 is at the
+lower grip, wale 0 at the left edge.  A linear gradient puts ``start`` on the
+first course (wale) and ``end`` on the last; a step gradient cuts the axis into
+``steps`` equal bands (the last band takes the remainder) valued
+``start + (end - start) b / (steps - 1)``.  Random fields are uniform in
+``[low, high)``, drawn from ``numpy.random.default_rng([seed, k])`` with ``k``
+the parameter's index in :data:`~knitsim.patch.model.PARAM_NAMES` (so two maps
+with one seed are independent, and a seed reproduces the field on every
+platform NumPy supports); ``scale = "phimax"`` multiplies by each cell's
+phimax = atan(m) (phi0 uniform in ``[-phimax, phimax]``: ``low = -1, high = 1``).
+
+Every error names the key path and the value.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import KnitsimInputError
+from .model import PARAM_NAMES
+
+MAP_TYPES = ("uniform", "regions", "gradient", "file", "random")
+AXES = ("courses", "wales")
+PROFILES = ("linear", "step")
+SCALES = ("absolute", "phimax")
+
+
+def _err(path: str, value, why: str) -> KnitsimInputError:
+    from ..scene.schema import fmt
+    return KnitsimInputError(f"{path} = {fmt(value)}: {why}")
+
+
+def index_range(rng, n: int, path: str, axis: str) -> slice:
+    """``[start, stop)`` as a slice, checked against ``n`` cells along ``axis``."""
+    if (not isinstance(rng, (list, tuple)) or len(rng) != 2
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) or float(v) != int(v) for v in rng)):
+        raise _err(path, list(rng) if isinstance(rng, (list, tuple)) else rng,
+                   f"expected [start, stop], two whole numbers (0-based, stop excluded) of {axis}")
+    a, b = int(rng[0]), int(rng[1])
+    if not (0 <= a < b <= n):
+        raise _err(path, [a, b], f"expected 0 <= start < stop <= {n} (the patch has {n} {axis})")
+    return slice(a, b)
+
+
+def gradient(n: int, start: float, end: float, profile: str = "linear", steps: int = 2) -> np.ndarray:
+    """Values along one axis of ``n`` cells (see the module docstring)."""
+    k = np.arange(n, dtype=np.float64)
+    if profile == "linear":
+        t = k / (n - 1) if n > 1 else np.zeros(n)
+    else:
+        band = np.minimum((k * steps // n).astype(np.int64), steps - 1)
+        t = band / (steps - 1)
+    return start + (end - start) * t
+
+
+def read_array_file(file: str | Path, shape: tuple[int, int], path: str) -> np.ndarray:
+    """A ``.npy`` or ``.csv`` array of shape ``(courses, wales)``, finite float64."""
+    f = Path(file)
+    if not f.is_file():
+        raise _err(path, str(file), "no such file")
+    if f.suffix == ".npy":
+        try:
+            a = np.load(f, allow_pickle=False)
+        except ValueError as exc:
+            raise _err(path, str(file), f"not a readable .npy array ({exc})") from None
+    elif f.suffix == ".csv":
+        rows = []
+        with f.open(newline="", encoding="utf-8") as fh:
+            for r, row in enumerate(csv.reader(fh), start=1):
+                if not any(c.strip() for c in row):
+                    continue
+                try:
+                    rows.append([float(c) for c in row])
+                except ValueError:
+                    raise _err(path, str(file), f"row {r} is not a list of numbers (no header row expected)") from None
+        if not rows or len({len(r) for r in rows}) != 1:
+            raise _err(path, str(file), "expected a rectangular table of numbers, one row per course")
+        a = np.asarray(rows)
+    else:
+        raise _err(path, str(file), "expected a .npy or .csv file")
+    if a.ndim != 2 or a.shape != tuple(shape):
+        raise _err(path, str(file), f"array of shape {tuple(a.shape)}, expected (courses, wales) = {tuple(shape)}")
+    if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
+        raise _err(path, str(file), "the array must hold finite numbers only")
+    return a.astype(np.float64)
+
+
+def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0,
+              base_dir: str | Path = ".", phimax: np.ndarray | None = None, name: str = "") -> np.ndarray:
+    """Evaluate one map.
+
+    Parameters
+    ----------
+    spec : dict
+        The map table (``type`` and its keys; already type-checked by the scene schema).
+    shape : (courses, wales)
+    base : float or ndarray
+        The value under the map (from the yarn/knit/friction tables and zones):
+        the background of ``regions`` without ``default``.
+    path : str
+        Key path of the map, for messages (``"maps.phi0"``).
+    seed : int
+        Default seed of random maps (the scene's ``seed``).
+    base_dir : path
+        Directory against which a relative ``file`` path is resolved.
+    phimax : ndarray, optional
+        Per-cell atan(m), for ``scale = "phimax"``.
+    name : str
+        The parameter (one of :data:`~knitsim.patch.model.PARAM_NAMES`).
+
+    Returns
+    -------
+    ndarray, shape ``shape``, float64
+    """
+    courses, wales = shape
+    kind = spec.get("type")
+    if kind is None:
+        raise KnitsimInputError(f"{path}.type: missing (one of {', '.join(MAP_TYPES)})")
+    allowed = {"uniform": {"value"}, "regions": {"regions", "default"},
+               "gradient": {"axis", "start", "end", "profile", "steps"}, "file": {"path"},
+               "random": {"low", "high", "seed", "scale"}}
+    if kind not in allowed:
+        raise _err(f"{path}.type", kind, f"expected one of {', '.join(MAP_TYPES)}")
+    for key in spec:
+        if key != "type" and key not in allowed[kind]:
+            raise _err(f"{path}.{key}", spec[key], f"not used by {path}.type = \"{kind}\" "
+                       f"(it takes {', '.join(sorted(allowed[kind]))})")
+
+    def need(key):
+        if key not in spec:
+            raise KnitsimInputError(f"{path}.{key}: missing ({path}.type = \"{kind}\" needs it)")
+        return spec[key]
+
+    out = np.broadcast_to(np.asarray(base, dtype=np.float64), shape).copy()
+    if kind == "uniform":
+        out[:] = float(need("value"))
+    elif kind == "regions":
+        regions = need("regions")
+        if "default" in spec:
+            out[:] = float(spec["default"])
+        for r, reg in enumerate(regions):
+            rp = f"{path}.regions[{r}]"
+            for key in reg:
+                if key not in ("courses", "wales", "value"):
+                    raise _err(f"{rp}.{key}", reg[key], "unknown key (expected one of courses, wales, value)")
+            if "value" not in reg:
+                raise KnitsimInputError(f"{rp}.value: missing")
+            ci = index_range(reg.get("courses", [0, courses]), courses, f"{rp}.courses", "courses")
+            wi = index_range(reg.get("wales", [0, wales]), wales, f"{rp}.wales", "wales")
+            out[ci, wi] = float(reg["value"])
+    elif kind == "gradient":
+        axis = need("axis")
+        if axis not in AXES:
+            raise _err(f"{path}.axis", axis, f"expected one of {', '.join(AXES)}")
+        profile = spec.get("profile", "linear")
+        if profile not in PROFILES:
+            raise _err(f"{path}.profile", profile, f"expected one of {', '.join(PROFILES)}")
+        steps = spec.get("steps", 2)
+        n = courses if axis == "courses" else wales
+        if profile == "step" and not (2 <= steps <= n):
+            raise _err(f"{path}.steps", steps, f"a step gradient needs 2 <= steps <= {n} (the {axis} of the patch)")
+        g = gradient(n, float(need("start")), float(need("end")), profile, int(steps))
+        out[:] = g[:, None] if axis == "courses" else g[None, :]
+    elif kind == "file":
+        f = Path(need("path"))
+        if not f.is_absolute():
+            f = Path(base_dir) / f
+        out[:] = read_array_file(f, shape, f"{path}.path")
+    else:
+        low, high = float(need("low")), float(need("high"))
+        if not low < high:
+            raise _err(f"{path}.low", low, f"must be < {path}.high = {high!r}")
+        s = spec.get("seed", seed)
+        k = PARAM_NAMES.index(name) if name in PARAM_NAMES else 0
+        rng = np.random.default_rng([int(s), k])
+        out[:] = rng.uniform(low, high, size=shape)
+        scale = spec.get("scale", "absolute")
+        if scale not in SCALES:
+            raise _err(f"{path}.scale", scale, f"expected one of {', '.join(SCALES)}")
+        if scale == "phimax":
+            if name != "phi0":
+                raise _err(f"{path}.scale", scale, "\"phimax\" scales the initial friction angle phi0 only")
+            if phimax is None:
+                raise _err(f"{path}.scale", scale, "needs the cells' phimax (friction ratio m)")
+            out *= np.broadcast_to(np.asarray(phimax, dtype=np.float64), shape)
+    return out

@@ -1,0 +1,170 @@
+"""Immutable description of a patch: ``courses x wales`` cells with per-cell parameters.
+
+Layout: cell ``[i, j]`` is course ``i`` (0 at the lower grip) of wale column
+``j``.  Every per-cell parameter is an array of shape ``(courses, wales)``;
+the rules (friction model, Table 4 completions, force cap) are shared by the
+whole patch.
+
+Identical cells are solved once (:meth:`PatchModel.grouping`): cells with the
+same parameters in the same column start from the same state and, in series,
+carry the same force, so they stay identical; columns made of the same
+multiset of cells (and so of the same rest length) carry the same grip
+displacement and stay identical too.  A uniform patch thus collapses to one
+cell.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..cell.material import CellParams
+from ..errors import KnitsimInputError
+
+#: per-cell parameters that maps may set (CellParams names), units mm, N mm^2, -, 1/mm, rad
+PARAM_NAMES = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0")
+#: rules shared by every cell of a patch (CellParams names)
+RULE_NAMES = ("friction", "unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
+
+
+@dataclass(frozen=True)
+class Grouping:
+    """Cells grouped into independent solves.
+
+    Attributes
+    ----------
+    group_of_cell : ndarray of int, shape [courses, wales]
+        Group solved for each cell.
+    params : list of CellParams
+        One per group.
+    group_column : ndarray of int, shape [n_groups]
+        Column class of each group.
+    group_count : ndarray of int, shape [n_groups]
+        Cells of the group in one column of its class (multiplicity in series).
+    column_class : ndarray of int, shape [wales]
+        Column class of each wale column.
+    class_rest_length : ndarray, shape [n_classes]
+        Rest length of a column of the class, sum of C0 along it [mm].
+    """
+
+    group_of_cell: np.ndarray
+    params: list
+    group_column: np.ndarray
+    group_count: np.ndarray
+    column_class: np.ndarray
+    class_rest_length: np.ndarray
+
+    @property
+    def n_groups(self) -> int:
+        return len(self.params)
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.class_rest_length)
+
+
+@dataclass(frozen=True)
+class PatchModel:
+    """A patch of cells.
+
+    Attributes
+    ----------
+    courses, wales : int
+        Cells along a wale column (in series) and wale columns (in parallel).
+    fields : dict of str to ndarray, shape [courses, wales]
+        :data:`PARAM_NAMES`, float64 (units as :class:`~knitsim.cell.material.CellParams`).
+    rules : dict
+        :data:`RULE_NAMES` values shared by every cell.
+    """
+
+    courses: int
+    wales: int
+    fields: dict
+    rules: dict = field(default_factory=dict)
+
+    @classmethod
+    def uniform(cls, params: CellParams, courses: int, wales: int) -> "PatchModel":
+        """A patch of ``courses x wales`` copies of one cell."""
+        params = params.validated()
+        fields = {n: np.full((courses, wales), float(getattr(params, n))) for n in PARAM_NAMES}
+        return cls(int(courses), int(wales), fields, {r: getattr(params, r) for r in RULE_NAMES})
+
+    @classmethod
+    def from_cells(cls, cells: list[list[CellParams]]) -> "PatchModel":
+        """A patch from a nested list ``cells[course][wale]`` (rules from the first cell, must agree)."""
+        courses, wales = len(cells), len(cells[0])
+        first = cells[0][0]
+        rules = {r: getattr(first, r) for r in RULE_NAMES}
+        fields = {n: np.empty((courses, wales)) for n in PARAM_NAMES}
+        for i in range(courses):
+            if len(cells[i]) != wales:
+                raise KnitsimInputError(f"cells[{i}]: {len(cells[i])} wales, expected {wales}")
+            for j in range(wales):
+                p = cells[i][j]
+                for r in RULE_NAMES:
+                    if getattr(p, r) != rules[r]:
+                        raise KnitsimInputError(f"cells[{i}][{j}].{r} = {getattr(p, r)!r}: every cell of a "
+                                                f"patch shares the rules (cell [0][0] has {rules[r]!r})")
+                for n in PARAM_NAMES:
+                    fields[n][i, j] = float(getattr(p, n))
+        return cls(courses, wales, fields, rules)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.courses, self.wales)
+
+    @property
+    def cell_count(self) -> int:
+        return self.courses * self.wales
+
+    def cell(self, i: int, j: int) -> CellParams:
+        """Parameters of cell ``[course i, wale j]`` (validated)."""
+        return CellParams(**{n: float(self.fields[n][i, j]) for n in PARAM_NAMES}, **self.rules).validated(
+            where=f"cell[{i}, {j}]")
+
+    def column_rest_length(self) -> np.ndarray:
+        """Rest length of each wale column, sum of C0 along it [mm], shape [wales]."""
+        return self.fields["C0"].sum(axis=0)
+
+    def grouping(self, dedup: bool = True) -> Grouping:
+        """Group identical cells (see the module docstring); ``dedup=False``: one group per cell."""
+        courses, wales = self.shape
+        stack = np.stack([self.fields[n] for n in PARAM_NAMES], axis=-1)   # [courses, wales, P]
+        if dedup:
+            flat = stack.reshape(-1, len(PARAM_NAMES))
+            _, mat_id = np.unique(flat, axis=0, return_inverse=True)
+            mat_id = mat_id.reshape(courses, wales)
+            # a column class is the multiset of its materials (order along the column is irrelevant in series)
+            col_keys = [tuple(np.unique(mat_id[:, j], return_counts=True)[0].tolist())
+                        + tuple(np.unique(mat_id[:, j], return_counts=True)[1].tolist()) for j in range(wales)]
+            classes: dict = {}
+            column_class = np.array([classes.setdefault(k, len(classes)) for k in col_keys], dtype=np.int64)
+            groups: dict = {}
+            group_of_cell = np.empty((courses, wales), dtype=np.int64)
+            for j in range(wales):
+                for i in range(courses):
+                    key = (int(column_class[j]), int(mat_id[i, j]))
+                    group_of_cell[i, j] = groups.setdefault(key, len(groups))
+            n_groups = len(groups)
+            group_column = np.empty(n_groups, np.int64)
+            rep = np.empty((n_groups, 2), np.int64)
+            for (c, _), g in groups.items():
+                group_column[g] = c
+            first_col = {int(c): int(np.argmax(column_class == c)) for c in range(len(classes))}
+            group_count = np.zeros(n_groups, np.int64)
+            for g in range(n_groups):
+                j = first_col[int(group_column[g])]
+                cells = np.nonzero(group_of_cell[:, j] == g)[0]
+                group_count[g] = len(cells)
+                rep[g] = (cells[0], j)
+        else:
+            column_class = np.arange(wales, dtype=np.int64)
+            group_of_cell = np.arange(courses * wales, dtype=np.int64).reshape(courses, wales)
+            group_column = np.tile(np.arange(wales), courses).astype(np.int64)
+            group_count = np.ones(courses * wales, np.int64)
+            rep = np.stack(np.unravel_index(np.arange(courses * wales), (courses, wales)), axis=1)
+        params = [self.cell(int(i), int(j)) for i, j in rep]
+        rest = np.zeros(int(column_class.max()) + 1)
+        for g, p in enumerate(params):
+            rest[group_column[g]] += group_count[g] * p.C0
+        return Grouping(group_of_cell, params, group_column, group_count, column_class, rest)

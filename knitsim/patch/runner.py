@@ -1,0 +1,223 @@
+"""Run a patch through a grip-strain program, with progress, checkpoints and resume.
+
+:func:`run_patch` solves each grip increment with
+:class:`~knitsim.patch.coupling.PatchSolver` and records, per increment, the
+grip force, the column forces and flags, and the per-cell fields (strain of
+the course length, stage label, phi, force, status).  With ``checkpoint``
+set, the solver state and the rows so far are written atomically every
+``checkpoint_every`` increments (and when the run is interrupted by Ctrl-C);
+``resume=True`` continues from that file and gives the same results as an
+uninterrupted run (the state is restored bit for bit).
+"""
+from __future__ import annotations
+
+import hashlib
+import pickle
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..cell.history import STATUS_OK
+from ..cell.load_program import LoadProgram
+from ..errors import KnitsimInputError
+from .coupling import COL_OK, PatchSolver, label_codes
+from .model import PatchModel
+
+CHECKPOINT_NAME = "checkpoint.pkl"
+_ROW_KEYS = ("force_N", "force_per_wale_N", "column_force_N", "column_status", "column_iterations", "column_slack_mm",
+             "g_C", "g_F", "g_phi", "g_label", "g_status")
+
+
+class PatchInterrupted(Exception):
+    """The run stopped before the end of the program (``stop_after``); the checkpoint holds its work."""
+
+    def __init__(self, done: int, path: Path | None):
+        super().__init__(f"stopped after {done} increments; checkpoint {path}")
+        self.done, self.path = done, path
+
+
+@dataclass
+class PatchHistory:
+    """One row per grip increment.
+
+    Attributes
+    ----------
+    grip_strain, cycle, direction : ndarray, shape [n]
+        Imposed grip strain (grip displacement / column rest length), cycle (from 1), +1/-1.
+    force_N, force_per_wale_N : ndarray, shape [n]
+        Grip force, sum of the column forces [N], and that force per wale (mean column force).
+    column_force_N, column_slack_mm : ndarray, shape [n, wales]
+        Force per wale of each column [N]; length left over by the grips in a slack column [mm].
+    column_status, column_iterations : ndarray of int, shape [n, wales]
+        :data:`~knitsim.patch.coupling.COLUMN_STATUS_NAMES` code; trial steps of the increment.
+    group_of_cell : ndarray of int, shape [courses, wales]
+    groups : dict of str to ndarray, shape [n, n_groups]
+        Per group: ``C`` [mm], ``F`` [N], ``phi`` [rad], ``label`` (stage label code), ``status``.
+    C0 : ndarray, shape [courses, wales]
+    wall_s : float
+        Seconds spent solving (this run plus the runs it resumed).
+    """
+
+    grip_strain: np.ndarray
+    cycle: np.ndarray
+    direction: np.ndarray
+    force_N: np.ndarray
+    force_per_wale_N: np.ndarray
+    column_force_N: np.ndarray
+    column_status: np.ndarray
+    column_iterations: np.ndarray
+    column_slack_mm: np.ndarray
+    group_of_cell: np.ndarray
+    groups: dict
+    C0: np.ndarray
+    wall_s: float = 0.0
+    info: dict = field(default_factory=dict)
+
+    @property
+    def n_increments(self) -> int:
+        return len(self.grip_strain)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return tuple(self.group_of_cell.shape)
+
+    def cell_field(self, name: str) -> np.ndarray:
+        """A per-cell field over time, shape [n, courses, wales]: ``strain`` ((C - C0)/C0),
+        ``C``, ``F``, ``phi``, ``label`` or ``status``."""
+        if name == "strain":
+            return self.groups["C"][:, self.group_of_cell] / self.C0[None] - 1.0
+        return self.groups[name][:, self.group_of_cell]
+
+
+def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
+    """Hash of everything that determines the results (checked on resume)."""
+    h = hashlib.sha256()
+    h.update(repr((model.courses, model.wales, sorted(model.rules.items()), sorted(options.items()))).encode())
+    for n in sorted(model.fields):
+        h.update(n.encode())
+        h.update(np.ascontiguousarray(model.fields[n]).tobytes())
+    for a in (program.strain, program.cycle, program.direction):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def _atomic_pickle(path: Path, obj) -> None:
+    from ..io.results import atomic_write_bytes
+    atomic_write_bytes(path, pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", device: str = "cpu",
+              dedup: bool = True, progress: Callable[[int, int], None] | None = None,
+              checkpoint: str | Path | None = None, checkpoint_every: int = 50, resume: bool = False,
+              stop_after: int | None = None, **solver_options) -> PatchHistory:
+    """Run a patch through a grip-strain program.
+
+    Parameters
+    ----------
+    model : PatchModel
+    program : LoadProgram
+        Grip strains (grip displacement / column rest length).
+    engine : {"warp", "reference"}
+    device : str
+        Warp device (warp engine).
+    dedup : bool
+        Solve identical cells once (exact; see :meth:`PatchModel.grouping`).
+    progress : callable, optional
+        ``progress(done, total)`` after each increment.
+    checkpoint : path, optional
+        Checkpoint file (``OUT/checkpoint.pkl``); None: no checkpoints.
+    checkpoint_every : int
+        Increments between checkpoints.
+    resume : bool
+        Continue from ``checkpoint`` (refused if it belongs to another scene or options).
+    stop_after : int, optional
+        Stop (with a checkpoint) after this many increments: raises :class:`PatchInterrupted`.
+    **solver_options
+        Passed to :class:`~knitsim.patch.coupling.PatchSolver`.
+
+    Returns
+    -------
+    PatchHistory
+    """
+    if not isinstance(program, LoadProgram) or len(program) == 0:
+        raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
+    grouping = model.grouping(dedup)
+    solver = PatchSolver(grouping, engine, device, **solver_options)
+    n = len(program)
+    fp = fingerprint(model, program, engine=engine, dedup=bool(dedup), **solver_options)
+    ck = Path(checkpoint) if checkpoint is not None else None
+    rows: dict = {k: [] for k in _ROW_KEYS}
+    start, wall_before = 0, 0.0
+    if resume:
+        if ck is None:
+            raise KnitsimInputError("--resume: no checkpoint file given (needs --out DIR)")
+        if ck.is_file():
+            try:
+                saved = pickle.loads(ck.read_bytes())
+            except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
+                raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
+            if saved.get("fingerprint") != fp:
+                raise KnitsimInputError(f"--resume: {ck} belongs to another scene, program or engine; "
+                                        "remove it or run without --resume")
+            solver.set_state(saved["solver"])
+            rows = saved["rows"]
+            start, wall_before = int(saved["done"]), float(saved["wall_s"])
+    wales = model.wales
+    cls = grouping.column_class
+
+    def save(done: int, wall: float) -> None:
+        if ck is not None:
+            ck.parent.mkdir(parents=True, exist_ok=True)
+            _atomic_pickle(ck, {"fingerprint": fp, "done": done, "solver": solver.get_state(), "rows": rows,
+                                "wall_s": wall})
+
+    t0 = time.perf_counter()
+    i = start
+    try:
+        for i in range(start, n):
+            r = solver.step(float(program.strain[i]), int(program.direction[i]), i)
+            c = r.cells
+            colF = r.column_force[cls]
+            rows["force_N"].append(float(np.sum(colF)))
+            # equal column forces: the force per wale is that force exactly (a sum / wales would round)
+            rows["force_per_wale_N"].append(float(colF[0]) if np.all(colF == colF[0]) else float(np.mean(colF)))
+            rows["column_force_N"].append(colF)
+            rows["column_status"].append(r.column_status[cls])
+            rows["column_iterations"].append(r.iterations[cls])
+            rows["column_slack_mm"].append(r.column_slack[cls])
+            rows["g_C"].append(c["C"])
+            rows["g_F"].append(c["F"])
+            rows["g_phi"].append(c["phi"])
+            rows["g_label"].append(label_codes(c["stage"], c["jammed"]))
+            rows["g_status"].append(c["status"].astype(np.int8))
+            if progress is not None:
+                progress(i + 1, n)
+            done = i + 1
+            if ck is not None and checkpoint_every > 0 and done % checkpoint_every == 0 and done < n:
+                save(done, wall_before + time.perf_counter() - t0)
+            if stop_after is not None and done >= stop_after and done < n:
+                save(done, wall_before + time.perf_counter() - t0)
+                raise PatchInterrupted(done, ck)
+    except KeyboardInterrupt:
+        save(len(rows["force_N"]), wall_before + time.perf_counter() - t0)
+        raise
+    wall = wall_before + time.perf_counter() - t0
+    arr = {k: np.asarray(v) for k, v in rows.items()}
+    groups = {"C": arr["g_C"], "F": arr["g_F"], "phi": arr["g_phi"], "label": arr["g_label"],
+              "status": arr["g_status"]}
+    C0 = model.fields["C0"]
+    info = {"engine": engine, "device": getattr(solver.backend, "device", "cpu"), "dedup": bool(dedup),
+            "n_groups": grouping.n_groups, "n_column_classes": grouping.n_classes,
+            "ref_length_mm": solver.ref_length, "resumed_from": start,
+            "trial_steps": int(arr["column_iterations"].max(axis=1).sum()) if n else 0}
+    return PatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
+                        arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
+                        arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info)
+
+
+def all_ok(history: PatchHistory) -> bool:
+    """Whether every column converged at every increment and every cell ended ok."""
+    return bool(np.all(history.column_status == COL_OK) and np.all(history.groups["status"] == STATUS_OK))

@@ -1,0 +1,105 @@
+"""Series / parallel coupling against single-cell runs (independent combinations of single-cell curves).
+
+Sources: a uniform patch is the single cell (identity: equal force in series, equal
+strain in parallel); a series column of two materials: at equal force the changes
+in length add (hand combination of the single-cell loading curves C(F)); parallel
+columns: at equal strain the forces add; a graded column lies between the uniform
+columns of its extreme materials (monotonicity of the force in L, checked on the
+single cells).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.cell.batch import run_batch
+from knitsim.cell.load_program import cycles, monotonic
+from knitsim.cell.material import CellParams
+from knitsim.patch.coupling import COL_OK
+from knitsim.patch.model import PatchModel
+from knitsim.patch.runner import run_patch
+
+# Table 1 / section 2.2 / section 3.4 (dusserre2015.toml)
+P = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, force_cap_N=10.0)
+Q = P.replace(L=13.5)
+
+
+def test_uniform_patch_is_the_single_cell_exactly(device):
+    prog = cycles(0.10, 0.60, 1, 0.02)
+    single = run_batch([P], prog, device=device).force_per_wale[:, 0]
+    h = run_patch(PatchModel.uniform(P, 3, 4), prog, device=device)
+    assert h.info["n_groups"] == 1
+    assert np.array_equal(h.force_per_wale_N, single)
+    assert np.array_equal(h.column_force_N, np.repeat(single[:, None], 4, axis=1))
+    assert np.all(h.column_status == COL_OK)
+
+
+def test_uniform_patch_without_dedup(device):
+    # every cell its own solve: identical cells get identical trials, the column force is
+    # that of the single cell up to the rounding of the imposed strain (C0 + u/n vs C0 (1 + e))
+    prog = cycles(0.10, 0.60, 1, 0.02)
+    single = run_batch([P], prog, device=device).force_per_wale[:, 0]
+    h = run_patch(PatchModel.uniform(P, 3, 2), prog, device=device, dedup=False)
+    assert h.info["n_groups"] == 6
+    np.testing.assert_allclose(h.force_per_wale_N, single, rtol=1e-10, atol=1e-13)
+    assert np.all(h.column_status == COL_OK)
+
+
+def test_uniform_reference_engine_equals_reference_cell():
+    from knitsim.cell.cycle import run_cell
+    prog = monotonic(0.1, 0.05)
+    single = run_cell(P, prog).force_per_wale[:, 0]
+    h = run_patch(PatchModel.uniform(P, 2, 1), prog, engine="reference", dedup=False)
+    np.testing.assert_allclose(h.force_per_wale_N, single, rtol=1e-9, atol=1e-12)
+
+
+def _loading_curve(p, top, inc, device):
+    h = run_batch([p], monotonic(top, inc), device=device)
+    ok = h.status[:, 0] == 0          # up to the force cap (the jammed branch diverges)
+    return h.values["C"][ok, 0], h.force_per_wale[ok, 0]
+
+
+def test_series_two_materials_add_lengths_at_equal_force(device):
+    prog = monotonic(0.4, 0.01)
+    h = run_patch(PatchModel.from_cells([[P], [Q]]), prog, device=device)
+    assert np.all(h.column_status == COL_OK)
+    Cp, Fp = _loading_curve(P, 0.9, 0.002, device)
+    Cq, Fq = _loading_curve(Q, 0.9, 0.002, device)
+    u = h.grip_strain * (P.C0 + Q.C0)
+    F = h.column_force_N[:, 0]
+    # compare where both single cells are on monotone loading branches covering F
+    lo = max(Fp[1], Fq[1])
+    hi = min(Fp.max(), Fq.max())
+    rows = (F > lo) & (F < hi)
+    assert rows.sum() >= 8
+    for Fc in (Fp, Fq):
+        assert np.all(np.diff(Fc[1:]) > 0)
+    hand = (np.interp(F[rows], Fp[1:], Cp[1:]) - P.C0) + (np.interp(F[rows], Fq[1:], Cq[1:]) - Q.C0)
+    np.testing.assert_allclose(u[rows], hand, rtol=2e-3)
+    # the cells' own strains add up to the grip displacement (rigid grips)
+    dC = h.groups["C"] - np.array([P.C0, Q.C0])
+    np.testing.assert_allclose(dC.sum(axis=1), u, rtol=1e-12, atol=1e-12)
+
+
+def test_parallel_two_materials_add_forces_at_equal_strain(device):
+    prog = cycles(0.10, 0.50, 1, 0.025)
+    h = run_patch(PatchModel.from_cells([[P, Q], [P, Q]]), prog, device=device)
+    single = run_batch([P, Q], prog, device=device).force_per_wale
+    np.testing.assert_array_equal(h.column_force_N, single)
+    np.testing.assert_array_equal(h.force_N, single[:, 0] + single[:, 1])
+
+
+def test_graded_patch_between_uniform_patches(device):
+    prog = monotonic(0.4, 0.02)
+    L = np.linspace(13.5, 14.1, 4)
+    graded = PatchModel.from_cells([[P.replace(L=float(x))] * 2 for x in L])
+    hg = run_patch(graded, prog, device=device)
+    hp = run_patch(PatchModel.uniform(P, 4, 2), prog, device=device)
+    hq = run_patch(PatchModel.uniform(Q, 4, 2), prog, device=device)
+    assert np.all(hg.column_status == COL_OK)
+    lo = np.minimum(hp.force_per_wale_N, hq.force_per_wale_N)
+    hi = np.maximum(hp.force_per_wale_N, hq.force_per_wale_N)
+    tol = 1e-9
+    assert np.all(hg.force_per_wale_N >= lo - tol) and np.all(hg.force_per_wale_N <= hi + tol)
+    # and strictly inside once the cells slide (not a copy of either)
+    assert np.all((hg.force_per_wale_N[5:] > lo[5:]) & (hg.force_per_wale_N[5:] < hi[5:]))

@@ -1,0 +1,73 @@
+"""Per-cell maps: each map type gives the array its definition states (knitsim.patch.maps docstring)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.errors import KnitsimInputError
+from knitsim.patch.maps import build_map, gradient
+
+SHAPE = (4, 3)   # (courses, wales)
+
+
+def test_uniform_and_regions():
+    assert np.all(build_map({"type": "uniform", "value": 0.5}, SHAPE, 1.0, "maps.d") == 0.5)
+    spec = {"type": "regions", "regions": [{"courses": [1, 3], "wales": [0, 2], "value": 2.0},
+                                           {"courses": [2, 4], "value": 3.0}]}
+    expected = np.array([[1, 1, 1], [2, 2, 1], [3, 3, 3], [3, 3, 3]], float)   # later regions on top
+    assert np.array_equal(build_map(spec, SHAPE, 1.0, "maps.d"), expected)
+    spec["default"] = 9.0
+    assert build_map(spec, SHAPE, 1.0, "maps.d")[0, 0] == 9.0
+
+
+def test_region_out_of_range_names_key():
+    spec = {"type": "regions", "regions": [{"courses": [0, 5], "value": 2.0}]}
+    with pytest.raises(KnitsimInputError, match=r"maps\.d\.regions\[0\]\.courses = \[0, 5\].*4 courses"):
+        build_map(spec, SHAPE, 1.0, "maps.d")
+
+
+@pytest.mark.parametrize("axis", ["courses", "wales"])
+def test_linear_gradient(axis):
+    a = build_map({"type": "gradient", "axis": axis, "start": 1.0, "end": 2.0}, SHAPE, 0.0, "maps.L")
+    n = SHAPE[0] if axis == "courses" else SHAPE[1]
+    line = a[:, 0] if axis == "courses" else a[0, :]
+    # endpoints are start and end; equal spacing (end - start) / (n - 1)
+    assert line[0] == 1.0 and line[-1] == 2.0
+    assert np.allclose(np.diff(line), 1.0 / (n - 1), rtol=0, atol=1e-15)
+    # constant along the other axis
+    assert np.all(a == (a[:, :1] if axis == "courses" else a[:1, :]))
+
+
+def test_step_gradient_bands():
+    # 4 courses in 2 bands: [0, 1] at start, [2, 3] at end
+    a = build_map({"type": "gradient", "axis": "courses", "start": 1.0, "end": 3.0, "profile": "step", "steps": 2},
+                  SHAPE, 0.0, "maps.L")
+    assert np.array_equal(a[:, 0], [1.0, 1.0, 3.0, 3.0])
+    # 3 wales in 3 bands: start, midpoint, end
+    assert np.array_equal(gradient(3, 0.0, 1.0, "step", 3), [0.0, 0.5, 1.0])
+
+
+def test_file_npy_csv_and_shape_check(tmp_path):
+    arr = np.arange(12, dtype=float).reshape(SHAPE)
+    np.save(tmp_path / "a.npy", arr)
+    (tmp_path / "a.csv").write_text("\n".join(",".join(str(v) for v in row) for row in arr) + "\n")
+    for name in ("a.npy", "a.csv"):
+        got = build_map({"type": "file", "path": name}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+        assert np.array_equal(got, arr)
+    np.save(tmp_path / "b.npy", arr.T)
+    with pytest.raises(KnitsimInputError, match=r"maps\.phi0\.path = .*shape \(3, 4\), expected .*\(4, 3\)"):
+        build_map({"type": "file", "path": "b.npy"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+
+
+def test_random_reproducible_and_bounded():
+    spec = {"type": "random", "low": -1.0, "high": 1.0, "seed": 7, "scale": "phimax"}
+    phimax = np.full(SHAPE, np.arctan(0.2))
+    a = build_map(spec, (40, 30), 0.0, "maps.phi0", phimax=np.full((40, 30), np.arctan(0.2)), name="phi0")
+    b = build_map(spec, (40, 30), 0.0, "maps.phi0", phimax=np.full((40, 30), np.arctan(0.2)), name="phi0")
+    assert np.array_equal(a, b)                       # same seed, same field
+    assert np.all(np.abs(a) <= np.arctan(0.2))        # within [-phimax, phimax]
+    assert a.std() > 0.3 * np.arctan(0.2)             # uniform on [-1, 1] x phimax: std = phimax / sqrt(3)
+    c = build_map(dict(spec, seed=8), SHAPE, 0.0, "maps.phi0", phimax=phimax, name="phi0")
+    assert not np.array_equal(c, a[:4, :3])
+    with pytest.raises(KnitsimInputError, match=r"maps\.d\.scale = \"phimax\""):
+        build_map(dict(spec), SHAPE, 0.0, "maps.d", phimax=phimax, name="d")

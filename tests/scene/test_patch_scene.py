@@ -1,0 +1,105 @@
+"""Patch scenes: validation names the key path and the value; shipped scenes load; resolved scenes reload."""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from knitsim.errors import KnitsimInputError
+from knitsim.scene.patch_scene import load_patch_scene
+
+REPO = Path(__file__).resolve().parents[2]
+SHIPPED = ["specimen_e_glass_cyclic", "two_zone_basalt_e_glass", "stitch_length_gradient", "random_phi0"]
+
+
+def base(**extra):
+    doc = {"patch": {"wales": 3, "courses": 4}, "yarn": {"material": "e_glass"},
+           "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2},
+           "load": {"type": "monotonic", "target_strain": 0.3, "max_increment": 0.05}}
+    doc.update(extra)
+    return doc
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_scenes_load_and_resolve(name):
+    s = load_patch_scene(REPO / "scenes" / f"{name}.toml")
+    again = load_patch_scene(tomllib.loads(s.to_toml()))
+    for k in s.model.fields:
+        assert np.array_equal(s.model.fields[k], again.model.fields[k]), k
+    assert np.array_equal(s.program.strain, again.program.strain)
+
+
+def test_specimen_is_the_paper_specimen():
+    # section 2.3: 23 wales x 110 courses, 3 cycles 0.10-0.60
+    s = load_patch_scene(REPO / "scenes" / "specimen_e_glass_cyclic.toml")
+    assert s.model.shape == (110, 23) and s.model.cell_count == 2530
+    assert s.program.strain.max() == 0.6 and s.program.cycle.max() == 3
+    assert np.all(s.model.fields["L"] == 14.1)      # section 2.2
+
+
+def test_unknown_key():
+    with pytest.raises(KnitsimInputError, match=r"^patch\.walls = 3: unknown key"):
+        load_patch_scene(base(patch={"walls": 3, "wales": 3, "courses": 4}))
+
+
+def test_missing_field():
+    with pytest.raises(KnitsimInputError, match=r"^patch\.courses: missing required key"):
+        load_patch_scene(base(patch={"wales": 3}))
+
+
+def test_wrong_type_and_range():
+    with pytest.raises(KnitsimInputError, match=r"^patch\.wales = \"3\": expected a whole number"):
+        load_patch_scene(base(patch={"wales": "3", "courses": 4}))
+    with pytest.raises(KnitsimInputError, match=r"^patch\.wales = 0: must be >= 1"):
+        load_patch_scene(base(patch={"wales": 0, "courses": 4}))
+
+
+def test_map_shape_mismatch(tmp_path):
+    np.save(tmp_path / "phi0.npy", np.zeros((3, 4)))     # (wales, courses): transposed
+    scene = base(maps={"phi0": {"type": "file", "path": "phi0.npy"}})
+    (tmp_path / "s.toml").write_text(
+        "[patch]\nwales = 3\ncourses = 4\n[yarn]\nmaterial = \"e_glass\"\n[knit]\nmaterial = \"e_glass_plain\"\n"
+        "[friction]\nm = 0.2\n[maps.phi0]\ntype = \"file\"\npath = \"phi0.npy\"\n"
+        "[load]\ntype = \"monotonic\"\ntarget_strain = 0.3\n")
+    with pytest.raises(KnitsimInputError, match=r"^maps\.phi0\.path = \"\S+phi0\.npy\": array of shape \(3, 4\), "
+                                                r"expected \(courses, wales\) = \(4, 3\)"):
+        load_patch_scene(tmp_path / "s.toml")
+    assert scene  # the dict form is the same document
+
+
+def test_w0_below_4d_in_a_zone_names_the_zone():
+    zone = {"courses": [2, 4], "knit": {"W0": 2.0}}
+    with pytest.raises(KnitsimInputError, match=r"^zones\[0\]\.knit\.W0 = 2\.0: must be >= 4 d = 2\.32 mm"):
+        load_patch_scene(base(zones=[zone]))
+    # the same through a map: the message names the map and the first offending cell
+    wmap = {"type": "regions", "regions": [{"courses": [2, 4], "wales": [1, 3], "value": 2.0}]}
+    with pytest.raises(KnitsimInputError, match=r"^maps\.W0 = 2\.0: must be >= 4 d = 2\.32 mm.*"
+                                                r"at cell \[course 2, wale 1\]"):
+        load_patch_scene(base(maps={"W0": wmap}))
+
+
+def test_phi0_map_outside_friction_cone_names_the_map():
+    with pytest.raises(KnitsimInputError, match=r"^maps\.phi0 = 0\.5: must lie in \[-phimax, phimax\]"):
+        load_patch_scene(base(maps={"phi0": {"type": "uniform", "value": 0.5}}))
+
+
+def test_map_key_not_used_by_type_and_missing_type():
+    with pytest.raises(KnitsimInputError, match=r"^maps\.L\.axis = \"wales\": not used by maps\.L\.type = \"uniform\""):
+        load_patch_scene(base(maps={"L": {"type": "uniform", "value": 14.0, "axis": "wales"}}))
+    with pytest.raises(KnitsimInputError, match=r"^maps\.L\.type: missing"):
+        load_patch_scene(base(maps={"L": {"value": 14.0}}))
+
+
+def test_unreachable_grip_strain():
+    with pytest.raises(KnitsimInputError, match=r"^load\.target_strain = 5\.0: grip strain 5 cannot be reached"):
+        load_patch_scene(base(load={"type": "monotonic", "target_strain": 5.0}))
+
+
+def test_set_override_and_zone_materials():
+    s = load_patch_scene(REPO / "scenes" / "two_zone_basalt_e_glass.toml", ["patch.wales=2", "patch.courses=4",
+                                                                             "zones[0].courses=[2, 4]", "zones[0].wales=[0, 2]"])
+    # section 2.2: E-glass L = 14.1, basalt L = 13.1; Table 1: d 0.58 / 0.56
+    assert np.array_equal(s.model.fields["L"][:, 0], [14.1, 14.1, 13.1, 13.1])
+    assert np.array_equal(s.model.fields["d"][:, 1], [0.58, 0.58, 0.56, 0.56])
