@@ -1,7 +1,7 @@
 """``knitsim run``: run a patch scene (cells in series along wales, columns in parallel).
 
 ``knitsim run SCENE.toml [--set key=value ...] [--out DIR] [--resume] [--engine warp|reference]
-[--device cpu|cuda|auto] [--json]``
+[--device cpu|cuda|auto] [--usd FILE [--usd-stride N] [--color-by FIELD] [--usd-points N]] [--json]``
 
 The scene (:mod:`knitsim.scene.patch_scene`) is validated in full before any
 work.  A progress bar goes to stderr; the patch state is checkpointed into
@@ -9,6 +9,10 @@ work.  A progress bar goes to stderr; the patch state is checkpointed into
 Ctrl-C, and ``--resume`` continues from it (same results as an uninterrupted
 run).  Results (:mod:`knitsim.io.patch_results`) go to ``DIR`` (default
 ``<scene stem>_out``); the checkpoint is removed once they are written.
+With ``--usd FILE`` the patch is also written as USD (``.usda`` text for small
+patches, ``.usdc`` / ``.usd`` binary crate for large ones; see
+:mod:`knitsim.usd.from_results`), the same file ``knitsim usd DIR --out FILE``
+writes from the saved results.
 Exit status 0 when every column converged, 1 otherwise, 2 on bad input.
 """
 from __future__ import annotations
@@ -36,6 +40,10 @@ def register(subparsers) -> None:
     p.add_argument("--engine", choices=("warp", "reference"), default=None, help="override the scene's engine")
     p.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:N or auto")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from .usd import add_usd_options
+    p.add_argument("--usd", metavar="FILE", default=None,
+                   help="also export the patch to USD (.usda text, .usdc/.usd binary crate for large patches)")
+    add_usd_options(p, prefix="usd-")
     add_json_flag(p)
     p.set_defaults(func=_run)
 
@@ -66,6 +74,11 @@ def _run(args) -> int:
     from ..patch.runner import CHECKPOINT_NAME, run_patch
     from ..scene.patch_scene import load_patch_scene
 
+    if args.usd is not None:
+        from .usd import check_usd_options
+        check_usd_options(args)
+        if not args.usd.lower().endswith((".usda", ".usdc", ".usd")):
+            raise KnitsimInputError(f"--usd = {args.usd!r}: must end in .usda, .usdc or .usd")
     scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     out = check_output_dir(args.out or f"{Path(args.scene).stem}_out")
     ck = out / CHECKPOINT_NAME
@@ -90,6 +103,13 @@ def _run(args) -> int:
     files = write_patch_results(out, h, summary, scene.to_toml(), fields=m.fields, plot=scene.output["plot"],
                                 cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
     ck.unlink(missing_ok=True)
+    if args.usd is not None:
+        from ..usd.from_results import DEFAULT_POINTS, export_history
+        res = export_history(h, m.fields, args.usd, scene_text=scene.to_toml(), color_by=args.color_by,
+                             stride=args.usd_stride, n_points=args.usd_points or DEFAULT_POINTS,
+                             device=device if scene.engine == "warp" else "cpu")
+        print(f"knitsim run: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
+              f"samples) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
     print(f"knitsim run: done in {h.wall_s:.2f} s ({h.info['n_groups']} distinct cell solves); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     if not summary["all_converged"]:

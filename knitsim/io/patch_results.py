@@ -7,7 +7,10 @@
   ``strain`` ((C - C0)/C0), ``phi`` [rad], ``force_per_wale_N``, ``stage`` (label codes with
   ``flag_values`` / ``flag_meanings``), ``status``; per column ``column_force_N``,
   ``column_status``; per cell the parameters (``d, B, m, dahl_sigma, L, W0, C0, phi0``);
-  coordinates ``grip_strain, cycle, direction``; units in attributes;
+  coordinates ``grip_strain, cycle, direction``; units in attributes; and, for the yarn
+  geometry (:mod:`knitsim.usd.from_results`), per group of identical cells (dimension
+  ``group``, ``group_of_cell [course, wale]``): ``state_x [increment, group, unknown]``
+  (alpha, beta, gamma, phi [rad], P [N]), ``state_W``, ``state_C``, ``state_s_AB`` [mm];
 - ``summary.json``: see :func:`patch_summary`;
 - ``force_strain.png``, ``strain_map.png``, ``stage_map.png``; ``scene.resolved.toml``.
 
@@ -83,6 +86,17 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None):
                "conventions": "units N, mm, rad"})
     for n, arr in (fields or {}).items():
         ds[n] = (("course", "wale"), np.asarray(arr, dtype=np.float64), {"long_name": f"cell parameter {n}"})
+    if all(k in h.groups for k in ("x", "W", "s_AB")):
+        # the geometry is stored per group (identical cells share it), expanded by group_of_cell
+        ds["group_of_cell"] = (("course", "wale"), np.asarray(h.group_of_cell, dtype=np.int32),
+                               {"long_name": "group of identical cells solved once"})
+        ds["state_x"] = (("increment", "group", "unknown"), np.asarray(h.groups["x"], dtype=np.float64),
+                         {"long_name": "cell state (alpha, beta, gamma, phi, P)", "units": "rad rad rad rad N",
+                          "unknowns": "alpha beta gamma phi P"})
+        for k, long_name in (("W", "wale width (eq 6)"), ("C", "course length of the cell"),
+                             ("s_AB", "arc length A -> B (eq 8)")):
+            ds[f"state_{k}"] = (("increment", "group"), np.asarray(h.groups[k], dtype=np.float64),
+                                {"long_name": long_name, "units": "mm"})
     return ds
 
 

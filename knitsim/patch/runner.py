@@ -3,7 +3,9 @@
 :func:`run_patch` solves each grip increment with
 :class:`~knitsim.patch.coupling.PatchSolver` and records, per increment, the
 grip force, the column forces and flags, and the per-cell fields (strain of
-the course length, stage label, phi, force, status).  With ``checkpoint``
+the course length, stage label, phi, force, status) and, per group of
+identical cells, the state x = (alpha, beta, gamma, phi, P) with W and s_AB,
+from which the yarn geometry is rebuilt (:mod:`knitsim.usd.from_results`).  With ``checkpoint``
 set, the solver state and the rows so far are written atomically every
 ``checkpoint_every`` increments (and when the run is interrupted by Ctrl-C);
 ``resume=True`` continues from that file and gives the same results as an
@@ -28,7 +30,9 @@ from .model import PatchModel
 
 CHECKPOINT_NAME = "checkpoint.pkl"
 _ROW_KEYS = ("force_N", "force_per_wale_N", "column_force_N", "column_status", "column_iterations", "column_slack_mm",
-             "g_C", "g_F", "g_phi", "g_label", "g_status")
+             "g_C", "g_F", "g_phi", "g_label", "g_status", "g_x", "g_W", "g_s_AB")
+#: per-group geometry rows (checkpoints written before they existed lack them)
+_GEOMETRY_KEYS = ("g_x", "g_W", "g_s_AB")
 
 
 class PatchInterrupted(Exception):
@@ -55,7 +59,9 @@ class PatchHistory:
         :data:`~knitsim.patch.coupling.COLUMN_STATUS_NAMES` code; trial steps of the increment.
     group_of_cell : ndarray of int, shape [courses, wales]
     groups : dict of str to ndarray, shape [n, n_groups]
-        Per group: ``C`` [mm], ``F`` [N], ``phi`` [rad], ``label`` (stage label code), ``status``.
+        Per group: ``C`` [mm], ``F`` [N], ``phi`` [rad], ``label`` (stage label code), ``status``;
+        and, for the geometry, ``x`` (shape [n, n_groups, 5]: alpha, beta, gamma, phi [rad], P [N]),
+        ``W`` and ``s_AB`` [mm] (absent when resumed from a checkpoint that predates them).
     C0 : ndarray, shape [courses, wales]
     wall_s : float
         Seconds spent solving (this run plus the runs it resumed).
@@ -86,7 +92,7 @@ class PatchHistory:
 
     def cell_field(self, name: str) -> np.ndarray:
         """A per-cell field over time, shape [n, courses, wales]: ``strain`` ((C - C0)/C0),
-        ``C``, ``F``, ``phi``, ``label`` or ``status``."""
+        ``C``, ``F``, ``phi``, ``label``, ``status``, ``W``, ``s_AB`` or ``x`` (shape [n, courses, wales, 5])."""
         if name == "strain":
             return self.groups["C"][:, self.group_of_cell] / self.C0[None] - 1.0
         return self.groups[name][:, self.group_of_cell]
@@ -102,6 +108,17 @@ def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
     for a in (program.strain, program.cycle, program.direction):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
+
+
+def _committed_geometry(backend) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Committed per-group state x [n_groups, 5], W and s_AB [n_groups] of either backend."""
+    from ..cell.quantities import CODE
+    s0 = backend.s0
+    if hasattr(s0, "x"):                        # WarpBackend: a CellBatchState of device arrays
+        q = s0.q.numpy()
+        return s0.x.numpy().copy(), q[:, CODE["W"]].copy(), q[:, CODE["s_AB"]].copy()
+    return (np.array([np.asarray(s.x, dtype=float) for s in s0]),   # ReferenceBackend: CellStates
+            np.array([float(s.q["W"]) for s in s0]), np.array([float(s.q["s_AB"]) for s in s0]))
 
 
 def _atomic_pickle(path: Path, obj) -> None:
@@ -164,6 +181,8 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
                                         "remove it or run without --resume")
             solver.set_state(saved["solver"])
             rows = saved["rows"]
+            for k in _ROW_KEYS:
+                rows.setdefault(k, [])
             start, wall_before = int(saved["done"]), float(saved["wall_s"])
     wales = model.wales
     cls = grouping.column_class
@@ -193,6 +212,10 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             rows["g_phi"].append(c["phi"])
             rows["g_label"].append(label_codes(c["stage"], c["jammed"]))
             rows["g_status"].append(c["status"].astype(np.int8))
+            gx, gW, gs = _committed_geometry(solver.backend)
+            rows["g_x"].append(gx)
+            rows["g_W"].append(gW)
+            rows["g_s_AB"].append(gs)
             if progress is not None:
                 progress(i + 1, n)
             done = i + 1
@@ -205,9 +228,12 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
         save(len(rows["force_N"]), wall_before + time.perf_counter() - t0)
         raise
     wall = wall_before + time.perf_counter() - t0
-    arr = {k: np.asarray(v) for k, v in rows.items()}
+    n_rows = len(rows["force_N"])
+    arr = {k: np.asarray(v) for k, v in rows.items() if k not in _GEOMETRY_KEYS or len(v) == n_rows}
     groups = {"C": arr["g_C"], "F": arr["g_F"], "phi": arr["g_phi"], "label": arr["g_label"],
               "status": arr["g_status"]}
+    if all(k in arr for k in _GEOMETRY_KEYS):
+        groups.update(x=arr["g_x"], W=arr["g_W"], s_AB=arr["g_s_AB"])
     C0 = model.fields["C0"]
     info = {"engine": engine, "device": getattr(solver.backend, "device", "cpu"), "dedup": bool(dedup),
             "n_groups": grouping.n_groups, "n_column_classes": grouping.n_classes,

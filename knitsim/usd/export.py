@@ -275,7 +275,8 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
                     scene_text: str | None = None, metadata: Mapping | None = None,
                     color_range: tuple[float, float] | None = None, field_units: Mapping[str, str] | None = None,
                     curve_basis: str = "catmullRom", points_per_quarter: int | None = None,
-                    time_codes_per_second: float = 24.0) -> UsdExportResult:
+                    time_codes_per_second: float = 24.0, frame_indices=None,
+                    frame_scalars: Mapping | None = None) -> UsdExportResult:
     """Write a knit patch over time as a USD stage.
 
     Parameters
@@ -317,6 +318,13 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         6 to 9 look smooth with the Catmull-Rom basis.
     time_codes_per_second : float
         Playback rate of the frame index.
+    frame_indices : sequence of int, optional
+        Time code of each input frame (increasing), when the frames are a
+        selection of a longer run (e.g. increment numbers); default 0, 1, ...
+    frame_scalars : mapping, optional
+        name -> one number per input frame (e.g. ``grip_strain``), written as
+        the time-sampled double attribute ``knitsim:<name>`` of ``/Patch`` and
+        listed in ``customLayerData["knitsim"]["frame_scalars"]``.
 
     Returns
     -------
@@ -364,7 +372,20 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
 
     m_verts = yg.course_vertex_count(n, wales)
     vcell = yg.vertex_cells(n, wales)
-    time_codes = [float(k) for k in sel]
+    if frame_indices is None:
+        time_codes = [float(k) for k in sel]
+    else:
+        fi = np.asarray(frame_indices)
+        if fi.shape != (len(raw),) or not np.issubdtype(fi.dtype, np.integer) or np.any(np.diff(fi) <= 0):
+            raise KnitsimInputError(f"frame_indices must be {len(raw)} increasing integers, got {frame_indices!r}")
+        time_codes = [float(fi[k]) for k in sel]
+    scalars = {}
+    for name, vals in (frame_scalars or {}).items():
+        v = np.asarray(vals, dtype=float)
+        if v.shape != (len(raw),):
+            raise KnitsimInputError(f"frame_scalars[{name!r}] must have one value per frame ({len(raw)}), "
+                                    f"got shape {v.shape}")
+        scalars[str(name)] = v[sel]
 
     if os.path.exists(path):
         os.remove(path)  # CreateNew refuses an existing layer
@@ -382,6 +403,11 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         ta = root.GetPrim().CreateAttribute("knitsim:time_s", Sdf.ValueTypeNames.Double)
         for tc, t in zip(time_codes, times):
             ta.Set(t, tc)
+
+    for name, v in scalars.items():
+        sa = root.GetPrim().CreateAttribute(FIELD_PREFIX + name, Sdf.ValueTypeNames.Double)
+        for tc, val in zip(time_codes, v):
+            sa.Set(float(val), tc)
 
     palette = Vt.Vec3fArray.FromNumpy(coloring.palette.astype(np.float32))
     field_names = sorted(checked[0]["fields"])
@@ -445,7 +471,8 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
                    "vertices_per_cell": yg.vertices_per_cell(n), "vertices_per_course": m_verts,
                    "curve_basis": curve_basis, "yarns": YARNS_PATH,
                    "prim_name_format": COURSE_PRIM_FORMAT},
-        "frame_indices": Vt.IntArray([int(k) for k in sel]),
+        "frame_indices": Vt.IntArray([int(t) for t in time_codes]),
+        "frame_scalars": {name: Vt.DoubleArray([float(x) for x in v]) for name, v in scalars.items()},
         "frames_in_input": len(raw),
         "stride": int(stride),
         "metadata": _user_metadata(metadata),

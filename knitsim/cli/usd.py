@@ -1,0 +1,76 @@
+"""``knitsim usd``: export a saved patch run to USD for visual checks.
+
+``knitsim usd RESULTS_DIR --out FILE [--color-by stage|phi|force|material|strain] [--stride N]
+[--points N] [--quicklook PNG] [--device cpu|cuda|auto] [--json]``
+
+Reads ``cells.nc`` (per-group states x = (alpha, beta, gamma, phi, P), W, C,
+s_AB per saved increment) and ``scene.resolved.toml`` of a ``knitsim run``
+results folder and writes the same file that ``knitsim run --usd`` writes
+(:mod:`knitsim.usd.from_results`): ``.usda`` text, ``.usdc`` / ``.usd`` binary
+crate (use it for large patches).  Exit status 0, or 2 on bad input.
+"""
+from __future__ import annotations
+
+import sys
+
+from ..errors import KnitsimInputError
+from .common import add_json_flag, print_json
+
+COLOR_CHOICES = ("stage", "phi", "force", "material", "strain")
+
+
+def add_usd_options(p, prefix: str = "") -> None:
+    """``--color-by``, ``--[usd-]stride``, ``--usd-points`` (shared with ``knitsim run``)."""
+    p.add_argument("--color-by", default="stage", metavar="FIELD",
+                   help=f"displayColor by one of {', '.join(COLOR_CHOICES)} (default stage)")
+    p.add_argument(f"--{prefix}stride", dest="usd_stride", type=int, default=1, metavar="N",
+                   help="write every N-th saved increment (and the last one); default 1")
+    p.add_argument("--usd-points", dest="usd_points", type=int, default=None, metavar="N",
+                   help="points per quarter centreline (>= 6, default 9)")
+    p.set_defaults(usd_stride_flag=f"--{prefix}stride")
+
+
+def check_usd_options(args) -> None:
+    """Validate the shared options before any work (exit 2 with one line)."""
+    if args.color_by not in COLOR_CHOICES:
+        raise KnitsimInputError(f"--color-by = {args.color_by!r}: expected one of {', '.join(COLOR_CHOICES)}")
+    if args.usd_stride < 1:
+        raise KnitsimInputError(f"{args.usd_stride_flag} = {args.usd_stride}: must be >= 1")
+    if args.usd_points is not None and args.usd_points < 6:
+        raise KnitsimInputError(f"--usd-points = {args.usd_points}: must be >= 6")
+
+
+def register(subparsers) -> None:
+    """Add ``knitsim usd``."""
+    p = subparsers.add_parser(
+        "usd", help="export a saved patch run (knitsim run results folder) to USD",
+        description="Export a knitsim run results folder to USD: one BasisCurves yarn per course, one time "
+                    "sample per saved increment, per-cell primvars (stage, phi, force, strain, material).")
+    p.add_argument("results", metavar="RESULTS_DIR", help="results folder of knitsim run (with cells.nc)")
+    p.add_argument("--out", metavar="FILE", required=True, help="output .usda (text) or .usdc/.usd (binary crate)")
+    add_usd_options(p)
+    p.add_argument("--quicklook", metavar="PNG", default=None,
+                   help="also render the first and last frame from the USD file into this PNG")
+    p.add_argument("--device", default="cpu", help="Warp device of the centreline kernel: cpu, cuda, cuda:N, auto")
+    add_json_flag(p)
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from .. import warp_runtime
+    from ..usd.from_results import DEFAULT_POINTS, export_results
+    check_usd_options(args)
+    device = warp_runtime.resolve_device(args.device)
+    res = export_results(args.results, args.out, color_by=args.color_by, stride=args.usd_stride,
+                         n_points=args.usd_points or DEFAULT_POINTS, device=device, quicklook=args.quicklook)
+    doc = {"usd": res.path, "bytes": res.file_bytes, "time_codes": len(res.time_codes), "courses": res.courses,
+           "wales": res.wales, "vertices_per_course": res.vertices_per_course, "seconds": res.seconds,
+           "fallback_cells_max": max(res.fallback_cells) if res.fallback_cells else 0,
+           "quicklook": args.quicklook}
+    if args.json:
+        print_json(doc)
+    else:
+        print(f"knitsim usd: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time samples, "
+              f"{res.courses} courses x {res.wales} wales) in {res.seconds:.2f} s"
+              + (f"; quick-look {args.quicklook}" if args.quicklook else ""), file=sys.stderr)
+    return 0

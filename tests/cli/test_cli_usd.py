@@ -1,0 +1,93 @@
+"""``knitsim run --usd`` and ``knitsim usd``: files open in USD, match the run, quick-look, bad input exits 2.
+
+Expected values: the run's own saved outputs (curve.csv rows = saved
+increments, scene.resolved.toml text, summary.json cell counts), the vertex
+count of the symmetric full stitch (4 (n - 1) per cell + 1 per course,
+knitsim.usd.yarn_geometry) and the stride rule (0, s, 2s, ..., last).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pxr = pytest.importorskip("pxr")
+from pxr import Usd, UsdGeom  # noqa: E402
+
+from knitsim.cli import main  # noqa: E402
+from knitsim.usd import read_patch_usd  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+SCENE = REPO / "scenes" / "random_phi0.toml"
+SMALL = ["--set", "patch.wales=2", "--set", "patch.courses=3", "--set", "load.max_increment=0.05"]
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("run")
+    rc = main(["run", str(SCENE), "--out", str(tmp / "o"), "--no-progress", "--json", *SMALL,
+               "--usd", str(tmp / "run.usda"), "--usd-stride", "3", "--color-by", "phi"])
+    assert rc in (0, 1)
+    return tmp
+
+
+def test_run_usd_file(run_dir):
+    n = sum(1 for _ in open(run_dir / "o" / "curve.csv")) - 1            # saved increments
+    sel = list(range(0, n, 3)) + ([n - 1] if (n - 1) % 3 else [])
+    stage = Usd.Stage.Open(str(run_dir / "run.usda"))
+    curves = [UsdGeom.BasisCurves(p) for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)]
+    assert len(curves) == 3                                              # one per course
+    for c in curves:
+        assert list(c.GetCurveVertexCountsAttr().Get()) == [2 * 4 * (9 - 1) + 1]
+        assert c.GetPointsAttr().GetTimeSamples() == [float(k) for k in sel]
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 0.001 and UsdGeom.GetStageUpAxis(stage) == "Z"
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, float(n - 1))
+    info = stage.GetRootLayer().customLayerData["knitsim"]
+    assert info["scene"] == (run_dir / "o" / "scene.resolved.toml").read_text()
+    assert info["color_by"] == "phi" and info["legend"]["units"] == "rad"
+    back = read_patch_usd(run_dir / "run.usda")
+    ext = back.extents
+    assert np.all(ext[:, :, 0, :2] <= back.points[..., :2].min(axis=2)) and np.all(
+        ext[:, :, 1, :2] >= back.points[..., :2].max(axis=2))
+
+
+def test_usd_from_results_equals_run_export(run_dir, capsys):
+    out = run_dir / "again.usdc"
+    png = run_dir / "ql.png"
+    rc = main(["usd", str(run_dir / "o"), "--out", str(out), "--stride", "3", "--color-by", "phi",
+               "--quicklook", str(png), "--json"])
+    assert rc == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["courses"] == 3 and doc["wales"] == 2
+    a, b = read_patch_usd(run_dir / "run.usda"), read_patch_usd(out)
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.time_codes, b.time_codes)
+    assert a.fields.keys() == b.fields.keys() and all(np.array_equal(a.fields[k], b.fields[k]) for k in a.fields)
+    assert a.info["scene"] == b.info["scene"]
+    import matplotlib.image as mpimg
+    img = mpimg.imread(png)
+    assert img.shape[0] > 100 and img.shape[1] > 100
+    assert np.mean(np.any(img[..., :3] < 0.9, axis=-1)) > 0.02          # not blank: yarn drawn
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["usd", "{tmp}/missing", "--out", "{tmp}/x.usda"], "not a directory"),
+    (["usd", "{tmp}/nostate", "--out", "{tmp}/x.usda"], "no per-cell states"),
+    (["usd", "{run}/o", "--out", "{tmp}/x.usda", "--color-by", "colour"], "--color-by = 'colour'"),
+    (["usd", "{run}/o", "--out", "{tmp}/x.usda", "--stride", "0"], "--stride = 0"),
+    (["usd", "{run}/o", "--out", "{tmp}/x.obj"], "must end in .usda"),
+    (["run", str(SCENE), "--out", "{tmp}/r", "--usd", "{tmp}/x.usda", "--usd-stride", "0"], "--usd-stride = 0"),
+])
+def test_bad_input_exits_2(run_dir, tmp_path, capsys, argv, needle):
+    import xarray as xr
+    (tmp_path / "nostate").mkdir()
+    with xr.open_dataset(run_dir / "o" / "cells.nc", engine="scipy") as ds:
+        ds.drop_vars([v for v in ds.data_vars if v.startswith("state_")]).to_netcdf(
+            tmp_path / "nostate" / "cells.nc", engine="scipy")
+    argv = [a.format(tmp=tmp_path, run=run_dir) for a in argv]
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2
+    lines = [ln for ln in err.strip().splitlines() if "CUDA" not in ln]
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in err

@@ -1,0 +1,161 @@
+"""USD frames from simulated patches (knitsim.usd.from_results): structure, lattice, round trip, bad input.
+
+Expected values: the patch's own history (counts, saved increments, W and C of
+the cells, summed here independently into the lattice), the float64 forward
+map :func:`knitsim.cell.quarter_loop.quarter_loop` (Y_C of each cell's state,
+eqs 6-9), the symmetry construction of the full stitch (head apex at
+x0 + W/4, A at x0 + W/2, sinker apex at x0 + 3W/4; knitsim.usd.yarn_geometry
+docstring), periodicity of a uniform patch (period W along a course, C along
+a wale), and the stage label table knitsim.cell.stages.LABEL_CODES.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pxr = pytest.importorskip("pxr")
+from pxr import Usd, UsdGeom  # noqa: E402
+
+from knitsim.cell.load_program import cycles  # noqa: E402
+from knitsim.cell.material import CellParams  # noqa: E402
+from knitsim.cell.quarter_loop import quarter_loop  # noqa: E402
+from knitsim.errors import KnitsimInputError  # noqa: E402
+from knitsim.io.patch_results import patch_summary, write_patch_results  # noqa: E402
+from knitsim.patch.model import PatchModel  # noqa: E402
+from knitsim.patch.runner import run_patch  # noqa: E402
+from knitsim.usd import read_patch_usd  # noqa: E402
+from knitsim.usd import yarn_geometry as yg  # noqa: E402
+from knitsim.usd.from_results import (export_history, export_results, record_from_history,  # noqa: E402
+                                      record_from_results)
+
+P = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, force_cap_N=10.0)   # Table 1, section 2.2
+PROG = cycles(0.10, 0.40, 1, 0.1)
+N_PTS = 9
+SCENE = "# a scene\n[patch]\nwales = 3\n"
+
+
+@pytest.fixture(scope="module")
+def uniform():
+    m = PatchModel.uniform(P, 3, 4)
+    return m, run_patch(m, PROG, engine="warp")
+
+
+@pytest.fixture(scope="module")
+def mixed():
+    rng = np.random.default_rng(3)
+    cells = [[P.replace(phi0=float(rng.uniform(-1, 1) * np.arctan(0.2)), L=float(13.6 + 0.5 * rng.random()))
+              for _ in range(3)] for _ in range(2)]
+    m = PatchModel.from_cells(cells)
+    return m, run_patch(m, PROG, engine="warp")
+
+
+def _selected(n, stride):
+    idx = list(range(0, n, stride))
+    return idx + ([n - 1] if idx[-1] != n - 1 else [])
+
+
+def test_stage_structure_and_metadata(tmp_path, mixed):
+    m, h = mixed
+    path = tmp_path / "p.usda"
+    res = export_history(h, m.fields, path, scene_text=SCENE, stride=2, n_points=N_PTS)
+    sel = _selected(h.n_increments, 2)
+    stage = Usd.Stage.Open(str(path))
+    assert stage
+    curves = [p for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)]
+    assert len(curves) == m.courses                                     # one yarn per course
+    for c in curves:
+        bc = UsdGeom.BasisCurves(c)
+        assert list(bc.GetCurveVertexCountsAttr().Get()) == [m.wales * 4 * (N_PTS - 1) + 1]
+        assert bc.GetPointsAttr().GetTimeSamples() == [float(k) for k in sel]
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 0.001
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, float(h.n_increments - 1))
+    info = stage.GetRootLayer().customLayerData["knitsim"]
+    assert info["scene"] == SCENE
+    assert list(info["frame_indices"]) == sel
+    np.testing.assert_array_equal(np.array(info["frame_scalars"]["grip_strain"]), h.grip_strain[sel])
+    assert info["metadata"]["fallback_cells"] == ",".join("0" for _ in sel)
+    assert list(res.time_codes) == [float(k) for k in sel]
+
+
+def test_round_trip_cell_positions(tmp_path, mixed):
+    """Apexes and A points at the cumulative W / C lattice, Y_C from the float64 forward map."""
+    m, h = mixed
+    path = tmp_path / "p.usdc"
+    export_history(h, m.fields, path, stride=3, n_points=N_PTS)
+    back = read_patch_usd(path)
+    sel = _selected(h.n_increments, 3)
+    assert np.array_equal(back.time_codes, np.array(sel, float))
+    x = h.cell_field("x")[sel]                                          # (T, courses, wales, 5)
+    W, C = h.cell_field("W")[sel], h.cell_field("C")[sel]
+    Y_C = quarter_loop(x[..., 0], x[..., 1], x[..., 2], x[..., 3], x[..., 4], m.fields["B"], m.fields["d"]).Y_C
+    x0 = np.concatenate([np.zeros_like(W[..., :1]), np.cumsum(W, axis=-1)[..., :-1]], axis=-1)
+    y0 = np.concatenate([np.zeros_like(C[:, :1]), np.cumsum(C, axis=1)[:, :-1]], axis=1)
+    tol = 2e-6 * (np.abs(x0).max() + W.max() + np.abs(y0).max() + C.max())   # float32 positions
+    np.testing.assert_allclose(back.head_apex[..., 0], x0 + W / 4, atol=tol, rtol=0)
+    np.testing.assert_allclose(back.head_apex[..., 1], y0 + Y_C, atol=tol, rtol=0)
+    np.testing.assert_allclose(back.A[..., 0], x0 + W / 2, atol=tol, rtol=0)
+    np.testing.assert_allclose(back.A[..., 1], y0, atol=tol, rtol=0)
+    np.testing.assert_allclose(back.sinker_apex[..., 0], x0 + 3 * W / 4, atol=tol, rtol=0)
+    np.testing.assert_allclose(back.sinker_apex[..., 1], y0 - Y_C, atol=tol, rtol=0)
+    # fields as simulated
+    np.testing.assert_array_equal(back.fields["stage"], h.cell_field("label")[sel])
+    np.testing.assert_allclose(back.fields["force"], h.cell_field("F")[sel], rtol=1e-6)
+    # extents hold every vertex (+- d/2) and the patch's lattice
+    d = m.fields["d"].max()
+    assert np.all(back.extents[:, :, 0, :] <= back.points.min(axis=2) - d / 2 + 1e-5)
+    assert np.all(back.extents[:, :, 1, :] >= back.points.max(axis=2) + d / 2 - 1e-5)
+    assert np.all(back.extents[:, :, 1, 0] >= W.sum(axis=-1) - 1e-4)
+
+
+def test_uniform_patch_is_periodic(tmp_path, uniform):
+    m, h = uniform
+    assert h.info["n_groups"] == 1
+    path = tmp_path / "u.usdc"
+    export_history(h, m.fields, path, n_points=N_PTS)
+    back = read_patch_usd(path)
+    k = yg.vertices_per_cell(N_PTS)
+    W, C = h.groups["W"][:, 0], h.groups["C"][:, 0]
+    pts = back.points                                                    # (T, courses, m, 3)
+    for j in range(1, m.wales):                                          # period W along the course
+        shift = pts[:, :, j * k:(j + 1) * k + 1] - pts[:, :, :k + 1]
+        np.testing.assert_allclose(shift[..., 0], np.broadcast_to(j * W[:, None, None], shift.shape[:-1]), atol=2e-5)
+        np.testing.assert_allclose(shift[..., 1:], 0.0, atol=2e-5)
+    for i in range(1, m.courses):                                        # period C along the wale
+        dy = pts[:, i, :, 1] - pts[:, 0, :, 1]
+        np.testing.assert_allclose(dy, np.broadcast_to(i * C[:, None], dy.shape), atol=2e-5)
+    # the course yarn is continuous across cells: last point of cell j = first of cell j + 1 (A'')
+    np.testing.assert_allclose(pts[:, :, -1, 0], np.broadcast_to(m.wales * W[:, None], pts.shape[:2]), atol=2e-5)
+
+
+def test_results_folder_equals_history(tmp_path, mixed):
+    m, h = mixed
+    out = tmp_path / "res"
+    write_patch_results(out, h, patch_summary(h, h.info["ref_length_mm"]), SCENE, fields=m.fields, plot=False)
+    a = export_history(h, m.fields, tmp_path / "a.usdc", scene_text=SCENE, stride=2, color_by="force")
+    b = export_results(out, tmp_path / "b.usdc", stride=2, color_by="force")
+    ra, rb = read_patch_usd(a.path), read_patch_usd(b.path)
+    assert np.array_equal(ra.points, rb.points) and np.array_equal(ra.time_codes, rb.time_codes)
+    assert all(np.array_equal(ra.fields[n], rb.fields[n]) for n in ra.fields) and ra.fields.keys() == rb.fields.keys()
+    assert np.array_equal(ra.material_id, rb.material_id)
+    assert ra.info["scene"] == rb.info["scene"] == SCENE
+    assert ra.info["legend"] == rb.info["legend"]
+
+
+def test_bad_input(tmp_path, mixed):
+    m, h = mixed
+    with pytest.raises(KnitsimInputError, match="not a directory"):
+        record_from_results(tmp_path / "nope")
+    out = tmp_path / "res"
+    old = type(h)(**{**h.__dict__, "groups": {k: v for k, v in h.groups.items() if k not in ("x", "W", "s_AB")}})
+    write_patch_results(out, old, patch_summary(old, old.info["ref_length_mm"]), SCENE, fields=m.fields, plot=False)
+    with pytest.raises(KnitsimInputError, match="no per-cell states"):
+        record_from_results(out)
+    with pytest.raises(KnitsimInputError, match="no per-cell states"):
+        record_from_history(old, m.fields)
+    with pytest.raises(KnitsimInputError, match="color_by = 'colour'"):
+        export_history(h, m.fields, tmp_path / "x.usda", color_by="colour")
+    with pytest.raises(KnitsimInputError, match="stride = 0"):
+        export_history(h, m.fields, tmp_path / "x.usda", stride=0)
+    with pytest.raises(KnitsimInputError, match="n_points = 4"):
+        export_history(h, m.fields, tmp_path / "x.usda", n_points=4)
