@@ -11,11 +11,14 @@ One thread advances one cell by one load increment:
 2. *trial solve* of the stage's four conditions at the target course length
    (:func:`stage_conditions`, the table of :mod:`knitsim.cell.stages`); a failed
    solve is retried on 2, 4, ... sub-increments (``max_halvings``);
-3. *events* (slide, jam, unjam, slack, force_cap) that fire inside the
+3. *events* (slide, jam, unjam, slack, force_cap, cone) that fire inside the
    increment are *located* by swapping the driving condition C for the event
    condition (phi = +/-phimax, W = 4d, F = 0, F = cap) and solving with C free
    (model.md, numerical hints); the nearest one along the path is applied and
-   the cell goes on toward the target (several events per increment).
+   the cell goes on toward the target (several events per increment).  An
+   event already satisfied at the start of the sub-step (within EVENT_TOL)
+   happens there; one that the branch cannot reach is retried on a halved
+   sub-step (rules in :mod:`knitsim.cell.stages`).
 
 Dahl friction (Dahl 1976, alpha = 1) is solved as a residual of the per-cell
 Newton, with the conditions {L, C, soft} (soft = Rn loading, T unloading, W = 4d
@@ -44,7 +47,7 @@ from knitsim.cell.quantities import (
     Q_ALPHA, Q_BETA, Q_C, Q_F, Q_GAMMA, Q_L, Q_M, Q_P, Q_PHI, Q_R, Q_RN, Q_RT, Q_S_AB, Q_S_BC, Q_T, Q_W,
     Q_X_A, Q_X_B, Q_Y_B, Q_Y_C,
 )
-from knitsim.cell.stages import LABEL_CODES, Stage
+from knitsim.cell.stages import EVENT_TOL, LABEL_CODES, PROBE_STEP, Stage
 
 from .elastica import (
     PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt,
@@ -76,8 +79,8 @@ LBL_JAMMING = wp.constant(LABEL_CODES["jamming"])
 LBL_SLACK = wp.constant(LABEL_CODES["slack"])
 
 #: event kinds recorded by the kernel (names in :data:`EVENT_NAMES`)
-EV_SLIDE, EV_JAM, EV_UNJAM, EV_SLACK, EV_FORCE_CAP, EV_REVERSAL, EV_RELOAD = range(7)
-EVENT_NAMES = ("slide", "jam", "unjam", "slack", "force_cap", "reversal", "reload")
+EV_SLIDE, EV_JAM, EV_UNJAM, EV_SLACK, EV_FORCE_CAP, EV_REVERSAL, EV_RELOAD, EV_CONE = range(8)
+EVENT_NAMES = ("slide", "jam", "unjam", "slack", "force_cap", "reversal", "reload", "cone")
 _EV_SLIDE = wp.constant(EV_SLIDE)
 _EV_JAM = wp.constant(EV_JAM)
 _EV_UNJAM = wp.constant(EV_UNJAM)
@@ -85,6 +88,9 @@ _EV_SLACK = wp.constant(EV_SLACK)
 _EV_CAP = wp.constant(EV_FORCE_CAP)
 _EV_REVERSAL = wp.constant(EV_REVERSAL)
 _EV_RELOAD = wp.constant(EV_RELOAD)
+_EV_CONE = wp.constant(EV_CONE)
+_EVENT_TOL = wp.constant(wp.float64(EVENT_TOL))
+_PROBE_STEP = wp.constant(wp.float64(PROBE_STEP))
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -122,6 +128,7 @@ class Material:
     dahl: int
     hong: int
     mirror: int
+    closure: int  # 1: "release_beta" stick closure (knitsim.cell.stages.STICK_CLOSURES)
 
 
 # ------------------------------------------------------------------ Newton
@@ -469,13 +476,29 @@ def event_value(kind: int, q: vecQd, stage: int, mat: Material) -> wp.float64:
         v = q[Q_F] - mat.cap
     elif kind == _EV_SLACK:
         v = -q[Q_F]
+    elif kind == _EV_CONE:
+        if stage == SF_UNLOAD:
+            v = q[Q_PHI] - mat.phimax
+        else:
+            v = -mat.phimax - q[Q_PHI]
     return v
 
 
 @wp.func
-def event_active(kind: int, stage: int, jammed: int, mat: Material) -> wp.bool:
+def event_tol(kind: int, mat: Material) -> wp.float64:
+    """Zero of an event function at the start of a sub-step (stages.EVENT_TOL; times d for W)."""
+    t = _EVENT_TOL
+    if kind == _EV_JAM or kind == _EV_UNJAM:
+        t = _EVENT_TOL * mat.d
+    return t
+
+
+@wp.func
+def event_active(kind: int, stage: int, jammed: int, soft: int, mat: Material) -> wp.bool:
     ok = bool(False)
-    if kind == _EV_SLIDE:
+    if kind == _EV_CONE:
+        ok = mat.dahl == 0 and mat.m > wp.float64(0.0) and mat.closure != 0 and soft == Q_BETA and stage == SF_UNLOAD
+    elif kind == _EV_SLIDE:
         ok = mat.dahl == 0 and mat.m > wp.float64(0.0) and (stage == SF_LOAD or stage == SF_UNLOAD)
     elif kind == _EV_JAM:
         ok = jammed == 0
@@ -502,6 +525,11 @@ def event_condition(kind: int, stage: int, mat: Material):
     elif kind == _EV_SLACK:
         code = int(Q_F)
         tg = wp.float64(0.0)
+    elif kind == _EV_CONE:
+        code = int(Q_PHI)
+        tg = -mat.phimax
+        if stage == SF_UNLOAD:
+            tg = mat.phimax
     return code, tg
 
 
@@ -516,6 +544,12 @@ def transition(kind: int, stage: int, jammed: int, soft: int, frozen_soft: wp.fl
             stage = int(S_UNLOAD)
             soft = int(Q_T)
         frozen_soft = q[soft]
+    elif kind == _EV_CONE:
+        # stick kept, the beta closure released: T (SF-) or Rn (SF+) frozen from here
+        soft = int(Q_RN)
+        if stage == SF_UNLOAD:
+            soft = int(Q_T)
+        frozen_soft = q[soft]
     elif kind == _EV_JAM:
         jammed = 1
     elif kind == _EV_UNJAM:
@@ -525,6 +559,12 @@ def transition(kind: int, stage: int, jammed: int, soft: int, frozen_soft: wp.fl
     elif kind == _EV_CAP:
         status = int(ST_CAP)
     return stage, jammed, soft, frozen_soft, status
+
+
+@wp.func
+def locatable(kind: int) -> wp.bool:
+    """Events found by their event function (unjam is the active-set check; reversal, reload are imposed)."""
+    return kind == _EV_SLIDE or kind == _EV_JAM or kind == _EV_SLACK or kind == _EV_CAP or kind == _EV_CONE
 
 
 @wp.func
@@ -565,6 +605,24 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
                 good = bool(okk)
         xt = xx
     return xt, qt, good
+
+
+@wp.func
+def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                  mat: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
+    """Whether the cone event happens at the cell's C itself (CellCycle._cone_at_start): its function
+    is zero there (reversal from sliding) and a probe step of PROBE_STEP C0 toward the target
+    leaves the cone, or fails."""
+    out = bool(False)
+    if event_active(_EV_CONE, stage, jammed, soft, mat):
+        f0 = event_value(_EV_CONE, q, stage, mat)
+        if wp.abs(f0) <= event_tol(_EV_CONE, mat):
+            h = _PROBE_STEP * mat.C0
+            if C_target < C:
+                h = -h
+            xp, qp, okp = solve_coulomb(x, stage, jammed, soft, fs, fsbc, mat, C + h, -1, wp.float64(0.0))
+            out = (not okp) or event_value(_EV_CONE, qp, stage, mat) > wp.float64(0.0)
+    return out
 
 
 @wp.func
@@ -788,7 +846,7 @@ def step_kernel(
     phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
     djam: wp.array(dtype=wp.float64),
     friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    max_halvings: int,
+    max_halvings: int, closure: int,
     # state in
     x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
     stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
@@ -809,6 +867,7 @@ def step_kernel(
     """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
     i = wp.tid()
     mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload)
+    mat.closure = closure
     q = vecQd()
     for k in range(N_QUANTITIES):
         q[k] = q_in[i, k]
@@ -871,6 +930,17 @@ def step_kernel(
             if wp.abs(step) > wp.abs(C_target - C_from):
                 step = C_target - C_from
             C_goal = C_from + step
+            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, mat, C, C_target):
+                lbl_from = stage_label(stage, jammed)
+                stage, jammed, soft, fs, status = transition(_EV_CONE, stage, jammed, soft, fs, status, q)
+                if n_ev < _MAXEV:
+                    e_kind[n_ev] = _EV_CONE
+                    e_C[n_ev] = C
+                    e_from[n_ev] = lbl_from
+                    e_to[n_ev] = stage_label(stage, jammed)
+                n_ev += 1
+                n_located += 1
+                continue
             xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, mat, C_from, C_goal)
             if not ok:
                 failures += 1
@@ -879,24 +949,29 @@ def step_kernel(
                     break
                 step = step * wp.float64(0.5)
                 continue
-            failures = 0
             # events fired inside the increment
             best_kind = int(-1)
             best_C = wp.float64(0.0)
             best_x = x
             best_q = q
             any_fired = bool(False)
-            for kind in range(5):
-                if kind != _EV_UNJAM and event_active(kind, stage, jammed, mat):
+            for kind in range(8):
+                if locatable(kind) and event_active(kind, stage, jammed, soft, mat):
                     f0 = event_value(kind, q, stage, mat)
                     f1 = event_value(kind, qt, stage, mat)
-                    if f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
+                    tol = event_tol(kind, mat)
+                    if f1 > wp.float64(0.0) and f0 <= tol:
                         any_fired = True
-                        code, etg = event_condition(kind, stage, mat)
-                        xg = lerp5(x, xt, interp_t(f0, f1))
-                        xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
-                        if not oke:
-                            xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                        xe = x
+                        qe = q
+                        oke = bool(True)
+                        if f0 < -tol:
+                            code, etg = event_condition(kind, stage, mat)
+                            xg = lerp5(x, xt, interp_t(f0, f1))
+                            xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                            if not oke:
+                                xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                        # else: already satisfied at the start of the sub-step, it happens there
                         if oke and in_range(qe[Q_C], C_from, C_goal):
                             if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
                                 best_kind = kind
@@ -908,7 +983,14 @@ def step_kernel(
                 xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0))
                 if oku and qu[Q_W] >= mat.w_jam:
                     any_fired = True
-                    xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, mat, C_goal, Q_W, mat.w_jam)
+                    # the unjammed branch at the start: at the reversal from a jammed
+                    # state it passes through the jammed state itself (event at the start)
+                    xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, mat, C_from, -1, wp.float64(0.0))
+                    xe = x
+                    qe = q
+                    oke = bool(True)
+                    if not (oka and qa[Q_W] - mat.w_jam >= -event_tol(_EV_UNJAM, mat)):
+                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, mat, C_goal, Q_W, mat.w_jam)
                     if oke and in_range(qe[Q_C], C_from, C_goal):
                         if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
                             best_kind = int(_EV_UNJAM)
@@ -916,14 +998,22 @@ def step_kernel(
                             best_x = xe
                             best_q = qe
             if not any_fired:
+                failures = 0
                 x = xt
                 q = qt
                 C = C_goal
                 step = step * wp.float64(2.0)
                 continue
             if best_kind < 0:
-                status = int(ST_NOT_LOCATED)
-                break
+                # the trial end fired an event its branch cannot reach: the solve jumped
+                # to another branch; retried on a halved sub-step (CellCycle.advance)
+                failures += 1
+                if failures > max_halvings:
+                    status = int(ST_NOT_LOCATED)
+                    break
+                step = step * wp.float64(0.5)
+                continue
+            failures = 0
             lbl_from = stage_label(stage, jammed)
             x = best_x
             q = best_q
@@ -972,11 +1062,18 @@ def step_kernel(
                                 best_C = wp.float64(0.0)
                                 best_x = tx
                                 best_q = tq
-                                for kind in range(5):
-                                    if kind != _EV_UNJAM and event_active(kind, tstage, tjam, mat):
+                                for kind in range(8):
+                                    if locatable(kind) and event_active(kind, tstage, tjam, tsoft, mat):
                                         f0 = event_value(kind, tq, tstage, mat)
                                         f1 = event_value(kind, qt, tstage, mat)
-                                        if f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
+                                        if f1 > wp.float64(0.0) and f0 >= -event_tol(kind, mat) and f0 <= event_tol(kind, mat):
+                                            # already satisfied at the start: it happens there
+                                            if best_kind < 0 or wp.abs(tC - tC) < wp.abs(best_C - tC):
+                                                best_kind = kind
+                                                best_C = tC
+                                                best_x = tx
+                                                best_q = tq
+                                        elif f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
                                             code, etg = event_condition(kind, tstage, mat)
                                             xg = lerp5(tx, xt, interp_t(f0, f1))
                                             se = s
@@ -1001,8 +1098,8 @@ def step_kernel(
                                         if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
                                             best_kind = int(_EV_UNJAM)
                                             best_C = Ck
-                                            best_x = xt
-                                            best_q = qt
+                                            best_x = xu  # the unjammed solution (W >= W_jam) at the sub-step end
+                                            best_q = qu
                                 if best_kind < 0:
                                     tx = xt
                                     tq = qt

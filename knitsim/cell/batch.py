@@ -39,7 +39,7 @@ from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
-from .stages import LABEL_CODES
+from .stages import LABEL_CODES, STICK_CLOSURES
 
 _LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
 
@@ -256,9 +256,15 @@ class CellSolver:
         cell is flagged ``no_convergence``.
     event_capacity : int, optional
         Events kept on the device (default 64 per cell); more are counted and dropped.
+    stick_closure : str
+        ``"release_beta"`` (default) or ``"table4"``: see :mod:`knitsim.cell.stages`.
     """
 
-    def __init__(self, model: CellModel, max_halvings: int = 6, event_capacity: int | None = None):
+    def __init__(self, model: CellModel, max_halvings: int = 6, event_capacity: int | None = None,
+                 stick_closure: str = "release_beta"):
+        if stick_closure not in STICK_CLOSURES:
+            raise KnitsimInputError(f"stick_closure = {stick_closure!r}: expected one of {', '.join(STICK_CLOSURES)}")
+        self.stick_closure = stick_closure
         if not (isinstance(max_halvings, (int, np.integer)) and 0 <= max_halvings <= 30):
             raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..30")
         self.model = model
@@ -276,7 +282,8 @@ class CellSolver:
         if n == 0:
             return
         wp.launch(_k().step_kernel, dim=n,
-                  inputs=self.model._arrays() + [self.max_halvings] + state_in._arrays()
+                  inputs=self.model._arrays() + [self.max_halvings, int(self.stick_closure == "release_beta")]
+                  + state_in._arrays()
                   + [control.strain, control.direction, int(increment)],
                   outputs=state_out._arrays() + [self._ev_count] + self._ev,
                   device=self.model.device)
@@ -301,7 +308,8 @@ class CellSolver:
 
 
 def run_batch(params, program: LoadProgram, device: str = "cpu",
-              progress: Callable[[int, int], None] | None = None, max_halvings: int = 6) -> BatchHistory:
+              progress: Callable[[int, int], None] | None = None, max_halvings: int = 6,
+              stick_closure: str = "release_beta") -> BatchHistory:
     """Run N cells through a strain program on a Warp device.
 
     Parameters
@@ -315,7 +323,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         when ``params`` is a model.
     progress : callable, optional
         ``progress(i, n)`` after each increment (no device sync).
-    max_halvings : int
+    max_halvings, stick_closure
         See :class:`CellSolver`.
 
     Returns
@@ -329,7 +337,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
     dev = model.device
     n, nc = len(program), model.cell_count
-    solver = CellSolver(model, max_halvings)
+    solver = CellSolver(model, max_halvings, stick_closure=stick_closure)
     s0, s1 = model.state(), CellBatchState.empty(nc, dev)
     control = model.control()
     codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)

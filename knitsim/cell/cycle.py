@@ -14,6 +14,9 @@ stage changes are *events* located inside the increment by a root search on C
   replaced by W = W_jam, W_jam = 4d or the W at which the heads touched;
 - ``unjam``: while unloading jammed, the unjammed branch has W >= W_jam again;
 - ``slack``: the force per wale reaches 0 while unloading;
+- ``cone``: in SF- with beta frozen, phi reaches +phimax (the stick branch
+  leaves the friction cone on the far side); beta is released and T frozen
+  (``stick_closure``, :mod:`knitsim.cell.stages`);
 - ``force_cap``: the force per wale reaches ``force_cap_N`` (the cell stops).
 
 Dahl friction (``friction = "dahl"``) replaces the stick/slide switch by the
@@ -54,7 +57,8 @@ from .inverse import initial_state, solve_state
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import UNKNOWN_NAMES
-from .stages import Stage, stage_label
+from ..errors import KnitsimInputError
+from .stages import EVENT_TOL, PROBE_STEP, STICK_CLOSURES, Stage, stage_label
 
 from .history import (  # noqa: E402  (re-exported)
     HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
@@ -129,10 +133,19 @@ class CellCycle:
         The cell (validated here).
     max_halvings : int
         How often a failed increment is halved before the cell is flagged.
+    stick_closure : str
+        What gives way when a stick stage whose soft condition is beta (Table 4
+        SF-, or the mirror SF+ on reloading) asks for a friction angle beyond
+        the cone on the far side: ``"release_beta"`` (default: event ``cone``,
+        the stick stays and beta is released for T / Rn) or ``"table4"`` (as
+        printed: no such event).  See :mod:`knitsim.cell.stages`.
     """
 
-    def __init__(self, params: CellParams, max_halvings: int = 6):
+    def __init__(self, params: CellParams, max_halvings: int = 6, stick_closure: str = "release_beta"):
         self.p = params.validated()
+        if stick_closure not in STICK_CLOSURES:
+            raise KnitsimInputError(f"stick_closure = {stick_closure!r}: expected one of {', '.join(STICK_CLOSURES)}")
+        self.stick_closure = stick_closure
         self.max_halvings = max_halvings
         self.phimax = self.p.phimax
 
@@ -238,6 +251,10 @@ class CellCycle:
                 ev["slide"] = lambda q: q["phi"] - self.phimax
             elif st.stage is Stage.SF_UNLOAD and p.m > 0:
                 ev["slide"] = lambda q: -self.phimax - q["phi"]
+                if st.soft == "beta" and self.stick_closure == "release_beta":
+                    # SF- (beta frozen) asks for friction beyond the cone on the far
+                    # side (+phimax): the beta closure, not the stick, gives way
+                    ev["cone"] = lambda q: q["phi"] - self.phimax
         if not st.jammed:
             if p.jamming_criterion == "head_gap":
                 ev["jam"] = lambda q: p.d_jam - q["head_gap"]  # heads touch (module head_gap)
@@ -257,6 +274,11 @@ class CellCycle:
                 st.stage, st.soft = Stage.S_LOAD, "Rn"
             else:
                 st.stage, st.soft = Stage.S_UNLOAD, "T"
+            st.frozen_soft = q[st.soft]
+        elif kind == "cone":
+            # stick kept (s_BC frozen), the beta closure released: SF- goes on with
+            # T frozen (Hong's rule) from here
+            st.soft = "T"
             st.frozen_soft = q[st.soft]
         elif kind == "jam":
             st.jammed = True
@@ -304,8 +326,20 @@ class CellCycle:
             return None
         return (x, q) if q["W"] >= st.w_jam else None
 
+    def _event_tol(self, kind: str) -> float:
+        """Tolerance below which an event function counts as zero (stages.EVENT_TOL)."""
+        unit = {"slide": 1.0, "cone": 1.0, "jam": self.p.d, "unjam": self.p.d, "slack": 1.0, "force_cap": 1.0}[kind]
+        return EVENT_TOL * unit
+
     def _locate(self, st: CellState, C_a: float, C_b: float, name: str, fun, unjam=False):
-        """Root of an event function on [C_a, C_b] along the stage's branch."""
+        """Root of an event function on [C_a, C_b] along the stage's branch.
+
+        An event whose function is already zero (within :data:`EVENT_TOL`) at
+        the start of the sub-step happens at the start (e.g. unjamming at the
+        reversal from a jammed state, where the unjammed branch passes through
+        the jammed state itself): no root search, whose bracket rounding could
+        miss.
+        """
         trial = st.copy()
         if unjam:
             trial.jammed = False
@@ -315,19 +349,24 @@ class CellCycle:
             trial.x = x                      # continuation guess only (Dahl reads trial.q)
             return fun(q) if not unjam else q["W"] - st.w_jam
 
-        try:
-            fa = e(C_a)
-        except _SolveFailed:
-            fa = None
+        tol = self._event_tol(name)
+        if unjam:
+            try:
+                fa = e(C_a)
+            except _SolveFailed:
+                fa = None
+        else:
+            fa = fun(st.q)                   # the state at C_a is the cell's own
         if fa is None and abs(st.q["R"]) <= 1e-9 * max(abs(st.q["P"]), 1e-12):
             fa = 1.0            # degenerate start: no contact force, phi undetermined
-        if fa is not None and fa > 0:
-            # the new branch starts past the event (e.g. reloading from slack, where
-            # R = 0 and the contact force leaves the friction cone at once): the
-            # event happens at the start of the sub-step
+        if fa is not None and fa >= -tol:
+            # the event holds at the start of the sub-step (e.g. reloading from
+            # slack, where R = 0 and the contact force leaves the friction cone at
+            # once, or unjamming at the reversal point): it happens there
             return C_a, st.x, dict(st.q)
         if fa is None:
             raise _SolveFailed(f"event {name}: no solution at the start of the sub-step")
+        trial.x = st.x
         fb = e(C_b)
         if fa * fb > 0:
             raise _SolveFailed(f"event {name} not bracketed")
@@ -337,6 +376,24 @@ class CellCycle:
             raise _SolveFailed(f"event {name}: {exc}") from None
         x, q = self.solve_at(trial, Ce, trial.x)
         return Ce, x, q
+
+    def _cone_at_start(self, st: CellState, C_target: float) -> bool:
+        """Whether the ``cone`` event happens at the cell's C itself.
+
+        At a reversal from sliding (phi = +/-phimax) the cone function is zero
+        at the start; whether the beta-frozen stick branch leaves the cone is
+        then judged on a probe step of PROBE_STEP C0 toward the target (or the
+        branch does not continue at all: the closure gives way as well).
+        """
+        fun = self.event_functions(st).get("cone")
+        if fun is None or abs(fun(st.q)) > self._event_tol("cone"):
+            return False
+        C_p = st.C + math.copysign(PROBE_STEP * self.p.C0, C_target - st.C)
+        try:
+            _, q = self.solve_at(st, C_p)
+        except _SolveFailed:
+            return True
+        return fun(q) > 0
 
     def advance(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
         """Move the cell from its C to ``C_target`` on its branch, handling events.
@@ -366,6 +423,14 @@ class CellCycle:
             if abs(step) > abs(C_target - C_from):
                 step = C_target - C_from
             C_goal = C_from + step
+            if self._cone_at_start(st, C_target):
+                before = stage_label(st.stage, st.jammed)
+                self._transition(st, "cone")
+                events.append({"increment": increment, "kind": "cone", "C": st.C, "from": before,
+                               "to": stage_label(st.stage, st.jammed),
+                               **{k: _with_gap(st.q, st.x, self.p.B, self.p.d)[k] for k in EVENT_QUANTITIES}})
+                n_events += 1
+                continue
             try:
                 x, q = self.solve_at(st, C_goal)
             except _SolveFailed:
@@ -375,13 +440,13 @@ class CellCycle:
                                        f"after {self.max_halvings} halvings") from None
                 step *= 0.5
                 continue
-            failures = 0
             evs = self.event_functions(st)
-            fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= 0]
+            fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= self._event_tol(k)]
             unjam = self._try_unjam(st, C_goal)
             if unjam is not None:
                 fired.append(("unjam", None))
             if not fired:
+                failures = 0
                 st.x, st.q, st.C = x, q, C_goal
                 step *= 2.0
                 continue
@@ -395,8 +460,15 @@ class CellCycle:
                 if best is None or abs(Ce - C_from) < abs(best[1] - C_from):
                     best = (kind, Ce, xe, qe)
             if best is None:
-                st.status, st.reason = STATUS_EVENT_NOT_LOCATED, f"could not locate {fired[0][0]}"
-                return st
+                # the trial end fired an event that its own branch cannot reach: the
+                # solve jumped to another branch; retried on a halved sub-step
+                failures += 1
+                if failures > self.max_halvings:
+                    st.status, st.reason = STATUS_EVENT_NOT_LOCATED, f"could not locate {fired[0][0]}"
+                    return st
+                step *= 0.5
+                continue
+            failures = 0
             kind, Ce, xe, qe = best
             before = stage_label(st.stage, st.jammed)
             if kind == "slack":
@@ -470,61 +542,78 @@ class CellCycle:
             st.stage = Stage.S_UNLOAD if sliding else Stage.SF_UNLOAD
 
     def _advance_dahl(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
-        """Dahl increment: the Dahl state moves with the solution (sub-stepped events)."""
+        """Dahl increment: the Dahl state moves with the solution (sub-stepped events).
+
+        A failed attempt is retried on 2, 4, ... equal sub-increments from the
+        same start; the events of a failed attempt are dropped (each attempt
+        collects its own).
+        """
         if st.status != STATUS_OK:
             return st
         C_from = st.C
         n = 1
         for _ in range(self.max_halvings + 1):
             trial = st.copy()
+            attempt: list = []
             try:
                 for k in range(1, n + 1):
                     C_k = C_from + (C_target - C_from) * k / n
-                    trial = self._dahl_step(trial, C_k, events, increment)
+                    trial = self._dahl_step(trial, C_k, attempt, increment)
                     if trial.status != STATUS_OK or trial.stage is Stage.SLACK:
                         break
+                events.extend(attempt)
                 return trial
             except _SolveFailed:
                 n *= 2
         raise _SolveFailed(f"Dahl: no convergence from C = {C_from:.6g} to {C_target:.6g} mm")
 
     def _dahl_step(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
-        x, q = self.solve_at(st, C_target)
-        evs = self.event_functions(st)
-        fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= 0]
-        unjam = self._try_unjam(st, C_target)
-        if not fired and unjam is None:
-            st.x, st.q, st.C = x, q, C_target
-            return st
-        kinds = [k for k, _ in fired] + (["unjam"] if unjam is not None else [])
-        funs = dict(fired)
-
-        # event along the Dahl path: bisection on C, each trial from the same start state
-        def e(C, kind):
-            _, qq = self.solve_at(st, C)
-            return funs[kind](qq) if kind != "unjam" else 0.0
-
-        best = None
-        for kind in kinds:
+        """One Dahl sub-step to C_target; events located by brentq on C (unjam: at C_target)."""
+        for _ in range(12):                       # at most a few events per sub-step
+            x, q = self.solve_at(st, C_target)
+            evs = self.event_functions(st)
+            fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= self._event_tol(k)]
+            unjam = self._try_unjam(st, C_target)
+            if not fired and unjam is None:
+                st.x, st.q, st.C = x, q, C_target
+                return st
+            best = None
+            for kind, fun in fired:
+                if fun(st.q) >= -self._event_tol(kind):
+                    Ce = st.C                      # already satisfied at the start
+                else:
+                    # event along the Dahl path: each trial from the same start state
+                    def e(C, fun=fun):
+                        return fun(self.solve_at(st, C)[1])
+                    try:
+                        Ce = brentq(e, st.C, C_target, xtol=1e-12 * C_target, maxiter=200)
+                    except ValueError as exc:      # not bracketed: the sub-step fails
+                        raise _SolveFailed(f"Dahl event {kind}: {exc}") from None
+                if best is None or abs(Ce - st.C) < abs(best[1] - st.C):
+                    best = (kind, Ce)
+            if unjam is not None and (best is None or abs(C_target - st.C) < abs(best[1] - st.C)):
+                # active set, resolved to the sub-step: the cell takes the unjammed
+                # solution at the sub-step's end, where it has W >= W_jam
+                best = ("unjam", C_target)
+            kind, Ce = best
             if kind == "unjam":
-                Ce = C_target
+                x, q = unjam
+            elif Ce == st.C:
+                x, q = st.x, dict(st.q)
             else:
-                Ce = brentq(lambda C: e(C, kind), st.C, C_target, xtol=1e-12 * C_target, maxiter=200)
-            if best is None or abs(Ce - st.C) < abs(best[1] - st.C):
-                best = (kind, Ce)
-        kind, Ce = best
-        x, q = self.solve_at(st, Ce)
-        before = stage_label(st.stage, st.jammed)
-        st.x, st.q, st.C = x, q, Ce
-        self._transition(st, kind)
-        events.append({"increment": increment, "kind": kind, "C": Ce, "from": before,
-                       "to": stage_label(st.stage, st.jammed)})
-        if st.status == STATUS_OK and st.stage is not Stage.SLACK and Ce != C_target:
-            return self._dahl_step(st, C_target, events, increment)
+                x, q = self.solve_at(st, Ce)
+            before = stage_label(st.stage, st.jammed)
+            st.x, st.q, st.C = x, q, Ce
+            self._transition(st, kind)
+            events.append({"increment": increment, "kind": kind, "C": Ce, "from": before,
+                           "to": stage_label(st.stage, st.jammed)})
+            if st.status != STATUS_OK or st.stage is Stage.SLACK or Ce == C_target:
+                return st
         return st
 
 
-def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6) -> BatchHistory:
+def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
+             stick_closure: str = "release_beta") -> BatchHistory:
     """Run one cell through a strain program (NumPy reference).
 
     Parameters
@@ -535,19 +624,21 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6) ->
         Imposed strains of the course length, ``C = C0 (1 + strain)``.
     max_halvings : int
         Retries of a failed increment on halved sub-increments.
+    stick_closure : str
+        ``"release_beta"`` (default) or ``"table4"``; see :mod:`knitsim.cell.stages`.
 
     Returns
     -------
     BatchHistory
         One row per increment, one column; ``events`` lists located stage changes.
     """
-    return CellCycle(params, max_halvings).run(program)
+    return CellCycle(params, max_halvings, stick_closure).run(program)
 
 
 def run_cells_reference(params: list[CellParams], program: LoadProgram,
-                        max_halvings: int = 6) -> BatchHistory:
+                        max_halvings: int = 6, stick_closure: str = "release_beta") -> BatchHistory:
     """Run many cells one at a time with the NumPy reference (the Warp batch's oracle)."""
-    return BatchHistory.stack([run_cell(p, program, max_halvings) for p in params])
+    return BatchHistory.stack([run_cell(p, program, max_halvings, stick_closure) for p in params])
 
 
 def dissipated_energy(strain: np.ndarray, force: np.ndarray) -> float:

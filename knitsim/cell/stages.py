@@ -21,7 +21,8 @@ stage       hard conditions (with C, L)   soft (frozen at entry)  events
 SF_LOAD     s_BC = frozen (stick)         Rn  (Table 4 SF)        phi -> +phimax
 S_LOAD      phi = +phimax                 Rn  (Table 4 S)         jam (W -> 4d)
 SF_UNLOAD   s_BC = frozen (stick)         beta (Table 4 SF-)      phi -> -phimax,
-                                          or T (Hong rule)        F -> 0
+                                          or T (Hong rule)        F -> 0,
+                                                                  cone (beta only)
 S_UNLOAD    phi = -phimax                 T   (Table 4 S-)        F -> 0
 SLACK       (none: the cell went slack at F = 0 while unloading and carries no
             load until the imposed C returns to the C where it went slack)
@@ -45,6 +46,32 @@ Rules where Table 4 is silent (switchable; labelled in every output):
     ``"w_4d"``: W = 4d (Hong).  ``"head_gap"``: flag when the centreline
     distance between the heads of neighbouring loops of a course falls to d
     (the heads bulge beyond B, so this happens before W = 4d).
+``stick_closure`` (argument of the engines, not a CellParams field)
+    Table 4's SF- freezes beta and s_BC.  Reversing from sliding at +phimax,
+    that stick branch often needs phi > +phimax at once (E-glass/basalt cells,
+    m > ~0.15): phi runs to pi/2 within a strain of ~0.006 while F > 0, which
+    looks like a fold of C(phi) and defeated the strain-controlled solve.
+    Past +phimax the friction the closure asks for is not available, so the
+    closure, not the stick, is inadmissible there.
+    ``"release_beta"`` (default): event ``cone`` where phi reaches +phimax in
+    SF- with beta frozen (located like the other events, on the branch, the
+    state is continuous); from there the stick goes on (s_BC still frozen)
+    with T frozen at its value at the event (Hong's closure), until phi
+    reaches -phimax (slide, S-) or F = 0 (slack).  At the reversal from
+    sliding the cone function is zero at the start; a probe step of
+    ``PROBE_STEP`` C0 toward the target decides whether the branch leaves the
+    cone (or does not continue at all), and the event then happens at the
+    reversal point.  ``"table4"``: as printed (no such event; such cells stop
+    ``no_convergence``).
+``EVENT_TOL``
+    An event function within EVENT_TOL of zero (rad; times d for W; N for F)
+    at the start of a sub-step counts as satisfied there: the event happens at
+    the start, without a root search whose bracket rounding could miss it.
+    This is how unloading from a jammed state unjams at the reversal point
+    (the unjammed branch passes through the jammed state itself there).
+    A trial end that fires an event its own branch cannot reach (the solve
+    jumped to another branch) is retried on a halved sub-step; only when the
+    halvings run out is the cell flagged ``event_not_located``.
 ``force_cap_N``
     The jammed branch's force diverges at its limit strain: a cell stops,
     flagged ``force_cap``, when its force per wale reaches the cap.
@@ -97,3 +124,10 @@ UNLOADING_RULES = ("dusserre", "hong_constant_t")
 RELOAD_RULES = ("mirror_unloading", "freeze_rn")
 JAMMING_CRITERIA = ("w_4d", "head_gap")
 FRICTION_MODELS = ("coulomb", "dahl")
+#: closures of a stick stage whose frozen beta asks for friction beyond the cone
+STICK_CLOSURES = ("release_beta", "table4")
+#: an event function within EVENT_TOL (rad, or times d for W, or N for F) of zero at the
+#: start of a sub-step counts as satisfied there: the event happens at the start
+EVENT_TOL = 1.0e-9
+#: probe step (times C0) that decides whether a ``cone`` event at zero at the start happens there
+PROBE_STEP = 1.0e-6

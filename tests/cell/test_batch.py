@@ -179,3 +179,75 @@ def test_solver_step_state_swap_matches_run_batch(device, cells):
         s0, s1 = s1, s0
     h = run_batch(cells, prog, device=device)
     np.testing.assert_array_equal(s0.values()["F"], h.values["F"][-1])
+
+
+# --- robustness events (issue: SF- leaving the friction cone, unloading from a jammed state)
+# cells 4 and 6 of the seeded draw (Dusserre's SF-, E-glass-like) leave the cone at
+# +phimax right after the reversal from sliding; cells 1 and 3 (basalt-like) jam
+# before 0.60 and unjam on unloading
+ROBUST_IDX = (4, 6, 1, 3)
+ROBUST_PROG = cycles(0.10, 0.60, 1, max_increment=0.05)
+
+
+@pytest.fixture(scope="module")
+def robust_cells():
+    every = _random_cells(12)
+    return [every[i] for i in ROBUST_IDX]
+
+
+@pytest.fixture(scope="module")
+def robust_reference(robust_cells):
+    return run_cells_reference(robust_cells, ROBUST_PROG)
+
+
+def test_batch_matches_reference_cone_and_unjam(device, robust_cells, robust_reference):
+    h = run_batch(robust_cells, ROBUST_PROG, device=device)
+    assert np.all(h.status == 0)
+    kinds = {(e["cell"], e["kind"]) for e in h.events}
+    assert {(0, "cone"), (1, "cone"), (2, "unjam"), (3, "unjam")} <= kinds
+    _assert_histories_agree(h, robust_reference)
+
+
+def test_cone_and_unjam_events_located(robust_reference):
+    # the event state satisfies its condition: phi = +phimax at the cone event
+    # (stages: "cone"), W = 4d at the unjam event (Hong's jamming limit), and the
+    # event's C lies inside its increment
+    r = robust_reference
+    for e in r.events:
+        if e["kind"] not in ("cone", "unjam"):
+            continue
+        p = r.params[e["cell"]]
+        if e["kind"] == "cone":
+            assert e["phi"] == pytest.approx(p.phimax, abs=1e-9)
+        else:
+            assert e["W"] == pytest.approx(4 * p.d_jam, abs=1e-8)
+        i = e["increment"]
+        C_prev = p.C0 * (1 + r.strain[i - 1])
+        C_here = p.C0 * (1 + r.strain[i])
+        assert min(C_prev, C_here) - 1e-12 <= e["C"] <= max(C_prev, C_here) + 1e-12
+    for v in r.values.values():
+        assert np.all(np.isfinite(v))
+
+
+def test_closed_cycle_dissipation_with_cone(device, robust_cells):
+    # second law on the closed strain loop of cycle 2 (0.10 -> 0.60 -> 0.10)
+    prog = cycles(0.10, 0.60, 2, max_increment=0.05)
+    h = run_batch(robust_cells[:2], prog, device=device)
+    assert np.all(h.status == 0)
+    rows = np.nonzero(h.cycle == 2)[0]
+    rows = np.concatenate([[rows[0] - 1], rows])   # 0.10 -> 0.60 -> 0.10: closed in strain
+    assert h.strain[rows[0]] == pytest.approx(h.strain[rows[-1]])
+    for i in range(h.n_cells):
+        assert dissipated_energy(h.strain[rows], h.values["F"][rows, i]) >= -1e-12
+
+
+@pytest.mark.slow
+def test_paper_program_1000_cells_fail_rarely():
+    # the paper's program (3 cycles 0.10-0.60, increment 0.01) on 1000 random cells;
+    # before the cone / at-start rules 358 ended no_convergence and 24 event_not_located
+    prog = cycles(0.10, 0.60, 3, max_increment=0.01)
+    h = run_batch(_random_cells(1000), prog, device="cpu")
+    for v in h.values.values():
+        assert np.all(np.isfinite(v))
+    failed = np.isin(h.status[-1], (1, 3)).sum()
+    assert failed <= 200  # after: 159 (154 + 5), mostly reloading from slack (see the report)

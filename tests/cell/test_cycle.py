@@ -215,3 +215,30 @@ def test_dahl_large_sigma_approaches_coulomb_hong():
     dl = run_cell(cell(m=m, friction="dahl", dahl_sigma=1e4), prog)
     assert np.all(dl.status == 0)
     np.testing.assert_allclose(dl.values["F"][-1, 0], c.values["F"][-1, 0], rtol=1e-3)
+
+
+def test_cone_event_releases_beta_on_unloading_from_sliding():
+    # Table 4's SF- (beta, s_BC frozen) reversed from sliding at +phimax asks for
+    # phi > +phimax soon (stages: "stick_closure"); the cone event is located
+    # on the branch with phi = +phimax, after which beta is released
+    p = cell(m=0.24)
+    prog = piecewise_linear([0, 0.6, 0.5], 0.05)
+    h = run_cell(p, prog)
+    assert np.all(h.status == 0)
+    cones = [e for e in h.events if e["kind"] == "cone"]
+    assert len(cones) == 1
+    assert cones[0]["phi"] == pytest.approx(p.phimax, abs=1e-9)
+    lo, hi = _bracket(h, cones[0])
+    assert lo - 1e-12 <= cones[0]["C"] <= hi + 1e-12
+    # it ends the stick within the first unloading increment (strain ~0.004 below the top)
+    rev = [e for e in h.events if e["kind"] == "reversal"][0]
+    assert cones[0]["increment"] == rev["increment"] and cones[0]["C"] <= rev["C"]
+    # S- follows with T frozen at the slide event (Table 4 S-), phi = -phimax
+    rows = h.stage[:, 0] == Stage.S_UNLOAD
+    assert rows.any()
+    np.testing.assert_allclose(h.values["phi"][rows, 0], -p.phimax, atol=1e-9)
+
+
+def test_stick_closure_checked():
+    with pytest.raises(KnitsimInputError):
+        CellCycle(cell(m=0.2), stick_closure="nope")
