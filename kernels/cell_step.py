@@ -47,7 +47,7 @@ from knitsim.cell.quantities import (
     Q_ALPHA, Q_BETA, Q_C, Q_F, Q_GAMMA, Q_L, Q_M, Q_P, Q_PHI, Q_R, Q_RN, Q_RT, Q_S_AB, Q_S_BC, Q_T, Q_W,
     Q_X_A, Q_X_B, Q_Y_B, Q_Y_C,
 )
-from knitsim.cell.stages import EVENT_TOL, LABEL_CODES, PROBE_STEP, Stage
+from knitsim.cell.stages import EVENT_TOL, LABEL_CODES, PROBE_STEP, RELOAD_RHO_SEED, ZERO_CONTACT, Stage
 
 from .elastica import (
     PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt,
@@ -91,6 +91,8 @@ _EV_RELOAD = wp.constant(EV_RELOAD)
 _EV_CONE = wp.constant(EV_CONE)
 _EVENT_TOL = wp.constant(wp.float64(EVENT_TOL))
 _PROBE_STEP = wp.constant(wp.float64(PROBE_STEP))
+_ZERO_CONTACT = wp.constant(wp.float64(ZERO_CONTACT))
+_RHO_SEED = wp.constant(wp.float64(RELOAD_RHO_SEED))
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -435,6 +437,21 @@ def stage_label(stage: int, jammed: int) -> int:
 
 
 @wp.func
+def no_contact(q: vecQd) -> wp.bool:
+    """The contact force vanishes: |R| <= ZERO_CONTACT P (phi undetermined; stages.ZERO_CONTACT)."""
+    return wp.abs(q[Q_R]) <= _ZERO_CONTACT * wp.max(wp.abs(q[Q_P]), wp.float64(1.0e-12))
+
+
+@wp.func
+def seed_contact(z: vec5d) -> vec5d:
+    """Newton start at a zero-contact state: R/P = RELOAD_RHO_SEED instead of 0 (singular there)."""
+    zs = z
+    if wp.abs(z[2]) <= _ZERO_CONTACT:
+        zs[2] = _RHO_SEED
+    return zs
+
+
+@wp.func
 def reverse(direction: int, q: vecQd, mat: Material, soft_old: int, fsoft_old: wp.float64):
     """Load reversal (CellCycle.reverse): returns (stage, soft, frozen_soft, frozen_sbc)."""
     frozen_sbc = q[Q_S_BC]
@@ -445,12 +462,15 @@ def reverse(direction: int, q: vecQd, mat: Material, soft_old: int, fsoft_old: w
         soft = int(Q_BETA)
         if mat.hong != 0 or mat.dahl != 0:
             soft = int(Q_T)
+        if no_contact(q):
+            # no contact force to unload: the cell is slack at once (CellCycle.reverse)
+            stage = int(SLACK)
     else:
         tiny = wp.abs(q[Q_RN]) < wp.float64(1.0e-9) * wp.max(q[Q_P], wp.float64(1.0e-12))
         if tiny and mat.mirror != 0 and mat.dahl == 0:
             soft = int(Q_BETA)
     fsoft = q[soft]
-    if mat.dahl == 0 and mat.m == wp.float64(0.0):
+    if mat.dahl == 0 and mat.m == wp.float64(0.0) and stage != SLACK:
         # frictionless: one curve for loading and unloading, the loading branch's
         # soft condition stays frozen (CellCycle.reverse)
         soft = soft_old
@@ -908,6 +928,7 @@ def step_kernel(
             go = False
         else:
             stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
+            x = seed_contact(x)
             if n_ev < _MAXEV:
                 e_kind[n_ev] = _EV_RELOAD
                 e_C[n_ev] = C
@@ -965,6 +986,16 @@ def step_kernel(
                         xe = x
                         qe = q
                         oke = bool(True)
+                        if f0 < -tol and no_contact(q):
+                            # phi is undetermined at a zero-contact start: judge the event on
+                            # a probe step (the new branch's limit); if it holds there, or the
+                            # probe fails, the event happens at the start
+                            hp = _PROBE_STEP * mat.C0
+                            if C_goal < C_from:
+                                hp = -hp
+                            xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, mat, C_from + hp, -1, wp.float64(0.0))
+                            if (not okp) or event_value(kind, qp, stage, mat) >= -tol:
+                                f0 = wp.float64(0.0)
                         if f0 < -tol:
                             code, etg = event_condition(kind, stage, mat)
                             xg = lerp5(x, xt, interp_t(f0, f1))

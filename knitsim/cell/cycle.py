@@ -58,7 +58,9 @@ from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import UNKNOWN_NAMES
 from ..errors import KnitsimInputError
-from .stages import EVENT_TOL, PROBE_STEP, STICK_CLOSURES, Stage, stage_label
+from .stages import (
+    EVENT_TOL, PROBE_STEP, RELOAD_RHO_SEED, STICK_CLOSURES, ZERO_CONTACT, Stage, stage_label,
+)
 
 from .history import (  # noqa: E402  (re-exported)
     HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
@@ -87,15 +89,11 @@ class CellState:
     status: int = STATUS_OK
     reason: str = ""
     w_jam: float = math.nan     # W held while jammed (4d, or W when the heads touched)
-    #: Newton guess for reloading from slack: at F = 0 the contact force R vanishes and
-    #: phi is undetermined (singular Jacobian), so reloading starts from the last
-    #: state before the slack event instead
-    x_reload: np.ndarray | None = None
 
     def copy(self) -> "CellState":
         return CellState(self.x.copy(), dict(self.q), self.stage, self.jammed, self.soft,
                          self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason,
-                         self.w_jam, None if self.x_reload is None else self.x_reload.copy())
+                         self.w_jam)
 
 
 #: per-increment values recorded by the reference only (not by the Warp batch):
@@ -122,6 +120,23 @@ def _q(result, B: float, d: float, gap: bool = True) -> dict:
          ("alpha", "beta", "gamma", "phi", "P", "W", "C", "L", "s_AB", "s_BC", "T", "M", "R", "Rn", "Rt", "F")}
     return _with_gap(q, result.x, B, d) if gap else q
 
+
+
+def _no_contact(q: dict) -> bool:
+    """|R| <= ZERO_CONTACT P: no contact force, phi undetermined (stages.ZERO_CONTACT)."""
+    return abs(q["R"]) <= ZERO_CONTACT * max(abs(q["P"]), 1e-12)
+
+
+def _seed_contact(x: np.ndarray, q: dict) -> np.ndarray:
+    """Newton start at a zero-contact state with R/P = RELOAD_RHO_SEED (singular at 0).
+
+    R/P = -sin(gamma) / cos(beta + phi) (eq 7), so gamma moves, alpha - gamma kept.
+    """
+    if not _no_contact(q):
+        return x
+    alpha, beta, gamma, phi, P = x
+    g = math.asin(max(-1.0, min(1.0, -RELOAD_RHO_SEED * math.cos(beta + phi))))
+    return np.array([g + (alpha - gamma), beta, g, phi, P])
 
 
 class CellCycle:
@@ -299,7 +314,7 @@ class CellCycle:
             # so the soft condition of the loading branch stays frozen
             st.stage = Stage.S_LOAD if direction > 0 else Stage.S_UNLOAD
             return
-        if direction < 0 and abs(q["R"]) <= 1e-9 * max(abs(q["P"]), 1e-12):
+        if direction < 0 and _no_contact(q):
             # no contact force to unload (e.g. reloaded at zero force after going
             # slack): the cell is slack at once
             st.stage = Stage.SLACK
@@ -357,8 +372,17 @@ class CellCycle:
                 fa = None
         else:
             fa = fun(st.q)                   # the state at C_a is the cell's own
-        if fa is None and abs(st.q["R"]) <= 1e-9 * max(abs(st.q["P"]), 1e-12):
-            fa = 1.0            # degenerate start: no contact force, phi undetermined
+        if fa is not None and fa < -tol and not unjam and _no_contact(st.q):
+            # phi is undetermined at a zero-contact start: judge the event on a probe
+            # step (the new branch's limit); if it holds there, or the probe fails,
+            # the event happens at the start
+            C_p = C_a + math.copysign(PROBE_STEP * self.p.C0, C_b - C_a)
+            try:
+                _, q_p = self.solve_at(trial, C_p, _seed_contact(st.x, st.q))
+                if fun(q_p) >= -tol:
+                    fa = 0.0
+            except _SolveFailed:
+                fa = 0.0
         if fa is not None and fa >= -tol:
             # the event holds at the start of the sub-step (e.g. reloading from
             # slack, where R = 0 and the contact force leaves the friction cone at
@@ -410,8 +434,7 @@ class CellCycle:
             if C_target <= st.C:
                 return st
             self.reverse(st, +1)
-            if st.x_reload is not None:
-                st.x = st.x_reload.copy()
+            st.x = _seed_contact(st.x, st.q)
             events.append({"increment": increment, "kind": "reload", "C": st.C})
         step = C_target - st.C
         failures = 0
@@ -471,8 +494,6 @@ class CellCycle:
             failures = 0
             kind, Ce, xe, qe = best
             before = stage_label(st.stage, st.jammed)
-            if kind == "slack":
-                st.x_reload = st.x.copy()
             st.x, st.q, st.C = xe, qe, Ce
             self._transition(st, kind)
             events.append({"increment": increment, "kind": kind, "C": Ce,

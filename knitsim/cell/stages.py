@@ -131,3 +131,12 @@ STICK_CLOSURES = ("release_beta", "table4")
 EVENT_TOL = 1.0e-9
 #: probe step (times C0) that decides whether a ``cone`` event at zero at the start happens there
 PROBE_STEP = 1.0e-6
+
+#: a state whose contact force R is below ZERO_CONTACT P has no contact force: its friction
+#: angle is undetermined (R = 0 makes phi drop out of every equation), so
+#: - unloading it goes slack at once (there is no load to remove);
+#: - reloading it starts Newton from R/P = RELOAD_RHO_SEED instead of 0 (a singular Jacobian);
+#: - an event fired in a sub-step that starts there is judged on a probe step of
+#:   PROBE_STEP C0 (the limit of the new branch), not on the undetermined phi of the start.
+ZERO_CONTACT = 1.0e-9
+RELOAD_RHO_SEED = 1.0e-3
