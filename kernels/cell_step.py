@@ -646,6 +646,21 @@ def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp
 
 
 @wp.func
+def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                   mat: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
+    """Whether a stick stage starting at zero contact force slides at once
+    (CellCycle._slide_at_start): judged on a probe step of PROBE_STEP C0 from R/P = RELOAD_RHO_SEED."""
+    out = bool(False)
+    if (stage == SF_LOAD or stage == SF_UNLOAD) and mat.m > wp.float64(0.0) and no_contact(q):
+        h = _PROBE_STEP * mat.C0
+        if C_target < C:
+            h = -h
+        xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, mat, C + h, -1, wp.float64(0.0))
+        out = (not okp) or event_value(_EV_SLIDE, qp, stage, mat) >= -event_tol(_EV_SLIDE, mat)
+    return out
+
+
+@wp.func
 def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
@@ -951,11 +966,16 @@ def step_kernel(
             if wp.abs(step) > wp.abs(C_target - C_from):
                 step = C_target - C_from
             C_goal = C_from + step
+            kind0 = int(-1)
             if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, mat, C, C_target):
+                kind0 = int(_EV_CONE)
+            elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, mat, C, C_target):
+                kind0 = int(_EV_SLIDE)
+            if kind0 >= 0:
                 lbl_from = stage_label(stage, jammed)
-                stage, jammed, soft, fs, status = transition(_EV_CONE, stage, jammed, soft, fs, status, q)
+                stage, jammed, soft, fs, status = transition(kind0, stage, jammed, soft, fs, status, q)
                 if n_ev < _MAXEV:
-                    e_kind[n_ev] = _EV_CONE
+                    e_kind[n_ev] = kind0
                     e_C[n_ev] = C
                     e_from[n_ev] = lbl_from
                     e_to[n_ev] = stage_label(stage, jammed)

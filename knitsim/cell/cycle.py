@@ -419,6 +419,27 @@ class CellCycle:
             return True
         return fun(q) > 0
 
+    def _slide_at_start(self, st: CellState, C_target: float) -> bool:
+        """Whether a stick stage starting at zero contact force slides at once.
+
+        With R = 0 (e.g. reloading from slack) phi is undetermined at the start,
+        so whether the contact force of the new branch lies in the friction cone
+        is judged on a probe step of PROBE_STEP C0 toward the target (Newton from
+        R/P = RELOAD_RHO_SEED); if the probe has no solution the contact cannot
+        stick either (stages.ZERO_CONTACT).
+        """
+        if self.p.friction != "coulomb" or st.stage not in (Stage.SF_LOAD, Stage.SF_UNLOAD):
+            return False
+        fun = self.event_functions(st).get("slide")
+        if fun is None or not _no_contact(st.q):
+            return False
+        C_p = st.C + math.copysign(PROBE_STEP * self.p.C0, C_target - st.C)
+        try:
+            _, q = self.solve_at(st, C_p, _seed_contact(st.x, st.q))
+        except _SolveFailed:
+            return True
+        return fun(q) >= -self._event_tol("slide")
+
     def advance(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
         """Move the cell from its C to ``C_target`` on its branch, handling events.
 
@@ -446,10 +467,12 @@ class CellCycle:
             if abs(step) > abs(C_target - C_from):
                 step = C_target - C_from
             C_goal = C_from + step
-            if self._cone_at_start(st, C_target):
+            at_start = ("cone" if self._cone_at_start(st, C_target)
+                        else "slide" if self._slide_at_start(st, C_target) else None)
+            if at_start is not None:
                 before = stage_label(st.stage, st.jammed)
-                self._transition(st, "cone")
-                events.append({"increment": increment, "kind": "cone", "C": st.C, "from": before,
+                self._transition(st, at_start)
+                events.append({"increment": increment, "kind": at_start, "C": st.C, "from": before,
                                "to": stage_label(st.stage, st.jammed),
                                **{k: _with_gap(st.q, st.x, self.p.B, self.p.d)[k] for k in EVENT_QUANTITIES}})
                 n_events += 1
