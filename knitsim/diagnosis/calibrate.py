@@ -1,0 +1,194 @@
+"""Baseline calibration of a cell's free parameters on measured curves.
+
+Least squares on the force per wale at the measured rows
+(:func:`scipy.optimize.least_squares`, trust region reflective, bounds).
+Each residual evaluation is ONE batched launch per distinct load program
+(:func:`knitsim.cell.batch.run_batch`): the k + 1 cells of the batch are the
+point itself and its k forward finite-difference perturbations, so the
+Jacobian comes with the residual and ``jac`` only reads the cache (least
+squares asks for the Jacobian at points whose residual it has evaluated).
+Curves that share their strain history share one launch.
+
+``phi0`` is parametrised as a fraction of phimax = atan(m) (eq 10;
+section 3.3.1 bounds phi0 to [-phimax, phimax]), in [-1, 1], so the bounds stay
+valid while m moves.
+
+Standard errors: ``cov = s^2 (J^T J)^-1`` with ``s^2 = rss / (n - k)``
+(Gauss-Newton, errors independent with one variance), mapped to (m, phi0)
+by the delta method through phi0 = f atan(m).
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..cell.batch import run_batch
+from ..cell.history import STATUS_NAMES
+from ..cell.material import CellParams
+from ..errors import KnitsimInputError
+from .gap import stage_keys
+from .measured import MeasuredCurve, force_at_rows, program_for_curve
+
+_FLOAT_FIELDS = ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma")
+
+
+def _to_params(base: CellParams, free: Sequence[str], x: np.ndarray) -> CellParams:
+    ch = dict(zip(free, (float(v) for v in x)))
+    m = ch.get("m", base.m)
+    if "phi0" in ch:
+        ch["phi0"] = ch["phi0"] * math.atan(m)
+    # replace() re-validates: a bad point is refused before any solve
+    return base.replace(**ch)
+
+
+def _default_bounds(base: CellParams, name: str) -> tuple[float, float]:
+    if name == "m":
+        return 0.0, 1.0
+    if name == "phi0":
+        return -1.0, 1.0
+    v = getattr(base, name)
+    return 0.5 * v, 2.0 * v
+
+
+def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "phi0"), bounds: dict | None = None,
+                       device: str = "cpu", max_increment: float = 0.005, rel_step: float = 1e-6,
+                       x0: dict | None = None, max_nfev: int = 50, ftol: float = 1e-10, xtol: float = 1e-10) -> dict:
+    """Fit the ``free`` parameters of ``base`` to measured curves.
+
+    Parameters
+    ----------
+    curves : MeasuredCurve or list of MeasuredCurve
+    base : CellParams
+        Fixed parameters, and the start point of the free ones.
+    free : sequence of str
+        Names of float fields of :class:`CellParams` to fit (``phi0`` as a
+        fraction of phimax, see the module docstring).
+    bounds : dict, optional
+        ``name -> (low, high)`` in the fitted variable (phi0: fraction in [-1, 1]);
+        default m in [0, 1], phi0 in [-1, 1], others 0.5x..2x their base value.
+    device : str
+        Warp device of the batches.
+    max_increment : float
+        Largest strain increment of the replay programs (:func:`program_for_curve`).
+    rel_step : float
+        Finite-difference step, times max(|x|, 1); taken backwards at an upper bound.
+    x0 : dict, optional
+        Start of the free variables (phi0 as a fraction); default from ``base``.
+    max_nfev, ftol, xtol
+        Passed to :func:`scipy.optimize.least_squares`.
+
+    Returns
+    -------
+    dict
+        ``params`` (fitted CellParams), ``values`` / ``std_errors`` (name -> float, in
+        the model's units, phi0 in rad), ``phi0_fraction`` (value, std error) when fitted,
+        ``rms_N``, ``rss_N2``, ``n``, ``k``, ``covariance`` (of ``values``), ``curves``
+        (per curve: strain, measured, simulated, labels, keys, status), ``nfev``,
+        ``njev``, ``n_batch_calls``, ``success``, ``message``.
+    """
+    if isinstance(curves, MeasuredCurve):
+        curves = [curves]
+    curves = list(curves)
+    if not curves or not all(isinstance(c, MeasuredCurve) for c in curves):
+        raise KnitsimInputError("curves: expected one or more MeasuredCurve")
+    free = tuple(free)
+    for name in free:
+        if name not in _FLOAT_FIELDS:
+            raise KnitsimInputError(f"free = {name!r}: expected float fields of CellParams ({', '.join(_FLOAT_FIELDS)})")
+    if len(set(free)) != len(free) or not free:
+        raise KnitsimInputError(f"free = {free!r}: expected distinct names, at least one")
+    base = base.validated(where="base")
+    bounds = dict(bounds or {})
+    lo, hi = np.empty(len(free)), np.empty(len(free))
+    for j, name in enumerate(free):
+        lo[j], hi[j] = bounds.get(name, _default_bounds(base, name))
+        if not lo[j] < hi[j]:
+            raise KnitsimInputError(f"bounds[{name!r}] = ({lo[j]}, {hi[j]}): expected low < high")
+    pm = base.phimax
+    start = {n: getattr(base, n) for n in free}
+    if "phi0" in free:
+        start["phi0"] = base.phi0 / pm if pm > 0 else 0.0
+    start.update(x0 or {})
+    x_start = np.clip(np.array([start[n] for n in free], float), lo, hi)
+
+    # curves that share a strain history share one launch
+    groups: dict[tuple, list[int]] = {}
+    programs, rows = [], []
+    for i, c in enumerate(curves):
+        prog, r = program_for_curve(c, max_increment)
+        programs.append(prog)
+        rows.append(r)
+        groups.setdefault(tuple(np.round(prog.strain, 15)), []).append(i)
+    group_list = [g for g in groups.values()]
+    n_rows = sum(len(c) for c in curves)
+    k = len(free)
+    if n_rows <= k:
+        raise KnitsimInputError(f"curves: {n_rows} measured rows cannot fit {k} parameters")
+
+    cache: dict[bytes, tuple] = {}
+    counter = {"calls": 0}
+
+    def steps(x):
+        h = rel_step * np.maximum(np.abs(x), 1.0)
+        return np.where(x + h > hi, -h, h)
+
+    def evaluate(x):
+        key = np.asarray(x, float).tobytes()
+        if key in cache:
+            return cache[key]
+        h = steps(x)
+        points = [x] + [x + h[j] * np.eye(k)[j] for j in range(k)]
+        cells = [_to_params(base, free, p) for p in points]
+        sims = [None] * len(curves)
+        for g in group_list:
+            counter["calls"] += 1
+            hist = run_batch(cells, programs[g[0]], device=device)
+            for i in g:
+                sims[i] = hist
+        r = np.concatenate([force_at_rows(sims[i], rows[i], 0)[0] - c.force for i, c in enumerate(curves)])
+        J = np.empty((n_rows, k))
+        for j in range(k):
+            rj = np.concatenate([force_at_rows(sims[i], rows[i], j + 1)[0] - c.force for i, c in enumerate(curves)])
+            J[:, j] = (rj - r) / h[j]
+        cache[key] = (r, J, sims)
+        return cache[key]
+
+    res = least_squares(lambda x: evaluate(x)[0], x_start, jac=lambda x: evaluate(x)[1], bounds=(lo, hi),
+                        method="trf", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=1e-12)
+    x = res.x
+    r, J, sims = evaluate(x)
+    rss = float(r @ r)
+    dof = n_rows - k
+    s2 = rss / dof
+    cov_x = s2 * np.linalg.pinv(J.T @ J)
+    # delta method to model units: only phi0 = f atan(m) is not the identity
+    G = np.eye(k)
+    if "phi0" in free:
+        jp = free.index("phi0")
+        m = x[free.index("m")] if "m" in free else base.m
+        f = x[jp]
+        G[jp, jp] = math.atan(m)
+        if "m" in free:
+            G[jp, free.index("m")] = f / (1.0 + m * m)
+    cov = G @ cov_x @ G.T
+    fitted = _to_params(base, free, x)
+    values = {n: float(getattr(fitted, n)) for n in free}
+    se = {n: float(math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(free)}
+    out_curves = []
+    for i, c in enumerate(curves):
+        fs, lab = force_at_rows(sims[i], rows[i], 0)
+        st = sims[i].status[:, 0]
+        out_curves.append({"source": c.source, "strain": c.strain, "measured": c.force, "simulated": fs,
+                           "labels": lab, "keys": stage_keys(lab, c.direction, c.cycle),
+                           "final_status": STATUS_NAMES[int(st[-1])]})
+    out = {"params": fitted, "free": free, "values": values, "std_errors": se, "covariance": cov,
+           "rms_N": math.sqrt(rss / n_rows), "rss_N2": rss, "n": n_rows, "k": k, "curves": out_curves,
+           "nfev": int(res.nfev), "njev": int(res.njev or 0), "n_batch_calls": counter["calls"],
+           "success": bool(res.success), "message": str(res.message)}
+    if "phi0" in free:
+        jp = free.index("phi0")
+        out["phi0_fraction"] = (float(x[jp]), float(math.sqrt(max(cov_x[jp, jp], 0.0))))
+    return out

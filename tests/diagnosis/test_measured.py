@@ -1,0 +1,71 @@
+"""Measured curve reading, branch inference and the replay program.
+
+Sources of the expected values: the CSV rules of :mod:`knitsim.diagnosis.measured`
+(row numbers count the header as row 1), branches derived by hand from the
+turning points of the strain history, and the definition of the replay program
+(every measured strain is an increment, with the branch of its row).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.diagnosis.measured import (curve_from_arrays, infer_branches, program_for_curve,
+                                        read_measured_curve)
+from knitsim.errors import KnitsimInputError
+
+
+def _write(tmp_path, text, name="curve.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text, where", [
+    ("strain\n0.1\n", "force_per_wale_N"),                                          # missing column
+    ("strain,force_per_wale_N\n0.1,0.2\n0.2,nan\n", "row 3, column force_per_wale_N"),
+    ("strain,force_per_wale_N\n0.1,0.2\n0.2,-0.01\n", "row 3, column force_per_wale_N"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,load\n0.3,0.2,load\n0.2,0.2,load\n", "row 4, column strain"),
+    ("strain,force_per_wale_N,direction\n0.3,0.1,load\n0.2,0.05,unload\n0.25,0.0,unload\n", "row 4, column strain"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n", "row 2, column direction"),
+    ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,0\n", "row 2, column rate_mm_s"),
+    ("strain,force_per_wale_N,cycle\n0.1,0.1,1\n0.0,0.0,1\n0.1,0.1,1\n", "row 4, column cycle"),
+])
+def test_csv_errors_name_row_and_column(tmp_path, text, where):
+    with pytest.raises(KnitsimInputError, match=where):
+        read_measured_curve(_write(tmp_path, text))
+
+
+def test_branches_inferred_from_turning_points():
+    # hand-derived: up to 0.2, down to 0, up to 0.2, down; a row at a turning point ends its branch
+    cyc, d = infer_branches([0.1, 0.2, 0.1, 0.0, 0.2, 0.1])
+    assert d.tolist() == [1, 1, -1, -1, 1, -1]
+    assert cyc.tolist() == [1, 1, 1, 1, 2, 2]
+
+
+def test_read_with_explicit_columns(tmp_path):
+    p = _write(tmp_path, "strain,force_per_wale_N,cycle,direction,rate_mm_s\n"
+               "0.1,0.1,1,load,1\n0.2,0.2,1,load,1\n0.1,0.0,1,unload,1\n0.15,0.05,2,load,1\n")
+    c = read_measured_curve(p)
+    assert c.direction.tolist() == [1, 1, -1, 1]
+    assert c.cycle.tolist() == [1, 1, 1, 2]
+    assert c.rate_mm_s.tolist() == [1.0] * 4
+
+
+def test_program_hits_every_measured_strain():
+    # uneven steps, a repeated strain, turning points not on the 0.02 grid, two cycles
+    s = [0.013, 0.05, 0.05, 0.177, 0.31, 0.2, 0.071, 0.25, 0.5, 0.33, 0.0]
+    c = curve_from_arrays(s, np.zeros(len(s)))
+    prog, rows = program_for_curve(c, 0.02)
+    assert np.all(rows >= 0)
+    np.testing.assert_allclose(prog.strain[rows], s, rtol=0, atol=1e-12)
+    assert prog.direction[rows].tolist() == c.direction.tolist()
+    assert prog.cycle[rows].tolist() == c.cycle.tolist()
+    assert np.max(np.abs(np.diff(np.concatenate([[0.0], prog.strain])))) <= 0.02 + 1e-12
+
+
+def test_program_row_at_rest_maps_to_rest():
+    c = curve_from_arrays([0.0, 0.1, 0.0], [0.0, 0.1, 0.0])
+    prog, rows = program_for_curve(c, 0.02)
+    assert rows[0] == -1 and len(prog) == 10
+    np.testing.assert_allclose(prog.strain[rows[1:]], [0.1, 0.0], atol=1e-12)
