@@ -43,21 +43,15 @@ import warp as wp
 from knitsim.cell.history import (
     STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NO_CONVERGENCE, STATUS_OK,
 )
-from knitsim.cell.quantities import (
-    Q_ALPHA, Q_BETA, Q_C, Q_F, Q_GAMMA, Q_L, Q_M, Q_P, Q_PHI, Q_R, Q_RN, Q_RT, Q_S_AB, Q_S_BC, Q_T, Q_W,
-    Q_X_A, Q_X_B, Q_Y_B, Q_Y_C,
-)
+from knitsim.cell.quantities import Q_BETA, Q_C, Q_F, Q_L, Q_P, Q_PHI, Q_R, Q_RN, Q_S_BC, Q_T, Q_W
 from knitsim.cell.stages import EVENT_TOL, LABEL_CODES, PROBE_STEP, RELOAD_RHO_SEED, ZERO_CONTACT, Stage
 
-from .elastica import (
-    PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt,
-    d_sub, d_tan, dual, elastica_ab, elastica_bc, vec5d,
-)
+from .elastica import PI, d_addc, d_const, d_exp, d_scale, d_seed, d_sub, d_tan, elastica_ab, vec5d
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
     STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
 )
-from .quarter_loop import N_QUANTITIES, CellEval, _put, matQ5d, quantity, vecQd
+from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_rho, vecQd
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
 
@@ -172,95 +166,9 @@ def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec5d, B:
 
 
 @wp.func
-def d_asin(a: Dual):
-    return dual(wp.asin(a.v), a.g / wp.sqrt(wp.float64(1.0) - a.v * a.v))
-
-
-@wp.func
 def sin_gamma(z: vec5d) -> wp.float64:
     """sin(gamma) = -(R/P) cos(beta + phi) (eq 7, R_Y = P sin gamma)."""
     return -z[2] * wp.cos(z[1] + z[3])
-
-
-@wp.func
-def quarter_loop_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, B: wp.float64, d: wp.float64):
-    """kernels.quarter_loop.quarter_loop with R/P = rho given instead of gamma (eqs 6-9).
-
-    sin(gamma) = -rho cos(beta + phi), k1' = cos(gamma) - rho sin(beta + phi) and
-    R = P rho (eq 7): no 0/0 where the contact force is horizontal at zero force
-    per wale (beta + phi = pi/2, gamma = 0), a point the slack event and SF+
-    from phi0 < 0 land on.  The assembly otherwise repeats quarter_loop line by
-    line (same elastica_ab / elastica_bc calls); a shared core taking k1' and R
-    would remove the repetition.
-    """
-    half = wp.float64(0.5)
-    hd = half * d
-    bp = d_add(beta, phi)
-    cbp = d_cos(bp)
-    sbp = d_sin(bp)
-    sg = d_neg(d_mul(rho, cbp))
-    gamma = d_asin(sg)
-    cg = d_cos(gamma)
-    alpha = d_add(gamma, a)
-    b = d_sub(beta, gamma)
-    lam = d_sqrt(d_div(d_const(B), P))
-
-    s_ab, x0, y0 = elastica_ab(a, b)  # eq 8
-    s_ab = d_mul(lam, s_ab)
-    x0 = d_mul(lam, x0)
-    y0 = d_mul(lam, y0)
-    dX_ab = d_sub(d_mul(x0, cg), d_mul(y0, sg))
-    Y_B = d_add(d_mul(x0, sg), d_mul(y0, cg))
-
-    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
-    T = d_neg(d_mul(P, k1p))
-    R = d_mul(P, rho)
-    Rn = d_mul(R, d_cos(phi))
-    Rt = d_mul(R, d_sin(phi))
-    F = d_scale(d_mul(P, sg), wp.float64(2.0))
-
-    D = d_scale(d_mul(d_sin(d_scale(d_add(b, a), half)), d_sin(d_scale(d_sub(b, a), half))), wp.float64(2.0))
-    s_bc, xb, dy, thc = elastica_bc(D, k1p, beta)  # eq 9
-    s_bc = d_mul(lam, s_bc)
-    X_B = d_mul(lam, xb)
-    Y_C = d_add(Y_B, d_mul(lam, dy))
-    M = d_mul(P, d_add(y0, d_mul(k1p, d_sub(Y_C, Y_B))))
-
-    sb = d_sin(beta)  # eq 6
-    X_A = d_sub(X_B, dX_ab)
-    W = d_scale(d_sub(X_B, d_scale(sb, hd)), wp.float64(4.0))
-    C = d_scale(d_add(Y_B, d_scale(d_cos(beta), hd)), wp.float64(2.0))
-    L = d_scale(d_add(s_ab, s_bc), wp.float64(4.0))
-    g = d_sub(dX_ab, d_scale(sb, hd))
-
-    q = vecQd()
-    dq = matQ5d()
-    q, dq = _put(q, dq, Q_ALPHA, alpha)
-    q, dq = _put(q, dq, Q_BETA, beta)
-    q, dq = _put(q, dq, Q_GAMMA, gamma)
-    q, dq = _put(q, dq, Q_PHI, phi)
-    q, dq = _put(q, dq, Q_P, P)
-    q, dq = _put(q, dq, Q_W, W)
-    q, dq = _put(q, dq, Q_C, C)
-    q, dq = _put(q, dq, Q_L, L)
-    q, dq = _put(q, dq, Q_S_AB, s_ab)
-    q, dq = _put(q, dq, Q_S_BC, s_bc)
-    q, dq = _put(q, dq, Q_X_A, X_A)
-    q, dq = _put(q, dq, Q_X_B, X_B)
-    q, dq = _put(q, dq, Q_Y_B, Y_B)
-    q, dq = _put(q, dq, Q_Y_C, Y_C)
-    q, dq = _put(q, dq, Q_T, T)
-    q, dq = _put(q, dq, Q_M, M)
-    q, dq = _put(q, dq, Q_R, R)
-    q, dq = _put(q, dq, Q_RN, Rn)
-    q, dq = _put(q, dq, Q_RT, Rt)
-    q, dq = _put(q, dq, Q_F, F)
-    out = CellEval()
-    out.q = q
-    out.dq = dq
-    out.g = g.v
-    out.dg = g.g
-    return out
 
 
 @wp.func

@@ -53,11 +53,14 @@ def _put(q: vecQd, dq: matQ5d, code: int, x: Dual):
 
 
 @wp.func
-def quarter_loop(a: Dual, beta: Dual, gamma: Dual, phi: Dual, P: Dual, B: wp.float64, d: wp.float64):
-    """Quantities of the quarter stitch from (alpha - gamma, beta, gamma, phi, P).
+def _assemble(a: Dual, beta: Dual, gamma: Dual, sg: Dual, cg: Dual, phi: Dual, P: Dual, k1p: Dual, R: Dual,
+              B: wp.float64, d: wp.float64):
+    """Eqs 6-9 from the unknowns plus sin/cos(gamma), k1' and R (eq 7).
 
-    B: bending stiffness [N mm^2]; d: yarn diameter [mm].  Call only on an
-    admissible state (:func:`admissible`).
+    The one assembly of the quarter stitch; :func:`quarter_loop` (gamma given)
+    and :func:`quarter_loop_rho` (R/P given) only differ in how they form
+    sin(gamma), cos(gamma), k1' and R, and their gradients carry the chain rule
+    of the chosen unknowns through.
     """
     half = wp.float64(0.5)
     hd = half * d
@@ -70,16 +73,11 @@ def quarter_loop(a: Dual, beta: Dual, gamma: Dual, phi: Dual, P: Dual, B: wp.flo
     s_ab = d_mul(lam, s_ab)
     x0 = d_mul(lam, x0)
     y0 = d_mul(lam, y0)
-    cg = d_cos(gamma)
-    sg = d_sin(gamma)
     dX_ab = d_sub(d_mul(x0, cg), d_mul(y0, sg))  # X_B - X_A (eq 8)
     Y_B = d_add(d_mul(x0, sg), d_mul(y0, cg))
 
     # equilibrium (eq 7)
-    bp = d_add(beta, phi)
-    k1p = d_add(cg, d_mul(sg, d_tan(bp)))
     T = d_neg(d_mul(P, k1p))
-    R = d_neg(d_div(d_mul(P, sg), d_cos(bp)))  # from R_Y = -R cos(beta + phi) = P sin(gamma)
     Rn = d_mul(R, d_cos(phi))
     Rt = d_mul(R, d_sin(phi))
     F = d_scale(d_mul(P, sg), wp.float64(2.0))  # two legs per wale
@@ -129,6 +127,47 @@ def quarter_loop(a: Dual, beta: Dual, gamma: Dual, phi: Dual, P: Dual, B: wp.flo
     out.g = g.v
     out.dg = g.g
     return out
+
+
+@wp.func
+def quarter_loop(a: Dual, beta: Dual, gamma: Dual, phi: Dual, P: Dual, B: wp.float64, d: wp.float64):
+    """Quantities of the quarter stitch from (alpha - gamma, beta, gamma, phi, P).
+
+    B: bending stiffness [N mm^2]; d: yarn diameter [mm].  Call only on an
+    admissible state (:func:`admissible`).
+    """
+    cg = d_cos(gamma)
+    sg = d_sin(gamma)
+    bp = d_add(beta, phi)
+    k1p = d_add(cg, d_mul(sg, d_tan(bp)))  # eq 7
+    R = d_neg(d_div(d_mul(P, sg), d_cos(bp)))  # from R_Y = -R cos(beta + phi) = P sin(gamma)
+    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, B, d)
+
+
+@wp.func
+def d_asin(a: Dual):
+    return dual(wp.asin(a.v), a.g / wp.sqrt(wp.float64(1.0) - a.v * a.v))
+
+
+@wp.func
+def quarter_loop_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, B: wp.float64, d: wp.float64):
+    """:func:`quarter_loop` with R/P = rho given instead of gamma (eqs 6-9).
+
+    sin(gamma) = -rho cos(beta + phi), k1' = cos(gamma) - rho sin(beta + phi) and
+    R = P rho (eq 7): no 0/0 where the contact force is horizontal at zero force
+    per wale (beta + phi = pi/2, gamma = 0), a point the slack event and SF+
+    from phi0 < 0 land on.  gamma = asin(sin gamma) carries the rho column of
+    the gradients (chain rule) into the shared assembly.
+    """
+    bp = d_add(beta, phi)
+    cbp = d_cos(bp)
+    sbp = d_sin(bp)
+    sg = d_neg(d_mul(rho, cbp))
+    gamma = d_asin(sg)
+    cg = d_cos(gamma)
+    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
+    R = d_mul(P, rho)
+    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, B, d)
 
 
 @wp.func
