@@ -19,9 +19,6 @@ Files are built in a hidden sibling directory and renamed in, ``summary.json`` l
 from __future__ import annotations
 
 import io
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +29,7 @@ from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES
 from ..patch.runner import PatchHistory
-from .results import _num, check_output_dir, summary_json
+from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
 PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
@@ -218,29 +215,16 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
                         fields: dict | None = None, plot: bool = True, cell_fields: bool = True,
                         title: str = "") -> dict[str, Path]:
     """Write the result set into ``out_dir`` atomically (``summary.json`` last); returns the files by name."""
-    out = check_output_dir(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
-    try:
-        files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h).encode(),
-                 "scene.resolved.toml": resolved_toml.encode()}
-        if cell_fields:
-            files["cells.nc"] = cells_nc(h, fields)
-        if plot:
-            files["force_strain.png"] = plot_force_strain(h, title)
-            files["strain_map.png"] = plot_map(h, "strain")
-            files["stage_map.png"] = plot_map(h, "stage")
-        files["summary.json"] = summary_json(summary).encode()
-        for name, data in files.items():
-            (tmp / name).write_bytes(data)
-        out.mkdir(exist_ok=True)
-        for name in reversed(PATCH_OUTPUT_FILES):
-            (out / name).unlink(missing_ok=True)
-        for name in files:
-            os.replace(tmp / name, out / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return {name: out / name for name in files}
+    files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h).encode(),
+             "scene.resolved.toml": resolved_toml.encode()}
+    if cell_fields:
+        files["cells.nc"] = cells_nc(h, fields)
+    if plot:
+        files["force_strain.png"] = plot_force_strain(h, title)
+        files["strain_map.png"] = plot_map(h, "strain")
+        files["stage_map.png"] = plot_map(h, "stage")
+    files["summary.json"] = summary_json(summary).encode()
+    return write_result_set(out_dir, files, PATCH_OUTPUT_FILES)
 
 
 __all__ = ["CURVE_COLUMNS", "PATCH_OUTPUT_FILES", "curve_csv", "columns_csv", "cells_dataset", "cells_nc",

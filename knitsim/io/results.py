@@ -349,21 +349,37 @@ def write_cell_results(out_dir: str | Path, history: BatchHistory, summary: dict
     dict of str to Path
         The written files by name.
     """
+    files = {"curve.csv": curve_csv(history).encode(), "events.csv": events_csv(history).encode(),
+             "scene.resolved.toml": resolved_toml.encode()}
+    if plot:
+        files["plot.png"] = plot_png(history, labels, title)
+    files["summary.json"] = summary_json(summary).encode()
+    return write_result_set(out_dir, files, OUTPUT_FILES)
+
+
+def write_result_set(out_dir: str | Path, files: dict[str, bytes], known_outputs) -> dict[str, Path]:
+    """Write a set of result files atomically, ``summary.json`` last.
+
+    The files are written into a hidden sibling directory, then the stale
+    ``known_outputs`` of an earlier run are removed from ``out_dir`` (summary
+    first: the set is incomplete from there) and the new files renamed in, in
+    the order given (summary.json last: its presence marks a complete set).
+
+    Returns
+    -------
+    dict of str to Path
+        The written files by name.
+    """
     out = check_output_dir(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
-        files = {"curve.csv": curve_csv(history).encode(), "events.csv": events_csv(history).encode(),
-                 "scene.resolved.toml": resolved_toml.encode()}
-        if plot:
-            files["plot.png"] = plot_png(history, labels, title)
-        files["summary.json"] = summary_json(summary).encode()
         for name, data in files.items():
             (tmp / name).write_bytes(data)
         out.mkdir(exist_ok=True)
-        for name in reversed(OUTPUT_FILES):        # summary.json first: the set is incomplete from here
+        for name in reversed(tuple(known_outputs)):
             (out / name).unlink(missing_ok=True)
-        for name in files:                         # summary.json last
+        for name in files:
             os.replace(tmp / name, out / name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
