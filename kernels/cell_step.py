@@ -46,6 +46,12 @@ from knitsim.cell.history import (
 from knitsim.cell.quantities import Q_BETA, Q_C, Q_F, Q_L, Q_P, Q_PHI, Q_R, Q_RN, Q_S_BC, Q_T, Q_W
 from knitsim.cell.stages import EVENT_TOL, LABEL_CODES, PROBE_STEP, RELOAD_RHO_SEED, ZERO_CONTACT, Stage
 
+from .effects import (
+    BIT_BENDING, BIT_COILING, BIT_COMPACTION, BIT_EXTENSION, BIT_NORMAL_LOAD, BIT_VELOCITY, E_B, E_D, E_L, E_M,
+    E_P0, E_RN0, E_Z, P_BEND_H, P_BEND_SIGMA, P_COIL_MU, P_COMP_K, P_COMP_MIN, P_EXT_C, P_LOAD_N, P_LOAD_REF,
+    P_RATE_P, P_RATE_REF, _M_MAX, coiling_friction, compaction_ratio, dahl_bending_state, extension_ratio, has,
+    normal_load_factor, velocity_factor,
+)
 from .elastica import PI, d_addc, d_const, d_exp, d_scale, d_seed, d_sub, d_tan, elastica_ab, vec5d
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
@@ -675,6 +681,84 @@ def read_material(
     return mat
 
 
+# ------------------------------------------------------------------ effects (issue 6)
+@wp.func
+def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64), r: int, q: vecQd,
+                  z_old: wp.float64, P_rest: wp.float64, Rn_rest: wp.float64, dstrain: wp.float64,
+                  rate: wp.float64):
+    """The cell's parameters for one increment with the effects of ``mask`` on (knitsim.cell.effects).
+
+    Read from the state at the start of the increment (increment-lagged); the
+    bending Dahl state is advanced over the increment's strain ``dstrain``.
+    Returns (material, z_bend).
+    """
+    m = mat.m
+    if has(mask, BIT_COILING):
+        m = coiling_friction(q[Q_BETA], params[r, P_COIL_MU])
+    if has(mask, BIT_NORMAL_LOAD):
+        m = m * normal_load_factor(q[Q_RN], params[r, P_LOAD_N], params[r, P_LOAD_REF])
+    if has(mask, BIT_VELOCITY):
+        m = m * velocity_factor(rate, params[r, P_RATE_P], params[r, P_RATE_REF])
+    if m != mat.m:
+        m = wp.min(m, _M_MAX)
+        mat.m = m
+        mat.phimax = wp.atan(m)
+    if has(mask, BIT_COMPACTION):
+        ratio = compaction_ratio(q[Q_RN], Rn_rest, params[r, P_COMP_K], params[r, P_COMP_MIN])
+        mat.d = mat.d * ratio
+        mat.w_jam = mat.w_jam * ratio
+    z = z_old
+    if has(mask, BIT_BENDING):
+        z = dahl_bending_state(z_old, dstrain, params[r, P_BEND_SIGMA])
+        mat.B = mat.B * (wp.float64(1.0) + params[r, P_BEND_H] * z)
+    if has(mask, BIT_EXTENSION):
+        mat.L = mat.L * extension_ratio(q[Q_P], P_rest, params[r, P_EXT_C])
+    return mat, z
+
+
+@wp.func
+def material_from_effective(mat: Material, m: wp.float64, d: wp.float64, L: wp.float64, B: wp.float64) -> Material:
+    """The material with the effective m, d, L, B of the state (jam width scaled with d)."""
+    out = mat
+    out.w_jam = mat.w_jam * (d / mat.d)
+    out.m = m
+    out.phimax = wp.atan(m)
+    out.d = d
+    out.L = L
+    out.B = B
+    return out
+
+
+@wp.func
+def blend_material(a: Material, b: Material, t: wp.float64) -> Material:
+    """Parameters a fraction t of the way from a to b (b itself at t >= 1)."""
+    out = b
+    if t < wp.float64(1.0):
+        out.m = a.m + (b.m - a.m) * t
+        out.phimax = wp.atan(out.m)
+        out.d = a.d + (b.d - a.d) * t
+        out.w_jam = a.w_jam + (b.w_jam - a.w_jam) * t
+        out.L = a.L + (b.L - a.L) * t
+        out.B = a.B + (b.B - a.B) * t
+    return out
+
+
+@wp.kernel
+def init_effects_kernel(
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    m: wp.array(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), eff: wp.array2d(dtype=wp.float64),
+):
+    """Effective state at rest: the given m, d, L, B, z = 0, and the rest values P_0, Rn_0."""
+    i = wp.tid()
+    eff[i, E_M] = m[i % m.shape[0]]
+    eff[i, E_D] = d[i % d.shape[0]]
+    eff[i, E_L] = L[i % L.shape[0]]
+    eff[i, E_B] = B[i % B.shape[0]]
+    eff[i, E_Z] = wp.float64(0.0)
+    eff[i, E_P0] = q[i, Q_P]
+    eff[i, E_RN0] = q[i, Q_RN]
+
+
 # ------------------------------------------------------------------ initial state
 @wp.func
 def closing_force(al: wp.float64, be: wp.float64, ga: wp.float64, B: wp.float64, d: wp.float64) -> wp.float64:
@@ -789,19 +873,23 @@ def step_kernel(
     phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
     djam: wp.array(dtype=wp.float64),
     friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
     max_halvings: int, closure: int,
     # state in
     x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
     stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
     fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
     status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32),
+    eff_in: wp.array2d(dtype=wp.float64),
     # control
-    strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), increment: int,
+    strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
+    increment: int,
     # state out
     x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
     stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
     fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
     status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32),
+    eff_out: wp.array2d(dtype=wp.float64),
     # events (append buffer; ev_count[0] counts every event, stored or not)
     ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
     ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
@@ -827,6 +915,20 @@ def step_kernel(
     dir_new = int(direction[i % direction.shape[0]])
     C_target = mat.C0 * (wp.float64(1.0) + strain[i % strain.shape[0]])
 
+    # --- effects (issue 6): this increment's parameters from the state at its start
+    mask = int(eff_mask[i % eff_mask.shape[0]])
+    z_bend = eff_in[i, E_Z]
+    # the parameters go linearly from those of the last increment (mat_old) to this one's (mat)
+    # along the increment, so that a sudden change of state (a reversal) cannot make them jump
+    mat_old = mat
+    if mask != 0:
+        de = (C_target - C) / mat.C0
+        if stage == SLACK and C_target <= C:
+            de = wp.float64(0.0)  # a slack loop does not bend
+        mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_D], eff_in[i, E_L], eff_in[i, E_B])
+        mat, z_bend = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
+                                    eff_in[i, E_RN0], de, rate[i % rate.shape[0]])
+
     # events of this increment (kind, C, from-label, to-label), committed at the end
     n_ev = int(0)
     e_kind = vec8i()
@@ -845,6 +947,7 @@ def step_kernel(
         n_ev += 1
 
     go = status == ST_OK
+
     # --- slack: no load until the imposed C returns to where the cell went slack
     if go and stage == SLACK:
         if C_target <= C:
@@ -865,6 +968,8 @@ def step_kernel(
         # max_halvings times in a row), a converged one doubles it back, and
         # events are checked on every sub-step (CellCycle.advance)
         step = C_target - C
+        C_start = C
+        matg = mat
         failures = int(0)
         n_located = int(0)
         for guard in range(MAX_SUBSTEPS):
@@ -874,10 +979,12 @@ def step_kernel(
             if wp.abs(step) > wp.abs(C_target - C_from):
                 step = C_target - C_from
             C_goal = C_from + step
+            if mask != 0:
+                matg = blend_material(mat_old, mat, (C_goal - C_start) / (C_target - C_start))
             kind0 = int(-1)
-            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, mat, C, C_target):
+            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
                 kind0 = int(_EV_CONE)
-            elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, mat, C, C_target):
+            elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
                 kind0 = int(_EV_SLIDE)
             if kind0 >= 0:
                 lbl_from = stage_label(stage, jammed)
@@ -890,7 +997,7 @@ def step_kernel(
                 n_ev += 1
                 n_located += 1
                 continue
-            xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, mat, C_from, C_goal)
+            xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
             if not ok:
                 failures += 1
                 if failures > max_halvings:
@@ -905,10 +1012,10 @@ def step_kernel(
             best_q = q
             any_fired = bool(False)
             for kind in range(8):
-                if locatable(kind) and event_active(kind, stage, jammed, soft, mat):
-                    f0 = event_value(kind, q, stage, mat)
-                    f1 = event_value(kind, qt, stage, mat)
-                    tol = event_tol(kind, mat)
+                if locatable(kind) and event_active(kind, stage, jammed, soft, matg):
+                    f0 = event_value(kind, q, stage, matg)
+                    f1 = event_value(kind, qt, stage, matg)
+                    tol = event_tol(kind, matg)
                     if f1 > wp.float64(0.0) and f0 <= tol:
                         any_fired = True
                         xe = x
@@ -918,18 +1025,18 @@ def step_kernel(
                             # phi is undetermined at a zero-contact start: judge the event on
                             # a probe step (the new branch's limit); if it holds there, or the
                             # probe fails, the event happens at the start
-                            hp = _PROBE_STEP * mat.C0
+                            hp = _PROBE_STEP * matg.C0
                             if C_goal < C_from:
                                 hp = -hp
-                            xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, mat, C_from + hp, -1, wp.float64(0.0))
-                            if (not okp) or event_value(kind, qp, stage, mat) >= -tol:
+                            xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
+                            if (not okp) or event_value(kind, qp, stage, matg) >= -tol:
                                 f0 = wp.float64(0.0)
                         if f0 < -tol:
-                            code, etg = event_condition(kind, stage, mat)
+                            code, etg = event_condition(kind, stage, matg)
                             xg = lerp5(x, xt, interp_t(f0, f1))
-                            xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                            xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
                             if not oke:
-                                xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, mat, C_goal, code, etg)
+                                xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
                         # else: already satisfied at the start of the sub-step, it happens there
                         if oke and in_range(qe[Q_C], C_from, C_goal):
                             if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
@@ -939,17 +1046,17 @@ def step_kernel(
                                 best_q = qe
             # active set while unloading jammed: the unjammed branch at the target
             if jammed != 0 and not is_loading(stage):
-                xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0))
-                if oku and qu[Q_W] >= mat.w_jam:
+                xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_goal, -1, wp.float64(0.0))
+                if oku and qu[Q_W] >= matg.w_jam:
                     any_fired = True
                     # the unjammed branch at the start: at the reversal from a jammed
                     # state it passes through the jammed state itself (event at the start)
-                    xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, mat, C_from, -1, wp.float64(0.0))
+                    xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_from, -1, wp.float64(0.0))
                     xe = x
                     qe = q
                     oke = bool(True)
-                    if not (oka and qa[Q_W] - mat.w_jam >= -event_tol(_EV_UNJAM, mat)):
-                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, mat, C_goal, Q_W, mat.w_jam)
+                    if not (oka and qa[Q_W] - matg.w_jam >= -event_tol(_EV_UNJAM, matg)):
+                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, Q_W, matg.w_jam)
                     if oke and in_range(qe[Q_C], C_from, C_goal):
                         if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
                             best_kind = int(_EV_UNJAM)
@@ -993,6 +1100,7 @@ def step_kernel(
     elif go:
         # ---------------------------------------------------- Dahl (sub-stepped on failure)
         C_start = C
+        matg = mat
         n_ev0 = n_ev
         nsub = int(1)
         done = bool(False)
@@ -1011,9 +1119,11 @@ def step_kernel(
                 for k in range(1, nsub + 1):
                     if not failed and tstatus == ST_OK and tstage != SLACK:
                         Ck = C_start + (C_target - C_start) * wp.float64(k) / wp.float64(nsub)
+                        if mask != 0:
+                            matg = blend_material(mat_old, mat, wp.float64(k) / wp.float64(nsub))
                         for loop in range(MAX_EVENT_LOOPS):
                             if not failed:
-                                xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, mat, Ck)
+                                xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, matg, Ck)
                                 if not ok:
                                     failed = True
                                     break
@@ -1022,10 +1132,10 @@ def step_kernel(
                                 best_x = tx
                                 best_q = tq
                                 for kind in range(8):
-                                    if locatable(kind) and event_active(kind, tstage, tjam, tsoft, mat):
-                                        f0 = event_value(kind, tq, tstage, mat)
-                                        f1 = event_value(kind, qt, tstage, mat)
-                                        if f1 > wp.float64(0.0) and f0 >= -event_tol(kind, mat) and f0 <= event_tol(kind, mat):
+                                    if locatable(kind) and event_active(kind, tstage, tjam, tsoft, matg):
+                                        f0 = event_value(kind, tq, tstage, matg)
+                                        f1 = event_value(kind, qt, tstage, matg)
+                                        if f1 > wp.float64(0.0) and f0 >= -event_tol(kind, matg) and f0 <= event_tol(kind, matg):
                                             # already satisfied at the start: it happens there
                                             if best_kind < 0 or wp.abs(tC - tC) < wp.abs(best_C - tC):
                                                 best_kind = kind
@@ -1033,14 +1143,14 @@ def step_kernel(
                                                 best_x = tx
                                                 best_q = tq
                                         elif f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
-                                            code, etg = event_condition(kind, tstage, mat)
+                                            code, etg = event_condition(kind, tstage, matg)
                                             xg = lerp5(tx, xt, interp_t(f0, f1))
                                             se = s
                                             if se == wp.float64(0.0):
                                                 se = wp.float64(1.0)  # stick solved it: xi = 0 either way
-                                            xe, qe, oke = solve_dahl(xg, tq, se, tjam, tsoft, tfs, mat, Ck, code, etg)
+                                            xe, qe, oke = solve_dahl(xg, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
                                             if not oke:
-                                                xe, qe, oke = solve_dahl(xt, tq, se, tjam, tsoft, tfs, mat, Ck, code, etg)
+                                                xe, qe, oke = solve_dahl(xt, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
                                             if not (oke and in_range(qe[Q_C], tC, Ck)):
                                                 failed = True  # the reference's root search raises
                                             elif best_kind < 0 or wp.abs(qe[Q_C] - tC) < wp.abs(best_C - tC):
@@ -1052,8 +1162,8 @@ def step_kernel(
                                     break
                                 # unjam (active set): the reference applies it at the target itself
                                 if tjam != 0 and not is_loading(tstage):
-                                    xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, mat, Ck)
-                                    if oku and qu[Q_W] >= mat.w_jam:
+                                    xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck)
+                                    if oku and qu[Q_W] >= matg.w_jam:
                                         if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
                                             best_kind = int(_EV_UNJAM)
                                             best_C = Ck
@@ -1110,6 +1220,14 @@ def step_kernel(
     fsbc_out[i] = fsbc
     status_out[i] = status
     direction_out[i] = dir_new
+    for k in range(eff_in.shape[1]):
+        eff_out[i, k] = eff_in[i, k]
+    if mask != 0:
+        eff_out[i, E_M] = mat.m
+        eff_out[i, E_D] = mat.d
+        eff_out[i, E_L] = mat.L
+        eff_out[i, E_B] = mat.B
+        eff_out[i, E_Z] = z_bend
     if n_ev > 0:
         nk = wp.min(n_ev, _MAXEV)
         base = wp.atomic_add(ev_count, 0, nk)
@@ -1144,3 +1262,12 @@ def record_kernel(
     hist_stage[row, i] = st
     hist_jammed[row, i] = jammed[i]
     hist_status[row, i] = status[i]
+
+
+@wp.kernel
+def record_columns_kernel(src: wp.array2d(dtype=wp.float64), cols: wp.array(dtype=wp.int32), row: int,
+                          hist: wp.array3d(dtype=wp.float64)):
+    """Write one history row of per-cell columns: hist[k, row, i] = src[i, cols[k]]."""
+    i = wp.tid()
+    for k in range(cols.shape[0]):
+        hist[k, row, i] = src[i, cols[k]]

@@ -34,6 +34,7 @@ import warp as wp
 from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
+from .effects import EFFECT_STATE, PARAM_COLUMNS
 from .history import HISTORY_QUANTITIES, STATUS_NAMES, STATUS_OK, BatchHistory
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
@@ -82,6 +83,10 @@ class CellModel:
         0 ``"dusserre"``, 1 ``"hong_constant_t"``.
     reload : int32
         0 ``"freeze_rn"``, 1 ``"mirror_unloading"``.
+    effect_mask : int32
+        Bits of the model extensions that are on (:data:`knitsim.cell.effects.EFFECT_BITS`).
+    effect_params : float64, shape ``[1 or cell_count, len(PARAM_COLUMNS)]``
+        Their parameters (:data:`knitsim.cell.effects.PARAM_COLUMNS`).
     cell_count : int
     params : list of CellParams
         The validated parameters (one per cell).
@@ -132,20 +137,28 @@ class CellModel:
             "unloading": [int(p.unloading_rule == "hong_constant_t") for p in checked],
             "reload": [int(p.reload_rule == "mirror_unloading") for p in checked],
         }
+        cols["effect_mask"] = [p.effects.mask for p in checked]
         arrays = {}
         for name, vals in cols.items():
             a = np.asarray(vals, dtype=np.float64 if name in _FLOAT_FIELDS else np.int32)
             if np.all(a == a[0]):
                 a = a[:1]  # broadcast (1 or N): a uniform parameter costs one value
             arrays[name] = wp.array(a, dtype=wp.float64 if name in _FLOAT_FIELDS else wp.int32, device=device)
+        rows = np.stack([p.effects.row() for p in checked])
+        if np.all(rows == rows[:1]):
+            rows = rows[:1]
+        arrays["effect_params"] = wp.array(rows, dtype=wp.float64, device=device)
         return cls(arrays, len(checked), checked, device)
 
     def _arrays(self) -> list:
         return [getattr(self, n) for n in _FLOAT_FIELDS + _INT_FIELDS]
 
+    def _effect_arrays(self) -> list:
+        return [self.effect_mask, self.effect_params]
+
     def nbytes(self) -> int:
         """Device bytes of the parameter arrays."""
-        return int(sum(a.capacity for a in self._arrays()))
+        return int(sum(a.capacity for a in self._arrays() + self._effect_arrays()))
 
     def state(self) -> "CellBatchState":
         """A state initialised to Table 4's initial state (C0, W0, L, phi0), solved on the device."""
@@ -153,12 +166,15 @@ class CellModel:
         starts = wp.array(np.asarray(DEFAULT_STARTS, dtype=np.float64), dtype=wp.float64, device=self.device)
         wp.launch(_k().init_kernel, dim=self.cell_count, inputs=self._arrays() + [starts],
                   outputs=st._arrays(), device=self.device)
+        wp.launch(_k().init_effects_kernel, dim=self.cell_count, inputs=[self.B, self.d, self.L, self.m, st.q],
+                  outputs=[st.eff], device=self.device)
         return st
 
     def control(self) -> "CellControl":
-        """A control (strain 0, loading) broadcast to every cell."""
+        """A control (strain 0, loading, no rate) broadcast to every cell."""
         return CellControl(wp.zeros(1, dtype=wp.float64, device=self.device),
-                           wp.ones(1, dtype=wp.int32, device=self.device))
+                           wp.ones(1, dtype=wp.int32, device=self.device),
+                           wp.zeros(1, dtype=wp.float64, device=self.device))
 
 
 @dataclass
@@ -183,6 +199,9 @@ class CellBatchState:
         :data:`~knitsim.cell.history.STATUS_NAMES` code.
     direction : int32 [N]
         Direction of the last increment (+1 loading, -1 unloading).
+    eff : float64 [N, len(EFFECT_STATE)]
+        Effective parameters of the last increment and the effects' own state
+        (:data:`knitsim.cell.effects.EFFECT_STATE`); the given ones where no effect is on.
     """
 
     x: wp.array
@@ -195,6 +214,11 @@ class CellBatchState:
     frozen_sbc: wp.array
     status: wp.array
     direction: wp.array
+    eff: wp.array | None = None
+
+    def __post_init__(self):
+        if self.eff is None:
+            self.eff = wp.zeros((int(self.C.shape[0]), len(EFFECT_STATE)), dtype=wp.float64, device=self.C.device)
 
     @classmethod
     def empty(cls, n: int, device: str) -> "CellBatchState":
@@ -214,7 +238,7 @@ class CellBatchState:
         return int(self.C.shape[0])
 
     def nbytes(self) -> int:
-        return int(sum(a.capacity for a in self._arrays()))
+        return int(sum(a.capacity for a in self._arrays() + [self.eff]))
 
     def values(self) -> dict[str, np.ndarray]:
         """Host copies of every quantity by name, shape [N]."""
@@ -232,17 +256,26 @@ class CellControl:
         Strain of the course length; each cell is driven to ``C = C0 (1 + strain)``.
     direction : int32 [1 or N]
         +1 loading, -1 unloading (a change triggers the Table 4 reversal).
+    rate : float64 [1 or N]
+        Test (crosshead) rate of the increment [mm/s], read by ``velocity_friction``
+        only; 0 means not given (no velocity effect).
     """
 
     strain: wp.array
     direction: wp.array
+    rate: wp.array | None = None
 
-    def set(self, strain: float, direction: int) -> None:
-        """Impose one strain and direction on every cell (device fill, no host sync)."""
+    def __post_init__(self):
+        if self.rate is None:
+            self.rate = wp.zeros(1, dtype=wp.float64, device=self.strain.device)
+
+    def set(self, strain: float, direction: int, rate: float = 0.0) -> None:
+        """Impose one strain, direction (and test rate) on every cell (device fill, no host sync)."""
         if int(direction) not in (1, -1):
             raise KnitsimInputError(f"control.direction = {direction!r}: expected +1 or -1")
         self.strain.fill_(float(strain))
         self.direction.fill_(int(direction))
+        self.rate.fill_(float(rate))
 
 
 class CellSolver:
@@ -282,10 +315,11 @@ class CellSolver:
         if n == 0:
             return
         wp.launch(_k().step_kernel, dim=n,
-                  inputs=self.model._arrays() + [self.max_halvings, int(self.stick_closure == "release_beta")]
-                  + state_in._arrays()
-                  + [control.strain, control.direction, int(increment)],
-                  outputs=state_out._arrays() + [self._ev_count] + self._ev,
+                  inputs=self.model._arrays() + self.model._effect_arrays()
+                  + [self.max_halvings, int(self.stick_closure == "release_beta")]
+                  + state_in._arrays() + [state_in.eff]
+                  + [control.strain, control.direction, control.rate, int(increment)],
+                  outputs=state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev,
                   device=self.model.device)
 
     def events(self) -> list[dict]:
@@ -344,15 +378,26 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     hq = wp.zeros((len(HISTORY_QUANTITIES), n, nc), dtype=wp.float64, device=dev)
     hs, hj, hst = (wp.zeros((n, nc), dtype=wp.int32, device=dev) for _ in range(3))
     k = _k()
+    with_effects = any(p.effects.on for p in model.params)
+    if with_effects:
+        he = wp.zeros((len(EFFECT_STATE), n, nc), dtype=wp.float64, device=dev)
+        all_cols = wp.array(np.arange(len(EFFECT_STATE), dtype=np.int32), dtype=wp.int32, device=dev)
+    rate = program.rate
     for i in range(n):
-        control.set(float(program.strain[i]), int(program.direction[i]))
+        control.set(float(program.strain[i]), int(program.direction[i]), 0.0 if rate is None else float(rate[i]))
         solver.step(s0, s1, control, i)
         s0, s1 = s1, s0
         wp.launch(k.record_kernel, dim=nc, inputs=[s0.q, s0.stage, s0.jammed, s0.status, codes, i],
                   outputs=[hq, hs, hj, hst], device=dev)
+        if with_effects:
+            wp.launch(k.record_columns_kernel, dim=nc, inputs=[s0.eff, all_cols, i], outputs=[he], device=dev)
         if progress is not None:
             progress(i, n)
     hqn = hq.numpy()
+    values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
+    if with_effects:
+        hen = he.numpy()
+        values.update({name: hen[j] for j, name in enumerate(EFFECT_STATE)})
     status = hst.numpy()
     events = solver.events()
     for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
@@ -361,9 +406,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
                        "reason": STATUS_NAMES[int(status[i0, c])], "status": STATUS_NAMES[int(status[i0, c])]})
     events.sort(key=lambda e: (e["cell"], e["increment"], e["kind"] == "flag"))
     return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
-                        hs.numpy(), hj.numpy(), status,
-                        {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)},
-                        events, list(model.params))
+                        hs.numpy(), hj.numpy(), status, values, events, list(model.params))
 
 
 def memory_per_cell(model: CellModel, state: CellBatchState, n_increments: int) -> dict[str, float]:

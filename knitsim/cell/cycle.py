@@ -158,6 +158,9 @@ class CellCycle:
 
     def __init__(self, params: CellParams, max_halvings: int = 6, stick_closure: str = "release_beta"):
         self.p = params.validated()
+        if self.p.effects.on:
+            raise KnitsimInputError(f"effects = {list(self.p.effects.on)!r}: the model extensions run in the Warp "
+                                    "batch only (engine = 'warp'), not in the NumPy reference")
         if stick_closure not in STICK_CLOSURES:
             raise KnitsimInputError(f"stick_closure = {stick_closure!r}: expected one of {', '.join(STICK_CLOSURES)}")
         self.stick_closure = stick_closure

@@ -31,12 +31,16 @@ class LoadProgram:
         +1 while the strain increases (loading), -1 while it decreases.
     waypoints : tuple of float
         The piecewise-linear corners, starting at 0.
+    rate : ndarray or None, shape [n]
+        Test (crosshead) rate of each increment [mm/s], where known (a measured
+        curve's ``rate_mm_s``); read by the ``velocity_friction`` effect only.
     """
 
     strain: np.ndarray
     cycle: np.ndarray
     direction: np.ndarray
     waypoints: tuple[float, ...]
+    rate: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.strain)

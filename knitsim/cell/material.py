@@ -10,6 +10,7 @@ import math
 from dataclasses import asdict, dataclass, replace
 
 from ..errors import KnitsimInputError
+from .effects import NO_EFFECTS, EffectSet
 from .stages import FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
 
 
@@ -44,6 +45,9 @@ class CellParams:
         gap = jam_width); None means d.  The paper's d is the compact hexagonal
         packing diameter, used for bending; a loose roving is wider in the
         plane of the knit (docs/model.md, "Jamming"), hence >= d.
+    effects : EffectSet
+        Model extensions switched on (:mod:`knitsim.cell.effects`; Warp batch
+        only); none by default.
     """
 
     B: float
@@ -60,6 +64,7 @@ class CellParams:
     jamming_criterion: str = "w_4d"
     force_cap_N: float = 50.0
     jam_width: float | None = None
+    effects: EffectSet = NO_EFFECTS
 
     @property
     def d_jam(self) -> float:
@@ -76,7 +81,12 @@ class CellParams:
         return replace(self, **changes).validated()
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        """Fields by name; ``effects`` only when some are on."""
+        d = asdict(self)
+        d.pop("effects")
+        if self.effects.on:
+            d["effects"] = self.effects.as_dict()
+        return d
 
     def validated(self, where: str = "cell") -> "CellParams":
         """Check every field; raise :class:`KnitsimInputError` naming the first bad one."""
@@ -117,4 +127,7 @@ class CellParams:
             bad("reload_rule", f"expected one of {', '.join(RELOAD_RULES)}")
         if self.jamming_criterion not in JAMMING_CRITERIA:
             bad("jamming_criterion", f"expected one of {', '.join(JAMMING_CRITERIA)}")
+        if not isinstance(self.effects, EffectSet):
+            bad("effects", "expected an EffectSet (knitsim.cell.effects)")
+        self.effects.validated(where=f"{where}.effects")
         return self

@@ -28,7 +28,7 @@ simulated force (and stage labels) at the measured rows.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -223,15 +223,21 @@ def program_for_curve(curve: MeasuredCurve, max_increment: float = 0.005) -> tup
     pts = [0.0] + list(s) if s[0] != 0.0 else list(s)
     offset = 1 if s[0] != 0.0 else 0
     rows = np.empty(len(s), np.int64)
+    rate = np.zeros(len(program)) if curve.rate_mm_s is not None else None
     count = 0
     if offset == 0:
         rows[0] = -1
     for j, (a, b) in enumerate(zip(pts[:-1], pts[1:])):
+        start = count
         if b != a:
             count += max(1, int(np.ceil(abs(b - a) / max_increment - 1e-12)))
         rows[j + 1 - offset] = count - 1
+        if rate is not None:
+            rate[start:count] = curve.rate_mm_s[j + 1 - offset]  # the rate of the row the segment reaches
     if count != len(program):  # pragma: no cover - guards against a change of piecewise_linear
         raise RuntimeError(f"program_for_curve: counted {count} increments, the program has {len(program)}")
+    if rate is not None:
+        program = replace(program, rate=rate)
     return program, rows
 
 

@@ -86,6 +86,10 @@ class WarpBackend:
         import warp as wp
 
         from ..cell.batch import CellBatchState, CellModel, CellSolver
+        for i, p in enumerate(params):
+            if p.effects.on:
+                raise KnitsimInputError(f"groups[{i}].effects = {list(p.effects.on)!r}: the model extensions run in "
+                                        "cell batches and the diagnosis, not yet in patches")
         self.wp = wp
         self.model = CellModel.from_params(params, device)
         self.device = self.model.device

@@ -1,0 +1,171 @@
+"""Switchable model extensions of the quarter-stitch cell (issue 6; Dusserre 2015 sections 4-5).
+
+Dusserre lists what his model leaves out and why its curves are too sharp.
+Six of those effects act in the batched kernels by changing, at each load
+increment, the parameters the stage logic reads (``m``, ``d``, ``L``, ``B``);
+the seventh, ``dahl_transition``, is the Dahl friction state that already
+replaces the Coulomb switching (``CellParams.friction = "dahl"``).
+
+The effective parameters of an increment are computed from the state at its
+start (an explicit, increment-lagged coupling: the condition set of Table 4
+keeps its four imposed quantities; with increments of 0.005 strain the lag is
+a first-order error in the increment), except the bending Dahl state, whose
+closed form is exact over the increment.  Every effect is *off* by default
+and then leaves the baseline bit-for-bit unchanged (the kernel does not touch
+the parameters at all).
+
+=========================  ====================================================  =================
+effect                     law (evaluated at the start of the increment)        parameters
+=========================  ====================================================  =================
+coiling_angle_friction     ``m = eq10(theta, mu_k)``, theta = beta, the tangent  coil_mu_k
+                           angle at the crossing B (eq 11's coiling angle in
+                           the jammed geometry of Fig. 6c)
+normal_load_friction       ``m <- m (Rn / Fn_ref)^(n - 1)`` (eq 5, b absorbed    load_n, load_ref_N
+                           in m: m is the ratio at Fn_ref)
+velocity_friction          ``m <- m (V / V_ref)^p`` (eq 5), V the test rate of   rate_p, rate_ref_mm_s
+                           the increment (the sliding velocity at the crossing
+                           is taken proportional to the crosshead rate; the
+                           constant is absorbed in m)
+yarn_compaction            ``d <- d clamp((1 + k Rn_0) / (1 + k Rn), c_min, 1)``  compaction_k, compaction_min
+                           (d is the diameter at the rest load); the jamming
+                           width scales alike (W = 4 d_eff)
+bending_hysteresis         ``B <- B (1 + h z)``, z a Dahl state (alpha = 1) in   bend_h, bend_sigma
+                           the strain: ``z = s + (z_old - s) exp(-sigma |de|)``
+                           (Dahl 1976; a friction moment proportional to the
+                           elastic one, saturating at h of it)
+yarn_extension             ``L <- L (1 + c (P - P_0))``, P the yarn force at the ext_c
+                           inflection point A (moment-free there)
+=========================  ====================================================  =================
+
+``Rn_0`` and ``P_0`` are the values of the initial state (Table 4's rest
+state), so that the given d and L are those of the knit at rest.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from ..errors import KnitsimInputError
+
+#: bit of each kernel effect in the per-cell mask
+EFFECT_BITS: dict[str, int] = {
+    "coiling_angle_friction": 1,
+    "normal_load_friction": 2,
+    "velocity_friction": 4,
+    "yarn_compaction": 8,
+    "bending_hysteresis": 16,
+    "yarn_extension": 32,
+}
+
+#: every effect the diagnosis knows, in a stable order (dahl_transition is CellParams.friction = "dahl")
+EFFECT_NAMES: tuple[str, ...] = ("dahl_transition",) + tuple(EFFECT_BITS)
+
+#: column of each parameter in the kernels' per-cell parameter row
+PARAM_COLUMNS: tuple[str, ...] = (
+    "coil_mu_k", "load_n", "load_ref_N", "rate_p", "rate_ref_mm_s",
+    "compaction_k", "compaction_min", "bend_h", "bend_sigma", "ext_c",
+)
+
+#: columns of the per-cell effective state (knitsim.kernels.effects)
+EFFECT_STATE: tuple[str, ...] = ("m_eff", "d_eff", "L_eff", "B_eff", "z_bend", "P_rest", "Rn_rest")
+
+#: largest effective friction ratio (keeps atan(m) well inside (0, pi/2) at vanishing Rn)
+M_EFF_MAX = 5.0
+
+
+@dataclass(frozen=True)
+class EffectSet:
+    """Which kernel effects are on, and their parameters (immutable).
+
+    Attributes
+    ----------
+    on : tuple of str
+        Names from :data:`EFFECT_BITS` that are switched on.
+    coil_mu_k : float
+        Kinetic friction coefficient of eq 10 [-].
+    load_n : float
+        Normal-load exponent n of eq 5 [-] (1: no effect).
+    load_ref_N : float
+        Normal load at which the ratio equals ``m`` [N].
+    rate_p : float
+        Velocity exponent p of eq 5 [-] (0: no effect).
+    rate_ref_mm_s : float
+        Test rate at which the ratio equals ``m`` [mm/s].
+    compaction_k : float
+        Transverse compliance of the yarn at the crossing [1/N] (0: rigid).
+    compaction_min : float
+        Smallest d_eff / d (the compacted yarn's packing limit) [-].
+    bend_h : float
+        Saturated friction moment as a fraction of the elastic one [-].
+    bend_sigma : float
+        Dahl rate of the bending friction per unit strain [-].
+    ext_c : float
+        Tensile compliance 1/(EA) of the yarn [1/N].
+    """
+
+    on: tuple = ()
+    coil_mu_k: float = 0.3
+    load_n: float = 1.0
+    load_ref_N: float = 0.1
+    rate_p: float = 0.0
+    rate_ref_mm_s: float = 1.0
+    compaction_k: float = 0.0
+    compaction_min: float = 0.5
+    bend_h: float = 0.0
+    bend_sigma: float = 20.0
+    ext_c: float = 0.0
+
+    @property
+    def mask(self) -> int:
+        """Bit mask of the effects that are on."""
+        return int(sum(EFFECT_BITS[n] for n in self.on))
+
+    def row(self) -> np.ndarray:
+        """The parameters in :data:`PARAM_COLUMNS` order (float64)."""
+        return np.array([float(getattr(self, c)) for c in PARAM_COLUMNS], np.float64)
+
+    def with_on(self, *names: str, **params) -> "EffectSet":
+        """A copy with ``names`` switched on too and some parameters changed (validated)."""
+        on = tuple(dict.fromkeys(tuple(self.on) + tuple(names)))
+        return replace(self, on=on, **params).validated()
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["on"] = list(self.on)
+        return d
+
+    def validated(self, where: str = "effects") -> "EffectSet":
+        """Check every field; raise :class:`KnitsimInputError` naming the first bad one."""
+        if isinstance(self.on, str) or not all(isinstance(n, str) for n in self.on):
+            raise KnitsimInputError(f"{where}.on = {self.on!r}: expected a list of effect names")
+        for n in self.on:
+            if n not in EFFECT_BITS:
+                extra = " (dahl_transition is friction = 'dahl')" if n == "dahl_transition" else ""
+                raise KnitsimInputError(f"{where}.on: unknown effect {n!r}{extra}; expected {', '.join(EFFECT_BITS)}")
+        for f in fields(self):
+            if f.name == "on":
+                continue
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                raise KnitsimInputError(f"{where}.{f.name} = {v!r}: must be a finite number")
+        checks = (
+            ("coil_mu_k", self.coil_mu_k > 0, "must be > 0"),
+            ("load_ref_N", self.load_ref_N > 0, "must be > 0"),
+            ("load_n", 0 < self.load_n <= 2, "expected 0 < n <= 2 (eq 5; n = 1 is Amontons)"),
+            ("rate_ref_mm_s", self.rate_ref_mm_s > 0, "must be > 0"),
+            ("rate_p", abs(self.rate_p) <= 1, "expected |p| <= 1"),
+            ("compaction_k", self.compaction_k >= 0, "must be >= 0"),
+            ("compaction_min", 0 < self.compaction_min <= 1, "expected 0 < d_min/d <= 1"),
+            ("bend_h", 0 <= self.bend_h < 1, "expected 0 <= h < 1"),
+            ("bend_sigma", self.bend_sigma > 0, "must be > 0"),
+            ("ext_c", self.ext_c >= 0, "must be >= 0"),
+        )
+        for name, ok, why in checks:
+            if not ok:
+                raise KnitsimInputError(f"{where}.{name} = {getattr(self, name)!r}: {why}")
+        return self
+
+
+NO_EFFECTS = EffectSet()
