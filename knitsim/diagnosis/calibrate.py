@@ -29,34 +29,37 @@ from ..cell.batch import run_batch
 from ..cell.history import STATUS_NAMES
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
+from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from .gap import stage_keys
 from .measured import MeasuredCurve, force_at_rows, program_for_curve
 
-_FLOAT_FIELDS = ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma")
+def _to_params(base: CellParams, free: Sequence[str], x: np.ndarray, effects: tuple, fixed: dict | None) -> CellParams:
+    # build_params re-validates: a bad point is refused before any solve
+    return build_params(base, effects, dict(zip(free, (float(v) for v in x))), fixed)
 
 
-def _to_params(base: CellParams, free: Sequence[str], x: np.ndarray) -> CellParams:
-    ch = dict(zip(free, (float(v) for v in x)))
-    m = ch.get("m", base.m)
-    if "phi0" in ch:
-        ch["phi0"] = ch["phi0"] * math.atan(m)
-    # replace() re-validates: a bad point is refused before any solve
-    return base.replace(**ch)
+def _variables(free: tuple, effects: tuple) -> dict:
+    known = dict(BASELINE_VARIABLES)
+    for e in effects:
+        known.update({v.name: v for v in EFFECT_SPECS[e].variables})
+    for name in free:
+        if name not in known:
+            raise KnitsimInputError(f"free = {name!r}: expected one of {', '.join(known)}")
+    return known
 
 
-def _default_bounds(base: CellParams, name: str) -> tuple[float, float]:
-    if name == "m":
-        return 0.0, 1.0
-    if name == "phi0":
-        return -1.0, 1.0
-    v = getattr(base, name)
-    return 0.5 * v, 2.0 * v
+def _default_bounds(base: CellParams, var) -> tuple[float, float]:
+    if var.name in ("B", "d"):
+        v = getattr(base, var.name)
+        return 0.5 * v, 2.0 * v
+    return var.bounds
 
 
 def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "phi0"), bounds: dict | None = None,
                        device: str = "cpu", max_increment: float = 0.005, rel_step: float = 1e-6,
-                       x0: dict | None = None, max_nfev: int = 50, ftol: float = 1e-10, xtol: float = 1e-10) -> dict:
-    """Fit the ``free`` parameters of ``base`` to measured curves.
+                       x0: dict | None = None, max_nfev: int = 50, ftol: float = 1e-10, xtol: float = 1e-10,
+                       effects: Sequence[str] = (), fixed: dict | None = None) -> dict:
+    """Fit the ``free`` parameters of ``base`` (with ``effects`` on) to measured curves.
 
     Parameters
     ----------
@@ -64,8 +67,9 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     base : CellParams
         Fixed parameters, and the start point of the free ones.
     free : sequence of str
-        Names of float fields of :class:`CellParams` to fit (``phi0`` as a
-        fraction of phimax, see the module docstring).
+        Names of the fitted variables: ``m``, ``phi0`` (as a fraction of
+        phimax, see the module docstring), ``B``, ``d``, and the variables of
+        the ``effects`` (:mod:`knitsim.diagnosis.effects`).
     bounds : dict, optional
         ``name -> (low, high)`` in the fitted variable (phi0: fraction in [-1, 1]);
         default m in [0, 1], phi0 in [-1, 1], others 0.5x..2x their base value.
@@ -79,6 +83,10 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
         Start of the free variables (phi0 as a fraction); default from ``base``.
     max_nfev, ftol, xtol
         Passed to :func:`scipy.optimize.least_squares`.
+    effects : sequence of str
+        Effects switched on (:data:`knitsim.cell.effects.EFFECT_NAMES`).
+    fixed : dict, optional
+        Effect parameters held fixed (:func:`knitsim.diagnosis.effects.build_params`).
 
     Returns
     -------
@@ -95,22 +103,18 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     if not curves or not all(isinstance(c, MeasuredCurve) for c in curves):
         raise KnitsimInputError("curves: expected one or more MeasuredCurve")
     free = tuple(free)
-    for name in free:
-        if name not in _FLOAT_FIELDS:
-            raise KnitsimInputError(f"free = {name!r}: expected float fields of CellParams ({', '.join(_FLOAT_FIELDS)})")
+    effects = check_effects(effects, where="effects")
+    known = _variables(free, effects)
     if len(set(free)) != len(free) or not free:
         raise KnitsimInputError(f"free = {free!r}: expected distinct names, at least one")
     base = base.validated(where="base")
     bounds = dict(bounds or {})
     lo, hi = np.empty(len(free)), np.empty(len(free))
     for j, name in enumerate(free):
-        lo[j], hi[j] = bounds.get(name, _default_bounds(base, name))
+        lo[j], hi[j] = bounds.get(name, _default_bounds(base, known[name]))
         if not lo[j] < hi[j]:
             raise KnitsimInputError(f"bounds[{name!r}] = ({lo[j]}, {hi[j]}): expected low < high")
-    pm = base.phimax
-    start = {n: getattr(base, n) for n in free}
-    if "phi0" in free:
-        start["phi0"] = base.phi0 / pm if pm > 0 else 0.0
+    start = {n: known[n].start(base) for n in free}
     start.update(x0 or {})
     x_start = np.clip(np.array([start[n] for n in free], float), lo, hi)
 
@@ -141,7 +145,7 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
             return cache[key]
         h = steps(x)
         points = [x] + [x + h[j] * np.eye(k)[j] for j in range(k)]
-        cells = [_to_params(base, free, p) for p in points]
+        cells = [_to_params(base, free, p, effects, fixed) for p in points]
         sims = [None] * len(curves)
         for g in group_list:
             counter["calls"] += 1
@@ -165,17 +169,17 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     s2 = rss / dof
     cov_x = s2 * np.linalg.pinv(J.T @ J)
     # delta method to model units: only phi0 = f atan(m) is not the identity
+    fitted = _to_params(base, free, x, effects, fixed)
     G = np.eye(k)
     if "phi0" in free:
         jp = free.index("phi0")
-        m = x[free.index("m")] if "m" in free else base.m
+        m = fitted.m  # (eq 10's m at rest with coiling_angle_friction: its dependence on mu_k is left out)
         f = x[jp]
         G[jp, jp] = math.atan(m)
         if "m" in free:
             G[jp, free.index("m")] = f / (1.0 + m * m)
     cov = G @ cov_x @ G.T
-    fitted = _to_params(base, free, x)
-    values = {n: float(getattr(fitted, n)) for n in free}
+    values = {n: float(getattr(fitted, n)) if n in BASELINE_VARIABLES else float(x[j]) for j, n in enumerate(free)}
     se = {n: float(math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(free)}
     out_curves = []
     for i, c in enumerate(curves):
@@ -184,7 +188,7 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
         out_curves.append({"source": c.source, "strain": c.strain, "measured": c.force, "simulated": fs,
                            "labels": lab, "keys": stage_keys(lab, c.direction, c.cycle),
                            "final_status": STATUS_NAMES[int(st[-1])]})
-    out = {"params": fitted, "free": free, "values": values, "std_errors": se, "covariance": cov,
+    out = {"params": fitted, "free": free, "effects": effects, "x": x.copy(), "J": J, "values": values, "std_errors": se, "covariance": cov,
            "rms_N": math.sqrt(rss / n_rows), "rss_N2": rss, "n": n_rows, "k": k, "curves": out_curves,
            "nfev": int(res.nfev), "njev": int(res.njev or 0), "n_batch_calls": counter["calls"],
            "success": bool(res.success), "message": str(res.message)}

@@ -1,0 +1,323 @@
+"""Sim-to-real gap diagnosis: where the gap lies, which unmodelled effect causes it, how far it shrinks.
+
+Dusserre (2015, sections 4-5) explains why his curves are too sharp by
+effects his model leaves out; :func:`diagnose` tests that reasoning on
+measured curves (issue 6):
+
+1. **Calibrate** the baseline's free parameters (m, phi0; optionally B, d) on
+   every curve at once (:func:`~knitsim.diagnosis.calibrate.calibrate_baseline`:
+   least squares, one batched launch per evaluation).
+2. **Where**: the rows are keyed by the stage the calibrated baseline
+   simulates there (``loading_sliding``, ``unloading_adherence``, ...;
+   :func:`~knitsim.diagnosis.gap.stage_keys`); the gap is split by key (RMS,
+   max error, share of the squared error).  The keys stay those of the
+   baseline for every candidate, so that shares compare.
+3. **Which**: each effect is added and the model recalibrated (the effect's
+   variables plus the baseline's).  Candidates are ranked by the Bayesian
+   information criterion with the measurement noise known,
+
+       score = (RSS_base - RSS_effect) / sigma^2 - dk ln n,
+
+   i.e. the drop in ``BIC = RSS / sigma^2 + k ln n`` (Schwarz 1978); sigma is
+   estimated from the measured curves alone (:func:`estimate_noise`) or given.
+   An effect is *significant* when its score exceeds :data:`STRONG` (Kass and
+   Raftery 1995: a BIC difference above 10 is very strong evidence) and the
+   baseline does not already fit within the noise (chi-square bound on
+   RSS / sigma^2).  Two significant effects whose scores differ by less than
+   :data:`STRONG` cannot be told apart by these data; the verdict then is not
+   confident and names both.  An effect that the data cannot identify at all
+   (``velocity_friction`` with all curves at one rate, where any rate factor
+   is a change of m) is reported with ``identifiable = false`` and not fitted.
+4. **How far**: the gap per stage after the best effect, and after the best
+   pair (greedy: the best effect plus each other one).
+
+``shrink = 1 - rms_after / rms_before``.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..cell.effects import EFFECT_NAMES
+from ..cell.material import CellParams
+from ..errors import KnitsimInputError
+from .calibrate import calibrate_baseline
+from .effects import BASELINE_VARIABLES, EFFECT_SPECS, check_effects, variables_for
+from .gap import curve_indicators, stage_gap
+from .measured import MeasuredCurve
+
+#: BIC difference counted as very strong evidence (Kass and Raftery 1995, 2 ln B > 10)
+STRONG = 10.0
+
+
+@dataclass(frozen=True)
+class DiagnosisSetup:
+    """What the diagnosis knows of the specimen and how to run it.
+
+    Attributes
+    ----------
+    base : CellParams
+        The specimen (material, knit, rules); start of the free parameters.
+    free : tuple of str
+        Baseline parameters to calibrate: any of ``m``, ``phi0``, ``B``, ``d``.
+    bounds : dict
+        ``name -> (low, high)`` of fitted variables (phi0 as a fraction of phimax).
+    effects : tuple of str
+        Effects to try (default: all seven).
+    fixed : dict
+        Effect parameters held fixed (EffectSet field names: ``load_ref_N``,
+        ``rate_ref_mm_s``, ``compaction_min``, ``bend_sigma``).
+    max_increment : float
+        Largest strain increment of the replay programs.
+    noise_N : float or None
+        Measurement noise sd [N per wale]; None: estimated from the curves.
+    device : str
+        Warp device.
+    max_nfev : int
+        Evaluations per calibration.
+    pair : bool
+        Also fit the best pair of effects (greedy).
+    title : str
+    """
+
+    base: CellParams
+    free: tuple = ("m", "phi0")
+    bounds: dict = field(default_factory=dict)
+    effects: tuple = EFFECT_NAMES
+    fixed: dict = field(default_factory=dict)
+    max_increment: float = 0.005
+    noise_N: float | None = None
+    device: str = "cpu"
+    max_nfev: int = 30
+    pair: bool = True
+    title: str = ""
+
+    def validated(self) -> "DiagnosisSetup":
+        if not isinstance(self.base, CellParams):
+            raise KnitsimInputError(f"diagnosis.base = {self.base!r}: expected a CellParams")
+        self.base.validated(where="scene")
+        free = tuple(self.free)
+        for n in free:
+            if n not in BASELINE_VARIABLES:
+                raise KnitsimInputError(f"diagnosis.free: unknown parameter {n!r}; expected some of "
+                                        f"{', '.join(BASELINE_VARIABLES)}")
+        if not free or len(set(free)) != len(free):
+            raise KnitsimInputError(f"diagnosis.free = {list(free)!r}: expected distinct names, at least one")
+        check_effects(self.effects)
+        if self.noise_N is not None and not (isinstance(self.noise_N, (int, float)) and self.noise_N > 0
+                                             and math.isfinite(self.noise_N)):
+            raise KnitsimInputError(f"diagnosis.noise_N = {self.noise_N!r}: must be a number > 0 [N]")
+        if not (isinstance(self.max_increment, (int, float)) and 0 < self.max_increment <= 0.05):
+            raise KnitsimInputError(f"diagnosis.max_increment = {self.max_increment!r}: expected 0 < x <= 0.05")
+        return self
+
+
+def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
+    """Measurement noise sd [N] from the measured curves alone.
+
+    On each branch (rows of one cycle and direction) every inner row is
+    compared with the straight line through its two neighbours; for white
+    noise of sd sigma the difference has variance ``sigma^2 (1 + w1^2 + w2^2)``
+    (w the interpolation weights), whatever the smooth curve's slope.  The
+    median absolute value makes it robust to the few rows at stage changes
+    (sigma = 1.4826 MAD for Gaussian noise).  Rows at zero force (a slack
+    knit, where a force reading is clipped at 0) are left out.
+    """
+    z = []
+    for c in curves:
+        s, f = c.strain, c.force
+        br = np.concatenate([[0], np.nonzero((np.diff(c.cycle) != 0) | (np.diff(c.direction) != 0))[0] + 1, [len(s)]])
+        for a, b in zip(br[:-1], br[1:]):
+            for i in range(a + 1, b - 1):
+                h1, h2 = s[i] - s[i - 1], s[i + 1] - s[i]
+                if h1 == 0 or h2 == 0 or h1 * h2 < 0 or min(f[i - 1], f[i], f[i + 1]) <= 0.0:
+                    continue  # rows at exactly zero force are clipped (a slack knit): not noise samples
+                w1, w2 = h2 / (h1 + h2), h1 / (h1 + h2)
+                r = f[i] - (w1 * f[i - 1] + w2 * f[i + 1])
+                z.append(abs(r) / math.sqrt(1.0 + w1 * w1 + w2 * w2))
+    if len(z) < 5:
+        raise KnitsimInputError("curves: too few rows on monotone branches to estimate the noise; give diagnosis.noise_N")
+    return float(1.4826 * np.median(z))
+
+
+def _stages(measured, simulated, keys) -> dict:
+    g = stage_gap(measured, simulated, keys)
+    return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
+                "sse_N2": v["sse_N2"]} for k, v in g["stages"].items()}
+
+
+def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None) -> dict:
+    free = tuple(v.name for v in variables_for(tuple(setup.free), effects))
+    bounds = {k: tuple(v) for k, v in setup.bounds.items() if k in free}
+    start = {k: v for k, v in (x0 or {}).items() if k in free}
+    return calibrate_baseline(curves, setup.base, free=free, bounds=bounds, device=setup.device,
+                              max_increment=setup.max_increment, x0=start, max_nfev=setup.max_nfev,
+                              effects=effects, fixed=setup.fixed)
+
+
+def _summary(fit: dict, keys: list, measured: np.ndarray, base_rss: float, sigma: float, n: int, k0: int) -> dict:
+    sim = np.concatenate([c["simulated"] for c in fit["curves"]])
+    e = sim - measured
+    rss = float(e @ e)
+    dk = fit["k"] - k0
+    flagged = [c["source"] for c in fit["curves"] if c["final_status"] not in ("ok", "force_cap")]
+    return {"params": dict(fit["values"]), "std_errors": dict(fit["std_errors"]), "rms_N": math.sqrt(rss / n),
+            "rss_N2": rss, "stages": _stages(measured, sim, keys),
+            "shrink": 1.0 - math.sqrt(rss / base_rss) if base_rss > 0 else 0.0,
+            "score": (base_rss - rss) / sigma ** 2 - dk * math.log(n), "k": fit["k"],
+            "flagged_curves": flagged, "nfev": fit["nfev"]}
+
+
+def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
+             progress: Callable[[str], None] | None = None) -> dict:
+    """Diagnose the gap between measured curves and the model (see the module docstring).
+
+    Parameters
+    ----------
+    curves : list of MeasuredCurve
+        Curves of one specimen; each replays its own strain history (and rate).
+    setup : DiagnosisSetup
+    progress : callable, optional
+        ``progress(message)`` after each calibration.
+
+    Returns
+    -------
+    dict
+        ``baseline``, ``where``, ``candidates`` (best first), ``pair``,
+        ``indistinguishable``, ``verdict``, ``noise``, ``curves`` and
+        ``timing_s`` (the JSON of ``knitsim diagnose``).
+    """
+    t0 = time.perf_counter()
+    setup = setup.validated()
+    curves = list(curves)
+    if not curves or not all(isinstance(c, MeasuredCurve) for c in curves):
+        raise KnitsimInputError("curves: expected one or more measured curves")
+    say = progress or (lambda msg: None)
+    measured = np.concatenate([c.force for c in curves])
+    n = len(measured)
+    if setup.noise_N is not None:
+        sigma, how = float(setup.noise_N), "given (diagnosis.noise_N)"
+    else:
+        sigma = estimate_noise(curves)
+        how = "estimated from the measured curves (deviation from the neighbours' chord, 1.4826 MAD)"
+    sigma = max(sigma, 1e-6 * float(np.max(np.abs(measured)) or 1.0))
+    rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})
+
+    # 1-2. baseline and where
+    base_fit = _fit(curves, setup, ())
+    say(f"baseline: rms {base_fit['rms_N']:.4g} N")
+    keys = [k for c in base_fit["curves"] for k in c["keys"]]
+    k0 = base_fit["k"]
+    base_rss = base_fit["rss_N2"]
+    baseline = _summary(base_fit, keys, measured, base_rss, sigma, n, k0)
+    baseline["bic"] = base_rss / sigma ** 2 + k0 * math.log(n)
+    for key in ("shrink", "score"):
+        baseline.pop(key)
+    where = sorted(baseline["stages"], key=lambda k: -np.nan_to_num(baseline["stages"][k]["share"]))
+    # the baseline already fits within the noise: RSS / sigma^2 below the chi-square(n - k) 99.9 % bound
+    chi2_bound = (n - k0) + 3.1 * math.sqrt(2.0 * (n - k0))
+    within_noise = base_rss / sigma ** 2 <= chi2_bound
+
+    # 3. which
+    fits = {}
+    candidates = []
+    for name in setup.effects:
+        spec = EFFECT_SPECS[name]
+        cand = {"effect": name, "doc": spec.doc, "identifiable": True, "note": ""}
+        if max(len(rates), 1) < spec.min_rates:
+            cand.update(identifiable=False, params={}, std_errors={}, rms_N=None, stages={}, shrink=None, score=None,
+                        significant=False,
+                        note=f"needs curves at >= {spec.min_rates} distinct rates (have "
+                             f"{len(rates) if rates else 'none given'}): at one rate the rate factor of eq 5 is "
+                             "a change of m")
+            candidates.append(cand)
+            continue
+        fit = _fit(curves, setup, (name,), x0=base_fit["values"])
+        fits[name] = fit
+        cand.update(_summary(fit, keys, measured, base_rss, sigma, n, k0))
+        cand["significant"] = bool(cand["score"] > STRONG and not within_noise and not cand["flagged_curves"])
+        if cand["flagged_curves"]:
+            cand["note"] = f"some cells did not converge on {', '.join(cand['flagged_curves'])}"
+        candidates.append(cand)
+        say(f"{name}: rms {cand['rms_N']:.4g} N, score {cand['score']:.4g}")
+    fitted = [c for c in candidates if c["score"] is not None]
+    fitted.sort(key=lambda c: -c["score"])
+    candidates = fitted + [c for c in candidates if c["score"] is None]
+
+    sig = [c for c in fitted if c["significant"]]
+    indist = []
+    for i, a in enumerate(sig):
+        for b in sig[i + 1:]:
+            if a["score"] - b["score"] < STRONG:
+                indist.append([a["effect"], b["effect"]])
+
+    # 4. how far: best, then the best pair (greedy)
+    best = sig[0] if sig else None
+    pair = None
+    if best is not None and setup.pair:
+        trials = []
+        for other in fitted:
+            if other["effect"] == best["effect"]:
+                continue
+            effs = (best["effect"], other["effect"])
+            x0 = {**base_fit["values"], **fits[other["effect"]]["values"], **fits[best["effect"]]["values"]}
+            fit = _fit(curves, setup, effs, x0=x0)
+            summ = _summary(fit, keys, measured, base_rss, sigma, n, k0)
+            summ["effects"] = list(effs)
+            summ["gain_over_best"] = summ["score"] - best["score"]
+            summ["significant"] = bool(summ["gain_over_best"] > STRONG and not summ["flagged_curves"])
+            trials.append((summ, fit))
+            say(f"pair {effs}: rms {summ['rms_N']:.4g} N")
+        if trials:
+            pair, pair_fit = max(trials, key=lambda t: t[0]["score"])
+            fits["__pair__"] = pair_fit
+
+    # verdict
+    if best is None:
+        top = fitted[0] if fitted else None
+        reason = ("the baseline fits within the measurement noise" if within_noise else
+                  "no effect improves the fit by more than the BIC penalty plus 10 (very strong evidence)")
+        verdict = {"effect": None, "stage": where[0] if where else None,
+                   "shrink": 0.0, "confident": bool(within_noise or top is None or top["score"] < 0),
+                   "reason": reason}
+    else:
+        drops = {k: baseline["stages"][k]["sse_N2"] - best["stages"][k]["sse_N2"] for k in baseline["stages"]}
+        stage = max(drops, key=drops.get)
+        rivals = [p[1] for p in indist if p[0] == best["effect"]] + [p[0] for p in indist if p[1] == best["effect"]]
+        confident = not rivals
+        if rivals:
+            reason = f"the data cannot tell {best['effect']} from {', '.join(rivals)} (BIC scores within {STRONG:g})"
+        else:
+            reason = (f"BIC score {best['score']:.4g}; the next effect is more than {STRONG:g} behind")
+        verdict = {"effect": best["effect"], "stage": stage, "shrink": best["shrink"], "confident": confident,
+                   "reason": reason, "alternatives": rivals}
+
+    # curves
+    out_curves = []
+    best_fit = fits.get(best["effect"]) if best else None
+    pair_fit = fits.get("__pair__")
+    for i, c in enumerate(curves):
+        bc = base_fit["curves"][i]
+        entry = {"source": c.source, "strain": c.strain.tolist(), "measured": c.force.tolist(),
+                 "baseline": np.asarray(bc["simulated"]).tolist(),
+                 "best": None if best_fit is None else np.asarray(best_fit["curves"][i]["simulated"]).tolist(),
+                 "pair": None if pair_fit is None else np.asarray(pair_fit["curves"][i]["simulated"]).tolist(),
+                 "keys": list(bc["keys"]), "cycle": c.cycle.tolist(), "direction": c.direction.tolist(),
+                 "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
+                                "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
+                                                             bc["labels"])}}
+        if best_fit is not None:
+            bf = best_fit["curves"][i]
+            entry["indicators"]["best"] = curve_indicators(c.strain, bf["simulated"], c.cycle, c.direction,
+                                                           bf["labels"])
+        out_curves.append(entry)
+    return {"scene": setup.title, "inputs": [c.source for c in curves],
+            "noise": {"sigma_N": sigma, "method": how, "rates_mm_s": rates,
+                      "baseline_chi2_per_dof": base_rss / sigma ** 2 / max(n - k0, 1)},
+            "n_rows": n, "baseline": baseline, "where": where, "candidates": candidates, "pair": pair,
+            "indistinguishable": indist, "verdict": verdict, "curves": out_curves,
+            "timing_s": time.perf_counter() - t0}

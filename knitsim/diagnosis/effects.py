@@ -1,0 +1,169 @@
+"""The effects the diagnosis can add, as fit variables (issue 6).
+
+Each effect of :data:`knitsim.cell.effects.EFFECT_NAMES` is a set of fit
+variables with bounds and a start where the effect vanishes (or nearly:
+Dahl at 10^2.5 / mm is close to Coulomb switching), so that its fit starts
+from the baseline it extends, and a map from their values to the
+:class:`~knitsim.cell.material.CellParams` of the model with the effect on.
+The laws themselves live in :mod:`knitsim.cell.effects` (Python description)
+and :mod:`knitsim.kernels.effects` (device code).
+
+Baseline variables: ``m``, ``phi0`` (as a fraction of phimax = atan(m), so
+that its bounds hold while m moves, section 3.3.1), ``B``, ``d``.
+
+``coiling_angle_friction`` *replaces* ``m``: m follows eq 10 from the loop's
+coiling angle, so the effect adds ``coil_mu_k`` and removes ``m`` (no extra
+parameter).  Its rest value (which sets the range of phi0 and the initial
+stage) is eq 10 at the rest state's beta, which does not depend on m (the
+rest state imposes C0, W0, L and phi0 only).
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from ..cell.effects import EFFECT_BITS, EFFECT_NAMES
+from ..cell.material import CellParams
+from ..errors import KnitsimInputError
+from ..friction.coiling import m_eq10
+
+
+@dataclass(frozen=True)
+class Variable:
+    """A fitted variable: default bounds and a start computed from the base parameters."""
+
+    name: str
+    bounds: tuple[float, float]
+    start: Callable[[CellParams], float]
+    unit: str
+    doc: str
+
+
+def _mu_for_m(m: float, theta: float) -> float:
+    # eq 10 solved for mu_k: tanh(mu theta / 2) = m / tan(theta / 2)
+    r = min(max(m, 1e-3) / math.tan(0.5 * theta), 0.999)
+    return 2.0 * math.atanh(r) / theta
+
+
+@functools.lru_cache(maxsize=256)
+def rest_beta(B: float, d: float, L: float, W0: float, C0: float) -> float:
+    """Tangent angle at the crossing in the rest state (phi = 0) [rad]."""
+    from ..cell.inverse import initial_state
+    res = initial_state(C0, W0, L, 0.0, B, d)
+    if not res.success:
+        raise KnitsimInputError(f"knit (L = {L}, W0 = {W0}, C0 = {C0}, d = {d}): no rest state found")
+    return float(res.x[1])
+
+
+def _beta0(p: CellParams) -> float:
+    return rest_beta(p.B, p.d, p.L, p.W0, p.C0)
+
+
+BASELINE_VARIABLES: dict[str, Variable] = {
+    "m": Variable("m", (0.0, 1.0), lambda p: p.m, "-", "friction ratio tan(phimax) (eq 10)"),
+    "phi0": Variable("phi0", (-1.0, 1.0), lambda p: (p.phi0 / p.phimax if p.phimax > 0 else 0.0), "-",
+                     "initial friction angle as a fraction of phimax"),
+    "B": Variable("B", (0.0, 0.0), lambda p: p.B, "N mm^2", "bending stiffness"),
+    "d": Variable("d", (0.0, 0.0), lambda p: p.d, "mm", "yarn diameter"),
+}
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """One effect as the diagnosis sees it."""
+
+    name: str
+    variables: tuple[Variable, ...]
+    replaces: tuple[str, ...] = ()
+    min_rates: int = 1
+    doc: str = ""
+    fixed: dict = field(default_factory=dict)
+
+
+EFFECT_SPECS: dict[str, EffectSpec] = {
+    "dahl_transition": EffectSpec(
+        "dahl_transition",
+        (Variable("log10_dahl_sigma", (-0.5, 3.0), lambda p: 2.5, "log10(1/mm)",
+                  "Dahl stiffness of tan(phi) per unit slip (Dahl 1976)"),),
+        doc="Dahl friction state instead of Coulomb switching (smooth stick-slip)"),
+    "coiling_angle_friction": EffectSpec(
+        "coiling_angle_friction",
+        (Variable("coil_mu_k", (0.01, 2.0), lambda p: _mu_for_m(p.m, _beta0(p)), "-",
+                  "kinetic friction coefficient of eq 10"),),
+        replaces=("m",), doc="m follows eq 10 with the coiling angle of the current loop"),
+    "normal_load_friction": EffectSpec(
+        "normal_load_friction",
+        (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5"),),
+        doc="mu_k = b Fn^(n-1) at the crossing (eq 5)"),
+    "velocity_friction": EffectSpec(
+        "velocity_friction",
+        (Variable("rate_p", (-0.4, 0.4), lambda p: 0.0, "-", "velocity exponent p of eq 5"),),
+        min_rates=2, doc="mu_k = b V^p with V from the test rate (eq 5)"),
+    "yarn_compaction": EffectSpec(
+        "yarn_compaction",
+        (Variable("compaction_k", (0.0, 200.0), lambda p: 0.0, "1/N", "transverse compliance at the crossing"),),
+        doc="yarn diameter at the crossing shrinks with the contact load; jamming at W = 4 d_eff"),
+    "bending_hysteresis": EffectSpec(
+        "bending_hysteresis",
+        (Variable("bend_h", (0.0, 0.6), lambda p: 0.0, "-", "saturated friction moment / elastic moment"),),
+        doc="friction inside the yarn, a Dahl element on the bending moment"),
+    "yarn_extension": EffectSpec(
+        "yarn_extension",
+        (Variable("ext_c", (0.0, 0.05), lambda p: 0.0, "1/N", "tensile compliance 1/(EA)"),),
+        doc="finite tensile stiffness: L grows with the yarn tension"),
+}
+assert tuple(EFFECT_SPECS) == EFFECT_NAMES
+
+
+def check_effects(names, where: str = "diagnosis.effects") -> tuple[str, ...]:
+    """Validate a list of effect names (errors name the bad one)."""
+    names = tuple(names)
+    for n in names:
+        if n not in EFFECT_SPECS:
+            raise KnitsimInputError(f"{where}: unknown effect {n!r}; expected {', '.join(EFFECT_NAMES)}")
+    if len(set(names)) != len(names):
+        raise KnitsimInputError(f"{where} = {list(names)!r}: an effect is listed twice")
+    return names
+
+
+def variables_for(free: tuple[str, ...], effects: tuple[str, ...]) -> tuple[Variable, ...]:
+    """The fit variables of the baseline ``free`` set with ``effects`` added."""
+    drop = {r for e in effects for r in EFFECT_SPECS[e].replaces}
+    out = [BASELINE_VARIABLES[n] for n in free if n not in drop]
+    for e in effects:
+        out.extend(EFFECT_SPECS[e].variables)
+    return tuple(out)
+
+
+def build_params(base: CellParams, effects: tuple[str, ...], values: dict, fixed: dict | None = None) -> CellParams:
+    """The cell of the model with ``effects`` on and the fitted ``values`` (validated).
+
+    ``fixed`` holds effect parameters that are not fitted (reference load and
+    rate, compaction limit, bending Dahl rate: :class:`~knitsim.cell.effects.EffectSet`
+    field names).
+    """
+    ch = {k: float(values[k]) for k in ("B", "d") if k in values}
+    m = float(values.get("m", base.m))
+    kernel_on = tuple(e for e in effects if e in EFFECT_BITS)
+    eff = {k: v for k, v in (fixed or {}).items()}
+    for e in kernel_on:
+        for v in EFFECT_SPECS[e].variables:
+            if v.name in values:
+                eff[v.name] = float(values[v.name])
+    if "coiling_angle_friction" in effects:
+        geo = base.replace(**ch) if ch else base
+        m = float(m_eq10(_beta0(geo), eff.get("coil_mu_k", geo.effects.coil_mu_k)))
+    ch["m"] = m
+    if "phi0" in values:
+        ch["phi0"] = float(values["phi0"]) * math.atan(m)
+    else:
+        ch["phi0"] = max(-math.atan(m), min(math.atan(m), base.phi0))
+    if "dahl_transition" in effects:
+        ch["friction"] = "dahl"
+        ch["dahl_sigma"] = 10.0 ** float(values["log10_dahl_sigma"])
+        if m <= 0:
+            ch["m"] = 1e-3  # Dahl saturates at tan(phi) = m > 0
+    ch["effects"] = base.effects.with_on(*kernel_on, **eff) if (kernel_on or eff) else base.effects
+    return base.replace(**ch)

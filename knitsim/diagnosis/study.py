@@ -1,0 +1,344 @@
+"""Blind study of the diagnosis: synthetic curves whose effect is withheld (issue 6).
+
+:func:`run_study` draws ``n_cases`` cases from one seed (material, test,
+hidden effect or none, strength), makes each with the generator
+(:func:`knitsim.diagnosis.synthetic.make_case`), hands *only its curves* to
+:func:`knitsim.diagnosis.diagnose.diagnose`, and compares the verdict with the
+label afterwards.  The diagnosis starts from the paper's nominal material (not
+the drawn specimen) and considers every effect of
+:data:`knitsim.cell.effects.EFFECT_NAMES`, whichever are hidden in the study.
+
+Each finished case is one JSON file in ``out_dir/cases/`` (written
+atomically), so an interrupted study resumes where it stopped: a case file
+whose stored plan entry and configuration equal the current ones is not run
+again.  The summary (:func:`study_metrics`) goes to ``summary.json`` and
+``summary.md``:
+
+- confusion matrix: rows the true effect (``none`` for effect-free curves),
+  columns the verdict: the named effect when the verdict is confident,
+  ``undecided`` when it names an effect without confidence, ``none`` when it
+  names none (``error`` when the diagnosis raised);
+- top-1 accuracy over identifiable effect cases (a correct *confident* verdict);
+- false-alarm rate over effect-free cases: a confident verdict naming an
+  effect (also given counting ``undecided`` as an alarm);
+- stage localisation: ``verdict.stage == label.true_stage`` over the
+  correctly identified cases; mean ``verdict.shrink`` over the same cases;
+- per hidden effect: cases, identifiable cases, correct verdicts.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..cell.effects import EFFECT_NAMES
+from ..errors import KnitsimInputError
+from ..io.results import atomic_write_bytes
+from . import synthetic
+
+NONE = "none"
+UNDECIDED = "undecided"
+ERROR = "error"
+
+#: test rates of every case [mm/s]: two rates two decades apart, so that velocity_friction is identifiable
+#: (Table 2 spans 0.2 .. 10 mm/s); every case gets the same rates, so the number of curves tells nothing
+STUDY_RATES = (0.1, 10.0)
+
+
+def draw_plan(n_cases: int, seed: int, effects: Sequence[str] = EFFECT_NAMES,
+              include_none_fraction: float = 0.25) -> list[dict]:
+    """The cases of a study: index, case seed, material, test, hidden effect (None) and strength.
+
+    Effect-free cases are drawn with probability ``include_none_fraction``;
+    the effect of the others cycles through ``effects`` in an order shuffled per
+    round, so that every effect is about equally represented.
+    """
+    _check_plan_args(n_cases, seed, effects, include_none_fraction)
+    rng = np.random.default_rng(int(seed))
+    effects = list(effects)
+    plan, queue = [], []
+    for i in range(int(n_cases)):
+        none = bool(rng.random() < include_none_fraction) if effects else True
+        if not none and not queue:
+            queue = [effects[j] for j in rng.permutation(len(effects))]
+        effect = None if none else queue.pop()
+        plan.append({"index": i, "seed": int(rng.integers(0, 2**31 - 1)),
+                     "material": synthetic.MATERIALS[int(rng.integers(len(synthetic.MATERIALS)))],
+                     "test": synthetic.TESTS[int(rng.integers(len(synthetic.TESTS)))],
+                     "effect": effect, "strength": float(rng.uniform(0.0, 1.0))})
+    return plan
+
+
+def _check_plan_args(n_cases, seed, effects, include_none_fraction) -> None:
+    if not (isinstance(n_cases, (int, np.integer)) and not isinstance(n_cases, bool) and n_cases >= 1):
+        raise KnitsimInputError(f"cases = {n_cases!r}: expected a whole number >= 1")
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        raise KnitsimInputError(f"seed = {seed!r}: expected a whole number >= 0")
+    if isinstance(effects, str):
+        raise KnitsimInputError(f"effects = {effects!r}: expected a list of effect names")
+    for e in effects:
+        if e not in EFFECT_NAMES:
+            raise KnitsimInputError(f"effects: unknown effect {e!r}; expected some of {', '.join(EFFECT_NAMES)}")
+    if not (isinstance(include_none_fraction, (int, float)) and 0.0 <= include_none_fraction <= 1.0):
+        raise KnitsimInputError(f"include_none_fraction = {include_none_fraction!r}: expected a number in [0, 1]")
+
+
+def verdict_class(verdict: dict | None) -> str:
+    """Column of the confusion matrix for a verdict (module docstring)."""
+    if verdict is None:
+        return ERROR
+    eff = verdict.get("effect")
+    if eff is None:
+        return NONE
+    return str(eff) if verdict.get("confident") else UNDECIDED
+
+
+def _ratio(num: int, den: int) -> float | None:
+    return num / den if den else None
+
+
+def study_metrics(records: Sequence[dict]) -> dict:
+    """Confusion matrix and scores of finished cases.
+
+    Parameters
+    ----------
+    records : sequence of dict
+        Each with ``label`` (``effect`` name or None, ``identifiable``,
+        ``true_stage``) and ``verdict`` (``effect``, ``stage``, ``shrink``,
+        ``confident``; None when the diagnosis failed).  Records with an
+        ``error`` from the generator (no ``label``) are counted apart.
+
+    Returns
+    -------
+    dict
+        ``confusion`` {true: {predicted: count}}, ``rows``, ``columns``,
+        ``n_cases``, ``generator_failed``, ``top1_accuracy`` (and ``top1_n``,
+        ``top1_correct``), ``false_alarm_rate`` (confident effect named on
+        effect-free curves; ``false_alarm_rate_incl_undecided``),
+        ``stage_accuracy``, ``mean_shrink``, ``per_effect``.  A rate over no
+        case is None.
+    """
+    recs = [r for r in records if r.get("label") is not None]
+    failed = len(records) - len(recs)
+    rows, cols = [], []
+    confusion: dict[str, dict[str, int]] = {}
+    per_effect: dict[str, dict] = {}
+    top1_n = top1_ok = none_n = alarms = alarms_any = 0
+    stage_n = stage_ok = 0
+    shrinks = []
+    for r in recs:
+        lab, ver = r["label"], r.get("verdict")
+        true = lab.get("effect") or NONE
+        pred = verdict_class(ver)
+        confusion.setdefault(true, {})
+        confusion[true][pred] = confusion[true].get(pred, 0) + 1
+        if true not in rows:
+            rows.append(true)
+        if pred not in cols:
+            cols.append(pred)
+        if true == NONE:
+            none_n += 1
+            alarms += pred not in (NONE, UNDECIDED, ERROR)
+            alarms_any += pred not in (NONE, ERROR)
+            continue
+        pe = per_effect.setdefault(true, {"n": 0, "identifiable": 0, "correct": 0, "correct_identifiable": 0,
+                                          "named_none": 0})
+        pe["n"] += 1
+        pe["named_none"] += pred == NONE
+        ok = pred == true
+        pe["correct"] += ok
+        if lab.get("identifiable"):
+            pe["identifiable"] += 1
+            pe["correct_identifiable"] += ok
+            top1_n += 1
+            top1_ok += ok
+        if ok:
+            stage_n += 1
+            stage_ok += ver.get("stage") == lab.get("true_stage")
+            s = ver.get("shrink")
+            if s is not None and math.isfinite(float(s)):
+                shrinks.append(float(s))
+    for pe in per_effect.values():
+        pe["accuracy_identifiable"] = _ratio(pe["correct_identifiable"], pe["identifiable"])
+    order_r = [NONE] + [e for e in EFFECT_NAMES if e in rows] + sorted(set(rows) - set(EFFECT_NAMES) - {NONE})
+    order_c = [NONE] + [e for e in EFFECT_NAMES if e in cols] + [c for c in (UNDECIDED, ERROR) if c in cols]
+    order_c += sorted(set(cols) - set(order_c))
+    return {
+        "n_cases": len(recs), "generator_failed": failed,
+        "rows": [r for r in order_r if r in rows], "columns": [c for c in order_c if c in cols or c == NONE],
+        "confusion": confusion,
+        "top1_accuracy": _ratio(top1_ok, top1_n), "top1_n": top1_n, "top1_correct": top1_ok,
+        "false_alarm_rate": _ratio(alarms, none_n), "false_alarm_rate_incl_undecided": _ratio(alarms_any, none_n),
+        "none_n": none_n, "false_alarms": alarms,
+        "stage_accuracy": _ratio(stage_ok, stage_n), "stage_n": stage_n,
+        "mean_shrink": float(np.mean(shrinks)) if shrinks else None,
+        "per_effect": per_effect,
+    }
+
+
+def summary_markdown(summary: dict) -> str:
+    """The summary as a markdown page: scores, confusion matrix, per-effect table."""
+    m = summary["metrics"]
+
+    def pct(x):
+        return "n/a" if x is None else f"{100.0 * x:.1f} %"
+
+    lines = [f"# Blind study of the diagnosis ({m['n_cases']} cases, seed {summary['config']['seed']})", "",
+             f"- noise: {summary['config']['noise_rel']:.4g} x peak force ({summary['config']['noise_how']})",
+             f"- specimen scatter of L, W0, C0, d: {summary['config']['scatter_rel']:.4g}; "
+             f"test rates {summary['config']['rates']} mm/s", "",
+             "| score | value | over |", "|---|---|---|",
+             f"| top-1 accuracy (identifiable effects) | {pct(m['top1_accuracy'])} | {m['top1_n']} cases |",
+             f"| false alarms (effect-free, confident) | {pct(m['false_alarm_rate'])} | {m['none_n']} cases |",
+             f"| false alarms incl. undecided | {pct(m['false_alarm_rate_incl_undecided'])} | {m['none_n']} cases |",
+             f"| stage localisation (correct verdicts) | {pct(m['stage_accuracy'])} | {m['stage_n']} cases |",
+             "| mean shrink (correct verdicts) | "
+             + ("n/a" if m["mean_shrink"] is None else f"{m['mean_shrink']:.3f}") + f" | {m['stage_n']} cases |",
+             f"| generator failures (not diagnosed) | {m['generator_failed']} | |", "",
+             "## Confusion matrix (rows: hidden effect; columns: verdict)", ""]
+    cols = m["columns"]
+    lines.append("| true \\ verdict | " + " | ".join(cols) + " |")
+    lines.append("|---" * (len(cols) + 1) + "|")
+    for r in m["rows"]:
+        lines.append(f"| {r} | " + " | ".join(str(m["confusion"].get(r, {}).get(c, 0)) for c in cols) + " |")
+    lines += ["", "## Per hidden effect", "", "| effect | cases | identifiable | correct | correct (identifiable) "
+              "| named none |", "|---|---|---|---|---|---|"]
+    for e, pe in m["per_effect"].items():
+        lines.append(f"| {e} | {pe['n']} | {pe['identifiable']} | {pe['correct']} | {pe['correct_identifiable']} "
+                     f"| {pe['named_none']} |")
+    return "\n".join(lines) + "\n"
+
+
+def _json_bytes(obj) -> bytes:
+    from ..cli.common import _jsonable
+
+    return (json.dumps(_jsonable(obj), indent=1) + "\n").encode("utf-8")
+
+
+def _case_record(spec: dict, config: dict, case, result: dict | None, error: str | None, timing: float) -> dict:
+    rec = {"spec": spec, "config": config, "timing_s": timing}
+    if case is None:
+        rec.update({"label": None, "verdict": None, "error": error})
+        return rec
+    rec["label"] = case.label
+    if result is None:
+        rec.update({"verdict": None, "error": error})
+        return rec
+    rec["verdict"] = result.get("verdict")
+    rec["candidates"] = [{k: c.get(k) for k in ("effect", "shrink", "score", "significant", "identifiable", "note")}
+                         for c in result.get("candidates", [])]
+    rec["indistinguishable"] = result.get("indistinguishable")
+    rec["where"] = result.get("where")
+    rec["noise"] = result.get("noise")
+    rec["baseline_rms_N"] = (result.get("baseline") or {}).get("rms_N")
+    return rec
+
+
+def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_NAMES,
+              include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float = 0.01,
+              device: str = "cpu", progress: Callable | None = None, resume: bool = True,
+              rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.005,
+              candidate_effects: Sequence[str] = EFFECT_NAMES) -> dict:
+    """Run (or resume) a blind study and write its summary.
+
+    Parameters
+    ----------
+    n_cases, seed : int
+        Number of cases and the seed of the plan (:func:`draw_plan`).
+    out_dir : path-like
+        Output folder: ``cases/case_NNNN.json``, ``summary.json``, ``summary.md``.
+    effects : sequence of str
+        Effects that may be hidden.
+    include_none_fraction : float
+        Probability that a case has no hidden effect.
+    noise_rel : float, optional
+        Force noise as a fraction of each curve's peak (default: the paper's
+        capstan scatter, :func:`knitsim.diagnosis.synthetic.paper_noise_rel`).
+    scatter_rel : float
+        Specimen scatter of L, W0, C0, d.
+    device : str
+        Warp device of the generator and the diagnosis.
+    progress : callable, optional
+        ``progress(done, total, eta_s, record)`` after each case (``eta_s`` None until one case ran here).
+    resume : bool
+        Keep finished case files whose plan entry and configuration match.
+    rates : sequence of float
+        Test rates of every case [mm/s] (one curve each).
+    max_increment : float
+        Strain increment of the diagnosis' simulations.
+    candidate_effects : sequence of str
+        Effects the diagnosis tries (all by default; it is not told which are hidden).
+
+    Returns
+    -------
+    dict
+        ``config``, ``metrics`` (:func:`study_metrics`), ``timing_s``; also written to ``summary.json``.
+    """
+    from .diagnose import DiagnosisSetup, diagnose
+
+    _check_plan_args(n_cases, seed, effects, include_none_fraction)
+    how = synthetic.paper_noise_rel()[1] if noise_rel is None else "given"
+    noise_rel = synthetic.DEFAULT_NOISE_REL if noise_rel is None else noise_rel
+    if not (isinstance(noise_rel, (int, float)) and math.isfinite(noise_rel) and noise_rel >= 0):
+        raise KnitsimInputError(f"noise_rel = {noise_rel!r}: expected a number >= 0")
+    if not (isinstance(scatter_rel, (int, float)) and math.isfinite(scatter_rel) and 0 <= scatter_rel < 0.2):
+        raise KnitsimInputError(f"scatter_rel = {scatter_rel!r}: expected a number in [0, 0.2)")
+    out = Path(out_dir)
+    cases_dir = out / "cases"
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    plan = draw_plan(n_cases, seed, effects, include_none_fraction)
+    config = {"seed": int(seed), "noise_rel": float(noise_rel), "noise_how": how, "scatter_rel": float(scatter_rel),
+              "rates": [float(r) for r in rates], "max_increment": float(max_increment),
+              "generator_max_increment": 0.0025, "candidate_effects": list(candidate_effects),
+              "include_none_fraction": float(include_none_fraction), "hidden_effects": list(effects)}
+    # what makes a stored case reusable: its plan entry and everything that shapes its data or its diagnosis
+    key_config = {k: v for k, v in config.items() if k not in ("seed", "include_none_fraction", "hidden_effects")}
+    t0 = time.perf_counter()
+    records, ran, ran_time = [], 0, 0.0
+    for spec in plan:
+        path = cases_dir / f"case_{spec['index']:04d}.json"
+        rec = None
+        if resume and path.exists():
+            try:
+                old = json.loads(path.read_text())
+                if old.get("spec") == spec and old.get("config") == key_config:
+                    rec = old
+            except (OSError, ValueError):
+                rec = None
+        if rec is None:
+            tc = time.perf_counter()
+            case, result, error = None, None, None
+            try:
+                case = synthetic.make_case(spec["seed"], spec["material"], spec["test"], spec["effect"],
+                                           spec["strength"], noise_rel=noise_rel, scatter_rel=scatter_rel,
+                                           rates=rates, device=device)
+            except RuntimeError as exc:  # the generator found no specimen that runs with this effect
+                error = f"generator: {exc}"
+            if case is not None:
+                setup = DiagnosisSetup(base=synthetic.material_params(spec["material"]), free=("m", "phi0"),
+                                       effects=tuple(candidate_effects), max_increment=max_increment,
+                                       noise_N=None, device=device)
+                try:
+                    # the diagnosis sees the curves only, never case.label
+                    result = diagnose(list(case.curves), setup)
+                except (RuntimeError, ValueError, FloatingPointError, KnitsimInputError) as exc:
+                    error = f"diagnosis: {type(exc).__name__}: {exc}"
+            rec = _case_record(spec, key_config, case, result, error, time.perf_counter() - tc)
+            atomic_write_bytes(path, _json_bytes(rec))
+            rec = json.loads(_json_bytes(rec))
+            ran += 1
+            ran_time += rec["timing_s"]
+        records.append(rec)
+        if progress is not None:
+            left = len(plan) - len(records)
+            eta = ran_time / ran * left if ran else None
+            progress(len(records), len(plan), eta, rec)
+    summary = {"config": config, "metrics": study_metrics(records), "timing_s": time.perf_counter() - t0,
+               "cases_run": ran, "cases_resumed": len(plan) - ran}
+    atomic_write_bytes(out / "summary.json", _json_bytes(summary))
+    atomic_write_bytes(out / "summary.md", summary_markdown(summary).encode("utf-8"))
+    return summary
