@@ -52,7 +52,7 @@ from .effects import (
     P_RATE_P, P_RATE_REF, _M_MAX, coiling_friction, compaction_ratio, dahl_bending_state, extension_ratio, has,
     normal_load_factor, velocity_factor,
 )
-from .elastica import PI, d_addc, d_const, d_exp, d_scale, d_seed, d_sub, d_tan, elastica_ab, vec5d
+from .elastica import PI, Dual, d_addc, d_const, d_exp, d_inv, d_scale, d_seed, d_sub, d_tan, elastica_ab, vec5d
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
     STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
@@ -96,10 +96,15 @@ _RHO_SEED = wp.constant(wp.float64(RELOAD_RHO_SEED))
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
+#: condition code of jamming with a compacting yarn, W = 4 d_eff(Rn) (yarn_compaction); >= 0 like a
+#: quantity code, since it may replace the C condition when a jam is located (ev_code >= 0)
+COND_JAM = wp.constant(100)
 #: events kept per cell and increment (more are counted, not stored)
 MAX_EVENTS_PER_STEP = 8
 vec8d = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.float64)
 vec8i = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.int32)
+#: extra data of the special residuals: (tan(phi_old), s_BC_old, s, sigma, m) of Dahl, (k, Rn_0, c_min) of jamming
+vec8p = wp.types.vector(length=8, dtype=wp.float64)
 _MAXEV = wp.constant(MAX_EVENTS_PER_STEP)
 
 NEWTON_MAX_ITER = wp.constant(60)
@@ -131,11 +136,14 @@ class Material:
     hong: int
     mirror: int
     closure: int  # 1: "release_beta" stick closure (knitsim.cell.stages.STICK_CLOSURES)
+    comp_k: wp.float64  # yarn_compaction (issue 6): compliance [1/N], 0 when off
+    comp_rn0: wp.float64  # its rest normal load [N]
+    comp_min: wp.float64  # its smallest d_eff / d
 
 
 # ------------------------------------------------------------------ Newton
 @wp.func
-def dahl_residual(cell: CellEval, dp: vec5d):
+def dahl_residual(cell: CellEval, dp: vec8p):
     """Dahl relation (alpha = 1) over the increment as a Dual residual.
 
     ``dp = (tan(phi_old), s_BC_old, s, sigma, m)``; slip xi = -(s_BC - s_BC_old),
@@ -151,8 +159,30 @@ def dahl_residual(cell: CellEval, dp: vec5d):
 
 
 @wp.func
-def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec5d, B: wp.float64, d: wp.float64):
-    """As kernels.inverse.residuals, with code COND_DAHL meaning the Dahl residual."""
+def compaction_ratio_dual(Rn: Dual, k: wp.float64, Rn0: wp.float64, c_min: wp.float64):
+    """kernels.effects.compaction_ratio as a Dual: (1 + k Rn_0) / (1 + k |Rn|), clamped to [c_min, 1]."""
+    a = Rn
+    if Rn.v < wp.float64(0.0):
+        a = d_scale(Rn, wp.float64(-1.0))
+    r = d_scale(d_inv(d_addc(d_scale(a, k), wp.float64(1.0))), wp.float64(1.0) + k * wp.abs(Rn0))
+    if r.v > wp.float64(1.0):
+        r = d_const(wp.float64(1.0))
+    elif r.v < c_min:
+        r = d_const(c_min)
+    return r
+
+
+@wp.func
+def jam_residual(cell: CellEval, w_jam: wp.float64, dp: vec8p):
+    """W - w_jam d_eff(Rn)/d: jamming at four compacted diameters, the load read at the solution itself."""
+    ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[5], dp[6], dp[7])
+    return d_sub(quantity(cell, Q_W), d_scale(ratio, w_jam))
+
+
+@wp.func
+def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec8p, B: wp.float64, d: wp.float64):
+    """As kernels.inverse.residuals, with codes COND_DAHL (the Dahl residual) and COND_JAM
+    (W = 4 d_eff(Rn), target the rigid yarn's jam width)."""
     r = vec5d()
     J = mat55d()
     r[0] = cell.g / d
@@ -163,6 +193,10 @@ def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec5d, B:
             rd = dahl_residual(cell, dp)
             r[k + 1] = rd.v
             J[k + 1] = rd.g
+        elif c == COND_JAM:
+            rj = jam_residual(cell, targets[k], dp)
+            r[k + 1] = rj.v / d
+            J[k + 1] = rj.g / d
         else:
             sc = quantity_scale(c, B, d)
             qk = quantity(cell, c)
@@ -227,7 +261,7 @@ def z_of(x: vec5d, q: vecQd):
 
 
 @wp.func
-def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec5d, B: wp.float64, d: wp.float64):
+def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec8p, B: wp.float64, d: wp.float64):
     """Per-cell Newton (the method of kernels.inverse.solve_conditions_kernel, in the
     variables z = (ln(alpha - gamma), beta, R/P, phi, ln P)).
 
@@ -303,7 +337,35 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec5d, B: wp.float64,
 
 @wp.func
 def no_dahl():
-    return vec5d()
+    return vec8p()
+
+
+@wp.func
+def jam_params(mat: Material):
+    """The residuals' extra data without Dahl: the compaction law of the jammed condition."""
+    dp = vec8p()
+    dp[5] = mat.comp_k
+    dp[6] = mat.comp_rn0
+    dp[7] = mat.comp_min
+    return dp
+
+
+@wp.func
+def jam_code(mat: Material) -> int:
+    """Condition of jamming: W = 4 d, or W = 4 d_eff(Rn) with a compacting yarn."""
+    c = int(Q_W)
+    if mat.comp_k > wp.float64(0.0):
+        c = int(COND_JAM)
+    return c
+
+
+@wp.func
+def jam_width(mat: Material, Rn: wp.float64) -> wp.float64:
+    """Wale width at which loops jam, 4 d_eff (kernels.effects.compaction_ratio at the load Rn)."""
+    w = mat.w_jam
+    if mat.comp_k > wp.float64(0.0):
+        w = mat.w_jam * compaction_ratio(Rn, mat.comp_rn0, mat.comp_k, mat.comp_min)
+    return w
 
 
 # ------------------------------------------------------------------ Table 4
@@ -327,7 +389,7 @@ def stage_conditions(stage: int, jammed: int, soft: int, frozen_soft: wp.float64
         codes[2] = Q_PHI
         tg[2] = -mat.phimax
     if jammed != 0:
-        codes[3] = Q_W
+        codes[3] = jam_code(mat)
         tg[3] = mat.w_jam
     return codes, tg
 
@@ -405,7 +467,7 @@ def event_value(kind: int, q: vecQd, stage: int, mat: Material) -> wp.float64:
         else:
             v = -mat.phimax - q[Q_PHI]
     elif kind == _EV_JAM:
-        v = mat.w_jam - q[Q_W]
+        v = jam_width(mat, q[Q_RN]) - q[Q_W]
     elif kind == _EV_CAP:
         v = q[Q_F] - mat.cap
     elif kind == _EV_SLACK:
@@ -446,7 +508,7 @@ def event_active(kind: int, stage: int, jammed: int, soft: int, mat: Material) -
 @wp.func
 def event_condition(kind: int, stage: int, mat: Material):
     """(code, target) of the condition that replaces C when the event is located."""
-    code = int(Q_W)
+    code = jam_code(mat)
     tg = mat.w_jam  # jam, unjam
     if kind == _EV_SLIDE:
         code = int(Q_PHI)
@@ -518,7 +580,7 @@ def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, 
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
-    xn, qn, st = newton(x, codes, tg, no_dahl(), mat.B, mat.d)
+    xn, qn, st = newton(x, codes, tg, jam_params(mat), mat.B, mat.d)
     return xn, qn, st == STATUS_CONVERGED
 
 
@@ -579,7 +641,7 @@ def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, ma
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
     codes[2] = Q_S_BC
-    xs, qs, st = newton(x, codes, tg, no_dahl(), mat.B, mat.d)
+    xs, qs, st = newton(x, codes, tg, jam_params(mat), mat.B, mat.d)
     r0 = wp.tan(qs[Q_PHI]) - wp.tan(q_old[Q_PHI])
     s = wp.float64(1.0)
     if r0 < wp.float64(0.0):
@@ -599,7 +661,12 @@ def solve_dahl(x: vec5d, q_old: vecQd, s: wp.float64, jammed: int, soft: int, fs
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
-    dp = vec5d(wp.tan(q_old[Q_PHI]), q_old[Q_S_BC], s, mat.sigma, mat.m)
+    dp = jam_params(mat)
+    dp[0] = wp.tan(q_old[Q_PHI])
+    dp[1] = q_old[Q_S_BC]
+    dp[2] = s
+    dp[3] = mat.sigma
+    dp[4] = mat.m
     xn, qn, st = newton(x, codes, tg, dp, mat.B, mat.d)
     ok = st == STATUS_CONVERGED
     # the root must lie on the slip branch s xi >= 0 (the reference brackets xi in [0, s hi])
@@ -678,6 +745,9 @@ def read_material(
     mat.dahl = friction[i % friction.shape[0]]
     mat.hong = unloading[i % unloading.shape[0]]
     mat.mirror = reload[i % reload.shape[0]]
+    mat.comp_k = wp.float64(0.0)
+    mat.comp_rn0 = wp.float64(0.0)
+    mat.comp_min = wp.float64(1.0)
     return mat
 
 
@@ -704,9 +774,11 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
         mat.m = m
         mat.phimax = wp.atan(m)
     if has(mask, BIT_COMPACTION):
-        ratio = compaction_ratio(q[Q_RN], Rn_rest, params[r, P_COMP_K], params[r, P_COMP_MIN])
-        mat.d = mat.d * ratio
-        mat.w_jam = mat.w_jam * ratio
+        # implicit: the jammed condition reads the load at the solution (a lagged width oscillates
+        # on the stiff jammed branch); see jam_residual
+        mat.comp_k = params[r, P_COMP_K]
+        mat.comp_rn0 = Rn_rest
+        mat.comp_min = params[r, P_COMP_MIN]
     z = z_old
     if has(mask, BIT_BENDING):
         z = dahl_bending_state(z_old, dstrain, params[r, P_BEND_SIGMA])
@@ -717,13 +789,11 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
 
 
 @wp.func
-def material_from_effective(mat: Material, m: wp.float64, d: wp.float64, L: wp.float64, B: wp.float64) -> Material:
-    """The material with the effective m, d, L, B of the state (jam width scaled with d)."""
+def material_from_effective(mat: Material, m: wp.float64, L: wp.float64, B: wp.float64) -> Material:
+    """The material with the effective m, L, B of the state."""
     out = mat
-    out.w_jam = mat.w_jam * (d / mat.d)
     out.m = m
     out.phimax = wp.atan(m)
-    out.d = d
     out.L = L
     out.B = B
     return out
@@ -736,8 +806,6 @@ def blend_material(a: Material, b: Material, t: wp.float64) -> Material:
     if t < wp.float64(1.0):
         out.m = a.m + (b.m - a.m) * t
         out.phimax = wp.atan(out.m)
-        out.d = a.d + (b.d - a.d) * t
-        out.w_jam = a.w_jam + (b.w_jam - a.w_jam) * t
         out.L = a.L + (b.L - a.L) * t
         out.B = a.B + (b.B - a.B) * t
     return out
@@ -925,7 +993,7 @@ def step_kernel(
         de = (C_target - C) / mat.C0
         if stage == SLACK and C_target <= C:
             de = wp.float64(0.0)  # a slack loop does not bend
-        mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_D], eff_in[i, E_L], eff_in[i, E_B])
+        mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_L], eff_in[i, E_B])
         mat, z_bend = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
                                     eff_in[i, E_RN0], de, rate[i % rate.shape[0]])
 
@@ -1047,7 +1115,7 @@ def step_kernel(
             # active set while unloading jammed: the unjammed branch at the target
             if jammed != 0 and not is_loading(stage):
                 xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_goal, -1, wp.float64(0.0))
-                if oku and qu[Q_W] >= matg.w_jam:
+                if oku and qu[Q_W] >= jam_width(matg, qu[Q_RN]):
                     any_fired = True
                     # the unjammed branch at the start: at the reversal from a jammed
                     # state it passes through the jammed state itself (event at the start)
@@ -1055,8 +1123,8 @@ def step_kernel(
                     xe = x
                     qe = q
                     oke = bool(True)
-                    if not (oka and qa[Q_W] - matg.w_jam >= -event_tol(_EV_UNJAM, matg)):
-                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, Q_W, matg.w_jam)
+                    if not (oka and qa[Q_W] - jam_width(matg, qa[Q_RN]) >= -event_tol(_EV_UNJAM, matg)):
+                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), matg.w_jam)
                     if oke and in_range(qe[Q_C], C_from, C_goal):
                         if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
                             best_kind = int(_EV_UNJAM)
@@ -1163,7 +1231,7 @@ def step_kernel(
                                 # unjam (active set): the reference applies it at the target itself
                                 if tjam != 0 and not is_loading(tstage):
                                     xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck)
-                                    if oku and qu[Q_W] >= matg.w_jam:
+                                    if oku and qu[Q_W] >= jam_width(matg, qu[Q_RN]):
                                         if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
                                             best_kind = int(_EV_UNJAM)
                                             best_C = Ck
@@ -1224,7 +1292,7 @@ def step_kernel(
         eff_out[i, k] = eff_in[i, k]
     if mask != 0:
         eff_out[i, E_M] = mat.m
-        eff_out[i, E_D] = mat.d
+        eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
         eff_out[i, E_L] = mat.L
         eff_out[i, E_B] = mat.B
         eff_out[i, E_Z] = z_bend

@@ -6,8 +6,8 @@ increment, the parameters the stage logic reads (``m``, ``d``, ``L``, ``B``);
 the seventh, ``dahl_transition``, is the Dahl friction state that already
 replaces the Coulomb switching (``CellParams.friction = "dahl"``).
 
-The effective parameters of an increment are computed from the state at its
-start (an explicit, increment-lagged coupling: the condition set of Table 4
+The effective parameters of an increment (except the compacted jam width,
+which is implicit) are computed from the state at its start (an explicit, increment-lagged coupling: the condition set of Table 4
 keeps its four imposed quantities; with increments of 0.005 strain the lag is
 a first-order error in the increment), except the bending Dahl state, whose
 closed form is exact over the increment.  Every effect is *off* by default
@@ -26,9 +26,12 @@ velocity_friction          ``m <- m (V / V_ref)^p`` (eq 5), V the test rate of  
                            the increment (the sliding velocity at the crossing
                            is taken proportional to the crosshead rate; the
                            constant is absorbed in m)
-yarn_compaction            ``d <- d clamp((1 + k Rn_0) / (1 + k Rn), c_min, 1)``  compaction_k, compaction_min
-                           (d is the diameter at the rest load); the jamming
-                           width scales alike (W = 4 d_eff)
+yarn_compaction            jamming at ``W = 4 d_eff``,                           compaction_k, compaction_min
+                           ``d_eff = d clamp((1 + k Rn_0) / (1 + k Rn), c_min, 1)``
+                           (d is the diameter at the rest load), with Rn read
+                           at the solution itself (implicit: a lagged width
+                           oscillates on the stiff jammed branch); the bending
+                           and crossing geometry keep d
 bending_hysteresis         ``B <- B (1 + h z)``, z a Dahl state (alpha = 1) in   bend_h, bend_sigma
                            the strain: ``z = s + (z_old - s) exp(-sigma |de|)``
                            (Dahl 1976; a friction moment proportional to the
@@ -36,6 +39,12 @@ bending_hysteresis         ``B <- B (1 + h z)``, z a Dahl state (alpha = 1) in  
 yarn_extension             ``L <- L (1 + c (P - P_0))``, P the yarn force at the ext_c
                            inflection point A (moment-free there)
 =========================  ====================================================  =================
+
+Known limitation: ``bending_hysteresis`` scales B, which scales the force
+only where the stage's conditions are all geometric; with Table 4's frozen
+normal load (S+, and the frictionless cell) it is not, and a frictionless
+cell's loop then runs the non-dissipative way (tests/cell/test_effects.py).
+A friction moment added to the elastica's moment equation would be exact.
 
 ``Rn_0`` and ``P_0`` are the values of the initial state (Table 4's rest
 state), so that the given d and L are those of the knit at rest.

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..cell.batch import run_batch
-from ..cell.effects import EFFECT_NAMES, NO_EFFECTS, EffectSet
+from ..cell.effects import EFFECT_NAMES, NO_EFFECTS
 from ..cell.material import CellParams
 from ..data import dusserre2015
 from ..errors import KnitsimInputError
@@ -385,10 +385,17 @@ def _plain(d):
 
 def effect_range_check(material: str = "e_glass", test: str = "cyclic", strength: float = 0.5,
                        seed: int = 0, device: str = "cpu") -> dict:
-    """Largest and RMS change of the noise-free curve per effect at ``strength`` (no scatter, no noise)."""
+    """Largest and RMS change of the noise-free curve per effect at ``strength`` (no scatter, no noise).
+
+    An effect whose simulation never finishes is reported with ``error``.
+    """
     out = {}
     for eff in EFFECT_NAMES:
-        case = make_case(seed, material, test, eff, strength, noise_rel=0.0, scatter_rel=0.0, device=device)
+        try:
+            case = make_case(seed, material, test, eff, strength, noise_rel=0.0, scatter_rel=0.0, device=device)
+        except RuntimeError as exc:
+            out[eff] = {"error": str(exc)}
+            continue
         out[eff] = {"max_change_N": case.label["max_effect_N"], "rms_change_N": case.label["rms_effect_N"],
                     "peak_N": float(max(np.max(c) for c in case.clean)), "true_stage": case.label["true_stage"],
                     "parameter": case.label["parameter"], "value": case.label["value"]}

@@ -1,0 +1,92 @@
+"""``knitsim diagnose-study``: blind study of the diagnosis on synthetic curves with a withheld effect.
+
+``knitsim diagnose-study [--cases N] [--seed S] [--out DIR] [--effects a,b,...]
+[--noise-rel X] [--scatter-rel X] [--device DEV] [--no-resume] [--json]``
+
+Generates N synthetic specimens (E-glass / basalt, cyclic / monotonic, one
+hidden effect at a random strength or none, noise and specimen scatter),
+diagnoses each without its label and writes ``DIR/cases/*.json``,
+``DIR/summary.json`` and ``DIR/summary.md`` (:mod:`knitsim.diagnosis.study`).
+An interrupted study resumes where it stopped unless ``--no-resume``.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+
+from ..errors import KnitsimInputError
+from .common import add_json_flag, print_json
+
+
+def register(subparsers) -> None:
+    """Add ``knitsim diagnose-study``."""
+    p = subparsers.add_parser(
+        "diagnose-study", help="blind study of the diagnosis on synthetic curves with a withheld effect",
+        description=__doc__.split("\n\n")[0])
+    p.add_argument("--cases", type=int, default=40, metavar="N", help="number of cases (default 40)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the study plan (default 0)")
+    p.add_argument("--out", metavar="DIR", default="diagnose_study", help="output folder (default diagnose_study)")
+    p.add_argument("--effects", default=None, metavar="A,B,...",
+                   help="effects that may be hidden (default all)")
+    p.add_argument("--noise-rel", type=float, default=None, metavar="X",
+                   help="force noise sd / peak force (default: the paper's capstan scatter, 0.013)")
+    p.add_argument("--scatter-rel", type=float, default=0.01, metavar="X",
+                   help="specimen scatter of L, W0, C0, d (default 0.01)")
+    p.add_argument("--none-fraction", type=float, default=0.25, metavar="X",
+                   help="share of effect-free cases (default 0.25)")
+    p.add_argument("--free", default="m,phi0", metavar="A,B,...",
+                   help="baseline parameters the diagnosis calibrates (default m,phi0; any of m, phi0, B, d)")
+    p.add_argument("--device", default="cpu", help="Warp device: cpu, cuda, cuda:N or auto")
+    p.add_argument("--no-resume", action="store_true", help="rerun cases already stored in --out")
+    add_json_flag(p)
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from ..cell.effects import EFFECT_NAMES
+    from ..diagnosis.study import run_study, summary_markdown, verdict_class
+
+    if args.cases < 1:
+        raise KnitsimInputError(f"--cases = {args.cases}: expected a whole number >= 1")
+    if args.seed < 0:
+        raise KnitsimInputError(f"--seed = {args.seed}: expected a whole number >= 0")
+    effects = EFFECT_NAMES
+    if args.effects is not None:
+        effects = tuple(e.strip() for e in args.effects.split(",") if e.strip())
+        if not effects:
+            raise KnitsimInputError(f"--effects = {args.effects!r}: expected a comma-separated list of effects")
+        for e in effects:
+            if e not in EFFECT_NAMES:
+                raise KnitsimInputError(f"--effects: unknown effect {e!r}; expected some of {', '.join(EFFECT_NAMES)}")
+    if args.noise_rel is not None and not (math.isfinite(args.noise_rel) and args.noise_rel >= 0):
+        raise KnitsimInputError(f"--noise-rel = {args.noise_rel}: expected a number >= 0")
+    if not (math.isfinite(args.scatter_rel) and 0 <= args.scatter_rel < 0.2):
+        raise KnitsimInputError(f"--scatter-rel = {args.scatter_rel}: expected a number in [0, 0.2)")
+    if not (math.isfinite(args.none_fraction) and 0 <= args.none_fraction <= 1):
+        raise KnitsimInputError(f"--none-fraction = {args.none_fraction}: expected a number in [0, 1]")
+
+    free = tuple(n.strip() for n in args.free.split(",") if n.strip())
+    for n in free:
+        if n not in ("m", "phi0", "B", "d"):
+            raise KnitsimInputError(f"--free: unknown parameter {n!r}; expected some of m, phi0, B, d")
+    if not free:
+        raise KnitsimInputError(f"--free = {args.free!r}: expected a comma-separated list of m, phi0, B, d")
+
+    def progress(done, total, eta, rec):
+        what = verdict_class(rec.get("verdict")) if rec.get("verdict") else rec.get("error", "?")
+        eta_s = "?" if eta is None else f"{eta:.0f} s"
+        print(f"[diagnose-study] {done}/{total} cases, ETA {eta_s}: hidden "
+              f"{rec['spec']['effect'] or 'none'} -> {what}", file=sys.stderr, flush=True)
+
+    with contextlib.redirect_stdout(sys.stderr):  # Warp's banner must not reach stdout (--json)
+        summary = run_study(args.cases, args.seed, args.out, effects=effects,
+                            include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
+                            scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
+                            resume=not args.no_resume)
+    if args.json:
+        print_json(summary)
+    else:
+        print(summary_markdown(summary))
+        print(f"written: {args.out}/summary.json, {args.out}/summary.md, {args.out}/cases/")
+    return 0

@@ -1,0 +1,138 @@
+"""Tests of the blind study (knitsim.diagnosis.study) and `knitsim diagnose-study`."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from knitsim.cli import main
+from knitsim.diagnosis import diagnose as diagnose_mod
+from knitsim.diagnosis import study
+from knitsim.diagnosis import synthetic
+from knitsim.diagnosis.measured import MeasuredCurve
+from knitsim.errors import KnitsimInputError
+
+
+def _rec(effect, identifiable, true_stage, v_effect, confident, v_stage=None, shrink=0.0):
+    return {"label": {"effect": effect, "identifiable": identifiable, "true_stage": true_stage},
+            "verdict": {"effect": v_effect, "confident": confident, "stage": v_stage, "shrink": shrink}}
+
+
+def test_metrics_on_hand_made_cases():
+    recs = [
+        _rec("coiling_angle_friction", True, "loading_sliding", "coiling_angle_friction", True, "loading_sliding", 0.5),
+        _rec("coiling_angle_friction", True, "loading_sliding", "dahl_transition", True, "loading_sliding", 0.2),
+        _rec("dahl_transition", True, "unloading_sliding", "dahl_transition", True, "loading_sliding", 0.3),
+        _rec("dahl_transition", True, "unloading_sliding", "dahl_transition", False, "unloading_sliding", 0.9),
+        _rec("velocity_friction", False, "loading_sliding", None, True),
+        _rec(None, False, None, None, True),
+        _rec(None, False, None, "yarn_compaction", True, "loading_jamming", 0.1),
+        _rec(None, False, None, "bending_hysteresis", False, "loading_sliding", 0.1),
+        {"label": None, "verdict": None, "error": "generator: no specimen"},
+    ]
+    m = study.study_metrics(recs)
+    # counted by hand from the list above
+    assert m["n_cases"] == 8 and m["generator_failed"] == 1
+    assert m["top1_n"] == 4 and m["top1_correct"] == 2 and m["top1_accuracy"] == pytest.approx(0.5)
+    assert m["none_n"] == 3 and m["false_alarm_rate"] == pytest.approx(1 / 3)
+    assert m["false_alarm_rate_incl_undecided"] == pytest.approx(2 / 3)
+    assert m["stage_n"] == 2 and m["stage_accuracy"] == pytest.approx(0.5)
+    assert m["mean_shrink"] == pytest.approx(0.4)
+    c = m["confusion"]
+    assert c["coiling_angle_friction"] == {"coiling_angle_friction": 1, "dahl_transition": 1}
+    assert c["dahl_transition"] == {"dahl_transition": 1, "undecided": 1}
+    assert c["velocity_friction"] == {"none": 1}
+    assert c["none"] == {"none": 1, "yarn_compaction": 1, "undecided": 1}
+    # the matrix holds every case once
+    assert sum(sum(r.values()) for r in c.values()) == 8
+    assert m["per_effect"]["velocity_friction"] == {"n": 1, "identifiable": 0, "correct": 0,
+                                                    "correct_identifiable": 0, "named_none": 1,
+                                                    "accuracy_identifiable": None}
+    md = study.summary_markdown({"config": {"seed": 0, "noise_rel": 0.013, "noise_how": "x", "scatter_rel": 0.01,
+                                            "rates": [0.1, 10.0]}, "metrics": m})
+    assert "| coiling_angle_friction | 0 | 1 | 1 |" in md  # row: none, coiling, dahl, (compaction), undecided
+
+
+def test_metrics_rates_are_none_without_cases():
+    m = study.study_metrics([_rec(None, False, None, None, True)])
+    assert m["top1_accuracy"] is None and m["stage_accuracy"] is None and m["mean_shrink"] is None
+    assert m["false_alarm_rate"] == 0.0
+
+
+def test_plan_is_deterministic_and_balanced():
+    a = study.draw_plan(14, 3, include_none_fraction=0.0)
+    assert a == study.draw_plan(14, 3, include_none_fraction=0.0)
+    # with no effect-free cases, 14 = 2 rounds of the 7 effects, each shuffled: every effect exactly twice
+    effects = [p["effect"] for p in a]
+    assert sorted(effects) == sorted(list(study.EFFECT_NAMES) * 2)
+    assert all(p["effect"] is None for p in study.draw_plan(5, 3, include_none_fraction=1.0))
+    assert all(0 <= p["strength"] <= 1 and p["material"] in ("e_glass", "basalt") for p in a)
+    with pytest.raises(KnitsimInputError, match="effects"):
+        study.draw_plan(3, 0, effects=["nope"])
+
+
+def test_resume_skips_finished_cases(tmp_path, monkeypatch):
+    calls = []
+
+    def fake_diagnose(curves, setup, progress=None):
+        # the diagnosis gets measured curves only
+        assert all(type(c) is MeasuredCurve for c in curves)
+        calls.append(len(curves))
+        return {"verdict": {"effect": None, "stage": None, "shrink": 0.0, "confident": True, "reason": "fake"},
+                "candidates": [], "indistinguishable": [], "where": [], "noise": {}, "baseline": {"rms_N": 0.0}}
+
+    def fake_case(seed, material, test, effect, strength, **kw):
+        s = synthetic.measured_strains("monotonic")[:10]
+        c = synthetic.curve_from_arrays(s, np.linspace(0.0, 1.0, 10) + seed % 7)
+        return synthetic.SyntheticCase([c], {"effect": effect, "identifiable": effect is not None,
+                                             "true_stage": None, "seed": seed})
+
+    monkeypatch.setattr(diagnose_mod, "diagnose", fake_diagnose)
+    monkeypatch.setattr(synthetic, "make_case", fake_case)
+    seen = []
+    s1 = study.run_study(4, 1, tmp_path, progress=lambda d, t, eta, r: seen.append((d, t)))
+    assert len(calls) == 4 and s1["cases_run"] == 4 and seen[-1] == (4, 4)
+    assert len(list((tmp_path / "cases").glob("case_*.json"))) == 4
+    assert (tmp_path / "summary.md").read_text().startswith("# Blind study")
+    s2 = study.run_study(4, 1, tmp_path)
+    assert len(calls) == 4 and s2["cases_run"] == 0 and s2["cases_resumed"] == 4
+    assert s2["metrics"] == s1["metrics"]
+    # a study with more cases keeps the first four (same plan prefix: same seed)
+    study.run_study(6, 1, tmp_path)
+    assert len(calls) == 6
+    # a changed configuration or --no-resume reruns
+    study.run_study(6, 1, tmp_path, noise_rel=0.05)
+    assert len(calls) == 12
+    study.run_study(6, 1, tmp_path, noise_rel=0.05, resume=False)
+    assert len(calls) == 18
+    stored = json.loads((tmp_path / "cases" / "case_0000.json").read_text())
+    assert stored["config"]["noise_rel"] == 0.05 and "verdict" in stored
+
+
+def test_plan_prefix_is_stable():
+    # resuming a longer study relies on the first cases of a plan not depending on its length
+    assert study.draw_plan(6, 1)[:4] == study.draw_plan(4, 1)
+
+
+@pytest.mark.parametrize("argv", [
+    ["--cases", "0"], ["--seed", "-1"], ["--effects", "magic"], ["--effects", ","],
+    ["--noise-rel", "-0.1"], ["--free", "L"], ["--scatter-rel", "0.5"], ["--none-fraction", "2"],
+])
+def test_cli_bad_input_exits_2(argv, tmp_path, capsys):
+    assert main(["diagnose-study", "--out", str(tmp_path / "o")] + argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("knitsim: error: --") and "Traceback" not in err
+
+
+def test_cli_non_integer_cases_exits_2(tmp_path):
+    with pytest.raises(SystemExit) as exc:
+        main(["diagnose-study", "--cases", "many", "--out", str(tmp_path)])
+    assert exc.value.code == 2
+
+
+@pytest.mark.slow
+def test_end_to_end_small_study(tmp_path):
+    s = study.run_study(3, 0, tmp_path, effects=("bending_hysteresis",), include_none_fraction=0.34)
+    assert s["metrics"]["n_cases"] + s["metrics"]["generator_failed"] == 3
+    assert (tmp_path / "summary.json").exists()
