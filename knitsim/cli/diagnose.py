@@ -40,8 +40,8 @@ def _check_out(path: str | None, suffix: str, flag: str) -> Path | None:
     out = Path(path)
     if out.suffix.lower() != suffix:
         raise KnitsimInputError(f"{flag} = {path!r}: expected a {suffix} file")
-    if out.parent and not out.parent.exists():
-        raise KnitsimInputError(f"{flag} = {path!r}: folder {str(out.parent)!r} does not exist")
+    if out.exists() and out.is_dir():
+        raise KnitsimInputError(f"{flag} = {path!r}: is a folder")
     return out
 
 
@@ -72,6 +72,9 @@ def run(args) -> int:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     result = diagnose(curves, setup, progress=progress)
+    for out in (json_out, report):
+        if out is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
     if json_out is not None:
         atomic_write_bytes(json_out, json.dumps(_jsonable(result), indent=1, allow_nan=False).encode())
     if report is not None:
