@@ -10,8 +10,6 @@ the JSON keys the issue prescribes.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -22,6 +20,7 @@ from knitsim.cell.load_program import cycles
 from knitsim.cell.material import CellParams
 from knitsim.diagnosis.diagnose import DiagnosisSetup, diagnose, estimate_noise
 from knitsim.diagnosis.measured import curve_from_arrays
+from knitsim.cli import main
 from knitsim.errors import KnitsimInputError
 from knitsim.scene.diagnosis_scene import load_diagnosis_scene
 
@@ -139,7 +138,7 @@ def test_bad_scenes_are_refused_naming_the_key(tmp_path, patch, message):
         load_diagnosis_scene(path)
 
 
-def test_cli_writes_json_and_report(tmp_path):
+def test_cli_writes_json_and_report(tmp_path, capsys):
     truth = NOMINAL.replace(effects=EffectSet(on=("coiling_angle_friction",), coil_mu_k=0.3))
     curve, _ = _measured(truth, seed=5)
     csv = tmp_path / "m.csv"
@@ -150,12 +149,13 @@ def test_cli_writes_json_and_report(tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE)
     out, rep = tmp_path / "d.json", tmp_path / "d.html"
-    p = subprocess.run([sys.executable, "-m", "knitsim", "diagnose", str(csv), "--scene", str(scene),
-                        "--json", str(out), "--report", str(rep), "--quiet"], capture_output=True, text=True)
-    assert p.returncode == 0, p.stderr
+    # in-process, as the other CLI tests (the installed package, not the source tree, is imported)
+    assert main(["diagnose", str(csv), "--scene", str(scene), "--json", str(out), "--report", str(rep),
+                 "--quiet"]) == 0
     r = json.loads(out.read_text())
     assert r["verdict"]["effect"] == "coiling_angle_friction"
     assert rep.read_text().startswith("<!DOCTYPE html>")
-    bad = subprocess.run([sys.executable, "-m", "knitsim", "diagnose", str(csv), "--scene", str(tmp_path / "no.toml")],
-                         capture_output=True, text=True)
-    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    capsys.readouterr()
+    assert main(["diagnose", str(csv), "--scene", str(tmp_path / "no.toml")]) == 2
+    err = capsys.readouterr().err
+    assert "no.toml" in err and "Traceback" not in err

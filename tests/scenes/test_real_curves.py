@@ -24,6 +24,10 @@ from knitsim.scene.cell_scene import load_cell_scene
 
 REAL = Path(__file__).resolve().parents[2] / "scenes" / "diagnosis" / "real"
 DATA = REAL.parents[3] / "shared" / "data"
+# the raw data live beside the repository (../shared/data), not in it: the checks that read them
+# run where they are present and say so where they are not
+needs_raw_data = pytest.mark.skipif(not (DATA / "singal2024_knit_uniaxial" / "runs_summary.csv").exists(),
+                                    reason=f"raw data not found at {DATA}")
 CURVES = ["do2020_jersey_4p5mm_ww", "do2020_jersey_6p5mm_ww",
           "singal2024_acrylic_stockinette_y", "singal2024_cotton_stockinette_y"]
 # wales across the specimen, as stated in README.md (assumptions, not data)
@@ -55,6 +59,7 @@ def test_do2020_mid_line_times_wales_matches_readme_table(name):
         assert lo - 0.05 <= total <= hi + 0.05, (eps, total)
 
 
+@needs_raw_data
 @pytest.mark.parametrize("name", ["singal2024_acrylic_stockinette_y", "singal2024_cotton_stockinette_y"])
 def test_singal_maximum_is_summary_max_over_wales(name):
     c = read_measured_curve(REAL / f"{name}.csv")
@@ -95,6 +100,7 @@ def test_scene_loads_and_bounds_respect_the_geometry(name):
     assert c.strain[-1] < p.L / (2 * p.C0) - 1
 
 
+@needs_raw_data
 def test_script_reproduces_committed_csvs(tmp_path):
     subprocess.run([sys.executable, str(REAL / "make_real_curves.py"), "--out", str(tmp_path)],
                    check=True, capture_output=True)
