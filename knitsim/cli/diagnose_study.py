@@ -15,6 +15,8 @@ import contextlib
 import math
 import sys
 
+from ..diagnosis.effects import BASELINE_VARIABLES
+from ..diagnosis.study import DEFAULT_STUDY_FREE
 from ..errors import KnitsimInputError
 from .common import add_json_flag, print_json
 
@@ -35,8 +37,9 @@ def register(subparsers) -> None:
                    help="specimen scatter of L, W0, C0, d (default 0.01)")
     p.add_argument("--none-fraction", type=float, default=0.25, metavar="X",
                    help="share of effect-free cases (default 0.25)")
-    p.add_argument("--free", default="m,phi0", metavar="A,B,...",
-                   help="baseline parameters the diagnosis calibrates (default m,phi0; any of m, phi0, B, d)")
+    p.add_argument("--free", default=",".join(DEFAULT_STUDY_FREE), metavar="A,B,...",
+                   help="baseline parameters the diagnosis calibrates (default m,phi0,d,L,C0: the friction and "
+                        "the scattered geometry; any of m, phi0, B, d, L, W0, C0)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu, cuda, cuda:N or auto")
     p.add_argument("--no-resume", action="store_true", help="rerun cases already stored in --out")
     add_json_flag(p)
@@ -68,10 +71,11 @@ def _run(args) -> int:
 
     free = tuple(n.strip() for n in args.free.split(",") if n.strip())
     for n in free:
-        if n not in ("m", "phi0", "B", "d"):
-            raise KnitsimInputError(f"--free: unknown parameter {n!r}; expected some of m, phi0, B, d")
+        if n not in BASELINE_VARIABLES:
+            raise KnitsimInputError(f"--free: unknown parameter {n!r}; expected some of {', '.join(BASELINE_VARIABLES)}")
     if not free:
-        raise KnitsimInputError(f"--free = {args.free!r}: expected a comma-separated list of m, phi0, B, d")
+        raise KnitsimInputError(f"--free = {args.free!r}: expected a comma-separated list of "
+                                f"{', '.join(BASELINE_VARIABLES)}")
 
     def progress(done, total, eta, rec):
         what = verdict_class(rec.get("verdict")) if rec.get("verdict") else rec.get("error", "?")

@@ -52,6 +52,10 @@ def _default_bounds(base: CellParams, var) -> tuple[float, float]:
     if var.name in ("B", "d"):
         v = getattr(base, var.name)
         return 0.5 * v, 2.0 * v
+    if var.name in ("L", "W0", "C0"):
+        # specimen-to-specimen scatter of the knit geometry: a few per cent
+        v = getattr(base, var.name)
+        return 0.95 * v, 1.05 * v
     return var.bounds
 
 
@@ -118,14 +122,15 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     start.update(x0 or {})
     x_start = np.clip(np.array([start[n] for n in free], float), lo, hi)
 
-    # curves that share a strain history share one launch
+    # curves that share a strain history (and test rate) share one launch
     groups: dict[tuple, list[int]] = {}
     programs, rows = [], []
     for i, c in enumerate(curves):
         prog, r = program_for_curve(c, max_increment)
         programs.append(prog)
         rows.append(r)
-        groups.setdefault(tuple(np.round(prog.strain, 15)), []).append(i)
+        rate = () if prog.rate is None else tuple(np.round(prog.rate, 15))
+        groups.setdefault((tuple(np.round(prog.strain, 15)), rate), []).append(i)
     group_list = [g for g in groups.values()]
     n_rows = sum(len(c) for c in curves)
     k = len(free)

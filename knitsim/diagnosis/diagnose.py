@@ -21,9 +21,10 @@ measured curves (issue 6):
    i.e. the drop in ``BIC = RSS / sigma^2 + k ln n`` (Schwarz 1978); sigma is
    estimated from the measured curves alone (:func:`estimate_noise`) or given.
    An effect is *significant* when its score exceeds :data:`STRONG` (Kass and
-   Raftery 1995: a BIC difference above 10 is very strong evidence) and the
-   baseline does not already fit within the noise (chi-square bound on
-   RSS / sigma^2).  Two significant effects whose scores differ by less than
+   Raftery 1995: a BIC difference above 10 is very strong evidence); for
+   noise alone, a one-parameter effect passes with probability
+   P(chi2_1 > 10 + ln n) < 1e-3.  Whether the baseline already fits within
+   the noise (chi-square bound on RSS / sigma^2) is reported beside it.  Two significant effects whose scores differ by less than
    :data:`STRONG` cannot be told apart by these data; the verdict then is not
    confident and names both.  An effect that the data cannot identify at all
    (``velocity_friction`` with all curves at one rate, where any rate factor
@@ -239,7 +240,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         fit = _fit(curves, setup, (name,), x0=base_fit["values"])
         fits[name] = fit
         cand.update(_summary(fit, keys, measured, base_rss, sigma, n, k0))
-        cand["significant"] = bool(cand["score"] > STRONG and not within_noise and not cand["flagged_curves"])
+        cand["significant"] = bool(cand["score"] > STRONG and not cand["flagged_curves"])
         if cand["flagged_curves"]:
             cand["note"] = f"some cells did not converge on {', '.join(cand['flagged_curves'])}"
         candidates.append(cand)
@@ -279,8 +280,9 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     # verdict
     if best is None:
         top = fitted[0] if fitted else None
-        reason = ("the baseline fits within the measurement noise" if within_noise else
-                  "no effect improves the fit by more than the BIC penalty plus 10 (very strong evidence)")
+        reason = "no effect improves the fit by more than the BIC penalty plus 10 (very strong evidence)"
+        if within_noise:
+            reason = "the baseline fits within the measurement noise; " + reason
         verdict = {"effect": None, "stage": where[0] if where else None,
                    "shrink": 0.0, "confident": bool(within_noise or top is None or top["score"] < 0),
                    "reason": reason}
@@ -317,7 +319,8 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         out_curves.append(entry)
     return {"scene": setup.title, "inputs": [c.source for c in curves],
             "noise": {"sigma_N": sigma, "method": how, "rates_mm_s": rates,
-                      "baseline_chi2_per_dof": base_rss / sigma ** 2 / max(n - k0, 1)},
+                      "baseline_chi2_per_dof": base_rss / sigma ** 2 / max(n - k0, 1),
+                      "baseline_within_noise": bool(within_noise)},
             "n_rows": n, "baseline": baseline, "where": where, "candidates": candidates, "pair": pair,
             "indistinguishable": indist, "verdict": verdict, "curves": out_curves,
             "timing_s": time.perf_counter() - t0}

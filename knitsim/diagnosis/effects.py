@@ -9,7 +9,9 @@ The laws themselves live in :mod:`knitsim.cell.effects` (Python description)
 and :mod:`knitsim.kernels.effects` (device code).
 
 Baseline variables: ``m``, ``phi0`` (as a fraction of phimax = atan(m), so
-that its bounds hold while m moves, section 3.3.1), ``B``, ``d``.
+that its bounds hold while m moves, section 3.3.1), ``B``, ``d``, and the knit
+geometry ``L``, ``W0``, ``C0`` (default bounds +-5 %: specimen-to-specimen
+scatter, which an effect would otherwise absorb).
 
 ``coiling_angle_friction`` *replaces* ``m``: m follows eq 10 from the loop's
 coiling angle, so the effect adds ``coil_mu_k`` and removes ``m`` (no extra
@@ -67,6 +69,9 @@ BASELINE_VARIABLES: dict[str, Variable] = {
                      "initial friction angle as a fraction of phimax"),
     "B": Variable("B", (0.0, 0.0), lambda p: p.B, "N mm^2", "bending stiffness"),
     "d": Variable("d", (0.0, 0.0), lambda p: p.d, "mm", "yarn diameter"),
+    "L": Variable("L", (0.0, 0.0), lambda p: p.L, "mm", "yarn length per stitch"),
+    "W0": Variable("W0", (0.0, 0.0), lambda p: p.W0, "mm", "wale width at rest"),
+    "C0": Variable("C0", (0.0, 0.0), lambda p: p.C0, "mm", "course length at rest"),
 }
 
 
@@ -144,7 +149,7 @@ def build_params(base: CellParams, effects: tuple[str, ...], values: dict, fixed
     rate, compaction limit, bending Dahl rate: :class:`~knitsim.cell.effects.EffectSet`
     field names).
     """
-    ch = {k: float(values[k]) for k in ("B", "d") if k in values}
+    ch = {k: float(values[k]) for k in ("B", "d", "L", "W0", "C0") if k in values}
     m = float(values.get("m", base.m))
     kernel_on = tuple(e for e in effects if e in EFFECT_BITS)
     eff = {k: v for k, v in (fixed or {}).items()}

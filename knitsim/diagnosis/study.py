@@ -238,11 +238,17 @@ def _case_record(spec: dict, config: dict, case, result: dict | None, error: str
     return rec
 
 
+#: baseline parameters the study's diagnosis calibrates: the friction (m, phi0) and the geometry that
+#: the generator scatters from specimen to specimen (d, L, C0; W0 moves the curve least), which an
+#: effect would otherwise absorb (a false alarm)
+DEFAULT_STUDY_FREE = ("m", "phi0", "d", "L", "C0")
+
+
 def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_NAMES,
               include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float = 0.01,
               device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.005,
-              candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = ("m", "phi0")) -> dict:
+              candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None) -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
@@ -272,12 +278,12 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
         Strain increment of the diagnosis' simulations.
     candidate_effects : sequence of str
         Effects the diagnosis tries (all by default; it is not told which are hidden).
-    free : sequence of str
+    free : sequence of str, optional
         Baseline parameters the diagnosis calibrates (from the paper's nominal
-        material).  With ("m", "phi0") the specimen scatter of L, W0, C0, d is
-        left to the effects to explain: 1 % scatter moves the curve by 2 to 60
-        noise sd (a measured spread, see the issue-6 report), so adding "d"
-        or "B" is a fairer test.
+        material); default :data:`DEFAULT_STUDY_FREE`.  With ("m", "phi0") only,
+        the specimen scatter of L, W0, C0, d is left to the effects to explain:
+        1 % scatter moves the curve by 2 to 60 noise sd, and an effect that
+        absorbs it is a false alarm.
 
     Returns
     -------
@@ -286,6 +292,7 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
     """
     from .diagnose import DiagnosisSetup, diagnose
 
+    free = DEFAULT_STUDY_FREE if free is None else tuple(free)
     _check_plan_args(n_cases, seed, effects, include_none_fraction)
     how = synthetic.paper_noise_rel()[1] if noise_rel is None else "given"
     noise_rel = synthetic.DEFAULT_NOISE_REL if noise_rel is None else noise_rel

@@ -5,7 +5,7 @@ A diagnosis scene is a cell scene (:mod:`knitsim.scene.cell_scene`: tables
 measured curve drives its own simulation), plus::
 
     [diagnosis]
-    free = ["m", "phi0"]            # baseline parameters to calibrate: m, phi0, B, d
+    free = ["m", "phi0"]            # baseline parameters to calibrate: m, phi0, B, d, L, W0, C0
     bounds = { d = [0.5, 0.7] }     # optional, model units (phi0 as a fraction of phimax)
     effects = ["yarn_compaction"]   # optional, default all seven (knitsim.cell.effects)
     max_increment = 0.005           # optional
@@ -109,7 +109,7 @@ def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -
         lo, hi = (_number(f"diagnosis.bounds.{k}", x) for x in v)
         if not lo < hi:
             raise KnitsimInputError(f"diagnosis.bounds.{k} = {v!r}: expected low < high")
-        if k in ("B", "d") and lo <= 0:
+        if k in ("B", "d", "L", "W0", "C0") and lo <= 0:
             raise KnitsimInputError(f"diagnosis.bounds.{k} = {v!r}: {k} must stay > 0")
         bounds[k] = (lo, hi)
     fixed = {}

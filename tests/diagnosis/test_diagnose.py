@@ -125,7 +125,7 @@ pair = false
 @pytest.mark.parametrize("patch, message", [
     (lambda t: t.replace("[diagnosis]", "[diagnosisx]"), "missing table \\[diagnosis\\]"),
     (lambda t: t.replace('"yarn_extension"]', '"magic"]'), "unknown effect 'magic'"),
-    (lambda t: t.replace('free = ["m", "phi0"]', 'free = ["m", "L"]'), "unknown parameter 'L'"),
+    (lambda t: t.replace('free = ["m", "phi0"]', 'free = ["m", "E"]'), "unknown parameter 'E'"),
     (lambda t: t + "bounds = { m = [0.5, 0.1] }\n", "low < high"),
     (lambda t: t + "noise_N = -1\n", "noise_N"),
     (lambda t: t.replace("W0 = 4.4", "W0 = 2.0"), "W0"),

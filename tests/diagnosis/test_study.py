@@ -117,7 +117,7 @@ def test_plan_prefix_is_stable():
 
 @pytest.mark.parametrize("argv", [
     ["--cases", "0"], ["--seed", "-1"], ["--effects", "magic"], ["--effects", ","],
-    ["--noise-rel", "-0.1"], ["--free", "L"], ["--scatter-rel", "0.5"], ["--none-fraction", "2"],
+    ["--noise-rel", "-0.1"], ["--free", "E"], ["--scatter-rel", "0.5"], ["--none-fraction", "2"],
 ])
 def test_cli_bad_input_exits_2(argv, tmp_path, capsys):
     assert main(["diagnose-study", "--out", str(tmp_path / "o")] + argv) == 2
