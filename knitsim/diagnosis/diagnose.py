@@ -47,7 +47,7 @@ from ..cell.effects import EFFECT_NAMES
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
 from .calibrate import calibrate_baseline
-from .effects import BASELINE_VARIABLES, EFFECT_SPECS, check_effects, variables_for
+from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
 from .measured import MeasuredCurve
 
@@ -90,10 +90,10 @@ class DiagnosisSetup:
     bounds: dict = field(default_factory=dict)
     effects: tuple = EFFECT_NAMES
     fixed: dict = field(default_factory=dict)
-    max_increment: float = 0.005
+    max_increment: float = 0.01
     noise_N: float | None = None
     device: str = "cpu"
-    max_nfev: int = 30
+    max_nfev: int = 20
     pair: bool = True
     title: str = ""
 
@@ -145,19 +145,56 @@ def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
     return float(1.4826 * np.median(z))
 
 
+def sigma_floor(sigma: float) -> float:
+    """An RSS change below one noise variance is not a change (sigma^2)."""
+    return sigma * sigma
+
+
 def _stages(measured, simulated, keys) -> dict:
     g = stage_gap(measured, simulated, keys)
     return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
                 "sse_N2": v["sse_N2"]} for k, v in g["stages"].items()}
 
 
-def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None) -> dict:
-    free = tuple(v.name for v in variables_for(tuple(setup.free), effects))
+def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, extra_starts=()) -> dict:
+    """Calibrate the model with ``effects`` on; the best of its starts (least RSS) is kept.
+
+    The effect variables start from the specimen as calibrated so far (``x0``;
+    e.g. eq 10's mu_k matched to the fitted m), or where the effect vanishes.
+    """
+    variables = variables_for(tuple(setup.free), effects)
+    free = tuple(v.name for v in variables)
     bounds = {k: tuple(v) for k, v in setup.bounds.items() if k in free}
-    start = {k: v for k, v in (x0 or {}).items() if k in free}
-    return calibrate_baseline(curves, setup.base, free=free, bounds=bounds, device=setup.device,
-                              max_increment=setup.max_increment, x0=start, max_nfev=setup.max_nfev,
-                              effects=effects, fixed=setup.fixed)
+    x0 = dict(x0 or {})
+    try:
+        ref = build_params(setup.base, (), {k: v for k, v in x0.items() if k in BASELINE_VARIABLES})
+    except KnitsimInputError:
+        ref = setup.base
+    start = {v.name: v.start(ref) for v in variables}
+    start.update({k: v for k, v in x0.items() if k in free})
+    starts = [start] + [dict(start, **{k: v for k, v in e.items() if k in free}) for e in extra_starts]
+    best = None
+    for st in starts:
+        fit = calibrate_baseline(curves, setup.base, free=free, bounds=bounds, device=setup.device,
+                                 max_increment=setup.max_increment, x0=st, max_nfev=setup.max_nfev,
+                                 effects=effects, fixed=setup.fixed)
+        if best is None or fit["rss_N2"] < best["rss_N2"]:
+            best = fit
+    return best
+
+
+def _baseline_rss_at(curves, setup: DiagnosisSetup, values: dict) -> float | None:
+    """RSS of the baseline at some values of its variables (one evaluation), None if they are invalid."""
+    free = tuple(setup.free)
+    if not all(k in values for k in free):
+        return None
+    try:
+        fit = calibrate_baseline(curves, setup.base, free=free, device=setup.device, max_nfev=1,
+                                 max_increment=setup.max_increment, x0={k: values[k] for k in free},
+                                 bounds={k: tuple(v) for k, v in setup.bounds.items() if k in free})
+    except KnitsimInputError:
+        return None
+    return fit["rss_N2"]
 
 
 def _summary(fit: dict, keys: list, measured: np.ndarray, base_rss: float, sigma: float, n: int, k0: int) -> dict:
@@ -208,9 +245,33 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     sigma = max(sigma, 1e-6 * float(np.max(np.abs(measured)) or 1.0))
     rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})
 
-    # 1-2. baseline and where
-    base_fit = _fit(curves, setup, ())
+    # 1. baseline: the scene's start and two more of phi0 (its least squares has local minima)
+    base_fit = _fit(curves, setup, (), extra_starts=({"phi0": -0.6}, {"phi0": 0.6}))
     say(f"baseline: rms {base_fit['rms_N']:.4g} N")
+
+    # 3. which (fits first; they are scored once the baseline is final)
+    fits = {}
+    for name in setup.effects:
+        spec = EFFECT_SPECS[name]
+        if max(len(rates), 1) < spec.min_rates:
+            continue
+        fits[name] = _fit(curves, setup, (name,), x0=base_fit["values"], extra_starts=spec.extra_starts)
+        say(f"{name}: rms {fits[name]['rms_N']:.4g} N")
+    # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
+    # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
+    trial = {name: _baseline_rss_at(curves, setup, f["values"]) for name, f in fits.items()}
+    trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma_floor(sigma)}
+    basin_note = ""
+    if trial:
+        src = min(trial, key=trial.get)
+        refit = _fit(curves, setup, (), x0=fits[src]["values"])
+        if refit["rss_N2"] < base_fit["rss_N2"]:
+            basin_note = (f"baseline re-calibrated from the {src} fit's parameters: rms "
+                          f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N")
+            base_fit = refit
+            say(basin_note)
+
+    # 2. where
     keys = [k for c in base_fit["curves"] for k in c["keys"]]
     k0 = base_fit["k"]
     base_rss = base_fit["rss_N2"]
@@ -218,18 +279,18 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     baseline["bic"] = base_rss / sigma ** 2 + k0 * math.log(n)
     for key in ("shrink", "score"):
         baseline.pop(key)
+    if basin_note:
+        baseline["note"] = basin_note
     where = sorted(baseline["stages"], key=lambda k: -np.nan_to_num(baseline["stages"][k]["share"]))
     # the baseline already fits within the noise: RSS / sigma^2 below the chi-square(n - k) 99.9 % bound
     chi2_bound = (n - k0) + 3.1 * math.sqrt(2.0 * (n - k0))
     within_noise = base_rss / sigma ** 2 <= chi2_bound
 
-    # 3. which
-    fits = {}
     candidates = []
     for name in setup.effects:
         spec = EFFECT_SPECS[name]
         cand = {"effect": name, "doc": spec.doc, "identifiable": True, "note": ""}
-        if max(len(rates), 1) < spec.min_rates:
+        if name not in fits:
             cand.update(identifiable=False, params={}, std_errors={}, rms_N=None, stages={}, shrink=None, score=None,
                         significant=False,
                         note=f"needs curves at >= {spec.min_rates} distinct rates (have "
@@ -237,14 +298,19 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
                              "a change of m")
             candidates.append(cand)
             continue
-        fit = _fit(curves, setup, (name,), x0=base_fit["values"])
-        fits[name] = fit
+        fit = fits[name]
         cand.update(_summary(fit, keys, measured, base_rss, sigma, n, k0))
-        cand["significant"] = bool(cand["score"] > STRONG and not cand["flagged_curves"])
+        if spec.nests_baseline and fit["rss_N2"] > base_rss:
+            # where the effect vanishes the model is the baseline bit for bit: a fit above it is a local
+            # minimum, and the effect explains nothing
+            cand.update(rss_N2=base_rss, rms_N=baseline["rms_N"], stages=baseline["stages"], shrink=0.0,
+                        score=-(fit["k"] - k0) * math.log(n))
+            cand["note"] = "its fit ended above the baseline (a local minimum); where it vanishes it is the baseline"
+        cand["significant"] = bool(cand["score"] > STRONG)
         if cand["flagged_curves"]:
-            cand["note"] = f"some cells did not converge on {', '.join(cand['flagged_curves'])}"
+            cand["note"] = (f"some increments did not converge on {', '.join(cand['flagged_curves'])} "
+                            "(those rows keep the last converged force): a verdict on it is not confident")
         candidates.append(cand)
-        say(f"{name}: rms {cand['rms_N']:.4g} N, score {cand['score']:.4g}")
     fitted = [c for c in candidates if c["score"] is not None]
     fitted.sort(key=lambda c: -c["score"])
     candidates = fitted + [c for c in candidates if c["score"] is None]
@@ -290,9 +356,11 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         drops = {k: baseline["stages"][k]["sse_N2"] - best["stages"][k]["sse_N2"] for k in baseline["stages"]}
         stage = max(drops, key=drops.get)
         rivals = [p[1] for p in indist if p[0] == best["effect"]] + [p[0] for p in indist if p[1] == best["effect"]]
-        confident = not rivals
+        confident = not rivals and not best["flagged_curves"]
         if rivals:
             reason = f"the data cannot tell {best['effect']} from {', '.join(rivals)} (BIC scores within {STRONG:g})"
+        elif best["flagged_curves"]:
+            reason = "its best fit has increments that did not converge"
         else:
             reason = (f"BIC score {best['score']:.4g}; the next effect is more than {STRONG:g} behind")
         verdict = {"effect": best["effect"], "stage": stage, "shrink": best["shrink"], "confident": confident,

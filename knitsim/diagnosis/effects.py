@@ -85,6 +85,10 @@ class EffectSpec:
     min_rates: int = 1
     doc: str = ""
     fixed: dict = field(default_factory=dict)
+    #: further starts of its variables (its least squares has local minima)
+    extra_starts: tuple = ()
+    #: the model equals the baseline bit for bit where the effect vanishes (a start of its fit)
+    nests_baseline: bool = True
 
 
 EFFECT_SPECS: dict[str, EffectSpec] = {
@@ -92,12 +96,14 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
         "dahl_transition",
         (Variable("log10_dahl_sigma", (-0.5, 3.0), lambda p: 2.5, "log10(1/mm)",
                   "Dahl stiffness of tan(phi) per unit slip (Dahl 1976)"),),
-        doc="Dahl friction state instead of Coulomb switching (smooth stick-slip)"),
+        doc="Dahl friction state instead of Coulomb switching (smooth stick-slip)",
+        extra_starts=({"log10_dahl_sigma": 1.0},), nests_baseline=False),
     "coiling_angle_friction": EffectSpec(
         "coiling_angle_friction",
         (Variable("coil_mu_k", (0.01, 2.0), lambda p: _mu_for_m(p.m, _beta0(p)), "-",
                   "kinetic friction coefficient of eq 10"),),
-        replaces=("m",), doc="m follows eq 10 with the coiling angle of the current loop"),
+        replaces=("m",), doc="m follows eq 10 with the coiling angle of the current loop",
+        extra_starts=({"coil_mu_k": 0.1}, {"coil_mu_k": 0.5}), nests_baseline=False),
     "normal_load_friction": EffectSpec(
         "normal_load_friction",
         (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5"),),

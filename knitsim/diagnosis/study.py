@@ -247,7 +247,7 @@ DEFAULT_STUDY_FREE = ("m", "phi0", "d", "L", "C0")
 def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_NAMES,
               include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float = 0.01,
               device: str = "cpu", progress: Callable | None = None, resume: bool = True,
-              rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.005,
+              rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
               candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None) -> dict:
     """Run (or resume) a blind study and write its summary.
 

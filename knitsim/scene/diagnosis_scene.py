@@ -8,10 +8,10 @@ measured curve drives its own simulation), plus::
     free = ["m", "phi0"]            # baseline parameters to calibrate: m, phi0, B, d, L, W0, C0
     bounds = { d = [0.5, 0.7] }     # optional, model units (phi0 as a fraction of phimax)
     effects = ["yarn_compaction"]   # optional, default all seven (knitsim.cell.effects)
-    max_increment = 0.005           # optional
+    max_increment = 0.01            # optional: largest replay increment (events are located exactly)
     noise_N = 0.01                  # optional: known noise sd [N per wale]
     pair = true                     # optional: also fit the best pair
-    max_nfev = 30                   # optional: evaluations per calibration
+    max_nfev = 20                   # optional: evaluations per calibration
 
     [diagnosis.fixed]               # optional: effect parameters not fitted
     load_ref_N = 0.1                # normal load at which the ratio is m
@@ -124,11 +124,11 @@ def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -
     noise = diag.get("noise_N")
     if noise is not None:
         noise = _number("diagnosis.noise_N", noise, positive=True)
-    mi = _number("diagnosis.max_increment", diag.get("max_increment", 0.005), positive=True)
+    mi = _number("diagnosis.max_increment", diag.get("max_increment", 0.01), positive=True)
     pair = diag.get("pair", True)
     if not isinstance(pair, bool):
         raise KnitsimInputError(f"diagnosis.pair = {pair!r}: expected true or false")
-    nfev = diag.get("max_nfev", 30)
+    nfev = diag.get("max_nfev", 20)
     if not isinstance(nfev, int) or isinstance(nfev, bool) or nfev < 2:
         raise KnitsimInputError(f"diagnosis.max_nfev = {nfev!r}: expected a whole number >= 2")
     title = data.get("title", "") or name
