@@ -4,9 +4,13 @@ Dusserre (2015, sections 4-5) explains why his curves are too sharp by
 effects his model leaves out; :func:`diagnose` tests that reasoning on
 measured curves (issue 6):
 
-1. **Calibrate** the baseline's free parameters (m, phi0; optionally B, d) on
-   every curve at once (:func:`~knitsim.diagnosis.calibrate.calibrate_baseline`:
-   least squares, one batched launch per evaluation).
+1. **Calibrate** the baseline's free parameters (m, phi0; optionally B, d and
+   the knit geometry L, W0, C0) on every curve at once
+   (:func:`~knitsim.diagnosis.calibrate.calibrate_baseline`: least squares, one
+   batched launch per evaluation), from three starts of phi0.  After the
+   candidates are fitted, the baseline is re-calibrated from any candidate's
+   baseline parameters that fit better (a better basin), so that no effect
+   is credited with what the baseline can do itself.
 2. **Where**: the rows are keyed by the stage the calibrated baseline
    simulates there (``loading_sliding``, ``unloading_adherence``, ...;
    :func:`~knitsim.diagnosis.gap.stage_keys`); the gap is split by key (RMS,
