@@ -708,6 +708,18 @@ def label_dahl(stage: int, q: vecQd, mat: Material) -> int:
 
 
 @wp.func
+def push_event(n: int, kinds: vec8i, Cs: vec8d, froms: vec8i, tos: vec8i, kind: int, C: wp.float64,
+               label_from: int, label_to: int):
+    """Append an event to the increment's buffer (the first MAX_EVENTS_PER_STEP are kept, all are counted)."""
+    if n < _MAXEV:
+        kinds[n] = kind
+        Cs[n] = C
+        froms[n] = label_from
+        tos[n] = label_to
+    return n + 1, kinds, Cs, froms, tos
+
+
+@wp.func
 def lerp5(a: vec5d, b: vec5d, t: wp.float64):
     return a + (b - a) * t
 
@@ -1007,12 +1019,7 @@ def step_kernel(
     # --- reversal (Table 4: SF- on unloading, SF+ on reloading)
     if dir_new != dir_old and status == ST_OK and stage != SLACK:
         stage, soft, fs, fsbc = reverse(dir_new, q, mat, soft, fs)
-        if n_ev < _MAXEV:
-            e_kind[n_ev] = _EV_REVERSAL
-            e_C[n_ev] = C
-            e_from[n_ev] = -1
-            e_to[n_ev] = -1
-        n_ev += 1
+        n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_REVERSAL, C, -1, -1)
 
     go = status == ST_OK
 
@@ -1023,12 +1030,7 @@ def step_kernel(
         else:
             stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
             x = seed_contact(x)
-            if n_ev < _MAXEV:
-                e_kind[n_ev] = _EV_RELOAD
-                e_C[n_ev] = C
-                e_from[n_ev] = -1
-                e_to[n_ev] = -1
-            n_ev += 1
+            n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_RELOAD, C, -1, -1)
 
     if go and mat.dahl == 0:
         # ---------------------------------------------------- Coulomb (Table 4)
@@ -1057,12 +1059,8 @@ def step_kernel(
             if kind0 >= 0:
                 lbl_from = stage_label(stage, jammed)
                 stage, jammed, soft, fs, status = transition(kind0, stage, jammed, soft, fs, status, q)
-                if n_ev < _MAXEV:
-                    e_kind[n_ev] = kind0
-                    e_C[n_ev] = C
-                    e_from[n_ev] = lbl_from
-                    e_to[n_ev] = stage_label(stage, jammed)
-                n_ev += 1
+                n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
+                    kind0, C, lbl_from, stage_label(stage, jammed))
                 n_located += 1
                 continue
             xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
@@ -1153,12 +1151,8 @@ def step_kernel(
             q = best_q
             C = best_C
             stage, jammed, soft, fs, status = transition(best_kind, stage, jammed, soft, fs, status, q)
-            if n_ev < _MAXEV:
-                e_kind[n_ev] = best_kind
-                e_C[n_ev] = C
-                e_from[n_ev] = lbl_from
-                e_to[n_ev] = stage_label(stage, jammed)
-            n_ev += 1
+            n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
+                best_kind, C, lbl_from, stage_label(stage, jammed))
             if status != ST_OK or stage == SLACK:
                 break
             n_located += 1
@@ -1249,12 +1243,8 @@ def step_kernel(
                                 if best_kind == _EV_UNJAM:
                                     tC = Ck
                                 tstage, tjam, tsoft, tfs, tstatus = transition(best_kind, tstage, tjam, tsoft, tfs, tstatus, tq)
-                                if n_ev < _MAXEV:
-                                    e_kind[n_ev] = best_kind
-                                    e_C[n_ev] = tC
-                                    e_from[n_ev] = lbl_from
-                                    e_to[n_ev] = stage_label(tstage, tjam)
-                                n_ev += 1
+                                n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
+                                    best_kind, tC, lbl_from, stage_label(tstage, tjam))
                                 if tstatus != ST_OK or tstage == SLACK or tC == Ck:
                                     break
                 if not failed:
