@@ -16,7 +16,7 @@ import time
 from knitsim import warp_runtime
 from knitsim.diagnosis.calibrate import calibrate_baseline
 from knitsim.diagnosis.diagnose import DiagnosisSetup, diagnose
-from knitsim.diagnosis.study import DEFAULT_STUDY_FREE
+from knitsim.diagnosis.effects import DEFAULT_STUDY_FREE
 from knitsim.diagnosis.synthetic import make_case, material_params
 
 

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import csv
-import json
 import math
 import sys
 from pathlib import Path
@@ -11,6 +10,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import KnitsimInputError
+from ..io.jsonable import json_text
 
 
 def add_json_flag(parser) -> None:
@@ -18,27 +18,9 @@ def add_json_flag(parser) -> None:
     parser.add_argument("--json", action="store_true", help="print results as JSON (for scripts)")
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
-
-
 def print_json(value: Any, stream=None) -> None:
     """Print ``value`` as JSON (NumPy scalars and arrays converted; NaN -> null)."""
-    json.dump(_jsonable(value), stream or sys.stdout, indent=2)
-    (stream or sys.stdout).write("\n")
+    (stream or sys.stdout).write(json_text(value))
 
 
 def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterable[str] = (),

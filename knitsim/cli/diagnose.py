@@ -10,13 +10,11 @@ The diagnosis itself is :func:`knitsim.diagnosis.diagnose.diagnose`.
 """
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
 
 from ..errors import KnitsimInputError
-from .common import _jsonable
 
 
 def register(subparsers) -> None:
@@ -52,6 +50,7 @@ def run(args) -> int:
     from ..diagnosis.effects import check_effects
     from ..diagnosis.measured import read_measured_curve
     from ..diagnosis.report import write_report
+    from ..io.jsonable import json_text
     from ..io.results import atomic_write_bytes
     from ..scene.diagnosis_scene import load_diagnosis_scene
 
@@ -76,7 +75,7 @@ def run(args) -> int:
         if out is not None:
             out.parent.mkdir(parents=True, exist_ok=True)
     if json_out is not None:
-        atomic_write_bytes(json_out, json.dumps(_jsonable(result), indent=1, allow_nan=False).encode())
+        atomic_write_bytes(json_out, json_text(result, indent=1).encode())
     if report is not None:
         write_report(result, report)
     v = result["verdict"]

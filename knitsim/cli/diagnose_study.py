@@ -15,8 +15,7 @@ import contextlib
 import math
 import sys
 
-from ..diagnosis.effects import BASELINE_VARIABLES
-from ..diagnosis.study import DEFAULT_STUDY_FREE
+from ..diagnosis.effects import BASELINE_VARIABLES, DEFAULT_STUDY_FREE
 from ..errors import KnitsimInputError
 from .common import add_json_flag, print_json
 

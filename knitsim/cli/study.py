@@ -7,11 +7,11 @@ figures to DIR.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..studies import STUDIES
-from .common import _jsonable, add_json_flag, print_json
+from ..io.jsonable import json_text
+from .common import add_json_flag, print_json
 
 
 def register(subparsers) -> None:
@@ -38,7 +38,7 @@ def run(args) -> int:
         d = Path(args.out)
         d.mkdir(parents=True, exist_ok=True)
         (d / "dusserre2015_claims.txt").write_text(study.table_text(res) + "\n")
-        (d / "dusserre2015_claims.json").write_text(json.dumps(_jsonable(out), indent=2) + "\n")
+        (d / "dusserre2015_claims.json").write_text(json_text(out))
         out["figures"] = [str(p) for p in study.figures(res, d)]
     if args.json:
         print_json(out)

@@ -37,8 +37,10 @@ import numpy as np
 
 from ..cell.effects import EFFECT_NAMES
 from ..errors import KnitsimInputError
+from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes
 from . import synthetic
+from .effects import DEFAULT_STUDY_FREE
 
 NONE = "none"
 UNDECIDED = "undecided"
@@ -214,9 +216,7 @@ def summary_markdown(summary: dict) -> str:
 
 
 def _json_bytes(obj) -> bytes:
-    from ..cli.common import _jsonable
-
-    return (json.dumps(_jsonable(obj), indent=1) + "\n").encode("utf-8")
+    return json_text(obj, indent=1).encode("utf-8")
 
 
 def _case_record(spec: dict, config: dict, case, result: dict | None, error: str | None, timing: float) -> dict:
@@ -236,12 +236,6 @@ def _case_record(spec: dict, config: dict, case, result: dict | None, error: str
     rec["noise"] = result.get("noise")
     rec["baseline_rms_N"] = (result.get("baseline") or {}).get("rms_N")
     return rec
-
-
-#: baseline parameters the study's diagnosis calibrates: the friction (m, phi0) and the geometry that
-#: the generator scatters from specimen to specimen (d, L, C0; W0 moves the curve least), which an
-#: effect would otherwise absorb (a false alarm)
-DEFAULT_STUDY_FREE = ("m", "phi0", "d", "L", "C0")
 
 
 def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_NAMES,

@@ -22,7 +22,6 @@ the force reached 0) or stopped.  Angles in rad, lengths in mm, forces in N.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import shutil
@@ -37,6 +36,7 @@ from ..cell.cycle import dissipated_energy
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.stages import LABEL_CODES
 from ..errors import KnitsimInputError
+from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
                  "gamma", "phi", "P", "W", "C", "s_BC", "status")
@@ -267,8 +267,7 @@ def summarise(history: BatchHistory, labels: list[str] | None = None, notes: lis
 
 def summary_json(summary: dict) -> str:
     """``summary`` as JSON text (NaN -> null)."""
-    from ..cli.common import _jsonable
-    return json.dumps(_jsonable(summary), indent=2) + "\n"
+    return json_text(summary)
 
 
 # --------------------------------------------------------------------- plot
