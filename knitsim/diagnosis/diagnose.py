@@ -149,11 +149,6 @@ def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
     return float(1.4826 * np.median(z))
 
 
-def sigma_floor(sigma: float) -> float:
-    """An RSS change below one noise variance is not a change (sigma^2)."""
-    return sigma * sigma
-
-
 def _stages(measured, simulated, keys) -> dict:
     g = stage_gap(measured, simulated, keys)
     return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
@@ -264,7 +259,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
     # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
     trial = {name: _baseline_rss_at(curves, setup, f["values"]) for name, f in fits.items()}
-    trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma_floor(sigma)}
+    trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
     basin_note = ""
     if trial:
         src = min(trial, key=trial.get)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from ..cell.effects import EFFECT_BITS, EFFECT_NAMES
@@ -74,6 +74,11 @@ BASELINE_VARIABLES: dict[str, Variable] = {
     "C0": Variable("C0", (0.0, 0.0), lambda p: p.C0, "mm", "course length at rest"),
 }
 
+#: baseline parameters the blind study's diagnosis calibrates: the friction (m, phi0) and the geometry
+#: that its generator scatters from specimen to specimen (d, L, C0; W0 moves the curve least), which an
+#: effect would otherwise absorb (a false alarm); defined here so that the CLI needs no study import
+DEFAULT_STUDY_FREE = ("m", "phi0", "d", "L", "C0")
+
 
 @dataclass(frozen=True)
 class EffectSpec:
@@ -84,7 +89,6 @@ class EffectSpec:
     replaces: tuple[str, ...] = ()
     min_rates: int = 1
     doc: str = ""
-    fixed: dict = field(default_factory=dict)
     #: further starts of its variables (its least squares has local minima)
     extra_starts: tuple = ()
     #: the model equals the baseline bit for bit where the effect vanishes (a start of its fit)
