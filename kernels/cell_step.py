@@ -442,7 +442,7 @@ def reverse(direction: int, q: vecQd, mat: Material, soft_old: int, fsoft_old: w
             # no contact force to unload: the cell is slack at once (CellCycle.reverse)
             stage = int(SLACK)
     else:
-        tiny = wp.abs(q[Q_RN]) < wp.float64(1.0e-9) * wp.max(q[Q_P], wp.float64(1.0e-12))
+        tiny = wp.abs(q[Q_RN]) < _ZERO_CONTACT * wp.max(q[Q_P], wp.float64(1.0e-12))
         if tiny and mat.mirror != 0 and mat.dahl == 0:
             soft = int(Q_BETA)
     fsoft = q[soft]

@@ -327,7 +327,7 @@ class CellCycle:
             st.soft = "T" if (p.unloading_rule == "hong_constant_t" or p.friction == "dahl") else "beta"
         else:
             st.stage = Stage.SF_LOAD
-            tiny = abs(q["Rn"]) < 1e-9 * max(q["P"], 1e-12)
+            tiny = abs(q["Rn"]) < ZERO_CONTACT * max(q["P"], 1e-12)
             st.soft = "beta" if (tiny and p.reload_rule == "mirror_unloading" and p.friction == "coulomb") else "Rn"
         st.frozen_soft = q[st.soft]
 

@@ -19,6 +19,7 @@ from knitsim.cell.batch import CellModel, CellSolver, run_batch
 from knitsim.cell.cycle import dissipated_energy, run_cells_reference
 from knitsim.cell.load_program import cycles, monotonic, piecewise_linear
 from knitsim.cell.material import CellParams
+from knitsim.cell.stages import Stage
 from knitsim.data import dusserre2015
 
 PAPER = dusserre2015()
@@ -250,7 +251,9 @@ def test_paper_program_1000_cells_fail_rarely():
     for v in h.values.values():
         assert np.all(np.isfinite(v))
     failed = np.isin(h.status[-1], (1, 3)).sum()
-    assert failed <= 200  # after: 159 (154 + 5), mostly reloading from slack (see the report)
+    # after those rules: 159 (154 + 5), mostly reloading from slack; after ZERO_CONTACT = 1e-4 P
+    # (a slack state located at F = 0 keeps R ~ 1e-5 P, which froze a tensile Rn on reloading): 21 (19 + 2)
+    assert failed <= 40
 
 
 @pytest.mark.parametrize("rule", ["dusserre", "hong_constant_t"])
@@ -282,3 +285,32 @@ def test_paper_cell_three_cycles_reload_from_slack(device, rule):
     for c in (1, 2, 3):
         m = h.cycle == c
         assert dissipated_energy(h.strain[m], h.force_per_wale[m, 0]) >= -1e-12
+
+
+def test_reload_from_slack_at_vanishing_contact_stays_in_the_cone(device):
+    """A cell that goes slack where the located F = 0 state keeps a contact force of order
+    1e-5 P (R/P = 2e-5, not exactly 0) reloads as a zero-contact cell (stages.ZERO_CONTACT).
+
+    Found by the diagnosis' calibration (a friction ratio m = 0.122, phi0 = phimax): the
+    reload froze Rn = -2e-6 N, a *tensile* contact force, so the stick branch left the
+    friction cone on the far side (phi = -1.568 rad, |tan phi| = 200 >> m) and the next
+    reversal did not converge.  Coulomb's law bounds every stick or slide state by
+    |tan phi| <= m (eq 10's cone) wherever the contact carries load (R > ZERO_CONTACT P).
+    """
+    m = 0.12204764241562968
+    p = CellParams(B=0.31, d=0.49050218870669077, L=13.395000719832845, W0=4.4, C0=2.6164559564754346,
+                   m=m, phi0=math.atan(m), force_cap_N=50.0)
+    prog = cycles(0.10, 0.60, 3, max_increment=0.01)
+    h = run_batch([p], prog, device=device)
+    r = run_cells_reference([p], prog)
+    # the second reload ends within 1e-11 of a slide event, so the stage labels of that one row
+    # may tie either way between the engines: the forces are compared, and the law is checked on both
+    np.testing.assert_allclose(h.force_per_wale, r.force_per_wale, rtol=1e-6, atol=1e-9)
+    for hist in (h, r):
+        assert (hist.status == 0).all()
+        v = hist.values
+        contact = np.abs(v["Rn"][:, 0]) * np.hypot(1.0, np.tan(v["phi"][:, 0]))  # R = Rn / cos(phi)
+        loaded = (hist.stage[:, 0] != int(Stage.SLACK)) & (contact > 1e-4 * v["P"][:, 0])
+        assert loaded.sum() > 100
+        assert np.all(np.abs(np.tan(v["phi"][loaded, 0])) <= m * (1 + 1e-9))
+        assert np.all(hist.force_per_wale >= -1e-9)
