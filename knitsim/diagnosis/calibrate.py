@@ -97,7 +97,8 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     dict
         ``params`` (fitted CellParams), ``values`` / ``std_errors`` (name -> float, in
         the model's units, phi0 in rad), ``phi0_fraction`` (value, std error) when fitted,
-        ``rms_N``, ``rss_N2``, ``n``, ``k``, ``covariance`` (of ``values``), ``curves``
+        ``fit_variables`` (the same in the fitted variables, phi0 as a fraction of
+        phimax: what ``x0`` takes), ``rms_N``, ``rss_N2``, ``n``, ``k``, ``covariance`` (of ``values``), ``curves``
         (per curve: strain, measured, simulated, labels, keys, status), ``nfev``,
         ``njev``, ``n_batch_calls``, ``success``, ``message``.
     """
@@ -193,7 +194,8 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
         out_curves.append({"source": c.source, "strain": c.strain, "measured": c.force, "simulated": fs,
                            "labels": lab, "keys": stage_keys(lab, c.direction, c.cycle),
                            "final_status": STATUS_NAMES[int(st[-1])]})
-    out = {"params": fitted, "free": free, "effects": effects, "x": x.copy(), "J": J, "values": values, "std_errors": se, "covariance": cov,
+    out = {"params": fitted, "free": free, "effects": effects, "x": x.copy(), "J": J, "values": values,
+           "fit_variables": {n: float(x[j]) for j, n in enumerate(free)}, "std_errors": se, "covariance": cov,
            "rms_N": math.sqrt(rss / n_rows), "rss_N2": rss, "n": n_rows, "k": k, "curves": out_curves,
            "nfev": int(res.nfev), "njev": int(res.njev or 0), "n_batch_calls": counter["calls"],
            "success": bool(res.success), "message": str(res.message)}

@@ -34,7 +34,9 @@ measured curves (issue 6):
    (``velocity_friction`` with all curves at one rate, where any rate factor
    is a change of m) is reported with ``identifiable = false`` and not fitted.
 4. **How far**: the gap per stage after the best effect, and after the best
-   pair (greedy: the best effect plus each other one).
+   pair (greedy: the best effect plus each of the :data:`PAIR_PARTNERS` next
+   effects whose own fit lowered the RSS; one that explains nothing alone is
+   not tried).
 
 ``shrink = 1 - rms_after / rms_before``.
 """
@@ -155,11 +157,22 @@ def _stages(measured, simulated, keys) -> dict:
                 "sse_N2": v["sse_N2"]} for k, v in g["stages"].items()}
 
 
-def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, extra_starts=()) -> dict:
-    """Calibrate the model with ``effects`` on; the best of its starts (least RSS) is kept.
+#: effects tried beside the best one in the greedy pair (the next best that lowered the RSS on their own)
+PAIR_PARTNERS = 3
 
-    The effect variables start from the specimen as calibrated so far (``x0``;
-    e.g. eq 10's mu_k matched to the fitted m), or where the effect vanishes.
+#: evaluations each start of a multi-start calibration gets before the best one goes on alone
+RACE_NFEV = 6
+
+
+def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, extra_starts=()) -> dict:
+    """Calibrate the model with ``effects`` on from several starts; the least RSS is kept.
+
+    The variables start from the specimen as calibrated so far (``x0``, in the
+    fitted variables: phi0 as a fraction of phimax) or where the effect
+    vanishes; each of ``extra_starts`` overrides some of them.  With more than
+    one start, each gets :data:`RACE_NFEV` evaluations and only the best goes on
+    to ``setup.max_nfev`` (a race: the starts are there to pick a basin, which
+    the first few trust-region steps show).
     """
     variables = variables_for(tuple(setup.free), effects)
     free = tuple(v.name for v in variables)
@@ -171,15 +184,38 @@ def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, 
         ref = setup.base
     start = {v.name: v.start(ref) for v in variables}
     start.update({k: v for k, v in x0.items() if k in free})
-    starts = [start] + [dict(start, **{k: v for k, v in e.items() if k in free}) for e in extra_starts]
-    best = None
-    for st in starts:
-        fit = calibrate_baseline(curves, setup.base, free=free, bounds=bounds, device=setup.device,
-                                 max_increment=setup.max_increment, x0=st, max_nfev=setup.max_nfev,
-                                 effects=effects, fixed=setup.fixed)
-        if best is None or fit["rss_N2"] < best["rss_N2"]:
-            best = fit
-    return best
+    starts = [start]
+    for e in extra_starts:
+        st = dict(start, **{k: v for k, v in e.items() if k in free})
+        if st not in starts:
+            starts.append(st)
+
+    def calibrate(st, nfev):
+        return calibrate_baseline(curves, setup.base, free=free, bounds=bounds, device=setup.device,
+                                  max_increment=setup.max_increment, x0=st, max_nfev=nfev,
+                                  effects=effects, fixed=setup.fixed)
+
+    if len(starts) == 1 or setup.max_nfev <= RACE_NFEV:
+        fits = [calibrate(st, setup.max_nfev) for st in starts]
+        return min(fits, key=lambda f: f["rss_N2"])
+    best = min((calibrate(st, RACE_NFEV) for st in starts), key=lambda f: f["rss_N2"])
+    if best["success"]:
+        return best
+    fit = calibrate(best["fit_variables"], setup.max_nfev - RACE_NFEV)
+    return fit if fit["rss_N2"] <= best["rss_N2"] else best
+
+
+def _phi0_alternative(values: dict) -> tuple:
+    """A start of phi0 away from the baseline's, when that sits near a bound of the cone.
+
+    The least squares in phi0 has local minima (the initial stick stage ends
+    where phi reaches +-phimax), and a baseline at phi0 = +-phimax may be a
+    local minimum that the effect's own optimum does not share.
+    """
+    f = values.get("phi0")
+    if f is None or abs(f) < 0.5:
+        return ()
+    return ({"phi0": 0.0},)
 
 
 def _baseline_rss_at(curves, setup: DiagnosisSetup, values: dict) -> float | None:
@@ -254,16 +290,18 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         spec = EFFECT_SPECS[name]
         if max(len(rates), 1) < spec.min_rates:
             continue
-        fits[name] = _fit(curves, setup, (name,), x0=base_fit["values"], extra_starts=spec.extra_starts)
+        base_x = base_fit["fit_variables"]
+        fits[name] = _fit(curves, setup, (name,), x0=base_x,
+                          extra_starts=spec.extra_starts + _phi0_alternative(base_x))
         say(f"{name}: rms {fits[name]['rms_N']:.4g} N")
     # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
     # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
-    trial = {name: _baseline_rss_at(curves, setup, f["values"]) for name, f in fits.items()}
+    trial = {name: _baseline_rss_at(curves, setup, f["fit_variables"]) for name, f in fits.items()}
     trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
     basin_note = ""
     if trial:
         src = min(trial, key=trial.get)
-        refit = _fit(curves, setup, (), x0=fits[src]["values"])
+        refit = _fit(curves, setup, (), x0=fits[src]["fit_variables"])
         if refit["rss_N2"] < base_fit["rss_N2"]:
             basin_note = (f"baseline re-calibrated from the {src} fit's parameters: rms "
                           f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N")
@@ -326,12 +364,14 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     pair = None
     if best is not None and setup.pair:
         trials = []
-        for other in fitted:
-            if other["effect"] == best["effect"]:
-                continue
+        partners = [c for c in fitted if c["effect"] != best["effect"] and c["rss_N2"] < base_rss]
+        for other in partners[:PAIR_PARTNERS]:
             effs = (best["effect"], other["effect"])
-            x0 = {**base_fit["values"], **fits[other["effect"]]["values"], **fits[best["effect"]]["values"]}
-            fit = _fit(curves, setup, effs, x0=x0)
+            # from the best effect's fit with the partner where it vanishes, or at its own fitted strength
+            x0 = {**base_fit["fit_variables"], **fits[best["effect"]]["fit_variables"]}
+            own = {v.name: fits[other["effect"]]["fit_variables"][v.name]
+                   for v in EFFECT_SPECS[other["effect"]].variables}
+            fit = _fit(curves, setup, effs, x0=x0, extra_starts=(own,))
             summ = _summary(fit, keys, measured, base_rss, sigma, n, k0)
             summ["effects"] = list(effs)
             summ["gain_over_best"] = summ["score"] - best["score"]

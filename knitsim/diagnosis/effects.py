@@ -111,23 +111,30 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
     "normal_load_friction": EffectSpec(
         "normal_load_friction",
         (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5"),),
-        doc="mu_k = b Fn^(n-1) at the crossing (eq 5)"),
+        doc="mu_k = b Fn^(n-1) at the crossing (eq 5)",
+        # Table 3: n < 1 (0.948 E-glass, 0.909 basalt); from n = 1 the fit has to cross a valley of d and L
+        extra_starts=({"load_n": 0.8},)),
     "velocity_friction": EffectSpec(
         "velocity_friction",
         (Variable("rate_p", (-0.4, 0.4), lambda p: 0.0, "-", "velocity exponent p of eq 5"),),
-        min_rates=2, doc="mu_k = b V^p with V from the test rate (eq 5)"),
+        min_rates=2, doc="mu_k = b V^p with V from the test rate (eq 5)",
+        extra_starts=({"rate_p": 0.1},)),  # Table 3: p > 0 (0.025 E-glass)
     "yarn_compaction": EffectSpec(
         "yarn_compaction",
         (Variable("compaction_k", (0.0, 200.0), lambda p: 0.0, "1/N", "transverse compliance at the crossing"),),
-        doc="yarn diameter at the crossing shrinks with the contact load; jamming at W = 4 d_eff"),
+        doc="yarn diameter at the crossing shrinks with the contact load; jamming at W = 4 d_eff",
+        # a baseline may have absorbed compaction by a thinner yarn: from k = 0 the fit must raise d and k together
+        extra_starts=({"compaction_k": 20.0},)),
     "bending_hysteresis": EffectSpec(
         "bending_hysteresis",
         (Variable("bend_h", (0.0, 0.6), lambda p: 0.0, "-", "saturated friction moment / elastic moment"),),
-        doc="friction inside the yarn, a Dahl element on the bending moment"),
+        doc="friction inside the yarn, a Dahl element on the bending moment",
+        extra_starts=({"bend_h": 0.2},)),
     "yarn_extension": EffectSpec(
         "yarn_extension",
         (Variable("ext_c", (0.0, 0.05), lambda p: 0.0, "1/N", "tensile compliance 1/(EA)"),),
-        doc="finite tensile stiffness: L grows with the yarn tension"),
+        doc="finite tensile stiffness: L grows with the yarn tension",
+        extra_starts=({"ext_c": 0.01},)),
 }
 assert tuple(EFFECT_SPECS) == EFFECT_NAMES
 

@@ -19,6 +19,11 @@ again.  The summary (:func:`study_metrics`) goes to ``summary.json`` and
   ``undecided`` when it names an effect without confidence, ``none`` when it
   names none (``error`` when the diagnosis raised);
 - top-1 accuracy over identifiable effect cases (a correct *confident* verdict);
+  identifiable is the generator's oracle label
+  (:func:`knitsim.diagnosis.synthetic.oracle_evidence`: what the best baseline
+  refit of the noise-free curves leaves is evidence enough, with high
+  probability); also the accuracy over all effect cases, and how many
+  identifiable effects were named first but without confidence;
 - false-alarm rate over effect-free cases: a confident verdict naming an
   effect (also given counting ``undecided`` as an alarm);
 - stage localisation: ``verdict.stage == label.true_stage`` over the
@@ -130,6 +135,7 @@ def study_metrics(records: Sequence[dict]) -> dict:
     confusion: dict[str, dict[str, int]] = {}
     per_effect: dict[str, dict] = {}
     top1_n = top1_ok = none_n = alarms = alarms_any = 0
+    all_n = all_ok = named_n = 0
     stage_n = stage_ok = 0
     shrinks = []
     for r in recs:
@@ -153,11 +159,15 @@ def study_metrics(records: Sequence[dict]) -> dict:
         pe["named_none"] += pred == NONE
         ok = pred == true
         pe["correct"] += ok
+        all_n += 1
+        all_ok += ok
         if lab.get("identifiable"):
             pe["identifiable"] += 1
             pe["correct_identifiable"] += ok
             top1_n += 1
             top1_ok += ok
+            # named first but not confidently (a rival within the BIC margin, or flagged increments)
+            named_n += bool(ver) and pred == UNDECIDED and ver.get("effect") == true
         if ok:
             stage_n += 1
             stage_ok += ver.get("stage") == lab.get("true_stage")
@@ -174,6 +184,8 @@ def study_metrics(records: Sequence[dict]) -> dict:
         "rows": [r for r in order_r if r in rows], "columns": [c for c in order_c if c in cols or c == NONE],
         "confusion": confusion,
         "top1_accuracy": _ratio(top1_ok, top1_n), "top1_n": top1_n, "top1_correct": top1_ok,
+        "top1_named_undecided": named_n,
+        "accuracy_all_effects": _ratio(all_ok, all_n), "effect_n": all_n,
         "false_alarm_rate": _ratio(alarms, none_n), "false_alarm_rate_incl_undecided": _ratio(alarms_any, none_n),
         "none_n": none_n, "false_alarms": alarms,
         "stage_accuracy": _ratio(stage_ok, stage_n), "stage_n": stage_n,
@@ -195,6 +207,10 @@ def summary_markdown(summary: dict) -> str:
              f"test rates {summary['config']['rates']} mm/s", "",
              "| score | value | over |", "|---|---|---|",
              f"| top-1 accuracy (identifiable effects) | {pct(m['top1_accuracy'])} | {m['top1_n']} cases |",
+             f"| identifiable effects named first, not confidently | {m.get('top1_named_undecided', 0)} "
+             f"| {m['top1_n']} cases |",
+             f"| accuracy over all effect cases (identifiable or not) | {pct(m.get('accuracy_all_effects'))} "
+             f"| {m.get('effect_n', 0)} cases |",
              f"| false alarms (effect-free, confident) | {pct(m['false_alarm_rate'])} | {m['none_n']} cases |",
              f"| false alarms incl. undecided | {pct(m['false_alarm_rate_incl_undecided'])} | {m['none_n']} cases |",
              f"| stage localisation (correct verdicts) | {pct(m['stage_accuracy'])} | {m['stage_n']} cases |",
@@ -302,7 +318,7 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
               "rates": [float(r) for r in rates], "max_increment": float(max_increment),
               "generator_max_increment": 0.0025, "candidate_effects": list(candidate_effects),
               "include_none_fraction": float(include_none_fraction), "hidden_effects": list(effects),
-              "free": list(free)}
+              "free": list(free), "identifiable_by": "oracle refit (synthetic.oracle_evidence)"}
     # what makes a stored case reusable: its plan entry and everything that shapes its data or its diagnosis
     key_config = {k: v for k, v in config.items() if k not in ("seed", "include_none_fraction", "hidden_effects")}
     t0 = time.perf_counter()
@@ -323,7 +339,8 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
             try:
                 case = synthetic.make_case(spec["seed"], spec["material"], spec["test"], spec["effect"],
                                            spec["strength"], noise_rel=noise_rel, scatter_rel=scatter_rel,
-                                           rates=rates, device=device)
+                                           rates=rates, device=device, oracle_free=tuple(free),
+                                           oracle_increment=max_increment)
             except RuntimeError as exc:  # the generator found no specimen that runs with this effect
                 error = f"generator: {exc}"
             if case is not None:

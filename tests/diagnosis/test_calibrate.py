@@ -66,3 +66,16 @@ def test_one_batch_call_per_residual_evaluation(curve, monkeypatch):
     assert len(calls) == r["nfev"] == r["n_batch_calls"]
     assert r["njev"] >= 1
     assert set(calls) == {3}  # base point + one perturbation per free parameter
+
+
+def test_fit_variables_restart_at_the_same_point(curve):
+    # a fit restarted from its own fit_variables (phi0 as a fraction of phimax = atan(m), section 3.3.1)
+    # evaluates the same cell: the same RSS to round-off.  Restarting from ``values`` (phi0 in rad) would put
+    # phi0 at atan(m) times the fraction, a different cell (the bug the diagnosis' multi-start once had)
+    r = calibrate_baseline(curve, TRUE.replace(m=0.3, phi0=0.0), max_increment=0.02)
+    frac = r["fit_variables"]["phi0"]
+    assert frac == pytest.approx(r["values"]["phi0"] / np.arctan(r["values"]["m"]), rel=1e-12)
+    again = calibrate_baseline(curve, TRUE.replace(m=0.3, phi0=0.0), max_increment=0.02,
+                               x0=r["fit_variables"], max_nfev=1)
+    assert again["rss_N2"] == pytest.approx(r["rss_N2"], rel=1e-9)
+    assert again["values"]["phi0"] == pytest.approx(r["values"]["phi0"], rel=1e-9)

@@ -145,3 +145,50 @@ def test_bad_input(kw, field):
     args.update(kw)
     with pytest.raises(KnitsimInputError, match=field):
         S.make_case(**args)
+
+
+def _clean_case(effect, strength, rates, test="monotonic"):
+    case = S.make_case(5, "e_glass", test, effect, strength, noise_rel=0.0, scatter_rel=0.0, rates=rates)
+    return case, [dataclasses.replace(c, force=fe) for c, fe in zip(case.curves, case.clean)]
+
+
+def test_oracle_finds_a_rate_factor_at_one_rate_absorbed_by_m():
+    # eq 5 at a single test rate: mu_k = b V^p is one number, a change of m; the baseline refit from the truth
+    # absorbs it (lambda ~ 0 up to the discretisation of the refit) and the effect is not identifiable
+    # (the case is made at 0.1 and 10 mm/s, reference rate 1 mm/s; only the 10 mm/s curve is kept)
+    case, clean = _clean_case("velocity_friction", 1.0, (0.1, 10.0))
+    clean = clean[1:]
+    p = case.label["params"]
+    truth = S.material_params("e_glass").replace(m=p["m"], phi0=p["phi0"])
+    sd = [0.01 * float(np.max(c.force)) for c in clean]
+    ev = S.oracle_evidence(clean, sd, "e_glass", truth, "velocity_friction", ("m", "phi0"), 0.0025)
+    assert ev["identifiable"] is False
+    assert ev["lambda"] < 1.0          # below one noise variance in all: nothing left to see
+    # the refit moved m to the effective ratio at 10 mm/s: m (V / V_ref)^p = m 10^0.2
+    assert p["effects"]["rate_p"] == pytest.approx(0.2) and p["effects"]["rate_ref_mm_s"] == pytest.approx(1.0)
+    assert ev["oracle_params"]["m"] == pytest.approx(p["m"] * 10.0 ** 0.2, rel=2e-3)
+    assert ev["dk"] == 1 and ev["expected_score"] == pytest.approx(ev["lambda"] - math.log(150))
+
+
+def test_oracle_identifies_what_no_baseline_can_mimic():
+    # two rates two decades apart with p = 0.2: the curves part by a factor 10^0.4 in m, which one m cannot
+    # reproduce: the oracle leaves many noise variances (lambda >> 10 + ln n + 4 sqrt(lambda))
+    case, clean = _clean_case("velocity_friction", 1.0, (0.1, 10.0))
+    p = case.label["params"]
+    truth = S.material_params("e_glass").replace(m=p["m"], phi0=p["phi0"])
+    sd = [0.01 * float(np.max(c.force)) for c in clean]
+    ev = S.oracle_evidence(clean, sd, "e_glass", truth, "velocity_friction", ("m", "phi0"), 0.0025)
+    assert ev["identifiable"] is True
+    assert ev["expected_score"] - 2 * ev["score_sd"] > S.EVIDENCE_THRESHOLD
+    # coiling_angle_friction replaces m (eq 10 gives it): no extra parameter, no BIC penalty
+    ev0 = S.oracle_evidence(clean, sd, "e_glass", truth, "coiling_angle_friction", ("m", "phi0"), 0.0025)
+    assert ev0["dk"] == 0 and ev0["expected_score"] == pytest.approx(ev0["lambda"])
+
+
+def test_make_case_labels_with_the_oracle_when_asked():
+    case = S.make_case(5, "e_glass", "monotonic", "velocity_friction", 1.0, rates=(0.1, 10.0),
+                       oracle_free=("m", "phi0"), oracle_increment=0.01)
+    assert case.label["oracle"] is not None and "oracle refit" in case.label["reason"]
+    assert case.label["identifiable"] == case.label["oracle"]["identifiable"]
+    screen = S.make_case(5, "e_glass", "monotonic", "velocity_friction", 1.0, rates=(0.1, 10.0))
+    assert screen.label["oracle"] is None and "screen" in screen.label["reason"]
