@@ -41,6 +41,8 @@ def register(subparsers) -> None:
                         "the scattered geometry; any of m, phi0, B, d, L, W0, C0)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu, cuda, cuda:N or auto")
     p.add_argument("--no-resume", action="store_true", help="rerun cases already stored in --out")
+    p.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="cases run at once, one process each (default 1; results do not depend on it)")
     add_json_flag(p)
     p.set_defaults(func=_run)
 
@@ -68,6 +70,8 @@ def _run(args) -> int:
     if not (math.isfinite(args.none_fraction) and 0 <= args.none_fraction <= 1):
         raise KnitsimInputError(f"--none-fraction = {args.none_fraction}: expected a number in [0, 1]")
 
+    if args.jobs < 1:
+        raise KnitsimInputError(f"--jobs = {args.jobs}: expected a whole number >= 1")
     free = tuple(n.strip() for n in args.free.split(",") if n.strip())
     for n in free:
         if n not in BASELINE_VARIABLES:
@@ -86,7 +90,7 @@ def _run(args) -> int:
         summary = run_study(args.cases, args.seed, args.out, effects=effects,
                             include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
                             scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
-                            resume=not args.no_resume)
+                            resume=not args.no_resume, jobs=args.jobs)
     if args.json:
         print_json(summary)
     else:

@@ -254,11 +254,38 @@ def _case_record(spec: dict, config: dict, case, result: dict | None, error: str
     return rec
 
 
+def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
+    """Generate one case, diagnose its curves (never its label), write its record atomically."""
+    from .diagnose import DiagnosisSetup, diagnose
+
+    tc = time.perf_counter()
+    case, result, error = None, None, None
+    try:
+        case = synthetic.make_case(spec["seed"], spec["material"], spec["test"], spec["effect"],
+                                   spec["strength"], noise_rel=args["noise_rel"], scatter_rel=args["scatter_rel"],
+                                   rates=args["rates"], device=args["device"], oracle_free=args["free"],
+                                   oracle_increment=args["max_increment"])
+    except RuntimeError as exc:  # the generator found no specimen that runs with this effect
+        error = f"generator: {exc}"
+    if case is not None:
+        setup = DiagnosisSetup(base=synthetic.material_params(spec["material"]), free=args["free"],
+                               effects=args["candidate_effects"], max_increment=args["max_increment"],
+                               noise_N=None, device=args["device"])
+        try:
+            # the diagnosis sees the curves only, never case.label
+            result = diagnose(list(case.curves), setup)
+        except (RuntimeError, ValueError, FloatingPointError, KnitsimInputError) as exc:
+            error = f"diagnosis: {type(exc).__name__}: {exc}"
+    rec = _case_record(spec, key_config, case, result, error, time.perf_counter() - tc)
+    atomic_write_bytes(path, _json_bytes(rec))
+    return json.loads(_json_bytes(rec))
+
+
 def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_NAMES,
               include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float = 0.01,
               device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
-              candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None) -> dict:
+              candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1) -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
@@ -294,15 +321,18 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
         the specimen scatter of L, W0, C0, d is left to the effects to explain:
         1 % scatter moves the curve by 2 to 60 noise sd, and an effect that
         absorbs it is a false alarm.
+    jobs : int
+        Cases run at once, one process each (Warp's CPU kernels use one core).
+        The results do not depend on it: each case is seeded by its plan entry.
 
     Returns
     -------
     dict
         ``config``, ``metrics`` (:func:`study_metrics`), ``timing_s``; also written to ``summary.json``.
     """
-    from .diagnose import DiagnosisSetup, diagnose
-
     free = DEFAULT_STUDY_FREE if free is None else tuple(free)
+    if not (isinstance(jobs, (int, np.integer)) and not isinstance(jobs, bool) and jobs >= 1):
+        raise KnitsimInputError(f"jobs = {jobs!r}: expected a whole number >= 1")
     _check_plan_args(n_cases, seed, effects, include_none_fraction)
     how = synthetic.paper_noise_rel()[1] if noise_rel is None else "given"
     noise_rel = synthetic.DEFAULT_NOISE_REL if noise_rel is None else noise_rel
@@ -322,7 +352,10 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
     # what makes a stored case reusable: its plan entry and everything that shapes its data or its diagnosis
     key_config = {k: v for k, v in config.items() if k not in ("seed", "include_none_fraction", "hidden_effects")}
     t0 = time.perf_counter()
-    records, ran, ran_time = [], 0, 0.0
+    args = {"noise_rel": noise_rel, "scatter_rel": scatter_rel, "rates": tuple(rates), "device": device,
+            "free": tuple(free), "candidate_effects": tuple(candidate_effects), "max_increment": max_increment}
+    done: dict[int, dict] = {}
+    todo = []
     for spec in plan:
         path = cases_dir / f"case_{spec['index']:04d}.json"
         rec = None
@@ -334,34 +367,42 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
             except (OSError, ValueError):
                 rec = None
         if rec is None:
-            tc = time.perf_counter()
-            case, result, error = None, None, None
-            try:
-                case = synthetic.make_case(spec["seed"], spec["material"], spec["test"], spec["effect"],
-                                           spec["strength"], noise_rel=noise_rel, scatter_rel=scatter_rel,
-                                           rates=rates, device=device, oracle_free=tuple(free),
-                                           oracle_increment=max_increment)
-            except RuntimeError as exc:  # the generator found no specimen that runs with this effect
-                error = f"generator: {exc}"
-            if case is not None:
-                setup = DiagnosisSetup(base=synthetic.material_params(spec["material"]), free=tuple(free),
-                                       effects=tuple(candidate_effects), max_increment=max_increment,
-                                       noise_N=None, device=device)
-                try:
-                    # the diagnosis sees the curves only, never case.label
-                    result = diagnose(list(case.curves), setup)
-                except (RuntimeError, ValueError, FloatingPointError, KnitsimInputError) as exc:
-                    error = f"diagnosis: {type(exc).__name__}: {exc}"
-            rec = _case_record(spec, key_config, case, result, error, time.perf_counter() - tc)
-            atomic_write_bytes(path, _json_bytes(rec))
-            rec = json.loads(_json_bytes(rec))
-            ran += 1
-            ran_time += rec["timing_s"]
-        records.append(rec)
+            todo.append((spec, path))
+        else:
+            done[spec["index"]] = rec
+    ran, ran_time = 0, 0.0
+
+    def finished(rec):
+        nonlocal ran, ran_time
+        done[rec["spec"]["index"]] = rec
+        ran += 1
+        ran_time += rec["timing_s"]
         if progress is not None:
-            left = len(plan) - len(records)
-            eta = ran_time / ran * left if ran else None
-            progress(len(records), len(plan), eta, rec)
+            left = len(plan) - len(done)
+            eta = ran_time / ran * left / max(1, min(jobs, left))  # cases run jobs at a time
+            progress(len(done), len(plan), eta, rec)
+
+    if progress is not None:
+        for i, rec in sorted(done.items()):
+            progress(len(done), len(plan), None, rec)
+    if jobs <= 1 or len(todo) <= 1:
+        for spec, path in todo:
+            finished(_run_case(spec, key_config, path, args))
+    else:
+        # one process per core: Warp's CPU kernels are serial; each case is written by its worker as it ends
+        import concurrent.futures as cf
+        import multiprocessing as mp
+
+        with cf.ProcessPoolExecutor(max_workers=int(jobs), mp_context=mp.get_context("spawn")) as pool:
+            futures = [pool.submit(_run_case, spec, key_config, path, args) for spec, path in todo]
+            try:
+                for fut in cf.as_completed(futures):
+                    finished(fut.result())
+            except BaseException:
+                for fut in futures:
+                    fut.cancel()
+                raise
+    records = [done[spec["index"]] for spec in plan]
     summary = {"config": config, "metrics": study_metrics(records), "timing_s": time.perf_counter() - t0,
                "cases_run": ran, "cases_resumed": len(plan) - ran}
     atomic_write_bytes(out / "summary.json", _json_bytes(summary))
