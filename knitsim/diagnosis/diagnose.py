@@ -7,10 +7,12 @@ measured curves (issue 6):
 1. **Calibrate** the baseline's free parameters (m, phi0; optionally B, d and
    the knit geometry L, W0, C0) on every curve at once
    (:func:`~knitsim.diagnosis.calibrate.calibrate_baseline`: least squares, one
-   batched launch per evaluation), from three starts of phi0.  After the
-   candidates are fitted, the baseline is re-calibrated from any candidate's
-   baseline parameters that fit better (a better basin), so that no effect
-   is credited with what the baseline can do itself.
+   batched launch per evaluation), from the scene's start and the three best
+   points of a coarse (m, phi0) grid (:func:`_grid_starts`, one launch); the
+   starts race (:func:`_fit`).  After the candidates are fitted, the baseline
+   is re-calibrated from any candidate's baseline parameters that fit better
+   (a better basin), so that no effect is credited with what the baseline can
+   do itself, and the candidates are fitted again from there.
 2. **Where**: the rows are keyed by the stage the calibrated baseline
    simulates there (``loading_sliding``, ``unloading_adherence``, ...;
    :func:`~knitsim.diagnosis.gap.stage_keys`); the gap is split by key (RMS,
@@ -205,6 +207,56 @@ def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, 
     return fit if fit["rss_N2"] <= best["rss_N2"] else best
 
 
+#: coarse grid of the baseline's friction: m (eq 10's ratio; section 3.4 reports 0.06 .. 0.6 over a test) and
+#: phi0 as a fraction of phimax (section 3.3.1: anywhere in the cone)
+GRID_M = (0.05, 0.08, 0.12, 0.18, 0.27, 0.4)
+GRID_PHI0 = (-0.9, -0.45, 0.0, 0.45, 0.9)
+#: grid points kept as starts of the baseline's calibration
+GRID_STARTS = 3
+
+
+def _grid_starts(curves, setup: DiagnosisSetup) -> tuple:
+    """The best :data:`GRID_STARTS` points of a coarse grid of (m, phi0), as starts of the baseline fit.
+
+    Every grid cell is evaluated in one batched launch per distinct load
+    program (the other variables at the scene's values); points outside the
+    calibration's bounds are left out.  Returns ``()`` when neither m nor
+    phi0 is free.
+    """
+    from ..cell.batch import run_batch
+    from .measured import force_at_rows, program_for_curve
+
+    free = tuple(setup.free)
+    if "m" not in free and "phi0" not in free:
+        return ()
+    lo_m, hi_m = setup.bounds.get("m", BASELINE_VARIABLES["m"].bounds)
+    lo_f, hi_f = setup.bounds.get("phi0", BASELINE_VARIABLES["phi0"].bounds)
+    ms = [m for m in GRID_M if lo_m <= m <= hi_m] if "m" in free else [setup.base.m]
+    fs = [f for f in GRID_PHI0 if lo_f <= f <= hi_f] if "phi0" in free else [None]
+    points, cells = [], []
+    for m in ms:
+        for f in fs:
+            pt = {"m": m} if "m" in free else {}
+            if f is not None:
+                pt["phi0"] = f
+            try:
+                cells.append(build_params(setup.base, (), pt, setup.fixed))
+            except KnitsimInputError:
+                continue
+            points.append(pt)
+    if not cells:
+        return ()
+    rss = np.zeros(len(cells))
+    for c in curves:
+        prog, rows = program_for_curve(c, setup.max_increment)
+        h = run_batch(cells, prog, device=setup.device)
+        for j in range(len(cells)):
+            e = force_at_rows(h, rows, j)[0] - c.force
+            rss[j] += float(e @ e)
+    order = np.argsort(rss, kind="stable")
+    return tuple(points[j] for j in order[:GRID_STARTS])
+
+
 def _phi0_alternative(values: dict) -> tuple:
     """A start of phi0 away from the baseline's, when that sits near a bound of the cone.
 
@@ -280,33 +332,41 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     sigma = max(sigma, 1e-6 * float(np.max(np.abs(measured)) or 1.0))
     rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})
 
-    # 1. baseline: the scene's start and two more of phi0 (its least squares has local minima)
-    base_fit = _fit(curves, setup, (), extra_starts=({"phi0": -0.6}, {"phi0": 0.6}))
+    # 1. baseline: from the scene's start and the best points of a coarse (m, phi0) grid (its least
+    # squares has local minima in both, and a grid of cells costs one batched launch)
+    grid = _grid_starts(curves, setup)
+    base_fit = _fit(curves, setup, (), extra_starts=grid)
     say(f"baseline: rms {base_fit['rms_N']:.4g} N")
 
     # 3. which (fits first; they are scored once the baseline is final)
-    fits = {}
-    for name in setup.effects:
-        spec = EFFECT_SPECS[name]
-        if max(len(rates), 1) < spec.min_rates:
-            continue
-        base_x = base_fit["fit_variables"]
-        fits[name] = _fit(curves, setup, (name,), x0=base_x,
-                          extra_starts=spec.extra_starts + _phi0_alternative(base_x))
-        say(f"{name}: rms {fits[name]['rms_N']:.4g} N")
+    def fit_candidates(base_x: dict) -> dict:
+        out = {}
+        for name in setup.effects:
+            spec = EFFECT_SPECS[name]
+            if max(len(rates), 1) < spec.min_rates:
+                continue
+            out[name] = _fit(curves, setup, (name,), x0=base_x,
+                             extra_starts=spec.extra_starts + _phi0_alternative(base_x))
+            say(f"{name}: rms {out[name]['rms_N']:.4g} N")
+        return out
+
+    fits = fit_candidates(base_fit["fit_variables"])
     # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
-    # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
+    # is re-calibrated from there, so that no effect is credited with what the baseline can do itself,
+    # and every candidate is fitted again from the new baseline (the better of its two fits is kept)
     trial = {name: _baseline_rss_at(curves, setup, f["fit_variables"]) for name, f in fits.items()}
     trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
     basin_note = ""
     if trial:
         src = min(trial, key=trial.get)
         refit = _fit(curves, setup, (), x0=fits[src]["fit_variables"])
-        if refit["rss_N2"] < base_fit["rss_N2"]:
+        if refit["rss_N2"] < base_fit["rss_N2"] - sigma * sigma:
             basin_note = (f"baseline re-calibrated from the {src} fit's parameters: rms "
-                          f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N")
+                          f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N; candidates refitted from there")
             base_fit = refit
             say(basin_note)
+            again = fit_candidates(base_fit["fit_variables"])
+            fits = {k: again[k] if again[k]["rss_N2"] < fits[k]["rss_N2"] else fits[k] for k in fits}
 
     # 2. where
     keys = [k for c in base_fit["curves"] for k in c["keys"]]
