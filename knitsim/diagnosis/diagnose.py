@@ -12,7 +12,8 @@ measured curves (issue 6):
    starts race (:func:`_fit`).  After the candidates are fitted, the baseline
    is re-calibrated from any candidate's baseline parameters that fit better
    (a better basin), so that no effect is credited with what the baseline can
-   do itself, and the candidates are fitted again from there.
+   do itself; when it moved by more than the evidence threshold, the
+   candidates that did not reach that basin are fitted again from there.
 2. **Where**: the rows are keyed by the stage the calibrated baseline
    simulates there (``loading_sliding``, ``unloading_adherence``, ...;
    :func:`~knitsim.diagnosis.gap.stage_keys`); the gap is split by key (RMS,
@@ -339,34 +340,45 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     say(f"baseline: rms {base_fit['rms_N']:.4g} N")
 
     # 3. which (fits first; they are scored once the baseline is final)
-    def fit_candidates(base_x: dict) -> dict:
+    def fit_candidates(base_x: dict, names, quick: bool = False) -> dict:
         out = {}
-        for name in setup.effects:
+        for name in names:
             spec = EFFECT_SPECS[name]
             if max(len(rates), 1) < spec.min_rates:
                 continue
-            out[name] = _fit(curves, setup, (name,), x0=base_x,
-                             extra_starts=spec.extra_starts + _phi0_alternative(base_x))
+            if quick:
+                # from the new baseline only, where the effect vanishes: the other starts were raced already
+                out[name] = _fit(curves, setup, (name,), x0=base_x)
+            else:
+                out[name] = _fit(curves, setup, (name,), x0=base_x,
+                                 extra_starts=spec.extra_starts + _phi0_alternative(base_x))
             say(f"{name}: rms {out[name]['rms_N']:.4g} N")
         return out
 
-    fits = fit_candidates(base_fit["fit_variables"])
+    fits = fit_candidates(base_fit["fit_variables"], setup.effects)
     # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
-    # is re-calibrated from there, so that no effect is credited with what the baseline can do itself,
-    # and every candidate is fitted again from the new baseline (the better of its two fits is kept)
+    # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
+    # (candidates stuck above it are fitted again from there, the better of their two fits kept)
     trial = {name: _baseline_rss_at(curves, setup, f["fit_variables"]) for name, f in fits.items()}
     trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
     basin_note = ""
     if trial:
         src = min(trial, key=trial.get)
         refit = _fit(curves, setup, (), x0=fits[src]["fit_variables"])
-        if refit["rss_N2"] < base_fit["rss_N2"] - sigma * sigma:
+        old_rss = base_fit["rss_N2"]
+        if refit["rss_N2"] < old_rss - sigma * sigma:
             basin_note = (f"baseline re-calibrated from the {src} fit's parameters: rms "
-                          f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N; candidates refitted from there")
+                          f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N")
             base_fit = refit
+            # only the candidates that did not reach the new baseline's basin themselves, and only when the
+            # baseline moved by more than the evidence threshold (a smaller move changes no verdict's margin)
+            moved = old_rss - base_fit["rss_N2"] > STRONG * sigma * sigma
+            stuck = [k for k, f in fits.items() if moved and f["rss_N2"] > base_fit["rss_N2"]]
+            again = fit_candidates(base_fit["fit_variables"], stuck, quick=True)
+            fits.update({k: f for k, f in again.items() if f["rss_N2"] < fits[k]["rss_N2"]})
+            if stuck:
+                basin_note += f"; {', '.join(stuck)} fitted again from there"
             say(basin_note)
-            again = fit_candidates(base_fit["fit_variables"])
-            fits = {k: again[k] if again[k]["rss_N2"] < fits[k]["rss_N2"] else fits[k] for k in fits}
 
     # 2. where
     keys = [k for c in base_fit["curves"] for k in c["keys"]]
