@@ -59,6 +59,47 @@ def _default_bounds(base: CellParams, var) -> tuple[float, float]:
     return var.bounds
 
 
+def _replay_programs(curves, max_increment: float):
+    """Each curve's replay program and measured rows, and the groups of curves that share a program.
+
+    Curves with the same strain history and test rate share one launch.
+    """
+    groups: dict[tuple, list[int]] = {}
+    programs, rows = [], []
+    for i, c in enumerate(curves):
+        prog, r = program_for_curve(c, max_increment)
+        programs.append(prog)
+        rows.append(r)
+        rate = () if prog.rate is None else tuple(np.round(prog.rate, 15))
+        groups.setdefault((tuple(np.round(prog.strain, 15)), rate), []).append(i)
+    return programs, rows, list(groups.values())
+
+
+def rss_of_cells(curves, cells: Sequence[CellParams], max_increment: float = 0.005,
+                 device: str = "cpu") -> np.ndarray:
+    """Residual sum of squares [N^2] of each cell over the measured curves.
+
+    All cells run in one batched launch per distinct load program (no
+    Jacobian): the cheap way to compare many parameter sets, e.g. a grid of
+    starts or candidate basins.
+
+    Returns
+    -------
+    ndarray, shape [len(cells)]
+    """
+    curves = [curves] if isinstance(curves, MeasuredCurve) else list(curves)
+    cells = list(cells)
+    programs, rows, groups = _replay_programs(curves, max_increment)
+    rss = np.zeros(len(cells))
+    for g in groups:
+        hist = run_batch(cells, programs[g[0]], device=device)
+        for i in g:
+            for j in range(len(cells)):
+                e = force_at_rows(hist, rows[i], j)[0] - curves[i].force
+                rss[j] += float(e @ e)
+    return rss
+
+
 def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "phi0"), bounds: dict | None = None,
                        device: str = "cpu", max_increment: float = 0.005, rel_step: float = 1e-6,
                        x0: dict | None = None, max_nfev: int = 50, ftol: float = 1e-10, xtol: float = 1e-10,
@@ -123,16 +164,7 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     start.update(x0 or {})
     x_start = np.clip(np.array([start[n] for n in free], float), lo, hi)
 
-    # curves that share a strain history (and test rate) share one launch
-    groups: dict[tuple, list[int]] = {}
-    programs, rows = [], []
-    for i, c in enumerate(curves):
-        prog, r = program_for_curve(c, max_increment)
-        programs.append(prog)
-        rows.append(r)
-        rate = () if prog.rate is None else tuple(np.round(prog.rate, 15))
-        groups.setdefault((tuple(np.round(prog.strain, 15)), rate), []).append(i)
-    group_list = [g for g in groups.values()]
+    programs, rows, group_list = _replay_programs(curves, max_increment)
     n_rows = sum(len(c) for c in curves)
     k = len(free)
     if n_rows <= k:

@@ -55,7 +55,7 @@ import numpy as np
 from ..cell.effects import EFFECT_NAMES
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
-from .calibrate import calibrate_baseline
+from .calibrate import calibrate_baseline, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
 from .measured import MeasuredCurve
@@ -224,9 +224,6 @@ def _grid_starts(curves, setup: DiagnosisSetup) -> tuple:
     calibration's bounds are left out.  Returns ``()`` when neither m nor
     phi0 is free.
     """
-    from ..cell.batch import run_batch
-    from .measured import force_at_rows, program_for_curve
-
     free = tuple(setup.free)
     if "m" not in free and "phi0" not in free:
         return ()
@@ -247,13 +244,7 @@ def _grid_starts(curves, setup: DiagnosisSetup) -> tuple:
             points.append(pt)
     if not cells:
         return ()
-    rss = np.zeros(len(cells))
-    for c in curves:
-        prog, rows = program_for_curve(c, setup.max_increment)
-        h = run_batch(cells, prog, device=setup.device)
-        for j in range(len(cells)):
-            e = force_at_rows(h, rows, j)[0] - c.force
-            rss[j] += float(e @ e)
+    rss = rss_of_cells(curves, cells, setup.max_increment, setup.device)
     order = np.argsort(rss, kind="stable")
     return tuple(points[j] for j in order[:GRID_STARTS])
 
@@ -271,18 +262,26 @@ def _phi0_alternative(values: dict) -> tuple:
     return ({"phi0": 0.0},)
 
 
-def _baseline_rss_at(curves, setup: DiagnosisSetup, values: dict) -> float | None:
-    """RSS of the baseline at some values of its variables (one evaluation), None if they are invalid."""
+def _baseline_rss_at(curves, setup: DiagnosisSetup, fits: dict) -> dict:
+    """RSS of the baseline at each fit's values of the baseline's variables, in one launch.
+
+    Fits that lack one of them (coiling_angle_friction replaces m) or whose
+    values make no valid baseline cell are left out.
+    """
     free = tuple(setup.free)
-    if not all(k in values for k in free):
-        return None
-    try:
-        fit = calibrate_baseline(curves, setup.base, free=free, device=setup.device, max_nfev=1,
-                                 max_increment=setup.max_increment, x0={k: values[k] for k in free},
-                                 bounds={k: tuple(v) for k, v in setup.bounds.items() if k in free})
-    except KnitsimInputError:
-        return None
-    return fit["rss_N2"]
+    names, cells = [], []
+    for name, fit in fits.items():
+        x = fit["fit_variables"]
+        if not all(k in x for k in free):
+            continue
+        try:
+            cells.append(build_params(setup.base, (), {k: x[k] for k in free}, setup.fixed))
+        except KnitsimInputError:
+            continue
+        names.append(name)
+    if not cells:
+        return {}
+    return dict(zip(names, rss_of_cells(curves, cells, setup.max_increment, setup.device).tolist()))
 
 
 def _summary(fit: dict, keys: list, measured: np.ndarray, base_rss: float, sigma: float, n: int, k0: int) -> dict:
@@ -359,8 +358,8 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
     # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
     # (candidates stuck above it are fitted again from there, the better of their two fits kept)
-    trial = {name: _baseline_rss_at(curves, setup, f["fit_variables"]) for name, f in fits.items()}
-    trial = {k: v for k, v in trial.items() if v is not None and v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
+    trial = _baseline_rss_at(curves, setup, fits)
+    trial = {k: v for k, v in trial.items() if v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
     basin_note = ""
     if trial:
         src = min(trial, key=trial.get)

@@ -383,8 +383,8 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
             progress(len(done), len(plan), eta, rec)
 
     if progress is not None:
-        for i, rec in sorted(done.items()):
-            progress(len(done), len(plan), None, rec)
+        for k, (_, rec) in enumerate(sorted(done.items()), start=1):  # resumed cases: no time estimate
+            progress(k, len(plan), None, rec)
     if jobs <= 1 or len(todo) <= 1:
         for spec, path in todo:
             finished(_run_case(spec, key_config, path, args))

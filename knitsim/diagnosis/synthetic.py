@@ -304,7 +304,7 @@ def oracle_evidence(clean_curves, noise_sd, material: str, truth: CellParams, ef
         ``oracle_params`` (the refitted baseline), ``identifiable`` (bool).
     """
     from .calibrate import calibrate_baseline
-    from .effects import BASELINE_VARIABLES, variables_for
+    from .effects import variables_for
 
     nominal = material_params(material)
     x0 = {}
@@ -319,7 +319,7 @@ def oracle_evidence(clean_curves, noise_sd, material: str, truth: CellParams, ef
     sd = np.concatenate([np.full(len(c.strain), s) for c, s in zip(clean_curves, noise_sd)])
     lam = float(np.sum((r / sd) ** 2))
     n = len(r)
-    dk = len(variables_for(tuple(free), (effect,))) - len([v for v in free if v in BASELINE_VARIABLES])
+    dk = len(variables_for(tuple(free), (effect,))) - len(free)  # coiling replaces m: dk = 0
     expected = lam - dk * math.log(n)
     score_sd = 2.0 * math.sqrt(lam)
     return {"lambda": lam, "expected_score": expected, "score_sd": score_sd, "dk": int(dk),

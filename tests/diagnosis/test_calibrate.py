@@ -79,3 +79,18 @@ def test_fit_variables_restart_at_the_same_point(curve):
                                x0=r["fit_variables"], max_nfev=1)
     assert again["rss_N2"] == pytest.approx(r["rss_N2"], rel=1e-9)
     assert again["values"]["phi0"] == pytest.approx(r["values"]["phi0"], rel=1e-9)
+
+
+def test_rss_of_cells_zero_at_the_generating_cell(curve):
+    # a noise-free curve replayed by the cell that made it, at the same increment: RSS = 0 (identity); the noisy
+    # curve at the same cell gives the RSS of its noise, as calibrate_baseline evaluates it at that point
+    from knitsim.diagnosis.calibrate import rss_of_cells
+
+    clean = curve_from_arrays(curve.strain, force_at_rows(run_batch([TRUE], program_for_curve(curve, 0.02)[0]),
+                                                          program_for_curve(curve, 0.02)[1])[0])
+    other = TRUE.replace(m=0.3)
+    rss = rss_of_cells([clean, curve], [TRUE, other], max_increment=0.02)
+    noise = calibrate_baseline(curve, TRUE, max_increment=0.02, max_nfev=1,
+                               x0={"m": TRUE.m, "phi0": TRUE.phi0 / np.arctan(TRUE.m)})["rss_N2"]
+    assert rss[0] == pytest.approx(noise, rel=1e-9)       # the clean curve adds exactly 0
+    assert rss[1] > rss[0] + 10 * NOISE_N ** 2             # m = 0.3 is far from the truth
