@@ -99,12 +99,15 @@ COND_DAHL = wp.constant(-1)
 #: condition code of jamming with a compacting yarn, W = 4 d_eff(Rn) (yarn_compaction); >= 0 like a
 #: quantity code, since it may replace the C condition when a jam is located (ev_code >= 0)
 COND_JAM = wp.constant(100)
+#: condition code of an extensible yarn's length, L = L_0 (1 + c (P - P_0)) (yarn_extension), in slot 0
+COND_EXT = wp.constant(101)
 #: events kept per cell and increment (more are counted, not stored)
 MAX_EVENTS_PER_STEP = 8
 vec8d = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.float64)
 vec8i = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.int32)
-#: extra data of the special residuals: (tan(phi_old), s_BC_old, s, sigma, m) of Dahl, (k, Rn_0, c_min) of jamming
-vec8p = wp.types.vector(length=8, dtype=wp.float64)
+#: extra data of the special residuals: (tan(phi_old), s_BC_old, s, sigma, m) of Dahl, (k, Rn_0, c_min)
+#: of jamming, (c, P_0) of the extensible yarn
+vec10p = wp.types.vector(length=10, dtype=wp.float64)
 _MAXEV = wp.constant(MAX_EVENTS_PER_STEP)
 
 NEWTON_MAX_ITER = wp.constant(60)
@@ -139,11 +142,13 @@ class Material:
     comp_k: wp.float64  # yarn_compaction (issue 6): compliance [1/N], 0 when off
     comp_rn0: wp.float64  # its rest normal load [N]
     comp_min: wp.float64  # its smallest d_eff / d
+    ext_c: wp.float64  # yarn_extension (issue 6): tensile compliance [1/N], 0 when off
+    ext_p0: wp.float64  # its rest yarn force P_0 [N] (L is the length at P_0)
 
 
 # ------------------------------------------------------------------ Newton
 @wp.func
-def dahl_residual(cell: CellEval, dp: vec8p):
+def dahl_residual(cell: CellEval, dp: vec10p):
     """Dahl relation (alpha = 1) over the increment as a Dual residual.
 
     ``dp = (tan(phi_old), s_BC_old, s, sigma, m)``; slip xi = -(s_BC - s_BC_old),
@@ -173,16 +178,26 @@ def compaction_ratio_dual(Rn: Dual, k: wp.float64, Rn0: wp.float64, c_min: wp.fl
 
 
 @wp.func
-def jam_residual(cell: CellEval, w_jam: wp.float64, dp: vec8p):
+def jam_residual(cell: CellEval, w_jam: wp.float64, dp: vec10p):
     """W - w_jam d_eff(Rn)/d: jamming at four compacted diameters, the load read at the solution itself."""
     ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[5], dp[6], dp[7])
     return d_sub(quantity(cell, Q_W), d_scale(ratio, w_jam))
 
 
 @wp.func
-def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec8p, B: wp.float64, d: wp.float64):
-    """As kernels.inverse.residuals, with codes COND_DAHL (the Dahl residual) and COND_JAM
-    (W = 4 d_eff(Rn), target the rigid yarn's jam width)."""
+def extension_residual(cell: CellEval, L_rest: wp.float64, dp: vec10p):
+    """L - L_0 (1 + c (P - P_0)) (kernels.effects.extension_ratio): the length that the yarn force at
+    the solution itself gives (implicit: a length lagged by one increment is a first-order error in
+    the increment, large beside the noise of a measured curve on the stiff jammed branch)."""
+    ratio = d_addc(d_scale(quantity(cell, Q_P), dp[8]), wp.float64(1.0) - dp[8] * dp[9])
+    return d_sub(quantity(cell, Q_L), d_scale(ratio, L_rest))
+
+
+@wp.func
+def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
+    """As kernels.inverse.residuals, with codes COND_DAHL (the Dahl residual), COND_JAM
+    (W = 4 d_eff(Rn), target the rigid yarn's jam width) and COND_EXT (the extensible yarn's
+    length, target the rest length)."""
     r = vec5d()
     J = mat55d()
     r[0] = cell.g / d
@@ -197,6 +212,10 @@ def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec8p, B:
             rj = jam_residual(cell, targets[k], dp)
             r[k + 1] = rj.v / d
             J[k + 1] = rj.g / d
+        elif c == COND_EXT:
+            re = extension_residual(cell, targets[k], dp)
+            r[k + 1] = re.v / d
+            J[k + 1] = re.g / d
         else:
             sc = quantity_scale(c, B, d)
             qk = quantity(cell, c)
@@ -261,7 +280,7 @@ def z_of(x: vec5d, q: vecQd):
 
 
 @wp.func
-def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec8p, B: wp.float64, d: wp.float64):
+def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
     """Per-cell Newton (the method of kernels.inverse.solve_conditions_kernel, in the
     variables z = (ln(alpha - gamma), beta, R/P, phi, ln P)).
 
@@ -337,17 +356,29 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec8p, B: wp.float64,
 
 @wp.func
 def no_dahl():
-    return vec8p()
+    return vec10p()
 
 
 @wp.func
-def jam_params(mat: Material):
-    """The residuals' extra data without Dahl: the compaction law of the jammed condition."""
-    dp = vec8p()
+def effect_params(mat: Material):
+    """The residuals' extra data without Dahl: the compaction law of the jammed condition and the
+    extensible yarn's law."""
+    dp = vec10p()
     dp[5] = mat.comp_k
     dp[6] = mat.comp_rn0
     dp[7] = mat.comp_min
+    dp[8] = mat.ext_c
+    dp[9] = mat.ext_p0
     return dp
+
+
+@wp.func
+def length_code(mat: Material) -> int:
+    """Condition on the yarn length: L, or L = L_0 (1 + c (P - P_0)) with an extensible yarn."""
+    c = int(Q_L)
+    if mat.ext_c > wp.float64(0.0):
+        c = int(COND_EXT)
+    return c
 
 
 @wp.func
@@ -378,7 +409,7 @@ def stage_conditions(stage: int, jammed: int, soft: int, frozen_soft: wp.float64
     an event is located), 2 the hard condition (s_BC, phi = +/-phimax, or the
     Dahl residual), 3 the soft condition frozen at entry (W = 4d when jammed).
     """
-    codes = wp.vec4i(Q_L, Q_C, Q_S_BC, soft)
+    codes = wp.vec4i(length_code(mat), Q_C, Q_S_BC, soft)
     tg = vec4d(mat.L, C, frozen_sbc, frozen_soft)
     if mat.dahl != 0:
         codes[2] = COND_DAHL
@@ -580,7 +611,7 @@ def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, 
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
-    xn, qn, st = newton(x, codes, tg, jam_params(mat), mat.B, mat.d)
+    xn, qn, st = newton(x, codes, tg, effect_params(mat), mat.B, mat.d)
     return xn, qn, st == STATUS_CONVERGED
 
 
@@ -641,7 +672,7 @@ def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, ma
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
     codes[2] = Q_S_BC
-    xs, qs, st = newton(x, codes, tg, jam_params(mat), mat.B, mat.d)
+    xs, qs, st = newton(x, codes, tg, effect_params(mat), mat.B, mat.d)
     r0 = wp.tan(qs[Q_PHI]) - wp.tan(q_old[Q_PHI])
     s = wp.float64(1.0)
     if r0 < wp.float64(0.0):
@@ -661,7 +692,7 @@ def solve_dahl(x: vec5d, q_old: vecQd, s: wp.float64, jammed: int, soft: int, fs
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
-    dp = jam_params(mat)
+    dp = effect_params(mat)
     dp[0] = wp.tan(q_old[Q_PHI])
     dp[1] = q_old[Q_S_BC]
     dp[2] = s
@@ -760,6 +791,8 @@ def read_material(
     mat.comp_k = wp.float64(0.0)
     mat.comp_rn0 = wp.float64(0.0)
     mat.comp_min = wp.float64(1.0)
+    mat.ext_c = wp.float64(0.0)
+    mat.ext_p0 = wp.float64(0.0)
     return mat
 
 
@@ -770,8 +803,10 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
                   rate: wp.float64):
     """The cell's parameters for one increment with the effects of ``mask`` on (knitsim.cell.effects).
 
-    Read from the state at the start of the increment (increment-lagged); the
-    bending Dahl state is advanced over the increment's strain ``dstrain``.
+    m and B are read from the state at the start of the increment (increment-lagged); the
+    compaction and extension laws are handed to the residuals, which read the load at the
+    solution itself (implicit); the bending Dahl state is advanced over the increment's
+    strain ``dstrain``.
     Returns (material, z_bend).
     """
     m = mat.m
@@ -796,17 +831,18 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
         z = dahl_bending_state(z_old, dstrain, params[r, P_BEND_SIGMA])
         mat.B = mat.B * (wp.float64(1.0) + params[r, P_BEND_H] * z)
     if has(mask, BIT_EXTENSION):
-        mat.L = mat.L * extension_ratio(q[Q_P], P_rest, params[r, P_EXT_C])
+        # implicit, as the compaction: the length condition reads P at the solution (extension_residual)
+        mat.ext_c = params[r, P_EXT_C]
+        mat.ext_p0 = P_rest
     return mat, z
 
 
 @wp.func
-def material_from_effective(mat: Material, m: wp.float64, L: wp.float64, B: wp.float64) -> Material:
-    """The material with the effective m, L, B of the state."""
+def material_from_effective(mat: Material, m: wp.float64, B: wp.float64) -> Material:
+    """The material with the effective m, B of the state (the lagged ones; d and L are implicit)."""
     out = mat
     out.m = m
     out.phimax = wp.atan(m)
-    out.L = L
     out.B = B
     return out
 
@@ -818,7 +854,6 @@ def blend_material(a: Material, b: Material, t: wp.float64) -> Material:
     if t < wp.float64(1.0):
         out.m = a.m + (b.m - a.m) * t
         out.phimax = wp.atan(out.m)
-        out.L = a.L + (b.L - a.L) * t
         out.B = a.B + (b.B - a.B) * t
     return out
 
@@ -1005,7 +1040,7 @@ def step_kernel(
         de = (C_target - C) / mat.C0
         if stage == SLACK and C_target <= C:
             de = wp.float64(0.0)  # a slack loop does not bend
-        mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_L], eff_in[i, E_B])
+        mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_B])
         mat, z_bend = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
                                     eff_in[i, E_RN0], de, rate[i % rate.shape[0]])
 
@@ -1283,7 +1318,7 @@ def step_kernel(
     if mask != 0:
         eff_out[i, E_M] = mat.m
         eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
-        eff_out[i, E_L] = mat.L
+        eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
         eff_out[i, E_B] = mat.B
         eff_out[i, E_Z] = z_bend
     if n_ev > 0:

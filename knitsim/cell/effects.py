@@ -6,16 +6,19 @@ increment, the parameters the stage logic reads (``m``, ``d``, ``L``, ``B``);
 the seventh, ``dahl_transition``, is the Dahl friction state that already
 replaces the Coulomb switching (``CellParams.friction = "dahl"``).
 
-The effective parameters of an increment (except the compacted jam width,
-which is implicit) are computed from the state at its start (an explicit, increment-lagged coupling: the condition set of Table 4
-keeps its four imposed quantities; with increments of 0.005 strain the lag is
-a first-order error in the increment), except the bending Dahl state, whose
-closed form is exact over the increment.  Every effect is *off* by default
+The friction ratio m and the bending stiffness B of an increment are computed
+from the state at its start (an explicit, increment-lagged coupling: the
+condition set of Table 4 keeps its four imposed quantities; the lag is a
+first-order error in the increment), the bending Dahl state by its closed
+form, exact over the increment.  The two laws that change the geometry, the
+compacted jam width and the extensible yarn's length, are implicit: they
+replace a condition of Table 4 (W = 4 d, L) by one that reads the load at the
+solution itself, so they carry no increment error.  Every effect is *off* by default
 and then leaves the baseline bit-for-bit unchanged (the kernel does not touch
 the parameters at all).
 
 =========================  ====================================================  =================
-effect                     law (evaluated at the start of the increment)        parameters
+effect                     law (lagged, unless said implicit)                  parameters
 =========================  ====================================================  =================
 coiling_angle_friction     ``m = eq10(theta, mu_k)``, theta = beta, the tangent  coil_mu_k
                            angle at the crossing B (eq 11's coiling angle in
@@ -36,8 +39,13 @@ bending_hysteresis         ``B <- B (1 + h z)``, z a Dahl state (alpha = 1) in  
                            the strain: ``z = s + (z_old - s) exp(-sigma |de|)``
                            (Dahl 1976; a friction moment proportional to the
                            elastic one, saturating at h of it)
-yarn_extension             ``L <- L (1 + c (P - P_0))``, P the yarn force at the ext_c
-                           inflection point A (moment-free there)
+yarn_extension             the length condition becomes                          ext_c
+                           ``L = L_0 (1 + c (P - P_0))``, P the yarn force at
+                           the inflection point A (moment-free there), read at
+                           the solution itself (implicit: the lagged length
+                           was, at increments of 0.01 strain, a hundred noise
+                           variances off the converged curve on the jammed
+                           branch, and read as compaction by the diagnosis)
 =========================  ====================================================  =================
 
 Known limitation: ``bending_hysteresis`` scales B, which scales the force

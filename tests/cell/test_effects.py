@@ -18,6 +18,7 @@ from knitsim.cell.cycle import dissipated_energy, run_cell
 from knitsim.cell.effects import EffectSet
 from knitsim.cell.load_program import cycles, monotonic
 from knitsim.cell.material import CellParams
+from knitsim.cell.quarter_loop import quarter_loop
 from knitsim.errors import KnitsimInputError
 from knitsim.friction.coiling import m_eq10
 
@@ -120,18 +121,44 @@ def test_bending_hysteresis_opens_a_loop_where_a_frictionless_cell_has_none(devi
 
 
 def test_yarn_extension_lengthens_the_yarn_with_its_tension(device):
-    """L_eff = L (1 + c (P - P_0)) with P at the start of the increment; a longer yarn is a looser
-    loop, so the force at a given strain drops (P grows during loading here)."""
+    """L_eff = L (1 + c (P - P_0)) with P of the solution itself (implicit), and the loop's own
+    length, recomputed from the recorded angles and force by the NumPy forward map (eqs 6-9,
+    knitsim.cell.quarter_loop), is that L_eff; a longer yarn is a looser loop, so the force at a
+    given strain drops (P grows during loading here)."""
     c = 0.02
     p = GLASS.replace(effects=EffectSet(on=("yarn_extension",), ext_c=c))
     h = _run([GLASS, p], MONO, device)
-    P_prev = _previous(h, "P", 1)[1:]
-    P0 = h.values["P_rest"][0, 1]
-    np.testing.assert_allclose(h.values["L_eff"][1:, 1], 14.1 * (1.0 + c * (P_prev - P0)), rtol=1e-13)
-    late = h.values["L_eff"][:, 1] > 14.1 + 1e-9
+    assert np.all(h.status[:, 1] == 0)
+    v = {k: h.values[k][:, 1] for k in ("alpha", "beta", "gamma", "phi", "P", "L_eff", "P_rest")}
+    np.testing.assert_allclose(v["L_eff"], 14.1 * (1.0 + c * (v["P"] - v["P_rest"][0])), rtol=1e-13)
+    geometry = quarter_loop(v["alpha"], v["beta"], v["gamma"], v["phi"], v["P"], 0.31, 0.58)
+    np.testing.assert_allclose(geometry.L, v["L_eff"], rtol=1e-8)
+    late = v["L_eff"] > 14.1 + 1e-9
     assert late.any()
     F0, F1 = h.values["F"][late, 0], h.values["F"][late, 1]
     assert np.all(F1 <= F0 + 1e-12)
+
+
+@pytest.mark.parametrize("effect", [
+    EffectSet(on=("yarn_extension",), ext_c=0.02),
+    EffectSet(on=("yarn_compaction",), compaction_k=20.0, compaction_min=0.5),
+])
+def test_implicit_effects_do_not_depend_on_the_increment(device, effect):
+    """The geometric effects are conditions on the solution itself, so a Coulomb cell's state at a
+    given strain is the same whatever the increment that led there (the stage's conditions are
+    algebraic in C and its frozen quantities are fixed at located events): increments of 0.01 and
+    0.0025 strain agree to the solver's tolerance along a cycle with sliding, jamming and unloading.
+    (A length lagged by one increment was off by a first-order error in the increment.)"""
+    p = GLASS.replace(effects=effect)
+    coarse = cycles(0.1, 0.72, 1, 0.01)
+    fine = cycles(0.1, 0.72, 1, 0.0025)
+    hc, hf = _run([p], coarse, device), _run([p], fine, device)
+    assert np.all(hc.status == 0) and np.all(hf.status == 0)
+    assert any(lab == "jamming" for lab in hc.labels(0))
+    # each coarse row is a fine row (4 fine increments per coarse one)
+    rows_f = [int(np.flatnonzero((np.round(fine.strain, 9) == round(e, 9)) & (fine.direction == dr))[0])
+              for e, dr in zip(coarse.strain, coarse.direction)]
+    np.testing.assert_allclose(hc.values["F"][:, 0], hf.values["F"][rows_f, 0], rtol=1e-6, atol=1e-8)
 
 
 def test_yarn_compaction_jams_at_four_effective_diameters(device):
