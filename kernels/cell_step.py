@@ -643,7 +643,10 @@ def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp
     out = bool(False)
     if event_active(_EV_CONE, stage, jammed, soft, mat):
         f0 = event_value(_EV_CONE, q, stage, mat)
-        if wp.abs(f0) <= event_tol(_EV_CONE, mat):
+        if f0 > event_tol(_EV_CONE, mat) and not no_contact(q):
+            # already past the cone's far side: an effect narrowed the cone under the stuck contact
+            out = True
+        elif wp.abs(f0) <= event_tol(_EV_CONE, mat):
             h = _PROBE_STEP * mat.C0
             if C_target < C:
                 h = -h
@@ -655,10 +658,16 @@ def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp
 @wp.func
 def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
                    mat: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
-    """Whether a stick stage starting at zero contact force slides at once
-    (CellCycle._slide_at_start): judged on a probe step of PROBE_STEP C0 from R/P = RELOAD_RHO_SEED."""
+    """Whether a stick stage slides at once: when its state is already outside the cone (only an
+    effect that lowers m can put it there), or, starting at zero contact force
+    (CellCycle._slide_at_start), when a probe step of PROBE_STEP C0 from R/P = RELOAD_RHO_SEED does."""
     out = bool(False)
-    if (stage == SF_LOAD or stage == SF_UNLOAD) and mat.m > wp.float64(0.0) and no_contact(q):
+    stick = (stage == SF_LOAD or stage == SF_UNLOAD) and mat.m > wp.float64(0.0)
+    if stick and (not no_contact(q)) and event_value(_EV_SLIDE, q, stage, mat) > event_tol(_EV_SLIDE, mat):
+        # already outside the cone: an effect lowered m under the stuck contact (the cone shrank past
+        # phi), so it slides at once; a located event needs the state inside the cone at the start
+        out = True
+    elif stick and no_contact(q):
         h = _PROBE_STEP * mat.C0
         if C_target < C:
             h = -h

@@ -161,6 +161,28 @@ def test_implicit_effects_do_not_depend_on_the_increment(device, effect):
     np.testing.assert_allclose(hc.values["F"][:, 0], hf.values["F"][rows_f, 0], rtol=1e-6, atol=1e-8)
 
 
+def test_a_cone_narrowed_by_an_effect_releases_the_stuck_contact(device):
+    """Coulomb's law holds with the effective ratio: |tan phi| <= m_eff on every row (Table 4's
+    cone). A rest state at phi0 = 0.999 phimax tested slower than the reference rate with p > 0
+    (eq 5: m_eff = m (V / V_ref)^p < m) starts outside the narrowed cone, so it must slide from
+    the first increment; it used to stay stuck outside the cone and load to the force cap."""
+    m, p = 0.08, 0.01
+    cell = GLASS.replace(m=m, phi0=0.999 * math.atan(m),
+                         effects=EffectSet(on=("velocity_friction",), rate_p=p, rate_ref_mm_s=1.0))
+    h = _run([cell], MONO, device, rate=0.1)
+    assert np.all(h.status[:, 0] == 0)
+    m_eff = m * 0.1 ** p
+    np.testing.assert_allclose(h.values["m_eff"][:, 0], m_eff, rtol=1e-12)
+    assert np.all(np.abs(np.tan(h.values["phi"][:, 0])) <= m_eff * (1 + 1e-9))
+    first = h.events[0]
+    assert (first["kind"], first["increment"], first["from"], first["to"]) == ("slide", 0, "adherence", "sliding")
+    assert first["C"] == pytest.approx(GLASS.C0, rel=1e-12)
+    # from there on it is the cell of ratio m_eff that starts sliding (phi0 = its phimax): the rest
+    # states differ by 0.999 atan(m) - atan(m_eff) ~ 2e-3 rad, and so do the frozen normal loads
+    base = _run([cell.replace(effects=EffectSet(), m=m_eff, phi0=math.atan(m_eff))], MONO, device)
+    np.testing.assert_allclose(h.values["F"][:, 0], base.values["F"][:, 0], rtol=1e-2)
+
+
 def test_yarn_compaction_jams_at_four_effective_diameters(device):
     """d_eff = d clamp((1 + k Rn_0) / (1 + k Rn), c_min, 1) at the solution's own Rn, and a jammed
     cell keeps W = 4 d_eff
