@@ -635,16 +635,27 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
 
 
 @wp.func
+def narrowed_past(kind: int, q: vecQd, stage: int, mat: Material, mat_from: Material) -> wp.bool:
+    """Whether the friction cone narrowed past the state between the materials ``mat_from`` (at the
+    start of the sub-step) and ``mat`` (at its end): inside the cone of the one, outside the other's.
+
+    Only an effect that lowers m does this (eq 5 at a rate below the reference, eq 10, ...). A stuck
+    contact left outside the cone cannot locate its event (that needs its function <= 0 at the
+    start), so the event happens at the start: the contact slides (or the closure is released)."""
+    tol = event_tol(kind, mat)
+    return event_value(kind, q, stage, mat_from) <= tol and event_value(kind, q, stage, mat) > tol
+
+
+@wp.func
 def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                  mat: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
+                  mat: Material, mat_from: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
     """Whether the cone event happens at the cell's C itself (CellCycle._cone_at_start): its function
     is zero there (reversal from sliding) and a probe step of PROBE_STEP C0 toward the target
     leaves the cone, or fails."""
     out = bool(False)
     if event_active(_EV_CONE, stage, jammed, soft, mat):
         f0 = event_value(_EV_CONE, q, stage, mat)
-        if f0 > event_tol(_EV_CONE, mat) and not no_contact(q):
-            # already past the cone's far side: an effect narrowed the cone under the stuck contact
+        if narrowed_past(_EV_CONE, q, stage, mat, mat_from):
             out = True
         elif wp.abs(f0) <= event_tol(_EV_CONE, mat):
             h = _PROBE_STEP * mat.C0
@@ -657,15 +668,13 @@ def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp
 
 @wp.func
 def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                   mat: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
-    """Whether a stick stage slides at once: when its state is already outside the cone (only an
-    effect that lowers m can put it there), or, starting at zero contact force
+                   mat: Material, mat_from: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
+    """Whether a stick stage slides at once: when an effect narrowed the cone past its state
+    (narrowed_past), or, starting at zero contact force
     (CellCycle._slide_at_start), when a probe step of PROBE_STEP C0 from R/P = RELOAD_RHO_SEED does."""
     out = bool(False)
     stick = (stage == SF_LOAD or stage == SF_UNLOAD) and mat.m > wp.float64(0.0)
-    if stick and (not no_contact(q)) and event_value(_EV_SLIDE, q, stage, mat) > event_tol(_EV_SLIDE, mat):
-        # already outside the cone: an effect lowered m under the stuck contact (the cone shrank past
-        # phi), so it slides at once; a located event needs the state inside the cone at the start
+    if stick and narrowed_past(_EV_SLIDE, q, stage, mat, mat_from):
         out = True
     elif stick and no_contact(q):
         h = _PROBE_STEP * mat.C0
@@ -1096,9 +1105,12 @@ def step_kernel(
             if mask != 0:
                 matg = blend_material(mat_old, mat, (C_goal - C_start) / (C_target - C_start))
             kind0 = int(-1)
-            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
+            mat_from = matg
+            if mask != 0:
+                mat_from = blend_material(mat_old, mat, (C_from - C_start) / (C_target - C_start))
+            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
                 kind0 = int(_EV_CONE)
-            elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
+            elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
                 kind0 = int(_EV_SLIDE)
             if kind0 >= 0:
                 lbl_from = stage_label(stage, jammed)
