@@ -635,29 +635,29 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
 
 
 @wp.func
-def narrowed_past(kind: int, q: vecQd, stage: int, mat: Material, mat_from: Material) -> wp.bool:
-    """Whether the friction cone narrowed past the state between the materials ``mat_from`` (at the
-    start of the sub-step) and ``mat`` (at its end): inside the cone of the one, outside the other's.
+def narrowed_past(q: vecQd, stage: int, mat: Material, mat_from: Material) -> wp.bool:
+    """Whether the friction cone narrowed past a stuck contact between the materials ``mat_from``
+    (at the start of the sub-step) and ``mat`` (at its end): inside the sliding limit of the one,
+    outside the other's.
 
-    Only an effect that lowers m does this (eq 5 at a rate below the reference, eq 10, ...). A stuck
-    contact left outside the cone cannot locate its event (that needs its function <= 0 at the
-    start), so the event happens at the start: the contact slides (or the closure is released)."""
-    tol = event_tol(kind, mat)
-    return event_value(kind, q, stage, mat_from) <= tol and event_value(kind, q, stage, mat) > tol
+    Only an effect that lowers m does this (eq 5 at a rate below the reference, eq 10, ...). The
+    stick stage pushes phi toward that limit, so the contact stays outside and its slide event
+    cannot be located (that needs its function <= 0 at the start): it slides at the start. (The
+    cone's far side after a reversal is left to cone_at_start: unloading moves phi back inside.)"""
+    tol = event_tol(_EV_SLIDE, mat)
+    return event_value(_EV_SLIDE, q, stage, mat_from) <= tol and event_value(_EV_SLIDE, q, stage, mat) > tol
 
 
 @wp.func
 def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                  mat: Material, mat_from: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
+                  mat: Material, C: wp.float64, C_target: wp.float64) -> wp.bool:
     """Whether the cone event happens at the cell's C itself (CellCycle._cone_at_start): its function
     is zero there (reversal from sliding) and a probe step of PROBE_STEP C0 toward the target
     leaves the cone, or fails."""
     out = bool(False)
     if event_active(_EV_CONE, stage, jammed, soft, mat):
         f0 = event_value(_EV_CONE, q, stage, mat)
-        if narrowed_past(_EV_CONE, q, stage, mat, mat_from):
-            out = True
-        elif wp.abs(f0) <= event_tol(_EV_CONE, mat):
+        if wp.abs(f0) <= event_tol(_EV_CONE, mat):
             h = _PROBE_STEP * mat.C0
             if C_target < C:
                 h = -h
@@ -674,7 +674,7 @@ def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: w
     (CellCycle._slide_at_start), when a probe step of PROBE_STEP C0 from R/P = RELOAD_RHO_SEED does."""
     out = bool(False)
     stick = (stage == SF_LOAD or stage == SF_UNLOAD) and mat.m > wp.float64(0.0)
-    if stick and narrowed_past(_EV_SLIDE, q, stage, mat, mat_from):
+    if stick and narrowed_past(q, stage, mat, mat_from):
         out = True
     elif stick and no_contact(q):
         h = _PROBE_STEP * mat.C0
@@ -1108,7 +1108,7 @@ def step_kernel(
             mat_from = matg
             if mask != 0:
                 mat_from = blend_material(mat_old, mat, (C_from - C_start) / (C_target - C_start))
-            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
+            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
                 kind0 = int(_EV_CONE)
             elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
                 kind0 = int(_EV_SLIDE)
