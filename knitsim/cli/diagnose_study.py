@@ -41,6 +41,8 @@ def register(subparsers) -> None:
                         "the scattered geometry; any of m, phi0, B, d, L, W0, C0)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu, cuda, cuda:N or auto")
     p.add_argument("--no-resume", action="store_true", help="rerun cases already stored in --out")
+    p.add_argument("--summary-only", action="store_true",
+                   help="run nothing: summarise the cases already finished in --out")
     p.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="cases run at once, one process each (default 1; results do not depend on it)")
     add_json_flag(p)
@@ -86,14 +88,23 @@ def _run(args) -> int:
         print(f"[diagnose-study] {done}/{total} cases, ETA {eta_s}: hidden "
               f"{rec['spec']['effect'] or 'none'} -> {what}", file=sys.stderr, flush=True)
 
-    with contextlib.redirect_stdout(sys.stderr):  # Warp's banner must not reach stdout (--json)
-        summary = run_study(args.cases, args.seed, args.out, effects=effects,
-                            include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
-                            scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
-                            resume=not args.no_resume, jobs=args.jobs)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):  # Warp's banner must not reach stdout (--json)
+            summary = run_study(args.cases, args.seed, args.out, effects=effects,
+                                include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
+                                scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
+                                resume=not args.no_resume, jobs=args.jobs, summary_only=args.summary_only)
+    except KeyboardInterrupt:
+        print(f"knitsim diagnose-study: interrupted; the finished cases are kept in {args.out}/cases and "
+              f"summarised in {args.out}/summary.md (marked partial); the same command resumes",
+              file=sys.stderr, flush=True)
+        return 130
     if args.json:
         print_json(summary)
     else:
         print(summary_markdown(summary))
         print(f"written: {args.out}/summary.json, {args.out}/summary.md, {args.out}/cases/")
+        if not summary["complete"]:
+            print(f"partial: {len(summary['cases_missing'])} of {summary['cases_planned']} planned cases not "
+                  "finished; run without --summary-only to finish them")
     return 0

@@ -201,7 +201,12 @@ def summary_markdown(summary: dict) -> str:
     def pct(x):
         return "n/a" if x is None else f"{100.0 * x:.1f} %"
 
-    lines = [f"# Blind study of the diagnosis ({m['n_cases']} cases, seed {summary['config']['seed']})", "",
+    lines = [f"# Blind study of the diagnosis ({m['n_cases']} cases, seed {summary['config']['seed']})", ""]
+    if summary.get("complete") is False:
+        missing = summary.get("cases_missing", [])
+        lines += [f"**Partial: {m['n_cases']} of {summary.get('cases_planned', '?')} planned cases finished** "
+                  f"(not yet: {', '.join(str(i) for i in missing)}); run the study again to finish it.", ""]
+    lines += [
              f"- noise: {summary['config']['noise_rel']:.4g} x peak force ({summary['config']['noise_how']})",
              f"- specimen scatter of L, W0, C0, d: {summary['config']['scatter_rel']:.4g}; "
              f"test rates {summary['config']['rates']} mm/s", "",
@@ -285,7 +290,8 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
               include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float = 0.01,
               device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
-              candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1) -> dict:
+              candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1,
+              summary_only: bool = False) -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
@@ -327,8 +333,17 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
 
     Returns
     -------
+    summary_only : bool
+        Run nothing: summarise the cases already stored in ``out_dir``.
+
+    Returns
+    -------
     dict
-        ``config``, ``metrics`` (:func:`study_metrics`), ``timing_s``; also written to ``summary.json``.
+        ``config``, ``metrics`` (:func:`study_metrics`), ``timing_s``, ``complete`` and
+        ``cases_missing`` (plan indices not finished); also written to ``summary.json``.
+        When interrupted (KeyboardInterrupt), the finished cases stay stored, a summary of
+        them is written with ``complete = false``, and the interrupt is raised again: the
+        same call resumes.
     """
     free = DEFAULT_STUDY_FREE if free is None else tuple(free)
     if not (isinstance(jobs, (int, np.integer)) and not isinstance(jobs, bool) and jobs >= 1):
@@ -385,6 +400,29 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
     if progress is not None:
         for k, (_, rec) in enumerate(sorted(done.items()), start=1):  # resumed cases: no time estimate
             progress(k, len(plan), None, rec)
+
+    def write_summary() -> dict:
+        records = [done[spec["index"]] for spec in plan if spec["index"] in done]
+        missing = [spec["index"] for spec in plan if spec["index"] not in done]
+        summary = {"config": config, "metrics": study_metrics(records), "timing_s": time.perf_counter() - t0,
+                   "cases_run": ran, "cases_resumed": len(records) - ran, "cases_planned": len(plan),
+                   "complete": not missing, "cases_missing": missing}
+        atomic_write_bytes(out / "summary.json", _json_bytes(summary))
+        atomic_write_bytes(out / "summary.md", summary_markdown(summary).encode("utf-8"))
+        return summary
+
+    try:
+        _run_cases(todo, key_config, args, jobs, finished, summary_only)
+    except KeyboardInterrupt:
+        write_summary()  # of the finished cases, marked incomplete; they are kept for the resume
+        raise
+    return write_summary()
+
+
+def _run_cases(todo, key_config: dict, args: dict, jobs: int, finished: Callable, summary_only: bool) -> None:
+    """Run the cases of ``todo`` (serially, or in ``jobs`` processes), handing each record to ``finished``."""
+    if summary_only:
+        return
     if jobs <= 1 or len(todo) <= 1:
         for spec, path in todo:
             finished(_run_case(spec, key_config, path, args))
@@ -402,9 +440,3 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
                 for fut in futures:
                     fut.cancel()
                 raise
-    records = [done[spec["index"]] for spec in plan]
-    summary = {"config": config, "metrics": study_metrics(records), "timing_s": time.perf_counter() - t0,
-               "cases_run": ran, "cases_resumed": len(plan) - ran}
-    atomic_write_bytes(out / "summary.json", _json_bytes(summary))
-    atomic_write_bytes(out / "summary.md", summary_markdown(summary).encode("utf-8"))
-    return summary

@@ -72,8 +72,8 @@ def test_plan_is_deterministic_and_balanced():
         study.draw_plan(3, 0, effects=["nope"])
 
 
-def test_resume_skips_finished_cases(tmp_path, monkeypatch):
-    calls = []
+def _fake_study(monkeypatch, calls):
+    """Replace the generator and the diagnosis by instant fakes that count the diagnosed cases."""
 
     def fake_diagnose(curves, setup, progress=None):
         # the diagnosis gets measured curves only
@@ -90,6 +90,35 @@ def test_resume_skips_finished_cases(tmp_path, monkeypatch):
 
     monkeypatch.setattr(diagnose_mod, "diagnose", fake_diagnose)
     monkeypatch.setattr(synthetic, "make_case", fake_case)
+
+
+def test_interrupted_study_keeps_its_cases_and_says_it_is_partial(tmp_path, monkeypatch):
+    """An interrupt after 2 of 5 cases leaves those 2 stored and a summary marked partial (never one that
+    looks complete); --summary-only runs nothing; the same call then finishes the other 3 only."""
+    calls = []
+    _fake_study(monkeypatch, calls)
+
+    def stop_after_two(done, total, eta, rec):
+        if done == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        study.run_study(5, 3, tmp_path, progress=stop_after_two)
+    assert len(list((tmp_path / "cases").glob("case_*.json"))) == 2
+    partial = json.loads((tmp_path / "summary.json").read_text())
+    assert partial["complete"] is False and len(partial["cases_missing"]) == 3
+    assert partial["metrics"]["n_cases"] == 2
+    assert "Partial: 2 of 5" in (tmp_path / "summary.md").read_text()
+    s = study.run_study(5, 3, tmp_path, summary_only=True)
+    assert len(calls) == 2 and s["complete"] is False
+    s = study.run_study(5, 3, tmp_path)
+    assert len(calls) == 5 and s["complete"] is True and s["cases_missing"] == [] and s["cases_run"] == 3
+    assert "Partial" not in (tmp_path / "summary.md").read_text()
+
+
+def test_resume_skips_finished_cases(tmp_path, monkeypatch):
+    calls = []
+    _fake_study(monkeypatch, calls)
     seen = []
     s1 = study.run_study(4, 1, tmp_path, progress=lambda d, t, eta, r: seen.append((d, t)))
     assert len(calls) == 4 and s1["cases_run"] == 4 and seen[-1] == (4, 4)
