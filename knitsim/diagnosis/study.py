@@ -330,9 +330,6 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
     jobs : int
         Cases run at once, one process each (Warp's CPU kernels use one core).
         The results do not depend on it: each case is seeded by its plan entry.
-
-    Returns
-    -------
     summary_only : bool
         Run nothing: summarise the cases already stored in ``out_dir``.
 
@@ -412,17 +409,16 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
         return summary
 
     try:
-        _run_cases(todo, key_config, args, jobs, finished, summary_only)
+        if not summary_only:
+            _run_cases(todo, key_config, args, jobs, finished)
     except KeyboardInterrupt:
         write_summary()  # of the finished cases, marked incomplete; they are kept for the resume
         raise
     return write_summary()
 
 
-def _run_cases(todo, key_config: dict, args: dict, jobs: int, finished: Callable, summary_only: bool) -> None:
+def _run_cases(todo, key_config: dict, args: dict, jobs: int, finished: Callable) -> None:
     """Run the cases of ``todo`` (serially, or in ``jobs`` processes), handing each record to ``finished``."""
-    if summary_only:
-        return
     if jobs <= 1 or len(todo) <= 1:
         for spec, path in todo:
             finished(_run_case(spec, key_config, path, args))
