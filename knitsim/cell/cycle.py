@@ -29,7 +29,7 @@ independent checks of each other.
 
 Every recorded row also carries ``head_gap`` (W - 2 X_max, mm) and
 ``interpenetrating`` (1.0 where head_gap < d_jam, else 0.0; d_jam is the
-in-plane width ``jam_width``, d by default) in ``values``: W = 4d
+in-plane width ``in_plane_width``, d by default) in ``values``: W = 4d
 lets the heads overlap before it is reached (docs/model.md, "Jamming").
 
 Frictionless cells (m = 0, Coulomb) keep the soft condition of the loading

@@ -40,9 +40,9 @@ class CellParams:
         See :mod:`knitsim.cell.stages`.
     force_cap_N : float
         Force per wale at which a jammed cell stops (the jammed branch diverges).
-    jam_width : float or None
-        In-plane yarn width used for jamming [mm] (W = 4 jam_width, or head
-        gap = jam_width); None means d.  The paper's d is the compact hexagonal
+    in_plane_width : float or None
+        In-plane yarn width used for jamming [mm] (W = 4 in_plane_width, or head
+        gap = in_plane_width); None means d.  The paper's d is the compact hexagonal
         packing diameter, used for bending; a loose roving is wider in the
         plane of the knit (docs/model.md, "Jamming"), hence >= d.
     effects : EffectSet
@@ -63,13 +63,13 @@ class CellParams:
     reload_rule: str = "mirror_unloading"
     jamming_criterion: str = "w_4d"
     force_cap_N: float = 50.0
-    jam_width: float | None = None
+    in_plane_width: float | None = None
     effects: EffectSet = NO_EFFECTS
 
     @property
     def d_jam(self) -> float:
-        """Yarn width that jams neighbouring loops [mm]: ``jam_width`` or d."""
-        return self.d if self.jam_width is None else float(self.jam_width)
+        """Yarn width that jams neighbouring loops [mm]: ``in_plane_width`` or d."""
+        return self.d if self.in_plane_width is None else float(self.in_plane_width)
 
     @property
     def phimax(self) -> float:
@@ -102,14 +102,14 @@ class CellParams:
                 bad(name, "must be > 0")
         if self.m < 0:
             bad("m", "the friction ratio must be >= 0")
-        if self.jam_width is not None:
-            v = self.jam_width
+        if self.in_plane_width is not None:
+            v = self.in_plane_width
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-                bad("jam_width", "must be a finite number or None")
+                bad("in_plane_width", "must be a finite number or None")
             if v < self.d:
-                bad("jam_width", f"the in-plane width cannot be below the compact diameter d = {self.d} mm")
+                bad("in_plane_width", f"the in-plane width cannot be below the compact diameter d = {self.d} mm")
             if self.W0 < 4.0 * v:
-                bad("jam_width", f"loops jammed at rest: W0 = {self.W0} < 4 jam_width")
+                bad("in_plane_width", f"loops jammed at rest: W0 = {self.W0} < 4 in_plane_width")
         if self.W0 < 4.0 * self.d:
             bad("W0", f"the wale width at rest must be >= 4 d = {4.0 * self.d:.4g} mm (loops jammed already)")
         lmin = 2.0 * self.C0 + self.W0 - 4.0 * self.d

@@ -25,7 +25,7 @@ def test_paper_knit_is_valid_and_phimax():
     ("W0", 4 * 0.58 - 1e-6), ("L", 2 * 2.7 + 4.4 - 4 * 0.58), ("B", -0.31), ("B", 0.0),
     ("d", float("nan")), ("C0", float("inf")), ("m", -0.01), ("phi0", 0.5),
     ("unloading_rule", "hong"), ("reload_rule", "nope"), ("jamming_criterion", "gap"),
-    ("friction", "viscous"), ("force_cap_N", 0.0), ("jam_width", 0.1), ("jam_width", -1.0),
+    ("friction", "viscous"), ("force_cap_N", 0.0), ("in_plane_width", 0.1), ("in_plane_width", -1.0),
 ])
 def test_bad_field_named_in_message(field, value):
     kw = dict(OK, m=0.2)
