@@ -566,7 +566,12 @@ def transition(kind: int, stage: int, jammed: int, soft: int, frozen_soft: wp.fl
     if kind == _EV_SLIDE:
         if stage == SF_LOAD:
             stage = int(S_LOAD)
-            soft = int(Q_RN)
+            # S+ freezes Rn (Table 4); after a mirror reload (beta frozen in SF+) it freezes T, the
+            # mirror of S- (CellCycle._transition: Rn ~ 0 there selects the zero-force family)
+            if soft == Q_BETA:
+                soft = int(Q_T)
+            else:
+                soft = int(Q_RN)
         else:
             stage = int(S_UNLOAD)
             soft = int(Q_T)

@@ -289,7 +289,11 @@ class CellCycle:
         q = st.q
         if kind == "slide":
             if st.stage is Stage.SF_LOAD:
-                st.stage, st.soft = Stage.S_LOAD, "Rn"
+                # Table 4 S+ freezes Rn; a reload that mirrors the unloading (beta frozen in SF+,
+                # entered at zero contact) mirrors S- too and freezes T: its Rn is ~0 there, and
+                # {L, C, phi, Rn = 0} is solved by the zero-contact family at F = 0 for every C
+                # (stages.py, "reload_rule")
+                st.stage, st.soft = Stage.S_LOAD, ("T" if st.soft == "beta" else "Rn")
             else:
                 st.stage, st.soft = Stage.S_UNLOAD, "T"
             st.frozen_soft = q[st.soft]

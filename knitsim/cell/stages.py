@@ -39,8 +39,17 @@ Rules where Table 4 is silent (switchable; labelled in every output):
 ``reload_rule``
     On reloading from a state whose contact force is ~0 (after going slack),
     fixing Rn = 0 would reload at zero force for ever.
-    ``"mirror_unloading"``: the reloading SF+ step then freezes beta instead
-    of Rn (the mirror of SF-), and S+ freezes Rn when sliding starts.
+    ``"mirror_unloading"``: the reload mirrors the unloading: SF+ freezes beta
+    instead of Rn (the mirror of SF-) and S+ freezes T (the mirror of S-).
+    Why not Rn in S+: where the cell went slack, F = 2 P sin(gamma) = 0 and
+    R_Y = -R cos(beta + phi) = P sin(gamma) (eq 7) give R = 0 (beta + phi !=
+    pi/2), so the reload starts at zero contact, the beta-frozen stick leaves
+    the cone at once and Rn frozen there is 0.  With Rn = 0 (|phi| < pi/2) the
+    conditions {L, C, phi = phimax, Rn = 0} are met for *every* C by the
+    zero-contact family (R = 0, gamma = 0: a free elastica under horizontal end
+    loads, the loop narrowing as it lengthens), which carries F = 0: frozen
+    there, Rn no longer ties the force to C.  T = -P cos(gamma) = -P is not
+    degenerate there (knitsim issue 13, "the pocket").
     ``"freeze_rn"``: Table 4 as printed (Rn frozen even if ~0).
 ``jamming_criterion``
     ``"w_4d"``: W = 4d (Hong).  ``"head_gap"``: flag when the centreline
