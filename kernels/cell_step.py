@@ -53,6 +53,7 @@ from .effects import (
     normal_load_factor, velocity_factor,
 )
 from .elastica import PI, Dual, d_addc, d_const, d_exp, d_inv, d_scale, d_seed, d_sub, d_tan, elastica_ab, vec5d
+from .head_gap import head_gap_dual, head_gap_value
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
     STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
@@ -101,6 +102,9 @@ COND_DAHL = wp.constant(-1)
 COND_JAM = wp.constant(100)
 #: condition code of an extensible yarn's length, L = L_0 (1 + c (P - P_0)) (yarn_extension), in slot 0
 COND_EXT = wp.constant(101)
+#: condition code of jamming by contact: the heads of neighbouring loops at centreline distance d_jam
+#: (jamming_criterion = "head_gap", kernels.head_gap), d_jam shrinking with Rn under yarn_compaction
+COND_GAP = wp.constant(102)
 #: events kept per cell and increment (more are counted, not stored)
 MAX_EVENTS_PER_STEP = 8
 vec8d = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.float64)
@@ -139,6 +143,7 @@ class Material:
     hong: int
     mirror: int
     closure: int  # 1: "release_beta" stick closure (knitsim.cell.stages.STICK_CLOSURES)
+    gap: int  # jamming criterion: 0 W = 4 d_jam (Hong), 1 head gap = d_jam (contact of neighbouring heads)
     comp_k: wp.float64  # yarn_compaction (issue 6): compliance [1/N], 0 when off
     comp_rn0: wp.float64  # its rest normal load [N]
     comp_min: wp.float64  # its smallest d_eff / d
@@ -194,10 +199,22 @@ def extension_residual(cell: CellEval, L_rest: wp.float64, dp: vec10p):
 
 
 @wp.func
-def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
+def gap_residual(cell: CellEval, z: vec5d, d_jam: wp.float64, dp: vec10p, B: wp.float64):
+    """head gap - d_jam d_eff(Rn)/d: neighbouring heads in contact (jamming_criterion = "head_gap"), the
+    compacted width read at the solution itself as in jam_residual (ratio 1 without compaction)."""
+    a = d_exp(d_seed(z[0], 0))
+    ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[5], dp[6], dp[7])
+    return d_sub(head_gap_dual(cell, a, B), d_scale(ratio, d_jam))
+
+
+@wp.func
+def residuals_ext(cell: CellEval, z: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64,
+                  d: wp.float64):
     """As kernels.inverse.residuals, with codes COND_DAHL (the Dahl residual), COND_JAM
-    (W = 4 d_eff(Rn), target the rigid yarn's jam width) and COND_EXT (the extensible yarn's
-    length, target the rest length)."""
+    (W = 4 d_eff(Rn), target the rigid yarn's jam width), COND_GAP (head gap = d_eff(Rn), target
+    the rigid yarn's in-plane width) and COND_EXT (the extensible yarn's length, target the rest
+    length).  ``z`` are the Newton variables of ``cell`` (the head gap needs alpha - gamma at full
+    precision)."""
     r = vec5d()
     J = mat55d()
     r[0] = cell.g / d
@@ -216,6 +233,10 @@ def residuals_ext(cell: CellEval, codes: wp.vec4i, targets: vec4d, dp: vec10p, B
             re = extension_residual(cell, targets[k], dp)
             r[k + 1] = re.v / d
             J[k + 1] = re.g / d
+        elif c == COND_GAP:
+            rg = gap_residual(cell, z, targets[k], dp, B)
+            r[k + 1] = rg.v / d
+            J[k + 1] = rg.g / d
         else:
             sc = quantity_scale(c, B, d)
             qk = quantity(cell, c)
@@ -294,7 +315,7 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
         st = int(STATUS_DOMAIN)
     else:
         cell = evaluate_zr(z, B, d)
-        r, J = residuals_ext(cell, codes, targets, dp, B, d)
+        r, J = residuals_ext(cell, z, codes, targets, dp, B, d)
         q = cell.q
         n = int(0)
         if not all_finite(r, J):
@@ -328,7 +349,7 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                     if zr_admissible(zt):
                         any_adm = True
                         ct = evaluate_zr(zt, B, d)
-                        rt, Jt = residuals_ext(ct, codes, targets, dp, B, d)
+                        rt, Jt = residuals_ext(ct, zt, codes, targets, dp, B, d)
                         if all_finite(rt, Jt):
                             ft = wp.dot(rt, rt)
                             if ft <= (wp.float64(1.0) - wp.float64(2.0) * _ARMIJO * lam) * f:
@@ -383,11 +404,23 @@ def length_code(mat: Material) -> int:
 
 @wp.func
 def jam_code(mat: Material) -> int:
-    """Condition of jamming: W = 4 d, or W = 4 d_eff(Rn) with a compacting yarn."""
+    """Condition of jamming: W = 4 d, or W = 4 d_eff(Rn) with a compacting yarn; the head gap = d
+    (d_eff(Rn)) under the contact criterion."""
     c = int(Q_W)
-    if mat.comp_k > wp.float64(0.0):
+    if mat.gap != 0:
+        c = int(COND_GAP)
+    elif mat.comp_k > wp.float64(0.0):
         c = int(COND_JAM)
     return c
+
+
+@wp.func
+def jam_target(mat: Material) -> wp.float64:
+    """Target of jam_code: the jamming wale width 4 d_jam, or the in-plane width d_jam itself."""
+    t = mat.w_jam
+    if mat.gap != 0:
+        t = wp.float64(0.25) * mat.w_jam
+    return t
 
 
 @wp.func
@@ -397,6 +430,17 @@ def jam_width(mat: Material, Rn: wp.float64) -> wp.float64:
     if mat.comp_k > wp.float64(0.0):
         w = mat.w_jam * compaction_ratio(Rn, mat.comp_rn0, mat.comp_k, mat.comp_min)
     return w
+
+
+@wp.func
+def jam_clearance(z: vec5d, q: vecQd, mat: Material) -> wp.float64:
+    """How far a state is from jamming [mm], >= 0 unjammed: W - 4 d_eff (Hong), or the head gap
+    minus d_eff (contact of neighbouring heads, kernels.head_gap)."""
+    w = jam_width(mat, q[Q_RN])
+    v = q[Q_W] - w
+    if mat.gap != 0:
+        v = head_gap_value(wp.exp(z[0]), q, mat.B) - wp.float64(0.25) * w
+    return v
 
 
 # ------------------------------------------------------------------ Table 4
@@ -421,7 +465,7 @@ def stage_conditions(stage: int, jammed: int, soft: int, frozen_soft: wp.float64
         tg[2] = -mat.phimax
     if jammed != 0:
         codes[3] = jam_code(mat)
-        tg[3] = mat.w_jam
+        tg[3] = jam_target(mat)
     return codes, tg
 
 
@@ -489,8 +533,9 @@ def reverse(direction: int, q: vecQd, mat: Material, soft_old: int, fsoft_old: w
 
 
 @wp.func
-def event_value(kind: int, q: vecQd, stage: int, mat: Material) -> wp.float64:
-    """Signed event function, positive once the event happened (CellCycle.event_functions)."""
+def event_value(kind: int, z: vec5d, q: vecQd, stage: int, mat: Material) -> wp.float64:
+    """Signed event function at the state (z, q), positive once the event happened
+    (CellCycle.event_functions)."""
     v = wp.float64(0.0)
     if kind == _EV_SLIDE:
         if stage == SF_LOAD:
@@ -498,7 +543,7 @@ def event_value(kind: int, q: vecQd, stage: int, mat: Material) -> wp.float64:
         else:
             v = -mat.phimax - q[Q_PHI]
     elif kind == _EV_JAM:
-        v = jam_width(mat, q[Q_RN]) - q[Q_W]
+        v = -jam_clearance(z, q, mat)
     elif kind == _EV_CAP:
         v = q[Q_F] - mat.cap
     elif kind == _EV_SLACK:
@@ -540,7 +585,7 @@ def event_active(kind: int, stage: int, jammed: int, soft: int, mat: Material) -
 def event_condition(kind: int, stage: int, mat: Material):
     """(code, target) of the condition that replaces C when the event is located."""
     code = jam_code(mat)
-    tg = mat.w_jam  # jam, unjam
+    tg = jam_target(mat)  # jam, unjam
     if kind == _EV_SLIDE:
         code = int(Q_PHI)
         tg = mat.phimax
@@ -640,7 +685,7 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
 
 
 @wp.func
-def narrowed_past(q: vecQd, stage: int, mat: Material, mat_from: Material) -> wp.bool:
+def narrowed_past(z: vec5d, q: vecQd, stage: int, mat: Material, mat_from: Material) -> wp.bool:
     """Whether the friction cone narrowed past a stuck contact between the materials ``mat_from``
     (at the start of the sub-step) and ``mat`` (at its end): inside the sliding limit of the one,
     outside the other's.
@@ -650,7 +695,7 @@ def narrowed_past(q: vecQd, stage: int, mat: Material, mat_from: Material) -> wp
     cannot be located (that needs its function <= 0 at the start): it slides at the start. (The
     cone's far side after a reversal is left to cone_at_start: unloading moves phi back inside.)"""
     tol = event_tol(_EV_SLIDE, mat)
-    return event_value(_EV_SLIDE, q, stage, mat_from) <= tol and event_value(_EV_SLIDE, q, stage, mat) > tol
+    return event_value(_EV_SLIDE, z, q, stage, mat_from) <= tol and event_value(_EV_SLIDE, z, q, stage, mat) > tol
 
 
 @wp.func
@@ -661,13 +706,13 @@ def cone_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp
     leaves the cone, or fails."""
     out = bool(False)
     if event_active(_EV_CONE, stage, jammed, soft, mat):
-        f0 = event_value(_EV_CONE, q, stage, mat)
+        f0 = event_value(_EV_CONE, x, q, stage, mat)
         if wp.abs(f0) <= event_tol(_EV_CONE, mat):
             h = _PROBE_STEP * mat.C0
             if C_target < C:
                 h = -h
             xp, qp, okp = solve_coulomb(x, stage, jammed, soft, fs, fsbc, mat, C + h, -1, wp.float64(0.0))
-            out = (not okp) or event_value(_EV_CONE, qp, stage, mat) > wp.float64(0.0)
+            out = (not okp) or event_value(_EV_CONE, xp, qp, stage, mat) > wp.float64(0.0)
     return out
 
 
@@ -679,14 +724,14 @@ def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: w
     (CellCycle._slide_at_start), when a probe step of PROBE_STEP C0 from R/P = RELOAD_RHO_SEED does."""
     out = bool(False)
     stick = (stage == SF_LOAD or stage == SF_UNLOAD) and mat.m > wp.float64(0.0)
-    if stick and narrowed_past(q, stage, mat, mat_from):
+    if stick and narrowed_past(x, q, stage, mat, mat_from):
         out = True
     elif stick and no_contact(q):
         h = _PROBE_STEP * mat.C0
         if C_target < C:
             h = -h
         xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, mat, C + h, -1, wp.float64(0.0))
-        out = (not okp) or event_value(_EV_SLIDE, qp, stage, mat) >= -event_tol(_EV_SLIDE, mat)
+        out = (not okp) or event_value(_EV_SLIDE, xp, qp, stage, mat) >= -event_tol(_EV_SLIDE, mat)
     return out
 
 
@@ -795,6 +840,7 @@ def read_material(
     phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
     djam: wp.array(dtype=wp.float64),
     friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    criterion: wp.array(dtype=wp.int32),
 ):
     mat = Material()
     mat.B = B[i % B.shape[0]]
@@ -811,6 +857,7 @@ def read_material(
     mat.dahl = friction[i % friction.shape[0]]
     mat.hong = unloading[i % unloading.shape[0]]
     mat.mirror = reload[i % reload.shape[0]]
+    mat.gap = criterion[i % criterion.shape[0]]
     mat.comp_k = wp.float64(0.0)
     mat.comp_rn0 = wp.float64(0.0)
     mat.comp_min = wp.float64(1.0)
@@ -921,16 +968,17 @@ def init_kernel(
     phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
     djam: wp.array(dtype=wp.float64),
     friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    criterion: wp.array(dtype=wp.int32),
     starts: wp.array2d(dtype=wp.float64),
     x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
     stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
     fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32),
+    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
 ):
     """Table 4 initial state {C0, W0, L, phi0}: multistart at phi = 0 (the starts of
     knitsim.cell.inverse.initial_state, first converged wins), then continuation in phi."""
     i = wp.tid()
-    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload)
+    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
     codes = wp.vec4i(Q_C, Q_W, Q_L, Q_PHI)
     tg = vec4d(mat.C0, mat.W0, mat.L, wp.float64(0.0))
     found = bool(False)
@@ -1000,6 +1048,7 @@ def init_kernel(
     fsbc_out[i] = q[Q_S_BC]
     status_out[i] = status
     direction_out[i] = 1
+    gap_out[i] = head_gap_value(wp.exp(x[0]), q, mat.B)
 
 
 # ------------------------------------------------------------------ one increment
@@ -1011,13 +1060,14 @@ def step_kernel(
     phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
     djam: wp.array(dtype=wp.float64),
     friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    criterion: wp.array(dtype=wp.int32),
     eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
     max_halvings: int, closure: int,
     # state in
     x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
     stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
     fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
-    status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32),
+    status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
     eff_in: wp.array2d(dtype=wp.float64),
     # control
     strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
@@ -1026,7 +1076,7 @@ def step_kernel(
     x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
     stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
     fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32),
+    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
     eff_out: wp.array2d(dtype=wp.float64),
     # events (append buffer; ev_count[0] counts every event, stored or not)
     ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
@@ -1035,7 +1085,7 @@ def step_kernel(
 ):
     """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
     i = wp.tid()
-    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload)
+    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
     mat.closure = closure
     q = vecQd()
     for k in range(N_QUANTITIES):
@@ -1140,8 +1190,8 @@ def step_kernel(
             any_fired = bool(False)
             for kind in range(8):
                 if locatable(kind) and event_active(kind, stage, jammed, soft, matg):
-                    f0 = event_value(kind, q, stage, matg)
-                    f1 = event_value(kind, qt, stage, matg)
+                    f0 = event_value(kind, x, q, stage, matg)
+                    f1 = event_value(kind, xt, qt, stage, matg)
                     tol = event_tol(kind, matg)
                     if f1 > wp.float64(0.0) and f0 <= tol:
                         any_fired = True
@@ -1156,7 +1206,7 @@ def step_kernel(
                             if C_goal < C_from:
                                 hp = -hp
                             xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
-                            if (not okp) or event_value(kind, qp, stage, matg) >= -tol:
+                            if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
                                 f0 = wp.float64(0.0)
                         if f0 < -tol:
                             code, etg = event_condition(kind, stage, matg)
@@ -1174,7 +1224,7 @@ def step_kernel(
             # active set while unloading jammed: the unjammed branch at the target
             if jammed != 0 and not is_loading(stage):
                 xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_goal, -1, wp.float64(0.0))
-                if oku and qu[Q_W] >= jam_width(matg, qu[Q_RN]):
+                if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
                     any_fired = True
                     # the unjammed branch at the start: at the reversal from a jammed
                     # state it passes through the jammed state itself (event at the start)
@@ -1182,8 +1232,8 @@ def step_kernel(
                     xe = x
                     qe = q
                     oke = bool(True)
-                    if not (oka and qa[Q_W] - jam_width(matg, qa[Q_RN]) >= -event_tol(_EV_UNJAM, matg)):
-                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), matg.w_jam)
+                    if not (oka and jam_clearance(xa, qa, matg) >= -event_tol(_EV_UNJAM, matg)):
+                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), jam_target(matg))
                     if oke and in_range(qe[Q_C], C_from, C_goal):
                         if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
                             best_kind = int(_EV_UNJAM)
@@ -1256,8 +1306,8 @@ def step_kernel(
                                 best_q = tq
                                 for kind in range(8):
                                     if locatable(kind) and event_active(kind, tstage, tjam, tsoft, matg):
-                                        f0 = event_value(kind, tq, tstage, matg)
-                                        f1 = event_value(kind, qt, tstage, matg)
+                                        f0 = event_value(kind, tx, tq, tstage, matg)
+                                        f1 = event_value(kind, xt, qt, tstage, matg)
                                         if f1 > wp.float64(0.0) and f0 >= -event_tol(kind, matg) and f0 <= event_tol(kind, matg):
                                             # already satisfied at the start: it happens there
                                             if best_kind < 0 or wp.abs(tC - tC) < wp.abs(best_C - tC):
@@ -1286,7 +1336,7 @@ def step_kernel(
                                 # unjam (active set): the reference applies it at the target itself
                                 if tjam != 0 and not is_loading(tstage):
                                     xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck)
-                                    if oku and qu[Q_W] >= jam_width(matg, qu[Q_RN]):
+                                    if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
                                         if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
                                             best_kind = int(_EV_UNJAM)
                                             best_C = Ck
@@ -1339,6 +1389,12 @@ def step_kernel(
     fsbc_out[i] = fsbc
     status_out[i] = status
     direction_out[i] = dir_new
+    # the interpenetration check of every accepted state (issue 13): the heads' centreline gap (a
+    # state that did not move keeps its gap bit for bit: z is rebuilt from x at every increment)
+    gap = gap_in[i]
+    if go:
+        gap = head_gap_value(wp.exp(x[0]), q, mat.B)
+    gap_out[i] = gap
     for k in range(eff_in.shape[1]):
         eff_out[i, k] = eff_in[i, k]
     if mask != 0:
@@ -1365,11 +1421,12 @@ def step_kernel(
 @wp.kernel
 def record_kernel(
     q: wp.array2d(dtype=wp.float64), stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32),
-    status: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32), row: int,
+    status: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64), codes: wp.array(dtype=wp.int32), row: int,
     hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
     hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
+    hist_gap: wp.array2d(dtype=wp.float64),
 ):
-    """Write one history row: hist_q[k, row, i] = q[i, codes[k]] (F = 0 while slack)."""
+    """Write one history row: hist_q[k, row, i] = q[i, codes[k]] (F = 0 while slack), and the head gap."""
     i = wp.tid()
     st = stage[i]
     for k in range(codes.shape[0]):
@@ -1381,6 +1438,7 @@ def record_kernel(
     hist_stage[row, i] = st
     hist_jammed[row, i] = jammed[i]
     hist_status[row, i] = status[i]
+    hist_gap[row, i] = gap[i]
 
 
 @wp.kernel

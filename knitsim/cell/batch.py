@@ -35,7 +35,7 @@ from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
 from .effects import EFFECT_STATE, PARAM_COLUMNS
-from .history import HISTORY_QUANTITIES, STATUS_NAMES, STATUS_OK, BatchHistory
+from .history import HISTORY_QUANTITIES, STATUS_NAMES, STATUS_OK, BatchHistory, head_gap_values
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
@@ -53,7 +53,7 @@ def _k():
 
 
 _FLOAT_FIELDS = ("B", "d", "L", "W0", "C0", "m", "phi0", "sigma", "cap", "djam")
-_INT_FIELDS = ("friction", "unloading", "reload")
+_INT_FIELDS = ("friction", "unloading", "reload", "criterion")
 
 
 class CellModel:
@@ -83,6 +83,9 @@ class CellModel:
         0 ``"dusserre"``, 1 ``"hong_constant_t"``.
     reload : int32
         0 ``"freeze_rn"``, 1 ``"mirror_unloading"``.
+    criterion : int32
+        Jamming criterion: 0 ``"w_4d"`` (W = 4 djam), 1 ``"head_gap"`` (neighbouring heads at
+        centreline distance djam, :mod:`knitsim.kernels.head_gap`).
     effect_mask : int32
         Bits of the model extensions that are on (:data:`knitsim.cell.effects.EFFECT_BITS`).
     effect_params : float64, shape ``[1 or cell_count, len(PARAM_COLUMNS)]``
@@ -121,9 +124,6 @@ class CellModel:
             if not isinstance(p, CellParams):
                 raise KnitsimInputError(f"cells[{i}] = {p!r}: expected a CellParams")
             p = p.validated(where=f"cells[{i}]")
-            if p.jamming_criterion != "w_4d":
-                raise KnitsimInputError(
-                    f"cells[{i}].jamming_criterion = {p.jamming_criterion!r}: the batched cycle supports 'w_4d' only")
             if p.friction == "dahl" and p.m <= 0:
                 raise KnitsimInputError(f"cells[{i}].m = {p.m!r}: Dahl friction needs m > 0 (saturation tan(phi) = m)")
             checked.append(p)
@@ -132,10 +132,11 @@ class CellModel:
             "W0": [p.W0 for p in checked], "C0": [p.C0 for p in checked], "m": [p.m for p in checked],
             "phi0": [p.phi0 for p in checked], "sigma": [p.dahl_sigma for p in checked],
             "cap": [p.force_cap_N for p in checked],
-            "djam": [getattr(p, "d_jam", p.d) for p in checked],
+            "djam": [p.d_jam for p in checked],
             "friction": [int(p.friction == "dahl") for p in checked],
             "unloading": [int(p.unloading_rule == "hong_constant_t") for p in checked],
             "reload": [int(p.reload_rule == "mirror_unloading") for p in checked],
+            "criterion": [int(p.jamming_criterion == "head_gap") for p in checked],
         }
         cols["effect_mask"] = [p.effects.mask for p in checked]
         arrays = {}
@@ -199,6 +200,10 @@ class CellBatchState:
         :data:`~knitsim.cell.history.STATUS_NAMES` code.
     direction : int32 [N]
         Direction of the last increment (+1 loading, -1 unloading).
+    head_gap : float64 [N]
+        Centreline distance between the heads of neighbouring loops of a course [mm]
+        (:mod:`knitsim.cell.head_gap`), of every accepted state: below the in-plane width
+        the loops interpenetrate.
     eff : float64 [N, len(EFFECT_STATE)]
         Effective parameters of the last increment and the effects' own state
         (:data:`knitsim.cell.effects.EFFECT_STATE`); the given ones where no effect is on.
@@ -214,6 +219,7 @@ class CellBatchState:
     frozen_sbc: wp.array
     status: wp.array
     direction: wp.array
+    head_gap: wp.array
     eff: wp.array | None = None
 
     def __post_init__(self):
@@ -227,11 +233,12 @@ class CellBatchState:
                    wp.zeros(n, dtype=f, device=device), wp.zeros(n, dtype=i, device=device),
                    wp.zeros(n, dtype=i, device=device), wp.zeros(n, dtype=i, device=device),
                    wp.zeros(n, dtype=f, device=device), wp.zeros(n, dtype=f, device=device),
-                   wp.zeros(n, dtype=i, device=device), wp.zeros(n, dtype=i, device=device))
+                   wp.zeros(n, dtype=i, device=device), wp.zeros(n, dtype=i, device=device),
+                   wp.zeros(n, dtype=f, device=device))
 
     def _arrays(self) -> list:
         return [self.x, self.q, self.C, self.stage, self.jammed, self.soft, self.frozen_soft,
-                self.frozen_sbc, self.status, self.direction]
+                self.frozen_sbc, self.status, self.direction, self.head_gap]
 
     @property
     def cell_count(self) -> int:
@@ -377,6 +384,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
     hq = wp.zeros((len(HISTORY_QUANTITIES), n, nc), dtype=wp.float64, device=dev)
     hs, hj, hst = (wp.zeros((n, nc), dtype=wp.int32, device=dev) for _ in range(3))
+    hg = wp.zeros((n, nc), dtype=wp.float64, device=dev)
     k = _k()
     with_effects = any(p.effects.on for p in model.params)
     if with_effects:
@@ -387,14 +395,15 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         control.set(float(program.strain[i]), int(program.direction[i]), 0.0 if rate is None else float(rate[i]))
         solver.step(s0, s1, control, i)
         s0, s1 = s1, s0
-        wp.launch(k.record_kernel, dim=nc, inputs=[s0.q, s0.stage, s0.jammed, s0.status, codes, i],
-                  outputs=[hq, hs, hj, hst], device=dev)
+        wp.launch(k.record_kernel, dim=nc, inputs=[s0.q, s0.stage, s0.jammed, s0.status, s0.head_gap, codes, i],
+                  outputs=[hq, hs, hj, hst, hg], device=dev)
         if with_effects:
             wp.launch(k.record_columns_kernel, dim=nc, inputs=[s0.eff, all_cols, i], outputs=[he], device=dev)
         if progress is not None:
             progress(i, n)
     hqn = hq.numpy()
     values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
+    values.update(head_gap_values(hg.numpy(), [p.d_jam for p in model.params]))
     if with_effects:
         hen = he.numpy()
         values.update({name: hen[j] for j, name in enumerate(EFFECT_STATE)})

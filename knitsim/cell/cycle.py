@@ -8,11 +8,13 @@ stage changes are *events* located inside the increment by a root search on C
 (brentq on the event function along the stage's branch), never overshot:
 
 - ``slide``: phi reaches +phimax (loading) / -phimax (unloading);
-- ``jam``: W reaches 4d (``jamming_criterion = "w_4d"``, Hong) or the
-  centreline distance between neighbouring heads reaches d
-  (``"head_gap"``, :mod:`knitsim.cell.head_gap`); the soft condition is then
-  replaced by W = W_jam, W_jam = 4d or the W at which the heads touched;
-- ``unjam``: while unloading jammed, the unjammed branch has W >= W_jam again;
+- ``jam``: W reaches 4 d_jam (``jamming_criterion = "w_4d"``, Hong) or the
+  centreline distance between neighbouring heads reaches d_jam
+  (``"head_gap"``, :mod:`knitsim.cell.head_gap`: the loops touch); the soft
+  condition is then replaced by the active contact, W = 4 d_jam or head gap =
+  d_jam (d_jam the in-plane width, d by default);
+- ``unjam``: while unloading jammed, the unjammed branch is clear of contact
+  again (W >= 4 d_jam, or head gap >= d_jam);
 - ``slack``: the force per wale reaches 0 while unloading;
 - ``cone``: in SF- with beta frozen, phi reaches +phimax (the stick branch
   leaves the friction cone on the far side); beta is released and T frozen
@@ -29,8 +31,9 @@ independent checks of each other.
 
 Every recorded row also carries ``head_gap`` (W - 2 X_max, mm) and
 ``interpenetrating`` (1.0 where head_gap < d_jam, else 0.0; d_jam is the
-in-plane width ``in_plane_width``, d by default) in ``values``: W = 4d
-lets the heads overlap before it is reached (docs/model.md, "Jamming").
+in-plane width ``in_plane_width``, d by default) in ``values``, as the Warp
+batch does: W = 4d lets the heads overlap before it is reached (docs/model.md,
+"Jamming").
 
 Frictionless cells (m = 0, Coulomb) keep the soft condition of the loading
 branch on reversal: without friction nothing can dissipate, and with the
@@ -63,8 +66,8 @@ from .stages import (
 )
 
 from .history import (  # noqa: E402  (re-exported)
-    HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
-    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory,
+    HEAD_GAP_QUANTITIES, HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
+    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values,
 )
 
 
@@ -88,17 +91,12 @@ class CellState:
     C: float
     status: int = STATUS_OK
     reason: str = ""
-    w_jam: float = math.nan     # W held while jammed (4d, or W when the heads touched)
 
     def copy(self) -> "CellState":
         return CellState(self.x.copy(), dict(self.q), self.stage, self.jammed, self.soft,
-                         self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason,
-                         self.w_jam)
+                         self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason)
 
 
-#: per-increment values recorded by the reference only (not by the Warp batch):
-#: the centreline gap between neighbouring heads [mm] and the flag gap < d (1.0/0.0)
-EXTRA_QUANTITIES = ("head_gap", "interpenetrating")
 #: quantities of the located state stored with each stage-change event
 EVENT_QUANTITIES = ("phi", "W", "F", "T", "head_gap")
 
@@ -175,8 +173,7 @@ class CellCycle:
         if not res.success:
             raise _SolveFailed("initial state: " + res.message)
         q = _q(res, p.B, p.d)
-        st = CellState(res.x, q, Stage.SF_LOAD, False, "Rn", q["Rn"], q["s_BC"], q["C"],
-                       w_jam=4.0 * p.d_jam)
+        st = CellState(res.x, q, Stage.SF_LOAD, False, "Rn", q["Rn"], q["s_BC"], q["C"])
         if p.friction == "coulomb" and p.phi0 >= self.phimax - 1e-12:
             # phi0 = phimax: at the sliding limit already; m = 0 (frictionless,
             # phi0 = 0 = phimax) slides from the start
@@ -195,10 +192,22 @@ class CellCycle:
         elif st.stage is Stage.S_UNLOAD:
             cond["phi"] = -self.phimax
         if st.jammed:
-            cond["W"] = st.w_jam
+            cond.update(self._contact())
         else:
             cond[st.soft] = st.frozen_soft
         return cond
+
+    def _contact(self) -> dict:
+        """The condition of the active jamming contact: W = 4 d_jam, or head gap = d_jam."""
+        p = self.p
+        return {"head_gap": p.d_jam} if p.jamming_criterion == "head_gap" else {"W": 4.0 * p.d_jam}
+
+    def _clearance(self, q: dict) -> float:
+        """How far a state is from jamming [mm] (>= 0 clear): W - 4 d_jam, or head gap - d_jam."""
+        p = self.p
+        if p.jamming_criterion == "head_gap":
+            return q["head_gap"] - p.d_jam
+        return q["W"] - 4.0 * p.d_jam
 
     def _solve(self, cond: dict, guess) -> tuple[np.ndarray, dict]:
         res = solve_state(cond, guess, self.p.B, self.p.d)
@@ -218,7 +227,7 @@ class CellCycle:
         p = self.p
         base = {"L": p.L, "C": C}
         if st.jammed:
-            base["W"] = st.w_jam
+            base.update(self._contact())
         else:
             base[st.soft] = st.frozen_soft
         t_old = math.tan(st.q["phi"])
@@ -274,10 +283,8 @@ class CellCycle:
                     # side (+phimax): the beta closure, not the stick, gives way
                     ev["cone"] = lambda q: q["phi"] - self.phimax
         if not st.jammed:
-            if p.jamming_criterion == "head_gap":
-                ev["jam"] = lambda q: p.d_jam - q["head_gap"]  # heads touch (module head_gap)
-            else:
-                ev["jam"] = lambda q: 4.0 * p.d_jam - q["W"]   # Hong's W = 4d
+            # Hong's W = 4 d_jam, or the heads touch (module head_gap)
+            ev["jam"] = lambda q: -self._clearance(q)
         if loading:
             ev["force_cap"] = lambda q: q["F"] - p.force_cap_N
         else:
@@ -304,7 +311,6 @@ class CellCycle:
             st.frozen_soft = q[st.soft]
         elif kind == "jam":
             st.jammed = True
-            st.w_jam = q["W"] if self.p.jamming_criterion == "head_gap" else 4.0 * self.p.d_jam
         elif kind == "unjam":
             st.jammed = False
         elif kind == "slack":
@@ -337,7 +343,8 @@ class CellCycle:
 
     # --------------------------------------------------------------- advance
     def _try_unjam(self, st: CellState, C_target: float):
-        """Active set: the unjammed branch at C_target, if it has W >= 4d."""
+        """Active set: the unjammed branch at C_target, if it is clear of contact (W >= 4 d_jam, or
+        head gap >= d_jam)."""
         if not st.jammed or st.stage in (Stage.SF_LOAD, Stage.S_LOAD):
             return None
         trial = st.copy()
@@ -346,7 +353,7 @@ class CellCycle:
             x, q = self.solve_at(trial, C_target)
         except _SolveFailed:
             return None
-        return (x, q) if q["W"] >= st.w_jam else None
+        return (x, q) if self._clearance(_with_gap(q, x, self.p.B, self.p.d)) >= 0.0 else None
 
     def _event_tol(self, kind: str) -> float:
         """Tolerance below which an event function counts as zero (stages.EVENT_TOL)."""
@@ -369,7 +376,7 @@ class CellCycle:
         def e(C):
             x, q = self.solve_at(trial, C, trial.x)
             trial.x = x                      # continuation guess only (Dahl reads trial.q)
-            return fun(q) if not unjam else q["W"] - st.w_jam
+            return fun(q) if not unjam else self._clearance(_with_gap(q, x, self.p.B, self.p.d))
 
         tol = self._event_tol(name)
         if unjam:
@@ -544,7 +551,7 @@ class CellCycle:
         stage = np.zeros(n, np.int32)
         jammed = np.zeros(n, np.int32)
         status = np.zeros(n, np.int32)
-        vals = {k: np.zeros(n) for k in HISTORY_QUANTITIES + EXTRA_QUANTITIES}
+        vals = {k: np.zeros(n) for k in HISTORY_QUANTITIES + HEAD_GAP_QUANTITIES}
         events: list = []
         direction = +1
         for i in range(n):
@@ -568,12 +575,12 @@ class CellCycle:
                 vals[k][i] = st.q[k]
             _with_gap(st.q, st.x, p.B, p.d)
             vals["head_gap"][i] = st.q["head_gap"]
-            vals["interpenetrating"][i] = float(st.q["head_gap"] < p.d_jam)
             if st.stage is Stage.SLACK:
                 vals["F"][i] = 0.0
             if st.status != STATUS_OK and not any(e.get("kind") == "flag" for e in events):
                 events.append({"increment": i, "kind": "flag", "reason": st.reason,
                                "status": STATUS_NAMES[st.status]})
+        vals.update(head_gap_values(vals["head_gap"], p.d_jam))
         return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle),
                             np.asarray(program.direction), stage[:, None], jammed[:, None],
                             status[:, None], {k: v[:, None] for k, v in vals.items()},

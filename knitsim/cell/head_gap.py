@@ -27,24 +27,12 @@ from knitsim.cell import elastica
 from knitsim.cell.quarter_loop import quarter_loop
 
 
-def max_abscissa(alpha, beta, gamma, phi, P, B, d, *, a=None):
-    """Largest abscissa X_max [mm] of the quarter loop A -> B -> C (scalar or arrays).
+def max_abscissa_of(st, B, *, a=None):
+    """Largest abscissa X_max [mm] of solved quarter loops ``st`` (a :class:`QuarterLoop`).
 
-    Parameters
-    ----------
-    alpha, beta, gamma, phi, P : array_like
-        State (rad, N); see :mod:`knitsim.cell.quantities`.
-    B, d : float
-        Bending stiffness [N mm^2] and yarn diameter [mm].
-    a : array_like, optional
-        ``alpha - gamma`` at full precision (high load).
-
-    Returns
-    -------
-    ndarray
-        X_max; NaN where the state is inadmissible.
+    ``a`` is ``alpha - gamma`` at full precision (high load); from ``st`` when not given.
+    NaN where the state is inadmissible.
     """
-    st = quarter_loop(alpha, beta, gamma, phi, P, B, d, a=a)
     alpha, beta, gamma = (np.asarray(z, float) for z in (st.alpha, st.beta, st.gamma))
     aa = (alpha - gamma) if a is None else np.broadcast_to(np.asarray(a, float), alpha.shape)
     lam = np.sqrt(B / np.asarray(st.P, float))
@@ -69,14 +57,38 @@ def max_abscissa(alpha, beta, gamma, phi, P, B, d, *, a=None):
     return np.where(st.admissible, x_max, np.nan)
 
 
+def head_gap_of(st, B, *, a=None):
+    """``W - 2 X_max`` [mm] of solved quarter loops ``st`` (see the module docstring)."""
+    return st.W - 2.0 * max_abscissa_of(st, B, a=a)
+
+
+def max_abscissa(alpha, beta, gamma, phi, P, B, d, *, a=None):
+    """Largest abscissa X_max [mm] of the quarter loop A -> B -> C (scalar or arrays).
+
+    Parameters
+    ----------
+    alpha, beta, gamma, phi, P : array_like
+        State (rad, N); see :mod:`knitsim.cell.quantities`.
+    B, d : float
+        Bending stiffness [N mm^2] and yarn diameter [mm].
+    a : array_like, optional
+        ``alpha - gamma`` at full precision (high load).
+
+    Returns
+    -------
+    ndarray
+        X_max; NaN where the state is inadmissible.
+    """
+    return max_abscissa_of(quarter_loop(alpha, beta, gamma, phi, P, B, d, a=a), B, a=a)
+
+
 def head_gap(alpha, beta, gamma, phi, P, B, d, *, a=None):
     """Centreline distance between the heads of neighbouring loops of a course [mm].
 
     ``W - 2 X_max`` (see the module docstring); W from eq 6.  Below d the loops
     interpenetrate.
     """
-    st = quarter_loop(alpha, beta, gamma, phi, P, B, d, a=a)
-    return st.W - 2.0 * max_abscissa(alpha, beta, gamma, phi, P, B, d, a=a)
+    return head_gap_of(quarter_loop(alpha, beta, gamma, phi, P, B, d, a=a), B, a=a)
 
 
 def interpenetrating(gap, d) -> np.ndarray:

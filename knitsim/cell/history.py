@@ -10,10 +10,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .stages import LABEL_CODES, stage_label
+from .stages import EVENT_TOL, LABEL_CODES, stage_label
 
 #: per-increment quantities recorded for every cell
 HISTORY_QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC", "T", "Rn", "F")
+
+#: per-increment values of the interpenetration check, recorded by every engine on every accepted
+#: state: the centreline gap between the heads of neighbouring loops [mm] (knitsim.cell.head_gap)
+#: and 1.0 where it is below the in-plane width (the loops pass through each other), else 0.0
+HEAD_GAP_QUANTITIES = ("head_gap", "interpenetrating")
+
+
+def head_gap_values(gap: np.ndarray, d_jam) -> dict[str, np.ndarray]:
+    """:data:`HEAD_GAP_QUANTITIES` from the recorded gaps [n_increments, n_cells] and each cell's
+    in-plane width ``d_jam`` [mm] (scalar or per cell).  A gap that is not a number (an
+    inadmissible state of a flagged cell) does not count as interpenetrating; nor does a gap
+    within EVENT_TOL (relative) of d_jam, where the head-gap criterion holds the contact."""
+    gap = np.asarray(gap, float)
+    d_jam = np.asarray(d_jam, float)
+    with np.errstate(invalid="ignore"):
+        # a jammed head-gap state holds gap = d_jam to the solver's tolerance: not an overlap
+        flag = (gap < d_jam * (1.0 - EVENT_TOL)).astype(float)
+    return {"head_gap": gap, "interpenetrating": flag}
+
 
 #: status codes of a cell (stored per cell as int32)
 STATUS_OK = 0

@@ -27,11 +27,15 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from knitsim.cell.quantities import QUANTITY_NAMES, UNKNOWN_NAMES
+from knitsim.cell.head_gap import head_gap_of
 from knitsim.cell.quarter_loop import QuarterLoop, closing_force, quarter_loop
 from knitsim.errors import KnitsimInputError, require
 
 _ANGLES = {"alpha", "beta", "gamma", "phi"}
-_LENGTHS = {"W", "C", "L", "s_AB", "s_BC", "X_A", "X_B", "Y_B", "Y_C"}
+_LENGTHS = {"W", "C", "L", "s_AB", "s_BC", "X_A", "X_B", "Y_B", "Y_C", "head_gap"}
+#: conditions besides the quantities of the forward map: the centreline gap between the heads of
+#: neighbouring loops (knitsim.cell.head_gap), imposed by jamming by contact
+EXTRA_CONDITIONS = ("head_gap",)
 _FORCES = {"P", "T", "R", "Rn", "Rt", "F"}
 
 
@@ -92,8 +96,8 @@ def _check_conditions(conditions: Mapping[str, float]) -> dict[str, float]:
             f"({', '.join(conditions)})")
     out = {}
     for name, target in conditions.items():
-        require(name in QUANTITY_NAMES,
-                f"conditions: unknown quantity {name!r}; known: {', '.join(QUANTITY_NAMES)}")
+        require(name in QUANTITY_NAMES or name in EXTRA_CONDITIONS,
+                f"conditions: unknown quantity {name!r}; known: {', '.join(QUANTITY_NAMES + EXTRA_CONDITIONS)}")
         t = float(target)
         require(np.isfinite(t), f"conditions[{name}] = {target!r} is not a finite number")
         out[name] = t
@@ -133,8 +137,11 @@ def _states(z: np.ndarray, B: float, d: float) -> QuarterLoop:
     return quarter_loop(gamma + a, beta, gamma, phi, np.exp(z[..., 4]), B, d, a=a, rho=rho)
 
 
-def _residuals(st: QuarterLoop, cond: dict[str, float], scales: dict[str, float], d: float):
-    cols = [st.g / d] + [(st.quantity(n) - t) / scales[n] for n, t in cond.items()]
+def _residuals(st: QuarterLoop, cond: dict[str, float], scales: dict[str, float], d: float, B: float, a):
+    def value(n):
+        return head_gap_of(st, B, a=a) if n == "head_gap" else st.quantity(n)
+
+    cols = [st.g / d] + [(value(n) - t) / scales[n] for n, t in cond.items()]
     return np.stack(cols, axis=-1)
 
 
@@ -171,7 +178,7 @@ def solve_state(conditions: Mapping[str, float], guess, B: float, d: float, *,
     eye = np.eye(5) * fd_step
 
     def res(zz):
-        return _residuals(_states(zz, B, d), cond, scales, d)
+        return _residuals(_states(zz, B, d), cond, scales, d, B, np.exp(zz[..., 0]))
 
     r = res(z)
     norm = float(np.linalg.norm(r)) if np.all(np.isfinite(r)) else np.inf

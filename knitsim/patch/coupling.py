@@ -150,7 +150,8 @@ class WarpBackend:
             a.assign(saved[f])
 
 
-_STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction")
+_STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction",
+                 "head_gap")
 
 
 @functools.lru_cache(maxsize=None)
@@ -162,11 +163,11 @@ def _select_kernel():
                      xa: wp.array2d(dtype=wp.float64), qa: wp.array2d(dtype=wp.float64), Ca: wp.array(dtype=wp.float64),
                      sa: wp.array(dtype=wp.int32), ja: wp.array(dtype=wp.int32), ka: wp.array(dtype=wp.int32),
                      fa: wp.array(dtype=wp.float64), ba: wp.array(dtype=wp.float64), ta: wp.array(dtype=wp.int32),
-                     da: wp.array(dtype=wp.int32),
+                     da: wp.array(dtype=wp.int32), ga: wp.array(dtype=wp.float64),
                      xb: wp.array2d(dtype=wp.float64), qb: wp.array2d(dtype=wp.float64), Cb: wp.array(dtype=wp.float64),
                      sb: wp.array(dtype=wp.int32), jb: wp.array(dtype=wp.int32), kb: wp.array(dtype=wp.int32),
                      fb: wp.array(dtype=wp.float64), bb: wp.array(dtype=wp.float64), tb: wp.array(dtype=wp.int32),
-                     db: wp.array(dtype=wp.int32)):
+                     db: wp.array(dtype=wp.int32), gb: wp.array(dtype=wp.float64)):
         i = wp.tid()
         if mask[i] != 0:
             for k in range(xa.shape[1]):
@@ -181,6 +182,7 @@ def _select_kernel():
             bb[i] = ba[i]
             tb[i] = ta[i]
             db[i] = da[i]
+            gb[i] = ga[i]
 
     return select_state
 

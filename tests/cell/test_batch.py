@@ -317,3 +317,33 @@ def test_reload_from_slack_at_vanishing_contact_stays_in_the_cone(device):
         assert loaded.sum() > 100
         assert np.all(np.abs(np.tan(v["phi"][loaded, 0])) <= m * (1 + 1e-9))
         assert np.all(hist.force_per_wale >= -1e-9)
+
+
+def test_head_gap_jamming_batch_matches_reference(device):
+    """Jamming by contact (jamming_criterion = "head_gap"): the heads of neighbouring loops
+    at centreline distance d_jam, located as an event and held as the active constraint of
+    the jammed branch, released when the unjammed branch is clear again.  The reference
+    locates it by a root search on C (brentq on the head gap of each solved state) and
+    solves the jammed branch with finite-difference Newton; the batch swaps the condition
+    into its forward-mode Newton.  Expected: the same events, C to 1e-8 mm, and no state
+    with overlapping heads (the gap held at d_jam while jammed)."""
+    B, d, L, W0, C0 = _knit("e_glass")
+    cells = [CellParams(B, d, L, W0, C0, m=0.2, phi0=math.atan(0.2), jamming_criterion="head_gap",
+                        force_cap_N=10.0),
+             CellParams(B, d, L, W0, C0, m=0.3, phi0=0.1, jamming_criterion="head_gap", in_plane_width=0.7,
+                        unloading_rule="hong_constant_t", force_cap_N=10.0)]
+    prog = piecewise_linear([0.0, 0.6, 0.15, 0.6], 0.03)
+    r = run_cells_reference(cells, prog)
+    h = run_batch(cells, prog, device=device)
+    _assert_histories_agree(h, r, rtol=1e-8)
+    kinds = [(e["cell"], e["kind"]) for e in r.events]
+    for c in (0, 1):
+        assert kinds.count((c, "jam")) == 2 and kinds.count((c, "unjam")) == 1
+    for eh, er in zip(h.events, r.events):
+        if er["kind"] in ("jam", "unjam"):
+            assert abs(eh["C"] - er["C"]) <= 1e-8
+    for eng in (h, r):
+        jammed = eng.jammed == 1
+        np.testing.assert_allclose(eng.values["head_gap"][jammed], np.broadcast_to([d, 0.7], jammed.shape)[jammed],
+                                   atol=1e-9)
+        assert not eng.values["interpenetrating"].any()

@@ -189,7 +189,10 @@ def test_head_gap_criterion_jams_earlier_at_gap_d():
     assert lo < hg["C"] < hi
     jammed = h.jammed[:, 0] == 1
     assert jammed.any()
-    np.testing.assert_allclose(h.values["W"][jammed, 0], hg["W"], rtol=1e-9)   # W held at W_jam
+    # the contact is the active constraint of the jammed branch: the heads stay at distance d
+    # (the condition head gap = d, solved to Newton's tolerance), so no state interpenetrates
+    np.testing.assert_allclose(h.values["head_gap"][jammed, 0], p.d, atol=1e-9)
+    assert not h.values["interpenetrating"][:, 0].any()
 
 
 @pytest.mark.parametrize("bad", [
