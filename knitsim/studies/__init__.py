@@ -6,4 +6,4 @@ is compared, the paper's value and ours) and ``figures(result, out_dir)``.
 """
 from __future__ import annotations
 
-STUDIES = ("dusserre2015",)
+STUDIES = ("dusserre2015", "dusserre2015-experiment")

@@ -3,6 +3,7 @@
 The paper's claims are a reported table (``knitsim study dusserre2015``),
 never asserted here.  Checked: every claim (a)-(e) of dusserre2015.toml
 [claims] has rows, numbers are finite where defined, figures are written, and the E-glass cell is Table 1 / section 2.2.
+Every claim row carries a verdict (reproduced / partly / not reproduced) and why.
 """
 from __future__ import annotations
 
@@ -40,5 +41,25 @@ def test_study_table_has_every_claim(tmp_path):
     for r in res["rows"]:
         if isinstance(r["ours"], float) and r["claim"] in "bd":
             assert math.isfinite(r["ours"])
+        assert r["verdict"] in (study.REPRODUCED, study.PARTLY, study.NOT_REPRODUCED, study.CONTEXT)
+        assert r["why"]
+        assert (r["verdict"] == study.CONTEXT) == (r["paper"] is None)
     paths = study.figures(res, tmp_path)
     assert all(p.exists() and p.stat().st_size > 0 for p in paths)
+
+
+@pytest.mark.parametrize("paper, ours, verdict", [
+    (0.2, 0.2, study.REPRODUCED),          # identity
+    (0.2, 0.24, study.REPRODUCED),         # within 25 %
+    (0.2, 0.35, study.PARTLY),             # same sign, factor 1.75
+    (-0.04, 0.73, study.NOT_REPRODUCED),   # opposite sign
+    (5.0, 0.167, study.NOT_REPRODUCED),    # factor 30
+    (0.15, float("nan"), study.NOT_REPRODUCED),
+])
+def test_numeric_verdict_limit_cases(paper, ours, verdict):
+    assert study.numeric_verdict(paper, ours)[0] == verdict
+
+
+def test_numeric_verdict_absolute_tolerance():
+    assert study.numeric_verdict(0.15, 0.19, tol=0.05)[0] == study.REPRODUCED
+    assert study.numeric_verdict(0.15, 0.21, tol=0.05)[0] != study.REPRODUCED
