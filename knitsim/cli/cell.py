@@ -80,6 +80,8 @@ def _run(args) -> int:
                                title=scene.resolved.get("title", ""))
     print(f"knitsim cell: done in {wall:.2f} s; wrote {', '.join(sorted(files))} to {out}",
           file=sys.stderr, flush=True)
+    for w in summary["warnings"]:
+        print(f"knitsim cell: warning: {w['cell']}: {w['message']}", file=sys.stderr, flush=True)
     failed = [c["label"] for c in summary["cells"] if not c["expected_end"]]
     if failed:
         print(f"knitsim cell: warning: {len(failed)} cell(s) did not reach the end of the program "

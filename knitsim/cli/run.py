@@ -112,6 +112,8 @@ def _run(args) -> int:
               f"samples) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
     print(f"knitsim run: done in {h.wall_s:.2f} s ({h.info['n_groups']} distinct cell solves); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
+    for w in summary["warnings"]:
+        print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
     if not summary["all_converged"]:
         print(f"knitsim run: warning: {summary['non_converged_column_increments']} non-converged column "
               f"increment(s), {summary['non_ok_cells_at_end']} cell(s) not ok at the end; see summary.json",

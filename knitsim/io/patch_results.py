@@ -29,6 +29,7 @@ from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES
 from ..patch.runner import PatchHistory
+from .checks import interpenetration, zero_force_cycles
 from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
@@ -138,6 +139,10 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
     nc = np.argwhere(h.column_status == COL_NOT_CONVERGED)
     bad_cells = np.argwhere(h.cell_field("status")[-1] != STATUS_OK) if h.n_increments else np.zeros((0, 2))
     nonfinite = np.nonzero(~np.isfinite(F))[0]
+    warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
+    if "interpenetrating" in h.groups:
+        warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
+                                     what="distinct cell")
     out = dict(info)
     out.update(
         cells=int(h.shape[0] * h.shape[1]), courses=int(h.shape[0]), wales=int(h.shape[1]),
@@ -152,6 +157,7 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
         non_ok_cells_first=[{"course": int(i), "wale": int(j)} for i, j in bad_cells[:20]],
         nonfinite_force_rows=[int(i) for i in nonfinite[:20]],
         all_converged=bool(len(nc) == 0 and len(bad_cells) == 0 and len(nonfinite) == 0),
+        warnings=[w.as_dict() for w in warnings],
     )
     return out
 

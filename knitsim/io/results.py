@@ -36,6 +36,7 @@ from ..cell.cycle import dissipated_energy
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.stages import LABEL_CODES
 from ..errors import KnitsimInputError
+from .checks import interpenetration, zero_force_cycles
 from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
@@ -235,6 +236,10 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
     flagged = np.nonzero(status != STATUS_OK)[0]
     stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
+    warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out])
+    if "interpenetrating" in h.values:
+        warnings += interpenetration(h.strain[:n_ok], h.values["interpenetrating"][:n_ok, cell],
+                                     h.values["head_gap"][:n_ok, cell], p.d_jam)
     return {
         "cell": cell, "label": label,
         "params": {k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
@@ -250,6 +255,7 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         "strain_at_first_jamming": jam_strain,
         "strain_at_first_jamming_from": jam_from,
         "cycles": cycles_out,
+        "warnings": [w.as_dict() for w in warnings],
     }
 
 
@@ -261,7 +267,8 @@ def summarise(history: BatchHistory, labels: list[str] | None = None, notes: lis
     cells = [cell_summary(history, i, labels[i], notes[i]) for i in range(history.n_cells)]
     out = dict(info)
     out.update(n_cells=history.n_cells, n_increments=int(len(history.strain)),
-               all_expected_end=all(c["expected_end"] for c in cells), cells=cells)
+               all_expected_end=all(c["expected_end"] for c in cells),
+               warnings=[dict(w, cell=c["label"]) for c in cells for w in c["warnings"]], cells=cells)
     return out
 
 

@@ -110,7 +110,8 @@ class WarpBackend:
         stage = st.stage.numpy().copy()
         F = np.where(stage == int(Stage.SLACK), 0.0, q[:, CODE["F"]])
         return {"C": st.C.numpy().copy(), "F": F, "phi": q[:, CODE["phi"]].copy(), "W": q[:, CODE["W"]].copy(),
-                "stage": stage, "jammed": st.jammed.numpy().copy(), "status": st.status.numpy().copy()}
+                "stage": stage, "jammed": st.jammed.numpy().copy(), "status": st.status.numpy().copy(),
+                "head_gap": st.head_gap.numpy().copy()}
 
     def committed(self) -> dict:
         return self._read(self.s0)
@@ -205,14 +206,15 @@ class ReferenceBackend:
         self.res = list(self.s0)
         self.dir_res = list(self.dir0)
 
-    @staticmethod
-    def _read(states) -> dict:
+    def _read(self, states) -> dict:
+        from ..cell.cycle import _with_gap
         stage = np.array([int(s.stage) for s in states], np.int32)
         F = np.array([s.q["F"] for s in states])
+        gap = np.array([_with_gap(s.q, s.x, c.p.B, c.p.d)["head_gap"] for s, c in zip(states, self.cycles)])
         return {"C": np.array([s.C for s in states]), "F": np.where(stage == int(Stage.SLACK), 0.0, F),
                 "phi": np.array([s.q["phi"] for s in states]), "W": np.array([s.q["W"] for s in states]),
                 "stage": stage, "jammed": np.array([int(s.jammed) for s in states], np.int32),
-                "status": np.array([s.status for s in states], np.int32)}
+                "status": np.array([s.status for s in states], np.int32), "head_gap": gap}
 
     def committed(self) -> dict:
         return self._read(self.s0)

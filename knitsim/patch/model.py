@@ -21,10 +21,16 @@ import numpy as np
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
 
-#: per-cell parameters that maps may set (CellParams names), units mm, N mm^2, -, 1/mm, rad
-PARAM_NAMES = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0")
+#: per-cell parameters that maps may set (CellParams names), units mm, N mm^2, -, 1/mm, rad;
+#: in_plane_width is NaN where it is not given (the cell then jams with its d)
+PARAM_NAMES = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0", "in_plane_width")
 #: rules shared by every cell of a patch (CellParams names)
 RULE_NAMES = ("friction", "unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
+
+
+def _number(v) -> float:
+    """A parameter as a float field value (None, an absent in-plane width, is NaN)."""
+    return float("nan") if v is None else float(v)
 
 
 @dataclass(frozen=True)
@@ -86,7 +92,7 @@ class PatchModel:
     def uniform(cls, params: CellParams, courses: int, wales: int) -> "PatchModel":
         """A patch of ``courses x wales`` copies of one cell."""
         params = params.validated()
-        fields = {n: np.full((courses, wales), float(getattr(params, n))) for n in PARAM_NAMES}
+        fields = {n: np.full((courses, wales), _number(getattr(params, n))) for n in PARAM_NAMES}
         return cls(int(courses), int(wales), fields, {r: getattr(params, r) for r in RULE_NAMES})
 
     @classmethod
@@ -106,7 +112,7 @@ class PatchModel:
                         raise KnitsimInputError(f"cells[{i}][{j}].{r} = {getattr(p, r)!r}: every cell of a "
                                                 f"patch shares the rules (cell [0][0] has {rules[r]!r})")
                 for n in PARAM_NAMES:
-                    fields[n][i, j] = float(getattr(p, n))
+                    fields[n][i, j] = _number(getattr(p, n))
         return cls(courses, wales, fields, rules)
 
     @property
@@ -119,8 +125,10 @@ class PatchModel:
 
     def cell(self, i: int, j: int) -> CellParams:
         """Parameters of cell ``[course i, wale j]`` (validated)."""
-        return CellParams(**{n: float(self.fields[n][i, j]) for n in PARAM_NAMES}, **self.rules).validated(
-            where=f"cell[{i}, {j}]")
+        vals = {n: float(self.fields[n][i, j]) for n in PARAM_NAMES}
+        if not np.isfinite(vals["in_plane_width"]):
+            vals["in_plane_width"] = None
+        return CellParams(**vals, **self.rules).validated(where=f"cell[{i}, {j}]")
 
     def column_rest_length(self) -> np.ndarray:
         """Rest length of each wale column, sum of C0 along it [mm], shape [wales]."""
@@ -129,7 +137,8 @@ class PatchModel:
     def grouping(self, dedup: bool = True) -> Grouping:
         """Group identical cells (see the module docstring); ``dedup=False``: one group per cell."""
         courses, wales = self.shape
-        stack = np.stack([self.fields[n] for n in PARAM_NAMES], axis=-1)   # [courses, wales, P]
+        # (an absent in-plane width, NaN, groups as one value)
+        stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES], axis=-1)
         if dedup:
             flat = stack.reshape(-1, len(PARAM_NAMES))
             _, mat_id = np.unique(flat, axis=0, return_inverse=True)

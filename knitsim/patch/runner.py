@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..cell.history import STATUS_OK
+from ..cell.history import STATUS_OK, head_gap_values
 from ..cell.load_program import LoadProgram
 from ..errors import KnitsimInputError
 from .coupling import COL_OK, PatchSolver, label_codes
@@ -30,9 +30,9 @@ from .model import PatchModel
 
 CHECKPOINT_NAME = "checkpoint.pkl"
 _ROW_KEYS = ("force_N", "force_per_wale_N", "column_force_N", "column_status", "column_iterations", "column_slack_mm",
-             "g_C", "g_F", "g_phi", "g_label", "g_status", "g_x", "g_W", "g_s_AB")
+             "g_C", "g_F", "g_phi", "g_label", "g_status", "g_x", "g_W", "g_s_AB", "g_head_gap")
 #: per-group geometry rows (checkpoints written before they existed lack them)
-_GEOMETRY_KEYS = ("g_x", "g_W", "g_s_AB")
+_GEOMETRY_KEYS = ("g_x", "g_W", "g_s_AB", "g_head_gap")
 
 
 class PatchInterrupted(Exception):
@@ -61,8 +61,11 @@ class PatchHistory:
     groups : dict of str to ndarray, shape [n, n_groups]
         Per group: ``C`` [mm], ``F`` [N], ``phi`` [rad], ``label`` (stage label code), ``status``;
         and, for the geometry, ``x`` (shape [n, n_groups, 5]: alpha, beta, gamma, phi [rad], P [N]),
-        ``W`` and ``s_AB`` [mm] (absent when resumed from a checkpoint that predates them).
+        ``W``, ``s_AB`` and ``head_gap`` [mm] with ``interpenetrating`` (1 where the heads of
+        neighbouring loops overlap) (absent when resumed from a checkpoint that predates them).
     C0 : ndarray, shape [courses, wales]
+    group_d_jam : ndarray, shape [n_groups]
+        In-plane width of each group [mm] (the interpenetration threshold).
     wall_s : float
         Seconds spent solving (this run plus the runs it resumed).
     """
@@ -81,6 +84,7 @@ class PatchHistory:
     C0: np.ndarray
     wall_s: float = 0.0
     info: dict = field(default_factory=dict)
+    group_d_jam: np.ndarray | None = None
 
     @property
     def n_increments(self) -> int:
@@ -216,6 +220,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             rows["g_x"].append(gx)
             rows["g_W"].append(gW)
             rows["g_s_AB"].append(gs)
+            rows["g_head_gap"].append(c["head_gap"])
             if progress is not None:
                 progress(i + 1, n)
             done = i + 1
@@ -234,6 +239,8 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
               "status": arr["g_status"]}
     if all(k in arr for k in _GEOMETRY_KEYS):
         groups.update(x=arr["g_x"], W=arr["g_W"], s_AB=arr["g_s_AB"])
+        # the interpenetration check of every committed state (knitsim.cell.history.HEAD_GAP_QUANTITIES)
+        groups.update(head_gap_values(arr["g_head_gap"], [p.d_jam for p in grouping.params]))
     C0 = model.fields["C0"]
     info = {"engine": engine, "device": getattr(solver.backend, "device", "cpu"), "dedup": bool(dedup),
             "n_groups": grouping.n_groups, "n_column_classes": grouping.n_classes,
@@ -241,7 +248,8 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             "trial_steps": int(arr["column_iterations"].max(axis=1).sum()) if n else 0}
     return PatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
                         arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
-                        arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info)
+                        arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info,
+                        np.array([p.d_jam for p in grouping.params]))
 
 
 def all_ok(history: PatchHistory) -> bool:

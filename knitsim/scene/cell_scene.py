@@ -76,7 +76,9 @@ def _yarn_table() -> Table:
         "material": Field(("str",), OPTIONAL, f"library yarn, one of {', '.join(materials.yarn_names())}"),
         "d": _pos("yarn diameter (Table 1); jamming at W = 4 d", "mm"),
         "B": _pos("bending stiffness (Table 1)", "N mm^2"),
-    }, "the yarn: a library material and/or explicit d, B")
+        "in_plane_width": _pos("width that jams loops in the plane of the knit (a flattened roving); "
+                               "jamming at W = 4 in_plane_width (default: d)", "mm"),
+    }, "the yarn: a library material and/or explicit d, B, in_plane_width")
 
 
 def _knit_table() -> Table:
@@ -272,6 +274,16 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
         raise error(org.path("knit", "L"), L,
                     f"too short to close a loop: needs > 2 C0 + W0 - 4 d = {lmin:.4g} mm" + org.where())
 
+    # in-plane width (README "The yarn's in-plane width"): the compact d up to W0/4
+    w = y.get("in_plane_width")
+    if w is not None:
+        if w < d:
+            raise error(org.path("yarn", "in_plane_width"), w,
+                        f"the in-plane width cannot be below the compact diameter d = {fmt(d)} mm" + org.where())
+        if W0 < 4.0 * w:
+            raise error(org.path("yarn", "in_plane_width"), w,
+                        f"loops jammed at rest: needs 4 in_plane_width <= W0 = {fmt(W0)} mm" + org.where())
+
     # friction ratio m: explicit, eq 10, or the library yarn's (section 3.4)
     if "m" in f and ("mu_k" in f or "coiling_angle_deg" in f):
         other = "mu_k" if "mu_k" in f else "coiling_angle_deg"
@@ -323,7 +335,8 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
                     "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]" + org.where())
 
     out = {
-        "yarn": dict(({"material": y["material"]} if "material" in y else {}), d=d, B=B),
+        "yarn": dict(({"material": y["material"]} if "material" in y else {}), d=d, B=B,
+                     **({"in_plane_width": w} if w is not None else {})),
         "knit": dict(({"material": k["material"]} if "material" in k else {}), L=L, W0=W0, C0=C0),
         "friction": {"model": model, "m": m, "phi0": phi0, "dahl_sigma": sigma},
         "rules": dict(r),
@@ -424,7 +437,8 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
         p = CellParams(B=tables["yarn"]["B"], d=tables["yarn"]["d"], L=tables["knit"]["L"],
                        W0=tables["knit"]["W0"], C0=tables["knit"]["C0"], m=tables["friction"]["m"],
                        phi0=tables["friction"]["phi0"], friction=tables["friction"]["model"],
-                       dahl_sigma=tables["friction"]["dahl_sigma"], **tables["rules"])
+                       dahl_sigma=tables["friction"]["dahl_sigma"],
+                       in_plane_width=tables["yarn"].get("in_plane_width"), **tables["rules"])
         p.validated(where or "cell")   # backstop: the same checks as the engines
         params.append(p)
         labels.append(label)

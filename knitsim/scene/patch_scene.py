@@ -96,7 +96,8 @@ def _map_table(name: str) -> Table:
     }, f"per-cell map of {name}")
 
 
-_UNITS = {"d": "mm", "B": "N mm^2", "m": "-", "dahl_sigma": "1/mm", "L": "mm", "W0": "mm", "C0": "mm", "phi0": "rad"}
+_UNITS = {"d": "mm", "B": "N mm^2", "m": "-", "dahl_sigma": "1/mm", "L": "mm", "W0": "mm", "C0": "mm", "phi0": "rad",
+          "in_plane_width": "mm"}
 
 #: the schema of a patch scene file
 PATCH_SCENE = Table({
@@ -192,7 +193,8 @@ class PatchScene:
 def _cell_values(tables: dict) -> dict:
     return {"d": tables["yarn"]["d"], "B": tables["yarn"]["B"], "L": tables["knit"]["L"],
             "W0": tables["knit"]["W0"], "C0": tables["knit"]["C0"], "m": tables["friction"]["m"],
-            "phi0": tables["friction"]["phi0"], "dahl_sigma": tables["friction"]["dahl_sigma"]}
+            "phi0": tables["friction"]["phi0"], "dahl_sigma": tables["friction"]["dahl_sigma"],
+            "in_plane_width": tables["yarn"].get("in_plane_width", float("nan"))}
 
 
 def _check_cells(fields: dict, origins: dict, friction: str) -> None:
@@ -226,6 +228,16 @@ def _check_cells(fields: dict, origins: dict, friction: str) -> None:
     bad = L <= lmin
     if bad.any():
         fail("L", bad, lambda i, j: f"too short to close a loop: needs > 2 C0 + W0 - 4 d = {lmin[i, j]:.4g} mm")
+    w = fields["in_plane_width"]
+    given = np.isfinite(w)
+    bad = given & ~(w >= d)
+    if bad.any():
+        fail("in_plane_width", bad, lambda i, j: f"the in-plane width cannot be below the compact diameter "
+                                                 f"d = {d[i, j]:.4g} mm")
+    bad = given & (W0 < 4.0 * w)
+    if bad.any():
+        fail("in_plane_width", bad, lambda i, j: f"loops jammed at rest: needs 4 in_plane_width <= W0 = "
+                                                 f"{W0[i, j]:.4g} mm")
     phimax = np.arctan(fields["m"])
     bad = np.abs(fields["phi0"]) > phimax + 1e-12
     if bad.any():
@@ -264,13 +276,11 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     base_tables, _ = _resolve_cell(merged, _Origins(None, {}))
     rules = dict(base_tables["rules"])
     rules["friction"] = base_tables["friction"]["model"]
-    if doc["engine"] == "warp" and rules["jamming_criterion"] != "w_4d":
-        raise error("rules.jamming_criterion", rules["jamming_criterion"],
-                    "the warp engine supports \"w_4d\" only (use engine = \"reference\")")
     base = _cell_values(base_tables)
     fields = {n: np.full(shape, float(base[n])) for n in PARAM_NAMES}
     _BASE_PATHS = {"d": "yarn.d", "B": "yarn.B", "L": "knit.L", "W0": "knit.W0", "C0": "knit.C0",
-                   "m": "friction.m", "phi0": "friction.phi0", "dahl_sigma": "friction.dahl_sigma"}
+                   "m": "friction.m", "phi0": "friction.phi0", "dahl_sigma": "friction.dahl_sigma",
+                   "in_plane_width": "yarn.in_plane_width"}
     origins = {n: np.full(shape, _BASE_PATHS[n], dtype=object) for n in PARAM_NAMES}
 
     # zones: the base tables overridden per rectangle (library materials resolved as for a cell)
@@ -290,7 +300,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         vals = _cell_values(ztables)
         for n in PARAM_NAMES:
             fields[n][ci, wi] = vals[n]
-            tbl = {"d": "yarn", "B": "yarn", "L": "knit", "W0": "knit", "C0": "knit"}.get(n, "friction")
+            tbl = {"d": "yarn", "B": "yarn", "in_plane_width": "yarn", "L": "knit", "W0": "knit",
+                   "C0": "knit"}.get(n, "friction")
             key = n
             origins[n][ci, wi] = (f"zones[{z}].{tbl}.{key}" if (key in raw_over.get(tbl, {}) or
                                                                "material" in raw_over.get(tbl, {}) or

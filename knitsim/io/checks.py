@@ -1,0 +1,94 @@
+"""Checks that make a result say why it may not be believable (summaries of ``cell`` and ``run``).
+
+Each check returns :class:`ResultWarning` s, written to ``summary.json`` (``warnings``)
+and printed by the commands:
+
+``zero_force_cycle``
+    A cycle whose peak force is (near) zero, below a tenth of the previous cycle's,
+    after a cycle that carried load: the knit went slack and took (almost) no load
+    again up to the upper strain.  With
+    Table 4 it has physical reasons (README, "the reload pocket"), but a user
+    must see it rather than read ``all_converged: true``.
+``heads_interpenetrate``
+    States where the centreline gap between the heads of neighbouring loops of a
+    course is below the yarn's in-plane width: the loops pass through each other
+    (W = 4 d jams later than contact would; ``jamming_criterion = "head_gap"``).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+#: a cycle peak below this fraction of the previous cycle's peak is flagged: it lost (nearly) all its
+#: load (a tenth: well below the 20-30 % drops of a knit's shakedown in a cyclic test, e.g. 5 N -> 4 N in
+#: Dusserre 2015 Fig. 10)
+ZERO_CYCLE_FRACTION = 0.1
+
+
+@dataclass(frozen=True)
+class ResultWarning:
+    """A warning of a result: a stable ``code`` and a one-line ``message``."""
+
+    code: str
+    message: str
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CYCLE_FRACTION) -> list[ResultWarning]:
+    """Warnings for cycles whose peak falls below ``fraction`` of the previous cycle's peak.
+
+    Parameters
+    ----------
+    peaks : sequence of (cycle, peak)
+        Cycle numbers and peak forces, in order.
+    """
+    out = []
+    peaks = list(peaks)
+    for (c0, p0), (c1, p1) in zip(peaks[:-1], peaks[1:]):
+        if p0 is None or p1 is None or not np.isfinite(p0) or not np.isfinite(p1):
+            continue
+        if p0 > 0 and p1 < fraction * p0:
+            out.append(ResultWarning(
+                "zero_force_cycle",
+                f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
+                f"went slack and took (almost) no load again up to the upper strain (README, 'the reload "
+                f"pocket')"))
+    return out
+
+
+def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,
+                     what: str = "cell") -> list[ResultWarning]:
+    """A warning when any state's heads overlap.
+
+    Parameters
+    ----------
+    strain : ndarray, shape [n]
+        Imposed strain of each row.
+    flags : ndarray, shape [n, k]
+        1 where the row's state of a cell interpenetrates (``values["interpenetrating"]``).
+    gap : ndarray, shape [n, k]
+        Head gaps [mm].
+    d_jam : float or ndarray, shape [k]
+        The cells' in-plane widths [mm].
+    what : str
+        What the k columns are, for the message.
+    """
+    flags = np.asarray(flags) > 0
+    if flags.ndim == 1:
+        flags = flags[:, None]
+        gap = np.asarray(gap)[:, None]
+    if not flags.any():
+        return []
+    rows = np.nonzero(flags.any(axis=1))[0]
+    cols = np.nonzero(flags.any(axis=0))[0]
+    with np.errstate(invalid="ignore"):
+        depth = np.where(flags, np.broadcast_to(np.asarray(d_jam, float), flags.shape) - np.asarray(gap, float), 0.0)
+    return [ResultWarning(
+        "heads_interpenetrate",
+        f"the heads of neighbouring loops overlap (centreline gap below the in-plane width) from strain "
+        f"{float(np.asarray(strain)[rows[0]]):.4g} on, in {len(rows)} of {flags.shape[0]} increments and "
+        f"{len(cols)} {what}(s), by up to {float(np.nanmax(depth)):.3g} mm: W = 4 d jams later than contact "
+        f"would (jamming_criterion = \"head_gap\" jams at the contact)")]

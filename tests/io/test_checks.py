@@ -1,0 +1,52 @@
+"""Result checks (knitsim.io.checks): hand-made inputs, then the summaries of real runs.
+
+Expected: the definitions themselves (a cycle below a tenth of the previous one's peak; an
+overlap is the in-plane width minus the head gap), and for the runs the physics measured in
+README ("the reload pocket"; heads overlap before W = 4d; the contact criterion never does).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.cell.batch import run_batch
+from knitsim.cell.load_program import cycles
+from knitsim.cell.material import CellParams
+from knitsim.io.checks import interpenetration, zero_force_cycles
+from knitsim.io.results import summarise
+
+EGLASS = dict(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7)     # Table 1, section 2.2
+
+
+@pytest.mark.parametrize("peaks, n", [
+    ([(1, 5.0), (2, 4.0), (3, 3.9)], 0),      # a knit's shakedown: no warning
+    ([(1, 5.0), (2, 0.0)], 1),                 # slack for a whole cycle
+    ([(1, 0.167), (2, 0.0134), (3, 0.0134)], 1),   # 8 %: flagged once (cycle 3 keeps cycle 2's load)
+    ([(1, 0.0), (2, 0.0)], 0),                 # nothing carried before: nothing lost
+    ([(1, 5.0), (2, float("nan"))], 0),
+])
+def test_zero_force_cycles(peaks, n):
+    w = zero_force_cycles(peaks)
+    assert len(w) == n and all(x.code == "zero_force_cycle" for x in w)
+
+
+def test_interpenetration_message_names_first_strain_and_depth():
+    strain = np.array([0.1, 0.2, 0.3, 0.4])
+    gap = np.array([[1.0, 0.9], [0.7, 0.8], [0.55, 0.75], [0.6, 0.7]])
+    flags = gap < 0.58
+    assert interpenetration(strain, np.zeros_like(flags), gap, 0.58) == []
+    (w,) = interpenetration(strain, flags, gap, 0.58)
+    assert w.code == "heads_interpenetrate"
+    assert "from strain 0.3 on" in w.message and "in 1 of 4 increments" in w.message
+    assert "by up to 0.03 mm" in w.message             # 0.58 - 0.55
+
+
+def test_summaries_flag_the_paper_cell_and_not_the_contact_criterion():
+    prog = cycles(0.10, 0.60, 2, 0.02)
+    paper = CellParams(**EGLASS, m=0.2, phi0=0.0, force_cap_N=10.0)
+    contact = CellParams(**EGLASS, m=0.2, phi0=0.0, jamming_criterion="head_gap", in_plane_width=0.88,
+                         force_cap_N=50.0)
+    s = summarise(run_batch([paper, contact], prog), ["paper", "contact"])
+    codes = {(w["cell"], w["code"]) for w in s["warnings"]}
+    assert ("paper", "zero_force_cycle") in codes and ("paper", "heads_interpenetrate") in codes
+    assert not any(c == "contact" for c, _ in codes)
