@@ -145,3 +145,18 @@ def test_two_worker_local_dask_cluster_gives_the_in_process_results(tmp_path):
     for k in ("peak_force_per_wale_N", "force_per_wale_N", "final_status", "residual_strain"):
         np.testing.assert_array_equal(run.dataset[k].values, ref.dataset[k].values)
     assert assemble(tmp_path / "dask").identical(run.dataset)
+
+
+def test_in_plane_width_is_a_sweep_parameter(tmp_path):
+    """The yarn's in-plane width w (README): loops jam at W = 4 w, and W falls as the knit is
+    stretched wale-wise, so a wider roving jams at a smaller strain (monotonic in w), and
+    w = d is the paper's cell exactly (absent = d)."""
+    scene = {**SCENE, "load": {"type": "monotonic", "target_strain": 0.75, "max_increment": 0.05},
+             "rules": {"force_cap_N": 10.0}}
+    sweep = {"curves": True, "parameters": {"yarn.in_plane_width": {"values": [0.58, 0.7, 0.79]}}}
+    plan, run = _run(tmp_path, sweep=sweep, scene=scene)
+    jam = run.dataset["strain_at_first_jamming"].values.reshape(-1)
+    assert np.all(np.isfinite(jam)) and np.all(np.diff(jam) < 0)
+    assert plan.base.params[0].in_plane_width is None
+    h = simulate([plan.base.params[0]], plan.programs[0], engine="warp", device="cpu")
+    np.testing.assert_array_equal(run.dataset["force_per_wale_N"].values.reshape(3, -1)[0], h.force_per_wale[:, 0])
