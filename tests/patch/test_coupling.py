@@ -34,6 +34,21 @@ def test_uniform_patch_is_the_single_cell_exactly(device):
     assert np.all(h.column_status == COL_OK)
 
 
+@pytest.mark.parametrize("criterion", ["w_4d", "head_gap"])
+def test_uniform_patch_with_in_plane_width_is_the_single_cell(device, criterion):
+    """In-plane width and jamming by contact run in patches as in the cell (identity), and the
+    patch records the head gap and the interpenetration flag of every committed state."""
+    p = P.replace(in_plane_width=0.79, m=0.45, jamming_criterion=criterion, force_cap_N=50.0)
+    prog = cycles(0.10, 0.60, 1, 0.02)
+    cell = run_batch([p], prog, device=device)
+    h = run_patch(PatchModel.uniform(p, 3, 2), prog, device=device)
+    assert np.array_equal(h.force_per_wale_N, cell.force_per_wale[:, 0])
+    assert np.array_equal(h.groups["head_gap"][:, 0], cell.values["head_gap"][:, 0])
+    assert np.array_equal(h.groups["interpenetrating"][:, 0], cell.values["interpenetrating"][:, 0])
+    # W = 4 w lets the heads overlap before it jams; contact jamming never does (README)
+    assert h.groups["interpenetrating"].any() == (criterion == "w_4d")
+
+
 def test_uniform_patch_without_dedup(device):
     # every cell its own solve: identical cells get identical trials, the column force is
     # that of the single cell up to the rounding of the imposed strain (C0 + u/n vs C0 (1 + e))
