@@ -1,15 +1,23 @@
-"""``knitsim diagnose``: where a simulation and measured curves disagree, and which effect explains it.
+"""knitsim diagnose: is anything missing from the model, where do a simulation and measured curves
+disagree, and which effect explains it.
 
     knitsim diagnose MEASURED.csv [MORE.csv ...] --scene SCENE.toml --json OUT.json --report OUT.html
 
-Each CSV is a measured curve of the same specimen (columns ``strain``,
-``force_per_wale_N``, optional ``cycle``, ``direction``, ``rate_mm_s``;
-:mod:`knitsim.diagnosis.measured`); the scene says what is known of the
-specimen and what is calibrated (:mod:`knitsim.scene.diagnosis_scene`).
-The diagnosis itself is :func:`knitsim.diagnosis.diagnose.diagnose`.
+Each CSV is a measured curve of the same specimen: columns strain,
+force_per_wale_N, optional cycle, direction (load / unload), rate_mm_s; comma,
+semicolon or tab separated, Excel's UTF-8 BOM and decimal commas accepted.
+Each curve's noise is estimated from that curve alone unless given (--noise-N
+FILE=SD, or the scene's [diagnosis] noise_N / [[diagnosis.noise]]). The scene
+says what is known of the specimen and what is calibrated.
+
+The verdict is "none" when the calibrated model explains the curves within
+their noise, an effect when one clears both the evidence threshold (BIC drop
+> 10) and the size threshold (it removes half of the gap beyond the noise),
+and "unexplained" otherwise, with the stage where the gap lies.
 """
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -19,14 +27,17 @@ from ..errors import KnitsimInputError
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "diagnose", help="sim-to-real gap: calibrate, locate the gap by stage, rank the unmodelled effects",
-        description=__doc__.split("\n\n")[0] + "\n\n" + __doc__.split("\n\n")[2])
+        "diagnose", help="sim-to-real gap: calibrate, test the fit against the noise, rank the unmodelled effects",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("curves", nargs="+", metavar="MEASURED.csv", help="measured curves of one specimen")
     p.add_argument("--scene", required=True, metavar="SCENE.toml", help="diagnosis scene (specimen, [diagnosis])")
     p.add_argument("--json", dest="json_out", metavar="OUT.json", help="write the diagnosis as JSON")
     p.add_argument("--report", metavar="OUT.html", help="write an HTML report with figures")
     p.add_argument("--device", help="Warp device (cpu, cuda, cuda:N, auto); default: the scene's")
     p.add_argument("--effects", metavar="a,b,...", help="effects to try (default: the scene's, else all)")
+    p.add_argument("--noise-N", action="append", default=[], metavar="[FILE=]SD",
+                   help="noise sd [N per wale] of FILE (repeat per file), or of every curve; default: estimated "
+                        "from each curve itself")
     p.add_argument("--no-pair", action="store_true", help="skip the best-pair search")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
@@ -63,14 +74,16 @@ def run(args) -> int:
                                                      where="--effects"))
     if args.no_pair:
         setup = replace(setup, pair=False)
-    curves = [read_measured_curve(c) for c in args.curves]
+    noise = _noise_args(args.noise_N, args.curves, setup.noise_N)
+    curves = [read_measured_curve(c, noise.get(c)) for c in args.curves]
+    setup = replace(setup, noise_N=noise or None)
     t0 = time.perf_counter()
 
     def progress(msg: str) -> None:
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    result = diagnose(curves, setup, progress=progress)
+    result = diagnose(curves, setup, progress=progress).as_dict()
     for out in (json_out, report):
         if out is not None:
             out.parent.mkdir(parents=True, exist_ok=True)
@@ -80,20 +93,32 @@ def run(args) -> int:
         write_report(result, report)
     v = result["verdict"]
     b = result["baseline"]
-    print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(f'{k} = {x:.4g}' for k, x in b['params'].items())});"
-          f" noise sd {result['noise']['sigma_N']:.3g} N")
+    nz = result["noise"]
+    print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(f'{k} = {x:.4g}' for k, x in b['params'].items())})")
+    for c in nz["curves"]:
+        print(f"  noise of {c['source']}: {c['sigma_N']:.3g} N ({c['method']}{'' if c['estimable'] else ': ' + c['note']})")
+    if b["outliers"]:
+        print(f"  {len(b['outliers'])} outlier row(s) left out: " + ", ".join(
+            f"{Path(o['source']).name} row {o['row']} ({o['z']:+.1f} sd)" for o in b["outliers"][:5]))
+    within = {True: "within noise", False: "NOT within noise", None: "cannot be judged"}[nz["baseline_within_noise"]]
+    print(f"fit: chi2/dof {nz['baseline_chi2_per_dof']:.4g} (1 +- {nz['expected_sd']:.2g} for noise alone): {within}")
     print("gap by stage: " + ", ".join(f"{k} {b['stages'][k]['share']:.0%}" for k in result["where"]))
     for c in result["candidates"]:
         if c["score"] is None:
             print(f"  {c['effect']:<24s} not identifiable: {c['note']}")
         else:
-            print(f"  {c['effect']:<24s} rms {c['rms_N']:.4g} N  shrink {c['shrink']:6.1%}  score {c['score']:10.4g}"
-                  f"  {'significant' if c['significant'] else ''}")
-    if v["effect"] is None:
-        print(f"verdict: no effect is significant ({v['reason']})")
+            share = "n/a" if c["share_of_excess"] is None else f"{c['share_of_excess']:.0%}"
+            print(f"  {c['effect']:<24s} p {c['probability']:.3f}  score {c['score']:10.4g}  share of gap {share:>6s}"
+                  f"  shrink {c['shrink']:6.1%}{'  named' if c['significant'] and c['practical'] else ''}")
+    probs = ", ".join(f"{k} {p:.2f}" for k, p in sorted(v["probabilities"].items(), key=lambda kv: -kv[1])[:4])
+    conf = "confident" if v["confident"] else "not confident"
+    if v["kind"] == "none":
+        print(f"verdict: none, nothing is missing ({conf}: {v['reason']})")
+    elif v["kind"] == "unexplained":
+        print(f"verdict: unexplained ({conf}: {v['reason']})")
     else:
-        print(f"verdict: {v['effect']} (stage {v['stage']}, shrink {v['shrink']:.1%}, "
-              f"{'confident' if v['confident'] else 'not confident'}: {v['reason']})")
+        print(f"verdict: {v['effect']} (stage {v['stage']}, shrink {v['shrink']:.1%}, {conf}: {v['reason']})")
+    print(f"probabilities: {probs}")
     if result["pair"] is not None:
         pr = result["pair"]
         print(f"best pair: {' + '.join(pr['effects'])}: rms {pr['rms_N']:.4g} N, shrink {pr['shrink']:.1%}, "
@@ -101,3 +126,39 @@ def run(args) -> int:
               f"(BIC {pr['gain_over_best']:+.4g})")
     print(f"({result['timing_s']:.1f} s)")
     return 0
+
+
+def _noise_args(items, curves, scene_noise) -> dict:
+    """``{curve path: sd}`` from ``--noise-N [FILE=]SD`` and the scene's per-file table (matched by path or name)."""
+    out: dict = {}
+
+    def match(name: str, where: str):
+        hits = [c for c in curves if Path(c).resolve() == Path(name).resolve()] or \
+               [c for c in curves if Path(c).name == Path(name).name]
+        if not hits:
+            raise KnitsimInputError(f"{where}: {name!r} is not among the measured curves ({', '.join(curves)})")
+        return hits
+
+    def number(text, where):
+        try:
+            v = float(text)
+        except ValueError:
+            raise KnitsimInputError(f"{where}: {text!r} is not a number [N]") from None
+        if not (v > 0 and v < float("inf")):
+            raise KnitsimInputError(f"{where}: {text!r} must be a noise sd > 0 [N]")
+        return v
+
+    if isinstance(scene_noise, dict):
+        for name, sd in scene_noise.items():
+            for c in match(name, "diagnosis.noise"):
+                out[c] = float(sd)
+    elif scene_noise is not None:
+        out.update({c: float(scene_noise) for c in curves})
+    for item in items:
+        if "=" in item:
+            name, _, sd = item.rpartition("=")
+            for c in match(name, f"--noise-N {item}"):
+                out[c] = number(sd, f"--noise-N {item}")
+        else:
+            out.update({c: number(item, f"--noise-N {item}") for c in curves})
+    return out

@@ -13,9 +13,16 @@ Curves that share their strain history share one launch.
 section 3.3.1 bounds phi0 to [-phimax, phimax]), in [-1, 1], so the bounds stay
 valid while m moves.
 
-Standard errors: ``cov = s^2 (J^T J)^-1`` with ``s^2 = rss / (n - k)``
-(Gauss-Newton, errors independent with one variance), mapped to (m, phi0)
-by the delta method through phi0 = f atan(m).
+Rows are weighted by their curve's noise (``weights``: 1 / sd per row, 0 for
+a row left out): the fit minimises chi^2 = sum((w (sim - measured))^2), so
+that two tests of different noise count by what each tells.  With
+``offsets`` each curve also has a force offset (a load cell's zero): the
+weighted mean of its residual, eliminated in closed form at every
+evaluation (variable projection), counted among the parameters.
+
+Standard errors: ``cov = s^2 (J^T J)^-1`` of the weighted residuals, with
+``s^2 = chi^2 / (n - k)`` (1 when the weights are the true noise), mapped to
+(m, phi0) by the delta method through phi0 = f atan(m).
 """
 from __future__ import annotations
 
@@ -52,6 +59,9 @@ def _default_bounds(base: CellParams, var) -> tuple[float, float]:
     if var.name in ("B", "d"):
         v = getattr(base, var.name)
         return 0.5 * v, 2.0 * v
+    if var.name == "in_plane_width":
+        # from the compact diameter to the width at which the loops would be jammed at rest
+        return base.d, 0.999 * base.W0 / 4.0
     if var.name in ("L", "W0", "C0"):
         # specimen-to-specimen scatter of the knit geometry: a few per cent
         v = getattr(base, var.name)
@@ -75,13 +85,40 @@ def _replay_programs(curves, max_increment: float):
     return programs, rows, list(groups.values())
 
 
+def _curve_weights(curves, weights) -> list[np.ndarray]:
+    if weights is None:
+        return [np.ones(len(c)) for c in curves]
+    out = [np.asarray(w, float) for w in weights]
+    if len(out) != len(curves) or any(len(w) != len(c) for w, c in zip(out, curves)):
+        raise KnitsimInputError("weights: one array per curve, one weight per row")
+    return out
+
+
+def _project(e: np.ndarray, w: np.ndarray, offsets: bool) -> np.ndarray:
+    """Weighted residuals ``w e`` of one curve, less their best force offset when ``offsets``."""
+    if offsets:
+        w2 = w * w
+        tot = float(np.sum(w2))
+        if tot > 0:
+            e = e - float(np.sum(w2 * e)) / tot
+    return w * e
+
+
+def offset_of(e: np.ndarray, w: np.ndarray) -> float:
+    """The force offset [N] that best fits a curve's residual ``e = sim - measured`` (weights ``w``)."""
+    w2 = w * w
+    tot = float(np.sum(w2))
+    return -float(np.sum(w2 * e)) / tot if tot > 0 else 0.0
+
+
 def rss_of_cells(curves, cells: Sequence[CellParams], max_increment: float = 0.005,
-                 device: str = "cpu") -> np.ndarray:
-    """Residual sum of squares [N^2] of each cell over the measured curves.
+                 device: str = "cpu", weights=None, offsets: bool = False) -> np.ndarray:
+    """Weighted residual sum of squares (chi^2; N^2 without weights) of each cell over the measured curves.
 
     All cells run in one batched launch per distinct load program (no
     Jacobian): the cheap way to compare many parameter sets, e.g. a grid of
-    starts or candidate basins.
+    starts or candidate basins.  ``weights`` and ``offsets`` as
+    :func:`calibrate_baseline`.
 
     Returns
     -------
@@ -89,13 +126,14 @@ def rss_of_cells(curves, cells: Sequence[CellParams], max_increment: float = 0.0
     """
     curves = [curves] if isinstance(curves, MeasuredCurve) else list(curves)
     cells = list(cells)
+    ws = _curve_weights(curves, weights)
     programs, rows, groups = _replay_programs(curves, max_increment)
     rss = np.zeros(len(cells))
     for g in groups:
         hist = run_batch(cells, programs[g[0]], device=device)
         for i in g:
             for j in range(len(cells)):
-                e = force_at_rows(hist, rows[i], j)[0] - curves[i].force
+                e = _project(force_at_rows(hist, rows[i], j)[0] - curves[i].force, ws[i], offsets)
                 rss[j] += float(e @ e)
     return rss
 
@@ -103,7 +141,8 @@ def rss_of_cells(curves, cells: Sequence[CellParams], max_increment: float = 0.0
 def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "phi0"), bounds: dict | None = None,
                        device: str = "cpu", max_increment: float = 0.005, rel_step: float = 1e-6,
                        x0: dict | None = None, max_nfev: int = 50, ftol: float = 1e-10, xtol: float = 1e-10,
-                       effects: Sequence[str] = (), fixed: dict | None = None) -> dict:
+                       effects: Sequence[str] = (), fixed: dict | None = None, weights=None,
+                       offsets: bool = False) -> dict:
     """Fit the ``free`` parameters of ``base`` (with ``effects`` on) to measured curves.
 
     Parameters
@@ -132,6 +171,11 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
         Effects switched on (:data:`knitsim.cell.effects.EFFECT_NAMES`).
     fixed : dict, optional
         Effect parameters held fixed (:func:`knitsim.diagnosis.effects.build_params`).
+    weights : list of ndarray, optional
+        Per curve, the weight of each row: 1 / its noise sd [1/N], 0 to leave a row out
+        (default 1: the unweighted residual in N).
+    offsets : bool
+        Fit a force offset per curve (module docstring).
 
     Returns
     -------
@@ -139,7 +183,8 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
         ``params`` (fitted CellParams), ``values`` / ``std_errors`` (name -> float, in
         the model's units, phi0 in rad), ``phi0_fraction`` (value, std error) when fitted,
         ``fit_variables`` (the same in the fitted variables, phi0 as a fraction of
-        phimax: what ``x0`` takes), ``rms_N``, ``rss_N2``, ``n``, ``k``, ``covariance`` (of ``values``), ``curves``
+        phimax: what ``x0`` takes), ``chi2`` (the weighted RSS), ``rms_N`` and ``rss_N2`` (of the rows
+        kept, offsets removed), ``n`` (rows kept), ``k`` (offsets included), ``offsets_N`` (per curve), ``covariance`` (of ``values``), ``curves``
         (per curve: strain, measured, simulated, labels, keys, status), ``nfev``,
         ``njev``, ``n_batch_calls``, ``success``, ``message``.
     """
@@ -165,10 +210,12 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     x_start = np.clip(np.array([start[n] for n in free], float), lo, hi)
 
     programs, rows, group_list = _replay_programs(curves, max_increment)
-    n_rows = sum(len(c) for c in curves)
+    ws = _curve_weights(curves, weights)
+    n_rows = int(sum(np.count_nonzero(w) for w in ws))
     k = len(free)
-    if n_rows <= k:
-        raise KnitsimInputError(f"curves: {n_rows} measured rows cannot fit {k} parameters")
+    k_total = k + (len(curves) if offsets else 0)
+    if n_rows <= k_total:
+        raise KnitsimInputError(f"curves: {n_rows} measured rows cannot fit {k_total} parameters")
 
     cache: dict[bytes, tuple] = {}
     counter = {"calls": 0}
@@ -190,10 +237,12 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
             hist = run_batch(cells, programs[g[0]], device=device)
             for i in g:
                 sims[i] = hist
-        r = np.concatenate([force_at_rows(sims[i], rows[i], 0)[0] - c.force for i, c in enumerate(curves)])
-        J = np.empty((n_rows, k))
+        r = np.concatenate([_project(force_at_rows(sims[i], rows[i], 0)[0] - c.force, ws[i], offsets)
+                            for i, c in enumerate(curves)])
+        J = np.empty((len(r), k))
         for j in range(k):
-            rj = np.concatenate([force_at_rows(sims[i], rows[i], j + 1)[0] - c.force for i, c in enumerate(curves)])
+            rj = np.concatenate([_project(force_at_rows(sims[i], rows[i], j + 1)[0] - c.force, ws[i], offsets)
+                                 for i, c in enumerate(curves)])
             J[:, j] = (rj - r) / h[j]
         cache[key] = (r, J, sims)
         return cache[key]
@@ -202,9 +251,9 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
                         method="trf", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=1e-12)
     x = res.x
     r, J, sims = evaluate(x)
-    rss = float(r @ r)
-    dof = n_rows - k
-    s2 = rss / dof
+    chi2 = float(r @ r)
+    dof = n_rows - k_total
+    s2 = chi2 / dof
     cov_x = s2 * np.linalg.pinv(J.T @ J)
     # delta method to model units: only phi0 = f atan(m) is not the identity
     fitted = _to_params(base, free, x, effects, fixed)
@@ -219,16 +268,22 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     cov = G @ cov_x @ G.T
     values = {n: float(getattr(fitted, n)) if n in BASELINE_VARIABLES else float(x[j]) for j, n in enumerate(free)}
     se = {n: float(math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(free)}
-    out_curves = []
+    out_curves, rss, offs = [], 0.0, {}
     for i, c in enumerate(curves):
         fs, lab = force_at_rows(sims[i], rows[i], 0)
+        off = offset_of(fs - c.force, ws[i]) if offsets else 0.0
+        offs[c.source] = off
+        fs = fs + off
+        e = (fs - c.force)[ws[i] > 0]
+        rss += float(e @ e)
         st = sims[i].status[:, 0]
         out_curves.append({"source": c.source, "strain": c.strain, "measured": c.force, "simulated": fs,
                            "labels": lab, "keys": stage_keys(lab, c.direction, c.cycle),
-                           "final_status": STATUS_NAMES[int(st[-1])]})
+                           "final_status": STATUS_NAMES[int(st[-1])], "offset_N": off})
     out = {"params": fitted, "free": free, "effects": effects, "x": x.copy(), "J": J, "values": values,
            "fit_variables": {n: float(x[j]) for j, n in enumerate(free)}, "std_errors": se, "covariance": cov,
-           "rms_N": math.sqrt(rss / n_rows), "rss_N2": rss, "n": n_rows, "k": k, "curves": out_curves,
+           "rms_N": math.sqrt(rss / n_rows), "rss_N2": rss, "chi2": chi2, "n": n_rows, "k": k_total,
+           "offsets_N": offs, "curves": out_curves,
            "nfev": int(res.nfev), "njev": int(res.njev or 0), "n_batch_calls": counter["calls"],
            "success": bool(res.success), "message": str(res.message)}
     if "phi0" in free:

@@ -1,53 +1,60 @@
-"""Sim-to-real gap diagnosis: where the gap lies, which unmodelled effect causes it, how far it shrinks.
+"""Sim-to-real gap diagnosis: is anything missing, where does the gap lie, which effect explains it.
 
 Dusserre (2015, sections 4-5) explains why his curves are too sharp by
 effects his model leaves out; :func:`diagnose` tests that reasoning on
-measured curves (issue 6):
+measured curves, as a pipeline of named steps, each returning a small typed
+result (:class:`Diagnosis` holds them; its :meth:`Diagnosis.as_dict` is the
+JSON of ``knitsim diagnose`` and the HTML report's input):
 
-1. **Calibrate** the baseline's free parameters (m, phi0; optionally B, d and
-   the knit geometry L, W0, C0) on every curve at once
-   (:func:`~knitsim.diagnosis.calibrate.calibrate_baseline`: least squares, one
-   batched launch per evaluation), from the scene's start and the three best
-   points of a coarse (m, phi0) grid (:func:`_grid_starts`, one launch); the
-   starts race (:func:`_fit`).  After the candidates are fitted, the baseline
-   is re-calibrated from any candidate's baseline parameters that fit better
-   (a better basin), so that no effect is credited with what the baseline can
-   do itself; when it moved by more than the evidence threshold, the
-   candidates that did not reach that basin are fitted again from there.
-2. **Where**: the rows are keyed by the stage the calibrated baseline
-   simulates there (``loading_sliding``, ``unloading_adherence``, ...;
-   :func:`~knitsim.diagnosis.gap.stage_keys`); the gap is split by key (RMS,
-   max error, share of the squared error).  The keys stay those of the
-   baseline for every candidate, so that shares compare.
-3. **Which**: each effect is added and the model recalibrated (the effect's
-   variables plus the baseline's).  Candidates are ranked by the Bayesian
-   information criterion with the measurement noise known,
+1. **Noise** (:func:`noise_step`): each curve's own noise sd, given by the user
+   or estimated from that curve alone (:mod:`knitsim.diagnosis.noise`); every
+   row is weighted by 1 / its curve's sd, so that a noisy test and a quiet one
+   count by what each tells (a pooled sd lets the longer curve dominate and
+   weighs the other's residuals wrongly by the ratio of the variances).
+2. **Calibrate** (:func:`calibrate_step`): the baseline's free parameters (m,
+   phi0; optionally B, d, the in-plane width and the knit geometry L, W0, C0)
+   and a force offset per curve (a load cell's zero), by weighted least
+   squares from the scene's start and the best points of a coarse (m, phi0)
+   grid; then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
+   fit whose neighbours fit) are left out and the fit repeated.
+3. **Candidates** (:func:`candidates_step`): each effect added and the model
+   recalibrated; then the **basin check** (:func:`basin_step`): a candidate's
+   fit may have found a better basin of the baseline's own parameters, and the
+   baseline is re-calibrated from there, so that no effect is credited with
+   what the baseline can do itself.
+4. **Localise** (:func:`localise_step`): the rows keyed by the stage the
+   calibrated baseline simulates there; the gap split by key.
+5. **Adequacy** (:func:`adequacy_step`): chi^2 of the baseline against its
+   expected spread, ``dof +- sqrt(2 dof)``; the baseline is *within noise*
+   when chi^2 <= dof + 3.09 sqrt(2 dof) (one-sided 99.9 %).
+6. **Score** (:func:`score_step`): per candidate the drop in
+   ``BIC = chi^2 + k ln n`` (Schwarz 1978), its *share* of the baseline's
+   excess over noise ``(chi^2_base - chi^2_effect) / (chi^2_base - dof)``, and
+   its probability among the candidates and "none" (BIC weights,
+   ``exp(-BIC/2)`` normalised).  An effect is *named* only when it clears both
+   thresholds: evidence (score > :data:`STRONG`: Kass and Raftery 1995, very
+   strong) and size (share >= :data:`PRACTICAL_SHARE`: it removes at least half
+   of what the baseline cannot explain, more than all other causes together;
+   an effect that shrinks the gap by 0.1 % explains nothing, whatever its BIC).
+7. **Pair** (:func:`pair_step`): the best effect plus each of the
+   :data:`PAIR_PARTNERS` next effects that lowered chi^2 on their own.
+8. **Verdict** (:func:`verdict_step`): ``none`` when the baseline is within
+   noise ("the model explains these curves within their noise"); ``effect``
+   when an effect clears both thresholds (not confident when another is within
+   :data:`STRONG` of it, its fit did not converge, or a curve's noise had to be
+   assumed); ``unexplained`` when the baseline is outside the noise and no
+   effect removes half of its excess: where the gap lies is reported instead of
+   the least bad effect.
 
-       score = (RSS_base - RSS_effect) / sigma^2 - dk ln n,
-
-   i.e. the drop in ``BIC = RSS / sigma^2 + k ln n`` (Schwarz 1978); sigma is
-   estimated from the measured curves alone (:func:`estimate_noise`) or given.
-   An effect is *significant* when its score exceeds :data:`STRONG` (Kass and
-   Raftery 1995: a BIC difference above 10 is very strong evidence); for
-   noise alone, a one-parameter effect passes with probability
-   P(chi2_1 > 10 + ln n) < 1e-3.  Whether the baseline already fits within
-   the noise (chi-square bound on RSS / sigma^2) is reported beside it.  Two significant effects whose scores differ by less than
-   :data:`STRONG` cannot be told apart by these data; the verdict then is not
-   confident and names both.  An effect that the data cannot identify at all
-   (``velocity_friction`` with all curves at one rate, where any rate factor
-   is a change of m) is reported with ``identifiable = false`` and not fitted.
-4. **How far**: the gap per stage after the best effect, and after the best
-   pair (greedy: the best effect plus each of the :data:`PAIR_PARTNERS` next
-   effects whose own fit lowered the RSS; one that explains nothing alone is
-   not tried).
-
-``shrink = 1 - rms_after / rms_before``.
+An effect the data cannot identify at all (``velocity_friction`` with all
+curves at one rate, where any rate factor is a change of m) is reported with
+``identifiable = false`` and not fitted.  ``shrink = 1 - rms_after / rms_before``.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -59,9 +66,17 @@ from .calibrate import calibrate_baseline, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
 from .measured import MeasuredCurve
+from .noise import CurveNoise, curve_noise
 
 #: BIC difference counted as very strong evidence (Kass and Raftery 1995, 2 ln B > 10)
 STRONG = 10.0
+#: share of the baseline's excess over noise an effect must remove to be named (module docstring, step 6)
+PRACTICAL_SHARE = 0.5
+#: one-sided 99.9 % point of the normal distribution: chi^2 within dof + Z sqrt(2 dof) is within noise
+WITHIN_NOISE_Z = 3.09
+#: a row this many sd off the calibrated baseline, whose neighbours are within OUTLIER_NEIGHBOUR_Z, is an outlier
+OUTLIER_Z = 6.0
+OUTLIER_NEIGHBOUR_Z = 3.0
 
 
 @dataclass(frozen=True)
@@ -73,7 +88,8 @@ class DiagnosisSetup:
     base : CellParams
         The specimen (material, knit, rules); start of the free parameters.
     free : tuple of str
-        Baseline parameters to calibrate: any of ``m``, ``phi0``, ``B``, ``d``.
+        Baseline parameters to calibrate: any of ``m``, ``phi0``, ``B``, ``d``,
+        ``in_plane_width``, ``L``, ``W0``, ``C0``.
     bounds : dict
         ``name -> (low, high)`` of fitted variables (phi0 as a fraction of phimax).
     effects : tuple of str
@@ -83,8 +99,11 @@ class DiagnosisSetup:
         ``rate_ref_mm_s``, ``compaction_min``, ``bend_sigma``).
     max_increment : float
         Largest strain increment of the replay programs.
-    noise_N : float or None
-        Measurement noise sd [N per wale]; None: estimated from the curves.
+    noise_N : float, dict or None
+        Measurement noise sd [N per wale]: one for every curve, or ``{source: sd}``
+        for some curves; a curve without one has its noise estimated from itself.
+    offsets : bool
+        Fit a force offset per curve (a load cell's zero).
     device : str
         Warp device.
     max_nfev : int
@@ -100,7 +119,8 @@ class DiagnosisSetup:
     effects: tuple = EFFECT_NAMES
     fixed: dict = field(default_factory=dict)
     max_increment: float = 0.01
-    noise_N: float | None = None
+    noise_N: float | dict | None = None
+    offsets: bool = True
     device: str = "cpu"
     max_nfev: int = 20
     pair: bool = True
@@ -118,57 +138,197 @@ class DiagnosisSetup:
         if not free or len(set(free)) != len(free):
             raise KnitsimInputError(f"diagnosis.free = {list(free)!r}: expected distinct names, at least one")
         check_effects(self.effects)
-        if self.noise_N is not None and not (isinstance(self.noise_N, (int, float)) and self.noise_N > 0
-                                             and math.isfinite(self.noise_N)):
-            raise KnitsimInputError(f"diagnosis.noise_N = {self.noise_N!r}: must be a number > 0 [N]")
+        given = self.noise_N.values() if isinstance(self.noise_N, dict) else (
+            [] if self.noise_N is None else [self.noise_N])
+        for v in given:
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 and math.isfinite(v)):
+                raise KnitsimInputError(f"diagnosis.noise_N = {v!r}: must be a number > 0 [N]")
         if not (isinstance(self.max_increment, (int, float)) and 0 < self.max_increment <= 0.05):
             raise KnitsimInputError(f"diagnosis.max_increment = {self.max_increment!r}: expected 0 < x <= 0.05")
         return self
 
 
-def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
-    """Measurement noise sd [N] from the measured curves alone.
+# =========================================================================== step results
+@dataclass
+class NoiseModel:
+    """Step 1: the noise of every curve and the row weights."""
 
-    On each branch (rows of one cycle and direction) every inner row is
-    compared with the straight line through its two neighbours; for white
-    noise of sd sigma the difference has variance ``sigma^2 (1 + w1^2 + w2^2)``
-    (w the interpolation weights), whatever the smooth curve's slope.  The
-    median absolute value makes it robust to the few rows at stage changes
-    (sigma = 1.4826 MAD for Gaussian noise).  Rows at zero force (a slack
-    knit, where a force reading is clipped at 0) are left out.
-    """
-    z = []
+    curves: list                    # of CurveNoise, in the order of the curves
+
+    @property
+    def all_known(self) -> bool:
+        return all(c.known for c in self.curves)
+
+    def weights(self, curves) -> list[np.ndarray]:
+        return [np.full(len(c), 1.0 / n.sigma_N) for c, n in zip(curves, self.curves)]
+
+    def as_dict(self) -> dict:
+        sig = [c.sigma_N for c in self.curves]
+        return {"curves": [c.as_dict() for c in self.curves],
+                "sigma_N": float(min(sig)) if len(set(sig)) == 1 else None,
+                "method": "per curve: " + "; ".join(f"{c.source}: {c.sigma_N:.3g} N ({c.method})" for c in self.curves),
+                "all_known": self.all_known}
+
+
+@dataclass
+class Outlier:
+    """A measured row left out of the fit: far off the calibrated baseline while its neighbours fit."""
+
+    source: str
+    row: int            # spreadsheet row
+    strain: float
+    force_N: float
+    z: float            # its residual in noise sd
+
+
+@dataclass
+class Adequacy:
+    """Step 5: does the calibrated baseline fit within the noise?"""
+
+    chi2: float
+    dof: int
+    chi2_per_dof: float
+    expected_sd: float          # sd of chi2 / dof for pure noise, sqrt(2 / dof)
+    within_noise: bool | None   # None: no curve's noise is known (all assumed)
+    excess: float               # chi2 - dof
+    note: str = ""
+
+
+@dataclass
+class Localisation:
+    """Step 4: the gap per stage key of the calibrated baseline."""
+
+    keys: list
+    stages: dict
+    where: list                 # stage keys, largest share first
+
+
+@dataclass
+class CandidateResult:
+    """Step 6: one effect, fitted and scored."""
+
+    effect: str
+    doc: str
+    identifiable: bool
+    note: str = ""
+    params: dict = field(default_factory=dict)
+    std_errors: dict = field(default_factory=dict)
+    rms_N: float | None = None
+    rss_N2: float | None = None
+    chi2: float | None = None
+    k: int | None = None
+    stages: dict = field(default_factory=dict)
+    shrink: float | None = None
+    score: float | None = None
+    share_of_excess: float | None = None
+    significant: bool = False
+    practical: bool = False
+    probability: float | None = None
+    flagged_curves: list = field(default_factory=list)
+    nfev: int = 0
+
+
+@dataclass
+class Verdict:
+    """Step 8."""
+
+    kind: str                   # "none", "effect" or "unexplained"
+    effect: str | None
+    stage: str | None
+    shrink: float
+    confident: bool
+    reason: str
+    alternatives: list = field(default_factory=list)
+    probabilities: dict = field(default_factory=dict)
+
+
+@dataclass
+class Diagnosis:
+    """The whole result; :meth:`as_dict` is the JSON of ``knitsim diagnose``."""
+
+    scene: str
+    inputs: list
+    noise: NoiseModel
+    rates_mm_s: list
+    n_rows: int
+    baseline: dict
+    outliers: list
+    adequacy: Adequacy
+    localisation: Localisation
+    candidates: list
+    pair: dict | None
+    indistinguishable: list
+    verdict: Verdict
+    curves: list
+    timing_s: float
+
+    def as_dict(self) -> dict:
+        noise = self.noise.as_dict()
+        a = self.adequacy
+        noise.update(rates_mm_s=self.rates_mm_s, baseline_chi2=a.chi2, dof=a.dof, baseline_chi2_per_dof=a.chi2_per_dof,
+                     expected_sd=a.expected_sd, baseline_within_noise=a.within_noise, excess=a.excess,
+                     adequacy_note=a.note)
+        return {"scene": self.scene, "inputs": self.inputs, "noise": noise, "n_rows": self.n_rows,
+                "baseline": dict(self.baseline, outliers=[asdict(o) for o in self.outliers]),
+                "where": self.localisation.where, "candidates": [asdict(c) for c in self.candidates],
+                "pair": self.pair, "indistinguishable": self.indistinguishable, "verdict": asdict(self.verdict),
+                "curves": self.curves, "timing_s": self.timing_s}
+
+
+# =========================================================================== steps
+def noise_step(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup) -> NoiseModel:
+    """Each curve's noise: given (``setup.noise_N``, one value or per source), else its own estimate."""
+    out = []
     for c in curves:
-        s, f = c.strain, c.force
-        br = np.concatenate([[0], np.nonzero((np.diff(c.cycle) != 0) | (np.diff(c.direction) != 0))[0] + 1, [len(s)]])
-        for a, b in zip(br[:-1], br[1:]):
-            for i in range(a + 1, b - 1):
-                h1, h2 = s[i] - s[i - 1], s[i + 1] - s[i]
-                if h1 == 0 or h2 == 0 or h1 * h2 < 0 or min(f[i - 1], f[i], f[i + 1]) <= 0.0:
-                    continue  # rows at exactly zero force are clipped (a slack knit): not noise samples
-                w1, w2 = h2 / (h1 + h2), h1 / (h1 + h2)
-                r = f[i] - (w1 * f[i - 1] + w2 * f[i + 1])
-                z.append(abs(r) / math.sqrt(1.0 + w1 * w1 + w2 * w2))
-    if len(z) < 5:
+        given = setup.noise_N.get(c.source) if isinstance(setup.noise_N, dict) else setup.noise_N
+        if given is not None:
+            out.append(curve_noise(c.strain, c.force, c.cycle, c.direction, c.source, float(given)))
+        elif c.noise is not None:
+            out.append(c.noise)
+        else:
+            out.append(curve_noise(c.strain, c.force, c.cycle, c.direction, c.source))
+    return NoiseModel(out)
+
+
+def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
+    """The noise sd [N] of curves that share one noise level (their chords pooled); see
+    :mod:`knitsim.diagnosis.noise`.  The diagnosis itself estimates every curve on its own
+    (:func:`noise_step`)."""
+    from .noise import MAD_TO_SD, MIN_SAMPLES, chord_residuals
+    z = np.concatenate([chord_residuals(c.strain, c.force, c.cycle, c.direction) for c in curves])
+    if len(z) < MIN_SAMPLES:
         raise KnitsimInputError("curves: too few rows on monotone branches to estimate the noise; give diagnosis.noise_N")
-    return float(1.4826 * np.median(z))
+    return float(MAD_TO_SD * np.median(z))
 
 
-def _stages(measured, simulated, keys) -> dict:
-    g = stage_gap(measured, simulated, keys)
-    return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
-                "sse_N2": v["sse_N2"]} for k, v in g["stages"].items()}
+@dataclass
+class _Data:
+    """What every calibration of one diagnosis shares: the curves, the setup and the row weights."""
+
+    curves: list
+    setup: DiagnosisSetup
+    weights: list
+
+    def calibrate(self, effects: tuple, x0: dict, nfev: int, free: tuple, bounds: dict) -> dict:
+        s = self.setup
+        return calibrate_baseline(self.curves, s.base, free=free, bounds=bounds, device=s.device,
+                                  max_increment=s.max_increment, x0=x0, max_nfev=nfev, effects=effects,
+                                  fixed=s.fixed, weights=self.weights, offsets=s.offsets)
+
+    def chi2_of(self, cells) -> np.ndarray:
+        s = self.setup
+        return rss_of_cells(self.curves, cells, s.max_increment, s.device, weights=self.weights, offsets=s.offsets)
 
 
-#: effects tried beside the best one in the greedy pair (the next best that lowered the RSS on their own)
+#: effects tried beside the best one in the greedy pair (the next best that lowered chi^2 on their own)
 PAIR_PARTNERS = 3
 
 #: evaluations each start of a multi-start calibration gets before the best one goes on alone
 RACE_NFEV = 6
 
 
-def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, extra_starts=()) -> dict:
-    """Calibrate the model with ``effects`` on from several starts; the least RSS is kept.
+def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None) -> dict:
+    """Calibrate the model with ``effects`` on from several starts; the least chi^2 is kept.
 
     The variables start from the specimen as calibrated so far (``x0``, in the
     fitted variables: phi0 as a fraction of phimax) or where the effect
@@ -177,6 +337,8 @@ def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, 
     to ``setup.max_nfev`` (a race: the starts are there to pick a basin, which
     the first few trust-region steps show).
     """
+    setup = data.setup
+    max_nfev = setup.max_nfev if nfev is None else nfev
     variables = variables_for(tuple(setup.free), effects)
     free = tuple(v.name for v in variables)
     bounds = {k: tuple(v) for k, v in setup.bounds.items() if k in free}
@@ -192,20 +354,14 @@ def _fit(curves, setup: DiagnosisSetup, effects: tuple, x0: dict | None = None, 
         st = dict(start, **{k: v for k, v in e.items() if k in free})
         if st not in starts:
             starts.append(st)
-
-    def calibrate(st, nfev):
-        return calibrate_baseline(curves, setup.base, free=free, bounds=bounds, device=setup.device,
-                                  max_increment=setup.max_increment, x0=st, max_nfev=nfev,
-                                  effects=effects, fixed=setup.fixed)
-
-    if len(starts) == 1 or setup.max_nfev <= RACE_NFEV:
-        fits = [calibrate(st, setup.max_nfev) for st in starts]
-        return min(fits, key=lambda f: f["rss_N2"])
-    best = min((calibrate(st, RACE_NFEV) for st in starts), key=lambda f: f["rss_N2"])
+    if len(starts) == 1 or max_nfev <= RACE_NFEV:
+        fits = [data.calibrate(effects, st, max_nfev, free, bounds) for st in starts]
+        return min(fits, key=lambda f: f["chi2"])
+    best = min((data.calibrate(effects, st, RACE_NFEV, free, bounds) for st in starts), key=lambda f: f["chi2"])
     if best["success"]:
         return best
-    fit = calibrate(best["fit_variables"], setup.max_nfev - RACE_NFEV)
-    return fit if fit["rss_N2"] <= best["rss_N2"] else best
+    fit = data.calibrate(effects, best["fit_variables"], max_nfev - RACE_NFEV, free, bounds)
+    return fit if fit["chi2"] <= best["chi2"] else best
 
 
 #: coarse grid of the baseline's friction: m (eq 10's ratio; section 3.4 reports 0.06 .. 0.6 over a test) and
@@ -216,7 +372,7 @@ GRID_PHI0 = (-0.9, -0.45, 0.0, 0.45, 0.9)
 GRID_STARTS = 3
 
 
-def _grid_starts(curves, setup: DiagnosisSetup) -> tuple:
+def _grid_starts(data: _Data) -> tuple:
     """The best :data:`GRID_STARTS` points of a coarse grid of (m, phi0), as starts of the baseline fit.
 
     Every grid cell is evaluated in one batched launch per distinct load
@@ -224,6 +380,7 @@ def _grid_starts(curves, setup: DiagnosisSetup) -> tuple:
     calibration's bounds are left out.  Returns ``()`` when neither m nor
     phi0 is free.
     """
+    setup = data.setup
     free = tuple(setup.free)
     if "m" not in free and "phi0" not in free:
         return ()
@@ -244,8 +401,8 @@ def _grid_starts(curves, setup: DiagnosisSetup) -> tuple:
             points.append(pt)
     if not cells:
         return ()
-    rss = rss_of_cells(curves, cells, setup.max_increment, setup.device)
-    order = np.argsort(rss, kind="stable")
+    chi2 = data.chi2_of(cells)
+    order = np.argsort(chi2, kind="stable")
     return tuple(points[j] for j in order[:GRID_STARTS])
 
 
@@ -262,12 +419,13 @@ def _phi0_alternative(values: dict) -> tuple:
     return ({"phi0": 0.0},)
 
 
-def _baseline_rss_at(curves, setup: DiagnosisSetup, fits: dict) -> dict:
-    """RSS of the baseline at each fit's values of the baseline's variables, in one launch.
+def _baseline_chi2_at(data: _Data, fits: dict) -> dict:
+    """chi^2 of the baseline at each fit's values of the baseline's variables, in one launch.
 
     Fits that lack one of them (coiling_angle_friction replaces m) or whose
     values make no valid baseline cell are left out.
     """
+    setup = data.setup
     free = tuple(setup.free)
     names, cells = [], []
     for name, fit in fits.items():
@@ -281,24 +439,258 @@ def _baseline_rss_at(curves, setup: DiagnosisSetup, fits: dict) -> dict:
         names.append(name)
     if not cells:
         return {}
-    return dict(zip(names, rss_of_cells(curves, cells, setup.max_increment, setup.device).tolist()))
+    return dict(zip(names, data.chi2_of(cells).tolist()))
 
 
-def _summary(fit: dict, keys: list, measured: np.ndarray, base_rss: float, sigma: float, n: int, k0: int) -> dict:
+def _outliers(data: _Data, fit: dict) -> list[Outlier]:
+    """Isolated rows far off the calibrated baseline (module docstring, step 2)."""
+    out = []
+    for c, w, fc in zip(data.curves, data.weights, fit["curves"]):
+        z = (np.asarray(fc["simulated"]) - c.force) * w
+        for i in np.nonzero((np.abs(z) > OUTLIER_Z) & (w > 0))[0]:
+            nb = [j for j in (i - 1, i + 1) if 0 <= j < len(z) and w[j] > 0]
+            if nb and all(abs(z[j]) < OUTLIER_NEIGHBOUR_Z for j in nb):
+                out.append(Outlier(c.source, c.row_of(int(i)), float(c.strain[i]), float(c.force[i]), float(z[i])))
+    return out
+
+
+def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
+    """Step 2: the baseline from the scene's start and the grid's best points; isolated outliers
+    left out (their weights set to 0) and the fit repeated from where it was."""
+    fit = _fit(data, (), extra_starts=_grid_starts(data))
+    say(f"baseline: rms {fit['rms_N']:.4g} N, chi2 {fit['chi2']:.5g}")
+    outliers = _outliers(data, fit)
+    if outliers:
+        for o in outliers:
+            c = next(i for i, cc in enumerate(data.curves) if cc.source == o.source)
+            rows = data.curves[c].rows
+            idx = int(np.nonzero(rows == o.row)[0][0]) if rows is not None else o.row - 2
+            data.weights[c][idx] = 0.0
+        fit = _fit(data, (), x0=fit["fit_variables"])
+        say(f"{len(outliers)} outlier row(s) left out; baseline: rms {fit['rms_N']:.4g} N, chi2 {fit['chi2']:.5g}")
+    return fit, outliers
+
+
+def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = False) -> dict:
+    """Step 3: each identifiable effect's fit (from the baseline, and its own extra starts)."""
+    out = {}
+    for name in names:
+        spec = EFFECT_SPECS[name]
+        if max(len(rates), 1) < spec.min_rates:
+            continue
+        if quick:
+            # from the new baseline only, where the effect vanishes: the other starts were raced already
+            out[name] = _fit(data, (name,), x0=base_x)
+        else:
+            out[name] = _fit(data, (name,), x0=base_x, extra_starts=spec.extra_starts + _phi0_alternative(base_x))
+        say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g}")
+    return out
+
+
+def basin_step(data: _Data, base_fit: dict, fits: dict, rates, say) -> tuple[dict, dict, str]:
+    """Step 3b: re-calibrate the baseline from a candidate's baseline parameters that fit better;
+    refit the candidates stuck above the new baseline when it moved by more than the evidence
+    threshold (a smaller move changes no verdict's margin)."""
+    trial = {k: v for k, v in _baseline_chi2_at(data, fits).items() if v < base_fit["chi2"] - 1.0}
+    if not trial:
+        return base_fit, fits, ""
+    src = min(trial, key=trial.get)
+    refit = _fit(data, (), x0=fits[src]["fit_variables"])
+    old = base_fit["chi2"]
+    if refit["chi2"] >= old - 1.0:
+        return base_fit, fits, ""
+    note = f"baseline re-calibrated from the {src} fit's parameters: chi2 {old:.5g} -> {refit['chi2']:.5g}"
+    moved = old - refit["chi2"] > STRONG
+    stuck = [k for k, f in fits.items() if moved and f["chi2"] > refit["chi2"]]
+    again = candidates_step(data, refit["fit_variables"], stuck, rates, say, quick=True)
+    fits = dict(fits, **{k: f for k, f in again.items() if f["chi2"] < fits[k]["chi2"]})
+    if stuck:
+        note += f"; {', '.join(stuck)} fitted again from there"
+    say(note)
+    return refit, fits, note
+
+
+def _stages(measured, simulated, keys, keep) -> dict:
+    g = stage_gap(measured[keep], simulated[keep], [k for k, ok in zip(keys, keep) if ok])
+    return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
+                "sse_N2": v["sse_N2"]} for k, v in g["stages"].items()}
+
+
+def localise_step(base_fit: dict, measured: np.ndarray, keep: np.ndarray) -> Localisation:
+    """Step 4: the gap per stage key of the calibrated baseline (rows kept by the fit)."""
+    keys = [k for c in base_fit["curves"] for k in c["keys"]]
+    sim = np.concatenate([c["simulated"] for c in base_fit["curves"]])
+    stages = _stages(measured, sim, keys, keep)
+    where = sorted(stages, key=lambda k: -np.nan_to_num(stages[k]["share"]))
+    return Localisation(keys, stages, where)
+
+
+def adequacy_step(data: _Data, base_fit: dict, noise: NoiseModel) -> Adequacy:
+    """Step 5: chi^2 of the baseline over the curves whose noise is known, against ``dof +- sqrt(2 dof)``."""
+    known = [i for i, n in enumerate(noise.curves) if n.known]
+    k = base_fit["k"]
+    if not known:
+        chi2 = base_fit["chi2"]
+        dof = max(base_fit["n"] - k, 1)
+        return Adequacy(chi2, dof, chi2 / dof, math.sqrt(2.0 / dof), None, chi2 - dof,
+                        "no curve's noise is known (all assumed): the baseline's adequacy cannot be judged")
+    chi2, n = 0.0, 0
+    for i in known:
+        c, w, fc = data.curves[i], data.weights[i], base_fit["curves"][i]
+        z = (np.asarray(fc["simulated"]) - c.force) * w
+        chi2 += float(z @ z)
+        n += int(np.count_nonzero(w))
+    dof = max(n - k, 1)
+    within = chi2 <= dof + WITHIN_NOISE_Z * math.sqrt(2.0 * dof)
+    note = "" if len(known) == len(noise.curves) else (
+        "judged on the curves whose noise is known: " + ", ".join(noise.curves[i].source for i in known))
+    return Adequacy(chi2, dof, chi2 / dof, math.sqrt(2.0 / dof), bool(within), chi2 - dof, note)
+
+
+def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarray, base: dict, n: int) -> dict:
     sim = np.concatenate([c["simulated"] for c in fit["curves"]])
-    e = sim - measured
+    e = (sim - measured)[keep]
     rss = float(e @ e)
-    dk = fit["k"] - k0
     flagged = [c["source"] for c in fit["curves"] if c["final_status"] not in ("ok", "force_cap")]
     return {"params": dict(fit["values"]), "std_errors": dict(fit["std_errors"]), "rms_N": math.sqrt(rss / n),
-            "rss_N2": rss, "stages": _stages(measured, sim, keys),
-            "shrink": 1.0 - math.sqrt(rss / base_rss) if base_rss > 0 else 0.0,
-            "score": (base_rss - rss) / sigma ** 2 - dk * math.log(n), "k": fit["k"],
+            "rss_N2": rss, "chi2": fit["chi2"], "k": fit["k"], "stages": _stages(measured, sim, loc.keys, keep),
+            "shrink": 1.0 - math.sqrt(rss / base["rss_N2"]) if base["rss_N2"] > 0 else 0.0,
+            "score": base["chi2"] - fit["chi2"] - (fit["k"] - base["k"]) * math.log(n),
             "flagged_curves": flagged, "nfev": fit["nfev"]}
 
 
+def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy, loc: Localisation,
+               measured: np.ndarray, keep: np.ndarray, rates: list, n: int) -> list[CandidateResult]:
+    """Step 6: every candidate's evidence (BIC drop), size (share of the baseline's excess over noise)
+    and probability among the candidates and "none" (BIC weights); best first."""
+    out = []
+    for name in setup.effects:
+        spec = EFFECT_SPECS[name]
+        if name not in fits:
+            out.append(CandidateResult(
+                name, spec.doc, False,
+                note=f"needs curves at >= {spec.min_rates} distinct rates (have {len(rates) if rates else 'none given'}): "
+                     "at one rate the rate factor of eq 5 is a change of m"))
+            continue
+        fit = fits[name]
+        s = _summary(fit, loc, measured, keep, base, n)
+        cand = CandidateResult(name, spec.doc, True, params=s["params"], std_errors=s["std_errors"], rms_N=s["rms_N"],
+                               rss_N2=s["rss_N2"], chi2=s["chi2"], k=s["k"], stages=s["stages"], shrink=s["shrink"],
+                               score=s["score"], flagged_curves=s["flagged_curves"], nfev=s["nfev"])
+        if spec.nests_baseline and fit["chi2"] > base["chi2"]:
+            # where the effect vanishes the model is the baseline bit for bit: a fit above it is a local
+            # minimum, and the effect explains nothing
+            cand.chi2, cand.rss_N2, cand.rms_N, cand.stages, cand.shrink = (base["chi2"], base["rss_N2"],
+                                                                           base["rms_N"], base["stages"], 0.0)
+            cand.score = -(fit["k"] - base["k"]) * math.log(n)
+            cand.note = "its fit ended above the baseline (a local minimum); where it vanishes it is the baseline"
+        drop = base["chi2"] - cand.chi2
+        cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
+        cand.significant = bool(cand.score > STRONG)
+        cand.practical = bool(adequacy.excess > 0 and drop >= PRACTICAL_SHARE * adequacy.excess)
+        if cand.flagged_curves:
+            cand.note = (f"some increments did not converge on {', '.join(cand.flagged_curves)} "
+                         "(those rows keep the last converged force): a verdict on it is not confident")
+        out.append(cand)
+    fitted = sorted((c for c in out if c.score is not None), key=lambda c: -c.score)
+    # BIC weights over "none" (the baseline, score 0) and the fitted candidates
+    logw = np.array([0.0] + [0.5 * c.score for c in fitted])
+    p = np.exp(logw - logw.max())
+    p /= p.sum()
+    for c, pc in zip(fitted, p[1:]):
+        c.probability = float(pc)
+    return fitted + [c for c in out if c.score is None]
+
+
+def pair_step(data: _Data, best: CandidateResult, fitted: list, fits: dict, base_fit: dict, base: dict,
+              loc: Localisation, measured, keep, n: int, say) -> tuple[dict | None, dict | None]:
+    """Step 7: the best effect with each of the next :data:`PAIR_PARTNERS` that lowered chi^2 alone."""
+    trials = []
+    partners = [c for c in fitted if c.effect != best.effect and c.chi2 < base["chi2"]]
+    for other in partners[:PAIR_PARTNERS]:
+        effs = (best.effect, other.effect)
+        x0 = {**base_fit["fit_variables"], **fits[best.effect]["fit_variables"]}
+        own = {v.name: fits[other.effect]["fit_variables"][v.name] for v in EFFECT_SPECS[other.effect].variables}
+        fit = _fit(data, effs, x0=x0, extra_starts=(own,))
+        summ = _summary(fit, loc, measured, keep, base, n)
+        summ["effects"] = list(effs)
+        summ["gain_over_best"] = summ["score"] - best.score
+        summ["significant"] = bool(summ["gain_over_best"] > STRONG and not summ["flagged_curves"])
+        trials.append((summ, fit))
+        say(f"pair {effs}: rms {summ['rms_N']:.4g} N")
+    if not trials:
+        return None, None
+    return max(trials, key=lambda t: t[0]["score"])
+
+
+def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: dict, noise: NoiseModel,
+                 indist: list) -> Verdict:
+    """Step 8 (module docstring)."""
+    fitted = [c for c in candidates if c.score is not None]
+    probs = {"none": float(1.0 - sum(c.probability for c in fitted))}
+    probs.update({c.effect: c.probability for c in fitted})
+    stage = loc.where[0] if loc.where else None
+    fit_txt = (f"chi2/dof = {adequacy.chi2_per_dof:.4g} (expected 1 +- {adequacy.expected_sd:.2g} for noise alone)")
+    assumed = [n.source for n in noise.curves if not n.known]
+    if adequacy.within_noise:
+        return Verdict("none", None, stage, 0.0, True,
+                       f"the model explains these curves within their noise: {fit_txt}", [], probs)
+    named = [c for c in fitted if c.significant and c.practical]
+    if not named:
+        best = fitted[0] if fitted else None
+        if best is None:
+            why = "no effect could be fitted"
+        else:
+            share = best.share_of_excess
+            why = (f"the best, {best.effect}, removes {share:.0%} of the baseline's excess over noise"
+                   if share is not None else f"the best is {best.effect}")
+        confident = adequacy.within_noise is not None
+        lead = ("the baseline misses these curves beyond their noise" if adequacy.within_noise is False
+                else "the baseline's adequacy cannot be judged (no curve's noise is known)")
+        return Verdict("unexplained", None, stage, 0.0, confident,
+                       f"{lead} ({fit_txt}), and no effect explains the gap: {why} (naming one needs a BIC drop "
+                       f"> {STRONG:g} and >= {PRACTICAL_SHARE:.0%} of the excess); the largest gap is in stage "
+                       f"{stage}", [], probs)
+    best = named[0]
+    drops = {k: base["stages"][k]["sse_N2"] - best.stages.get(k, {}).get("sse_N2", 0.0) for k in base["stages"]}
+    where = max(drops, key=drops.get) if drops else stage
+    rivals = [p[1] for p in indist if p[0] == best.effect] + [p[0] for p in indist if p[1] == best.effect]
+    confident = not rivals and not best.flagged_curves and not assumed and adequacy.within_noise is not None
+    if rivals:
+        reason = f"the data cannot tell {best.effect} from {', '.join(rivals)} (BIC scores within {STRONG:g})"
+    elif best.flagged_curves:
+        reason = "its best fit has increments that did not converge"
+    else:
+        reason = (f"BIC score {best.score:.4g}, removes {best.share_of_excess:.0%} of the baseline's excess over "
+                  f"noise ({fit_txt}); probability {best.probability:.3g}")
+    if assumed:
+        reason += f"; the noise of {', '.join(assumed)} is assumed, not measured"
+    return Verdict("effect", best.effect, where, best.shrink, bool(confident), reason, rivals, probs)
+
+
+def _curves_out(curves, base_fit, best_fit, pair_fit) -> list:
+    out = []
+    for i, c in enumerate(curves):
+        bc = base_fit["curves"][i]
+        entry = {"source": c.source, "strain": c.strain.tolist(), "measured": c.force.tolist(),
+                 "baseline": np.asarray(bc["simulated"]).tolist(),
+                 "best": None if best_fit is None else np.asarray(best_fit["curves"][i]["simulated"]).tolist(),
+                 "pair": None if pair_fit is None else np.asarray(pair_fit["curves"][i]["simulated"]).tolist(),
+                 "keys": list(bc["keys"]), "cycle": c.cycle.tolist(), "direction": c.direction.tolist(),
+                 "offset_N": bc.get("offset_N", 0.0),
+                 "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
+                                "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
+                                                             bc["labels"])}}
+        if best_fit is not None:
+            bf = best_fit["curves"][i]
+            entry["indicators"]["best"] = curve_indicators(c.strain, bf["simulated"], c.cycle, c.direction,
+                                                           bf["labels"])
+        out.append(entry)
+    return out
+
+
 def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
-             progress: Callable[[str], None] | None = None) -> dict:
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose the gap between measured curves and the model (see the module docstring).
 
     Parameters
@@ -311,194 +703,49 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
 
     Returns
     -------
-    dict
-        ``baseline``, ``where``, ``candidates`` (best first), ``pair``,
-        ``indistinguishable``, ``verdict``, ``noise``, ``curves`` and
-        ``timing_s`` (the JSON of ``knitsim diagnose``).
+    Diagnosis
+        The steps' results; ``.as_dict()`` is the JSON of ``knitsim diagnose``.
     """
     t0 = time.perf_counter()
     setup = setup.validated()
     curves = list(curves)
     if not curves or not all(isinstance(c, MeasuredCurve) for c in curves):
         raise KnitsimInputError("curves: expected one or more measured curves")
+    if isinstance(setup.noise_N, dict):
+        unknown = sorted(set(setup.noise_N) - {c.source for c in curves})
+        if unknown:
+            raise KnitsimInputError(f"noise given for {', '.join(unknown)}, which is not among the curves "
+                                    f"({', '.join(c.source for c in curves)})")
     say = progress or (lambda msg: None)
     measured = np.concatenate([c.force for c in curves])
-    n = len(measured)
-    if setup.noise_N is not None:
-        sigma, how = float(setup.noise_N), "given (diagnosis.noise_N)"
-    else:
-        sigma = estimate_noise(curves)
-        how = "estimated from the measured curves (deviation from the neighbours' chord, 1.4826 MAD)"
-    sigma = max(sigma, 1e-6 * float(np.max(np.abs(measured)) or 1.0))
     rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})
 
-    # 1. baseline: from the scene's start and the best points of a coarse (m, phi0) grid (its least
-    # squares has local minima in both, and a grid of cells costs one batched launch)
-    grid = _grid_starts(curves, setup)
-    base_fit = _fit(curves, setup, (), extra_starts=grid)
-    say(f"baseline: rms {base_fit['rms_N']:.4g} N")
-
-    # 3. which (fits first; they are scored once the baseline is final)
-    def fit_candidates(base_x: dict, names, quick: bool = False) -> dict:
-        out = {}
-        for name in names:
-            spec = EFFECT_SPECS[name]
-            if max(len(rates), 1) < spec.min_rates:
-                continue
-            if quick:
-                # from the new baseline only, where the effect vanishes: the other starts were raced already
-                out[name] = _fit(curves, setup, (name,), x0=base_x)
-            else:
-                out[name] = _fit(curves, setup, (name,), x0=base_x,
-                                 extra_starts=spec.extra_starts + _phi0_alternative(base_x))
-            say(f"{name}: rms {out[name]['rms_N']:.4g} N")
-        return out
-
-    fits = fit_candidates(base_fit["fit_variables"], setup.effects)
-    # a candidate's fit may have found a better basin of the baseline's own parameters: the baseline
-    # is re-calibrated from there, so that no effect is credited with what the baseline can do itself
-    # (candidates stuck above it are fitted again from there, the better of their two fits kept)
-    trial = _baseline_rss_at(curves, setup, fits)
-    trial = {k: v for k, v in trial.items() if v < base_fit["rss_N2"] - sigma * sigma}  # below sigma^2: no change
-    basin_note = ""
-    if trial:
-        src = min(trial, key=trial.get)
-        refit = _fit(curves, setup, (), x0=fits[src]["fit_variables"])
-        old_rss = base_fit["rss_N2"]
-        if refit["rss_N2"] < old_rss - sigma * sigma:
-            basin_note = (f"baseline re-calibrated from the {src} fit's parameters: rms "
-                          f"{base_fit['rms_N']:.4g} -> {refit['rms_N']:.4g} N")
-            base_fit = refit
-            # only the candidates that did not reach the new baseline's basin themselves, and only when the
-            # baseline moved by more than the evidence threshold (a smaller move changes no verdict's margin)
-            moved = old_rss - base_fit["rss_N2"] > STRONG * sigma * sigma
-            stuck = [k for k, f in fits.items() if moved and f["rss_N2"] > base_fit["rss_N2"]]
-            again = fit_candidates(base_fit["fit_variables"], stuck, quick=True)
-            fits.update({k: f for k, f in again.items() if f["rss_N2"] < fits[k]["rss_N2"]})
-            if stuck:
-                basin_note += f"; {', '.join(stuck)} fitted again from there"
-            say(basin_note)
-
-    # 2. where
-    keys = [k for c in base_fit["curves"] for k in c["keys"]]
-    k0 = base_fit["k"]
-    base_rss = base_fit["rss_N2"]
-    baseline = _summary(base_fit, keys, measured, base_rss, sigma, n, k0)
-    baseline["bic"] = base_rss / sigma ** 2 + k0 * math.log(n)
+    noise = noise_step(curves, setup)
+    data = _Data(curves, setup, noise.weights(curves))
+    base_fit, outliers = calibrate_step(data, say)
+    fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say)
+    base_fit, fits, basin_note = basin_step(data, base_fit, fits, rates, say)
+    keep = np.concatenate([w > 0 for w in data.weights])
+    n = int(np.count_nonzero(keep))
+    loc = localise_step(base_fit, measured, keep)
+    base = _summary(base_fit, loc, measured, keep, {"rss_N2": 1.0, "chi2": base_fit["chi2"], "k": base_fit["k"]}, n)
     for key in ("shrink", "score"):
-        baseline.pop(key)
+        base.pop(key)
+    base["bic"] = base_fit["chi2"] + base_fit["k"] * math.log(n)
+    base["offsets_N"] = base_fit.get("offsets_N", {})
     if basin_note:
-        baseline["note"] = basin_note
-    where = sorted(baseline["stages"], key=lambda k: -np.nan_to_num(baseline["stages"][k]["share"]))
-    # the baseline already fits within the noise: RSS / sigma^2 below the chi-square(n - k) 99.9 % bound
-    chi2_bound = (n - k0) + 3.1 * math.sqrt(2.0 * (n - k0))
-    within_noise = base_rss / sigma ** 2 <= chi2_bound
-
-    candidates = []
-    for name in setup.effects:
-        spec = EFFECT_SPECS[name]
-        cand = {"effect": name, "doc": spec.doc, "identifiable": True, "note": ""}
-        if name not in fits:
-            cand.update(identifiable=False, params={}, std_errors={}, rms_N=None, stages={}, shrink=None, score=None,
-                        significant=False,
-                        note=f"needs curves at >= {spec.min_rates} distinct rates (have "
-                             f"{len(rates) if rates else 'none given'}): at one rate the rate factor of eq 5 is "
-                             "a change of m")
-            candidates.append(cand)
-            continue
-        fit = fits[name]
-        cand.update(_summary(fit, keys, measured, base_rss, sigma, n, k0))
-        if spec.nests_baseline and fit["rss_N2"] > base_rss:
-            # where the effect vanishes the model is the baseline bit for bit: a fit above it is a local
-            # minimum, and the effect explains nothing
-            cand.update(rss_N2=base_rss, rms_N=baseline["rms_N"], stages=baseline["stages"], shrink=0.0,
-                        score=-(fit["k"] - k0) * math.log(n))
-            cand["note"] = "its fit ended above the baseline (a local minimum); where it vanishes it is the baseline"
-        cand["significant"] = bool(cand["score"] > STRONG)
-        if cand["flagged_curves"]:
-            cand["note"] = (f"some increments did not converge on {', '.join(cand['flagged_curves'])} "
-                            "(those rows keep the last converged force): a verdict on it is not confident")
-        candidates.append(cand)
-    fitted = [c for c in candidates if c["score"] is not None]
-    fitted.sort(key=lambda c: -c["score"])
-    candidates = fitted + [c for c in candidates if c["score"] is None]
-
-    sig = [c for c in fitted if c["significant"]]
-    indist = []
-    for i, a in enumerate(sig):
-        for b in sig[i + 1:]:
-            if a["score"] - b["score"] < STRONG:
-                indist.append([a["effect"], b["effect"]])
-
-    # 4. how far: best, then the best pair (greedy)
-    best = sig[0] if sig else None
-    pair = None
+        base["note"] = basin_note
+    adequacy = adequacy_step(data, base_fit, noise)
+    candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n)
+    sig = [c for c in candidates if c.significant and c.practical]
+    indist = [[a.effect, b.effect] for i, a in enumerate(sig) for b in sig[i + 1:] if a.score - b.score < STRONG]
+    best = sig[0] if sig and not adequacy.within_noise else None
+    pair, pair_fit = (None, None)
     if best is not None and setup.pair:
-        trials = []
-        partners = [c for c in fitted if c["effect"] != best["effect"] and c["rss_N2"] < base_rss]
-        for other in partners[:PAIR_PARTNERS]:
-            effs = (best["effect"], other["effect"])
-            # from the best effect's fit with the partner where it vanishes, or at its own fitted strength
-            x0 = {**base_fit["fit_variables"], **fits[best["effect"]]["fit_variables"]}
-            own = {v.name: fits[other["effect"]]["fit_variables"][v.name]
-                   for v in EFFECT_SPECS[other["effect"]].variables}
-            fit = _fit(curves, setup, effs, x0=x0, extra_starts=(own,))
-            summ = _summary(fit, keys, measured, base_rss, sigma, n, k0)
-            summ["effects"] = list(effs)
-            summ["gain_over_best"] = summ["score"] - best["score"]
-            summ["significant"] = bool(summ["gain_over_best"] > STRONG and not summ["flagged_curves"])
-            trials.append((summ, fit))
-            say(f"pair {effs}: rms {summ['rms_N']:.4g} N")
-        if trials:
-            pair, pair_fit = max(trials, key=lambda t: t[0]["score"])
-            fits["__pair__"] = pair_fit
-
-    # verdict
-    if best is None:
-        top = fitted[0] if fitted else None
-        reason = "no effect improves the fit by more than the BIC penalty plus 10 (very strong evidence)"
-        if within_noise:
-            reason = "the baseline fits within the measurement noise; " + reason
-        verdict = {"effect": None, "stage": where[0] if where else None,
-                   "shrink": 0.0, "confident": bool(within_noise or top is None or top["score"] < 0),
-                   "reason": reason}
-    else:
-        drops = {k: baseline["stages"][k]["sse_N2"] - best["stages"][k]["sse_N2"] for k in baseline["stages"]}
-        stage = max(drops, key=drops.get)
-        rivals = [p[1] for p in indist if p[0] == best["effect"]] + [p[0] for p in indist if p[1] == best["effect"]]
-        confident = not rivals and not best["flagged_curves"]
-        if rivals:
-            reason = f"the data cannot tell {best['effect']} from {', '.join(rivals)} (BIC scores within {STRONG:g})"
-        elif best["flagged_curves"]:
-            reason = "its best fit has increments that did not converge"
-        else:
-            reason = (f"BIC score {best['score']:.4g}; the next effect is more than {STRONG:g} behind")
-        verdict = {"effect": best["effect"], "stage": stage, "shrink": best["shrink"], "confident": confident,
-                   "reason": reason, "alternatives": rivals}
-
-    # curves
-    out_curves = []
-    best_fit = fits.get(best["effect"]) if best else None
-    pair_fit = fits.get("__pair__")
-    for i, c in enumerate(curves):
-        bc = base_fit["curves"][i]
-        entry = {"source": c.source, "strain": c.strain.tolist(), "measured": c.force.tolist(),
-                 "baseline": np.asarray(bc["simulated"]).tolist(),
-                 "best": None if best_fit is None else np.asarray(best_fit["curves"][i]["simulated"]).tolist(),
-                 "pair": None if pair_fit is None else np.asarray(pair_fit["curves"][i]["simulated"]).tolist(),
-                 "keys": list(bc["keys"]), "cycle": c.cycle.tolist(), "direction": c.direction.tolist(),
-                 "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
-                                "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
-                                                             bc["labels"])}}
-        if best_fit is not None:
-            bf = best_fit["curves"][i]
-            entry["indicators"]["best"] = curve_indicators(c.strain, bf["simulated"], c.cycle, c.direction,
-                                                           bf["labels"])
-        out_curves.append(entry)
-    return {"scene": setup.title, "inputs": [c.source for c in curves],
-            "noise": {"sigma_N": sigma, "method": how, "rates_mm_s": rates,
-                      "baseline_chi2_per_dof": base_rss / sigma ** 2 / max(n - k0, 1),
-                      "baseline_within_noise": bool(within_noise)},
-            "n_rows": n, "baseline": baseline, "where": where, "candidates": candidates, "pair": pair,
-            "indistinguishable": indist, "verdict": verdict, "curves": out_curves,
-            "timing_s": time.perf_counter() - t0}
+        pair, pair_fit = pair_step(data, best, [c for c in candidates if c.score is not None], fits, base_fit, base,
+                                   loc, measured, keep, n, say)
+    verdict = verdict_step(adequacy, candidates, loc, base, noise, indist)
+    best_fit = fits.get(verdict.effect) if verdict.effect else None
+    return Diagnosis(setup.title, [c.source for c in curves], noise, rates, n, base, outliers, adequacy, loc,
+                     candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit),
+                     time.perf_counter() - t0)

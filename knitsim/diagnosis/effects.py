@@ -9,9 +9,11 @@ The laws themselves live in :mod:`knitsim.cell.effects` (Python description)
 and :mod:`knitsim.kernels.effects` (device code).
 
 Baseline variables: ``m``, ``phi0`` (as a fraction of phimax = atan(m), so
-that its bounds hold while m moves, section 3.3.1), ``B``, ``d``, and the knit
-geometry ``L``, ``W0``, ``C0`` (default bounds +-5 %: specimen-to-specimen
-scatter, which an effect would otherwise absorb).
+that its bounds hold while m moves, section 3.3.1), ``B``, ``d``, the yarn's
+in-plane width (default bounds d .. W0/4: a flattened roving jams wider than it
+bends; kept inside [d, W0/4) as d and W0 move), and the knit geometry ``L``,
+``W0``, ``C0`` (default bounds +-5 %: specimen-to-specimen scatter, which an
+effect would otherwise absorb).
 
 ``coiling_angle_friction`` *replaces* ``m``: m follows eq 10 from the loop's
 coiling angle, so the effect adds ``coil_mu_k`` and removes ``m`` (no extra
@@ -72,6 +74,8 @@ BASELINE_VARIABLES: dict[str, Variable] = {
     "L": Variable("L", (0.0, 0.0), lambda p: p.L, "mm", "yarn length per stitch"),
     "W0": Variable("W0", (0.0, 0.0), lambda p: p.W0, "mm", "wale width at rest"),
     "C0": Variable("C0", (0.0, 0.0), lambda p: p.C0, "mm", "course length at rest"),
+    "in_plane_width": Variable("in_plane_width", (0.0, 0.0), lambda p: p.d_jam, "mm",
+                               "the yarn's in-plane width that jams loops (W = 4 w), in [d, W0/4)"),
 }
 
 #: baseline parameters the blind study's diagnosis calibrates: the friction (m, phi0) and the geometry
@@ -167,6 +171,9 @@ def build_params(base: CellParams, effects: tuple[str, ...], values: dict, fixed
     field names).
     """
     ch = {k: float(values[k]) for k in ("B", "d", "L", "W0", "C0") if k in values}
+    if "in_plane_width" in values:
+        d, W0 = ch.get("d", base.d), ch.get("W0", base.W0)
+        ch["in_plane_width"] = min(max(float(values["in_plane_width"]), d), 0.999 * W0 / 4.0)
     m = float(values.get("m", base.m))
     kernel_on = tuple(e for e in effects if e in EFFECT_BITS)
     eff = {k: v for k, v in (fixed or {}).items()}

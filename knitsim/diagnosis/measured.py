@@ -1,24 +1,45 @@
 """Measured force-strain curves of a knit and the load program that replays them.
 
-A measured curve is a CSV file with columns
+A measured curve is a CSV file (any delimiter ``,`` ``;`` or tab, a UTF-8 BOM,
+CRLF line ends, decimal commas after ``;``: :mod:`knitsim.io.table_input`) with columns
 
 ``strain``
     strain of the course length, (C - C0) / C0 [-] (the imposed strain of
     :mod:`knitsim.cell.load_program`);
 ``force_per_wale_N``
-    force per wale [N], >= 0;
+    force per wale [N];
 ``cycle`` (optional)
     cycle number from 1 (a new loading branch starts a new cycle);
 ``direction`` (optional)
     ``load`` or ``unload``;
 ``rate_mm_s`` (optional)
-    crosshead rate [mm/s], > 0 (carried along; the cell model is rate independent).
+    crosshead rate [mm/s], > 0.
+
+What a laboratory writes is accepted (:func:`curve_from_arrays`):
+
+- **forces slightly below zero**: a load cell reads around zero at rest.  A
+  force down to :data:`NEGATIVE_SIGMAS` noise sd below zero is kept as
+  measured (the noise of the curve itself, :mod:`knitsim.diagnosis.noise`);
+  lower is an error naming the row (a knit carries no compression: a wrong
+  zero or sign);
+- **strain jitter**: a strain that steps back by at most the tolerance
+  (:func:`strain_tolerance`: 1e-3 of the curve's strain range) inside a
+  branch is extensometer jitter or round-off, not a reversal.  The branch
+  follows its overall direction and the replayed strain is the running
+  extreme (the knit is not unloaded by the jitter); the measured force stays.
+  Without a ``direction`` column a reversal starts a new branch only when the
+  strain moves back by more than the tolerance and the force follows (does
+  not move against it by more than noise); with the column, a step back
+  beyond the tolerance is an error naming the row.
 
 Missing ``direction`` / ``cycle`` are inferred from the strain turning points
 with the convention of :func:`~knitsim.cell.load_program.piecewise_linear`:
 the test starts at rest (strain 0), a row belongs to the branch that reaches
 it (the turning point ends its branch), and each loading branch after an
 unloading starts a new cycle.
+
+Every rejection names the file, the row (as a spreadsheet shows it, header =
+row 1), the column and the value, and says what to do.
 
 :func:`program_for_curve` turns the curve's own strain history into a
 :class:`~knitsim.cell.load_program.LoadProgram` whose corners are every
@@ -35,12 +56,18 @@ import numpy as np
 
 from ..cell.history import BatchHistory
 from ..cell.load_program import LoadProgram, piecewise_linear
-from ..cli.common import read_csv_columns
 from ..errors import KnitsimInputError
+from ..io.table_input import read_csv_columns
+from .noise import CurveNoise, curve_noise
 
 REQUIRED = ("strain", "force_per_wale_N")
 OPTIONAL = ("cycle", "direction", "rate_mm_s")
-_DIRECTIONS = {"load": 1, "unload": -1}
+_DIRECTIONS = {"load": 1, "unload": -1, "loading": 1, "unloading": -1}
+
+#: a force this many noise sd below zero is kept as a reading around zero; lower is refused
+NEGATIVE_SIGMAS = 5.0
+#: strain jitter tolerated inside a branch, as a fraction of the curve's strain range
+STRAIN_TOL_REL = 1.0e-3
 
 
 @dataclass(frozen=True)
@@ -50,9 +77,10 @@ class MeasuredCurve:
     Attributes
     ----------
     strain : ndarray of float
-        Strain of the course length [-].
+        Strain of the course length [-], monotone within each branch (the running
+        extreme of the read strain: jitter removed, see the module docstring).
     force : ndarray of float
-        Force per wale [N].
+        Force per wale [N], as measured (may be slightly negative).
     cycle : ndarray of int
         Cycle number from 1.
     direction : ndarray of int
@@ -61,6 +89,12 @@ class MeasuredCurve:
         Crosshead rate [mm/s] where given.
     source : str
         File name (or label) used in messages.
+    rows : ndarray of int or None
+        Spreadsheet row of each entry (header = row 1), for messages.
+    strain_read : ndarray of float or None
+        The strain as read, before the jitter was removed.
+    noise : CurveNoise or None
+        This curve's noise sd and how it was obtained.
     """
 
     strain: np.ndarray
@@ -69,17 +103,41 @@ class MeasuredCurve:
     direction: np.ndarray
     rate_mm_s: np.ndarray | None = None
     source: str = "curve"
+    rows: np.ndarray | None = None
+    strain_read: np.ndarray | None = None
+    noise: CurveNoise | None = None
 
     def __len__(self) -> int:
         return len(self.strain)
 
+    def row_of(self, i: int) -> int:
+        """Spreadsheet row of entry ``i``."""
+        return int(self.rows[i]) if self.rows is not None else i + 2
 
-def infer_branches(strain) -> tuple[np.ndarray, np.ndarray]:
+
+def strain_tolerance(strain) -> float:
+    """Strain jitter tolerated inside a branch: :data:`STRAIN_TOL_REL` of the strain range (>= 1e-9)."""
+    s = np.asarray(strain, float)
+    span = float(np.max(s) - min(float(np.min(s)), 0.0)) if len(s) else 0.0
+    return max(1e-9, STRAIN_TOL_REL * span)
+
+
+def _force_scale(force) -> float:
+    """A rough noise scale of a force column from its first differences (robust; before branches exist)."""
+    f = np.asarray(force, float)
+    if len(f) < 3:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(np.diff(f))) / np.sqrt(2.0))
+
+
+def infer_branches(strain, force=None, tol: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cycle and direction of each row from the strain turning points.
 
-    The test starts at rest (strain 0).  A row's direction is the sign of its
-    strain step from the previous row (from 0 for the first row); a row with no
-    step keeps the direction of the previous one (loading at the start).  Each
+    The test starts at rest (strain 0), loading.  A branch continues while the
+    strain moves its way or back by at most ``tol`` (jitter: default
+    :func:`strain_tolerance`); a move back by more starts the opposite branch,
+    provided the force (when given) follows: it does not move against the
+    strain by more than three times its first-difference noise scale.  Each
     change from unloading to loading starts a new cycle, as in
     :func:`~knitsim.cell.load_program.piecewise_linear`.
 
@@ -88,15 +146,26 @@ def infer_branches(strain) -> tuple[np.ndarray, np.ndarray]:
     cycle, direction : ndarray of int
     """
     s = np.asarray(strain, float)
-    step = np.diff(np.concatenate([[0.0], s]))
+    tol = strain_tolerance(s) if tol is None else float(tol)
+    f = None if force is None else np.asarray(force, float)
+    noise = 3.0 * _force_scale(f) if f is not None else 0.0
     direction = np.empty(len(s), np.int32)
     cycle = np.empty(len(s), np.int32)
-    d, cyc = 1, 1
-    for i, ds in enumerate(step):
-        nd = d if ds == 0 else (1 if ds > 0 else -1)
-        if nd == 1 and d == -1:
-            cyc += 1
-        d = nd
+    d, cyc, ext, ext_i = 1, 1, 0.0, -1
+    for i, si in enumerate(s):
+        if (si - ext) * d >= 0:
+            ext, ext_i = si, i
+        elif abs(si - ext) > tol:
+            follows = True
+            if f is not None and ext_i >= 0:
+                # the new direction is -d: unloading, the force must not rise by more than noise;
+                # reloading, not fall
+                follows = (f[i] - f[ext_i]) * -d >= -noise
+            if follows:
+                d = -d
+                if d == 1:
+                    cyc += 1
+                ext, ext_i = si, i
         direction[i], cycle[i] = d, cyc
     return cycle, direction
 
@@ -110,14 +179,44 @@ def _cycles_from_direction(direction: np.ndarray) -> np.ndarray:
     return out
 
 
-def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
-                      source: str = "curve") -> MeasuredCurve:
-    """Validate arrays into a :class:`MeasuredCurve` (rows numbered as in a CSV file, header = row 1).
+def _monotone(s: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The running extreme of the strain within each branch (jitter removed); the first loading
+    branch starts from rest, strain 0."""
+    out = np.empty_like(s)
+    ext = 0.0
+    for i in range(len(s)):
+        if i > 0 and d[i] != d[i - 1]:
+            ext = s[i]
+        ext = max(ext, s[i]) if d[i] > 0 else min(ext, s[i])
+        out[i] = ext
+    return out
 
-    ``direction`` may hold ``"load"`` / ``"unload"`` or +1 / -1.  Raises
-    :class:`~knitsim.errors.KnitsimInputError` naming the row and column of a
-    NaN, a negative force, a strain that goes back within a branch, a bad
-    direction or cycle.
+
+def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None, source: str = "curve",
+                      rows=None, noise_N: float | None = None, strain_tol: float | None = None) -> MeasuredCurve:
+    """Validate arrays into a :class:`MeasuredCurve` (see the module docstring).
+
+    Parameters
+    ----------
+    strain, force : array_like
+        Strain of the course length [-] and force per wale [N].
+    cycle, direction, rate_mm_s : array_like, optional
+        ``direction`` holds ``"load"`` / ``"unload"`` or +1 / -1.
+    source : str
+        Name used in messages.
+    rows : array_like of int, optional
+        Spreadsheet row of each entry (default: header = row 1, then 2, 3, ...).
+    noise_N : float, optional
+        The curve's noise sd [N] if known (else estimated from the curve).
+    strain_tol : float, optional
+        Strain jitter tolerated inside a branch (default :func:`strain_tolerance`).
+
+    Raises
+    ------
+    KnitsimInputError
+        Naming the row, the column and the value: a NaN, a force below zero by
+        more than :data:`NEGATIVE_SIGMAS` noise sd, a strain that goes back
+        beyond the tolerance within a given direction, a bad direction, cycle or rate.
     """
     s = np.asarray(strain, float)
     f = np.asarray(force, float)
@@ -126,24 +225,25 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         raise KnitsimInputError(f"{source}: no data rows")
     if len(f) != n:
         raise KnitsimInputError(f"{source}: column force_per_wale_N has {len(f)} rows, strain has {n}")
+    row_no = np.arange(2, n + 2) if rows is None else np.asarray(rows, np.int64)
 
     def row(i):
-        return i + 2  # header is row 1
+        return int(row_no[i])
 
     for name, arr in (("strain", s), ("force_per_wale_N", f)):
         bad = np.nonzero(~np.isfinite(arr))[0]
         if len(bad):
-            raise KnitsimInputError(f"{source}: row {row(bad[0])}, column {name}: {arr[bad[0]]!r} is not finite")
+            raise KnitsimInputError(f"{source}: row {row(bad[0])}, column {name}: {float(arr[bad[0]])} is not finite "
+                                    "(fix or delete the row)")
     bad = np.nonzero(s <= -1.0)[0]
     if len(bad):
-        raise KnitsimInputError(f"{source}: row {row(bad[0])}, column strain: {s[bad[0]]!r} <= -1 "
-                                "means a non-positive course length")
-    bad = np.nonzero(f < 0)[0]
-    if len(bad):
-        raise KnitsimInputError(f"{source}: row {row(bad[0])}, column force_per_wale_N: {f[bad[0]]!r} is negative "
-                                "(a knit carries no compression)")
+        raise KnitsimInputError(f"{source}: row {row(bad[0])}, column strain: {float(s[bad[0]]):g} <= -1 "
+                                "means a non-positive course length (is the column a strain, not a length?)")
+    if noise_N is not None and not (np.isfinite(noise_N) and noise_N > 0):
+        raise KnitsimInputError(f"{source}: noise sd {noise_N!r} N: must be a number > 0")
+    tol = strain_tolerance(s) if strain_tol is None else float(strain_tol)
     if direction is None:
-        inf_cycle, d = infer_branches(s)
+        inf_cycle, d = infer_branches(s, f, tol)
     else:
         d = np.empty(n, np.int32)
         for i, v in enumerate(direction):
@@ -156,50 +256,64 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                 raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} "
                                         "is not 'load' or 'unload'")
         inf_cycle = _cycles_from_direction(d)
-    # monotonic within a direction: a loading row may not go below the previous row, an
-    # unloading row not above it (a repeated strain is allowed: it maps to the same increment)
-    prev = np.concatenate([[0.0], s[:-1]])
-    back = np.nonzero(d * (s - prev) < 0)[0]
-    if len(back):
-        i = back[0]
-        what = "decreases within a load branch" if d[i] > 0 else "increases within an unload branch"
-        raise KnitsimInputError(f"{source}: row {row(i)}, column strain: {s[i]!r} {what} "
-                                f"(previous strain {prev[i]!r}); check the direction column or the row order")
+        # within a direction the strain may step back by jitter (<= tol) only
+        clean = _monotone(s, d)
+        back = np.nonzero(np.abs(s - clean) > tol)[0]
+        if len(back):
+            i = back[0]
+            what = "decreases within a load branch" if d[i] > 0 else "increases within an unload branch"
+            raise KnitsimInputError(
+                f"{source}: row {row(i)}, column strain: {float(s[i]):g} {what} by {abs(float(s[i] - clean[i])):.3g} "
+                f"(more than the jitter tolerance {tol:.3g}); check the direction column or the row order")
     if cycle is None:
         c = inf_cycle
     else:
         craw = np.asarray(cycle, float)
         for i, v in enumerate(craw):
             if not (np.isfinite(v) and v == round(v) and v >= 1):
-                raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {v!r} is not a whole number >= 1")
+                raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {float(v):g} is not a whole "
+                                        "number >= 1")
         c = craw.astype(np.int32)
         # the cycle must follow the branches: it changes exactly where a new loading branch starts
         bad = np.nonzero(c != inf_cycle - inf_cycle[0] + c[0])[0]
         if len(bad):
             i = bad[0]
-            raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {c[i]} does not match the branches "
+            raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} does not match the branches "
                                     "(a cycle starts with each new loading branch)")
     r = None
     if rate_mm_s is not None:
         r = np.asarray(rate_mm_s, float)
         bad = np.nonzero(~(np.isfinite(r) & (r > 0)))[0]
         if len(bad):
-            raise KnitsimInputError(f"{source}: row {row(bad[0])}, column rate_mm_s: {r[bad[0]]!r} must be > 0")
-    return MeasuredCurve(s, f, np.asarray(c, np.int32), d, r, source)
+            raise KnitsimInputError(f"{source}: row {row(bad[0])}, column rate_mm_s: {float(r[bad[0]]):g} must be > 0")
+    clean = _monotone(s, d)
+    noise = curve_noise(clean, f, c, d, source, noise_N)
+    limit = -NEGATIVE_SIGMAS * noise.sigma_N
+    bad = np.nonzero(f < limit)[0]
+    if len(bad):
+        i = bad[0]
+        raise KnitsimInputError(
+            f"{source}: row {row(i)}, column force_per_wale_N: {float(f[i]):g} N is below zero by more than "
+            f"{NEGATIVE_SIGMAS:g} noise sd ({noise.sigma_N:.3g} N, {noise.method}): a knit carries no compression; "
+            "check the load cell's zero and the sign of the column")
+    return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
 
 
-def read_measured_curve(path: str | Path) -> MeasuredCurve:
+def read_measured_curve(path: str | Path, noise_N: float | None = None) -> MeasuredCurve:
     """Read and validate a measured curve CSV (see the module docstring).
+
+    ``noise_N`` is the file's noise sd [N] when known (else estimated from the curve).
 
     Raises
     ------
     KnitsimInputError
-        Missing column, NaN or text, negative force, strain going back within
-        a branch, bad direction / cycle / rate; the message names the row and column.
+        Missing column, NaN or text, force below zero beyond the noise, strain
+        going back within a branch beyond the jitter tolerance, bad direction /
+        cycle / rate; the message names the file, row and column.
     """
     cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"))
     return curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
-                             cols.get("rate_mm_s"), source=str(path))
+                             cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
 
 
 def program_for_curve(curve: MeasuredCurve, max_increment: float = 0.005) -> tuple[LoadProgram, np.ndarray]:

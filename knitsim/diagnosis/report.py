@@ -299,9 +299,11 @@ def verdict_sentence(result: dict) -> str:
     conf = "confident" if v.get("confident") else "not confident"
     reason = v.get("reason")
     tail = f" ({conf}{': ' + str(reason) if reason else ''})."
+    if v.get("kind") == "none":
+        return "Verdict: nothing is missing, the model explains these curves within their noise" + tail
     if eff is None:
         where = f"; the largest gap is in stage {stage}" if stage else ""
-        return f"Verdict: no effect is significant{where}" + tail
+        return f"Verdict: unexplained, no effect explains the gap{where}" + tail
     where = f" in stage {stage}" if stage else ""
     return (f"Verdict: the gap is best explained by {eff}, mainly{where}; it shrinks the RMS force error "
             f"by {_pct(v.get('shrink'))}" + tail)
@@ -372,8 +374,28 @@ def render_report(result: dict) -> str:
     inputs = result.get("inputs") or []
     if inputs:
         out.append("<p>Measured curves: " + ", ".join(f"<code>{_e(p)}</code>" for p in inputs) + "</p>\n")
-    out.append(f"<p>Measurement noise: sigma = {_e(_fmt(noise.get('sigma_N')))} N per wale "
-               f"({_e(noise.get('method', 'method not given'))}).</p>\n")
+    probs = verdict.get("probabilities") or {}
+    if probs:
+        out.append("<p>Probabilities (BIC weights over the candidates and none): " + ", ".join(
+            f"{_e(k)} {_e(_fmt(p))}" for k, p in sorted(probs.items(), key=lambda kv: -kv[1])) + ".</p>\n")
+    rows = [[_e(c.get("source")), _e(_fmt(c.get("sigma_N"))), _e(c.get("method")), _e(c.get("note"))]
+            for c in noise.get("curves") or []]
+    if not rows:
+        out.append(f"<p>Measurement noise: sigma = {_e(_fmt(noise.get('sigma_N')))} N per wale "
+                   f"({_e(noise.get('method', 'method not given'))}).</p>\n")
+    else:
+        out.append("<h2>Measurement noise, per curve</h2>\n")
+        out.append(_table(["curve", "sd [N per wale]", "how", "note"], rows))
+    within = {True: "within the noise", False: "NOT within the noise", None: "not judged (no noise known)"}.get(
+        noise.get("baseline_within_noise"), "not judged")
+    out.append(f"<p>Baseline fit: chi2/dof = {_e(_fmt(noise.get('baseline_chi2_per_dof')))} (1 +- "
+               f"{_e(_fmt(noise.get('expected_sd')))} for noise alone): {_e(within)}."
+               f"{' ' + _e(noise.get('adequacy_note')) if noise.get('adequacy_note') else ''}</p>\n")
+    outl = base.get("outliers") or []
+    if outl:
+        out.append("<p>Outlier rows left out of the fit: " + ", ".join(
+            f"{_e(Path(str(o.get('source'))).name)} row {_e(_fmt(o.get('row')))} ({_e(_fmt(o.get('z')))} sd)"
+            for o in outl) + ".</p>\n")
 
     # baseline
     out.append("<h2>Baseline</h2>\n")
@@ -409,9 +431,10 @@ def render_report(result: dict) -> str:
     if cands:
         rows = [[_e(c.get("effect")), _params_text(c.get("params"), c.get("std_errors")),
                  _e(_fmt(c.get("rms_N"))), _e(_pct(c.get("shrink"))), _e(_fmt(c.get("score"))),
-                 _e(_fmt(bool(c.get("significant")))), _e(_fmt(bool(c.get("identifiable")))),
-                 _e(c.get("note") or "")] for c in cands]
-        out.append(_table(["effect", "parameters", "RMS [N]", "shrink", "score", "significant",
+                 _e(_pct(c.get("share_of_excess"))), _e(_fmt(c.get("probability"))),
+                 _e(_fmt(bool(c.get("significant")) and bool(c.get("practical")))),
+                 _e(_fmt(bool(c.get("identifiable")))), _e(c.get("note") or "")] for c in cands]
+        out.append(_table(["effect", "parameters", "RMS [N]", "shrink", "score", "share of the gap", "probability", "named",
                            "identifiable", "note"], rows, "candidates"))
     else:
         out.append("<p>No candidate effect was evaluated.</p>\n")

@@ -5,13 +5,18 @@ A diagnosis scene is a cell scene (:mod:`knitsim.scene.cell_scene`: tables
 measured curve drives its own simulation), plus::
 
     [diagnosis]
-    free = ["m", "phi0"]            # baseline parameters to calibrate: m, phi0, B, d, L, W0, C0
+    free = ["m", "phi0"]            # baseline parameters to calibrate: m, phi0, B, d, in_plane_width, L, W0, C0
     bounds = { d = [0.5, 0.7] }     # optional, model units (phi0 as a fraction of phimax)
     effects = ["yarn_compaction"]   # optional, default all seven (knitsim.cell.effects)
     max_increment = 0.01            # optional: largest replay increment (events are located exactly)
-    noise_N = 0.01                  # optional: known noise sd [N per wale]
+    noise_N = 0.01                  # optional: known noise sd of every curve [N per wale]
+    offsets = true                  # optional: fit a force offset per curve (a load cell's zero)
     pair = true                     # optional: also fit the best pair
     max_nfev = 20                   # optional: evaluations per calibration
+
+    [[diagnosis.noise]]             # optional: the noise sd of one file (else estimated from it)
+    file = "pull_5N.csv"            # matched by path, or by file name
+    sigma_N = 0.05
 
     [diagnosis.fixed]               # optional: effect parameters not fitted
     load_ref_N = 0.1                # normal load at which the ratio is m
@@ -19,12 +24,12 @@ measured curve drives its own simulation), plus::
     compaction_min = 0.5
     bend_sigma = 20.0
 
-Every key is checked before any solve; errors name the key and the value.
+Every key is checked before any solve by the shared scene schema
+(:mod:`knitsim.scene.schema`, :data:`DIAGNOSIS_TABLE`); errors name the key and the value.
 """
 from __future__ import annotations
 
 import copy
-import math
 from pathlib import Path
 
 from ..cell.effects import EFFECT_NAMES, EffectSet
@@ -32,18 +37,44 @@ from ..diagnosis.diagnose import DiagnosisSetup
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, check_effects
 from ..errors import KnitsimInputError
 from .cell_scene import load_cell_scene
-from .schema import load_toml
+from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, load_toml, validate
 
-_KEYS = ("free", "bounds", "effects", "max_increment", "noise_N", "pair", "max_nfev", "fixed")
 _FIXED = ("load_ref_N", "rate_ref_mm_s", "compaction_min", "bend_sigma")
 
 
-def _number(path: str, v, positive: bool = False) -> float:
-    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-        raise KnitsimInputError(f"{path} = {v!r}: must be a finite number")
-    if positive and v <= 0:
-        raise KnitsimInputError(f"{path} = {v!r}: must be > 0")
-    return float(v)
+def _bounds_check(v) -> str | None:
+    if len(v) != 2:
+        return "expected [low, high]"
+    if not v[0] < v[1]:
+        return "expected low < high"
+    return None
+
+
+def _variables() -> dict:
+    known = dict(BASELINE_VARIABLES)
+    for spec in EFFECT_SPECS.values():
+        known.update({v.name: v for v in spec.variables})
+    return known
+
+
+#: the ``[diagnosis]`` table
+DIAGNOSIS_TABLE = Table({
+    "free": Field(("str_list",), ["m", "phi0"], "baseline parameters to calibrate", choices=tuple(BASELINE_VARIABLES)),
+    "bounds": Table({name: Field(("float_list",), OPTIONAL, f"[low, high] of {v.doc}", v.unit, check=_bounds_check)
+                     for name, v in _variables().items()}, "bounds of fitted variables (phi0 as a fraction of phimax)"),
+    "effects": Field(("str_list",), list(EFFECT_NAMES), "effects to try", choices=EFFECT_NAMES),
+    "max_increment": Field(("float",), 0.01, "largest replay increment", min=0.0, min_inclusive=False, max=0.05),
+    "noise_N": Field(("float",), OPTIONAL, "noise sd of every curve", "N", min=0.0, min_inclusive=False),
+    "noise": TableArray(Table({
+        "file": Field(("str",), REQUIRED, "the measured file (path, or file name)"),
+        "sigma_N": Field(("float",), REQUIRED, "its noise sd", "N", min=0.0, min_inclusive=False),
+    }), "noise sd of single files"),
+    "offsets": Field(("bool",), True, "fit a force offset per curve"),
+    "pair": Field(("bool",), True, "also fit the best pair of effects"),
+    "max_nfev": Field(("int",), 20, "evaluations per calibration", min=2),
+    "fixed": Table({k: Field(("float",), OPTIONAL, "effect parameter held fixed") for k in _FIXED},
+                   "effect parameters not fitted"),
+}, "what the diagnosis calibrates", required=True)
 
 
 def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -> DiagnosisSetup:
@@ -59,6 +90,8 @@ def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -
     Returns
     -------
     DiagnosisSetup
+        ``noise_N`` holds the scene's ``noise_N``, or ``{file: sd}`` from ``[[diagnosis.noise]]``
+        (the command matches those files to the curves it is given).
 
     Raises
     ------
@@ -69,14 +102,9 @@ def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -
         data, name = copy.deepcopy(source), "<dict>"
     else:
         data, name = load_toml(source), str(source)
-    diag = data.pop("diagnosis", None)
-    if diag is None:
+    if "diagnosis" not in data:
         raise KnitsimInputError(f"{name}: missing table [diagnosis] (what to calibrate; see knitsim.scene.diagnosis_scene)")
-    if not isinstance(diag, dict):
-        raise KnitsimInputError(f"diagnosis = {diag!r}: expected a table")
-    for k in diag:
-        if k not in _KEYS:
-            raise KnitsimInputError(f"diagnosis.{k}: unknown key; expected one of {', '.join(_KEYS)}")
+    diag = validate(DIAGNOSIS_TABLE, data.pop("diagnosis"), "diagnosis")
     if "load" in data:
         raise KnitsimInputError("load: a diagnosis scene has no [load] table (each measured curve drives its own "
                                 "simulation); remove it")
@@ -89,49 +117,28 @@ def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -
     base = scene.params[0]
     if scene.engine != "warp":
         raise KnitsimInputError(f"engine = {scene.engine!r}: the diagnosis runs on the Warp batch (engine = 'warp')")
-
-    free = diag.get("free", ["m", "phi0"])
-    if not isinstance(free, list) or not all(isinstance(x, str) for x in free):
-        raise KnitsimInputError(f"diagnosis.free = {free!r}: expected a list of names ({', '.join(BASELINE_VARIABLES)})")
-    effects = diag.get("effects", list(EFFECT_NAMES))
-    if not isinstance(effects, list) or not all(isinstance(x, str) for x in effects):
-        raise KnitsimInputError(f"diagnosis.effects = {effects!r}: expected a list of effect names")
-    check_effects(effects)
+    effects = check_effects(diag["effects"])
     known = dict(BASELINE_VARIABLES)
     for e in effects:
         known.update({v.name: v for v in EFFECT_SPECS[e].variables})
     bounds = {}
-    for k, v in (diag.get("bounds") or {}).items():
+    for k, v in diag["bounds"].items():
         if k not in known:
-            raise KnitsimInputError(f"diagnosis.bounds.{k}: unknown variable; expected one of {', '.join(known)}")
-        if not (isinstance(v, list) and len(v) == 2):
-            raise KnitsimInputError(f"diagnosis.bounds.{k} = {v!r}: expected [low, high]")
-        lo, hi = (_number(f"diagnosis.bounds.{k}", x) for x in v)
-        if not lo < hi:
-            raise KnitsimInputError(f"diagnosis.bounds.{k} = {v!r}: expected low < high")
-        if k in ("B", "d", "L", "W0", "C0") and lo <= 0:
+            raise KnitsimInputError(f"diagnosis.bounds.{k}: not a variable of the effects tried "
+                                    f"({', '.join(known)})")
+        if k in ("B", "d", "in_plane_width", "L", "W0", "C0") and v[0] <= 0:
             raise KnitsimInputError(f"diagnosis.bounds.{k} = {v!r}: {k} must stay > 0")
-        bounds[k] = (lo, hi)
-    fixed = {}
-    for k, v in (diag.get("fixed") or {}).items():
-        if k not in _FIXED:
-            raise KnitsimInputError(f"diagnosis.fixed.{k}: unknown key; expected one of {', '.join(_FIXED)}")
-        fixed[k] = _number(f"diagnosis.fixed.{k}", v)
-    try:
-        EffectSet(**fixed).validated(where="diagnosis.fixed")
-    except TypeError as exc:  # pragma: no cover - keys are checked above
-        raise KnitsimInputError(f"diagnosis.fixed: {exc}") from None
+        bounds[k] = tuple(v)
+    fixed = dict(diag["fixed"])
+    EffectSet(**fixed).validated(where="diagnosis.fixed")
     noise = diag.get("noise_N")
-    if noise is not None:
-        noise = _number("diagnosis.noise_N", noise, positive=True)
-    mi = _number("diagnosis.max_increment", diag.get("max_increment", 0.01), positive=True)
-    pair = diag.get("pair", True)
-    if not isinstance(pair, bool):
-        raise KnitsimInputError(f"diagnosis.pair = {pair!r}: expected true or false")
-    nfev = diag.get("max_nfev", 20)
-    if not isinstance(nfev, int) or isinstance(nfev, bool) or nfev < 2:
-        raise KnitsimInputError(f"diagnosis.max_nfev = {nfev!r}: expected a whole number >= 2")
+    if diag.get("noise"):
+        if noise is not None:
+            raise KnitsimInputError("diagnosis.noise_N and [[diagnosis.noise]]: give one sd for every curve or "
+                                    "one per file, not both")
+        noise = {e["file"]: e["sigma_N"] for e in diag["noise"]}
     title = data.get("title", "") or name
-    return DiagnosisSetup(base=base, free=tuple(free), bounds=bounds, effects=tuple(effects), fixed=fixed,
-                          max_increment=mi, noise_N=noise, device=scene.device, max_nfev=nfev, pair=pair,
+    return DiagnosisSetup(base=base, free=tuple(diag["free"]), bounds=bounds, effects=effects, fixed=fixed,
+                          max_increment=diag["max_increment"], noise_N=noise, offsets=diag["offsets"],
+                          device=scene.device, max_nfev=diag["max_nfev"], pair=diag["pair"],
                           title=str(title)).validated()

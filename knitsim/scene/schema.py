@@ -42,7 +42,7 @@ REQUIRED = _Sentinel("REQUIRED")
 OPTIONAL = _Sentinel("OPTIONAL")
 
 _TYPE_NAMES = {"float": "a number", "int": "a whole number", "str": "a string", "bool": "true or false",
-               "float_list": "a list of numbers"}
+               "float_list": "a list of numbers", "str_list": "a list of strings"}
 
 
 @dataclass(frozen=True)
@@ -150,6 +150,15 @@ def _convert(f: Field, value: Any, path: str) -> Any:
                     raise error(f"{path}[{i}]", v, "must be a finite number")
                 out.append(float(v))
             return out
+        if t == "str_list" and isinstance(value, list):
+            for i, v in enumerate(value):
+                if not isinstance(v, str):
+                    raise error(f"{path}[{i}]", v, "expected a string")
+                if f.choices is not None and v not in f.choices:
+                    raise error(f"{path}[{i}]", v, f"expected one of {', '.join(f.choices)}")
+            if len(set(value)) != len(value):
+                raise error(path, value, "a name is listed twice")
+            return list(value)
     want = " or ".join(_TYPE_NAMES[t] for t in f.types)
     raise error(path, value, f"expected {want}")
 

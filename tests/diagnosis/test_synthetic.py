@@ -50,11 +50,13 @@ def test_same_seed_same_arrays_other_seed_differs():
 def test_the_curves_carry_no_label():
     case = S.make_case(3, "basalt", "cyclic", "dahl_transition", 0.7)
     names = {f.name for f in dataclasses.fields(MeasuredCurve)}
-    # the measured-curve format of issue 6: strain, force, cycle, direction, rate (+ a source name)
-    assert names == {"strain", "force", "cycle", "direction", "rate_mm_s", "source"}
+    # the measured-curve format: strain, force, cycle, direction, rate (+ a source name), and what a
+    # reader of a file derives from those (spreadsheet rows, the strain as read, the curve's own noise)
+    assert names == {"strain", "force", "cycle", "direction", "rate_mm_s", "source", "rows", "strain_read", "noise"}
     for c in case.curves:
         assert type(c) is MeasuredCurve
         assert "dahl" not in c.source and "effect" not in c.source
+        assert c.noise.method == "estimated"        # from the curve itself, not the generator's sd
     assert case.label["effect"] == "dahl_transition"
 
 

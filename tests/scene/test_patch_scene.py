@@ -11,7 +11,7 @@ from knitsim.errors import KnitsimInputError
 from knitsim.scene.patch_scene import load_patch_scene
 
 REPO = Path(__file__).resolve().parents[2]
-SHIPPED = ["specimen_e_glass_cyclic", "two_zone_basalt_e_glass", "stitch_length_gradient", "random_phi0"]
+SHIPPED = ["specimen_e_glass_cyclic", "specimen_e_glass_cyclic_paper", "two_zone_basalt_e_glass", "stitch_length_gradient", "random_phi0"]
 
 
 def base(**extra):

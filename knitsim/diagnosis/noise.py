@@ -1,0 +1,118 @@
+"""The measurement noise of each measured curve, from that curve alone (or as given).
+
+Two tests of one specimen have different noise (different load-cell ranges,
+different amplifier settings), so every curve gets its own sd, and every row
+of the fit is weighted by its own curve's sd (:mod:`knitsim.diagnosis.diagnose`).
+
+Estimate (:func:`curve_noise`): on each branch (rows of one cycle and
+direction) every inner row is compared with the chord through its two
+neighbours; for white noise of sd sigma the difference has variance
+``sigma^2 (1 + w1^2 + w2^2)`` (w the interpolation weights), whatever the
+smooth curve's slope.  The median absolute value makes it robust to the few
+rows at stage changes and to spikes (sigma = 1.4826 MAD for Gaussian noise).
+A chord through two or more rows at exactly zero force is left out: a force
+clipped at zero (a slack knit on an instrument that cannot read below zero)
+is not noise.
+
+A curve whose noise cannot be estimated says so (:attr:`CurveNoise.estimable`):
+
+- fewer than :data:`MIN_SAMPLES` chords (too few rows on monotone branches);
+- an estimate below :data:`SMOOTH_REL` of the curve's force range: a
+  digitised or smoothed curve, whose scatter is not measurement noise.
+
+It is then given :data:`ASSUMED_REL` of its force range (a curve digitised
+from a figure is read to about half a percent of its range) and the evidence
+it contributes is marked as resting on an assumed noise.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+#: chords needed for an estimate
+MIN_SAMPLES = 10
+#: an estimated sd below this fraction of the force range is not measurement noise (digitised, smoothed)
+SMOOTH_REL = 1.0e-5
+#: sd assumed for a curve whose noise cannot be estimated, as a fraction of its force range
+ASSUMED_REL = 5.0e-3
+#: MAD to sd for Gaussian noise
+MAD_TO_SD = 1.4826
+
+
+@dataclass(frozen=True)
+class CurveNoise:
+    """The noise sd of one measured curve and how it was obtained.
+
+    Attributes
+    ----------
+    source : str
+        The curve's file (or label).
+    sigma_N : float
+        Noise sd of the force per wale [N].
+    method : str
+        ``"given"`` (by the user), ``"estimated"`` (from the curve) or ``"assumed"``.
+    samples : int
+        Chords the estimate rests on (0 when given).
+    estimable : bool
+        Whether the curve itself tells its noise (given counts as known).
+    note : str
+        Why an estimate was not possible, or how it was made.
+    """
+
+    source: str
+    sigma_N: float
+    method: str
+    samples: int
+    estimable: bool
+    note: str
+
+    @property
+    def known(self) -> bool:
+        """Whether the sd is measured or given (not assumed): its curve's evidence counts fully."""
+        return self.method in ("given", "estimated")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def chord_residuals(strain, force, cycle, direction) -> np.ndarray:
+    """Scaled chord residuals ``|f_i - chord| / sqrt(1 + w1^2 + w2^2)`` of the inner rows of each branch."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    cycle, direction = np.asarray(cycle), np.asarray(direction)
+    br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
+    z = []
+    for a, b in zip(br[:-1], br[1:]):
+        for i in range(a + 1, b - 1):
+            h1, h2 = s[i] - s[i - 1], s[i + 1] - s[i]
+            if h1 == 0 or h2 == 0 or h1 * h2 < 0:
+                continue
+            if (f[i - 1] == 0.0) + (f[i] == 0.0) + (f[i + 1] == 0.0) >= 2:
+                continue  # clipped at zero (a slack knit read by an instrument that cannot go below 0)
+            w1, w2 = h2 / (h1 + h2), h1 / (h1 + h2)
+            r = f[i] - (w1 * f[i - 1] + w2 * f[i + 1])
+            z.append(abs(r) / math.sqrt(1.0 + w1 * w1 + w2 * w2))
+    return np.asarray(z)
+
+
+def curve_noise(strain, force, cycle, direction, source: str = "curve", given: float | None = None) -> CurveNoise:
+    """The noise of one curve: ``given`` [N], or estimated from its rows (module docstring)."""
+    f = np.asarray(force, float)
+    span = float(np.max(f) - min(float(np.min(f)), 0.0)) if len(f) else 0.0
+    if given is not None:
+        return CurveNoise(source, float(given), "given", 0, True, "given by the user")
+    z = chord_residuals(strain, force, cycle, direction)
+    if len(z) < MIN_SAMPLES:
+        why = f"only {len(z)} rows on monotone branches (an estimate needs {MIN_SAMPLES})"
+    else:
+        sigma = float(MAD_TO_SD * np.median(z))
+        if span > 0 and sigma > SMOOTH_REL * span:
+            return CurveNoise(source, sigma, "estimated", len(z), True,
+                              f"deviation of each row from its neighbours' chord, {MAD_TO_SD} MAD of {len(z)} rows")
+        why = (f"its rows scatter by {sigma:.2g} N, below {SMOOTH_REL:g} of its force range: a digitised or "
+               "smoothed curve, whose scatter is not measurement noise")
+    assumed = ASSUMED_REL * span if span > 0 else 1e-6
+    return CurveNoise(source, assumed, "assumed", len(z), False,
+                      f"noise not estimable ({why}); assumed {ASSUMED_REL:g} of the force range, {assumed:.3g} N "
+                      "(give it with --noise-N FILE=SD)")
