@@ -1052,8 +1052,10 @@ def init_kernel(
 
 
 # ------------------------------------------------------------------ one increment
-@wp.kernel
-def step_kernel(
+@wp.func
+def advance_cell(
+    i: int,
+
     # model
     B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
     W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
@@ -1069,9 +1071,8 @@ def step_kernel(
     fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
     status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
     eff_in: wp.array2d(dtype=wp.float64),
-    # control
-    strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
-    increment: int,
+    # control of this increment
+    strain_i: wp.float64, dir_i: int, rate_i: wp.float64, increment: int,
     # state out
     x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
     stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
@@ -1083,8 +1084,10 @@ def step_kernel(
     ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
     ev_to: wp.array(dtype=wp.int32),
 ):
-    """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
-    i = wp.tid()
+    """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
+
+    Reads the state arrays ``*_in`` at the start and writes ``*_out`` at the end: they may be the same
+    arrays (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
     mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
     mat.closure = closure
     q = vecQd()
@@ -1100,8 +1103,8 @@ def step_kernel(
     fsbc = fsbc_in[i]
     status = int(status_in[i])
     dir_old = int(direction_in[i])
-    dir_new = int(direction[i % direction.shape[0]])
-    C_target = mat.C0 * (wp.float64(1.0) + strain[i % strain.shape[0]])
+    dir_new = dir_i
+    C_target = mat.C0 * (wp.float64(1.0) + strain_i)
 
     # --- effects (issue 6): this increment's parameters from the state at its start
     mask = int(eff_mask[i % eff_mask.shape[0]])
@@ -1115,7 +1118,7 @@ def step_kernel(
             de = wp.float64(0.0)  # a slack loop does not bend
         mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_B])
         mat, z_bend = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
-                                    eff_in[i, E_RN0], de, rate[i % rate.shape[0]])
+                                    eff_in[i, E_RN0], de, rate_i)
 
     # events of this increment (kind, C, from-label, to-label), committed at the end
     n_ev = int(0)
@@ -1416,6 +1419,101 @@ def step_kernel(
                 ev_C[j] = e_C[k]
                 ev_from[j] = e_from[k]
                 ev_to[j] = e_to[k]
+
+
+@wp.kernel
+def step_kernel(
+    # model
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+    djam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    criterion: wp.array(dtype=wp.int32),
+    eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
+    max_halvings: int, closure: int,
+    # state in
+    x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
+    stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
+    fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
+    status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
+    eff_in: wp.array2d(dtype=wp.float64),
+    # control
+    strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
+    increment: int,
+    # state out
+    x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
+    stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
+    fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
+    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
+    eff_out: wp.array2d(dtype=wp.float64),
+    # events (append buffer; ev_count[0] counts every event, stored or not)
+    ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
+    ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
+    ev_to: wp.array(dtype=wp.int32),
+):
+    """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
+    i = wp.tid()
+    advance_cell(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask, eff_params, max_halvings, closure,
+                 x_in, q_in, C_in, stage_in, jammed_in, soft_in, fsoft_in, fsbc_in, status_in, direction_in, gap_in, eff_in,
+                 strain[i % strain.shape[0]], int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]],
+                 increment,
+                 x_out, q_out, C_out, stage_out, jammed_out, soft_out, fsoft_out, fsbc_out, status_out, direction_out, gap_out, eff_out,
+                 ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+
+
+@wp.kernel
+def program_kernel(
+    # model
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+    djam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    criterion: wp.array(dtype=wp.int32),
+    eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
+    max_halvings: int, closure: int,
+    # state, advanced in place
+    x: wp.array2d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), C: wp.array(dtype=wp.float64),
+    stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32), soft: wp.array(dtype=wp.int32),
+    fsoft: wp.array(dtype=wp.float64), fsbc: wp.array(dtype=wp.float64),
+    status: wp.array(dtype=wp.int32), direction: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64),
+    eff: wp.array2d(dtype=wp.float64),
+    # the load program: strain, direction and rate of every increment, and the increments to run
+    prog_strain: wp.array(dtype=wp.float64), prog_direction: wp.array(dtype=wp.int32),
+    prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int,
+    # events
+    ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
+    ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
+    ev_to: wp.array(dtype=wp.int32),
+    # history rows (record_kernel's layout; hist_eff of shape [0, ...] records no effect state)
+    codes: wp.array(dtype=wp.int32), hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
+    hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
+    hist_gap: wp.array2d(dtype=wp.float64), hist_eff: wp.array3d(dtype=wp.float64),
+):
+    """Advance each cell through increments ``k_start .. k_stop - 1`` of a load program in one launch,
+    recording every row: the same arithmetic as one :func:`step_kernel` per increment, without a
+    launch (nor a host round trip) per increment."""
+    i = wp.tid()
+    for k in range(k_start, k_stop):
+        advance_cell(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask, eff_params, max_halvings, closure,
+                     x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
+                     prog_strain[k], int(prog_direction[k]), prog_rate[k % prog_rate.shape[0]], k,
+                     x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
+                     ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+        st = stage[i]
+        for j in range(codes.shape[0]):
+            c = codes[j]
+            v = q[i, c]
+            if c == Q_F and st == SLACK:
+                v = wp.float64(0.0)
+            hist_q[j, k, i] = v
+        hist_stage[k, i] = st
+        hist_jammed[k, i] = jammed[i]
+        hist_status[k, i] = status[i]
+        hist_gap[k, i] = gap[i]
+        for j in range(hist_eff.shape[0]):
+            hist_eff[j, k, i] = eff[i, j]
 
 
 @wp.kernel

@@ -379,28 +379,29 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     dev = model.device
     n, nc = len(program), model.cell_count
     solver = CellSolver(model, max_halvings, stick_closure=stick_closure)
-    s0, s1 = model.state(), CellBatchState.empty(nc, dev)
-    control = model.control()
+    s0 = model.state()
     codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
     hq = wp.zeros((len(HISTORY_QUANTITIES), n, nc), dtype=wp.float64, device=dev)
     hs, hj, hst = (wp.zeros((n, nc), dtype=wp.int32, device=dev) for _ in range(3))
     hg = wp.zeros((n, nc), dtype=wp.float64, device=dev)
     k = _k()
     with_effects = any(p.effects.on for p in model.params)
-    if with_effects:
-        he = wp.zeros((len(EFFECT_STATE), n, nc), dtype=wp.float64, device=dev)
-        all_cols = wp.array(np.arange(len(EFFECT_STATE), dtype=np.int32), dtype=wp.int32, device=dev)
+    he = wp.zeros((len(EFFECT_STATE) if with_effects else 0, n, nc), dtype=wp.float64, device=dev)
     rate = program.rate
-    for i in range(n):
-        control.set(float(program.strain[i]), int(program.direction[i]), 0.0 if rate is None else float(rate[i]))
-        solver.step(s0, s1, control, i)
-        s0, s1 = s1, s0
-        wp.launch(k.record_kernel, dim=nc, inputs=[s0.q, s0.stage, s0.jammed, s0.status, s0.head_gap, codes, i],
-                  outputs=[hq, hs, hj, hst, hg], device=dev)
-        if with_effects:
-            wp.launch(k.record_columns_kernel, dim=nc, inputs=[s0.eff, all_cols, i], outputs=[he], device=dev)
+    prog = [wp.array(np.asarray(program.strain, np.float64), dtype=wp.float64, device=dev),
+            wp.array(np.asarray(program.direction, np.int32), dtype=wp.int32, device=dev),
+            wp.array(np.zeros(1) if rate is None else np.asarray(rate, np.float64), dtype=wp.float64, device=dev)]
+    # the whole program in one launch (chunks only to report progress): the increments loop on the device
+    chunk = n if progress is None else max(1, min(n, 25))
+    for k0 in range(0, n, chunk):
+        k1 = min(n, k0 + chunk)
+        wp.launch(k.program_kernel, dim=nc,
+                  inputs=model._arrays() + model._effect_arrays()
+                  + [solver.max_halvings, int(solver.stick_closure == "release_beta")]
+                  + s0._arrays() + [s0.eff] + prog + [k0, k1] + [solver._ev_count] + solver._ev
+                  + [codes, hq, hs, hj, hst, hg, he], device=dev)
         if progress is not None:
-            progress(i, n)
+            progress(k1 - 1, n)
     hqn = hq.numpy()
     values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
     values.update(head_gap_values(hg.numpy(), [p.d_jam for p in model.params]))

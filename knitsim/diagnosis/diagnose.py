@@ -25,8 +25,10 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
 4. **Localise** (:func:`localise_step`): the rows keyed by the stage the
    calibrated baseline simulates there; the gap split by key.
 5. **Adequacy** (:func:`adequacy_step`): chi^2 of the baseline against its
-   expected spread, ``dof +- sqrt(2 dof)``; the baseline is *within noise*
-   when chi^2 <= dof + 3.09 sqrt(2 dof) (one-sided 99.9 %).
+   expected spread for noise alone: ``dof +- s``, ``s^2 = 2 dof + sum_c 4 n_c^2 v_c``
+   (the chi^2 spread, plus that of each curve's estimated sd: n_c rows,
+   relative variance v_c of the estimate, :mod:`knitsim.diagnosis.noise`); the
+   baseline is *within noise* when chi^2 <= dof + 3.09 s (one-sided 99.9 %).
 6. **Score** (:func:`score_step`): per candidate the drop in
    ``BIC = chi^2 + k ln n`` (Schwarz 1978), its *share* of the baseline's
    excess over noise ``(chi^2_base - chi^2_effect) / (chi^2_base - dof)``, and
@@ -188,7 +190,7 @@ class Adequacy:
     chi2: float
     dof: int
     chi2_per_dof: float
-    expected_sd: float          # sd of chi2 / dof for pure noise, sqrt(2 / dof)
+    expected_sd: float          # sd of chi2 / dof for noise alone (module docstring, step 5)
     within_noise: bool | None   # None: no curve's noise is known (all assumed)
     excess: float               # chi2 - dof
     note: str = ""
@@ -325,6 +327,8 @@ PAIR_PARTNERS = 3
 
 #: evaluations each start of a multi-start calibration gets before the best one goes on alone
 RACE_NFEV = 6
+#: the baseline's calibration gets this many times ``max_nfev`` (every candidate is measured against it)
+BASELINE_NFEV_FACTOR = 3
 
 
 def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None) -> dict:
@@ -370,6 +374,8 @@ GRID_M = (0.05, 0.08, 0.12, 0.18, 0.27, 0.4)
 GRID_PHI0 = (-0.9, -0.45, 0.0, 0.45, 0.9)
 #: grid points kept as starts of the baseline's calibration
 GRID_STARTS = 3
+#: phi0 (fraction of phimax) restarts of the baseline from its fitted geometry
+PHI0_RESTARTS = (-0.6, 0.0, 0.6)
 
 
 def _grid_starts(data: _Data) -> tuple:
@@ -457,7 +463,17 @@ def _outliers(data: _Data, fit: dict) -> list[Outlier]:
 def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
     """Step 2: the baseline from the scene's start and the grid's best points; isolated outliers
     left out (their weights set to 0) and the fit repeated from where it was."""
-    fit = _fit(data, (), extra_starts=_grid_starts(data))
+    # everything is measured against the baseline: it gets BASELINE_NFEV_FACTOR times the evaluations
+    nfev = BASELINE_NFEV_FACTOR * data.setup.max_nfev
+    fit = _fit(data, (), extra_starts=_grid_starts(data), nfev=nfev)
+    # the grid starts from the scene's geometry; from the fitted geometry, the friction's other basins
+    # (phi0's least squares has local minima: the initial stick ends where phi reaches +-phimax)
+    if "phi0" in data.setup.free:
+        x = fit["fit_variables"]
+        alt = tuple({"phi0": f} for f in PHI0_RESTARTS if abs(f - x["phi0"]) > 0.25)
+        again = _fit(data, (), x0=x, extra_starts=alt, nfev=nfev)
+        if again["chi2"] < fit["chi2"]:
+            fit = again
     say(f"baseline: rms {fit['rms_N']:.4g} N, chi2 {fit['chi2']:.5g}")
     outliers = _outliers(data, fit)
     if outliers:
@@ -466,7 +482,7 @@ def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
             rows = data.curves[c].rows
             idx = int(np.nonzero(rows == o.row)[0][0]) if rows is not None else o.row - 2
             data.weights[c][idx] = 0.0
-        fit = _fit(data, (), x0=fit["fit_variables"])
+        fit = _fit(data, (), x0=fit["fit_variables"], nfev=nfev)
         say(f"{len(outliers)} outlier row(s) left out; baseline: rms {fit['rms_N']:.4g} N, chi2 {fit['chi2']:.5g}")
     return fit, outliers
 
@@ -534,17 +550,20 @@ def adequacy_step(data: _Data, base_fit: dict, noise: NoiseModel) -> Adequacy:
         dof = max(base_fit["n"] - k, 1)
         return Adequacy(chi2, dof, chi2 / dof, math.sqrt(2.0 / dof), None, chi2 - dof,
                         "no curve's noise is known (all assumed): the baseline's adequacy cannot be judged")
-    chi2, n = 0.0, 0
+    chi2, n, var_sd = 0.0, 0, 0.0
     for i in known:
         c, w, fc = data.curves[i], data.weights[i], base_fit["curves"][i]
         z = (np.asarray(fc["simulated"]) - c.force) * w
         chi2 += float(z @ z)
-        n += int(np.count_nonzero(w))
+        nc = int(np.count_nonzero(w))
+        n += nc
+        var_sd += 4.0 * nc * nc * noise.curves[i].rel_var     # chi2_c scales as (sd / sd_hat)^2
     dof = max(n - k, 1)
-    within = chi2 <= dof + WITHIN_NOISE_Z * math.sqrt(2.0 * dof)
+    spread = math.sqrt(2.0 * dof + var_sd)
+    within = chi2 <= dof + WITHIN_NOISE_Z * spread
     note = "" if len(known) == len(noise.curves) else (
         "judged on the curves whose noise is known: " + ", ".join(noise.curves[i].source for i in known))
-    return Adequacy(chi2, dof, chi2 / dof, math.sqrt(2.0 / dof), bool(within), chi2 - dof, note)
+    return Adequacy(chi2, dof, chi2 / dof, spread / dof, bool(within), chi2 - dof, note)
 
 
 def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarray, base: dict, n: int) -> dict:

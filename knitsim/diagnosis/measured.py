@@ -123,11 +123,13 @@ def strain_tolerance(strain) -> float:
 
 
 def _force_scale(force) -> float:
-    """A rough noise scale of a force column from its first differences (robust; before branches exist)."""
+    """A rough noise sd of a force column from its second differences, before branches exist
+    (f[i-1] - 2 f[i] + f[i+1] cancels a straight trend and has variance 6 sigma^2 for white noise;
+    the median keeps the few rows at turning points out)."""
     f = np.asarray(force, float)
     if len(f) < 3:
         return 0.0
-    return float(1.4826 * np.median(np.abs(np.diff(f))) / np.sqrt(2.0))
+    return float(1.4826 * np.median(np.abs(np.diff(f, 2))) / np.sqrt(6.0))
 
 
 def infer_branches(strain, force=None, tol: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -137,7 +139,7 @@ def infer_branches(strain, force=None, tol: float | None = None) -> tuple[np.nda
     strain moves its way or back by at most ``tol`` (jitter: default
     :func:`strain_tolerance`); a move back by more starts the opposite branch,
     provided the force (when given) follows: it does not move against the
-    strain by more than three times its first-difference noise scale.  Each
+    strain by more than three times its noise scale (from second differences).  Each
     change from unloading to loading starts a new cycle, as in
     :func:`~knitsim.cell.load_program.piecewise_linear`.
 

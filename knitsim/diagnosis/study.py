@@ -56,27 +56,43 @@ ERROR = "error"
 STUDY_RATES = (0.1, 10.0)
 
 
+#: effects a lab specimen may hide: all but velocity_friction (both tests run at one rate, as a lab's do)
+LAB_EFFECTS = tuple(e for e in EFFECT_NAMES if e != "velocity_friction")
+#: kinds of specimen: "lab" (two tests, lab-like files: synthetic.make_specimen) or "single" (one test)
+SPECIMENS = ("lab", "single")
+
+
 def draw_plan(n_cases: int, seed: int, effects: Sequence[str] = EFFECT_NAMES,
-              include_none_fraction: float = 0.25) -> list[dict]:
+              include_none_fraction: float = 0.25, specimen: str = "single") -> list[dict]:
     """The cases of a study: index, case seed, material, test, hidden effect (None) and strength.
 
-    Effect-free cases are drawn with probability ``include_none_fraction``;
-    the effect of the others cycles through ``effects`` in an order shuffled per
+    ``single``: effect-free cases are drawn with probability ``include_none_fraction``.
+    ``lab``: every other case is effect-free (the study reports both rates on equal numbers).
+    The effect of the others cycles through ``effects`` in an order shuffled per
     round, so that every effect is about equally represented.
     """
     _check_plan_args(n_cases, seed, effects, include_none_fraction)
+    if specimen not in SPECIMENS:
+        raise KnitsimInputError(f"specimen = {specimen!r}: expected one of {', '.join(SPECIMENS)}")
     rng = np.random.default_rng(int(seed))
     effects = list(effects)
     plan, queue = [], []
     for i in range(int(n_cases)):
-        none = bool(rng.random() < include_none_fraction) if effects else True
+        if specimen == "lab":
+            none = (i % 2 == 0) or not effects
+            rng.random()  # keep one draw per case, as the single plan
+        else:
+            none = bool(rng.random() < include_none_fraction) if effects else True
         if not none and not queue:
             queue = [effects[j] for j in rng.permutation(len(effects))]
         effect = None if none else queue.pop()
-        plan.append({"index": i, "seed": int(rng.integers(0, 2**31 - 1)),
-                     "material": synthetic.MATERIALS[int(rng.integers(len(synthetic.MATERIALS)))],
-                     "test": synthetic.TESTS[int(rng.integers(len(synthetic.TESTS)))],
-                     "effect": effect, "strength": float(rng.uniform(0.0, 1.0))})
+        entry = {"index": i, "seed": int(rng.integers(0, 2**31 - 1)),
+                 "material": synthetic.MATERIALS[int(rng.integers(len(synthetic.MATERIALS)))],
+                 "test": synthetic.TESTS[int(rng.integers(len(synthetic.TESTS)))],
+                 "effect": effect, "strength": float(rng.uniform(0.0, 1.0))}
+        if specimen == "lab":
+            entry["test"] = synthetic.LAB
+        plan.append(entry)
     return plan
 
 
@@ -94,14 +110,28 @@ def _check_plan_args(n_cases, seed, effects, include_none_fraction) -> None:
         raise KnitsimInputError(f"include_none_fraction = {include_none_fraction!r}: expected a number in [0, 1]")
 
 
+UNEXPLAINED = "unexplained"
+
+
 def verdict_class(verdict: dict | None) -> str:
     """Column of the confusion matrix for a verdict (module docstring)."""
     if verdict is None:
         return ERROR
     eff = verdict.get("effect")
     if eff is None:
-        return NONE
+        return UNEXPLAINED if verdict.get("kind") == UNEXPLAINED else NONE
     return str(eff) if verdict.get("confident") else UNDECIDED
+
+
+def wilson_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float] | None:
+    """95 % Wilson score interval of a rate k / n (Wilson 1927); None for n = 0."""
+    if n <= 0:
+        return None
+    p = k / n
+    den = 1.0 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(0.0, mid - half), min(1.0, mid + half))
 
 
 def _ratio(num: int, den: int) -> float | None:
@@ -134,7 +164,7 @@ def study_metrics(records: Sequence[dict]) -> dict:
     rows, cols = [], []
     confusion: dict[str, dict[str, int]] = {}
     per_effect: dict[str, dict] = {}
-    top1_n = top1_ok = none_n = alarms = alarms_any = 0
+    top1_n = top1_ok = none_n = alarms = alarms_any = unexplained_none = dahl_wrong = 0
     all_n = all_ok = named_n = 0
     stage_n = stage_ok = 0
     shrinks = []
@@ -150,9 +180,13 @@ def study_metrics(records: Sequence[dict]) -> dict:
             cols.append(pred)
         if true == NONE:
             none_n += 1
-            alarms += pred not in (NONE, UNDECIDED, ERROR)
-            alarms_any += pred not in (NONE, ERROR)
+            alarms += pred not in (NONE, UNDECIDED, ERROR, UNEXPLAINED)
+            alarms_any += pred not in (NONE, ERROR, UNEXPLAINED)
+            unexplained_none += pred == UNEXPLAINED
             continue
+        if true == "dahl_transition":
+            # misattributed: another effect named (confidently or not)
+            dahl_wrong += bool(ver) and ver.get("effect") not in (None, true)
         pe = per_effect.setdefault(true, {"n": 0, "identifiable": 0, "correct": 0, "correct_identifiable": 0,
                                           "named_none": 0})
         pe["n"] += 1
@@ -187,7 +221,11 @@ def study_metrics(records: Sequence[dict]) -> dict:
         "top1_named_undecided": named_n,
         "accuracy_all_effects": _ratio(all_ok, all_n), "effect_n": all_n,
         "false_alarm_rate": _ratio(alarms, none_n), "false_alarm_rate_incl_undecided": _ratio(alarms_any, none_n),
+        "false_alarm_wilson95": wilson_interval(alarms, none_n),
+        "false_alarm_incl_undecided_wilson95": wilson_interval(alarms_any, none_n),
+        "unexplained_on_effect_free": unexplained_none,
         "none_n": none_n, "false_alarms": alarms,
+        "dahl_misattributed": dahl_wrong,
         "stage_accuracy": _ratio(stage_ok, stage_n), "stage_n": stage_n,
         "mean_shrink": float(np.mean(shrinks)) if shrinks else None,
         "per_effect": per_effect,
@@ -206,7 +244,11 @@ def summary_markdown(summary: dict) -> str:
         missing = summary.get("cases_missing", [])
         lines += [f"**Partial: {m['n_cases']} of {summary.get('cases_planned', '?')} planned cases finished** "
                   f"(not yet: {', '.join(str(i) for i in missing)}); run the study again to finish it.", ""]
+    def ci(x):
+        return "" if not x else f" (95 % Wilson {100 * x[0]:.1f} .. {100 * x[1]:.1f} %)"
+
     lines += [
+             f"- specimens: {summary['config'].get('specimen', 'single')}",
              f"- noise: {summary['config']['noise_rel']:.4g} x peak force ({summary['config']['noise_how']})",
              f"- specimen scatter of L, W0, C0, d: {summary['config']['scatter_rel']:.4g}; "
              f"test rates {summary['config']['rates']} mm/s", "",
@@ -216,8 +258,13 @@ def summary_markdown(summary: dict) -> str:
              f"| {m['top1_n']} cases |",
              f"| accuracy over all effect cases (identifiable or not) | {pct(m.get('accuracy_all_effects'))} "
              f"| {m.get('effect_n', 0)} cases |",
-             f"| false alarms (effect-free, confident) | {pct(m['false_alarm_rate'])} | {m['none_n']} cases |",
-             f"| false alarms incl. undecided | {pct(m['false_alarm_rate_incl_undecided'])} | {m['none_n']} cases |",
+             f"| false alarms (effect-free, confident) | {pct(m['false_alarm_rate'])}{ci(m.get('false_alarm_wilson95'))} "
+             f"| {m['none_n']} cases |",
+             f"| false alarms incl. undecided | {pct(m['false_alarm_rate_incl_undecided'])}"
+             f"{ci(m.get('false_alarm_incl_undecided_wilson95'))} | {m['none_n']} cases |",
+             f"| effect-free specimens called unexplained | {m.get('unexplained_on_effect_free', 0)} | {m['none_n']} cases |",
+             f"| Dahl cases with another effect named | {m.get('dahl_misattributed', 0)} "
+             f"| {m['per_effect'].get('dahl_transition', {}).get('n', 0)} cases |",
              f"| stage localisation (correct verdicts) | {pct(m['stage_accuracy'])} | {m['stage_n']} cases |",
              "| mean shrink (correct verdicts) | "
              + ("n/a" if m["mean_shrink"] is None else f"{m['mean_shrink']:.3f}") + f" | {m['stage_n']} cases |",
@@ -250,7 +297,8 @@ def _case_record(spec: dict, config: dict, case, result: dict | None, error: str
         rec.update({"verdict": None, "error": error})
         return rec
     rec["verdict"] = result.get("verdict")
-    rec["candidates"] = [{k: c.get(k) for k in ("effect", "shrink", "score", "significant", "identifiable", "note")}
+    rec["candidates"] = [{k: c.get(k) for k in ("effect", "shrink", "score", "significant", "practical",
+                                                "share_of_excess", "probability", "identifiable", "note")}
                          for c in result.get("candidates", [])]
     rec["indistinguishable"] = result.get("indistinguishable")
     rec["where"] = result.get("where")
@@ -266,10 +314,15 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
     tc = time.perf_counter()
     case, result, error = None, None, None
     try:
-        case = synthetic.make_case(spec["seed"], spec["material"], spec["test"], spec["effect"],
-                                   spec["strength"], noise_rel=args["noise_rel"], scatter_rel=args["scatter_rel"],
-                                   rates=args["rates"], device=args["device"], oracle_free=args["free"],
-                                   oracle_increment=args["max_increment"])
+        if spec["test"] == synthetic.LAB:
+            case = synthetic.make_specimen(spec["seed"], spec["material"], spec["effect"], spec["strength"],
+                                           scatter_rel=args["scatter_rel"], device=args["device"],
+                                           oracle_free=args["free"], oracle_increment=args["max_increment"])
+        else:
+            case = synthetic.make_case(spec["seed"], spec["material"], spec["test"], spec["effect"],
+                                       spec["strength"], noise_rel=args["noise_rel"], scatter_rel=args["scatter_rel"],
+                                       rates=args["rates"], device=args["device"], oracle_free=args["free"],
+                                       oracle_increment=args["max_increment"])
     except RuntimeError as exc:  # the generator found no specimen that runs with this effect
         error = f"generator: {exc}"
     if case is not None:
@@ -278,7 +331,7 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
                                noise_N=None, device=args["device"])
         try:
             # the diagnosis sees the curves only, never case.label
-            result = diagnose(list(case.curves), setup)
+            result = diagnose(list(case.curves), setup).as_dict()
         except (RuntimeError, ValueError, FloatingPointError, KnitsimInputError) as exc:
             error = f"diagnosis: {type(exc).__name__}: {exc}"
     rec = _case_record(spec, key_config, case, result, error, time.perf_counter() - tc)
@@ -286,18 +339,24 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
     return json.loads(_json_bytes(rec))
 
 
-def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_NAMES,
-              include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float = 0.01,
+def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = None,
+              include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float | None = None,
               device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
               candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1,
-              summary_only: bool = False) -> dict:
+              summary_only: bool = False, specimen: str = "lab") -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
     ----------
     n_cases, seed : int
         Number of cases and the seed of the plan (:func:`draw_plan`).
+    specimen : {"lab", "single"}
+        ``lab`` (default): every specimen has two tests with their own noise and the flaws of real
+        files (:func:`knitsim.diagnosis.synthetic.make_specimen`), every other specimen is
+        effect-free, hidden effects default to :data:`LAB_EFFECTS`, scatter to 0.5 %, and
+        ``noise_rel`` / ``rates`` are those of the lab model.  ``single``: one test per case
+        (:func:`~knitsim.diagnosis.synthetic.make_case`).
     out_dir : path-like
         Output folder: ``cases/case_NNNN.json``, ``summary.json``, ``summary.md``.
     effects : sequence of str
@@ -343,6 +402,11 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
         same call resumes.
     """
     free = DEFAULT_STUDY_FREE if free is None else tuple(free)
+    lab = specimen == "lab"
+    if effects is None:
+        effects = LAB_EFFECTS if lab else EFFECT_NAMES
+    if scatter_rel is None:
+        scatter_rel = synthetic.LAB_SCATTER_REL if lab else 0.01
     if not (isinstance(jobs, (int, np.integer)) and not isinstance(jobs, bool) and jobs >= 1):
         raise KnitsimInputError(f"jobs = {jobs!r}: expected a whole number >= 1")
     _check_plan_args(n_cases, seed, effects, include_none_fraction)
@@ -355,8 +419,14 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] = EFFECT_
     out = Path(out_dir)
     cases_dir = out / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
-    plan = draw_plan(n_cases, seed, effects, include_none_fraction)
-    config = {"seed": int(seed), "noise_rel": float(noise_rel), "noise_how": how, "scatter_rel": float(scatter_rel),
+    plan = draw_plan(n_cases, seed, effects, include_none_fraction, specimen)
+    if lab:
+        how = (f"lab: each test {synthetic.LAB_NOISE_REL:g} x its peak + {synthetic.LAB_NOISE_ABS:g} N, offsets "
+               f"+-{synthetic.LAB_OFFSET_N:g} N, strain jitter {synthetic.LAB_STRAIN_JITTER:g}, an outlier with "
+               f"probability {synthetic.LAB_OUTLIER_PROB:g}")
+        noise_rel, rates = synthetic.LAB_NOISE_REL, (synthetic.PAPER_RATE_MM_S,)
+    config = {"seed": int(seed), "specimen": specimen, "noise_rel": float(noise_rel), "noise_how": how,
+              "scatter_rel": float(scatter_rel),
               "rates": [float(r) for r in rates], "max_increment": float(max_increment),
               "generator_max_increment": 0.0025, "candidate_effects": list(candidate_effects),
               "include_none_fraction": float(include_none_fraction), "hidden_effects": list(effects),

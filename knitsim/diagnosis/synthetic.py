@@ -59,6 +59,8 @@ from .measured import MeasuredCurve, curve_from_arrays, force_at_rows, program_f
 
 MATERIALS = ("e_glass", "basalt")
 TESTS = ("cyclic", "monotonic")
+#: a lab specimen: two tests of one specimen (a monotonic pull to PULL_FORCE_N and the paper's cycles)
+LAB = "lab"
 
 #: test (crosshead) rate of the paper's tensile tests, 50 mm/min (section 2.3) [mm/s]
 PAPER_RATE_MM_S = 50.0 / 60.0
@@ -486,3 +488,154 @@ def effect_range_check(material: str = "e_glass", test: str = "cyclic", strength
                     "peak_N": float(max(np.max(c) for c in case.clean)), "true_stage": case.label["true_stage"],
                     "parameter": case.label["parameter"], "value": case.label["value"]}
     return out
+
+
+# ============================================================================ lab specimens (issue 12)
+#: the monotonic pull of a lab specimen stops at this force per wale [N]
+PULL_FORCE_N = 5.0
+#: strain between the rows of the pull and of the cycles (about 1,200 rows for the two tests)
+LAB_ROW_STEP = {"pull": 0.0025, "cycles": 0.0035}
+#: noise of a test: LAB_NOISE_REL x its peak force + LAB_NOISE_ABS [N] (a load cell's range and resolution)
+LAB_NOISE_REL = 0.01
+LAB_NOISE_ABS = 0.002
+#: load-cell zero: an offset drawn uniformly in +-LAB_OFFSET_N per test
+LAB_OFFSET_N = 0.002
+#: extensometer jitter: sd of the strain read [-] (well below the reader's tolerance, 1e-3 of the range)
+LAB_STRAIN_JITTER = 2.0e-6
+#: probability that a test has one outlier row, off by 8 to 15 of its noise sd
+LAB_OUTLIER_PROB = 0.3
+#: share of rows logged twice, the second read stepping back by 1e-16 or 1e-6 (module make_specimen)
+LAB_DUPLICATE_PROB = 0.02
+#: specimen-to-specimen scatter of L, W0, C0, d
+LAB_SCATTER_REL = 0.005
+
+
+def _lab_strains(kind: str, top: float = 0.6) -> np.ndarray:
+    h = LAB_ROW_STEP[kind]
+    corners = [0.0, top] if kind == "pull" else [0.0, 0.6, 0.1, 0.6, 0.1, 0.6, 0.1]
+    out = []
+    for a, b in zip(corners[:-1], corners[1:]):
+        n = int(round(abs(b - a) / h))
+        out.extend((a + (b - a) * np.arange(1, n + 1) / n).tolist())
+    return np.asarray(out)
+
+
+def pull_end_strain(params: CellParams, force_N: float = PULL_FORCE_N, max_increment: float = 0.0025,
+                    device: str = "cpu") -> float:
+    """Strain at which a monotonic pull of ``params`` reaches ``force_N`` per wale (located by the
+    force-cap event of the cell, :mod:`knitsim.cell.stages`)."""
+    from ..cell.load_program import monotonic
+    limit = params.L / (2.0 * params.C0) - 1.0
+    h = run_batch([params.replace(force_cap_N=force_N)], monotonic(0.98 * limit, max_increment), device=device)
+    caps = [e for e in h.events if e.get("kind") == "force_cap"]
+    if not caps:
+        raise RuntimeError(f"the pull does not reach {force_N} N before the yarn is straight")
+    return float(caps[0]["C"] / params.C0 - 1.0)
+
+
+def make_specimen(seed: int, material: str = "e_glass", effect: str | None = None, strength: float = 0.5,
+                  noise_rel: float = LAB_NOISE_REL, noise_abs: float = LAB_NOISE_ABS,
+                  scatter_rel: float = LAB_SCATTER_REL, rate: float = PAPER_RATE_MM_S,
+                  max_increment: float = 0.0025, device: str = "cpu", oracle_free: tuple | None = None,
+                  oracle_increment: float = 0.01) -> SyntheticCase:
+    """A specimen as a laboratory tests it: two tests with their own noise, the way real files look.
+
+    Tests: a monotonic pull to :data:`PULL_FORCE_N` per wale (rows every 0.0025 strain) and the
+    paper's three cycles 0.10-0.60 (rows every 0.0035), at the paper's rate.  Each test's force
+    noise is Gaussian, ``noise_rel`` x its peak + ``noise_abs`` (so the pull is about ten times
+    noisier than the cycles, as a load cell sized for 5 N reads 0.2 N); forces are not clipped (a
+    load cell reads around zero); each test has a load-cell offset (uniform within
+    +-:data:`LAB_OFFSET_N`), strain jitter (:data:`LAB_STRAIN_JITTER`) and, with probability
+    :data:`LAB_OUTLIER_PROB`, one outlier row; :data:`LAB_DUPLICATE_PROB` of the rows are logged
+    twice, the second read stepping back by 1e-16 or 1e-6 (so the measured curves hold a few more
+    rows than ``clean``, which stays on the planned rows).  The specimen scatters by ``scatter_rel``
+    in L, W0, C0, d (:func:`draw_specimen`).  Hidden effect and identifiability as :func:`make_case`.
+    """
+    if effect is not None and effect not in EFFECT_NAMES:
+        raise KnitsimInputError(f"effect = {effect!r}: expected None or one of {', '.join(EFFECT_NAMES)}")
+    rng = np.random.default_rng(int(seed))
+    rates = (float(rate),)
+    for redraws in range(MAX_REDRAWS):
+        true0 = draw_specimen(rng, material, float(scatter_rel))
+        true, pname, pval = apply_effect(true0, effect, float(strength), material, rates, 0.1)
+        if effect == "normal_load_friction":
+            prog, _ = program_for_curve(curve_from_arrays(_lab_strains("cycles"), np.zeros(len(_lab_strains("cycles")))),
+                                        max_increment)
+            rn = np.abs(run_batch([true0], prog, device=device).values["Rn"][:, 0])
+            ref = float(max(np.median(rn[rn > 0]) if np.any(rn > 0) else 0.1, 1e-3))
+            true, pname, pval = apply_effect(true0, effect, float(strength), material, rates, ref)
+        try:
+            top = pull_end_strain(true, device=device)
+        except RuntimeError:
+            continue
+        strains = {"pull": _lab_strains("pull", top), "cycles": _lab_strains("cycles")}
+        shells = [curve_from_arrays(s, np.zeros(len(s)), rate_mm_s=np.full(len(s), rate), source=f"specimen_{k}.csv")
+                  for k, s in strains.items()]
+        sims = simulate_rows([true0, true] if effect is not None else [true0], shells, max_increment, device)
+        # the specimen's own curves must run through; its effect-free twin (only the measure of the effect's
+        # size) may stop at its force cap on a pull that the effect made longer
+        if all(ok for (_, _, ok) in sims[-1]):
+            break
+    else:
+        raise RuntimeError(f"lab specimen seed {seed}: no specimen of {material} runs (effect {effect}, "
+                           f"strength {strength}) in {MAX_REDRAWS} draws")
+    curves, clean, baseline, noise_sd, outliers = [], [], [], [], []
+    for c, (fb, lab, _), (fe, _, _) in zip(shells, sims[0], sims[-1]):
+        sd = float(noise_rel) * float(np.max(fe)) + float(noise_abs)
+        force = fe + sd * rng.standard_normal(len(fe)) + float(rng.uniform(-LAB_OFFSET_N, LAB_OFFSET_N))
+        if rng.random() < LAB_OUTLIER_PROB:
+            i = int(rng.integers(5, len(fe) - 5))
+            force[i] += float(rng.choice([-1.0, 1.0])) * float(rng.uniform(8.0, 15.0)) * sd
+            outliers.append({"curve": c.source, "index": i})
+        strain = c.strain + LAB_STRAIN_JITTER * rng.standard_normal(len(fe))
+        # a logger sampling faster than the extensometer moves: some rows logged twice, the second read a
+        # hair behind the first (a step back of 1e-16 .. 1e-6 inside a branch), with its own force noise
+        dup = np.nonzero(rng.random(len(fe)) < LAB_DUPLICATE_PROB)[0]
+        back = np.where(rng.random(len(dup)) < 0.5, 1e-16, 1e-6) * (1.0 + rng.random(len(dup)))
+        strain = np.insert(strain, dup + 1, strain[dup] - back)
+        force = np.insert(force, dup + 1, fe[dup] + sd * rng.standard_normal(len(dup)))
+        # what a laboratory hands over: strain and force, no cycle or direction column
+        curves.append(curve_from_arrays(strain, force, rate_mm_s=np.full(len(strain), rate), source=c.source))
+        clean.append(fe)
+        baseline.append(fb)
+        noise_sd.append(sd)
+    sse: dict[str, float] = {}
+    diffs = []
+    for c, (fb, lab, _), fe in zip(shells, sims[0], clean):
+        e = fe - fb
+        diffs.append(e)
+        for k, ek in zip(stage_keys(lab, c.direction, c.cycle), e):
+            sse[k] = sse.get(k, 0.0) + float(ek * ek)
+    alld = np.concatenate(diffs)
+    oracle = None
+    if effect is None:
+        identifiable, reason, stage = False, "no effect", None
+    else:
+        stage = max(sse, key=sse.get) if any(v > 0 for v in sse.values()) else None
+        if effect == "velocity_friction":
+            identifiable, reason = False, "one test rate: a rate factor on m is absorbed by the calibrated m"
+        elif oracle_free is not None:
+            clean_curves = [curve_from_arrays(c.strain, fe, c.cycle, c.direction, c.rate_mm_s, source=c.source)
+                            for c, fe in zip(shells, clean)]
+            oracle = oracle_evidence(clean_curves, noise_sd, material, true0, effect, tuple(oracle_free),
+                                     oracle_increment, device)
+            identifiable = oracle["identifiable"]
+            reason = (f"oracle refit of the baseline leaves lambda = {oracle['lambda']:.4g}: expected score "
+                      f"{oracle['expected_score']:.4g} +- {oracle['score_sd']:.3g} "
+                      + ("clears" if identifiable else "does not clear")
+                      + f" {EVIDENCE_THRESHOLD:g} by {EVIDENCE_MARGIN_SD:g} sd")
+        else:
+            rms = float(math.sqrt(np.mean(alld * alld)))
+            noise_rms = float(math.sqrt(np.mean(np.square(noise_sd))))
+            identifiable = rms > 2.0 * noise_rms
+            reason = f"rms change {rms:.4g} N vs 2 x noise sd {noise_rms:.4g} N (screen: no oracle refit)"
+    label = {
+        "seed": int(seed), "material": material, "test": LAB, "rates": list(rates),
+        "effect": effect, "strength": float(strength), "parameter": pname, "value": pval,
+        "params": _plain(true.as_dict()), "true_stage": stage, "stage_sse": sse,
+        "identifiable": bool(identifiable), "reason": reason,
+        "rms_effect_N": float(math.sqrt(np.mean(alld * alld))), "max_effect_N": float(np.max(np.abs(alld))),
+        "redraws": int(redraws), "noise_sd_N": noise_sd, "scatter_rel": float(scatter_rel),
+        "pull_end_strain": float(top), "outliers": outliers, "oracle": oracle,
+    }
+    return SyntheticCase(curves, label, clean, baseline)

@@ -79,8 +79,13 @@ def _fake_study(monkeypatch, calls):
         # the diagnosis gets measured curves only
         assert all(type(c) is MeasuredCurve for c in curves)
         calls.append(len(curves))
-        return {"verdict": {"effect": None, "stage": None, "shrink": 0.0, "confident": True, "reason": "fake"},
-                "candidates": [], "indistinguishable": [], "where": [], "noise": {}, "baseline": {"rms_N": 0.0}}
+
+        class Fake:
+            def as_dict(self):
+                return {"verdict": {"effect": None, "stage": None, "shrink": 0.0, "confident": True, "reason": "fake"},
+                        "candidates": [], "indistinguishable": [], "where": [], "noise": {},
+                        "baseline": {"rms_N": 0.0}}
+        return Fake()
 
     def fake_case(seed, material, test, effect, strength, **kw):
         s = synthetic.measured_strains("monotonic")[:10]
@@ -88,8 +93,12 @@ def _fake_study(monkeypatch, calls):
         return synthetic.SyntheticCase([c], {"effect": effect, "identifiable": effect is not None,
                                              "true_stage": None, "seed": seed})
 
+    def fake_specimen(seed, material, effect, strength, **kw):
+        return fake_case(seed, material, synthetic.LAB, effect, strength)
+
     monkeypatch.setattr(diagnose_mod, "diagnose", fake_diagnose)
     monkeypatch.setattr(synthetic, "make_case", fake_case)
+    monkeypatch.setattr(synthetic, "make_specimen", fake_specimen)
 
 
 def test_interrupted_study_keeps_its_cases_and_says_it_is_partial(tmp_path, monkeypatch):
@@ -120,20 +129,20 @@ def test_resume_skips_finished_cases(tmp_path, monkeypatch):
     calls = []
     _fake_study(monkeypatch, calls)
     seen = []
-    s1 = study.run_study(4, 1, tmp_path, progress=lambda d, t, eta, r: seen.append((d, t)))
+    s1 = study.run_study(4, 1, tmp_path, progress=lambda d, t, eta, r: seen.append((d, t)), specimen="single")
     assert len(calls) == 4 and s1["cases_run"] == 4 and seen[-1] == (4, 4)
     assert len(list((tmp_path / "cases").glob("case_*.json"))) == 4
     assert (tmp_path / "summary.md").read_text().startswith("# Blind study")
-    s2 = study.run_study(4, 1, tmp_path)
+    s2 = study.run_study(4, 1, tmp_path, specimen="single")
     assert len(calls) == 4 and s2["cases_run"] == 0 and s2["cases_resumed"] == 4
     assert s2["metrics"] == s1["metrics"]
     # a study with more cases keeps the first four (same plan prefix: same seed)
-    study.run_study(6, 1, tmp_path)
+    study.run_study(6, 1, tmp_path, specimen="single")
     assert len(calls) == 6
     # a changed configuration or --no-resume reruns
-    study.run_study(6, 1, tmp_path, noise_rel=0.05)
+    study.run_study(6, 1, tmp_path, noise_rel=0.05, specimen="single")
     assert len(calls) == 12
-    study.run_study(6, 1, tmp_path, noise_rel=0.05, resume=False)
+    study.run_study(6, 1, tmp_path, noise_rel=0.05, resume=False, specimen="single")
     assert len(calls) == 18
     stored = json.loads((tmp_path / "cases" / "case_0000.json").read_text())
     assert stored["config"]["noise_rel"] == 0.05 and "verdict" in stored
@@ -180,3 +189,20 @@ def test_parallel_study_equals_serial(tmp_path):
         rb = json.loads((tmp_path / "parallel" / "cases" / f"case_{i:04d}.json").read_text())
         ra.pop("timing_s"), rb.pop("timing_s")
         assert ra == rb
+
+
+def test_lab_plan_alternates_effect_free_and_effect_specimens():
+    plan = study.draw_plan(80, 5, study.LAB_EFFECTS, specimen="lab")
+    assert sum(p["effect"] is None for p in plan) == 40
+    assert all(p["test"] == synthetic.LAB for p in plan)
+    assert "velocity_friction" not in {p["effect"] for p in plan}        # one test rate in a lab
+
+
+@pytest.mark.parametrize("k, n, lo, hi", [
+    (0, 40, 0.0, 0.0876),        # Wilson (1927) 95 % interval, z = 1.96: 0 .. z^2 / (n + z^2)
+    (2, 40, 0.0138, 0.1650),
+    (20, 40, 0.3520, 0.6480),
+])
+def test_wilson_interval(k, n, lo, hi):
+    a, b = study.wilson_interval(k, n)
+    assert a == pytest.approx(lo, abs=2e-4) and b == pytest.approx(hi, abs=2e-4)

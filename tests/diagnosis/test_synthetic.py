@@ -194,3 +194,24 @@ def test_make_case_labels_with_the_oracle_when_asked():
     assert case.label["identifiable"] == case.label["oracle"]["identifiable"]
     screen = S.make_case(5, "e_glass", "monotonic", "velocity_friction", 1.0, rates=(0.1, 10.0))
     assert screen.label["oracle"] is None and "screen" in screen.label["reason"]
+
+
+def test_lab_specimen_looks_like_a_lab():
+    """Two tests of one specimen, each with its own noise (1 % of its peak + 0.002 N: the pull to
+    5 N is about ten times noisier than the cycles), readings below zero near rest (no clipping),
+    strain jitter that the reader keeps inside its branches, and no label in the files."""
+    case = S.make_specimen(11, "e_glass", None, 0.0)
+    pull, cyc = case.curves
+    assert pull.source.endswith("pull.csv") and cyc.source.endswith("cycles.csv")
+    sd = case.label["noise_sd_N"]
+    assert sd[0] == pytest.approx(0.01 * 5.0 + 0.002, rel=0.02)      # the pull ends at the 5 N cap
+    assert sd[1] == pytest.approx(0.01 * np.max(case.clean[1]) + 0.002, rel=1e-12)
+    assert sd[0] > 8 * sd[1]
+    assert np.any(cyc.force < 0)                                        # a load cell reads around zero
+    assert cyc.cycle.max() == 3 and pull.cycle.max() == 1               # jitter is not a reversal
+    assert np.any(np.diff(cyc.strain_read[:150]) < 0)                   # rows logged twice step back ...
+    assert np.all(np.diff(cyc.strain[:150]) >= 0)                       # ... inside the loading branch
+    # each test's noise estimated from itself, near its true sd (KAPPA / m: a few % for ~300 rows)
+    for c, s_true in zip(case.curves, sd):
+        assert c.noise.method == "estimated"
+        assert c.noise.sigma_N == pytest.approx(s_true, rel=4 * np.sqrt(c.noise.rel_var) + 0.02)
