@@ -35,18 +35,22 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    its probability among the candidates and "none" (BIC weights,
    ``exp(-BIC/2)`` normalised).  An effect is *named* only when it clears both
    thresholds: evidence (score > :data:`STRONG`: Kass and Raftery 1995, very
-   strong) and size (share >= :data:`PRACTICAL_SHARE`: it removes at least half
-   of what the baseline cannot explain, more than all other causes together;
-   an effect that shrinks the gap by 0.1 % explains nothing, whatever its BIC).
+   strong) and size (*practical*: it removes at least :data:`PRACTICAL_SHARE`
+   of the baseline's excess over noise, more than all other causes together,
+   or leaves no excess beyond the noise; an effect that shrinks a large gap by
+   0.1 % explains nothing, whatever its BIC).  The adequacy test of the whole
+   fit cannot veto a named effect: a BIC test of one nested effect is far more
+   sensitive than the chi^2 of all rows, whose spread includes that of the
+   estimated noise.
 7. **Pair** (:func:`pair_step`): the best effect plus each of the
    :data:`PAIR_PARTNERS` next effects that lowered chi^2 on their own.
-8. **Verdict** (:func:`verdict_step`): ``none`` when the baseline is within
-   noise ("the model explains these curves within their noise"); ``effect``
-   when an effect clears both thresholds (not confident when another is within
-   :data:`STRONG` of it, its fit did not converge, or a curve's noise had to be
-   assumed); ``unexplained`` when the baseline is outside the noise and no
-   effect removes half of its excess: where the gap lies is reported instead of
-   the least bad effect.
+8. **Verdict** (:func:`verdict_step`): ``effect`` when an effect clears both
+   thresholds (not confident when another is within :data:`STRONG` of it, its
+   fit did not converge, or a curve's noise had to be assumed); else ``none``
+   when the baseline is within noise ("the model explains these curves within
+   their noise"); else ``unexplained``: the baseline is outside the noise and
+   no effect brings it near, and where the gap lies is reported instead of the
+   least bad effect.
 
 An effect the data cannot identify at all (``velocity_friction`` with all
 curves at one rate, where any rate factor is a change of m) is reported with
@@ -194,6 +198,11 @@ class Adequacy:
     within_noise: bool | None   # None: no curve's noise is known (all assumed)
     excess: float               # chi2 - dof
     note: str = ""
+
+    @property
+    def tolerance(self) -> float:
+        """Largest excess of chi^2 over dof still within the noise."""
+        return WITHIN_NOISE_Z * self.expected_sd * self.dof
 
 
 @dataclass
@@ -606,7 +615,9 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
         drop = base["chi2"] - cand.chi2
         cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
         cand.significant = bool(cand.score > STRONG)
-        cand.practical = bool(adequacy.excess > 0 and drop >= PRACTICAL_SHARE * adequacy.excess)
+        # it removes at least PRACTICAL_SHARE of the excess, or leaves none beyond the noise
+        cand.practical = bool(drop > 0 and (drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0)
+                                            or adequacy.excess - drop <= adequacy.tolerance))
         if cand.flagged_curves:
             cand.note = (f"some increments did not converge on {', '.join(cand.flagged_curves)} "
                          "(those rows keep the last converged force): a verdict on it is not confident")
@@ -651,10 +662,10 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
     stage = loc.where[0] if loc.where else None
     fit_txt = (f"chi2/dof = {adequacy.chi2_per_dof:.4g} (expected 1 +- {adequacy.expected_sd:.2g} for noise alone)")
     assumed = [n.source for n in noise.curves if not n.known]
-    if adequacy.within_noise:
+    named = [c for c in fitted if c.significant and c.practical]
+    if not named and adequacy.within_noise:
         return Verdict("none", None, stage, 0.0, True,
                        f"the model explains these curves within their noise: {fit_txt}", [], probs)
-    named = [c for c in fitted if c.significant and c.practical]
     if not named:
         best = fitted[0] if fitted else None
         if best is None:
@@ -668,8 +679,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
                 else "the baseline's adequacy cannot be judged (no curve's noise is known)")
         return Verdict("unexplained", None, stage, 0.0, confident,
                        f"{lead} ({fit_txt}), and no effect explains the gap: {why} (naming one needs a BIC drop "
-                       f"> {STRONG:g} and >= {PRACTICAL_SHARE:.0%} of the excess); the largest gap is in stage "
-                       f"{stage}", [], probs)
+                       f"> {STRONG:g} and >= {PRACTICAL_SHARE:.0%} of the excess, or none left beyond the noise); "
+                       f"the largest gap is in stage {stage}", [], probs)
     best = named[0]
     drops = {k: base["stages"][k]["sse_N2"] - best.stages.get(k, {}).get("sse_N2", 0.0) for k in base["stages"]}
     where = max(drops, key=drops.get) if drops else stage
@@ -680,8 +691,9 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
     elif best.flagged_curves:
         reason = "its best fit has increments that did not converge"
     else:
-        reason = (f"BIC score {best.score:.4g}, removes {best.share_of_excess:.0%} of the baseline's excess over "
-                  f"noise ({fit_txt}); probability {best.probability:.3g}")
+        share = ("" if best.share_of_excess is None else
+                 f", removes {min(best.share_of_excess, 1.0):.0%} of the baseline's excess over noise")
+        reason = f"BIC score {best.score:.4g}{share} ({fit_txt}); probability {best.probability:.3g}"
     if assumed:
         reason += f"; the noise of {', '.join(assumed)} is assumed, not measured"
     return Verdict("effect", best.effect, where, best.shrink, bool(confident), reason, rivals, probs)
@@ -758,7 +770,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n)
     sig = [c for c in candidates if c.significant and c.practical]
     indist = [[a.effect, b.effect] for i, a in enumerate(sig) for b in sig[i + 1:] if a.score - b.score < STRONG]
-    best = sig[0] if sig and not adequacy.within_noise else None
+    best = sig[0] if sig else None
     pair, pair_fit = (None, None)
     if best is not None and setup.pair:
         pair, pair_fit = pair_step(data, best, [c for c in candidates if c.score is not None], fits, base_fit, base,

@@ -105,7 +105,7 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
         (Variable("log10_dahl_sigma", (-0.5, 3.0), lambda p: 2.5, "log10(1/mm)",
                   "Dahl stiffness of tan(phi) per unit slip (Dahl 1976)"),),
         doc="Dahl friction state instead of Coulomb switching (smooth stick-slip)",
-        extra_starts=({"log10_dahl_sigma": 1.0},), nests_baseline=False),
+        extra_starts=({"log10_dahl_sigma": 1.0}, {"log10_dahl_sigma": 0.4}), nests_baseline=False),
     "coiling_angle_friction": EffectSpec(
         "coiling_angle_friction",
         (Variable("coil_mu_k", (0.01, 2.0), lambda p: _mu_for_m(p.m, _beta0(p)), "-",
@@ -117,7 +117,7 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
         (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5"),),
         doc="mu_k = b Fn^(n-1) at the crossing (eq 5)",
         # Table 3: n < 1 (0.948 E-glass, 0.909 basalt); from n = 1 the fit has to cross a valley of d and L
-        extra_starts=({"load_n": 0.8},)),
+        extra_starts=({"load_n": 0.8}, {"load_n": 0.65})),
     "velocity_friction": EffectSpec(
         "velocity_friction",
         (Variable("rate_p", (-0.4, 0.4), lambda p: 0.0, "-", "velocity exponent p of eq 5"),),
@@ -133,7 +133,7 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
         "bending_hysteresis",
         (Variable("bend_h", (0.0, 0.6), lambda p: 0.0, "-", "saturated friction moment / elastic moment"),),
         doc="friction inside the yarn, a Dahl element on the bending moment",
-        extra_starts=({"bend_h": 0.2},)),
+        extra_starts=({"bend_h": 0.2}, {"bend_h": 0.45})),
     "yarn_extension": EffectSpec(
         "yarn_extension",
         (Variable("ext_c", (0.0, 0.05), lambda p: 0.0, "1/N", "tensile compliance 1/(EA)"),),

@@ -19,9 +19,10 @@ What a laboratory writes is accepted (:func:`curve_from_arrays`):
 
 - **forces slightly below zero**: a load cell reads around zero at rest.  A
   force down to :data:`NEGATIVE_SIGMAS` noise sd below zero is kept as
-  measured (the noise of the curve itself, :mod:`knitsim.diagnosis.noise`);
-  lower is an error naming the row (a knit carries no compression: a wrong
-  zero or sign);
+  measured (the noise of the curve itself, :mod:`knitsim.diagnosis.noise`),
+  and so are one or two spikes below that (outliers, which the diagnosis
+  leaves out); more rows lower are an error naming the first (a knit carries
+  no compression: a wrong zero or sign);
 - **strain jitter**: a strain that steps back by at most the tolerance
   (:func:`strain_tolerance`: 1e-3 of the curve's strain range) inside a
   branch is extensometer jitter or round-off, not a reversal.  The branch
@@ -66,6 +67,9 @@ _DIRECTIONS = {"load": 1, "unload": -1, "loading": 1, "unloading": -1}
 
 #: a force this many noise sd below zero is kept as a reading around zero; lower is refused
 NEGATIVE_SIGMAS = 5.0
+#: rows below that limit tolerated as spikes (outliers): at most this many, or this share of the rows
+NEGATIVE_SPIKES = 2
+NEGATIVE_SPIKE_SHARE = 0.005
 #: strain jitter tolerated inside a branch, as a fraction of the curve's strain range
 STRAIN_TOL_REL = 1.0e-3
 
@@ -292,7 +296,10 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     noise = curve_noise(clean, f, c, d, source, noise_N)
     limit = -NEGATIVE_SIGMAS * noise.sigma_N
     bad = np.nonzero(f < limit)[0]
-    if len(bad):
+    # a spike or two on a curve whose noise is known is an outlier (the diagnosis leaves isolated outliers
+    # out); more, or any without a known noise, is a wrong zero or sign
+    spikes = max(NEGATIVE_SPIKES, NEGATIVE_SPIKE_SHARE * n) if noise.known else 0
+    if len(bad) > spikes:
         i = bad[0]
         raise KnitsimInputError(
             f"{source}: row {row(i)}, column force_per_wale_N: {float(f[i]):g} N is below zero by more than "

@@ -323,7 +323,7 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
                                        spec["strength"], noise_rel=args["noise_rel"], scatter_rel=args["scatter_rel"],
                                        rates=args["rates"], device=args["device"], oracle_free=args["free"],
                                        oracle_increment=args["max_increment"])
-    except RuntimeError as exc:  # the generator found no specimen that runs with this effect
+    except (RuntimeError, KnitsimInputError) as exc:  # no specimen runs with this effect, or made no valid file
         error = f"generator: {exc}"
     if case is not None:
         setup = DiagnosisSetup(base=synthetic.material_params(spec["material"]), free=args["free"],

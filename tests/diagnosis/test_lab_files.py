@@ -70,15 +70,22 @@ def test_windows_1252_file_is_read(tmp_path):
     assert len(c) == len(ROWS)
 
 
-def test_a_force_far_below_zero_is_refused_with_file_row_column_and_value(tmp_path):
-    rows = list(ROWS)
-    rows[5] = (0.10, -0.4)
+def test_forces_far_below_zero_are_refused_with_file_row_column_and_value(tmp_path):
+    """A wrong zero (every force 0.05 N low) or sign: many rows far below zero, refused naming the first."""
+    rows = [(s, f - 0.05) for s, f in ROWS]
     p = _write(tmp_path, _csv(rows))
     with pytest.raises(KnitsimInputError) as info:
         read_measured_curve(p)
     msg = str(info.value)
-    assert str(p) in msg and "row 7" in msg and "force_per_wale_N" in msg and "-0.4 N" in msg
-    assert "np.float64" not in msg and "noise sd" in msg
+    assert str(p) in msg and "row 2" in msg and "force_per_wale_N" in msg and "-0.052 N" in msg
+    assert "np.float64" not in msg and "noise sd" in msg and "zero" in msg
+
+
+def test_one_negative_spike_is_an_outlier_not_an_error(tmp_path):
+    rows = list(ROWS)
+    rows[5] = (0.10, -0.4)
+    c = read_measured_curve(_write(tmp_path, _csv(rows)))
+    assert c.force[5] == -0.4          # kept as read: the diagnosis leaves isolated outliers out
 
 
 @pytest.mark.parametrize("step_back", [1e-16, 1e-6])
