@@ -7,7 +7,9 @@ knitsim, so tests and runs after the first reuse compiled kernels.
 """
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 from pathlib import Path
 
 import warp as wp
@@ -37,8 +39,32 @@ def init() -> None:
     else:  # pragma: no cover
         wp.config.quiet = True
     wp.config.kernel_cache_dir = str(kernel_cache_dir())
-    wp.init()
+    # Warp's native library prints "Could not find or load the NVIDIA CUDA driver" on a machine without
+    # one; a CPU run must not see it.  A run that asks for CUDA gets knitsim's own error instead
+    # (resolve_device), so nothing the user needs is lost.
+    with _native_stderr_silenced():
+        wp.init()
     _initialised = True
+
+
+@contextlib.contextmanager
+def _native_stderr_silenced():
+    """Redirect file descriptor 2 to /dev/null for the block (C code writes there, not to sys.stderr)."""
+    try:
+        sys.stderr.flush()
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):   # no real descriptor (embedded, redirected to an object)
+        yield
+        return
+    saved = os.dup(fd)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, fd)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+        os.close(devnull)
 
 
 def cuda_available() -> bool:

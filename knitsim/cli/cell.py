@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from ..cell.engine import ENGINES, check_engine, simulate
-from ..io.results import check_output_dir, run_info, summarise, write_cell_results
+from ..io.results import add_output_flags, prepare_output_dir, run_info, summarise, write_cell_results
 from ..scene.cell_scene import load_cell_scene
 from .common import add_json_flag, print_json
 
@@ -36,6 +36,7 @@ def register(subparsers) -> None:
                              "or --set cells[1].friction.m=0.3 (repeatable)")
     parser.add_argument("--engine", choices=ENGINES, default=None, help="override the scene's engine")
     parser.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:N or auto (warp engine)")
+    add_output_flags(parser)
     add_json_flag(parser)
     parser.set_defaults(func=_run)
 
@@ -58,7 +59,7 @@ def _progress(stream):
 
 def _run(args) -> int:
     scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
-    out = check_output_dir(args.out or f"{Path(args.scene).stem}_out")
+    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite)
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
     with contextlib.redirect_stdout(sys.stderr):
         check_engine(scene.engine)

@@ -29,6 +29,7 @@ import numpy as np
 from ..data import dahl_kes
 from ..errors import KnitsimInputError
 from ..friction.dahl import DahlParams, fit_dahl_loop, kes_loop
+from ..io.results import add_output_flags, prepare_output_file
 from .common import add_json_flag, print_json, read_csv_columns
 
 KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
@@ -61,6 +62,7 @@ def register(subparsers) -> None:
                      help="Dahl shape exponent: 'free' to fit it, or a fixed value > 0 (default 1, as in the paper)")
     fit.add_argument("--png", metavar="OUT.png", help="plot file (default FILE_dahl_fit.png next to the CSV)")
     fit.add_argument("--no-png", action="store_true", help="do not write a plot")
+    add_output_flags(fit, what="plot")
     add_json_flag(fit)
     fit.set_defaults(func=run_fit)
 
@@ -86,6 +88,7 @@ def register(subparsers) -> None:
     sim.add_argument("--columns", metavar="X,F", default=",".join(KES_COLUMNS),
                      help="names of the columns written (default kappa_1_mm,M_N_mm_per_mm)")
     sim.add_argument("--out", required=True, metavar="FILE.csv", help="CSV file to write")
+    add_output_flags(sim, what="file")
     sim.set_defaults(func=run_simulate)
 
 
@@ -157,15 +160,16 @@ def run_fit(args) -> int:
     path = Path(args.file)
     xcol, fcol = _choose_columns(path, args.columns)
     alpha = _parse_alpha(args.alpha)
+    png = None
+    if not args.no_png:
+        png = prepare_output_file(args.png or path.with_name(path.stem + "_dahl_fit.png"), args.overwrite, "--png")
     data = read_csv_columns(path, [xcol, fcol])
     x, F = data[xcol], data[fcol]
     try:
         fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha)
     except KnitsimInputError as exc:
         raise KnitsimInputError(f"{path}: {exc}") from None
-    png = None
-    if not args.no_png:
-        png = Path(args.png) if args.png else path.with_name(path.stem + "_dahl_fit.png")
+    if png is not None:
         _plot(png, x, F, fit, xcol, fcol)
     units = _units(xcol, fcol)
     values = {n: getattr(fit, n) for n in ("sigma", "Fc", "alpha", "B", "F0")}
@@ -220,7 +224,7 @@ def run_simulate(args) -> int:
         raise KnitsimInputError(f"--B = {args.B!r}: must be finite")
     x, F = kes_loop(params, args.amplitude, args.cycles, args.points, B=args.B,
                     noise=args.noise * params.Fc, seed=args.seed)
-    out = Path(args.out)
+    out = prepare_output_file(args.out, args.overwrite)
     try:
         with out.open("w", newline="", encoding="utf-8") as fh:
             w = csv.writer(fh)

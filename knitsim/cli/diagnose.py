@@ -40,18 +40,17 @@ def register(subparsers) -> None:
                         "from each curve itself")
     p.add_argument("--no-pair", action="store_true", help="skip the best-pair search")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--overwrite", action="store_true", help="replace existing --json / --report files (else refused)")
     p.set_defaults(func=run)
 
 
-def _check_out(path: str | None, suffix: str, flag: str) -> Path | None:
+def _check_out(path: str | None, suffix: str, flag: str, overwrite: bool) -> Path | None:
+    from ..io.results import prepare_output_file
     if path is None:
         return None
-    out = Path(path)
-    if out.suffix.lower() != suffix:
+    if Path(path).suffix.lower() != suffix:
         raise KnitsimInputError(f"{flag} = {path!r}: expected a {suffix} file")
-    if out.exists() and out.is_dir():
-        raise KnitsimInputError(f"{flag} = {path!r}: is a folder")
-    return out
+    return prepare_output_file(path, overwrite, flag)
 
 
 def run(args) -> int:
@@ -66,8 +65,8 @@ def run(args) -> int:
     from ..scene.diagnosis_scene import load_diagnosis_scene
 
     # every input is checked before any solve
-    json_out = _check_out(args.json_out, ".json", "--json")
-    report = _check_out(args.report, ".html", "--report")
+    json_out = _check_out(args.json_out, ".json", "--json", args.overwrite)
+    report = _check_out(args.report, ".html", "--report", args.overwrite)
     setup = load_diagnosis_scene(args.scene, device=args.device)
     if args.effects:
         setup = replace(setup, effects=check_effects([e.strip() for e in args.effects.split(",") if e.strip()],

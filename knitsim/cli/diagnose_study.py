@@ -12,7 +12,8 @@ strain jitter, sometimes an outlier row, and 0.5 % specimen scatter.
 Writes DIR/cases/*.json, DIR/summary.json and DIR/summary.md: the false-alarm
 rate on effect-free specimens with its 95 % Wilson interval, top-1 accuracy on
 identifiable effects, the Dahl cases. An interrupted study resumes where it
-stopped unless --no-resume.
+stopped with --resume (--summary-only summarises it without running); an --out that holds a study is
+refused without --resume or --overwrite.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import sys
 
 from ..diagnosis.effects import BASELINE_VARIABLES, DEFAULT_STUDY_FREE
 from ..errors import KnitsimInputError
+from ..io.results import add_output_flags, prepare_output_dir
 from .common import add_json_flag, print_json
 
 
@@ -48,7 +50,8 @@ def register(subparsers) -> None:
                    help="baseline parameters the diagnosis calibrates (default m,phi0,d,L,C0: the friction and "
                         "the scattered geometry; any of m, phi0, B, d, L, W0, C0)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu, cuda, cuda:N or auto")
-    p.add_argument("--no-resume", action="store_true", help="rerun cases already stored in --out")
+    p.add_argument("--resume", action="store_true", help="continue the study in --out (its finished cases are kept)")
+    add_output_flags(p, resumable=True, what="study")
     p.add_argument("--summary-only", action="store_true",
                    help="run nothing: summarise the cases already finished in --out")
     p.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -90,6 +93,10 @@ def _run(args) -> int:
         raise KnitsimInputError(f"--free = {args.free!r}: expected a comma-separated list of "
                                 f"{', '.join(BASELINE_VARIABLES)}")
 
+    if args.resume and args.overwrite:
+        raise KnitsimInputError("--resume and --overwrite: choose one (continue the study in --out, or replace it)")
+    prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume or args.summary_only, resumable=True)
+
     def progress(done, total, eta, rec):
         what = verdict_class(rec.get("verdict")) if rec.get("verdict") else rec.get("error", "?")
         eta_s = "?" if eta is None else f"{eta:.0f} s"
@@ -101,7 +108,7 @@ def _run(args) -> int:
             summary = run_study(args.cases, args.seed, args.out, effects=effects,
                                 include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
                                 scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
-                                resume=not args.no_resume, jobs=args.jobs, summary_only=args.summary_only,
+                                resume=True, jobs=args.jobs, summary_only=args.summary_only,
                                 specimen=args.specimen)
     except KeyboardInterrupt:
         print(f"knitsim diagnose-study: interrupted; the finished cases are kept in {args.out}/cases and "

@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 from ..errors import KnitsimInputError
+from ..io.results import add_output_flags
 from .common import add_json_flag, print_json
 
 
@@ -37,6 +38,7 @@ def register(subparsers) -> None:
                    help="override a scene key, type-checked, e.g. --set patch.wales=5 (repeatable)")
     p.add_argument("--out", metavar="DIR", default=None, help="output directory (default: <scene stem>_out)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.pkl")
+    add_output_flags(p, resumable=True)
     p.add_argument("--engine", choices=("warp", "reference"), default=None, help="override the scene's engine")
     p.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:N or auto")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -70,7 +72,7 @@ class _Bar:
 
 def _run(args) -> int:
     from ..io.patch_results import patch_summary, write_patch_results
-    from ..io.results import check_output_dir
+    from ..io.results import prepare_output_dir
     from ..patch.runner import CHECKPOINT_NAME, run_patch
     from ..scene.patch_scene import load_patch_scene
 
@@ -79,8 +81,14 @@ def _run(args) -> int:
         check_usd_options(args)
         if not args.usd.lower().endswith((".usda", ".usdc", ".usd")):
             raise KnitsimInputError(f"--usd = {args.usd!r}: must end in .usda, .usdc or .usd")
+        from ..io.results import prepare_output_file
+        if not args.resume:
+            prepare_output_file(args.usd, args.overwrite, "--usd")
     scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
-    out = check_output_dir(args.out or f"{Path(args.scene).stem}_out")
+    if args.resume and args.overwrite:
+        raise KnitsimInputError("--resume and --overwrite: choose one (continue the run in --out, or replace it)")
+    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
+                             resume=args.resume, resumable=True)
     ck = out / CHECKPOINT_NAME
     if args.resume and not ck.is_file():
         raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")

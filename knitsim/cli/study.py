@@ -14,6 +14,7 @@ from pathlib import Path
 
 from ..studies import STUDIES
 from ..io.jsonable import json_text
+from ..io.results import add_output_flags, prepare_output_dir
 from .common import add_json_flag, print_json
 
 
@@ -23,6 +24,7 @@ def register(subparsers) -> None:
                               description=__doc__.split("\n\n")[0])
     p.add_argument("name", choices=STUDIES, help="the study")
     p.add_argument("--out", metavar="DIR", help="write the table and PNG figures here")
+    add_output_flags(p)
     p.add_argument("--increment", type=float, default=0.01, help="strain increment (default 0.01)")
     p.add_argument("--jamming-criterion", default="w_4d", choices=("w_4d", "head_gap"),
                    help="W = 4d (paper) or heads touching (head gap = d)")
@@ -33,6 +35,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    if args.out:
+        prepare_output_dir(args.out, overwrite=args.overwrite)
     if args.name == "dusserre2015-experiment":
         return _run_experiment(args)
     from ..studies import dusserre2015 as study

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
+from ..io.results import add_output_flags, prepare_output_dir
 from .common import add_json_flag, print_json
 
 
@@ -37,6 +38,7 @@ def register(subparsers) -> None:
                         help="separate file holding the [sweep] table (replaces the scene's)")
     parser.add_argument("--out", metavar="DIR", default=None, help="output directory (default: <scene stem>_sweep)")
     parser.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
+    add_output_flags(parser, resumable=True)
     parser.add_argument("--workers", type=int, default=None, metavar="N",
                         help="local Dask worker processes (default: one per core); 0: run in this process")
     parser.add_argument("--scheduler", metavar="ADDR", default=None,
@@ -71,7 +73,10 @@ def _run(args) -> int:
         if args.chunk_size is not None:
             table["chunk_size"] = args.chunk_size
     spec = parse_sweep(table)
-    out = Path(args.out or f"{Path(args.scene).stem}_sweep")
+    if args.resume and args.overwrite:
+        raise KnitsimInputError("--resume and --overwrite: choose one (finish the sweep in --out, or replace it)")
+    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_sweep", overwrite=args.overwrite,
+                             resume=args.resume, resumable=True)
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
         plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
     workers = args.workers

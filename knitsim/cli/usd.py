@@ -14,6 +14,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import KnitsimInputError
+from ..io.results import add_output_flags, prepare_output_file
 from .common import add_json_flag, print_json
 
 COLOR_CHOICES = ("stage", "phi", "force", "material", "strain")
@@ -52,6 +53,7 @@ def register(subparsers) -> None:
     p.add_argument("--quicklook", metavar="PNG", default=None,
                    help="also render the first and last frame from the USD file into this PNG")
     p.add_argument("--device", default="cpu", help="Warp device of the centreline kernel: cpu, cuda, cuda:N, auto")
+    add_output_flags(p, what="file")
     add_json_flag(p)
     p.set_defaults(func=_run)
 
@@ -60,6 +62,8 @@ def _run(args) -> int:
     from .. import warp_runtime
     from ..usd.from_results import DEFAULT_POINTS, export_results
     check_usd_options(args)
+    prepare_output_file(args.out, args.overwrite)
+    prepare_output_file(args.quicklook, args.overwrite, "--quicklook")
     device = warp_runtime.resolve_device(args.device)
     res = export_results(args.results, args.out, color_by=args.color_by, stride=args.usd_stride,
                          n_points=args.usd_points or DEFAULT_POINTS, device=device, quicklook=args.quicklook)

@@ -60,13 +60,24 @@ RULE_MEANINGS = {
 
 
 # ------------------------------------------------------------------ atomic I/O
+def umask_mode(mode: int = 0o666) -> int:
+    """``mode`` as the process' umask lets a newly created file have it (what ``open`` would give)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mode & ~mask
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary sibling and a rename."""
+    """Write ``data`` to ``path`` through a temporary sibling and a rename.
+
+    The file gets the permissions a plain ``open`` would give it under the umask (the temporary
+    file's private 0600 would keep colleagues on a shared cluster from reading results)."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+        os.chmod(tmp, umask_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -340,6 +351,64 @@ def check_output_dir(out_dir: str | Path) -> Path:
     if not probe.is_dir() or not os.access(probe, os.W_OK):
         raise KnitsimInputError(f"--out = {str(out)!r}: cannot write under {probe}")
     return out
+
+
+#: an --out folder's own outputs: files of these kinds and these sub-folders (the commands' checkpoints,
+#: cases and chunks); --overwrite removes them and leaves anything else alone
+OUTPUT_SUFFIXES = (".csv", ".json", ".nc", ".png", ".toml", ".md", ".txt", ".html", ".pkl", ".usd", ".usda",
+                   ".usdc")
+OUTPUT_DIRS = ("cases", "chunks")
+
+
+def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: bool = False,
+                       resumable: bool = False) -> Path:
+    """The one policy of every command that writes into ``--out``, applied before any work.
+
+    An absent or empty folder is used as it is.  A folder that holds results is refused unless
+    ``resume`` (the caller then checks that there is something to resume) or ``overwrite``, which
+    first removes the folder's outputs (:data:`OUTPUT_SUFFIXES`, :data:`OUTPUT_DIRS`), so that no
+    stale file (an old ``yarn.usda``, a checkpoint of another run) is left beside the new ones.
+    """
+    out = check_output_dir(out_dir)
+    if not out.is_dir() or not any(out.iterdir()):
+        return out
+    if resume:
+        return out
+    if overwrite:
+        for p in out.iterdir():
+            if p.is_file() and p.suffix.lower() in OUTPUT_SUFFIXES:
+                p.unlink()
+            elif p.is_dir() and p.name in OUTPUT_DIRS:
+                shutil.rmtree(p)
+        return out
+    hint = " or --resume to continue it" if resumable else ""
+    raise KnitsimInputError(f"--out = {str(out)!r}: already holds results; add --overwrite to replace them{hint}, "
+                            "or choose another --out")
+
+
+def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: str = "--out") -> Path | None:
+    """The same policy for a command's single output file: an existing one is refused unless ``overwrite``."""
+    if path is None:
+        return None
+    p = Path(path)
+    if p.is_dir():
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: is a folder")
+    if p.exists() and not overwrite:
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: exists; add --overwrite to replace it")
+    probe = p.resolve().parent
+    while not probe.exists():
+        probe = probe.parent
+    if not os.access(probe, os.W_OK):
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot write under {probe}")
+    return p
+
+
+def add_output_flags(parser, resumable: bool = False, what: str = "results") -> None:
+    """``--overwrite`` (and ``--resume``) with the policy of :func:`prepare_output_dir` in their help."""
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace the {what} of an existing --out (its earlier outputs are removed first); "
+                             "without it an --out that holds results is refused"
+                             + (", unless --resume" if resumable else ""))
 
 
 def write_cell_results(out_dir: str | Path, history: BatchHistory, summary: dict, resolved_toml: str,
