@@ -363,7 +363,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``, ``"auto"``); ignored
         when ``params`` is a model.
     progress : callable, optional
-        ``progress(i, n)`` after each increment (no device sync).
+        ``progress(done, n)`` as increments finish (the program runs in chunks of 25 then).
     max_halvings, stick_closure
         See :class:`CellSolver`.
 
@@ -380,6 +380,9 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     n, nc = len(program), model.cell_count
     solver = CellSolver(model, max_halvings, stick_closure=stick_closure)
     s0 = model.state()
+    q0 = s0.q.numpy()
+    rest = {name: q0[:, CODE[name]].copy() for name in HISTORY_QUANTITIES}
+    rest.update(stage=s0.stage.numpy().copy(), jammed=s0.jammed.numpy().copy())
     codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
     hq = wp.zeros((len(HISTORY_QUANTITIES), n, nc), dtype=wp.float64, device=dev)
     hs, hj, hst = (wp.zeros((n, nc), dtype=wp.int32, device=dev) for _ in range(3))
@@ -401,7 +404,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
                   + s0._arrays() + [s0.eff] + prog + [k0, k1] + [solver._ev_count] + solver._ev
                   + [codes, hq, hs, hj, hst, hg, he], device=dev)
         if progress is not None:
-            progress(k1 - 1, n)
+            progress(k1, n)
     hqn = hq.numpy()
     values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
     values.update(head_gap_values(hg.numpy(), [p.d_jam for p in model.params]))
@@ -416,7 +419,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
                        "reason": STATUS_NAMES[int(status[i0, c])], "status": STATUS_NAMES[int(status[i0, c])]})
     events.sort(key=lambda e: (e["cell"], e["increment"], e["kind"] == "flag"))
     return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
-                        hs.numpy(), hj.numpy(), status, values, events, list(model.params))
+                        hs.numpy(), hj.numpy(), status, values, events, list(model.params), rest)
 
 
 def memory_per_cell(model: CellModel, state: CellBatchState, n_increments: int) -> dict[str, float]:

@@ -547,6 +547,8 @@ class CellCycle:
         """Run the whole program; see :func:`run_cell`."""
         p = self.p
         st = self.initial()
+        rest = {k: np.array([st.q[k]]) for k in HISTORY_QUANTITIES}
+        rest.update(stage=np.array([int(st.stage)], np.int32), jammed=np.array([int(st.jammed)], np.int32))
         n = len(program)
         stage = np.zeros(n, np.int32)
         jammed = np.zeros(n, np.int32)
@@ -584,7 +586,7 @@ class CellCycle:
         return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle),
                             np.asarray(program.direction), stage[:, None], jammed[:, None],
                             status[:, None], {k: v[:, None] for k, v in vals.items()},
-                            [dict(e, cell=0) for e in events], [p])
+                            [dict(e, cell=0) for e in events], [p], rest)
 
     # ------------------------------------------------------------------ Dahl
     def _label_dahl(self, st: CellState) -> None:

@@ -63,6 +63,9 @@ class BatchHistory:
         Located stage changes: ``cell``, ``increment``, ``kind``, ``C`` ...
     params : list
         The :class:`~knitsim.cell.material.CellParams` of each cell.
+    rest : dict of str to ndarray, shape [n_cells], optional
+        The initial state (Table 4's rest: C0, W0, L, phi0) before the first increment:
+        :data:`HISTORY_QUANTITIES`, ``stage`` and ``jammed``.
     """
 
     strain: np.ndarray
@@ -74,6 +77,7 @@ class BatchHistory:
     values: dict
     events: list = field(default_factory=list)
     params: list = field(default_factory=list)
+    rest: dict | None = None
 
     @property
     def n_cells(self) -> int:
@@ -104,7 +108,8 @@ class BatchHistory:
                             self.jammed[:, sl], self.status[:, sl],
                             {k: v[:, sl] for k, v in self.values.items()},
                             [dict(e, cell=0) for e in self.events if e.get("cell", 0) == i],
-                            self.params[i:i + 1])
+                            self.params[i:i + 1],
+                            None if self.rest is None else {k: v[sl] for k, v in self.rest.items()})
 
     @staticmethod
     def stack(histories: list["BatchHistory"]) -> "BatchHistory":
@@ -120,4 +125,6 @@ class BatchHistory:
                             cat("status"),
                             {k: np.concatenate([h.values[k] for h in histories], axis=1)
                              for k in h0.values},
-                            events, params)
+                            events, params,
+                            None if any(h.rest is None for h in histories) else
+                            {k: np.concatenate([h.rest[k] for h in histories]) for k in h0.rest})

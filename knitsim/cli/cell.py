@@ -20,7 +20,7 @@ from pathlib import Path
 from ..cell.engine import ENGINES, check_engine, simulate
 from ..io.results import add_output_flags, prepare_output_dir, run_info, summarise, write_cell_results
 from ..scene.cell_scene import load_cell_scene
-from .common import add_json_flag, print_json
+from .common import Progress, add_json_flag, print_json
 
 
 def register(subparsers) -> None:
@@ -41,23 +41,8 @@ def register(subparsers) -> None:
     parser.set_defaults(func=_run)
 
 
-def _progress(stream):
-    last = [0.0]
-
-    def report(*args, **kwargs):
-        now = time.monotonic()
-        if now - last[0] < 0.5 and not (len(args) >= 2 and args[0] in (args[1], args[1] - 1)):
-            return
-        last[0] = now
-        if len(args) >= 2 and all(isinstance(a, (int, float)) for a in args[:2]):
-            print(f"knitsim cell: {args[0]}/{args[1]}", file=stream, flush=True)
-        else:
-            print("knitsim cell: " + " ".join(str(a) for a in args), file=stream, flush=True)
-
-    return report
-
-
 def _run(args) -> int:
+    t_command = time.perf_counter()
     scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite)
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
@@ -73,14 +58,16 @@ def _run(args) -> int:
         print(f"knitsim cell: {n} cell(s) x {m} increments, engine {scene.engine}, device {device}",
               file=sys.stderr, flush=True)
         t0 = time.perf_counter()
+        what = ("knitsim cell: increments", len(scene.program)) if scene.engine == "warp" else \
+            ("knitsim cell: cells", len(scene.params))
         history = simulate(scene.params, scene.program, engine=scene.engine, device=device,
-                           progress=_progress(sys.stderr))
+                           progress=Progress(what[1], what[0]))
     wall = time.perf_counter() - t0
     summary = summarise(history, scene.labels, scene.notes, **run_info(scene, device, wall))
     files = write_cell_results(out, history, summary, scene.to_toml(), scene.labels, plot=scene.plot,
                                title=scene.resolved.get("title", ""))
-    print(f"knitsim cell: done in {wall:.2f} s; wrote {', '.join(sorted(files))} to {out}",
-          file=sys.stderr, flush=True)
+    print(f"knitsim cell: done in {time.perf_counter() - t_command:.2f} s (solving {wall:.2f} s); wrote "
+          f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
         print(f"knitsim cell: warning: {w['cell']}: {w['message']}", file=sys.stderr, flush=True)
     failed = [c["label"] for c in summary["cells"] if not c["expected_end"]]

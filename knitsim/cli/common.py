@@ -16,3 +16,69 @@ def add_json_flag(parser) -> None:
 def print_json(value: Any, stream=None) -> None:
     """Print ``value`` as JSON (NumPy scalars and arrays converted; NaN -> null)."""
     (stream or sys.stdout).write(json_text(value))
+
+
+class Progress:
+    """Progress of a long command on stderr, as a terminal or a log file wants it.
+
+    On a terminal: a tqdm bar (a well-kept library: it redraws in place, smooths the rate and
+    shows no estimate before it has one).  Elsewhere (a log file, a pipe, CI): plain lines, one
+    per tenth of the work, each with the rate and the time left so far, and no carriage returns.
+
+    Parameters
+    ----------
+    total : int
+        Units of work.
+    what : str
+        Name of the command and the unit, e.g. ``"knitsim run: increments"``.
+    enabled : bool
+        False: say nothing.
+    stream : file, optional
+        Default ``sys.stderr``.
+    """
+
+    def __init__(self, total: int, what: str, enabled: bool = True, stream=None):
+        import time
+
+        self.stream = stream or sys.stderr
+        self.total = max(int(total), 1)
+        self.what = what
+        self.enabled = enabled
+        self.done = 0
+        self.t0 = time.perf_counter()
+        self._next = 0.1
+        self.bar = None
+        tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        if enabled and tty:
+            from tqdm import tqdm
+            prefix, _, unit = what.rpartition(": ")
+            self.bar = tqdm(total=self.total, desc=prefix or what, unit=(" " + unit) if unit else "it",
+                            file=self.stream, dynamic_ncols=True, leave=True)
+
+    def __call__(self, done: int, total: int | None = None) -> None:
+        """Report ``done`` units finished (``total`` accepted for the ``progress(i, n)`` callbacks)."""
+        import time
+
+        done = int(done)
+        if not self.enabled or done <= self.done:
+            return
+        if self.bar is not None:
+            self.bar.update(done - self.done)
+            self.done = done
+            if done >= self.total:
+                self.bar.close()
+            return
+        self.done = done
+        frac = done / self.total
+        if frac + 1e-12 >= self._next or done >= self.total:
+            while self._next <= frac + 1e-12:
+                self._next += 0.1
+            dt = time.perf_counter() - self.t0
+            rate = done / dt if dt > 0 else float("inf")
+            left = (self.total - done) / rate if rate > 0 else float("nan")
+            print(f"{self.what}: {done}/{self.total} ({frac:.0%}), {rate:.3g}/s, about {left:.0f} s left",
+                  file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags
-from .common import add_json_flag, print_json
+from .common import Progress, add_json_flag, print_json
 
 
 def register(subparsers) -> None:
@@ -50,27 +50,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=_run)
 
 
-class _Bar:
-    def __init__(self, stream, total: int, enabled: bool = True):
-        self.stream, self.total, self.enabled, self.t0, self.last = stream, total, enabled, time.monotonic(), 0.0
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.monotonic()
-        if not self.enabled or (now - self.last < 0.2 and done < total):
-            return
-        self.last = now
-        w = 30
-        fill = int(w * done / max(total, 1))
-        rate = done / max(now - self.t0, 1e-9)
-        eta = (total - done) / rate if rate > 0 else float("nan")
-        self.stream.write(f"\r[{'#' * fill}{'.' * (w - fill)}] {done}/{total} increments, {rate:.1f}/s, "
-                          f"eta {eta:.0f} s ")
-        if done >= total:
-            self.stream.write("\n")
-        self.stream.flush()
-
-
 def _run(args) -> int:
+    t_command = time.perf_counter()
     from ..io.patch_results import patch_summary, write_patch_results
     from ..io.results import prepare_output_dir
     from ..patch.runner import CHECKPOINT_NAME, run_patch
@@ -103,7 +84,7 @@ def _run(args) -> int:
               f"dedup {'on' if scene.dedup else 'off'}", file=sys.stderr, flush=True)
         every = scene.output["checkpoint_every"]
         h = run_patch(m, scene.program, engine=scene.engine, device=device, dedup=scene.dedup,
-                      progress=_Bar(sys.stderr, len(scene.program), not args.no_progress),
+                      progress=Progress(len(scene.program), "knitsim run: increments", not args.no_progress),
                       checkpoint=ck if every > 0 or args.resume else None, checkpoint_every=every,
                       resume=args.resume, **scene.solver_options)
     summary = patch_summary(h, h.info["ref_length_mm"], scene=scene.source, title=scene.resolved.get("title", ""),
@@ -118,7 +99,8 @@ def _run(args) -> int:
                              device=device if scene.engine == "warp" else "cpu")
         print(f"knitsim run: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
               f"samples) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
-    print(f"knitsim run: done in {h.wall_s:.2f} s ({h.info['n_groups']} distinct cell solves); wrote "
+    print(f"knitsim run: done in {time.perf_counter() - t_command:.2f} s (solving {h.wall_s:.2f} s: "
+          f"{h.info['n_groups']} distinct cells solved for {m.cell_count} represented); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
         print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
@@ -131,7 +113,9 @@ def _run(args) -> int:
     else:
         for c in summary["cycles"]:
             res = c["residual_grip_strain"]
+            work = next((f"{name.replace('_N_mm', '').replace('_', ' ')} {c[name]:.4g} N mm" for name in
+                         ("hysteresis_energy_N_mm", "work_N_mm", "loading_work_N_mm") if name in c), "")
             print(f"cycle {c['cycle']}: peak {c['peak_force_per_wale_N']:.4g} N per wale at grip strain "
                   f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}; "
-                  f"hysteresis {c['hysteresis_energy_N_mm']:.4g} N mm")
+                  f"{work}")
     return 0 if summary["all_converged"] else 1

@@ -20,6 +20,30 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
+    """The work of one cycle's path, named for what it is.
+
+    ``oint F d(strain)`` by trapezoids (:func:`~knitsim.cell.cycle.dissipated_energy`) is the
+    energy dissipated (the *hysteresis*) only when the path is closed: it ends at the strain it
+    started from (within 1e-9 of the strain range).  An open path (the paper's first cycle goes
+    0 -> 0.6 -> 0.1) holds elastic energy too: its ``work``; a path that only loads, its
+    ``loading work``.
+
+    Returns
+    -------
+    dict
+        ``{"kind": "hysteresis" | "work" | "loading_work", "closed": bool, "value": float}`` (per unit strain).
+    """
+    from ..cell.cycle import dissipated_energy
+
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    w = dissipated_energy(s, f) if len(s) > 1 else 0.0
+    span = float(np.ptp(s)) if len(s) else 0.0
+    closed = bool(unloads and len(s) > 1 and abs(s[-1] - s[0]) <= 1e-9 * max(span, 1e-12))
+    kind = "hysteresis" if closed else ("work" if unloads else "loading_work")
+    return {"kind": kind, "closed": closed, "value": float(w)}
+
+
 #: a cycle peak below this fraction of the previous cycle's peak is flagged: it lost (nearly) all its
 #: load (a tenth: well below the 20-30 % drops of a knit's shakedown in a cyclic test, e.g. 5 N -> 4 N in
 #: Dusserre 2015 Fig. 10)

@@ -23,13 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cell.cycle import dissipated_energy
 from ..cell.history import STATUS_NAMES, STATUS_OK
 from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES
 from ..patch.runner import PatchHistory
-from .checks import interpenetration, zero_force_cycles
+from .checks import cycle_work, interpenetration, zero_force_cycles
 from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
@@ -41,8 +40,11 @@ _LABELS = {v: k for k, v in LABEL_CODES.items()}
 def curve_csv(h: PatchHistory) -> str:
     """The text of ``curve.csv``."""
     lines = [",".join(CURVE_COLUMNS)]
+    # increment 0 is the rest state (grip strain 0); the program's increments are 1 .. n
+    cyc0 = str(int(h.cycle[0])) if h.n_increments else "1"
+    lines.append(",".join(["0", cyc0, "load", _num(0.0), _num(h.rest_force_N), _num(h.rest_force_per_wale_N)]))
     for i in range(h.n_increments):
-        lines.append(",".join([str(i), str(int(h.cycle[i])), "load" if h.direction[i] > 0 else "unload",
+        lines.append(",".join([str(i + 1), str(int(h.cycle[i])), "load" if h.direction[i] > 0 else "unload",
                                _num(h.grip_strain[i]), _num(h.force_N[i]), _num(h.force_per_wale_N[i])]))
     return "\n".join(lines) + "\n"
 
@@ -109,9 +111,10 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
     Per cycle: peak grip force (and per wale) and the grip strain there;
     residual grip strain, where the force per wale reaches 0 on the cycle's
     unloading branch (linear interpolation between rows; null if it never
-    does); hysteresis energy ``oint F_grip du`` over the cycle's rows [N mm]
-    (trapezoids, :func:`~knitsim.cell.cycle.dissipated_energy`, u = grip strain x
-    rest length, from the last row of the previous cycle).  Also the grip
+    does); ``oint F_grip du`` over the cycle's rows [N mm] (u = grip strain x
+    rest length, from the last row of the previous cycle; the first from rest),
+    named by :func:`knitsim.io.checks.cycle_work`: ``hysteresis_energy_N_mm`` of a
+    closed cycle, ``work_N_mm`` of an open one, ``loading_work_N_mm`` of a loading.  Also the grip
     strain at the first jamming of any cell, non-converged column increments,
     cells whose status is not ok, and rows with a non-finite force.
     """
@@ -133,7 +136,14 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
                     break
         entry["residual_grip_strain"] = res
         path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
-        entry["hysteresis_energy_N_mm"] = dissipated_energy(e[path], F[path]) * ref_length if len(path) > 1 else 0.0
+        s_path, f_path = e[path], F[path]
+        if rows[0] == 0:                           # the first cycle starts from the rest state
+            s_path = np.concatenate([[0.0], s_path])
+            f_path = np.concatenate([[h.rest_force_N], f_path])
+        work = cycle_work(s_path, f_path, bool(len(unload)))
+        entry["closed"] = work["closed"]
+        entry[f"{'hysteresis_energy' if work['kind'] == 'hysteresis' else work['kind']}_N_mm"] = \
+            work["value"] * ref_length
         cycles.append(entry)
     jam_rows = np.nonzero(np.any(h.groups["label"] == LABEL_CODES["jamming"], axis=1))[0]
     nc = np.argwhere(h.column_status == COL_NOT_CONVERGED)
@@ -144,10 +154,14 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
                                      what="distinct cell")
     out = dict(info)
+    cells = int(h.shape[0] * h.shape[1])
+    solved = int(h.info.get("n_groups", cells))
     out.update(
-        cells=int(h.shape[0] * h.shape[1]), courses=int(h.shape[0]), wales=int(h.shape[1]),
-        n_increments=int(h.n_increments), wall_s=float(h.wall_s),
-        cell_increments_per_s=float(h.shape[0] * h.shape[1] * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
+        cells=cells, courses=int(h.shape[0]), wales=int(h.shape[1]), solved_cells=solved,
+        n_increments=int(h.n_increments), solve_s=float(h.wall_s),
+        # identical cells are solved once (dedup): the cells represented, and those actually solved
+        represented_cell_increments_per_s=float(cells * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
+        solved_cell_increments_per_s=float(solved * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
         solver=h.info, cycles=cycles,
         grip_strain_at_first_jamming=float(e[jam_rows[0]]) if len(jam_rows) else None,
         non_converged_column_increments=int(len(nc)),

@@ -7,7 +7,9 @@ written into a temporary sibling and renamed into place, and
 before moving the files into the output directory, ``summary.json`` last; an
 error on the way leaves no half-written file behind.
 
-``curve.csv`` has one row per increment and cell, cell by cell::
+``curve.csv`` has, cell by cell, the rest state (strain 0: Table 4's
+initialisation at C0, W0, L, phi0, whose force per wale is not zero) and then
+one row per increment::
 
     cell, cycle, direction, stage, strain, force_per_wale_N, alpha, beta, gamma,
     phi, P, W, C, s_BC, status
@@ -32,11 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from ..cell.cycle import dissipated_energy
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
-from ..cell.stages import LABEL_CODES
+from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
-from .checks import interpenetration, zero_force_cycles
+from .checks import cycle_work, interpenetration, zero_force_cycles
 from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
@@ -105,6 +106,12 @@ def curve_csv(history: BatchHistory) -> str:
     direction = ["load" if d > 0 else "unload" for d in h.direction]
     for c in range(h.n_cells):
         cols = [h.values[q][:, c] for q in _QUANTITIES]
+        if h.rest is not None:
+            # the rest state (C0, W0, L, phi0: Table 4's initialisation) before the first increment
+            r = h.rest
+            lines.append(",".join([str(c), str(int(h.cycle[0])), "load",
+                                   stage_label(int(r["stage"][c]), bool(r["jammed"][c])), _num(0.0),
+                                   _num(r["F"][c])] + [_num(r[q][c]) for q in _QUANTITIES] + ["ok"]))
         for i in range(len(h.strain)):
             row = [str(c), str(int(h.cycle[i])), direction[i], _LABELS[int(labels[i, c])], _num(h.strain[i]),
                    _num(F[i, c])] + [_num(col[i]) for col in cols] + [STATUS_NAMES[int(h.status[i, c])]]
@@ -176,10 +183,12 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     residual strain, the strain ``C / C0 - 1`` where the force reaches 0 on
     the unloading branch (located ``slack`` event; else linear interpolation
     between the two rows around the zero; null if the force never reaches 0);
-    energy, ``oint F d(strain)`` over the cycle's rows
-    (:func:`~knitsim.cell.cycle.dissipated_energy`, strain = C / C0 - 1 from
-    the cell's own C, starting from the last row of the previous cycle; the
-    first cycle starts at the first increment), also times C0 as N mm.
+    ``oint F d(strain)`` over the cycle's rows (strain = C / C0 - 1 from the
+    cell's own C, from the last row of the previous cycle; the first cycle from
+    the rest state), as ``energy_N_per_strain`` and times C0 as
+    ``energy_N_mm``, with ``energy_kind`` (:func:`knitsim.io.checks.cycle_work`):
+    the ``hysteresis`` of a closed cycle, the ``work`` of an open one, the
+    ``loading_work`` of a loading only.
 
     Also: strain at the first jamming (located ``jam`` event, else the first
     jammed row), rows per status, the final status and whether it is the
@@ -222,9 +231,15 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         entry["residual_strain"] = res
         entry["residual_strain_from"] = how
         path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
-        w = dissipated_energy(eps_cell[path], F[path]) if len(path) > 1 else 0.0
-        entry["energy_N_per_strain"] = w
-        entry["energy_N_mm"] = w * p.C0
+        s_path, f_path = eps_cell[path], F[path]
+        if rows[0] == 0 and h.rest is not None:     # the first cycle starts from the rest state
+            s_path = np.concatenate([[0.0], s_path])
+            f_path = np.concatenate([[h.rest["F"][cell]], f_path])
+        work = cycle_work(s_path, f_path, bool(len(unload)))
+        entry["energy_N_per_strain"] = work["value"]
+        entry["energy_N_mm"] = work["value"] * p.C0
+        entry["energy_kind"] = work["kind"]       # hysteresis (closed cycle), work (open), loading_work
+        entry["closed"] = work["closed"]
         cycles_out.append(entry)
 
     jam = [e for e in events if e.get("kind") == "jam" and "C" in e]

@@ -66,6 +66,9 @@ class PatchHistory:
     C0 : ndarray, shape [courses, wales]
     group_d_jam : ndarray, shape [n_groups]
         In-plane width of each group [mm] (the interpenetration threshold).
+    rest_force_N, rest_force_per_wale_N : float
+        Grip force and force per wale of the rest state, before the first increment (the model's
+        rest force is not zero; a column's is the mean of its cells').
     wall_s : float
         Seconds spent solving (this run plus the runs it resumed).
     """
@@ -85,6 +88,8 @@ class PatchHistory:
     wall_s: float = 0.0
     info: dict = field(default_factory=dict)
     group_d_jam: np.ndarray | None = None
+    rest_force_N: float = 0.0
+    rest_force_per_wale_N: float = 0.0
 
     @property
     def n_increments(self) -> int:
@@ -167,6 +172,11 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
         raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
     grouping = model.grouping(dedup)
     solver = PatchSolver(grouping, engine, device, **solver_options)
+    # the rest state (before any increment, and before a resume restores a later one)
+    cnt = grouping.group_count.astype(float)
+    n_cls = grouping.n_classes
+    col_rest = (np.bincount(grouping.group_column, weights=cnt * solver.cells["F"], minlength=n_cls)
+                / np.bincount(grouping.group_column, weights=cnt, minlength=n_cls))[grouping.column_class]
     n = len(program)
     fp = fingerprint(model, program, engine=engine, dedup=bool(dedup), **solver_options)
     ck = Path(checkpoint) if checkpoint is not None else None
@@ -249,7 +259,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     return PatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
                         arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
                         arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info,
-                        np.array([p.d_jam for p in grouping.params]))
+                        np.array([p.d_jam for p in grouping.params]), float(np.sum(col_rest)), float(np.mean(col_rest)))
 
 
 def all_ok(history: PatchHistory) -> bool:

@@ -344,7 +344,28 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
     return out, notes
 
 
-def _program(load: dict, cells: list[dict]) -> tuple[LoadProgram, dict]:
+#: the most increments a load program may have (each is a row of every output)
+MAX_INCREMENTS = 1_000_000
+
+
+def _corners(load: dict) -> tuple[list, str]:
+    """The strains a program passes through (from rest) and the key of its largest strain."""
+    kind = load["type"]
+    if kind == "monotonic":
+        return [0.0, load["target_strain"]], "load.target_strain"
+    if kind == "cycles":
+        return ([0.0] + [load["upper_strain"], load["lower_strain"]] * load["cycles"]), "load.upper_strain"
+    return [0.0] + list(load["waypoints"]), "load.waypoints"
+
+
+def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram, dict]:
+    """Check the load table, then build its program.
+
+    Every limit is checked on the table's numbers before anything is built (a strain of 1e308 or
+    1e6 is refused, not an overflow or an out-of-memory): the strain the cells can reach (C < L/2,
+    a straight yarn) and the number of increments (:data:`MAX_INCREMENTS`).  ``limit_of``
+    overrides the reach: ``(largest strain, message suffix)`` (a patch's columns).
+    """
     kind = load["type"]
     for key in ("target_strain", "lower_strain", "upper_strain", "cycles", "waypoints"):
         if key in load and key not in _LOAD_KEYS[kind]:
@@ -354,21 +375,14 @@ def _program(load: dict, cells: list[dict]) -> tuple[LoadProgram, dict]:
         if key not in load:
             raise KnitsimInputError(f"load.{key}: missing (load.type = {fmt(kind)} needs it)")
     inc = load["max_increment"]
-    if kind == "monotonic":
-        prog = monotonic(load["target_strain"], inc)
-        top_key = "load.target_strain"
-    elif kind == "cycles":
-        if load["lower_strain"] >= load["upper_strain"]:
-            raise error("load.lower_strain", load["lower_strain"],
-                        f"must be < load.upper_strain = {fmt(load['upper_strain'])}")
-        prog = cycles(load["lower_strain"], load["upper_strain"], load["cycles"], inc)
-        top_key = "load.upper_strain"
-    else:
-        prog = piecewise_linear(load["waypoints"], inc)
-        top_key = "load.waypoints"
-    resolved = {"type": kind, **{k: load[k] for k in _LOAD_KEYS[kind]}, "max_increment": inc}
+    if kind == "cycles" and load["lower_strain"] >= load["upper_strain"]:
+        raise error("load.lower_strain", load["lower_strain"],
+                    f"must be < load.upper_strain = {fmt(load['upper_strain'])}")
+    if kind == "piecewise" and not load["waypoints"]:
+        raise error("load.waypoints", load["waypoints"], "needs at least one strain")
+    corners, top_key = _corners(load)
+    top = float(max(corners))
     # reachability: a quarter stitch of length L/4 spans C/2, so C < L/2 (straight yarn)
-    top = float(max(prog.strain))
     for i, c in enumerate(cells):
         limit = c["knit"]["L"] / (2.0 * c["knit"]["C0"]) - 1.0
         if top >= limit:
@@ -377,8 +391,20 @@ def _program(load: dict, cells: list[dict]) -> tuple[LoadProgram, dict]:
                 f"{top_key} = {fmt(load[top_key.split('.')[1]])}: strain {top:g} cannot be reached{where}: "
                 f"C = C0 (1 + strain) must stay below L/2 = {c['knit']['L'] / 2:.4g} mm (straight yarn), "
                 f"i.e. strain < {limit:.4g}")
-    if len(prog) > 1_000_000:
-        raise error("load.max_increment", inc, f"gives {len(prog)} increments; use a larger increment")
+    if limit_of is not None and top >= limit_of[0]:
+        raise KnitsimInputError(f"{top_key} = {fmt(load[top_key.split('.')[1]])}: grip strain {top:g} cannot be "
+                                f"reached: {limit_of[1]}")
+    n = sum(math.ceil(abs(b - a) / inc - 1e-12) for a, b in zip(corners[:-1], corners[1:]) if b != a)
+    if n > MAX_INCREMENTS:
+        raise error("load.max_increment", inc, f"gives {n} increments (more than {MAX_INCREMENTS}); use a larger "
+                    "increment")
+    if kind == "monotonic":
+        prog = monotonic(load["target_strain"], inc)
+    elif kind == "cycles":
+        prog = cycles(load["lower_strain"], load["upper_strain"], load["cycles"], inc)
+    else:
+        prog = piecewise_linear(load["waypoints"], inc)
+    resolved = {"type": kind, **{k: load[k] for k in _LOAD_KEYS[kind]}, "max_increment": inc}
     return prog, resolved
 
 

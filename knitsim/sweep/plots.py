@@ -22,7 +22,7 @@ from ..io.results import atomic_write_bytes
 
 QUANTITIES = (("peak_force_per_wale_N", "peak force per wale [N]"),
               ("residual_strain", "residual strain C/C0 - 1"),
-              ("energy_N_mm", "hysteresis energy per cycle [N mm]"))
+              ("energy_N_mm", "energy per cycle (hysteresis if closed) [N mm]"))
 
 
 def _figure(nrows: int, ncols: int, w: float = 4.2, h: float = 3.2):

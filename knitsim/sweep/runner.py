@@ -641,7 +641,8 @@ def assemble(out_dir: str | Path):
         "peak_force_per_wale_N": "largest force per wale of the cycle",
         "strain_at_peak": "imposed strain (C - C0)/C0 at the peak force",
         "residual_strain": "strain C/C0 - 1 where the force reaches 0 on the cycle's unloading (NaN: never)",
-        "energy_N_mm": "oint F dC over the cycle (hysteresis energy per wale), N mm",
+        "energy_N_mm": "oint F dC over the cycle per wale, N mm: the hysteresis of a closed cycle, the work of "
+                       "an open one (knitsim.io.checks.cycle_work)",
         "energy_N_per_strain": "oint F d(strain) over the cycle",
         "strain_at_first_jamming": "strain C/C0 - 1 at the first jamming (NaN: never jammed)",
         "final_status": "status code at the end: " + ", ".join(f"{k} {v}" for k, v in STATUS_NAMES.items())

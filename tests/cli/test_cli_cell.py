@@ -54,7 +54,10 @@ def test_paper_scene_runs_small(capsys, tmp_path, name):
     rows = read_curve(tmp_path / "o" / "curve.csv")
     with open(tmp_path / "o" / "curve.csv") as fh:
         assert tuple(fh.readline().strip().split(",")) == CURVE_COLUMNS
-    assert len(rows) == summary["n_increments"] * summary["n_cells"]
+    # the rest state (strain 0, Table 4's initialisation) first, then one row per increment
+    assert len(rows) == (summary["n_increments"] + 1) * summary["n_cells"]
+    assert float(rows[0]["strain"]) == 0.0
+    assert float(rows[0]["C"]) == pytest.approx(summary["cells"][0]["params"]["C0"], rel=1e-12)
     cell = summary["cells"][0]
     assert rc == (0 if cell["expected_end"] else 1)
     F, C, strain = col(rows, "force_per_wale_N"), col(rows, "C"), col(rows, "strain")
@@ -65,6 +68,7 @@ def test_paper_scene_runs_small(capsys, tmp_path, name):
     for entry in cell["cycles"]:
         k = entry["cycle"]
         idx = np.nonzero(cyc == k)[0]
+        idx = idx[idx > 0]                                  # row 0 is the rest state
         assert entry["peak_force_per_wale_N"] == F[idx].max()
         # residual strain: where F reached 0 unloading; the slack cell keeps C there, so the
         # first slack row of the cycle's unloading carries it as C/C0 - 1
@@ -74,8 +78,8 @@ def test_paper_scene_runs_small(capsys, tmp_path, name):
         else:
             assert not slack
         # energy: trapezoids of F over the cell's strain C/C0 - 1 (numpy's trapezoid, from the
-        # last row of the previous cycle)
-        path = np.concatenate([[idx[0] - 1], idx]) if idx[0] > 0 else idx
+        # last row of the previous cycle; the first cycle from the rest state, row 0)
+        path = np.concatenate([[idx[0] - 1], idx])
         e = np.trapezoid(F[path], C[path] / C0 - 1) if hasattr(np, "trapezoid") else np.trapz(F[path], C[path] / C0 - 1)
         assert entry["energy_N_per_strain"] == pytest.approx(e, rel=1e-12, abs=1e-15)
     if "monotonic" in name:
@@ -112,7 +116,7 @@ yarn = { B = 0.25 }
     assert cap.out.count("completed the load program") == 2
     rows = read_curve(tmp_path / "o" / "curve.csv")
     n = math.ceil(0.3 / 0.025 - 1e-12)
-    assert len(rows) == n * 2
+    assert len(rows) == (n + 1) * 2                      # the rest state, then n increments, per cell
     # eqs 8-9: lengths scale with sqrt(B/P), so a stiffer yarn needs a larger P for the same
     # shape: at every imposed strain before jamming the stiffer cell carries more force
     F0, F1 = col(rows, "force_per_wale_N", 0), col(rows, "force_per_wale_N", 1)

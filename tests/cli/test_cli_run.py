@@ -30,7 +30,10 @@ def test_scene_runs_small(capsys, tmp_path, name):
     with open(tmp_path / "o" / "curve.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert tuple(rows[0].keys()) == CURVE_COLUMNS
-    assert len(rows) == summary["n_increments"]
+    # increment 0 is the rest state (grip strain 0), then the program's increments
+    assert len(rows) == summary["n_increments"] + 1
+    assert rows[0]["increment"] == "0" and float(rows[0]["grip_strain"]) == 0.0
+    rows = rows[1:]
     F = np.array([float(r["force_N"]) for r in rows])
     Fw = np.array([float(r["force_per_wale_N"]) for r in rows])
     np.testing.assert_allclose(F / 2, Fw, rtol=1e-12)                  # 2 wales: per wale = total / 2

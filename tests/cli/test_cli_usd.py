@@ -34,7 +34,7 @@ def run_dir(tmp_path_factory):
 
 
 def test_run_usd_file(run_dir):
-    n = sum(1 for _ in open(run_dir / "o" / "curve.csv")) - 1            # saved increments
+    n = sum(1 for _ in open(run_dir / "o" / "curve.csv")) - 2            # saved increments (header, rest row)
     sel = list(range(0, n, 3)) + ([n - 1] if (n - 1) % 3 else [])
     stage = Usd.Stage.Open(str(run_dir / "run.usda"))
     curves = [UsdGeom.BasisCurves(p) for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)]
