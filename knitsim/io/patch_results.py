@@ -64,6 +64,7 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None):
     import xarray as xr
     dims = ("increment", "course", "wale")
     meanings = " ".join(_LABELS[k] for k in sorted(_LABELS))
+    n, (courses, wales) = h.n_increments, h.shape
     ds = xr.Dataset(
         {"strain": (dims, h.cell_field("strain"), {"long_name": "strain of the course length (C - C0)/C0",
                                                    "units": "1"}),
@@ -80,8 +81,12 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None):
                            {"flag_values": np.array(sorted(COLUMN_STATUS_NAMES), np.int8),
                             "flag_meanings": " ".join(COLUMN_STATUS_NAMES[k] for k in sorted(COLUMN_STATUS_NAMES))}),
          "force_N": (("increment",), h.force_N, {"units": "N", "long_name": "grip force"})},
-        coords={"grip_strain": (("increment",), h.grip_strain), "cycle": (("increment",), h.cycle.astype(np.int32)),
-                "direction": (("increment",), h.direction.astype(np.int32))},
+        # increment numbers as in curve.csv (0 is the rest state, not stored here), so ds.sel(increment=k,
+        # course=i, wale=j) reads one cell at one row; direction as in the CSV files
+        coords={"increment": np.arange(1, n + 1, dtype=np.int32), "course": np.arange(courses, dtype=np.int32),
+                "wale": np.arange(wales, dtype=np.int32),
+                "grip_strain": (("increment",), h.grip_strain), "cycle": (("increment",), h.cycle.astype(np.int32)),
+                "direction": (("increment",), np.where(h.direction > 0, "load", "unload"))},
         attrs={"title": "knitsim patch: per-cell fields", "layout": "cell [course, wale]; course 0 at the lower grip",
                "conventions": "units N, mm, rad"})
     for n, arr in (fields or {}).items():
@@ -90,19 +95,37 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None):
         # the geometry is stored per group (identical cells share it), expanded by group_of_cell
         ds["group_of_cell"] = (("course", "wale"), np.asarray(h.group_of_cell, dtype=np.int32),
                                {"long_name": "group of identical cells solved once"})
-        ds["state_x"] = (("increment", "group", "unknown"), np.asarray(h.groups["x"], dtype=np.float64),
-                         {"long_name": "cell state (alpha, beta, gamma, phi, P)", "units": "rad rad rad rad N",
-                          "unknowns": "alpha beta gamma phi P"})
+        ds = ds.assign_coords(group=np.arange(len(h.groups["W"][0]), dtype=np.int32),
+                              state=np.array(["alpha", "beta", "gamma", "phi", "P"]))
+        ds["state_x"] = (("increment", "group", "state"), np.asarray(h.groups["x"], dtype=np.float64),
+                         {"long_name": "cell state (alpha, beta, gamma, phi, P)", "units": "rad rad rad rad N"})
         for k, long_name in (("W", "wale width (eq 6)"), ("C", "course length of the cell"),
                              ("s_AB", "arc length A -> B (eq 8)")):
             ds[f"state_{k}"] = (("increment", "group"), np.asarray(h.groups[k], dtype=np.float64),
                                 {"long_name": long_name, "units": "mm"})
+    if "head_gap" in h.groups:
+        ds["head_gap"] = (dims, h.cell_field("head_gap"),
+                          {"long_name": "centreline gap between the heads of neighbouring loops", "units": "mm"})
+        ds["interpenetrating"] = (dims, h.cell_field("interpenetrating").astype(np.int8),
+                                  {"long_name": "1 where the heads overlap (gap below the in-plane width)"})
     return ds
 
 
+def _encoding(ds) -> dict:
+    """gzip level 4, chunked along the increment (a frame is read without the whole file)."""
+    enc = {}
+    for name, var in ds.data_vars.items():
+        if var.dtype.kind in "fiu" and var.ndim:
+            chunks = tuple(min(64, s) if d == "increment" else s for d, s in zip(var.dims, var.shape))
+            if all(c > 0 for c in chunks):
+                enc[name] = {"zlib": True, "complevel": 4, "chunksizes": chunks}
+    return enc
+
+
 def cells_nc(h: PatchHistory, fields: dict | None = None) -> bytes:
-    """``cells.nc`` as bytes (netCDF-3 through SciPy)."""
-    return bytes(cells_dataset(h, fields).to_netcdf(engine="scipy"))
+    """``cells.nc`` as bytes: netCDF-4 (HDF5) through h5netcdf, compressed and chunked by increment."""
+    ds = cells_dataset(h, fields)
+    return bytes(ds.to_netcdf(engine="h5netcdf", encoding=_encoding(ds)))
 
 
 def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:

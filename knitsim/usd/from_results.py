@@ -46,7 +46,7 @@ MIN_POINTS = 6
 COLOR_FIELDS = {"stage": "stage", "phi": "phi", "force": "force", "material": "material_id", "strain": "strain"}
 FIELD_UNITS = {"phi": "rad", "force": "N", "strain": "1"}
 #: parameters that identify a material (as knitsim.patch.model.PARAM_NAMES)
-_MATERIAL_PARAMS = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0")
+_MATERIAL_PARAMS = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0", "in_plane_width")
 
 
 # --------------------------------------------------------------------------- kernel driver
@@ -160,7 +160,9 @@ class PatchRecord:
 
 def material_ids(params: dict) -> np.ndarray:
     """Material of each cell: rank of its parameter set among the distinct ones, (courses, wales) int32."""
-    stack = np.stack([np.asarray(params[n], dtype=np.float64) for n in _MATERIAL_PARAMS], axis=-1)
+    # an absent in-plane width (NaN: the cell jams with its d) is one value; older results lack the field
+    stack = np.stack([np.nan_to_num(np.asarray(params[n], dtype=np.float64), nan=-1.0)
+                      for n in _MATERIAL_PARAMS if n in params], axis=-1)
     _, inv = np.unique(stack.reshape(-1, stack.shape[-1]), axis=0, return_inverse=True)
     return inv.reshape(stack.shape[:2]).astype(np.int32)
 
@@ -191,7 +193,7 @@ def record_from_results(results_dir) -> PatchRecord:
                                 "= false?)")
     import xarray as xr
     try:
-        ds = xr.load_dataset(nc, engine="scipy")
+        ds = xr.load_dataset(nc, engine="h5netcdf")
     except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
         raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: cells.nc is not readable ({exc})") from None
     need = ("state_x", "state_W", "state_C", "state_s_AB", "group_of_cell", "d", "B")
@@ -202,7 +204,11 @@ def record_from_results(results_dir) -> PatchRecord:
     cf = {"stage": ds["stage"].values.astype(np.int64), "phi": ds["phi"].values, "force": ds["force_per_wale_N"].values,
           "strain": ds["strain"].values, "status": ds["status"].values.astype(np.int64)}
     params = {k: ds[k].values for k in _MATERIAL_PARAMS if k in ds}
-    fs = {k: np.asarray(ds[k].values, float) for k in ("grip_strain", "cycle", "direction")}
+    fs = {k: np.asarray(ds[k].values, float) for k in ("grip_strain", "cycle")}
+    dvals = ds["direction"].values
+    # direction as the CSV files write it ("load" / "unload"), or +1 / -1 (older results)
+    fs["direction"] = (np.where(dvals.astype(str) == "load", 1.0, -1.0) if dvals.dtype.kind in "USO"
+                       else np.asarray(dvals, float))
     scene = d / "scene.resolved.toml"
     return PatchRecord(ds["group_of_cell"].values.astype(np.int64), ds["state_x"].values, ds["state_W"].values,
                        ds["state_C"].values, ds["state_s_AB"].values, cf, params, fs,

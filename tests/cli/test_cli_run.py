@@ -39,8 +39,14 @@ def test_scene_runs_small(capsys, tmp_path, name):
     np.testing.assert_allclose(F / 2, Fw, rtol=1e-12)                  # 2 wales: per wale = total / 2
     assert summary["cells"] == 6
     import xarray as xr
-    with xr.open_dataset(tmp_path / "o" / "cells.nc", engine="scipy") as ds:
+    with xr.open_dataset(tmp_path / "o" / "cells.nc", engine="h5netcdf") as ds:
         assert ds["strain"].shape == (summary["n_increments"], 3, 2)
+        # labelled: one cell's history by its course and wale, increments numbered as in curve.csv
+        one = ds.sel(course=2, wale=1)
+        assert one["strain"].shape == (summary["n_increments"],)
+        assert list(ds["increment"].values) == [int(r["increment"]) for r in rows]
+        assert set(ds["direction"].values) <= {"load", "unload"} and "unknown" not in ds.dims
+        assert ds["strain"].encoding.get("zlib") or ds["strain"].encoding.get("compression") == "gzip"
         np.testing.assert_allclose(ds["column_force_N"].values.sum(axis=1), F, rtol=1e-12)
 
 

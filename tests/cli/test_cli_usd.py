@@ -82,9 +82,9 @@ def test_usd_from_results_equals_run_export(run_dir, capsys):
 def test_bad_input_exits_2(run_dir, tmp_path, capsys, argv, needle):
     import xarray as xr
     (tmp_path / "nostate").mkdir()
-    with xr.open_dataset(run_dir / "o" / "cells.nc", engine="scipy") as ds:
+    with xr.open_dataset(run_dir / "o" / "cells.nc", engine="h5netcdf") as ds:
         ds.drop_vars([v for v in ds.data_vars if v.startswith("state_")]).to_netcdf(
-            tmp_path / "nostate" / "cells.nc", engine="scipy")
+            tmp_path / "nostate" / "cells.nc", engine="h5netcdf")
     argv = [a.format(tmp=tmp_path, run=run_dir) for a in argv]
     rc = main(argv)
     err = capsys.readouterr().err
