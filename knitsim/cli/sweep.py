@@ -56,7 +56,7 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import SweepChunkError, plan_sweep, run_sweep
+    from ..sweep.runner import SweepChunkError, failed_samples, plan_sweep, run_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -97,19 +97,26 @@ def _run(args) -> int:
               f"after fixing the cause, finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
         return 1
     ds = run.dataset
-    n_bad = int((ds["expected_end"].values != 1).sum())
+    failed = failed_samples(ds)
+    n_bad = len(failed)
     summary = {
         "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
         "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
         "computed_chunks": len(run.computed), "skipped_chunks": len(run.skipped), "wall_s": run.wall_s,
-        "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad,
+        "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad, "failed": failed,
         "files": {k: str(v) for k, v in run.files.items()},
     }
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
           f"{run.wall_s:.1f} s; wrote {', '.join(sorted(run.files))} to {out}", file=sys.stderr, flush=True)
     if n_bad:
-        print(f"knitsim sweep: warning: {n_bad} cell(s) did not reach the end of the program "
-              "(see final_status in results.nc)", file=sys.stderr, flush=True)
+        print(f"knitsim sweep: warning: {n_bad} sample cell(s) failed (no results: NaN in results.nc, grey in "
+              "the plots):", file=sys.stderr, flush=True)
+        for f in failed[:20]:
+            print(f"  sample {f['sample']} ({', '.join(f'{k} = {v:.6g}' if isinstance(v, float) else f'{k} = {v}' for k, v in f['parameters'].items())})"
+                  f"{'' if f.get('cell') is None else ' cell ' + str(f['cell'])}: {f['reason']}",
+                  file=sys.stderr, flush=True)
+        if n_bad > 20:
+            print(f"  ... and {n_bad - 20} more (summary failed list with --json)", file=sys.stderr, flush=True)
     if args.json:
         print_json(summary)
     else:

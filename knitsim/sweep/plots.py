@@ -8,8 +8,11 @@
   the three quantities against each parameter, first and last cycle.
 
 A scene with several ``[[cells]]`` is plotted for its first cell (named in
-the title).  Points of cells that did not reach the end of the program are
-drawn hollow / masked (NaN results are simply absent).
+the title).  A sample whose cell failed (it did not finish the program: no
+convergence, an event not located) has no results (NaN); it is shown as failed
+in every plot: a grey cross on the axis and a dotted line (lines), a grey
+hatched cell (heat maps), a grey cross at the foot of the axis (scatter), and
+the title counts them.
 """
 from __future__ import annotations
 
@@ -70,21 +73,40 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
     return [path]
 
 
+FAILED_STYLE = {"marker": "x", "color": "0.45", "s": 28, "lw": 1.2, "zorder": 5}
+
+
+def _failed(ds) -> np.ndarray:
+    """Where a sample's cell failed (status not ok nor force cap, and it ran)."""
+    return (np.asarray(ds["expected_end"].values) == 0) & (np.asarray(ds["final_status"].values) >= 0)
+
+
+def _title(title: str, failed: np.ndarray) -> str:
+    n = int(np.count_nonzero(failed))
+    return title if not n else f"{title}\n{n} failed sample(s) (grey x / hatched): no results, see summary"
+
+
 def _lines(ds, key: str, title: str) -> bytes:
     fig, axes = _figure(1, 3)
     x = ds[key].values
     numeric = np.issubdtype(x.dtype, np.number)
     xs = x if numeric else np.arange(len(x))
+    bad = _failed(ds)
     for ax, (q, ylabel) in zip(axes[0], QUANTITIES):
         for c in ds["cycle"].values:
             ax.plot(xs, ds[q].sel(cycle=c).values, marker="o", ms=3, label=f"cycle {int(c)}")
+        if bad.any():
+            lo = ax.get_ylim()[0]
+            for xv in xs[bad]:
+                ax.axvline(xv, color="0.6", ls=":", lw=0.8)
+            ax.scatter(xs[bad], np.full(int(bad.sum()), lo), label="failed", clip_on=False, **FAILED_STYLE)
         ax.set_xlabel(key)
         ax.set_ylabel(ylabel)
         if not numeric:
             ax.set_xticks(xs, [str(v) for v in x])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(_title(title, bad), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -94,15 +116,20 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
     fig, axes = _figure(len(cycles), 3, 4.4, 3.4)
     kx, ky = keys[1], keys[0]
     x, y = ds[kx].values, ds[ky].values
+    bad = (ds["expected_end"] == 0) & (ds["final_status"] >= 0)
+    bad_yx = np.asarray(bad.transpose(ky, kx).values)
     for r, c in enumerate(cycles):
         for ax, (q, label) in zip(axes[r], QUANTITIES):
             z = ds[q].sel(cycle=c).transpose(ky, kx).values
             im = ax.pcolormesh(_edges(x), _edges(y), np.ma.masked_invalid(z), shading="flat", cmap="viridis")
+            if bad_yx.any():
+                ax.pcolor(_edges(x), _edges(y), np.ma.masked_where(~bad_yx, np.ones_like(z)), hatch="xx",
+                          cmap="Greys", vmin=0, vmax=3, edgecolor="0.4", shading="flat")
             fig.colorbar(im, ax=ax, shrink=0.85)
             ax.set_xlabel(kx)
             ax.set_ylabel(ky)
             ax.set_title(f"{label}, cycle {c}", fontsize=8)
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(_title(title, bad_yx), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -125,20 +152,21 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
     else:
         flat = ds
         xs = {k: ds[k].values for k in keys}
-    ok = np.asarray(flat["expected_end"].values) == 1
+    bad = _failed(flat)
     for r, (q, label) in enumerate(QUANTITIES):
         for j, k in enumerate(keys):
             ax = axes[r][j]
             for c in cycles:
                 y = flat[q].sel(cycle=c).values
-                ax.scatter(xs[k][ok], y[ok], s=8, alpha=0.7, label=f"cycle {c}")
-                if (~ok).any():
-                    ax.scatter(xs[k][~ok], y[~ok], s=10, facecolors="none", edgecolors="k", lw=0.5)
+                ax.scatter(xs[k][~bad], y[~bad], s=8, alpha=0.7, label=f"cycle {c}")
+            if bad.any():
+                lo = ax.get_ylim()[0]
+                ax.scatter(xs[k][bad], np.full(int(bad.sum()), lo), label="failed", clip_on=False, **FAILED_STYLE)
             ax.set_xlabel(k)
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(title + ("" if ok.all() else " (hollow: cell did not finish)"), fontsize=9)
+    fig.suptitle(_title(title, bad), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 

@@ -568,7 +568,8 @@ def assemble(out_dir: str | Path):
     dimension with one coordinate per parameter.  Then ``cell`` (only when
     the scene has several ``[[cells]]``), ``cycle`` (from 1) and, with
     curves, ``increment``.  Samples of a missing chunk are NaN with
-    ``final_status = -1``.
+    ``final_status = -1``; the results of a cell that failed (``expected_end = 0``) are NaN too,
+    its ``final_status`` gives the reason, so that no fit or summary takes them for results.
 
     Returns
     -------
@@ -613,6 +614,11 @@ def assemble(out_dir: str | Path):
             n = p["force_per_wale_N"].shape[2]
             data["force_per_wale_N"][idx, :, :n] = p["force_per_wale_N"]
             data["imposed_strain"][idx, :n] = p["imposed_strain"][None, :]
+    # a cell that failed (did not finish nor stop at its force cap) has no results: NaN, its status says why
+    failed = (data["expected_end"] == 0) & (data["final_status"] >= 0)
+    for k in CYCLE_VARS:
+        data[k][failed] = np.nan
+    data["strain_at_first_jamming"][failed] = np.nan
 
     if spec["method"] == "grid":
         lead = list(keys)
@@ -727,3 +733,33 @@ __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepCh
            "run_sweep", "run_chunk",
            "reduce_history", "sweep_hash", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
            "CYCLE_VARS", "CELL_VARS"]
+
+
+def failed_samples(ds) -> list[dict]:
+    """The samples whose cell failed (ran, but neither finished nor stopped at its force cap).
+
+    Returns
+    -------
+    list of dict
+        ``sample`` (flat index), ``parameters`` (key path -> value), ``cell`` (None for one cell)
+        and ``reason`` (the status name).
+    """
+    from ..cell.history import STATUS_NAMES
+
+    keys = json.loads(ds.attrs["parameters"])
+    lead = ["sample"] if ds.attrs["method"] == "lhs" else keys
+    has_cell = "cell" in ds.dims
+    order = lead + (["cell"] if has_cell else [])
+    status = ds["final_status"].transpose(*order)
+    ok = ds["expected_end"].transpose(*order)
+    bad = np.argwhere((np.asarray(ok.values) == 0) & (np.asarray(status.values) >= 0))
+    lead_shape = status.shape[:len(lead)]
+    out = []
+    for idx in bad:
+        sel = {d: int(i) for d, i in zip(order, idx)}
+        sample = int(np.ravel_multi_index(tuple(idx[:len(lead)]), lead_shape)) if lead_shape else 0
+        point = ds.isel({d: sel[d] for d in lead})
+        params = {k: (point[k].values.item() if hasattr(point[k].values, "item") else point[k].values) for k in keys}
+        out.append({"sample": sample, "parameters": params, "cell": sel.get("cell"),
+                    "reason": STATUS_NAMES.get(int(status.values[tuple(idx)]), "unknown")})
+    return out
