@@ -619,15 +619,19 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
         cand.practical = bool(drop > 0 and (drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0)
                                             or adequacy.excess - drop <= adequacy.tolerance))
         if cand.flagged_curves:
-            cand.note = (f"some increments did not converge on {', '.join(cand.flagged_curves)} "
-                         "(those rows keep the last converged force): a verdict on it is not confident")
+            # rows of a failed increment keep the last converged force: its chi^2 is no model's, and no
+            # evidence for the effect (it is neither named nor weighed)
+            cand.significant = cand.practical = False
+            cand.note = (f"not judged: some increments did not converge on {', '.join(cand.flagged_curves)} "
+                         "(those rows keep the last converged force)")
         out.append(cand)
     fitted = sorted((c for c in out if c.score is not None), key=lambda c: -c.score)
-    # BIC weights over "none" (the baseline, score 0) and the fitted candidates
-    logw = np.array([0.0] + [0.5 * c.score for c in fitted])
+    # BIC weights over "none" (the baseline, score 0) and the candidates whose fits ran through
+    judged = [c for c in fitted if not c.flagged_curves]
+    logw = np.array([0.0] + [0.5 * c.score for c in judged])
     p = np.exp(logw - logw.max())
     p /= p.sum()
-    for c, pc in zip(fitted, p[1:]):
+    for c, pc in zip(judged, p[1:]):
         c.probability = float(pc)
     return fitted + [c for c in out if c.score is None]
 
@@ -657,8 +661,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
                  indist: list) -> Verdict:
     """Step 8 (module docstring)."""
     fitted = [c for c in candidates if c.score is not None]
-    probs = {"none": float(1.0 - sum(c.probability for c in fitted))}
-    probs.update({c.effect: c.probability for c in fitted})
+    probs = {"none": float(1.0 - sum(c.probability or 0.0 for c in fitted))}
+    probs.update({c.effect: c.probability for c in fitted if c.probability is not None})
     stage = loc.where[0] if loc.where else None
     fit_txt = (f"chi2/dof = {adequacy.chi2_per_dof:.4g} (expected 1 +- {adequacy.expected_sd:.2g} for noise alone)")
     assumed = [n.source for n in noise.curves if not n.known]
