@@ -86,10 +86,6 @@ class WarpBackend:
         import warp as wp
 
         from ..cell.batch import CellBatchState, CellModel, CellSolver
-        for i, p in enumerate(params):
-            if p.effects.on:
-                raise KnitsimInputError(f"groups[{i}].effects = {list(p.effects.on)!r}: the model extensions run in "
-                                        "cell batches and the diagnosis, not yet in patches")
         self.wp = wp
         self.model = CellModel.from_params(params, device)
         self.device = self.model.device
@@ -127,8 +123,8 @@ class WarpBackend:
         return self._read(self.s1)
 
     def _select(self, mask, src, dst):
-        self.wp.launch(_select_kernel(), dim=self.n, inputs=[mask] + src._arrays(), outputs=dst._arrays(),
-                       device=self.device)
+        self.wp.launch(_select_kernel(), dim=self.n, inputs=[mask] + src._arrays() + [src.eff],
+                       outputs=dst._arrays() + [dst.eff], device=self.device)
 
     def begin_increment(self) -> None:
         self._select(self._all, self.s0, self.res)
@@ -144,15 +140,15 @@ class WarpBackend:
         return self.committed()
 
     def get_state(self) -> dict:
-        return {f: a.numpy().copy() for f, a in zip(_STATE_FIELDS, self.s0._arrays())}
+        return {f: a.numpy().copy() for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff])}
 
     def set_state(self, saved: dict) -> None:
-        for f, a in zip(_STATE_FIELDS, self.s0._arrays()):
+        for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff]):
             a.assign(saved[f])
 
 
 _STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction",
-                 "head_gap")
+                 "head_gap", "eff")
 
 
 @functools.lru_cache(maxsize=None)
@@ -164,11 +160,11 @@ def _select_kernel():
                      xa: wp.array2d(dtype=wp.float64), qa: wp.array2d(dtype=wp.float64), Ca: wp.array(dtype=wp.float64),
                      sa: wp.array(dtype=wp.int32), ja: wp.array(dtype=wp.int32), ka: wp.array(dtype=wp.int32),
                      fa: wp.array(dtype=wp.float64), ba: wp.array(dtype=wp.float64), ta: wp.array(dtype=wp.int32),
-                     da: wp.array(dtype=wp.int32), ga: wp.array(dtype=wp.float64),
+                     da: wp.array(dtype=wp.int32), ga: wp.array(dtype=wp.float64), ea: wp.array2d(dtype=wp.float64),
                      xb: wp.array2d(dtype=wp.float64), qb: wp.array2d(dtype=wp.float64), Cb: wp.array(dtype=wp.float64),
                      sb: wp.array(dtype=wp.int32), jb: wp.array(dtype=wp.int32), kb: wp.array(dtype=wp.int32),
                      fb: wp.array(dtype=wp.float64), bb: wp.array(dtype=wp.float64), tb: wp.array(dtype=wp.int32),
-                     db: wp.array(dtype=wp.int32), gb: wp.array(dtype=wp.float64)):
+                     db: wp.array(dtype=wp.int32), gb: wp.array(dtype=wp.float64), eb: wp.array2d(dtype=wp.float64)):
         i = wp.tid()
         if mask[i] != 0:
             for k in range(xa.shape[1]):
@@ -184,6 +180,8 @@ def _select_kernel():
             tb[i] = ta[i]
             db[i] = da[i]
             gb[i] = ga[i]
+            for k in range(ea.shape[1]):
+                eb[i, k] = ea[i, k]
 
     return select_state
 

@@ -1,9 +1,11 @@
 """Immutable description of a patch: ``courses x wales`` cells with per-cell parameters.
 
 Layout: cell ``[i, j]`` is course ``i`` (0 at the lower grip) of wale column
-``j``.  Every per-cell parameter is an array of shape ``(courses, wales)``;
-the rules (friction model, Table 4 completions, force cap) are shared by the
-whole patch.
+``j``.  Every per-cell parameter is an array of shape ``(courses, wales)``,
+and so are the rules (friction model, Table 4 completions, jamming criterion,
+force cap) and the model extensions (an :class:`~knitsim.cell.effects.EffectSet`
+per cell): a preform mixes yarns, so a patch mixes Coulomb and Dahl regions,
+rule sets and effects by material.
 
 Identical cells are solved once (:meth:`PatchModel.grouping`): cells with the
 same parameters in the same column start from the same state and, in series,
@@ -18,19 +20,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..cell.effects import NO_EFFECTS
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
 
 #: per-cell parameters that maps may set (CellParams names), units mm, N mm^2, -, 1/mm, rad;
 #: in_plane_width is NaN where it is not given (the cell then jams with its d)
 PARAM_NAMES = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0", "in_plane_width")
-#: rules shared by every cell of a patch (CellParams names)
+#: rules of each cell (CellParams names): per-cell object arrays of a patch
 RULE_NAMES = ("friction", "unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
 
 
 def _number(v) -> float:
     """A parameter as a float field value (None, an absent in-plane width, is NaN)."""
     return float("nan") if v is None else float(v)
+
+
+#: CellParams' own rules, the default of a patch
+_DEFAULT = CellParams(B=1.0, d=1.0, L=10.0, W0=4.0, C0=2.0)
 
 
 @dataclass(frozen=True)
@@ -79,41 +86,62 @@ class PatchModel:
         Cells along a wale column (in series) and wale columns (in parallel).
     fields : dict of str to ndarray, shape [courses, wales]
         :data:`PARAM_NAMES`, float64 (units as :class:`~knitsim.cell.material.CellParams`).
-    rules : dict
-        :data:`RULE_NAMES` values shared by every cell.
+    rules : dict of str to ndarray of object, shape [courses, wales]
+        :data:`RULE_NAMES` of every cell (a single value is broadcast to every cell).
+    effects : ndarray of EffectSet, shape [courses, wales], optional
+        The model extensions of every cell (none by default).
     """
 
     courses: int
     wales: int
     fields: dict
     rules: dict = field(default_factory=dict)
+    effects: np.ndarray | None = None
+
+    def __post_init__(self):
+        shape = (self.courses, self.wales)
+        rules = {}
+        for r in RULE_NAMES:
+            v = self.rules.get(r, getattr(_DEFAULT, r))
+            if isinstance(v, np.ndarray) and v.shape == shape:
+                rules[r] = v
+            else:
+                a = np.empty(shape, dtype=object)
+                a[...] = v
+                rules[r] = a
+        object.__setattr__(self, "rules", rules)
+        eff = self.effects
+        if not (isinstance(eff, np.ndarray) and eff.shape == shape):
+            a = np.empty(shape, dtype=object)
+            for idx in np.ndindex(shape):
+                a[idx] = NO_EFFECTS if eff is None else eff
+            object.__setattr__(self, "effects", a)
 
     @classmethod
     def uniform(cls, params: CellParams, courses: int, wales: int) -> "PatchModel":
         """A patch of ``courses x wales`` copies of one cell."""
         params = params.validated()
         fields = {n: np.full((courses, wales), _number(getattr(params, n))) for n in PARAM_NAMES}
-        return cls(int(courses), int(wales), fields, {r: getattr(params, r) for r in RULE_NAMES})
+        return cls(int(courses), int(wales), fields, {r: getattr(params, r) for r in RULE_NAMES}, params.effects)
 
     @classmethod
     def from_cells(cls, cells: list[list[CellParams]]) -> "PatchModel":
-        """A patch from a nested list ``cells[course][wale]`` (rules from the first cell, must agree)."""
+        """A patch from a nested list ``cells[course][wale]`` (each cell its own rules and effects)."""
         courses, wales = len(cells), len(cells[0])
-        first = cells[0][0]
-        rules = {r: getattr(first, r) for r in RULE_NAMES}
         fields = {n: np.empty((courses, wales)) for n in PARAM_NAMES}
+        rules = {r: np.empty((courses, wales), dtype=object) for r in RULE_NAMES}
+        effects = np.empty((courses, wales), dtype=object)
         for i in range(courses):
             if len(cells[i]) != wales:
                 raise KnitsimInputError(f"cells[{i}]: {len(cells[i])} wales, expected {wales}")
             for j in range(wales):
                 p = cells[i][j]
                 for r in RULE_NAMES:
-                    if getattr(p, r) != rules[r]:
-                        raise KnitsimInputError(f"cells[{i}][{j}].{r} = {getattr(p, r)!r}: every cell of a "
-                                                f"patch shares the rules (cell [0][0] has {rules[r]!r})")
+                    rules[r][i, j] = getattr(p, r)
                 for n in PARAM_NAMES:
                     fields[n][i, j] = _number(getattr(p, n))
-        return cls(courses, wales, fields, rules)
+                effects[i, j] = p.effects
+        return cls(courses, wales, fields, rules, effects)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -128,7 +156,17 @@ class PatchModel:
         vals = {n: float(self.fields[n][i, j]) for n in PARAM_NAMES}
         if not np.isfinite(vals["in_plane_width"]):
             vals["in_plane_width"] = None
-        return CellParams(**vals, **self.rules).validated(where=f"cell[{i}, {j}]")
+        return CellParams(**vals, **{r: self.rules[r][i, j] for r in RULE_NAMES},
+                          effects=self.effects[i, j]).validated(where=f"cell[{i}, {j}]")
+
+    def material_codes(self) -> np.ndarray:
+        """An integer per cell naming its rules and effects (equal codes: equal rules and effects)."""
+        keys: dict = {}
+        out = np.empty(self.shape, np.int64)
+        for idx in np.ndindex(self.shape):
+            k = tuple(self.rules[r][idx] for r in RULE_NAMES) + (self.effects[idx],)
+            out[idx] = keys.setdefault(k, len(keys))
+        return out
 
     def column_rest_length(self) -> np.ndarray:
         """Rest length of each wale column, sum of C0 along it [mm], shape [wales]."""
@@ -138,9 +176,10 @@ class PatchModel:
         """Group identical cells (see the module docstring); ``dedup=False``: one group per cell."""
         courses, wales = self.shape
         # (an absent in-plane width, NaN, groups as one value)
-        stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES], axis=-1)
+        stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES]
+                         + [self.material_codes().astype(float)], axis=-1)
         if dedup:
-            flat = stack.reshape(-1, len(PARAM_NAMES))
+            flat = stack.reshape(-1, stack.shape[-1])
             _, mat_id = np.unique(flat, axis=0, return_inverse=True)
             mat_id = mat_id.reshape(courses, wales)
             # a column class is the multiset of its materials (order along the column is irrelevant in series)

@@ -110,7 +110,10 @@ class PatchHistory:
 def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
     """Hash of everything that determines the results (checked on resume)."""
     h = hashlib.sha256()
-    h.update(repr((model.courses, model.wales, sorted(model.rules.items()), sorted(options.items()))).encode())
+    h.update(repr((model.courses, model.wales, sorted(options.items()))).encode())
+    for r in sorted(model.rules):
+        h.update(repr((r, model.rules[r].tolist())).encode())
+    h.update(repr([e.as_dict() for e in model.effects.ravel()]).encode())
     for n in sorted(model.fields):
         h.update(n.encode())
         h.update(np.ascontiguousarray(model.fields[n]).tobytes())

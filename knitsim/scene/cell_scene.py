@@ -122,6 +122,16 @@ def _rules_table(defaults: bool) -> Table:
     }, "rules where Table 4 is silent (knitsim.cell.stages)")
 
 
+def _effects_table() -> Table:
+    """The model extensions of a material (knitsim.cell.effects), off unless listed in ``on``."""
+    from ..cell.effects import EFFECT_NAMES, PARAM_COLUMNS
+    fields = {"on": Field(("str_list",), OPTIONAL, "effects switched on (dahl_transition: friction.model = dahl)",
+                          choices=EFFECT_NAMES)}
+    for c in PARAM_COLUMNS:
+        fields[c] = Field(("float",), OPTIONAL, f"parameter {c} of its effect (knitsim.cell.effects.EffectSet)")
+    return Table(fields, "model extensions (knitsim.cell.effects): off by default")
+
+
 def _load_table() -> Table:
     return Table({
         "type": Field(("str",), REQUIRED, "monotonic, cycles or piecewise", choices=LOAD_TYPES),
@@ -143,6 +153,7 @@ def _cell_table(defaults: bool) -> Table:
         "knit": _knit_table(),
         "friction": _friction_table(defaults),
         "rules": _rules_table(defaults),
+        "effects": _effects_table(),
     })
 
 
@@ -155,12 +166,13 @@ CELL_SCENE = Table({
     "knit": _knit_table(),
     "friction": _friction_table(True),
     "rules": _rules_table(True),
+    "effects": _effects_table(),
     "load": _load_table(),
     "output": Table({"plot": Field(("bool",), True, "write plot.png")}, "what to write"),
     "cells": TableArray(_cell_table(False), "cells of a batch, each overriding the tables above", min_items=1),
 })
 
-_CELL_TABLES = ("yarn", "knit", "friction", "rules")
+_CELL_TABLES = ("yarn", "knit", "friction", "rules", "effects")
 # keys that are alternatives: a cell that sets one drops the others inherited from the base
 _ALTERNATIVES = {"friction": (("m",), ("mu_k", "coiling_angle_deg")),
                  "friction_phi0": (("phi0",), ("phi0_deg",))}
@@ -330,6 +342,7 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
 
     model = f["model"]
     sigma = f["dahl_sigma"]
+    effects, model = _resolve_effects(cell.get("effects", {}), model, org)
     if model == "dahl" and sigma <= 0:
         raise error(org.path("friction", "dahl_sigma"), sigma,
                     "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]" + org.where())
@@ -341,7 +354,25 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
         "friction": {"model": model, "m": m, "phi0": phi0, "dahl_sigma": sigma},
         "rules": dict(r),
     }
+    if effects.on:
+        out["effects"] = effects.as_dict()
+    out["_effects"] = effects
     return out, notes
+
+
+def _resolve_effects(table: dict, model: str, org) -> tuple:
+    """The EffectSet of a cell's ``[effects]`` table; ``dahl_transition`` there is friction.model = "dahl"."""
+    from ..cell.effects import EffectSet
+    t = dict(table or {})
+    on = [e for e in t.pop("on", [])]
+    if "dahl_transition" in on:
+        on.remove("dahl_transition")
+        model = "dahl"
+    try:
+        eff = EffectSet(on=tuple(on), **t).validated(where=org.path("effects", "").rstrip("."))
+    except TypeError as exc:  # pragma: no cover - the schema admits only EffectSet fields
+        raise KnitsimInputError(f"effects: {exc}") from None
+    return eff, model
 
 
 #: the most increments a load program may have (each is a row of every output)
@@ -464,7 +495,8 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
                        W0=tables["knit"]["W0"], C0=tables["knit"]["C0"], m=tables["friction"]["m"],
                        phi0=tables["friction"]["phi0"], friction=tables["friction"]["model"],
                        dahl_sigma=tables["friction"]["dahl_sigma"],
-                       in_plane_width=tables["yarn"].get("in_plane_width"), **tables["rules"])
+                       in_plane_width=tables["yarn"].get("in_plane_width"), effects=tables.pop("_effects"),
+                       **tables["rules"])
         p.validated(where or "cell")   # backstop: the same checks as the engines
         params.append(p)
         labels.append(label)

@@ -67,8 +67,9 @@ from ..cell.load_program import LoadProgram
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
-from .cell_scene import (ENGINES, _CELL_TABLES, _cell_table, _device_check, _friction_table, _knit_table,
-                         _load_table, _merge, _Origins, _program, _resolve_cell, _rules_table, _yarn_table)
+from .cell_scene import (ENGINES, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
+                         _knit_table, _load_table, _merge, _Origins, _program, _resolve_cell, _rules_table,
+                         _yarn_table)
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
 
 
@@ -114,12 +115,15 @@ PATCH_SCENE = Table({
     "knit": _knit_table(),
     "friction": _friction_table(True),
     "rules": _rules_table(True),
+    "effects": _effects_table(),
     "zones": TableArray(Table({
         "label": Field(("str",), OPTIONAL, "name of the zone"),
         "courses": Field(("float_list",), OPTIONAL, "[start, stop) of courses, 0-based (default: all)"),
         "wales": Field(("float_list",), OPTIONAL, "[start, stop) of wales, 0-based (default: all)"),
         "yarn": _yarn_table(), "knit": _knit_table(), "friction": _friction_table(False),
-    }), "rectangular material zones over the base cell, later ones on top"),
+        "rules": _rules_table(False), "effects": _effects_table(),
+    }), "rectangular material zones over the base cell (each its friction model, rules and effects), later "
+        "ones on top"),
     "maps": Table({n: Table(_map_table(n).fields, f"per-cell map of {n} [{_UNITS[n]}]") for n in PARAM_NAMES},
                   "per-cell maps, applied after the zones"),
     "load": Table(dict(_load_table().fields), "grip strain program (grip displacement / column rest length)",
@@ -197,7 +201,7 @@ def _cell_values(tables: dict) -> dict:
             "in_plane_width": tables["yarn"].get("in_plane_width", float("nan"))}
 
 
-def _check_cells(fields: dict, origins: dict, friction: str) -> None:
+def _check_cells(fields: dict, origins: dict, friction) -> None:
     """Per-cell conditions of section 3.1 / 3.3 (as CellParams.validated), naming the key that set the value."""
     def fail(name, mask, why):
         i, j = (int(v) for v in np.argwhere(mask)[0])
@@ -212,11 +216,12 @@ def _check_cells(fields: dict, origins: dict, friction: str) -> None:
         bad = ~(fields[name] >= 0)
         if bad.any():
             fail(name, bad, lambda i, j: "must be >= 0")
-    if friction == "dahl":
-        bad = ~(fields["dahl_sigma"] > 0)
+    dahl = np.asarray(friction == "dahl") if isinstance(friction, np.ndarray) else (friction == "dahl")
+    if np.any(dahl):
+        bad = dahl & ~(fields["dahl_sigma"] > 0)
         if bad.any():
             fail("dahl_sigma", bad, lambda i, j: "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]")
-        bad = ~(fields["m"] > 0)
+        bad = dahl & ~(fields["m"] > 0)
         if bad.any():
             fail("m", bad, lambda i, j: "Dahl friction needs m > 0")
     d, W0, L, C0 = fields["d"], fields["W0"], fields["L"], fields["C0"]
@@ -276,6 +281,11 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     base_tables, _ = _resolve_cell(merged, _Origins(None, {}))
     rules = dict(base_tables["rules"])
     rules["friction"] = base_tables["friction"]["model"]
+    # rules and effects per cell (a patch mixes materials: Coulomb and Dahl regions, rule sets, effects)
+    rule_arr = {r: np.full(shape, rules[r], dtype=object) for r in RULE_NAMES}
+    effects_arr = np.empty(shape, dtype=object)
+    for idx in np.ndindex(shape):
+        effects_arr[idx] = base_tables["_effects"]
     base = _cell_values(base_tables)
     fields = {n: np.full(shape, float(base[n])) for n in PARAM_NAMES}
     _BASE_PATHS = {"d": "yarn.d", "B": "yarn.B", "L": "knit.L", "W0": "knit.W0", "C0": "knit.C0",
@@ -286,17 +296,19 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     # zones: the base tables overridden per rectangle (library materials resolved as for a cell)
     zones_out = []
     for z, zone in enumerate(doc.get("zones", [])):
-        over = {t: zone[t] for t in ("yarn", "knit", "friction") if zone.get(t)}
+        zone_tables = ("yarn", "knit", "friction", "rules", "effects")
         raw_over = {t: validate(PATCH_SCENE.fields["zones"].item.fields[t], data["zones"][z].get(t, {}),
-                                f"zones[{z}].{t}", fill_defaults=False) for t in ("yarn", "knit", "friction")}
+                                f"zones[{z}].{t}", fill_defaults=False) for t in zone_tables}
         zm = validate(_cell_table(True), _merge(raw_base, raw_over), f"zones[{z}]", fill_defaults=True)
         org = _ZoneOrigins(z, raw_over)
         ztables, _ = _resolve_cell(zm, org)
-        if ztables["friction"]["model"] != rules["friction"]:
-            raise error(f"zones[{z}].friction.model", ztables["friction"]["model"],
-                        f"every cell of a patch shares friction.model = {fmt(rules['friction'])}")
         ci = index_range(zone.get("courses", [0, courses]), courses, f"zones[{z}].courses", "courses")
         wi = index_range(zone.get("wales", [0, wales]), wales, f"zones[{z}].wales", "wales")
+        zrules = dict(ztables["rules"], friction=ztables["friction"]["model"])
+        for r in RULE_NAMES:
+            rule_arr[r][ci, wi] = zrules[r]
+        for idx in np.ndindex(effects_arr[ci, wi].shape):
+            effects_arr[ci, wi][idx] = ztables["_effects"]
         vals = _cell_values(ztables)
         for n in PARAM_NAMES:
             fields[n][ci, wi] = vals[n]
@@ -310,8 +322,11 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         zres = {k: zone[k] for k in ("label",) if k in zone}
         zres.update(courses=[ci.start, ci.stop], wales=[wi.start, wi.stop],
                     yarn=ztables["yarn"], knit=ztables["knit"],
-                    friction={"m": ztables["friction"]["m"], "phi0": ztables["friction"]["phi0"],
-                              "dahl_sigma": ztables["friction"]["dahl_sigma"]})
+                    friction={"model": ztables["friction"]["model"], "m": ztables["friction"]["m"],
+                              "phi0": ztables["friction"]["phi0"], "dahl_sigma": ztables["friction"]["dahl_sigma"]},
+                    rules=dict(ztables["rules"]))
+        if "effects" in ztables:
+            zres["effects"] = ztables["effects"]
         zones_out.append(zres)
 
     # maps, m first (a phi0 map may be scaled by phimax = atan(m))
@@ -328,8 +343,10 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                               phimax=np.arctan(fields["m"]), name=n)
         origins[n][:] = f"maps.{n}"
         maps_out[n] = spec
-    _check_cells(fields, origins, rules["friction"])
-    model = PatchModel(courses, wales, fields, {r: rules[r] for r in RULE_NAMES})
+    _check_cells(fields, origins, rule_arr["friction"])
+    if doc["engine"] == "reference" and any(e.on for e in effects_arr.ravel()):
+        raise error("engine", doc["engine"], "the model extensions ([effects]) run on the warp engine only")
+    model = PatchModel(courses, wales, fields, rule_arr, effects_arr)
 
     # the grip program; every column must be able to take the largest grip displacement (checked on the
     # load table's numbers, before the program is built)
@@ -347,6 +364,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     resolved.update(engine=doc["engine"], device=doc["device"], seed=doc["seed"], patch=doc["patch"],
                     yarn=base_tables["yarn"], knit=base_tables["knit"], friction=base_tables["friction"],
                     rules=base_tables["rules"], load=load_resolved, output=doc["output"], solver=doc["solver"])
+    if "effects" in base_tables:
+        resolved["effects"] = base_tables["effects"]
     if maps_out:
         resolved["maps"] = maps_out
     if zones_out:

@@ -118,3 +118,28 @@ def test_graded_patch_between_uniform_patches(device):
     assert np.all(hg.force_per_wale_N >= lo - tol) and np.all(hg.force_per_wale_N <= hi + tol)
     # and strictly inside once the cells slide (not a copy of either)
     assert np.all((hg.force_per_wale_N[5:] > lo[5:]) & (hg.force_per_wale_N[5:] < hi[5:]))
+
+
+def test_uniform_patch_with_an_effect_is_the_single_cell(device):
+    """The model extensions run in patches as in the cell engine (identity: a uniform patch is its cell)."""
+    from knitsim.cell.effects import EffectSet
+    p = P.replace(effects=EffectSet(on=("yarn_compaction",), compaction_k=20.0), force_cap_N=50.0)
+    prog = cycles(0.10, 0.60, 1, 0.02)
+    cell = run_batch([p], prog, device=device)
+    h = run_patch(PatchModel.uniform(p, 3, 2), prog, device=device)
+    assert np.array_equal(h.force_per_wale_N, cell.force_per_wale[:, 0])
+    assert np.all(h.column_status == COL_OK)
+
+
+def test_columns_of_different_friction_laws_and_rules_are_their_cells(device):
+    """A patch mixes Coulomb and Dahl columns with their own unloading rules (parallel columns at one
+    grip strain: each uniform column carries its own cell's force, the grip the sum)."""
+    a = P.replace(force_cap_N=50.0)
+    b = P.replace(friction="dahl", dahl_sigma=30.0, unloading_rule="hong_constant_t", force_cap_N=50.0)
+    prog = cycles(0.10, 0.50, 1, 0.02)
+    single = run_batch([a, b], prog, device=device).force_per_wale
+    model = PatchModel.from_cells([[a, b], [a, b]])
+    assert model.grouping().n_groups == 2
+    h = run_patch(model, prog, device=device)
+    np.testing.assert_allclose(h.column_force_N, single, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(h.force_N, single.sum(axis=1), rtol=1e-12)

@@ -155,3 +155,18 @@ def test_resolved_scene_round_trips():
     assert again.params == s.params and again.labels == s.labels
     assert (again.program.strain == s.program.strain).all()
     assert again.resolved == s.resolved
+
+
+def test_effects_table_makes_the_cells_effects():
+    s = load_cell_scene({"yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+                         "friction": {"m": 0.2, "dahl_sigma": 30.0},
+                         "effects": {"on": ["yarn_compaction", "dahl_transition"], "compaction_k": 20.0},
+                         "load": {"type": "monotonic", "target_strain": 0.3}})
+    p = s.params[0]
+    assert p.effects.on == ("yarn_compaction",) and p.effects.compaction_k == 20.0
+    assert p.friction == "dahl"                       # dahl_transition is the Dahl friction law
+    refused({"yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2},
+             "effects": {"on": ["magic"]}, "load": {"type": "monotonic", "target_strain": 0.3}}, "effects.on")
+    refused({"yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2},
+             "effects": {"on": ["yarn_compaction"], "compaction_k": -1.0},
+             "load": {"type": "monotonic", "target_strain": 0.3}}, "compaction_k")

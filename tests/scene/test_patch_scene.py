@@ -103,3 +103,22 @@ def test_set_override_and_zone_materials():
     # section 2.2: E-glass L = 14.1, basalt L = 13.1; Table 1: d 0.58 / 0.56
     assert np.array_equal(s.model.fields["L"][:, 0], [14.1, 14.1, 13.1, 13.1])
     assert np.array_equal(s.model.fields["d"][:, 1], [0.58, 0.58, 0.56, 0.56])
+
+
+def test_zones_carry_their_friction_model_rules_and_effects():
+    doc = base(zones=[{"wales": [1, 3], "friction": {"model": "dahl", "dahl_sigma": 30.0},
+                       "rules": {"unloading_rule": "hong_constant_t"},
+                       "effects": {"on": ["yarn_compaction"], "compaction_k": 20.0}}])
+    s = load_patch_scene(doc)
+    m = s.model
+    assert m.rules["friction"][0, 0] == "coulomb" and m.rules["friction"][0, 1] == "dahl"
+    assert m.rules["unloading_rule"][2, 2] == "hong_constant_t" and m.rules["unloading_rule"][2, 0] == "dusserre"
+    assert m.effects[0, 1].on == ("yarn_compaction",) and m.effects[0, 0].on == ()
+    assert m.cell(0, 2).friction == "dahl" and m.cell(0, 2).effects.compaction_k == 20.0
+    again = load_patch_scene(tomllib.loads(s.to_toml()))
+    assert again.model.cell(0, 2) == m.cell(0, 2) and again.model.cell(3, 0) == m.cell(3, 0)
+
+
+def test_effects_need_the_warp_engine():
+    with pytest.raises(KnitsimInputError, match="warp engine only"):
+        load_patch_scene(base(engine="reference", effects={"on": ["yarn_extension"], "ext_c": 0.01}))
