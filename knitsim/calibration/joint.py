@@ -371,8 +371,10 @@ class _Problem:
                 raise KnitsimInputError(f"calibration.bounds.B = [{lo}, {hi}]: expected 0 < low < high [N mm^2]")
             return math.log(lo), math.log(hi)
         if name == "d":
-            w_min = min(sp.knit["W0"] for sp in self.sp) / 4.0
-            lo, hi = self.user_bounds.get("d", (0.5 * b.d, min(2.0 * b.d, w_min)))
+            lo, hi = self.user_bounds.get("d", (0.5 * b.d, 2.0 * b.d))
+            if not 0 < lo < hi:
+                raise KnitsimInputError(f"calibration.bounds.d = [{lo}, {hi}]: expected 0 < low < high [mm]")
+            return 0.0, 1.0                     # a fraction of [low, min(high, W0/4))
         elif name == "in_plane_width":
             return 0.0, 1.0                     # a fraction of [max(d, low), min(high, W0/4))
         elif name == "m":
@@ -403,8 +405,14 @@ class _Problem:
         return np.array([v.hi for v in self.vars])
 
     def w_range(self, d: float, W0s: Sequence[float]) -> tuple[float, float]:
+        """Range of the in-plane width: from d (and its low bound) to W0/4 of the narrowest knit."""
         lo, hi = self.user_bounds.get("in_plane_width", (0.0, math.inf))
         return max(d, lo), min(hi, 0.999 * min(W0s) / 4.0)
+
+    def d_range(self, W0s: Sequence[float]) -> tuple[float, float]:
+        """Range of d: its bounds, below W0/4 of the narrowest knit (loops jammed at rest otherwise)."""
+        lo, hi = self.user_bounds.get("d", (0.5 * self.base.d, 2.0 * self.base.d))
+        return lo, max(lo, min(hi, 0.999 * min(W0s) / 4.0))
 
     # ------------------------------------------------------------ transforms
     def start(self) -> np.ndarray:
@@ -415,7 +423,8 @@ class _Problem:
             if v.name == "B":
                 x.append(math.log(b.B))
             elif v.name == "d":
-                x.append(b.d)
+                lo, hi = self.d_range([s.knit["W0"] for s in self.sp])
+                x.append((b.d - lo) / (hi - lo) if hi > lo else 0.0)
             elif v.name == "in_plane_width":
                 lo, hi = self.w_range(b.d, [s.knit["W0"] for s in self.sp])
                 x.append((b.d_jam - lo) / (hi - lo) if hi > lo else 0.0)
@@ -441,6 +450,9 @@ class _Problem:
         for k, s in enumerate(self.sp):
             for g in GEOMETRY:
                 own[k][g] = s.knit[g] * math.exp(own[k][g]) if g in own[k] else s.knit[g]
+        if "d" in shared:
+            lo, hi = self.d_range([o["W0"] for o in own])
+            shared["d"] = lo + shared["d"] * (hi - lo)
         if "in_plane_width" in shared:
             d = shared.get("d", self.base.d)
             lo, hi = self.w_range(d, [o["W0"] for o in own])
@@ -559,6 +571,8 @@ def _reported(problem: _Problem, x: np.ndarray) -> tuple[list, np.ndarray, list,
             val = shared[v.name]
             if v.name == "B":
                 lo, hi = math.exp(v.lo), math.exp(v.hi)
+            elif v.name == "d":
+                lo, hi = problem.d_range([o["W0"] for o in own])
             elif v.name == "in_plane_width":
                 lo, hi = problem.w_range(shared.get("d", problem.base.d), [o["W0"] for o in own])
             else:
@@ -597,6 +611,9 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
             if spi is None:
                 if n == "B":
                     out[j] = math.log(yv[j])
+                elif n == "d":
+                    lo, hi = problem.d_range(W0s)
+                    out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
                 elif n == "in_plane_width":
                     lo, hi = problem.w_range(shared_d, W0s)
                     out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
@@ -626,7 +643,8 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
 
 
 _BOUND_NOTES = {
-    ("in_plane_width", "high"): "W0/4 of the narrowest knit: its loops jam at rest",
+    ("in_plane_width", "high"): "W0/4 of the narrowest knit (or its stated high bound): its loops jam at rest",
+    ("d", "high"): "W0/4 of the narrowest knit (or its stated high bound): W0 >= 4 d",
     ("in_plane_width", "low"): "the compact diameter d: a round yarn",
     ("phi0", "high"): "+phimax: the knit starts sliding in the loading direction",
     ("phi0", "low"): "-phimax: the knit starts sliding against the loading",

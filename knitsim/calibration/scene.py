@@ -90,6 +90,8 @@ CALIBRATION_SCENE = Table({
         "max_increment": Field(("float",), 0.005, "largest strain increment of the simulation", min=0.0,
                                min_inclusive=False, max=0.1),
         "row_step": Field(("float",), 0.005, "strain step of the rows fitted", min=0.0, min_inclusive=False, max=0.1),
+        "force_accuracy": Field(("float",), 0.005, "relative accuracy of the force reading: the least sd of a band's "
+                                "row, times the force (0.005: ISO 7500-1 class 0.5)", min=0.0, max=0.5),
         "starts": Field(("int",), 48, "Latin-hypercube starts screened", min=0, max=10_000),
         "refine": Field(("int",), 3, "best starts refined by least squares", min=1, max=100),
         "max_nfev": Field(("int",), 100, "least-squares evaluations per refined start", min=1),
@@ -217,7 +219,7 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             s["name"], width_mm=s["width"], gauge_length_mm=s["gauge_length"], knit=s["knit"],
             uncertainty=s["uncertainty"], curve=path(s["curve"], "curve") if "curve" in s else None,
             band=(path(band[0], "band"), path(band[1], "band")) if band else None, row_step=cal["row_step"],
-            noise_N=s.get("noise_N"), end_strain=s.get("end_strain")))
+            noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"]))
     fixed = dict(cal.get("fixed", {}))
     setup = JointSetup(base=base, shared=tuple(cal["shared"]), per_specimen=tuple(cal["per_specimen"]),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),

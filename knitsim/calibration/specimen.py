@@ -12,10 +12,12 @@ holds that, on the rows the fit uses:
   is a share of the strain range;
 - the target is the measured curve there (linear interpolation) when one is
   given, else the mid-line of the envelopes;
-- each row's weight is 1 / its sd: the half-width of the envelope band, but
-  not below the band's median relative half-width times the force (two
-  envelopes that cross leave no width there, though the specimens scatter);
-  for a curve without a band, its noise (given, or estimated from the curve,
+- each row's weight is 1 / its sd: the half-width of the envelope band (the
+  band is the tolerance a fit must meet), but not below the accuracy of the
+  testing machine's force, ``accuracy_rel`` of the reading (0.5 %: ISO 7500-1
+  class 0.5; two envelopes that cross leave no width there, though the
+  specimens scatter and the machine reads no better); for a curve without a
+  band, its noise (given, or estimated from the curve,
   :mod:`knitsim.diagnosis.noise`).
 
 Files: CSV (``,`` ``;`` or tab, :mod:`knitsim.io.table_input`) with a strain
@@ -38,6 +40,8 @@ TOTAL_COLUMNS = ("load_N", "force_N")
 PER_WALE_COLUMNS = ("force_per_wale_N",)
 #: knit geometry a specimen states (mm), and may let the fit move within its uncertainty
 GEOMETRY = ("L", "W0", "C0")
+#: relative accuracy of a tensile tester's force reading (ISO 7500-1 class 0.5): the least sd of a band's row
+FORCE_ACCURACY_REL = 0.005
 
 
 @dataclass(frozen=True)
@@ -151,7 +155,7 @@ class SpecimenData:
 def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, knit: dict,
                         uncertainty: dict | None = None, curve: str | Path | None = None,
                         band: tuple | None = None, row_step: float = 0.005, noise_N: float | None = None,
-                        end_strain: float | None = None) -> SpecimenData:
+                        end_strain: float | None = None, accuracy_rel: float = FORCE_ACCURACY_REL) -> SpecimenData:
     """Read a specimen's files and put them on the fit rows (module docstring).
 
     Parameters
@@ -172,6 +176,8 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         sd of the curve's force [N] (a curve without a band); default: estimated from the curve.
     end_strain : float, optional
         Last strain of the rows (default: the end of the data).
+    accuracy_rel : float
+        Relative accuracy of the force reading: the least sd of a band's row, times the force.
     """
     if curve is None and band is None:
         raise KnitsimInputError(f"specimens.{name}: give a measured curve, an experimental band, or both")
@@ -209,9 +215,8 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     scale = max(float(np.max(np.abs(target))), 1e-300)
     if band is not None:
         half = 0.5 * (high - low)
-        rel = float(np.median(half / np.maximum(np.abs(mid), 1e-12 * scale)))
-        sigma = np.maximum(np.maximum(half, rel * np.abs(target)), 1e-6 * scale)
-        rule = (f"half-width of the band, at least its median relative half-width ({rel:.3g}) x the force")
+        sigma = np.maximum(np.maximum(half, accuracy_rel * np.abs(target)), 1e-6 * scale)
+        rule = f"half-width of the band, at least {100 * accuracy_rel:.3g} % of the force (the machine's accuracy)"
     else:
         if noise_N is None:
             from ..diagnosis.noise import curve_noise

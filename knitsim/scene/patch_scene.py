@@ -131,6 +131,12 @@ def _map_table(name: str) -> Table:
     }, f"per-cell map of {name}")
 
 
+#: the effect each effect parameter belongs to (knitsim.cell.effects): maps of these set it per cell
+_EFFECT_OF = {"coil_mu_k": "coiling_angle_friction", "load_n": "normal_load_friction",
+              "load_ref_N": "normal_load_friction", "rate_p": "velocity_friction", "rate_ref_mm_s": "velocity_friction",
+              "compaction_k": "yarn_compaction", "compaction_min": "yarn_compaction", "bend_h": "bending_hysteresis",
+              "bend_sigma": "bending_hysteresis", "ext_c": "yarn_extension"}
+
 _UNITS = {"d": "mm", "B": "N mm^2", "m": "-", "dahl_sigma": "1/mm", "L": "mm", "W0": "mm", "C0": "mm", "phi0": "rad",
           "in_plane_width": "mm"}
 
@@ -181,7 +187,9 @@ PATCH_SCENE = Table({
         "rules": _rules_table(False), "effects": _effects_table(),
     }), "rectangular material zones over the base cell (each its friction model, rules and effects), later "
         "ones on top"),
-    "maps": Table({n: Table(_map_table(n).fields, f"per-cell map of {n} [{_UNITS[n]}]") for n in PARAM_NAMES},
+    "maps": Table({**{n: Table(_map_table(n).fields, f"per-cell map of {n} [{_UNITS[n]}]") for n in PARAM_NAMES},
+                   **{n: Table(_map_table(n).fields, f"per-cell map of the effect parameter {n} (cells whose effect "
+                                                     f"{_EFFECT_OF[n]} is on)") for n in _EFFECT_OF}},
                   "per-cell maps, applied after the zones"),
     "load": Table(dict(_load_table().fields), "grip strain program (grip displacement / column rest length)",
                   required=True),
@@ -499,7 +507,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     # maps, m first (a phi0 map may be scaled by phimax = atan(m))
     maps_in = {k: v for k, v in data.get("maps", {}).items()} if isinstance(data.get("maps"), dict) else {}
     maps_out = {}
-    for n in sorted(maps_in, key=lambda k: (k != "m", PARAM_NAMES.index(k))):
+    for n in sorted((k for k in maps_in if k in PARAM_NAMES), key=lambda k: (k != "m", PARAM_NAMES.index(k))):
         spec = doc["maps"][n]
         spec = {k: v for k, v in spec.items() if not (isinstance(v, dict) and not v)}
         if spec.get("type") == "random":
@@ -509,6 +517,22 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         fields[n] = build_map(spec, shape, fields[n], f"maps.{n}", doc["seed"], base_dir,
                               phimax=np.arctan(fields["m"]), name=n)
         origins[n][:] = f"maps.{n}"
+        maps_out[n] = spec
+    # maps of effect parameters: each cell's EffectSet with the mapped value (where its effect is on)
+    from dataclasses import replace as _replace
+    for n in (k for k in maps_in if k in _EFFECT_OF):
+        spec = {k: v for k, v in doc["maps"][n].items() if not (isinstance(v, dict) and not v)}
+        if "regions" in spec:
+            spec["regions"] = [dict(r) for r in spec["regions"]]
+        on = np.array([[_EFFECT_OF[n] in effects_arr[i, j].on for j in range(wales)] for i in range(courses)])
+        if not on.any():
+            raise error(f"maps.{n}.type", spec.get("type"), f"no cell has the effect {_EFFECT_OF[n]} on "
+                        "(switch it on in [effects] or a zone's effects)")
+        current = np.array([[float(getattr(effects_arr[i, j], n)) for j in range(wales)] for i in range(courses)])
+        values = build_map(spec, shape, current, f"maps.{n}", doc["seed"], base_dir, name=n)
+        for i, j in zip(*np.nonzero(on)):
+            effects_arr[i, j] = _replace(effects_arr[i, j], **{n: float(values[i, j])}).validated(
+                where=f"maps.{n} at cell [course {i}, wale {j}]")
         maps_out[n] = spec
     _check_cells(fields, origins, rule_arr["friction"])
     if doc["engine"] == "reference" and any(e.on for e in effects_arr.ravel()):

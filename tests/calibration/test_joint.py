@@ -136,7 +136,7 @@ knit = {{ L = 16.0, W0 = 5.0, C0 = 3.05 }}
 
 
 def test_band_weights_and_lab_files(tmp_path):
-    """The rows' sd is the band's half-width, floored at its median relative half-width x the force."""
+    """The rows' sd is the band's half-width, floored at the force reading's accuracy (0.5 %)."""
     s = np.linspace(0.0, 0.2, 21)
     low, high = 10 * s, 10 * s * (1 + 0.1 * (s > 0.1))       # a band closed below 0.1, 10 % wide above
     (tmp_path / "lo.tsv").write_text("strain_mm_per_mm\tload_N\n" + "".join(f"{a}\t{b}\n" for a, b in zip(s, low)))
@@ -146,8 +146,8 @@ def test_band_weights_and_lab_files(tmp_path):
     assert len(sp.strain) == 20 and sp.strain[-1] == pytest.approx(0.2)
     mid = 0.5 * (sp.band_low_N + sp.band_high_N)
     half = 0.5 * (sp.band_high_N - sp.band_low_N)
-    rel = np.median(half / mid)
-    np.testing.assert_allclose(sp.sigma_N, np.maximum(half, rel * mid), rtol=1e-12)
+    np.testing.assert_allclose(sp.sigma_N, np.maximum(half, 0.005 * mid), rtol=1e-12)
+    assert np.all(sp.sigma_N[sp.strain < 0.1] == 0.005 * mid[sp.strain < 0.1])     # the closed band
     assert np.all(sp.in_band(mid)) and not np.any(sp.in_band(1.2 * sp.band_high_N))
     (tmp_path / "bad.csv").write_text("strain,load_N\n0.0,0.0\n0.1,1.0\n0.05,2.0\n")
     with pytest.raises(KnitsimInputError, match=r"bad\.csv: row 4, column strain: 0\.05 is below the row before"):

@@ -120,3 +120,21 @@ def test_blends_need_one_yarn_and_specimens_their_size(lib):
         load_patch_scene(specimen(lib, patch={"wales": 3}))
     with pytest.raises(KnitsimInputError, match=r"^patch\.wales: missing required key"):
         load_patch_scene({"knit": {"material": "e_glass_plain"}, "yarn": {"material": "e_glass"}, "load": LOAD})
+
+
+def test_maps_of_effect_parameters_set_each_cells_effects():
+    """A map of an effect parameter sets it where the effect is on (the effects are a material's, per cell)."""
+    doc = {"patch": {"wales": 3, "courses": 2}, "yarn": {"material": "e_glass"},
+           "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2},
+           "zones": [{"wales": [1, 3], "effects": {"on": ["yarn_compaction"], "compaction_k": 5.0}}],
+           "maps": {"compaction_k": {"type": "gradient", "axis": "wales", "start": 1.0, "end": 3.0}},
+           "load": LOAD}
+    s = load_patch_scene(doc)
+    e = s.model.effects
+    assert e[0, 0].on == () and e[0, 0].compaction_k == 0.0          # no compaction there: untouched
+    assert (e[1, 1].compaction_k, e[1, 2].compaction_k) == (2.0, 3.0)
+    again = load_patch_scene(tomllib.loads(s.to_toml()))
+    assert again.model.cell(1, 2) == s.model.cell(1, 2)
+    doc["zones"] = []
+    with pytest.raises(KnitsimInputError, match=r"no cell has the effect yarn_compaction on"):
+        load_patch_scene(doc)
