@@ -102,6 +102,8 @@ class JointSetup:
         Least-squares evaluations per refined start.
     device : str
         Warp device.
+    phi0_starts : tuple of float or None
+        Per specimen, the start of its phi0 [rad] (None or absent: the base's).
     """
 
     base: CellParams
@@ -116,6 +118,7 @@ class JointSetup:
     seed: int = 0
     max_nfev: int = 100
     device: str = "cpu"
+    phi0_starts: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -431,9 +434,16 @@ class _Problem:
             elif v.name == "m":
                 x.append(b.m)
             elif v.name == "phi0":
-                x.append(b.phi0 / b.phimax if b.phimax > 0 else 0.0)
+                given = (self.setup.phi0_starts[v.specimen] if v.specimen < len(self.setup.phi0_starts)
+                         else None)
+                phi0 = b.phi0 if given is None else given
+                x.append(max(-1.0, min(1.0, phi0 / b.phimax)) if b.phimax > 0 else 0.0)
             elif v.name in GEOMETRY:
                 x.append(0.0)
+            elif v.name == "log10_dahl_sigma" and b.dahl_sigma > 0:
+                x.append(math.log10(b.dahl_sigma))        # the scene's Dahl stiffness as the start
+            elif hasattr(b.effects, v.name):
+                x.append(float(getattr(b.effects, v.name)))   # the scene's effect parameter as the start
             else:
                 x.append(self.effect_vars[v.name].start(b))
         return np.clip(np.array(x, float), self.lo, self.hi)
@@ -643,8 +653,8 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
 
 
 _BOUND_NOTES = {
-    ("in_plane_width", "high"): "W0/4 of the narrowest knit (or its stated high bound): its loops jam at rest",
-    ("d", "high"): "W0/4 of the narrowest knit (or its stated high bound): W0 >= 4 d",
+    ("in_plane_width", "high"): "W0/4 of the narrowest knit: its loops jam at rest",
+    ("d", "high"): "W0/4 of the narrowest knit: W0 >= 4 d",
     ("in_plane_width", "low"): "the compact diameter d: a round yarn",
     ("phi0", "high"): "+phimax: the knit starts sliding in the loading direction",
     ("phi0", "low"): "-phimax: the knit starts sliding against the loading",
@@ -738,6 +748,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             dev = float(x[j] / pb.sp[spi].uncertainty[nme])
         unit = UNITS.get(nme, pb.effect_vars[nme].unit if nme in pb.effect_vars else "")
         note = _note(nme, side, spname) if side else ""
+        if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
+                and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
+            note = "the high end of the stated range (below W0/4 of the narrowest knit)"
         if not np.isfinite(se[j]):
             side = side or "not identified"
             note = (note + "; " if note else "") + "the rows do not depend on it (not identified)"

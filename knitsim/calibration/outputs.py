@@ -104,7 +104,7 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
     lines = [f"# knitsim calibrate: {title}", "", f"Scene: `{source}`. {len(r.fits)} specimens, one yarn; "
              f"{r.k} variables fitted to {r.n} rows (priors included); chi2 = {r.chi2:.4g}, "
              f"chi2 / (n - k) = {r.s2:.3g} (the factor on the covariance). "
-             f"{'Converged' if r.success else 'NOT CONVERGED'}: {r.message}. Wall time {r.wall_s:.0f} s.", ""]
+             f"{'Converged' if r.success else 'NOT CONVERGED'}: {r.message.rstrip('.')}. Wall time {r.wall_s:.0f} s.", ""]
     if r.flags:
         lines += ["## Flags", ""] + [f"- **{x}**" for x in r.flags] + [""]
     else:

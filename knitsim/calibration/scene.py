@@ -179,8 +179,7 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             raise error("calibration.shared", cal["shared"], "log10_dahl_sigma is the Dahl stiffness: switch the "
                         "effect on (effects.on = [\"dahl_transition\"])")
         eff_table["on"] = [e for e in on if e != "dahl_transition"]
-        friction.pop("model", None)
-        friction.pop("dahl_sigma", None)
+        friction.pop("model", None)          # friction.dahl_sigma stays: the start of the fitted stiffness
     cell_doc = {"device": doc["device"], "yarn": y, "knit": dict(first), "friction": friction,
                 "rules": dict(data.get("rules", {})), "load": {"type": "monotonic", "target_strain": 0.01}}
     if eff_table:
@@ -224,7 +223,8 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
     setup = JointSetup(base=base, shared=tuple(cal["shared"]), per_specimen=tuple(cal["per_specimen"]),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),
                        bounds=bounds, fixed=fixed, max_increment=cal["max_increment"], starts=cal["starts"],
-                       refine=cal["refine"], seed=cal["seed"], max_nfev=cal["max_nfev"], device=doc["device"])
+                       refine=cal["refine"], seed=cal["seed"], max_nfev=cal["max_nfev"], device=doc["device"],
+                       phi0_starts=tuple(s.get("phi0") for s in doc["specimens"]))
     if cal["row_step"] < cal["max_increment"] * (1 - 1e-12):
         raise error("calibration.row_step", cal["row_step"], f"must be >= calibration.max_increment = "
                     f"{cal['max_increment']!r}")
