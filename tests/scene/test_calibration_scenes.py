@@ -60,3 +60,15 @@ def test_calibrated_scenes_load_with_their_effects(name):
     assert cell.friction == "dahl" and cell.effects.on == ("yarn_compaction",)
     patch = load_patch_scene(D / "calibrated" / f"{name}.patch.toml")
     assert patch.model.cell(0, 0) == cell and patch.model.gauge_length == 100.0
+
+
+def test_calibrated_specimen_runs_as_its_cell_effects_included():
+    """The calibrated 6.5 mm specimen (Dahl friction, yarn compaction) between its grips is its cell:
+    total force = wales x the cell's force per wale (identity; the effects run in the patch solver)."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.patch.runner import run_patch
+    cs = load_cell_scene(D / "calibrated" / "jersey_6p5.cell.toml", ["load.target_strain=0.1"])
+    ps = load_patch_scene(D / "calibrated" / "jersey_6p5.patch.toml", ["load.target_strain=0.1"])
+    f = run_batch(cs.params, cs.program).force_per_wale[:, 0]
+    h = run_patch(ps.model, ps.program)
+    np.testing.assert_allclose(h.force_N, 50.0 / cs.params[0].W0 * f, rtol=1e-12)
