@@ -1,6 +1,7 @@
 """Helpers shared by the subcommands: JSON output and CSV input."""
 from __future__ import annotations
 
+import re
 import sys
 from typing import Any
 
@@ -82,3 +83,13 @@ class Progress:
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
+
+
+_RST_ROLE = re.compile(r":(?:mod|func|class|data|meth|attr|ref|doc):`~?([^`]+)`")
+
+
+def plain_help(text: str) -> str:
+    """A docstring as ``--help`` text: reStructuredText roles and double back-quotes as plain quotes,
+    a literal block's ``::`` as ``:``."""
+    text = _RST_ROLE.sub(r"\1", text)
+    return text.replace("``", "'").replace("::\n", ":\n")

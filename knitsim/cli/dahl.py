@@ -30,7 +30,7 @@ from ..data import dahl_kes
 from ..errors import KnitsimInputError
 from ..friction.dahl import DahlParams, fit_dahl_loop, kes_loop
 from ..io.results import add_output_flags, prepare_output_file
-from .common import add_json_flag, print_json, read_csv_columns
+from .common import add_json_flag, plain_help, print_json, read_csv_columns
 
 KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
 XF_COLUMNS = ("x_mm", "F_N")
@@ -45,7 +45,7 @@ def register(subparsers) -> None:
     """Add ``knitsim dahl`` with its ``fit`` and ``simulate`` subcommands."""
     parser = subparsers.add_parser(
         "dahl", help="Dahl friction: fit a hysteresis loop (KES bending) or simulate one",
-        description=__doc__.split("\n\n")[0] + "\n\nSee 'knitsim dahl fit --help' and 'knitsim dahl simulate --help'.")
+        description=plain_help(__doc__.split("\n\n")[0]) + "\n\nSee 'knitsim dahl fit --help' and 'knitsim dahl simulate --help'.")
     sub = parser.add_subparsers(dest="dahl_command", metavar="ACTION")
     sub.required = True
 

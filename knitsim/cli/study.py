@@ -15,13 +15,13 @@ from pathlib import Path
 from ..studies import STUDIES
 from ..io.jsonable import json_text
 from ..io.results import add_output_flags, prepare_output_dir
-from .common import add_json_flag, print_json
+from .common import add_json_flag, plain_help, print_json
 
 
 def register(subparsers) -> None:
     """Add ``knitsim study``."""
     p = subparsers.add_parser("study", help="rerun a paper's model studies and tabulate its claims",
-                              description=__doc__.split("\n\n")[0])
+                              description=plain_help(__doc__.split("\n\n")[0]))
     p.add_argument("name", choices=STUDIES, help="the study")
     p.add_argument("--out", metavar="DIR", help="write the table and PNG figures here")
     add_output_flags(p)
