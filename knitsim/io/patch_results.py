@@ -123,8 +123,8 @@ class SpecimenLayout:
             strips = (f"strips of {self.wale_count.min():.4g}-{self.wale_count.max():.4g} wales x "
                       f"{self.column_courses.min():.4g}-{self.column_courses.max():.4g} courses")
         n = self.rows * self.columns
-        return (f"specimen {self.width_mm:.4g} mm wide, {self.gauge_length_mm:.4g} mm between the grips: "
-                f"{self.columns} strip{'s' * (self.columns != 1)} x {self.rows} band{'s' * (self.rows != 1)} = "
+        return (f"specimen {self.width_mm:.4g} mm wide, {self.gauge_length_mm:.4g} mm between the grips (grip "
+                f"strain = grip displacement / {self.gauge_length_mm:.4g} mm): {self.columns} strip{'s' * (self.columns != 1)} x {self.rows} band{'s' * (self.rows != 1)} = "
                 f"{n} block{'s' * (n != 1)} standing for {self.stitches:,.0f} stitches ({strips})")
 
     def as_dict(self) -> dict:
@@ -155,7 +155,8 @@ def specimen_layout(model: PatchModel | None, shape: tuple[int, int] | None = No
         return SpecimenLayout(False, ones, ones, None, None, np.full(shape[1], np.nan), np.full(shape[0], np.nan),
                               np.ones(shape[1]), np.full(shape[1], float(shape[0])), float(shape[0] * shape[1]))
     cc, wc = np.asarray(model.course_count, float), np.asarray(model.wale_count, float)
-    blocks = not model.unit_counts
+    # a specimen between grips is blocks of stitches even where a block happens to hold one stitch
+    blocks = model.gauge_length is not None or not model.unit_counts
     W0, C0 = model.fields["W0"], model.fields["C0"]
     strip_w = (wc * W0).mean(axis=0)
     band_l = (cc * C0).mean(axis=1)
@@ -335,7 +336,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         rows = np.nonzero(h.cycle == k)[0]
         j = rows[np.argmax(F[rows])]
         entry = {"cycle": int(k), "peak_force_N": float(F[j]), "peak_force_per_wale_N": float(h.force_per_wale_N[j]),
-                 "grip_strain_at_peak": float(e[j])}
+                 "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length)}
         unload = rows[h.direction[rows] < 0]
         res = None
         if len(unload):
@@ -365,10 +366,15 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
                                      what="distinct cell")
     layout = _layout_of(h, model)
+    row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
     out = dict(info)
     cells = int(h.shape[0] * h.shape[1])
     solved = int(h.info.get("n_groups", cells))
-    out.update(cell_is="block of stitches" if layout.blocks else "stitch", cells=cells)
+    out.update(cell_is="block of stitches" if layout.blocks else "stitch", cells=cells,
+               grip_strain_is=(f"grip displacement / gauge length ({ref_length:.6g} mm), the same for every strip"
+                               if layout.blocks else
+                               f"grip displacement / the columns' rest length ({ref_length:.6g} mm"
+                               f"{'' if np.allclose(h.C0.sum(axis=0), ref_length, rtol=1e-12) else ', their mean'})"))
     if layout.blocks:
         out.update(bands=int(h.shape[0]), strips=int(h.shape[1]), stitches=layout.stitches,
                    wales_across=layout.wales_across, specimen=layout.as_dict())
@@ -385,10 +391,11 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         solver=h.info, cycles=cycles,
         grip_strain_at_first_jamming=float(e[jam_rows[0]]) if len(jam_rows) else None,
         non_converged_column_increments=int(len(nc)),
-        non_converged_first=[{"increment": int(i), "wale": int(j)} for i, j in nc[:20]],
+        # where: a wale and a course of single stitches, a strip and a band of a specimen
+        non_converged_first=[{"increment": int(i) + 1, col_key: int(j)} for i, j in nc[:20]],
         columns_stopped_at_end=int(np.sum(h.column_status[-1] != COL_OK)) if h.n_increments else 0,
         non_ok_cells_at_end=int(len(bad_cells)),
-        non_ok_cells_first=[{"course": int(i), "wale": int(j)} for i, j in bad_cells[:20]],
+        non_ok_cells_first=[{row_key: int(i), col_key: int(j)} for i, j in bad_cells[:20]],
         nonfinite_force_rows=[int(i) for i in nonfinite[:20]],
         all_converged=bool(len(nc) == 0 and len(bad_cells) == 0 and len(nonfinite) == 0),
         warnings=[w.as_dict() for w in warnings],
