@@ -1,5 +1,6 @@
 """Bad input of ``knitsim calibrate``, ``[specimen]`` and ``[[grades]]``: one line naming the file, key and
-value, exit status 2, no traceback, and nothing written (the checks run before any work starts)."""
+value, exit status 2, no traceback, and nothing written (the checks run before any work starts).  And
+``knitsim calibrate``'s progress and --out policy (refuse results unless --resume or --overwrite)."""
 from __future__ import annotations
 
 import copy
@@ -95,3 +96,26 @@ def test_specimen_and_grades_refuse_bad_input_in_one_line(tmp_path, capsys, edit
     import re
     assert re.search(match, lines[0]), lines[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_progress_and_the_out_policy(tmp_path, capsys):
+    (tmp_path / "a.csv").write_text(CURVE)
+    (tmp_path / "cal.toml").write_text(dumps(copy.deepcopy(CAL)))
+    out = tmp_path / "out"
+    argv = ["calibrate", str(tmp_path / "cal.toml"), "--out", str(out)]
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc in (0, 1), err
+    # 1 own start + 2 Latin-hypercube starts screened; one start refined (at most 2 evaluations)
+    assert "knitsim calibrate: starts screened: 3/3 (100%)" in err
+    assert "knitsim calibrate: start 1/1: evaluations: 2/2 (100%)" in err
+    assert (out / "calibration.json").is_file() and not (out / "calibration_checkpoint.pkl").exists()
+    assert main(argv) == 2
+    assert "already holds results; add --overwrite to replace them or --resume to continue it" in \
+        capsys.readouterr().err
+    assert main(argv + ["--resume"]) == 2
+    assert "--resume: no checkpoint" in capsys.readouterr().err
+    assert main(argv + ["--resume", "--overwrite"]) == 2
+    assert "choose one" in capsys.readouterr().err
+    assert main(argv + ["--overwrite", "--no-progress"]) in (0, 1)
+    assert "starts screened" not in capsys.readouterr().err
