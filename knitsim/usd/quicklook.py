@@ -160,6 +160,12 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
         fig.colorbar(sm, ax=list(axes), shrink=0.7,
                      label=f"{legend.get('field', '')}" + (f" [{units}]" if units else ""))
     note = f" (every {step}th vertex)" if step > 1 else ""
+    lay = dict(info.get("layout", {}))
+    if title is None and lay.get("kind") == "instanced specimen":
+        # a specimen: its blocks stand for a real number of stitches, the whole ones are drawn
+        title = (f"{os.path.basename(usd_path)}: specimen of {lay.get('bands')} x {lay.get('strips')} blocks (bands x "
+                 f"strips), {int(lay.get('stitches_drawn', 0)):,} whole stitches drawn for "
+                 f"{float(lay.get('stitches_represented', 0.0)):,.1f}")
     fig.suptitle((title if title is not None else os.path.basename(usd_path)) + note)
     fig.savefig(png_path, dpi=dpi)
     plt.close(fig)
