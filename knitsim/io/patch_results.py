@@ -272,7 +272,10 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenL
     if layout.gauge_length_mm is not None:
         ds.attrs["gauge_length_mm"] = float(layout.gauge_length_mm)
     for n, arr in (fields or {}).items():
-        ds[n] = (("course", "wale"), np.asarray(arr, dtype=np.float64), {"long_name": f"cell parameter {n}"})
+        attrs = {"long_name": f"cell parameter {n}"}
+        if n == "in_plane_width":
+            attrs["comment"] = "NaN where not given: the cell jams with its d"
+        ds[n] = (("course", "wale"), np.asarray(arr, dtype=np.float64), attrs)
     if all(k in h.groups for k in ("x", "W", "s_AB")):
         # the geometry is stored per group (identical cells share it), expanded by group_of_cell
         ds["group_of_cell"] = (("course", "wale"), np.asarray(h.group_of_cell, dtype=np.int32),
