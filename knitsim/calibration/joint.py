@@ -670,8 +670,41 @@ def _note(name: str, side: str, specimen: str | None) -> str:
     return f"the {side} end of the stated range"
 
 
+class CalibrationInterrupted(Exception):
+    """The fit stopped early (``stop_after`` evaluations); its checkpoint holds the work done."""
+
+    def __init__(self, done: int, path):
+        super().__init__(f"stopped after {done} evaluations; checkpoint {path}")
+        self.done, self.path = done, path
+
+
+def fingerprint(specimens: Sequence[SpecimenData], setup: JointSetup) -> str:
+    """Hash of everything that determines a calibration (its rows, weights, knits and setup): checked on resume."""
+    import hashlib
+    h = hashlib.sha256(repr(setup).encode())
+    for sp in specimens:
+        h.update(repr((sp.name, sp.total, sp.width_mm, sp.gauge_length_mm, sorted(sp.knit.items()),
+                       sorted(sp.uncertainty.items()))).encode())
+        for a in (sp.strain, sp.target_N, sp.sigma_N, sp.band_low_N, sp.band_high_N):
+            h.update(b"-" if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+@dataclass
+class _Refined:
+    """What a finished refinement leaves (the fields of scipy's OptimizeResult that are used)."""
+
+    x: np.ndarray
+    cost: float
+    nfev: int
+    success: bool
+    message: str
+
+
 def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
-                    progress: Callable[[str], None] | None = None) -> JointResult:
+                    progress: Callable[[str], None] | None = None,
+                    counter: Callable[[str, int], Callable[[int], None]] | None = None,
+                    checkpoint=None, resume: bool = False, stop_after: int | None = None) -> JointResult:
     """Fit one yarn to several specimens (module docstring).
 
     Parameters
@@ -681,6 +714,21 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     setup : JointSetup
     progress : callable, optional
         ``progress(line)`` at each stage (starts screened, each start refined).
+    counter : callable, optional
+        ``counter(what, total)`` returns ``tick(done)``, called as the work of a stage gets done: the
+        starts screened (``total`` of them), then each refined start's evaluations (at most
+        ``max_nfev``; its ``tick(total)`` when it ends earlier).  A progress bar
+        (:class:`knitsim.cli.common.Progress`).
+    checkpoint : path, optional
+        File that keeps the finished work: the screened starts' chi2, every finished refinement, and
+        the evaluations (residuals and Jacobian) of the refinement under way; written after every
+        screening chunk and refinement, every 10 s of evaluations, and on Ctrl-C.
+    resume : bool
+        Continue from ``checkpoint``: finished work is not redone, and an interrupted refinement
+        replays its saved evaluations (least squares is deterministic), so the result is the one
+        of an uninterrupted fit.  A checkpoint of other specimens or another setup is refused.
+    stop_after : int, optional
+        Stop (with a checkpoint) after this many new evaluations: raises :class:`CalibrationInterrupted`.
 
     Returns
     -------
@@ -689,42 +737,96 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     Raises
     ------
     KnitsimInputError
-        A bad setup (unknown variable, a geometry fitted without an uncertainty, bad bounds), before
-        any solve.
+        A bad setup (unknown variable, a geometry fitted without an uncertainty, bad bounds), or an
+        unusable checkpoint, before any solve.
     """
+    import pickle
+    from pathlib import Path
     t0 = time.perf_counter()
     say = progress or (lambda line: None)
+    count = counter or (lambda what, total: (lambda done: None))
     pb = _Problem(specimens, setup)
+    ck = None if checkpoint is None else Path(checkpoint)
+    fp = fingerprint(specimens, setup)
+    state = {"fingerprint": fp, "costs": [], "refined": [], "log": {}, "wall_s": 0.0}     # wall_s: of earlier runs
+    if resume:
+        if ck is None or not ck.is_file():
+            raise KnitsimInputError(f"--resume: no calibration checkpoint {ck} to resume from")
+        try:
+            saved = pickle.loads(ck.read_bytes())
+        except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
+            raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
+        if not isinstance(saved, dict) or saved.get("fingerprint") != fp:
+            raise KnitsimInputError(f"--resume: {ck} belongs to other specimens or another calibration setup; "
+                                    "remove it or run without --resume")
+        state = saved
+        say(f"resumed: {len(state['costs'])} starts screened, {len(state['refined'])} refined, "
+            f"{len(state['log'])} evaluations of the refinement under way")
+    wall_before = float(state["wall_s"])
+    last_save = [time.perf_counter()]
+    new_evals = [0]
+
+    def save():
+        if ck is not None:
+            from ..io.results import atomic_write_bytes
+            state["wall_s"] = wall_before + time.perf_counter() - t0
+            ck.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_bytes(ck, pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+            last_save[0] = time.perf_counter()
+
     x_own = pb.start()
     X = [x_own] + _lhs(pb, setup.starts, setup.seed)
-    costs = []
+    costs = state["costs"]
     chunk = 16
-    for a in range(0, len(X), chunk):
-        res = pb.evaluate_points(X[a:a + chunk])
-        costs += [float(r @ r) for r in res]
-        say(f"screened {min(a + chunk, len(X))}/{len(X)} starts (best chi2 {min(costs):.4g})")
-    order = list(np.argsort(costs, kind="stable")[:max(1, setup.refine)])
-    cache: dict = {}
+    tick = count("starts screened", len(X))
+    tick(len(costs))
+    try:
+        for a in range(len(costs), len(X), chunk):
+            res = pb.evaluate_points(X[a:a + chunk])
+            costs += [float(r @ r) for r in res]
+            tick(len(costs))
+            say(f"screened {min(a + chunk, len(X))}/{len(X)} starts (best chi2 {min(costs):.4g})")
+            save()
+        order = list(np.argsort(costs, kind="stable")[:max(1, setup.refine)])
+        log = state["log"]            # the evaluations of the refinement under way (x bytes -> (r, J))
 
-    def ev(x):
-        key = np.asarray(x, float).tobytes()
-        if key not in cache:
-            if len(cache) > 64:
-                cache.clear()
-            cache[key] = pb.evaluate_with_jacobian(x)
-        return cache[key]
+        def ev(x):
+            key = np.asarray(x, float).tobytes()
+            if key not in log:
+                if stop_after is not None and new_evals[0] >= stop_after:
+                    save()
+                    raise CalibrationInterrupted(new_evals[0], ck)
+                log[key] = pb.evaluate_with_jacobian(x)
+                new_evals[0] += 1
+                if time.perf_counter() - last_save[0] > 10.0:
+                    save()
+            tick_ev(len(log))
+            return log[key]
 
-    best = None
-    starts = []
-    for rank, i in enumerate(order):
-        sol = least_squares(lambda x: ev(x)[0], X[i], jac=lambda x: ev(x)[1], bounds=(pb.lo, pb.hi), method="trf",
-                            x_scale="jac", max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8, gtol=1e-10)
-        cost = float(2.0 * sol.cost)
-        starts.append({"start": int(i), "chi2_start": costs[i], "chi2": cost, "nfev": int(sol.nfev),
-                       "success": bool(sol.success), "message": str(sol.message)})
-        say(f"start {rank + 1}/{len(order)}: chi2 {costs[i]:.4g} -> {cost:.4g} in {sol.nfev} evaluations")
-        if best is None or cost < best[0]:
-            best = (cost, sol)
+        best = None
+        starts = []
+        for rank, i in enumerate(order):
+            if rank < len(state["refined"]):
+                sol = state["refined"][rank]
+            else:
+                tick_ev = count(f"start {rank + 1}/{len(order)}: evaluations", setup.max_nfev)
+                r = least_squares(lambda x: ev(x)[0], X[i], jac=lambda x: ev(x)[1], bounds=(pb.lo, pb.hi),
+                                  method="trf", x_scale="jac", max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8,
+                                  gtol=1e-10)
+                tick_ev(setup.max_nfev)
+                sol = _Refined(np.asarray(r.x, float), float(r.cost), int(r.nfev), bool(r.success), str(r.message))
+                state["refined"].append(sol)
+                log.clear()
+                save()
+            cost = float(2.0 * sol.cost)
+            starts.append({"start": int(i), "chi2_start": costs[i], "chi2": cost, "nfev": int(sol.nfev),
+                           "success": bool(sol.success), "message": str(sol.message)})
+            say(f"start {rank + 1}/{len(order)}: chi2 {costs[i]:.4g} -> {cost:.4g} in {sol.nfev} evaluations")
+            if best is None or cost < best[0]:
+                best = (cost, sol)
+    except KeyboardInterrupt:
+        save()
+        raise
     chi2, sol = best
     x = sol.x
     n = pb.n_rows + pb.n_prior
@@ -779,8 +881,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     shared, _ = pb.model_values(x)
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,
-                       int(sol.nfev), time.perf_counter() - t0, setup, cells[0])
+                       int(sol.nfev), wall_before + time.perf_counter() - t0,
+                       setup, cells[0])
 
 
-__all__ = ["JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+__all__ = ["CalibrationInterrupted", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
            "SPECIMEN_VARIABLES", "UNITS"]

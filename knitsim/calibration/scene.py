@@ -212,13 +212,20 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             raise error(f"{where}.band", band, "expected the two envelope files [lower, upper]")
         if band is None and "curve" not in s:
             raise KnitsimInputError(f"{where}: give curve = FILE, band = [LOWER, UPPER], or both")
+        # the specimen holds at least one course between its grips and one wale across its width
+        if s["gauge_length"] < s["knit"]["C0"]:
+            raise error(f"{where}.gauge_length", s["gauge_length"], f"shorter than one course (knit.C0 = "
+                        f"{s['knit']['C0']:g} mm)")
+        if s["width"] < s["knit"]["W0"]:
+            raise error(f"{where}.width", s["width"], f"narrower than one wale (knit.W0 = {s['knit']['W0']:g} mm)")
         if "noise_N" in s and "curve" not in s:
             raise error(f"{where}.noise_N", s["noise_N"], "the noise of a measured curve: give curve = FILE")
         specimens.append(specimen_from_files(
             s["name"], width_mm=s["width"], gauge_length_mm=s["gauge_length"], knit=s["knit"],
             uncertainty=s["uncertainty"], curve=path(s["curve"], "curve") if "curve" in s else None,
             band=(path(band[0], "band"), path(band[1], "band")) if band else None, row_step=cal["row_step"],
-            noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"]))
+            noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"],
+            where=where))
     fixed = dict(cal.get("fixed", {}))
     setup = JointSetup(base=base, shared=tuple(cal["shared"]), per_specimen=tuple(cal["per_specimen"]),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),

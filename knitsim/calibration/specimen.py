@@ -155,7 +155,8 @@ class SpecimenData:
 def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, knit: dict,
                         uncertainty: dict | None = None, curve: str | Path | None = None,
                         band: tuple | None = None, row_step: float = 0.005, noise_N: float | None = None,
-                        end_strain: float | None = None, accuracy_rel: float = FORCE_ACCURACY_REL) -> SpecimenData:
+                        end_strain: float | None = None, accuracy_rel: float = FORCE_ACCURACY_REL,
+                        where: str | None = None) -> SpecimenData:
     """Read a specimen's files and put them on the fit rows (module docstring).
 
     Parameters
@@ -178,32 +179,41 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         Last strain of the rows (default: the end of the data).
     accuracy_rel : float
         Relative accuracy of the force reading: the least sd of a band's row, times the force.
+    where : str, optional
+        Key path of the specimen in its scene, for messages (default ``specimens.<name>``).
     """
+    where = where or f"specimens.{name}"
     if curve is None and band is None:
-        raise KnitsimInputError(f"specimens.{name}: give a measured curve, an experimental band, or both")
+        raise KnitsimInputError(f"{where}: give a measured curve, an experimental band, or both")
     for key in GEOMETRY:
         if key not in knit:
-            raise KnitsimInputError(f"specimens.{name}.knit.{key}: missing (the knit's {key} in mm)")
+            raise KnitsimInputError(f"{where}.knit.{key}: missing (the knit's {key} in mm)")
+
+    def read(path, key):
+        try:
+            return read_table(path)
+        except KnitsimInputError as exc:         # the file's problem, and the key that named the file
+            raise KnitsimInputError(f"{where}.{key}: {exc}") from None
     tables = []
-    cur = read_table(curve) if curve is not None else None
+    cur = read(curve, "curve") if curve is not None else None
     lo_t = hi_t = None
     if band is not None:
-        lo_t, hi_t = read_table(band[0]), read_table(band[1])
+        lo_t, hi_t = read(band[0], "band[0]"), read(band[1], "band[1]")
         tables += [lo_t, hi_t]
     if cur is not None:
         tables.append(cur)
     totals = {t.total for t in tables}
     if len(totals) > 1:
-        raise KnitsimInputError(f"specimens.{name}: the files mix total forces and forces per wale "
+        raise KnitsimInputError(f"{where}: the files mix total forces and forces per wale "
                                 f"({', '.join(t.source for t in tables)})")
     end = min(t.strain[-1] for t in tables)
     if end_strain is not None:
         if end_strain > end:
-            raise KnitsimInputError(f"specimens.{name}.end_strain = {end_strain!r}: beyond the data (ends at {end:g})")
+            raise KnitsimInputError(f"{where}.end_strain = {end_strain!r}: beyond the data (ends at {end:g})")
         end = end_strain
     n = int(np.floor(end / row_step + 1e-9))
     if n < 4:
-        raise KnitsimInputError(f"specimens.{name}: the data end at strain {end:g}, fewer than 4 rows of "
+        raise KnitsimInputError(f"{where}: the data end at strain {end:g}, fewer than 4 rows of "
                                 f"{row_step:g}")
     strain = row_step * np.arange(1, n + 1)
     low = high = None
@@ -230,7 +240,7 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     unc = {k: float((uncertainty or {}).get(k, 0.0)) for k in GEOMETRY}
     for k, v in unc.items():
         if not (0.0 <= v < 1.0):
-            raise KnitsimInputError(f"specimens.{name}.uncertainty.{k} = {v!r}: expected a relative sd in [0, 1)")
+            raise KnitsimInputError(f"{where}.uncertainty.{k} = {v!r}: expected a relative sd in [0, 1)")
     return SpecimenData(name, strain, np.asarray(target, float), sigma, low, high, totals.pop(), float(width_mm),
                         float(gauge_length_mm), {k: float(knit[k]) for k in GEOMETRY}, unc,
                         tuple(t.source for t in tables), rule)

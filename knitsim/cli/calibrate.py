@@ -1,6 +1,7 @@
 """``knitsim calibrate``: one yarn calibrated jointly on several specimens (issue 16).
 
-``knitsim calibrate SCENE.toml [--out DIR] [--set key=value ...] [--device cpu|cuda|auto] [--overwrite] [--json]``
+``knitsim calibrate SCENE.toml [--out DIR] [--set key=value ...] [--device cpu|cuda|auto] [--overwrite | --resume]
+[--no-progress] [--json]``
 
 The calibration scene (:mod:`knitsim.calibration.scene`) names the specimens
 (their measured curves or experimental bands, width, gauge length and stated
@@ -12,6 +13,12 @@ stderr; the results go to ``DIR`` (default ``<scene stem>_calibrated``):
 ``<specimen>.cell.toml`` and ``<specimen>.patch.toml`` (ready for ``knitsim
 cell``, ``sweep`` and ``run``), ``calibration.json``, ``report.md`` and
 ``fit_<specimen>.png`` (:mod:`knitsim.calibration.outputs`).
+Progress: a bar (a terminal) or a line per tenth (a log) for the starts screened and for each
+refined start's evaluations.  The finished work is kept in ``DIR/calibration_checkpoint.pkl``
+(the screened starts, each finished refinement, the evaluations of the one under way; removed
+when the results are written): after Ctrl-C or a lost session, ``--resume`` continues it and
+gives the result of an uninterrupted fit.  An ``--out`` that holds results is refused unless
+``--resume`` or ``--overwrite``.
 Exit status 0 when the fit converged, every cell solved and no parameter is at
 a bound; 1 otherwise (the flags are printed and in the report); 2 on bad input.
 """
@@ -23,7 +30,11 @@ import time
 from pathlib import Path
 
 from ..io.results import add_output_flags, prepare_output_dir
-from .common import add_json_flag, print_json
+from ..errors import KnitsimInputError
+from .common import Progress, add_json_flag, print_json
+
+#: the calibration's checkpoint in --out (knitsim.calibration.joint.calibrate_joint)
+CHECKPOINT_NAME = "calibration_checkpoint.pkl"
 
 
 def register(subparsers) -> None:
@@ -38,7 +49,9 @@ def register(subparsers) -> None:
     p.add_argument("--set", metavar="KEY=VALUE", action="append", default=[], dest="overrides",
                    help="override a scene key, e.g. --set calibration.starts=8 (repeatable)")
     p.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:N or auto")
-    add_output_flags(p)
+    p.add_argument("--resume", action="store_true", help=f"continue from DIR/{CHECKPOINT_NAME}")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_output_flags(p, resumable=True)
     add_json_flag(p)
     p.set_defaults(func=_run)
 
@@ -50,7 +63,14 @@ def _run(args) -> int:
     from ..calibration.scene import load_calibration_scene
 
     scene = load_calibration_scene(args.scene, args.overrides, device=args.device)
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_calibrated", overwrite=args.overwrite)
+    if args.resume and args.overwrite:
+        raise KnitsimInputError("--resume and --overwrite: choose one (continue the calibration in --out, or "
+                                "replace it)")
+    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_calibrated", overwrite=args.overwrite,
+                             resume=args.resume, resumable=True)
+    ck = out / CHECKPOINT_NAME
+    if args.resume and not ck.is_file():
+        raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
     with contextlib.redirect_stdout(sys.stderr):
         from .. import warp_runtime
         device = warp_runtime.resolve_device(scene.setup.device)
@@ -61,10 +81,26 @@ def _run(args) -> int:
         print(f"knitsim calibrate: {len(sp)} specimens ({', '.join(s.name for s in sp)}), "
               f"{sum(len(s.strain) for s in sp)} rows; shared {', '.join(scene.setup.shared)}; per specimen "
               f"{', '.join(scene.setup.per_specimen) or 'nothing'}; device {device}", file=sys.stderr, flush=True)
-        result = calibrate_joint(sp, scene.setup,
-                                 progress=lambda line: print(f"knitsim calibrate: {line}", file=sys.stderr,
-                                                             flush=True))
-    files = write_calibration(out, result, scene, str(args.scene))
+        bars = []
+
+        def counter(what, total):
+            bars.append(Progress(total, f"knitsim calibrate: {what}", not args.no_progress))
+            return bars[-1]
+        try:
+            result = calibrate_joint(sp, scene.setup,
+                                     progress=lambda line: print(f"knitsim calibrate: {line}", file=sys.stderr,
+                                                                 flush=True),
+                                     counter=counter, checkpoint=ck, resume=args.resume)
+            files = write_calibration(out, result, scene, str(args.scene))
+        except KeyboardInterrupt:
+            if ck.is_file():
+                print(f"knitsim calibrate: interrupted; the finished work is in {ck}: add --resume to continue",
+                      file=sys.stderr, flush=True)
+            raise
+        finally:
+            for b in bars:
+                b.close()
+    ck.unlink(missing_ok=True)
     print(f"knitsim calibrate: done in {time.perf_counter() - t0:.1f} s; wrote {', '.join(sorted(files))} to {out}",
           file=sys.stderr, flush=True)
     for line in result.flags:

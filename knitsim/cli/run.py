@@ -13,6 +13,10 @@ With ``--usd FILE`` the patch is also written as USD (``.usda`` text for small
 patches, ``.usdc`` / ``.usd`` binary crate for large ones; see
 :mod:`knitsim.usd.from_results`), the same file ``knitsim usd DIR --out FILE``
 writes from the saved results.
+The first line says what the grid stands for: ``wales x courses`` single stitches, or a
+specimen's ``strips x bands`` blocks with the wales and courses of each strip
+(:class:`knitsim.io.patch_results.SpecimenLayout`); the USD of a specimen draws
+every stitch, each an instance of its block's stitch (:mod:`knitsim.usd.instanced`).
 Exit status 0 when every column converged, 1 otherwise, 2 on bad input.
 """
 from __future__ import annotations
@@ -52,7 +56,7 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     t_command = time.perf_counter()
-    from ..io.patch_results import patch_summary, write_patch_results
+    from ..io.patch_results import patch_summary, specimen_layout, write_patch_results
     from ..io.results import prepare_output_dir
     from ..patch.runner import CHECKPOINT_NAME, run_patch
     from ..scene.patch_scene import load_patch_scene
@@ -79,7 +83,8 @@ def _run(args) -> int:
             from .. import warp_runtime
             device = warp_runtime.resolve_device(scene.device)
         m = scene.model
-        print(f"knitsim run: {m.wales} wales x {m.courses} courses = {m.cell_count} cells, "
+        layout = specimen_layout(m)
+        print(f"knitsim run: {layout.describe()}, "
               f"{len(scene.program)} increments, engine {scene.engine}, device {device}, "
               f"dedup {'on' if scene.dedup else 'off'}", file=sys.stderr, flush=True)
         every = scene.output["checkpoint_every"]
@@ -87,20 +92,25 @@ def _run(args) -> int:
                       progress=Progress(len(scene.program), "knitsim run: increments", not args.no_progress),
                       checkpoint=ck if every > 0 or args.resume else None, checkpoint_every=every,
                       resume=args.resume, **scene.solver_options)
-    summary = patch_summary(h, h.info["ref_length_mm"], scene=scene.source, title=scene.resolved.get("title", ""),
+    summary = patch_summary(h, h.info["ref_length_mm"], model=m, scene=scene.source, title=scene.resolved.get("title", ""),
                             engine=scene.engine, device=device, load=scene.resolved["load"])
-    files = write_patch_results(out, h, summary, scene.to_toml(), fields=m.fields, plot=scene.output["plot"],
+    files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
                                 cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
     ck.unlink(missing_ok=True)
     if args.usd is not None:
         from ..usd.from_results import DEFAULT_POINTS, export_history
         res = export_history(h, m.fields, args.usd, scene_text=scene.to_toml(), color_by=args.color_by,
+                             course_count=m.course_count, wale_count=m.wale_count,
                              stride=args.usd_stride, n_points=args.usd_points or DEFAULT_POINTS,
                              device=device if scene.engine == "warp" else "cpu")
+        drawn = (f", {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch shapes"
+                 if res.stitches else "")
         print(f"knitsim run: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
-              f"samples) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
+              f"samples{drawn}) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
+    what = (f"{m.cell_count} blocks standing for {layout.stitches:,.0f} stitches" if layout.blocks
+            else f"{m.cell_count} represented")
     print(f"knitsim run: done in {time.perf_counter() - t_command:.2f} s (solving {h.wall_s:.2f} s: "
-          f"{h.info['n_groups']} distinct cells solved for {m.cell_count} represented); wrote "
+          f"{h.info['n_groups']} distinct cells solved for {what}); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
         print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
@@ -115,7 +125,10 @@ def _run(args) -> int:
             res = c["residual_grip_strain"]
             work = next((f"{name.replace('_N_mm', '').replace('_', ' ')} {c[name]:.4g} N mm" for name in
                          ("hysteresis_energy_N_mm", "work_N_mm", "loading_work_N_mm") if name in c), "")
-            print(f"cycle {c['cycle']}: peak {c['peak_force_per_wale_N']:.4g} N per wale at grip strain "
+            peak = (f"{c['peak_force_N']:.4g} N ({c['peak_force_per_wale_N']:.4g} N per wale of the "
+                    f"{layout.wales_across:.4g} wales across the width)" if layout.blocks
+                    else f"{c['peak_force_per_wale_N']:.4g} N per wale")
+            print(f"cycle {c['cycle']}: peak {peak} at grip strain "
                   f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}; "
                   f"{work}")
     return 0 if summary["all_converged"] else 1

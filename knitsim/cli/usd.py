@@ -7,7 +7,9 @@ Reads ``cells.nc`` (per-group states x = (alpha, beta, gamma, phi, P), W, C,
 s_AB per saved increment) and ``scene.resolved.toml`` of a ``knitsim run``
 results folder and writes the same file that ``knitsim run --usd`` writes
 (:mod:`knitsim.usd.from_results`): ``.usda`` text, ``.usdc`` / ``.usd`` binary
-crate (use it for large patches).  Exit status 0, or 2 on bad input.
+crate (use it for large patches).  A specimen (cells that stand for blocks of
+stitches) is drawn stitch by stitch, each stitch an instance of its block's
+shape (:mod:`knitsim.usd.instanced`).  Exit status 0, or 2 on bad input.
 """
 from __future__ import annotations
 
@@ -70,11 +72,15 @@ def _run(args) -> int:
     doc = {"usd": res.path, "bytes": res.file_bytes, "time_codes": len(res.time_codes), "courses": res.courses,
            "wales": res.wales, "vertices_per_course": res.vertices_per_course, "seconds": res.seconds,
            "fallback_cells_max": max(res.fallback_cells) if res.fallback_cells else 0,
+           "stitches_drawn": res.stitches or None, "prototypes": res.prototypes or None,
            "quicklook": args.quicklook}
     if args.json:
         print_json(doc)
     else:
+        what = (f"a specimen: {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch shapes, at "
+                f"most {res.courses} courses x {res.wales} wales" if res.stitches else
+                f"{res.courses} courses x {res.wales} wales")
         print(f"knitsim usd: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time samples, "
-              f"{res.courses} courses x {res.wales} wales) in {res.seconds:.2f} s"
+              f"{what}) in {res.seconds:.2f} s"
               + (f"; quick-look {args.quicklook}" if args.quicklook else ""), file=sys.stderr)
     return 0

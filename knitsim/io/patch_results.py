@@ -1,13 +1,29 @@
 """Result writers for patch runs (atomic): curve.csv, columns.csv, cells.nc, summary.json, plots, resolved scene.
 
+A patch is a grid of cells, ``courses x wales``.  In a patch of single stitches
+(``[patch]``) every cell is one stitch; in a specimen (``[specimen]``,
+:mod:`knitsim.patch.model`) every cell is a block of identical stitches,
+``course_count`` courses in series times ``wale_count`` wales in parallel, the
+grid is ``bands x strips`` and a column is a strip carrying one total force.
+Every file says which (:class:`SpecimenLayout`):
+
 - ``curve.csv``: ``increment, cycle, direction, grip_strain, force_N, force_per_wale_N``
-  (grip force = sum of the column forces; per wale = their mean);
-- ``columns.csv``: ``increment, wale, force_per_wale_N, status, iterations, slack_mm``;
-- ``cells.nc``: netCDF-3 (xarray, SciPy engine), dimensions ``increment, course, wale``:
-  ``strain`` ((C - C0)/C0), ``phi`` [rad], ``force_per_wale_N``, ``stage`` (label codes with
-  ``flag_values`` / ``flag_meanings``), ``status``; per column ``column_force_N``,
-  ``column_status``; per cell the parameters (``d, B, m, dahl_sigma, L, W0, C0, phi0``);
-  coordinates ``grip_strain, cycle, direction``; units in attributes; and, for the yarn
+  (increment 0 is the rest state; grip force = sum of the columns' total forces; per wale = over
+  the wales across the width: the columns' count of single stitches, or the sum of the strips'
+  wale counts, each the mean along its rest length);
+- ``columns.csv``: ``increment, column, wales, force_N, force_per_wale_N, status, iterations,
+  slack_mm``, one row per increment (numbered as in curve.csv) and column (a wale of single
+  stitches, or a strip): its total force [N], the wales it holds (1, or the strip's wale count,
+  the mean along its rest length where its bands differ), and force_N / wales;
+- ``cells.nc``: netCDF-4 (h5netcdf), dimensions ``increment, course, wale`` (course = band and
+  wale = strip in a specimen): ``strain`` ((C - C0)/C0), ``phi`` [rad], ``force_per_wale_N``
+  (of each of the cell's wales), ``stage`` (label codes with ``flag_values`` /
+  ``flag_meanings``), ``status``; per column ``column_force_N`` (its total force),
+  ``column_force_per_wale_N``, ``column_status``, ``column_wales``; per cell the parameters
+  (``d, B, m, dahl_sigma, L, W0, C0, phi0, in_plane_width``) and the stitches it stands for,
+  ``course_count`` and ``wale_count`` (1 and 1 for single stitches); coordinates ``grip_strain,
+  cycle, direction``; units in attributes, with ``cell_is`` (``stitch`` / ``block of stitches``),
+  ``stitches`` and, for a specimen, ``width_mm`` and ``gauge_length_mm``; and, for the yarn
   geometry (:mod:`knitsim.usd.from_results`), per group of identical cells (dimension
   ``group``, ``group_of_cell [course, wale]``): ``state_x [increment, group, unknown]``
   (alpha, beta, gamma, phi [rad], P [N]), ``state_W``, ``state_C``, ``state_s_AB`` [mm];
@@ -19,6 +35,7 @@ Files are built in a hidden sibling directory and renamed in, ``summary.json`` l
 from __future__ import annotations
 
 import io
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +43,7 @@ import numpy as np
 from ..cell.history import STATUS_NAMES, STATUS_OK
 from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
-from ..patch.model import PARAM_NAMES
+from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import cycle_work, interpenetration, zero_force_cycles
 from .results import _num, summary_json, write_result_set
@@ -35,6 +52,129 @@ CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "f
 PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
                       "strain_map.png", "stage_map.png", "summary.json")
 _LABELS = {v: k for k, v in LABEL_CODES.items()}
+
+
+@dataclass(frozen=True)
+class SpecimenLayout:
+    """What the cells of a patch stand for: single stitches, or blocks of a specimen.
+
+    Attributes
+    ----------
+    blocks : bool
+        True for a specimen (cells are blocks of stitches; ``bands x strips``), False for a patch
+        of single stitches (``courses x wales``).
+    course_count, wale_count : ndarray, shape [rows, columns]
+        Stitches in series along the wale and wales in parallel that each cell stands for.
+    width_mm, gauge_length_mm : float or None
+        The specimen's width (sum of its strips' widths, wale count x W0) and the distance
+        between its grips (None for a patch of single stitches without a gauge length).
+    strip_width_mm : ndarray, shape [columns]
+        Width of each column at rest (wale count x W0, mean over its rows) [mm].
+    band_length_mm : ndarray, shape [rows]
+        Rest length of each row (course count x C0, mean over the columns) [mm].
+    column_wales : ndarray, shape [columns]
+        Wales of each column: the mean of its cells' wale counts along its rest length (the
+        divisor of its force per wale).
+    column_courses : ndarray, shape [columns]
+        Courses between the grips in each column (sum of its course counts).
+    stitches : float
+        Stitches the patch stands for (sum of course count x wale count).
+    """
+
+    blocks: bool
+    course_count: np.ndarray
+    wale_count: np.ndarray
+    width_mm: float | None
+    gauge_length_mm: float | None
+    strip_width_mm: np.ndarray
+    band_length_mm: np.ndarray
+    column_wales: np.ndarray
+    column_courses: np.ndarray
+    stitches: float
+
+    @property
+    def rows(self) -> int:
+        return int(self.course_count.shape[0])
+
+    @property
+    def columns(self) -> int:
+        return int(self.course_count.shape[1])
+
+    @property
+    def wales_across(self) -> float:
+        """Wales across the width: the sum of the columns' wale counts (the divisor of the grip force
+        per wale)."""
+        return float(np.sum(self.column_wales))
+
+    def describe(self, max_items: int = 4) -> str:
+        """One line: the grid and what it stands for (the header of ``knitsim run``)."""
+        if not self.blocks:
+            return (f"{self.columns} wales x {self.rows} courses = {self.rows * self.columns} cells (single "
+                    "stitches)")
+        wmin, wmax = self.wale_count.min(axis=0), self.wale_count.max(axis=0)
+
+        def wales(j):
+            return f"{wmin[j]:.4g}" if np.isclose(wmin[j], wmax[j], rtol=1e-9) else f"{wmin[j]:.4g}-{wmax[j]:.4g}"
+
+        if self.columns <= max_items:
+            strips = "; ".join(f"strip {j}: {wales(j)} wales x {self.column_courses[j]:.4g} courses"
+                               for j in range(self.columns))
+        else:
+            strips = (f"strips of {self.wale_count.min():.4g}-{self.wale_count.max():.4g} wales x "
+                      f"{self.column_courses.min():.4g}-{self.column_courses.max():.4g} courses")
+        n = self.rows * self.columns
+        return (f"specimen {self.width_mm:.4g} mm wide, {self.gauge_length_mm:.4g} mm between the grips (grip "
+                f"strain = grip displacement / {self.gauge_length_mm:.4g} mm): {self.columns} strip{'s' * (self.columns != 1)} x {self.rows} band{'s' * (self.rows != 1)} = "
+                f"{n} block{'s' * (n != 1)} standing for {self.stitches:,.0f} stitches ({strips})")
+
+    def as_dict(self) -> dict:
+        """The ``specimen`` entry of ``summary.json`` (per strip and per band)."""
+        cc, wc = self.course_count, self.wale_count
+        return {
+            "width_mm": self.width_mm, "gauge_length_mm": self.gauge_length_mm, "bands": self.rows,
+            "strips": self.columns, "blocks": self.rows * self.columns, "stitches": self.stitches,
+            "wales_across": self.wales_across,
+            "strip": [{"strip": j, "width_mm": float(self.strip_width_mm[j]), "wales": float(self.column_wales[j]),
+                       "wales_min": float(wc[:, j].min()), "wales_max": float(wc[:, j].max()),
+                       "courses": float(self.column_courses[j]), "stitches": float(np.sum(cc[:, j] * wc[:, j]))}
+                      for j in range(self.columns)],
+            "band": [{"band": i, "length_mm": float(self.band_length_mm[i]), "wales": float(np.sum(wc[i])),
+                      "courses_min": float(cc[i].min()), "courses_max": float(cc[i].max())}
+                     for i in range(self.rows)],
+            "note": "each block of the bands x strips grid stands for course_count courses in series and "
+                    "wale_count wales in parallel (cells.nc); a strip's force per wale is its total force over "
+                    "its wale count (the mean along its rest length where its bands differ)"}
+
+
+def specimen_layout(model: PatchModel | None, shape: tuple[int, int] | None = None) -> SpecimenLayout:
+    """The :class:`SpecimenLayout` of a model (None: ``shape`` cells of single stitches)."""
+    if model is None:
+        if shape is None:
+            raise ValueError("specimen_layout: give the model or the shape")
+        ones = np.ones(shape)
+        return SpecimenLayout(False, ones, ones, None, None, np.full(shape[1], np.nan), np.full(shape[0], np.nan),
+                              np.ones(shape[1]), np.full(shape[1], float(shape[0])), float(shape[0] * shape[1]))
+    cc, wc = np.asarray(model.course_count, float), np.asarray(model.wale_count, float)
+    # a specimen between grips is blocks of stitches even where a block happens to hold one stitch
+    blocks = model.gauge_length is not None or not model.unit_counts
+    W0, C0 = model.fields["W0"], model.fields["C0"]
+    strip_w = (wc * W0).mean(axis=0)
+    band_l = (cc * C0).mean(axis=1)
+    return SpecimenLayout(blocks, cc, wc, float(strip_w.sum()) if blocks else None, model.gauge_length,
+                          strip_w, band_l, np.asarray(model.column_wales(), float), cc.sum(axis=0),
+                          float(np.sum(cc * wc)))
+
+
+def _layout_of(h: PatchHistory, model: PatchModel | None) -> SpecimenLayout:
+    """The layout of a history's model; a specimen's history needs its model (its counts are not in it)."""
+    if model is None:
+        wales = float(h.info.get("wales_represented", h.shape[1]))
+        if not np.isclose(wales, h.shape[1], rtol=1e-12):
+            raise ValueError("the history is a specimen's (cells stand for blocks of stitches): pass its model")
+        return specimen_layout(None, h.shape)
+    if tuple(model.shape) != tuple(h.shape):
+        raise ValueError(f"model shape {model.shape} is not the history's {h.shape}")
+    return specimen_layout(model)
 
 
 def curve_csv(h: PatchHistory) -> str:
@@ -49,48 +189,93 @@ def curve_csv(h: PatchHistory) -> str:
     return "\n".join(lines) + "\n"
 
 
-def columns_csv(h: PatchHistory) -> str:
-    """The text of ``columns.csv`` (one row per increment and wale column)."""
-    lines = ["increment,wale,force_per_wale_N,status,iterations,slack_mm"]
+COLUMNS_COLUMNS = ("increment", "column", "wales", "force_N", "force_per_wale_N", "status", "iterations", "slack_mm")
+
+
+def column_forces(h: PatchHistory, layout: SpecimenLayout) -> tuple[np.ndarray, np.ndarray]:
+    """Total force [N] and force per wale [N] of each column, shape [n, columns] each.
+
+    The history holds each column's force per wale (a strip's total over its wale count); its
+    total force is that times the wale count (the solver's total to rounding; exactly it for
+    single stitches)."""
+    per_wale = np.asarray(h.column_force_N, float)
+    if not layout.blocks:
+        return per_wale, per_wale
+    return per_wale * layout.column_wales[None, :], per_wale
+
+
+def columns_csv(h: PatchHistory, layout: SpecimenLayout | None = None) -> str:
+    """The text of ``columns.csv`` (one row per increment and column; module docstring)."""
+    layout = layout or _layout_of(h, None)
+    total, per_wale = column_forces(h, layout)
+    wales = [_num(w) if layout.blocks else "1" for w in layout.column_wales]
+    lines = [",".join(COLUMNS_COLUMNS)]
     for i in range(h.n_increments):
         for j in range(h.shape[1]):
-            lines.append(f"{i},{j},{_num(h.column_force_N[i, j])},{COLUMN_STATUS_NAMES[int(h.column_status[i, j])]},"
-                         f"{int(h.column_iterations[i, j])},{_num(h.column_slack_mm[i, j])}")
+            lines.append(f"{i + 1},{j},{wales[j]},{_num(total[i, j])},{_num(per_wale[i, j])},"
+                         f"{COLUMN_STATUS_NAMES[int(h.column_status[i, j])]},{int(h.column_iterations[i, j])},"
+                         f"{_num(h.column_slack_mm[i, j])}")
     return "\n".join(lines) + "\n"
 
 
-def cells_dataset(h: PatchHistory, fields: dict | None = None):
+def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None):
     """The per-cell fields as an :class:`xarray.Dataset` (see the module docstring)."""
     import xarray as xr
+    layout = layout or _layout_of(h, None)
     dims = ("increment", "course", "wale")
     meanings = " ".join(_LABELS[k] for k in sorted(_LABELS))
     n, (courses, wales) = h.n_increments, h.shape
+    total, per_wale = column_forces(h, layout)
+    block = layout.blocks
     ds = xr.Dataset(
         {"strain": (dims, h.cell_field("strain"), {"long_name": "strain of the course length (C - C0)/C0",
                                                    "units": "1"}),
          "phi": (dims, h.cell_field("phi"), {"long_name": "friction angle at the crossing", "units": "rad"}),
-         "force_per_wale_N": (dims, h.cell_field("F"), {"long_name": "force per wale of the cell", "units": "N"}),
+         "force_per_wale_N": (dims, h.cell_field("F"), {
+             "long_name": "force per wale of the cell" + (" (each of the block's wale_count wales; the block "
+                                                          "carries wale_count x it)" if block else ""),
+             "units": "N"}),
          "stage": (dims, h.cell_field("label").astype(np.int8),
                    {"long_name": "stage label", "flag_values": np.array(sorted(_LABELS), np.int8),
                     "flag_meanings": meanings}),
          "status": (dims, h.cell_field("status").astype(np.int8),
                     {"long_name": "cell status", "flag_values": np.array(sorted(STATUS_NAMES), np.int8),
                      "flag_meanings": " ".join(STATUS_NAMES[k] for k in sorted(STATUS_NAMES))}),
-         "column_force_N": (("increment", "wale"), h.column_force_N, {"units": "N"}),
+         "column_force_N": (("increment", "wale"), total, {
+             "units": "N", "long_name": "total force of the column" + (" (strip)" if block else "")}),
+         "column_force_per_wale_N": (("increment", "wale"), per_wale, {
+             "units": "N", "long_name": "force per wale of the column (its total force / column_wales)"}),
+         "column_wales": (("wale",), np.asarray(layout.column_wales, float), {
+             "units": "1", "long_name": "wales of the column (1, or a strip's wale count, the mean along its rest "
+                                        "length)"}),
          "column_status": (("increment", "wale"), h.column_status.astype(np.int8),
                            {"flag_values": np.array(sorted(COLUMN_STATUS_NAMES), np.int8),
                             "flag_meanings": " ".join(COLUMN_STATUS_NAMES[k] for k in sorted(COLUMN_STATUS_NAMES))}),
-         "force_N": (("increment",), h.force_N, {"units": "N", "long_name": "grip force"})},
+         "force_N": (("increment",), h.force_N, {"units": "N", "long_name": "grip force"}),
+         "course_count": (("course", "wale"), np.asarray(layout.course_count, float), {
+             "units": "1", "long_name": "courses in series that the cell stands for (band length / C0)"}),
+         "wale_count": (("course", "wale"), np.asarray(layout.wale_count, float), {
+             "units": "1", "long_name": "wales in parallel that the cell stands for (strip width / W0)"})},
         # increment numbers as in curve.csv (0 is the rest state, not stored here), so ds.sel(increment=k,
         # course=i, wale=j) reads one cell at one row; direction as in the CSV files
         coords={"increment": np.arange(1, n + 1, dtype=np.int32), "course": np.arange(courses, dtype=np.int32),
                 "wale": np.arange(wales, dtype=np.int32),
                 "grip_strain": (("increment",), h.grip_strain), "cycle": (("increment",), h.cycle.astype(np.int32)),
                 "direction": (("increment",), np.where(h.direction > 0, "load", "unload"))},
-        attrs={"title": "knitsim patch: per-cell fields", "layout": "cell [course, wale]; course 0 at the lower grip",
-               "conventions": "units N, mm, rad"})
+        attrs={"title": "knitsim patch: per-cell fields",
+               "layout": ("cell [course, wale] = block [band, strip] of a specimen; band 0 at the lower grip"
+                          if block else "cell [course, wale]; course 0 at the lower grip"),
+               "cell_is": "block of stitches" if block else "stitch",
+               "stitches": layout.stitches, "conventions": "units N, mm, rad"})
+    if block:
+        ds.attrs["width_mm"] = float(layout.width_mm)
+    if layout.gauge_length_mm is not None:
+        ds.attrs["gauge_length_mm"] = float(layout.gauge_length_mm)
     for n, arr in (fields or {}).items():
-        ds[n] = (("course", "wale"), np.asarray(arr, dtype=np.float64), {"long_name": f"cell parameter {n}"})
+        attrs = {"long_name": f"cell parameter {n}"}
+        if n == "in_plane_width":
+            attrs["comment"] = "NaN where not given: the cell jams with its d"
+        ds[n] = (("course", "wale"), np.asarray(arr, dtype=np.float64), attrs)
     if all(k in h.groups for k in ("x", "W", "s_AB")):
         # the geometry is stored per group (identical cells share it), expanded by group_of_cell
         ds["group_of_cell"] = (("course", "wale"), np.asarray(h.group_of_cell, dtype=np.int32),
@@ -122,14 +307,21 @@ def _encoding(ds) -> dict:
     return enc
 
 
-def cells_nc(h: PatchHistory, fields: dict | None = None) -> bytes:
+def cells_nc(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None) -> bytes:
     """``cells.nc`` as bytes: netCDF-4 (HDF5) through h5netcdf, compressed and chunked by increment."""
-    ds = cells_dataset(h, fields)
+    ds = cells_dataset(h, fields, layout)
     return bytes(ds.to_netcdf(engine="h5netcdf", encoding=_encoding(ds)))
 
 
-def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
-    """The ``summary.json`` document.
+def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None, **info) -> dict:
+    """The ``summary.json`` document (``model``: the run's, needed for a specimen; ``info`` is copied in).
+
+    What a cell is: ``cell_is`` (``stitch`` or ``block of stitches``), ``cells`` (grid cells),
+    ``stitches`` (what they stand for); a patch of single stitches has ``courses`` and ``wales``, a
+    specimen ``bands``, ``strips`` and ``specimen`` (:meth:`SpecimenLayout.as_dict`: width, gauge
+    length, wales and courses of every strip, wales of every band).  Forces: ``peak_force_N`` is the
+    grip force (the total on a specimen), ``peak_force_per_wale_N`` it over the wales across the
+    width (``wales_across``).
 
     Per cycle: peak grip force (and per wale) and the grip strain there;
     residual grip strain, where the force per wale reaches 0 on the cycle's
@@ -147,7 +339,7 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
         rows = np.nonzero(h.cycle == k)[0]
         j = rows[np.argmax(F[rows])]
         entry = {"cycle": int(k), "peak_force_N": float(F[j]), "peak_force_per_wale_N": float(h.force_per_wale_N[j]),
-                 "grip_strain_at_peak": float(e[j])}
+                 "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length)}
         unload = rows[h.direction[rows] < 0]
         res = None
         if len(unload):
@@ -176,22 +368,37 @@ def patch_summary(h: PatchHistory, ref_length: float, **info) -> dict:
     if "interpenetrating" in h.groups:
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
                                      what="distinct cell")
+    layout = _layout_of(h, model)
+    row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
     out = dict(info)
     cells = int(h.shape[0] * h.shape[1])
     solved = int(h.info.get("n_groups", cells))
+    out.update(cell_is="block of stitches" if layout.blocks else "stitch", cells=cells,
+               grip_strain_is=(f"grip displacement / gauge length ({ref_length:.6g} mm), the same for every strip"
+                               if layout.blocks else
+                               f"grip displacement / the columns' rest length ({ref_length:.6g} mm"
+                               f"{'' if np.allclose(h.C0.sum(axis=0), ref_length, rtol=1e-12) else ', their mean'})"))
+    if layout.blocks:
+        out.update(bands=int(h.shape[0]), strips=int(h.shape[1]), stitches=layout.stitches,
+                   wales_across=layout.wales_across, specimen=layout.as_dict())
+    else:
+        out.update(courses=int(h.shape[0]), wales=int(h.shape[1]), stitches=cells,
+                   wales_across=float(h.shape[1]))
     out.update(
-        cells=cells, courses=int(h.shape[0]), wales=int(h.shape[1]), solved_cells=solved,
-        n_increments=int(h.n_increments), solve_s=float(h.wall_s),
+        solved_cells=solved, n_increments=int(h.n_increments), solve_s=float(h.wall_s),
         # identical cells are solved once (dedup): the cells represented, and those actually solved
         represented_cell_increments_per_s=float(cells * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
         solved_cell_increments_per_s=float(solved * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
+        represented_stitch_increments_per_s=(float(layout.stitches * h.n_increments / h.wall_s) if h.wall_s > 0
+                                             else None),
         solver=h.info, cycles=cycles,
         grip_strain_at_first_jamming=float(e[jam_rows[0]]) if len(jam_rows) else None,
         non_converged_column_increments=int(len(nc)),
-        non_converged_first=[{"increment": int(i), "wale": int(j)} for i, j in nc[:20]],
+        # where: a wale and a course of single stitches, a strip and a band of a specimen
+        non_converged_first=[{"increment": int(i) + 1, col_key: int(j)} for i, j in nc[:20]],
         columns_stopped_at_end=int(np.sum(h.column_status[-1] != COL_OK)) if h.n_increments else 0,
         non_ok_cells_at_end=int(len(bad_cells)),
-        non_ok_cells_first=[{"course": int(i), "wale": int(j)} for i, j in bad_cells[:20]],
+        non_ok_cells_first=[{row_key: int(i), col_key: int(j)} for i, j in bad_cells[:20]],
         nonfinite_force_rows=[int(i) for i in nonfinite[:20]],
         all_converged=bool(len(nc) == 0 and len(bad_cells) == 0 and len(nonfinite) == 0),
         warnings=[w.as_dict() for w in warnings],
@@ -205,10 +412,13 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def plot_force_strain(h: PatchHistory, title: str = "") -> bytes:
-    """PNG: force per wale vs grip strain (cycles coloured), non-converged increments marked."""
+def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout | None = None) -> bytes:
+    """PNG: force vs grip strain (cycles coloured), non-converged increments marked: the force per wale of a
+    patch of single stitches, the total force on a specimen (what a tester reports)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    layout = layout or _layout_of(h, None)
+    F = h.force_N if layout.blocks else h.force_per_wale_N
     fig = Figure(figsize=(7.5, 5), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
@@ -216,59 +426,87 @@ def plot_force_strain(h: PatchHistory, title: str = "") -> bytes:
         r = np.nonzero(h.cycle == k)[0]
         if r[0] > 0:
             r = np.concatenate([[r[0] - 1], r])
-        ax.plot(h.grip_strain[r], h.force_per_wale_N[r], lw=1.2, label=f"cycle {int(k)}")
+        ax.plot(h.grip_strain[r], F[r], lw=1.2, label=f"cycle {int(k)}")
     bad = np.any(h.column_status != COL_OK, axis=1)
     if bad.any():
-        ax.scatter(h.grip_strain[bad], h.force_per_wale_N[bad], marker="x", color="red", zorder=3,
+        ax.scatter(h.grip_strain[bad], F[bad], marker="x", color="red", zorder=3,
                    label="column not converged / stopped")
-    ax.set_xlabel("grip strain (grip displacement / column rest length)")
-    ax.set_ylabel("force per wale [N]")
-    ax.set_title(title or f"knitsim patch {h.shape[1]} wales x {h.shape[0]} courses", fontsize=10)
+    if layout.blocks:
+        ax.set_xlabel("grip strain (grip displacement / gauge length)")
+        ax.set_ylabel(f"total force on the {layout.width_mm:.4g} mm wide specimen [N]")
+        default = (f"knitsim specimen {layout.width_mm:.4g} x {layout.gauge_length_mm:.4g} mm "
+                   f"({layout.stitches:,.0f} stitches in {h.shape[0]} x {h.shape[1]} blocks)")
+    else:
+        ax.set_xlabel("grip strain (grip displacement / column rest length)")
+        ax.set_ylabel("force per wale [N]")
+        default = f"knitsim patch {h.shape[1]} wales x {h.shape[0]} courses"
+    ax.set_title(title or default, fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return _png(fig)
 
 
-def plot_map(h: PatchHistory, which: str, title: str = "") -> bytes:
-    """PNG of the final per-cell ``strain`` or ``stage`` map (courses upward, wales across)."""
+def plot_map(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayout | None = None) -> bytes:
+    """PNG of the final per-cell ``strain`` or ``stage`` map (courses upward, wales across; a specimen's
+    blocks drawn at their rest size in mm)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import BoundaryNorm, ListedColormap
     from matplotlib.figure import Figure
+    layout = layout or _layout_of(h, None)
     fig = Figure(figsize=(6, 6.5), dpi=100)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     data = h.cell_field(which if which == "strain" else "label")[-1]
+    if layout.blocks:
+        xe = np.concatenate([[0.0], np.cumsum(layout.strip_width_mm)])
+        ye = np.concatenate([[0.0], np.cumsum(layout.band_length_mm)])
+
+        def show(**kw):
+            return ax.pcolormesh(xe, ye, data, shading="flat", **kw)
+    else:
+        def show(**kw):
+            return ax.imshow(data, origin="lower", aspect="auto", interpolation="nearest", **kw)
     if which == "strain":
-        im = ax.imshow(data, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest")
+        im = show(cmap="viridis")
         fig.colorbar(im, ax=ax, label="strain of the course length (C - C0)/C0")
     else:
         names = [_LABELS[k] for k in sorted(_LABELS)]
         cmap = ListedColormap(["#1f77b4", "#2ca02c", "#d62728", "#7f7f7f"])
-        im = ax.imshow(data, origin="lower", aspect="auto", cmap=cmap, interpolation="nearest",
-                       norm=BoundaryNorm(np.arange(-0.5, 4.5), 4))
+        im = show(cmap=cmap, norm=BoundaryNorm(np.arange(-0.5, 4.5), 4))
         cb = fig.colorbar(im, ax=ax, ticks=range(4))
         cb.ax.set_yticklabels(names)
-    ax.set_xlabel("wale")
-    ax.set_ylabel("course")
+    if layout.blocks:
+        ax.set_xlabel(f"across the width [mm] ({h.shape[1]} strip{'s' * (h.shape[1] != 1)})")
+        ax.set_ylabel(f"from the lower grip, at rest [mm] ({h.shape[0]} band{'s' * (h.shape[0] != 1)})")
+    else:
+        ax.set_xlabel("wale")
+        ax.set_ylabel("course")
     ax.set_title(title or f"final {which} (grip strain {h.grip_strain[-1]:.3g})", fontsize=10)
     return _png(fig)
 
 
 def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, resolved_toml: str,
                         fields: dict | None = None, plot: bool = True, cell_fields: bool = True,
-                        title: str = "") -> dict[str, Path]:
-    """Write the result set into ``out_dir`` atomically (``summary.json`` last); returns the files by name."""
-    files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h).encode(),
+                        title: str = "", model: PatchModel | None = None) -> dict[str, Path]:
+    """Write the result set into ``out_dir`` atomically (``summary.json`` last); returns the files by name.
+
+    ``model``: the run's (its parameters go into cells.nc unless ``fields`` is given; a specimen's
+    history needs it for the stitches each block stands for)."""
+    layout = _layout_of(h, model)
+    if fields is None and model is not None:
+        fields = model.fields
+    files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h, layout).encode(),
              "scene.resolved.toml": resolved_toml.encode()}
     if cell_fields:
-        files["cells.nc"] = cells_nc(h, fields)
+        files["cells.nc"] = cells_nc(h, fields, layout)
     if plot:
-        files["force_strain.png"] = plot_force_strain(h, title)
-        files["strain_map.png"] = plot_map(h, "strain")
-        files["stage_map.png"] = plot_map(h, "stage")
+        files["force_strain.png"] = plot_force_strain(h, title, layout)
+        files["strain_map.png"] = plot_map(h, "strain", layout=layout)
+        files["stage_map.png"] = plot_map(h, "stage", layout=layout)
     files["summary.json"] = summary_json(summary).encode()
     return write_result_set(out_dir, files, PATCH_OUTPUT_FILES)
 
 
-__all__ = ["CURVE_COLUMNS", "PATCH_OUTPUT_FILES", "curve_csv", "columns_csv", "cells_dataset", "cells_nc",
+__all__ = ["CURVE_COLUMNS", "COLUMNS_COLUMNS", "PATCH_OUTPUT_FILES", "SpecimenLayout", "specimen_layout",
+           "column_forces", "curve_csv", "columns_csv", "cells_dataset", "cells_nc",
            "patch_summary", "plot_force_strain", "plot_map", "write_patch_results", "PARAM_NAMES"]

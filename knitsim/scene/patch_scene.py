@@ -68,6 +68,7 @@ Example (``scenes/two_zone_basalt_e_glass.toml``)::
     to = "jersey_6p5"               # at the last
     axis = "courses"                # "courses": along the wale (bands); "wales": across (strips)
     profile = "linear"              # or "step" (with steps)
+    fractions = [0.0, 1.0]          # share of "to" at the start and the end of the axis (optional)
 
 Each element of the ``bands x strips`` grid is a block of identical
 stitches: ``band length / C0`` courses in series and ``strip width / W0``
@@ -76,7 +77,7 @@ same grips, and a band of narrower loops more wales across the same width);
 every strip's rest length is the gauge length, and the grip strain is the
 grip displacement over it, the same for every strip (:mod:`knitsim.patch.model`).
 A blend at fraction t (the element's centre, (k + 1/2)/n along the axis, or
-its step) is the knit of the same yarn whose L, W0, C0 and phi0 are
+its step, scaled onto ``fractions``; each in [0, 1]) is the knit of the same yarn whose L, W0, C0 and phi0 are
 ``(1 - t) a + t b``: a graded knit is a blend of knits, its yarn (B, d, the
 in-plane width, friction, rules, effects) the one yarn of both.  Order:
 base, grades, zones, maps.
@@ -171,6 +172,8 @@ PATCH_SCENE = Table({
         "axis": Field(("str",), REQUIRED, "courses (along the wale) or wales (across)", choices=AXES),
         "profile": Field(("str",), "linear", "linear or step", choices=PROFILES),
         "steps": Field(("int",), OPTIONAL, "step profile: number of bands", min=2),
+        "fractions": Field(("float_list",), OPTIONAL, "[at the start, at the end] of the axis: blend fractions "
+                           "of the second knit (default [0, 1]; equal: a uniform blend)"),
         "courses": Field(("float_list",), OPTIONAL, "[start, stop) of courses, 0-based (default: all)"),
         "wales": Field(("float_list",), OPTIONAL, "[start, stop) of wales, 0-based (default: all)"),
     }), "blends of two knits of one yarn graded along an axis (applied after the base, before the zones)"),
@@ -459,7 +462,14 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
             raise error(f"{gp}.steps", steps, f"a step grade needs 2 <= steps <= {n} (the {grade['axis']} it spans)")
         if grade["profile"] == "linear" and "steps" in grade:
             raise error(f"{gp}.steps", steps, "not used by a linear grade")
-        t_all = _blend_fractions(n, grade["profile"], steps)
+        ends = grade.get("fractions", [0.0, 1.0])
+        if len(ends) != 2:
+            raise error(f"{gp}.fractions", ends, "expected [at the start, at the end] of the axis")
+        for e_i, t_end in enumerate(ends):
+            if not 0.0 <= t_end <= 1.0:
+                raise error(f"{gp}.fractions[{e_i}]", t_end, f"a blend fraction is in [0, 1] (the share of "
+                            f"{grade['to']!r}; outside it the blend would extrapolate the two knits)")
+        t_all = ends[0] + (ends[1] - ends[0]) * _blend_fractions(n, grade["profile"], steps)
         for k, t in enumerate(t_all):
             # the blend: the knit geometry (and phi0) between the two, the one yarn of both; the scene's
             # own keys win as for any library material
@@ -543,6 +553,16 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         G, width = sp["gauge_length"], sp["width"]
         course_count = (G / courses) / fields["C0"]
         wale_count = (width / wales) / fields["W0"]
+        # between the grips, every strip holds at least one course; across the width, every band one wale
+        for counts, axis, key, value, what, spacing in (
+                (course_count, 0, "gauge_length", G, "shorter than one course", "C0"),
+                (wale_count, 1, "width", width, "narrower than one wale", "W0")):
+            total = counts.sum(axis=axis)
+            if np.any(total < 1.0):
+                k = int(np.argmin(total))
+                line = "strip" if axis == 0 else "band"
+                raise error(f"specimen.{key}", value, f"{what} ({spacing} = {fmt(float(fields[spacing].max()))} mm): "
+                            f"{line} {k} holds {total[k]:.4g} {'courses' if axis == 0 else 'wales'}")
         model = PatchModel(courses, wales, fields, rule_arr, effects_arr, course_count=course_count,
                            wale_count=wale_count, gauge_length=G)
         ref = G

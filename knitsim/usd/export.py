@@ -90,6 +90,9 @@ class UsdExportResult:
     vertices_per_course: int
     file_bytes: int
     seconds: float
+    #: an instanced specimen (knitsim.usd.instanced): stitches drawn and their distinct shapes (0: a patch)
+    stitches: int = 0
+    prototypes: int = 0
 
 
 # --------------------------------------------------------------------------- input
@@ -532,6 +535,9 @@ def read_patch_usd(path) -> PatchUsd:
     if "layout" not in info:
         raise KnitsimInputError(f"path={path!r} was not written by knitsim.usd (no customLayerData['knitsim'])")
     lay = info["layout"]
+    if lay.get("kind") == "instanced specimen":
+        raise KnitsimInputError(f"path={path!r} is an instanced specimen: read it with "
+                                "knitsim.usd.instanced.read_specimen_usd")
     courses, wales, n = int(lay["courses"]), int(lay["wales"]), int(lay["points_per_quarter"])
     curves = [UsdGeom.BasisCurves(stage.GetPrimAtPath(f"{lay['yarns']}/{lay['prim_name_format'].format(i)}"))
               for i in range(courses)]

@@ -136,6 +136,8 @@ class PatchRecord:
     params : name -> (courses, wales) cell parameters (``d``, ``B``, ...)
     frame_scalars : name -> (T,): ``grip_strain``, ``cycle``, ``direction``
     scene_text : str
+    course_count, wale_count : (courses, wales) or None
+        Stitches each cell stands for (a specimen's blocks; None: single stitches).
     """
 
     group_of_cell: np.ndarray
@@ -148,6 +150,13 @@ class PatchRecord:
     frame_scalars: dict
     scene_text: str = ""
     source: str = ""
+    course_count: np.ndarray | None = None
+    wale_count: np.ndarray | None = None
+
+    @property
+    def blocks(self) -> bool:
+        """Cells stand for blocks of stitches (a specimen): exported instanced (:mod:`knitsim.usd.instanced`)."""
+        return any(c is not None and not np.all(np.asarray(c) == 1.0) for c in (self.course_count, self.wale_count))
 
     @property
     def n_frames(self) -> int:
@@ -167,8 +176,13 @@ def material_ids(params: dict) -> np.ndarray:
     return inv.reshape(stack.shape[:2]).astype(np.int32)
 
 
-def record_from_history(h, params: dict, scene_text: str = "") -> PatchRecord:
-    """A :class:`PatchRecord` from a :class:`~knitsim.patch.runner.PatchHistory` and the model's fields."""
+def record_from_history(h, params: dict, scene_text: str = "", course_count=None, wale_count=None) -> PatchRecord:
+    """A :class:`PatchRecord` from a :class:`~knitsim.patch.runner.PatchHistory` and the model's fields (and,
+    for a specimen, the stitches each cell stands for: the model's ``course_count`` and ``wale_count``)."""
+    wales = float(h.info.get("wales_represented", h.shape[1]))
+    if course_count is None and wale_count is None and not np.isclose(wales, h.shape[1], rtol=1e-12):
+        raise KnitsimInputError("the history is a specimen's (cells stand for blocks of stitches): give its "
+                                "course_count and wale_count")
     for k in ("x", "W", "s_AB"):
         if k not in h.groups:
             raise KnitsimInputError(f"history has no per-cell states ('{k}' not recorded: the run resumed from a "
@@ -179,7 +193,9 @@ def record_from_history(h, params: dict, scene_text: str = "") -> PatchRecord:
           "direction": np.asarray(h.direction, float)}
     return PatchRecord(np.asarray(h.group_of_cell), np.asarray(h.groups["x"], float), np.asarray(h.groups["W"], float),
                        np.asarray(h.groups["C"], float), np.asarray(h.groups["s_AB"], float), cf,
-                       {k: np.asarray(v, float) for k, v in params.items()}, fs, scene_text, "history")
+                       {k: np.asarray(v, float) for k, v in params.items()}, fs, scene_text, "history",
+                       None if course_count is None else np.asarray(course_count, float),
+                       None if wale_count is None else np.asarray(wale_count, float))
 
 
 def record_from_results(results_dir) -> PatchRecord:
@@ -210,9 +226,10 @@ def record_from_results(results_dir) -> PatchRecord:
     fs["direction"] = (np.where(dvals.astype(str) == "load", 1.0, -1.0) if dvals.dtype.kind in "USO"
                        else np.asarray(dvals, float))
     scene = d / "scene.resolved.toml"
+    counts = [np.asarray(ds[k].values, float) if k in ds else None for k in ("course_count", "wale_count")]
     return PatchRecord(ds["group_of_cell"].values.astype(np.int64), ds["state_x"].values, ds["state_W"].values,
                        ds["state_C"].values, ds["state_s_AB"].values, cf, params, fs,
-                       scene.read_text() if scene.is_file() else "", str(d))
+                       scene.read_text() if scene.is_file() else "", str(d), *counts)
 
 
 @dataclass
@@ -284,8 +301,13 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
         s_ab = np.where(good & np.isfinite(rec.s_AB[k]) & (rec.s_AB[k] > 0), rec.s_AB[k], np.nan)
         s_ab = np.where(np.isfinite(s_ab), s_ab, 0.25 * np.hypot(Wg / 4, Cg / 2))
         fallback.append(int(np.sum(~good[goc])))
-        out.append({"quarter_xy": q[goc], "W": Wg[goc], "C": Cg[goc], "s_AB": s_ab[goc],
-                    "fields": {n: a[k] for n, a in rec.cell_fields.items()}})
+        if rec.blocks:
+            # a specimen: one stitch shape per group, instanced (knitsim.usd.instanced)
+            out.append({"quarter_xy": q, "W": Wg, "C": Cg, "s_AB": s_ab,
+                        "fields": {n: a[k].ravel()[rep] for n, a in rec.cell_fields.items()}})
+        else:
+            out.append({"quarter_xy": q[goc], "W": Wg[goc], "C": Cg[goc], "s_AB": s_ab[goc],
+                        "fields": {n: a[k] for n, a in rec.cell_fields.items()}})
     scalars = {n: np.asarray(a, float)[sel] for n, a in rec.frame_scalars.items()}
     return PatchFrames(out, np.asarray(rec.params["d"], float), mat, sel, scalars, fallback, secs)
 
@@ -326,6 +348,9 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         raise KnitsimInputError(f"--quicklook = {os.fspath(quicklook)!r}: must end in .png")
     pf = build_frames(rec, stride, n_points, device)
     courses, wales = rec.shape
+    if rec.blocks:
+        return _export_specimen(rec, pf, out_path, color_by=color_by, stride=stride, n_points=n_points,
+                                quicklook=quicklook, curve_basis=curve_basis, metadata=metadata)
     md = {"source": rec.source, "courses": courses, "wales": wales, "points_per_quarter": int(n_points),
           "stride": int(stride), "frames_in_run": rec.n_frames,
           "fallback_cells": ",".join(str(c) for c in pf.fallback_cells),
@@ -342,9 +367,38 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
     return res
 
 
-def export_history(h, params: dict, out_path, *, scene_text: str = "", **kw):
-    """Write a :class:`~knitsim.patch.runner.PatchHistory` as USD (keywords of :func:`export_record`)."""
-    return export_record(record_from_history(h, params, scene_text), out_path, **kw)
+def _export_specimen(rec: PatchRecord, pf: PatchFrames, out_path, *, color_by, stride, n_points, quicklook,
+                     curve_basis, metadata):
+    """A specimen's record as an instanced stage (:mod:`knitsim.usd.instanced`)."""
+    from .instanced import write_specimen_usd
+    from .quicklook import render_quicklook
+    goc = rec.group_of_cell
+    _, rep = np.unique(goc.ravel(), return_index=True)
+    shape = rec.shape
+    cc = np.ones(shape) if rec.course_count is None else rec.course_count
+    wc = np.ones(shape) if rec.wale_count is None else rec.wale_count
+    md = {"source": rec.source, "bands": shape[0], "strips": shape[1], "points_per_quarter": int(n_points),
+          "stride": int(stride), "frames_in_run": rec.n_frames,
+          "fallback_cells": ",".join(str(c) for c in pf.fallback_cells),
+          "geometry": "quarter centreline from the elastica state (kernels/centreline.py, eqs 8-9), one stitch "
+                      "shape per distinct cell, instanced over the stitches of its blocks"}
+    md.update(metadata or {})
+    res = write_specimen_usd(out_path, pf.frames, np.asarray(rec.params["d"], float).ravel()[rep], goc, cc, wc,
+                             material_id_group=pf.material_id.ravel()[rep], color_by=COLOR_FIELDS[color_by],
+                             scene_text=rec.scene_text, metadata=md, field_units=FIELD_UNITS,
+                             curve_basis=curve_basis, frame_indices=pf.frame_indices,
+                             frame_scalars=pf.frame_scalars)
+    res.geometry_seconds = pf.seconds_geometry
+    res.fallback_cells = pf.fallback_cells
+    if quicklook is not None:
+        render_quicklook(out_path, quicklook)
+    return res
+
+
+def export_history(h, params: dict, out_path, *, scene_text: str = "", course_count=None, wale_count=None, **kw):
+    """Write a :class:`~knitsim.patch.runner.PatchHistory` as USD (keywords of :func:`export_record`); a
+    specimen's history with its model's ``course_count`` and ``wale_count`` (drawn instanced)."""
+    return export_record(record_from_history(h, params, scene_text, course_count, wale_count), out_path, **kw)
 
 
 def export_results(results_dir, out_path, **kw):

@@ -19,9 +19,8 @@ import numpy as np
 from ..errors import KnitsimInputError
 
 
-def _read_frame(stage, prims, t, step):
+def _curves(stage, prims, t):
     from pxr import UsdGeom
-    segs, cols, zs, wids = [], [], [], []
     for prim in prims:
         c = UsdGeom.BasisCurves(prim)
         p = np.asarray(c.GetPointsAttr().Get(t), dtype=float)
@@ -32,6 +31,12 @@ def _read_frame(stage, prims, t, step):
         col = np.full((len(p), 3), 0.6) if col is None or len(col) != len(p) else np.asarray(col, dtype=float)
         w = c.GetWidthsAttr().Get(t)
         w = np.full(len(p), 0.0) if w is None or len(w) == 0 else np.broadcast_to(np.asarray(w, float), (len(p),))
+        yield p, col, w
+
+
+def _read_frame(stage, prims, t, step, instanced=()):
+    segs, cols, zs, wids = [], [], [], []
+    for p, col, w in [*_curves(stage, prims, t), *instanced]:
         if step > 1:   # decimate: keep every step-th vertex and the last one
             keep = np.unique(np.r_[np.arange(0, len(p), step), len(p) - 1])
             p, col, w = p[keep], col[keep], w[keep]
@@ -42,6 +47,33 @@ def _read_frame(stage, prims, t, step):
     if not segs:
         return None
     return np.concatenate(segs), np.concatenate(cols), np.concatenate(zs), np.concatenate(wids)
+
+
+def _instanced_curves(stage, t):
+    """Every instance of every PointInstancer at ``t`` as (points (m, 3), colour (m, 3), widths (m,)) per instance:
+    its prototype's curve moved to its position (knitsim.usd.instanced writes no orientations or scales)."""
+    from pxr import UsdGeom
+    out = []
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdGeom.PointInstancer):
+            continue
+        inst = UsdGeom.PointInstancer(prim)
+        pos = np.asarray(inst.GetPositionsAttr().Get(t), dtype=float)
+        idx = np.asarray(inst.GetProtoIndicesAttr().Get(t), dtype=np.int64)
+        protos = []
+        for target in inst.GetPrototypesRel().GetTargets():
+            c = UsdGeom.BasisCurves(stage.GetPrimAtPath(target))
+            p = np.asarray(c.GetPointsAttr().Get(t), dtype=float)
+            pv = UsdGeom.PrimvarsAPI(c).GetPrimvar("displayColor")
+            col = pv.ComputeFlattened(t) if pv and pv.HasValue() else None
+            col = np.full(3, 0.6) if col is None or len(col) == 0 else np.asarray(col, dtype=float)[0]
+            w = c.GetWidthsAttr().Get(t)
+            w = 0.0 if w is None or len(w) == 0 else float(np.asarray(w, float)[0])
+            protos.append((p, col, w))
+        for k in range(len(idx)):
+            p, col, w = protos[int(idx[k])]
+            out.append((p + pos[k], np.broadcast_to(col, p.shape), np.full(len(p), w)))
+    return out
 
 
 def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = None,
@@ -79,16 +111,20 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
     if not os.path.exists(usd_path):
         raise KnitsimInputError(f"usd_path={usd_path!r} does not exist")
     stage = Usd.Stage.Open(usd_path)
-    prims = [p for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)]
-    if not prims:
+    prims = [p for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)]     # (prototypes under an over: not here)
+    has_instancer = any(p.IsA(UsdGeom.PointInstancer) for p in stage.Traverse())
+    if not prims and not has_instancer:
         raise KnitsimInputError(f"usd_path={usd_path!r} holds no BasisCurves prim")
     t0, t1 = stage.GetStartTimeCode(), stage.GetEndTimeCode()
     info = dict(stage.GetRootLayer().customLayerData.get("knitsim", {}))
     legend = dict(info.get("legend", {}))
 
-    n_vert = sum(len(UsdGeom.BasisCurves(p).GetPointsAttr().Get(t0) or []) for p in prims)
+    inst0 = _instanced_curves(stage, t0) if has_instancer else []
+    n_vert = (sum(len(UsdGeom.BasisCurves(p).GetPointsAttr().Get(t0) or []) for p in prims)
+              + sum(len(c[0]) for c in inst0))
     step = max(1, int(np.ceil(n_vert / max(int(max_vertices), 2))))
-    frames = [(t, _read_frame(stage, prims, t, step)) for t in (t0, t1)]
+    frames = [(t, _read_frame(stage, prims, t, step, inst0 if t == t0 else
+                              (_instanced_curves(stage, t) if has_instancer else []))) for t in (t0, t1)]
     all_xy = np.concatenate([f[0].reshape(-1, 2) for _, f in frames if f is not None])
     lo, hi = all_xy.min(axis=0), all_xy.max(axis=0)
     pad = 0.03 * max(hi - lo) + 1e-9
@@ -124,6 +160,12 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
         fig.colorbar(sm, ax=list(axes), shrink=0.7,
                      label=f"{legend.get('field', '')}" + (f" [{units}]" if units else ""))
     note = f" (every {step}th vertex)" if step > 1 else ""
+    lay = dict(info.get("layout", {}))
+    if title is None and lay.get("kind") == "instanced specimen":
+        # a specimen: its blocks stand for a real number of stitches, the whole ones are drawn
+        title = (f"{os.path.basename(usd_path)}: specimen of {lay.get('bands')} x {lay.get('strips')} blocks (bands x "
+                 f"strips), {int(lay.get('stitches_drawn', 0)):,} whole stitches drawn for "
+                 f"{float(lay.get('stitches_represented', 0.0)):,.1f}")
     fig.suptitle((title if title is not None else os.path.basename(usd_path)) + note)
     fig.savefig(png_path, dpi=dpi)
     plt.close(fig)

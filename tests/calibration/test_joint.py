@@ -155,3 +155,40 @@ def test_band_weights_and_lab_files(tmp_path):
     (tmp_path / "neg.csv").write_text("strain,force_per_wale_N\n-0.01,0.0\n0.1,1.0\n")
     with pytest.raises(KnitsimInputError, match=r"neg\.csv: row 2, column strain: -0\.01 is negative"):
         read_table(tmp_path / "neg.csv")
+
+
+def test_an_interrupted_calibration_resumes_to_the_same_fit_without_redoing_work(tmp_path, monkeypatch):
+    """Stopped twice (during the screening's aftermath and inside a refinement), resumed from its checkpoint:
+    the same estimates bit for bit (least squares replays the saved evaluations), and the evaluations
+    done in all three runs are those of one uninterrupted fit (none redone)."""
+    from knitsim.calibration import joint
+    specimens = [SpecimenData(f"knit{i}", s, y, sd, None, None, True, WIDTH, GAUGE,
+                              {"L": k["L"], "W0": w, "C0": k["C0"]}, {"L": 0.0, "W0": 0.04, "C0": 0.0})
+                 for i, ((s, y, sd), k, w) in enumerate(zip(_curves(), KNITS, STATED_W0))]
+    base = CellParams(B=0.2, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.3, in_plane_width=0.7, force_cap_N=200.0)
+    setup = JointSetup(base=base, shared=("B", "m"), per_specimen=("W0",), max_increment=STEP,
+                       starts=3, refine=2, max_nfev=8, bounds={"B": (0.05, 2.0), "m": (0.05, 0.8)})
+    calls = []
+    real = joint._Problem.evaluate_with_jacobian
+    monkeypatch.setattr(joint._Problem, "evaluate_with_jacobian",
+                        lambda self, x, **kw: calls.append(1) or real(self, x, **kw))
+    full = calibrate_joint(specimens, setup)
+    n_full = len(calls)
+    calls.clear()
+    ck = tmp_path / "ck.pkl"
+    with pytest.raises(joint.CalibrationInterrupted):
+        calibrate_joint(specimens, setup, checkpoint=ck, stop_after=3)
+    with pytest.raises(joint.CalibrationInterrupted):
+        calibrate_joint(specimens, setup, checkpoint=ck, resume=True, stop_after=n_full - 6)
+    ticks = []
+    again = calibrate_joint(specimens, setup, checkpoint=ck, resume=True,
+                            counter=lambda what, total: (lambda done: ticks.append((what, done, total))))
+    assert n_full > 9 and len(calls) == n_full
+    assert [e.value for e in again.estimates] == [e.value for e in full.estimates]
+    assert [e.std_error for e in again.estimates] == [e.std_error for e in full.estimates]
+    assert again.starts == full.starts and again.chi2 == full.chi2
+    assert ticks[0] == ("starts screened", 4, 4)            # resumed: the screening was done
+    # another setup does not take this checkpoint
+    with pytest.raises(KnitsimInputError, match="belongs to other specimens or another calibration setup"):
+        calibrate_joint(specimens, JointSetup(base=base, shared=("B",), max_increment=STEP), checkpoint=ck,
+                        resume=True)

@@ -111,6 +111,18 @@ def test_step_blend_across_the_width(lib):
     np.testing.assert_array_equal(s.model.fields["L"][0], [4.5, 4.5, 6.5, 6.5])
 
 
+def test_blend_fractions_set_the_ends_of_a_grade(lib):
+    """fractions = [a, b]: the blend runs from a to b along the axis, t = a + (b - a)(k + 1/2)/n; a == b is a
+    uniform blend (a knit between two calibrated knits of one yarn)."""
+    s = load_patch_scene(specimen(lib, specimen={"width": 50.0, "gauge_length": 100.0, "bands": 4},
+                                  grades=[{"from": "a", "to": "b", "axis": "courses", "fractions": [0.2, 0.6]}]))
+    t = 0.2 + 0.4 * (np.arange(4) + 0.5) / 4
+    np.testing.assert_allclose(s.model.fields["L"][:, 0], 4.5 + 2.0 * t, rtol=1e-15)
+    u = load_patch_scene(specimen(lib, grades=[{"from": "a", "to": "b", "axis": "wales", "fractions": [0.25, 0.25]}]))
+    assert u.model.fields["W0"][0, 0] == pytest.approx(0.75 * 1.2 + 0.25 * 1.7, rel=1e-15)
+    assert u.model.fields["phi0"][0, 0] == pytest.approx(0.75 * 0.1 - 0.25 * 0.1, rel=1e-12)
+
+
 def test_blends_need_one_yarn_and_specimens_their_size(lib):
     with pytest.raises(KnitsimInputError, match=r"^grades\[0\]\.to = \"c\": a grade blends knits of one yarn"):
         load_patch_scene(specimen(lib, grades=[{"from": "a", "to": "c", "axis": "courses"}]))

@@ -1,0 +1,121 @@
+"""Bad input of ``knitsim calibrate``, ``[specimen]`` and ``[[grades]]``: one line naming the file, key and
+value, exit status 2, no traceback, and nothing written (the checks run before any work starts).  And
+``knitsim calibrate``'s progress and --out policy (refuse results unless --resume or --overwrite)."""
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from knitsim.cli import main
+from knitsim.scene.schema import dumps
+
+# E-glass yarn and knit (Table 1, section 2.2): W0 = 4.4, C0 = 2.7 mm
+CAL = {"title": "bad input", "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
+       "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
+       "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
+                       "starts": 2, "refine": 1, "max_nfev": 2},
+       "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv", "noise_N": 0.05,
+                      "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
+CURVE = "strain,load_N\n" + "".join(f"{0.02 * k},{0.5 * k}\n" for k in range(11))
+
+
+def _set(doc, path, value):
+    *head, last = path
+    for k in head:
+        doc = doc[k]
+    if value is _DEL:
+        del doc[last]
+    else:
+        doc[last] = value
+
+
+_DEL = object()
+
+
+@pytest.mark.parametrize("path, value, curve, match", [
+    (("specimens", 0, "width"), _DEL, CURVE, r"specimens\[0\]\.width: missing required key"),
+    (("specimens", 0, "width"), -50.0, CURVE, r"specimens\[0\]\.width = -50\.0: must be > 0 mm"),
+    (("specimens", 0, "gauge_length"), 2.0, CURVE,
+     r"specimens\[0\]\.gauge_length = 2\.0: shorter than one course \(knit\.C0 = 2\.7 mm\)"),
+    (("specimens", 0, "width"), 3.0, CURVE,
+     r"specimens\[0\]\.width = 3\.0: narrower than one wale \(knit\.W0 = 4\.4 mm\)"),
+    (("specimens", 0, "knit", "C0"), _DEL, CURVE, r"specimens\[0\]\.knit\.C0: missing required key"),
+    (None, None, "strain,force_kN\n0,0\n0.1,1\n", r"specimens\[0\]\.curve: .*a\.csv: no force column"),
+    (None, None, "strain,load_N\n0,0\n0.1,abc\n", r"specimens\[0\]\.curve: .*a\.csv: row 3, column load_N"),
+    (None, None, "time_s,load_N\n0,0\n0.1,1\n", r"specimens\[0\]\.curve: .*a\.csv: no strain column"),
+])
+def test_calibrate_refuses_bad_input_in_one_line(tmp_path, capsys, path, value, curve, match):
+    doc = copy.deepcopy(CAL)
+    if path is not None:
+        _set(doc, path, value)
+    (tmp_path / "a.csv").write_text(curve)
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    rc = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("knitsim: error: ")
+    import re
+    assert re.search(match, lines[0]), lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+SPECIMEN = {"title": "bad input", "specimen": {"width": 50.0, "gauge_length": 100.0, "strips": 2, "bands": 2},
+            "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"}, "rules": {"force_cap_N": 10.0},
+            "load": {"type": "monotonic", "target_strain": 0.1, "max_increment": 0.05}}
+GRADE = {"from": "e_glass_plain", "to": "e_glass_plain", "axis": "courses"}
+
+
+@pytest.mark.parametrize("edit, match", [
+    ({"specimen": {"width": 50.0}}, r"specimen\.gauge_length: missing"),
+    ({"specimen": {"width": -5.0, "gauge_length": 100.0}}, r"specimen\.width = -5\.0: must be > 0 mm"),
+    ({"specimen": {"width": 50.0, "gauge_length": 2.0}},
+     r"specimen\.gauge_length = 2\.0: shorter than one course \(C0 = 2\.7 mm\): strip 0 holds 0\.7407 courses"),
+    ({"specimen": {"width": 3.0, "gauge_length": 100.0}},
+     r"specimen\.width = 3\.0: narrower than one wale \(W0 = 4\.4 mm\): band 0 holds 0\.6818 wales"),
+    ({"grades": [dict(GRADE, to="basalt_plain")]}, r"grades\[0\]\.to = \"basalt_plain\": a grade blends knits of one "
+                                                   r"yarn: 'e_glass_plain' is of yarn 'e_glass', 'basalt_plain' of "
+                                                   r"yarn 'basalt'"),
+    ({"grades": [dict(GRADE, fractions=[0.0, 1.5])]}, r"grades\[0\]\.fractions\[1\] = 1\.5: a blend fraction is in "
+                                                      r"\[0, 1\]"),
+    ({"grades": [dict(GRADE, fractions=[-0.2, 1.0])]}, r"grades\[0\]\.fractions\[0\] = -0\.2: a blend fraction"),
+    ({"grades": [{"from": "e_glass_plain", "to": "e_glass_plain"}]}, r"grades\[0\]\.axis: missing required key"),
+    ({"grades": [dict(GRADE, to="nope")]}, r"grades\[0\]\.to = \"nope\": unknown knit"),
+])
+def test_specimen_and_grades_refuse_bad_input_in_one_line(tmp_path, capsys, edit, match):
+    doc = copy.deepcopy(SPECIMEN)
+    doc.update(copy.deepcopy(edit))
+    (tmp_path / "s.toml").write_text(dumps(doc))
+    rc = main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    import re
+    assert re.search(match, lines[0]), lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_progress_and_the_out_policy(tmp_path, capsys):
+    (tmp_path / "a.csv").write_text(CURVE)
+    (tmp_path / "cal.toml").write_text(dumps(copy.deepcopy(CAL)))
+    out = tmp_path / "out"
+    argv = ["calibrate", str(tmp_path / "cal.toml"), "--out", str(out)]
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc in (0, 1), err
+    # 1 own start + 2 Latin-hypercube starts screened; one start refined (at most 2 evaluations)
+    assert "knitsim calibrate: starts screened: 3/3 (100%)" in err
+    assert "knitsim calibrate: start 1/1: evaluations: 2/2 (100%)" in err
+    assert (out / "calibration.json").is_file() and not (out / "calibration_checkpoint.pkl").exists()
+    assert main(argv) == 2
+    assert "already holds results; add --overwrite to replace them or --resume to continue it" in \
+        capsys.readouterr().err
+    assert main(argv + ["--resume"]) == 2
+    assert "--resume: no checkpoint" in capsys.readouterr().err
+    assert main(argv + ["--resume", "--overwrite"]) == 2
+    assert "choose one" in capsys.readouterr().err
+    assert main(argv + ["--overwrite", "--no-progress"]) in (0, 1)
+    assert "starts screened" not in capsys.readouterr().err
