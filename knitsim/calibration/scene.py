@@ -80,7 +80,7 @@ CALIBRATION_SCENE = Table({
         "shared": Field(("str_list",), REQUIRED, "yarn variables fitted, shared by every specimen"),
         "per_specimen": Field(("str_list",), ["phi0"], "variables fitted per specimen (phi0, L, W0, C0)"),
         "bounds": Table({n: Field(("float_list",), OPTIONAL, f"[low, high] of {n}") for n in
-                         ("B", "d", "in_plane_width", "m", "phi0", "L", "W0", "C0", "log10_dahl_sigma", "coil_mu_k",
+                         ("B", "d", "in_plane_width", "m", "phi0", "L", "W0", "C0", "pretension", "log10_dahl_sigma", "coil_mu_k",
                           "load_n", "rate_p", "compaction_k", "bend_h", "ext_c")},
                         "ranges: B [N mm^2], d and in_plane_width [mm], phi0 as a fraction of phimax, L/W0/C0 as "
                         "factors on the stated values"),
@@ -111,6 +111,10 @@ CALIBRATION_SCENE = Table({
         "knit": _GEOMETRY_TABLE,
         "uncertainty": _UNCERTAINTY_TABLE,
         "phi0": Field(("float",), OPTIONAL, "start of phi0 [rad] (default: friction.phi0)", "rad"),
+        "pretension": Field(("float",), 0.0, "strain of the knit at grip strain 0 (the tester's pretension "
+                            "before the strain origin): the start of a fitted one", min=0.0, max=0.5),
+        "pretension_sd": Field(("float",), 0.0, "sd of the pretension's prior, a Gaussian centred on 0 (strain; "
+                               "> 0 to fit it per specimen)", min=0.0, max=0.5),
     }), "the specimens of the one yarn", min_items=1),
 })
 
@@ -218,7 +222,8 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             s["name"], width_mm=s["width"], gauge_length_mm=s["gauge_length"], knit=s["knit"],
             uncertainty=s["uncertainty"], curve=path(s["curve"], "curve") if "curve" in s else None,
             band=(path(band[0], "band"), path(band[1], "band")) if band else None, row_step=cal["row_step"],
-            noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"]))
+            noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"],
+            pretension=s["pretension"], pretension_sd=s["pretension_sd"]))
     fixed = dict(cal.get("fixed", {}))
     setup = JointSetup(base=base, shared=tuple(cal["shared"]), per_specimen=tuple(cal["per_specimen"]),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),

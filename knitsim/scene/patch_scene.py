@@ -161,6 +161,9 @@ PATCH_SCENE = Table({
                               min_inclusive=False),
         "strips": Field(("int",), 1, "columns across the width, of equal widths (each width/strips / W0 wales)",
                         min=1, max=10_000),
+        "pretension": Field(("float",), 0.0, "strain of the knit at grip strain 0 (pretensioned before the strain "
+                            "origin: the knit rests at gauge_length / (1 + pretension), and the run starts by "
+                            "stretching it to the gauge length, at negative grip strains)", min=0.0, max=0.5),
         "bands": Field(("int",), 1, "rows along the gauge length, of equal lengths (each length/bands / C0 courses)",
                        min=1, max=10_000),
     }, "a specimen between grips: the grid is bands x strips blocks of stitches"),
@@ -347,6 +350,19 @@ def _blend_fractions(n: int, profile: str, steps: int) -> np.ndarray:
         return (k + 0.5) / n
     band = np.minimum((k * steps // n).astype(np.int64), steps - 1)
     return band / (steps - 1)
+
+
+def _pretensioned(program: LoadProgram, offset: float, max_increment: float) -> LoadProgram:
+    """The solver's program of a pretensioned specimen: from the knit at rest to the strain origin
+    (``offset`` = pretension / (1 + pretension) of the gauge length, loading), then the scene's grip
+    strains shifted by it; the run reports grip strains less the offset (:mod:`knitsim.patch.runner`)."""
+    from ..cell.load_program import monotonic
+    pre = monotonic(offset, max_increment)
+    first = int(program.cycle[0]) if len(program) else 1
+    return LoadProgram(np.concatenate([pre.strain, np.asarray(program.strain) + offset]),
+                       np.concatenate([np.full(len(pre), first, np.int32), np.asarray(program.cycle, np.int32)]),
+                       np.concatenate([np.ones(len(pre), np.int32), np.asarray(program.direction, np.int32)]),
+                       tuple([0.0] + [c + offset for c in program.waypoints]))
 
 
 def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engine: str | None = None,
@@ -540,13 +556,14 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
 
     if specimen:
         # a tester's specimen: each element holds band length / C0 courses and strip width / W0 wales
-        G, width = sp["gauge_length"], sp["width"]
-        course_count = (G / courses) / fields["C0"]
+        G, width, pre = sp["gauge_length"], sp["width"], sp["pretension"]
+        course_count = (G / (1.0 + pre) / courses) / fields["C0"]      # the knit at rest between the grips
         wale_count = (width / wales) / fields["W0"]
         model = PatchModel(courses, wales, fields, rule_arr, effects_arr, course_count=course_count,
-                           wale_count=wale_count, gauge_length=G)
+                           wale_count=wale_count, gauge_length=G, pretension=pre)
         ref = G
-        reach = (course_count * (fields["L"] / 2.0 - fields["C0"])).sum(axis=0)
+        # grip displacement the strips can take from the strain origin (past their pretension)
+        reach = (course_count * (fields["L"] / 2.0 - fields["C0"])).sum(axis=0) - (G - G / (1.0 + pre))
         what = "strip"
     else:
         model = PatchModel(courses, wales, fields, rule_arr, effects_arr)
@@ -561,6 +578,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     program, load_resolved = _program(doc["load"], [], limit_of=(
         float(reach[j] / ref), f"{what} {j} can stretch by at most {reach[j]:.4g} mm (C < L/2 in every cell), "
                                f"i.e. grip strain < {reach[j] / ref:.4g}"))
+    if specimen and model.pretension > 0:
+        program = _pretensioned(program, model.grip_offset, doc["load"]["max_increment"])
 
     resolved: dict[str, Any] = {}
     if "title" in doc:
