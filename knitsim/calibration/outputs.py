@@ -69,7 +69,8 @@ def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu")
     doc = {"title": f"{f.name}: calibrated cell (knitsim calibrate)", "engine": "warp", "device": device}
     doc.update(_cell_tables(f.params))
     pre = float(f.pretension)
-    doc["load"] = {"type": "monotonic", "target_strain": float(pretension_strain(float(f.strain[-1]), pre)),
+    end = float(f.strain[-1]) if pre == 0 else float(pretension_strain(float(f.strain[-1]), pre))
+    doc["load"] = {"type": "monotonic", "target_strain": end,
                    "max_increment": result.setup.max_increment}
     pre_line = ("" if pre == 0 else
                 f"\npretensioned specimen: the cell's strain is the knit's, (1 + {pre:.6g})(1 + grip strain) - 1 "
@@ -97,7 +98,8 @@ def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, ga
     header = (f"Specimen {f.name} ({width_mm:g} mm wide, {gauge_length_mm:g} mm between the grips), calibrated by "
               f"knitsim calibrate {source}\n"
               f"{width_mm / f.params.W0:.4g} wales (width / W0), {gauge_length_mm / (1 + pre) / f.params.C0:.4g} "
-              f"courses (gauge length / (1 + pretension) / C0); curve.csv force_N is the total force"
+              + ("courses (gauge length / (1 + pretension) / C0)" if pre else "courses (gauge length / C0)")
+              + "; curve.csv force_N is the total force"
               + (f"\npretension: the knit is at strain {pre:.4g} at grip strain 0 ({f.pretension_N:.4g} N; the run "
                  "starts at rest, at negative grip strain)" if pre else "")
               + f"\n{_fit_line(f)}\nunits N, mm, rad")

@@ -41,7 +41,10 @@ Example (``scenes/calibration/do2020/calibrate.toml``)::
     uncertainty = { L = 0.02, W0 = 0.10, C0 = 0.10 }      # relative sd of each stated value
 
 A specimen may give ``curve = "FILE"`` (a measured curve; with ``noise_N``,
-else its noise is estimated) instead of, or with, the band.  Everything is
+else its noise is estimated) instead of, or with, the band.  With
+``"pretension"`` in ``per_specimen`` each specimen's strain at grip strain 0
+is fitted (``pretension_sd``: the sd of its prior around 0, required;
+``pretension``: its start; :func:`knitsim.calibration.specimen.pretension_strain`).  Everything is
 checked before any solve; errors name the key path and the value.
 """
 from __future__ import annotations
