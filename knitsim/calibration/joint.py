@@ -719,6 +719,7 @@ _BOUND_NOTES = {
     ("phi0", "high"): "+phimax: the knit starts sliding in the loading direction",
     ("phi0", "low"): "-phimax: the knit starts sliding against the loading",
     ("m", "low"): "no friction at the crossing",
+    ("pretension", "low"): "0: the knit at rest at the strain origin (no pretension)",
 }
 
 
