@@ -49,7 +49,7 @@ from scipy.stats import qmc
 
 from ..cell.batch import run_batch
 from ..cell.history import STATUS_NAMES, STATUS_OK
-from ..cell.load_program import LoadProgram, monotonic
+from ..cell.load_program import LoadProgram, monotonic, pretensioned
 from ..cell.material import CellParams
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from ..diagnosis.measured import MeasuredCurve, program_for_curve
@@ -731,6 +731,28 @@ def _note(name: str, side: str, specimen: str | None) -> str:
     return f"the {side} end of the stated range"
 
 
+def _pretensioned_rows(cell: CellParams, s: SpecimenData, pretension: float, max_increment: float,
+                       device: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """Force per wale and status at a pretensioned specimen's rows, and its force at grip strain 0:
+    the cell on the program its patch scene runs (:func:`knitsim.cell.load_program.pretensioned`,
+    a uniform specimen's knit strain is (1 + pretension) x the solver's grip strain)."""
+    offset = pretension / (1.0 + pretension)
+    grip = pretensioned(monotonic(float(s.strain[-1]), max_increment), offset, max_increment)
+    knit = LoadProgram(grip.strain * (1.0 + pretension), grip.cycle, grip.direction,
+                       tuple(w * (1.0 + pretension) for w in grip.waypoints))
+    h = run_batch([cell], knit, device=device)
+    at = grip.strain - offset
+    rows = np.minimum(np.searchsorted(at, s.strain - 1e-9), len(at) - 1)
+    if not np.allclose(at[rows], s.strain, rtol=0.0, atol=1e-9):
+        # rows off the increments (row_step not a multiple of max_increment): read between them
+        F = np.interp(s.strain, np.concatenate(([-offset], at)), np.concatenate(([0.0], h.force_per_wale[:, 0])))
+    else:
+        F = h.force_per_wale[rows, 0]
+    worst = np.maximum.accumulate(h.status[:, 0])
+    i0 = int(np.argmin(np.abs(at)))
+    return F, worst[rows], float(h.force_per_wale[i0, 0])
+
+
 def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                     progress: Callable[[str], None] | None = None) -> JointResult:
     """Fit one yarn to several specimens (module docstring).
@@ -831,12 +853,16 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         if c is None:                      # pragma: no cover - the best point of a fit is admissible
             raise RuntimeError(f"specimen {s.name}: the calibrated point is not an admissible cell")
         w = s.wales(c.W0) if s.total else 1.0
-        f, st = pb.at_rows(k, sims[k], own_x[k])
-        sim = w * f
         e_p = float(own_x[k].get("pretension", s.pretension))
-        # the total force at grip strain 0 (the pretension force the model says the tester applied)
-        pre_N = w * float(np.interp(e_p, np.concatenate(([0.0], pb.program.strain)),
-                                    np.concatenate(([0.0], sims[k][0])))) if pb.pretension else 0.0
+        pre_N = 0.0
+        if pb.pretension and e_p > 0:
+            # the fit read its rows between increments; the reported curve is the specimen's own run,
+            # as its written patch scene runs it: from rest through the pretension, then the rows
+            f, st, pre_f = _pretensioned_rows(c, s, e_p, setup.max_increment, setup.device)
+            pre_N = w * pre_f             # the force at grip strain 0: the pretension the model implies
+        else:
+            f, st = pb.at_rows(k, sims[k], own_x[k])
+        sim = w * f
         worst = int(np.max(st))
         all_ok &= worst == STATUS_OK
         e = sim - s.target_N

@@ -97,7 +97,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cell.load_program import LoadProgram
+from ..cell.load_program import LoadProgram, pretensioned
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
@@ -352,19 +352,6 @@ def _blend_fractions(n: int, profile: str, steps: int) -> np.ndarray:
     return band / (steps - 1)
 
 
-def _pretensioned(program: LoadProgram, offset: float, max_increment: float) -> LoadProgram:
-    """The solver's program of a pretensioned specimen: from the knit at rest to the strain origin
-    (``offset`` = pretension / (1 + pretension) of the gauge length, loading), then the scene's grip
-    strains shifted by it; the run reports grip strains less the offset (:mod:`knitsim.patch.runner`)."""
-    from ..cell.load_program import monotonic
-    pre = monotonic(offset, max_increment)
-    first = int(program.cycle[0]) if len(program) else 1
-    return LoadProgram(np.concatenate([pre.strain, np.asarray(program.strain) + offset]),
-                       np.concatenate([np.full(len(pre), first, np.int32), np.asarray(program.cycle, np.int32)]),
-                       np.concatenate([np.ones(len(pre), np.int32), np.asarray(program.direction, np.int32)]),
-                       tuple([0.0] + [c + offset for c in program.waypoints]))
-
-
 def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engine: str | None = None,
                      device: str | None = None) -> PatchScene:
     """Read, override (``--set``), validate and resolve a patch scene; nothing is solved.
@@ -579,7 +566,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         float(reach[j] / ref), f"{what} {j} can stretch by at most {reach[j]:.4g} mm (C < L/2 in every cell), "
                                f"i.e. grip strain < {reach[j] / ref:.4g}"))
     if specimen and model.pretension > 0:
-        program = _pretensioned(program, model.grip_offset, doc["load"]["max_increment"])
+        program = pretensioned(program, model.grip_offset, doc["load"]["max_increment"])
 
     resolved: dict[str, Any] = {}
     if "title" in doc:

@@ -195,9 +195,15 @@ def test_pretension_of_a_model_curve_is_recovered():
     assert fit.pretension_N == pytest.approx(F_pre, rel=0.03)
     # the specimen between its grips, pretensioned: the patch at grip strain e is the cell at (1 + p)(1 + e) - 1
     model = PatchModel.specimen(truth, WIDTH, GAUGE, pretension=pre)
-    from knitsim.scene.patch_scene import _pretensioned
-    ph = run_patch(model, _pretensioned(monotonic(grip[-1], step), model.grip_offset, 0.005))
+    from knitsim.cell.load_program import pretensioned
+    ph = run_patch(model, pretensioned(monotonic(grip[-1], step), model.grip_offset, 0.005))
     rows = np.searchsorted(ph.grip_strain, grip - 1e-9)
     assert np.allclose(ph.grip_strain[rows], grip, atol=1e-12)
     assert np.allclose(ph.force_N[rows], F, rtol=1e-6, atol=1e-9)
     assert ph.grip_strain[0] < 0                                   # pretensioning, before the strain origin
+    # the written specimen (fitted cell and pretension) reproduces the fit's curve, which reads the rows
+    # as its patch scene runs it (the fit read its rows between increments; the report runs the specimen)
+    fm = PatchModel.specimen(fit.params, WIDTH, GAUGE, pretension=fit.pretension)
+    fh = run_patch(fm, pretensioned(monotonic(grip[-1], step), fm.grip_offset, 0.005))
+    rows = np.searchsorted(fh.grip_strain, grip - 1e-9)
+    np.testing.assert_allclose(fh.force_N[rows], fit.simulated_N, rtol=1e-9)
