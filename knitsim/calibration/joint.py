@@ -49,20 +49,22 @@ from scipy.stats import qmc
 
 from ..cell.batch import run_batch
 from ..cell.history import STATUS_NAMES, STATUS_OK
-from ..cell.load_program import LoadProgram
+from ..cell.load_program import LoadProgram, monotonic, pretensioned
 from ..cell.material import CellParams
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from ..diagnosis.measured import MeasuredCurve, program_for_curve
 from ..errors import KnitsimInputError
-from .specimen import GEOMETRY, SpecimenData
+from .specimen import GEOMETRY, SpecimenData, pretension_strain
 
 #: yarn variables that may be shared (besides the effects' own)
 YARN_VARIABLES = ("B", "d", "in_plane_width", "m")
 #: variables that may be fitted per specimen
-SPECIMEN_VARIABLES = ("phi0",) + GEOMETRY
+SPECIMEN_VARIABLES = ("phi0",) + GEOMETRY + ("pretension",)
+#: default range of a fitted pretension strain (the knit's strain at grip strain 0)
+PRETENSION_RANGE = (0.0, 0.05)
 #: units of the reported variables
 UNITS = {"B": "N mm^2", "d": "mm", "in_plane_width": "mm", "m": "-", "phi0": "rad", "L": "mm", "W0": "mm",
-         "C0": "mm"}
+         "C0": "mm", "pretension": "-"}
 #: a variable this close to a bound (share of its range) is flagged
 BOUND_TOL = 1e-3
 #: residual of a row whose cell failed (not ok), times max(1, |target| / sd)
@@ -189,6 +191,14 @@ class SpecimenFit:
         Sum of squared weighted residuals of its rows.
     status : str
         Worst cell status over the rows (``ok`` when every row solved).
+    pretension : float
+        The knit's strain at grip strain 0 (0: at rest); the rows are knit strains
+        ``(1 + pretension)(1 + grip strain) - 1``.
+    pretension_N : float
+        The model's force at grip strain 0 [N] (total, or per wale): the pretension it implies.
+    in_band_tolerant : float or None
+        Share of the rows inside the band widened by the force reading's accuracy
+        (:meth:`SpecimenData.in_band_tolerant`).
     """
 
     name: str
@@ -205,9 +215,14 @@ class SpecimenFit:
     rms_rel: float
     chi2: float
     status: str
+    pretension: float = 0.0
+    pretension_N: float = 0.0
+    in_band_tolerant: float | None = None
 
     def as_dict(self, curves: bool = True) -> dict:
         out = {"name": self.name, "wales": self.wales, "in_band_fraction": self.in_band_fraction,
+               "pretension": self.pretension, "pretension_N": self.pretension_N,
+               "in_band_tolerant": self.in_band_tolerant,
                "rms_N": self.rms_N, "rms_rel": self.rms_rel, "chi2": self.chi2, "rows": int(len(self.strain)),
                "status": self.status, "params": self.params.as_dict()}
         if curves:
@@ -325,6 +340,12 @@ class _Problem:
                     if not s.uncertainty.get(n, 0.0) > 0:
                         raise KnitsimInputError(f"specimens.{s.name}.uncertainty.{n}: needed > 0 to fit {n} per "
                                                 "specimen (its relative measurement uncertainty)")
+            if n == "pretension":
+                for s in self.sp:
+                    if not s.pretension_sd > 0:
+                        raise KnitsimInputError(f"specimens.{s.name}.pretension_sd: needed > 0 to fit the pretension "
+                                                "per specimen (the sd of its prior: how far the tester's pretension "
+                                                "may have stretched the knit before the strain origin)")
         if len(set(shared)) != len(shared) or len(set(setup.per_specimen)) != len(setup.per_specimen):
             raise KnitsimInputError("calibration: a variable is listed twice")
         if not self.sp:
@@ -354,7 +375,7 @@ class _Problem:
         if self.k == 0:
             raise KnitsimInputError("calibration: nothing to fit (shared and per_specimen are empty)")
         self.n_rows = sum(len(s.strain) for s in self.sp)
-        self.n_prior = sum(1 for v in self.vars if v.name in GEOMETRY)
+        self.n_prior = sum(1 for v in self.vars if v.name in GEOMETRY or v.name == "pretension")
         if self.n_rows <= self.k:
             raise KnitsimInputError(f"specimens: {self.n_rows} rows cannot fit {self.k} variables")
         # one program through every row: the longest specimen's (the others' rows are its first ones)
@@ -363,6 +384,15 @@ class _Problem:
                               np.ones(len(longest.strain), int), source=longest.name)
         self.program, rows = program_for_curve(curve, setup.max_increment)
         self.rows = [rows[:len(s.strain)] for s in self.sp]
+        self.pretension = "pretension" in self.own or any(s.pretension > 0 for s in self.sp)
+        if self.pretension:
+            # a pretensioned knit runs from its rest state; its rows are knit strains
+            # (1 + e_p)(1 + e_grip) - 1 between the increments (pretension_strain): one program from rest
+            # to the last row at the largest pretension, the forces interpolated
+            top_pre = max([s.pretension for s in self.sp]
+                          + ([self._fit_bounds("pretension")[1]] if "pretension" in self.own else []))
+            top = pretension_strain(float(longest.strain[-1]), float(top_pre))
+            self.program = monotonic(top, setup.max_increment)
         self.calls = 0
 
     # ------------------------------------------------------------ bounds
@@ -386,6 +416,11 @@ class _Problem:
             lo, hi = self.user_bounds.get("phi0", (-1.0, 1.0))
             if lo < -1 or hi > 1:
                 raise KnitsimInputError(f"calibration.bounds.phi0 = [{lo}, {hi}]: a fraction of phimax in [-1, 1]")
+        elif name == "pretension":
+            lo, hi = self.user_bounds.get("pretension", PRETENSION_RANGE)
+            if not 0.0 <= lo < hi <= 0.5:
+                raise KnitsimInputError(f"calibration.bounds.pretension = [{lo}, {hi}]: strains of the knit at grip "
+                                        "strain 0, 0 <= low < high <= 0.5")
         elif name in GEOMETRY:
             u = s.uncertainty[name]
             lo, hi = self.user_bounds.get(name, (math.exp(-4 * u), math.exp(4 * u)))
@@ -440,6 +475,8 @@ class _Problem:
                 x.append(max(-1.0, min(1.0, phi0 / b.phimax)) if b.phimax > 0 else 0.0)
             elif v.name in GEOMETRY:
                 x.append(0.0)
+            elif v.name == "pretension":
+                x.append(self.sp[v.specimen].pretension)
             elif v.name == "log10_dahl_sigma" and b.dahl_sigma > 0:
                 x.append(math.log10(b.dahl_sigma))        # the scene's Dahl stiffness as the start
             elif hasattr(b.effects, v.name):
@@ -472,7 +509,7 @@ class _Problem:
     def cell(self, shared: dict, own: dict) -> CellParams:
         """The cell of one specimen (validated; raises KnitsimInputError for an inadmissible point)."""
         values = dict(shared)
-        values.update(own)
+        values.update({n: v for n, v in own.items() if n != "pretension"})   # the load's, not the cell's
         return build_params(self.base, self.effects, values, self.setup.fixed)
 
     def cells_at(self, x: np.ndarray) -> list:
@@ -497,10 +534,26 @@ class _Problem:
             F, st = hist.force_per_wale, hist.status
             for j, (i, _) in enumerate(valid):
                 k = cells[i][0]
+                if self.pretension:
+                    out[i] = (F[:, j], st[:, j])       # the whole history: rows read in residuals()
+                    continue
                 r = self.rows[k]
                 out[i] = (np.where(r >= 0, F[np.maximum(r, 0), j], 0.0),
                           np.where(r >= 0, st[np.maximum(r, 0), j], STATUS_OK))
         return out
+
+    def at_rows(self, k: int, sim: tuple, own: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Force per wale and status at specimen ``k``'s rows from its simulation (``simulate``)."""
+        if not self.pretension:
+            return sim
+        F, st = sim
+        e = pretension_strain(self.sp[k].strain, own.get("pretension", self.sp[k].pretension))
+        hist = np.concatenate(([0.0], self.program.strain))
+        f = np.interp(e, hist, np.concatenate(([0.0], F)))
+        # a row is as good as the worst increment up to the one that reaches it
+        worst = np.maximum.accumulate(st)
+        idx = np.minimum(np.searchsorted(self.program.strain, e - 1e-12), len(st) - 1)
+        return f, worst[idx]
 
     def residuals(self, x: np.ndarray, sims: list) -> np.ndarray:
         """Weighted rows of every specimen, then the geometry priors."""
@@ -512,13 +565,16 @@ class _Problem:
             if sims[k] is None:
                 parts.append(fail)
                 continue
-            f, st = sims[k]
+            f, st = self.at_rows(k, sims[k], own[k])
             r = (w * f - s.target_N) / s.sigma_N
             bad = np.maximum.accumulate(st != STATUS_OK)
             parts.append(np.where(bad, fail, r))
         for v, xi in zip(self.vars, x):
             if v.name in GEOMETRY:
                 parts.append(np.array([xi / self.sp[v.specimen].uncertainty[v.name]]))
+            elif v.name == "pretension":
+                s = self.sp[v.specimen]
+                parts.append(np.array([xi / s.pretension_sd]))     # prior: the strain origin at face value
         return np.concatenate(parts)
 
     def evaluate_points(self, X: Sequence[np.ndarray]) -> list[np.ndarray]:
@@ -592,6 +648,8 @@ def _reported(problem: _Problem, x: np.ndarray) -> tuple[list, np.ndarray, list,
             if v.name == "phi0":
                 pm = cells[k].phimax if cells[k] is not None else 0.0
                 val, lo, hi = xi * pm, v.lo * pm, v.hi * pm
+            elif v.name == "pretension":
+                val, lo, hi = xi, v.lo, v.hi
             else:
                 st = problem.sp[k].knit[v.name]
                 val, lo, hi = own[k][v.name], st * math.exp(v.lo), st * math.exp(v.hi)
@@ -633,6 +691,8 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
                 m = problem.model_values(out)[0].get("m", problem.base.m)
                 pm = math.atan(m)
                 out[j] = yv[j] / pm if pm > 0 else 0.0
+            elif n == "pretension":
+                out[j] = yv[j]
             else:
                 out[j] = math.log(yv[j] / problem.sp[spi].knit[n])
         return out
@@ -659,6 +719,7 @@ _BOUND_NOTES = {
     ("phi0", "high"): "+phimax: the knit starts sliding in the loading direction",
     ("phi0", "low"): "-phimax: the knit starts sliding against the loading",
     ("m", "low"): "no friction at the crossing",
+    ("pretension", "low"): "0: the knit at rest at the strain origin (no pretension)",
 }
 
 
@@ -684,7 +745,7 @@ def fingerprint(specimens: Sequence[SpecimenData], setup: JointSetup) -> str:
     h = hashlib.sha256(repr(setup).encode())
     for sp in specimens:
         h.update(repr((sp.name, sp.total, sp.width_mm, sp.gauge_length_mm, sorted(sp.knit.items()),
-                       sorted(sp.uncertainty.items()))).encode())
+                       sorted(sp.uncertainty.items()), sp.pretension, sp.pretension_sd)).encode())
         for a in (sp.strain, sp.target_N, sp.sigma_N, sp.band_low_N, sp.band_high_N):
             h.update(b"-" if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes())
     return h.hexdigest()
@@ -699,6 +760,28 @@ class _Refined:
     nfev: int
     success: bool
     message: str
+
+
+def _pretensioned_rows(cell: CellParams, s: SpecimenData, pretension: float, max_increment: float,
+                       device: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """Force per wale and status at a pretensioned specimen's rows, and its force at grip strain 0:
+    the cell on the program its patch scene runs (:func:`knitsim.cell.load_program.pretensioned`,
+    a uniform specimen's knit strain is (1 + pretension) x the solver's grip strain)."""
+    offset = pretension / (1.0 + pretension)
+    grip = pretensioned(monotonic(float(s.strain[-1]), max_increment), offset, max_increment)
+    knit = LoadProgram(grip.strain * (1.0 + pretension), grip.cycle, grip.direction,
+                       tuple(w * (1.0 + pretension) for w in grip.waypoints))
+    h = run_batch([cell], knit, device=device)
+    at = grip.strain - offset
+    rows = np.minimum(np.searchsorted(at, s.strain - 1e-9), len(at) - 1)
+    if not np.allclose(at[rows], s.strain, rtol=0.0, atol=1e-9):
+        # rows off the increments (row_step not a multiple of max_increment): read between them
+        F = np.interp(s.strain, np.concatenate(([-offset], at)), np.concatenate(([0.0], h.force_per_wale[:, 0])))
+    else:
+        F = h.force_per_wale[rows, 0]
+    worst = np.maximum.accumulate(h.status[:, 0])
+    i0 = int(np.argmin(np.abs(at)))
+    return F, worst[rows], float(h.force_per_wale[i0, 0])
 
 
 def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
@@ -848,6 +931,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         if nme in GEOMETRY:
             stated = pb.sp[spi].knit[nme]
             dev = float(x[j] / pb.sp[spi].uncertainty[nme])
+        elif nme == "pretension":
+            stated = 0.0
+            dev = float(x[j] / pb.sp[spi].pretension_sd)
         unit = UNITS.get(nme, pb.effect_vars[nme].unit if nme in pb.effect_vars else "")
         note = _note(nme, side, spname) if side else ""
         if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
@@ -861,6 +947,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     # each specimen's fit
     cells = pb.cells_at(x)
     sims = pb.simulate(list(enumerate(cells)))
+    _, own_x = pb.model_values(x)
     fits = []
     all_ok = True
     for k, s in enumerate(pb.sp):
@@ -868,16 +955,25 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         if c is None:                      # pragma: no cover - the best point of a fit is admissible
             raise RuntimeError(f"specimen {s.name}: the calibrated point is not an admissible cell")
         w = s.wales(c.W0) if s.total else 1.0
-        f, st = sims[k]
+        e_p = float(own_x[k].get("pretension", s.pretension))
+        pre_N = 0.0
+        if pb.pretension and e_p > 0:
+            # the fit read its rows between increments; the reported curve is the specimen's own run,
+            # as its written patch scene runs it: from rest through the pretension, then the rows
+            f, st, pre_f = _pretensioned_rows(c, s, e_p, setup.max_increment, setup.device)
+            pre_N = w * pre_f             # the force at grip strain 0: the pretension the model implies
+        else:
+            f, st = pb.at_rows(k, sims[k], own_x[k])
         sim = w * f
         worst = int(np.max(st))
         all_ok &= worst == STATUS_OK
         e = sim - s.target_N
         rms = float(np.sqrt(np.mean(e * e)))
         frac = float(np.mean(s.in_band(sim))) if s.has_band else None
+        frac_tol = float(np.mean(s.in_band_tolerant(sim))) if s.has_band else None
         fits.append(SpecimenFit(s.name, c, w, s.strain, s.target_N, sim, s.sigma_N, s.band_low_N, s.band_high_N,
                                 frac, rms, rms / float(np.sqrt(np.mean(s.target_N ** 2))),
-                                float(np.sum((e / s.sigma_N) ** 2)), STATUS_NAMES[worst]))
+                                float(np.sum((e / s.sigma_N) ** 2)), STATUS_NAMES[worst], e_p, pre_N, frac_tol))
     shared, _ = pb.model_values(x)
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..material_library import LibraryKnit, LibraryYarn, library_document
 from ..scene.schema import dumps
+from .specimen import pretension_strain
 from .joint import JointResult
 
 _RULES = ("unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
@@ -67,12 +68,18 @@ def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu")
     f = result.fits[k]
     doc = {"title": f"{f.name}: calibrated cell (knitsim calibrate)", "engine": "warp", "device": device}
     doc.update(_cell_tables(f.params))
-    doc["load"] = {"type": "monotonic", "target_strain": float(f.strain[-1]),
+    pre = float(f.pretension)
+    end = float(f.strain[-1]) if pre == 0 else float(pretension_strain(float(f.strain[-1]), pre))
+    doc["load"] = {"type": "monotonic", "target_strain": end,
                    "max_increment": result.setup.max_increment}
+    pre_line = ("" if pre == 0 else
+                f"\npretensioned specimen: the cell's strain is the knit's, (1 + {pre:.6g})(1 + grip strain) - 1 "
+                f"(grip strain 0 at {pre:.6g}, where it carries {f.pretension_N:.4g} N); the patch scene runs in "
+                "grip strain")
     header = (f"Specimen {f.name}, calibrated jointly with {', '.join(g.name for g in result.fits if g is not f) or 'no other'}"
               f" by knitsim calibrate {source}\n"
               f"the cell of one stitch: force per wale; the specimen's total force is {f.wales:.6g} x it "
-              f"(its wales)\n{_fit_line(f)}\nunits N, mm, rad")
+              f"(its wales)\n{_fit_line(f)}{pre_line}\nunits N, mm, rad")
     return dumps(doc, header=header)
 
 
@@ -82,13 +89,20 @@ def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, ga
     f = result.fits[k]
     doc = {"title": f"{f.name}: calibrated specimen (knitsim calibrate)", "engine": "warp", "device": device,
            "specimen": {"width": width_mm, "gauge_length": gauge_length_mm}}
+    pre = float(f.pretension)
+    if pre:
+        doc["specimen"]["pretension"] = pre
     doc.update(_cell_tables(f.params))
     doc["load"] = {"type": "monotonic", "target_strain": float(f.strain[-1]),
                    "max_increment": result.setup.max_increment}
     header = (f"Specimen {f.name} ({width_mm:g} mm wide, {gauge_length_mm:g} mm between the grips), calibrated by "
               f"knitsim calibrate {source}\n"
-              f"{width_mm / f.params.W0:.4g} wales (width / W0), {gauge_length_mm / f.params.C0:.4g} courses "
-              f"(gauge length / C0); curve.csv force_N is the total force\n{_fit_line(f)}\nunits N, mm, rad")
+              f"{width_mm / f.params.W0:.4g} wales (width / W0), {gauge_length_mm / (1 + pre) / f.params.C0:.4g} "
+              + ("courses (gauge length / (1 + pretension) / C0)" if pre else "courses (gauge length / C0)")
+              + "; curve.csv force_N is the total force"
+              + (f"\npretension: the knit is at strain {pre:.4g} at grip strain 0 ({f.pretension_N:.4g} N; the run "
+                 "starts at rest, at negative grip strain)" if pre else "")
+              + f"\n{_fit_line(f)}\nunits N, mm, rad")
     return dumps(doc, header=header)
 
 
@@ -126,13 +140,22 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
         if e.specimen is not None:
             lines.append(f"| {e.specimen} | {e.name} | {_fmt(e.value)} | {_fmt(e.std_error)} | {e.unit} | "
                          f"{_fmt(e.stated)} | {_fmt(e.deviation_sd)} | {e.at_bound or ''} |")
-    lines += ["", "phi0 in rad (a fraction of phimax = atan(m) in the fit).", "", "## Fits", "",
-              "| specimen | wales (width / W0) | rows | in the band | RMS [N] | RMS / RMS force | chi2 | cells |",
-              "|---|---|---|---|---|---|---|---|"]
+    lines += ["", "phi0 in rad (a fraction of phimax = atan(m) in the fit); pretension: the knit's strain at grip "
+              "strain 0 (the tester's pretension before the strain origin; rows at knit strain "
+              "(1 + pretension)(1 + grip strain) - 1).", "", "## Fits", "",
+              "| specimen | wales (width / W0) | rows | in the band | in the band +- force accuracy | RMS [N] | "
+              "RMS / RMS force | chi2 | pretension | force at grip strain 0 [N] | cells |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for f in r.fits:
         band = "-" if f.in_band_fraction is None else f"{100 * f.in_band_fraction:.0f} %"
-        lines.append(f"| {f.name} | {f.wales:.4g} | {len(f.strain)} | {band} | {f.rms_N:.4g} | "
-                     f"{100 * f.rms_rel:.2g} % | {f.chi2:.4g} | {f.status} |")
+        tol = "-" if f.in_band_tolerant is None else f"{100 * f.in_band_tolerant:.0f} %"
+        lines.append(f"| {f.name} | {f.wales:.4g} | {len(f.strain)} | {band} | {tol} | {f.rms_N:.4g} | "
+                     f"{100 * f.rms_rel:.2g} % | {f.chi2:.4g} | {f.pretension:.4g} | {f.pretension_N:.4g} | "
+                     f"{f.status} |")
+    lines += ["", "In the band: the share of the rows (of the strain range) where the model lies between the two "
+              "envelopes; +- force accuracy: the band widened by the force reading's accuracy "
+              "(calibration.force_accuracy, of the force) on either side: where the envelopes meet or cross the band "
+              "has no width, though the specimens scatter and the machine reads no better."]
     names = [e.label for e in r.estimates]
     strong = [(names[i], names[j], r.correlation[i, j]) for i in range(len(names)) for j in range(i + 1, len(names))
               if abs(r.correlation[i, j]) > 0.9]

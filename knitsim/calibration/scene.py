@@ -41,7 +41,10 @@ Example (``scenes/calibration/do2020/calibrate.toml``)::
     uncertainty = { L = 0.02, W0 = 0.10, C0 = 0.10 }      # relative sd of each stated value
 
 A specimen may give ``curve = "FILE"`` (a measured curve; with ``noise_N``,
-else its noise is estimated) instead of, or with, the band.  Everything is
+else its noise is estimated) instead of, or with, the band.  With
+``"pretension"`` in ``per_specimen`` each specimen's strain at grip strain 0
+is fitted (``pretension_sd``: the sd of its prior around 0, required;
+``pretension``: its start; :func:`knitsim.calibration.specimen.pretension_strain`).  Everything is
 checked before any solve; errors name the key path and the value.
 """
 from __future__ import annotations
@@ -80,7 +83,7 @@ CALIBRATION_SCENE = Table({
         "shared": Field(("str_list",), REQUIRED, "yarn variables fitted, shared by every specimen"),
         "per_specimen": Field(("str_list",), ["phi0"], "variables fitted per specimen (phi0, L, W0, C0)"),
         "bounds": Table({n: Field(("float_list",), OPTIONAL, f"[low, high] of {n}") for n in
-                         ("B", "d", "in_plane_width", "m", "phi0", "L", "W0", "C0", "log10_dahl_sigma", "coil_mu_k",
+                         ("B", "d", "in_plane_width", "m", "phi0", "L", "W0", "C0", "pretension", "log10_dahl_sigma", "coil_mu_k",
                           "load_n", "rate_p", "compaction_k", "bend_h", "ext_c")},
                         "ranges: B [N mm^2], d and in_plane_width [mm], phi0 as a fraction of phimax, L/W0/C0 as "
                         "factors on the stated values"),
@@ -111,6 +114,10 @@ CALIBRATION_SCENE = Table({
         "knit": _GEOMETRY_TABLE,
         "uncertainty": _UNCERTAINTY_TABLE,
         "phi0": Field(("float",), OPTIONAL, "start of phi0 [rad] (default: friction.phi0)", "rad"),
+        "pretension": Field(("float",), 0.0, "strain of the knit at grip strain 0 (the tester's pretension "
+                            "before the strain origin): the start of a fitted one", min=0.0, max=0.5),
+        "pretension_sd": Field(("float",), 0.0, "sd of the pretension's prior, a Gaussian centred on 0 (strain; "
+                               "> 0 to fit it per specimen)", min=0.0, max=0.5),
     }), "the specimens of the one yarn", min_items=1),
 })
 
@@ -225,7 +232,7 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             uncertainty=s["uncertainty"], curve=path(s["curve"], "curve") if "curve" in s else None,
             band=(path(band[0], "band"), path(band[1], "band")) if band else None, row_step=cal["row_step"],
             noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"],
-            where=where))
+            where=where, pretension=s["pretension"], pretension_sd=s["pretension_sd"]))
     fixed = dict(cal.get("fixed", {}))
     setup = JointSetup(base=base, shared=tuple(cal["shared"]), per_specimen=tuple(cal["per_specimen"]),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),

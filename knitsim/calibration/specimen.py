@@ -87,6 +87,30 @@ def read_table(path: str | Path) -> MeasuredTable:
     return MeasuredTable(np.asarray(strain, float), np.asarray(force, float), f_total is not None, str(path), rows)
 
 
+def pretension_strain(grip_strain, pretension: float):
+    """The knit's strain at a grip strain when the specimen was pretensioned before the strain origin.
+
+    A tensile tester clamps the specimen and applies a pretension before it sets the gauge length
+    ``G`` and the strain origin (textile strip tests, e.g. ISO 13934-1): the knit between the grips, of
+    rest length ``G / (1 + e_p)``, is then already at strain ``e_p`` at grip strain 0.  At grip strain
+    ``e`` (displacement / G) its length is ``G (1 + e)``, so its strain is
+
+        e_knit = (1 + e_p)(1 + e) - 1 = e_p + e (1 + e_p).
+
+    Parameters
+    ----------
+    grip_strain : float or ndarray
+        Grip strain(s) from the test's origin.
+    pretension : float
+        ``e_p``: the knit's strain at grip strain 0 (>= 0).
+
+    Returns
+    -------
+    float or ndarray
+    """
+    return (1.0 + pretension) * (1.0 + np.asarray(grip_strain, float)) - 1.0
+
+
 def _interp(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
     # repeated strains (a logger writing a row twice) are averaged, so that the interpolation is defined
     s, inv = np.unique(t.strain, return_inverse=True)
@@ -121,6 +145,14 @@ class SpecimenData:
         The files read.
     sigma_rule : str
         How the sds were obtained (for the report).
+    pretension : float
+        Strain of the knit at grip strain 0 (:func:`pretension_strain`): the start of a fitted
+        pretension, else the value used (0: the knit is at rest at the strain origin).
+    pretension_sd : float
+        sd of the prior of a fitted pretension, a Gaussian centred on 0 (the tester's strain origin
+        at face value), cut at 0 by its range; 0: not fitted.
+    accuracy_rel : float
+        Relative accuracy of the force reading (the least sd of a band's row, times the force).
     """
 
     name: str
@@ -136,6 +168,9 @@ class SpecimenData:
     uncertainty: dict = field(default_factory=dict)
     sources: tuple = ()
     sigma_rule: str = ""
+    pretension: float = 0.0
+    pretension_sd: float = 0.0
+    accuracy_rel: float = FORCE_ACCURACY_REL
 
     @property
     def has_band(self) -> bool:
@@ -151,12 +186,21 @@ class SpecimenData:
             return np.ones(len(self.strain), bool)
         return (force_N >= self.band_low_N) & (force_N <= self.band_high_N)
 
+    def in_band_tolerant(self, force_N: np.ndarray) -> np.ndarray:
+        """Inside the band widened on each side by the force reading's accuracy (``accuracy_rel`` x the
+        target): where the envelopes meet or cross, the band has no width though the specimens scatter."""
+        if not self.has_band:
+            return np.ones(len(self.strain), bool)
+        tol = self.accuracy_rel * np.abs(self.target_N)
+        return (force_N >= self.band_low_N - tol) & (force_N <= self.band_high_N + tol)
+
 
 def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, knit: dict,
                         uncertainty: dict | None = None, curve: str | Path | None = None,
                         band: tuple | None = None, row_step: float = 0.005, noise_N: float | None = None,
                         end_strain: float | None = None, accuracy_rel: float = FORCE_ACCURACY_REL,
-                        where: str | None = None) -> SpecimenData:
+                        where: str | None = None, pretension: float = 0.0,
+                        pretension_sd: float = 0.0) -> SpecimenData:
     """Read a specimen's files and put them on the fit rows (module docstring).
 
     Parameters
@@ -181,6 +225,8 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         Relative accuracy of the force reading: the least sd of a band's row, times the force.
     where : str, optional
         Key path of the specimen in its scene, for messages (default ``specimens.<name>``).
+    pretension, pretension_sd : float
+        Strain of the knit at grip strain 0 (start), and the sd of its prior (:class:`SpecimenData`).
     """
     where = where or f"specimens.{name}"
     if curve is None and band is None:
@@ -225,8 +271,9 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     scale = max(float(np.max(np.abs(target))), 1e-300)
     if band is not None:
         half = 0.5 * (high - low)
+        how = "half-width of the band"
         sigma = np.maximum(np.maximum(half, accuracy_rel * np.abs(target)), 1e-6 * scale)
-        rule = f"half-width of the band, at least {100 * accuracy_rel:.3g} % of the force (the machine's accuracy)"
+        rule = f"{how}, at least {100 * accuracy_rel:.3g} % of the force (the machine's accuracy)"
     else:
         if noise_N is None:
             from ..diagnosis.noise import curve_noise
@@ -243,7 +290,8 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
             raise KnitsimInputError(f"{where}.uncertainty.{k} = {v!r}: expected a relative sd in [0, 1)")
     return SpecimenData(name, strain, np.asarray(target, float), sigma, low, high, totals.pop(), float(width_mm),
                         float(gauge_length_mm), {k: float(knit[k]) for k in GEOMETRY}, unc,
-                        tuple(t.source for t in tables), rule)
+                        tuple(t.source for t in tables), rule, float(pretension), float(pretension_sd),
+                        float(accuracy_rel))
 
 
-__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "GEOMETRY"]
+__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "GEOMETRY"]

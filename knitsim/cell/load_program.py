@@ -102,6 +102,23 @@ def monotonic(target: float, max_increment: float = 0.005) -> LoadProgram:
     return piecewise_linear([0.0, target], max_increment, field="load.target_strain")
 
 
+def pretensioned(program: LoadProgram, offset: float, max_increment: float = 0.005) -> LoadProgram:
+    """A grip program of a pretensioned specimen, as its solver runs it from the knit at rest.
+
+    The first increments load from rest to ``offset`` (the grip strain, over the gauge length, of
+    the pretension: pretension / (1 + pretension)); then ``program`` follows, shifted by ``offset``.
+    A run reports its grip strains less ``offset`` (negative while the specimen is pretensioned).
+    """
+    if not (math.isfinite(offset) and offset > 0):
+        raise KnitsimInputError(f"pretension offset = {offset!r}: must be a positive grip strain")
+    pre = monotonic(offset, max_increment)
+    first = int(program.cycle[0]) if len(program) else 1
+    return LoadProgram(np.concatenate([pre.strain, np.asarray(program.strain) + offset]),
+                       np.concatenate([np.full(len(pre), first, np.int32), np.asarray(program.cycle, np.int32)]),
+                       np.concatenate([np.ones(len(pre), np.int32), np.asarray(program.direction, np.int32)]),
+                       tuple([0.0] + [w + offset for w in program.waypoints]))
+
+
 def cycles(lower: float, upper: float, n_cycles: int, max_increment: float = 0.005) -> LoadProgram:
     """``n_cycles`` cycles: load to ``upper``, unload to ``lower``, repeat.
 

@@ -182,7 +182,8 @@ def curve_csv(h: PatchHistory) -> str:
     lines = [",".join(CURVE_COLUMNS)]
     # increment 0 is the rest state (grip strain 0); the program's increments are 1 .. n
     cyc0 = str(int(h.cycle[0])) if h.n_increments else "1"
-    lines.append(",".join(["0", cyc0, "load", _num(0.0), _num(h.rest_force_N), _num(h.rest_force_per_wale_N)]))
+    rest_grip = float(h.info.get("rest_grip_strain", 0.0))     # < 0: a pretensioned specimen at rest
+    lines.append(",".join(["0", cyc0, "load", _num(rest_grip), _num(h.rest_force_N), _num(h.rest_force_per_wale_N)]))
     for i in range(h.n_increments):
         lines.append(",".join([str(i + 1), str(int(h.cycle[i])), "load" if h.direction[i] > 0 else "unload",
                                _num(h.grip_strain[i]), _num(h.force_N[i]), _num(h.force_per_wale_N[i])]))

@@ -134,6 +134,11 @@ class PatchModel:
         Distance between the grips [mm]: every column's rest length (sum of course count x C0)
         must equal it, and the grip strain is the displacement over it.  Absent: the columns'
         common rest length, or their mean when they differ (each mounted at its own).
+    pretension : float
+        Strain of the knit between the grips at grip strain 0 (a specimen pretensioned before the
+        tester's strain origin, :func:`knitsim.calibration.specimen.pretension_strain`); needs
+        ``gauge_length``, and every column's rest length is then ``gauge_length / (1 + pretension)``.
+        0: the knit is at rest at grip strain 0.
     """
 
     courses: int
@@ -144,6 +149,12 @@ class PatchModel:
     course_count: np.ndarray | None = None
     wale_count: np.ndarray | None = None
     gauge_length: float | None = None
+    pretension: float = 0.0
+
+    @property
+    def grip_offset(self) -> float:
+        """Grip strain from the knit at rest to the strain origin: pretension / (1 + pretension)."""
+        return self.pretension / (1.0 + self.pretension)
 
     def __post_init__(self):
         shape = (self.courses, self.wales)
@@ -154,16 +165,24 @@ class PatchModel:
                 raise KnitsimInputError(f"{name}: every cell must stand for a positive, finite number of stitches")
             a.setflags(write=False)
             object.__setattr__(self, name, a)
+        pre = float(self.pretension)
+        if not (np.isfinite(pre) and 0.0 <= pre <= 0.5):
+            raise KnitsimInputError(f"pretension = {self.pretension!r}: a strain of the knit in [0, 0.5]")
+        object.__setattr__(self, "pretension", pre)
+        if pre > 0 and self.gauge_length is None:
+            raise KnitsimInputError("pretension: needs the gauge length (a specimen between grips)")
         if self.gauge_length is not None:
             g = float(self.gauge_length)
             if not (np.isfinite(g) and g > 0):
                 raise KnitsimInputError(f"gauge_length = {self.gauge_length!r}: must be > 0 mm")
             rest = self.column_rest_length()
-            bad = np.nonzero(np.abs(rest - g) > 1e-9 * g)[0]
+            g_rest = g / (1.0 + pre)
+            bad = np.nonzero(np.abs(rest - g_rest) > 1e-9 * g)[0]
             if len(bad):
                 j = int(bad[0])
+                what = f"the gauge length {g:.9g} mm" + (f" / (1 + pretension {pre:.9g})" if pre else "")
                 raise KnitsimInputError(f"column {j}: rest length {rest[j]:.9g} mm (sum of course count x C0) is not "
-                                        f"the gauge length {g:.9g} mm")
+                                        f"{what}")
             object.__setattr__(self, "gauge_length", g)
         rules = {}
         for r in RULE_NAMES:
@@ -217,13 +236,15 @@ class PatchModel:
         return self.courses * self.wales
 
     @classmethod
-    def specimen(cls, params: CellParams, width: float, gauge_length: float) -> "PatchModel":
+    def specimen(cls, params: CellParams, width: float, gauge_length: float,
+                 pretension: float = 0.0) -> "PatchModel":
         """A uniform specimen ``width`` x ``gauge_length`` [mm] of one knit: one cell standing for
-        ``gauge_length / C0`` courses of ``width / W0`` wales."""
+        ``gauge_length / (1 + pretension) / C0`` courses of ``width / W0`` wales."""
         params = params.validated()
         base = cls.uniform(params, 1, 1)
-        return cls(1, 1, base.fields, base.rules, base.effects, course_count=np.array([[gauge_length / params.C0]]),
-                   wale_count=np.array([[width / params.W0]]), gauge_length=gauge_length)
+        return cls(1, 1, base.fields, base.rules, base.effects,
+                   course_count=np.array([[gauge_length / (1.0 + pretension) / params.C0]]),
+                   wale_count=np.array([[width / params.W0]]), gauge_length=gauge_length, pretension=pretension)
 
     def cell(self, i: int, j: int) -> CellParams:
         """Parameters of cell ``[course i, wale j]`` (validated)."""
@@ -313,6 +334,8 @@ class PatchModel:
         class_wales = self.column_wales()[first]
         ref = self.gauge_length
         if ref is not None:
-            rest[:] = ref          # (equal to it within 1e-9, checked; exactly it for the grip strain)
+            # (equal to it within 1e-9, checked; exactly it for the grip strain); a pretensioned knit
+            # rests shorter than the gauge length, and the solver's grip strain runs from its rest state
+            rest[:] = ref if self.pretension == 0 else ref / (1.0 + self.pretension)
         return Grouping(group_of_cell, params, group_column, group_count, column_class, rest, group_wales,
                         class_wales, ref)

@@ -124,6 +124,8 @@ def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
         h.update(repr(model.gauge_length).encode())
         h.update(np.ascontiguousarray(model.course_count).tobytes())
         h.update(np.ascontiguousarray(model.wale_count).tobytes())
+        if model.pretension:
+            h.update(repr(("pretension", model.pretension)).encode())
     for a in (program.strain, program.cycle, program.direction):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
@@ -275,8 +277,11 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             "wales_represented": float(np.sum(col_wales)),
             "n_groups": grouping.n_groups, "n_column_classes": grouping.n_classes,
             "ref_length_mm": solver.ref_length, "resumed_from": start,
+            "rest_grip_strain": -model.grip_offset, "pretension": model.pretension,
             "trial_steps": int(arr["column_iterations"].max(axis=1).sum()) if n else 0}
-    return PatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
+    # grip strain from the tester's origin (a pretensioned specimen: negative while it is pretensioned)
+    grip = np.asarray(program.strain) - model.grip_offset if model.pretension else np.asarray(program.strain)
+    return PatchHistory(grip, np.asarray(program.cycle), np.asarray(program.direction),
                         arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
                         arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info,
                         np.array([p.d_jam for p in grouping.params]), float(np.sum(col_rest)),

@@ -98,7 +98,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cell.load_program import LoadProgram
+from ..cell.load_program import LoadProgram, pretensioned
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
@@ -162,6 +162,9 @@ PATCH_SCENE = Table({
                               min_inclusive=False),
         "strips": Field(("int",), 1, "columns across the width, of equal widths (each width/strips / W0 wales)",
                         min=1, max=10_000),
+        "pretension": Field(("float",), 0.0, "strain of the knit at grip strain 0 (pretensioned before the strain "
+                            "origin: the knit rests at gauge_length / (1 + pretension), and the run starts by "
+                            "stretching it to the gauge length, at negative grip strains)", min=0.0, max=0.5),
         "bands": Field(("int",), 1, "rows along the gauge length, of equal lengths (each length/bands / C0 courses)",
                        min=1, max=10_000),
     }, "a specimen between grips: the grid is bands x strips blocks of stitches"),
@@ -550,8 +553,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
 
     if specimen:
         # a tester's specimen: each element holds band length / C0 courses and strip width / W0 wales
-        G, width = sp["gauge_length"], sp["width"]
-        course_count = (G / courses) / fields["C0"]
+        G, width, pre = sp["gauge_length"], sp["width"], sp["pretension"]
+        course_count = (G / (1.0 + pre) / courses) / fields["C0"]      # the knit at rest between the grips
         wale_count = (width / wales) / fields["W0"]
         # between the grips, every strip holds at least one course; across the width, every band one wale
         for counts, axis, key, value, what, spacing in (
@@ -564,9 +567,10 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                 raise error(f"specimen.{key}", value, f"{what} ({spacing} = {fmt(float(fields[spacing].max()))} mm): "
                             f"{line} {k} holds {total[k]:.4g} {'courses' if axis == 0 else 'wales'}")
         model = PatchModel(courses, wales, fields, rule_arr, effects_arr, course_count=course_count,
-                           wale_count=wale_count, gauge_length=G)
+                           wale_count=wale_count, gauge_length=G, pretension=pre)
         ref = G
-        reach = (course_count * (fields["L"] / 2.0 - fields["C0"])).sum(axis=0)
+        # grip displacement the strips can take from the strain origin (past their pretension)
+        reach = (course_count * (fields["L"] / 2.0 - fields["C0"])).sum(axis=0) - (G - G / (1.0 + pre))
         what = "strip"
     else:
         model = PatchModel(courses, wales, fields, rule_arr, effects_arr)
@@ -581,6 +585,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     program, load_resolved = _program(doc["load"], [], limit_of=(
         float(reach[j] / ref), f"{what} {j} can stretch by at most {reach[j]:.4g} mm (C < L/2 in every cell), "
                                f"i.e. grip strain < {reach[j] / ref:.4g}"))
+    if specimen and model.pretension > 0:
+        program = pretensioned(program, model.grip_offset, doc["load"]["max_increment"])
 
     resolved: dict[str, Any] = {}
     if "title" in doc:

@@ -192,3 +192,55 @@ def test_an_interrupted_calibration_resumes_to_the_same_fit_without_redoing_work
     with pytest.raises(KnitsimInputError, match="belongs to other specimens or another calibration setup"):
         calibrate_joint(specimens, JointSetup(base=base, shared=("B",), max_increment=STEP), checkpoint=ck,
                         resume=True)
+
+
+def test_pretension_of_a_model_curve_is_recovered():
+    """A curve made by the model with a known pretension (the knit at strain 0.04 at grip strain 0,
+    the rows at knit strain (1.04)(1 + e) - 1, an exact program of the cell) is fitted with the
+    pretension free (and B): both come back within 3 standard errors, the force at grip strain 0 is the
+    cell's at strain 0.04, and the patch scene written from it reproduces the curve."""
+    from knitsim.calibration.specimen import pretension_strain
+    from knitsim.cell.load_program import piecewise_linear
+    from knitsim.patch.model import PatchModel
+    from knitsim.patch.runner import run_patch
+    k, pre, step = KNITS[0], 0.04, 0.02
+    truth = CellParams(B=TRUTH["B"], d=TRUTH["d"], m=TRUTH["m"], in_plane_width=TRUTH["in_plane_width"],
+                       force_cap_N=200.0, **k)
+    grip = step * np.arange(1, 26)
+    knit_strain = pretension_strain(grip, pre)
+    assert np.allclose(knit_strain, pre + grip * (1 + pre))                      # the identity
+    h = run_batch([truth], piecewise_linear([0.0, pre] + list(knit_strain), 0.005))
+    F_all = h.force_per_wale[:, 0] * WIDTH / k["W0"]
+    at = np.searchsorted(h.strain, knit_strain - 1e-12)
+    assert np.allclose(h.strain[at], knit_strain)
+    F = F_all[at]
+    F_pre = F_all[np.searchsorted(h.strain, pre - 1e-12)]
+    sd = 0.005 * F + 0.01
+    sp = SpecimenData("pre", grip, F, sd, None, None, True, WIDTH, GAUGE, dict(k), {}, pretension=0.0,
+                      pretension_sd=0.05)
+    base = CellParams(B=0.2, d=TRUTH["d"], m=TRUTH["m"], in_plane_width=TRUTH["in_plane_width"], force_cap_N=200.0,
+                      **k)
+    setup = JointSetup(base=base, shared=("B",), per_specimen=("pretension",), max_increment=0.005, starts=6,
+                       refine=2, max_nfev=40, bounds={"B": (0.05, 2.0), "pretension": (0.0, 0.1)})
+    r = calibrate_joint([sp], setup)
+    assert r.success
+    for name, spec, true in (("B", None, TRUTH["B"]), ("pretension", "pre", pre)):
+        e = r.estimate(name, spec)
+        assert abs(e.value - true) < 3 * e.std_error + 1e-4, (name, e.value, e.std_error)
+    fit = r.fits[0]
+    assert fit.pretension == pytest.approx(pre, abs=2e-3)
+    assert fit.pretension_N == pytest.approx(F_pre, rel=0.03)
+    # the specimen between its grips, pretensioned: the patch at grip strain e is the cell at (1 + p)(1 + e) - 1
+    model = PatchModel.specimen(truth, WIDTH, GAUGE, pretension=pre)
+    from knitsim.cell.load_program import pretensioned
+    ph = run_patch(model, pretensioned(monotonic(grip[-1], step), model.grip_offset, 0.005))
+    rows = np.searchsorted(ph.grip_strain, grip - 1e-9)
+    assert np.allclose(ph.grip_strain[rows], grip, atol=1e-12)
+    assert np.allclose(ph.force_N[rows], F, rtol=1e-6, atol=1e-9)
+    assert ph.grip_strain[0] < 0                                   # pretensioning, before the strain origin
+    # the written specimen (fitted cell and pretension) reproduces the fit's curve, which reads the rows
+    # as its patch scene runs it (the fit read its rows between increments; the report runs the specimen)
+    fm = PatchModel.specimen(fit.params, WIDTH, GAUGE, pretension=fit.pretension)
+    fh = run_patch(fm, pretensioned(monotonic(grip[-1], step), fm.grip_offset, 0.005))
+    rows = np.searchsorted(fh.grip_strain, grip - 1e-9)
+    np.testing.assert_allclose(fh.force_N[rows], fit.simulated_N, rtol=1e-9)

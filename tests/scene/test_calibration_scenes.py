@@ -72,3 +72,37 @@ def test_calibrated_specimen_runs_as_its_cell_effects_included():
     f = run_batch(cs.params, cs.program).force_per_wale[:, 0]
     h = run_patch(ps.model, ps.program)
     np.testing.assert_allclose(h.force_N, 50.0 / cs.params[0].W0 * f, rtol=1e-12)
+
+
+def test_pretension_scene_fits_each_specimens_pretension():
+    sc = load_calibration_scene(D / "calibrate_pretension.toml")
+    assert sc.setup.per_specimen == ("phi0", "L", "W0", "C0", "pretension")
+    assert [(s.pretension, s.pretension_sd) for s in sc.specimens] == [(0.005, 0.02), (0.015, 0.02)]
+    # a pretension fitted without the sd of its prior is refused before any solve, naming the key
+    from knitsim.calibration.joint import _Problem
+    from knitsim.errors import KnitsimInputError
+    from dataclasses import replace
+    with pytest.raises(KnitsimInputError, match="specimens.jersey_4p5.pretension_sd"):
+        _Problem([replace(sc.specimens[0], pretension_sd=0.0), sc.specimens[1]], sc.setup)
+
+
+def test_pretensioned_specimen_scene_is_its_cell_at_the_knit_strain():
+    """[specimen] pretension = 0.02: at grip strain e the specimen is its cell at knit strain
+    1.02 (1 + e) - 1 (identity, knitsim.calibration.specimen.pretension_strain), x its wales; its courses
+    are gauge length / 1.02 / C0; the run starts at rest, grip strain -0.02 / 1.02."""
+    from knitsim.calibration.specimen import pretension_strain
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import piecewise_linear
+    from knitsim.patch.runner import run_patch
+    ps = load_patch_scene(D / "calibrated" / "jersey_6p5.patch.toml",
+                          ["load.target_strain=0.05", "specimen.pretension=0.02"])
+    cell = ps.model.cell(0, 0)
+    assert ps.model.course_count[0, 0] == pytest.approx(100.0 / 1.02 / cell.C0, rel=1e-12)
+    h = run_patch(ps.model, ps.program)
+    assert h.info["rest_grip_strain"] == pytest.approx(-0.02 / 1.02)
+    grip = 0.005 * np.arange(0, 11)
+    rows = [int(np.argmin(np.abs(h.grip_strain - e))) for e in grip]
+    np.testing.assert_allclose(h.grip_strain[rows], grip, atol=1e-12)
+    hc = run_batch([cell], piecewise_linear([0.0, 0.01, 0.02] + list(pretension_strain(grip[1:], 0.02)), 0.005))
+    at = [int(np.argmin(np.abs(hc.strain - x))) for x in pretension_strain(grip, 0.02)]
+    np.testing.assert_allclose(h.force_N[rows], 50.0 / cell.W0 * hc.force_per_wale[at, 0], rtol=1e-9)
