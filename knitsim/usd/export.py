@@ -523,15 +523,23 @@ class PatchUsd:
     up_axis: str
 
 
-def read_patch_usd(path) -> PatchUsd:
-    """Read a patch written by :func:`write_patch_usd`, at every time code."""
-    from pxr import Usd, UsdGeom
+def open_knitsim_stage(path):
+    """Open a USD file written by knitsim: its stage and the ``customLayerData['knitsim']`` it carries."""
+    from pxr import Usd
 
     path = os.fspath(path)
     if not os.path.exists(path):
         raise KnitsimInputError(f"path={path!r} does not exist")
     stage = Usd.Stage.Open(path)
-    info = dict(stage.GetRootLayer().customLayerData.get("knitsim", {}))
+    return stage, dict(stage.GetRootLayer().customLayerData.get("knitsim", {}))
+
+
+def read_patch_usd(path) -> PatchUsd:
+    """Read a patch written by :func:`write_patch_usd`, at every time code."""
+    from pxr import UsdGeom
+
+    path = os.fspath(path)
+    stage, info = open_knitsim_stage(path)
     if "layout" not in info:
         raise KnitsimInputError(f"path={path!r} was not written by knitsim.usd (no customLayerData['knitsim'])")
     lay = info["layout"]

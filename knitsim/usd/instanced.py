@@ -331,14 +331,11 @@ class SpecimenUsd:
 
 def read_specimen_usd(path) -> SpecimenUsd:
     """Read a specimen written by :func:`write_specimen_usd`, at every time code."""
-    from pxr import Usd, UsdGeom
+    from pxr import UsdGeom
 
-    from .export import FIELD_PREFIX
+    from .export import FIELD_PREFIX, open_knitsim_stage
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise KnitsimInputError(f"path={path!r} does not exist")
-    stage = Usd.Stage.Open(path)
-    info = dict(stage.GetRootLayer().customLayerData.get("knitsim", {}))
+    stage, info = open_knitsim_stage(path)
     lay = info.get("layout", {})
     if lay.get("kind") != LAYOUT_KIND:
         raise KnitsimInputError(f"path={path!r} is not an instanced specimen written by knitsim.usd")
