@@ -40,7 +40,7 @@ from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
-from .stages import LABEL_CODES, STICK_CLOSURES
+from .stages import LABEL_CODES, MAX_HALVINGS, STICK_CLOSURES
 
 _LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
 
@@ -292,21 +292,23 @@ class CellSolver:
     ----------
     model : CellModel
     max_halvings : int
-        Retries of a failed increment on 2, 4, ... sub-increments before the
-        cell is flagged ``no_convergence``.
+        Most halvings in a row of a failed sub-step (default
+        :data:`~knitsim.cell.stages.MAX_HALVINGS`); halving also stops at
+        :data:`~knitsim.cell.stages.SUBSTEP_FLOOR` C0.  Then the cell is flagged
+        ``no_convergence`` (or ``event_not_located``).
     event_capacity : int, optional
         Events kept on the device (default 64 per cell); more are counted and dropped.
     stick_closure : str
         ``"release_beta"`` (default) or ``"table4"``: see :mod:`knitsim.cell.stages`.
     """
 
-    def __init__(self, model: CellModel, max_halvings: int = 6, event_capacity: int | None = None,
+    def __init__(self, model: CellModel, max_halvings: int = MAX_HALVINGS, event_capacity: int | None = None,
                  stick_closure: str = "release_beta"):
         if stick_closure not in STICK_CLOSURES:
             raise KnitsimInputError(f"stick_closure = {stick_closure!r}: expected one of {', '.join(STICK_CLOSURES)}")
         self.stick_closure = stick_closure
-        if not (isinstance(max_halvings, (int, np.integer)) and 0 <= max_halvings <= 30):
-            raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..30")
+        if not (isinstance(max_halvings, (int, np.integer)) and 0 <= max_halvings <= 60):
+            raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..60")
         self.model = model
         self.max_halvings = int(max_halvings)
         cap = 64 * model.cell_count + 64 if event_capacity is None else int(event_capacity)
@@ -349,7 +351,7 @@ class CellSolver:
 
 
 def run_batch(params, program: LoadProgram, device: str = "cpu",
-              progress: Callable[[int, int], None] | None = None, max_halvings: int = 6,
+              progress: Callable[[int, int], None] | None = None, max_halvings: int = MAX_HALVINGS,
               stick_closure: str = "release_beta") -> BatchHistory:
     """Run N cells through a strain program on a Warp device.
 

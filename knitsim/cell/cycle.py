@@ -42,9 +42,10 @@ same four conditions loading and unloading retrace one curve.
 A solve that lands on another branch (|phi| >= pi/2: the contact force would
 point out of the loop head) counts as failed and the increment is halved.
 
-A failed solve is retried on halved increments (``max_halvings``); if it still
-fails the cell stops, flagged with its reason, and its later rows repeat the
-last converged state with the flag set: no NaN is reported as a result.
+A failed solve is retried on a halved sub-step, down to SUBSTEP_FLOOR C0 (at
+most ``max_halvings`` halvings in a row; :mod:`knitsim.cell.stages`); if it
+still fails the cell stops, flagged with its reason, and its later rows repeat
+the last converged state with the flag set: no NaN is reported as a result.
 """
 from __future__ import annotations
 
@@ -62,7 +63,8 @@ from .material import CellParams
 from .quantities import UNKNOWN_NAMES
 from ..errors import KnitsimInputError
 from .stages import (
-    EVENT_TOL, PROBE_STEP, RELOAD_RHO_SEED, STICK_CLOSURES, ZERO_CONTACT, Stage, stage_label,
+    EVENT_TOL, MAX_DAHL_HALVINGS, MAX_HALVINGS, PROBE_STEP, RELOAD_RHO_SEED, STICK_CLOSURES, SUBSTEP_FLOOR,
+    ZERO_CONTACT, Stage, stage_label,
 )
 
 from .history import (  # noqa: E402  (re-exported)
@@ -145,7 +147,8 @@ class CellCycle:
     params : CellParams
         The cell (validated here).
     max_halvings : int
-        How often a failed increment is halved before the cell is flagged.
+        Most halvings in a row of a failed sub-step before the cell is flagged
+        (halving also stops at SUBSTEP_FLOOR C0: :mod:`knitsim.cell.stages`).
     stick_closure : str
         What gives way when a stick stage whose soft condition is beta (Table 4
         SF-, or the mirror SF+ on reloading) asks for a friction angle beyond
@@ -154,7 +157,7 @@ class CellCycle:
         printed: no such event).  See :mod:`knitsim.cell.stages`.
     """
 
-    def __init__(self, params: CellParams, max_halvings: int = 6, stick_closure: str = "release_beta"):
+    def __init__(self, params: CellParams, max_halvings: int = MAX_HALVINGS, stick_closure: str = "release_beta"):
         self.p = params.validated()
         if self.p.effects.on:
             raise KnitsimInputError(f"effects = {list(self.p.effects.on)!r}: the model extensions run in the Warp "
@@ -344,7 +347,8 @@ class CellCycle:
     # --------------------------------------------------------------- advance
     def _try_unjam(self, st: CellState, C_target: float):
         """Active set: the unjammed branch at C_target, if it is clear of contact (W >= 4 d_jam, or
-        head gap >= d_jam)."""
+        head gap >= d_jam).  Where it has no solution (it can end while the jammed one goes on: the
+        beta-frozen SF- stick runs to phi = pi/2) the cell stays jammed."""
         if not st.jammed or st.stage in (Stage.SF_LOAD, Stage.S_LOAD):
             return None
         trial = st.copy()
@@ -354,6 +358,11 @@ class CellCycle:
         except _SolveFailed:
             return None
         return (x, q) if self._clearance(_with_gap(q, x, self.p.B, self.p.d)) >= 0.0 else None
+
+    def _may_halve(self, failures: int, step: float) -> bool:
+        """Whether a failed sub-step is retried on half its length: at most ``max_halvings`` times in
+        a row, and not below SUBSTEP_FLOOR C0 (stages.SUBSTEP_FLOOR)."""
+        return failures <= self.max_halvings and 0.5 * abs(step) >= SUBSTEP_FLOOR * self.p.C0
 
     def _event_tol(self, kind: str) -> float:
         """Tolerance below which an event function counts as zero (stages.EVENT_TOL)."""
@@ -495,9 +504,9 @@ class CellCycle:
                 x, q = self.solve_at(st, C_goal)
             except _SolveFailed:
                 failures += 1
-                if failures > self.max_halvings:
+                if not self._may_halve(failures, step):
                     raise _SolveFailed(f"no convergence from C = {C_from:.6g} to {C_goal:.6g} mm "
-                                       f"after {self.max_halvings} halvings") from None
+                                       f"(sub-step {abs(step):.3g} mm, {failures - 1} halvings)") from None
                 step *= 0.5
                 continue
             evs = self.event_functions(st)
@@ -523,7 +532,7 @@ class CellCycle:
                 # the trial end fired an event that its own branch cannot reach: the
                 # solve jumped to another branch; retried on a halved sub-step
                 failures += 1
-                if failures > self.max_halvings:
+                if not self._may_halve(failures, step):
                     st.status, st.reason = STATUS_EVENT_NOT_LOCATED, f"could not locate {fired[0][0]}"
                     return st
                 step *= 0.5
@@ -612,7 +621,7 @@ class CellCycle:
             return st
         C_from = st.C
         n = 1
-        for _ in range(self.max_halvings + 1):
+        for _ in range(min(self.max_halvings, MAX_DAHL_HALVINGS) + 1):
             trial = st.copy()
             attempt: list = []
             try:
@@ -672,7 +681,7 @@ class CellCycle:
         return st
 
 
-def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
+def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_HALVINGS,
              stick_closure: str = "release_beta") -> BatchHistory:
     """Run one cell through a strain program (NumPy reference).
 
@@ -683,7 +692,7 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
     program : LoadProgram
         Imposed strains of the course length, ``C = C0 (1 + strain)``.
     max_halvings : int
-        Retries of a failed increment on halved sub-increments.
+        Most halvings in a row of a failed sub-step (also bounded by SUBSTEP_FLOOR C0).
     stick_closure : str
         ``"release_beta"`` (default) or ``"table4"``; see :mod:`knitsim.cell.stages`.
 
@@ -696,7 +705,7 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
 
 
 def run_cells_reference(params: list[CellParams], program: LoadProgram,
-                        max_halvings: int = 6, stick_closure: str = "release_beta") -> BatchHistory:
+                        max_halvings: int = MAX_HALVINGS, stick_closure: str = "release_beta") -> BatchHistory:
     """Run many cells one at a time with the NumPy reference (the Warp batch's oracle)."""
     return BatchHistory.stack([run_cell(p, program, max_halvings, stick_closure) for p in params])
 
