@@ -20,12 +20,23 @@ phi0 [rad]                    |phi0| <= atan m  inside the friction cone (sectio
 ============================  ===============  ==========================================
 
 The paper's knits (Dusserre 2015, Table 1 and section 2.2: E-glass W0/d = 7.6,
-C0/d = 4.7, L ratio 1.89; basalt 7.9, 4.8, 1.73) and every bundled scene lie
-inside.  Over this domain every cell converges through the paper's program
-and through any strain program of strains in [0, 0.6] (tests/cell/
-test_convergence_property.py; benchmarks/bench_convergence.py).  A cell
-outside it is refused before any solve (:func:`check_domain`): a scene with a
-one-line error, a sweep sample with the status ``out_of_domain``.
+C0/d = 4.7, L ratio 1.89; basalt 7.9, 4.8, 1.73) lie inside, and so does the
+calibrated specimen (W0 / in-plane width = 5.6).  The diagnosis scenes of
+real jerseys (W0/d ~ 4.3-4.5, L ratio ~ 2.4-2.6) lie outside: they are fitted,
+not swept, and are not checked against this domain.
+
+Status (issue 14, not closed): the goal is that every cell of this domain
+converges through any program of strains in :attr:`ParameterDomain.strain`
+(tests/cell/test_convergence_property.py, benchmarks/bench_convergence.py).
+It is not met yet: on the paper's program, cells of this domain still fail
+(a few % of random draws; benchmarks/bench_convergence.py), by two causes:
+(1) no rest state from the default starts in the tight corner (small
+L / (2 C0 + W0 - 4 d) with small C0 / d; :func:`check_rest_state` says so
+before any solve); (2) on the first loading, a stuck contact whose rest state
+carries almost no contact force turns its friction angle past -phimax (the far
+side of the cone, which SF+ of Table 4 does not watch) and on to -pi/2, where
+the solve is refused as another branch.  The property test is marked xfail
+until both are fixed.
 
 The rest state (Table 4's initial state at C0, W0, L, phi0) must exist as
 well; :func:`check_rest_state` solves it (float64 reference) and names the
@@ -46,10 +57,10 @@ class ParameterDomain:
 
     d: tuple[float, float] = (0.1, 2.0)
     B: tuple[float, float] = (1.0e-3, 10.0)
-    W0_over_djam: tuple[float, float] = (4.1, 10.0)
-    C0_over_d: tuple[float, float] = (3.0, 5.5)
-    L_over_closing: tuple[float, float] = (1.6, 2.3)
-    m: tuple[float, float] = (0.0, 0.6)
+    W0_over_djam: tuple[float, float] = (5.5, 9.0)
+    C0_over_d: tuple[float, float] = (4.0, 5.2)
+    L_over_closing: tuple[float, float] = (1.6, 2.1)
+    m: tuple[float, float] = (0.05, 0.5)
     #: largest imposed strain of the course length a load program may ask for
     strain: tuple[float, float] = (0.0, 0.6)
 
@@ -65,7 +76,7 @@ class ParameterDomain:
                  "L_over_closing": "L / (2 C0 + W0 - 4 d)", "m": "m"}
         for key, v in self.ratios(p).items():
             lo, hi = getattr(self, key)
-            if not (lo <= v <= hi):
+            if not (lo * (1.0 - 1e-9) <= v <= hi * (1.0 + 1e-9)):   # bounds closed, to rounding
                 return f"{names[key]} = {v:.4g} outside the model's domain [{lo:g}, {hi:g}] (knitsim.cell.domain)"
         if abs(p.phi0) > p.phimax + 1e-12:
             return f"phi0 = {p.phi0:.4g} rad outside the friction cone [-atan m, atan m] = +/-{p.phimax:.4g}"
