@@ -10,7 +10,8 @@ One thread advances one cell by one load increment:
    and s_BC and the soft quantity are frozen (:func:`reverse`);
 2. *trial solve* of the stage's four conditions at the target course length
    (:func:`stage_conditions`, the table of :mod:`knitsim.cell.stages`); a failed
-   solve is retried on 2, 4, ... sub-increments (``max_halvings``);
+   solve is retried on a halved sub-step, down to SUBSTEP_FLOOR C0 (at most
+   ``max_halvings`` halvings in a row: :func:`may_halve`);
 3. *events* (slide, jam, unjam, slack, force_cap, cone) that fire inside the
    increment are *located* by swapping the driving condition C for the event
    condition (phi = +/-phimax, W = 4d, F = 0, F = cap) and solving with C free
@@ -44,7 +45,9 @@ from knitsim.cell.history import (
     STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NO_CONVERGENCE, STATUS_OK,
 )
 from knitsim.cell.quantities import Q_BETA, Q_C, Q_F, Q_L, Q_P, Q_PHI, Q_R, Q_RN, Q_S_BC, Q_T, Q_W
-from knitsim.cell.stages import EVENT_TOL, LABEL_CODES, PROBE_STEP, RELOAD_RHO_SEED, ZERO_CONTACT, Stage
+from knitsim.cell.stages import (
+    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, PROBE_STEP, RELOAD_RHO_SEED, SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
+)
 
 from .effects import (
     BIT_BENDING, BIT_COILING, BIT_COMPACTION, BIT_EXTENSION, BIT_NORMAL_LOAD, BIT_VELOCITY, E_B, E_D, E_L, E_M,
@@ -94,6 +97,8 @@ _EVENT_TOL = wp.constant(wp.float64(EVENT_TOL))
 _PROBE_STEP = wp.constant(wp.float64(PROBE_STEP))
 _ZERO_CONTACT = wp.constant(wp.float64(ZERO_CONTACT))
 _RHO_SEED = wp.constant(wp.float64(RELOAD_RHO_SEED))
+_SUBSTEP_FLOOR = wp.constant(wp.float64(SUBSTEP_FLOOR))
+_MAX_DAHL_HALVINGS = wp.constant(MAX_DAHL_HALVINGS)
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -117,6 +122,11 @@ _MAXEV = wp.constant(MAX_EVENTS_PER_STEP)
 NEWTON_MAX_ITER = wp.constant(60)
 _MAX_DANGLE = wp.constant(wp.float64(0.3))
 NEWTON_TOL = wp.constant(wp.float64(1.0e-11))
+#: a Newton whose line search stalls (no step lowers |r|^2: the residual is at its rounding floor),
+#: or that reaches NEWTON_MAX_ITER, with every scaled residual below this counts as converged.  At high load (alpha - gamma ~ 1e-4,
+#: the moment at the apex ~ 1e-5 of its scale) the residuals' own rounding reaches 3e-11, above
+#: NEWTON_TOL, and a solve there stalled one ulp short and was halved down to failure.
+NEWTON_TOL_STALLED = wp.constant(wp.float64(1.0e-9))
 #: at most this many events located per increment (as the reference)
 MAX_EVENT_LOOPS = wp.constant(12)
 #: guard on the sub-steps of one increment (the reference has none; it is never reached in practice)
@@ -328,6 +338,8 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                     break
                 if n >= NEWTON_MAX_ITER:
                     st = int(STATUS_MAX_ITER)
+                    if max_abs5(r) <= NEWTON_TOL_STALLED:
+                        st = int(STATUS_CONVERGED)  # creeping along the rounding floor
                     break
                 dz, singular = solve5(J, -r)
                 if singular:
@@ -369,6 +381,8 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                         st = int(STATUS_DOMAIN)
                     elif any_nonfinite:
                         st = int(STATUS_NONFINITE)
+                    elif max_abs5(r) <= NEWTON_TOL_STALLED:
+                        st = int(STATUS_CONVERGED)  # at the rounding floor of the residuals
                     else:
                         st = int(STATUS_MAX_ITER)
                     break
@@ -650,6 +664,13 @@ def in_range(C: wp.float64, Ca: wp.float64, Cb: wp.float64) -> wp.bool:
     hi = wp.max(Ca, Cb)
     tol = wp.float64(1.0e-12) * wp.max(wp.float64(1.0), hi)
     return wp.isfinite(C) and C >= lo - tol and C <= hi + tol
+
+
+@wp.func
+def may_halve(failures: int, step: wp.float64, max_halvings: int, mat: Material) -> wp.bool:
+    """Whether a failed sub-step is retried on half its length: at most ``max_halvings`` times in a
+    row, and not below SUBSTEP_FLOOR C0 (stages.SUBSTEP_FLOOR; CellCycle._may_halve)."""
+    return failures <= max_halvings and wp.float64(0.5) * wp.abs(step) >= _SUBSTEP_FLOOR * mat.C0
 
 
 # ------------------------------------------------------------------ solves
@@ -1180,7 +1201,7 @@ def advance_cell(
             xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
             if not ok:
                 failures += 1
-                if failures > max_halvings:
+                if not may_halve(failures, step, max_halvings, matg):
                     status = int(ST_NO_CONV)
                     break
                 step = step * wp.float64(0.5)
@@ -1224,9 +1245,11 @@ def advance_cell(
                                 best_C = qe[Q_C]
                                 best_x = xe
                                 best_q = qe
-            # active set while unloading jammed: the unjammed branch at the target
+            # active set while unloading jammed: the unjammed branch at the target (walked there
+            # from the start when Newton fails from it; where it has no solution, the cell stays
+            # jammed: CellCycle._try_unjam)
             if jammed != 0 and not is_loading(stage):
-                xu, qu, oku = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_goal, -1, wp.float64(0.0))
+                xu, qu, oku = solve_coulomb_cont(x, stage, 0, soft, fs, fsbc, matg, C_from, C_goal)
                 if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
                     any_fired = True
                     # the unjammed branch at the start: at the reversal from a jammed
@@ -1254,7 +1277,7 @@ def advance_cell(
                 # the trial end fired an event its branch cannot reach: the solve jumped
                 # to another branch; retried on a halved sub-step (CellCycle.advance)
                 failures += 1
-                if failures > max_halvings:
+                if not may_halve(failures, step, max_halvings, matg):
                     status = int(ST_NOT_LOCATED)
                     break
                 step = step * wp.float64(0.5)
@@ -1280,7 +1303,7 @@ def advance_cell(
         n_ev0 = n_ev
         nsub = int(1)
         done = bool(False)
-        for attempt in range(max_halvings + 1):
+        for attempt in range(wp.min(max_halvings, _MAX_DAHL_HALVINGS) + 1):
             if not done:
                 n_ev = n_ev0
                 tx = x

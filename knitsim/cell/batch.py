@@ -35,12 +35,13 @@ from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
 from .effects import EFFECT_STATE, PARAM_COLUMNS
-from .history import HISTORY_QUANTITIES, STATUS_NAMES, STATUS_OK, BatchHistory, head_gap_values
+from .history import (HISTORY_QUANTITIES, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK, BatchHistory,
+                      head_gap_values)
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
-from .stages import LABEL_CODES, STICK_CLOSURES
+from .stages import LABEL_CODES, MAX_HALVINGS, STICK_CLOSURES
 
 _LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
 
@@ -169,6 +170,14 @@ class CellModel:
                   outputs=st._arrays(), device=self.device)
         wp.launch(_k().init_effects_kernel, dim=self.cell_count, inputs=[self.B, self.d, self.L, self.m, st.q],
                   outputs=[st.eff], device=self.device)
+        # no admissible rest state (knitsim.cell.domain.rest_state_problem): none found, or a contact
+        # force R < 0 (the unilateral contact at B would pull): flagged before any increment
+        status = st.status.numpy()
+        R = st.q.numpy()[:, CODE["R"]]
+        bad = (status != STATUS_OK) | ~(R >= 0.0)
+        if np.any(bad):
+            status[bad] = STATUS_NO_REST_STATE
+            st.status.assign(wp.array(status, dtype=wp.int32, device=self.device))
         return st
 
     def control(self) -> "CellControl":
@@ -292,21 +301,23 @@ class CellSolver:
     ----------
     model : CellModel
     max_halvings : int
-        Retries of a failed increment on 2, 4, ... sub-increments before the
-        cell is flagged ``no_convergence``.
+        Most halvings in a row of a failed sub-step (default
+        :data:`~knitsim.cell.stages.MAX_HALVINGS`); halving also stops at
+        :data:`~knitsim.cell.stages.SUBSTEP_FLOOR` C0.  Then the cell is flagged
+        ``no_convergence`` (or ``event_not_located``).
     event_capacity : int, optional
         Events kept on the device (default 64 per cell); more are counted and dropped.
     stick_closure : str
         ``"release_beta"`` (default) or ``"table4"``: see :mod:`knitsim.cell.stages`.
     """
 
-    def __init__(self, model: CellModel, max_halvings: int = 6, event_capacity: int | None = None,
+    def __init__(self, model: CellModel, max_halvings: int = MAX_HALVINGS, event_capacity: int | None = None,
                  stick_closure: str = "release_beta"):
         if stick_closure not in STICK_CLOSURES:
             raise KnitsimInputError(f"stick_closure = {stick_closure!r}: expected one of {', '.join(STICK_CLOSURES)}")
         self.stick_closure = stick_closure
-        if not (isinstance(max_halvings, (int, np.integer)) and 0 <= max_halvings <= 30):
-            raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..30")
+        if not (isinstance(max_halvings, (int, np.integer)) and 0 <= max_halvings <= 60):
+            raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..60")
         self.model = model
         self.max_halvings = int(max_halvings)
         cap = 64 * model.cell_count + 64 if event_capacity is None else int(event_capacity)
@@ -349,7 +360,7 @@ class CellSolver:
 
 
 def run_batch(params, program: LoadProgram, device: str = "cpu",
-              progress: Callable[[int, int], None] | None = None, max_halvings: int = 6,
+              progress: Callable[[int, int], None] | None = None, max_halvings: int = MAX_HALVINGS,
               stick_closure: str = "release_beta") -> BatchHistory:
     """Run N cells through a strain program on a Warp device.
 
@@ -380,6 +391,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     n, nc = len(program), model.cell_count
     solver = CellSolver(model, max_halvings, stick_closure=stick_closure)
     s0 = model.state()
+    s0_status0 = s0.status.numpy().copy()
     q0 = s0.q.numpy()
     rest = {name: q0[:, CODE[name]].copy() for name in HISTORY_QUANTITIES}
     rest.update(stage=s0.stage.numpy().copy(), jammed=s0.jammed.numpy().copy())
@@ -412,6 +424,13 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         hen = he.numpy()
         values.update({name: hen[j] for j, name in enumerate(EFFECT_STATE)})
     status = hst.numpy()
+    # a cell without a rest state has no state at all: NaN beside its status (never a made-up number)
+    norest = np.asarray(s0_status0 == STATUS_NO_REST_STATE)
+    if np.any(norest):
+        for v in values.values():
+            v[:, norest] = np.nan
+        for name in HISTORY_QUANTITIES:
+            rest[name][norest] = np.nan
     events = solver.events()
     for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
         i0 = int(np.argmax(status[:, c] != STATUS_OK))

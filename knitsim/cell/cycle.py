@@ -42,9 +42,10 @@ same four conditions loading and unloading retrace one curve.
 A solve that lands on another branch (|phi| >= pi/2: the contact force would
 point out of the loop head) counts as failed and the increment is halved.
 
-A failed solve is retried on halved increments (``max_halvings``); if it still
-fails the cell stops, flagged with its reason, and its later rows repeat the
-last converged state with the flag set: no NaN is reported as a result.
+A failed solve is retried on a halved sub-step, down to SUBSTEP_FLOOR C0 (at
+most ``max_halvings`` halvings in a row; :mod:`knitsim.cell.stages`); if it
+still fails the cell stops, flagged with its reason, and its later rows repeat
+the last converged state with the flag set: no NaN is reported as a result.
 """
 from __future__ import annotations
 
@@ -62,11 +63,13 @@ from .material import CellParams
 from .quantities import UNKNOWN_NAMES
 from ..errors import KnitsimInputError
 from .stages import (
-    EVENT_TOL, PROBE_STEP, RELOAD_RHO_SEED, STICK_CLOSURES, ZERO_CONTACT, Stage, stage_label,
+    EVENT_TOL, MAX_DAHL_HALVINGS, MAX_HALVINGS, PROBE_STEP, RELOAD_RHO_SEED, STICK_CLOSURES, SUBSTEP_FLOOR,
+    ZERO_CONTACT, Stage, stage_label,
 )
 
 from .history import (  # noqa: E402  (re-exported)
     HEAD_GAP_QUANTITIES, HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
+    STATUS_NO_REST_STATE,
     STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values,
 )
 
@@ -145,7 +148,8 @@ class CellCycle:
     params : CellParams
         The cell (validated here).
     max_halvings : int
-        How often a failed increment is halved before the cell is flagged.
+        Most halvings in a row of a failed sub-step before the cell is flagged
+        (halving also stops at SUBSTEP_FLOOR C0: :mod:`knitsim.cell.stages`).
     stick_closure : str
         What gives way when a stick stage whose soft condition is beta (Table 4
         SF-, or the mirror SF+ on reloading) asks for a friction angle beyond
@@ -154,7 +158,7 @@ class CellCycle:
         printed: no such event).  See :mod:`knitsim.cell.stages`.
     """
 
-    def __init__(self, params: CellParams, max_halvings: int = 6, stick_closure: str = "release_beta"):
+    def __init__(self, params: CellParams, max_halvings: int = MAX_HALVINGS, stick_closure: str = "release_beta"):
         self.p = params.validated()
         if self.p.effects.on:
             raise KnitsimInputError(f"effects = {list(self.p.effects.on)!r}: the model extensions run in the Warp "
@@ -344,7 +348,8 @@ class CellCycle:
     # --------------------------------------------------------------- advance
     def _try_unjam(self, st: CellState, C_target: float):
         """Active set: the unjammed branch at C_target, if it is clear of contact (W >= 4 d_jam, or
-        head gap >= d_jam)."""
+        head gap >= d_jam).  Where it has no solution (it can end while the jammed one goes on: the
+        beta-frozen SF- stick runs to phi = pi/2) the cell stays jammed."""
         if not st.jammed or st.stage in (Stage.SF_LOAD, Stage.S_LOAD):
             return None
         trial = st.copy()
@@ -354,6 +359,11 @@ class CellCycle:
         except _SolveFailed:
             return None
         return (x, q) if self._clearance(_with_gap(q, x, self.p.B, self.p.d)) >= 0.0 else None
+
+    def _may_halve(self, failures: int, step: float) -> bool:
+        """Whether a failed sub-step is retried on half its length: at most ``max_halvings`` times in
+        a row, and not below SUBSTEP_FLOOR C0 (stages.SUBSTEP_FLOOR)."""
+        return failures <= self.max_halvings and 0.5 * abs(step) >= SUBSTEP_FLOOR * self.p.C0
 
     def _event_tol(self, kind: str) -> float:
         """Tolerance below which an event function counts as zero (stages.EVENT_TOL)."""
@@ -495,9 +505,9 @@ class CellCycle:
                 x, q = self.solve_at(st, C_goal)
             except _SolveFailed:
                 failures += 1
-                if failures > self.max_halvings:
+                if not self._may_halve(failures, step):
                     raise _SolveFailed(f"no convergence from C = {C_from:.6g} to {C_goal:.6g} mm "
-                                       f"after {self.max_halvings} halvings") from None
+                                       f"(sub-step {abs(step):.3g} mm, {failures - 1} halvings)") from None
                 step *= 0.5
                 continue
             evs = self.event_functions(st)
@@ -523,7 +533,7 @@ class CellCycle:
                 # the trial end fired an event that its own branch cannot reach: the
                 # solve jumped to another branch; retried on a halved sub-step
                 failures += 1
-                if failures > self.max_halvings:
+                if not self._may_halve(failures, step):
                     st.status, st.reason = STATUS_EVENT_NOT_LOCATED, f"could not locate {fired[0][0]}"
                     return st
                 step *= 0.5
@@ -546,7 +556,13 @@ class CellCycle:
     def run(self, program: LoadProgram) -> BatchHistory:
         """Run the whole program; see :func:`run_cell`."""
         p = self.p
-        st = self.initial()
+        try:
+            st = self.initial()
+            why = None if st.q["R"] >= 0.0 else f"the contact at B would pull at rest (R = {st.q['R']:.3g} N < 0)"
+        except _SolveFailed as exc:
+            why = str(exc)
+        if why is not None:
+            return self._no_rest_state(program, why)
         rest = {k: np.array([st.q[k]]) for k in HISTORY_QUANTITIES}
         rest.update(stage=np.array([int(st.stage)], np.int32), jammed=np.array([int(st.jammed)], np.int32))
         n = len(program)
@@ -588,6 +604,19 @@ class CellCycle:
                             status[:, None], {k: v[:, None] for k, v in vals.items()},
                             [dict(e, cell=0) for e in events], [p], rest)
 
+    def _no_rest_state(self, program: LoadProgram, why: str) -> BatchHistory:
+        """History of a cell without an admissible rest state (knitsim.cell.domain.rest_state_problem):
+        status no_rest_state on every row, NaN values (there is no state), flagged at increment 0."""
+        n = len(program)
+        vals = {k: np.full((n, 1), np.nan) for k in HISTORY_QUANTITIES + HEAD_GAP_QUANTITIES}
+        rest = {k: np.array([np.nan]) for k in HISTORY_QUANTITIES}
+        rest.update(stage=np.array([int(Stage.SF_LOAD)], np.int32), jammed=np.array([0], np.int32))
+        events = [{"increment": 0, "kind": "flag", "reason": f"no rest state: {why}",
+                   "status": STATUS_NAMES[STATUS_NO_REST_STATE], "cell": 0}]
+        return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
+                            np.full((n, 1), int(Stage.SF_LOAD), np.int32), np.zeros((n, 1), np.int32),
+                            np.full((n, 1), STATUS_NO_REST_STATE, np.int32), vals, events, [self.p], rest)
+
     # ------------------------------------------------------------------ Dahl
     def _label_dahl(self, st: CellState) -> None:
         """Dahl has no switch: label sliding once tan(phi) is within 5 % of +/-m."""
@@ -612,7 +641,7 @@ class CellCycle:
             return st
         C_from = st.C
         n = 1
-        for _ in range(self.max_halvings + 1):
+        for _ in range(min(self.max_halvings, MAX_DAHL_HALVINGS) + 1):
             trial = st.copy()
             attempt: list = []
             try:
@@ -672,7 +701,7 @@ class CellCycle:
         return st
 
 
-def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
+def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_HALVINGS,
              stick_closure: str = "release_beta") -> BatchHistory:
     """Run one cell through a strain program (NumPy reference).
 
@@ -683,7 +712,7 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
     program : LoadProgram
         Imposed strains of the course length, ``C = C0 (1 + strain)``.
     max_halvings : int
-        Retries of a failed increment on halved sub-increments.
+        Most halvings in a row of a failed sub-step (also bounded by SUBSTEP_FLOOR C0).
     stick_closure : str
         ``"release_beta"`` (default) or ``"table4"``; see :mod:`knitsim.cell.stages`.
 
@@ -696,7 +725,7 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = 6,
 
 
 def run_cells_reference(params: list[CellParams], program: LoadProgram,
-                        max_halvings: int = 6, stick_closure: str = "release_beta") -> BatchHistory:
+                        max_halvings: int = MAX_HALVINGS, stick_closure: str = "release_beta") -> BatchHistory:
     """Run many cells one at a time with the NumPy reference (the Warp batch's oracle)."""
     return BatchHistory.stack([run_cell(p, program, max_halvings, stick_closure) for p in params])
 

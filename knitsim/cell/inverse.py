@@ -175,7 +175,6 @@ def solve_state(conditions: Mapping[str, float], guess, B: float, d: float, *,
     require(x0[0] > x0[2], f"guess: alpha = {x0[0]!r} must exceed gamma = {x0[2]!r}")
     require(x0[4] > 0.0, f"guess: P = {x0[4]!r} must be > 0 N")
     z = _to_z(x0)
-    eye = np.eye(5) * fd_step
 
     def res(zz):
         return _residuals(_states(zz, B, d), cond, scales, d, B, np.exp(zz[..., 0]))
@@ -183,32 +182,39 @@ def solve_state(conditions: Mapping[str, float], guess, B: float, d: float, *,
     r = res(z)
     norm = float(np.linalg.norm(r)) if np.all(np.isfinite(r)) else np.inf
     nit = 0
-    while nit < max_iter and norm > tol:
-        nit += 1
-        pts = np.concatenate([z + eye, z - eye])            # 10 states in one call
-        rr = res(pts)
-        jac = ((rr[:5] - rr[5:]) / (2.0 * fd_step)).T
-        if not np.all(np.isfinite(jac)):
-            break
-        try:
-            step = np.linalg.solve(jac, -r)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(jac, -r, rcond=None)[0]
-        # keep angle steps moderate: the map is only locally smooth
-        big = np.max(np.abs(step[[1, 3]]))
-        if big > 0.3:
-            step *= 0.3 / big
-        t = 1.0
-        while t > 1e-6:
-            zt = z + t * step
-            rt = res(zt)
-            nt = float(np.linalg.norm(rt)) if np.all(np.isfinite(rt)) else np.inf
-            if nt < (1.0 - 1e-4 * t) * norm or (nt < 10 * tol and nt <= norm):
+    # Newton with the central-difference Jacobian; when its line search stalls, once more with a
+    # 100 times smaller difference step (the Jacobian of a state next to a fold, or where a step
+    # of fd_step leaves the smooth part of the map, is off by more than the Newton step can bear)
+    for h in (fd_step, 0.01 * fd_step):
+        eye = np.eye(5) * h
+        while nit < max_iter and norm > tol:
+            nit += 1
+            pts = np.concatenate([z + eye, z - eye])            # 10 states in one call
+            rr = res(pts)
+            jac = ((rr[:5] - rr[5:]) / (2.0 * h)).T
+            if not np.all(np.isfinite(jac)):
                 break
-            t *= 0.5
-        else:
+            try:
+                step = np.linalg.solve(jac, -r)
+            except np.linalg.LinAlgError:
+                step = np.linalg.lstsq(jac, -r, rcond=None)[0]
+            # keep angle steps moderate: the map is only locally smooth
+            big = np.max(np.abs(step[[1, 3]]))
+            if big > 0.3:
+                step *= 0.3 / big
+            t = 1.0
+            while t > 1e-6:
+                zt = z + t * step
+                rt = res(zt)
+                nt = float(np.linalg.norm(rt)) if np.all(np.isfinite(rt)) else np.inf
+                if nt < (1.0 - 1e-4 * t) * norm or (nt < 10 * tol and nt <= norm):
+                    break
+                t *= 0.5
+            else:
+                break
+            z, r, norm = zt, rt, nt
+        if norm <= tol or not np.isfinite(norm):
             break
-        z, r, norm = zt, rt, nt
     method = "newton"
     status = 0
     if not norm <= tol and fallback:
@@ -308,7 +314,8 @@ def initial_state(C0: float, W0: float, L: float, phi0: float, B: float, d: floa
     if phi0 != 0.0:
         path = continue_along(cond0, "phi", 0.0, phi0, best, B, d,
                               n_steps=max(1, int(np.ceil(abs(phi0) / phi_step))))
-        best = path[-1]
+        if path:                # empty when phi0 is within rounding of 0 (nothing to continue)
+            best = path[-1]
     best.extra["starts"] = record
     best.extra["solutions"] = [s.x for s in solutions]
     return best

@@ -84,6 +84,16 @@ Rules where Table 4 is silent (switchable; labelled in every output):
 ``force_cap_N``
     The jammed branch's force diverges at its limit strain: a cell stops,
     flagged ``force_cap``, when its force per wale reaches the cap.
+``SUBSTEP_FLOOR``, ``MAX_HALVINGS``
+    A sub-step whose solve fails (or whose event cannot be located, or whose
+    unjamming cannot be decided) is halved and retried, down to
+    SUBSTEP_FLOOR C0 (at most MAX_HALVINGS halvings in a row, by default);
+    a converged sub-step doubles the step back.  The floor is a length, not a
+    count: a stick branch can end within 1e-4 C0 of a reversal (the SF- stick
+    of a cell that carries little force, m = 0.1: phi runs from +phimax to
+    -phimax over 7e-5 C0, and the beta-frozen stick has no solution beyond),
+    and its slide event can only be located from a sub-step that ends on it.
+    Only when the floor is reached is the cell flagged.
 
 Dahl friction replaces the SF/S switch by one smooth law: tan(phi) follows
 the Dahl update of the slip xi = -s_BC (Dahl 1976; see
@@ -140,6 +150,14 @@ STICK_CLOSURES = ("release_beta", "table4")
 EVENT_TOL = 1.0e-9
 #: probe step (times C0) that decides whether a ``cone`` event at zero at the start happens there
 PROBE_STEP = 1.0e-6
+#: shortest sub-step (times C0) that a failed solve is halved to before the cell is flagged
+SUBSTEP_FLOOR = 1.0e-9
+#: default cap on the halvings of a failed sub-step in a row (the floor ends them first from any
+#: increment above 2^-40 C0)
+MAX_HALVINGS = 40
+#: Dahl friction retries a failed increment on 2, 4, ... 2^k equal sub-increments, each attempt from
+#: the start (the Dahl state moves along the path): at most this many doublings
+MAX_DAHL_HALVINGS = 8
 
 #: a state whose contact force R is below ZERO_CONTACT P has no contact force: its friction
 #: angle is undetermined (R = 0 makes phi drop out of every equation), so
