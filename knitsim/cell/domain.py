@@ -10,14 +10,24 @@ quantity                      range            why
 ============================  ===============  ==========================================
 d [mm]                        0.1 .. 2.0       technical rovings and spun yarns
 B [N mm^2]                    0.001 .. 10      fine spun yarns .. heavy glass rovings
-W0 / d_jam                    4.1 .. 10        W0 > 4 d_jam: loops not jammed at rest
-                                               (Hong's W = 4 d), with 2.5 % clearance
-C0 / d                        2.5 .. 7         course length of plain knits (Munden)
-L / (2 C0 + W0 - 4 d)         1.4 .. 2.8       the yarn closes the loop (> 1: check_knit)
-                                               without a loose, self-crossing head
-m                             0 .. 0.6         eq 10 over measured coiling angles / mu_k
+W0 / d_jam                    5.5 .. 9         loops well clear of jamming at rest
+                                               (W0 > 4 d_jam; the calibrated jersey 5.6,
+                                               the paper's knits 7.6-7.9)
+C0 / d                        4.0 .. 5.2       course length of plain knits (the paper's
+                                               4.7-4.8; Munden's loop shape)
+L / (2 C0 + W0 - 4 d)         1.6 .. 2.1       the yarn closes the loop (> 1: check_knit);
+                                               below ~1.62-1.76 Hong's rest shape ends
+                                               (alpha = gamma), above ~1.93 with large
+                                               C0 / d its contact pulls (R < 0)
+m                             0.05 .. 0.5      eq 10 over measured coiling angles / mu_k
 phi0 [rad]                    |phi0| <= atan m  inside the friction cone (section 3.3.1)
+strain                        0 .. 0.6         the paper's cyclic program (jamming by 0.7)
 ============================  ===============  ==========================================
+
+The box is drawn around the knits the model was checked on; the edges of the
+L ratio are where the rest state stops existing or stops being a contact
+(below), so that corners of the box may still lack a rest state.  Outside
+the box the model extrapolates (a warning, not a refusal).
 
 The paper's knits (Dusserre 2015, Table 1 and section 2.2: E-glass W0/d = 7.6,
 C0/d = 4.7, L ratio 1.89; basalt 7.9, 4.8, 1.73) lie inside, and so does the
