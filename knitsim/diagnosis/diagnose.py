@@ -237,6 +237,11 @@ class CandidateResult:
     probability: float | None = None
     flagged_curves: list = field(default_factory=list)
     nfev: int = 0
+    #: drop of chi^2 from the baseline, per curve (where the evidence comes from)
+    drop_by_curve: dict = field(default_factory=dict)
+    #: True when the evidence from the curves whose noise is known (measured or given) does not clear
+    #: the threshold alone: the effect rests on a curve whose noise is assumed
+    rests_on_assumed_noise: bool = False
 
 
 @dataclass
@@ -587,8 +592,18 @@ def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarra
             "flagged_curves": flagged, "nfev": fit["nfev"]}
 
 
+def chi2_by_curve(data: "_Data", fit: dict) -> dict:
+    """chi^2 of a fit per curve (rows weighted by their curve's noise, offsets included)."""
+    out = {}
+    for c, w, fc in zip(data.curves, data.weights, fit["curves"]):
+        z = (np.asarray(fc["simulated"]) - c.force) * w
+        out[c.source] = float(z @ z)
+    return out
+
+
 def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy, loc: Localisation,
-               measured: np.ndarray, keep: np.ndarray, rates: list, n: int) -> list[CandidateResult]:
+               measured: np.ndarray, keep: np.ndarray, rates: list, n: int, data: "_Data | None" = None,
+               base_fit: dict | None = None, noise: NoiseModel | None = None) -> list[CandidateResult]:
     """Step 6: every candidate's evidence (BIC drop), size (share of the baseline's excess over noise)
     and probability among the candidates and "none" (BIC weights); best first."""
     out = []
@@ -612,6 +627,16 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
                                                                            base["rms_N"], base["stages"], 0.0)
             cand.score = -(fit["k"] - base["k"]) * math.log(n)
             cand.note = "its fit ended above the baseline (a local minimum); where it vanishes it is the baseline"
+        if data is not None and base_fit is not None and cand.chi2 < base["chi2"]:
+            b_c, e_c = chi2_by_curve(data, base_fit), chi2_by_curve(data, fit)
+            cand.drop_by_curve = {k: b_c[k] - e_c[k] for k in b_c}
+            if noise is not None and not noise.all_known:
+                known = {c.source for c in noise.curves if c.known}
+                own = sum(v for k, v in cand.drop_by_curve.items() if k in known)
+                cand.rests_on_assumed_noise = bool(own - (fit["k"] - base["k"]) * math.log(n) <= STRONG)
+                if cand.rests_on_assumed_noise:
+                    cand.note = ("its evidence rests on curves whose noise is assumed, not measured "
+                                 f"({', '.join(c.source for c in noise.curves if not c.known)})")
         drop = base["chi2"] - cand.chi2
         cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
         cand.significant = bool(cand.score > STRONG)
@@ -700,6 +725,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         reason = f"BIC score {best.score:.4g}{share} ({fit_txt}); probability {best.probability:.3g}"
     if assumed:
         reason += f"; the noise of {', '.join(assumed)} is assumed, not measured"
+        if best.rests_on_assumed_noise:
+            reason += " and the evidence rests on it (the curves of known noise alone do not name it)"
     return Verdict("effect", best.effect, where, best.shrink, bool(confident), reason, rivals, probs)
 
 
@@ -771,7 +798,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     if basin_note:
         base["note"] = basin_note
     adequacy = adequacy_step(data, base_fit, noise)
-    candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n)
+    candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n, data, base_fit, noise)
     sig = [c for c in candidates if c.significant and c.practical]
     indist = [[a.effect, b.effect] for i, a in enumerate(sig) for b in sig[i + 1:] if a.score - b.score < STRONG]
     best = sig[0] if sig else None

@@ -86,6 +86,29 @@ def test_noise_alone_names_no_effect():
     assert not any(c["significant"] and c["practical"] for c in r["candidates"])
 
 
+def test_evidence_from_a_curve_of_assumed_noise_is_marked():
+    """A digitised (noise-free) curve carries the effect; a second test of known, huge noise (sd = its
+    peak force) tells next to nothing.  The digitised curve's noise cannot be estimated (it says so, and 0.5 % of
+    its range is assumed); the effect is named from it, but its evidence is marked as resting on
+    assumed noise and the verdict is not confident (issue 12, item 1)."""
+    truth = NOMINAL.replace(phi0=-0.05, effects=EffectSet(on=("coiling_angle_friction",), coil_mu_k=0.3))
+    F = run_batch([truth], PROGRAM).values["F"][:, 0]
+    smooth = curve_from_arrays(PROGRAM.strain, F, PROGRAM.cycle, PROGRAM.direction, source="digitised")
+    noisy, _ = _measured(truth, seed=5, noise_rel=1.0)
+    noisy = curve_from_arrays(noisy.strain, noisy.force, noisy.cycle, noisy.direction, source="noisy")
+    r = diagnose([smooth, noisy], DiagnosisSetup(base=NOMINAL, effects=("coiling_angle_friction",),
+                                                 pair=False)).as_dict()
+    by = {c["source"]: c for c in r["noise"]["curves"]}
+    assert by["digitised"]["method"] == "assumed" and not by["digitised"]["estimable"]
+    assert by["noisy"]["method"] == "estimated"
+    (c,) = r["candidates"]
+    assert c["drop_by_curve"]["digitised"] > 10 * abs(c["drop_by_curve"]["noisy"])
+    assert c["rests_on_assumed_noise"] and "assumed" in c["note"]
+    v = r["verdict"]
+    assert v["effect"] == "coiling_angle_friction" and not v["confident"]
+    assert "digitised is assumed" in v["reason"] and "rests on it" in v["reason"]
+
+
 def test_velocity_friction_needs_two_rates():
     """At one rate eq 5's V^p factor is a constant, i.e. a change of m: not identifiable."""
     curve, _ = _measured(NOMINAL, rate=1.0)
