@@ -43,7 +43,7 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    sensitive than the chi^2 of all rows, whose spread includes that of the
    estimated noise.
 7. **Pair** (:func:`pair_step`): the best effect plus each of the
-   :data:`PAIR_PARTNERS` next effects that lowered chi^2 on their own.
+   :data:`PAIR_PARTNERS` next effects with a positive score of their own.
 8. **Verdict** (:func:`verdict_step`): ``effect`` when an effect clears both
    thresholds (not confident when another is within :data:`STRONG` of it, its
    fit did not converge, or a curve's noise had to be assumed); else ``none``
@@ -336,24 +336,34 @@ class _Data:
         return rss_of_cells(self.curves, cells, s.max_increment, s.device, weights=self.weights, offsets=s.offsets)
 
 
-#: effects tried beside the best one in the greedy pair (the next best that lowered chi^2 on their own)
+#: effects tried beside the best one in the greedy pair (the next best with a positive score of their own)
 PAIR_PARTNERS = 3
 
 #: evaluations each start of a multi-start calibration gets before the best one goes on alone
 RACE_NFEV = 6
+#: the race in two heats: after RACE_HEAT_NFEV evaluations a start whose chi^2 is more than RACE_KEEP times
+#: the best is dropped (it is in a worse basin by far: a factor 1.25 is hundreds of chi^2 units on a
+#: thousand rows, where the rest of the race moves a start by tens)
+RACE_HEAT_NFEV = 3
+RACE_KEEP = 1.25
 #: the baseline's calibration gets this many times ``max_nfev`` (every candidate is measured against it)
 BASELINE_NFEV_FACTOR = 3
 
 
-def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None) -> dict:
+def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None,
+         rival_chi2: float | None = None) -> dict:
     """Calibrate the model with ``effects`` on from several starts; the least chi^2 is kept.
 
     The variables start from the specimen as calibrated so far (``x0``, in the
     fitted variables: phi0 as a fraction of phimax) or where the effect
     vanishes; each of ``extra_starts`` overrides some of them.  With more than
-    one start, each gets :data:`RACE_NFEV` evaluations and only the best goes on
+    one start, each gets :data:`RACE_HEAT_NFEV` evaluations, those within :data:`RACE_KEEP` of the
+    best chi^2 get :data:`RACE_NFEV` in all, and only the best goes on
     to ``setup.max_nfev`` (a race: the starts are there to pick a basin, which
-    the first few trust-region steps show).
+    the first few trust-region steps show).  ``rival_chi2`` (the baseline's, for a
+    candidate) runs in the race too: a fit still more than :data:`RACE_KEEP`
+    times above it after the race is not continued (``stopped_after_race``);
+    it explains nothing the baseline does not, by far.
     """
     setup = data.setup
     max_nfev = setup.max_nfev if nfev is None else nfev
@@ -374,12 +384,27 @@ def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), n
             starts.append(st)
     if len(starts) == 1 or max_nfev <= RACE_NFEV:
         fits = [data.calibrate(effects, st, max_nfev, free, bounds) for st in starts]
-        return min(fits, key=lambda f: f["chi2"])
-    best = min((data.calibrate(effects, st, RACE_NFEV, free, bounds) for st in starts), key=lambda f: f["chi2"])
-    if best["success"]:
+        best = min(fits, key=lambda f: f["chi2"])
+        best["race"] = [f["chi2"] for f in fits]
         return best
-    fit = data.calibrate(effects, best["fit_variables"], max_nfev - RACE_NFEV, free, bounds)
-    return fit if fit["chi2"] <= best["chi2"] else best
+    race = [data.calibrate(effects, st, RACE_HEAT_NFEV, free, bounds) for st in starts]
+    lead = min(f["chi2"] for f in race)
+    for j, f in enumerate(race):
+        if not f["success"] and f["chi2"] <= RACE_KEEP * lead:
+            again = data.calibrate(effects, f["fit_variables"], RACE_NFEV - RACE_HEAT_NFEV, free, bounds)
+            if again["chi2"] <= f["chi2"]:
+                race[j] = again
+    best = min(race, key=lambda f: f["chi2"])
+    chi2s = [f["chi2"] for f in race]
+    if rival_chi2 is not None and not best["success"] and best["chi2"] > RACE_KEEP * rival_chi2:
+        best["race"] = chi2s
+        best["stopped_after_race"] = True
+        return best
+    if not best["success"]:
+        fit = data.calibrate(effects, best["fit_variables"], max_nfev - RACE_NFEV, free, bounds)
+        best = fit if fit["chi2"] <= best["chi2"] else best
+    best["race"] = chi2s
+    return best
 
 
 #: coarse grid of the baseline's friction: m (eq 10's ratio; section 3.4 reports 0.06 .. 0.6 over a test) and
@@ -501,8 +526,10 @@ def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
     return fit, outliers
 
 
-def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = False) -> dict:
-    """Step 3: each identifiable effect's fit (from the baseline, and its own extra starts)."""
+def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = False,
+                    base_chi2: float | None = None) -> dict:
+    """Step 3: each identifiable effect's fit (from the baseline, and its own extra starts); the
+    baseline's ``base_chi2`` runs in each race (:func:`_fit`)."""
     out = {}
     for name in names:
         spec = EFFECT_SPECS[name]
@@ -510,10 +537,12 @@ def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = 
             continue
         if quick:
             # from the new baseline only, where the effect vanishes: the other starts were raced already
-            out[name] = _fit(data, (name,), x0=base_x)
+            out[name] = _fit(data, (name,), x0=base_x, rival_chi2=base_chi2)
         else:
-            out[name] = _fit(data, (name,), x0=base_x, extra_starts=spec.extra_starts + _phi0_alternative(base_x))
-        say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g}")
+            out[name] = _fit(data, (name,), x0=base_x, extra_starts=spec.extra_starts + _phi0_alternative(base_x),
+                             rival_chi2=base_chi2)
+        say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g} (starts: "
+            + ", ".join(f"{c:.5g}" for c in out[name].get("race", [])) + ")")
     return out
 
 
@@ -532,7 +561,7 @@ def basin_step(data: _Data, base_fit: dict, fits: dict, rates, say) -> tuple[dic
     note = f"baseline re-calibrated from the {src} fit's parameters: chi2 {old:.5g} -> {refit['chi2']:.5g}"
     moved = old - refit["chi2"] > STRONG
     stuck = [k for k, f in fits.items() if moved and f["chi2"] > refit["chi2"]]
-    again = candidates_step(data, refit["fit_variables"], stuck, rates, say, quick=True)
+    again = candidates_step(data, refit["fit_variables"], stuck, rates, say, quick=True, base_chi2=refit["chi2"])
     fits = dict(fits, **{k: f for k, f in again.items() if f["chi2"] < fits[k]["chi2"]})
     if stuck:
         note += f"; {', '.join(stuck)} fitted again from there"
@@ -637,6 +666,9 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
                 if cand.rests_on_assumed_noise:
                     cand.note = ("its evidence rests on curves whose noise is assumed, not measured "
                                  f"({', '.join(c.source for c in noise.curves if not c.known)})")
+        if fit.get("stopped_after_race") and not cand.note:
+            cand.note = (f"its fit stopped after the race of its starts, chi2 more than {RACE_KEEP:g} times "
+                         "the baseline's")
         drop = base["chi2"] - cand.chi2
         cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
         cand.significant = bool(cand.score > STRONG)
@@ -663,9 +695,12 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
 
 def pair_step(data: _Data, best: CandidateResult, fitted: list, fits: dict, base_fit: dict, base: dict,
               loc: Localisation, measured, keep, n: int, say) -> tuple[dict | None, dict | None]:
-    """Step 7: the best effect with each of the next :data:`PAIR_PARTNERS` that lowered chi^2 alone."""
+    """Step 7: the best effect with each of the next :data:`PAIR_PARTNERS` that have a positive score alone."""
     trials = []
-    partners = [c for c in fitted if c.effect != best.effect and c.chi2 < base["chi2"]]
+    # partners with evidence of their own (a positive BIC score: they lower chi^2 by more than their
+    # parameters cost); a partner that explains nothing alone is seldom half of a pair
+    partners = [c for c in fitted if c.effect != best.effect and c.score is not None and c.score > 0
+                and not c.flagged_curves]
     for other in partners[:PAIR_PARTNERS]:
         effs = (best.effect, other.effect)
         x0 = {**base_fit["fit_variables"], **fits[best.effect]["fit_variables"]}
@@ -785,7 +820,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     noise = noise_step(curves, setup)
     data = _Data(curves, setup, noise.weights(curves))
     base_fit, outliers = calibrate_step(data, say)
-    fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say)
+    fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say, base_chi2=base_fit["chi2"])
     base_fit, fits, basin_note = basin_step(data, base_fit, fits, rates, say)
     keep = np.concatenate([w > 0 for w in data.weights])
     n = int(np.count_nonzero(keep))
