@@ -237,6 +237,9 @@ class CandidateResult:
     probability: float | None = None
     flagged_curves: list = field(default_factory=list)
     nfev: int = 0
+    #: the model with this effect against the noise, as the baseline's adequacy test (step 5)
+    chi2_per_dof: float | None = None
+    within_noise: bool | None = None
     #: drop of chi^2 from the baseline, per curve (where the evidence comes from)
     drop_by_curve: dict = field(default_factory=dict)
     #: True when the evidence from the curves whose noise is known (measured or given) does not clear
@@ -656,6 +659,11 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
                                                                            base["rms_N"], base["stages"], 0.0)
             cand.score = -(fit["k"] - base["k"]) * math.log(n)
             cand.note = "its fit ended above the baseline (a local minimum); where it vanishes it is the baseline"
+        if data is not None and noise is not None and not (spec.nests_baseline and fit["chi2"] > base["chi2"]):
+            ad = adequacy_step(data, fit, noise)
+            cand.chi2_per_dof, cand.within_noise = ad.chi2_per_dof, ad.within_noise
+        elif spec.nests_baseline and fit["chi2"] > base["chi2"]:
+            cand.chi2_per_dof, cand.within_noise = adequacy.chi2_per_dof, adequacy.within_noise
         if data is not None and base_fit is not None and cand.chi2 < base["chi2"]:
             b_c, e_c = chi2_by_curve(data, base_fit), chi2_by_curve(data, fit)
             cand.drop_by_curve = {k: b_c[k] - e_c[k] for k in b_c}
@@ -744,7 +752,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         return Verdict("unexplained", None, stage, 0.0, confident,
                        f"{lead} ({fit_txt}), and no effect explains the gap: {why} (naming one needs a BIC drop "
                        f"> {STRONG:g} and >= {PRACTICAL_SHARE:.0%} of the excess, or none left beyond the noise); "
-                       f"the largest gap is in stage {stage}", [], probs)
+                       f"the largest gap is in stage {stage}; the probabilities weigh the candidates and none "
+                       "against each other only, and none of them fits within the noise", [], probs)
     best = named[0]
     drops = {k: base["stages"][k]["sse_N2"] - best.stages.get(k, {}).get("sse_N2", 0.0) for k in base["stages"]}
     where = max(drops, key=drops.get) if drops else stage
@@ -758,6 +767,9 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         share = ("" if best.share_of_excess is None else
                  f", removes {min(best.share_of_excess, 1.0):.0%} of the baseline's excess over noise")
         reason = f"BIC score {best.score:.4g}{share} ({fit_txt}); probability {best.probability:.3g}"
+    if best.within_noise is False:
+        reason += (f"; with it the model still misses the curves beyond their noise (chi2/dof = "
+                   f"{best.chi2_per_dof:.4g}): a further cause remains")
     if assumed:
         reason += f"; the noise of {', '.join(assumed)} is assumed, not measured"
         if best.rests_on_assumed_noise:

@@ -54,6 +54,9 @@ def test_a_hidden_coiling_effect_is_named(coiling_result):
     assert best["effect"] == "coiling_angle_friction" and best["significant"]
     assert best["params"]["coil_mu_k"] == pytest.approx(0.3, rel=0.05)
     assert best["shrink"] > 0.5
+    # the model with the true effect fits within the noise, the baseline does not (adequacy test, step 5)
+    assert best["within_noise"] is True and r["noise"]["baseline_within_noise"] is False
+    assert best["chi2_per_dof"] < r["noise"]["baseline_chi2_per_dof"]
     # candidates sorted best first by score; shrink = 1 - rms_after / rms_before (issue 6)
     scores = [c["score"] for c in r["candidates"] if c["score"] is not None]
     assert scores == sorted(scores, reverse=True)
