@@ -309,6 +309,28 @@ def noise_step(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup) -> NoiseM
     return NoiseModel(out)
 
 
+#: the simulated cells stop at this multiple of the largest measured force (module docstring of capped_setup)
+FORCE_CAP_FACTOR = 3.0
+
+
+def capped_setup(setup: DiagnosisSetup, curves: Sequence[MeasuredCurve]) -> DiagnosisSetup:
+    """The setup with the cells' force cap at :data:`FORCE_CAP_FACTOR` times the largest measured force.
+
+    A parameter set whose jammed branch runs far above every measured force is a hopeless misfit
+    whatever the force it reaches; simulating it to the scene's cap (50 N by default) costs the
+    increments that do not converge on the steep branch (12.9 s against 0.02 s for six cells of a
+    pull to 5 N), the cap stops them at once (``force_cap``, an ordinary end).  A fit never comes
+    near the cap: at three times the peak its residual is twice the peak on every row beyond.
+    """
+    peak = max((float(np.max(c.force)) for c in curves), default=0.0)
+    if not (peak > 0 and math.isfinite(peak)):
+        return setup
+    cap = FORCE_CAP_FACTOR * peak
+    if cap >= setup.base.force_cap_N:
+        return setup
+    return replace(setup, base=setup.base.replace(force_cap_N=cap))
+
+
 def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
     """The noise sd [N] of curves that share one noise level (their chords pooled); see
     :mod:`knitsim.diagnosis.noise`.  The diagnosis itself estimates every curve on its own
@@ -467,6 +489,31 @@ def _phi0_alternative(values: dict) -> tuple:
     return ({"phi0": 0.0},)
 
 
+#: geometry variables a candidate also starts from at the scene's values
+GEOMETRY_VARIABLES = ("B", "d", "in_plane_width", "L", "W0", "C0")
+#: relative distance of the calibrated geometry from the scene's beyond which the scene's is a start of its own
+SCENE_START_REL = 0.01
+
+
+def _scene_geometry(setup: DiagnosisSetup, base_x: dict) -> dict:
+    """The scene's values of the free geometry variables, when the calibrated baseline has moved away
+    from them (by more than :data:`SCENE_START_REL` in one of them); else ``{}``.
+
+    A baseline can absorb an effect by a geometry far from the specimen described (compaction by a
+    yarn 20 % thinner, the coiling angle's friction by a thicker one): the effect's own optimum then
+    lies near the scene's geometry, in another basin than the baseline's.  Each candidate therefore
+    also starts from the scene's geometry, with its effect's own starts (its parameter away from
+    where it vanishes; there the baseline's basin would pull it back).
+    """
+    out = {}
+    for name in GEOMETRY_VARIABLES:
+        if name in setup.free and name in base_x:
+            v = BASELINE_VARIABLES[name].start(setup.base)
+            out[name] = v
+    moved = any(abs(base_x[k] - v) > SCENE_START_REL * abs(v) for k, v in out.items())
+    return out if moved else {}
+
+
 def _baseline_chi2_at(data: _Data, fits: dict) -> dict:
     """chi^2 of the baseline at each fit's values of the baseline's variables, in one launch.
 
@@ -542,8 +589,11 @@ def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = 
             # from the new baseline only, where the effect vanishes: the other starts were raced already
             out[name] = _fit(data, (name,), x0=base_x, rival_chi2=base_chi2)
         else:
-            out[name] = _fit(data, (name,), x0=base_x, extra_starts=spec.extra_starts + _phi0_alternative(base_x),
-                             rival_chi2=base_chi2)
+            scene = _scene_geometry(data.setup, base_x)
+            extra = spec.extra_starts + _phi0_alternative(base_x)
+            if scene:
+                extra += tuple(dict(scene, **st) for st in spec.extra_starts)
+            out[name] = _fit(data, (name,), x0=base_x, extra_starts=extra, rival_chi2=base_chi2)
         say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g} (starts: "
             + ", ".join(f"{c:.5g}" for c in out[name].get("race", [])) + ")")
     return out
@@ -830,6 +880,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})
 
     noise = noise_step(curves, setup)
+    setup = capped_setup(setup, curves)
     data = _Data(curves, setup, noise.weights(curves))
     base_fit, outliers = calibrate_step(data, say)
     fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say, base_chi2=base_fit["chi2"])

@@ -112,6 +112,27 @@ def test_evidence_from_a_curve_of_assumed_noise_is_marked():
     assert "digitised is assumed" in v["reason"] and "rests on it" in v["reason"]
 
 
+def test_force_cap_at_three_peaks_leaves_the_curve_below_it_unchanged():
+    """capped_setup stops cells at 3 x the largest measured force; below that force the simulated
+    curve is the uncapped one bit for bit (the cap is an event of the jammed branch only), and the
+    scene's cap is kept when it is lower."""
+    from knitsim.cell.load_program import monotonic
+    from knitsim.diagnosis.diagnose import FORCE_CAP_FACTOR, capped_setup
+
+    prog = monotonic(0.9, 0.01)
+    F = run_batch([NOMINAL], prog).values["F"][:, 0]
+    rows = np.arange(10, 60)
+    curve = curve_from_arrays(prog.strain[rows], F[rows], source="pull")
+    setup = capped_setup(DiagnosisSetup(base=NOMINAL), [curve])
+    assert setup.base.force_cap_N == pytest.approx(FORCE_CAP_FACTOR * F[rows].max())
+    Fc = run_batch([setup.base], prog).values["F"][:, 0]
+    below = np.nonzero(F < setup.base.force_cap_N)[0]
+    below = below[below < np.argmax(F >= setup.base.force_cap_N)] if np.any(F >= setup.base.force_cap_N) else below
+    np.testing.assert_array_equal(Fc[below], F[below])
+    low = DiagnosisSetup(base=NOMINAL.replace(force_cap_N=0.5 * F[rows].max()))
+    assert capped_setup(low, [curve]) is low
+
+
 def test_velocity_friction_needs_two_rates():
     """At one rate eq 5's V^p factor is a constant, i.e. a change of m: not identifiable."""
     curve, _ = _measured(NOMINAL, rate=1.0)
