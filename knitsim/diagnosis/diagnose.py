@@ -414,6 +414,13 @@ def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), n
         return best
     race = [data.calibrate(effects, st, RACE_HEAT_NFEV, free, bounds) for st in starts]
     lead = min(f["chi2"] for f in race)
+    if rival_chi2 is not None and lead > RACE_KEEP * RACE_KEEP * rival_chi2:
+        # far behind the baseline after the first heat already (1.56 x its chi^2): the second heat
+        # would move it by tens of chi^2 units, not by the hundreds it lacks
+        best = min(race, key=lambda f: f["chi2"])
+        best["race"] = [f["chi2"] for f in race]
+        best["stopped_after_race"] = True
+        return best
     for j, f in enumerate(race):
         if not f["success"] and f["chi2"] <= RACE_KEEP * lead:
             again = data.calibrate(effects, f["fit_variables"], RACE_NFEV - RACE_HEAT_NFEV, free, bounds)
@@ -514,6 +521,44 @@ def _scene_geometry(setup: DiagnosisSetup, base_x: dict) -> dict:
     return out if moved else {}
 
 
+#: evaluations of each point of an effect's profile (EffectSpec.profile)
+PROFILE_NFEV = 8
+
+
+def _profile_start(data: _Data, name: str, base_x: dict, scene: dict) -> dict:
+    """The best point of a profile over the effect's variable, as a start of its fit.
+
+    The variable is held at each multiple :attr:`EffectSpec.profile` of its start (mapped from the
+    calibrated baseline) and the baseline's variables are refitted (:data:`PROFILE_NFEV`
+    evaluations) from the scene's geometry (``scene``; the baseline's when it is empty) and the
+    baseline's friction.  The profile of a variable that trades with the geometry along narrow
+    valleys is smooth where the joint fit has many local minima: its best point lies in the basin of
+    the effect's optimum.
+    """
+    setup = data.setup
+    spec = EFFECT_SPECS[name]
+    (var,) = spec.variables
+    free = tuple(v.name for v in variables_for(tuple(setup.free), (name,)) if v.name != var.name)
+    try:
+        ref = build_params(setup.base, (), {k: v for k, v in base_x.items() if k in BASELINE_VARIABLES})
+    except KnitsimInputError:
+        ref = setup.base
+    v0 = var.start(ref)
+    lo, hi = var.bounds
+    x0 = {k: v for k, v in dict(base_x, **scene).items() if k in free}
+    best = None
+    for f in spec.profile:
+        v = min(max(f * v0, lo), hi)
+        fit = calibrate_baseline(data.curves, setup.base, free=free, bounds={k: tuple(b) for k, b in setup.bounds.items()
+                                                                              if k in free},
+                                 device=setup.device, max_increment=setup.max_increment, x0=x0, max_nfev=PROFILE_NFEV,
+                                 effects=(name,), fixed=dict(setup.fixed, **{var.name: v}), weights=data.weights,
+                                 offsets=setup.offsets)
+        if best is None or fit["chi2"] < best[0]:
+            best = (fit["chi2"], dict(fit["fit_variables"], **{var.name: v}))
+    return best[1]
+
+
 def _baseline_chi2_at(data: _Data, fits: dict) -> dict:
     """chi^2 of the baseline at each fit's values of the baseline's variables, in one launch.
 
@@ -591,7 +636,9 @@ def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = 
         else:
             scene = _scene_geometry(data.setup, base_x)
             extra = spec.extra_starts + _phi0_alternative(base_x)
-            if scene:
+            if spec.profile:
+                extra += (_profile_start(data, name, base_x, scene),)
+            elif scene:
                 extra += tuple(dict(scene, **st) for st in spec.extra_starts)
             out[name] = _fit(data, (name,), x0=base_x, extra_starts=extra, rival_chi2=base_chi2)
         say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g} (starts: "

@@ -133,6 +133,9 @@ class EffectSpec:
     extra_starts: tuple = ()
     #: the model equals the baseline bit for bit where the effect vanishes (a start of its fit)
     nests_baseline: bool = True
+    #: multiples of the variable's start at which the diagnosis profiles the fit (its variable held,
+    #: the baseline's refitted from the scene's geometry) before the race (:mod:`knitsim.diagnosis.diagnose`)
+    profile: tuple = ()
 
 
 EFFECT_SPECS: dict[str, EffectSpec] = {
@@ -147,7 +150,10 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
         (Variable("coil_mu_k", (0.01, 2.0), lambda p: _mu_for_m(p.m, _beta0(p)), "-",
                   "kinetic friction coefficient of eq 10"),),
         replaces=("m",), doc="m follows eq 10 with the coiling angle of the current loop",
-        extra_starts=({"coil_mu_k": 0.1}, {"coil_mu_k": 0.5}), nests_baseline=False),
+        extra_starts=({"coil_mu_k": 0.1}, {"coil_mu_k": 0.5}), nests_baseline=False,
+        # it replaces m: mu_k and the yarn diameter trade along narrow valleys with many local minima
+        # (a lab specimen: basins at mu_k = 0.09, 0.12, 0.16, 0.23), which a profile over mu_k finds
+        profile=(0.7, 0.85, 1.0, 1.15, 1.3)),
     "normal_load_friction": EffectSpec(
         "normal_load_friction",
         (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5"),),
