@@ -16,9 +16,18 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    and a force offset per curve (a load cell's zero), by weighted least
    squares from the scene's start and the best points of a coarse (m, phi0)
    grid; then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
-   fit whose neighbours fit) are left out and the fit repeated.
+   fit whose neighbours fit) are left out and the fit repeated.  The cells stop
+   at :data:`FORCE_CAP_FACTOR` times the largest measured force
+   (:func:`capped_setup`).
 3. **Candidates** (:func:`candidates_step`): each effect added and the model
-   recalibrated; then the **basin check** (:func:`basin_step`): a candidate's
+   recalibrated, from several starts that race (:func:`_fit`): the calibrated
+   baseline with the effect where it vanishes, the effect's own starts, phi0
+   on the far side, and the scene's geometry with the effect's own starts
+   (:func:`_scene_geometry`: a baseline can absorb an effect by a geometry far
+   from the specimen's, and the effect's optimum lies near the specimen's);
+   for ``coiling_angle_friction`` a profile over its mu_k
+   (:func:`_profile_start`).  The baseline runs in each race: a candidate far
+   behind it is not fitted further.  Then the **basin check** (:func:`basin_step`): a candidate's
    fit may have found a better basin of the baseline's own parameters, and the
    baseline is re-calibrated from there, so that no effect is credited with
    what the baseline can do itself.
@@ -38,7 +47,10 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    strong) and size (*practical*: it removes at least :data:`PRACTICAL_SHARE`
    of the baseline's excess over noise, more than all other causes together,
    or leaves no excess beyond the noise; an effect that shrinks a large gap by
-   0.1 % explains nothing, whatever its BIC).  The adequacy test of the whole
+   0.1 % explains nothing, whatever its BIC).  Every candidate is also judged
+   against the noise as the baseline is (``chi2_per_dof``, ``within_noise``),
+   carries its chi^2 drop per curve, and is marked when its evidence rests on
+   curves whose noise is assumed (``rests_on_assumed_noise``).  The adequacy test of the whole
    fit cannot veto a named effect: a BIC test of one nested effect is far more
    sensitive than the chi^2 of all rows, whose spread includes that of the
    estimated noise.

@@ -465,8 +465,11 @@ def make_case(seed: int, material: str = "e_glass", test: str = "cyclic", effect
             identifiable = False
             reason = "one test rate: a rate factor on m is absorbed by the calibrated m"
         elif oracle_free is not None:
-            clean_curves = [curve_from_arrays(c.strain, fe, c.cycle, c.direction, c.rate_mm_s, source=c.source)
-                            for c, fe in zip(shells, clean)]
+            # the noise-free curves with the noise the oracle knows (a noise-free curve is smooth, and its
+            # noise cannot be estimated from it: a model force a hair below zero would be refused)
+            clean_curves = [curve_from_arrays(c.strain, fe, c.cycle, c.direction, c.rate_mm_s, source=c.source,
+                                              noise_N=sd if sd > 0 else None)
+                            for c, fe, sd in zip(shells, clean, noise_sd)]
             oracle = oracle_evidence(clean_curves, noise_sd, material, true0, effect, tuple(oracle_free),
                                      oracle_increment, device)
             identifiable = oracle["identifiable"]
@@ -647,8 +650,11 @@ def make_specimen(seed: int, material: str = "e_glass", effect: str | None = Non
         if effect == "velocity_friction":
             identifiable, reason = False, "one test rate: a rate factor on m is absorbed by the calibrated m"
         elif oracle_free is not None:
-            clean_curves = [curve_from_arrays(c.strain, fe, c.cycle, c.direction, c.rate_mm_s, source=c.source)
-                            for c, fe in zip(shells, clean)]
+            # the noise-free curves with the noise the oracle knows (a noise-free curve is smooth, and its
+            # noise cannot be estimated from it: a model force a hair below zero would be refused)
+            clean_curves = [curve_from_arrays(c.strain, fe, c.cycle, c.direction, c.rate_mm_s, source=c.source,
+                                              noise_N=sd if sd > 0 else None)
+                            for c, fe, sd in zip(shells, clean, noise_sd)]
             oracle = oracle_evidence(clean_curves, noise_sd, material, true0, effect, tuple(oracle_free),
                                      oracle_increment, device, offsets=True)
             identifiable = oracle["identifiable"]
