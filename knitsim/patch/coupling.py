@@ -12,6 +12,13 @@ Mechanics (wale-wise stretching between rigid grips):
 There is no course-wise coupling (no shear or transverse force between
 neighbouring columns; W of each cell follows from its own equilibrium).
 
+A cell may stand for a block of stitches (:mod:`knitsim.patch.model`): n_g
+courses in series and p_g wales in parallel.  The column is then a strip of
+the specimen, its cells carry the same total force ``F = p_g f_g`` (f_g the
+force per wale of the cell), and their course counts weight the lengths:
+``sum_g n_g (C_g - C0_g) = u``.  With p_g = 1 (single stitches) this is the
+column above, and the arithmetic is the same bit for bit.
+
 Solution of one increment, per column (all columns together, one kernel
 launch per iteration): the unknowns are the cells' course lengths C_g (one per
 group of identical cells, :meth:`~knitsim.patch.model.PatchModel.grouping`,
@@ -19,12 +26,12 @@ counted n_g times).  Each cell answers a trial step of the cell solver from
 its committed state to C_g (``CellSolver.step`` on the committed state does
 not modify it), giving F_g(C_g) along its own path-dependent branch (Table 4
 stages, events, hysteresis).  With the tangent k_g = dF/dC of each cell, the
-linearised equations ``F_g + k_g (C_g' - C_g) = F`` and
+linearised equations ``f_g + k_g (C_g' - C_g) = F / p_g`` and
 ``sum n_g (C_g' - C0_g) = u`` give::
 
-    a_g = C_g - F_g / k_g                  (zero-force point of the linear model)
-    F   = max(0, (u - sum n_g (a_g - C0_g)) / sum n_g / k_g)
-    C_g' = a_g + F / k_g
+    a_g = C_g - f_g / k_g                  (zero-force point of the linear model)
+    F   = max(0, (u - sum n_g (a_g - C0_g)) / sum n_g / (p_g k_g))
+    C_g' = a_g + F / (p_g k_g)
 
 The tangent is the secant between successive trial steps of the increment
 (the first iterate uses the tangent of the last increment; the very first one
@@ -278,7 +285,8 @@ class IncrementResult:
     Attributes
     ----------
     column_force : ndarray, shape [n_classes]
-        Force per wale carried by a column of each class [N] (n-weighted mean of its cells).
+        Total force carried by a column of each class [N] (n-weighted mean of its cells' p_g f_g):
+        the force per wale of a column of single stitches.
     column_status : ndarray of int, shape [n_classes]
         :data:`COLUMN_STATUS_NAMES` codes.
     column_slack : ndarray, shape [n_classes]
@@ -328,11 +336,12 @@ class PatchSolver:
         self.col = grouping.group_column
         self.n_cls = grouping.n_classes
         self.cnt = grouping.group_count.astype(np.float64)
+        # wales in parallel of each group: the column's total force is p f (1 for single stitches)
+        self.p = np.asarray(grouping.group_wales, dtype=np.float64)
         rest = grouping.class_rest_length
-        per_wale = rest[grouping.column_class]
-        # grip displacement = grip strain x reference length: the columns' common rest length, or
-        # their mean when they differ (each column is mounted at its own rest length)
-        self.ref_length = float(per_wale[0]) if np.all(per_wale == per_wale[0]) else float(per_wale.mean())
+        # grip displacement = grip strain x reference length: a specimen's gauge length, else the columns'
+        # common rest length, or their mean when they differ (each column is mounted at its own rest length)
+        self.ref_length = float(grouping.reference_length)
         self.rest = rest
         single = np.bincount(self.col, minlength=self.n_cls) == 1
         self.single_group = single[self.col]
@@ -414,8 +423,9 @@ class PatchSolver:
             # convergence: equal forces at a positive column force (the lengths then add up to u by
             # construction), or every cell slack where the column was asked for zero force; a cell that
             # failed in the trial never converges its column
-            Fmax = self._colmax(np.where(g_live, t["F"], -np.inf), -np.inf)
-            Fmin = -self._colmax(np.where(g_live, -t["F"], -np.inf), -np.inf)
+            Ftot = self.p * t["F"]                      # the total force each cell's block carries
+            Fmax = self._colmax(np.where(g_live, Ftot, -np.inf), -np.inf)
+            Fmin = -self._colmax(np.where(g_live, -Ftot, -np.inf), -np.inf)
             spread = Fmax - Fmin
             tol = self.force_tol + self.force_rtol * np.abs(Fmax)
             all_slack = self._colmax(np.where(g_live, (~slack).astype(float), 0.0), 0.0) == 0
@@ -427,8 +437,9 @@ class PatchSolver:
             if np.any(conv):
                 be.accept(conv[col])
                 done_cls |= conv
-            # tangents: secant from the previous iterate, or the chord of the bracket (Illinois)
-            Ft = Fstar[col]
+            # tangents: secant from the previous iterate, or the chord of the bracket (Illinois);
+            # Ft is the force per wale the column's linear model asks of each cell
+            Ft = Fstar[col] / self.p
             use = g_live & ~slack & ~failed
             dC = t["C"] - C_prev
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -475,23 +486,25 @@ class PatchSolver:
         n_cells = self._colsum(cnt)
         # a single-group column carries its cell's force exactly (no rounding of n F / n)
         F_one = np.zeros(self.n_cls)
-        F_one[col[self.single_group]] = c["F"][self.single_group]
+        F_one[col[self.single_group]] = self.p[self.single_group] * c["F"][self.single_group]
         single_cls = np.bincount(col, minlength=self.n_cls) == 1
-        F_col = np.where(single_cls, F_one, self._colsum(cnt * c["F"]) / n_cells)
-        spread = self._colmax(c["F"], -np.inf) + self._colmax(-c["F"], -np.inf)
+        F_col = np.where(single_cls, F_one, self._colsum(cnt * self.p * c["F"]) / n_cells)
+        Ftot = self.p * c["F"]
+        spread = self._colmax(Ftot, -np.inf) + self._colmax(-Ftot, -np.inf)
         slack_len = np.maximum(0.0, self._colsum(cnt * (c["C"] - C0)) - u)
         slack_len = np.where(F_col == 0.0, slack_len, 0.0)
         return IncrementResult(F_col, status.astype(np.int32), slack_len, iters, spread, c)
 
     def _update(self, a: np.ndarray, k: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
         # returns C [n_groups] and the column force F [n_classes]
-        """Linearised column equations: the common force F >= 0 and the course lengths C_g = a_g + F / k_g."""
-        cnt, C0 = self.cnt, self.C0
+        """Linearised column equations: the common total force F >= 0 and the course lengths
+        C_g = a_g + F / (p_g k_g)."""
+        cnt, C0, p = self.cnt, self.C0, self.p
         num = u - self._colsum(cnt * (a - C0))
-        den = self._colsum(cnt / k)
+        den = self._colsum(cnt / (p * k))
         F = np.maximum(num / den, 0.0)
         Fg = F[self.col]
-        C = a + Fg / k
+        C = a + Fg / (p * k)
         # a column at zero force: drive each cell a little past its zero-force point, so that the
         # cell solver locates its slack event there (and keeps its slack length)
         C = np.where(Fg == 0.0, a - 1e-6 * C0, C)

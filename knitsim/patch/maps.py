@@ -185,7 +185,10 @@ def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0
         if not low < high:
             raise _err(f"{path}.low", low, f"must be < {path}.high = {high!r}")
         s = spec.get("seed", seed)
-        k = PARAM_NAMES.index(name) if name in PARAM_NAMES else 0
+        from ..cell.effects import PARAM_COLUMNS
+        # one stream per parameter: the cell parameters, then the effect parameters
+        k = (PARAM_NAMES.index(name) if name in PARAM_NAMES
+             else len(PARAM_NAMES) + PARAM_COLUMNS.index(name) if name in PARAM_COLUMNS else 0)
         rng = np.random.default_rng([int(s), k])
         out[:] = rng.uniform(low, high, size=shape)
         scale = spec.get("scale", "absolute")

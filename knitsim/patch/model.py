@@ -7,12 +7,22 @@ force cap) and the model extensions (an :class:`~knitsim.cell.effects.EffectSet`
 per cell): a preform mixes yarns, so a patch mixes Coulomb and Dahl regions,
 rule sets and effects by material.
 
+A cell of the array may stand for a block of identical stitches (a
+specimen described by its width and gauge length, :mod:`knitsim.scene.patch_scene`):
+``course_count[i, j]`` stitches in series along the wale and ``wale_count[i, j]``
+wales in parallel (1 and 1 by default: every cell one stitch).  A column is then
+a strip of the specimen: the cells along it carry the same *total* force
+``F_j = wale_count x force per wale`` (equilibrium of a cut across the strip), and
+their changes in course length, each times its course count, add up to the grip
+displacement.  ``gauge_length`` (the distance between the grips) makes every
+column's rest length that length and the grip strain the displacement over it.
+
 Identical cells are solved once (:meth:`PatchModel.grouping`): cells with the
-same parameters in the same column start from the same state and, in series,
-carry the same force, so they stay identical; columns made of the same
-multiset of cells (and so of the same rest length) carry the same grip
-displacement and stay identical too.  A uniform patch thus collapses to one
-cell.
+same parameters (and wale count) in the same column start from the same state
+and, in series, carry the same force, so they stay identical; columns made of
+the same multiset of cells (with the same course counts, so of the same rest
+length) carry the same grip displacement and stay identical too.  A uniform
+patch thus collapses to one cell.
 """
 from __future__ import annotations
 
@@ -54,10 +64,22 @@ class Grouping:
         Column class of each group.
     group_count : ndarray of int, shape [n_groups]
         Cells of the group in one column of its class (multiplicity in series).
+    group_count : ndarray of float, shape [n_groups]
+        Stitches of the group in series in one column of its class (sum of the course
+        counts of its cells; whole numbers for a patch of single stitches).
     column_class : ndarray of int, shape [wales]
         Column class of each wale column.
     class_rest_length : ndarray, shape [n_classes]
-        Rest length of a column of the class, sum of C0 along it [mm].
+        Rest length of a column of the class, sum of course count x C0 along it [mm].
+    group_wales : ndarray of float, shape [n_groups]
+        Wales in parallel of each cell of the group (1 for single stitches): the column's
+        total force is ``group_wales x`` the group's force per wale.
+    class_wales : ndarray of float, shape [n_classes]
+        Mean number of wales of a column of the class along its rest length (its force per
+        wale is its total force over this; 1 for single stitches).
+    reference_length : float
+        Grip strain = grip displacement / this [mm]: the gauge length of a specimen, else the
+        columns' common rest length (their mean when they differ).
     """
 
     group_of_cell: np.ndarray
@@ -66,6 +88,20 @@ class Grouping:
     group_count: np.ndarray
     column_class: np.ndarray
     class_rest_length: np.ndarray
+    group_wales: np.ndarray | None = None
+    class_wales: np.ndarray | None = None
+    reference_length: float | None = None
+
+    def __post_init__(self):
+        if self.group_wales is None:
+            object.__setattr__(self, "group_wales", np.ones(len(self.params)))
+        if self.class_wales is None:
+            object.__setattr__(self, "class_wales", np.ones(len(self.class_rest_length)))
+        if self.reference_length is None:
+            per_wale = self.class_rest_length[self.column_class]
+            ref = float(per_wale[0]) if np.all(per_wale == per_wale[0]) else float(per_wale.mean())
+            object.__setattr__(self, "reference_length", ref)
+
 
     @property
     def n_groups(self) -> int:
@@ -90,6 +126,14 @@ class PatchModel:
         :data:`RULE_NAMES` of every cell (a single value is broadcast to every cell).
     effects : ndarray of EffectSet, shape [courses, wales], optional
         The model extensions of every cell (none by default).
+    course_count, wale_count : ndarray, shape [courses, wales], optional
+        Stitches in series along the wale and wales in parallel that each cell stands for
+        (module docstring); 1 by default.  Positive, finite; not necessarily whole numbers
+        (a specimen's band holds band length / C0 courses).
+    gauge_length : float, optional
+        Distance between the grips [mm]: every column's rest length (sum of course count x C0)
+        must equal it, and the grip strain is the displacement over it.  Absent: the columns'
+        common rest length, or their mean when they differ (each mounted at its own).
     """
 
     courses: int
@@ -97,9 +141,30 @@ class PatchModel:
     fields: dict
     rules: dict = field(default_factory=dict)
     effects: np.ndarray | None = None
+    course_count: np.ndarray | None = None
+    wale_count: np.ndarray | None = None
+    gauge_length: float | None = None
 
     def __post_init__(self):
         shape = (self.courses, self.wales)
+        for name in ("course_count", "wale_count"):
+            v = getattr(self, name)
+            a = np.ones(shape) if v is None else np.array(np.broadcast_to(np.asarray(v, dtype=np.float64), shape))
+            if not np.all(np.isfinite(a) & (a > 0)):
+                raise KnitsimInputError(f"{name}: every cell must stand for a positive, finite number of stitches")
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        if self.gauge_length is not None:
+            g = float(self.gauge_length)
+            if not (np.isfinite(g) and g > 0):
+                raise KnitsimInputError(f"gauge_length = {self.gauge_length!r}: must be > 0 mm")
+            rest = self.column_rest_length()
+            bad = np.nonzero(np.abs(rest - g) > 1e-9 * g)[0]
+            if len(bad):
+                j = int(bad[0])
+                raise KnitsimInputError(f"column {j}: rest length {rest[j]:.9g} mm (sum of course count x C0) is not "
+                                        f"the gauge length {g:.9g} mm")
+            object.__setattr__(self, "gauge_length", g)
         rules = {}
         for r in RULE_NAMES:
             v = self.rules.get(r, getattr(_DEFAULT, r))
@@ -151,6 +216,15 @@ class PatchModel:
     def cell_count(self) -> int:
         return self.courses * self.wales
 
+    @classmethod
+    def specimen(cls, params: CellParams, width: float, gauge_length: float) -> "PatchModel":
+        """A uniform specimen ``width`` x ``gauge_length`` [mm] of one knit: one cell standing for
+        ``gauge_length / C0`` courses of ``width / W0`` wales."""
+        params = params.validated()
+        base = cls.uniform(params, 1, 1)
+        return cls(1, 1, base.fields, base.rules, base.effects, course_count=np.array([[gauge_length / params.C0]]),
+                   wale_count=np.array([[width / params.W0]]), gauge_length=gauge_length)
+
     def cell(self, i: int, j: int) -> CellParams:
         """Parameters of cell ``[course i, wale j]`` (validated)."""
         vals = {n: float(self.fields[n][i, j]) for n in PARAM_NAMES}
@@ -168,23 +242,41 @@ class PatchModel:
             out[idx] = keys.setdefault(k, len(keys))
         return out
 
+    @property
+    def unit_counts(self) -> bool:
+        """Every cell a single stitch (the classic ``courses x wales`` patch)."""
+        return bool(np.all(self.course_count == 1.0) and np.all(self.wale_count == 1.0))
+
     def column_rest_length(self) -> np.ndarray:
-        """Rest length of each wale column, sum of C0 along it [mm], shape [wales]."""
-        return self.fields["C0"].sum(axis=0)
+        """Rest length of each wale column, sum of course count x C0 along it [mm], shape [wales]."""
+        if np.all(self.course_count == 1.0):
+            return self.fields["C0"].sum(axis=0)
+        return (self.course_count * self.fields["C0"]).sum(axis=0)
+
+    def column_wales(self) -> np.ndarray:
+        """Mean wale count of each column along its rest length, shape [wales] (1 for single stitches)."""
+        if np.all(self.wale_count == 1.0):
+            return np.ones(self.wales)
+        length = self.course_count * self.fields["C0"]
+        return (length * self.wale_count).sum(axis=0) / length.sum(axis=0)
 
     def grouping(self, dedup: bool = True) -> Grouping:
         """Group identical cells (see the module docstring); ``dedup=False``: one group per cell."""
         courses, wales = self.shape
-        # (an absent in-plane width, NaN, groups as one value)
+        # (an absent in-plane width, NaN, groups as one value); the wale count is part of a cell's identity
         stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES]
-                         + [self.material_codes().astype(float)], axis=-1)
+                         + [self.material_codes().astype(float), self.wale_count], axis=-1)
+        counts = self.course_count
         if dedup:
             flat = stack.reshape(-1, stack.shape[-1])
             _, mat_id = np.unique(flat, axis=0, return_inverse=True)
             mat_id = mat_id.reshape(courses, wales)
-            # a column class is the multiset of its materials (order along the column is irrelevant in series)
-            col_keys = [tuple(np.unique(mat_id[:, j], return_counts=True)[0].tolist())
-                        + tuple(np.unique(mat_id[:, j], return_counts=True)[1].tolist()) for j in range(wales)]
+            # a column class is the multiset of its materials, with their stitch counts (order along the
+            # column is irrelevant in series)
+            col_keys = []
+            for j in range(wales):
+                ids = np.unique(mat_id[:, j])
+                col_keys.append(tuple(ids.tolist()) + tuple(float(counts[mat_id[:, j] == g, j].sum()) for g in ids))
             classes: dict = {}
             column_class = np.array([classes.setdefault(k, len(classes)) for k in col_keys], dtype=np.int64)
             groups: dict = {}
@@ -199,20 +291,28 @@ class PatchModel:
             for (c, _), g in groups.items():
                 group_column[g] = c
             first_col = {int(c): int(np.argmax(column_class == c)) for c in range(len(classes))}
-            group_count = np.zeros(n_groups, np.int64)
+            group_count = np.zeros(n_groups, np.float64)
             for g in range(n_groups):
                 j = first_col[int(group_column[g])]
                 cells = np.nonzero(group_of_cell[:, j] == g)[0]
-                group_count[g] = len(cells)
+                group_count[g] = float(counts[cells, j].sum()) if not np.all(counts == 1.0) else float(len(cells))
                 rep[g] = (cells[0], j)
         else:
             column_class = np.arange(wales, dtype=np.int64)
             group_of_cell = np.arange(courses * wales, dtype=np.int64).reshape(courses, wales)
             group_column = np.tile(np.arange(wales), courses).astype(np.int64)
-            group_count = np.ones(courses * wales, np.int64)
+            group_count = counts.ravel().astype(np.float64)
             rep = np.stack(np.unravel_index(np.arange(courses * wales), (courses, wales)), axis=1)
         params = [self.cell(int(i), int(j)) for i, j in rep]
-        rest = np.zeros(int(column_class.max()) + 1)
+        n_cls = int(column_class.max()) + 1
+        rest = np.zeros(n_cls)
         for g, p in enumerate(params):
             rest[group_column[g]] += group_count[g] * p.C0
-        return Grouping(group_of_cell, params, group_column, group_count, column_class, rest)
+        group_wales = np.array([float(self.wale_count[i, j]) for i, j in rep])
+        first = np.array([int(np.argmax(column_class == c)) for c in range(n_cls)])
+        class_wales = self.column_wales()[first]
+        ref = self.gauge_length
+        if ref is not None:
+            rest[:] = ref          # (equal to it within 1e-9, checked; exactly it for the grip strain)
+        return Grouping(group_of_cell, params, group_column, group_count, column_class, rest, group_wales,
+                        class_wales, ref)

@@ -52,9 +52,11 @@ class PatchHistory:
     grip_strain, cycle, direction : ndarray, shape [n]
         Imposed grip strain (grip displacement / column rest length), cycle (from 1), +1/-1.
     force_N, force_per_wale_N : ndarray, shape [n]
-        Grip force, sum of the column forces [N], and that force per wale (mean column force).
+        Grip force, sum of the columns' total forces [N], and that force per wale (mean column force;
+        for cells that stand for blocks of stitches, the grip force over the columns' mean wale counts).
     column_force_N, column_slack_mm : ndarray, shape [n, wales]
-        Force per wale of each column [N]; length left over by the grips in a slack column [mm].
+        Force per wale of each column [N] (a strip's total force over its mean wale count); length left
+        over by the grips in a slack column [mm].
     column_status, column_iterations : ndarray of int, shape [n, wales]
         :data:`~knitsim.patch.coupling.COLUMN_STATUS_NAMES` code; trial steps of the increment.
     group_of_cell : ndarray of int, shape [courses, wales]
@@ -117,6 +119,11 @@ def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
     for n in sorted(model.fields):
         h.update(n.encode())
         h.update(np.ascontiguousarray(model.fields[n]).tobytes())
+    if not model.unit_counts or model.gauge_length is not None:
+        # blocks of stitches (a specimen); a patch of single stitches hashes as it always did
+        h.update(repr(model.gauge_length).encode())
+        h.update(np.ascontiguousarray(model.course_count).tobytes())
+        h.update(np.ascontiguousarray(model.wale_count).tobytes())
     for a in (program.strain, program.cycle, program.direction):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
@@ -178,8 +185,12 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     # the rest state (before any increment, and before a resume restores a later one)
     cnt = grouping.group_count.astype(float)
     n_cls = grouping.n_classes
-    col_rest = (np.bincount(grouping.group_column, weights=cnt * solver.cells["F"], minlength=n_cls)
+    pw = np.asarray(grouping.group_wales, float)
+    # each column's total rest force (its cells' p f, n-weighted), and the wales it holds
+    col_rest = (np.bincount(grouping.group_column, weights=cnt * pw * solver.cells["F"], minlength=n_cls)
                 / np.bincount(grouping.group_column, weights=cnt, minlength=n_cls))[grouping.column_class]
+    col_wales = np.asarray(grouping.class_wales, float)[grouping.column_class]
+    single_stitches = bool(np.all(col_wales == 1.0))
     n = len(program)
     fp = fingerprint(model, program, engine=engine, dedup=bool(dedup), **solver_options)
     ck = Path(checkpoint) if checkpoint is not None else None
@@ -216,10 +227,15 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
         for i in range(start, n):
             r = solver.step(float(program.strain[i]), int(program.direction[i]), i)
             c = r.cells
-            colF = r.column_force[cls]
-            rows["force_N"].append(float(np.sum(colF)))
-            # equal column forces: the force per wale is that force exactly (a sum / wales would round)
-            rows["force_per_wale_N"].append(float(colF[0]) if np.all(colF == colF[0]) else float(np.mean(colF)))
+            colT = r.column_force[cls]                 # total force of each column (strip)
+            rows["force_N"].append(float(np.sum(colT)))
+            if single_stitches:
+                colF = colT
+                # equal column forces: the force per wale is that force exactly (a sum / wales would round)
+                rows["force_per_wale_N"].append(float(colF[0]) if np.all(colF == colF[0]) else float(np.mean(colF)))
+            else:
+                colF = colT / col_wales                # a strip's force per wale (its mean wale count)
+                rows["force_per_wale_N"].append(float(np.sum(colT) / np.sum(col_wales)))
             rows["column_force_N"].append(colF)
             rows["column_status"].append(r.column_status[cls])
             rows["column_iterations"].append(r.iterations[cls])
@@ -256,13 +272,15 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
         groups.update(head_gap_values(arr["g_head_gap"], [p.d_jam for p in grouping.params]))
     C0 = model.fields["C0"]
     info = {"engine": engine, "device": getattr(solver.backend, "device", "cpu"), "dedup": bool(dedup),
+            "wales_represented": float(np.sum(col_wales)),
             "n_groups": grouping.n_groups, "n_column_classes": grouping.n_classes,
             "ref_length_mm": solver.ref_length, "resumed_from": start,
             "trial_steps": int(arr["column_iterations"].max(axis=1).sum()) if n else 0}
     return PatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
                         arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
                         arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info,
-                        np.array([p.d_jam for p in grouping.params]), float(np.sum(col_rest)), float(np.mean(col_rest)))
+                        np.array([p.d_jam for p in grouping.params]), float(np.sum(col_rest)),
+                        float(np.mean(col_rest)) if single_stitches else float(np.sum(col_rest) / np.sum(col_wales)))
 
 
 def all_ok(history: PatchHistory) -> bool:

@@ -5,6 +5,8 @@ A cell scene is a TOML file (see ``scenes/paper/``)::
     title = "E-glass plain knit, monotonic"
     engine = "warp"              # or "reference" (NumPy, one cell at a time)
     device = "cpu"               # cpu, cuda, cuda:N, auto
+    materials = "lib.toml"       # optional: a material library file (knitsim.material_library),
+                                 # whose yarns and knits the material keys may name
 
     [yarn]                       # library yarn, explicit keys override it
     material = "e_glass"         # d = 0.58 mm, B = 0.31 N mm^2 (Table 1)
@@ -157,9 +159,31 @@ def _cell_table(defaults: bool) -> Table:
     })
 
 
+def _materials_field() -> Field:
+    return Field(("str",), OPTIONAL, "material library file (knitsim calibrate writes one), relative to the scene; "
+                 "its yarns and knits can be named by yarn.material / knit.material")
+
+
+def library_of(data: dict, base_dir: Path):
+    """The material library a scene names (``materials = FILE``), or None."""
+    from ..material_library import load_library
+    path = data.get("materials")
+    if path is None:
+        return None
+    if not isinstance(path, str):
+        raise error("materials", path, "expected the path of a material library file (a string)")
+    f = Path(path)
+    if not f.is_absolute():
+        f = base_dir / f
+    if not f.is_file():
+        raise error("materials", path, f"no such material library file ({f})")
+    return load_library(f)
+
+
 #: the schema of a cell scene file
 CELL_SCENE = Table({
     "title": Field(("str",), OPTIONAL, "free text"),
+    "materials": _materials_field(),
     "engine": Field(("str",), "warp", "warp (batched kernels) or reference (NumPy)", choices=ENGINES),
     "device": Field(("str",), "cpu", "Warp device", check=_device_check),
     "yarn": _yarn_table(),
@@ -464,9 +488,9 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
         has been solved or written.
     """
     if isinstance(source, dict):
-        data, name = copy.deepcopy(source), "<dict>"
+        data, name, base_dir = copy.deepcopy(source), "<dict>", Path(".")
     else:
-        data, name = load_toml(source), str(source)
+        data, name, base_dir = load_toml(source), str(source), Path(source).resolve().parent
     for a in overrides:
         set_value(data, CELL_SCENE, a)
     if engine is not None:
@@ -475,6 +499,8 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
         data["device"] = device
     # the base tables are merged with each cell's override before defaults are filled
     base = validate(CELL_SCENE, {k: v for k, v in data.items() if k != "cells"}, fill_defaults=True)
+    from ..material_library import expand
+    lib = library_of(data, base_dir)
     raw_base = {t: validate(CELL_SCENE.fields[t], data.get(t, {}), t, fill_defaults=False) for t in _CELL_TABLES}
     cells_in = data.get("cells")
     if cells_in is not None:
@@ -485,8 +511,8 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
     resolved_cells, params, labels, notes = [], [], [], []
     for i, over in enumerate(cells_over):
         index = None if over is None else i
-        merged = _merge(raw_base, over or {})
         where = "" if index is None else f"cells[{i}]"
+        merged = expand(_merge(raw_base, over or {}), lib, where)
         merged = validate(cell_defaults, merged, where, fill_defaults=True)
         org = _Origins(index, over or {})
         tables, note = _resolve_cell(merged, org)

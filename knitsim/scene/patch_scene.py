@@ -47,6 +47,40 @@ Example (``scenes/two_zone_basalt_e_glass.toml``)::
     plot = true
     checkpoint_every = 50
 
+**A specimen as a tester describes it** (instead of ``[patch]``)::
+
+    materials = "materials.toml"    # a material library (knitsim calibrate writes one)
+
+    [specimen]
+    width = 50.0                    # [mm] across the wales
+    gauge_length = 100.0            # [mm] between the grips
+    strips = 2                      # columns across the width (equal widths)
+    bands = 1                       # rows along the gauge length (equal lengths)
+
+    [knit]
+    material = "jersey_4p5"         # its yarn comes with it
+    [[zones]]                       # zones index bands (courses) and strips (wales)
+    wales = [1, 2]
+    knit = { material = "jersey_6p5" }
+
+    [[grades]]                      # a blend of two knits of one yarn, graded along an axis
+    from = "jersey_4p5"             # at the first band (strip)
+    to = "jersey_6p5"               # at the last
+    axis = "courses"                # "courses": along the wale (bands); "wales": across (strips)
+    profile = "linear"              # or "step" (with steps)
+
+Each element of the ``bands x strips`` grid is a block of identical
+stitches: ``band length / C0`` courses in series and ``strip width / W0``
+wales in parallel (so a strip of shorter loops has more courses between the
+same grips, and a band of narrower loops more wales across the same width);
+every strip's rest length is the gauge length, and the grip strain is the
+grip displacement over it, the same for every strip (:mod:`knitsim.patch.model`).
+A blend at fraction t (the element's centre, (k + 1/2)/n along the axis, or
+its step) is the knit of the same yarn whose L, W0, C0 and phi0 are
+``(1 - t) a + t b``: a graded knit is a blend of knits, its yarn (B, d, the
+in-plane width, friction, rules, effects) the one yarn of both.  Order:
+base, grades, zones, maps.
+
 Everything is validated before any solve: unknown keys, types, missing
 fields, ranges, zone and map index ranges, map shapes (files), and every
 cell's parameters (W0 >= 4 d, L long enough to close a loop, |phi0| <=
@@ -68,8 +102,8 @@ from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
 from .cell_scene import (ENGINES, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
-                         _knit_table, _load_table, _merge, _Origins, _program, _resolve_cell, _rules_table,
-                         _yarn_table)
+                         _knit_table, _load_table, _materials_field, _merge, _Origins, _program, _resolve_cell,
+                         _rules_table, _yarn_table, library_of)
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
 
 
@@ -97,20 +131,49 @@ def _map_table(name: str) -> Table:
     }, f"per-cell map of {name}")
 
 
+#: the effect each effect parameter belongs to (knitsim.cell.effects): maps of these set it per cell
+_EFFECT_OF = {"coil_mu_k": "coiling_angle_friction", "load_n": "normal_load_friction",
+              "load_ref_N": "normal_load_friction", "rate_p": "velocity_friction", "rate_ref_mm_s": "velocity_friction",
+              "compaction_k": "yarn_compaction", "compaction_min": "yarn_compaction", "bend_h": "bending_hysteresis",
+              "bend_sigma": "bending_hysteresis", "ext_c": "yarn_extension"}
+
 _UNITS = {"d": "mm", "B": "N mm^2", "m": "-", "dahl_sigma": "1/mm", "L": "mm", "W0": "mm", "C0": "mm", "phi0": "rad",
           "in_plane_width": "mm"}
 
 #: the schema of a patch scene file
 PATCH_SCENE = Table({
     "title": Field(("str",), OPTIONAL, "free text"),
+    "materials": _materials_field(),
     "engine": Field(("str",), "warp", "warp (batched kernels) or reference (NumPy)", choices=ENGINES),
     "device": Field(("str",), "cpu", "Warp device", check=_device_check),
     "seed": Field(("int",), 0, "default seed of random maps", min=0),
     "patch": Table({
-        "wales": Field(("int",), REQUIRED, "wale columns (in parallel)", min=1, max=100_000),
-        "courses": Field(("int",), REQUIRED, "cells along a column (in series)", min=1, max=100_000),
+        "wales": Field(("int",), OPTIONAL, "wale columns (in parallel); required without [specimen]",
+                       min=1, max=100_000),
+        "courses": Field(("int",), OPTIONAL, "cells along a column (in series); required without [specimen]",
+                         min=1, max=100_000),
         "dedup": Field(("bool",), True, "solve identical cells once (exact)"),
-    }, "patch size", required=True),
+    }, "patch size (a patch of single stitches), or only dedup with [specimen]"),
+    "specimen": Table({
+        "width": Field(("float",), OPTIONAL, "specimen width across the wales (required)", "mm", min=0.0,
+                       min_inclusive=False),
+        "gauge_length": Field(("float",), OPTIONAL, "distance between the grips (required)", "mm", min=0.0,
+                              min_inclusive=False),
+        "strips": Field(("int",), 1, "columns across the width, of equal widths (each width/strips / W0 wales)",
+                        min=1, max=10_000),
+        "bands": Field(("int",), 1, "rows along the gauge length, of equal lengths (each length/bands / C0 courses)",
+                       min=1, max=10_000),
+    }, "a specimen between grips: the grid is bands x strips blocks of stitches"),
+    "grades": TableArray(Table({
+        "label": Field(("str",), OPTIONAL, "name of the grade"),
+        "from": Field(("str",), REQUIRED, "knit at the start of the axis (library or built-in knit)"),
+        "to": Field(("str",), REQUIRED, "knit at the end of the axis (the same yarn)"),
+        "axis": Field(("str",), REQUIRED, "courses (along the wale) or wales (across)", choices=AXES),
+        "profile": Field(("str",), "linear", "linear or step", choices=PROFILES),
+        "steps": Field(("int",), OPTIONAL, "step profile: number of bands", min=2),
+        "courses": Field(("float_list",), OPTIONAL, "[start, stop) of courses, 0-based (default: all)"),
+        "wales": Field(("float_list",), OPTIONAL, "[start, stop) of wales, 0-based (default: all)"),
+    }), "blends of two knits of one yarn graded along an axis (applied after the base, before the zones)"),
     "yarn": _yarn_table(),
     "knit": _knit_table(),
     "friction": _friction_table(True),
@@ -124,7 +187,9 @@ PATCH_SCENE = Table({
         "rules": _rules_table(False), "effects": _effects_table(),
     }), "rectangular material zones over the base cell (each its friction model, rules and effects), later "
         "ones on top"),
-    "maps": Table({n: Table(_map_table(n).fields, f"per-cell map of {n} [{_UNITS[n]}]") for n in PARAM_NAMES},
+    "maps": Table({**{n: Table(_map_table(n).fields, f"per-cell map of {n} [{_UNITS[n]}]") for n in PARAM_NAMES},
+                   **{n: Table(_map_table(n).fields, f"per-cell map of the effect parameter {n} (cells whose effect "
+                                                     f"{_EFFECT_OF[n]} is on)") for n in _EFFECT_OF}},
                   "per-cell maps, applied after the zones"),
     "load": Table(dict(_load_table().fields), "grip strain program (grip displacement / column rest length)",
                   required=True),
@@ -152,6 +217,17 @@ class _ZoneOrigins(_Origins):
 
     def where(self) -> str:
         return f" (in zones[{self.index}])"
+
+
+class _GradeOrigins(_Origins):
+    def __init__(self, index: int):
+        super().__init__(index, {})
+
+    def path(self, table: str, key: str) -> str:
+        return f"grades[{self.index}]"
+
+    def where(self) -> str:
+        return f" (in grades[{self.index}])"
 
 
 @dataclass
@@ -250,6 +326,29 @@ def _check_cells(fields: dict, origins: dict, friction) -> None:
                                        f"rad (m = {fields['m'][i, j]:.4g} from {origins['m'][i, j]})")
 
 
+def _knit_of(name: str, lib, key: str) -> tuple:
+    """(L, W0, C0, phi0 or None, yarn name, from the library?) of a library or built-in knit."""
+    from .. import materials
+    if lib is not None and name in lib.knits:
+        k = lib.knits[name]
+        return k.L, k.W0, k.C0, k.phi0, k.yarn, True
+    if name in materials.knit_names():
+        k = materials.knit(name, key)
+        return k.L, k.W0, k.C0, None, k.yarn, False
+    known = sorted(set(materials.knit_names()) | (set(lib.knits) if lib is not None else set()))
+    raise error(key, name, f"unknown knit (known: {', '.join(known)})")
+
+
+def _blend_fractions(n: int, profile: str, steps: int) -> np.ndarray:
+    """Blend fraction of each of ``n`` elements along a grade: the element's centre (k + 1/2)/n (linear),
+    or its band of ``steps`` equal bands, valued b/(steps - 1) (step)."""
+    k = np.arange(n, dtype=np.float64)
+    if profile == "linear":
+        return (k + 0.5) / n
+    band = np.minimum((k * steps // n).astype(np.int64), steps - 1)
+    return band / (steps - 1)
+
+
 def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engine: str | None = None,
                      device: str | None = None) -> PatchScene:
     """Read, override (``--set``), validate and resolve a patch scene; nothing is solved.
@@ -259,6 +358,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     KnitsimInputError
         The first problem, naming the key path and the value.
     """
+    from ..material_library import expand
     if isinstance(source, dict):
         data, name, base_dir = copy.deepcopy(source), "<dict>", Path(".")
     else:
@@ -270,14 +370,33 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     if device is not None:
         data["device"] = device
     doc = validate(PATCH_SCENE, data, fill_defaults=True)
-    courses, wales = doc["patch"]["courses"], doc["patch"]["wales"]
+    lib = library_of(data, base_dir)
+    specimen = "specimen" in data
+    if specimen:
+        sp = doc["specimen"]
+        for key in ("width", "gauge_length"):
+            if key not in sp:
+                raise KnitsimInputError(f"specimen.{key}: missing (a specimen states its width and the gauge length "
+                                        "between the grips, in mm)")
+        for key in ("wales", "courses"):
+            if key in data.get("patch", {}):
+                raise error(f"patch.{key}", data["patch"][key], "give either [patch] wales and courses (a patch of "
+                            "single stitches) or [specimen] (width, gauge length: the counts follow from W0 and C0), "
+                            "not both")
+        courses, wales = sp["bands"], sp["strips"]
+    else:
+        for key in ("wales", "courses"):
+            if key not in doc["patch"]:
+                raise KnitsimInputError(f"patch.{key}: missing required key (or describe a [specimen] by its width "
+                                        "and gauge length)")
+        courses, wales = doc["patch"]["courses"], doc["patch"]["wales"]
     shape = (courses, wales)
     if courses * wales > 50_000_000:
         raise error("patch.wales", wales, f"{courses} x {wales} cells is more than 50 million")
 
     # base cell (the yarn / knit / friction / rules tables, as a cell scene)
     raw_base = {t: validate(PATCH_SCENE.fields[t], data.get(t, {}), t, fill_defaults=False) for t in _CELL_TABLES}
-    merged = validate(_cell_table(True), _merge(raw_base, {}), "", fill_defaults=True)
+    merged = validate(_cell_table(True), expand(_merge(raw_base, {}), lib), "", fill_defaults=True)
     base_tables, _ = _resolve_cell(merged, _Origins(None, {}))
     rules = dict(base_tables["rules"])
     rules["friction"] = base_tables["friction"]["model"]
@@ -293,17 +412,13 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                    "in_plane_width": "yarn.in_plane_width"}
     origins = {n: np.full(shape, _BASE_PATHS[n], dtype=object) for n in PARAM_NAMES}
 
-    # zones: the base tables overridden per rectangle (library materials resolved as for a cell)
-    zones_out = []
-    for z, zone in enumerate(doc.get("zones", [])):
-        zone_tables = ("yarn", "knit", "friction", "rules", "effects")
-        raw_over = {t: validate(PATCH_SCENE.fields["zones"].item.fields[t], data["zones"][z].get(t, {}),
-                                f"zones[{z}].{t}", fill_defaults=False) for t in zone_tables}
-        zm = validate(_cell_table(True), _merge(raw_base, raw_over), f"zones[{z}]", fill_defaults=True)
-        org = _ZoneOrigins(z, raw_over)
-        ztables, _ = _resolve_cell(zm, org)
-        ci = index_range(zone.get("courses", [0, courses]), courses, f"zones[{z}].courses", "courses")
-        wi = index_range(zone.get("wales", [0, wales]), wales, f"zones[{z}].wales", "wales")
+    def zone_tables(raw_over: dict, where: str, org) -> dict:
+        merged = _merge(raw_base, raw_over)
+        zm = validate(_cell_table(True), expand(merged, lib, where), where, fill_defaults=True)
+        return _resolve_cell(zm, org)[0]
+
+    def put(ztables: dict, ci, wi, origin_of) -> dict:
+        """Set the cells [ci, wi] from resolved tables; returns the zone as the resolved scene spells it."""
         zrules = dict(ztables["rules"], friction=ztables["friction"]["model"])
         for r in RULE_NAMES:
             rule_arr[r][ci, wi] = zrules[r]
@@ -312,27 +427,87 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         vals = _cell_values(ztables)
         for n in PARAM_NAMES:
             fields[n][ci, wi] = vals[n]
-            tbl = {"d": "yarn", "B": "yarn", "in_plane_width": "yarn", "L": "knit", "W0": "knit",
-                   "C0": "knit"}.get(n, "friction")
-            key = n
-            origins[n][ci, wi] = (f"zones[{z}].{tbl}.{key}" if (key in raw_over.get(tbl, {}) or
-                                                               "material" in raw_over.get(tbl, {}) or
-                                                               (n == "m" and raw_over.get("friction")))
-                                  else origins[n][ci, wi])
-        zres = {k: zone[k] for k in ("label",) if k in zone}
-        zres.update(courses=[ci.start, ci.stop], wales=[wi.start, wi.stop],
-                    yarn=ztables["yarn"], knit=ztables["knit"],
-                    friction={"model": ztables["friction"]["model"], "m": ztables["friction"]["m"],
-                              "phi0": ztables["friction"]["phi0"], "dahl_sigma": ztables["friction"]["dahl_sigma"]},
-                    rules=dict(ztables["rules"]))
+            o = origin_of(n)
+            if o is not None:
+                origins[n][ci, wi] = o
+        zres = {"courses": [ci.start, ci.stop], "wales": [wi.start, wi.stop],
+                "yarn": ztables["yarn"], "knit": ztables["knit"],
+                "friction": {"model": ztables["friction"]["model"], "m": ztables["friction"]["m"],
+                             "phi0": ztables["friction"]["phi0"], "dahl_sigma": ztables["friction"]["dahl_sigma"]},
+                "rules": dict(ztables["rules"])}
         if "effects" in ztables:
             zres["effects"] = ztables["effects"]
+        return zres
+
+    zones_out = []
+    # grades: blends of two knits of one yarn along an axis (each element a zone of the resolved scene)
+    for g, grade in enumerate(doc.get("grades", [])):
+        gp = f"grades[{g}]"
+        La, Wa, Ca, pa, ya, _ = _knit_of(grade["from"], lib, f"{gp}.from")
+        Lb, Wb, Cb, pb, yb, _ = _knit_of(grade["to"], lib, f"{gp}.to")
+        if ya != yb:
+            raise error(f"{gp}.to", grade["to"], f"a grade blends knits of one yarn: {grade['from']!r} is of yarn "
+                        f"{ya!r}, {grade['to']!r} of yarn {yb!r}")
+        if (pa is None) != (pb is None):
+            raise error(f"{gp}.to", grade["to"], "both knits of a grade must state phi0, or neither")
+        ci = index_range(grade.get("courses", [0, courses]), courses, f"{gp}.courses", "courses")
+        wi = index_range(grade.get("wales", [0, wales]), wales, f"{gp}.wales", "wales")
+        along = ci if grade["axis"] == "courses" else wi
+        n = along.stop - along.start
+        steps = grade.get("steps", 2)
+        if grade["profile"] == "step" and not (2 <= steps <= n):
+            raise error(f"{gp}.steps", steps, f"a step grade needs 2 <= steps <= {n} (the {grade['axis']} it spans)")
+        if grade["profile"] == "linear" and "steps" in grade:
+            raise error(f"{gp}.steps", steps, "not used by a linear grade")
+        t_all = _blend_fractions(n, grade["profile"], steps)
+        for k, t in enumerate(t_all):
+            # the blend: the knit geometry (and phi0) between the two, the one yarn of both; the scene's
+            # own keys win as for any library material
+            knit = {key: v for key, v in raw_base["knit"].items() if key != "material"}
+            knit.update(L=(1 - t) * La + t * Lb, W0=(1 - t) * Wa + t * Wb, C0=(1 - t) * Ca + t * Cb)
+            friction = dict(raw_base["friction"])
+            if pa is not None and "phi0" not in friction and "phi0_deg" not in friction:
+                friction["phi0"] = (1 - t) * pa + t * pb
+            yarn = dict(raw_base["yarn"])
+            if not any(key in yarn for key in ("material", "d", "B")):
+                yarn = {"material": ya}
+            where = f"{gp} (fraction {t:.4g})"
+            merged = {"yarn": yarn, "knit": knit, "friction": friction, "rules": dict(raw_base["rules"]),
+                      "effects": dict(raw_base["effects"])}
+            zm = validate(_cell_table(True), expand(merged, lib, where), where, fill_defaults=True)
+            gt, _ = _resolve_cell(zm, _GradeOrigins(g))
+            sl = slice(along.start + k, along.start + k + 1)
+            eci, ewi = (sl, wi) if grade["axis"] == "courses" else (ci, sl)
+            zres = put(gt, eci, ewi, lambda n_: gp)
+            zres["label"] = f"{grade.get('label', gp)}: {1 - t:.4g} {grade['from']} + {t:.4g} {grade['to']}"
+            zones_out.append(zres)
+
+    # zones: the base tables overridden per rectangle (library materials resolved as for a cell)
+    for z, zone in enumerate(doc.get("zones", [])):
+        zone_names = ("yarn", "knit", "friction", "rules", "effects")
+        raw_over = {t: validate(PATCH_SCENE.fields["zones"].item.fields[t], data["zones"][z].get(t, {}),
+                                f"zones[{z}].{t}", fill_defaults=False) for t in zone_names}
+        ztables = zone_tables(raw_over, f"zones[{z}]", _ZoneOrigins(z, raw_over))
+        ci = index_range(zone.get("courses", [0, courses]), courses, f"zones[{z}].courses", "courses")
+        wi = index_range(zone.get("wales", [0, wales]), wales, f"zones[{z}].wales", "wales")
+
+        def origin_of(n, raw_over=raw_over, z=z):
+            tbl = {"d": "yarn", "B": "yarn", "in_plane_width": "yarn", "L": "knit", "W0": "knit",
+                   "C0": "knit"}.get(n, "friction")
+            if (n in raw_over.get(tbl, {}) or "material" in raw_over.get(tbl, {})
+                    or (n == "m" and raw_over.get("friction"))
+                    or (tbl == "yarn" and "material" in raw_over.get("knit", {}))):
+                return f"zones[{z}].{tbl}.{n}"
+            return None
+        zres = put(ztables, ci, wi, origin_of)
+        if "label" in zone:
+            zres = {"label": zone["label"], **zres}
         zones_out.append(zres)
 
     # maps, m first (a phi0 map may be scaled by phimax = atan(m))
     maps_in = {k: v for k, v in data.get("maps", {}).items()} if isinstance(data.get("maps"), dict) else {}
     maps_out = {}
-    for n in sorted(maps_in, key=lambda k: (k != "m", PARAM_NAMES.index(k))):
+    for n in sorted((k for k in maps_in if k in PARAM_NAMES), key=lambda k: (k != "m", PARAM_NAMES.index(k))):
         spec = doc["maps"][n]
         spec = {k: v for k, v in spec.items() if not (isinstance(v, dict) and not v)}
         if spec.get("type") == "random":
@@ -343,26 +518,58 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                               phimax=np.arctan(fields["m"]), name=n)
         origins[n][:] = f"maps.{n}"
         maps_out[n] = spec
+    # maps of effect parameters: each cell's EffectSet with the mapped value (where its effect is on)
+    from dataclasses import replace as _replace
+    for n in (k for k in maps_in if k in _EFFECT_OF):
+        spec = {k: v for k, v in doc["maps"][n].items() if not (isinstance(v, dict) and not v)}
+        if "regions" in spec:
+            spec["regions"] = [dict(r) for r in spec["regions"]]
+        on = np.array([[_EFFECT_OF[n] in effects_arr[i, j].on for j in range(wales)] for i in range(courses)])
+        if not on.any():
+            raise error(f"maps.{n}.type", spec.get("type"), f"no cell has the effect {_EFFECT_OF[n]} on "
+                        "(switch it on in [effects] or a zone's effects)")
+        current = np.array([[float(getattr(effects_arr[i, j], n)) for j in range(wales)] for i in range(courses)])
+        values = build_map(spec, shape, current, f"maps.{n}", doc["seed"], base_dir, name=n)
+        for i, j in zip(*np.nonzero(on)):
+            effects_arr[i, j] = _replace(effects_arr[i, j], **{n: float(values[i, j])}).validated(
+                where=f"maps.{n} at cell [course {i}, wale {j}]")
+        maps_out[n] = spec
     _check_cells(fields, origins, rule_arr["friction"])
     if doc["engine"] == "reference" and any(e.on for e in effects_arr.ravel()):
         raise error("engine", doc["engine"], "the model extensions ([effects]) run on the warp engine only")
-    model = PatchModel(courses, wales, fields, rule_arr, effects_arr)
+
+    if specimen:
+        # a tester's specimen: each element holds band length / C0 courses and strip width / W0 wales
+        G, width = sp["gauge_length"], sp["width"]
+        course_count = (G / courses) / fields["C0"]
+        wale_count = (width / wales) / fields["W0"]
+        model = PatchModel(courses, wales, fields, rule_arr, effects_arr, course_count=course_count,
+                           wale_count=wale_count, gauge_length=G)
+        ref = G
+        reach = (course_count * (fields["L"] / 2.0 - fields["C0"])).sum(axis=0)
+        what = "strip"
+    else:
+        model = PatchModel(courses, wales, fields, rule_arr, effects_arr)
+        rest = fields["C0"].sum(axis=0)
+        ref = float(rest[0]) if np.all(rest == rest[0]) else float(rest.mean())
+        reach = (fields["L"] / 2.0 - fields["C0"]).sum(axis=0)   # straight yarn: C < L/2 in every cell
+        what = "column"
 
     # the grip program; every column must be able to take the largest grip displacement (checked on the
     # load table's numbers, before the program is built)
-    rest = fields["C0"].sum(axis=0)
-    ref = float(rest[0]) if np.all(rest == rest[0]) else float(rest.mean())
-    reach = (fields["L"] / 2.0 - fields["C0"]).sum(axis=0)   # straight yarn: C < L/2 in every cell
     j = int(np.argmin(reach))
     program, load_resolved = _program(doc["load"], [], limit_of=(
-        float(reach[j] / ref), f"column {j} can stretch by at most {reach[j]:.4g} mm (C < L/2 in every cell), "
+        float(reach[j] / ref), f"{what} {j} can stretch by at most {reach[j]:.4g} mm (C < L/2 in every cell), "
                                f"i.e. grip strain < {reach[j] / ref:.4g}"))
 
     resolved: dict[str, Any] = {}
     if "title" in doc:
         resolved["title"] = doc["title"]
-    resolved.update(engine=doc["engine"], device=doc["device"], seed=doc["seed"], patch=doc["patch"],
-                    yarn=base_tables["yarn"], knit=base_tables["knit"], friction=base_tables["friction"],
+    patch_res = dict(doc["patch"]) if not specimen else {"dedup": doc["patch"]["dedup"]}
+    resolved.update(engine=doc["engine"], device=doc["device"], seed=doc["seed"], patch=patch_res)
+    if specimen:
+        resolved["specimen"] = dict(sp)
+    resolved.update(yarn=base_tables["yarn"], knit=base_tables["knit"], friction=base_tables["friction"],
                     rules=base_tables["rules"], load=load_resolved, output=doc["output"], solver=doc["solver"])
     if "effects" in base_tables:
         resolved["effects"] = base_tables["effects"]

@@ -1,0 +1,786 @@
+"""Joint calibration: one yarn, several specimens (issue 16).
+
+Specimens knitted from one yarn share everything that is the yarn's: the
+bending stiffness B, the compact diameter d, the in-plane width w (the
+width with which neighbouring loops jam, d for a round yarn), the friction
+ratio m and the parameters of the effects (:mod:`knitsim.cell.effects`).
+What differs from specimen to specimen is the knit: the loop length L and the
+spacings W0, C0, each known within its measurement uncertainty, and the
+friction state the knit was left in, phi0.  :func:`calibrate_joint` fits all of
+them at once by weighted least squares (:func:`scipy.optimize.least_squares`,
+trust region reflective, bounds):
+
+- rows: each specimen's force at its rows, ``(model - measured) / sd``
+  (:mod:`knitsim.calibration.specimen`); the model's total force is its
+  force per wale times width / W0 (the wales across the specimen);
+- priors: each fitted L, W0, C0 adds the row ``ln(value / stated) / u``, u its
+  relative uncertainty (a Gaussian prior in the log: the fit may move the
+  geometry as far as the measurement allows, and pays for it);
+- variables: ln B; d; w as a fraction of its range [max(d, low), min(high,
+  W0/4)) (W0 the narrowest specimen's, 0.999 W0/4: loops jammed at rest
+  otherwise); m; the effects' variables (:data:`knitsim.diagnosis.effects.EFFECT_SPECS`);
+  per specimen phi0 as a fraction of phimax = atan(m) (section 3.3.1), and
+  ln(L, W0, C0 / stated).
+
+Every evaluation is one batched launch (:func:`knitsim.cell.batch.run_batch`)
+of every specimen's cell and its finite-difference neighbours (the shared
+variables and its own), on one program that passes through every row (the
+specimens' rows are one uniform grid).  Starts: the setup's own point and a
+Latin hypercube over the variables (seeded), screened in one launch; the best
+are refined.
+
+Uncertainty: ``cov = s^2 (J^T J)^-1`` with J the Jacobian of the weighted
+rows and priors in the reported variables (B, d, w in mm, m, effect
+variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
+``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits);
+correlations from it.  A variable within 0.1 % of its range of a bound is
+flagged, with what that bound means.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import qmc
+
+from ..cell.batch import run_batch
+from ..cell.history import STATUS_NAMES, STATUS_OK
+from ..cell.load_program import LoadProgram
+from ..cell.material import CellParams
+from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
+from ..diagnosis.measured import MeasuredCurve, program_for_curve
+from ..errors import KnitsimInputError
+from .specimen import GEOMETRY, SpecimenData
+
+#: yarn variables that may be shared (besides the effects' own)
+YARN_VARIABLES = ("B", "d", "in_plane_width", "m")
+#: variables that may be fitted per specimen
+SPECIMEN_VARIABLES = ("phi0",) + GEOMETRY
+#: units of the reported variables
+UNITS = {"B": "N mm^2", "d": "mm", "in_plane_width": "mm", "m": "-", "phi0": "rad", "L": "mm", "W0": "mm",
+         "C0": "mm"}
+#: a variable this close to a bound (share of its range) is flagged
+BOUND_TOL = 1e-3
+#: residual of a row whose cell failed (not ok), times max(1, |target| / sd)
+FAIL_RESIDUAL = 30.0
+
+
+@dataclass(frozen=True)
+class JointSetup:
+    """What a joint calibration fits, and how.
+
+    Attributes
+    ----------
+    base : CellParams
+        The yarn's start values (B, d, in-plane width, m), its friction law, rules and effect
+        parameters held fixed; the knit geometry is each specimen's.
+    shared : tuple of str
+        Yarn variables fitted, shared by every specimen: :data:`YARN_VARIABLES` and the
+        variables of ``effects`` (e.g. ``compaction_k``).
+    per_specimen : tuple of str
+        Variables fitted per specimen: :data:`SPECIMEN_VARIABLES` (a geometry needs an uncertainty
+        > 0 on every specimen).
+    effects : tuple of str
+        Effects switched on (:data:`knitsim.cell.effects.EFFECT_NAMES`).
+    bounds : dict
+        ``name -> (low, high)``: B [N mm^2], d and in_plane_width [mm], m, effect variables;
+        phi0 as a fraction of phimax.  Defaults: B x/ 30, d x/ 2 (below W0/4), w in [d, W0/4),
+        m in [0, 1], the effects' own (EFFECT_SPECS), phi0 in [-1, 1]; L, W0, C0 within 4 sd.
+    fixed : dict
+        Effect parameters held fixed (EffectSet field names).
+    max_increment : float
+        Largest strain increment of the program.
+    starts, refine : int
+        Latin-hypercube starts screened (besides the setup's own), and best ones refined.
+    seed : int
+        Seed of the Latin hypercube.
+    max_nfev : int
+        Least-squares evaluations per refined start.
+    device : str
+        Warp device.
+    phi0_starts : tuple of float or None
+        Per specimen, the start of its phi0 [rad] (None or absent: the base's).
+    """
+
+    base: CellParams
+    shared: tuple
+    per_specimen: tuple = ("phi0",)
+    effects: tuple = ()
+    bounds: dict = field(default_factory=dict)
+    fixed: dict = field(default_factory=dict)
+    max_increment: float = 0.005
+    starts: int = 48
+    refine: int = 3
+    seed: int = 0
+    max_nfev: int = 100
+    device: str = "cpu"
+    phi0_starts: tuple = ()
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One calibrated parameter.
+
+    Attributes
+    ----------
+    name : str
+        ``B``, ``d``, ``in_plane_width``, ``m``, an effect variable, or ``phi0`` / ``L`` / ``W0`` / ``C0``.
+    specimen : str or None
+        The specimen of a per-specimen parameter (None: shared by all).
+    value, std_error : float
+        In ``unit``.
+    unit : str
+    low, high : float
+        The range it was fitted in (same unit; phi0's at the fitted m).
+    at_bound : str or None
+        ``"low"`` / ``"high"`` when within 0.1 % of the range of a bound, ``"not identified"`` when the
+        rows do not depend on it (infinite sd); ``bound_note`` says what it means.
+    bound_note : str
+    stated : float or None
+        A geometry's stated value (L, W0, C0) [mm]; ``deviation_sd`` its distance from it in prior sds.
+    deviation_sd : float or None
+    """
+
+    name: str
+    specimen: str | None
+    value: float
+    std_error: float
+    unit: str
+    low: float
+    high: float
+    at_bound: str | None = None
+    bound_note: str = ""
+    stated: float | None = None
+    deviation_sd: float | None = None
+
+    @property
+    def label(self) -> str:
+        return self.name if self.specimen is None else f"{self.name}[{self.specimen}]"
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "specimen": self.specimen, "value": self.value, "std_error": self.std_error,
+                "unit": self.unit, "low": self.low, "high": self.high, "at_bound": self.at_bound,
+                "bound_note": self.bound_note, "stated": self.stated, "deviation_sd": self.deviation_sd}
+
+
+@dataclass(frozen=True)
+class SpecimenFit:
+    """How the calibrated model fits one specimen.
+
+    Attributes
+    ----------
+    name : str
+    params : CellParams
+        The specimen's cell (the shared yarn with its own knit).
+    wales : float
+        Wales across the specimen (width / W0); 1 when the forces are per wale.
+    strain, target_N, simulated_N, sigma_N : ndarray, shape [n]
+        Rows, measured (target) and simulated force, sd.
+    band_low_N, band_high_N : ndarray or None
+    in_band_fraction : float or None
+        Share of the rows (of the strain range) where the simulation lies inside the band.
+    rms_N, rms_rel : float
+        RMS of simulated - target [N], and relative to the target's RMS.
+    chi2 : float
+        Sum of squared weighted residuals of its rows.
+    status : str
+        Worst cell status over the rows (``ok`` when every row solved).
+    """
+
+    name: str
+    params: CellParams
+    wales: float
+    strain: np.ndarray
+    target_N: np.ndarray
+    simulated_N: np.ndarray
+    sigma_N: np.ndarray
+    band_low_N: np.ndarray | None
+    band_high_N: np.ndarray | None
+    in_band_fraction: float | None
+    rms_N: float
+    rms_rel: float
+    chi2: float
+    status: str
+
+    def as_dict(self, curves: bool = True) -> dict:
+        out = {"name": self.name, "wales": self.wales, "in_band_fraction": self.in_band_fraction,
+               "rms_N": self.rms_N, "rms_rel": self.rms_rel, "chi2": self.chi2, "rows": int(len(self.strain)),
+               "status": self.status, "params": self.params.as_dict()}
+        if curves:
+            out["curve"] = {"strain": self.strain.tolist(), "target_N": self.target_N.tolist(),
+                            "simulated_N": self.simulated_N.tolist(), "sigma_N": self.sigma_N.tolist()}
+            if self.band_low_N is not None:
+                out["curve"].update(band_low_N=self.band_low_N.tolist(), band_high_N=self.band_high_N.tolist())
+        return out
+
+
+@dataclass(frozen=True)
+class JointResult:
+    """A joint calibration.
+
+    Attributes
+    ----------
+    estimates : list of Estimate
+        Shared parameters first, then each specimen's.
+    correlation : ndarray, shape [k, k]
+        Correlations of the estimates (same order).
+    fits : list of SpecimenFit
+    chi2 : float
+        Weighted residual sum of squares, rows and priors.
+    n, k : int
+        Rows (and prior rows) and fitted variables.
+    s2 : float
+        chi2 / (n - k): the factor on the covariance.
+    success : bool
+        The least squares converged and every specimen's cell solved on every row.
+    message : str
+    starts : list of dict
+        Each refined start: its cost before and after, evaluations.
+    nfev : int
+        Least-squares evaluations of the chosen start.
+    wall_s : float
+    setup : JointSetup
+    yarn : CellParams
+        The calibrated yarn on the first specimen's knit (the shared values, effects and rules).
+    """
+
+    estimates: list
+    correlation: np.ndarray
+    fits: list
+    chi2: float
+    n: int
+    k: int
+    s2: float
+    success: bool
+    message: str
+    starts: list
+    nfev: int
+    wall_s: float
+    setup: JointSetup
+    yarn: CellParams
+
+    def estimate(self, name: str, specimen: str | None = None) -> Estimate:
+        for e in self.estimates:
+            if e.name == name and e.specimen == specimen:
+                return e
+        raise KeyError((name, specimen))
+
+    @property
+    def flags(self) -> list[str]:
+        """One line per estimate at a bound or not identified."""
+        return [f"{e.label} = {e.value:.4g} {e.unit} is " + (f"at its {e.at_bound} bound" if e.at_bound in
+                                                             ("low", "high") else "not identified")
+                + f" ({e.bound_note})" for e in self.estimates if e.at_bound]
+
+    def as_dict(self, curves: bool = True) -> dict:
+        return {"estimates": [e.as_dict() for e in self.estimates],
+                "correlation": {"names": [e.label for e in self.estimates], "matrix": self.correlation.tolist()},
+                "specimens": [f.as_dict(curves) for f in self.fits], "chi2": self.chi2, "n": self.n, "k": self.k,
+                "s2": self.s2, "success": self.success, "message": self.message, "flags": self.flags,
+                "starts": self.starts, "nfev": self.nfev, "wall_s": self.wall_s,
+                "effects": list(self.setup.effects), "shared": list(self.setup.shared),
+                "per_specimen": list(self.setup.per_specimen)}
+
+
+# ============================================================== the problem
+@dataclass(frozen=True)
+class _Var:
+    name: str
+    specimen: int | None        # None: shared
+    lo: float
+    hi: float
+
+
+class _Problem:
+    """Variables, transforms and batched evaluation of a joint calibration."""
+
+    def __init__(self, specimens: Sequence[SpecimenData], setup: JointSetup):
+        self.sp = list(specimens)
+        self.setup = setup
+        self.effects = check_effects(setup.effects, where="effects")
+        base = setup.base.validated(where="yarn")
+        self.base = base
+        known_shared = set(YARN_VARIABLES)
+        drop = {r for e in self.effects for r in EFFECT_SPECS[e].replaces}
+        effect_vars = {v.name: v for e in self.effects for v in EFFECT_SPECS[e].variables}
+        known_shared |= set(effect_vars)
+        shared = tuple(setup.shared)
+        for n in shared:
+            if n not in known_shared:
+                raise KnitsimInputError(f"calibration.shared: {n!r} is not a yarn variable (expected one of "
+                                        f"{', '.join(sorted(known_shared))})")
+            if n in drop:
+                raise KnitsimInputError(f"calibration.shared: {n!r} is replaced by an effect "
+                                        f"({', '.join(e for e in self.effects if n in EFFECT_SPECS[e].replaces)})")
+        for n in setup.per_specimen:
+            if n not in SPECIMEN_VARIABLES:
+                raise KnitsimInputError(f"calibration.per_specimen: {n!r} is not a specimen variable (expected one of "
+                                        f"{', '.join(SPECIMEN_VARIABLES)})")
+            if n in GEOMETRY:
+                for s in self.sp:
+                    if not s.uncertainty.get(n, 0.0) > 0:
+                        raise KnitsimInputError(f"specimens.{s.name}.uncertainty.{n}: needed > 0 to fit {n} per "
+                                                "specimen (its relative measurement uncertainty)")
+        if len(set(shared)) != len(shared) or len(set(setup.per_specimen)) != len(setup.per_specimen):
+            raise KnitsimInputError("calibration: a variable is listed twice")
+        if not self.sp:
+            raise KnitsimInputError("specimens: none given")
+        names = [s.name for s in self.sp]
+        if len(set(names)) != len(names):
+            raise KnitsimInputError(f"specimens: two specimens named alike ({names})")
+        steps = {round(float(s.strain[1] - s.strain[0]), 12) for s in self.sp}
+        if len(steps) != 1 or any(not np.allclose(s.strain, s.strain[0] * np.arange(1, len(s.strain) + 1),
+                                                  rtol=1e-9, atol=1e-12) for s in self.sp):
+            raise KnitsimInputError("specimens: the rows must be one uniform strain grid (one row_step)")
+        self.effect_vars = effect_vars
+        self.shared = shared
+        self.own = tuple(setup.per_specimen)
+        user = dict(setup.bounds)
+        for n in user:
+            if n not in known_shared and n not in SPECIMEN_VARIABLES:
+                raise KnitsimInputError(f"calibration.bounds: {n!r} is not a fitted variable")
+        self.user_bounds = user
+        self.vars: list[_Var] = []
+        for n in shared:
+            self.vars.append(_Var(n, None, *self._fit_bounds(n)))
+        for k, s in enumerate(self.sp):
+            for n in self.own:
+                self.vars.append(_Var(n, k, *self._fit_bounds(n, s)))
+        self.k = len(self.vars)
+        if self.k == 0:
+            raise KnitsimInputError("calibration: nothing to fit (shared and per_specimen are empty)")
+        self.n_rows = sum(len(s.strain) for s in self.sp)
+        self.n_prior = sum(1 for v in self.vars if v.name in GEOMETRY)
+        if self.n_rows <= self.k:
+            raise KnitsimInputError(f"specimens: {self.n_rows} rows cannot fit {self.k} variables")
+        # one program through every row: the longest specimen's (the others' rows are its first ones)
+        longest = max(self.sp, key=lambda s: len(s.strain))
+        curve = MeasuredCurve(longest.strain, longest.target_N, np.ones(len(longest.strain), int),
+                              np.ones(len(longest.strain), int), source=longest.name)
+        self.program, rows = program_for_curve(curve, setup.max_increment)
+        self.rows = [rows[:len(s.strain)] for s in self.sp]
+        self.calls = 0
+
+    # ------------------------------------------------------------ bounds
+    def _fit_bounds(self, name: str, s: SpecimenData | None = None) -> tuple[float, float]:
+        b = self.base
+        if name == "B":
+            lo, hi = self.user_bounds.get("B", (b.B / 30.0, b.B * 30.0))
+            if not 0 < lo < hi:
+                raise KnitsimInputError(f"calibration.bounds.B = [{lo}, {hi}]: expected 0 < low < high [N mm^2]")
+            return math.log(lo), math.log(hi)
+        if name == "d":
+            lo, hi = self.user_bounds.get("d", (0.5 * b.d, 2.0 * b.d))
+            if not 0 < lo < hi:
+                raise KnitsimInputError(f"calibration.bounds.d = [{lo}, {hi}]: expected 0 < low < high [mm]")
+            return 0.0, 1.0                     # a fraction of [low, min(high, W0/4))
+        elif name == "in_plane_width":
+            return 0.0, 1.0                     # a fraction of [max(d, low), min(high, W0/4))
+        elif name == "m":
+            lo, hi = self.user_bounds.get("m", BASELINE_VARIABLES["m"].bounds)
+        elif name == "phi0":
+            lo, hi = self.user_bounds.get("phi0", (-1.0, 1.0))
+            if lo < -1 or hi > 1:
+                raise KnitsimInputError(f"calibration.bounds.phi0 = [{lo}, {hi}]: a fraction of phimax in [-1, 1]")
+        elif name in GEOMETRY:
+            u = s.uncertainty[name]
+            lo, hi = self.user_bounds.get(name, (math.exp(-4 * u), math.exp(4 * u)))
+            if not 0 < lo < 1 < hi:
+                raise KnitsimInputError(f"calibration.bounds.{name} = [{lo}, {hi}]: factors on the stated value "
+                                        "around 1 (e.g. [0.85, 1.15])")
+            return math.log(lo), math.log(hi)
+        else:
+            lo, hi = self.user_bounds.get(name, self.effect_vars[name].bounds)
+        if not lo < hi:
+            raise KnitsimInputError(f"calibration.bounds.{name} = [{lo}, {hi}]: expected low < high")
+        return float(lo), float(hi)
+
+    @property
+    def lo(self) -> np.ndarray:
+        return np.array([v.lo for v in self.vars])
+
+    @property
+    def hi(self) -> np.ndarray:
+        return np.array([v.hi for v in self.vars])
+
+    def w_range(self, d: float, W0s: Sequence[float]) -> tuple[float, float]:
+        """Range of the in-plane width: from d (and its low bound) to W0/4 of the narrowest knit."""
+        lo, hi = self.user_bounds.get("in_plane_width", (0.0, math.inf))
+        return max(d, lo), min(hi, 0.999 * min(W0s) / 4.0)
+
+    def d_range(self, W0s: Sequence[float]) -> tuple[float, float]:
+        """Range of d: its bounds, below W0/4 of the narrowest knit (loops jammed at rest otherwise)."""
+        lo, hi = self.user_bounds.get("d", (0.5 * self.base.d, 2.0 * self.base.d))
+        return lo, max(lo, min(hi, 0.999 * min(W0s) / 4.0))
+
+    # ------------------------------------------------------------ transforms
+    def start(self) -> np.ndarray:
+        """The setup's own point in the fit variables."""
+        b = self.base
+        x = []
+        for v in self.vars:
+            if v.name == "B":
+                x.append(math.log(b.B))
+            elif v.name == "d":
+                lo, hi = self.d_range([s.knit["W0"] for s in self.sp])
+                x.append((b.d - lo) / (hi - lo) if hi > lo else 0.0)
+            elif v.name == "in_plane_width":
+                lo, hi = self.w_range(b.d, [s.knit["W0"] for s in self.sp])
+                x.append((b.d_jam - lo) / (hi - lo) if hi > lo else 0.0)
+            elif v.name == "m":
+                x.append(b.m)
+            elif v.name == "phi0":
+                given = (self.setup.phi0_starts[v.specimen] if v.specimen < len(self.setup.phi0_starts)
+                         else None)
+                phi0 = b.phi0 if given is None else given
+                x.append(max(-1.0, min(1.0, phi0 / b.phimax)) if b.phimax > 0 else 0.0)
+            elif v.name in GEOMETRY:
+                x.append(0.0)
+            elif v.name == "log10_dahl_sigma" and b.dahl_sigma > 0:
+                x.append(math.log10(b.dahl_sigma))        # the scene's Dahl stiffness as the start
+            elif hasattr(b.effects, v.name):
+                x.append(float(getattr(b.effects, v.name)))   # the scene's effect parameter as the start
+            else:
+                x.append(self.effect_vars[v.name].start(b))
+        return np.clip(np.array(x, float), self.lo, self.hi)
+
+    def model_values(self, x: np.ndarray) -> tuple[dict, list[dict]]:
+        """Shared values and each specimen's values in model units (phi0 as a fraction, w in mm)."""
+        shared = {v.name: float(xi) for v, xi in zip(self.vars, x) if v.specimen is None}
+        own = [dict() for _ in self.sp]
+        for v, xi in zip(self.vars, x):
+            if v.specimen is not None:
+                own[v.specimen][v.name] = float(xi)
+        if "B" in shared:
+            shared["B"] = math.exp(shared["B"])
+        for k, s in enumerate(self.sp):
+            for g in GEOMETRY:
+                own[k][g] = s.knit[g] * math.exp(own[k][g]) if g in own[k] else s.knit[g]
+        if "d" in shared:
+            lo, hi = self.d_range([o["W0"] for o in own])
+            shared["d"] = lo + shared["d"] * (hi - lo)
+        if "in_plane_width" in shared:
+            d = shared.get("d", self.base.d)
+            lo, hi = self.w_range(d, [o["W0"] for o in own])
+            shared["in_plane_width"] = lo + shared["in_plane_width"] * (hi - lo)
+        return shared, own
+
+    def cell(self, shared: dict, own: dict) -> CellParams:
+        """The cell of one specimen (validated; raises KnitsimInputError for an inadmissible point)."""
+        values = dict(shared)
+        values.update(own)
+        return build_params(self.base, self.effects, values, self.setup.fixed)
+
+    def cells_at(self, x: np.ndarray) -> list:
+        """Each specimen's cell at ``x`` (None where inadmissible)."""
+        shared, own = self.model_values(x)
+        out = []
+        for o in own:
+            try:
+                out.append(self.cell(shared, o))
+            except KnitsimInputError:
+                out.append(None)
+        return out
+
+    # ------------------------------------------------------------ simulation
+    def simulate(self, cells: list) -> list:
+        """Per (specimen index, CellParams or None): force per wale at the specimen's rows and status codes."""
+        valid = [(i, c) for i, (k, c) in enumerate(cells) if c is not None]
+        out: list = [None] * len(cells)
+        if valid:
+            self.calls += 1
+            hist = run_batch([c for _, c in valid], self.program, device=self.setup.device)
+            F, st = hist.force_per_wale, hist.status
+            for j, (i, _) in enumerate(valid):
+                k = cells[i][0]
+                r = self.rows[k]
+                out[i] = (np.where(r >= 0, F[np.maximum(r, 0), j], 0.0),
+                          np.where(r >= 0, st[np.maximum(r, 0), j], STATUS_OK))
+        return out
+
+    def residuals(self, x: np.ndarray, sims: list) -> np.ndarray:
+        """Weighted rows of every specimen, then the geometry priors."""
+        shared, own = self.model_values(x)
+        parts = []
+        for k, s in enumerate(self.sp):
+            w = s.wales(own[k]["W0"]) if s.total else 1.0
+            fail = FAIL_RESIDUAL * np.maximum(1.0, np.abs(s.target_N) / s.sigma_N)
+            if sims[k] is None:
+                parts.append(fail)
+                continue
+            f, st = sims[k]
+            r = (w * f - s.target_N) / s.sigma_N
+            bad = np.maximum.accumulate(st != STATUS_OK)
+            parts.append(np.where(bad, fail, r))
+        for v, xi in zip(self.vars, x):
+            if v.name in GEOMETRY:
+                parts.append(np.array([xi / self.sp[v.specimen].uncertainty[v.name]]))
+        return np.concatenate(parts)
+
+    def evaluate_points(self, X: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """Residual vectors of several points, all in one launch."""
+        jobs = []
+        for x in X:
+            for k, c in enumerate(self.cells_at(np.asarray(x))):
+                jobs.append((k, c))
+        sims = self.simulate(jobs)
+        S = len(self.sp)
+        return [self.residuals(np.asarray(x), sims[i * S:(i + 1) * S]) for i, x in enumerate(X)]
+
+    def evaluate_with_jacobian(self, x: np.ndarray, rel_step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals at ``x`` and their forward-difference Jacobian, one launch (each specimen's cell
+        perturbed only in the shared variables and its own)."""
+        x = np.asarray(x, float)
+        h = rel_step * np.maximum(np.abs(x), 1.0)
+        h = np.where(x + h > self.hi, -h, h)
+        points = [x] + [x + h[j] * np.eye(self.k)[j] for j in range(self.k)]
+        cells = [self.cells_at(p) for p in points]
+        jobs, index = [], {}
+        for k in range(len(self.sp)):
+            for j, p in enumerate(points):
+                v = None if j == 0 else self.vars[j - 1]
+                if j > 0 and v.specimen is not None and v.specimen != k:
+                    continue
+                index[(k, j)] = len(jobs)
+                jobs.append((k, cells[j][k]))
+        sims = self.simulate(jobs)
+        r0 = self.residuals(x, [sims[index[(k, 0)]] for k in range(len(self.sp))])
+        J = np.empty((len(r0), self.k))
+        for j in range(1, self.k + 1):
+            sj = [sims[index[(k, j)]] if (k, j) in index else sims[index[(k, 0)]] for k in range(len(self.sp))]
+            J[:, j - 1] = (self.residuals(points[j], sj) - r0) / h[j - 1]
+        return r0, J
+
+
+# ============================================================== the fit
+def _lhs(problem: _Problem, n: int, seed: int) -> list[np.ndarray]:
+    if n <= 0:
+        return []
+    u = qmc.LatinHypercube(d=problem.k, seed=seed).random(n)
+    lo, hi = problem.lo, problem.hi
+    X = lo + u * (hi - lo)
+    for j, v in enumerate(problem.vars):
+        if v.name in GEOMETRY:
+            # the stated geometry within +-1 sd: a start, not a claim
+            s = problem.sp[v.specimen].uncertainty[v.name]
+            X[:, j] = np.clip(-s + 2 * s * u[:, j], lo[j], hi[j])
+    return [x for x in X]
+
+
+def _reported(problem: _Problem, x: np.ndarray) -> tuple[list, np.ndarray, list, list]:
+    """Names (name, specimen index), values and ranges in the reported variables at ``x``."""
+    shared, own = problem.model_values(x)
+    cells = problem.cells_at(x)
+    names, vals, los, his = [], [], [], []
+    for v, xi in zip(problem.vars, x):
+        if v.specimen is None:
+            val = shared[v.name]
+            if v.name == "B":
+                lo, hi = math.exp(v.lo), math.exp(v.hi)
+            elif v.name == "d":
+                lo, hi = problem.d_range([o["W0"] for o in own])
+            elif v.name == "in_plane_width":
+                lo, hi = problem.w_range(shared.get("d", problem.base.d), [o["W0"] for o in own])
+            else:
+                lo, hi = v.lo, v.hi
+        else:
+            k = v.specimen
+            if v.name == "phi0":
+                pm = cells[k].phimax if cells[k] is not None else 0.0
+                val, lo, hi = xi * pm, v.lo * pm, v.hi * pm
+            else:
+                st = problem.sp[k].knit[v.name]
+                val, lo, hi = own[k][v.name], st * math.exp(v.lo), st * math.exp(v.hi)
+        names.append((v.name, v.specimen))
+        vals.append(val)
+        los.append(lo)
+        his.append(hi)
+    return names, np.array(vals), los, his
+
+
+def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6) -> np.ndarray:
+    """Covariance of the reported variables: FD Jacobian in those variables at the solution."""
+    names, y, los, his = _reported(problem, x)
+    k = len(y)
+
+    def fit_vars(yv: np.ndarray) -> np.ndarray:
+        # reported -> fit variables (inverse of model_values / _reported)
+        out = np.array(x, float)
+        shared_d = problem.base.d
+        W0s = [problem.sp[i].knit["W0"] for i in range(len(problem.sp))]
+        for j, (n, spi) in enumerate(names):
+            if n == "d" and spi is None:
+                shared_d = yv[j]
+            if n == "W0" and spi is not None:
+                W0s[spi] = yv[j]
+        for j, (n, spi) in enumerate(names):
+            if spi is None:
+                if n == "B":
+                    out[j] = math.log(yv[j])
+                elif n == "d":
+                    lo, hi = problem.d_range(W0s)
+                    out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
+                elif n == "in_plane_width":
+                    lo, hi = problem.w_range(shared_d, W0s)
+                    out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
+                else:
+                    out[j] = yv[j]
+            elif n == "phi0":
+                m = problem.model_values(out)[0].get("m", problem.base.m)
+                pm = math.atan(m)
+                out[j] = yv[j] / pm if pm > 0 else 0.0
+            else:
+                out[j] = math.log(yv[j] / problem.sp[spi].knit[n])
+        return out
+
+    h = rel_step * np.maximum(np.abs(y), 1e-3)
+    h = np.where(y + h > np.array(his), -h, h)
+    pts = [fit_vars(y)] + [fit_vars(y + h[j] * np.eye(k)[j]) for j in range(k)]
+    res = problem.evaluate_points(pts)
+    J = np.stack([(res[j + 1] - res[0]) / h[j] for j in range(k)], axis=1)
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    # a variable the rows do not move (e.g. a jamming width never reached) is not identified: infinite sd
+    norms = np.linalg.norm(J, axis=0)
+    dead = norms <= 1e-9 * max(float(norms.max()), 1e-300)
+    cov[dead, :] = 0.0
+    cov[:, dead] = 0.0
+    cov[dead, dead] = np.inf
+    return cov
+
+
+_BOUND_NOTES = {
+    ("in_plane_width", "high"): "W0/4 of the narrowest knit: its loops jam at rest",
+    ("d", "high"): "W0/4 of the narrowest knit: W0 >= 4 d",
+    ("in_plane_width", "low"): "the compact diameter d: a round yarn",
+    ("phi0", "high"): "+phimax: the knit starts sliding in the loading direction",
+    ("phi0", "low"): "-phimax: the knit starts sliding against the loading",
+    ("m", "low"): "no friction at the crossing",
+}
+
+
+def _note(name: str, side: str, specimen: str | None) -> str:
+    if (name, side) in _BOUND_NOTES:
+        return _BOUND_NOTES[(name, side)]
+    if name in GEOMETRY:
+        return f"4 sd of its stated value ({'below' if side == 'low' else 'above'}): the measurement does not allow more"
+    return f"the {side} end of the stated range"
+
+
+def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
+                    progress: Callable[[str], None] | None = None) -> JointResult:
+    """Fit one yarn to several specimens (module docstring).
+
+    Parameters
+    ----------
+    specimens : sequence of SpecimenData
+        On one uniform grid of rows (one ``row_step``).
+    setup : JointSetup
+    progress : callable, optional
+        ``progress(line)`` at each stage (starts screened, each start refined).
+
+    Returns
+    -------
+    JointResult
+
+    Raises
+    ------
+    KnitsimInputError
+        A bad setup (unknown variable, a geometry fitted without an uncertainty, bad bounds), before
+        any solve.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda line: None)
+    pb = _Problem(specimens, setup)
+    x_own = pb.start()
+    X = [x_own] + _lhs(pb, setup.starts, setup.seed)
+    costs = []
+    chunk = 16
+    for a in range(0, len(X), chunk):
+        res = pb.evaluate_points(X[a:a + chunk])
+        costs += [float(r @ r) for r in res]
+        say(f"screened {min(a + chunk, len(X))}/{len(X)} starts (best chi2 {min(costs):.4g})")
+    order = list(np.argsort(costs, kind="stable")[:max(1, setup.refine)])
+    cache: dict = {}
+
+    def ev(x):
+        key = np.asarray(x, float).tobytes()
+        if key not in cache:
+            if len(cache) > 64:
+                cache.clear()
+            cache[key] = pb.evaluate_with_jacobian(x)
+        return cache[key]
+
+    best = None
+    starts = []
+    for rank, i in enumerate(order):
+        sol = least_squares(lambda x: ev(x)[0], X[i], jac=lambda x: ev(x)[1], bounds=(pb.lo, pb.hi), method="trf",
+                            x_scale="jac", max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8, gtol=1e-10)
+        cost = float(2.0 * sol.cost)
+        starts.append({"start": int(i), "chi2_start": costs[i], "chi2": cost, "nfev": int(sol.nfev),
+                       "success": bool(sol.success), "message": str(sol.message)})
+        say(f"start {rank + 1}/{len(order)}: chi2 {costs[i]:.4g} -> {cost:.4g} in {sol.nfev} evaluations")
+        if best is None or cost < best[0]:
+            best = (cost, sol)
+    chi2, sol = best
+    x = sol.x
+    n = pb.n_rows + pb.n_prior
+    s2 = chi2 / max(n - pb.k, 1)
+    cov = _covariance(pb, x, s2)
+    names, y, los, his = _reported(pb, x)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(np.where(np.isfinite(se), se, np.nan), np.where(np.isfinite(se), se, np.nan))
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    estimates = []
+    lo_f, hi_f = pb.lo, pb.hi
+    for j, ((nme, spi), val) in enumerate(zip(names, y)):
+        span = hi_f[j] - lo_f[j]
+        side = "low" if x[j] - lo_f[j] <= BOUND_TOL * span else ("high" if hi_f[j] - x[j] <= BOUND_TOL * span else None)
+        spname = None if spi is None else pb.sp[spi].name
+        stated = dev = None
+        if nme in GEOMETRY:
+            stated = pb.sp[spi].knit[nme]
+            dev = float(x[j] / pb.sp[spi].uncertainty[nme])
+        unit = UNITS.get(nme, pb.effect_vars[nme].unit if nme in pb.effect_vars else "")
+        note = _note(nme, side, spname) if side else ""
+        if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
+                and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
+            note = "the high end of the stated range (below W0/4 of the narrowest knit)"
+        if not np.isfinite(se[j]):
+            side = side or "not identified"
+            note = (note + "; " if note else "") + "the rows do not depend on it (not identified)"
+        estimates.append(Estimate(nme, spname, float(val), float(se[j]), unit, float(los[j]), float(his[j]), side,
+                                  note, stated, dev))
+    # each specimen's fit
+    cells = pb.cells_at(x)
+    sims = pb.simulate(list(enumerate(cells)))
+    fits = []
+    all_ok = True
+    for k, s in enumerate(pb.sp):
+        c = cells[k]
+        if c is None:                      # pragma: no cover - the best point of a fit is admissible
+            raise RuntimeError(f"specimen {s.name}: the calibrated point is not an admissible cell")
+        w = s.wales(c.W0) if s.total else 1.0
+        f, st = sims[k]
+        sim = w * f
+        worst = int(np.max(st))
+        all_ok &= worst == STATUS_OK
+        e = sim - s.target_N
+        rms = float(np.sqrt(np.mean(e * e)))
+        frac = float(np.mean(s.in_band(sim))) if s.has_band else None
+        fits.append(SpecimenFit(s.name, c, w, s.strain, s.target_N, sim, s.sigma_N, s.band_low_N, s.band_high_N,
+                                frac, rms, rms / float(np.sqrt(np.mean(s.target_N ** 2))),
+                                float(np.sum((e / s.sigma_N) ** 2)), STATUS_NAMES[worst]))
+    shared, _ = pb.model_values(x)
+    msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
+    return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,
+                       int(sol.nfev), time.perf_counter() - t0, setup, cells[0])
+
+
+__all__ = ["JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+           "SPECIMEN_VARIABLES", "UNITS"]

@@ -1,0 +1,228 @@
+"""What ``knitsim calibrate`` writes: the calibrated materials, scenes to run, and the evidence.
+
+- ``materials.toml``: a material library (:mod:`knitsim.material_library`) with the one
+  calibrated yarn (its friction law, rules, effects, and the standard errors) and one knit per
+  specimen (L, W0, C0, phi0 in rad): what new scenes name (``materials = ...``), e.g. to blend
+  two calibrated knits in a graded specimen;
+- ``<specimen>.cell.toml``: a cell scene of the specimen's calibrated cell, every value spelled
+  out (``knitsim cell`` and ``knitsim sweep`` read it as it is);
+- ``<specimen>.patch.toml``: the specimen as a patch scene (``[specimen]``: its width and
+  gauge length; ``knitsim run`` reads it as it is; its ``curve.csv`` force_N is the fit's total
+  force);
+- ``calibration.json``: every estimate with its std error, range and bound flag, the
+  correlations, each specimen's fit (numbers and curves);
+- ``report.md``: the same for a reader; ``fit_<specimen>.png``: each fit in its band, with
+  its share inside the band and its RMS, and the weighted residuals.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..material_library import LibraryKnit, LibraryYarn, library_document
+from ..scene.schema import dumps
+from .joint import JointResult
+
+_RULES = ("unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
+
+
+def _rules(p) -> dict:
+    return {r: getattr(p, r) for r in _RULES}
+
+
+def library_of(result: JointResult, yarn_name: str, source: str = "") -> dict:
+    """The library document of a calibration: its yarn and one knit per specimen."""
+    p = result.fits[0].params
+    std = {e.name: e.std_error for e in result.estimates if e.specimen is None}
+    yarn = LibraryYarn(yarn_name, d=p.d, B=p.B, in_plane_width=p.in_plane_width,
+                       friction={"model": p.friction, "m": p.m, "dahl_sigma": p.dahl_sigma}, rules=_rules(p),
+                       effects=p.effects.as_dict() if p.effects.on else {}, std_errors=std,
+                       source=f"knitsim calibrate {source}".strip())
+    knits = [LibraryKnit(f.name, yarn_name, L=f.params.L, W0=f.params.W0, C0=f.params.C0, phi0=f.params.phi0,
+                         source=f"knitsim calibrate {source}: specimen {f.name}".strip()) for f in result.fits]
+    return library_document([yarn], knits, title=f"calibrated by knitsim calibrate {source}".strip())
+
+
+def _cell_tables(p) -> dict:
+    out = {"yarn": {"d": p.d, "B": p.B}, "knit": {"L": p.L, "W0": p.W0, "C0": p.C0},
+           "friction": {"model": p.friction, "m": p.m, "phi0": p.phi0, "dahl_sigma": p.dahl_sigma},
+           "rules": _rules(p)}
+    if p.in_plane_width is not None:
+        out["yarn"]["in_plane_width"] = p.in_plane_width
+    if p.effects.on:
+        out["effects"] = p.effects.as_dict()
+    return out
+
+
+def _fit_line(f) -> str:
+    band = "" if f.in_band_fraction is None else f", {100 * f.in_band_fraction:.0f} % of the strain range in the band"
+    return f"fit: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}"
+
+
+def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu") -> str:
+    """The TOML of specimen ``k``'s calibrated cell scene (monotonic to the end of its rows)."""
+    f = result.fits[k]
+    doc = {"title": f"{f.name}: calibrated cell (knitsim calibrate)", "engine": "warp", "device": device}
+    doc.update(_cell_tables(f.params))
+    doc["load"] = {"type": "monotonic", "target_strain": float(f.strain[-1]),
+                   "max_increment": result.setup.max_increment}
+    header = (f"Specimen {f.name}, calibrated jointly with {', '.join(g.name for g in result.fits if g is not f) or 'no other'}"
+              f" by knitsim calibrate {source}\n"
+              f"the cell of one stitch: force per wale; the specimen's total force is {f.wales:.6g} x it "
+              f"(its wales)\n{_fit_line(f)}\nunits N, mm, rad")
+    return dumps(doc, header=header)
+
+
+def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, gauge_length_mm: float,
+                   device: str = "cpu") -> str:
+    """The TOML of specimen ``k`` as a patch scene (``[specimen]``: width and gauge length)."""
+    f = result.fits[k]
+    doc = {"title": f"{f.name}: calibrated specimen (knitsim calibrate)", "engine": "warp", "device": device,
+           "specimen": {"width": width_mm, "gauge_length": gauge_length_mm}}
+    doc.update(_cell_tables(f.params))
+    doc["load"] = {"type": "monotonic", "target_strain": float(f.strain[-1]),
+                   "max_increment": result.setup.max_increment}
+    header = (f"Specimen {f.name} ({width_mm:g} mm wide, {gauge_length_mm:g} mm between the grips), calibrated by "
+              f"knitsim calibrate {source}\n"
+              f"{width_mm / f.params.W0:.4g} wales (width / W0), {gauge_length_mm / f.params.C0:.4g} courses "
+              f"(gauge length / C0); curve.csv force_N is the total force\n{_fit_line(f)}\nunits N, mm, rad")
+    return dumps(doc, header=header)
+
+
+def _fmt(v: float) -> str:
+    if v is None or not math.isfinite(v):
+        return "-" if v is None else str(v)
+    return f"{v:.4g}"
+
+
+def report_md(result: JointResult, title: str, source: str, files: list[str]) -> str:
+    """A readable report of the calibration."""
+    r = result
+    lines = [f"# knitsim calibrate: {title}", "", f"Scene: `{source}`. {len(r.fits)} specimens, one yarn; "
+             f"{r.k} variables fitted to {r.n} rows (priors included); chi2 = {r.chi2:.4g}, "
+             f"chi2 / (n - k) = {r.s2:.3g} (the factor on the covariance). "
+             f"{'Converged' if r.success else 'NOT CONVERGED'}: {r.message.rstrip('.')}. Wall time {r.wall_s:.0f} s.", ""]
+    if r.flags:
+        lines += ["## Flags", ""] + [f"- **{x}**" for x in r.flags] + [""]
+    else:
+        lines += ["No parameter is at a bound.", ""]
+    lines += ["## The yarn (shared by every specimen)", "", "| parameter | value | std error | unit | range | bound |",
+              "|---|---|---|---|---|---|"]
+    for e in r.estimates:
+        if e.specimen is None:
+            lines.append(f"| {e.name} | {_fmt(e.value)} | {_fmt(e.std_error)} | {e.unit} | {_fmt(e.low)} .. "
+                         f"{_fmt(e.high)} | {e.at_bound or ''} |")
+    p = r.fits[0].params
+    lines += ["", f"Friction law {p.friction}"
+              + (f" (Dahl stiffness {p.dahl_sigma:.4g} / mm)" if p.friction == "dahl" else "")
+              + f"; effects {', '.join(p.effects.on) or 'none'}; rules " + ", ".join(f"{k} = {v}" for k, v in
+                                                                                    _rules(p).items()) + ".", ""]
+    lines += ["## Each specimen's knit", "", "| specimen | parameter | value | std error | unit | stated | "
+              "from stated [sd] | bound |", "|---|---|---|---|---|---|---|---|"]
+    for e in r.estimates:
+        if e.specimen is not None:
+            lines.append(f"| {e.specimen} | {e.name} | {_fmt(e.value)} | {_fmt(e.std_error)} | {e.unit} | "
+                         f"{_fmt(e.stated)} | {_fmt(e.deviation_sd)} | {e.at_bound or ''} |")
+    lines += ["", "phi0 in rad (a fraction of phimax = atan(m) in the fit).", "", "## Fits", "",
+              "| specimen | wales (width / W0) | rows | in the band | RMS [N] | RMS / RMS force | chi2 | cells |",
+              "|---|---|---|---|---|---|---|---|"]
+    for f in r.fits:
+        band = "-" if f.in_band_fraction is None else f"{100 * f.in_band_fraction:.0f} %"
+        lines.append(f"| {f.name} | {f.wales:.4g} | {len(f.strain)} | {band} | {f.rms_N:.4g} | "
+                     f"{100 * f.rms_rel:.2g} % | {f.chi2:.4g} | {f.status} |")
+    names = [e.label for e in r.estimates]
+    strong = [(names[i], names[j], r.correlation[i, j]) for i in range(len(names)) for j in range(i + 1, len(names))
+              if abs(r.correlation[i, j]) > 0.9]
+    lines += ["", "## Strong correlations (|r| > 0.9)", ""]
+    lines += [f"- {a} / {b}: {c:+.3f}" for a, b, c in strong] or ["none"]
+    lines += ["", "## Starts", "", "| start | chi2 before | chi2 after | evaluations |", "|---|---|---|---|"]
+    lines += [f"| {s['start']} | {s['chi2_start']:.4g} | {s['chi2']:.4g} | {s['nfev']} |" for s in r.starts]
+    lines += ["", "## Files", ""] + [f"- `{f}`" for f in files] + [""]
+    return "\n".join(lines)
+
+
+def plot_fit(fit, title: str = "") -> bytes:
+    """PNG of one specimen's fit: its band, the target, the simulation, and the weighted residuals."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(7.5, 6.2), dpi=110)
+    FigureCanvasAgg(fig)
+    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    if fit.band_low_N is not None:
+        ax.fill_between(fit.strain, fit.band_low_N, fit.band_high_N, color="0.75", label="experimental band")
+        inside = (fit.simulated_N >= fit.band_low_N) & (fit.simulated_N <= fit.band_high_N)
+        ax.scatter(fit.strain[~inside], fit.simulated_N[~inside], s=10, color="tab:red", zorder=3,
+                   label="model outside the band")
+    ax.plot(fit.strain, fit.target_N, "k--", lw=1, label="target (band mid-line)" if fit.band_low_N is not None
+            else "measured")
+    ax.plot(fit.strain, fit.simulated_N, color="tab:blue", lw=1.6, label="calibrated model")
+    ax.set_ylabel("force [N]")
+    frac = "" if fit.in_band_fraction is None else f", {100 * fit.in_band_fraction:.0f} % in the band"
+    bad = "" if fit.status == "ok" else f", CELL {fit.status.upper()}"
+    ax.set_title(title or f"{fit.name}: RMS {fit.rms_N:.3g} N ({100 * fit.rms_rel:.2g} %){frac}{bad}", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax2.axhline(0, color="k", lw=0.8)
+    ax2.plot(fit.strain, (fit.simulated_N - fit.target_N) / fit.sigma_N, color="tab:blue", lw=1)
+    ax2.set_ylabel("(model - target) / sd")
+    ax2.set_xlabel("grip strain")
+    ax2.grid(alpha=0.3)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
+
+
+def write_calibration(out_dir: str | Path, result: JointResult, scene, source: str) -> dict[str, Path]:
+    """Write every output into ``out_dir`` (atomically, ``calibration.json`` last); returns the files."""
+    from ..io.results import write_result_set
+    files: dict[str, bytes] = {}
+    files["materials.toml"] = dumps(library_of(result, scene.yarn_name, source),
+                                    header=f"material library written by knitsim calibrate {source}\n"
+                                           "units N, mm, rad; std_errors are informative").encode()
+    device = scene.setup.device
+    for k, (f, s) in enumerate(zip(result.fits, scene.specimens)):
+        files[f"{f.name}.cell.toml"] = cell_scene_of(result, k, source, device).encode()
+        files[f"{f.name}.patch.toml"] = patch_scene_of(result, k, source, s.width_mm, s.gauge_length_mm,
+                                                       device).encode()
+        files[f"fit_{f.name}.png"] = plot_fit(f)
+    names = sorted(files) + ["calibration.json", "report.md"]
+    files["report.md"] = report_md(result, scene.resolved.get("title", source), source, names).encode()
+    doc = {"scene": source, "title": scene.resolved.get("title", ""), "yarn": scene.yarn_name,
+           "specimens_data": [{"name": s.name, "sources": list(s.sources), "width_mm": s.width_mm,
+                               "gauge_length_mm": s.gauge_length_mm, "stated_knit": s.knit,
+                               "uncertainty": s.uncertainty, "total_force": s.total, "sd_rule": s.sigma_rule}
+                              for s in scene.specimens]}
+    doc.update(result.as_dict())
+    files["calibration.json"] = (json.dumps(_finite(doc), indent=1, default=_json_default, allow_nan=False)
+                                 + "\n").encode()
+    return write_result_set(out_dir, files, tuple(names))
+
+
+def _finite(v):
+    """JSON has no infinity or NaN: a not-identified sd (inf) or an absent value is written as null."""
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _finite(v.tolist())
+    if isinstance(v, (float, np.floating)) and not math.isfinite(float(v)):
+        return None
+    return v
+
+
+def _json_default(v):
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    raise TypeError(type(v).__name__)
+
+
+__all__ = ["library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]

@@ -1,0 +1,157 @@
+"""Joint calibration (issue 16): one yarn recovered from two knits, and the scenes it writes.
+
+Independent checks: the curves are made by the model itself with known parameters (the
+truth), on two knits of one yarn, with 2 % + 0.01 N Gaussian noise and a stated W0 that
+is 3 % off on each specimen; the joint fit must find the truth within 3 of its own
+standard errors (and those errors small), and move each W0 from its stated value toward
+the truth.  The scenes written must reproduce the fit's curve when run by the engines
+(round trip: cell scene -> run_batch, patch scene -> run_patch).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from knitsim.calibration.joint import JointSetup, calibrate_joint
+from knitsim.calibration.specimen import SpecimenData, read_table, specimen_from_files
+from knitsim.cell.batch import run_batch
+from knitsim.cell.load_program import monotonic
+from knitsim.cell.material import CellParams
+from knitsim.errors import KnitsimInputError
+
+# Dusserre's E-glass yarn with the in-plane width and m of the paper's experiment (README)
+TRUTH = {"B": 0.31, "d": 0.58, "m": 0.45, "in_plane_width": 0.79}
+KNITS = [{"L": 14.1, "W0": 4.4, "C0": 2.7}, {"L": 16.0, "W0": 5.0, "C0": 3.05}]
+STATED_W0 = [4.4 * 1.03, 5.0 * 0.97]
+WIDTH, GAUGE, STEP = 100.0, 200.0, 0.02
+
+
+def _curves(seed=7):
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in KNITS:
+        p = CellParams(B=TRUTH["B"], d=TRUTH["d"], m=TRUTH["m"], in_plane_width=TRUTH["in_plane_width"],
+                       force_cap_N=200.0, **k)
+        h = run_batch([p], monotonic(0.6, STEP))
+        assert np.all(h.status == 0)
+        F = h.force_per_wale[:, 0] * WIDTH / k["W0"]
+        sd = 0.02 * np.abs(F) + 0.01
+        out.append((h.strain, F + sd * rng.standard_normal(F.shape), sd))
+    return out
+
+
+def test_joint_fit_recovers_the_yarn_and_corrects_a_stated_geometry():
+    specimens = [SpecimenData(f"knit{i}", s, y, sd, None, None, True, WIDTH, GAUGE,
+                              {"L": k["L"], "W0": w, "C0": k["C0"]}, {"L": 0.0, "W0": 0.04, "C0": 0.0})
+                 for i, ((s, y, sd), k, w) in enumerate(zip(_curves(), KNITS, STATED_W0))]
+    base = CellParams(B=0.2, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.3, in_plane_width=0.7, force_cap_N=200.0)
+    setup = JointSetup(base=base, shared=("B", "in_plane_width", "m"), per_specimen=("W0",), max_increment=STEP,
+                       starts=8, refine=2, max_nfev=50, bounds={"B": (0.05, 2.0), "m": (0.05, 0.8)})
+    r = calibrate_joint(specimens, setup)
+    assert r.success and not r.flags
+    for name in ("B", "in_plane_width", "m"):
+        e = r.estimate(name)
+        assert abs(e.value - TRUTH[name]) < 3 * e.std_error, (name, e.value, e.std_error)
+        assert e.std_error < 0.05 * TRUTH[name]
+    for i, k in enumerate(KNITS):
+        e = r.estimate("W0", f"knit{i}")
+        assert abs(e.value - k["W0"]) < 3 * e.std_error
+        assert abs(e.value - k["W0"]) < 0.5 * abs(STATED_W0[i] - k["W0"])    # moved toward the truth
+    # chi2 per degree of freedom near 1: the sds were the true noise
+    assert 0.5 < r.s2 < 1.6
+    assert r.correlation.shape == (len(r.estimates), len(r.estimates))
+
+
+def _write_curve(path, strain, force):
+    path.write_text("strain_mm_per_mm,load_N\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(strain, force)))
+
+
+def test_calibrate_command_writes_scenes_that_reproduce_its_fit(tmp_path):
+    """knitsim calibrate -> materials.toml, cell and patch scenes; each scene, run, gives the fit's curve."""
+    from knitsim.cli import main
+    from knitsim.patch.runner import run_patch
+    from knitsim.scene.cell_scene import load_cell_scene
+    from knitsim.scene.patch_scene import load_patch_scene
+    (s0, y0, _), (s1, y1, _) = _curves()
+    _write_curve(tmp_path / "a.csv", s0, y0)
+    _write_curve(tmp_path / "b.csv", s1, y1)
+    scene = f"""
+title = "synthetic"
+[yarn]
+name = "glass"
+d = 0.58
+B = 0.2
+in_plane_width = 0.7
+[friction]
+m = 0.3
+[rules]
+force_cap_N = 200.0
+[calibration]
+shared = ["B", "in_plane_width", "m"]
+per_specimen = []
+bounds = {{ B = [0.05, 2.0], m = [0.05, 0.8] }}
+max_increment = {STEP}
+row_step = {STEP}
+starts = 6
+refine = 1
+max_nfev = 40
+[[specimens]]
+name = "tight"
+width = {WIDTH}
+gauge_length = {GAUGE}
+curve = "a.csv"
+noise_N = 0.05
+knit = {{ L = 14.1, W0 = 4.4, C0 = 2.7 }}
+[[specimens]]
+name = "loose"
+width = {WIDTH}
+gauge_length = {GAUGE}
+curve = "b.csv"
+noise_N = 0.05
+knit = {{ L = 16.0, W0 = 5.0, C0 = 3.05 }}
+"""
+    (tmp_path / "cal.toml").write_text(scene)
+    out = tmp_path / "out"
+    status = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(out)])
+    assert status == 0
+    doc = json.loads((out / "calibration.json").read_text())
+    assert {e["name"] for e in doc["estimates"]} == {"B", "in_plane_width", "m"}
+    for sp in doc["specimens"]:
+        fit = np.array(sp["curve"]["simulated_N"])
+        strain = np.array(sp["curve"]["strain"])
+        # the cell scene, as written: force per wale x the specimen's wales
+        cs = load_cell_scene(out / f"{sp['name']}.cell.toml")
+        h = run_batch(cs.params, cs.program)
+        np.testing.assert_allclose(h.strain[: len(strain)], strain, rtol=1e-12)
+        np.testing.assert_allclose(h.force_per_wale[: len(strain), 0] * sp["wales"], fit, rtol=1e-9)
+        # the patch scene (the specimen between its grips): total force at the grip strains
+        ps = load_patch_scene(out / f"{sp['name']}.patch.toml")
+        hp = run_patch(ps.model, ps.program)
+        np.testing.assert_allclose(hp.force_N[: len(strain)], fit, rtol=1e-9)
+    lib = (out / "materials.toml").read_text()
+    assert "[yarns.glass]" in lib and "[knits.tight]" in lib and "[knits.loose]" in lib
+    assert (out / "fit_tight.png").stat().st_size > 1000 and "## Fits" in (out / "report.md").read_text()
+
+
+def test_band_weights_and_lab_files(tmp_path):
+    """The rows' sd is the band's half-width, floored at the force reading's accuracy (0.5 %)."""
+    s = np.linspace(0.0, 0.2, 21)
+    low, high = 10 * s, 10 * s * (1 + 0.1 * (s > 0.1))       # a band closed below 0.1, 10 % wide above
+    (tmp_path / "lo.tsv").write_text("strain_mm_per_mm\tload_N\n" + "".join(f"{a}\t{b}\n" for a, b in zip(s, low)))
+    (tmp_path / "hi.tsv").write_text("strain_mm_per_mm\tload_N\n" + "".join(f"{a}\t{b}\n" for a, b in zip(s, high)))
+    sp = specimen_from_files("x", width_mm=50, gauge_length_mm=100, knit={"L": 4.5, "W0": 1.2, "C0": 0.9},
+                             band=(tmp_path / "hi.tsv", tmp_path / "lo.tsv"), row_step=0.01)
+    assert len(sp.strain) == 20 and sp.strain[-1] == pytest.approx(0.2)
+    mid = 0.5 * (sp.band_low_N + sp.band_high_N)
+    half = 0.5 * (sp.band_high_N - sp.band_low_N)
+    np.testing.assert_allclose(sp.sigma_N, np.maximum(half, 0.005 * mid), rtol=1e-12)
+    assert np.all(sp.sigma_N[sp.strain < 0.1] == 0.005 * mid[sp.strain < 0.1])     # the closed band
+    assert np.all(sp.in_band(mid)) and not np.any(sp.in_band(1.2 * sp.band_high_N))
+    (tmp_path / "bad.csv").write_text("strain,load_N\n0.0,0.0\n0.1,1.0\n0.05,2.0\n")
+    with pytest.raises(KnitsimInputError, match=r"bad\.csv: row 4, column strain: 0\.05 is below the row before"):
+        read_table(tmp_path / "bad.csv")
+    (tmp_path / "neg.csv").write_text("strain,force_per_wale_N\n-0.01,0.0\n0.1,1.0\n")
+    with pytest.raises(KnitsimInputError, match=r"neg\.csv: row 2, column strain: -0\.01 is negative"):
+        read_table(tmp_path / "neg.csv")
