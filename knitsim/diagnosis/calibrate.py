@@ -20,6 +20,14 @@ that two tests of different noise count by what each tells.  With
 weighted mean of its residual, eliminated in closed form at every
 evaluation (variable projection), counted among the parameters.
 
+A row the simulation did not reach (an increment that did not converge: the
+cell keeps its last converged state in later rows) is no model's prediction,
+whatever its residual: its weighted residual counts at least
+:data:`FAILED_ROW_Z` (``sqrt(z^2 + FAILED_ROW_Z^2)``, sign kept), so that a fit
+stays where the model runs through its curves (a parameter set that fails on
+the first unloading after a slack cycle, whose frozen force of ~0 N matches
+the measured ~0 N by chance, would otherwise win and then not be judged).
+
 Standard errors: ``cov = s^2 (J^T J)^-1`` of the weighted residuals, with
 ``s^2 = chi^2 / (n - k)`` (1 when the weights are the true noise), mapped to
 (m, phi0) by the delta method through phi0 = f atan(m).
@@ -33,7 +41,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..cell.batch import run_batch
-from ..cell.history import STATUS_NAMES
+from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
@@ -94,6 +102,29 @@ def _curve_weights(curves, weights) -> list[np.ndarray]:
     return out
 
 
+#: least weighted residual of a row the simulation did not reach (module docstring)
+FAILED_ROW_Z = 10.0
+
+
+def _failed_rows(history, rows: np.ndarray, cell: int) -> np.ndarray:
+    """Rows whose increment (or an earlier one) did not converge: status neither ok nor force cap."""
+    st = history.status[:, cell]
+    rows = np.asarray(rows)
+    s = np.where(rows >= 0, st[np.maximum(rows, 0)], 0)
+    return (s != STATUS_OK) & (s != STATUS_FORCE_CAP)
+
+
+def _penalised(z: np.ndarray, failed: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Weighted residuals ``z`` with the rows the simulation did not reach counted at least
+    :data:`FAILED_ROW_Z` (rows of weight 0 stay 0)."""
+    if not np.any(failed):
+        return z
+    z = z.copy()
+    m = failed & (w > 0)
+    z[m] = np.where(z[m] < 0, -1.0, 1.0) * np.sqrt(z[m] ** 2 + FAILED_ROW_Z ** 2)
+    return z
+
+
 def _project(e: np.ndarray, w: np.ndarray, offsets: bool) -> np.ndarray:
     """Weighted residuals ``w e`` of one curve, less their best force offset when ``offsets``."""
     if offsets:
@@ -133,7 +164,8 @@ def rss_of_cells(curves, cells: Sequence[CellParams], max_increment: float = 0.0
         hist = run_batch(cells, programs[g[0]], device=device)
         for i in g:
             for j in range(len(cells)):
-                e = _project(force_at_rows(hist, rows[i], j)[0] - curves[i].force, ws[i], offsets)
+                e = _penalised(_project(force_at_rows(hist, rows[i], j)[0] - curves[i].force, ws[i], offsets),
+                               _failed_rows(hist, rows[i], j), ws[i])
                 rss[j] += float(e @ e)
     return rss
 
@@ -237,12 +269,14 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
             hist = run_batch(cells, programs[g[0]], device=device)
             for i in g:
                 sims[i] = hist
-        r = np.concatenate([_project(force_at_rows(sims[i], rows[i], 0)[0] - c.force, ws[i], offsets)
-                            for i, c in enumerate(curves)])
+        def resid(j):
+            return np.concatenate([_penalised(_project(force_at_rows(sims[i], rows[i], j)[0] - c.force, ws[i],
+                                                       offsets), _failed_rows(sims[i], rows[i], j), ws[i])
+                                   for i, c in enumerate(curves)])
+        r = resid(0)
         J = np.empty((len(r), k))
         for j in range(k):
-            rj = np.concatenate([_project(force_at_rows(sims[i], rows[i], j + 1)[0] - c.force, ws[i], offsets)
-                                 for i, c in enumerate(curves)])
+            rj = resid(j + 1)
             J[:, j] = (rj - r) / h[j]
         cache[key] = (r, J, sims)
         return cache[key]
