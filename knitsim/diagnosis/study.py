@@ -271,9 +271,11 @@ def study_metrics(records: Sequence[dict]) -> dict:
 
 
 def time_per_case(records: Sequence[dict]) -> dict:
-    """Seconds per case (generation + diagnosis) and of the diagnosis alone: mean, median, max."""
+    """Seconds per case (generation + diagnosis), of the diagnosis alone (both wall) and CPU seconds per
+    case: mean, median, max."""
     out = {}
-    for key, get in (("case_s", lambda r: r.get("timing_s")), ("diagnosis_s", lambda r: r.get("diagnosis_s"))):
+    for key, get in (("case_s", lambda r: r.get("timing_s")), ("diagnosis_s", lambda r: r.get("diagnosis_s")),
+                     ("case_cpu_s", lambda r: r.get("cpu_s"))):
         t = [float(get(r)) for r in records if get(r) is not None]
         out[key] = ({"n": len(t), "mean": float(np.mean(t)), "median": float(np.median(t)), "max": float(np.max(t))}
                     if t else None)
@@ -323,7 +325,9 @@ def summary_markdown(summary: dict) -> str:
              f"| generator failures (not diagnosed) | {m['generator_failed']} | |",
              f"| time per case (generation, oracle, diagnosis) | {secs(summary.get('time_per_case', {}).get('case_s'))} "
              f"| {m['n_cases']} cases |",
-             f"| time per diagnosis | {secs(summary.get('time_per_case', {}).get('diagnosis_s'))} | {m['n_cases']} cases |", "",
+             f"| time per diagnosis | {secs(summary.get('time_per_case', {}).get('diagnosis_s'))} | {m['n_cases']} cases |",
+             f"| CPU time per case (one core) | {secs(summary.get('time_per_case', {}).get('case_cpu_s'))} "
+             f"| {m['n_cases']} cases |", "",
              "## Confusion matrix (rows: hidden effect; columns: verdict)", ""]
     cols = m["columns"]
     lines.append("| true \\ verdict | " + " | ".join(cols) + " |")
@@ -342,7 +346,7 @@ def summary_markdown(summary: dict) -> str:
 CSV_COLUMNS = ("index", "seed", "material", "hidden_effect", "strength", "identifiable", "verdict_kind",
                "verdict_effect", "confident", "column", "correct", "p_none", "p_verdict_effect", "best_candidate",
                "best_score", "best_share_of_excess", "baseline_chi2_per_dof", "baseline_within_noise",
-               "case_s", "diagnosis_s", "error")
+               "case_s", "diagnosis_s", "cpu_s", "error")
 
 
 def cases_csv(records: Sequence[dict]) -> str:
@@ -376,7 +380,8 @@ def cases_csv(records: Sequence[dict]) -> str:
             (ver or {}).get("kind"), (ver or {}).get("effect"), (ver or {}).get("confident"), col,
             (col == true) if ver else None, probs.get(NONE), probs.get((ver or {}).get("effect")),
             best.get("effect"), best.get("score"), best.get("share_of_excess"), r.get("baseline_chi2_per_dof"),
-            r.get("baseline_within_noise"), r.get("timing_s"), r.get("diagnosis_s"), r.get("error"))])
+            r.get("baseline_within_noise"), r.get("timing_s"), r.get("diagnosis_s"), r.get("cpu_s"),
+            r.get("error"))])
     return buf.getvalue()
 
 
@@ -411,7 +416,7 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
     """Generate one case, diagnose its curves (never its label), write its record atomically."""
     from .diagnose import DiagnosisSetup, diagnose
 
-    tc = time.perf_counter()
+    tc, cpu0 = time.perf_counter(), time.process_time()
     case, result, error = None, None, None
     try:
         if spec["test"] == synthetic.LAB:
@@ -435,6 +440,9 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
         except (RuntimeError, ValueError, FloatingPointError, KnitsimInputError) as exc:
             error = f"diagnosis: {type(exc).__name__}: {exc}"
     rec = _case_record(spec, key_config, case, result, error, time.perf_counter() - tc)
+    # CPU seconds of the case's process (one core: Warp's CPU kernels are serial): on a shared machine the
+    # wall time grows with the load, this much less
+    rec["cpu_s"] = time.process_time() - cpu0
     atomic_write_bytes(path, _json_bytes(rec))
     return json.loads(_json_bytes(rec))
 
