@@ -362,11 +362,13 @@ class _Data:
     setup: DiagnosisSetup
     weights: list
 
-    def calibrate(self, effects: tuple, x0: dict, nfev: int, free: tuple, bounds: dict) -> dict:
+    def calibrate(self, effects: tuple, x0: dict, nfev: int, free: tuple, bounds: dict,
+                  penalise_failed: bool = False) -> dict:
         s = self.setup
         return calibrate_baseline(self.curves, s.base, free=free, bounds=bounds, device=s.device,
                                   max_increment=s.max_increment, x0=x0, max_nfev=nfev, effects=effects,
-                                  fixed=s.fixed, weights=self.weights, offsets=s.offsets)
+                                  fixed=s.fixed, weights=self.weights, offsets=s.offsets,
+                                  penalise_failed=penalise_failed)
 
     def chi2_of(self, cells) -> np.ndarray:
         s = self.setup
@@ -387,8 +389,43 @@ RACE_KEEP = 1.25
 BASELINE_NFEV_FACTOR = 3
 
 
+def _failed(fit: dict) -> bool:
+    """True when some increment of the fit's simulation did not converge (its rows keep a frozen force)."""
+    return any(c["final_status"] not in ("ok", "force_cap") for c in fit["curves"])
+
+
+#: evaluations of the repair of a fit that ended where the simulation fails (:func:`_fit`)
+REPAIR_NFEV = 6
+
+
 def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None,
          rival_chi2: float | None = None) -> dict:
+    """:func:`_race`, and the repair of a fit that ended where some increment does not converge.
+
+    Rows after a failed increment keep a frozen force, which may match the measured rows by chance
+    (~0 N after a slack cycle): such a fit is no model's and would not be judged.  It is continued
+    for :data:`REPAIR_NFEV` evaluations with those rows counted at least
+    :data:`knitsim.diagnosis.calibrate.FAILED_ROW_Z` sd, which moves it to where the model runs;
+    the repaired fit replaces it when it runs through (``repaired``).
+    """
+    best = _race(data, effects, x0, extra_starts, nfev, rival_chi2)
+    if not _failed(best):
+        return best
+    setup = data.setup
+    free = tuple(best["fit_variables"])
+    bounds = {k: tuple(v) for k, v in setup.bounds.items() if k in free}
+    fix = data.calibrate(effects, best["fit_variables"], REPAIR_NFEV, free, bounds, penalise_failed=True)
+    if _failed(fix):
+        return best
+    fix["race"] = best.get("race", [])
+    fix["repaired"] = True
+    if best.get("stopped_after_race"):
+        fix["stopped_after_race"] = True
+    return fix
+
+
+def _race(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None,
+          rival_chi2: float | None = None) -> dict:
     """Calibrate the model with ``effects`` on from several starts; the least chi^2 is kept.
 
     The variables start from the specimen as calibrated so far (``x0``, in the
