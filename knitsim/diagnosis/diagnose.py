@@ -46,8 +46,12 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    thresholds: evidence (score > :data:`STRONG`: Kass and Raftery 1995, very
    strong) and size (*practical*: it removes at least :data:`PRACTICAL_SHARE`
    of the baseline's excess over noise, more than all other causes together,
-   or leaves no excess beyond the noise; an effect that shrinks a large gap by
-   0.1 % explains nothing, whatever its BIC).  Every candidate is also judged
+   or brings a baseline that misses the curves beyond their noise within it;
+   an effect that shrinks a large gap by 0.1 % explains nothing, whatever its
+   BIC).  A baseline already within noise leaves only the share: there the
+   second clause would hold for any drop, and an effect-free specimen whose
+   baseline fit ends 1.7 sd above dof (chi^2/dof 1.12) had a candidate that
+   took 22 % of that excess named at a BIC score of 26.  Every candidate is also judged
    against the noise as the baseline is (``chi2_per_dof``, ``within_noise``),
    carries its chi^2 drop per curve, and is marked when its evidence rests on
    curves whose noise is assumed (``rests_on_assumed_noise``).  The adequacy test of the whole
@@ -818,6 +822,17 @@ def chi2_by_curve(data: "_Data", fit: dict) -> dict:
     return out
 
 
+def is_practical(drop: float, adequacy: Adequacy) -> bool:
+    """The size threshold (module docstring, step 6): a chi^2 ``drop`` that removes at least
+    :data:`PRACTICAL_SHARE` of the baseline's excess over noise, or brings a baseline that is beyond
+    the noise within it."""
+    if not drop > 0:
+        return False
+    if drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0):
+        return True
+    return adequacy.within_noise is False and adequacy.excess - drop <= adequacy.tolerance
+
+
 def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy, loc: Localisation,
                measured: np.ndarray, keep: np.ndarray, rates: list, n: int, data: "_Data | None" = None,
                base_fit: dict | None = None, noise: NoiseModel | None = None) -> list[CandidateResult]:
@@ -865,9 +880,7 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
         drop = base["chi2"] - cand.chi2
         cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
         cand.significant = bool(cand.score > STRONG)
-        # it removes at least PRACTICAL_SHARE of the excess, or leaves none beyond the noise
-        cand.practical = bool(drop > 0 and (drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0)
-                                            or adequacy.excess - drop <= adequacy.tolerance))
+        cand.practical = is_practical(drop, adequacy)
         if cand.flagged_curves:
             # rows of a failed increment keep the last converged force: its chi^2 is no model's, and no
             # evidence for the effect (it is neither named nor weighed)

@@ -207,3 +207,21 @@ def test_cli_writes_json_and_report(tmp_path, capsys):
     assert main(["diagnose", str(csv), "--scene", str(tmp_path / "no.toml")]) == 2
     err = capsys.readouterr().err
     assert "no.toml" in err and "Traceback" not in err
+
+
+def test_size_threshold_needs_half_the_excess_or_the_noise_reached():
+    # hand-made adequacy results: dof 1225, spread 0.0712 per dof -> tolerance 3.09 x 0.0712 x 1225 = 269.5
+    from knitsim.diagnosis.diagnose import Adequacy, is_practical
+    within = Adequacy(chi2=1375.0, dof=1225, chi2_per_dof=1375 / 1225, expected_sd=0.0712, within_noise=True,
+                      excess=150.0)
+    assert not is_practical(33.0, within)          # 22 % of a within-noise excess: not named (pilot case)
+    assert is_practical(75.0, within)              # half of it
+    beyond = Adequacy(chi2=2225.0, dof=1225, chi2_per_dof=2225 / 1225, expected_sd=0.0712, within_noise=False,
+                      excess=1000.0)
+    assert beyond.tolerance == pytest.approx(3.09 * 0.0712 * 1225)
+    assert is_practical(500.0, beyond)             # half the excess
+    assert not is_practical(480.0, beyond)         # 48 %, and 520 left beyond a tolerance of 269.5
+    near = Adequacy(chi2=1725.0, dof=1225, chi2_per_dof=1725 / 1225, expected_sd=0.0712, within_noise=False,
+                    excess=500.0)
+    assert is_practical(240.0, near)               # 48 %, but 260 left is within the noise (269.5)
+    assert not is_practical(0.0, near) and not is_practical(-5.0, within)
