@@ -934,8 +934,14 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
     assumed = [n.source for n in noise.curves if not n.known]
     named = [c for c in fitted if c.significant and c.practical]
     if not named and adequacy.within_noise:
+        small = [c for c in fitted if c.significant and not c.practical]
+        aside = "" if not small else (
+            f"; {small[0].effect} has evidence (BIC score {small[0].score:.3g}, probability "
+            f"{small[0].probability or 0.0:.3g}) but removes only {max(small[0].share_of_excess or 0.0, 0.0):.0%} of "
+            f"the baseline's excess over noise (the size threshold is {PRACTICAL_SHARE:.0%}): too small to explain "
+            "anything")
         return Verdict("none", None, stage, 0.0, True,
-                       f"the model explains these curves within their noise: {fit_txt}", [], probs)
+                       f"the model explains these curves within their noise: {fit_txt}{aside}", [], probs)
     if not named:
         best = fitted[0] if fitted else None
         if best is None:
