@@ -108,8 +108,11 @@ def run(args) -> int:
         else:
             share = "n/a" if c["share_of_excess"] is None else f"{c['share_of_excess']:.0%}"
             prob = "  n/a" if c["probability"] is None else f"{c['probability']:.3f}"
-            print(f"  {c['effect']:<24s} p {prob}  score {c['score']:10.4g}  share of gap {share:>6s}"
-                  f"  shrink {c['shrink']:6.1%}{'  named' if c['significant'] and c['practical'] else ''}")
+            fit = "" if c.get("chi2_per_dof") is None else (
+                f"  chi2/dof {c['chi2_per_dof']:.3g}{' within noise' if c.get('within_noise') else ''}")
+            print(f"  {c['effect']:<24s} p {prob}  score {c['score']:10.4g}  share of gap {share:>6s}{fit}"
+                  f"  shrink {c['shrink']:6.1%}{'  named' if c['significant'] and c['practical'] else ''}"
+                  f"{'  (evidence rests on assumed noise)' if c.get('rests_on_assumed_noise') else ''}")
     probs = ", ".join(f"{k} {p:.2f}" for k, p in sorted(v["probabilities"].items(), key=lambda kv: -kv[1])[:4])
     conf = "confident" if v["confident"] else "not confident"
     if v["kind"] == "none":

@@ -2,18 +2,21 @@
 
     knitsim diagnose-study [--cases N] [--seed S] [--out DIR] [--jobs N] [--specimen lab|single] [--json]
 
-Generates N synthetic specimens (E-glass / basalt, every other one effect-free,
+Generates N synthetic specimens (a share --none-fraction of them effect-free,
 the others with one hidden effect at a random strength) and diagnoses each
-without its label. A "lab" specimen (the default) is tested twice, a monotonic
-pull to 5 N per wale and three cycles 0.10-0.60, each with its own noise (1 %
+without its label. A "lab" specimen (the default: the E-glass knit, half of
+them effect-free, exactly) is tested twice, a monotonic pull to 5 N per wale and three cycles 0.10-0.60, each with its own noise (1 %
 of its peak + 0.002 N), a load-cell offset, negative readings near zero,
 strain jitter, sometimes an outlier row, and 0.5 % specimen scatter.
 
-Writes DIR/cases/*.json, DIR/summary.json and DIR/summary.md: the false-alarm
-rate on effect-free specimens with its 95 % Wilson interval, top-1 accuracy on
-identifiable effects, the Dahl cases. An interrupted study resumes where it
-stopped with --resume (--summary-only summarises it without running); an --out that holds a study is
-refused without --resume or --overwrite.
+Writes DIR/cases/*.json, DIR/cases.csv, DIR/summary.json and DIR/summary.md
+(rewritten after every case): the false-alarm rate on effect-free specimens
+with its 95 % Wilson and Clopper-Pearson intervals, top-1 accuracy on
+identifiable effects, the Dahl cases misattributed, seconds per case. A study
+killed at any moment resumes where it stopped with --resume (the finished cases
+are kept; --resume on an empty or absent --out starts the study, so one
+command both starts and resumes it); --summary-only summarises it without
+running; an --out that holds a study is refused without --resume or --overwrite.
 """
 from __future__ import annotations
 
@@ -44,8 +47,10 @@ def register(subparsers) -> None:
                    help="force noise sd / peak force (default: the paper's capstan scatter, 0.013)")
     p.add_argument("--scatter-rel", type=float, default=None, metavar="X",
                    help="specimen scatter of L, W0, C0, d (default 0.005 lab, 0.01 single)")
-    p.add_argument("--none-fraction", type=float, default=0.25, metavar="X",
-                   help="share of effect-free cases (default 0.25)")
+    p.add_argument("--none-fraction", type=float, default=None, metavar="X",
+                   help="share of effect-free cases (default 0.5 lab, exactly; 0.25 single, drawn)")
+    p.add_argument("--materials", default=None, metavar="A,B",
+                   help="materials of the specimens (default e_glass for lab, e_glass,basalt for single)")
     p.add_argument("--free", default=",".join(DEFAULT_STUDY_FREE), metavar="A,B,...",
                    help="baseline parameters the diagnosis calibrates (default m,phi0,d,L,C0: the friction and "
                         "the scattered geometry; any of m, phi0, B, d, L, W0, C0)")
@@ -80,8 +85,17 @@ def _run(args) -> int:
         raise KnitsimInputError(f"--noise-rel = {args.noise_rel}: expected a number >= 0")
     if args.scatter_rel is not None and not (math.isfinite(args.scatter_rel) and 0 <= args.scatter_rel < 0.2):
         raise KnitsimInputError(f"--scatter-rel = {args.scatter_rel}: expected a number in [0, 0.2)")
+    if args.none_fraction is None:
+        args.none_fraction = 0.5 if args.specimen == "lab" else 0.25
     if not (math.isfinite(args.none_fraction) and 0 <= args.none_fraction <= 1):
         raise KnitsimInputError(f"--none-fraction = {args.none_fraction}: expected a number in [0, 1]")
+    materials = None
+    if args.materials is not None:
+        from ..diagnosis.synthetic import MATERIALS
+        materials = tuple(m.strip() for m in args.materials.split(",") if m.strip())
+        for m in materials or (args.materials,):
+            if m not in MATERIALS:
+                raise KnitsimInputError(f"--materials: unknown material {m!r}; expected some of {', '.join(MATERIALS)}")
 
     if args.jobs < 1:
         raise KnitsimInputError(f"--jobs = {args.jobs}: expected a whole number >= 1")
@@ -109,7 +123,7 @@ def _run(args) -> int:
                                 include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
                                 scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
                                 resume=True, jobs=args.jobs, summary_only=args.summary_only,
-                                specimen=args.specimen)
+                                specimen=args.specimen, materials=materials)
     except KeyboardInterrupt:
         print(f"knitsim diagnose-study: interrupted; the finished cases are kept in {args.out}/cases and "
               f"summarised in {args.out}/summary.md (marked partial); the same command resumes",

@@ -16,9 +16,18 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    and a force offset per curve (a load cell's zero), by weighted least
    squares from the scene's start and the best points of a coarse (m, phi0)
    grid; then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
-   fit whose neighbours fit) are left out and the fit repeated.
+   fit whose neighbours fit) are left out and the fit repeated.  The cells stop
+   at :data:`FORCE_CAP_FACTOR` times the largest measured force
+   (:func:`capped_setup`).
 3. **Candidates** (:func:`candidates_step`): each effect added and the model
-   recalibrated; then the **basin check** (:func:`basin_step`): a candidate's
+   recalibrated, from several starts that race (:func:`_fit`): the calibrated
+   baseline with the effect where it vanishes, the effect's own starts, phi0
+   on the far side, and the scene's geometry with the effect's own starts
+   (:func:`_scene_geometry`: a baseline can absorb an effect by a geometry far
+   from the specimen's, and the effect's optimum lies near the specimen's);
+   for ``coiling_angle_friction`` a profile over its mu_k
+   (:func:`_profile_start`).  The baseline runs in each race: a candidate far
+   behind it is not fitted further.  Then the **basin check** (:func:`basin_step`): a candidate's
    fit may have found a better basin of the baseline's own parameters, and the
    baseline is re-calibrated from there, so that no effect is credited with
    what the baseline can do itself.
@@ -37,13 +46,20 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    thresholds: evidence (score > :data:`STRONG`: Kass and Raftery 1995, very
    strong) and size (*practical*: it removes at least :data:`PRACTICAL_SHARE`
    of the baseline's excess over noise, more than all other causes together,
-   or leaves no excess beyond the noise; an effect that shrinks a large gap by
-   0.1 % explains nothing, whatever its BIC).  The adequacy test of the whole
+   or brings a baseline that misses the curves beyond their noise within it;
+   an effect that shrinks a large gap by 0.1 % explains nothing, whatever its
+   BIC).  A baseline already within noise leaves only the share: there the
+   second clause would hold for any drop, and an effect-free specimen whose
+   baseline fit ends 1.7 sd above dof (chi^2/dof 1.12) had a candidate that
+   took 22 % of that excess named at a BIC score of 26.  Every candidate is also judged
+   against the noise as the baseline is (``chi2_per_dof``, ``within_noise``),
+   carries its chi^2 drop per curve, and is marked when its evidence rests on
+   curves whose noise is assumed (``rests_on_assumed_noise``).  The adequacy test of the whole
    fit cannot veto a named effect: a BIC test of one nested effect is far more
    sensitive than the chi^2 of all rows, whose spread includes that of the
    estimated noise.
 7. **Pair** (:func:`pair_step`): the best effect plus each of the
-   :data:`PAIR_PARTNERS` next effects that lowered chi^2 on their own.
+   :data:`PAIR_PARTNERS` next effects with a positive score of their own.
 8. **Verdict** (:func:`verdict_step`): ``effect`` when an effect clears both
    thresholds (not confident when another is within :data:`STRONG` of it, its
    fit did not converge, or a curve's noise had to be assumed); else ``none``
@@ -237,6 +253,14 @@ class CandidateResult:
     probability: float | None = None
     flagged_curves: list = field(default_factory=list)
     nfev: int = 0
+    #: the model with this effect against the noise, as the baseline's adequacy test (step 5)
+    chi2_per_dof: float | None = None
+    within_noise: bool | None = None
+    #: drop of chi^2 from the baseline, per curve (where the evidence comes from)
+    drop_by_curve: dict = field(default_factory=dict)
+    #: True when the evidence from the curves whose noise is known (measured or given) does not clear
+    #: the threshold alone: the effect rests on a curve whose noise is assumed
+    rests_on_assumed_noise: bool = False
 
 
 @dataclass
@@ -301,6 +325,28 @@ def noise_step(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup) -> NoiseM
     return NoiseModel(out)
 
 
+#: the simulated cells stop at this multiple of the largest measured force (module docstring of capped_setup)
+FORCE_CAP_FACTOR = 3.0
+
+
+def capped_setup(setup: DiagnosisSetup, curves: Sequence[MeasuredCurve]) -> DiagnosisSetup:
+    """The setup with the cells' force cap at :data:`FORCE_CAP_FACTOR` times the largest measured force.
+
+    A parameter set whose jammed branch runs far above every measured force is a hopeless misfit
+    whatever the force it reaches; simulating it to the scene's cap (50 N by default) costs the
+    increments that do not converge on the steep branch (12.9 s against 0.02 s for six cells of a
+    pull to 5 N), the cap stops them at once (``force_cap``, an ordinary end).  A fit never comes
+    near the cap: at three times the peak its residual is twice the peak on every row beyond.
+    """
+    peak = max((float(np.max(c.force)) for c in curves), default=0.0)
+    if not (peak > 0 and math.isfinite(peak)):
+        return setup
+    cap = FORCE_CAP_FACTOR * peak
+    if cap >= setup.base.force_cap_N:
+        return setup
+    return replace(setup, base=setup.base.replace(force_cap_N=cap))
+
+
 def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
     """The noise sd [N] of curves that share one noise level (their chords pooled); see
     :mod:`knitsim.diagnosis.noise`.  The diagnosis itself estimates every curve on its own
@@ -320,35 +366,82 @@ class _Data:
     setup: DiagnosisSetup
     weights: list
 
-    def calibrate(self, effects: tuple, x0: dict, nfev: int, free: tuple, bounds: dict) -> dict:
+    def calibrate(self, effects: tuple, x0: dict, nfev: int, free: tuple, bounds: dict,
+                  penalise_failed: bool = False) -> dict:
         s = self.setup
         return calibrate_baseline(self.curves, s.base, free=free, bounds=bounds, device=s.device,
                                   max_increment=s.max_increment, x0=x0, max_nfev=nfev, effects=effects,
-                                  fixed=s.fixed, weights=self.weights, offsets=s.offsets)
+                                  fixed=s.fixed, weights=self.weights, offsets=s.offsets,
+                                  penalise_failed=penalise_failed)
 
     def chi2_of(self, cells) -> np.ndarray:
         s = self.setup
         return rss_of_cells(self.curves, cells, s.max_increment, s.device, weights=self.weights, offsets=s.offsets)
 
 
-#: effects tried beside the best one in the greedy pair (the next best that lowered chi^2 on their own)
+#: effects tried beside the best one in the greedy pair (the next best with a positive score of their own)
 PAIR_PARTNERS = 3
 
 #: evaluations each start of a multi-start calibration gets before the best one goes on alone
 RACE_NFEV = 6
+#: the race in two heats: after RACE_HEAT_NFEV evaluations a start whose chi^2 is more than RACE_KEEP times
+#: the best is dropped (it is in a worse basin by far: a factor 1.25 is hundreds of chi^2 units on a
+#: thousand rows, where the rest of the race moves a start by tens)
+RACE_HEAT_NFEV = 3
+RACE_KEEP = 1.25
 #: the baseline's calibration gets this many times ``max_nfev`` (every candidate is measured against it)
 BASELINE_NFEV_FACTOR = 3
 
 
-def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None) -> dict:
+def _failed(fit: dict) -> bool:
+    """True when some increment of the fit's simulation did not converge (its rows keep a frozen force)."""
+    return any(c["final_status"] not in ("ok", "force_cap") for c in fit["curves"])
+
+
+#: evaluations of the repair of a fit that ended where the simulation fails (:func:`_fit`)
+REPAIR_NFEV = 6
+
+
+def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None,
+         rival_chi2: float | None = None) -> dict:
+    """:func:`_race`, and the repair of a fit that ended where some increment does not converge.
+
+    Rows after a failed increment keep a frozen force, which may match the measured rows by chance
+    (~0 N after a slack cycle): such a fit is no model's and would not be judged.  It is continued
+    for :data:`REPAIR_NFEV` evaluations with those rows counted at least
+    :data:`knitsim.diagnosis.calibrate.FAILED_ROW_Z` sd, which moves it to where the model runs;
+    the repaired fit replaces it when it runs through (``repaired``).
+    """
+    best = _race(data, effects, x0, extra_starts, nfev, rival_chi2)
+    if not _failed(best):
+        return best
+    setup = data.setup
+    free = tuple(best["fit_variables"])
+    bounds = {k: tuple(v) for k, v in setup.bounds.items() if k in free}
+    fix = data.calibrate(effects, best["fit_variables"], REPAIR_NFEV, free, bounds, penalise_failed=True)
+    if _failed(fix):
+        return best
+    fix["race"] = best.get("race", [])
+    fix["repaired"] = True
+    if best.get("stopped_after_race"):
+        fix["stopped_after_race"] = True
+    return fix
+
+
+def _race(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), nfev: int | None = None,
+          rival_chi2: float | None = None) -> dict:
     """Calibrate the model with ``effects`` on from several starts; the least chi^2 is kept.
 
     The variables start from the specimen as calibrated so far (``x0``, in the
     fitted variables: phi0 as a fraction of phimax) or where the effect
     vanishes; each of ``extra_starts`` overrides some of them.  With more than
-    one start, each gets :data:`RACE_NFEV` evaluations and only the best goes on
+    one start, each gets :data:`RACE_HEAT_NFEV` evaluations, those within :data:`RACE_KEEP` of the
+    best chi^2 get :data:`RACE_NFEV` in all, and only the best goes on
     to ``setup.max_nfev`` (a race: the starts are there to pick a basin, which
-    the first few trust-region steps show).
+    the first few trust-region steps show).  ``rival_chi2`` (the baseline's, for a
+    candidate) runs in the race too: a fit still more than :data:`RACE_KEEP`
+    times above it after the race is not continued (``stopped_after_race``);
+    it explains nothing the baseline does not, by far.
     """
     setup = data.setup
     max_nfev = setup.max_nfev if nfev is None else nfev
@@ -369,12 +462,34 @@ def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), n
             starts.append(st)
     if len(starts) == 1 or max_nfev <= RACE_NFEV:
         fits = [data.calibrate(effects, st, max_nfev, free, bounds) for st in starts]
-        return min(fits, key=lambda f: f["chi2"])
-    best = min((data.calibrate(effects, st, RACE_NFEV, free, bounds) for st in starts), key=lambda f: f["chi2"])
-    if best["success"]:
+        best = min(fits, key=lambda f: f["chi2"])
+        best["race"] = [f["chi2"] for f in fits]
         return best
-    fit = data.calibrate(effects, best["fit_variables"], max_nfev - RACE_NFEV, free, bounds)
-    return fit if fit["chi2"] <= best["chi2"] else best
+    race = [data.calibrate(effects, st, RACE_HEAT_NFEV, free, bounds) for st in starts]
+    lead = min(f["chi2"] for f in race)
+    if rival_chi2 is not None and lead > RACE_KEEP * RACE_KEEP * rival_chi2:
+        # far behind the baseline after the first heat already (1.56 x its chi^2): the second heat
+        # would move it by tens of chi^2 units, not by the hundreds it lacks
+        best = min(race, key=lambda f: f["chi2"])
+        best["race"] = [f["chi2"] for f in race]
+        best["stopped_after_race"] = True
+        return best
+    for j, f in enumerate(race):
+        if not f["success"] and f["chi2"] <= RACE_KEEP * lead:
+            again = data.calibrate(effects, f["fit_variables"], RACE_NFEV - RACE_HEAT_NFEV, free, bounds)
+            if again["chi2"] <= f["chi2"]:
+                race[j] = again
+    best = min(race, key=lambda f: f["chi2"])
+    chi2s = [f["chi2"] for f in race]
+    if rival_chi2 is not None and not best["success"] and best["chi2"] > RACE_KEEP * rival_chi2:
+        best["race"] = chi2s
+        best["stopped_after_race"] = True
+        return best
+    if not best["success"]:
+        fit = data.calibrate(effects, best["fit_variables"], max_nfev - RACE_NFEV, free, bounds)
+        best = fit if fit["chi2"] <= best["chi2"] else best
+    best["race"] = chi2s
+    return best
 
 
 #: coarse grid of the baseline's friction: m (eq 10's ratio; section 3.4 reports 0.06 .. 0.6 over a test) and
@@ -421,6 +536,41 @@ def _grid_starts(data: _Data) -> tuple:
     return tuple(points[j] for j in order[:GRID_STARTS])
 
 
+def _friction_at(data: _Data, effects: tuple, point: dict, also: tuple = ()) -> dict:
+    """The best (m, phi0) of the coarse grid (:data:`GRID_M` x :data:`GRID_PHI0`, and the points
+    ``also``) for the model with ``effects`` at the other variables of ``point``, in one batched launch.
+
+    A start from another geometry (the scene's) with the friction of a baseline that absorbed the
+    effect by that geometry is in neither basin: the baseline's m compensates the geometry it moved
+    (a yarn 28 % thinner with m 0.57 where the specimen has 0.18).  The friction belongs to the
+    geometry, so it is searched again there, as the baseline's own grid does at the scene's start.
+    Returns ``point`` with the best grid point's m and phi0 (``point`` unchanged when neither is free
+    or no grid cell is valid).
+    """
+    setup = data.setup
+    free = {v.name for v in variables_for(tuple(setup.free), effects)}
+    if "m" not in free and "phi0" not in free:
+        return dict(point)
+    lo_m, hi_m = setup.bounds.get("m", BASELINE_VARIABLES["m"].bounds)
+    lo_f, hi_f = setup.bounds.get("phi0", BASELINE_VARIABLES["phi0"].bounds)
+    ms = [m for m in GRID_M if lo_m <= m <= hi_m] if "m" in free else [None]
+    fs = [f for f in GRID_PHI0 if lo_f <= f <= hi_f] if "phi0" in free else [None]
+    grid = [{k: v for k, v in (("m", m), ("phi0", f)) if v is not None} for m in ms for f in fs]
+    grid += [{k: v for k, v in a.items() if k in ("m", "phi0") and k in free} for a in also]
+    points, cells = [], []
+    for g in grid:
+        pt = dict(point, **g)
+        try:
+            cells.append(build_params(setup.base, effects, pt, setup.fixed))
+        except KnitsimInputError:
+            continue
+        points.append(pt)
+    if not cells:
+        return dict(point)
+    chi2 = data.chi2_of(cells)
+    return points[int(np.argmin(chi2))]
+
+
 def _phi0_alternative(values: dict) -> tuple:
     """A start of phi0 away from the baseline's, when that sits near a bound of the cone.
 
@@ -432,6 +582,69 @@ def _phi0_alternative(values: dict) -> tuple:
     if f is None or abs(f) < 0.5:
         return ()
     return ({"phi0": 0.0},)
+
+
+#: geometry variables a candidate also starts from at the scene's values
+GEOMETRY_VARIABLES = ("B", "d", "in_plane_width", "L", "W0", "C0")
+#: relative distance of the calibrated geometry from the scene's beyond which the scene's is a start of its own
+SCENE_START_REL = 0.01
+
+
+def _scene_geometry(setup: DiagnosisSetup, base_x: dict) -> dict:
+    """The scene's values of the free geometry variables, when the calibrated baseline has moved away
+    from them (by more than :data:`SCENE_START_REL` in one of them); else ``{}``.
+
+    A baseline can absorb an effect by a geometry far from the specimen described (compaction by a
+    yarn 20 % thinner, the coiling angle's friction by a thicker one): the effect's own optimum then
+    lies near the scene's geometry, in another basin than the baseline's.  Each candidate therefore
+    also starts from the scene's geometry, with its effect's own starts (its parameter away from
+    where it vanishes; there the baseline's basin would pull it back).
+    """
+    out = {}
+    for name in GEOMETRY_VARIABLES:
+        if name in setup.free and name in base_x:
+            v = BASELINE_VARIABLES[name].start(setup.base)
+            out[name] = v
+    moved = any(abs(base_x[k] - v) > SCENE_START_REL * abs(v) for k, v in out.items())
+    return out if moved else {}
+
+
+#: evaluations of each point of an effect's profile (EffectSpec.profile)
+PROFILE_NFEV = 8
+
+
+def _profile_start(data: _Data, name: str, base_x: dict, scene: dict) -> dict:
+    """The best point of a profile over the effect's variable, as a start of its fit.
+
+    The variable is held at each multiple :attr:`EffectSpec.profile` of its start (mapped from the
+    calibrated baseline) and the baseline's variables are refitted (:data:`PROFILE_NFEV`
+    evaluations) from the scene's geometry (``scene``; the baseline's when it is empty) and the
+    baseline's friction.  The profile of a variable that trades with the geometry along narrow
+    valleys is smooth where the joint fit has many local minima: its best point lies in the basin of
+    the effect's optimum.
+    """
+    setup = data.setup
+    spec = EFFECT_SPECS[name]
+    (var,) = spec.variables
+    free = tuple(v.name for v in variables_for(tuple(setup.free), (name,)) if v.name != var.name)
+    try:
+        ref = build_params(setup.base, (), {k: v for k, v in base_x.items() if k in BASELINE_VARIABLES})
+    except KnitsimInputError:
+        ref = setup.base
+    v0 = var.start(ref)
+    lo, hi = var.bounds
+    x0 = {k: v for k, v in dict(base_x, **scene).items() if k in free}
+    best = None
+    for f in spec.profile:
+        v = min(max(f * v0, lo), hi)
+        fit = calibrate_baseline(data.curves, setup.base, free=free, bounds={k: tuple(b) for k, b in setup.bounds.items()
+                                                                              if k in free},
+                                 device=setup.device, max_increment=setup.max_increment, x0=x0, max_nfev=PROFILE_NFEV,
+                                 effects=(name,), fixed=dict(setup.fixed, **{var.name: v}), weights=data.weights,
+                                 offsets=setup.offsets)
+        if best is None or fit["chi2"] < best[0]:
+            best = (fit["chi2"], dict(fit["fit_variables"], **{var.name: v}))
+    return best[1]
 
 
 def _baseline_chi2_at(data: _Data, fits: dict) -> dict:
@@ -496,8 +709,10 @@ def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
     return fit, outliers
 
 
-def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = False) -> dict:
-    """Step 3: each identifiable effect's fit (from the baseline, and its own extra starts)."""
+def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = False,
+                    base_chi2: float | None = None) -> dict:
+    """Step 3: each identifiable effect's fit (from the baseline, and its own extra starts); the
+    baseline's ``base_chi2`` runs in each race (:func:`_fit`)."""
     out = {}
     for name in names:
         spec = EFFECT_SPECS[name]
@@ -505,10 +720,21 @@ def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = 
             continue
         if quick:
             # from the new baseline only, where the effect vanishes: the other starts were raced already
-            out[name] = _fit(data, (name,), x0=base_x)
+            out[name] = _fit(data, (name,), x0=base_x, rival_chi2=base_chi2)
         else:
-            out[name] = _fit(data, (name,), x0=base_x, extra_starts=spec.extra_starts + _phi0_alternative(base_x))
-        say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g}")
+            scene = _scene_geometry(data.setup, base_x)
+            extra = spec.extra_starts + _phi0_alternative(base_x)
+            if spec.profile:
+                extra += (_profile_start(data, name, base_x, scene),)
+            elif scene:
+                # from the scene's geometry with the effect's own starts, and the friction searched
+                # there (the baseline's belongs to the geometry it moved to: _friction_at)
+                base_friction = {k: base_x[k] for k in ("m", "phi0") if k in base_x}
+                extra += tuple(_friction_at(data, (name,), dict(scene, **st), also=(base_friction,))
+                               for st in spec.extra_starts)
+            out[name] = _fit(data, (name,), x0=base_x, extra_starts=extra, rival_chi2=base_chi2)
+        say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g} (starts: "
+            + ", ".join(f"{c:.5g}" for c in out[name].get("race", [])) + ")")
     return out
 
 
@@ -527,7 +753,7 @@ def basin_step(data: _Data, base_fit: dict, fits: dict, rates, say) -> tuple[dic
     note = f"baseline re-calibrated from the {src} fit's parameters: chi2 {old:.5g} -> {refit['chi2']:.5g}"
     moved = old - refit["chi2"] > STRONG
     stuck = [k for k, f in fits.items() if moved and f["chi2"] > refit["chi2"]]
-    again = candidates_step(data, refit["fit_variables"], stuck, rates, say, quick=True)
+    again = candidates_step(data, refit["fit_variables"], stuck, rates, say, quick=True, base_chi2=refit["chi2"])
     fits = dict(fits, **{k: f for k, f in again.items() if f["chi2"] < fits[k]["chi2"]})
     if stuck:
         note += f"; {', '.join(stuck)} fitted again from there"
@@ -587,8 +813,29 @@ def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarra
             "flagged_curves": flagged, "nfev": fit["nfev"]}
 
 
+def chi2_by_curve(data: "_Data", fit: dict) -> dict:
+    """chi^2 of a fit per curve (rows weighted by their curve's noise, offsets included)."""
+    out = {}
+    for c, w, fc in zip(data.curves, data.weights, fit["curves"]):
+        z = (np.asarray(fc["simulated"]) - c.force) * w
+        out[c.source] = float(z @ z)
+    return out
+
+
+def is_practical(drop: float, adequacy: Adequacy) -> bool:
+    """The size threshold (module docstring, step 6): a chi^2 ``drop`` that removes at least
+    :data:`PRACTICAL_SHARE` of the baseline's excess over noise, or brings a baseline that is beyond
+    the noise within it."""
+    if not drop > 0:
+        return False
+    if drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0):
+        return True
+    return adequacy.within_noise is False and adequacy.excess - drop <= adequacy.tolerance
+
+
 def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy, loc: Localisation,
-               measured: np.ndarray, keep: np.ndarray, rates: list, n: int) -> list[CandidateResult]:
+               measured: np.ndarray, keep: np.ndarray, rates: list, n: int, data: "_Data | None" = None,
+               base_fit: dict | None = None, noise: NoiseModel | None = None) -> list[CandidateResult]:
     """Step 6: every candidate's evidence (BIC drop), size (share of the baseline's excess over noise)
     and probability among the candidates and "none" (BIC weights); best first."""
     out = []
@@ -612,12 +859,28 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
                                                                            base["rms_N"], base["stages"], 0.0)
             cand.score = -(fit["k"] - base["k"]) * math.log(n)
             cand.note = "its fit ended above the baseline (a local minimum); where it vanishes it is the baseline"
+        if data is not None and noise is not None and not (spec.nests_baseline and fit["chi2"] > base["chi2"]):
+            ad = adequacy_step(data, fit, noise)
+            cand.chi2_per_dof, cand.within_noise = ad.chi2_per_dof, ad.within_noise
+        elif spec.nests_baseline and fit["chi2"] > base["chi2"]:
+            cand.chi2_per_dof, cand.within_noise = adequacy.chi2_per_dof, adequacy.within_noise
+        if data is not None and base_fit is not None and cand.chi2 < base["chi2"]:
+            b_c, e_c = chi2_by_curve(data, base_fit), chi2_by_curve(data, fit)
+            cand.drop_by_curve = {k: b_c[k] - e_c[k] for k in b_c}
+            if noise is not None and not noise.all_known:
+                known = {c.source for c in noise.curves if c.known}
+                own = sum(v for k, v in cand.drop_by_curve.items() if k in known)
+                cand.rests_on_assumed_noise = bool(own - (fit["k"] - base["k"]) * math.log(n) <= STRONG)
+                if cand.rests_on_assumed_noise:
+                    cand.note = ("its evidence rests on curves whose noise is assumed, not measured "
+                                 f"({', '.join(c.source for c in noise.curves if not c.known)})")
+        if fit.get("stopped_after_race") and not cand.note:
+            cand.note = (f"its fit stopped after the race of its starts, chi2 more than {RACE_KEEP:g} times "
+                         "the baseline's")
         drop = base["chi2"] - cand.chi2
         cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
         cand.significant = bool(cand.score > STRONG)
-        # it removes at least PRACTICAL_SHARE of the excess, or leaves none beyond the noise
-        cand.practical = bool(drop > 0 and (drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0)
-                                            or adequacy.excess - drop <= adequacy.tolerance))
+        cand.practical = is_practical(drop, adequacy)
         if cand.flagged_curves:
             # rows of a failed increment keep the last converged force: its chi^2 is no model's, and no
             # evidence for the effect (it is neither named nor weighed)
@@ -638,9 +901,12 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
 
 def pair_step(data: _Data, best: CandidateResult, fitted: list, fits: dict, base_fit: dict, base: dict,
               loc: Localisation, measured, keep, n: int, say) -> tuple[dict | None, dict | None]:
-    """Step 7: the best effect with each of the next :data:`PAIR_PARTNERS` that lowered chi^2 alone."""
+    """Step 7: the best effect with each of the next :data:`PAIR_PARTNERS` that have a positive score alone."""
     trials = []
-    partners = [c for c in fitted if c.effect != best.effect and c.chi2 < base["chi2"]]
+    # partners with evidence of their own (a positive BIC score: they lower chi^2 by more than their
+    # parameters cost); a partner that explains nothing alone is seldom half of a pair
+    partners = [c for c in fitted if c.effect != best.effect and c.score is not None and c.score > 0
+                and not c.flagged_curves]
     for other in partners[:PAIR_PARTNERS]:
         effs = (best.effect, other.effect)
         x0 = {**base_fit["fit_variables"], **fits[best.effect]["fit_variables"]}
@@ -668,8 +934,14 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
     assumed = [n.source for n in noise.curves if not n.known]
     named = [c for c in fitted if c.significant and c.practical]
     if not named and adequacy.within_noise:
+        small = [c for c in fitted if c.significant and not c.practical]
+        aside = "" if not small else (
+            f"; {small[0].effect} has evidence (BIC score {small[0].score:.3g}, probability "
+            f"{small[0].probability or 0.0:.3g}) but removes only {max(small[0].share_of_excess or 0.0, 0.0):.0%} of "
+            f"the baseline's excess over noise (the size threshold is {PRACTICAL_SHARE:.0%}): too small to explain "
+            "anything")
         return Verdict("none", None, stage, 0.0, True,
-                       f"the model explains these curves within their noise: {fit_txt}", [], probs)
+                       f"the model explains these curves within their noise: {fit_txt}{aside}", [], probs)
     if not named:
         best = fitted[0] if fitted else None
         if best is None:
@@ -684,7 +956,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         return Verdict("unexplained", None, stage, 0.0, confident,
                        f"{lead} ({fit_txt}), and no effect explains the gap: {why} (naming one needs a BIC drop "
                        f"> {STRONG:g} and >= {PRACTICAL_SHARE:.0%} of the excess, or none left beyond the noise); "
-                       f"the largest gap is in stage {stage}", [], probs)
+                       f"the largest gap is in stage {stage}; the probabilities weigh the candidates and none "
+                       "against each other only, and none of them fits within the noise", [], probs)
     best = named[0]
     drops = {k: base["stages"][k]["sse_N2"] - best.stages.get(k, {}).get("sse_N2", 0.0) for k in base["stages"]}
     where = max(drops, key=drops.get) if drops else stage
@@ -698,8 +971,13 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         share = ("" if best.share_of_excess is None else
                  f", removes {min(best.share_of_excess, 1.0):.0%} of the baseline's excess over noise")
         reason = f"BIC score {best.score:.4g}{share} ({fit_txt}); probability {best.probability:.3g}"
+    if best.within_noise is False:
+        reason += (f"; with it the model still misses the curves beyond their noise (chi2/dof = "
+                   f"{best.chi2_per_dof:.4g}): a further cause remains")
     if assumed:
         reason += f"; the noise of {', '.join(assumed)} is assumed, not measured"
+        if best.rests_on_assumed_noise:
+            reason += " and the evidence rests on it (the curves of known noise alone do not name it)"
     return Verdict("effect", best.effect, where, best.shrink, bool(confident), reason, rivals, probs)
 
 
@@ -756,9 +1034,10 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})
 
     noise = noise_step(curves, setup)
+    setup = capped_setup(setup, curves)
     data = _Data(curves, setup, noise.weights(curves))
     base_fit, outliers = calibrate_step(data, say)
-    fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say)
+    fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say, base_chi2=base_fit["chi2"])
     base_fit, fits, basin_note = basin_step(data, base_fit, fits, rates, say)
     keep = np.concatenate([w > 0 for w in data.weights])
     n = int(np.count_nonzero(keep))
@@ -771,7 +1050,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     if basin_note:
         base["note"] = basin_note
     adequacy = adequacy_step(data, base_fit, noise)
-    candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n)
+    candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n, data, base_fit, noise)
     sig = [c for c in candidates if c.significant and c.practical]
     indist = [[a.effect, b.effect] for i, a in enumerate(sig) for b in sig[i + 1:] if a.score - b.score < STRONG]
     best = sig[0] if sig else None

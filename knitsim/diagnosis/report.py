@@ -432,9 +432,13 @@ def render_report(result: dict) -> str:
         rows = [[_e(c.get("effect")), _params_text(c.get("params"), c.get("std_errors")),
                  _e(_fmt(c.get("rms_N"))), _e(_pct(c.get("shrink"))), _e(_fmt(c.get("score"))),
                  _e(_pct(c.get("share_of_excess"))), _e(_fmt(c.get("probability"))),
+                 _e(_fmt(c.get("chi2_per_dof")) + {True: " (within)", False: " (beyond)"}.get(c.get("within_noise"), "")),
                  _e(_fmt(bool(c.get("significant")) and bool(c.get("practical")))),
-                 _e(_fmt(bool(c.get("identifiable")))), _e(c.get("note") or "")] for c in cands]
-        out.append(_table(["effect", "parameters", "RMS [N]", "shrink", "score", "share of the gap", "probability", "named",
+                 _e(_fmt(bool(c.get("identifiable")))),
+                 _e(("evidence rests on assumed noise. " if c.get("rests_on_assumed_noise") else "")
+                    + (c.get("note") or ""))] for c in cands]
+        out.append(_table(["effect", "parameters", "RMS [N]", "shrink", "score", "share of the gap", "probability",
+                           "chi2/dof (noise)", "named",
                            "identifiable", "note"], rows, "candidates"))
     else:
         out.append("<p>No candidate effect was evaluated.</p>\n")

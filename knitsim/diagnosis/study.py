@@ -63,23 +63,31 @@ SPECIMENS = ("lab", "single")
 
 
 def draw_plan(n_cases: int, seed: int, effects: Sequence[str] = EFFECT_NAMES,
-              include_none_fraction: float = 0.25, specimen: str = "single") -> list[dict]:
+              include_none_fraction: float = 0.25, specimen: str = "single",
+              materials: Sequence[str] | None = None) -> list[dict]:
     """The cases of a study: index, case seed, material, test, hidden effect (None) and strength.
 
     ``single``: effect-free cases are drawn with probability ``include_none_fraction``.
-    ``lab``: every other case is effect-free (the study reports both rates on equal numbers).
+    ``lab``: exactly ``ceil(n f)`` of the first ``n`` cases are effect-free (``f`` =
+    ``include_none_fraction``, spread evenly: case ``i`` is effect-free when
+    ``ceil((i + 1) f) > ceil(i f)``; f = 0.5 alternates, starting effect-free), so that a study
+    reports both rates on the numbers asked for, and any prefix of a plan keeps them.
     The effect of the others cycles through ``effects`` in an order shuffled per
-    round, so that every effect is about equally represented.
+    round, so that every effect is about equally represented.  ``materials`` (default: both of
+    :data:`knitsim.diagnosis.synthetic.MATERIALS` for ``single``, the E-glass knit for ``lab``, the
+    specimen of the paper and of issue 12) are drawn uniformly.
     """
     _check_plan_args(n_cases, seed, effects, include_none_fraction)
     if specimen not in SPECIMENS:
         raise KnitsimInputError(f"specimen = {specimen!r}: expected one of {', '.join(SPECIMENS)}")
+    materials = _materials(materials, specimen)
     rng = np.random.default_rng(int(seed))
     effects = list(effects)
+    f = float(include_none_fraction)
     plan, queue = [], []
     for i in range(int(n_cases)):
         if specimen == "lab":
-            none = (i % 2 == 0) or not effects
+            none = math.ceil((i + 1) * f - 1e-9) > math.ceil(i * f - 1e-9) or not effects
             rng.random()  # keep one draw per case, as the single plan
         else:
             none = bool(rng.random() < include_none_fraction) if effects else True
@@ -87,13 +95,30 @@ def draw_plan(n_cases: int, seed: int, effects: Sequence[str] = EFFECT_NAMES,
             queue = [effects[j] for j in rng.permutation(len(effects))]
         effect = None if none else queue.pop()
         entry = {"index": i, "seed": int(rng.integers(0, 2**31 - 1)),
-                 "material": synthetic.MATERIALS[int(rng.integers(len(synthetic.MATERIALS)))],
+                 "material": materials[int(rng.integers(len(materials)))],
                  "test": synthetic.TESTS[int(rng.integers(len(synthetic.TESTS)))],
                  "effect": effect, "strength": float(rng.uniform(0.0, 1.0))}
         if specimen == "lab":
             entry["test"] = synthetic.LAB
         plan.append(entry)
     return plan
+
+
+#: materials of a lab study by default: the E-glass knit (the paper's specimen, issue 12's blind specimens)
+LAB_MATERIALS = ("e_glass",)
+
+
+def _materials(materials, specimen: str) -> tuple:
+    if materials is None:
+        return LAB_MATERIALS if specimen == "lab" else tuple(synthetic.MATERIALS)
+    if isinstance(materials, str) or not materials:
+        raise KnitsimInputError(f"materials = {materials!r}: expected a list of some of "
+                                f"{', '.join(synthetic.MATERIALS)}")
+    for m in materials:
+        if m not in synthetic.MATERIALS:
+            raise KnitsimInputError(f"materials: unknown material {m!r}; expected some of "
+                                    f"{', '.join(synthetic.MATERIALS)}")
+    return tuple(materials)
 
 
 def _check_plan_args(n_cases, seed, effects, include_none_fraction) -> None:
@@ -132,6 +157,18 @@ def wilson_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float] | No
     mid = (p + z * z / (2 * n)) / den
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
     return (max(0.0, mid - half), min(1.0, mid + half))
+
+
+def clopper_pearson_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float] | None:
+    """Exact (Clopper and Pearson 1934) interval of a rate k / n: the beta quantiles
+    ``B(a/2; k, n-k+1)`` .. ``B(1-a/2; k+1, n-k)``, 0 and 1 at the ends; None for n = 0."""
+    if n <= 0:
+        return None
+    from scipy.stats import beta
+    a = 1.0 - level
+    lo = 0.0 if k <= 0 else float(beta.ppf(a / 2, k, n - k + 1))
+    hi = 1.0 if k >= n else float(beta.ppf(1 - a / 2, k + 1, n - k))
+    return (lo, hi)
 
 
 def _ratio(num: int, den: int) -> float | None:
@@ -222,6 +259,7 @@ def study_metrics(records: Sequence[dict]) -> dict:
         "accuracy_all_effects": _ratio(all_ok, all_n), "effect_n": all_n,
         "false_alarm_rate": _ratio(alarms, none_n), "false_alarm_rate_incl_undecided": _ratio(alarms_any, none_n),
         "false_alarm_wilson95": wilson_interval(alarms, none_n),
+        "false_alarm_clopper_pearson95": clopper_pearson_interval(alarms, none_n),
         "false_alarm_incl_undecided_wilson95": wilson_interval(alarms_any, none_n),
         "unexplained_on_effect_free": unexplained_none,
         "none_n": none_n, "false_alarms": alarms,
@@ -230,6 +268,18 @@ def study_metrics(records: Sequence[dict]) -> dict:
         "mean_shrink": float(np.mean(shrinks)) if shrinks else None,
         "per_effect": per_effect,
     }
+
+
+def time_per_case(records: Sequence[dict]) -> dict:
+    """Seconds per case (generation + diagnosis), of the diagnosis alone (both wall) and CPU seconds per
+    case: mean, median, max."""
+    out = {}
+    for key, get in (("case_s", lambda r: r.get("timing_s")), ("diagnosis_s", lambda r: r.get("diagnosis_s")),
+                     ("case_cpu_s", lambda r: r.get("cpu_s"))):
+        t = [float(get(r)) for r in records if get(r) is not None]
+        out[key] = ({"n": len(t), "mean": float(np.mean(t)), "median": float(np.median(t)), "max": float(np.max(t))}
+                    if t else None)
+    return out
 
 
 def summary_markdown(summary: dict) -> str:
@@ -244,8 +294,11 @@ def summary_markdown(summary: dict) -> str:
         missing = summary.get("cases_missing", [])
         lines += [f"**Partial: {m['n_cases']} of {summary.get('cases_planned', '?')} planned cases finished** "
                   f"(not yet: {', '.join(str(i) for i in missing)}); run the study again to finish it.", ""]
-    def ci(x):
-        return "" if not x else f" (95 % Wilson {100 * x[0]:.1f} .. {100 * x[1]:.1f} %)"
+    def ci(x, how="Wilson"):
+        return "" if not x else f" (95 % {how} {100 * x[0]:.1f} .. {100 * x[1]:.1f} %)"
+
+    def secs(t):
+        return "n/a" if not t else f"{t['mean']:.1f} s mean, {t['median']:.1f} s median, {t['max']:.1f} s max"
 
     lines += [
              f"- specimens: {summary['config'].get('specimen', 'single')}",
@@ -258,7 +311,8 @@ def summary_markdown(summary: dict) -> str:
              f"| {m['top1_n']} cases |",
              f"| accuracy over all effect cases (identifiable or not) | {pct(m.get('accuracy_all_effects'))} "
              f"| {m.get('effect_n', 0)} cases |",
-             f"| false alarms (effect-free, confident) | {pct(m['false_alarm_rate'])}{ci(m.get('false_alarm_wilson95'))} "
+             f"| false alarms (effect-free, confident) | {m['false_alarms']} = {pct(m['false_alarm_rate'])}"
+             f"{ci(m.get('false_alarm_wilson95'))}{ci(m.get('false_alarm_clopper_pearson95'), 'Clopper-Pearson')} "
              f"| {m['none_n']} cases |",
              f"| false alarms incl. undecided | {pct(m['false_alarm_rate_incl_undecided'])}"
              f"{ci(m.get('false_alarm_incl_undecided_wilson95'))} | {m['none_n']} cases |",
@@ -268,7 +322,12 @@ def summary_markdown(summary: dict) -> str:
              f"| stage localisation (correct verdicts) | {pct(m['stage_accuracy'])} | {m['stage_n']} cases |",
              "| mean shrink (correct verdicts) | "
              + ("n/a" if m["mean_shrink"] is None else f"{m['mean_shrink']:.3f}") + f" | {m['stage_n']} cases |",
-             f"| generator failures (not diagnosed) | {m['generator_failed']} | |", "",
+             f"| generator failures (not diagnosed) | {m['generator_failed']} | |",
+             f"| time per case (generation, oracle, diagnosis) | {secs(summary.get('time_per_case', {}).get('case_s'))} "
+             f"| {m['n_cases']} cases |",
+             f"| time per diagnosis | {secs(summary.get('time_per_case', {}).get('diagnosis_s'))} | {m['n_cases']} cases |",
+             f"| CPU time per case (one core) | {secs(summary.get('time_per_case', {}).get('case_cpu_s'))} "
+             f"| {m['n_cases']} cases |", "",
              "## Confusion matrix (rows: hidden effect; columns: verdict)", ""]
     cols = m["columns"]
     lines.append("| true \\ verdict | " + " | ".join(cols) + " |")
@@ -283,12 +342,55 @@ def summary_markdown(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: columns of ``cases.csv``
+CSV_COLUMNS = ("index", "seed", "material", "hidden_effect", "strength", "identifiable", "verdict_kind",
+               "verdict_effect", "confident", "column", "correct", "p_none", "p_verdict_effect", "best_candidate",
+               "best_score", "best_share_of_excess", "baseline_chi2_per_dof", "baseline_within_noise",
+               "case_s", "diagnosis_s", "cpu_s", "error")
+
+
+def cases_csv(records: Sequence[dict]) -> str:
+    """One CSV row per finished case (:data:`CSV_COLUMNS`); ``column`` is the verdict's column of the
+    confusion matrix (:func:`verdict_class`), ``correct`` whether it is the hidden effect (``none``
+    for an effect-free specimen); empty fields where a value does not exist."""
+    import csv
+    import io
+
+    def fmt(v):
+        if v is None:
+            return ""
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, float):
+            return f"{v:.6g}"
+        return str(v)
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for r in sorted(records, key=lambda r: r["spec"]["index"]):
+        spec, lab, ver = r["spec"], r.get("label") or {}, r.get("verdict")
+        col = verdict_class(ver) if lab else ERROR
+        probs = (ver or {}).get("probabilities") or {}
+        cands = [c for c in r.get("candidates") or [] if c.get("score") is not None]
+        best = max(cands, key=lambda c: c["score"]) if cands else {}
+        true = spec.get("effect") or NONE
+        w.writerow([fmt(v) for v in (
+            spec["index"], spec["seed"], spec["material"], true, spec["strength"], lab.get("identifiable"),
+            (ver or {}).get("kind"), (ver or {}).get("effect"), (ver or {}).get("confident"), col,
+            (col == true) if ver else None, probs.get(NONE), probs.get((ver or {}).get("effect")),
+            best.get("effect"), best.get("score"), best.get("share_of_excess"), r.get("baseline_chi2_per_dof"),
+            r.get("baseline_within_noise"), r.get("timing_s"), r.get("diagnosis_s"), r.get("cpu_s"),
+            r.get("error"))])
+    return buf.getvalue()
+
+
 def _json_bytes(obj) -> bytes:
     return json_text(obj, indent=1).encode("utf-8")
 
 
 def _case_record(spec: dict, config: dict, case, result: dict | None, error: str | None, timing: float) -> dict:
-    rec = {"spec": spec, "config": config, "timing_s": timing}
+    rec = {"spec": spec, "config": config, "timing_s": timing, "diagnosis_s": None}
     if case is None:
         rec.update({"label": None, "verdict": None, "error": error})
         return rec
@@ -297,6 +399,9 @@ def _case_record(spec: dict, config: dict, case, result: dict | None, error: str
         rec.update({"verdict": None, "error": error})
         return rec
     rec["verdict"] = result.get("verdict")
+    rec["diagnosis_s"] = result.get("timing_s")
+    rec["baseline_chi2_per_dof"] = (result.get("noise") or {}).get("baseline_chi2_per_dof")
+    rec["baseline_within_noise"] = (result.get("noise") or {}).get("baseline_within_noise")
     rec["candidates"] = [{k: c.get(k) for k in ("effect", "shrink", "score", "significant", "practical",
                                                 "share_of_excess", "probability", "identifiable", "note")}
                          for c in result.get("candidates", [])]
@@ -311,7 +416,7 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
     """Generate one case, diagnose its curves (never its label), write its record atomically."""
     from .diagnose import DiagnosisSetup, diagnose
 
-    tc = time.perf_counter()
+    tc, cpu0 = time.perf_counter(), time.process_time()
     case, result, error = None, None, None
     try:
         if spec["test"] == synthetic.LAB:
@@ -335,16 +440,19 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
         except (RuntimeError, ValueError, FloatingPointError, KnitsimInputError) as exc:
             error = f"diagnosis: {type(exc).__name__}: {exc}"
     rec = _case_record(spec, key_config, case, result, error, time.perf_counter() - tc)
+    # CPU seconds of the case's process (one core: Warp's CPU kernels are serial): on a shared machine the
+    # wall time grows with the load, this much less
+    rec["cpu_s"] = time.process_time() - cpu0
     atomic_write_bytes(path, _json_bytes(rec))
     return json.loads(_json_bytes(rec))
 
 
 def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = None,
-              include_none_fraction: float = 0.25, noise_rel: float | None = None, scatter_rel: float | None = None,
-              device: str = "cpu", progress: Callable | None = None, resume: bool = True,
+              include_none_fraction: float | None = None, noise_rel: float | None = None,
+              scatter_rel: float | None = None, device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
               candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1,
-              summary_only: bool = False, specimen: str = "lab") -> dict:
+              summary_only: bool = False, specimen: str = "lab", materials: Sequence[str] | None = None) -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
@@ -353,16 +461,22 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         Number of cases and the seed of the plan (:func:`draw_plan`).
     specimen : {"lab", "single"}
         ``lab`` (default): every specimen has two tests with their own noise and the flaws of real
-        files (:func:`knitsim.diagnosis.synthetic.make_specimen`), every other specimen is
-        effect-free, hidden effects default to :data:`LAB_EFFECTS`, scatter to 0.5 %, and
-        ``noise_rel`` / ``rates`` are those of the lab model.  ``single``: one test per case
+        files (:func:`knitsim.diagnosis.synthetic.make_specimen`), a share
+        ``include_none_fraction`` of the specimens (exactly, :func:`draw_plan`) is effect-free, hidden
+        effects default to :data:`LAB_EFFECTS`, the material to :data:`LAB_MATERIALS`, scatter to
+        0.5 %, and ``noise_rel`` / ``rates`` are those of the lab model.  ``single``: one test per case
         (:func:`~knitsim.diagnosis.synthetic.make_case`).
     out_dir : path-like
-        Output folder: ``cases/case_NNNN.json``, ``summary.json``, ``summary.md``.
+        Output folder: ``cases/case_NNNN.json``, ``summary.json``, ``summary.md`` and ``cases.csv``
+        (one row per finished case: label, verdict, probabilities, seconds), all rewritten after
+        every case, so that a study killed at any moment keeps every finished case.
     effects : sequence of str
         Effects that may be hidden.
-    include_none_fraction : float
-        Probability that a case has no hidden effect.
+    include_none_fraction : float, optional
+        Share of the cases with no hidden effect (``single``: the probability of one); default 0.5
+        for ``lab``, 0.25 for ``single``.
+    materials : sequence of str, optional
+        Materials drawn (:func:`draw_plan`).
     noise_rel : float, optional
         Force noise as a fraction of each curve's peak (default: the paper's
         capstan scatter, :func:`knitsim.diagnosis.synthetic.paper_noise_rel`).
@@ -407,6 +521,8 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         effects = LAB_EFFECTS if lab else EFFECT_NAMES
     if scatter_rel is None:
         scatter_rel = synthetic.LAB_SCATTER_REL if lab else 0.01
+    if include_none_fraction is None:
+        include_none_fraction = 0.5 if lab else 0.25
     if not (isinstance(jobs, (int, np.integer)) and not isinstance(jobs, bool) and jobs >= 1):
         raise KnitsimInputError(f"jobs = {jobs!r}: expected a whole number >= 1")
     _check_plan_args(n_cases, seed, effects, include_none_fraction)
@@ -419,7 +535,7 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
     out = Path(out_dir)
     cases_dir = out / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
-    plan = draw_plan(n_cases, seed, effects, include_none_fraction, specimen)
+    plan = draw_plan(n_cases, seed, effects, include_none_fraction, specimen, materials)
     if lab:
         how = (f"lab: each test {synthetic.LAB_NOISE_REL:g} x its peak + {synthetic.LAB_NOISE_ABS:g} N, offsets "
                f"+-{synthetic.LAB_OFFSET_N:g} N, strain jitter {synthetic.LAB_STRAIN_JITTER:g}, an outlier with "
@@ -430,9 +546,11 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
               "rates": [float(r) for r in rates], "max_increment": float(max_increment),
               "generator_max_increment": 0.0025, "candidate_effects": list(candidate_effects),
               "include_none_fraction": float(include_none_fraction), "hidden_effects": list(effects),
+              "materials": list(_materials(materials, specimen)),
               "free": list(free), "identifiable_by": "oracle refit (synthetic.oracle_evidence)"}
     # what makes a stored case reusable: its plan entry and everything that shapes its data or its diagnosis
-    key_config = {k: v for k, v in config.items() if k not in ("seed", "include_none_fraction", "hidden_effects")}
+    key_config = {k: v for k, v in config.items()
+                  if k not in ("seed", "include_none_fraction", "hidden_effects", "materials")}
     t0 = time.perf_counter()
     args = {"noise_rel": noise_rel, "scatter_rel": scatter_rel, "rates": tuple(rates), "device": device,
             "free": tuple(free), "candidate_effects": tuple(candidate_effects), "max_increment": max_increment}
@@ -459,6 +577,7 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         done[rec["spec"]["index"]] = rec
         ran += 1
         ran_time += rec["timing_s"]
+        write_summary()  # after every case: what a kill leaves behind is up to date (marked partial)
         if progress is not None:
             left = len(plan) - len(done)
             eta = ran_time / ran * left / max(1, min(jobs, left))  # cases run jobs at a time
@@ -472,10 +591,12 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         records = [done[spec["index"]] for spec in plan if spec["index"] in done]
         missing = [spec["index"] for spec in plan if spec["index"] not in done]
         summary = {"config": config, "metrics": study_metrics(records), "timing_s": time.perf_counter() - t0,
+                   "time_per_case": time_per_case(records),
                    "cases_run": ran, "cases_resumed": len(records) - ran, "cases_planned": len(plan),
                    "complete": not missing, "cases_missing": missing}
         atomic_write_bytes(out / "summary.json", _json_bytes(summary))
         atomic_write_bytes(out / "summary.md", summary_markdown(summary).encode("utf-8"))
+        atomic_write_bytes(out / "cases.csv", cases_csv(records).encode("utf-8"))
         return summary
 
     try:

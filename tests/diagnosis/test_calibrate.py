@@ -94,3 +94,17 @@ def test_rss_of_cells_zero_at_the_generating_cell(curve):
                                x0={"m": TRUE.m, "phi0": TRUE.phi0 / np.arctan(TRUE.m)})["rss_N2"]
     assert rss[0] == pytest.approx(noise, rel=1e-9)       # the clean curve adds exactly 0
     assert rss[1] > rss[0] + 10 * NOISE_N ** 2             # m = 0.3 is far from the truth
+
+
+def test_rows_the_simulation_did_not_reach_count_at_least_ten_sd():
+    # a failed increment freezes the cell: its rows are no model's prediction, whatever their residual;
+    # sqrt(z^2 + 10^2) keeps the sign, leaves reached rows and rows of weight 0 as they are
+    from knitsim.diagnosis.calibrate import FAILED_ROW_Z, _penalised
+    z = np.array([0.5, -0.2, 0.0, 3.0, -4.0])
+    failed = np.array([False, True, True, True, True])
+    w = np.array([1.0, 1.0, 1.0, 0.0, 2.0])
+    out = _penalised(z, failed, w)
+    assert FAILED_ROW_Z == 10.0
+    assert out[0] == 0.5 and out[3] == 3.0
+    assert out[1] == pytest.approx(-np.hypot(0.2, 10.0)) and out[2] == pytest.approx(10.0)
+    assert out[4] == pytest.approx(-np.hypot(4.0, 10.0))

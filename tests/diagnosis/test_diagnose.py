@@ -54,6 +54,9 @@ def test_a_hidden_coiling_effect_is_named(coiling_result):
     assert best["effect"] == "coiling_angle_friction" and best["significant"]
     assert best["params"]["coil_mu_k"] == pytest.approx(0.3, rel=0.05)
     assert best["shrink"] > 0.5
+    # the model with the true effect fits within the noise, the baseline does not (adequacy test, step 5)
+    assert best["within_noise"] is True and r["noise"]["baseline_within_noise"] is False
+    assert best["chi2_per_dof"] < r["noise"]["baseline_chi2_per_dof"]
     # candidates sorted best first by score; shrink = 1 - rms_after / rms_before (issue 6)
     scores = [c["score"] for c in r["candidates"] if c["score"] is not None]
     assert scores == sorted(scores, reverse=True)
@@ -84,6 +87,50 @@ def test_noise_alone_names_no_effect():
     assert r["verdict"]["effect"] is None and r["verdict"]["kind"] == "none"
     assert r["noise"]["baseline_within_noise"] is True
     assert not any(c["significant"] and c["practical"] for c in r["candidates"])
+
+
+def test_evidence_from_a_curve_of_assumed_noise_is_marked():
+    """A digitised (noise-free) curve carries the effect; a second test of known, huge noise (sd = its
+    peak force) tells next to nothing.  The digitised curve's noise cannot be estimated (it says so, and 0.5 % of
+    its range is assumed); the effect is named from it, but its evidence is marked as resting on
+    assumed noise and the verdict is not confident (issue 12, item 1)."""
+    truth = NOMINAL.replace(phi0=-0.05, effects=EffectSet(on=("coiling_angle_friction",), coil_mu_k=0.3))
+    F = run_batch([truth], PROGRAM).values["F"][:, 0]
+    smooth = curve_from_arrays(PROGRAM.strain, F, PROGRAM.cycle, PROGRAM.direction, source="digitised")
+    noisy, _ = _measured(truth, seed=5, noise_rel=1.0)
+    noisy = curve_from_arrays(noisy.strain, noisy.force, noisy.cycle, noisy.direction, source="noisy")
+    r = diagnose([smooth, noisy], DiagnosisSetup(base=NOMINAL, effects=("coiling_angle_friction",),
+                                                 pair=False)).as_dict()
+    by = {c["source"]: c for c in r["noise"]["curves"]}
+    assert by["digitised"]["method"] == "assumed" and not by["digitised"]["estimable"]
+    assert by["noisy"]["method"] == "estimated"
+    (c,) = r["candidates"]
+    assert c["drop_by_curve"]["digitised"] > 10 * abs(c["drop_by_curve"]["noisy"])
+    assert c["rests_on_assumed_noise"] and "assumed" in c["note"]
+    v = r["verdict"]
+    assert v["effect"] == "coiling_angle_friction" and not v["confident"]
+    assert "digitised is assumed" in v["reason"] and "rests on it" in v["reason"]
+
+
+def test_force_cap_at_three_peaks_leaves_the_curve_below_it_unchanged():
+    """capped_setup stops cells at 3 x the largest measured force; below that force the simulated
+    curve is the uncapped one bit for bit (the cap is an event of the jammed branch only), and the
+    scene's cap is kept when it is lower."""
+    from knitsim.cell.load_program import monotonic
+    from knitsim.diagnosis.diagnose import FORCE_CAP_FACTOR, capped_setup
+
+    prog = monotonic(0.9, 0.01)
+    F = run_batch([NOMINAL], prog).values["F"][:, 0]
+    rows = np.arange(10, 60)
+    curve = curve_from_arrays(prog.strain[rows], F[rows], source="pull")
+    setup = capped_setup(DiagnosisSetup(base=NOMINAL), [curve])
+    assert setup.base.force_cap_N == pytest.approx(FORCE_CAP_FACTOR * F[rows].max())
+    Fc = run_batch([setup.base], prog).values["F"][:, 0]
+    below = np.nonzero(F < setup.base.force_cap_N)[0]
+    below = below[below < np.argmax(F >= setup.base.force_cap_N)] if np.any(F >= setup.base.force_cap_N) else below
+    np.testing.assert_array_equal(Fc[below], F[below])
+    low = DiagnosisSetup(base=NOMINAL.replace(force_cap_N=0.5 * F[rows].max()))
+    assert capped_setup(low, [curve]) is low
 
 
 def test_velocity_friction_needs_two_rates():
@@ -160,3 +207,21 @@ def test_cli_writes_json_and_report(tmp_path, capsys):
     assert main(["diagnose", str(csv), "--scene", str(tmp_path / "no.toml")]) == 2
     err = capsys.readouterr().err
     assert "no.toml" in err and "Traceback" not in err
+
+
+def test_size_threshold_needs_half_the_excess_or_the_noise_reached():
+    # hand-made adequacy results: dof 1225, spread 0.0712 per dof -> tolerance 3.09 x 0.0712 x 1225 = 269.5
+    from knitsim.diagnosis.diagnose import Adequacy, is_practical
+    within = Adequacy(chi2=1375.0, dof=1225, chi2_per_dof=1375 / 1225, expected_sd=0.0712, within_noise=True,
+                      excess=150.0)
+    assert not is_practical(33.0, within)          # 22 % of a within-noise excess: not named (pilot case)
+    assert is_practical(75.0, within)              # half of it
+    beyond = Adequacy(chi2=2225.0, dof=1225, chi2_per_dof=2225 / 1225, expected_sd=0.0712, within_noise=False,
+                      excess=1000.0)
+    assert beyond.tolerance == pytest.approx(3.09 * 0.0712 * 1225)
+    assert is_practical(500.0, beyond)             # half the excess
+    assert not is_practical(480.0, beyond)         # 48 %, and 520 left beyond a tolerance of 269.5
+    near = Adequacy(chi2=1725.0, dof=1225, chi2_per_dof=1725 / 1225, expected_sd=0.0712, within_noise=False,
+                    excess=500.0)
+    assert is_practical(240.0, near)               # 48 %, but 260 left is within the noise (269.5)
+    assert not is_practical(0.0, near) and not is_practical(-5.0, within)

@@ -143,3 +143,63 @@ def test_a_digitised_curve_says_its_noise_cannot_be_estimated(tmp_path):
     c = read_measured_curve(_write(tmp_path, _csv(smooth)))
     assert c.noise.method == "assumed" and not c.noise.estimable
     assert "digitised" in c.noise.note
+
+
+def test_semicolon_file_with_decimal_commas_keeps_negative_readings_near_zero(tmp_path):
+    """A European export: `;`, decimal commas, CRLF, a minus sign typed as U+2212 at rest."""
+    rows = [(s, f) for s, f in ROWS]
+    text = _csv(rows, sep=";", dec=",", eol="\r\n").replace(";-0,002", ";\u22120,002")
+    c = read_measured_curve(_write(tmp_path, text))
+    assert c.force[0] == -0.002
+    np.testing.assert_array_equal(c.force[1:], [f for _, f in ROWS[1:]])
+
+
+@pytest.mark.parametrize("step_back", [1e-16, 1e-6])
+def test_strain_jitter_inside_an_unload_branch_with_direction_and_cycle_columns(tmp_path, step_back):
+    """Inside an unloading branch the jitter is a step *up*: accepted with a direction and a cycle column,
+    replayed as the running minimum; the branches are the columns' own."""
+    rows = list(ROWS)
+    i = 16 + 4                                        # (0.20, 0.063) inside the unloading branch
+    rows[i] = (0.22 + step_back, rows[i][1])          # the extensometer reads a hair above the row before
+    dirs = ["load,1"] * 16 + ["unload,1"] * 10
+    text = _csv(rows, header="strain,force_per_wale_N,direction,cycle", extra=dirs)
+    c = read_measured_curve(_write(tmp_path, text))
+    assert list(c.direction) == [1] * 16 + [-1] * 10 and set(c.cycle) == {1}
+    assert np.all(np.diff(c.strain[16:]) <= 0)        # the running minimum of the unloading branch
+    assert c.strain_read[i] == rows[i][0]             # the strain as read is kept beside it
+
+
+def test_a_few_rows_without_a_noise_estimate_refuse_a_negative_spike(tmp_path):
+    """Eight rows give no noise estimate (the reader assumes 0.5 % of the range and says so); a reading
+    of -0.4 N is then not an outlier of a known noise but a wrong zero or sign: refused."""
+    rows = [(0.02 * k, 0.01 * k) for k in range(1, 9)]
+    rows[3] = (0.08, -0.4)
+    p = _write(tmp_path, _csv(rows))
+    with pytest.raises(KnitsimInputError) as info:
+        read_measured_curve(p)
+    msg = str(info.value)
+    assert str(p) in msg and "row 5" in msg and "-0.4 N" in msg and "assumed" in msg
+
+
+# every rejection of the reader: (file text, the row, the column, the value as typed, what to do)
+_BAD = [
+    ("strain,force_per_wale_N\n0.1,0.2\n0.2,inf\n", "row 3", "force_per_wale_N", "'inf'", "fix or delete the row"),
+    ("strain,force_per_wale_N\n0.1,0.2\n-1.5,0.2\n", "row 3", "strain", "-1.5", "is the column a strain"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,load\n0.3,0.2,load\n0.2,0.2,load\n", "row 4", "strain", "0.2",
+     "check the direction column"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n", "row 2", "direction", "'pull'", "'load' or 'unload'"),
+    ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,-0.5\n", "row 2", "rate_mm_s", "-0.5", "must be > 0"),
+    ("strain,force_per_wale_N,cycle\n0.1,0.1,1.5\n", "row 2", "cycle", "1.5", "whole number"),
+    ("strain;force_per_wale_N\n0,1;0,2\n0,2;-0,3\n0,3;-0,31\n0,4;-0,32\n", "row 3", "force_per_wale_N", "-0.3 N",
+     "check the load cell's zero"),
+]
+
+
+@pytest.mark.parametrize("text, row, column, value, todo", _BAD)
+def test_every_rejection_names_file_row_column_plain_value_and_what_to_do(tmp_path, text, row, column, value, todo):
+    p = _write(tmp_path, text)
+    with pytest.raises(KnitsimInputError) as info:
+        read_measured_curve(p)
+    msg = str(info.value)
+    assert str(p) in msg and f"{row}, column {column}" in msg and value in msg and todo in msg, msg
+    assert "np." not in msg and "float64" not in msg and "\n" not in msg

@@ -187,15 +187,57 @@ def test_parallel_study_equals_serial(tmp_path):
     for i in range(2):
         ra = json.loads((tmp_path / "serial" / "cases" / f"case_{i:04d}.json").read_text())
         rb = json.loads((tmp_path / "parallel" / "cases" / f"case_{i:04d}.json").read_text())
-        ra.pop("timing_s"), rb.pop("timing_s")
+        for k in ("timing_s", "diagnosis_s", "cpu_s"):
+            ra.pop(k), rb.pop(k)
         assert ra == rb
 
 
 def test_lab_plan_alternates_effect_free_and_effect_specimens():
-    plan = study.draw_plan(80, 5, study.LAB_EFFECTS, specimen="lab")
+    plan = study.draw_plan(80, 5, study.LAB_EFFECTS, 0.5, specimen="lab")
     assert sum(p["effect"] is None for p in plan) == 40
+    assert [p["effect"] is None for p in plan[:4]] == [True, False, True, False]
     assert all(p["test"] == synthetic.LAB for p in plan)
+    assert {p["material"] for p in plan} == {"e_glass"}                  # issue 12's specimens
     assert "velocity_friction" not in {p["effect"] for p in plan}        # one test rate in a lab
+
+
+@pytest.mark.parametrize("n, f, k", [(100, 0.6, 60), (120, 0.5, 60), (7, 0.5, 4), (10, 0.0, 0), (10, 1.0, 10)])
+def test_lab_plan_has_exactly_the_share_of_effect_free_cases_asked_for(n, f, k):
+    # ceil(n f) of the first n cases, in every prefix: a resumed longer study keeps its first cases
+    plan = study.draw_plan(n, 2, study.LAB_EFFECTS, f, specimen="lab")
+    assert sum(p["effect"] is None for p in plan) == k
+    assert study.draw_plan(n - 3, 2, study.LAB_EFFECTS, f, specimen="lab") == plan[:n - 3]
+
+
+@pytest.mark.parametrize("k, n", [(0, 40), (2, 40), (20, 40), (40, 40), (3, 100)])
+def test_clopper_pearson_interval_inverts_the_binomial_tails(k, n):
+    # Clopper and Pearson (1934): the upper end p_u solves P(X <= k | n, p_u) = 0.025, the lower end
+    # P(X >= k | n, p_l) = 0.025 (checked with the binomial distribution, not the beta quantiles used);
+    # k = 0: p_u = 1 - 0.025^(1/n) in closed form
+    from scipy.stats import binom
+    lo, hi = study.clopper_pearson_interval(k, n)
+    if k < n:
+        assert binom.cdf(k, n, hi) == pytest.approx(0.025, abs=1e-9)
+    else:
+        assert hi == 1.0
+    if k > 0:
+        assert binom.sf(k - 1, n, lo) == pytest.approx(0.025, abs=1e-9)
+    else:
+        assert lo == 0.0 and hi == pytest.approx(1 - 0.025 ** (1 / n), rel=1e-9)
+    w = study.wilson_interval(k, n)
+    assert lo <= w[0] + 0.02 and hi >= w[1] - 0.02   # the exact interval is the wider one, near enough
+
+
+def test_cases_csv_names_every_case_and_its_time(tmp_path, monkeypatch):
+    calls = []
+    _fake_study(monkeypatch, calls)
+    s = study.run_study(4, 1, tmp_path, include_none_fraction=0.5)
+    rows = (tmp_path / "cases.csv").read_text().splitlines()
+    assert rows[0].split(",") == list(study.CSV_COLUMNS) and len(rows) == 5
+    first = dict(zip(study.CSV_COLUMNS, rows[1].split(",")))
+    assert first["index"] == "0" and first["hidden_effect"] == "none" and float(first["case_s"]) >= 0
+    assert s["time_per_case"]["case_s"]["n"] == 4
+    assert "time per case" in (tmp_path / "summary.md").read_text()
 
 
 @pytest.mark.parametrize("k, n, lo, hi", [

@@ -1,0 +1,44 @@
+"""Noise of one measured curve (knitsim.diagnosis.noise).
+
+Expected values: for white noise the deviations of two neighbouring rows from their
+neighbours' chords, r_i = f_i - (f_{i-1} + f_{i+1}) / 2 and r_{i+1}, share two rows with
+weights (1, -1/2) and (-1/2, 1): cov = -sigma^2, var = 1.5 sigma^2, correlation -2/3 (an
+identity); a moving average of white noise, or a curve with no noise at all, is not white
+(its deviations follow the curve) and its noise cannot be estimated from it.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.diagnosis.noise import WHITE_RHO_MAX, chord_correlation, curve_noise
+
+N = 600
+S = np.linspace(0.001, 0.6, N)
+ONE = np.ones(N, int)
+
+
+def test_white_noise_gives_the_correlation_of_minus_two_thirds_and_its_sd():
+    rng = np.random.default_rng(11)
+    f = 0.2 + 0.5 * S ** 2 + rng.normal(0.0, 0.003, N)
+    rho, pairs = chord_correlation(S, f, ONE, ONE)
+    assert pairs > 500
+    assert rho == pytest.approx(-2.0 / 3.0, abs=4.0 / np.sqrt(pairs))   # 4 standard errors (se < 1/sqrt(n))
+    c = curve_noise(S, f, ONE, ONE, "white")
+    assert c.method == "estimated" and c.sigma_N == pytest.approx(0.003, rel=4.0 / np.sqrt(N))
+
+
+@pytest.mark.parametrize("kind", ["smooth law", "read off a figure"])
+def test_a_smooth_curve_says_its_noise_cannot_be_estimated(kind):
+    """A curve with no measurement noise: a smooth law, or 40 points read off a figure's smooth line
+    (rounded to 1e-4 N, well below the curvature's deviations from the chords)."""
+    s = S if kind == "smooth law" else np.linspace(0.015, 0.6, 40)
+    f = 0.2 + 0.5 * s ** 2 + 2.0 * s ** 4
+    if kind == "read off a figure":
+        f = np.round(f, 4)
+    one = np.ones(len(s), int)
+    rho, _ = chord_correlation(s, f, one, one)
+    assert rho > WHITE_RHO_MAX
+    c = curve_noise(s, f, one, one, kind)
+    assert c.method == "assumed" and not c.estimable and not c.known
+    assert "in step" in c.note and "--noise-N" in c.note
