@@ -91,6 +91,7 @@ def main(argv=None):
     ap.add_argument("--patch-size", default=None, help="WALESxCOURSES of the random patch (default 1000x1000 on CUDA, none on CPU)")
     ap.add_argument("--patch-increments", type=int, default=62)
     ap.add_argument("--no-specimen", action="store_true")
+    ap.add_argument("--specimen-increments", type=int, default=0, help="time only the first K specimen increments (0: all 620)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     warp_runtime.init()
@@ -126,7 +127,7 @@ def main(argv=None):
     # --- the paper's specimen, random phi0, no merging
     if not a.no_specimen:
         pm, _ = patch_model("random-phi0", 23, 110)
-        prog = cycles(0.10, 0.60, 3, 0.005)
+        prog = prefix(cycles(0.10, 0.60, 3, 0.005), a.specimen_increments)
         run_patch(pm, prefix(prog, 2), device=device, dedup=False)  # compile
         h, wall, cpu = timed(lambda: run_patch(pm, prog, device=device, dedup=False), device)
         rows.append({"figure": f"specimen 23x110 random phi0 x {len(prog)} incr (no merging)", "wall_s": wall,
