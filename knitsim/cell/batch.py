@@ -577,7 +577,9 @@ class CellSolver:
         if per_increment and wp.get_device(dev).is_cuda:
             # the increment loop captured once as a graph, replayed: no host work per launch on later
             # calls (one launch per range needs none)
-            with wp.ScopedCapture(device=dev) as capture:
+            for k, _ in self.groups:
+                wp.load_module(k, device=dev)  # compiled before the capture (nothing else is loaded)
+            with wp.ScopedCapture(device=dev, force_module_load=False) as capture:
                 launches()
             graphs[key] = (capture.graph, state, program, hist)
             wp.capture_launch(capture.graph)

@@ -79,6 +79,10 @@ def test_strided_history_holds_every_stride_th_row(device):
     from knitsim.cell.history import HISTORY_QUANTITIES
     np.testing.assert_array_equal(q[HISTORY_QUANTITIES.index("F")], full.values["F"][rows])
     np.testing.assert_array_equal(hist.stage.numpy(), full.stage[rows])
+    # one launch per increment (on CUDA: captured as a graph) is the same arithmetic
+    state2 = model.state()
+    hist2 = CellSolver(model).run_program(state2, PROG, stride=3, per_increment=True)
+    np.testing.assert_array_equal(hist2.q.numpy(), q)
 
 
 @pytest.mark.parametrize("kw, message", [
