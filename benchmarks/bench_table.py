@@ -103,6 +103,7 @@ def main(argv=None):
     ap.add_argument("--increments", type=int, default=None,
                     help="increments of the batch program (default: all 310 on CPU, 62 on CUDA; 2000 cells run all 310)")
     ap.add_argument("--no-generic", action="store_true", help="skip the generic-kernel rows")
+    ap.add_argument("--no-batch", action="store_true", help="skip the batch rows")
     ap.add_argument("--stride", type=int, default=10, help="history rows recorded every STRIDE increments")
     ap.add_argument("--patch-size", default=None, help="WALESxCOURSES of the random patch (default 1000x1000 on CUDA, none on CPU)")
     ap.add_argument("--patch-increments", type=int, default=62)
@@ -115,7 +116,7 @@ def main(argv=None):
     cuda = wp.get_device(device).is_cuda
     # rates per wall second on CUDA, per CPU second (one core) on the CPU
     clock = "wall_s" if cuda else "cpu_s"
-    sizes = a.batch_sizes or ([2000, 10**6, 10**7] if cuda else [2000])
+    sizes = [] if a.no_batch else (a.batch_sizes or ([2000, 10**6, 10**7] if cuda else [2000]))
     full = cycles(0.10, 0.60, 3, max_increment=0.01)
     rows = []
 
