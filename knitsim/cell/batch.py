@@ -522,8 +522,9 @@ class CellSolver:
         every ``stride``-th row into preallocated device arrays; no host synchronisation.
 
         One launch per kernel group for the whole range (the increments loop on the device), or with
-        ``per_increment`` one launch per increment (the same arithmetic); on CUDA that increment loop
-        is captured once as a graph and replayed on later calls with the same arguments.
+        ``per_increment`` one launch per increment (the same arithmetic); that increment loop is
+        captured once as a graph (a CUDA graph on the GPU) and replayed on later calls with the same
+        state, program and history objects.
 
         Parameters
         ----------
@@ -574,9 +575,9 @@ class CellSolver:
                               + state._arrays() + [state.eff] + arrays + [k0, k1, int(stride)]
                               + [self._ev_count] + self._ev + hist._arrays(), device=dev)
 
-        if per_increment and wp.get_device(dev).is_cuda:
-            # the increment loop captured once as a graph, replayed: no host work per launch on later
-            # calls (one launch per range needs none)
+        if per_increment:
+            # the increment loop captured once as a graph (CUDA graph; Warp's recorded launches on the
+            # CPU), replayed: no host work per launch on later calls (one launch per range needs none)
             for k, _ in self.groups:
                 wp.load_module(k, device=dev)  # compiled before the capture (nothing else is loaded)
             with wp.ScopedCapture(device=dev, force_module_load=False) as capture:

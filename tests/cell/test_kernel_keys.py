@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
 
 from knitsim.cell.batch import CellModel, CellSolver, run_batch
 from knitsim.cell.effects import EffectSet
@@ -79,9 +80,15 @@ def test_strided_history_holds_every_stride_th_row(device):
     from knitsim.cell.history import HISTORY_QUANTITIES
     np.testing.assert_array_equal(q[HISTORY_QUANTITIES.index("F")], full.values["F"][rows])
     np.testing.assert_array_equal(hist.stage.numpy(), full.stage[rows])
-    # one launch per increment (on CUDA: captured as a graph) is the same arithmetic
-    state2 = model.state()
-    hist2 = CellSolver(model).run_program(state2, PROG, stride=3, per_increment=True)
+    # one launch per increment, captured as a graph, is the same arithmetic; so is its replay
+    solver = CellSolver(model)
+    state2, fresh = model.state(), model.state()
+    hist2 = solver.run_program(state2, PROG, stride=3, per_increment=True)
+    np.testing.assert_array_equal(hist2.q.numpy(), q)
+    hist2.q.zero_()
+    for dst, src in zip(state2._arrays() + [state2.eff], fresh._arrays() + [fresh.eff]):
+        wp.copy(dst, src)
+    assert solver.run_program(state2, PROG, stride=3, history=hist2, per_increment=True) is hist2
     np.testing.assert_array_equal(hist2.q.numpy(), q)
 
 
