@@ -68,7 +68,8 @@ def timed(fn, device):
 
 
 def batch_row(model: CellModel, prog: LoadProgram, device: str, specialise: bool, stride: int) -> dict:
-    solver = CellSolver(model, specialise=specialise)
+    # a few events per cell over the program (64 per cell by default: 18 GB at 10^7 cells)
+    solver = CellSolver(model, specialise=specialise, event_capacity=16 * model.cell_count + 64)
     state = model.state()
     solver.run_program(state, prefix(prog, 2), stride=1)  # compile (not timed)
     state = model.state()
@@ -83,7 +84,7 @@ def graph_row(model: CellModel, prog: LoadProgram, device: str, stride: int) -> 
     """One launch per increment, captured once as a CUDA graph (first call), replayed (timed)."""
     from knitsim.cell.batch import ProgramHistory
 
-    solver = CellSolver(model)
+    solver = CellSolver(model, event_capacity=16 * model.cell_count + 64)
     state, fresh = model.state(), model.state()
     hist = ProgramHistory.empty(model, len(prog), stride, model.has_effects)
     solver.run_program(state, prog, stride=stride, history=hist, per_increment=True)  # capture + run

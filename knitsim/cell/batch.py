@@ -9,7 +9,14 @@ Model / State / Control, as ``warp.sim``:
 - :class:`CellControl`: the imposed strain of the course length and the load
   direction of this increment (shape ``(1 or N,)``, made by :meth:`CellModel.control`);
 - :class:`CellSolver`: ``step(state_in, state_out, control)`` advances every
-  cell by one increment in one kernel launch (:mod:`knitsim.kernels.cell_step`).
+  cell by one increment (:mod:`knitsim.kernels.cell_step`), one kernel launch per
+  kernel key present (friction law, effects, jamming criterion:
+  :mod:`knitsim.kernels.specialise`); ``run_program`` runs a range of increments
+  of a load program with no host synchronisation, recording every ``stride``-th
+  row into preallocated arrays (:class:`ProgramHistory`).
+
+:meth:`CellModel.from_arrays` builds the model of N cells from per-cell arrays
+(vectorised validation, no Python loop over the cells).
 
 Semantics are those of the NumPy reference :class:`knitsim.cell.cycle.CellCycle`
 (its oracle, :func:`knitsim.cell.cycle.run_cells_reference`): reversal, trial
