@@ -80,19 +80,21 @@ def batch_row(model: CellModel, prog: LoadProgram, device: str, specialise: bool
             "wall_s": wall, "cpu_s": cpu, "cell_increments": n, "status_ok_nc_cap_nl": status}
 
 
-def graph_row(model: CellModel, prog: LoadProgram, device: str, stride: int) -> dict:
-    """One launch per increment, captured once as a CUDA graph (first call), replayed (timed)."""
+def graph_row(model: CellModel, prog: LoadProgram, device: str, stride: int, sort: bool = False) -> dict:
+    """One launch per increment, captured once as a CUDA graph (first call), replayed (timed); or, with
+    ``sort``, the cells sorted by stage on the device before each increment (no graph)."""
     from knitsim.cell.batch import ProgramHistory
 
     solver = CellSolver(model, event_capacity=16 * model.cell_count + 64)
     state, fresh = model.state(), model.state()
     hist = ProgramHistory.empty(model, len(prog), stride, model.has_effects)
-    solver.run_program(state, prog, stride=stride, history=hist, per_increment=True)  # capture + run
+    solver.run_program(state, prog, stride=stride, history=hist, per_increment=True, sort_by_stage=sort)  # capture
     for dst, src in zip(state._arrays() + [state.eff], fresh._arrays() + [fresh.eff]):
         wp.copy(dst, src)
-    _, wall, cpu = timed(lambda: solver.run_program(state, prog, stride=stride, history=hist, per_increment=True),
-                         device)
-    return {"cells": model.cell_count, "increments": len(prog), "kernels": "specialised, graph per increment",
+    _, wall, cpu = timed(lambda: solver.run_program(state, prog, stride=stride, history=hist, per_increment=True,
+                                                    sort_by_stage=sort), device)
+    kind = "specialised, sorted by stage" if sort else "specialised, graph per increment"
+    return {"cells": model.cell_count, "increments": len(prog), "kernels": kind,
             "wall_s": wall, "cpu_s": cpu, "cell_increments": model.cell_count * len(prog)}
 
 
@@ -138,6 +140,7 @@ def main(argv=None):
         res = {sp: batch_row(model, prog, device, sp, a.stride) for sp in kinds}
         if cuda and n <= 10**6:
             res["graph"] = graph_row(model, prog, device, a.stride)
+            res["sorted"] = graph_row(model, prog, device, a.stride, sort=True)
         for sp, r in res.items():
             r["figure"] = f"batch {n} cells x {len(prog)} incr ({r['kernels']})"
             if False in res and sp is not False:

@@ -1627,3 +1627,20 @@ def record_columns_kernel(src: wp.array2d(dtype=wp.float64), cols: wp.array(dtyp
     i = wp.tid()
     for k in range(cols.shape[0]):
         hist[k, row, i] = src[i, cols[k]]
+
+
+@wp.kernel
+def stage_key_kernel(cells: wp.array(dtype=wp.int32), stage: wp.array(dtype=wp.int32),
+                     jammed: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32),
+                     keys: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.int32)):
+    """Sort key of each cell of a launch: its stage and jammed flag (stopped cells last), so that a
+    radix sort puts cells in the same stage side by side (one warp, one kind of work on a GPU)."""
+    j = wp.tid()
+    i = j
+    if cells.shape[0] > 0:
+        i = cells[j]
+    k = 2 * stage[i] + jammed[i]
+    if status[i] != ST_OK:
+        k = 2 * SLACK + 2
+    keys[j] = k
+    values[j] = i

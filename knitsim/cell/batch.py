@@ -524,7 +524,7 @@ class CellSolver:
 
     def run_program(self, state: CellBatchState, program: LoadProgram, stride: int = 1,
                     k_start: int = 0, k_stop: int | None = None, history: "ProgramHistory | None" = None,
-                    per_increment: bool = False) -> "ProgramHistory":
+                    per_increment: bool = False, sort_by_stage: bool = False) -> "ProgramHistory":
         """Advance ``state`` in place through increments ``k_start .. k_stop - 1`` of ``program``, recording
         every ``stride``-th row into preallocated device arrays; no host synchronisation.
 
@@ -548,6 +548,11 @@ class CellSolver:
             a new one by default.
         per_increment : bool
             One launch per increment instead of one per range.
+        sort_by_stage : bool
+            With ``per_increment``: before each increment the cells of each group are sorted on the
+            device by their stage (radix sort, no host synchronisation), so that neighbouring
+            threads (a GPU warp) do the same kind of work; the results are the same.  The increment
+            loop is then not captured as a graph (the sort is not a kernel launch).
         """
         if not (isinstance(stride, (int, np.integer)) and stride >= 1):
             raise KnitsimInputError(f"stride = {stride!r}: expected a whole number >= 1")
@@ -572,17 +577,30 @@ class CellSolver:
                 wp.array(np.zeros(1) if rate is None else np.asarray(rate, np.float64), dtype=wp.float64, device=dev)])
         arrays = prog[id(program)][1]
         ranges = [(k, k + 1) for k in range(k_start, k_stop)] if per_increment else [(k_start, k_stop)]
+        sort = bool(sort_by_stage and per_increment)
+        if sort:
+            bufs = self.__dict__.setdefault("_sort", [
+                tuple(wp.zeros(2 * (cells.shape[0] or model.cell_count), dtype=wp.int32, device=dev) for _ in range(2))
+                for _, cells in self.groups])
 
         def launches():
             for k0, k1 in ranges:
-                for k, cells in self.groups:
-                    wp.launch(k.program_kernel, dim=cells.shape[0] or model.cell_count,
+                for g, (k, cells) in enumerate(self.groups):
+                    m = cells.shape[0] or model.cell_count
+                    if sort:
+                        keys, order = bufs[g]
+                        wp.launch(k.stage_key_kernel, dim=m,
+                                  inputs=[cells, state.stage, state.jammed, state.status], outputs=[keys, order],
+                                  device=dev)
+                        wp.utils.radix_sort_pairs(keys, order, m)
+                        cells = order
+                    wp.launch(k.program_kernel, dim=m,
                               inputs=[cells] + model._arrays() + model._effect_arrays()
                               + [self.max_halvings, int(self.stick_closure == "release_beta")]
                               + state._arrays() + [state.eff] + arrays + [k0, k1, int(stride)]
                               + [self._ev_count] + self._ev + hist._arrays(), device=dev)
 
-        if per_increment:
+        if per_increment and not sort:
             # the increment loop captured once as a graph (CUDA graph; Warp's recorded launches on the
             # CPU), replayed: no host work per launch on later calls (one launch per range needs none)
             for k, _ in self.groups:

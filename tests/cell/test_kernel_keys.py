@@ -70,7 +70,7 @@ def test_model_from_arrays_is_the_model_from_params(device):
 
 
 def test_strided_history_holds_every_stride_th_row(device):
-    cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2)]
+    cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(m=0.0, phi0=0.0), GLASS.replace(m=0.1)]
     full = run_batch(cells, PROG, device=device)
     model = CellModel.from_params(cells, device)
     state = model.state()
@@ -90,6 +90,10 @@ def test_strided_history_holds_every_stride_th_row(device):
         wp.copy(dst, src)
     assert solver.run_program(state2, PROG, stride=3, history=hist2, per_increment=True) is hist2
     np.testing.assert_array_equal(hist2.q.numpy(), q)
+    # cells sorted by stage before each increment: the same rows, in the caller's order
+    state3 = model.state()
+    hist3 = CellSolver(model).run_program(state3, PROG, stride=3, per_increment=True, sort_by_stage=True)
+    np.testing.assert_array_equal(hist3.q.numpy(), q)
 
 
 @pytest.mark.parametrize("kw, message", [
