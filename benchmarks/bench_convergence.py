@@ -162,7 +162,7 @@ def main(argv=None) -> dict:
         rnd = bench_random(a.cells, a.seed, device, a.increment, a.chunk)
         rows.append((f"random domain cells, paper's program (incr {a.increment:g}, seed {a.seed})",
                      rnd["cells"], rnd["counts"], rnd["nan"], rnd["seconds"]))
-    cols = ("ok", "force_cap", "no_convergence", "event_not_located")
+    cols = ("ok", "force_cap", "no_rest_state", "no_convergence", "event_not_located")
     print(f"device {device}")
     print(f"{'run':<64} {'cells':>9} " + " ".join(f"{c:>17}" for c in cols) + f" {'NaN':>5} {'s':>8}")
     for name, n, counts, nan, sec in rows:

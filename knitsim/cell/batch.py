@@ -42,7 +42,8 @@ from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
 from .effects import EFFECT_STATE, NO_EFFECTS, PARAM_COLUMNS, EffectSet
-from .history import HISTORY_QUANTITIES, STATUS_NAMES, STATUS_OK, BatchHistory, head_gap_values
+from .history import (HISTORY_QUANTITIES, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK, BatchHistory,
+                      head_gap_values)
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
@@ -354,6 +355,14 @@ class CellModel:
                   outputs=st._arrays(), device=self.device)
         wp.launch(k.init_effects_kernel, dim=self.cell_count, inputs=[self.B, self.d, self.L, self.m, st.q],
                   outputs=[st.eff], device=self.device)
+        # no admissible rest state (knitsim.cell.domain.rest_state_problem): none found, or a contact
+        # force R < 0 (the unilateral contact at B would pull): flagged before any increment
+        status = st.status.numpy()
+        R = st.q.numpy()[:, CODE["R"]]
+        bad = (status != STATUS_OK) | ~(R >= 0.0)
+        if np.any(bad):
+            status[bad] = STATUS_NO_REST_STATE
+            st.status.assign(wp.array(status, dtype=wp.int32, device=self.device))
         return st
 
     def control(self) -> "CellControl":
@@ -705,6 +714,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     n, nc = len(program), model.cell_count
     solver = CellSolver(model, max_halvings, stick_closure=stick_closure, specialise=specialise)
     s0 = model.state()
+    s0_status0 = s0.status.numpy().copy()
     q0 = s0.q.numpy()
     rest = {name: q0[:, CODE[name]].copy() for name in HISTORY_QUANTITIES}
     rest.update(stage=s0.stage.numpy().copy(), jammed=s0.jammed.numpy().copy())
@@ -726,6 +736,13 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         hen = he.numpy()
         values.update({name: hen[j] for j, name in enumerate(EFFECT_STATE)})
     status = hst.numpy()
+    # a cell without a rest state has no state at all: NaN beside its status (never a made-up number)
+    norest = np.asarray(s0_status0 == STATUS_NO_REST_STATE)
+    if np.any(norest):
+        for v in values.values():
+            v[:, norest] = np.nan
+        for name in HISTORY_QUANTITIES:
+            rest[name][norest] = np.nan
     events = solver.events()
     for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
         i0 = int(np.argmax(status[:, c] != STATUS_OK))

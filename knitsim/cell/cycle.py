@@ -69,6 +69,7 @@ from .stages import (
 
 from .history import (  # noqa: E402  (re-exported)
     HEAD_GAP_QUANTITIES, HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
+    STATUS_NO_REST_STATE,
     STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values,
 )
 
@@ -555,7 +556,13 @@ class CellCycle:
     def run(self, program: LoadProgram) -> BatchHistory:
         """Run the whole program; see :func:`run_cell`."""
         p = self.p
-        st = self.initial()
+        try:
+            st = self.initial()
+            why = None if st.q["R"] >= 0.0 else f"the contact at B would pull at rest (R = {st.q['R']:.3g} N < 0)"
+        except _SolveFailed as exc:
+            why = str(exc)
+        if why is not None:
+            return self._no_rest_state(program, why)
         rest = {k: np.array([st.q[k]]) for k in HISTORY_QUANTITIES}
         rest.update(stage=np.array([int(st.stage)], np.int32), jammed=np.array([int(st.jammed)], np.int32))
         n = len(program)
@@ -596,6 +603,19 @@ class CellCycle:
                             np.asarray(program.direction), stage[:, None], jammed[:, None],
                             status[:, None], {k: v[:, None] for k, v in vals.items()},
                             [dict(e, cell=0) for e in events], [p], rest)
+
+    def _no_rest_state(self, program: LoadProgram, why: str) -> BatchHistory:
+        """History of a cell without an admissible rest state (knitsim.cell.domain.rest_state_problem):
+        status no_rest_state on every row, NaN values (there is no state), flagged at increment 0."""
+        n = len(program)
+        vals = {k: np.full((n, 1), np.nan) for k in HISTORY_QUANTITIES + HEAD_GAP_QUANTITIES}
+        rest = {k: np.array([np.nan]) for k in HISTORY_QUANTITIES}
+        rest.update(stage=np.array([int(Stage.SF_LOAD)], np.int32), jammed=np.array([0], np.int32))
+        events = [{"increment": 0, "kind": "flag", "reason": f"no rest state: {why}",
+                   "status": STATUS_NAMES[STATUS_NO_REST_STATE], "cell": 0}]
+        return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
+                            np.full((n, 1), int(Stage.SF_LOAD), np.int32), np.zeros((n, 1), np.int32),
+                            np.full((n, 1), STATUS_NO_REST_STATE, np.int32), vals, events, [self.p], rest)
 
     # ------------------------------------------------------------------ Dahl
     def _label_dahl(self, st: CellState) -> None:

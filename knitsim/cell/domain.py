@@ -25,18 +25,23 @@ calibrated specimen (W0 / in-plane width = 5.6).  The diagnosis scenes of
 real jerseys (W0/d ~ 4.3-4.5, L ratio ~ 2.4-2.6) lie outside: they are fitted,
 not swept, and are not checked against this domain.
 
-Status (issue 14, not closed): the goal is that every cell of this domain
-converges through any program of strains in :attr:`ParameterDomain.strain`
-(tests/cell/test_convergence_property.py, benchmarks/bench_convergence.py).
-It is not met yet: on the paper's program, cells of this domain still fail
-(a few % of random draws; benchmarks/bench_convergence.py), by two causes:
-(1) no rest state from the default starts in the tight corner (small
-L / (2 C0 + W0 - 4 d) with small C0 / d; :func:`check_rest_state` says so
-before any solve); (2) on the first loading, a stuck contact whose rest state
-carries almost no contact force turns its friction angle past -phimax (the far
-side of the cone, which SF+ of Table 4 does not watch) and on to -pi/2, where
-the solve is refused as another branch.  The property test is marked xfail
-until both are fixed.
+The box is not the whole statement: a cell of the box is in the model's
+domain only if it has an admissible rest state (:func:`rest_state_problem`:
+Table 4's initial state exists and its contact force is compressive, R >= 0).
+Continuation in L from a known rest state shows that both failures seen in
+the box's corners are of this kind, not of too few starts: tight loops whose
+rest branch ends at alpha = gamma (the inflection A meets the contact B), and
+loose loops with large C0 / d whose rest contact would pull (R < 0; loading
+them drove the stick to phi -> -pi/2 and refused it).  Such cells are
+flagged ``no_rest_state`` before any increment (Warp batch and NumPy
+reference alike) and ``knitsim cell`` refuses them with that reason; a cell
+outside the box, or a program beyond its strains, runs with an
+``outside_domain`` (extrapolation) warning in its summary.
+
+Measured (benchmarks/bench_convergence.py --no-sweeps --cells 300, 2-core CPU):
+before 26 of 300 failed (16 no rest state found, 10 refused on first loading);
+after 0 failed, 34 no_rest_state (the 26, and 8 that had reached the force cap
+from a pulling contact), 187 ok, 79 force_cap.
 
 The rest state (Table 4's initial state at C0, W0, L, phi0) must exist as
 well; :func:`check_rest_state` solves it (float64 reference) and names the
@@ -103,15 +108,71 @@ def check_domain(p: CellParams, where: str = "cell", domain: ParameterDomain = D
         raise KnitsimInputError(f"{where}: {why}")
 
 
-def check_rest_state(p: CellParams, where: str = "cell") -> None:
-    """Raise :class:`KnitsimInputError` when the cell has no rest state (Table 4 initial state)."""
-    from .inverse import initial_state
+def rest_state_problem(p: CellParams) -> str | None:
+    """None when the cell has an admissible rest state, otherwise why not (one line).
 
+    The rest state is Table 4's initial state {C = C0, W = W0, L, phi = phi0}
+    (float64 reference, :func:`knitsim.cell.inverse.initial_state`).  It is
+    admissible when it exists and its contact force is compressive, R >= 0:
+    the contact at B is unilateral (two yarns press, they cannot pull), so a
+    rest state with R < 0 is an equilibrium of the equations but not of a knit
+    (the loops would open at B, a configuration the quarter-stitch cell does
+    not describe).  Both ends were found by continuation in L from a known rest
+    state (L / (2 C0 + W0 - 4 d) = 1.9) over the domain's box:
+
+    - tight loops (small L ratio): the rest branch ends where alpha - gamma -> 0,
+      the inflection point A reaching the contact point B (the A-B arc of
+      Hong's quarter loop vanishes), with R ~ 10-17 B / d^2; below that L the
+      cell's shape does not exist, whatever the start;
+    - loose loops (large L ratio, large C0 / d): the branch goes on but R
+      changes sign; loading such a cell drove the stick (Rn frozen < 0)
+      to phi -> -pi/2.
+
+    Where the default starts find no state, the continuation in L is run here
+    as the independent check; if it does reach L the state is used (the starts
+    were too few), otherwise the reason names where the branch ended.
+    """
+    from .inverse import continue_along, initial_state
+
+    closing = 2.0 * p.C0 + p.W0 - 4.0 * p.d
     try:
         res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
         ok = bool(res.success)
     except (RuntimeError, KnitsimInputError):
-        ok = False
+        res, ok = None, False
     if not ok:
-        raise KnitsimInputError(f"{where}: no rest state (C = C0 = {p.C0:g}, W = W0 = {p.W0:g}, L = {p.L:g} mm, "
-                                f"phi = phi0 = {p.phi0:g} rad has no equilibrium of the quarter loop)")
+        res = None
+        try:
+            L1 = 1.9 * closing
+            s1 = initial_state(p.C0, p.W0, L1, 0.0, p.B, p.d)
+            path = continue_along({"C": p.C0, "W": p.W0, "L": L1, "phi": 0.0}, "L", L1, p.L, s1, p.B, p.d,
+                                  n_steps=40, max_halvings=14)
+            good = [r for r in path if r.success]
+            if path and path[-1].success and p.phi0 != 0.0:
+                path = continue_along({"C": p.C0, "W": p.W0, "L": p.L, "phi": 0.0}, "phi", 0.0, p.phi0,
+                                      path[-1], p.B, p.d, n_steps=max(1, int(math.ceil(abs(p.phi0) / 0.05))))
+            if path and path[-1].success:
+                res = path[-1]
+            elif good:
+                last = good[-1]
+                return (f"no rest state: the quarter loop at C0 = {p.C0:g}, W0 = {p.W0:g} mm exists only down to "
+                        f"L / (2 C0 + W0 - 4 d) = {last.state.L / closing:.4g} (there alpha - gamma = "
+                        f"{last.x[0] - last.x[2]:.2g} rad: the inflection A meets the contact B), "
+                        f"L = {p.L:g} mm asks for {p.L / closing:.4g}")
+        except (RuntimeError, KnitsimInputError):
+            pass
+    if res is None:
+        return (f"no rest state: C = C0 = {p.C0:g}, W = W0 = {p.W0:g}, L = {p.L:g} mm, phi = phi0 = {p.phi0:g} rad "
+                "has no equilibrium of the quarter loop")
+    R = float(res.state.R)
+    if R < 0.0:
+        return (f"no rest state: the contact at B would pull (R = {R:.3g} N < 0 at C0 = {p.C0:g}, W0 = {p.W0:g}, "
+                f"L = {p.L:g} mm): the loop is too loose to press on its neighbour")
+    return None
+
+
+def check_rest_state(p: CellParams, where: str = "cell") -> None:
+    """Raise :class:`KnitsimInputError` when the cell has no admissible rest state (:func:`rest_state_problem`)."""
+    why = rest_state_problem(p)
+    if why is not None:
+        raise KnitsimInputError(f"{where}: {why}")

@@ -39,8 +39,12 @@ STATUS_OK = 0
 STATUS_NO_CONVERGENCE = 1
 STATUS_FORCE_CAP = 2
 STATUS_EVENT_NOT_LOCATED = 3
+#: the cell has no admissible rest state (knitsim.cell.domain.rest_state_problem): flagged before any
+#: increment is solved; it is outside the model's domain, not a failure of the solver
+STATUS_NO_REST_STATE = 4
 STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_CONVERGENCE: "no_convergence",
-                STATUS_FORCE_CAP: "force_cap", STATUS_EVENT_NOT_LOCATED: "event_not_located"}
+                STATUS_FORCE_CAP: "force_cap", STATUS_EVENT_NOT_LOCATED: "event_not_located",
+                STATUS_NO_REST_STATE: "no_rest_state"}
 
 
 @dataclass

@@ -314,7 +314,8 @@ def initial_state(C0: float, W0: float, L: float, phi0: float, B: float, d: floa
     if phi0 != 0.0:
         path = continue_along(cond0, "phi", 0.0, phi0, best, B, d,
                               n_steps=max(1, int(np.ceil(abs(phi0) / phi_step))))
-        best = path[-1]
+        if path:                # empty when phi0 is within rounding of 0 (nothing to continue)
+            best = path[-1]
     best.extra["starts"] = record
     best.extra["solutions"] = [s.x for s in solutions]
     return best

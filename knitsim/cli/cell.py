@@ -41,9 +41,33 @@ def register(subparsers) -> None:
     parser.set_defaults(func=_run)
 
 
+def check_cells_domain(params, labels, strains) -> list[dict]:
+    """Before any solve: a cell without an admissible rest state is an error (one line, naming the
+    cell: it is outside the model, knitsim.cell.domain.rest_state_problem); a cell or a program
+    outside the documented domain's box is an extrapolation: returned as warnings for the summary."""
+    from ..cell.domain import DOMAIN, rest_state_problem
+    from ..errors import KnitsimInputError
+
+    warnings, seen = [], {}
+    for p, label in zip(params, labels):
+        key = (p.B, p.d, p.L, p.W0, p.C0, p.phi0)
+        if key not in seen:
+            seen[key] = rest_state_problem(p)
+        if seen[key] is not None:
+            raise KnitsimInputError(f"cell {label}: {seen[key]} (knitsim.cell.domain)")
+        why = DOMAIN.why_outside(p)
+        if why is not None:
+            warnings.append({"code": "outside_domain", "message": f"extrapolation: {why}", "cell": label})
+    why = DOMAIN.why_program_outside(strains)
+    if why is not None:
+        warnings.append({"code": "outside_domain", "message": f"extrapolation: {why}", "cell": "all"})
+    return warnings
+
+
 def _run(args) -> int:
     t_command = time.perf_counter()
     scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
+    domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite)
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
     with contextlib.redirect_stdout(sys.stderr):
@@ -64,6 +88,7 @@ def _run(args) -> int:
                            progress=Progress(what[1], what[0]))
     wall = time.perf_counter() - t0
     summary = summarise(history, scene.labels, scene.notes, **run_info(scene, device, wall))
+    summary["warnings"] = list(domain_warnings) + list(summary.get("warnings", []))
     files = write_cell_results(out, history, summary, scene.to_toml(), scene.labels, plot=scene.plot,
                                title=scene.resolved.get("title", ""))
     print(f"knitsim cell: done in {time.perf_counter() - t_command:.2f} s (solving {wall:.2f} s); wrote "
