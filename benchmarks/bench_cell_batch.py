@@ -9,6 +9,7 @@ Not a test.
 
     python benchmarks/bench_cell_batch.py                       # CPU, 1e2..1e5
     python benchmarks/bench_cell_batch.py --device cuda --sizes 10000 100000 1000000 10000000
+    python benchmarks/bench_cell_batch.py --sizes 2000 --generic      # the generic kernel, for the ratio
 """
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ def prefix(prog: LoadProgram, n: int) -> LoadProgram:
     return LoadProgram(prog.strain[:n], prog.cycle[:n], prog.direction[:n], prog.waypoints)
 
 
-def bench_batch(n: int, prog: LoadProgram, device: str) -> dict:
+def bench_batch(n: int, prog: LoadProgram, device: str, specialise: bool = True) -> dict:
     cells = make_cells(n)
     t0 = time.perf_counter()
     model = CellModel.from_params(cells, device)
@@ -53,18 +54,21 @@ def bench_batch(n: int, prog: LoadProgram, device: str) -> dict:
     s1 = model.state()
     wp.synchronize_device(device)
     t_init = time.perf_counter() - t0
-    solver = CellSolver(model)
+    solver = CellSolver(model, specialise=specialise)
+    for k, _ in solver.groups:
+        wp.load_module(k, device=device)  # compiled before the timing
     ctrl = model.control()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for i in range(len(prog)):
         ctrl.set(prog.strain[i], prog.direction[i])
         solver.step(s0, s1, ctrl, i)
         s0, s1 = s1, s0
     wp.synchronize_device(device)
     dt = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     status = np.bincount(s0.status.numpy(), minlength=4).tolist()
     mem = memory_per_cell(model, s0, len(prog))
-    return {"cells": n, "increments": len(prog), "init_s": t_init, "step_s": dt,
+    return {"cells": n, "increments": len(prog), "init_s": t_init, "step_s": dt, "cpu_s": cpu,
             "cell_increments_per_s": n * len(prog) / dt, "status_counts": status, "bytes_per_cell": mem}
 
 
@@ -84,6 +88,8 @@ def main(argv=None):
                     help="time only the first K increments of the program (0: all 310)")
     ap.add_argument("--ref-sample", type=int, default=2, help="cells run by the NumPy reference")
     ap.add_argument("--ref-increments", type=int, default=40, help="increments run by the reference")
+    ap.add_argument("--generic", action="store_true",
+                    help="the generic kernel (every law chosen per cell) instead of one kernel per kernel key")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     warp_runtime.init()
@@ -91,18 +97,18 @@ def main(argv=None):
     prog = cycles(0.10, 0.60, 3, max_increment=0.01)
     if a.increments:
         prog = prefix(prog, a.increments)
-    from knitsim.kernels import cell_step
+    from knitsim.kernels.specialise import INIT_KEY, cell_step_module
     t0 = time.perf_counter()
-    wp.load_module(cell_step, device=device)
+    wp.load_module(cell_step_module(None if a.generic else INIT_KEY), device=device)
     compile_s = time.perf_counter() - t0
     ref_rate = bench_reference(a.ref_sample, prefix(prog, a.ref_increments)) if a.ref_sample > 0 else float("nan")
-    rows = [bench_batch(n, prog, device) for n in a.sizes]
+    rows = [bench_batch(n, prog, device, not a.generic) for n in a.sizes]
     print(f"device {device}; module load/compile {compile_s:.2f} s; reference {ref_rate:.1f} cell-incr/s "
           f"({a.ref_sample} cells x {min(a.ref_increments, len(prog))} increments)")
-    print(f"{'cells':>10} {'incr':>5} {'init s':>8} {'step s':>9} {'cell-incr/s':>12} {'x ref':>8} {'B/cell':>8}  status ok/nc/cap/nl")
+    print(f"{'cells':>10} {'incr':>5} {'init s':>8} {'step s':>9} {'cpu s':>9} {'cell-incr/s':>12} {'x ref':>8} {'B/cell':>8}  status ok/nc/cap/nl")
     for r in rows:
         r["ratio_vs_reference"] = r["cell_increments_per_s"] / ref_rate
-        print(f"{r['cells']:>10} {r['increments']:>5} {r['init_s']:>8.2f} {r['step_s']:>9.2f} "
+        print(f"{r['cells']:>10} {r['increments']:>5} {r['init_s']:>8.2f} {r['step_s']:>9.2f} {r['cpu_s']:>9.2f} "
               f"{r['cell_increments_per_s']:>12.0f} {r['ratio_vs_reference']:>8.0f} "
               f"{r['bytes_per_cell']['total']:>8.0f}  {r['status_counts']}")
     if a.json:

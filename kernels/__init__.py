@@ -27,6 +27,9 @@ cell_step
     One load increment of a batch of cells: stages, events located by
     condition swapping, Dahl residual, halving retries, status flags.
     Twin: :mod:`knitsim.cell.cycle`.
+specialise
+    Kernel keys (friction law, effects, jamming criterion): one compiled instance
+    of ``cell_step`` per key, the code a key does not use left out (``wp.static``).
 centreline
     Quarter-loop centreline points of N cells (USD export).
     Twin: :func:`knitsim.cell.quarter_loop.centreline`.

@@ -65,6 +65,21 @@ from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_rho, ve
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
 
+# ------------------------------------------------------------------ kernel key (issue 15)
+#: The kernel key this instance of the module is compiled for: :func:`knitsim.kernels.specialised`
+#: runs this file once per key (as ``knitsim.kernels.cell_step__<key>``) with ``KERNEL_KEY`` set;
+#: in the generic module (``knitsim.kernels.cell_step`` itself) it is absent, and every friction
+#: law, effect and jamming criterion is chosen per cell at run time.  The ``WITH_*`` flags are read
+#: through ``wp.static``: the code of a law, effect or criterion that the key switches off is not
+#: generated at all (a constant condition drops its branch), so a Coulomb kernel carries no Dahl
+#: code, a kernel without effects no effect code, a W = 4d kernel no head-gap residual.  The
+#: arithmetic of what remains is the generic module's, line for line.
+_KEY = globals().get("KERNEL_KEY")
+WITH_COULOMB = _KEY is None or not _KEY.dahl
+WITH_DAHL = _KEY is None or bool(_KEY.dahl)
+WITH_EFFECTS = _KEY is None or bool(_KEY.effects)
+WITH_GAP = _KEY is None or bool(_KEY.gap)
+
 # ------------------------------------------------------------------ codes
 SF_LOAD = wp.constant(int(Stage.SF_LOAD))
 S_LOAD = wp.constant(int(Stage.S_LOAD))
@@ -231,19 +246,31 @@ def residuals_ext(cell: CellEval, z: vec5d, codes: wp.vec4i, targets: vec4d, dp:
     J[0] = cell.dg / d
     for k in range(4):
         c = codes[k]
-        if c == COND_DAHL:
+        # residuals the kernel key switches off are constant False: their code is not generated
+        is_dahl = wp.static(WITH_DAHL)
+        if wp.static(WITH_DAHL):
+            is_dahl = c == COND_DAHL
+        is_jam = wp.static(WITH_EFFECTS)
+        is_ext = wp.static(WITH_EFFECTS)
+        if wp.static(WITH_EFFECTS):
+            is_jam = c == COND_JAM
+            is_ext = c == COND_EXT
+        is_gap = wp.static(WITH_GAP)
+        if wp.static(WITH_GAP):
+            is_gap = c == COND_GAP
+        if is_dahl:
             rd = dahl_residual(cell, dp)
             r[k + 1] = rd.v
             J[k + 1] = rd.g
-        elif c == COND_JAM:
+        elif is_jam:
             rj = jam_residual(cell, targets[k], dp)
             r[k + 1] = rj.v / d
             J[k + 1] = rj.g / d
-        elif c == COND_EXT:
+        elif is_ext:
             re = extension_residual(cell, targets[k], dp)
             r[k + 1] = re.v / d
             J[k + 1] = re.g / d
-        elif c == COND_GAP:
+        elif is_gap:
             rg = gap_residual(cell, z, targets[k], dp, B)
             r[k + 1] = rg.v / d
             J[k + 1] = rg.g / d
@@ -441,7 +468,10 @@ def jam_target(mat: Material) -> wp.float64:
 def jam_width(mat: Material, Rn: wp.float64) -> wp.float64:
     """Wale width at which loops jam, 4 d_eff (kernels.effects.compaction_ratio at the load Rn)."""
     w = mat.w_jam
-    if mat.comp_k > wp.float64(0.0):
+    compacting = wp.static(WITH_EFFECTS)
+    if wp.static(WITH_EFFECTS):
+        compacting = mat.comp_k > wp.float64(0.0)
+    if compacting:
         w = mat.w_jam * compaction_ratio(Rn, mat.comp_rn0, mat.comp_k, mat.comp_min)
     return w
 
@@ -452,7 +482,10 @@ def jam_clearance(z: vec5d, q: vecQd, mat: Material) -> wp.float64:
     minus d_eff (contact of neighbouring heads, kernels.head_gap)."""
     w = jam_width(mat, q[Q_RN])
     v = q[Q_W] - w
-    if mat.gap != 0:
+    by_gap = wp.static(WITH_GAP)
+    if wp.static(WITH_GAP):
+        by_gap = mat.gap != 0
+    if by_gap:
         v = head_gap_value(wp.exp(z[0]), q, mat.B) - wp.float64(0.25) * w
     return v
 
@@ -1133,7 +1166,11 @@ def advance_cell(
     # the parameters go linearly from those of the last increment (mat_old) to this one's (mat)
     # along the increment, so that a sudden change of state (a reversal) cannot make them jump
     mat_old = mat
-    if mask != 0:
+    # the kernel key's switches (constant False: the branch is not generated)
+    with_effects = wp.static(WITH_EFFECTS)
+    if wp.static(WITH_EFFECTS):
+        with_effects = mask != 0
+    if with_effects:
         de = (C_target - C) / mat.C0
         if stage == SLACK and C_target <= C:
             de = wp.float64(0.0)  # a slack loop does not bend
@@ -1164,7 +1201,13 @@ def advance_cell(
             x = seed_contact(x)
             n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_RELOAD, C, -1, -1)
 
-    if go and mat.dahl == 0:
+    go_coulomb = wp.static(WITH_COULOMB)
+    if wp.static(WITH_COULOMB):
+        go_coulomb = go and mat.dahl == 0
+    go_dahl = wp.static(WITH_DAHL)
+    if wp.static(WITH_DAHL):
+        go_dahl = go and mat.dahl != 0
+    if go_coulomb:
         # ---------------------------------------------------- Coulomb (Table 4)
         # walked in sub-steps: a failed solve halves the sub-step (at most
         # max_halvings times in a row), a converged one doubles it back, and
@@ -1181,11 +1224,11 @@ def advance_cell(
             if wp.abs(step) > wp.abs(C_target - C_from):
                 step = C_target - C_from
             C_goal = C_from + step
-            if mask != 0:
+            if with_effects:
                 matg = blend_material(mat_old, mat, (C_goal - C_start) / (C_target - C_start))
             kind0 = int(-1)
             mat_from = matg
-            if mask != 0:
+            if with_effects:
                 mat_from = blend_material(mat_old, mat, (C_from - C_start) / (C_target - C_start))
             if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
                 kind0 = int(_EV_CONE)
@@ -1296,7 +1339,7 @@ def advance_cell(
             if n_located >= MAX_EVENT_LOOPS:
                 break
             step = C_target - C
-    elif go:
+    elif go_dahl:
         # ---------------------------------------------------- Dahl (sub-stepped on failure)
         C_start = C
         matg = mat
@@ -1318,7 +1361,7 @@ def advance_cell(
                 for k in range(1, nsub + 1):
                     if not failed and tstatus == ST_OK and tstage != SLACK:
                         Ck = C_start + (C_target - C_start) * wp.float64(k) / wp.float64(nsub)
-                        if mask != 0:
+                        if with_effects:
                             matg = blend_material(mat_old, mat, wp.float64(k) / wp.float64(nsub))
                         for loop in range(MAX_EVENT_LOOPS):
                             if not failed:
@@ -1398,7 +1441,10 @@ def advance_cell(
         if not done:
             n_ev = n_ev0
             status = int(ST_NO_CONV)
-    if mat.dahl != 0:
+    relabel = wp.static(WITH_DAHL)
+    if wp.static(WITH_DAHL):
+        relabel = mat.dahl != 0
+    if relabel:
         stage = label_dahl(stage, q, mat)
 
     # --- commit
@@ -1423,7 +1469,7 @@ def advance_cell(
     gap_out[i] = gap
     for k in range(eff_in.shape[1]):
         eff_out[i, k] = eff_in[i, k]
-    if mask != 0:
+    if with_effects:
         eff_out[i, E_M] = mat.m
         eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
         eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
@@ -1446,6 +1492,8 @@ def advance_cell(
 
 @wp.kernel
 def step_kernel(
+    # the cells this launch advances (a group of one kernel key); empty: every cell, in order
+    cells: wp.array(dtype=wp.int32),
     # model
     B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
     W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
@@ -1477,6 +1525,8 @@ def step_kernel(
 ):
     """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
     i = wp.tid()
+    if cells.shape[0] > 0:
+        i = cells[i]
     advance_cell(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask, eff_params, max_halvings, closure,
                  x_in, q_in, C_in, stage_in, jammed_in, soft_in, fsoft_in, fsbc_in, status_in, direction_in, gap_in, eff_in,
                  strain[i % strain.shape[0]], int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]],
@@ -1487,6 +1537,8 @@ def step_kernel(
 
 @wp.kernel
 def program_kernel(
+    # the cells this launch advances (a group of one kernel key); empty: every cell, in order
+    cells: wp.array(dtype=wp.int32),
     # model
     B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
     W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
@@ -1504,7 +1556,7 @@ def program_kernel(
     eff: wp.array2d(dtype=wp.float64),
     # the load program: strain, direction and rate of every increment, and the increments to run
     prog_strain: wp.array(dtype=wp.float64), prog_direction: wp.array(dtype=wp.int32),
-    prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int,
+    prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int, stride: int,
     # events
     ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
     ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
@@ -1515,28 +1567,34 @@ def program_kernel(
     hist_gap: wp.array2d(dtype=wp.float64), hist_eff: wp.array3d(dtype=wp.float64),
 ):
     """Advance each cell through increments ``k_start .. k_stop - 1`` of a load program in one launch,
-    recording every row: the same arithmetic as one :func:`step_kernel` per increment, without a
+    recording the rows of increments ``stride - 1, 2 stride - 1, ...`` (every row with stride 1) into
+    preallocated history arrays: the same arithmetic as one :func:`step_kernel` per increment, without a
     launch (nor a host round trip) per increment."""
     i = wp.tid()
+    if cells.shape[0] > 0:
+        i = cells[i]
     for k in range(k_start, k_stop):
         advance_cell(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask, eff_params, max_halvings, closure,
                      x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
                      prog_strain[k], int(prog_direction[k]), prog_rate[k % prog_rate.shape[0]], k,
                      x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
                      ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
-        st = stage[i]
-        for j in range(codes.shape[0]):
-            c = codes[j]
-            v = q[i, c]
-            if c == Q_F and st == SLACK:
-                v = wp.float64(0.0)
-            hist_q[j, k, i] = v
-        hist_stage[k, i] = st
-        hist_jammed[k, i] = jammed[i]
-        hist_status[k, i] = status[i]
-        hist_gap[k, i] = gap[i]
-        for j in range(hist_eff.shape[0]):
-            hist_eff[j, k, i] = eff[i, j]
+        if (k + 1) % stride == 0:
+            # row r holds increment (r + 1) stride - 1 (every increment with stride 1)
+            r = k // stride
+            st = stage[i]
+            for j in range(codes.shape[0]):
+                c = codes[j]
+                v = q[i, c]
+                if c == Q_F and st == SLACK:
+                    v = wp.float64(0.0)
+                hist_q[j, r, i] = v
+            hist_stage[r, i] = st
+            hist_jammed[r, i] = jammed[i]
+            hist_status[r, i] = status[i]
+            hist_gap[r, i] = gap[i]
+            for j in range(hist_eff.shape[0]):
+                hist_eff[j, r, i] = eff[i, j]
 
 
 @wp.kernel
@@ -1569,3 +1627,20 @@ def record_columns_kernel(src: wp.array2d(dtype=wp.float64), cols: wp.array(dtyp
     i = wp.tid()
     for k in range(cols.shape[0]):
         hist[k, row, i] = src[i, cols[k]]
+
+
+@wp.kernel
+def stage_key_kernel(cells: wp.array(dtype=wp.int32), stage: wp.array(dtype=wp.int32),
+                     jammed: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32),
+                     keys: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.int32)):
+    """Sort key of each cell of a launch: its stage and jammed flag (stopped cells last), so that a
+    radix sort puts cells in the same stage side by side (one warp, one kind of work on a GPU)."""
+    j = wp.tid()
+    i = j
+    if cells.shape[0] > 0:
+        i = cells[j]
+    k = 2 * stage[i] + jammed[i]
+    if status[i] != ST_OK:
+        k = 2 * SLACK + 2
+    keys[j] = k
+    values[j] = i

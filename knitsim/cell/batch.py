@@ -9,7 +9,14 @@ Model / State / Control, as ``warp.sim``:
 - :class:`CellControl`: the imposed strain of the course length and the load
   direction of this increment (shape ``(1 or N,)``, made by :meth:`CellModel.control`);
 - :class:`CellSolver`: ``step(state_in, state_out, control)`` advances every
-  cell by one increment in one kernel launch (:mod:`knitsim.kernels.cell_step`).
+  cell by one increment (:mod:`knitsim.kernels.cell_step`), one kernel launch per
+  kernel key present (friction law, effects, jamming criterion:
+  :mod:`knitsim.kernels.specialise`); ``run_program`` runs a range of increments
+  of a load program with no host synchronisation, recording every ``stride``-th
+  row into preallocated arrays (:class:`ProgramHistory`).
+
+:meth:`CellModel.from_arrays` builds the model of N cells from per-cell arrays
+(vectorised validation, no Python loop over the cells).
 
 Semantics are those of the NumPy reference :class:`knitsim.cell.cycle.CellCycle`
 (its oracle, :func:`knitsim.cell.cycle.run_cells_reference`): reversal, trial
@@ -34,16 +41,37 @@ import warp as wp
 from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
-from .effects import EFFECT_STATE, PARAM_COLUMNS
+from .effects import EFFECT_STATE, NO_EFFECTS, PARAM_COLUMNS, EffectSet
 from .history import (HISTORY_QUANTITIES, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK, BatchHistory,
                       head_gap_values)
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
-from .stages import LABEL_CODES, MAX_HALVINGS, STICK_CLOSURES
+from .stages import (
+    FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, MAX_HALVINGS, RELOAD_RULES, STICK_CLOSURES, UNLOADING_RULES,
+)
 
 _LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
+
+
+def _compact(a: np.ndarray) -> np.ndarray:
+    """A per-cell column as stored: one value when every cell has the same (broadcast 1 or N)."""
+    a = np.atleast_1d(a)
+    return a[:1] if a.size and np.all(a == a[0]) else a
+
+
+def _device_arrays(cols: dict, rows: np.ndarray, device: str) -> dict:
+    """The model's device arrays from host columns (each compacted to one value when uniform)."""
+    arrays = {}
+    for name, vals in cols.items():
+        dt = np.float64 if name in _FLOAT_FIELDS else np.int32
+        a = _compact(np.asarray(vals, dtype=dt))
+        arrays[name] = wp.array(a, dtype=wp.float64 if name in _FLOAT_FIELDS else wp.int32, device=device)
+    if np.all(rows == rows[:1]):
+        rows = rows[:1]
+    arrays["effect_params"] = wp.array(np.ascontiguousarray(rows), dtype=wp.float64, device=device)
+    return arrays
 
 
 def _k():
@@ -51,6 +79,13 @@ def _k():
     from knitsim.kernels import cell_step
 
     return cell_step
+
+
+def _kernel_module(key):
+    """The cell_step instance compiled for a kernel key (None: the generic one)."""
+    from knitsim.kernels.specialise import cell_step_module
+
+    return cell_step_module(key)
 
 
 _FLOAT_FIELDS = ("B", "d", "L", "W0", "C0", "m", "phi0", "sigma", "cap", "djam")
@@ -96,12 +131,14 @@ class CellModel:
         The validated parameters (one per cell).
     """
 
-    def __init__(self, arrays: dict, cell_count: int, params: list, device: str):
+    def __init__(self, arrays: dict, cell_count: int, params: list | None, device: str,
+                 host: dict | None = None):
         self.__dict__["_frozen"] = False
         for name, arr in arrays.items():
             setattr(self, name, arr)
         self.cell_count = int(cell_count)
-        self.params = list(params)
+        self._params = None if params is None else list(params)
+        self._host = host
         self.device = device
         self.__dict__["_frozen"] = True
 
@@ -109,6 +146,60 @@ class CellModel:
         if self.__dict__.get("_frozen"):
             raise AttributeError(f"CellModel is immutable (tried to set {name!r})")
         self.__dict__[name] = value
+
+    @property
+    def params(self) -> list:
+        """The validated parameters, one :class:`CellParams` per cell (built on first use for a model
+        made by :meth:`from_arrays`: a million cells take seconds here, not in the build)."""
+        if self._params is None:
+            h, n = self._host, self.cell_count
+            col = {k: np.broadcast_to(v, (n,)) for k, v in h.items()}
+            names = {"friction": FRICTION_MODELS, "unloading": UNLOADING_RULES, "reload": ("freeze_rn", "mirror_unloading"),
+                     "criterion": JAMMING_CRITERIA}
+            eff = h["effects"]
+            self.__dict__["_params"] = [
+                CellParams(B=float(col["B"][i]), d=float(col["d"][i]), L=float(col["L"][i]), W0=float(col["W0"][i]),
+                           C0=float(col["C0"][i]), m=float(col["m"][i]), phi0=float(col["phi0"][i]),
+                           friction=names["friction"][col["friction"][i]], dahl_sigma=float(col["sigma"][i]),
+                           unloading_rule=names["unloading"][col["unloading"][i]],
+                           reload_rule=names["reload"][col["reload"][i]],
+                           jamming_criterion=names["criterion"][col["criterion"][i]],
+                           force_cap_N=float(col["cap"][i]),
+                           in_plane_width=None if col["djam"][i] == col["d"][i] else float(col["djam"][i]),
+                           effects=eff)
+                for i in range(n)]
+        return self._params
+
+    @property
+    def d_jam(self) -> np.ndarray:
+        """In-plane jamming width of every cell [mm], shape [cell_count] (host copy)."""
+        if self._host is not None:
+            return np.broadcast_to(self._host["djam"], (self.cell_count,)).astype(float)
+        return np.array([p.d_jam for p in self._params])
+
+    @property
+    def has_effects(self) -> bool:
+        """Whether any cell has a model extension on."""
+        return bool(np.any(self._host["effect_mask"] != 0))
+
+    def kernel_groups(self, specialise: bool = True) -> list:
+        """The cells split by kernel key (:func:`knitsim.kernels.specialise.group_cells`): a list of
+        (cell_step module, device index array); one group of every cell (empty index) when all share
+        a key, or with ``specialise=False`` (the generic kernel, every law chosen per cell)."""
+        cache = self.__dict__.setdefault("_groups", {})
+        if specialise not in cache:
+            if not specialise:
+                cache[specialise] = [(_kernel_module(None), wp.zeros(0, dtype=wp.int32, device=self.device))]
+            else:
+                from knitsim.kernels.specialise import group_cells
+
+                n, h = self.cell_count, self._host
+                col = lambda k: np.broadcast_to(h[k], (n,))  # noqa: E731
+                groups = group_cells(col("friction") == 1, col("effect_mask") != 0, col("criterion") == 1)
+                cache[specialise] = [
+                    (_kernel_module(key), wp.zeros(0, dtype=wp.int32, device=self.device) if len(groups) == 1
+                     else wp.array(idx, dtype=wp.int32, device=self.device)) for key, idx in groups]
+        return cache[specialise]
 
     @classmethod
     def from_params(cls, params: Sequence[CellParams], device: str = "cpu") -> "CellModel":
@@ -140,17 +231,108 @@ class CellModel:
             "criterion": [int(p.jamming_criterion == "head_gap") for p in checked],
         }
         cols["effect_mask"] = [p.effects.mask for p in checked]
-        arrays = {}
-        for name, vals in cols.items():
-            a = np.asarray(vals, dtype=np.float64 if name in _FLOAT_FIELDS else np.int32)
-            if np.all(a == a[0]):
-                a = a[:1]  # broadcast (1 or N): a uniform parameter costs one value
-            arrays[name] = wp.array(a, dtype=wp.float64 if name in _FLOAT_FIELDS else wp.int32, device=device)
         rows = np.stack([p.effects.row() for p in checked])
-        if np.all(rows == rows[:1]):
-            rows = rows[:1]
-        arrays["effect_params"] = wp.array(rows, dtype=wp.float64, device=device)
-        return cls(arrays, len(checked), checked, device)
+        host = {k: _compact(np.asarray(v)) for k, v in cols.items()}
+        return cls(_device_arrays(cols, rows, device), len(checked), checked, device, host)
+
+    @classmethod
+    def from_arrays(cls, B, d, L, W0, C0, m=0.0, phi0=0.0, *, friction="coulomb", dahl_sigma=0.0,
+                    unloading_rule="dusserre", reload_rule="mirror_unloading", jamming_criterion="w_4d",
+                    force_cap_N=50.0, in_plane_width=None, effects=None, device: str = "cpu") -> "CellModel":
+        """Build the model of N cells from per-cell arrays, without a Python loop over the cells.
+
+        Each argument is a scalar (every cell) or an array of shape [N] (the fields of
+        :class:`CellParams`, same units; the string fields may be arrays of names).  ``effects`` is
+        one :class:`~knitsim.cell.effects.EffectSet` for every cell (None: none).  Every field is
+        validated as :meth:`CellParams.validated` does, vectorised; the error names the first bad
+        cell and field (``cells[i].m = -0.1: ...``).  ``params`` is built only when asked for.
+        """
+        warp_runtime.init()
+        device = warp_runtime.resolve_device(device)
+        fl = {"B": B, "d": d, "L": L, "W0": W0, "C0": C0, "m": m, "phi0": phi0, "dahl_sigma": dahl_sigma,
+              "force_cap_N": force_cap_N}
+        shapes = {k: np.shape(v) for k, v in fl.items()}
+        names = {"friction": (friction, FRICTION_MODELS), "unloading_rule": (unloading_rule, UNLOADING_RULES),
+                 "reload_rule": (reload_rule, RELOAD_RULES), "jamming_criterion": (jamming_criterion, JAMMING_CRITERIA)}
+        shapes.update({k: np.shape(v[0]) for k, v in names.items()})
+        if in_plane_width is not None:
+            shapes["in_plane_width"] = np.shape(in_plane_width)
+        n, first = 1, None
+        for k, sh in shapes.items():
+            if len(sh) > 1:
+                raise KnitsimInputError(f"cells.{k}: expected a scalar or a 1-d array, got shape {sh}")
+            if sh and sh[0] != 1:
+                if n not in (1, sh[0]):
+                    raise KnitsimInputError(f"cells.{k}: {sh[0]} values, but cells.{first} has {n}")
+                n, first = sh[0], k
+
+        def bad(name, mask, vals, why):
+            i = int(np.argmax(mask))
+            v = np.broadcast_to(vals, (n,))[i]
+            v = v.item() if isinstance(v, np.generic) else v
+            raise KnitsimInputError(f"cells[{i}].{name} = {v!r}: {why}")
+
+        f = {}
+        for k, v in fl.items():
+            try:
+                a = np.asarray(v, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise KnitsimInputError(f"cells.{k}: must be finite numbers") from None
+            a = np.broadcast_to(a, (n,))
+            if not np.all(np.isfinite(a)):
+                bad(k, ~np.isfinite(a), a, "must be a finite number")
+            f[k] = a
+        for k in ("B", "d", "L", "W0", "C0", "force_cap_N"):
+            if np.any(f[k] <= 0):
+                bad(k, f[k] <= 0, f[k], "must be > 0")
+        if np.any(f["m"] < 0):
+            bad("m", f["m"] < 0, f["m"], "the friction ratio must be >= 0")
+        codes = {}
+        for k, (v, allowed) in names.items():
+            a = np.broadcast_to(np.asarray(v), (n,))
+            c = np.full(n, -1, np.int32)
+            for j, name in enumerate(allowed):
+                c[a == name] = j
+            if np.any(c < 0):
+                bad(k, c < 0, a, f"expected one of {', '.join(allowed)}")
+            codes[k] = c
+        # the kernel's reload flag is 1 for "mirror_unloading" (as from_params)
+        codes["reload_rule"] = (codes["reload_rule"] == RELOAD_RULES.index("mirror_unloading")).astype(np.int32)
+        djam = f["d"]
+        if in_plane_width is not None:
+            w = np.broadcast_to(np.asarray(in_plane_width, dtype=np.float64), (n,))
+            if not np.all(np.isfinite(w)):
+                bad("in_plane_width", ~np.isfinite(w), w, "must be a finite number or None")
+            if np.any(w < f["d"]):
+                bad("in_plane_width", w < f["d"], w, "the in-plane width cannot be below the compact diameter d")
+            if np.any(f["W0"] < 4.0 * w):
+                bad("in_plane_width", f["W0"] < 4.0 * w, w, "loops jammed at rest: W0 < 4 in_plane_width")
+            djam = w
+        if np.any(f["W0"] < 4.0 * f["d"]):
+            bad("W0", f["W0"] < 4.0 * f["d"], f["W0"], "the wale width at rest must be >= 4 d (loops jammed already)")
+        lmin = 2.0 * f["C0"] + f["W0"] - 4.0 * f["d"]
+        if np.any(f["L"] <= lmin):
+            bad("L", f["L"] <= lmin, f["L"], "too short to close a loop: needs > 2 C0 + W0 - 4 d")
+        pm = np.arctan(f["m"])
+        if np.any(np.abs(f["phi0"]) > pm + 1e-12):
+            bad("phi0", np.abs(f["phi0"]) > pm + 1e-12, f["phi0"], "must lie in [-phimax, phimax], phimax = atan(m)")
+        dahl = codes["friction"] == 1
+        if np.any(dahl & (f["dahl_sigma"] <= 0)):
+            bad("dahl_sigma", dahl & (f["dahl_sigma"] <= 0), f["dahl_sigma"], "Dahl friction needs a stiffness > 0 (1/mm)")
+        if np.any(dahl & (f["m"] <= 0)):
+            bad("m", dahl & (f["m"] <= 0), f["m"], "Dahl friction needs m > 0 (saturation tan(phi) = m)")
+        eff = NO_EFFECTS if effects is None else effects
+        if not isinstance(eff, EffectSet):
+            raise KnitsimInputError(f"cells.effects = {effects!r}: expected one EffectSet (knitsim.cell.effects)")
+        eff.validated(where="cells.effects")
+        cols = {"B": f["B"], "d": f["d"], "L": f["L"], "W0": f["W0"], "C0": f["C0"], "m": f["m"], "phi0": f["phi0"],
+                "sigma": f["dahl_sigma"], "cap": f["force_cap_N"], "djam": djam,
+                "friction": codes["friction"], "unloading": codes["unloading_rule"],
+                "reload": codes["reload_rule"], "criterion": codes["jamming_criterion"],
+                "effect_mask": np.int32(eff.mask)}
+        host = {k: (v if np.ndim(v) == 0 else _compact(np.asarray(v))) for k, v in cols.items()}
+        host["effects"] = eff
+        return cls(_device_arrays(cols, eff.row()[None], device), n, None, device, host)
 
     def _arrays(self) -> list:
         return [getattr(self, n) for n in _FLOAT_FIELDS + _INT_FIELDS]
@@ -166,9 +348,12 @@ class CellModel:
         """A state initialised to Table 4's initial state (C0, W0, L, phi0), solved on the device."""
         st = CellBatchState.empty(self.cell_count, self.device)
         starts = wp.array(np.asarray(DEFAULT_STARTS, dtype=np.float64), dtype=wp.float64, device=self.device)
-        wp.launch(_k().init_kernel, dim=self.cell_count, inputs=self._arrays() + [starts],
+        from knitsim.kernels.specialise import INIT_KEY
+
+        k = _kernel_module(INIT_KEY)  # the initial solve uses no optional residual: any key's kernel
+        wp.launch(k.init_kernel, dim=self.cell_count, inputs=self._arrays() + [starts],
                   outputs=st._arrays(), device=self.device)
-        wp.launch(_k().init_effects_kernel, dim=self.cell_count, inputs=[self.B, self.d, self.L, self.m, st.q],
+        wp.launch(k.init_effects_kernel, dim=self.cell_count, inputs=[self.B, self.d, self.L, self.m, st.q],
                   outputs=[st.eff], device=self.device)
         # no admissible rest state (knitsim.cell.domain.rest_state_problem): none found, or a contact
         # force R < 0 (the unilateral contact at B would pull): flagged before any increment
@@ -309,10 +494,14 @@ class CellSolver:
         Events kept on the device (default 64 per cell); more are counted and dropped.
     stick_closure : str
         ``"release_beta"`` (default) or ``"table4"``: see :mod:`knitsim.cell.stages`.
+    specialise : bool
+        One kernel per kernel key (friction law, effects, jamming criterion), one launch per group
+        of cells (default); False runs the generic kernel (every law chosen per cell at run time),
+        with the same results.
     """
 
     def __init__(self, model: CellModel, max_halvings: int = MAX_HALVINGS, event_capacity: int | None = None,
-                 stick_closure: str = "release_beta"):
+                 stick_closure: str = "release_beta", specialise: bool = True):
         if stick_closure not in STICK_CLOSURES:
             raise KnitsimInputError(f"stick_closure = {stick_closure!r}: expected one of {', '.join(STICK_CLOSURES)}")
         self.stick_closure = stick_closure
@@ -320,6 +509,7 @@ class CellSolver:
             raise KnitsimInputError(f"max_halvings = {max_halvings!r}: expected a whole number in 0..60")
         self.model = model
         self.max_halvings = int(max_halvings)
+        self.groups = model.kernel_groups(specialise)
         cap = 64 * model.cell_count + 64 if event_capacity is None else int(event_capacity)
         dev = model.device
         self._ev_count = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -332,13 +522,105 @@ class CellSolver:
         n = self.model.cell_count
         if n == 0:
             return
-        wp.launch(_k().step_kernel, dim=n,
-                  inputs=self.model._arrays() + self.model._effect_arrays()
-                  + [self.max_halvings, int(self.stick_closure == "release_beta")]
-                  + state_in._arrays() + [state_in.eff]
-                  + [control.strain, control.direction, control.rate, int(increment)],
-                  outputs=state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev,
-                  device=self.model.device)
+        for k, cells in self.groups:
+            wp.launch(k.step_kernel, dim=cells.shape[0] or n,
+                      inputs=[cells] + self.model._arrays() + self.model._effect_arrays()
+                      + [self.max_halvings, int(self.stick_closure == "release_beta")]
+                      + state_in._arrays() + [state_in.eff]
+                      + [control.strain, control.direction, control.rate, int(increment)],
+                      outputs=state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev,
+                      device=self.model.device)
+
+    def run_program(self, state: CellBatchState, program: LoadProgram, stride: int = 1,
+                    k_start: int = 0, k_stop: int | None = None, history: "ProgramHistory | None" = None,
+                    per_increment: bool = False, sort_by_stage: bool = False) -> "ProgramHistory":
+        """Advance ``state`` in place through increments ``k_start .. k_stop - 1`` of ``program``, recording
+        every ``stride``-th row into preallocated device arrays; no host synchronisation.
+
+        One launch per kernel group for the whole range (the increments loop on the device), or with
+        ``per_increment`` one launch per increment (the same arithmetic); that increment loop is
+        captured once as a graph (a CUDA graph on the GPU) and replayed on later calls with the same
+        state, program and history objects.
+
+        Parameters
+        ----------
+        state : CellBatchState
+            Advanced in place.
+        program : LoadProgram
+        stride : int
+            Rows recorded: increments ``stride - 1, 2 stride - 1, ...`` (row r holds increment
+            ``(r + 1) stride - 1``).
+        k_start, k_stop : int
+            The increments to run (default: all).
+        history : ProgramHistory, optional
+            Where to record (made with :meth:`ProgramHistory.empty` for this program and stride);
+            a new one by default.
+        per_increment : bool
+            One launch per increment instead of one per range.
+        sort_by_stage : bool
+            With ``per_increment``: before each increment the cells of each group are sorted on the
+            device by their stage (radix sort, no host synchronisation), so that neighbouring
+            threads (a GPU warp) do the same kind of work; the results are the same.  The increment
+            loop is then not captured as a graph (the sort is not a kernel launch).
+        """
+        if not (isinstance(stride, (int, np.integer)) and stride >= 1):
+            raise KnitsimInputError(f"stride = {stride!r}: expected a whole number >= 1")
+        n = len(program)
+        k_stop = n if k_stop is None else int(k_stop)
+        dev, model = self.model.device, self.model
+        hist = ProgramHistory.empty(model, n, stride, model.has_effects) if history is None else history
+        if hist.stride != stride:
+            raise KnitsimInputError(f"history recorded with stride {hist.stride}, asked for {stride}")
+        key = (id(state), id(program), id(hist), int(k_start), k_stop, bool(per_increment))
+        graphs = self.__dict__.setdefault("_graphs", {})
+        if key in graphs:
+            # the objects are held with the graph, so their ids cannot be reused meanwhile
+            wp.capture_launch(graphs[key][0])
+            return hist
+        prog = self.__dict__.setdefault("_programs", {})
+        if id(program) not in prog:
+            rate = program.rate
+            prog[id(program)] = (program, [
+                wp.array(np.asarray(program.strain, np.float64), dtype=wp.float64, device=dev),
+                wp.array(np.asarray(program.direction, np.int32), dtype=wp.int32, device=dev),
+                wp.array(np.zeros(1) if rate is None else np.asarray(rate, np.float64), dtype=wp.float64, device=dev)])
+        arrays = prog[id(program)][1]
+        ranges = [(k, k + 1) for k in range(k_start, k_stop)] if per_increment else [(k_start, k_stop)]
+        sort = bool(sort_by_stage and per_increment)
+        if sort:
+            bufs = self.__dict__.setdefault("_sort", [
+                tuple(wp.zeros(2 * (cells.shape[0] or model.cell_count), dtype=wp.int32, device=dev) for _ in range(2))
+                for _, cells in self.groups])
+
+        def launches():
+            for k0, k1 in ranges:
+                for g, (k, cells) in enumerate(self.groups):
+                    m = cells.shape[0] or model.cell_count
+                    if sort:
+                        keys, order = bufs[g]
+                        wp.launch(k.stage_key_kernel, dim=m,
+                                  inputs=[cells, state.stage, state.jammed, state.status], outputs=[keys, order],
+                                  device=dev)
+                        wp.utils.radix_sort_pairs(keys, order, m)
+                        cells = order
+                    wp.launch(k.program_kernel, dim=m,
+                              inputs=[cells] + model._arrays() + model._effect_arrays()
+                              + [self.max_halvings, int(self.stick_closure == "release_beta")]
+                              + state._arrays() + [state.eff] + arrays + [k0, k1, int(stride)]
+                              + [self._ev_count] + self._ev + hist._arrays(), device=dev)
+
+        if per_increment and not sort:
+            # the increment loop captured once as a graph (CUDA graph; Warp's recorded launches on the
+            # CPU), replayed: no host work per launch on later calls (one launch per range needs none)
+            for k, _ in self.groups:
+                wp.load_module(k, device=dev)  # compiled before the capture (nothing else is loaded)
+            with wp.ScopedCapture(device=dev, force_module_load=False) as capture:
+                launches()
+            graphs[key] = (capture.graph, state, program, hist)
+            wp.capture_launch(capture.graph)
+        else:
+            launches()
+        return hist
 
     def events(self) -> list[dict]:
         """Events recorded so far (host copy), ordered by cell, then as they happened."""
@@ -359,9 +641,50 @@ class CellSolver:
         return out
 
 
+@dataclass
+class ProgramHistory:
+    """Rows of a run recorded on the device (:meth:`CellSolver.run_program`), preallocated.
+
+    Attributes
+    ----------
+    stride : int
+        Row r holds increment ``(r + 1) stride - 1``.
+    codes : int32 [n_quantities]
+        Quantity codes of ``q`` (:data:`~knitsim.cell.history.HISTORY_QUANTITIES`).
+    q : float64 [n_quantities, rows, N]
+        Those quantities (F = 0 while slack).
+    stage, jammed, status : int32 [rows, N]
+    head_gap : float64 [rows, N]
+    eff : float64 [len(EFFECT_STATE) or 0, rows, N]
+        The effects' state (none recorded when no cell has an effect on).
+    """
+
+    stride: int
+    codes: wp.array
+    q: wp.array
+    stage: wp.array
+    jammed: wp.array
+    status: wp.array
+    head_gap: wp.array
+    eff: wp.array
+
+    @classmethod
+    def empty(cls, model: CellModel, n_increments: int, stride: int = 1, with_effects: bool = False):
+        dev, nc = model.device, model.cell_count
+        rows = n_increments // stride
+        codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
+        return cls(int(stride), codes, wp.zeros((len(HISTORY_QUANTITIES), rows, nc), dtype=wp.float64, device=dev),
+                   *(wp.zeros((rows, nc), dtype=wp.int32, device=dev) for _ in range(3)),
+                   wp.zeros((rows, nc), dtype=wp.float64, device=dev),
+                   wp.zeros((len(EFFECT_STATE) if with_effects else 0, rows, nc), dtype=wp.float64, device=dev))
+
+    def _arrays(self) -> list:
+        return [self.codes, self.q, self.stage, self.jammed, self.status, self.head_gap, self.eff]
+
+
 def run_batch(params, program: LoadProgram, device: str = "cpu",
               progress: Callable[[int, int], None] | None = None, max_halvings: int = MAX_HALVINGS,
-              stick_closure: str = "release_beta") -> BatchHistory:
+              stick_closure: str = "release_beta", specialise: bool = True) -> BatchHistory:
     """Run N cells through a strain program on a Warp device.
 
     Parameters
@@ -375,7 +698,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         when ``params`` is a model.
     progress : callable, optional
         ``progress(done, n)`` as increments finish (the program runs in chunks of 25 then).
-    max_halvings, stick_closure
+    max_halvings, stick_closure, specialise
         See :class:`CellSolver`.
 
     Returns
@@ -389,37 +712,26 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
     dev = model.device
     n, nc = len(program), model.cell_count
-    solver = CellSolver(model, max_halvings, stick_closure=stick_closure)
+    solver = CellSolver(model, max_halvings, stick_closure=stick_closure, specialise=specialise)
     s0 = model.state()
     s0_status0 = s0.status.numpy().copy()
     q0 = s0.q.numpy()
     rest = {name: q0[:, CODE[name]].copy() for name in HISTORY_QUANTITIES}
     rest.update(stage=s0.stage.numpy().copy(), jammed=s0.jammed.numpy().copy())
-    codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
-    hq = wp.zeros((len(HISTORY_QUANTITIES), n, nc), dtype=wp.float64, device=dev)
-    hs, hj, hst = (wp.zeros((n, nc), dtype=wp.int32, device=dev) for _ in range(3))
-    hg = wp.zeros((n, nc), dtype=wp.float64, device=dev)
-    k = _k()
-    with_effects = any(p.effects.on for p in model.params)
-    he = wp.zeros((len(EFFECT_STATE) if with_effects else 0, n, nc), dtype=wp.float64, device=dev)
-    rate = program.rate
-    prog = [wp.array(np.asarray(program.strain, np.float64), dtype=wp.float64, device=dev),
-            wp.array(np.asarray(program.direction, np.int32), dtype=wp.int32, device=dev),
-            wp.array(np.zeros(1) if rate is None else np.asarray(rate, np.float64), dtype=wp.float64, device=dev)]
-    # the whole program in one launch (chunks only to report progress): the increments loop on the device
+    with_effects = model.has_effects
+    hist = ProgramHistory.empty(model, n, 1, with_effects)
+    hq, hs, hj, hst, hg, he = hist.q, hist.stage, hist.jammed, hist.status, hist.head_gap, hist.eff
+    # the whole program in one launch per kernel group (chunks only to report progress): the
+    # increments loop on the device
     chunk = n if progress is None else max(1, min(n, 25))
     for k0 in range(0, n, chunk):
         k1 = min(n, k0 + chunk)
-        wp.launch(k.program_kernel, dim=nc,
-                  inputs=model._arrays() + model._effect_arrays()
-                  + [solver.max_halvings, int(solver.stick_closure == "release_beta")]
-                  + s0._arrays() + [s0.eff] + prog + [k0, k1] + [solver._ev_count] + solver._ev
-                  + [codes, hq, hs, hj, hst, hg, he], device=dev)
+        solver.run_program(s0, program, 1, k0, k1, hist)
         if progress is not None:
             progress(k1, n)
     hqn = hq.numpy()
     values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
-    values.update(head_gap_values(hg.numpy(), [p.d_jam for p in model.params]))
+    values.update(head_gap_values(hg.numpy(), model.d_jam))
     if with_effects:
         hen = he.numpy()
         values.update({name: hen[j] for j, name in enumerate(EFFECT_STATE)})

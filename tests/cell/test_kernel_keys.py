@@ -1,0 +1,110 @@
+"""Specialised kernels (one per kernel key) and the model built from arrays (issue 15).
+
+Expected values come from identities: a specialised kernel is the generic kernel with the code of
+the laws a key switches off removed, so a mixed batch split into one launch per key gives the
+generic kernel's results bit for bit, in the caller's order; a model built from arrays holds the
+same per-cell parameters as one built from CellParams, so its runs are bit for bit the same; a
+strided history holds every stride-th row of the full one.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+from knitsim.cell.batch import CellModel, CellSolver, run_batch
+from knitsim.cell.effects import EffectSet
+from knitsim.cell.load_program import cycles
+from knitsim.cell.material import CellParams
+from knitsim.errors import KnitsimInputError
+from knitsim.kernels.specialise import KernelKey, group_cells
+
+# E-glass plain knit, Dusserre (2015) Table 1 and section 2.2
+GLASS = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=-0.05, force_cap_N=10.0)
+PROG = cycles(0.10, 0.60, 1, max_increment=0.1)
+
+
+def test_group_cells_splits_by_key_in_order():
+    groups = group_cells(np.array([1, 0, 0, 1, 0], bool), np.array([0, 0, 1, 0, 0], bool),
+                         np.array([0, 1, 0, 0, 1], bool))
+    assert [(k, idx.tolist()) for k, idx in groups] == [
+        (KernelKey(False, False, True), [1, 4]), (KernelKey(False, True, False), [2]),
+        (KernelKey(True, False, False), [0, 3])]
+
+
+def test_mixed_batch_of_specialised_kernels_is_the_generic_kernel_bit_for_bit(device):
+    # the order interleaves the keys, so that a result written to the wrong cell would show
+    cells = [GLASS.replace(friction="dahl", dahl_sigma=20.0),
+             GLASS,
+             GLASS.replace(jamming_criterion="head_gap"),
+             GLASS.replace(effects=EffectSet(on=("normal_load_friction",), load_n=0.9, load_ref_N=0.1)),
+             GLASS.replace(phi0=0.1)]
+    spec = run_batch(cells, PROG, device=device)
+    gen = run_batch(cells, PROG, device=device, specialise=False)
+    assert len(CellSolver(CellModel.from_params(cells, device)).groups) == 4
+    for k in gen.values:
+        np.testing.assert_array_equal(spec.values[k], gen.values[k], err_msg=k)
+    np.testing.assert_array_equal(spec.stage, gen.stage)
+    np.testing.assert_array_equal(spec.status, gen.status)
+    assert spec.events == gen.events
+    # and each cell is itself alone (batching and grouping change nothing)
+    one = run_batch([cells[3]], PROG, device=device)
+    np.testing.assert_array_equal(spec.values["F"][:, 3], one.values["F"][:, 0])
+
+
+def test_model_from_arrays_is_the_model_from_params(device):
+    rng = np.random.default_rng(3)
+    n = 6
+    m = rng.uniform(0.0, 0.4, n)
+    arr = dict(B=0.31 * (1 + rng.uniform(-0.02, 0.02, n)), d=0.58, L=14.1, W0=4.4, C0=2.7, m=m,
+               phi0=rng.uniform(-1, 1, n) * np.arctan(m), force_cap_N=10.0,
+               unloading_rule=np.where(np.arange(n) % 2 == 0, "dusserre", "hong_constant_t"))
+    cells = [CellParams(B=float(arr["B"][i]), d=0.58, L=14.1, W0=4.4, C0=2.7, m=float(m[i]), phi0=float(arr["phi0"][i]),
+                        force_cap_N=10.0, unloading_rule=str(arr["unloading_rule"][i])) for i in range(n)]
+    ma = CellModel.from_arrays(**arr, device=device)
+    assert ma.params == cells
+    a = run_batch(ma, PROG)
+    b = run_batch(cells, PROG, device=device)
+    for k in b.values:
+        np.testing.assert_array_equal(a.values[k], b.values[k], err_msg=k)
+
+
+def test_strided_history_holds_every_stride_th_row(device):
+    cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(m=0.0, phi0=0.0), GLASS.replace(m=0.1)]
+    full = run_batch(cells, PROG, device=device)
+    model = CellModel.from_params(cells, device)
+    state = model.state()
+    hist = CellSolver(model).run_program(state, PROG, stride=3)
+    q = hist.q.numpy()
+    rows = np.arange(2, len(PROG), 3)
+    from knitsim.cell.history import HISTORY_QUANTITIES
+    np.testing.assert_array_equal(q[HISTORY_QUANTITIES.index("F")], full.values["F"][rows])
+    np.testing.assert_array_equal(hist.stage.numpy(), full.stage[rows])
+    # one launch per increment, captured as a graph, is the same arithmetic; so is its replay
+    solver = CellSolver(model)
+    state2, fresh = model.state(), model.state()
+    hist2 = solver.run_program(state2, PROG, stride=3, per_increment=True)
+    np.testing.assert_array_equal(hist2.q.numpy(), q)
+    hist2.q.zero_()
+    for dst, src in zip(state2._arrays() + [state2.eff], fresh._arrays() + [fresh.eff]):
+        wp.copy(dst, src)
+    assert solver.run_program(state2, PROG, stride=3, history=hist2, per_increment=True) is hist2
+    np.testing.assert_array_equal(hist2.q.numpy(), q)
+    # cells sorted by stage before each increment: the same rows, in the caller's order
+    state3 = model.state()
+    hist3 = CellSolver(model).run_program(state3, PROG, stride=3, per_increment=True, sort_by_stage=True)
+    np.testing.assert_array_equal(hist3.q.numpy(), q)
+
+
+@pytest.mark.parametrize("kw, message", [
+    (dict(m=[0.1, -0.2, 0.1]), r"cells\[1\]\.m = -0\.2"),
+    (dict(phi0=[0.0, 0.0, 0.5]), r"cells\[2\]\.phi0"),
+    (dict(friction=["coulomb", "dahl", "coulomb"]), r"cells\[1\]\.dahl_sigma"),
+    (dict(unloading_rule="hong"), r"cells\[0\]\.unloading_rule = 'hong'"),
+    (dict(L=[14.1, 5.0]), r"cells\.C0: 3 values, but cells\.L has 2"),
+])
+def test_model_from_arrays_names_the_first_bad_cell(kw, message):
+    arr = dict(B=0.31, d=0.58, L=14.1, W0=4.4, C0=[2.7, 2.7, 2.7], m=0.2, phi0=0.0)
+    arr.update(kw)
+    with pytest.raises(KnitsimInputError, match=message):
+        CellModel.from_arrays(**arr)
