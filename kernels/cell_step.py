@@ -1535,6 +1535,29 @@ def step_kernel(
                  ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
 
 
+@wp.func
+def write_history_row(
+    i: int, row: int, q: wp.array2d(dtype=wp.float64), stage: wp.array(dtype=wp.int32),
+    jammed: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64),
+    codes: wp.array(dtype=wp.int32), hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
+    hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
+    hist_gap: wp.array2d(dtype=wp.float64),
+):
+    """History row ``row`` of cell i: hist_q[k, row, i] = q[i, codes[k]] (F = 0 while slack), stage, jam
+    flag, status and head gap."""
+    st = stage[i]
+    for k in range(codes.shape[0]):
+        c = codes[k]
+        v = q[i, c]
+        if c == Q_F and st == SLACK:
+            v = wp.float64(0.0)
+        hist_q[k, row, i] = v
+    hist_stage[row, i] = st
+    hist_jammed[row, i] = jammed[i]
+    hist_status[row, i] = status[i]
+    hist_gap[row, i] = gap[i]
+
+
 @wp.kernel
 def program_kernel(
     # the cells this launch advances (a group of one kernel key); empty: every cell, in order
@@ -1582,17 +1605,8 @@ def program_kernel(
         if (k + 1) % stride == 0:
             # row r holds increment (r + 1) stride - 1 (every increment with stride 1)
             r = k // stride
-            st = stage[i]
-            for j in range(codes.shape[0]):
-                c = codes[j]
-                v = q[i, c]
-                if c == Q_F and st == SLACK:
-                    v = wp.float64(0.0)
-                hist_q[j, r, i] = v
-            hist_stage[r, i] = st
-            hist_jammed[r, i] = jammed[i]
-            hist_status[r, i] = status[i]
-            hist_gap[r, i] = gap[i]
+            write_history_row(i, r, q, stage, jammed, status, gap, codes, hist_q, hist_stage, hist_jammed,
+                              hist_status, hist_gap)
             for j in range(hist_eff.shape[0]):
                 hist_eff[j, r, i] = eff[i, j]
 
@@ -1605,19 +1619,10 @@ def record_kernel(
     hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
     hist_gap: wp.array2d(dtype=wp.float64),
 ):
-    """Write one history row: hist_q[k, row, i] = q[i, codes[k]] (F = 0 while slack), and the head gap."""
+    """Write one history row (:func:`write_history_row`)."""
     i = wp.tid()
-    st = stage[i]
-    for k in range(codes.shape[0]):
-        c = codes[k]
-        v = q[i, c]
-        if c == Q_F and st == SLACK:
-            v = wp.float64(0.0)
-        hist_q[k, row, i] = v
-    hist_stage[row, i] = st
-    hist_jammed[row, i] = jammed[i]
-    hist_status[row, i] = status[i]
-    hist_gap[row, i] = gap[i]
+    write_history_row(i, row, q, stage, jammed, status, gap, codes, hist_q, hist_stage, hist_jammed, hist_status,
+                      hist_gap)
 
 
 @wp.kernel
