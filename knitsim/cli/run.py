@@ -102,8 +102,9 @@ def _run(args) -> int:
         res = export_history(h, m.fields, args.usd, scene_text=scene.to_toml(), color_by=args.color_by,
                              course_count=m.course_count, wale_count=m.wale_count,
                              stride=args.usd_stride, n_points=args.usd_points or DEFAULT_POINTS,
-                             device=device if scene.engine == "warp" else "cpu")
-        drawn = (f", {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch shapes"
+                             device=device if scene.engine == "warp" else "cpu", layout=args.usd_layout)
+        drawn = (f", {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch "
+                 f"shape{'' if res.prototypes == 1 else 's'}"
                  if res.stitches else "")
         print(f"knitsim run: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
               f"samples{drawn}) in {res.seconds:.2f} s", file=sys.stderr, flush=True)

@@ -1,7 +1,7 @@
 """``knitsim usd``: export a saved patch run to USD for visual checks.
 
 ``knitsim usd RESULTS_DIR --out FILE [--color-by stage|phi|force|material|strain] [--stride N]
-[--points N] [--quicklook PNG] [--device cpu|cuda|auto] [--json]``
+[--points N] [--usd-layout auto|courses|instanced] [--quicklook PNG] [--device cpu|cuda|auto] [--json]``
 
 Reads ``cells.nc`` (per-group states x = (alpha, beta, gamma, phi, P), W, C,
 s_AB per saved increment) and ``scene.resolved.toml`` of a ``knitsim run``
@@ -17,6 +17,7 @@ import sys
 
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags, prepare_output_file
+from ..usd.from_results import LAYOUTS
 from .common import add_json_flag, print_json
 
 COLOR_CHOICES = ("stage", "phi", "force", "material", "strain")
@@ -30,6 +31,10 @@ def add_usd_options(p, prefix: str = "") -> None:
                    help="write every N-th saved increment (and the last one); default 1")
     p.add_argument("--usd-points", dest="usd_points", type=int, default=None, metavar="N",
                    help="points per quarter centreline (>= 6, default 9)")
+    p.add_argument("--usd-layout", dest="usd_layout", default="auto", metavar="LAYOUT",
+                   help="courses (one yarn curve per course), instanced (one stitch shape per distinct cell, "
+                        "placed at every stitch of it) or auto (default: instanced when the distinct cells are "
+                        "at most a quarter of the cells, as in a uniform patch)")
     p.set_defaults(usd_stride_flag=f"--{prefix}stride")
 
 
@@ -39,6 +44,8 @@ def check_usd_options(args) -> None:
         raise KnitsimInputError(f"--color-by = {args.color_by!r}: expected one of {', '.join(COLOR_CHOICES)}")
     if args.usd_stride < 1:
         raise KnitsimInputError(f"{args.usd_stride_flag} = {args.usd_stride}: must be >= 1")
+    if args.usd_layout not in LAYOUTS:
+        raise KnitsimInputError(f"--usd-layout = {args.usd_layout!r}: expected one of {', '.join(LAYOUTS)}")
     if args.usd_points is not None and args.usd_points < 6:
         raise KnitsimInputError(f"--usd-points = {args.usd_points}: must be >= 6")
 
@@ -47,8 +54,10 @@ def register(subparsers) -> None:
     """Add ``knitsim usd``."""
     p = subparsers.add_parser(
         "usd", help="export a saved patch run (knitsim run results folder) to USD",
-        description="Export a knitsim run results folder to USD: one BasisCurves yarn per course, one time "
-                    "sample per saved increment, per-cell primvars (stage, phi, force, strain, material).")
+        description="Export a knitsim run results folder to USD: one BasisCurves yarn per course (or, for a "
+                    "specimen or a patch of few distinct cells, one stitch shape per distinct cell instanced at "
+                    "every stitch), one time sample per saved increment, per-cell primvars (stage, phi, force, "
+                    "strain, material).")
     p.add_argument("results", metavar="RESULTS_DIR", help="results folder of knitsim run (with cells.nc)")
     p.add_argument("--out", metavar="FILE", required=True, help="output .usda (text) or .usdc/.usd (binary crate)")
     add_usd_options(p)
@@ -68,7 +77,8 @@ def _run(args) -> int:
     prepare_output_file(args.quicklook, args.overwrite, "--quicklook")
     device = warp_runtime.resolve_device(args.device)
     res = export_results(args.results, args.out, color_by=args.color_by, stride=args.usd_stride,
-                         n_points=args.usd_points or DEFAULT_POINTS, device=device, quicklook=args.quicklook)
+                         n_points=args.usd_points or DEFAULT_POINTS, device=device, quicklook=args.quicklook,
+                         layout=args.usd_layout)
     doc = {"usd": res.path, "bytes": res.file_bytes, "time_codes": len(res.time_codes), "courses": res.courses,
            "wales": res.wales, "vertices_per_course": res.vertices_per_course, "seconds": res.seconds,
            "fallback_cells_max": max(res.fallback_cells) if res.fallback_cells else 0,
@@ -77,8 +87,9 @@ def _run(args) -> int:
     if args.json:
         print_json(doc)
     else:
-        what = (f"a specimen: {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch shapes, at "
-                f"most {res.courses} courses x {res.wales} wales" if res.stitches else
+        what = (f"instanced: {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch "
+                f"shape{'' if res.prototypes == 1 else 's'}, at most {res.courses} courses x {res.wales} wales"
+                if res.stitches else
                 f"{res.courses} courses x {res.wales} wales")
         print(f"knitsim usd: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time samples, "
               f"{what}) in {res.seconds:.2f} s"

@@ -45,6 +45,10 @@ MIN_POINTS = 6
 #: --color-by names and the frame field each one colours by
 COLOR_FIELDS = {"stage": "stage", "phi": "phi", "force": "force", "material": "material_id", "strain": "strain"}
 FIELD_UNITS = {"phi": "rad", "force": "N", "strain": "1"}
+#: USD layouts: one BasisCurves yarn per course, or one stitch shape per distinct cell instanced
+#: (knitsim.usd.instanced); "auto" instances where it writes at least INSTANCE_GAIN times fewer shapes
+LAYOUTS = ("auto", "courses", "instanced")
+INSTANCE_GAIN = 4
 #: parameters that identify a material (as knitsim.patch.model.PARAM_NAMES)
 _MATERIAL_PARAMS = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0", "in_plane_width")
 
@@ -250,13 +254,37 @@ def _fallback_quarter(W, C, n):
     return np.stack([(W / 4)[..., None] * (1 - t), np.maximum(C / 2, 1e-6 * W)[..., None] * t], axis=-1)
 
 
+def resolve_layout(rec: PatchRecord, layout: str = "auto") -> str:
+    """``"courses"`` or ``"instanced"``: the USD layout of a record.
+
+    A specimen (cells standing for blocks of stitches) is always instanced.  ``"auto"`` instances a
+    patch whose distinct cells are at most 1/:data:`INSTANCE_GAIN` of its cells (a uniform or
+    zoned patch solved with ``dedup``): every stitch of a group has the same shape, so writing the
+    shape once per group and a position per stitch is exact and about ``4 (n - 1)`` times smaller
+    per stitch (the 23 x 110 uniform specimen of the README: 104 MiB as courses at stride 5).
+    """
+    if layout not in LAYOUTS:
+        raise KnitsimInputError(f"layout = {layout!r}: expected one of {', '.join(LAYOUTS)}")
+    if rec.blocks:
+        if layout == "courses":
+            raise KnitsimInputError("layout = 'courses': a specimen's cells stand for blocks of stitches, which "
+                                    "are drawn instanced only; use layout 'auto' or 'instanced'")
+        return "instanced"
+    if layout == "auto":
+        groups = int(np.unique(rec.group_of_cell).size)
+        return "instanced" if groups * INSTANCE_GAIN <= rec.group_of_cell.size else "courses"
+    return layout
+
+
 def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POINTS, device: str = "cpu",
-                 frames: list | None = None) -> PatchFrames:
+                 frames: list | None = None, per_group: bool | None = None) -> PatchFrames:
     """The frames of a record: frames 0, stride, 2 stride, ... and the last (or the indices ``frames``).
 
     The unselected frames are not built (the exporter is then called with
-    ``stride=1``); their indices are kept as the time codes.
+    ``stride=1``); their indices are kept as the time codes.  ``per_group``: one entry per
+    distinct cell (the instanced layout) instead of one per cell; default: a specimen's record.
     """
+    per_group = rec.blocks if per_group is None else bool(per_group)
     import time
     if isinstance(stride, bool) or not isinstance(stride, (int, np.integer)) or stride < 1:
         raise KnitsimInputError(f"stride = {stride!r}: must be an integer >= 1")
@@ -301,8 +329,8 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
         s_ab = np.where(good & np.isfinite(rec.s_AB[k]) & (rec.s_AB[k] > 0), rec.s_AB[k], np.nan)
         s_ab = np.where(np.isfinite(s_ab), s_ab, 0.25 * np.hypot(Wg / 4, Cg / 2))
         fallback.append(int(np.sum(~good[goc])))
-        if rec.blocks:
-            # a specimen: one stitch shape per group, instanced (knitsim.usd.instanced)
+        if per_group:
+            # one stitch shape per group, instanced (knitsim.usd.instanced)
             out.append({"quarter_xy": q, "W": Wg, "C": Cg, "s_AB": s_ab,
                         "fields": {n: a[k].ravel()[rep] for n, a in rec.cell_fields.items()}})
         else:
@@ -314,7 +342,7 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
 
 def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride: int = 1,
                   n_points: int = DEFAULT_POINTS, device: str = "cpu", quicklook=None, curve_basis: str = "catmullRom",
-                  metadata: dict | None = None):
+                  metadata: dict | None = None, layout: str = "auto"):
     """Write a record as USD (``.usda`` text, ``.usdc``/``.usd`` binary crate); optionally a quick-look PNG.
 
     Parameters
@@ -330,6 +358,10 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         Warp device of the centreline kernel.
     quicklook : path, optional
         PNG of the first and last frame rendered from the written file.
+    layout : {"auto", "courses", "instanced"}
+        One BasisCurves yarn per course (read back with :func:`knitsim.usd.read_patch_usd`), or
+        one stitch shape per distinct cell instanced over its stitches (read back with
+        :func:`knitsim.usd.instanced.read_specimen_usd`); ``"auto"``: :func:`resolve_layout`.
 
     Returns
     -------
@@ -346,9 +378,10 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         raise KnitsimInputError(f"--out = {out_path!r}: must end in .usda, .usdc or .usd")
     if quicklook is not None and not os.fspath(quicklook).lower().endswith(".png"):
         raise KnitsimInputError(f"--quicklook = {os.fspath(quicklook)!r}: must end in .png")
-    pf = build_frames(rec, stride, n_points, device)
+    instanced = resolve_layout(rec, layout) == "instanced"
+    pf = build_frames(rec, stride, n_points, device, per_group=instanced)
     courses, wales = rec.shape
-    if rec.blocks:
+    if instanced:
         return _export_specimen(rec, pf, out_path, color_by=color_by, stride=stride, n_points=n_points,
                                 quicklook=quicklook, curve_basis=curve_basis, metadata=metadata)
     md = {"source": rec.source, "courses": courses, "wales": wales, "points_per_quarter": int(n_points),

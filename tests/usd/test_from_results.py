@@ -112,7 +112,7 @@ def test_uniform_patch_is_periodic(tmp_path, uniform):
     m, h = uniform
     assert h.info["n_groups"] == 1
     path = tmp_path / "u.usdc"
-    export_history(h, m.fields, path, n_points=N_PTS)
+    export_history(h, m.fields, path, n_points=N_PTS, layout="courses")
     back = read_patch_usd(path)
     k = yg.vertices_per_cell(N_PTS)
     W, C = h.groups["W"][:, 0], h.groups["C"][:, 0]
@@ -126,6 +126,28 @@ def test_uniform_patch_is_periodic(tmp_path, uniform):
         np.testing.assert_allclose(dy, np.broadcast_to(i * C[:, None], dy.shape), atol=2e-5)
     # the course yarn is continuous across cells: last point of cell j = first of cell j + 1 (A'')
     np.testing.assert_allclose(pts[:, :, -1, 0], np.broadcast_to(m.wales * W[:, None], pts.shape[:2]), atol=2e-5)
+
+
+def test_uniform_patch_auto_layout_is_instanced_and_draws_the_same_stitches(tmp_path, uniform):
+    """A patch of one distinct cell is written instanced by default; every drawn stitch equals the
+    same stitch of the course-yarn layout (an independent construction: yg.course_curves), to
+    float32 rounding, and the file is smaller."""
+    from knitsim.usd.instanced import read_specimen_usd
+    m, h = uniform
+    res_i = export_history(h, m.fields, tmp_path / "i.usdc", n_points=N_PTS)
+    res_c = export_history(h, m.fields, tmp_path / "c.usdc", n_points=N_PTS, layout="courses")
+    spec, back = read_specimen_usd(res_i.path), read_patch_usd(res_c.path)
+    assert res_i.prototypes == 1 and res_i.stitches == m.courses * m.wales
+    assert np.array_equal(spec.time_codes, back.time_codes)
+    k = yg.vertices_per_cell(N_PTS)
+    for t in range(len(spec.time_codes)):
+        pts = spec.stitch_points(t)
+        for n in range(pts.shape[0]):
+            i, j = int(spec.band[n]), int(spec.strip[n])
+            np.testing.assert_allclose(pts[n], back.points[t, i, j * k:(j + 1) * k + 1], atol=2e-5)
+    assert res_i.file_bytes < res_c.file_bytes
+    with pytest.raises(KnitsimInputError, match="layout = 'rows'"):
+        export_history(h, m.fields, tmp_path / "x.usda", layout="rows")
 
 
 def test_results_folder_equals_history(tmp_path, mixed):
