@@ -12,7 +12,12 @@ trust region reflective, bounds):
 
 - rows: each specimen's force at its rows, ``(model - measured) / sd``
   (:mod:`knitsim.calibration.specimen`); the model's total force is its
-  force per wale times width / W0 (the wales across the specimen);
+  force per wale times width / W0 (the wales across the specimen).  With
+  ``JointSetup.objective = "band"`` a banded row is instead the signed root of
+  ``-2 ln`` of the band likelihood (the band as a box, read with the force
+  accuracy's Gaussian, a Cauchy tail far outside:
+  :meth:`knitsim.calibration.specimen.SpecimenData.band_residuals`), refined from
+  each mid-line solution;
 - priors: each fitted L, W0, C0 adds the row ``ln(value / stated) / u``, u its
   relative uncertainty (a Gaussian prior in the log: the fit may move the
   geometry as far as the measurement allows, and pays for it);
