@@ -12,7 +12,12 @@ trust region reflective, bounds):
 
 - rows: each specimen's force at its rows, ``(model - measured) / sd``
   (:mod:`knitsim.calibration.specimen`); the model's total force is its
-  force per wale times width / W0 (the wales across the specimen);
+  force per wale times width / W0 (the wales across the specimen).  With
+  ``JointSetup.objective = "band"`` a banded row is instead the signed root of
+  ``-2 ln`` of the band likelihood (the band as a box, read with the force
+  accuracy's Gaussian, a Cauchy tail far outside:
+  :meth:`knitsim.calibration.specimen.SpecimenData.band_residuals`), refined from
+  each mid-line solution;
 - priors: each fitted L, W0, C0 adds the row ``ln(value / stated) / u``, u its
   relative uncertainty (a Gaussian prior in the log: the fit may move the
   geometry as far as the measurement allows, and pays for it);
@@ -106,6 +111,13 @@ class JointSetup:
         Warp device.
     phi0_starts : tuple of float or None
         Per specimen, the start of its phi0 [rad] (None or absent: the base's).
+    objective : str
+        What a banded specimen's rows are fitted to: ``"midline"``, the band's mid-line with the sd of
+        each row (:mod:`knitsim.calibration.specimen`: half-width, at least the force accuracy); ``"band"``,
+        the band likelihood with a heavy tail (:meth:`knitsim.calibration.specimen.SpecimenData.band_residuals`:
+        the model anywhere inside the band at no cost, just outside it a Gaussian of the force accuracy,
+        far outside a Cauchy tail), refined from each mid-line solution (:func:`calibrate_joint`).  A
+        specimen without a band is fitted to its curve (with the same tail under ``"band"``).
     """
 
     base: CellParams
@@ -121,6 +133,11 @@ class JointSetup:
     max_nfev: int = 100
     device: str = "cpu"
     phi0_starts: tuple = ()
+    objective: str = "midline"
+
+
+#: objectives of a banded specimen's rows (JointSetup.objective)
+OBJECTIVES = ("midline", "band")
 
 
 @dataclass(frozen=True)
@@ -188,7 +205,7 @@ class SpecimenFit:
     rms_N, rms_rel : float
         RMS of simulated - target [N], and relative to the target's RMS.
     chi2 : float
-        Sum of squared weighted residuals of its rows.
+        Sum of squared weighted residuals of its rows (of the setup's objective).
     status : str
         Worst cell status over the rows (``ok`` when every row solved).
     pretension : float
@@ -199,6 +216,11 @@ class SpecimenFit:
     in_band_tolerant : float or None
         Share of the rows inside the band widened by the force reading's accuracy
         (:meth:`SpecimenData.in_band_tolerant`).
+    residuals : ndarray or None
+        The weighted residual of each row under the fit's objective (``objective``); ``chi2`` is the
+        sum of their squares.
+    objective : str
+        ``"midline"`` or ``"band"`` (:class:`JointSetup`).
     """
 
     name: str
@@ -218,11 +240,13 @@ class SpecimenFit:
     pretension: float = 0.0
     pretension_N: float = 0.0
     in_band_tolerant: float | None = None
+    residuals: np.ndarray | None = None
+    objective: str = "midline"
 
     def as_dict(self, curves: bool = True) -> dict:
         out = {"name": self.name, "wales": self.wales, "in_band_fraction": self.in_band_fraction,
                "pretension": self.pretension, "pretension_N": self.pretension_N,
-               "in_band_tolerant": self.in_band_tolerant,
+               "in_band_tolerant": self.in_band_tolerant, "objective": self.objective,
                "rms_N": self.rms_N, "rms_rel": self.rms_rel, "chi2": self.chi2, "rows": int(len(self.strain)),
                "status": self.status, "params": self.params.as_dict()}
         if curves:
@@ -350,6 +374,9 @@ class _Problem:
             raise KnitsimInputError("calibration: a variable is listed twice")
         if not self.sp:
             raise KnitsimInputError("specimens: none given")
+        if setup.objective not in OBJECTIVES:
+            raise KnitsimInputError(f"calibration.objective = {setup.objective!r}: expected one of "
+                                    f"{', '.join(OBJECTIVES)}")
         names = [s.name for s in self.sp]
         if len(set(names)) != len(names):
             raise KnitsimInputError(f"specimens: two specimens named alike ({names})")
@@ -394,6 +421,8 @@ class _Problem:
             top = pretension_strain(float(longest.strain[-1]), float(top_pre))
             self.program = monotonic(top, setup.max_increment)
         self.calls = 0
+        # the rows' objective now (a band fit's first stage is the mid-line fit: calibrate_joint)
+        self.objective = "midline"
 
     # ------------------------------------------------------------ bounds
     def _fit_bounds(self, name: str, s: SpecimenData | None = None) -> tuple[float, float]:
@@ -566,7 +595,10 @@ class _Problem:
                 parts.append(fail)
                 continue
             f, st = self.at_rows(k, sims[k], own[k])
-            r = (w * f - s.target_N) / s.sigma_N
+            if self.objective == "band":
+                r = s.band_residuals(w * f)
+            else:
+                r = (w * f - s.target_N) / s.sigma_N
             bad = np.maximum.accumulate(st != STATUS_OK)
             parts.append(np.where(bad, fail, r))
         for v, xi in zip(self.vars, x):
@@ -886,27 +918,50 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             tick_ev(len(log))
             return log[key]
 
+        def refine(x0, what):
+            nonlocal tick_ev
+            tick_ev = count(f"{what}: evaluations", setup.max_nfev)
+            r = least_squares(lambda x: ev(x)[0], x0, jac=lambda x: ev(x)[1], bounds=(pb.lo, pb.hi),
+                              method="trf", x_scale="jac", max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8,
+                              gtol=1e-10)
+            tick_ev(setup.max_nfev)
+            sol = _Refined(np.asarray(r.x, float), float(r.cost), int(r.nfev), bool(r.success), str(r.message))
+            state["refined"].append(sol)
+            log.clear()
+            save()
+            return sol
+
+        tick_ev = None
         best = None
         starts = []
+        mids = []
         for rank, i in enumerate(order):
-            if rank < len(state["refined"]):
-                sol = state["refined"][rank]
-            else:
-                tick_ev = count(f"start {rank + 1}/{len(order)}: evaluations", setup.max_nfev)
-                r = least_squares(lambda x: ev(x)[0], X[i], jac=lambda x: ev(x)[1], bounds=(pb.lo, pb.hi),
-                                  method="trf", x_scale="jac", max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8,
-                                  gtol=1e-10)
-                tick_ev(setup.max_nfev)
-                sol = _Refined(np.asarray(r.x, float), float(r.cost), int(r.nfev), bool(r.success), str(r.message))
-                state["refined"].append(sol)
-                log.clear()
-                save()
+            sol = (state["refined"][rank] if rank < len(state["refined"])
+                   else refine(X[i], f"start {rank + 1}/{len(order)}"))
             cost = float(2.0 * sol.cost)
-            starts.append({"start": int(i), "chi2_start": costs[i], "chi2": cost, "nfev": int(sol.nfev),
-                           "success": bool(sol.success), "message": str(sol.message)})
+            starts.append({"start": int(i), "objective": pb.objective, "chi2_start": costs[i], "chi2": cost,
+                           "nfev": int(sol.nfev), "success": bool(sol.success), "message": str(sol.message)})
             say(f"start {rank + 1}/{len(order)}: chi2 {costs[i]:.4g} -> {cost:.4g} in {sol.nfev} evaluations")
+            mids.append((cost, rank, sol))
             if best is None or cost < best[0]:
                 best = (cost, sol)
+        if setup.objective == "band":
+            # stage 2: the band likelihood from each mid-line solution (best first); its steep walls
+            # (the force accuracy) make it a poor landscape to start from anywhere else
+            pb.objective = "band"
+            best = None
+            for j, (_, rank, msol) in enumerate(sorted(mids, key=lambda t: (t[0], t[1]))):
+                at = len(order) + j
+                sol = (state["refined"][at] if at < len(state["refined"])
+                       else refine(msol.x, f"band likelihood from start {rank + 1}"))
+                r0 = pb.evaluate_points([msol.x])[0]
+                c0 = float(r0 @ r0)
+                cost = float(2.0 * sol.cost)
+                starts.append({"start": int(order[rank]), "objective": "band", "chi2_start": c0, "chi2": cost,
+                               "nfev": int(sol.nfev), "success": bool(sol.success), "message": str(sol.message)})
+                say(f"band likelihood from start {rank + 1}: chi2 {c0:.4g} -> {cost:.4g} in {sol.nfev} evaluations")
+                if best is None or cost < best[0]:
+                    best = (cost, sol)
     except KeyboardInterrupt:
         save()
         raise
@@ -971,9 +1026,11 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         rms = float(np.sqrt(np.mean(e * e)))
         frac = float(np.mean(s.in_band(sim))) if s.has_band else None
         frac_tol = float(np.mean(s.in_band_tolerant(sim))) if s.has_band else None
+        res = s.band_residuals(sim) if setup.objective == "band" else e / s.sigma_N
         fits.append(SpecimenFit(s.name, c, w, s.strain, s.target_N, sim, s.sigma_N, s.band_low_N, s.band_high_N,
                                 frac, rms, rms / float(np.sqrt(np.mean(s.target_N ** 2))),
-                                float(np.sum((e / s.sigma_N) ** 2)), STATUS_NAMES[worst], e_p, pre_N, frac_tol))
+                                float(np.sum(res ** 2)), STATUS_NAMES[worst], e_p, pre_N, frac_tol, res,
+                                setup.objective))
     shared, _ = pb.model_values(x)
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,
@@ -982,4 +1039,4 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
 
 
 __all__ = ["CalibrationInterrupted", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
-           "SPECIMEN_VARIABLES", "UNITS"]
+           "SPECIMEN_VARIABLES", "UNITS", "OBJECTIVES"]

@@ -95,6 +95,10 @@ CALIBRATION_SCENE = Table({
         "row_step": Field(("float",), 0.005, "strain step of the rows fitted", min=0.0, min_inclusive=False, max=0.1),
         "force_accuracy": Field(("float",), 0.005, "relative accuracy of the force reading: the least sd of a band's "
                                 "row, times the force (0.005: ISO 7500-1 class 0.5)", min=0.0, max=0.5),
+        "objective": Field(("str",), "midline", "what banded rows are fitted to: the band's mid-line with sd = "
+                           "half-width (midline), or the band likelihood: anywhere inside at no cost, just outside a "
+                           "Gaussian of the force accuracy, far outside a Cauchy tail (band; refined from the "
+                           "mid-line fits)", choices=("midline", "band")),
         "starts": Field(("int",), 48, "Latin-hypercube starts screened", min=0, max=10_000),
         "refine": Field(("int",), 3, "best starts refined by least squares", min=1, max=100),
         "max_nfev": Field(("int",), 100, "least-squares evaluations per refined start", min=1),
@@ -238,7 +242,7 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),
                        bounds=bounds, fixed=fixed, max_increment=cal["max_increment"], starts=cal["starts"],
                        refine=cal["refine"], seed=cal["seed"], max_nfev=cal["max_nfev"], device=doc["device"],
-                       phi0_starts=tuple(s.get("phi0") for s in doc["specimens"]))
+                       phi0_starts=tuple(s.get("phi0") for s in doc["specimens"]), objective=cal["objective"])
     if cal["row_step"] < cal["max_increment"] * (1 - 1e-12):
         raise error("calibration.row_step", cal["row_step"], f"must be >= calibration.max_increment = "
                     f"{cal['max_increment']!r}")

@@ -111,6 +111,64 @@ def pretension_strain(grip_strain, pretension: float):
     return (1.0 + pretension) * (1.0 + np.asarray(grip_strain, float)) - 1.0
 
 
+def band_residuals(force, low, high, accuracy) -> np.ndarray:
+    """Signed residuals of the likelihood of a force reading against an experimental band.
+
+    The band ``[low, high]`` is the scatter of the specimens: the true curve of a specimen is anywhere
+    inside it, none more likely than another (a uniform density on the band), and the testing machine
+    reads it with a Gaussian error of sd ``accuracy`` (ISO 7500-1).  The density of a model force ``f``
+    is then the box convolved with the Gaussian,
+
+        p(f) = [Phi((high - f) / s) - Phi((low - f) / s)] / (high - low),
+
+    flat inside the band (well inside, where the band is wide against ``s``), falling off as a Gaussian of
+    sd ``s`` outside it, and the Gaussian ``N(f; low, s)`` itself where the band has no width.  The
+    residual is ``r = sign(f - mid) sqrt(2 [ln p(mid) - ln p(f)])``: ``sum r^2`` is ``-2 ln`` of the
+    likelihood up to a constant, so least squares on ``r`` is maximum likelihood, and ``r = (f - mid) / s``
+    exactly for a band of no width.  A fit to this likelihood puts the model anywhere inside the band at
+    no cost instead of pulling it to the mid-line (the target of a Gaussian of sd = half-width).
+
+    Parameters
+    ----------
+    force, low, high, accuracy : ndarray, shape [n]
+        Model force, band and sd of the reading [N] (``accuracy > 0``, ``low <= high``).
+
+    Returns
+    -------
+    ndarray, shape [n]
+    """
+    from scipy.special import log_ndtr
+    f, lo, hi, s = (np.asarray(a, float) for a in (force, low, high, accuracy))
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    def log_mass(x):
+        # ln[Phi(half - x) - Phi(-half - x)] in units of s, x = |f - mid| / s >= 0: the difference written
+        # with the smaller tail first (log_ndtr keeps far tails exact)
+        a, b = (half / s) - x, -(half / s) - x
+        la, lb = log_ndtr(a), log_ndtr(b)
+        return la + np.log1p(-np.exp(np.minimum(lb - la, 0.0)))
+
+    x = np.abs(f - mid) / s
+    narrow = half < 1e-6 * s           # no width to resolve: the Gaussian of the reading itself
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(narrow, 0.5 * x * x, log_mass(np.zeros_like(x)) - log_mass(x))
+    return np.sign(f - mid) * np.sqrt(2.0 * np.maximum(d, 0.0))
+
+
+def cauchy_tail(r) -> np.ndarray:
+    """Residuals of a heavy-tailed (Cauchy) likelihood from Gaussian ones: ``sign(r) sqrt(2 ln(1 + r^2 / 2))``.
+
+    The density ``p ~ 1 / (1 + r^2 / 2)`` (a Cauchy of scale sqrt 2 in ``r``) is ``exp(-r^2 / 2)`` to
+    second order, the Gaussian itself near the band, and falls as ``r^-2`` far from it: a row the model
+    cannot reach (a feature of one test that the model does not make, a mechanism it lacks) costs
+    ``2 ln(1 + r^2 / 2)``, not ``r^2``, so a few such rows do not pull the fit out of the band everywhere
+    else (robust regression; least squares on these residuals is scipy's ``loss="cauchy"`` with
+    ``f_scale = sqrt 2``).  ``sum`` of their squares is ``-2 ln`` of that likelihood up to a constant.
+    """
+    r = np.asarray(r, float)
+    return np.sign(r) * np.sqrt(2.0 * np.log1p(0.5 * r * r))
+
+
 def _interp(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
     # repeated strains (a logger writing a row twice) are averaged, so that the interpolation is defined
     s, inv = np.unique(t.strain, return_inverse=True)
@@ -185,6 +243,21 @@ class SpecimenData:
         if not self.has_band:
             return np.ones(len(self.strain), bool)
         return (force_N >= self.band_low_N) & (force_N <= self.band_high_N)
+
+    @property
+    def accuracy_N(self) -> np.ndarray:
+        """sd of the force reading at each row [N]: ``accuracy_rel`` x the target (at least 1e-6 of the
+        largest target, so that a row at zero force keeps a finite sd)."""
+        scale = max(float(np.max(np.abs(self.target_N))), 1e-300)
+        return np.maximum(self.accuracy_rel * np.abs(self.target_N), 1e-6 * scale)
+
+    def band_residuals(self, force_N: np.ndarray) -> np.ndarray:
+        """Signed residuals of the band likelihood with a heavy tail at the rows
+        (:func:`band_residuals`, then :func:`cauchy_tail`); without a band, the curve's
+        ``(force - target) / sd`` (with the same tail)."""
+        if not self.has_band:
+            return cauchy_tail((force_N - self.target_N) / self.sigma_N)
+        return cauchy_tail(band_residuals(force_N, self.band_low_N, self.band_high_N, self.accuracy_N))
 
     def in_band_tolerant(self, force_N: np.ndarray) -> np.ndarray:
         """Inside the band widened on each side by the force reading's accuracy (``accuracy_rel`` x the
@@ -294,4 +367,5 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
                         float(accuracy_rel))
 
 
-__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "GEOMETRY"]
+__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "GEOMETRY",
+           "band_residuals", "cauchy_tail"]

@@ -157,17 +157,20 @@ def test_band_weights_and_lab_files(tmp_path):
         read_table(tmp_path / "neg.csv")
 
 
-def test_an_interrupted_calibration_resumes_to_the_same_fit_without_redoing_work(tmp_path, monkeypatch):
-    """Stopped twice (during the screening's aftermath and inside a refinement), resumed from its checkpoint:
-    the same estimates bit for bit (least squares replays the saved evaluations), and the evaluations
-    done in all three runs are those of one uninterrupted fit (none redone)."""
+@pytest.mark.parametrize("objective", ["midline", "band"])
+def test_an_interrupted_calibration_resumes_to_the_same_fit_without_redoing_work(tmp_path, monkeypatch, objective):
+    """Stopped twice (during the screening's aftermath and inside a refinement: under the band objective,
+    inside its second stage), resumed from its checkpoint: the same estimates bit for bit (least squares
+    replays the saved evaluations), and the evaluations done in all three runs are those of one
+    uninterrupted fit (none redone)."""
     from knitsim.calibration import joint
     specimens = [SpecimenData(f"knit{i}", s, y, sd, None, None, True, WIDTH, GAUGE,
                               {"L": k["L"], "W0": w, "C0": k["C0"]}, {"L": 0.0, "W0": 0.04, "C0": 0.0})
                  for i, ((s, y, sd), k, w) in enumerate(zip(_curves(), KNITS, STATED_W0))]
     base = CellParams(B=0.2, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.3, in_plane_width=0.7, force_cap_N=200.0)
     setup = JointSetup(base=base, shared=("B", "m"), per_specimen=("W0",), max_increment=STEP,
-                       starts=3, refine=2, max_nfev=8, bounds={"B": (0.05, 2.0), "m": (0.05, 0.8)})
+                       starts=3, refine=2, max_nfev=8, bounds={"B": (0.05, 2.0), "m": (0.05, 0.8)},
+                       objective=objective)
     calls = []
     real = joint._Problem.evaluate_with_jacobian
     monkeypatch.setattr(joint._Problem, "evaluate_with_jacobian",

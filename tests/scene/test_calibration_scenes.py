@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from knitsim.calibration.scene import load_calibration_scene
+from knitsim.errors import KnitsimInputError
 from knitsim.material_library import load_library
 from knitsim.scene.cell_scene import load_cell_scene
 from knitsim.scene.patch_scene import load_patch_scene
@@ -35,6 +36,9 @@ def test_calibration_scene_reads_both_specimens():
             assert lo - 0.1 <= s.band_low_N[i] <= s.band_high_N[i] <= hi + 0.1     # (the README rounds to 0.1 N)
     assert sc.setup.shared == ("B", "d", "in_plane_width", "compaction_k", "log10_dahl_sigma")
     assert sc.setup.effects == ("yarn_compaction", "dahl_transition")
+    assert sc.setup.objective == "band"
+    with pytest.raises(KnitsimInputError, match="calibration.objective"):
+        load_calibration_scene(D / "calibrate.toml", ["calibration.objective=envelope"])
 
 
 def test_prediction_scenes_are_the_graded_specimens():
