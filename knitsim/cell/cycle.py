@@ -292,7 +292,14 @@ class CellCycle:
         if loading:
             ev["force_cap"] = lambda q: q["F"] - p.force_cap_N
         else:
-            ev["slack"] = lambda q: -q["F"]
+            # the load vanishes (F -> 0) or the contact opens (Rn -> 0): eq 7, R_Y = -R cos(beta + phi) =
+            # P sin(gamma), gives F = -2 R cos(beta + phi), so R = 0 is F = 0 and the cell goes slack
+            # there.  Where beta + phi passes pi/2 at the same point, F only touches 0 (both factors change
+            # sign) and the branch goes on with a pulling contact, R < 0 (outside the model: the contact at
+            # B is unilateral); Rn alone changes sign there, so the event is located on it.  Missing it let
+            # a reload freeze a tensile Rn, and the SF+ stick then left the cone on the far side
+            # (tan(phi) = Rt / Rn falls to -m as loading raises Rt: stages.py, "far side")
+            ev["slack"] = lambda q: max(-q["F"], -q["Rn"])
         return ev
 
     def _transition(self, st: CellState, kind: str) -> None:
@@ -462,7 +469,11 @@ class CellCycle:
             _, q = self.solve_at(st, C_p, _seed_contact(st.x, st.q))
         except _SolveFailed:
             return True
-        return fun(q) >= -self._event_tol("slide")
+        # with no contact force no tangential force can be held: a probe beyond either edge of the cone
+        # slides (the far edge only reflects the sign of the seed's R, not a direction of slip: the
+        # imposed motion sets that, toward +phimax when loading; stages.py, "far side")
+        tol = self._event_tol("slide")
+        return fun(q) >= -tol or abs(q["phi"]) >= self.phimax - tol
 
     def advance(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
         """Move the cell from its C to ``C_target`` on its branch, handling events.
