@@ -656,8 +656,9 @@ def event_condition(kind: int, stage: int, mat: Material):
 
 @wp.func
 def event_condition_at(kind: int, stage: int, mat: Material, q_end: vecQd):
-    """event_condition, with the slack event located on Rn = 0 where the contact opened at the trial end
-    (Rn < 0 there while F may only have touched 0: event_value)."""
+    """event_condition, with the slack event located on Rn = 0 where only the contact opened at the
+    trial end (Rn < 0 there while F >= 0: F only touched 0, or dipped below it and came back inside
+    the sub-step; R = 0 is a zero of F too, eq 7) (CellCycle._slack_function)."""
     code, tg = event_condition(kind, stage, mat)
     if kind == _EV_SLACK and -q_end[Q_RN] > -q_end[Q_F]:
         code = int(Q_RN)
@@ -1290,12 +1291,7 @@ def advance_cell(
                             xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
                             if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
                                 f0 = wp.float64(0.0)
-                        if f0 < -tol and kind == _EV_SLACK and qt[Q_F] >= wp.float64(0.0) and may_halve(failures + 1, step, max_halvings, matg):
-                            # only the contact opened (Rn < 0) at the trial end while F is back above 0:
-                            # F may have crossed 0 and come back inside the sub-step; halved until the
-                            # trial end resolves it (CellCycle's root search finds that first crossing)
-                            oke = bool(False)
-                        elif f0 < -tol:
+                        if f0 < -tol:
                             code, etg = event_condition_at(kind, stage, matg, qt)
                             xg = lerp5(x, xt, interp_t(f0, f1))
                             xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)

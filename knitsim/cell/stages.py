@@ -115,8 +115,11 @@ The far side of the cone while loading (why SF+ has no ``phi -> -phimax`` event)
       comes back), the slack event on F alone was missed, the S- branch went
       on with R < 0 and a reload froze that tensile Rn: the stick then ran
       to phi -> -pi/2 (a domain cell on a waypoint program, tests/cell/
-      test_far_side.py).  The slack event function is max(-F, -Rn): the
-      first of the two zeros, F's when it crosses, else the opening itself;
+      test_far_side.py).  The slack event now fires on max(-F, -Rn) and is
+      located on F = 0, or on Rn = 0 where only the contact opened at the
+      sub-step's end (F >= 0 there: it touched 0, or dipped below and came
+      back within the sub-step; R = 0 is a zero of F as well, eq 7), the
+      same choice in both engines;
     - a reload at zero contact (|R| < ZERO_CONTACT P) decides on a probe
       step whether it slides; the probe's angle beyond *either* edge means
       sliding (with R = 0 no tangential force is held; the edge reached is
