@@ -594,7 +594,9 @@ def event_value(kind: int, z: vec5d, q: vecQd, stage: int, mat: Material) -> wp.
     elif kind == _EV_CAP:
         v = q[Q_F] - mat.cap
     elif kind == _EV_SLACK:
-        v = -q[Q_F]
+        # F -> 0 or the contact opens, Rn -> 0 (CellCycle.event_functions): eq 7 gives F = -2 R cos(beta + phi),
+        # so R = 0 is F = 0; where beta + phi passes pi/2 there too F only touches 0 and Rn alone changes sign
+        v = wp.max(-q[Q_F], -q[Q_RN])
     elif kind == _EV_CONE:
         if stage == SF_UNLOAD:
             v = q[Q_PHI] - mat.phimax
@@ -649,6 +651,17 @@ def event_condition(kind: int, stage: int, mat: Material):
         tg = -mat.phimax
         if stage == SF_UNLOAD:
             tg = mat.phimax
+    return code, tg
+
+
+@wp.func
+def event_condition_at(kind: int, stage: int, mat: Material, q_end: vecQd):
+    """event_condition, with the slack event located on Rn = 0 where only the contact opened at the
+    trial end (Rn < 0 there while F >= 0: F only touched 0, or dipped below it and came back inside
+    the sub-step; R = 0 is a zero of F too, eq 7) (CellCycle._slack_function)."""
+    code, tg = event_condition(kind, stage, mat)
+    if kind == _EV_SLACK and -q_end[Q_RN] > -q_end[Q_F]:
+        code = int(Q_RN)
     return code, tg
 
 
@@ -785,7 +798,10 @@ def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: w
         if C_target < C:
             h = -h
         xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, mat, C + h, -1, wp.float64(0.0))
-        out = (not okp) or event_value(_EV_SLIDE, xp, qp, stage, mat) >= -event_tol(_EV_SLIDE, mat)
+        # at zero contact no tangential force can be held: a probe beyond either edge of the cone slides
+        # (CellCycle._slide_at_start: the far edge is the seed's sign, not a direction of slip)
+        out = (not okp) or event_value(_EV_SLIDE, xp, qp, stage, mat) >= -event_tol(_EV_SLIDE, mat) \
+            or wp.abs(qp[Q_PHI]) >= mat.phimax - event_tol(_EV_SLIDE, mat)
     return out
 
 
@@ -1276,7 +1292,7 @@ def advance_cell(
                             if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
                                 f0 = wp.float64(0.0)
                         if f0 < -tol:
-                            code, etg = event_condition(kind, stage, matg)
+                            code, etg = event_condition_at(kind, stage, matg, qt)
                             xg = lerp5(x, xt, interp_t(f0, f1))
                             xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
                             if not oke:
@@ -1385,7 +1401,7 @@ def advance_cell(
                                                 best_x = tx
                                                 best_q = tq
                                         elif f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
-                                            code, etg = event_condition(kind, tstage, matg)
+                                            code, etg = event_condition_at(kind, tstage, matg, qt)
                                             xg = lerp5(tx, xt, interp_t(f0, f1))
                                             se = s
                                             if se == wp.float64(0.0):

@@ -140,6 +140,16 @@ def _seed_contact(x: np.ndarray, q: dict) -> np.ndarray:
     return np.array([g + (alpha - gamma), beta, g, phi, P])
 
 
+def _slack_function(q_end: dict):
+    """The function a fired slack event is located on, from the sub-step's end ``q_end``: -F, or -Rn where
+    only the contact opened there (Rn < 0 while F >= 0: F only touched 0, or dipped below it and came
+    back inside the sub-step; R = 0 is a zero of F too, eq 7).  The Warp kernel decides the same way
+    (event_condition_at)."""
+    if q_end["F"] >= 0.0 and q_end["Rn"] < 0.0:
+        return lambda q: -q["Rn"]
+    return lambda q: -q["F"]
+
+
 class CellCycle:
     """Advance one cell through a strain program (NumPy reference).
 
@@ -292,7 +302,15 @@ class CellCycle:
         if loading:
             ev["force_cap"] = lambda q: q["F"] - p.force_cap_N
         else:
-            ev["slack"] = lambda q: -q["F"]
+            # the load vanishes (F -> 0) or the contact opens (Rn -> 0): eq 7, R_Y = -R cos(beta + phi) =
+            # P sin(gamma), gives F = -2 R cos(beta + phi), so R = 0 is F = 0 and the cell goes slack
+            # there.  Where beta + phi passes pi/2 at the same point, F only touches 0 (both factors change
+            # sign) and the branch goes on with a pulling contact, R < 0 (outside the model: the contact at
+            # B is unilateral); Rn changes sign there, and the event is located on it when only Rn has
+            # crossed at the sub-step's end (_slack_function).  Missing it let
+            # a reload freeze a tensile Rn, and the SF+ stick then left the cone on the far side
+            # (tan(phi) = Rt / Rn falls to -m as loading raises Rt: stages.py, "far side")
+            ev["slack"] = lambda q: max(-q["F"], -q["Rn"])
         return ev
 
     def _transition(self, st: CellState, kind: str) -> None:
@@ -462,7 +480,11 @@ class CellCycle:
             _, q = self.solve_at(st, C_p, _seed_contact(st.x, st.q))
         except _SolveFailed:
             return True
-        return fun(q) >= -self._event_tol("slide")
+        # with no contact force no tangential force can be held: a probe beyond either edge of the cone
+        # slides (the far edge only reflects the sign of the seed's R, not a direction of slip: the
+        # imposed motion sets that, toward +phimax when loading; stages.py, "far side")
+        tol = self._event_tol("slide")
+        return fun(q) >= -tol or abs(q["phi"]) >= self.phimax - tol
 
     def advance(self, st: CellState, C_target: float, events: list, increment: int) -> CellState:
         """Move the cell from its C to ``C_target`` on its branch, handling events.
@@ -511,7 +533,8 @@ class CellCycle:
                 step *= 0.5
                 continue
             evs = self.event_functions(st)
-            fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= self._event_tol(k)]
+            fired = [(k, _slack_function(q) if k == "slack" else f) for k, f in evs.items()
+                     if f(q) > 0 and f(st.q) <= self._event_tol(k)]
             unjam = self._try_unjam(st, C_goal)
             if unjam is not None:
                 fired.append(("unjam", None))
@@ -661,7 +684,8 @@ class CellCycle:
         for _ in range(12):                       # at most a few events per sub-step
             x, q = self.solve_at(st, C_target)
             evs = self.event_functions(st)
-            fired = [(k, f) for k, f in evs.items() if f(q) > 0 and f(st.q) <= self._event_tol(k)]
+            fired = [(k, _slack_function(q) if k == "slack" else f) for k, f in evs.items()
+                     if f(q) > 0 and f(st.q) <= self._event_tol(k)]
             unjam = self._try_unjam(st, C_target)
             if not fired and unjam is None:
                 st.x, st.q, st.C = x, q, C_target

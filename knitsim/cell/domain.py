@@ -186,3 +186,125 @@ def check_rest_state(p: CellParams, where: str = "cell") -> None:
     why = rest_state_problem(p)
     if why is not None:
         raise KnitsimInputError(f"{where}: {why}")
+
+
+#: codes of :func:`check_cells` (stored per cell as int8 in sweep datasets): inside the domain; outside
+#: its box (solved, an extrapolation); no admissible rest state (not solved: outside the model)
+DOMAIN_INSIDE = 0
+DOMAIN_OUTSIDE_BOX = 1
+DOMAIN_NO_REST_STATE = 2
+DOMAIN_NAMES = {DOMAIN_INSIDE: "inside", DOMAIN_OUTSIDE_BOX: "outside_domain",
+                DOMAIN_NO_REST_STATE: "no_rest_state"}
+
+
+@dataclass(frozen=True)
+class DomainCheck:
+    """Where each cell of a list stands with the model's domain, found before any solve.
+
+    Attributes
+    ----------
+    outside : list of (str or None)
+        Per cell, why it lies outside the domain's box (:meth:`ParameterDomain.why_outside`), else None.
+    no_rest : list of (str or None)
+        Per cell, why it has no admissible rest state (Table 4's initial state not found by the
+        engine that would run it, or its contact force pulls, R < 0), else None.
+    """
+
+    outside: list
+    no_rest: list
+
+    @property
+    def codes(self):
+        """Per cell :data:`DOMAIN_NO_REST_STATE`, else :data:`DOMAIN_OUTSIDE_BOX`, else :data:`DOMAIN_INSIDE` [int8]."""
+        import numpy as np
+
+        return np.array([DOMAIN_NO_REST_STATE if r is not None else DOMAIN_OUTSIDE_BOX if o is not None
+                         else DOMAIN_INSIDE for o, r in zip(self.outside, self.no_rest)], dtype=np.int8)
+
+    def reasons(self) -> list:
+        """Per cell the reason of its code (None inside the domain)."""
+        return [r if r is not None else o for o, r in zip(self.outside, self.no_rest)]
+
+    def outside_quantities(self) -> dict[str, int]:
+        """How many cells lie outside the box, by the first quantity outside (the name in the reason)."""
+        out: dict[str, int] = {}
+        for why in self.outside:
+            if why is not None:
+                name = why.split(" = ")[0]
+                out[name] = out.get(name, 0) + 1
+        return out
+
+
+def _rest_key(p: CellParams) -> tuple:
+    # the rest state depends on the geometry, the stiffness and phi0 only (Table 4's initial state)
+    return (p.B, p.d, p.L, p.W0, p.C0, p.phi0)
+
+
+def check_cells(params, engine: str = "warp", device: str = "cpu",
+                domain: ParameterDomain = DOMAIN) -> DomainCheck:
+    """The domain of every cell, before any increment is solved (sweep planner, patch runs).
+
+    The rest state is decided by the engine that would run the cells, with its own test, so that a
+    cell flagged here is exactly one the engine would flag ``no_rest_state`` at rest: the Warp batch
+    (:meth:`knitsim.cell.batch.CellModel.state`, every distinct cell in one launch) or the NumPy
+    reference (:func:`knitsim.cell.inverse.initial_state` and R >= 0, as
+    :meth:`knitsim.cell.cycle.CellCycle.run`).  Identical geometries are solved once.
+
+    Parameters
+    ----------
+    params : sequence of CellParams
+    engine : {"warp", "reference"}
+    device : str
+        Warp device (warp engine).
+
+    Returns
+    -------
+    DomainCheck
+    """
+    params = list(params)
+    outside = [domain.why_outside(p) for p in params]
+    keys, first = {}, []
+    for p in params:
+        k = _rest_key(p)
+        if k not in keys:
+            keys[k] = len(first)
+            first.append(p)
+    why_u: list = [None] * len(first)
+    if first and engine == "warp":
+        import numpy as np
+
+        from .. import warp_runtime
+        from .batch import CellModel
+        from .history import STATUS_OK
+
+        warp_runtime.init()                  # quiet, stable kernel cache: before any kernel module loads
+        from .quantities import CODE
+
+        st = CellModel.from_params(first, device=device).state()
+        status0 = np.asarray(st.status.numpy())
+        R = np.asarray(st.q.numpy()[:, CODE["R"]])
+        # CellModel.state has set NO_REST_STATE where the solve failed or R < 0: a finite R < 0 says which
+        for i in np.nonzero(status0 != STATUS_OK)[0]:
+            if np.isfinite(R[i]) and R[i] < 0.0:
+                why_u[i] = (f"no rest state: the contact at B would pull (R = {R[i]:.3g} N < 0 at rest): "
+                            "the loop is too loose to press on its neighbour")
+            else:
+                why_u[i] = ("no rest state: Table 4's initial state (C0, W0, L, phi0) has no equilibrium of the "
+                            "quarter loop")
+    elif first:
+        from .inverse import initial_state
+
+        for i, p in enumerate(first):
+            try:
+                res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
+                ok = bool(res.success)
+            except (RuntimeError, KnitsimInputError):
+                res, ok = None, False
+            if not ok:
+                why_u[i] = ("no rest state: Table 4's initial state (C0, W0, L, phi0) has no equilibrium of the "
+                            "quarter loop")
+            elif float(res.state.R) < 0.0:
+                why_u[i] = (f"no rest state: the contact at B would pull (R = {float(res.state.R):.3g} N < 0 at "
+                            "rest): the loop is too loose to press on its neighbour")
+    no_rest = [why_u[keys[_rest_key(p)]] for p in params]
+    return DomainCheck(outside, no_rest)

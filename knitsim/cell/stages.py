@@ -95,6 +95,41 @@ Rules where Table 4 is silent (switchable; labelled in every output):
     and its slide event can only be located from a sub-step that ends on it.
     Only when the floor is reached is the cell flagged.
 
+The far side of the cone while loading (why SF+ has no ``phi -> -phimax`` event)
+    In SF+ Table 4 freezes s_BC and Rn, so the friction angle follows the
+    tangential force alone: tan(phi) = Rt / Rn.  Rt is the jump of the yarn
+    tension across the stuck crossing, leg minus head (it points toward C when
+    the leg pulls harder); loading pulls the leg, so along a stick branch
+    dRt/dC > 0, and dphi/dC = cos(phi)^2 (dRt/dC) / Rn.  With Rn > 0 phi
+    therefore rises toward +phimax (the slide event), and the far edge
+    -phimax is only ever met at the start of SF+: at a reversal from S-
+    (phi = -phimax), where the limit case dphi/dC > 0 takes the stick into the
+    cone at once (the sequence S- -> reversal -> SF+ (adherence) -> S+, as
+    Table 4 prints).  The far edge can only be crossed with Rn <= 0: a pulling
+    contact (outside the model: the contact at B is unilateral) or no contact.
+    Neither is left to reach SF+:
+
+    - unloading goes slack where the contact opens.  Eq 7 gives
+      F = -2 R cos(beta + phi); where R and cos(beta + phi) change sign
+      together F only touches 0 (or dips below it within one increment and
+      comes back), the slack event on F alone was missed, the S- branch went
+      on with R < 0 and a reload froze that tensile Rn: the stick then ran
+      to phi -> -pi/2 (a domain cell on a waypoint program, tests/cell/
+      test_far_side.py).  The slack event now fires on max(-F, -Rn) and is
+      located on F = 0, or on Rn = 0 where only the contact opened at the
+      sub-step's end (F >= 0 there: it touched 0, or dipped below and came
+      back within the sub-step; R = 0 is a zero of F as well, eq 7), the
+      same choice in both engines;
+    - a reload at zero contact (|R| < ZERO_CONTACT P) decides on a probe
+      step whether it slides; the probe's angle beyond *either* edge means
+      sliding (with R = 0 no tangential force is held; the edge reached is
+      the sign of the seed's R, the imposed motion gives the slip direction).
+
+    The invariant (no SF+ state with phi < -phimax, no state with
+    Rn < -ZERO_CONTACT P) is asserted over random cells of the domain through
+    random programs (tests/cell/test_convergence_property.py,
+    tests/cell/test_far_side.py), Warp batch and NumPy reference alike.
+
 Dahl friction replaces the SF/S switch by one smooth law: tan(phi) follows
 the Dahl update of the slip xi = -s_BC (Dahl 1976; see
 :mod:`knitsim.friction.dahl`); the soft condition is Rn while loading and T

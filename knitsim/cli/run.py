@@ -54,6 +54,49 @@ def register(subparsers) -> None:
     p.set_defaults(func=_run)
 
 
+def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[dict]:
+    """Before any solve: every distinct cell of the patch against the model's domain (knitsim.cell.domain).
+
+    A cell without an admissible rest state is an error (one line: how many cells, the first one's
+    course and wale, the reason): the model cannot run it, and a column holding it has no rest state
+    either.  Cells outside the domain's box, and a grip program whose strains leave it, are an
+    extrapolation: returned as ``outside_domain`` warnings for the summary (how many cells, by the
+    quantity outside).  Identical cells are checked once (the patch's grouping).
+    """
+    import numpy as np
+
+    from ..cell.domain import DOMAIN, check_cells
+
+    grouping = model.grouping(dedup=True)
+    check = check_cells(grouping.params, engine=engine, device=device)
+    cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=len(grouping.params))
+    n_cells = int(grouping.group_of_cell.size)
+    bad = [g for g, why in enumerate(check.no_rest) if why is not None]
+    if bad:
+        n = int(cells_of[bad].sum())
+        i, j = np.argwhere(np.isin(grouping.group_of_cell, bad))[0]
+        raise KnitsimInputError(f"{n} of {n_cells} cell(s) have no admissible rest state, e.g. course {i}, wale {j}: "
+                                f"{check.no_rest[int(grouping.group_of_cell[i, j])]} (knitsim.cell.domain)")
+    warnings = []
+    counts: dict[str, int] = {}
+    example = None
+    for g, why in enumerate(check.outside):
+        if why is not None:
+            name = why.split(" = ")[0]
+            counts[name] = counts.get(name, 0) + int(cells_of[g])
+            example = example or why
+    if counts:
+        n = int(sum(cells_of[g] for g, why in enumerate(check.outside) if why is not None))
+        by = ", ".join(f"{k} ({v})" for k, v in counts.items())
+        warnings.append({"code": "outside_domain",
+                         "message": f"extrapolation: {n} of {n_cells} cell(s) outside the model's domain box, "
+                                    f"by quantity: {by}; e.g. {example}"})
+    why = DOMAIN.why_program_outside(grip_strains)
+    if why is not None:
+        warnings.append({"code": "outside_domain", "message": f"extrapolation: grip {why}"})
+    return warnings
+
+
 def _run(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import patch_summary, specimen_layout, write_patch_results
@@ -70,6 +113,13 @@ def _run(args) -> int:
         if not args.resume:
             prepare_output_file(args.usd, args.overwrite, "--usd")
     scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
+    with contextlib.redirect_stdout(sys.stderr):
+        device = "cpu"
+        if scene.engine == "warp":
+            from .. import warp_runtime
+            device = warp_runtime.resolve_device(scene.device)
+        # the model's domain, before any output is touched (a cell without a rest state: error)
+        domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device)
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the run in --out, or replace it)")
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
@@ -78,10 +128,6 @@ def _run(args) -> int:
     if args.resume and not ck.is_file():
         raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
     with contextlib.redirect_stdout(sys.stderr):
-        device = "cpu"
-        if scene.engine == "warp":
-            from .. import warp_runtime
-            device = warp_runtime.resolve_device(scene.device)
         m = scene.model
         layout = specimen_layout(m)
         print(f"knitsim run: {layout.describe()}, "
@@ -94,6 +140,7 @@ def _run(args) -> int:
                       resume=args.resume, **scene.solver_options)
     summary = patch_summary(h, h.info["ref_length_mm"], model=m, scene=scene.source, title=scene.resolved.get("title", ""),
                             engine=scene.engine, device=device, load=scene.resolved["load"])
+    summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
     files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
                                 cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
     ck.unlink(missing_ok=True)

@@ -55,8 +55,25 @@ def register(subparsers) -> None:
     parser.set_defaults(func=_run)
 
 
+def _announce_domain(plan) -> None:
+    """Before any solve: how many samples lie outside the model (not solved) or its domain's box."""
+    from ..cell.domain import DOMAIN_NO_REST_STATE, DOMAIN_OUTSIDE_BOX
+
+    if plan.domain is None:
+        return
+    for code, what in ((DOMAIN_NO_REST_STATE, "have no admissible rest state (outside the model): not solved"),
+                       (DOMAIN_OUTSIDE_BOX, "lie outside the domain's box (knitsim.cell.domain): solved, "
+                                            "flagged as extrapolated")):
+        rows = (plan.domain == code).any(axis=1)
+        if rows.any():
+            first = next(r for i in map(int, rows.nonzero()[0]) for c, r in enumerate(plan.domain_reasons[i])
+                         if plan.domain[i, c] == code)
+            print(f"knitsim sweep: {int(rows.sum())} of {plan.n_samples} sample(s) {what}; e.g. {first}",
+                  file=sys.stderr, flush=True)
+
+
 def _run(args) -> int:
-    from ..sweep.runner import SweepChunkError, failed_samples, plan_sweep, run_sweep
+    from ..sweep.runner import SweepChunkError, domain_samples, failed_samples, plan_sweep, run_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -79,6 +96,7 @@ def _run(args) -> int:
                              resume=args.resume, resumable=True)
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
         plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
+    _announce_domain(plan)
     workers = args.workers
     if workers is None and plan.device != "cpu" and not args.scheduler:
         workers = 1                                   # one GPU: one worker process feeds it
@@ -96,14 +114,20 @@ def _run(args) -> int:
         print(f"knitsim sweep: {exc}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
               f"after fixing the cause, finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
         return 1
+    from ..cell.domain import DOMAIN_NO_REST_STATE, DOMAIN_OUTSIDE_BOX
+
     ds = run.dataset
     failed = failed_samples(ds)
+    no_rest = domain_samples(ds, DOMAIN_NO_REST_STATE)
+    outside = domain_samples(ds, DOMAIN_OUTSIDE_BOX)
     n_bad = len(failed)
     summary = {
         "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
         "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
         "computed_chunks": len(run.computed), "skipped_chunks": len(run.skipped), "wall_s": run.wall_s,
-        "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad, "failed": failed,
+        "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad + len(no_rest), "failed": failed,
+        # outside the model (no rest state: not solved) and outside the domain's box (solved, extrapolated)
+        "no_rest_state": no_rest, "outside_domain": outside,
         "files": {k: str(v) for k, v in run.files.items()},
     }
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
@@ -117,6 +141,18 @@ def _run(args) -> int:
                   file=sys.stderr, flush=True)
         if n_bad > 20:
             print(f"  ... and {n_bad - 20} more (summary failed list with --json)", file=sys.stderr, flush=True)
+    for what, rows, note in (("no_rest_state", no_rest, "outside the model, not solved: NaN in results.nc, grey "
+                              "squares / //-hatched in the plots"),
+                             ("outside_domain", outside, "outside the domain's box, solved (an extrapolation: "
+                              "convergence is promised inside the box only): ringed / dotted in the plots")):
+        if rows:
+            print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
+            for f in rows[:10]:
+                print(f"  sample {f['sample']}{'' if f.get('cell') is None else ' cell ' + str(f['cell'])}: "
+                      f"{f['reason']}", file=sys.stderr, flush=True)
+            if len(rows) > 10:
+                print(f"  ... and {len(rows) - 10} more (summary {what} list with --json)", file=sys.stderr,
+                      flush=True)
     if args.json:
         print_json(summary)
     else:

@@ -13,6 +13,14 @@ convergence, an event not located) has no results (NaN); it is shown as failed
 in every plot: a grey cross on the axis and a dotted line (lines), a grey
 hatched cell (heat maps), a grey cross at the foot of the axis (scatter), and
 the title counts them.
+
+Where each sample stands with the model's domain (``domain``, found by the
+planner before any solve, :mod:`knitsim.cell.domain`) is shown too: a sample
+without an admissible rest state was not solved (outside the model): a grey
+hollow square on the axis (lines, scatter) or a grey ``//``-hatched cell (heat
+maps), apart from the failed ones; a sample outside the domain's box was
+solved (an extrapolation): its points are ringed in black (lines, scatter) or
+its heat-map cell is dotted.  The title counts each kind.
 """
 from __future__ import annotations
 
@@ -74,16 +82,59 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
 
 
 FAILED_STYLE = {"marker": "x", "color": "0.45", "s": 28, "lw": 1.2, "zorder": 5}
+NO_REST_STYLE = {"marker": "s", "facecolors": "none", "edgecolors": "0.45", "s": 30, "lw": 1.2, "zorder": 5}
+OUTSIDE_STYLE = {"marker": "o", "facecolors": "none", "edgecolors": "k", "s": 46, "lw": 0.9, "zorder": 4}
+
+
+def _domain(ds) -> np.ndarray:
+    return np.asarray(ds["domain"].values) if "domain" in ds.data_vars else np.full(ds["final_status"].shape, -1)
+
+
+def _no_rest(ds) -> np.ndarray:
+    """Where a sample has no admissible rest state (not solved: outside the model)."""
+    from ..cell.domain import DOMAIN_NO_REST_STATE
+    from ..cell.history import STATUS_NO_REST_STATE
+
+    return (_domain(ds) == DOMAIN_NO_REST_STATE) | (np.asarray(ds["final_status"].values) == STATUS_NO_REST_STATE)
+
+
+def _outside(ds) -> np.ndarray:
+    """Where a sample lies outside the domain's box (solved: an extrapolation)."""
+    from ..cell.domain import DOMAIN_OUTSIDE_BOX
+
+    return _domain(ds) == DOMAIN_OUTSIDE_BOX
 
 
 def _failed(ds) -> np.ndarray:
-    """Where a sample's cell failed (status not ok nor force cap, and it ran)."""
-    return (np.asarray(ds["expected_end"].values) == 0) & (np.asarray(ds["final_status"].values) >= 0)
+    """Where a sample's cell failed (status not ok nor force cap, it ran, and it has a rest state)."""
+    return ((np.asarray(ds["expected_end"].values) == 0) & (np.asarray(ds["final_status"].values) >= 0)
+            & ~_no_rest(ds))
 
 
-def _title(title: str, failed: np.ndarray) -> str:
+def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
+           outside: np.ndarray | None = None) -> str:
+    parts = []
     n = int(np.count_nonzero(failed))
-    return title if not n else f"{title}\n{n} failed sample(s) (grey x / hatched): no results, see summary"
+    if n:
+        parts.append(f"{n} failed sample(s) (grey x / xx-hatched): no results")
+    n = 0 if no_rest is None else int(np.count_nonzero(no_rest))
+    if n:
+        parts.append(f"{n} without a rest state (grey square / //-hatched): outside the model, not solved")
+    n = 0 if outside is None else int(np.count_nonzero(outside))
+    if n:
+        parts.append(f"{n} outside the domain's box (ringed / dotted): extrapolated")
+    return title if not parts else title + "\n" + "; ".join(parts) + "; see summary"
+
+
+def _mark_axis(ax, xs, bad, no_rest, lines: bool = False) -> None:
+    """Failed and rest-less samples at the foot of the axis (they have no values to plot)."""
+    lo = ax.get_ylim()[0]
+    for mask, style, label in ((bad, FAILED_STYLE, "failed"), (no_rest, NO_REST_STYLE, "no rest state")):
+        if mask.any():
+            if lines:
+                for xv in xs[mask]:
+                    ax.axvline(xv, color="0.6", ls=":", lw=0.8)
+            ax.scatter(xs[mask], np.full(int(mask.sum()), lo), label=label, clip_on=False, **style)
 
 
 def _lines(ds, key: str, title: str) -> bytes:
@@ -91,22 +142,22 @@ def _lines(ds, key: str, title: str) -> bytes:
     x = ds[key].values
     numeric = np.issubdtype(x.dtype, np.number)
     xs = x if numeric else np.arange(len(x))
-    bad = _failed(ds)
+    bad, no_rest, outside = _failed(ds), _no_rest(ds), _outside(ds)
     for ax, (q, ylabel) in zip(axes[0], QUANTITIES):
         for c in ds["cycle"].values:
-            ax.plot(xs, ds[q].sel(cycle=c).values, marker="o", ms=3, label=f"cycle {int(c)}")
-        if bad.any():
-            lo = ax.get_ylim()[0]
-            for xv in xs[bad]:
-                ax.axvline(xv, color="0.6", ls=":", lw=0.8)
-            ax.scatter(xs[bad], np.full(int(bad.sum()), lo), label="failed", clip_on=False, **FAILED_STYLE)
+            y = ds[q].sel(cycle=c).values
+            ax.plot(xs, y, marker="o", ms=3, label=f"cycle {int(c)}")
+            if outside.any():
+                ax.scatter(xs[outside], y[outside], label="outside domain" if c == ds["cycle"].values[0] else None,
+                           **OUTSIDE_STYLE)
+        _mark_axis(ax, xs, bad, no_rest, lines=True)
         ax.set_xlabel(key)
         ax.set_ylabel(ylabel)
         if not numeric:
             ax.set_xticks(xs, [str(v) for v in x])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -116,22 +167,31 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
     fig, axes = _figure(len(cycles), 3, 4.4, 3.4)
     kx, ky = keys[1], keys[0]
     x, y = ds[kx].values, ds[ky].values
-    bad = (ds["expected_end"] == 0) & (ds["final_status"] >= 0)
-    bad_yx = np.asarray(bad.transpose(ky, kx).values)
+    t = ds.transpose(ky, kx, ...)
+    bad_yx, no_rest_yx, outside_yx = _failed(t), _no_rest(t), _outside(t)
     for r, c in enumerate(cycles):
         for ax, (q, label) in zip(axes[r], QUANTITIES):
             z = ds[q].sel(cycle=c).transpose(ky, kx).values
             im = ax.pcolormesh(_edges(x), _edges(y), np.ma.masked_invalid(z), shading="flat", cmap="viridis")
-            if bad_yx.any():
-                ax.pcolor(_edges(x), _edges(y), np.ma.masked_where(~bad_yx, np.ones_like(z)), hatch="xx",
-                          cmap="Greys", vmin=0, vmax=3, edgecolor="0.4", shading="flat")
+            _hatch(ax, _edges(x), _edges(y), bad_yx, "xx", "0.85")
+            _hatch(ax, _edges(x), _edges(y), no_rest_yx, "//", "0.85")
+            _hatch(ax, _edges(x), _edges(y), outside_yx, "..", None)
             fig.colorbar(im, ax=ax, shrink=0.85)
             ax.set_xlabel(kx)
             ax.set_ylabel(ky)
             ax.set_title(f"{label}, cycle {c}", fontsize=8)
-    fig.suptitle(_title(title, bad_yx), fontsize=9)
+    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx), fontsize=9)
     fig.tight_layout()
     return _png(fig)
+
+
+def _hatch(ax, xe: np.ndarray, ye: np.ndarray, mask: np.ndarray, hatch: str, face: str | None) -> None:
+    """Hatch the heat-map cells of ``mask`` [y, x]: grey filled (no values) or only hatched (values kept)."""
+    from matplotlib.patches import Rectangle
+
+    for iy, ix in np.argwhere(mask):
+        ax.add_patch(Rectangle((xe[ix], ye[iy]), xe[ix + 1] - xe[ix], ye[iy + 1] - ye[iy], hatch=hatch,
+                               fill=face is not None, facecolor=face or "none", edgecolor="0.3", lw=0.0))
 
 
 def _edges(v: np.ndarray) -> np.ndarray:
@@ -152,21 +212,23 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
     else:
         flat = ds
         xs = {k: ds[k].values for k in keys}
-    bad = _failed(flat)
+    bad, no_rest, outside = _failed(flat), _no_rest(flat), _outside(flat)
+    skip = bad | no_rest
     for r, (q, label) in enumerate(QUANTITIES):
         for j, k in enumerate(keys):
             ax = axes[r][j]
             for c in cycles:
                 y = flat[q].sel(cycle=c).values
-                ax.scatter(xs[k][~bad], y[~bad], s=8, alpha=0.7, label=f"cycle {c}")
-            if bad.any():
-                lo = ax.get_ylim()[0]
-                ax.scatter(xs[k][bad], np.full(int(bad.sum()), lo), label="failed", clip_on=False, **FAILED_STYLE)
+                ax.scatter(xs[k][~skip], y[~skip], s=8, alpha=0.7, label=f"cycle {c}")
+                if outside.any():
+                    ax.scatter(xs[k][outside], y[outside], label="outside domain" if c == cycles[0] else None,
+                               **OUTSIDE_STYLE)
+            _mark_axis(ax, xs[k], bad, no_rest)
             ax.set_xlabel(k)
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 

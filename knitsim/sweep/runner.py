@@ -127,6 +127,11 @@ class SweepPlan:
     labels: list
     source: str = "<dict>"
     hash: str = ""
+    #: per sample and cell, shape [n_samples, n_cells]: knitsim.cell.domain codes (0 inside, 1 outside the
+    #: box: solved, an extrapolation; 2 no admissible rest state: not solved), found before any solve
+    domain: np.ndarray | None = None
+    #: per sample and cell, the reason of a non-zero domain code (None inside)
+    domain_reasons: list | None = None
 
     @property
     def n_samples(self) -> int:
@@ -246,15 +251,45 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         group.append(group_of[gkey])
         params.append(s.params)
     group = np.asarray(group, dtype=np.int64)
+    domain, reasons = _domain_of(params, programs, group, base.engine, dev)
     chunks = []
     for g in range(len(programs)):
         idx = np.nonzero(group == g)[0]
         for a in range(0, len(idx), spec.chunk_size):
             chunks.append(Chunk(len(chunks), g, idx[a:a + spec.chunk_size]))
     plan = SweepPlan(spec, scene_doc, base, base.engine, dev, table, params, programs, loads, group, chunks,
-                     list(base.labels), source)
+                     list(base.labels), source, domain=domain, domain_reasons=reasons)
     plan.hash = sweep_hash(plan)
     return plan
+
+
+def _domain_of(params: list, programs: list, group: np.ndarray, engine: str, device: str):
+    """Domain codes and reasons of every sample's cells, before any solve (knitsim.cell.domain.check_cells).
+
+    A cell with no admissible rest state (decided by the engine that would run it) is outside the
+    model: it is not solved.  A cell outside the domain's box, or a program whose strains leave the
+    box, is solved (the box is where convergence is promised, not where the model ends) and flagged
+    as an extrapolation.
+    """
+    from ..cell.domain import DOMAIN, DOMAIN_INSIDE, DOMAIN_OUTSIDE_BOX, check_cells
+
+    ns = len(params)
+    nc = len(params[0]) if ns else 0
+    flat = [p for cells in params for p in cells]
+    check = check_cells(flat, engine=engine, device=device)
+    codes = check.codes.reshape(ns, nc)
+    why = check.reasons()
+    program_why = [DOMAIN.why_program_outside(prog.strain) for prog in programs]
+    reasons = []
+    for i in range(ns):
+        row = []
+        for c in range(nc):
+            r = why[i * nc + c]
+            if codes[i, c] == DOMAIN_INSIDE and program_why[group[i]] is not None:
+                codes[i, c], r = DOMAIN_OUTSIDE_BOX, program_why[group[i]]
+            row.append(r)
+        reasons.append(row)
+    return codes, reasons
 
 
 def sweep_hash(plan: SweepPlan) -> str:
@@ -303,18 +338,31 @@ def run_chunk(task: dict) -> dict:
     """Run one chunk (one batched engine call) and write its file atomically.
 
     ``task`` holds ``path``, ``samples`` (indices), ``params`` (flat list,
-    ``n_cells`` per sample), ``n_cells``, ``program``, ``n_cycles``,
-    ``engine``, ``device``, ``curves``.  Runs in the driver (``workers=0``) or
+    ``n_cells`` per sample), ``solve`` (per cell of ``params``: False for a cell without a rest
+    state, which is not solved: status no_rest_state, NaN results), ``n_cells``, ``program``,
+    ``n_cycles``, ``engine``, ``device``, ``curves``.  Runs in the driver (``workers=0``) or
     in a Dask worker; returns ``{"chunk", "samples", "wall_s"}``.
     """
     from ..cell.engine import simulate
+    from ..cell.history import STATUS_NO_REST_STATE
 
     t0 = time.perf_counter()
-    # Warp's messages must not reach stdout (kept for --json)
-    import contextlib
-    with contextlib.redirect_stdout(sys.stderr):
-        history = simulate(task["params"], task["program"], engine=task["engine"], device=task["device"])
-    red = reduce_history(history, task["n_cycles"], task["curves"])
+    solve = np.asarray(task.get("solve", [True] * len(task["params"])), dtype=bool)
+    n_all = len(task["params"])
+    red = {k: np.full((n_all, task["n_cycles"]), np.nan) for k in CYCLE_VARS}
+    red["strain_at_first_jamming"] = np.full(n_all, np.nan)
+    red["final_status"] = np.full(n_all, STATUS_NO_REST_STATE, dtype=np.int32)
+    red["expected_end"] = np.zeros(n_all, dtype=np.int8)
+    if task["curves"]:
+        red["force_per_wale_N"] = np.full((n_all, len(task["program"])), np.nan)
+    if solve.any():
+        # Warp's messages must not reach stdout (kept for --json)
+        import contextlib
+        with contextlib.redirect_stdout(sys.stderr):
+            history = simulate([p for p, s in zip(task["params"], solve) if s], task["program"],
+                               engine=task["engine"], device=task["device"])
+        for k, v in reduce_history(history, task["n_cycles"], task["curves"]).items():
+            red[k][solve] = v
     ns, nc = len(task["samples"]), task["n_cells"]
     arrays = {"samples": np.asarray(task["samples"], dtype=np.int64)}
     for k, v in red.items():
@@ -328,9 +376,13 @@ def run_chunk(task: dict) -> dict:
 
 
 def _task(plan: SweepPlan, chunk: Chunk, out: Path) -> dict:
+    from ..cell.domain import DOMAIN_NO_REST_STATE
+
     flat = [p for i in chunk.samples for p in plan.params[i]]
+    solve = ([True] * len(flat) if plan.domain is None else
+             [bool(plan.domain[i, c] != DOMAIN_NO_REST_STATE) for i in chunk.samples for c in range(plan.n_cells)])
     return {"chunk": chunk.index, "path": str((out / CHUNK_DIR / chunk.name).resolve()), "samples": chunk.samples.tolist(),
-            "params": flat, "n_cells": plan.n_cells, "program": plan.programs[chunk.group],
+            "params": flat, "solve": solve, "n_cells": plan.n_cells, "program": plan.programs[chunk.group],
             "n_cycles": plan.n_cycles, "engine": plan.engine, "device": plan.device, "curves": plan.spec.curves}
 
 
@@ -356,6 +408,8 @@ def manifest(plan: SweepPlan) -> dict:
         "base_resolved": plan.base.resolved, "parameters": plan.spec.keys, "shape": list(plan.spec.shape),
         "cell_labels": plan.labels, "loads": plan.loads,
         "samples": [list(r) for r in plan.table], "group": plan.group.tolist(),
+        "domain": None if plan.domain is None else plan.domain.tolist(),
+        "domain_reasons": plan.domain_reasons,
         "chunks": [{"index": c.index, "file": f"{CHUNK_DIR}/{c.name}", "group": c.group,
                     "samples": c.samples.tolist()} for c in plan.chunks],
         "versions": versions(), "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
@@ -577,6 +631,7 @@ def assemble(out_dir: str | Path):
     """
     import xarray as xr
 
+    from ..cell.domain import DOMAIN_NAMES
     from ..cell.history import STATUS_NAMES
 
     out = Path(out_dir)
@@ -619,6 +674,13 @@ def assemble(out_dir: str | Path):
     for k in CYCLE_VARS:
         data[k][failed] = np.nan
     data["strain_at_first_jamming"][failed] = np.nan
+    # where each cell stands with the model's domain, found by the planner before any solve (older
+    # manifests without it: unknown, -1)
+    dom = man.get("domain")
+    data["domain"] = (np.asarray(dom, dtype=np.int8).reshape(ns, nc) if dom is not None
+                      else np.full((ns, nc), -1, dtype=np.int8))
+    domain_reasons = {f"{i}:{c}": r for i, row in enumerate(man.get("domain_reasons") or [])
+                      for c, r in enumerate(row) if r is not None}
 
     if spec["method"] == "grid":
         lead = list(keys)
@@ -654,6 +716,11 @@ def assemble(out_dir: str | Path):
         "final_status": "status code at the end: " + ", ".join(f"{k} {v}" for k, v in STATUS_NAMES.items())
                         + ", -1 not run",
         "expected_end": "1 if the cell completed the program or stopped at the force cap",
+        "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
+                  "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
+                  + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
+                  "promised; no_rest_state: outside the model, not solved), -1 unknown; reasons in the "
+                  "attribute domain_reasons",
         "force_per_wale_N": "force per wale at every increment (NaN past the program's end)",
         "imposed_strain": "imposed strain of the course length at every increment",
     }
@@ -661,7 +728,7 @@ def assemble(out_dir: str | Path):
     for k in CYCLE_VARS:
         a = reshape(data[k])
         vars_[k] = (lead + cell_dims + ["cycle"], a[..., 0, :] if squeeze else a)
-    for k in CELL_VARS:
+    for k in CELL_VARS + ("domain",):
         a = reshape(data[k])
         vars_[k] = (lead + cell_dims, a[..., 0] if squeeze else a)
     if curves:
@@ -681,6 +748,7 @@ def assemble(out_dir: str | Path):
         "parameters": json.dumps(keys), "spec": json.dumps(spec), "sweep_hash": man["hash"],
         "engine": man["engine"], "device": man["device"], "source": str(man["source"]),
         "missing_chunks": json.dumps(missing), "knitsim_version": str(man["versions"].get("knitsim")),
+        "domain_reasons": json.dumps(domain_reasons),
         "created_by": "knitsim sweep",
     })
     return ds
@@ -692,18 +760,22 @@ def dataset_csv(ds) -> str:
     lead = ["sample"] if ds.attrs["method"] == "lhs" else keys
     has_cell = "cell" in ds.dims
     order = lead + (["cell"] if has_cell else []) + ["cycle"]
+    has_domain = "domain" in ds.data_vars
+    cell_vars = list(CELL_VARS) + (["domain"] if has_domain else [])
     cols = ["sample"] + keys + (["cell", "cell_label"] if has_cell else []) + ["cycle"] + list(CYCLE_VARS) \
-        + list(CELL_VARS)
+        + cell_vars
     parts = {k: ds[k].transpose(*order) for k in CYCLE_VARS}
-    parts.update({k: ds[k].broadcast_like(ds["peak_force_per_wale_N"]).transpose(*order) for k in CELL_VARS})
+    parts.update({k: ds[k].broadcast_like(ds["peak_force_per_wale_N"]).transpose(*order) for k in cell_vars})
     shape = parts["peak_force_per_wale_N"].shape
     flat = {k: np.asarray(v.values).reshape(-1) for k, v in parts.items()}
     idx = np.indices(shape).reshape(len(shape), -1)
     lead_shape = shape[: len(lead)]
     sample = np.ravel_multi_index(idx[: len(lead)], lead_shape) if lead_shape else np.zeros(idx.shape[1], int)
     lines = [",".join(cols)]
+    from ..cell.domain import DOMAIN_NAMES
     from ..cell.history import STATUS_NAMES
     names = {**STATUS_NAMES, -1: "not_run"}
+    domain_names = {**DOMAIN_NAMES, -1: "unknown"}
 
     def num(v):
         v = float(v)
@@ -725,18 +797,46 @@ def dataset_csv(ds) -> str:
         row += [num(flat[k][r]) for k in CYCLE_VARS]
         row += [num(flat["strain_at_first_jamming"][r]), names.get(int(flat["final_status"][r]), "?"),
                 str(int(flat["expected_end"][r]))]
+        if has_domain:
+            row.append(domain_names.get(int(flat["domain"][r]), "?"))
         lines.append(",".join(row))
     return "\n".join(lines) + "\n"
 
 
 __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepChunkError", "plan_sweep",
-           "run_sweep", "run_chunk",
+           "run_sweep", "run_chunk", "failed_samples", "domain_samples",
            "reduce_history", "sweep_hash", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
            "CYCLE_VARS", "CELL_VARS"]
 
 
+def _sample_listing(ds, select, reason) -> list[dict]:
+    """Samples (and cells) where ``select(status, expected_end, domain)`` holds, with ``reason(...)``."""
+    keys = json.loads(ds.attrs["parameters"])
+    lead = ["sample"] if ds.attrs["method"] == "lhs" else keys
+    has_cell = "cell" in ds.dims
+    order = lead + (["cell"] if has_cell else [])
+    status = np.asarray(ds["final_status"].transpose(*order).values)
+    ok = np.asarray(ds["expected_end"].transpose(*order).values)
+    dom = (np.asarray(ds["domain"].transpose(*order).values) if "domain" in ds.data_vars
+           else np.full(status.shape, -1, dtype=np.int8))
+    bad = np.argwhere(select(status, ok, dom))
+    lead_shape = status.shape[:len(lead)]
+    out = []
+    for idx in bad:
+        idx = tuple(int(i) for i in idx)
+        sel = dict(zip(order, idx))
+        sample = int(np.ravel_multi_index(idx[:len(lead)], lead_shape)) if lead_shape else 0
+        point = ds.isel({d: sel[d] for d in lead})
+        params = {k: (point[k].values.item() if hasattr(point[k].values, "item") else point[k].values) for k in keys}
+        out.append({"sample": sample, "parameters": params, "cell": sel.get("cell"),
+                    "reason": reason(sample, sel.get("cell") or 0, int(status[idx]), int(dom[idx]))})
+    return out
+
+
 def failed_samples(ds) -> list[dict]:
-    """The samples whose cell failed (ran, but neither finished nor stopped at its force cap).
+    """The samples whose cell failed: it ran, but neither finished nor stopped at its force cap.
+
+    A cell without an admissible rest state is not among them (it was not run: :func:`domain_samples`).
 
     Returns
     -------
@@ -744,22 +844,24 @@ def failed_samples(ds) -> list[dict]:
         ``sample`` (flat index), ``parameters`` (key path -> value), ``cell`` (None for one cell)
         and ``reason`` (the status name).
     """
-    from ..cell.history import STATUS_NAMES
+    from ..cell.domain import DOMAIN_NO_REST_STATE
+    from ..cell.history import STATUS_NAMES, STATUS_NO_REST_STATE
 
-    keys = json.loads(ds.attrs["parameters"])
-    lead = ["sample"] if ds.attrs["method"] == "lhs" else keys
-    has_cell = "cell" in ds.dims
-    order = lead + (["cell"] if has_cell else [])
-    status = ds["final_status"].transpose(*order)
-    ok = ds["expected_end"].transpose(*order)
-    bad = np.argwhere((np.asarray(ok.values) == 0) & (np.asarray(status.values) >= 0))
-    lead_shape = status.shape[:len(lead)]
-    out = []
-    for idx in bad:
-        sel = {d: int(i) for d, i in zip(order, idx)}
-        sample = int(np.ravel_multi_index(tuple(idx[:len(lead)]), lead_shape)) if lead_shape else 0
-        point = ds.isel({d: sel[d] for d in lead})
-        params = {k: (point[k].values.item() if hasattr(point[k].values, "item") else point[k].values) for k in keys}
-        out.append({"sample": sample, "parameters": params, "cell": sel.get("cell"),
-                    "reason": STATUS_NAMES.get(int(status.values[tuple(idx)]), "unknown")})
-    return out
+    return _sample_listing(
+        ds, lambda st, ok, dom: (ok == 0) & (st >= 0) & (st != STATUS_NO_REST_STATE) & (dom != DOMAIN_NO_REST_STATE),
+        lambda i, c, st, dom: STATUS_NAMES.get(st, "unknown"))
+
+
+def domain_samples(ds, code: int) -> list[dict]:
+    """The samples whose cell has domain code ``code`` (knitsim.cell.domain: 1 outside the box,
+    2 no admissible rest state), each with the planner's reason (``reason``) and its status."""
+    from ..cell.domain import DOMAIN_NAMES
+    from ..cell.history import STATUS_NAMES, STATUS_NO_REST_STATE
+
+    reasons = json.loads(ds.attrs.get("domain_reasons", "{}"))
+
+    def why(i, c, st, dom):
+        text = reasons.get(f"{i}:{c}", DOMAIN_NAMES[code])
+        return text if st == STATUS_NO_REST_STATE else f"{text} (status {STATUS_NAMES.get(st, 'not_run')})"
+
+    return _sample_listing(ds, lambda st, ok, dom: dom == code, why)

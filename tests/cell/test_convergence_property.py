@@ -12,6 +12,8 @@ and checks what must hold of any run:
   float64 NumPy reference confirms that it has no admissible rest state (none, or R < 0);
 - every event located: no ``event_not_located``, every located event inside the strains of its
   increment (one sub-step cannot jump past its end);
+- no pulling contact (Rn >= -ZERO_CONTACT P) and no SF+ state beyond -phimax (the far side of the
+  cone, knitsim.cell.stages);
 - dissipation >= 0 on closed loops: the loop integral of F d(strain) between two visits of the
   same strain with one maximum between them (loaded, then unloaded back) (second law: friction only dissipates;
   :func:`knitsim.cell.cycle.dissipated_energy`), to within the trapezoidal rule's rounding.
@@ -37,6 +39,7 @@ from knitsim.cell.history import STATUS_FORCE_CAP, STATUS_NO_REST_STATE, STATUS_
 from knitsim.cell.inverse import initial_state  # noqa: E402
 from knitsim.cell.load_program import cycles, monotonic, piecewise_linear  # noqa: E402
 from knitsim.cell.material import CellParams  # noqa: E402
+from knitsim.cell.stages import ZERO_CONTACT, Stage  # noqa: E402
 
 S_LO, S_HI = DOMAIN.strain
 #: strains of waypoints on a grid, so that a path can come back to a strain exactly (closed loops)
@@ -134,6 +137,13 @@ def check_run(cells: list[CellParams], program) -> None:
         assert np.all(np.isfinite(v[:, ~norest])), f"NaN in {name}"
     for name, v in (h.rest or {}).items():
         assert np.all(np.isfinite(np.asarray(v, float)[~norest])), f"NaN in the rest state's {name}"
+    # no pulling contact (Rn < -ZERO_CONTACT P: the contact at B is unilateral; unloading goes slack where
+    # it opens) and no stuck loading state beyond the far edge of the cone (knitsim.cell.stages, "far side")
+    pm = np.array([c.phimax for c in cells])
+    pull = h.values["Rn"][:, ~norest] < -ZERO_CONTACT * h.values["P"][:, ~norest]
+    assert not pull.any(), f"pulling contact in cells {np.nonzero(~norest)[0][pull.any(0)]}"
+    far = (h.stage[:, ~norest] == Stage.SF_LOAD) & (h.values["phi"][:, ~norest] < -pm[~norest] - 1e-9)
+    assert not far.any(), f"SF+ beyond -phimax in cells {np.nonzero(~norest)[0][far.any(0)]}"
     F = h.force_per_wale
     for c in range(n):
         if norest[c]:
