@@ -271,3 +271,17 @@ def test_discretisation_step_refines_the_replay_until_halving_it_changes_nothing
             assert float(e @ e) / sd ** 2 <= 2 * DISCRETISATION_CHI2 + 1e-9 or not disc.resolved
             # the coarse replay does differ here: the refinement was needed
             assert rss_of_cells([curve], [cell], 0.01, offsets=True)[0] / sd ** 2 > DISCRETISATION_CHI2
+
+
+def test_rivals_step_refits_only_candidates_within_the_margin_of_the_best():
+    """Rivals are the significant candidates within RIVAL_MARGIN (100) of the best BIC score (its definition):
+    one significant candidate, or a second one 150 behind, leaves nothing to refit (no calibration runs:
+    data is not even needed)."""
+    from knitsim.diagnosis.diagnose import RIVAL_MARGIN, CandidateResult, rivals_step
+    assert RIVAL_MARGIN == 100.0
+    best = CandidateResult("yarn_compaction", "", True, score=5150.0, significant=True)
+    far = CandidateResult("yarn_extension", "", True, score=5000.0, significant=True)
+    weak = CandidateResult("bending_hysteresis", "", True, score=5140.0, significant=False)
+    fits = {"yarn_compaction": {}, "yarn_extension": {}}
+    assert rivals_step(None, [best], fits, print) == (fits, [])
+    assert rivals_step(None, [best, weak, far], fits, print) == (fits, [])
