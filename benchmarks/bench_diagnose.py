@@ -57,6 +57,9 @@ def main() -> None:
     print(f"baseline calibration (20 evaluations): {t_base:.2f} s")
     print(f"diagnosis, {len(setup.effects)} effects{'' if args.no_pair else ' + greedy pair'}: {t_diag:.2f} s "
           f"(CPU {c_diag:.2f} s) = {t_diag / t_base:.1f} baseline calibrations (target: < 60 s on one core)")
+    rp = r["baseline"]["replay"]
+    print(f"replay increment: {rp['coarse_increment']:g} for the searches, {rp['final_increment']:g} for the final "
+          f"fits (chi2 change per halving: " + ", ".join(f"{h:g}: {c:.3g}" for h, c, _ in rp["trail"]) + ")")
     v = r["verdict"]
     lab = case.label
     print(f"hidden: {args.effect} at strength {args.strength} ({lab['parameter']} = {lab['value']}); "

@@ -30,7 +30,17 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    behind it is not fitted further.  Then the **basin check** (:func:`basin_step`): a candidate's
    fit may have found a better basin of the baseline's own parameters, and the
    baseline is re-calibrated from there, so that no effect is credited with
-   what the baseline can do itself.
+   what the baseline can do itself.  Then the **final fits**
+   (:func:`discretisation_step`, :func:`final_fits_step`): the searches run on a
+   coarse replay (``max_increment``); the fits that decide the verdict are
+   polished at an increment refined by step halving until the fitted curves
+   change by less than :data:`DISCRETISATION_CHI2` in chi^2 (a discretisation
+   residual of 0.1 noise sd on a thousand rows is ten chi^2 units, which one
+   more parameter takes up).  The baseline is polished from its optimum and from
+   the baseline's variables of each candidate that beat it by more than
+   :data:`STRONG` (a nested effect at its null value is the baseline: its basin
+   may be the baseline's own); each candidate near or above the baseline from
+   its optimum and from the final baseline with the effect vanishing.
 4. **Localise** (:func:`localise_step`): the rows keyed by the stage the
    calibrated baseline simulates there; the gap split by key.
 5. **Adequacy** (:func:`adequacy_step`): chi^2 of the baseline against its
@@ -44,20 +54,32 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    its probability among the candidates and "none" (BIC weights,
    ``exp(-BIC/2)`` normalised).  An effect is *named* only when it clears both
    thresholds: evidence (score > :data:`STRONG`: Kass and Raftery 1995, very
-   strong) and size (*practical*: it removes at least :data:`PRACTICAL_SHARE`
-   of the baseline's excess over noise, more than all other causes together,
-   or brings a baseline that misses the curves beyond their noise within it;
-   an effect that shrinks a large gap by 0.1 % explains nothing, whatever its
-   BIC).  A baseline already within noise leaves only the share: there the
-   second clause would hold for any drop, and an effect-free specimen whose
-   baseline fit ends 1.7 sd above dof (chi^2/dof 1.12) had a candidate that
-   took 22 % of that excess named at a BIC score of 26.  Every candidate is also judged
+   strong) and size (*practical*, :func:`size_threshold`: a chi^2 drop of at
+   least :data:`PRACTICAL_SHARE` of the baseline's excess over noise taken at
+   its one-sided 95 % lower bound ``excess - 1.645 s``, and at least
+   :data:`SIZE_FLOOR_SD` ``sqrt(2 dof)``; or it brings a baseline that misses
+   the curves beyond their noise within it).  Why: the effect named is offered
+   as *the* explanation, so it must be the larger part of the gap (an effect
+   that shrinks a large gap by 0.1 % explains nothing, whatever its BIC); but
+   the excess is a noisy number (+- s), so the share is asked of what the
+   excess is at least, and the effect is refused only when the data show that
+   it is a minor part.  Where that bound is near 0 (a baseline within noise) a
+   share of the excess measures nothing, and the floor asks for a change that
+   the fit as a whole resolves: half the spread ``sqrt(2 dof)`` of chi^2 for
+   noise alone (no model is exact, and a residual of that scale, which no
+   adequacy test can see, is what one more parameter takes up; with the old
+   rule a baseline that ended at chi^2/dof < 1 let any BIC-significant drop
+   through).  Every candidate is also judged
    against the noise as the baseline is (``chi2_per_dof``, ``within_noise``),
    carries its chi^2 drop per curve, and is marked when its evidence rests on
    curves whose noise is assumed (``rests_on_assumed_noise``).  The adequacy test of the whole
    fit cannot veto a named effect: a BIC test of one nested effect is far more
    sensitive than the chi^2 of all rows, whose spread includes that of the
    estimated noise.
+   **Rivals** (:func:`rivals_step`): the best candidate and those within
+   :data:`RIVAL_MARGIN` of it are fitted again from each other's optima, so that
+   two effects that both explain the gap are ranked by the data, not by the
+   basin each fit happened to end in.
 7. **Pair** (:func:`pair_step`): the best effect plus each of the
    :data:`PAIR_PARTNERS` next effects with a positive score of their own.
 8. **Verdict** (:func:`verdict_step`): ``effect`` when an effect clears both
@@ -94,6 +116,10 @@ from .noise import CurveNoise, curve_noise
 STRONG = 10.0
 #: share of the baseline's excess over noise an effect must remove to be named (module docstring, step 6)
 PRACTICAL_SHARE = 0.5
+#: the excess enters the size threshold by its one-sided 95 % lower bound, excess - SIZE_Z x its spread
+SIZE_Z = 1.645
+#: the least chi^2 drop of a named effect, in units of chi^2's spread for noise alone sqrt(2 dof)
+SIZE_FLOOR_SD = 0.5
 #: one-sided 99.9 % point of the normal distribution: chi^2 within dof + Z sqrt(2 dof) is within noise
 WITHIN_NOISE_Z = 3.09
 #: a row this many sd off the calibrated baseline, whose neighbours are within OUTLIER_NEIGHBOUR_Z, is an outlier
@@ -248,6 +274,9 @@ class CandidateResult:
     shrink: float | None = None
     score: float | None = None
     share_of_excess: float | None = None
+    #: the chi^2 drop from the baseline, and the drop the size threshold asks for (size_threshold)
+    chi2_drop: float | None = None
+    size_needed: float | None = None
     significant: bool = False
     practical: bool = False
     probability: float | None = None
@@ -761,6 +790,164 @@ def basin_step(data: _Data, base_fit: dict, fits: dict, rates, say) -> tuple[dic
     return refit, fits, note
 
 
+#: the discretisation is negligible when the change of the fitted curves on halving the replay's increment
+#: adds at most this to chi^2 (rows weighted by their noise, offsets removed): well below one parameter's
+#: BIC cost ln n, so that no extra parameter can gain evidence by taking it up (:func:`discretisation_step`)
+DISCRETISATION_CHI2 = 1.0
+#: the replay's increment is not refined below this [-] (the refinement stops there and says so)
+MIN_INCREMENT = 0.01 / 16
+#: evaluations of each final fit at the refined increment (a polish from the coarse optimum)
+FINE_NFEV = 10
+#: fitted points whose discretisation is checked: the baseline and the best candidates by coarse chi^2
+DISCRETISATION_POINTS = 3
+
+
+@dataclass
+class Discretisation:
+    """Step 3c: the replay increment of the final fits, chosen by step halving at the fitted points.
+
+    ``trail`` lists ``(h, chi2_change, rms_change_sd)``: the largest chi^2 (and RMS, in noise sd) of
+    the change of any checked fit's curves from increment ``h`` to ``h / 2`` (offsets removed).  A
+    first-order scheme's own error at ``h`` is about that change (Richardson: ``F_h - F = 2 (F_h -
+    F_{h/2})`` to first order, and the change at ``h / 2`` is half the one at ``h``), so the final
+    ``h`` is the first whose change to ``h / 2`` and that of ``h / 2`` to ``h / 4`` each add at most
+    :data:`DISCRETISATION_CHI2` to chi^2 (two in a row: a transition caught one increment late moves
+    a curve at one halving and not at the next, which one comparison alone would miss).
+    """
+
+    coarse_increment: float
+    final_increment: float
+    trail: list
+    resolved: bool              # False: the change stayed above the tolerance down to MIN_INCREMENT
+    note: str = ""
+
+
+def _program_lengths(curves, h: float) -> list:
+    from .calibrate import _replay_programs
+    return [len(p) for p in _replay_programs(curves, h)[0]]
+
+
+def _forces(curves, cells, h: float, device: str) -> tuple[list, list]:
+    """Simulated forces at the measured rows, per curve ``[rows, cells]``, and the program lengths."""
+    from .calibrate import _replay_programs
+    from ..cell.batch import run_batch
+    from .measured import force_at_rows
+    programs, rows, groups = _replay_programs(curves, h)
+    out = [None] * len(curves)
+    for g in groups:
+        # one cell at a time: the cells may carry different effects
+        hists = [run_batch([c], programs[g[0]], device=device) for c in cells]
+        for i in g:
+            out[i] = np.stack([force_at_rows(hh, rows[i], 0)[0] for hh in hists], axis=1)
+    return out, [len(p) for p in programs]
+
+
+def discretisation_step(data: _Data, fits: list[dict]) -> Discretisation:
+    """Step 3c: the replay increment at which the discretisation of the fitted curves is negligible.
+
+    The calibrations search at ``setup.max_increment`` (a coarse, cheap replay); the fits that decide
+    the verdict must not carry a discretisation residual that an extra parameter can take up: a
+    measured curve has no increment, and a systematic residual of 0.1 noise sd on a thousand rows is
+    ten chi^2 units (an effect-free specimen replayed at 0.01 left 37 chi^2 units on its noise-free
+    curves, which a bending hysteresis of 0.9 % took up; 2 at 0.0025).  The increment is halved
+    while the change of some fitted curve set (the baseline's and the best candidates', ``fits``)
+    adds more than :data:`DISCRETISATION_CHI2` to chi^2 (rows weighted by their curve's noise,
+    each curve's offset removed); a halving that leaves every program as it is (rows already closer
+    than ``h``) is skipped, and the coarsest increment of the accepted program is reported.
+    """
+    from .calibrate import _project
+    setup = data.setup
+    h0 = float(setup.max_increment)
+    cells = [f["params"] for f in fits]
+
+    def levels():
+        """The distinct replays: (h, forces), h halved, a halving that changes no program skipped."""
+        h, lens = h0, None
+        while h >= MIN_INCREMENT:
+            ln = _program_lengths(data.curves, h)
+            if ln != lens:
+                yield h, _forces(data.curves, cells, h, setup.device)[0]
+                lens = ln
+            h /= 2.0
+
+    def change(a, b) -> tuple[float, float]:
+        chi2, rms = 0.0, 0.0
+        for j in range(len(cells)):
+            cj = 0.0
+            for c, w, fa, fb in zip(data.curves, data.weights, a, b):
+                z = _project(fb[:, j] - fa[:, j], w, setup.offsets)[w > 0]
+                cj += float(z @ z)
+                rms = max(rms, float(np.sqrt(np.mean(z * z))) if len(z) else 0.0)
+            chi2 = max(chi2, cj)
+        return chi2, rms
+
+    seq, trail = [], []
+    for h, forces in levels():
+        seq.append((h, forces))
+        if len(seq) >= 2:
+            trail.append((seq[-2][0],) + change(seq[-2][1], seq[-1][1]))
+        # two changes in a row below the tolerance: an event caught one increment late changes the
+        # curves at one halving and not at the next (not the smooth error Richardson assumes alone)
+        if len(trail) >= 2 and trail[-1][1] <= DISCRETISATION_CHI2 and trail[-2][1] <= DISCRETISATION_CHI2:
+            return Discretisation(h0, trail[-2][0], trail, True)
+    h_last = seq[-1][0] if seq else h0
+    if trail and trail[-1][1] <= DISCRETISATION_CHI2:
+        # the finest replay allowed, which its last halving changed by less than the tolerance
+        return Discretisation(h0, h_last, trail, True)
+    return Discretisation(h0, h_last, trail, False,
+                          f"halving the replay's increment down to {h_last:.3g} still changed chi2 by more than "
+                          f"{DISCRETISATION_CHI2:g}: the fits may carry a discretisation residual")
+
+
+def _shared(fit: dict, free: tuple) -> dict | None:
+    """A fit's values of the baseline's variables (None when it lacks one: coiling replaces m)."""
+    x = fit["fit_variables"]
+    return {k: x[k] for k in free} if all(k in x for k in free) else None
+
+
+def final_fits_step(data: _Data, base_fit: dict, fits: dict, disc: Discretisation, say) -> tuple:
+    """Step 3d: the baseline and the candidates polished at the refined increment (:class:`Discretisation`).
+
+    The baseline starts from its coarse optimum and from the baseline's variables of every candidate
+    that beat it by more than :data:`STRONG` at the coarse increment (a nested model at its null
+    value is the baseline, so where a candidate fits much better the baseline's own minimum may lie
+    in that basin: if it does, the baseline fit had missed it).  Each candidate that came within
+    :data:`STRONG` of the baseline or beat it is refitted from its coarse optimum and from the final
+    baseline with the effect vanishing (so that a coarse gain that was discretisation can go back to
+    nothing); the others, far behind, are evaluated at the refined increment where they ended
+    (an upper bound of their chi^2 there, and they are judged on it).  Returns the data at the final
+    increment, the baseline fit and the candidate fits.
+    """
+    if disc.final_increment >= data.setup.max_increment:
+        return data, base_fit, fits
+    fdata = _Data(data.curves, replace(data.setup, max_increment=disc.final_increment), data.weights)
+    free = tuple(data.setup.free)
+    better = sorted((f for f in fits.values() if f["chi2"] < base_fit["chi2"] - STRONG), key=lambda f: f["chi2"])
+    extra = tuple(x for x in (_shared(f, free) for f in better[:2]) if x is not None)
+    base_f = _fit(fdata, (), x0=base_fit["fit_variables"], extra_starts=extra, nfev=FINE_NFEV)
+    say(f"at increment {disc.final_increment:.3g}: baseline chi2 {base_fit['chi2']:.5g} -> {base_f['chi2']:.5g}")
+    out = {}
+    for name, f in fits.items():
+        if f["chi2"] < base_fit["chi2"] + STRONG and not f.get("stopped_after_race"):
+            nested = EFFECT_SPECS[name].nests_baseline
+            if nested and f["chi2"] > base_fit["chi2"] - 1.0:
+                # its coarse fit is the baseline (the effect vanished): from the final baseline alone
+                out[name] = _fit(fdata, (name,), x0=base_f["fit_variables"], nfev=RACE_NFEV)
+            else:
+                out[name] = _fit(fdata, (name,), x0=base_f["fit_variables"] if nested else f["fit_variables"],
+                                 extra_starts=(f["fit_variables"],) if nested else (), nfev=FINE_NFEV)
+        else:
+            variables = variables_for(tuple(fdata.setup.free), (name,))
+            names = tuple(v.name for v in variables)
+            bounds = {k: tuple(v) for k, v in fdata.setup.bounds.items() if k in names}
+            out[name] = fdata.calibrate((name,), f["fit_variables"], 1, names, bounds)
+            for key in ("race", "stopped_after_race"):
+                if key in f:
+                    out[name][key] = f[key]
+        say(f"at increment {disc.final_increment:.3g}: {name} chi2 {f['chi2']:.5g} -> {out[name]['chi2']:.5g}")
+    return fdata, base_f, out
+
+
 def _stages(measured, simulated, keys, keep) -> dict:
     g = stage_gap(measured[keep], simulated[keep], [k for k, ok in zip(keys, keep) if ok])
     return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
@@ -822,13 +1009,30 @@ def chi2_by_curve(data: "_Data", fit: dict) -> dict:
     return out
 
 
+def size_threshold(adequacy: Adequacy) -> float:
+    """The least chi^2 drop an effect must bring to be named (module docstring, step 6).
+
+    ``max(PRACTICAL_SHARE * max(excess - SIZE_Z * s, 0), SIZE_FLOOR_SD * sqrt(2 dof))`` with ``s``
+    the spread of the baseline's chi^2 for noise alone (:class:`Adequacy`).  The excess over noise
+    is itself a noisy number, known to +- s: the effect must remove half of what the excess is at
+    least (its one-sided 95 % lower bound), so that it is refused only when the data show that it
+    is a minor part of the gap.  Where that bound is small (a baseline within its noise) the share
+    of a noisy excess is no measure of size, and the floor takes over: the effect must change the
+    fit by half the spread ``sqrt(2 dof)`` that chi^2 has for noise alone, i.e. by an amount the
+    whole fit resolves, not by a detail that a model never exact (an unmodelled scatter, a stage
+    transition a hair off) leaves at that scale and one more parameter takes up.
+    """
+    s = adequacy.expected_sd * adequacy.dof
+    lower = max(adequacy.excess - SIZE_Z * s, 0.0)
+    return max(PRACTICAL_SHARE * lower, SIZE_FLOOR_SD * math.sqrt(2.0 * adequacy.dof))
+
+
 def is_practical(drop: float, adequacy: Adequacy) -> bool:
-    """The size threshold (module docstring, step 6): a chi^2 ``drop`` that removes at least
-    :data:`PRACTICAL_SHARE` of the baseline's excess over noise, or brings a baseline that is beyond
-    the noise within it."""
+    """The size threshold (module docstring, step 6): a chi^2 ``drop`` of at least
+    :func:`size_threshold`, or one that brings a baseline beyond the noise within it."""
     if not drop > 0:
         return False
-    if drop >= PRACTICAL_SHARE * max(adequacy.excess, 0.0):
+    if drop >= size_threshold(adequacy):
         return True
     return adequacy.within_noise is False and adequacy.excess - drop <= adequacy.tolerance
 
@@ -881,6 +1085,7 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
         cand.share_of_excess = (drop / adequacy.excess) if adequacy.excess > 0 else None
         cand.significant = bool(cand.score > STRONG)
         cand.practical = is_practical(drop, adequacy)
+        cand.chi2_drop, cand.size_needed = float(drop), size_threshold(adequacy)
         if cand.flagged_curves:
             # rows of a failed increment keep the last converged force: its chi^2 is no model's, and no
             # evidence for the effect (it is neither named nor weighed)
@@ -897,6 +1102,51 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
     for c, pc in zip(judged, p[1:]):
         c.probability = float(pc)
     return fitted + [c for c in out if c.score is None]
+
+
+#: candidates whose BIC score is within this of the best one's are rivals: each gets RIVAL_NFEV more evaluations
+RIVAL_MARGIN = 10.0 * STRONG
+RIVAL_NFEV = 20
+
+
+def rivals_step(data: _Data, candidates: list, fits: dict, say) -> tuple[dict, list]:
+    """Step 6b: the best candidate and its close rivals refitted from each other's basins.
+
+    Two effects that both remove the whole gap (yarn extension and compaction both bend the loading
+    curve) are told apart by tens of chi^2 units out of thousands; a fit stopped by its evaluation budget
+    short of its optimum loses by its optimisation residual, not by the data (an extension specimen's
+    extension fit ended 160 chi^2 units above where the generator's oracle refit went and compaction was
+    named at a BIC margin of 54).  Every judged candidate within :data:`RIVAL_MARGIN` of the best
+    significant one (the best included) is fitted again (:data:`RIVAL_NFEV` evaluations, a race) from
+    where it ended and from the baseline variables of every other rival's optimum with its own effect's
+    starts; the new fit replaces the old only when it is lower.  Returns the fits and the names
+    continued (empty when there was no rival: then nothing was done).
+    """
+    judged = [c for c in candidates if c.score is not None and not c.flagged_curves and c.significant]
+    if len(judged) < 2:
+        return fits, []
+    top = judged[0].score
+    rivals = [c.effect for c in judged if top - c.score < RIVAL_MARGIN]
+    if len(rivals) < 2:
+        return fits, []
+    fits = dict(fits)
+    free = tuple(data.setup.free)
+    shared = {name: _shared(fits[name], free) for name in rivals}
+    for name in rivals:
+        f = fits[name]
+        # from where every other rival found its fit (the baseline variables of its optimum), with this
+        # effect's own starts: both act on the same stage, and the other's basin may be this one's too
+        starts = [dict(x) for other, x in shared.items() if other != name and x is not None]
+        if not starts:
+            continue
+        spec = EFFECT_SPECS[name]
+        own = spec.extra_starts or ({},)
+        more = _fit(data, (name,), x0=f["fit_variables"],
+                    extra_starts=tuple(dict(st, **o) for st in starts for o in own), nfev=RIVAL_NFEV)
+        say(f"rival {name}: chi2 {f['chi2']:.5g} -> {more['chi2']:.5g}")
+        if more["chi2"] < f["chi2"] and not _failed(more):
+            fits[name] = more
+    return fits, rivals
 
 
 def pair_step(data: _Data, best: CandidateResult, fitted: list, fits: dict, base_fit: dict, base: dict,
@@ -937,9 +1187,9 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         small = [c for c in fitted if c.significant and not c.practical]
         aside = "" if not small else (
             f"; {small[0].effect} has evidence (BIC score {small[0].score:.3g}, probability "
-            f"{small[0].probability or 0.0:.3g}) but removes only {max(small[0].share_of_excess or 0.0, 0.0):.0%} of "
-            f"the baseline's excess over noise (the size threshold is {PRACTICAL_SHARE:.0%}): too small to explain "
-            "anything")
+            f"{small[0].probability or 0.0:.3g}) but lowers chi2 by {small[0].chi2_drop:.3g} where the size threshold "
+            f"asks for {small[0].size_needed:.3g} (half the excess over noise at its 95 % lower bound, at least "
+            f"half of chi2's spread for noise alone): too small to explain anything")
         return Verdict("none", None, stage, 0.0, True,
                        f"the model explains these curves within their noise: {fit_txt}{aside}", [], probs)
     if not named:
@@ -955,7 +1205,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
                 else "the baseline's adequacy cannot be judged (no curve's noise is known)")
         return Verdict("unexplained", None, stage, 0.0, confident,
                        f"{lead} ({fit_txt}), and no effect explains the gap: {why} (naming one needs a BIC drop "
-                       f"> {STRONG:g} and >= {PRACTICAL_SHARE:.0%} of the excess, or none left beyond the noise); "
+                       f"> {STRONG:g} and a chi2 drop >= {best.size_needed if best and best.size_needed else 0:.3g}, "
+                       "or none left beyond the noise); "
                        f"the largest gap is in stage {stage}; the probabilities weigh the candidates and none "
                        "against each other only, and none of them fits within the noise", [], probs)
     best = named[0]
@@ -1039,6 +1290,10 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     base_fit, outliers = calibrate_step(data, say)
     fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say, base_chi2=base_fit["chi2"])
     base_fit, fits, basin_note = basin_step(data, base_fit, fits, rates, say)
+    # the fits that decide the verdict, at an increment whose discretisation is negligible (steps 3c, 3d)
+    ranked = sorted((f for f in fits.values() if not _failed(f)), key=lambda f: f["chi2"])
+    disc = discretisation_step(data, [base_fit] + ranked[:DISCRETISATION_POINTS - 1])
+    data, base_fit, fits = final_fits_step(data, base_fit, fits, disc, say)
     keep = np.concatenate([w > 0 for w in data.weights])
     n = int(np.count_nonzero(keep))
     loc = localise_step(base_fit, measured, keep)
@@ -1049,8 +1304,12 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     base["offsets_N"] = base_fit.get("offsets_N", {})
     if basin_note:
         base["note"] = basin_note
+    base["replay"] = asdict(disc)
     adequacy = adequacy_step(data, base_fit, noise)
     candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n, data, base_fit, noise)
+    fits, again = rivals_step(data, candidates, fits, say)
+    if again:
+        candidates = score_step(setup, fits, base, adequacy, loc, measured, keep, rates, n, data, base_fit, noise)
     sig = [c for c in candidates if c.significant and c.practical]
     indist = [[a.effect, b.effect] for i, a in enumerate(sig) for b in sig[i + 1:] if a.score - b.score < STRONG]
     best = sig[0] if sig else None
@@ -1059,6 +1318,11 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         pair, pair_fit = pair_step(data, best, [c for c in candidates if c.score is not None], fits, base_fit, base,
                                    loc, measured, keep, n, say)
     verdict = verdict_step(adequacy, candidates, loc, base, noise, indist)
+    if not disc.resolved and disc.trail:
+        # said where the user reads: the final fits may carry a discretisation residual of this size
+        verdict.reason += (f"; the replay was refined to strain increments of {disc.final_increment:.3g}, where a "
+                           f"further halving still changed a fit's chi2 by {disc.trail[-1][1]:.3g} (a discretisation "
+                           "residual of that size may remain)")
     best_fit = fits.get(verdict.effect) if verdict.effect else None
     return Diagnosis(setup.title, [c.source for c in curves], noise, rates, n, base, outliers, adequacy, loc,
                      candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit),

@@ -209,19 +209,79 @@ def test_cli_writes_json_and_report(tmp_path, capsys):
     assert "no.toml" in err and "Traceback" not in err
 
 
-def test_size_threshold_needs_half_the_excess_or_the_noise_reached():
-    # hand-made adequacy results: dof 1225, spread 0.0712 per dof -> tolerance 3.09 x 0.0712 x 1225 = 269.5
-    from knitsim.diagnosis.diagnose import Adequacy, is_practical
+def test_size_threshold_half_the_excess_at_its_lower_bound_or_half_the_chi2_spread():
+    # hand-made adequacy results: dof 1225, spread s = 0.0712 x 1225 = 87.22 (chi^2 units), so
+    # tolerance 3.09 s = 269.5, the excess's 95 % lower bound is excess - 1.645 s = excess - 143.5, and the
+    # floor half of chi^2's spread for noise alone: 0.5 sqrt(2 x 1225) = 24.75 (by hand, size_threshold's formula)
+    from knitsim.diagnosis.diagnose import Adequacy, is_practical, size_threshold
     within = Adequacy(chi2=1375.0, dof=1225, chi2_per_dof=1375 / 1225, expected_sd=0.0712, within_noise=True,
                       excess=150.0)
-    assert not is_practical(33.0, within)          # 22 % of a within-noise excess: not named (pilot case)
-    assert is_practical(75.0, within)              # half of it
+    assert size_threshold(within) == pytest.approx(0.5 * np.sqrt(2450.0))     # 0.5 x 6.5 = 3.3 < the floor
+    assert is_practical(33.0, within)              # 22 % of a noisy excess, but above the floor 24.75
+    assert not is_practical(20.0, within)          # below the floor: a detail no fit of the whole resolves
+    below = Adequacy(chi2=1195.0, dof=1225, chi2_per_dof=1195 / 1225, expected_sd=0.0712, within_noise=True,
+                     excess=-30.0)
+    assert not is_practical(19.0, below)           # chi^2/dof < 1 no longer lets any drop through
+    assert is_practical(28.0, below)
     beyond = Adequacy(chi2=2225.0, dof=1225, chi2_per_dof=2225 / 1225, expected_sd=0.0712, within_noise=False,
                       excess=1000.0)
     assert beyond.tolerance == pytest.approx(3.09 * 0.0712 * 1225)
-    assert is_practical(500.0, beyond)             # half the excess
-    assert not is_practical(480.0, beyond)         # 48 %, and 520 left beyond a tolerance of 269.5
+    assert size_threshold(beyond) == pytest.approx(0.5 * (1000.0 - 1.645 * 0.0712 * 1225))   # 428.3
+    assert is_practical(430.0, beyond)
+    assert not is_practical(420.0, beyond)         # below 428.3, and 580 left beyond the tolerance 269.5
     near = Adequacy(chi2=1725.0, dof=1225, chi2_per_dof=1725 / 1225, expected_sd=0.0712, within_noise=False,
                     excess=500.0)
-    assert is_practical(240.0, near)               # 48 %, but 260 left is within the noise (269.5)
+    assert is_practical(180.0, near)               # threshold 0.5 x (500 - 143.5) = 178.3
+    assert not is_practical(150.0, near)           # below it, and 350 left beyond the tolerance 269.5
+    edge = Adequacy(chi2=1525.0, dof=1225, chi2_per_dof=1525 / 1225, expected_sd=0.0712, within_noise=False,
+                    excess=300.0)
+    assert is_practical(40.0, edge)                # below 0.5 x 156.5 = 78.3, but 260 left is within the noise
     assert not is_practical(0.0, near) and not is_practical(-5.0, within)
+
+
+def test_discretisation_step_refines_the_replay_until_halving_it_changes_nothing():
+    """The lab cycles (rows 0.0035 apart) replayed at 0.01 and refined (discretisation_step).
+
+    Limit cases: with a noise sd of 1e3 N no replay change weighs anything, so the coarse increment
+    stays; with 1e-4 N (a change of 1e-4 N on one row is already chi^2 1) the increment is refined, and
+    an independent replay at a quarter of the chosen increment (rss_of_cells, no weights: in N^2)
+    differs from the chosen one by a chi^2 of at most DISCRETISATION_CHI2 (x 2 for the further halving,
+    which the step's own two-in-a-row rule bounds by 1 + 1)."""
+    from knitsim.diagnosis.calibrate import rss_of_cells
+    from knitsim.diagnosis.diagnose import DISCRETISATION_CHI2, _Data, _forces, discretisation_step
+    from knitsim.diagnosis.synthetic import _lab_strains
+    # a point of the lab calibration (m 0.2017, phi0 -0.5 phimax): slack on unloading, which an increment
+    # that ends after the contact opens catches one step late
+    cell = NOMINAL.replace(m=0.2017, phi0=-0.5 * np.arctan(0.2017), d=0.5778, L=14.2313, C0=2.7129)
+    strain = _lab_strains("cycles")
+    shell = curve_from_arrays(strain, np.zeros(len(strain)), source="rows.csv")
+    (f_true,), _ = _forces([shell], [cell], 0.01 / 64, "cpu")
+    curve = curve_from_arrays(strain, f_true[:, 0], source="rows.csv")
+    for sd, refined in ((1e3, False), (1e-4, True)):
+        setup = DiagnosisSetup(base=NOMINAL, max_increment=0.01)
+        data = _Data([curve], setup, [np.full(len(curve), 1.0 / sd)])
+        disc = discretisation_step(data, [{"params": cell}])
+        assert disc.coarse_increment == 0.01
+        assert (disc.final_increment < 0.01) == refined
+        if refined:
+            h = disc.final_increment
+            (a,), _ = _forces([curve], [cell], h, "cpu")
+            (b,), _ = _forces([curve], [cell], h / 4, "cpu")
+            e = (a[:, 0] - b[:, 0]) - np.mean(a[:, 0] - b[:, 0])       # offsets removed, as the fit does
+            assert float(e @ e) / sd ** 2 <= 2 * DISCRETISATION_CHI2 + 1e-9 or not disc.resolved
+            # the coarse replay does differ here: the refinement was needed
+            assert rss_of_cells([curve], [cell], 0.01, offsets=True)[0] / sd ** 2 > DISCRETISATION_CHI2
+
+
+def test_rivals_step_refits_only_candidates_within_the_margin_of_the_best():
+    """Rivals are the significant candidates within RIVAL_MARGIN (100) of the best BIC score (its definition):
+    one significant candidate, or a second one 150 behind, leaves nothing to refit (no calibration runs:
+    data is not even needed)."""
+    from knitsim.diagnosis.diagnose import RIVAL_MARGIN, CandidateResult, rivals_step
+    assert RIVAL_MARGIN == 100.0
+    best = CandidateResult("yarn_compaction", "", True, score=5150.0, significant=True)
+    far = CandidateResult("yarn_extension", "", True, score=5000.0, significant=True)
+    weak = CandidateResult("bending_hysteresis", "", True, score=5140.0, significant=False)
+    fits = {"yarn_compaction": {}, "yarn_extension": {}}
+    assert rivals_step(None, [best], fits, print) == (fits, [])
+    assert rivals_step(None, [best, weak, far], fits, print) == (fits, [])
