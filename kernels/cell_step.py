@@ -421,6 +421,9 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
     is at -infinity and the same solves converge in 3 to 6 iterations.  Same equations, same
     root (the charts agree on their overlap); only the path of the iterates differs.
 
+    Each step is damped (|dz_i| <= 1, angle steps <= 0.3 rad) and backtracked (Armijo on |r|^2),
+    the backtracking starting from 4 times the step length accepted last (at most 1).
+
     Returns (z, q, status): the solution (or last admissible iterate) in the variables z, all
     quantities at it, and an inverse status code (0 converged).
     """
@@ -444,6 +447,7 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
             st = int(STATUS_NONFINITE)
         else:
             f = wp.dot(r, r)
+            lam_prev = wp.float64(1.0)
             while True:
                 if max_abs5(r) <= NEWTON_TOL:
                     st = int(STATUS_CONVERGED)
@@ -464,7 +468,9 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                 ma = wp.max(wp.abs(dz[1]), wp.abs(dz[3]))
                 if ma > _MAX_DANGLE:
                     dz = dz * (_MAX_DANGLE / ma)
-                lam = wp.float64(1.0)
+                # the backtracking starts at 4 times the last accepted step (at most 1): where the line
+                # search needs lambda = 1/32 iteration after iteration it tries 3 lengths, not 6
+                lam = wp.min(wp.float64(1.0), wp.float64(4.0) * lam_prev)
                 accepted = bool(False)
                 any_adm = bool(False)
                 any_nonfinite = bool(False)
@@ -490,6 +496,8 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                             any_nonfinite = True
                     lam = lam * wp.float64(0.5)
                 n += 1
+                if accepted:
+                    lam_prev = lam
                 if not accepted:
                     if not any_adm:
                         st = int(STATUS_DOMAIN)
