@@ -55,7 +55,10 @@ from .effects import (
     P_RATE_P, P_RATE_REF, _M_MAX, coiling_friction, compaction_ratio, dahl_bending_state, extension_ratio, has,
     normal_load_factor, velocity_factor,
 )
-from .elastica import PI, Dual, d_addc, d_const, d_exp, d_inv, d_scale, d_seed, d_sub, d_tan, elastica_ab, vec5d
+from .elastica import (
+    PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_inv, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt, d_sub,
+    d_tan, elastica_ab, vec5d,
+)
 from .head_gap import head_gap_dual, head_gap_value
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
@@ -142,6 +145,9 @@ NEWTON_TOL = wp.constant(wp.float64(1.0e-11))
 #: the moment at the apex ~ 1e-5 of its scale) the residuals' own rounding reaches 3e-11, above
 #: NEWTON_TOL, and a solve there stalled one ulp short and was halved down to failure.
 NEWTON_TOL_STALLED = wp.constant(wp.float64(1.0e-9))
+#: the Newton runs in the chart with ln G(0) in place of R/P when G(0) (theta'_C lambda)^2 / 2, of
+#: elastica BC, is below this at its start (:func:`newton`)
+G0_CHART = wp.constant(wp.float64(1.0e-2))
 #: at most this many events located per increment (as the reference)
 MAX_EVENT_LOOPS = wp.constant(12)
 #: guard on the sub-steps of one increment (the reference has none; it is never reached in practice)
@@ -338,11 +344,87 @@ def z_of(x: vec5d, q: vecQd):
 
 
 @wp.func
+def apex_g0(z: vec5d) -> wp.float64:
+    """G(0) = (theta'_C lambda)^2 / 2 of elastica BC (kernels.elastica: D + k1' (1 + cos beta)) at
+    the Newton variables z = (ln(alpha - gamma), beta, R/P, phi, ln P).
+
+    With sin(gamma) = -(R/P) cos(beta + phi) and k1' = cos(gamma) - (R/P) sin(beta + phi) (eq 7),
+    D + k1' (1 + cos beta) = cos a + cos gamma - (R/P) (sin(beta + phi) + sin phi)."""
+    bp = z[1] + z[3]
+    rc = z[2] * wp.cos(bp)
+    return wp.cos(wp.exp(z[0])) + wp.sqrt(wp.float64(1.0) - rc * rc) - z[2] * (wp.sin(bp) + wp.sin(z[3]))
+
+
+@wp.func
+def rho_of_g0(a: Dual, beta: Dual, w: Dual, phi: Dual):
+    """R/P of the state with G(0) = exp(w) (the inverse of apex_g0 at fixed a, beta, phi), as a Dual.
+
+    G(0) = cos a + sqrt(1 - rho^2 c^2) - rho s, c = cos(beta + phi), s = sin(beta + phi) + sin phi,
+    is a quadratic in rho once squared: with E = G(0) - cos a,
+    rho = (-E s + sgn(s) sqrt(s^2 + c^2 (1 - E^2))) / (s^2 + c^2), the root with
+    sqrt(1 - rho^2 c^2) = E + rho s >= 0.  Where E < 0 (G(0) < cos a: every state near the edge
+    G(0) = 0) it is the only root, rho s > 0, and dG(0)/drho = -(rho c^2 / cos gamma + s) never
+    vanishes: the chart is one to one there.  1 + E = G(0) + 2 sin^2(a/2) is formed without
+    cancellation (G(0) and a both tiny at the edge)."""
+    bp = d_add(beta, phi)
+    c = d_cos(bp)
+    s = d_add(d_sin(bp), d_sin(phi))
+    h = d_sin(d_scale(a, wp.float64(0.5)))
+    e1 = d_add(d_exp(w), d_scale(d_mul(h, h), wp.float64(2.0)))  # 1 + E
+    E = d_addc(e1, wp.float64(-1.0))
+    c2 = d_mul(c, c)
+    s2 = d_mul(s, s)
+    disc = d_add(s2, d_mul(c2, d_mul(e1, d_addc(d_neg(e1), wp.float64(2.0)))))  # s^2 + c^2 (1+E)(1-E)
+    root = d_sqrt(disc)
+    if s.v < wp.float64(0.0):
+        root = d_neg(root)
+    return d_div(d_sub(root, d_mul(E, s)), d_add(s2, c2))
+
+
+@wp.func
+def chart_to_zr(zc: vec5d, chart: int) -> vec5d:
+    """The Newton variables (ln(alpha - gamma), beta, R/P, phi, ln P) of a point of the chart
+    (chart 1: ln G(0) in place of R/P, see :func:`newton`)."""
+    z = zc
+    if chart != 0:
+        z[2] = rho_of_g0(d_const(wp.exp(zc[0])), d_const(zc[1]), d_const(zc[2]), d_const(zc[3])).v
+    return z
+
+
+@wp.func
+def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
+    """:func:`evaluate_zr` at a point of the chart, gradients with respect to the chart's variables."""
+    cell = CellEval()
+    if chart == 0:
+        cell = evaluate_zr(zc, B, d)
+    else:
+        a = d_exp(d_seed(zc[0], 0))
+        beta = d_seed(zc[1], 1)
+        phi = d_seed(zc[3], 3)
+        rho = rho_of_g0(a, beta, d_seed(zc[2], 2), phi)
+        cell = quarter_loop_rho(a, beta, rho, phi, d_exp(d_seed(zc[4], 4)), B, d)
+    return cell
+
+
+@wp.func
 def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
     """Per-cell Newton (the method of kernels.inverse.solve_conditions_kernel, in the
     variables z = (ln(alpha - gamma), beta, R/P, phi, ln P)).
 
-    Returns (z, q, status): the solution (or last admissible iterate), all
+    Near the edge G(0) = 0 of the domain (:func:`apex_g0`; theta' vanishes at the apex C, where
+    T > 0) the iteration runs in the chart (ln(alpha - gamma), beta, ln G(0), phi, ln P) instead
+    (:func:`rho_of_g0`), chosen at the start when G(0) < G0_CHART and G(0) < cos(alpha - gamma).
+    There the integrals of BC go as -(sqrt(B/T)/2) ln G(0) (L, s_BC, X_B, W: the near-straight
+    stretch at C), and G(0) is a small difference of O(1) terms: in R/P the residuals curve on a
+    scale of G(0) itself, and the line search crawled (steps of 1/32 to 1/2048, 60 iterations,
+    sub-steps halved to 1e-5 mm on the reloads S- -> SF+); with ln G(0) as a variable the edge
+    is at -infinity and the same solves converge in 3 to 6 iterations.  Same equations, same
+    root (the charts agree on their overlap); only the path of the iterates differs.
+
+    Each step is damped (|dz_i| <= 1, angle steps <= 0.3 rad) and backtracked (Armijo on |r|^2),
+    the backtracking starting from 4 times the step length accepted last (at most 1).
+
+    Returns (z, q, status): the solution (or last admissible iterate) in the variables z, all
     quantities at it, and an inverse status code (0 converged).
     """
     st = int(STATUS_MAX_ITER)
@@ -351,14 +433,21 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
     if not zr_admissible(z0):
         st = int(STATUS_DOMAIN)
     else:
-        cell = evaluate_zr(z, B, d)
-        r, J = residuals_ext(cell, z, codes, targets, dp, B, d)
+        chart = int(0)
+        g0 = apex_g0(z0)
+        if g0 < G0_CHART and g0 < wp.cos(wp.exp(z0[0])):
+            chart = int(1)
+            z[2] = wp.log(g0)
+        cell = evaluate_chart(z, chart, B, d)
+        zr = chart_to_zr(z, chart)
+        r, J = residuals_ext(cell, zr, codes, targets, dp, B, d)
         q = cell.q
         n = int(0)
         if not all_finite(r, J):
             st = int(STATUS_NONFINITE)
         else:
             f = wp.dot(r, r)
+            lam_prev = wp.float64(1.0)
             while True:
                 if max_abs5(r) <= NEWTON_TOL:
                     st = int(STATUS_CONVERGED)
@@ -379,20 +468,24 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                 ma = wp.max(wp.abs(dz[1]), wp.abs(dz[3]))
                 if ma > _MAX_DANGLE:
                     dz = dz * (_MAX_DANGLE / ma)
-                lam = wp.float64(1.0)
+                # the backtracking starts at 4 times the last accepted step (at most 1): where the line
+                # search needs lambda = 1/32 iteration after iteration it tries 3 lengths, not 6
+                lam = wp.min(wp.float64(1.0), wp.float64(4.0) * lam_prev)
                 accepted = bool(False)
                 any_adm = bool(False)
                 any_nonfinite = bool(False)
                 for k in range(_MAX_BACKTRACK):
                     zt = z + dz * lam
-                    if zr_admissible(zt):
+                    zrt = chart_to_zr(zt, chart)
+                    if zr_admissible(zrt):
                         any_adm = True
-                        ct = evaluate_zr(zt, B, d)
-                        rt, Jt = residuals_ext(ct, zt, codes, targets, dp, B, d)
+                        ct = evaluate_chart(zt, chart, B, d)
+                        rt, Jt = residuals_ext(ct, zrt, codes, targets, dp, B, d)
                         if all_finite(rt, Jt):
                             ft = wp.dot(rt, rt)
                             if ft <= (wp.float64(1.0) - wp.float64(2.0) * _ARMIJO * lam) * f:
                                 z = zt
+                                zr = zrt
                                 r = rt
                                 J = Jt
                                 f = ft
@@ -403,6 +496,8 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                             any_nonfinite = True
                     lam = lam * wp.float64(0.5)
                 n += 1
+                if accepted:
+                    lam_prev = lam
                 if not accepted:
                     if not any_adm:
                         st = int(STATUS_DOMAIN)
@@ -413,6 +508,7 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                     else:
                         st = int(STATUS_MAX_ITER)
                     break
+        z = zr
     return z, q, st
 
 
