@@ -145,11 +145,7 @@ def rest_state_problem(p: CellParams) -> str | None:
     from .inverse import continue_along, initial_state
 
     closing = 2.0 * p.C0 + p.W0 - 4.0 * p.d
-    try:
-        res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
-        ok = bool(res.success)
-    except (RuntimeError, KnitsimInputError):
-        res, ok = None, False
+    res, ok = _solve_rest_state(p)
     if not ok:
         res = None
         try:
@@ -240,6 +236,24 @@ def _rest_key(p: CellParams) -> tuple:
     return (p.B, p.d, p.L, p.W0, p.C0, p.phi0)
 
 
+def _solve_rest_state(p):
+    """Table 4's initial state of ``p`` by the NumPy inverse solve: ``(result, converged)``."""
+    from .inverse import initial_state
+    try:
+        res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
+        return res, bool(res.success)
+    except (RuntimeError, KnitsimInputError):
+        return None, False
+
+
+def _no_rest_reason(R: float | None) -> str:
+    """Why a cell has no rest state: its contact force R at rest pulls (R < 0), or no equilibrium (R None)."""
+    if R is not None and R < 0.0:
+        return (f"no rest state: the contact at B would pull (R = {R:.3g} N < 0 at rest): "
+                "the loop is too loose to press on its neighbour")
+    return "no rest state: Table 4's initial state (C0, W0, L, phi0) has no equilibrium of the quarter loop"
+
+
 def check_cells(params, engine: str = "warp", device: str = "cpu",
                 domain: ParameterDomain = DOMAIN) -> DomainCheck:
     """The domain of every cell, before any increment is solved (sweep planner, patch runs).
@@ -285,26 +299,11 @@ def check_cells(params, engine: str = "warp", device: str = "cpu",
         R = np.asarray(st.q.numpy()[:, CODE["R"]])
         # CellModel.state has set NO_REST_STATE where the solve failed or R < 0: a finite R < 0 says which
         for i in np.nonzero(status0 != STATUS_OK)[0]:
-            if np.isfinite(R[i]) and R[i] < 0.0:
-                why_u[i] = (f"no rest state: the contact at B would pull (R = {R[i]:.3g} N < 0 at rest): "
-                            "the loop is too loose to press on its neighbour")
-            else:
-                why_u[i] = ("no rest state: Table 4's initial state (C0, W0, L, phi0) has no equilibrium of the "
-                            "quarter loop")
+            why_u[i] = _no_rest_reason(float(R[i]) if np.isfinite(R[i]) else None)
     elif first:
-        from .inverse import initial_state
-
         for i, p in enumerate(first):
-            try:
-                res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
-                ok = bool(res.success)
-            except (RuntimeError, KnitsimInputError):
-                res, ok = None, False
-            if not ok:
-                why_u[i] = ("no rest state: Table 4's initial state (C0, W0, L, phi0) has no equilibrium of the "
-                            "quarter loop")
-            elif float(res.state.R) < 0.0:
-                why_u[i] = (f"no rest state: the contact at B would pull (R = {float(res.state.R):.3g} N < 0 at "
-                            "rest): the loop is too loose to press on its neighbour")
+            res, ok = _solve_rest_state(p)
+            if not ok or float(res.state.R) < 0.0:
+                why_u[i] = _no_rest_reason(float(res.state.R) if ok else None)
     no_rest = [why_u[keys[_rest_key(p)]] for p in params]
     return DomainCheck(outside, no_rest)
