@@ -274,6 +274,45 @@ def _user_metadata(metadata) -> dict:
 
 # --------------------------------------------------------------------------- writer
 
+def _new_stage(path: str, time_codes, time_codes_per_second: float):
+    """A new stage at ``path`` (replacing a file there), in mm with z up, spanning ``time_codes``; returns
+    ``(stage, root Xform)``, the root the default prim."""
+    from pxr import Usd, UsdGeom
+    if os.path.exists(path):
+        os.remove(path)  # CreateNew refuses an existing layer
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.001)   # lengths in mm
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    stage.SetStartTimeCode(time_codes[0])
+    stage.SetEndTimeCode(time_codes[-1])
+    stage.SetTimeCodesPerSecond(float(time_codes_per_second))
+    root = UsdGeom.Xform.Define(stage, ROOT_PATH)
+    stage.SetDefaultPrim(root.GetPrim())
+    return stage, root
+
+
+def _write_frame_scalars(root, scalars: Mapping, time_codes) -> None:
+    """One time-sampled double attribute ``knitsim:<name>`` on ``root`` per scalar (one value per time code)."""
+    from pxr import Sdf
+    for name, v in scalars.items():
+        sa = root.GetPrim().CreateAttribute(FIELD_PREFIX + name, Sdf.ValueTypeNames.Double)
+        for tc, val in zip(time_codes, v):
+            sa.Set(float(val), tc)
+
+
+def _define_curve(stage, path: str, curve_basis: str):
+    """A BasisCurves prim at ``path``: linear, or cubic of ``curve_basis`` pinned at its ends."""
+    from pxr import UsdGeom
+    c = UsdGeom.BasisCurves.Define(stage, path)
+    if curve_basis == "linear":
+        c.CreateTypeAttr(UsdGeom.Tokens.linear)
+    else:
+        c.CreateTypeAttr(UsdGeom.Tokens.cubic)
+        c.CreateBasisAttr(getattr(UsdGeom.Tokens, curve_basis))
+        c.CreateWrapAttr(UsdGeom.Tokens.pinned)
+    return c
+
+
 def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None = "stage", stride: int = 1,
                     scene_text: str | None = None, metadata: Mapping | None = None,
                     color_range: tuple[float, float] | None = None, field_units: Mapping[str, str] | None = None,
@@ -333,7 +372,7 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
     -------
     UsdExportResult
     """
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+    from pxr import Gf, Sdf, UsdGeom, Vt
 
     t_start = _time.perf_counter()
     path = os.fspath(path)
@@ -390,16 +429,7 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
                                     f"got shape {v.shape}")
         scalars[str(name)] = v[sel]
 
-    if os.path.exists(path):
-        os.remove(path)  # CreateNew refuses an existing layer
-    stage = Usd.Stage.CreateNew(path)
-    UsdGeom.SetStageMetersPerUnit(stage, 0.001)   # lengths in mm
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    stage.SetStartTimeCode(time_codes[0])
-    stage.SetEndTimeCode(time_codes[-1])
-    stage.SetTimeCodesPerSecond(float(time_codes_per_second))
-    root = UsdGeom.Xform.Define(stage, ROOT_PATH)
-    stage.SetDefaultPrim(root.GetPrim())
+    stage, root = _new_stage(path, time_codes, time_codes_per_second)
     UsdGeom.Scope.Define(stage, YARNS_PATH)
     times = [fr.get("time") for fr in checked]
     if all(t is not None for t in times):
@@ -407,22 +437,13 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         for tc, t in zip(time_codes, times):
             ta.Set(t, tc)
 
-    for name, v in scalars.items():
-        sa = root.GetPrim().CreateAttribute(FIELD_PREFIX + name, Sdf.ValueTypeNames.Double)
-        for tc, val in zip(time_codes, v):
-            sa.Set(float(val), tc)
+    _write_frame_scalars(root, scalars, time_codes)
 
     palette = Vt.Vec3fArray.FromNumpy(coloring.palette.astype(np.float32))
     field_names = sorted(checked[0]["fields"])
     curves, field_pvs, color_pvs, stage_pvs = [], [], [], []
     for i in range(courses):
-        c = UsdGeom.BasisCurves.Define(stage, f"{YARNS_PATH}/{COURSE_PRIM_FORMAT.format(i)}")
-        if curve_basis == "linear":
-            c.CreateTypeAttr(UsdGeom.Tokens.linear)
-        else:
-            c.CreateTypeAttr(UsdGeom.Tokens.cubic)
-            c.CreateBasisAttr(getattr(UsdGeom.Tokens, curve_basis))
-            c.CreateWrapAttr(UsdGeom.Tokens.pinned)
+        c = _define_curve(stage, f"{YARNS_PATH}/{COURSE_PRIM_FORMAT.format(i)}", curve_basis)
         c.CreateCurveVertexCountsAttr(Vt.IntArray([m_verts]))
         c.CreateWidthsAttr(Vt.FloatArray.FromNumpy(dd[i, vcell].astype(np.float32)))
         c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)

@@ -381,46 +381,26 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
     instanced = resolve_layout(rec, layout) == "instanced"
     pf = build_frames(rec, stride, n_points, device, per_group=instanced)
     courses, wales = rec.shape
+    geometry = "quarter centreline from the elastica state (kernels/centreline.py, eqs 8-9)"
+    md = {"source": rec.source, **({"bands": courses, "strips": wales} if instanced else
+                                   {"courses": courses, "wales": wales}),
+          "points_per_quarter": int(n_points), "stride": int(stride), "frames_in_run": rec.n_frames,
+          "fallback_cells": ",".join(str(c) for c in pf.fallback_cells),
+          "geometry": geometry + (", one stitch shape per distinct cell, instanced over the stitches of its "
+                                  "blocks" if instanced else "")}
+    md.update(metadata or {})
+    common = dict(color_by=COLOR_FIELDS[color_by], scene_text=rec.scene_text, metadata=md, field_units=FIELD_UNITS,
+                  curve_basis=curve_basis, frame_indices=pf.frame_indices, frame_scalars=pf.frame_scalars)
     if instanced:
-        return _export_specimen(rec, pf, out_path, color_by=color_by, stride=stride, n_points=n_points,
-                                quicklook=quicklook, curve_basis=curve_basis, metadata=metadata)
-    md = {"source": rec.source, "courses": courses, "wales": wales, "points_per_quarter": int(n_points),
-          "stride": int(stride), "frames_in_run": rec.n_frames,
-          "fallback_cells": ",".join(str(c) for c in pf.fallback_cells),
-          "geometry": "quarter centreline from the elastica state (kernels/centreline.py, eqs 8-9)"}
-    md.update(metadata or {})
-    res = write_patch_usd(out_path, pf.frames, pf.d, material_id=pf.material_id, color_by=COLOR_FIELDS[color_by],
-                          stride=1, scene_text=rec.scene_text, metadata=md, field_units=FIELD_UNITS,
-                          curve_basis=curve_basis, frame_indices=pf.frame_indices,
-                          frame_scalars=pf.frame_scalars)
-    res.geometry_seconds = pf.seconds_geometry
-    res.fallback_cells = pf.fallback_cells
-    if quicklook is not None:
-        render_quicklook(out_path, quicklook)
-    return res
-
-
-def _export_specimen(rec: PatchRecord, pf: PatchFrames, out_path, *, color_by, stride, n_points, quicklook,
-                     curve_basis, metadata):
-    """A specimen's record as an instanced stage (:mod:`knitsim.usd.instanced`)."""
-    from .instanced import write_specimen_usd
-    from .quicklook import render_quicklook
-    goc = rec.group_of_cell
-    _, rep = np.unique(goc.ravel(), return_index=True)
-    shape = rec.shape
-    cc = np.ones(shape) if rec.course_count is None else rec.course_count
-    wc = np.ones(shape) if rec.wale_count is None else rec.wale_count
-    md = {"source": rec.source, "bands": shape[0], "strips": shape[1], "points_per_quarter": int(n_points),
-          "stride": int(stride), "frames_in_run": rec.n_frames,
-          "fallback_cells": ",".join(str(c) for c in pf.fallback_cells),
-          "geometry": "quarter centreline from the elastica state (kernels/centreline.py, eqs 8-9), one stitch "
-                      "shape per distinct cell, instanced over the stitches of its blocks"}
-    md.update(metadata or {})
-    res = write_specimen_usd(out_path, pf.frames, np.asarray(rec.params["d"], float).ravel()[rep], goc, cc, wc,
-                             material_id_group=pf.material_id.ravel()[rep], color_by=COLOR_FIELDS[color_by],
-                             scene_text=rec.scene_text, metadata=md, field_units=FIELD_UNITS,
-                             curve_basis=curve_basis, frame_indices=pf.frame_indices,
-                             frame_scalars=pf.frame_scalars)
+        from .instanced import write_specimen_usd
+        _, rep = np.unique(rec.group_of_cell.ravel(), return_index=True)
+        ones = np.ones(rec.shape)
+        res = write_specimen_usd(out_path, pf.frames, np.asarray(rec.params["d"], float).ravel()[rep],
+                                 rec.group_of_cell, ones if rec.course_count is None else rec.course_count,
+                                 ones if rec.wale_count is None else rec.wale_count,
+                                 material_id_group=pf.material_id.ravel()[rep], **common)
+    else:
+        res = write_patch_usd(out_path, pf.frames, pf.d, material_id=pf.material_id, stride=1, **common)
     res.geometry_seconds = pf.seconds_geometry
     res.fallback_cells = pf.fallback_cells
     if quicklook is not None:

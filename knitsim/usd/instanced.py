@@ -150,10 +150,10 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
     UsdExportResult
         With ``stitches`` and ``prototypes`` set.
     """
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+    from pxr import Gf, Sdf, UsdGeom, Vt
 
-    from .export import (CURVE_BASES, FIELD_PREFIX, ROOT_PATH, STAGE_LABELS, UsdExportResult, _coloring,
-                         _user_metadata, _vt_strings)
+    from .export import (CURVE_BASES, FIELD_PREFIX, STAGE_LABELS, UsdExportResult, _coloring, _define_curve,
+                         _new_stage, _user_metadata, _vt_strings, _write_frame_scalars)
     t_start = _time.perf_counter()
     path = os.fspath(path)
     if os.path.splitext(path)[1].lower() not in (".usda", ".usdc", ".usd"):
@@ -180,35 +180,19 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
     if len(time_codes) != len(frames) or np.any(np.diff(time_codes) <= 0):
         raise KnitsimInputError(f"frame_indices must be {len(frames)} increasing integers, got {frame_indices!r}")
 
-    if os.path.exists(path):
-        os.remove(path)
-    stage = Usd.Stage.CreateNew(path)
-    UsdGeom.SetStageMetersPerUnit(stage, 0.001)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    stage.SetStartTimeCode(time_codes[0])
-    stage.SetEndTimeCode(time_codes[-1])
-    stage.SetTimeCodesPerSecond(float(time_codes_per_second))
-    root = UsdGeom.Xform.Define(stage, ROOT_PATH)
-    stage.SetDefaultPrim(root.GetPrim())
-    for name, vals in (frame_scalars or {}).items():
-        v = np.asarray(vals, float)
+    scalars = {str(name): np.asarray(vals, float) for name, vals in (frame_scalars or {}).items()}
+    for name, v in scalars.items():
         if v.shape != (len(frames),):
             raise KnitsimInputError(f"frame_scalars[{name!r}] must have one value per frame ({len(frames)})")
-        sa = root.GetPrim().CreateAttribute(FIELD_PREFIX + name, Sdf.ValueTypeNames.Double)
-        for tc, val in zip(time_codes, v):
-            sa.Set(float(val), tc)
+
+    stage, root = _new_stage(path, time_codes, time_codes_per_second)
+    _write_frame_scalars(root, scalars, time_codes)
 
     inst = UsdGeom.PointInstancer.Define(stage, INSTANCER_PATH)
     field_names = sorted(frames[0]["fields"])
     protos, field_pvs, color_pvs = [], [], []
     for g in range(G):
-        c = UsdGeom.BasisCurves.Define(stage, f"{PROTOTYPES_PATH}/{PROTOTYPE_FORMAT.format(g)}")
-        if curve_basis == "linear":
-            c.CreateTypeAttr(UsdGeom.Tokens.linear)
-        else:
-            c.CreateTypeAttr(UsdGeom.Tokens.cubic)
-            c.CreateBasisAttr(getattr(UsdGeom.Tokens, curve_basis))
-            c.CreateWrapAttr(UsdGeom.Tokens.pinned)
+        c = _define_curve(stage, f"{PROTOTYPES_PATH}/{PROTOTYPE_FORMAT.format(g)}", curve_basis)
         c.CreateCurveVertexCountsAttr(Vt.IntArray([yg.vertices_per_cell(n) + 1]))
         c.CreateWidthsAttr(Vt.FloatArray([float(d_group[g])]))
         c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
