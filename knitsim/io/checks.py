@@ -12,7 +12,8 @@ and printed by the commands:
 ``heads_interpenetrate``
     States where the centreline gap between the heads of neighbouring loops of a
     course is below the yarn's in-plane width: the loops pass through each other
-    (W = 4 d jams later than contact would; ``jamming_criterion = "head_gap"``).
+    (W = 4 d does not stop the heads at contact, on loading or, as in the calibrated
+    specimen, on unloading; ``jamming_criterion = "head_gap"`` does).
 """
 from __future__ import annotations
 
@@ -84,7 +85,7 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
 
 
 def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,
-                     what: str = "cell") -> list[ResultWarning]:
+                     what: str = "cell", direction: np.ndarray | None = None) -> list[ResultWarning]:
     """A warning when any state's heads overlap.
 
     Parameters
@@ -99,6 +100,8 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
         The cells' in-plane widths [mm].
     what : str
         What the k columns are, for the message.
+    direction : ndarray, shape [n], optional
+        +1 loading, -1 unloading: the message says on which branches the heads overlap.
     """
     flags = np.asarray(flags) > 0
     if flags.ndim == 1:
@@ -110,9 +113,16 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
     cols = np.nonzero(flags.any(axis=0))[0]
     with np.errstate(invalid="ignore"):
         depth = np.where(flags, np.broadcast_to(np.asarray(d_jam, float), flags.shape) - np.asarray(gap, float), 0.0)
+    e = np.asarray(strain, float)[rows]
+    branch = ""
+    if direction is not None:
+        dirs = set(np.sign(np.asarray(direction)[rows]).astype(int).tolist())
+        branch = {frozenset({1}): " while loading", frozenset({-1}): " while unloading"}.get(
+            frozenset(dirs), " while loading and unloading")
     return [ResultWarning(
         "heads_interpenetrate",
         f"the heads of neighbouring loops overlap (centreline gap below the in-plane width) from strain "
-        f"{float(np.asarray(strain)[rows[0]]):.4g} on, in {len(rows)} of {flags.shape[0]} increments and "
-        f"{len(cols)} {what}(s), by up to {float(np.nanmax(depth)):.3g} mm: W = 4 d jams later than contact "
-        f"would (jamming_criterion = \"head_gap\" jams at the contact)")]
+        f"{float(e[0]):.4g} on{branch}, at strains {float(e.min()):.4g} to {float(e.max()):.4g}, in {len(rows)} "
+        f"of {flags.shape[0]} increments and {len(cols)} {what}(s), by up to {float(np.nanmax(depth)):.3g} mm: "
+        f"the jamming criterion lets the heads pass through each other (jamming_criterion = \"head_gap\" "
+        f"stops them at contact)")]

@@ -368,7 +368,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
     if "interpenetrating" in h.groups:
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
-                                     what="distinct cell")
+                                     what="distinct cell", direction=h.direction)
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
     out = dict(info)
@@ -413,16 +413,26 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout | None = None) -> bytes:
-    """PNG: force vs grip strain (cycles coloured), non-converged increments marked: the force per wale of a
-    patch of single stitches, the total force on a specimen (what a tester reports)."""
+def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout | None = None,
+                      warnings: list | None = None) -> bytes:
+    """PNG: force vs grip strain (cycles coloured), non-converged increments and increments where the
+    heads of neighbouring loops overlap marked: the force per wale of a patch of single stitches, the
+    total force on a specimen (what a tester reports).  ``warnings`` (the summary's, dicts with a
+    ``message``) are printed under the axes, so that the figure never looks cleaner than the run."""
+    import textwrap
+
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     layout = layout or _layout_of(h, None)
     F = h.force_N if layout.blocks else h.force_per_wale_N
-    fig = Figure(figsize=(7.5, 5), dpi=110)
+    lines = [ln for w in (warnings or []) for ln in textwrap.wrap("warning: " + w["message"], 120)]
+    fig = Figure(figsize=(7.5, 5 + 0.16 * len(lines)), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
+    if lines:
+        bottom = (0.55 + 0.16 * len(lines)) / (5 + 0.16 * len(lines))
+        fig.subplots_adjust(bottom=bottom)
+        fig.text(0.02, 0.01, "\n".join(lines), fontsize=6.5, color="#b22222", va="bottom", ha="left")
     for k in np.unique(h.cycle):
         r = np.nonzero(h.cycle == k)[0]
         if r[0] > 0:
@@ -432,6 +442,11 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
     if bad.any():
         ax.scatter(h.grip_strain[bad], F[bad], marker="x", color="red", zorder=3,
                    label="column not converged / stopped")
+    if "interpenetrating" in h.groups:
+        over = np.any(np.asarray(h.groups["interpenetrating"]) > 0, axis=1)
+        if over.any():
+            ax.scatter(h.grip_strain[over], F[over], marker="o", s=9, color="darkorange", zorder=3,
+                       label="heads of neighbouring loops overlap")
     if layout.blocks:
         ax.set_xlabel("grip strain (grip displacement / gauge length)")
         ax.set_ylabel(f"total force on the {layout.width_mm:.4g} mm wide specimen [N]")
@@ -447,42 +462,62 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
     return _png(fig)
 
 
+def map_rows(h: PatchHistory) -> list[int]:
+    """Increments a map shows: the last cycle's largest grip strain (where a tensile test jams) and the
+    end of the run, or the end alone where they coincide."""
+    if h.n_increments == 0:
+        return []
+    last = np.nonzero(h.cycle == h.cycle[-1])[0]
+    peak = int(last[np.argmax(h.grip_strain[last])])
+    end = h.n_increments - 1
+    return [end] if peak == end else [peak, end]
+
+
 def plot_map(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayout | None = None) -> bytes:
-    """PNG of the final per-cell ``strain`` or ``stage`` map (courses upward, wales across; a specimen's
-    blocks drawn at their rest size in mm)."""
+    """PNG of the per-cell ``strain`` or ``stage`` map at the last cycle's peak grip strain and at the end
+    (:func:`map_rows`; courses upward, wales across; a specimen's blocks drawn at their rest size in mm)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize
     from matplotlib.figure import Figure
     layout = layout or _layout_of(h, None)
-    fig = Figure(figsize=(6, 6.5), dpi=100)
+    rows = map_rows(h)
+    field = h.cell_field(which if which == "strain" else "label")
+    fig = Figure(figsize=(1.0 + 4.6 * max(len(rows), 1), 6.5), dpi=100)
     FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    data = h.cell_field(which if which == "strain" else "label")[-1]
-    if layout.blocks:
-        xe = np.concatenate([[0.0], np.cumsum(layout.strip_width_mm)])
-        ye = np.concatenate([[0.0], np.cumsum(layout.band_length_mm)])
-
-        def show(**kw):
-            return ax.pcolormesh(xe, ye, data, shading="flat", **kw)
-    else:
-        def show(**kw):
-            return ax.imshow(data, origin="lower", aspect="auto", interpolation="nearest", **kw)
+    axes = fig.subplots(1, max(len(rows), 1), squeeze=False)[0]
     if which == "strain":
-        im = show(cmap="viridis")
-        fig.colorbar(im, ax=ax, label="strain of the course length (C - C0)/C0")
+        vals = field[rows] if rows else np.zeros((1,) + tuple(h.shape))
+        finite = vals[np.isfinite(vals)]
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        if hi - lo < 1e-9 * max(1.0, abs(hi)):
+            lo, hi = lo - 0.01, hi + 0.01
+        style = {"cmap": "viridis", "norm": Normalize(lo, hi)}
     else:
-        names = [_LABELS[k] for k in sorted(_LABELS)]
-        cmap = ListedColormap(["#1f77b4", "#2ca02c", "#d62728", "#7f7f7f"])
-        im = show(cmap=cmap, norm=BoundaryNorm(np.arange(-0.5, 4.5), 4))
-        cb = fig.colorbar(im, ax=ax, ticks=range(4))
-        cb.ax.set_yticklabels(names)
-    if layout.blocks:
-        ax.set_xlabel(f"across the width [mm] ({h.shape[1]} strip{'s' * (h.shape[1] != 1)})")
-        ax.set_ylabel(f"from the lower grip, at rest [mm] ({h.shape[0]} band{'s' * (h.shape[0] != 1)})")
-    else:
-        ax.set_xlabel("wale")
-        ax.set_ylabel("course")
-    ax.set_title(title or f"final {which} (grip strain {h.grip_strain[-1]:.3g})", fontsize=10)
+        style = {"cmap": ListedColormap(["#1f77b4", "#2ca02c", "#d62728", "#7f7f7f"]),
+                 "norm": BoundaryNorm(np.arange(-0.5, 4.5), 4)}
+    im = None
+    for ax, r in zip(axes, rows):
+        data = field[r]
+        if layout.blocks:
+            xe = np.concatenate([[0.0], np.cumsum(layout.strip_width_mm)])
+            ye = np.concatenate([[0.0], np.cumsum(layout.band_length_mm)])
+            im = ax.pcolormesh(xe, ye, data, shading="flat", **style)
+            ax.set_xlabel(f"across the width [mm] ({h.shape[1]} strip{'s' * (h.shape[1] != 1)})")
+            ax.set_ylabel(f"from the lower grip, at rest [mm] ({h.shape[0]} band{'s' * (h.shape[0] != 1)})")
+        else:
+            im = ax.imshow(data, origin="lower", aspect="auto", interpolation="nearest", **style)
+            ax.set_xlabel("wale")
+            ax.set_ylabel("course")
+        when = "end" if r == h.n_increments - 1 else f"cycle {int(h.cycle[r])} peak"
+        ax.set_title(f"{which} at the {when} (grip strain {h.grip_strain[r]:.3g})", fontsize=10)
+    if im is not None:
+        if which == "strain":
+            fig.colorbar(im, ax=list(axes), label="strain of the course length (C - C0)/C0")
+        else:
+            cb = fig.colorbar(im, ax=list(axes), ticks=range(4))
+            cb.ax.set_yticklabels([_LABELS[k] for k in sorted(_LABELS)])
+    if title:
+        fig.suptitle(title, fontsize=10)
     return _png(fig)
 
 
@@ -501,7 +536,7 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
     if cell_fields:
         files["cells.nc"] = cells_nc(h, fields, layout)
     if plot:
-        files["force_strain.png"] = plot_force_strain(h, title, layout)
+        files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"))
         files["strain_map.png"] = plot_map(h, "strain", layout=layout)
         files["stage_map.png"] = plot_map(h, "stage", layout=layout)
     files["summary.json"] = summary_json(summary).encode()

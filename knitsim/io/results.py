@@ -265,7 +265,7 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out])
     if "interpenetrating" in h.values:
         warnings += interpenetration(h.strain[:n_ok], h.values["interpenetrating"][:n_ok, cell],
-                                     h.values["head_gap"][:n_ok, cell], p.d_jam)
+                                     h.values["head_gap"][:n_ok, cell], p.d_jam, direction=h.direction[:n_ok])
     return {
         "cell": cell, "label": label,
         "params": {k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v)

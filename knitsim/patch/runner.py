@@ -277,7 +277,8 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             "wales_represented": float(np.sum(col_wales)),
             "n_groups": grouping.n_groups, "n_column_classes": grouping.n_classes,
             "ref_length_mm": solver.ref_length, "resumed_from": start,
-            "rest_grip_strain": -model.grip_offset, "pretension": model.pretension,
+            "rest_grip_strain": 0.0 - model.grip_offset,  # 0.0 - : no "-0.0" without pretension
+            "pretension": model.pretension,
             "trial_steps": int(arr["column_iterations"].max(axis=1).sum()) if n else 0}
     # grip strain from the tester's origin (a pretensioned specimen: negative while it is pretensioned)
     grip = np.asarray(program.strain) - model.grip_offset if model.pretension else np.asarray(program.strain)

@@ -402,7 +402,7 @@ def run(increment: float = 0.01, device: str = "cpu", names=None, progress=None)
                    f"(missed: {'; '.join(f'{k}: {v}' for k, v in best.misses.items()) or 'an implausible value'})")
     if math.isfinite(best.scalars["heads_overlap_from_strain"]):
         verdict += (f". Its heads interpenetrate from strain {best.scalars['heads_overlap_from_strain']:.3g} "
-                    f"(by up to {best.scalars['max_overlap_mm']:.3g} mm): W = 4 w jams later than contact would")
+                    f"(by up to {best.scalars['max_overlap_mm']:.3g} mm): the W = 4 w criterion does not stop the heads at contact")
     jammed = [f for f in fits if f.scalars["peak_cycle_1_N"] > 1.0]
     if jammed and all(abs(f.scalars["peak_cycle_2_N"] - f.scalars["peak_cycle_1_N"])
                       <= 0.05 * f.scalars["peak_cycle_1_N"] for f in jammed):

@@ -39,6 +39,12 @@ def test_interpenetration_message_names_first_strain_and_depth():
     assert w.code == "heads_interpenetrate"
     assert "from strain 0.3 on" in w.message and "in 1 of 4 increments" in w.message
     assert "by up to 0.03 mm" in w.message             # 0.58 - 0.55
+    # the branches, from the hand-made directions: rows 2 (unloading) and 3 (loading) overlap
+    flags2 = gap < 0.62
+    (w,) = interpenetration(strain, flags2, gap, 0.62, direction=np.array([1, 1, -1, 1]))
+    assert "while loading and unloading" in w.message and "at strains 0.3 to 0.4" in w.message
+    (w,) = interpenetration(strain, flags, gap, 0.58, direction=np.array([1, 1, -1, 1]))
+    assert "from strain 0.3 on while unloading" in w.message
 
 
 def test_summaries_flag_the_paper_cell_and_not_the_contact_criterion():
