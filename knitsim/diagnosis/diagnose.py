@@ -835,10 +835,10 @@ def _forces(curves, cells, h: float, device: str) -> tuple[list, list]:
     programs, rows, groups = _replay_programs(curves, h)
     out = [None] * len(curves)
     for g in groups:
-        # one cell at a time: the cells may carry different effects
-        hists = [run_batch([c], programs[g[0]], device=device) for c in cells]
+        # one batch: run_batch groups cells of different effects by kernel key (same results as one by one)
+        hist = run_batch(list(cells), programs[g[0]], device=device)
         for i in g:
-            out[i] = np.stack([force_at_rows(hh, rows[i], 0)[0] for hh in hists], axis=1)
+            out[i] = np.stack([force_at_rows(hist, rows[i], j)[0] for j in range(len(cells))], axis=1)
     return out, [len(p) for p in programs]
 
 
