@@ -121,7 +121,17 @@ def main(argv=None):
     clock = "wall_s" if cuda else "cpu_s"
     sizes = [] if a.no_batch else (a.batch_sizes or ([2000, 10**6, 10**7] if cuda else [2000]))
     full = cycles(0.10, 0.60, 3, max_increment=0.01)
-    rows = []
+
+    class Rows(list):
+        # each row is printed as it is measured (a run stopped at a time limit keeps what it had)
+        def append(self, r):
+            super().append(r)
+            print("measured:", json.dumps(r), flush=True)
+            if a.json:
+                with open(a.json, "w") as f:
+                    json.dump({"device": device, "rows": list(self), "complete": False}, f, indent=2)
+
+    rows = Rows()
 
     # --- build
     arr = random_arrays(10**6)
@@ -178,7 +188,7 @@ def main(argv=None):
               f"{r.get('speedup_vs_generic', math.nan):>9.2f} {r.get('mean_trials_per_increment', math.nan):>7.2f}")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"device": device, "rows": rows}, f, indent=2)
+            json.dump({"device": device, "rows": list(rows), "complete": True}, f, indent=2)
 
 
 if __name__ == "__main__":

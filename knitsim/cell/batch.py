@@ -199,6 +199,8 @@ class CellModel:
                 cache[specialise] = [
                     (_kernel_module(key), wp.zeros(0, dtype=wp.int32, device=self.device) if len(groups) == 1
                      else wp.array(idx, dtype=wp.int32, device=self.device)) for key, idx in groups]
+                # a cold cache compiles the groups' modules together rather than one per first launch
+                warp_runtime.preload([m for m, _ in cache[specialise]], self.device)
         return cache[specialise]
 
     @classmethod
