@@ -108,7 +108,7 @@ def main(argv=None):
     ap.add_argument("--no-generic", action="store_true", help="skip the generic-kernel rows")
     ap.add_argument("--no-batch", action="store_true", help="skip the batch rows")
     ap.add_argument("--stride", type=int, default=10, help="history rows recorded every STRIDE increments")
-    ap.add_argument("--patch-size", default=None, help="WALESxCOURSES of the random patch (default 1000x1000 on CUDA, none on CPU)")
+    ap.add_argument("--patch-size", default=None, help="WALESxCOURSES of the random patch, or none (default 1000x1000 on CUDA, none on CPU)")
     ap.add_argument("--patch-increments", type=int, default=62)
     ap.add_argument("--no-specimen", action="store_true")
     ap.add_argument("--specimen-increments", type=int, default=0, help="time only the first K specimen increments (0: all 620)")
@@ -169,7 +169,7 @@ def main(argv=None):
 
     # --- a large random patch
     psize = a.patch_size or ("1000x1000" if cuda else None)
-    if psize:
+    if psize and psize.lower() != "none":
         wales, courses = (int(v) for v in psize.lower().split("x"))
         pm, _ = patch_model("random-phi0", wales, courses)
         prog = prefix(cycles(0.10, 0.60, 3, 0.005), a.patch_increments)
