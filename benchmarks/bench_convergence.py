@@ -15,6 +15,7 @@ paper's program (3 cycles 0.10-0.60, Dusserre 2015 section 2.3, increment
     python benchmarks/bench_convergence.py --cells 10000               # CPU
     python benchmarks/bench_convergence.py --device cuda --cells 1000000
     python benchmarks/bench_convergence.py --no-sweeps --cells 2000 --failures fails.json
+    python benchmarks/bench_convergence.py --no-sweeps --cells 1000000 --chunk 5000 --jobs 16 --store conv_chunks
 """
 from __future__ import annotations
 
@@ -91,35 +92,83 @@ def run_states(cells: list, program, device: str) -> dict:
             "finite": np.all(np.isfinite(x), axis=1), "first_bad_increment": first_bad}
 
 
-def bench_random(n: int, seed: int, device: str, increment: float, chunk: int) -> dict:
+def run_chunk(n: int, seed: int, device: str, increment: float, chunk: int, start: int) -> dict:
+    """The counts of one chunk of random cells (cells start .. start + chunk of the seed's stream)."""
+    from knitsim import warp_runtime
     from knitsim.cell.history import STATUS_NAMES
     from knitsim.cell.load_program import cycles
     from knitsim.cell.stages import Stage, stage_label
 
+    warp_runtime.init()
     prog = cycles(0.10, 0.60, 3, max_increment=increment)
-    counts = collections.Counter()
-    where = collections.Counter()
-    failures = []
-    nan = 0
+    cells = random_domain_cells(min(chunk, n - start), seed=seed * 1_000_003 + start // chunk)
+    t0 = time.process_time()
+    r = run_states(cells, prog, device)
+    counts, where, failures = collections.Counter(), collections.Counter(), []
+    for k, s in enumerate(r["status"]):
+        name = STATUS_NAMES.get(int(s), str(s))
+        counts[name] += 1
+        if name not in ("ok", "force_cap"):
+            lab = stage_label(Stage(int(r["stage"][k])), bool(r["jammed"][k]))
+            inc = int(r["first_bad_increment"][k])
+            dirn = "rest" if inc == 0 else ("load" if prog.direction[max(inc - 1, 0)] > 0 else "unload")
+            where[f"{name} at {lab} ({dirn})"] += 1
+            failures.append({"index": start + k, "status": name, "stage": lab, "direction": dirn,
+                             "increment_by": inc, **cells[k].as_dict()})
+    return {"start": start, "cells": len(cells), "increments": len(prog), "counts": dict(counts),
+            "nan": int((~r["finite"]).sum()), "where": dict(where), "failures": failures,
+            "cpu_s": time.process_time() - t0}
+
+
+def bench_random(n: int, seed: int, device: str, increment: float, chunk: int, jobs: int = 1,
+                 store: Path | None = None) -> dict:
+    """Counts over N random cells, in chunks; with ``jobs`` > 1 the chunks run in worker processes
+    (Warp's CPU backend runs a launch on one thread); with ``store`` each finished chunk is kept
+    there as JSON and a re-run with the same arguments only runs the chunks still missing."""
+    import concurrent.futures
+    import multiprocessing
+
+    starts = list(range(0, n, chunk))
+    done = {}
+    if store is not None:
+        store.mkdir(parents=True, exist_ok=True)
+        key = lambda st: store / f"seed{seed}_incr{increment:g}_chunk{chunk}_n{n}_start{st}.json"  # noqa: E731
+        for st in starts:
+            if key(st).exists():
+                done[st] = json.loads(key(st).read_text())
+    todo = [st for st in starts if st not in done]
     t0 = time.perf_counter()
-    for start in range(0, n, chunk):
-        cells = random_domain_cells(min(chunk, n - start), seed=seed * 1_000_003 + start // chunk)
-        r = run_states(cells, prog, device)
-        nan += int((~r["finite"]).sum())
-        for k, s in enumerate(r["status"]):
-            name = STATUS_NAMES.get(int(s), str(s))
-            counts[name] += 1
-            if name not in ("ok", "force_cap"):
-                lab = stage_label(Stage(int(r["stage"][k])), bool(r["jammed"][k]))
-                inc = int(r["first_bad_increment"][k])
-                dirn = "rest" if inc == 0 else ("load" if prog.direction[max(inc - 1, 0)] > 0 else "unload")
-                where[f"{name} at {lab} ({dirn})"] += 1
-                failures.append({"index": start + k, "status": name, "stage": lab, "direction": dirn,
-                                 "increment_by": inc, **cells[k].as_dict()})
+
+    def keep(res):
+        done[res["start"]] = res
+        if store is not None:
+            tmp = key(res["start"]).with_suffix(".tmp")
+            tmp.write_text(json.dumps(res))
+            tmp.replace(key(res["start"]))
+        print(f"  chunk at {res['start']}: {res['cells']} cells, {res['counts']}, {res['cpu_s']:.0f} CPU s "
+              f"({len(done)}/{len(starts)} chunks)", file=sys.stderr, flush=True)
+
+    if jobs > 1 and len(todo) > 1:
+        ctx = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx) as ex:
+            futs = [ex.submit(run_chunk, n, seed, device, increment, chunk, st) for st in todo]
+            for f in concurrent.futures.as_completed(futs):
+                keep(f.result())
+    else:
+        for st in todo:
+            keep(run_chunk(n, seed, device, increment, chunk, st))
     dt = time.perf_counter() - t0
-    return {"cells": n, "increments": len(prog), "seconds": dt, "counts": dict(counts), "nan": nan,
-            "where": dict(where), "failures": failures,
-            "cell_increments_per_s": n * len(prog) / dt}
+    parts = [done[st] for st in starts]
+    counts, where = collections.Counter(), collections.Counter()
+    for p in parts:
+        counts.update(p["counts"])
+        where.update(p["where"])
+    incs = parts[0]["increments"]
+    cpu = sum(p["cpu_s"] for p in parts)
+    return {"cells": n, "increments": incs, "seconds": dt, "cpu_s": cpu, "counts": dict(counts),
+            "nan": sum(p["nan"] for p in parts), "where": dict(where),
+            "failures": [f for p in parts for f in p["failures"]],
+            "cell_increments_per_cpu_s": n * incs / cpu if cpu > 0 else math.nan}
 
 
 def bench_sweep(path: str) -> dict:
@@ -147,6 +196,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--no-sweeps", action="store_true", help="skip the bundled sweeps")
     ap.add_argument("--failures", default=None, help="write the failed cells' parameters to this JSON file")
     ap.add_argument("--json", default=None, help="write the counts to this JSON file")
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes for the random chunks (CPU: one core each)")
+    ap.add_argument("--store", default=None,
+                    help="keep each finished chunk here; a re-run with the same arguments resumes")
     a = ap.parse_args(argv)
 
     from knitsim import warp_runtime
@@ -159,7 +211,8 @@ def main(argv=None) -> dict:
             rows.append((r["sweep"], r["samples"], r["counts"], 0, r["seconds"]))
     rnd = None
     if a.cells > 0:
-        rnd = bench_random(a.cells, a.seed, device, a.increment, a.chunk)
+        rnd = bench_random(a.cells, a.seed, device, a.increment, a.chunk, jobs=a.jobs,
+                           store=Path(a.store) if a.store else None)
         rows.append((f"random domain cells, paper's program (incr {a.increment:g}, seed {a.seed})",
                      rnd["cells"], rnd["counts"], rnd["nan"], rnd["seconds"]))
     cols = ("ok", "force_cap", "no_rest_state", "no_convergence", "event_not_located")
