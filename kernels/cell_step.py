@@ -64,7 +64,7 @@ from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
     STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
 )
-from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_rho, vecQd
+from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
 
@@ -401,8 +401,11 @@ def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
         a = d_exp(d_seed(zc[0], 0))
         beta = d_seed(zc[1], 1)
         phi = d_seed(zc[3], 3)
-        rho = rho_of_g0(a, beta, d_seed(zc[2], 2), phi)
-        cell = quarter_loop_rho(a, beta, rho, phi, d_exp(d_seed(zc[4], 4)), B, d)
+        w = d_seed(zc[2], 2)
+        rho = rho_of_g0(a, beta, w, phi)
+        # elastica BC reads G(0) = exp(w) itself, not D + k1'(1 + cos beta) formed again from rho by
+        # cancellation (relative rounding 1e-16 / G(0) in its ln G(0) integrals: issue 14)
+        cell = quarter_loop_g0(a, beta, rho, phi, d_exp(d_seed(zc[4], 4)), d_exp(w), B, d)
     return cell
 
 

@@ -70,7 +70,7 @@ from .stages import (
 from .history import (  # noqa: E402  (re-exported)
     HEAD_GAP_QUANTITIES, HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
     STATUS_NO_REST_STATE,
-    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values,
+    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values, rest_at_cap_reason,
 )
 
 
@@ -586,6 +586,8 @@ class CellCycle:
             why = str(exc)
         if why is not None:
             return self._no_rest_state(program, why)
+        if st.q["F"] >= p.force_cap_N:
+            st.status, st.reason = STATUS_FORCE_CAP, rest_at_cap_reason(st.q["F"], p.force_cap_N)
         rest = {k: np.array([st.q[k]]) for k in HISTORY_QUANTITIES}
         rest.update(stage=np.array([int(st.stage)], np.int32), jammed=np.array([int(st.jammed)], np.int32))
         n = len(program)
