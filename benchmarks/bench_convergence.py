@@ -14,6 +14,7 @@ paper's program (3 cycles 0.10-0.60, Dusserre 2015 section 2.3, increment
 
     python benchmarks/bench_convergence.py --cells 10000               # CPU
     python benchmarks/bench_convergence.py --device cuda --cells 1000000
+    python benchmarks/bench_convergence.py --device cuda --no-sweeps --start 500000 --cells 500000 --json b.json
     python benchmarks/bench_convergence.py --no-sweeps --cells 2000 --failures fails.json
 """
 from __future__ import annotations
@@ -91,7 +92,7 @@ def run_states(cells: list, program, device: str) -> dict:
             "finite": np.all(np.isfinite(x), axis=1), "first_bad_increment": first_bad}
 
 
-def bench_random(n: int, seed: int, device: str, increment: float, chunk: int) -> dict:
+def bench_random(n: int, seed: int, device: str, increment: float, chunk: int, start: int = 0) -> dict:
     from knitsim.cell.history import STATUS_NAMES
     from knitsim.cell.load_program import cycles
     from knitsim.cell.stages import Stage, stage_label
@@ -102,8 +103,13 @@ def bench_random(n: int, seed: int, device: str, increment: float, chunk: int) -
     failures = []
     nan = 0
     t0 = time.perf_counter()
-    for start in range(0, n, chunk):
-        cells = random_domain_cells(min(chunk, n - start), seed=seed * 1_000_003 + start // chunk)
+    # chunk k holds cells k*chunk .. (k+1)*chunk - 1 of the seed, whatever range a call runs: calls over
+    # --start/--cells ranges that are multiples of --chunk add up to one run over their union
+    if start % chunk:
+        raise SystemExit(f"--start {start} is not a multiple of --chunk {chunk}")
+    n_end = start + n
+    for start in range(start, n_end, chunk):
+        cells = random_domain_cells(min(chunk, n_end - start), seed=seed * 1_000_003 + start // chunk)
         r = run_states(cells, prog, device)
         nan += int((~r["finite"]).sum())
         for k, s in enumerate(r["status"]):
@@ -144,6 +150,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--increment", type=float, default=0.01, help="largest strain increment of the program")
     ap.add_argument("--chunk", type=int, default=20_000, help="cells per batched run")
+    ap.add_argument("--start", type=int, default=0,
+                    help="first random cell (a multiple of --chunk): split a large count over several calls "
+                         "(e.g. --start 0 --cells 500000, then --start 500000 --cells 500000; add the counts)")
     ap.add_argument("--no-sweeps", action="store_true", help="skip the bundled sweeps")
     ap.add_argument("--failures", default=None, help="write the failed cells' parameters to this JSON file")
     ap.add_argument("--json", default=None, help="write the counts to this JSON file")
@@ -159,8 +168,9 @@ def main(argv=None) -> dict:
             rows.append((r["sweep"], r["samples"], r["counts"], 0, r["seconds"]))
     rnd = None
     if a.cells > 0:
-        rnd = bench_random(a.cells, a.seed, device, a.increment, a.chunk)
-        rows.append((f"random domain cells, paper's program (incr {a.increment:g}, seed {a.seed})",
+        rnd = bench_random(a.cells, a.seed, device, a.increment, a.chunk, a.start)
+        rows.append((f"random domain cells {a.start}..{a.start + a.cells - 1}, paper's program "
+                     f"(incr {a.increment:g}, seed {a.seed})",
                      rnd["cells"], rnd["counts"], rnd["nan"], rnd["seconds"]))
     cols = ("ok", "force_cap", "no_rest_state", "no_convergence", "event_not_located")
     print(f"device {device}")
