@@ -64,7 +64,7 @@ def test_cap_below_the_rest_force_stops_both_engines_at_rest():
     """The paper's E-glass knit (Dusserre 2015 Table 1, m = 0.20) with its cap set to half its own
     rest force (float64 initial state): both engines stop it at rest, status force_cap, no increment
     solved.  Before, the cap event (a crossing from below) never fired for a cell above it at rest:
-    29 of 10^4 random domain cells (bench_convergence, seed 0, cap 20 B / d^2), tight loops near the
+    30 of 10^4 random domain cells (bench_convergence, seed 0, cap 20 B / d^2), tight loops near the
     end of their rest branch (L / (2 C0 + W0 - 4 d) 1.60-1.76, F at rest 1.02-1.59 x the cap), loaded
     up the jammed branch to 11-19 x the cap until alpha - gamma underflowed: no_convergence."""
     p = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.20, phi0=0.05)
