@@ -64,7 +64,7 @@ from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
     STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
 )
-from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_rho, vecQd
+from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
 
@@ -401,8 +401,11 @@ def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
         a = d_exp(d_seed(zc[0], 0))
         beta = d_seed(zc[1], 1)
         phi = d_seed(zc[3], 3)
-        rho = rho_of_g0(a, beta, d_seed(zc[2], 2), phi)
-        cell = quarter_loop_rho(a, beta, rho, phi, d_exp(d_seed(zc[4], 4)), B, d)
+        w = d_seed(zc[2], 2)
+        rho = rho_of_g0(a, beta, w, phi)
+        # elastica BC reads G(0) = exp(w) itself, not D + k1'(1 + cos beta) formed again from rho by
+        # cancellation (relative rounding 1e-16 / G(0) in its ln G(0) integrals: issue 14)
+        cell = quarter_loop_g0(a, beta, rho, phi, d_exp(d_seed(zc[4], 4)), d_exp(w), B, d)
     return cell
 
 
@@ -902,6 +905,26 @@ def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: w
 
 
 @wp.func
+def unjam_at_start(x: vec5d, q: vecQd, stage: int, soft: int, fs: wp.float64, fsbc: wp.float64, mat: Material,
+                   C: wp.float64, C_goal: wp.float64) -> wp.bool:
+    """Whether a jammed unloading cell whose jammed branch has no solution toward C_goal unjams at its
+    C itself (CellCycle._unjam_at_start): the unjammed branch passes through its state (clearance
+    >= -EVENT_TOL d_jam at C) and is clear of contact at C_goal (active set, as the unjam check).
+
+    The jammed branch can end where the loops would open: a jammed SF- that slides keeps the jam
+    condition in place of T, and the jammed S- branch has no solution on unloading past the slide
+    point (its Newton's residual falls only in proportion to the sub-step, down to the floor),
+    while the unjammed S- (T frozen at the slide, the value the state holds) passes through it and
+    opens (issue 14: a domain cell, head-gap jamming, reversal at strain 0.6)."""
+    xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, mat, C, -1, wp.float64(0.0))
+    out = bool(False)
+    if oka and jam_clearance(xa, qa, mat) >= -event_tol(_EV_UNJAM, mat):
+        xu, qu, oku = solve_coulomb_cont(xa, stage, 0, soft, fs, fsbc, mat, C, C_goal)
+        out = oku and jam_clearance(xu, qu, mat) >= wp.float64(0.0)
+    return out
+
+
+@wp.func
 def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
@@ -1354,6 +1377,15 @@ def advance_cell(
                 n_located += 1
                 continue
             xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
+            if not ok and jammed != 0 and not is_loading(stage):
+                # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
+                if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
+                    lbl_from = stage_label(stage, jammed)
+                    stage, jammed, soft, fs, status = transition(_EV_UNJAM, stage, jammed, soft, fs, status, q)
+                    n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
+                        _EV_UNJAM, C, lbl_from, stage_label(stage, jammed))
+                    n_located += 1
+                    continue
             if not ok:
                 failures += 1
                 if not may_halve(failures, step, max_halvings, matg):

@@ -440,11 +440,27 @@ def elastica_bc(D: Dual, k1p: Dual, beta: Dual):
     Returns ``(s_BC, X_B, Y_C - Y_B, theta'_C)``, lengths in lambda, theta'_C in 1/lambda;
     X_B = X_B - X_C with X_C = 0 (the symmetry axis through C).
     """
+    A0 = d_add(D, d_mul(k1p, d_addc(d_cos(beta), wp.float64(1.0))))  # G(0)
+    s, xb, dy, thc = elastica_bc_g0(D, k1p, beta, A0)
+    return s, xb, dy, thc
+
+
+@wp.func
+def elastica_bc_g0(D: Dual, k1p: Dual, beta: Dual, A0: Dual):
+    """:func:`elastica_bc` with ``A0 = G(0) = D + k1' (1 + cos beta)`` given by the caller.
+
+    G(0) is a difference of O(1) terms: formed from D, k1' and beta it carries an absolute
+    rounding of ~1e-16, i.e. a relative error 1e-16 / G(0), and the BC integrals go as
+    ln G(0) where k1' < 0 (the near-straight stretch at C).  The cell Newton's chart with
+    ln G(0) as a variable (kernels.cell_step.newton) passes G(0) = exp(ln G(0)) itself, so
+    that the integrals, and the residuals built on them, are as smooth as the chart
+    (at G(0) ~ 1e-7 the recomputed value made the residuals of L jitter by ~1e-9 of d,
+    above the Newton's stall tolerance: issue 14).
+    """
     one = wp.float64(1.0)
     half = wp.float64(0.5)
     two = wp.float64(2.0)
     cbeta = d_cos(beta)
-    A0 = d_add(D, d_mul(k1p, d_addc(cbeta, one)))  # G(0)
     I1 = d_const(wp.float64(0.0))  # int du / sqrt(2G)
     I2 = d_const(wp.float64(0.0))  # int cos u du / sqrt(2G)
     if k1p.v > K1_GRADED_MIN * A0.v:

@@ -23,7 +23,7 @@ from knitsim.cell.quantities import (
 
 from .elastica import (
     PI, Dual, vec5d, d_add, d_addc, d_const, d_cos, d_div, d_mul, d_neg, d_scale,
-    d_sin, d_sqrt, d_sub, d_tan, dual, elastica_ab, elastica_bc,
+    d_sin, d_sqrt, d_sub, d_tan, dual, elastica_ab, elastica_bc_g0,
 )
 
 wp.set_module_options({"max_unroll": 1})
@@ -54,13 +54,14 @@ def _put(q: vecQd, dq: matQ5d, code: int, x: Dual):
 
 @wp.func
 def _assemble(a: Dual, beta: Dual, gamma: Dual, sg: Dual, cg: Dual, phi: Dual, P: Dual, k1p: Dual, R: Dual,
-              B: wp.float64, d: wp.float64):
+              g0: Dual, g0_given: int, B: wp.float64, d: wp.float64):
     """Eqs 6-9 from the unknowns plus sin/cos(gamma), k1' and R (eq 7).
 
-    The one assembly of the quarter stitch; :func:`quarter_loop` (gamma given)
-    and :func:`quarter_loop_rho` (R/P given) only differ in how they form
+    The one assembly of the quarter stitch; :func:`quarter_loop` (gamma given),
+    :func:`quarter_loop_rho` (R/P given) and :func:`quarter_loop_g0` only differ in how they form
     sin(gamma), cos(gamma), k1' and R, and their gradients carry the chain rule
-    of the chosen unknowns through.
+    of the chosen unknowns through.  With ``g0_given`` != 0, ``g0`` is G(0) = D + k1' (1 + cos beta)
+    of elastica BC, passed to it instead of formed there (:func:`~knitsim.kernels.elastica.elastica_bc_g0`).
     """
     half = wp.float64(0.5)
     hd = half * d
@@ -84,7 +85,10 @@ def _assemble(a: Dual, beta: Dual, gamma: Dual, sg: Dual, cg: Dual, phi: Dual, P
 
     # elastica BC (eq 9); D = cos a - cos b = y0^2 / (2 lambda^2)
     D = d_scale(d_mul(d_sin(d_scale(d_add(b, a), half)), d_sin(d_scale(d_sub(b, a), half))), wp.float64(2.0))
-    s_bc, xb, dy, thc = elastica_bc(D, k1p, beta)
+    A0 = g0
+    if g0_given == 0:
+        A0 = d_add(D, d_mul(k1p, d_addc(d_cos(beta), wp.float64(1.0))))  # G(0)
+    s_bc, xb, dy, thc = elastica_bc_g0(D, k1p, beta, A0)
     s_bc = d_mul(lam, s_bc)
     X_B = d_mul(lam, xb)
     Y_C = d_add(Y_B, d_mul(lam, dy))
@@ -141,7 +145,7 @@ def quarter_loop(a: Dual, beta: Dual, gamma: Dual, phi: Dual, P: Dual, B: wp.flo
     bp = d_add(beta, phi)
     k1p = d_add(cg, d_mul(sg, d_tan(bp)))  # eq 7
     R = d_neg(d_div(d_mul(P, sg), d_cos(bp)))  # from R_Y = -R cos(beta + phi) = P sin(gamma)
-    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, B, d)
+    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, d_const(wp.float64(0.0)), 0, B, d)
 
 
 @wp.func
@@ -167,7 +171,24 @@ def quarter_loop_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, B: wp.f
     cg = d_cos(gamma)
     k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
     R = d_mul(P, rho)
-    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, B, d)
+    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, d_const(wp.float64(0.0)), 0, B, d)
+
+
+@wp.func
+def quarter_loop_g0(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, g0: Dual, B: wp.float64, d: wp.float64):
+    """:func:`quarter_loop_rho` at a state whose G(0) = D + k1' (1 + cos beta) of elastica BC is known
+    to full relative precision, ``g0`` (the cell Newton's chart ln G(0): rho = R/P was formed from it,
+    :func:`knitsim.kernels.cell_step.rho_of_g0`); elastica BC reads it instead of forming it again by
+    cancellation (:func:`~knitsim.kernels.elastica.elastica_bc_g0`).  Same equations."""
+    bp = d_add(beta, phi)
+    cbp = d_cos(bp)
+    sbp = d_sin(bp)
+    sg = d_neg(d_mul(rho, cbp))
+    gamma = d_asin(sg)
+    cg = d_cos(gamma)
+    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
+    R = d_mul(P, rho)
+    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, g0, 1, B, d)
 
 
 @wp.func

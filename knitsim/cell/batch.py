@@ -42,8 +42,8 @@ from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
 from .effects import EFFECT_STATE, NO_EFFECTS, PARAM_COLUMNS, EffectSet
-from .history import (HISTORY_QUANTITIES, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK, BatchHistory,
-                      head_gap_values)
+from .history import (HISTORY_QUANTITIES, STATUS_FORCE_CAP, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK,
+                      BatchHistory, head_gap_values, rest_at_cap_reason)
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
@@ -360,10 +360,14 @@ class CellModel:
         # no admissible rest state (knitsim.cell.domain.rest_state_problem): none found, or a contact
         # force R < 0 (the unilateral contact at B would pull): flagged before any increment
         status = st.status.numpy()
-        R = st.q.numpy()[:, CODE["R"]]
+        q = st.q.numpy()
+        R = q[:, CODE["R"]]
         bad = (status != STATUS_OK) | ~(R >= 0.0)
-        if np.any(bad):
+        # a rest state already at or above the force cap: the cell stops there (history.rest_at_cap_reason)
+        at_cap = ~bad & (q[:, CODE["F"]] >= self.cap.numpy())
+        if np.any(bad) or np.any(at_cap):
             status[bad] = STATUS_NO_REST_STATE
+            status[at_cap] = STATUS_FORCE_CAP
             st.status.assign(wp.array(status, dtype=wp.int32, device=self.device))
         return st
 
@@ -746,10 +750,14 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         for name in HISTORY_QUANTITIES:
             rest[name][norest] = np.nan
     events = solver.events()
+    cap = model.cap.numpy()
     for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
         i0 = int(np.argmax(status[:, c] != STATUS_OK))
-        events.append({"cell": int(c), "increment": i0, "kind": "flag",
-                       "reason": STATUS_NAMES[int(status[i0, c])], "status": STATUS_NAMES[int(status[i0, c])]})
+        why = STATUS_NAMES[int(status[i0, c])]
+        if s0_status0[c] == STATUS_FORCE_CAP:
+            why = rest_at_cap_reason(float(rest["F"][c]), float(cap[c]))
+        events.append({"cell": int(c), "increment": i0, "kind": "flag", "reason": why,
+                       "status": STATUS_NAMES[int(status[i0, c])]})
     events.sort(key=lambda e: (e["cell"], e["increment"], e["kind"] == "flag"))
     return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
                         hs.numpy(), hj.numpy(), status, values, events, list(model.params), rest)

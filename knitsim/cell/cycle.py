@@ -70,7 +70,7 @@ from .stages import (
 from .history import (  # noqa: E402  (re-exported)
     HEAD_GAP_QUANTITIES, HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
     STATUS_NO_REST_STATE,
-    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values,
+    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values, rest_at_cap_reason,
 )
 
 
@@ -378,6 +378,25 @@ class CellCycle:
             return None
         return (x, q) if self._clearance(_with_gap(q, x, self.p.B, self.p.d)) >= 0.0 else None
 
+    def _unjam_at_start(self, st: CellState, C_goal: float) -> bool:
+        """Whether a jammed unloading cell whose jammed branch has no solution toward C_goal unjams at its
+        C itself: the unjammed branch passes through its state (clearance >= -EVENT_TOL d_jam there) and
+        is clear of contact at C_goal (the kernel's unjam_at_start; the jammed S- after a slide has no
+        solution on unloading while the unjammed S- passes through the slide point and opens)."""
+        if not st.jammed or st.stage in (Stage.SF_LOAD, Stage.S_LOAD):
+            return False
+        trial = st.copy()
+        trial.jammed = False
+        try:
+            xa, qa = self.solve_at(trial, st.C)
+        except _SolveFailed:
+            return False
+        if self._clearance(_with_gap(qa, xa, self.p.B, self.p.d)) < -self._event_tol("unjam"):
+            return False
+        start = st.copy()                       # jammed, at the unjammed branch's state (the guess)
+        start.x, start.q = xa, qa
+        return self._try_unjam(start, C_goal) is not None
+
     def _may_halve(self, failures: int, step: float) -> bool:
         """Whether a failed sub-step is retried on half its length: at most ``max_halvings`` times in
         a row, and not below SUBSTEP_FLOOR C0 (stages.SUBSTEP_FLOOR)."""
@@ -526,6 +545,15 @@ class CellCycle:
             try:
                 x, q = self.solve_at(st, C_goal)
             except _SolveFailed:
+                if self._unjam_at_start(st, C_goal):
+                    # the jammed branch ends here on unloading, the unjammed one opens: unjam at the start
+                    before = stage_label(st.stage, st.jammed)
+                    self._transition(st, "unjam")
+                    events.append({"increment": increment, "kind": "unjam", "C": st.C, "from": before,
+                                   "to": stage_label(st.stage, st.jammed),
+                                   **{k: _with_gap(st.q, st.x, self.p.B, self.p.d)[k] for k in EVENT_QUANTITIES}})
+                    n_events += 1
+                    continue
                 failures += 1
                 if not self._may_halve(failures, step):
                     raise _SolveFailed(f"no convergence from C = {C_from:.6g} to {C_goal:.6g} mm "
@@ -586,6 +614,8 @@ class CellCycle:
             why = str(exc)
         if why is not None:
             return self._no_rest_state(program, why)
+        if st.q["F"] >= p.force_cap_N:
+            st.status, st.reason = STATUS_FORCE_CAP, rest_at_cap_reason(st.q["F"], p.force_cap_N)
         rest = {k: np.array([st.q[k]]) for k in HISTORY_QUANTITIES}
         rest.update(stage=np.array([int(st.stage)], np.int32), jammed=np.array([int(st.jammed)], np.int32))
         n = len(program)

@@ -289,7 +289,7 @@ def check_cells(params, engine: str = "warp", device: str = "cpu",
 
         from .. import warp_runtime
         from .batch import CellModel
-        from .history import STATUS_OK
+        from .history import STATUS_NO_REST_STATE
 
         warp_runtime.init()                  # quiet, stable kernel cache: before any kernel module loads
         from .quantities import CODE
@@ -298,7 +298,7 @@ def check_cells(params, engine: str = "warp", device: str = "cpu",
         status0 = np.asarray(st.status.numpy())
         R = np.asarray(st.q.numpy()[:, CODE["R"]])
         # CellModel.state has set NO_REST_STATE where the solve failed or R < 0: a finite R < 0 says which
-        for i in np.nonzero(status0 != STATUS_OK)[0]:
+        for i in np.nonzero(status0 == STATUS_NO_REST_STATE)[0]:
             why_u[i] = _no_rest_reason(float(R[i]) if np.isfinite(R[i]) else None)
     elif first:
         for i, p in enumerate(first):

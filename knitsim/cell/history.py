@@ -47,6 +47,18 @@ STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_CONVERGENCE: "no_convergence",
                 STATUS_NO_REST_STATE: "no_rest_state"}
 
 
+def rest_at_cap_reason(F_rest: float, cap: float) -> str:
+    """Why a cell stops at rest with status force_cap: its rest state already carries the cap.
+
+    The cap bounds the force per wale on loading, and its event fires where the force crosses it from
+    below; a rest state at or above it (a tight loop near the end of its rest branch, alpha -> gamma,
+    carries a large force per wale at rest) would load on past the cap, up the jammed branch whose
+    force diverges, until float64 loses alpha - gamma (no_convergence).  Both engines stop such a cell
+    at rest (knitsim.cell.batch.CellModel.state, knitsim.cell.cycle.CellCycle.run)."""
+    return (f"force per wale at rest F = {F_rest:.4g} N already at force_cap_N = {cap:.4g} N: "
+            "the cell stops at rest (raise force_cap_N to load it)")
+
+
 @dataclass
 class BatchHistory:
     """One row per increment of the load program, one column per cell.
