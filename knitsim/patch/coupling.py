@@ -33,9 +33,16 @@ linearised equations ``f_g + k_g (C_g' - C_g) = F / p_g`` and
     F   = max(0, (u - sum n_g (a_g - C0_g)) / sum n_g / (p_g k_g))
     C_g' = a_g + F / (p_g k_g)
 
-The tangent is the secant between successive trial steps of the increment
-(the first iterate uses the tangent of the last increment; the very first one
-comes from a probe step), clamped to [K_MIN, K_MAX].  A cell that is slack
+The tangent k_g is the cell's own dF/dC at the end of its trial step, from the
+Jacobian of the cell Newton at that converged state (implicit function theorem,
+:mod:`knitsim.kernels.cell_tangent`): the exact slope of the branch the cell is on,
+so each column iterates as Newton's method on its equations.  The first iterate
+of an increment uses the tangent at the committed state, of the stage that a
+reversal enters (SF- / SF+) when the increment reverses the direction.  Where the
+cell tangent is not defined (Dahl cells, cells with effects, the reference engine)
+or not positive, the secant between successive trial steps is used (the first
+iterate then uses the tangent of the last increment, the very first one a probe
+step); tangents are clamped to [K_MIN, K_MAX].  A cell that is slack
 (F = 0 over a range of C, :class:`~knitsim.cell.stages.Stage` SLACK) has
 ``a_g`` = its slack length: the complementarity ``F >= 0``, ``u - sum n_g
 (C_g - C0_g) >= 0``, one of them 0, is solved by the clamp: a column whose
@@ -106,6 +113,7 @@ class WarpBackend:
         self.control.strain = wp.zeros(self.n, dtype=wp.float64, device=self.device)
         self._mask = wp.zeros(self.n, dtype=wp.int32, device=self.device)
         self._all = wp.ones(self.n, dtype=wp.int32, device=self.device)
+        self._k = wp.zeros(self.n, dtype=wp.float64, device=self.device)
 
     @staticmethod
     def _read(st) -> dict:
@@ -118,6 +126,18 @@ class WarpBackend:
 
     def committed(self) -> dict:
         return self._read(self.s0)
+
+    def tangent(self, trial: bool, direction: int = 0) -> np.ndarray:
+        """dF/dC of every group on its branch (:mod:`knitsim.kernels.cell_tangent`; NaN where undefined),
+        at the last trial's states (``trial``) or at the committed ones, there of the stage that a
+        reversal to ``direction`` enters."""
+        from ..kernels.cell_tangent import branch_tangent_kernel
+        st = self.s1 if trial else self.s0
+        m = self.model
+        self.wp.launch(branch_tangent_kernel, dim=self.n,
+                       inputs=m._arrays() + [m.effect_mask] + st._arrays()[:10] + [0 if trial else int(direction)],
+                       outputs=[self._k], device=self.device)
+        return self._k.numpy().copy()
 
     def trial(self, strain: np.ndarray, direction: int, increment: int) -> dict:
         """Step every group from its committed state to ``C = C0 (1 + strain)``; the committed state is kept."""
@@ -223,6 +243,10 @@ class ReferenceBackend:
 
     def committed(self) -> dict:
         return self._read(self.s0)
+
+    def tangent(self, trial: bool, direction: int = 0) -> np.ndarray:
+        """No cell tangent from the reference engine (NaN: the coupling keeps its secants)."""
+        return np.full(self.n, np.nan)
 
     def trial(self, strain: np.ndarray, direction: int, increment: int) -> dict:
         from ..cell.cycle import STATUS_NO_CONVERGENCE, _SolveFailed
@@ -358,6 +382,23 @@ class PatchSolver:
         np.maximum.at(out, self.col, v)
         return out
 
+    @staticmethod
+    def _along(C: np.ndarray, C_committed: np.ndarray, direction: int) -> np.ndarray:
+        """The trial lengths kept on the side of the committed ones that the increment goes to.
+
+        The column force moves with the grips (it falls on unloading, rises on loading), and on a
+        branch with dF/dC > 0 every cell's length moves with its force: no cell of the solution
+        lengthens on unloading or shortens on loading.  The linear model of a cell that slides
+        (dF/dC ~ 0 on a plateau) can ask for such a move, far along the wrong direction of a stiff
+        stick branch; the trial is kept at the committed length instead."""
+        return np.minimum(C, C_committed) if direction < 0 else np.maximum(C, C_committed)
+
+    @staticmethod
+    def _cell_tangent(kc: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+        """The cells' own tangents where defined and positive, clamped; ``fallback`` elsewhere."""
+        ok = np.isfinite(kc) & (kc > 0)
+        return np.where(ok, np.clip(np.where(ok, kc, 1.0), K_MIN, K_MAX), fallback)
+
     def probe_tangent(self, strain: float = 1e-3) -> None:
         """Initial tangents dF/dC from a trial step of every cell to ``strain`` (loading)."""
         c = self.cells
@@ -398,9 +439,15 @@ class PatchSolver:
         be.begin_increment()
         # predictor from the committed state and the last tangents
         C_prev, F_prev = c["C"].copy(), c["F"].copy()
-        k = self.k.copy()
+        k = self._cell_tangent(be.tangent(False, direction), self.k)
         a = C_prev - F_prev / k
         C_try, Fstar = self._update(a, k, u)
+        # the committed state is an equilibrium of the column (not so at the rest state, whose cells'
+        # rest forces differ, nor after a flagged increment): only then do its cells move one way
+        Fc = self.p * c["F"]
+        Fc_max, Fc_min = self._colmax(Fc, -np.inf), -self._colmax(-Fc, -np.inf)
+        monotone = ((Fc_max - Fc_min) <= 1e3 * (self.force_tol + self.force_rtol * np.abs(Fc_max)))[col]
+        C_try = np.where(monotone, self._along(C_try, c["C"], direction), C_try)
         # per-cell brackets of this increment, (C, F) with F below / above the column force,
         # for a regula falsi with the Illinois modification when the secant stalls at a kink
         # (e.g. a cell that jams right at the equilibrium)
@@ -446,6 +493,8 @@ class PatchSolver:
                 ks = (t["F"] - F_prev) / dC
             good = use & np.isfinite(ks) & (ks > 0) & (np.abs(dC) > 1e-12 * C0)
             k = np.where(good, np.clip(ks, K_MIN, K_MAX), k)
+            # the cell's own tangent at the trial's end where it is defined (IFT; else the secant)
+            k = np.where(use, self._cell_tangent(be.tangent(True), k), k)
             above = use & (t["F"] > Ft)
             below = use & ~above
             # Illinois: the side kept twice in a row has its residual halved
@@ -469,6 +518,7 @@ class PatchSolver:
             F_prev = np.where(use, t["F"], F_prev)
             C_new, Fstar = self._update(a, k_model, u)
             # a failed trial: retreat halfway towards the last good iterate
+            C_new = np.where(monotone, self._along(C_new, c["C"], direction), C_new)
             C_try = np.where(failed, 0.5 * (C_try + C_prev), C_new)
         status = np.where(stopped_cls, COL_STOPPED, COL_OK)
         not_conv = active_cls & ~done_cls

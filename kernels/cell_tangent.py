@@ -1,0 +1,80 @@
+"""Tangent dF/dC of a converged cell state on its own branch (implicit function theorem), float64 Warp.
+
+At a converged state of a Coulomb stage the five equations r(z; C) = 0 hold
+(:func:`knitsim.kernels.cell_step.residuals_ext`: closure g = 0 and the stage's four
+conditions, slot 1 the driving condition ``(C(z) - C) / s_C``, :func:`stage_conditions`).
+Along the branch, dr = J dz + (dr/dC) dC = 0 with dr/dC = -e_2 / s_C (only the C row
+depends on the imposed course length), so
+
+    dz/dC = J^-1 e_2 / s_C,        dF/dC = (dF/dz) . dz/dC,
+
+with J and dF/dz the forward-mode duals of the cell's own Newton at that state (the
+same evaluation, :func:`evaluate_zr`).  This is the exact slope of the branch the cell
+is on, where a secant between two trial steps of the patch coupling only approximates
+it (and mixes branches across an event).  One evaluation and one 5x5 solve per cell.
+
+NaN where it is not defined by the equations above: Dahl cells (the Dahl residual
+depends on the committed state of the increment), cells with effects (their parameters
+move with the increment), slack or stopped cells, a singular J.  The patch coupling
+(:mod:`knitsim.patch.coupling`) then keeps its secant.
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from knitsim.cell.quantities import Q_C, Q_F
+
+from .cell_step import (
+    SLACK, ST_OK, evaluate_zr, read_material, residuals_ext, reverse, stage_conditions, vec10p, z_of,
+)
+from .elastica import vec5d
+from .inverse import quantity_scale, solve5
+from .quarter_loop import N_QUANTITIES, quantity, vecQd
+
+wp.set_module_options({"max_unroll": 1, "enable_backward": False})
+
+
+@wp.kernel
+def branch_tangent_kernel(
+    # model (knitsim.cell.batch.CellModel._arrays order)
+    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+    djam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+    criterion: wp.array(dtype=wp.int32), eff_mask: wp.array(dtype=wp.int32),
+    # state (CellBatchState, the fields read)
+    x: wp.array2d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), C: wp.array(dtype=wp.float64),
+    stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32), soft: wp.array(dtype=wp.int32),
+    fsoft: wp.array(dtype=wp.float64), fsbc: wp.array(dtype=wp.float64), status: wp.array(dtype=wp.int32),
+    direction: wp.array(dtype=wp.int32),
+    # the direction of the coming increment (0: none); where it reverses the state's own, the
+    # tangent is that of the stage the reversal enters (kernels.cell_step.reverse: SF- / SF+)
+    dir_new: int,
+    # out
+    k: wp.array(dtype=wp.float64),
+):
+    """k[i] = dF/dC of cell i at its state (module docstring), NaN where undefined."""
+    i = wp.tid()
+    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
+    kk = wp.float64(wp.nan)
+    st = int(stage[i])
+    if status[i] == ST_OK and st != SLACK and mat.dahl == 0 and eff_mask[i % eff_mask.shape[0]] == 0:
+        qi = vecQd()
+        for j in range(N_QUANTITIES):
+            qi[j] = q[i, j]
+        sf = int(soft[i])
+        fs = fsoft[i]
+        fb = fsbc[i]
+        if dir_new != 0 and dir_new != direction[i]:
+            st, sf, fs, fb = reverse(dir_new, qi, mat, sf, fs)
+        z = z_of(vec5d(x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4]), qi)
+        codes, tg = stage_conditions(st, int(jammed[i]), sf, fs, fb, mat, C[i])
+        cell = evaluate_zr(z, mat.B, mat.d)
+        r, J = residuals_ext(cell, z, codes, tg, vec10p(), mat.B, mat.d)
+        e = vec5d()
+        e[2] = wp.float64(1.0) / quantity_scale(Q_C, mat.B, mat.d)   # slot 1 of the conditions: row 2
+        dz, singular = solve5(J, e)
+        if st != SLACK and not singular:
+            kk = wp.dot(quantity(cell, Q_F).g, dz)
+    k[i] = kk
