@@ -14,8 +14,9 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
 2. **Calibrate** (:func:`calibrate_step`): the baseline's free parameters (m,
    phi0; optionally B, d, the in-plane width and the knit geometry L, W0, C0)
    and a force offset per curve (a load cell's zero), by weighted least
-   squares from the scene's start and the best points of a coarse (m, phi0)
-   grid; then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
+   squares from the scene's start and the best points of (m, phi0) grids at the
+   scene's geometry and at the corners of a +-1 % square in L and C0
+   (:func:`_grid_starts`); then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
    fit whose neighbours fit) are left out and the fit repeated.  The cells stop
    at :data:`FORCE_CAP_FACTOR` times the largest measured force
    (:func:`capped_setup`).
