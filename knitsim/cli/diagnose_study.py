@@ -55,6 +55,9 @@ def register(subparsers) -> None:
                    help="baseline parameters the diagnosis calibrates (default m,phi0,d,L,C0: the friction and "
                         "the scattered geometry; any of m, phi0, B, d, L, W0, C0)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu, cuda, cuda:N or auto")
+    p.add_argument("--only", default=None, metavar="I,J,...",
+                   help="run only these cases of the plan (0-based indices, the index column of cases.csv): "
+                        "a case is the same specimen as in the whole study of --cases and --seed")
     p.add_argument("--resume", action="store_true", help="continue the study in --out (its finished cases are kept)")
     add_output_flags(p, resumable=True, what="study")
     p.add_argument("--summary-only", action="store_true",
@@ -107,6 +110,15 @@ def _run(args) -> int:
         raise KnitsimInputError(f"--free = {args.free!r}: expected a comma-separated list of "
                                 f"{', '.join(BASELINE_VARIABLES)}")
 
+    only = None
+    if args.only is not None:
+        try:
+            only = [int(v) for v in args.only.split(",") if v.strip()]
+        except ValueError:
+            raise KnitsimInputError(f"--only = {args.only!r}: expected comma-separated case indices, e.g. 9,49,65")
+        if not only or any(not 0 <= i < args.cases for i in only):
+            raise KnitsimInputError(f"--only = {args.only!r}: expected case indices in 0 .. {args.cases - 1} "
+                                    "(the plan of --cases)")
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the study in --out, or replace it)")
     prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume or args.summary_only, resumable=True)
@@ -123,7 +135,7 @@ def _run(args) -> int:
                                 include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
                                 scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
                                 resume=True, jobs=args.jobs, summary_only=args.summary_only,
-                                specimen=args.specimen, materials=materials)
+                                specimen=args.specimen, materials=materials, only=only)
     except KeyboardInterrupt:
         print(f"knitsim diagnose-study: interrupted; the finished cases are kept in {args.out}/cases and "
               f"summarised in {args.out}/summary.md (marked partial); the same command resumes",

@@ -14,8 +14,9 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
 2. **Calibrate** (:func:`calibrate_step`): the baseline's free parameters (m,
    phi0; optionally B, d, the in-plane width and the knit geometry L, W0, C0)
    and a force offset per curve (a load cell's zero), by weighted least
-   squares from the scene's start and the best points of a coarse (m, phi0)
-   grid; then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
+   squares from the scene's start and the best points of (m, phi0) grids at the
+   scene's geometry and at the corners of a +-1 % square in L and C0
+   (:func:`_grid_starts`); then isolated outliers (a row more than :data:`OUTLIER_Z` sd off the
    fit whose neighbours fit) are left out and the fit repeated.  The cells stop
    at :data:`FORCE_CAP_FACTOR` times the largest measured force
    (:func:`capped_setup`).
@@ -96,6 +97,7 @@ curves at one rate, where any rate factor is a change of m) is reported with
 """
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -525,19 +527,39 @@ def _race(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), 
 #: phi0 as a fraction of phimax (section 3.3.1: anywhere in the cone)
 GRID_M = (0.05, 0.08, 0.12, 0.18, 0.27, 0.4)
 GRID_PHI0 = (-0.9, -0.45, 0.0, 0.45, 0.9)
-#: grid points kept as starts of the baseline's calibration
+#: the finer m grid of the baseline at the scene's geometry (steps of 1.25: the coarse grid's steps of 1.5 missed
+#: an effect-free specimen's m = 0.24 basin between 0.18 and 0.27, and the fit ended at chi2/dof 1.4)
+GRID_M_FINE = tuple(round(0.05 * 1.25 ** i, 4) for i in range(11))
+#: grid points kept as starts of the baseline's calibration at the scene's geometry
 GRID_STARTS = 3
+#: relative offset of the knit's lengths (L, C0) at the corners of the square from which the baseline also
+#: starts (:func:`_grid_starts`)
+GEOMETRY_OFFSET = 0.01
+#: the geometry variables offset: the lengths of the loop, which set the strain at which it jams
+GEOMETRY_START_VARIABLES = ("L", "C0")
 #: phi0 (fraction of phimax) restarts of the baseline from its fitted geometry
 PHI0_RESTARTS = (-0.6, 0.0, 0.6)
 
 
 def _grid_starts(data: _Data) -> tuple:
-    """The best :data:`GRID_STARTS` points of a coarse grid of (m, phi0), as starts of the baseline fit.
+    """Starts of the baseline fit: the best points of an (m, phi0) grid at the scene's geometry and at
+    the corners of a square of half-side :data:`GEOMETRY_OFFSET` (relative) around it in the free knit
+    lengths (:data:`GEOMETRY_START_VARIABLES`: a two-level factorial design).
 
-    Every grid cell is evaluated in one batched launch per distinct load
-    program (the other variables at the scene's values); points outside the
-    calibration's bounds are left out.  Returns ``()`` when neither m nor
-    phi0 is free.
+    The curves fix the strain at which the loops jam to a fraction of a per cent, and a specimen's
+    L and C0 scatter by about that much: at the scene's geometry every friction misses the steep
+    branch (an effect-free specimen with C0 1.1 % above the scene's: chi^2 91,700 at its true
+    friction and the scene's geometry, 1,400 at its own), the grid ranks frictions by how they
+    compensate the geometry, and the fit from the best of them ends in a basin where the yarn
+    diameter took up the lengths' offset (d 18 % thick, chi^2/dof 6.9).  With L and C0 each 1 %
+    off (two sd of a 0.5 % scatter) one way or the other, one corner lies near the specimen's
+    geometry, or on the side of it from which its basin is reached (that specimen's: C0 +1 %, L -1 %;
+    one with W0 1.4 % wide, which no free variable holds: C0 and L -1 %, chi^2/dof 2.7 -> 1.2); the friction is
+    searched there (the coarse grid :data:`GRID_M`, its best point a start), and the race of
+    :func:`_race` keeps the basin the data prefer.  At the scene's geometry the grid is finer in m
+    (:data:`GRID_M_FINE`) and its :data:`GRID_STARTS` best points are starts.  Every cell of every
+    grid runs in one batched launch per distinct load program; points outside the calibration's
+    bounds are left out.  Returns ``()`` when neither m nor phi0 is free.
     """
     setup = data.setup
     free = tuple(setup.free)
@@ -545,24 +567,42 @@ def _grid_starts(data: _Data) -> tuple:
         return ()
     lo_m, hi_m = setup.bounds.get("m", BASELINE_VARIABLES["m"].bounds)
     lo_f, hi_f = setup.bounds.get("phi0", BASELINE_VARIABLES["phi0"].bounds)
-    ms = [m for m in GRID_M if lo_m <= m <= hi_m] if "m" in free else [setup.base.m]
     fs = [f for f in GRID_PHI0 if lo_f <= f <= hi_f] if "phi0" in free else [None]
-    points, cells = [], []
-    for m in ms:
-        for f in fs:
-            pt = {"m": m} if "m" in free else {}
-            if f is not None:
-                pt["phi0"] = f
-            try:
-                cells.append(build_params(setup.base, (), pt, setup.fixed))
-            except KnitsimInputError:
-                continue
-            points.append(pt)
+    lengths = [k for k in GEOMETRY_START_VARIABLES if k in free]
+    geometries = [{}]
+    for signs in itertools.product((-1.0, 1.0), repeat=len(lengths)):
+        if lengths:
+            g = {}
+            for k, sg in zip(lengths, signs):
+                v = BASELINE_VARIABLES[k].start(setup.base) * (1.0 + sg * GEOMETRY_OFFSET)
+                lo, hi = setup.bounds.get(k, (-math.inf, math.inf))
+                g[k] = min(max(v, lo), hi)
+            geometries.append(g)
+    points, cells, which = [], [], []
+    for gi, geo in enumerate(geometries):
+        grid_m = GRID_M_FINE if gi == 0 else GRID_M
+        ms = [m for m in grid_m if lo_m <= m <= hi_m] if "m" in free else [setup.base.m]
+        for m in ms:
+            for f in fs:
+                pt = dict(geo, **({"m": m} if "m" in free else {}))
+                if f is not None:
+                    pt["phi0"] = f
+                try:
+                    cells.append(build_params(setup.base, (), pt, setup.fixed))
+                except KnitsimInputError:
+                    continue
+                points.append(pt)
+                which.append(gi)
     if not cells:
         return ()
     chi2 = data.chi2_of(cells)
     order = np.argsort(chi2, kind="stable")
-    return tuple(points[j] for j in order[:GRID_STARTS])
+    which = np.asarray(which)
+    out = [points[j] for j in order if which[j] == 0][:GRID_STARTS]
+    for gi in range(1, len(geometries)):
+        best = [points[j] for j in order if which[j] == gi][:1]
+        out += best
+    return tuple(out)
 
 
 def _friction_at(data: _Data, effects: tuple, point: dict, also: tuple = ()) -> dict:

@@ -452,7 +452,8 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
               scatter_rel: float | None = None, device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
               candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1,
-              summary_only: bool = False, specimen: str = "lab", materials: Sequence[str] | None = None) -> dict:
+              summary_only: bool = False, specimen: str = "lab", materials: Sequence[str] | None = None,
+              only: Sequence[int] | None = None) -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
@@ -505,6 +506,10 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         The results do not depend on it: each case is seeded by its plan entry.
     summary_only : bool
         Run nothing: summarise the cases already stored in ``out_dir``.
+    only : sequence of int, optional
+        Run only the cases of these plan indices (0-based, the ``index`` column of ``cases.csv``);
+        the plan is still that of ``n_cases`` and ``seed``, so that a case is the same specimen as in
+        the whole study, and the summary is that of the cases finished (marked partial).
 
     Returns
     -------
@@ -536,6 +541,11 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
     cases_dir = out / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
     plan = draw_plan(n_cases, seed, effects, include_none_fraction, specimen, materials)
+    if only is not None:
+        only = sorted({int(i) for i in only})
+        bad = [i for i in only if not 0 <= i < len(plan)]
+        if bad or not only:
+            raise KnitsimInputError(f"only = {bad or only}: expected case indices in 0 .. {len(plan) - 1}")
     if lab:
         how = (f"lab: each test {synthetic.LAB_NOISE_REL:g} x its peak + {synthetic.LAB_NOISE_ABS:g} N, offsets "
                f"+-{synthetic.LAB_OFFSET_N:g} N, strain jitter {synthetic.LAB_STRAIN_JITTER:g}, an outlier with "
@@ -567,7 +577,8 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
             except (OSError, ValueError):
                 rec = None
         if rec is None:
-            todo.append((spec, path))
+            if only is None or spec["index"] in only:
+                todo.append((spec, path))
         else:
             done[spec["index"]] = rec
     ran, ran_time = 0, 0.0

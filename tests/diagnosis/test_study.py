@@ -148,6 +148,21 @@ def test_resume_skips_finished_cases(tmp_path, monkeypatch):
     assert stored["config"]["noise_rel"] == 0.05 and "verdict" in stored
 
 
+def test_only_runs_the_cases_asked_for_as_in_the_whole_plan(tmp_path, monkeypatch):
+    """--only re-runs chosen cases of a plan (the same specimens as in the whole study); the summary is
+    of those, marked partial, and the same study without it finishes the rest."""
+    calls = []
+    _fake_study(monkeypatch, calls)
+    s = study.run_study(6, 1, tmp_path, specimen="single", only=[4, 1])
+    assert len(calls) == 2 and s["complete"] is False and s["cases_missing"] == [0, 2, 3, 5]
+    stored = json.loads((tmp_path / "cases" / "case_0004.json").read_text())
+    assert stored["spec"] == study.draw_plan(6, 1)[4]
+    s = study.run_study(6, 1, tmp_path, specimen="single")
+    assert len(calls) == 6 and s["complete"] is True and s["cases_run"] == 4
+    with pytest.raises(KnitsimInputError, match="only"):
+        study.run_study(6, 1, tmp_path, specimen="single", only=[6])
+
+
 def test_plan_prefix_is_stable():
     # resuming a longer study relies on the first cases of a plan not depending on its length
     assert study.draw_plan(6, 1)[:4] == study.draw_plan(4, 1)
@@ -156,7 +171,7 @@ def test_plan_prefix_is_stable():
 @pytest.mark.parametrize("argv", [
     ["--cases", "0"], ["--seed", "-1"], ["--effects", "magic"], ["--effects", ","],
     ["--noise-rel", "-0.1"], ["--free", "E"], ["--scatter-rel", "0.5"], ["--none-fraction", "2"],
-    ["--jobs", "0"],
+    ["--jobs", "0"], ["--only", "40"], ["--only", "x"], ["--only", ","],
 ])
 def test_cli_bad_input_exits_2(argv, tmp_path, capsys):
     assert main(["diagnose-study", "--out", str(tmp_path / "o")] + argv) == 2
