@@ -396,6 +396,9 @@ class _Data:
     curves: list
     setup: DiagnosisSetup
     weights: list
+    #: the baseline's basins: where the starts of its first calibration went in the race's first heat,
+    #: best first (baseline variables; :func:`calibrate_step`, used by :func:`basins_step`)
+    basins: list = field(default_factory=list)
 
     def calibrate(self, effects: tuple, x0: dict, nfev: int, free: tuple, bounds: dict,
                   penalise_failed: bool = False) -> dict:
@@ -453,6 +456,8 @@ def _fit(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), n
     if _failed(fix):
         return best
     fix["race"] = best.get("race", [])
+    if "race_points" in best:
+        fix["race_points"] = best["race_points"]
     fix["repaired"] = True
     if best.get("stopped_after_race"):
         fix["stopped_after_race"] = True
@@ -497,12 +502,15 @@ def _race(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), 
         best["race"] = [f["chi2"] for f in fits]
         return best
     race = [data.calibrate(effects, st, RACE_HEAT_NFEV, free, bounds) for st in starts]
+    # where each start went in the first heat: the basins the race saw (:func:`basins_step` starts from them)
+    points = sorted(((f["chi2"], dict(f["fit_variables"])) for f in race), key=lambda t: t[0])
     lead = min(f["chi2"] for f in race)
     if rival_chi2 is not None and lead > RACE_KEEP * RACE_KEEP * rival_chi2:
         # far behind the baseline after the first heat already (1.56 x its chi^2): the second heat
         # would move it by tens of chi^2 units, not by the hundreds it lacks
         best = min(race, key=lambda f: f["chi2"])
         best["race"] = [f["chi2"] for f in race]
+        best["race_points"] = points
         best["stopped_after_race"] = True
         return best
     for j, f in enumerate(race):
@@ -514,12 +522,14 @@ def _race(data: _Data, effects: tuple, x0: dict | None = None, extra_starts=(), 
     chi2s = [f["chi2"] for f in race]
     if rival_chi2 is not None and not best["success"] and best["chi2"] > RACE_KEEP * rival_chi2:
         best["race"] = chi2s
+        best["race_points"] = points
         best["stopped_after_race"] = True
         return best
     if not best["success"]:
         fit = data.calibrate(effects, best["fit_variables"], max_nfev - RACE_NFEV, free, bounds)
         best = fit if fit["chi2"] <= best["chi2"] else best
     best["race"] = chi2s
+    best["race_points"] = points
     return best
 
 
@@ -757,6 +767,7 @@ def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
     # everything is measured against the baseline: it gets BASELINE_NFEV_FACTOR times the evaluations
     nfev = BASELINE_NFEV_FACTOR * data.setup.max_nfev
     fit = _fit(data, (), extra_starts=_grid_starts(data), nfev=nfev)
+    data.basins = [x for _, x in fit.get("race_points", [])]
     # the grid starts from the scene's geometry; from the fitted geometry, the friction's other basins
     # (phi0's least squares has local minima: the initial stick ends where phi reaches +-phimax)
     if "phi0" in data.setup.free:
@@ -805,6 +816,115 @@ def candidates_step(data: _Data, base_x: dict, names, rates, say, quick: bool = 
         say(f"{name}: rms {out[name]['rms_N']:.4g} N, chi2 {out[name]['chi2']:.5g} (starts: "
             + ", ".join(f"{c:.5g}" for c in out[name].get("race", [])) + ")")
     return out
+
+
+#: candidates (best coarse chi^2 first) that :func:`basins_step` starts again from the baseline's basins
+BASIN_CANDIDATES = 2
+#: distinct basins of the baseline (best first) combined with each effect strength in the screening launch
+BASIN_POINTS = 4
+#: the best screened points raced per candidate
+BASIN_STARTS = 2
+#: two basin points are the same when every variable agrees to this relative tolerance
+BASIN_SAME_REL = 1e-3
+
+
+def _beyond_noise(chi2: float, n: int, k: int) -> bool:
+    """chi^2 above the one-sided 99.9 % point of its spread for noise alone (the adequacy test of step 5
+    without the spread of the estimated noise: a stricter test, which only asks for more starts)."""
+    dof = max(n - k, 1)
+    return chi2 > dof + WITHIN_NOISE_Z * math.sqrt(2.0 * dof)
+
+
+def _distinct(points: list, limit: int) -> list:
+    out = []
+    for p in points:
+        if not any(all(abs(p[k] - q.get(k, math.inf)) <= BASIN_SAME_REL * max(abs(p[k]), 1e-12) for k in p)
+                   for q in out):
+            out.append(p)
+        if len(out) >= limit:
+            break
+    return out
+
+
+def basins_step(data: _Data, base_fit: dict, fits: dict, say) -> tuple[dict, list]:
+    """Step 3a: the candidates that matter started again from the baseline's other basins, the effect
+    at several strengths.
+
+    A candidate's race starts from the calibrated baseline (with the effect vanishing and at its own
+    strengths) and from the scene's geometry: when the effect's optimum lies in another basin of the
+    geometry and friction than the baseline's optimum (a bending hysteresis that stiffens loading and
+    softens unloading moves the lengths and the friction that fit the curves), a start with the effect
+    switched on at the baseline's optimum is far off and is dropped after the first heat, and the start
+    where it vanishes goes back to the baseline.  The baseline's own race saw the other basins (its
+    starts from the (m, phi0) grids at the scene's geometry and at the corners of the +-1 % square in
+    L and C0, :func:`_grid_starts`): each of the :data:`BASIN_POINTS` best distinct ones, with the
+    effect where it vanishes, at each of its own starts and at the strength its fit found, is
+    evaluated in one batched launch; the :data:`BASIN_STARTS` best race (:func:`_fit`), and the new fit
+    replaces the old when it is lower and runs through (or runs through where the old did not, within
+    :data:`STRONG` of the baseline).
+
+    Only when it can change the verdict, and only for the :data:`BASIN_CANDIDATES` best candidates by
+    chi^2: when the best fit (baseline or candidate) still misses the curves beyond the noise (a
+    candidate short of its minimum looks like "a further cause remains" or "unexplained"), or when
+    the two best candidates are within :data:`RIVAL_MARGIN` of each other (the pair is then ranked
+    by the fits' optimisation residual).  Returns the fits and the candidates tried.
+    """
+    if not data.basins:
+        return fits, []
+    n = int(sum(np.count_nonzero(w) for w in data.weights))
+    ranked = sorted(fits, key=lambda k: fits[k]["chi2"])
+    if not ranked:
+        return fits, []
+    lead = fits[ranked[0]]
+    best_chi2, best_k = min((lead["chi2"], lead["k"]), (base_fit["chi2"], base_fit["k"]))
+    close = (len(ranked) >= 2 and fits[ranked[1]]["chi2"] - lead["chi2"] < RIVAL_MARGIN
+             and lead["chi2"] < base_fit["chi2"] - STRONG)
+    if not (_beyond_noise(best_chi2, n, best_k) or close):
+        return fits, []
+    setup = data.setup
+    free = tuple(setup.free)
+    basins = _distinct([{k: b[k] for k in free if k in b} for b in data.basins], BASIN_POINTS)
+    fits, tried = dict(fits), []
+    for name in ranked[:BASIN_CANDIDATES]:
+        f = fits[name]
+        spec = EFFECT_SPECS[name]
+        variables = variables_for(free, (name,))
+        names = tuple(v.name for v in variables)
+        own = tuple(v.name for v in spec.variables)
+        strengths = [{}] + [dict(e) for e in spec.extra_starts] + [{k: f["fit_variables"][k] for k in own}]
+        points, cells = [], []
+        for b in basins:
+            try:
+                ref = build_params(setup.base, (), b)
+            except KnitsimInputError:
+                continue
+            p0 = {v.name: v.start(ref) for v in variables}
+            p0.update({k: v for k, v in b.items() if k in names})
+            for st in strengths:
+                pt = dict(p0, **{k: v for k, v in st.items() if k in names})
+                if pt in points:
+                    continue
+                try:
+                    cells.append(build_params(setup.base, (name,), pt, setup.fixed))
+                except KnitsimInputError:
+                    continue
+                points.append(pt)
+        if not cells:
+            continue
+        chi2 = data.chi2_of(cells)
+        order = [int(i) for i in np.argsort(chi2, kind="stable") if np.isfinite(chi2[i])][:BASIN_STARTS]
+        if not order:
+            continue
+        starts = [points[i] for i in order]
+        more = _fit(data, (name,), x0=starts[0], extra_starts=tuple(starts[1:]), rival_chi2=base_fit["chi2"])
+        tried.append(name)
+        say(f"{name} from the baseline's basins: chi2 {f['chi2']:.5g} -> {more['chi2']:.5g} (screened: "
+            + ", ".join(f"{chi2[i]:.5g}" for i in order) + ")")
+        # lower and running through; or running through where the old fit did not (a fit with failed
+        # increments is not judged) and near enough the baseline to matter
+        if not _failed(more) and (more["chi2"] < f["chi2"] or (_failed(f) and more["chi2"] < base_fit["chi2"] + STRONG)):
+            fits[name] = more
+    return fits, tried
 
 
 def basin_step(data: _Data, base_fit: dict, fits: dict, rates, say) -> tuple[dict, dict, str]:
@@ -1329,6 +1449,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     data = _Data(curves, setup, noise.weights(curves))
     base_fit, outliers = calibrate_step(data, say)
     fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say, base_chi2=base_fit["chi2"])
+    fits, _ = basins_step(data, base_fit, fits, say)
     base_fit, fits, basin_note = basin_step(data, base_fit, fits, rates, say)
     # the fits that decide the verdict, at an increment whose discretisation is negligible (steps 3c, 3d)
     ranked = sorted((f for f in fits.values() if not _failed(f)), key=lambda f: f["chi2"])
