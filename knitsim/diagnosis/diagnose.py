@@ -1337,7 +1337,8 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
                  indist: list) -> Verdict:
     """Step 8 (module docstring)."""
     fitted = [c for c in candidates if c.score is not None]
-    probs = {"none": float(1.0 - sum(c.probability or 0.0 for c in fitted))}
+    # clipped: 1 - sum rounds to -2e-16 when a candidate takes all the weight
+    probs = {"none": max(0.0, float(1.0 - sum(c.probability or 0.0 for c in fitted)))}
     probs.update({c.effect: c.probability for c in fitted if c.probability is not None})
     stage = loc.where[0] if loc.where else None
     fit_txt = (f"chi2/dof = {adequacy.chi2_per_dof:.4g} (expected 1 +- {adequacy.expected_sd:.2g} for noise alone)")
