@@ -46,7 +46,8 @@ from knitsim.cell.history import (
 )
 from knitsim.cell.quantities import Q_BETA, Q_C, Q_F, Q_L, Q_P, Q_PHI, Q_R, Q_RN, Q_S_BC, Q_T, Q_W
 from knitsim.cell.stages import (
-    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, PROBE_STEP, RELOAD_RHO_SEED, SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
+    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, RELOAD_RHO_SEED,
+    SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
 )
 
 from .effects import (
@@ -117,6 +118,8 @@ _ZERO_CONTACT = wp.constant(wp.float64(ZERO_CONTACT))
 _RHO_SEED = wp.constant(wp.float64(RELOAD_RHO_SEED))
 _SUBSTEP_FLOOR = wp.constant(wp.float64(SUBSTEP_FLOOR))
 _MAX_DAHL_HALVINGS = wp.constant(MAX_DAHL_HALVINGS)
+_OPENING_XTOL = wp.constant(wp.float64(OPENING_XTOL))
+_OPENING_BISECTIONS = wp.constant(OPENING_BISECTIONS)
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -925,6 +928,32 @@ def unjam_at_start(x: vec5d, q: vecQd, stage: int, soft: int, fs: wp.float64, fs
 
 
 @wp.func
+def contact_opening(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                    mat: Material, C_from: wp.float64, C_goal: wp.float64):
+    """The last state of the branch before its contact opens, inside the sub-step C_from -> C_goal whose
+    trial end pulls (Rn < 0): bisection on the sign of Rn, each point solved from the last state that
+    still pushes; a point with no solution counts as past the opening (CellCycle._opening, which says
+    why not Newton: R = 0 is singular, Rn = 0 is met at phi = -pi/2 too).
+
+    Returns (x_a, q_a, C_a) with Rn >= 0 at C_a, within OPENING_XTOL max(1, C) of where Rn < 0."""
+    xa = x
+    qa = q
+    Ca = C_from
+    Cb = C_goal
+    for k in range(_OPENING_BISECTIONS):
+        if wp.abs(Cb - Ca) > _OPENING_XTOL * wp.max(wp.float64(1.0), wp.abs(Cb)):
+            Cm = wp.float64(0.5) * (Ca + Cb)
+            xm, qm, okm = solve_coulomb(xa, stage, jammed, soft, fs, fsbc, mat, Cm, -1, wp.float64(0.0))
+            if okm and qm[Q_RN] >= wp.float64(0.0):
+                xa = xm
+                qa = qm
+                Ca = Cm
+            else:
+                Cb = Cm
+    return xa, qa, Ca
+
+
+@wp.func
 def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
@@ -1393,6 +1422,13 @@ def advance_cell(
                     break
                 step = step * wp.float64(0.5)
                 continue
+            opened = bool(False)
+            if not is_loading(stage) and qt[Q_RN] < wp.float64(0.0):
+                # the trial end pulls: the contact opened inside the sub-step (the branch went through
+                # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
+                # every event is judged on that part of the branch (CellCycle.advance)
+                opened = True
+                xt, qt, C_goal = contact_opening(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
             # events fired inside the increment
             best_kind = int(-1)
             best_C = wp.float64(0.0)
@@ -1425,6 +1461,10 @@ def advance_cell(
                             xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
                             if not oke:
                                 xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
+                        elif kind == _EV_CONE and not no_contact(q):
+                            # zero at the start, but cone_at_start's probe stayed inside the cone: the
+                            # branch dips into the cone and leaves it further on (CellCycle._locate)
+                            oke = False
                         # else: already satisfied at the start of the sub-step, it happens there
                         if oke and in_range(qe[Q_C], C_from, C_goal):
                             if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
@@ -1453,6 +1493,16 @@ def advance_cell(
                             best_C = qe[Q_C]
                             best_x = xe
                             best_q = qe
+            if opened and not any_fired:
+                any_fired = True
+                if no_contact(qt):
+                    # R -> 0 with the friction angle inside the cone: the contact opens, the cell goes
+                    # slack where it does (the zero of F that is R = 0, eq 7)
+                    best_kind = int(_EV_SLACK)
+                    best_C = C_goal
+                    best_x = xt
+                    best_q = qt
+                # else Rn -> 0 with a tangential force left and no cone event: retried on a halved sub-step
             if not any_fired:
                 failures = 0
                 x = xt

@@ -206,3 +206,8 @@ MAX_DAHL_HALVINGS = 8
 #: the stick branch left the friction cone on the far side (tests/cell/test_batch.py).
 ZERO_CONTACT = 1.0e-4
 RELOAD_RHO_SEED = 1.0e-3
+#: the contact's opening inside an unloading sub-step (its trial end has Rn < 0) is located by bisection on
+#: the sign of Rn along the branch, to a bracket of OPENING_XTOL max(1, C) mm, at most OPENING_BISECTIONS
+#: halvings (the bracket starts at one sub-step, at most a load increment)
+OPENING_XTOL = 1.0e-13
+OPENING_BISECTIONS = 64
