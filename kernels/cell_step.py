@@ -928,14 +928,17 @@ def unjam_at_start(x: vec5d, q: vecQd, stage: int, soft: int, fs: wp.float64, fs
 
 
 @wp.func
-def contact_opening(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                    mat: Material, C_from: wp.float64, C_goal: wp.float64):
-    """The last state of the branch before its contact opens, inside the sub-step C_from -> C_goal whose
-    trial end pulls (Rn < 0): bisection on the sign of Rn, each point solved from the last state that
-    still pushes; a point with no solution counts as past the opening (CellCycle._opening, which says
-    why not Newton: R = 0 is singular, Rn = 0 is met at phi = -pi/2 too).
+def branch_sign_change(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                       mat: Material, C_from: wp.float64, C_goal: wp.float64, which: int, offset: wp.float64,
+                       sgn: wp.float64):
+    """The last state of the branch before sgn (q[which] - offset) turns negative inside C_from -> C_goal
+    (Rn: the contact opens; F; phimax - phi: the cone), >= 0 at C_from and < 0 at C_goal: bisection on
+    its sign, each point solved from the last state where it is >= 0; a point with no solution counts as
+    past the change (CellCycle._sign_change, which says why not Newton: R = 0 is singular, Rn = 0 is met
+    at phi = -pi/2 too).
 
-    Returns (x_a, q_a, C_a) with Rn >= 0 at C_a, within OPENING_XTOL max(1, C) of where Rn < 0."""
+    Returns (x_a, q_a, C_a), the quantity >= 0 at C_a, within OPENING_XTOL max(1, C) of where it is < 0
+    (C_a the solved course length of q_a; C_from where the quantity is < 0 at every point tried)."""
     xa = x
     qa = q
     Ca = C_from
@@ -944,13 +947,16 @@ def contact_opening(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: 
         if wp.abs(Cb - Ca) > _OPENING_XTOL * wp.max(wp.float64(1.0), wp.abs(Cb)):
             Cm = wp.float64(0.5) * (Ca + Cb)
             xm, qm, okm = solve_coulomb(xa, stage, jammed, soft, fs, fsbc, mat, Cm, -1, wp.float64(0.0))
-            if okm and qm[Q_RN] >= wp.float64(0.0):
+            if okm and sgn * (qm[which] - offset) >= wp.float64(0.0):
                 xa = xm
                 qa = qm
                 Ca = Cm
             else:
                 Cb = Cm
-    return xa, qa, Ca
+    Cout = Ca
+    if Ca != C_from:
+        Cout = qa[Q_C]  # the solved C, as the events located by Newton report it
+    return xa, qa, Cout
 
 
 @wp.func
@@ -1428,7 +1434,8 @@ def advance_cell(
                 # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
                 # every event is judged on that part of the branch (CellCycle.advance)
                 opened = True
-                xt, qt, C_goal = contact_opening(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
+                xt, qt, C_goal = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_RN,
+                                                     wp.float64(0.0), wp.float64(1.0))
             # events fired inside the increment
             best_kind = int(-1)
             best_C = wp.float64(0.0)
@@ -1436,7 +1443,8 @@ def advance_cell(
             best_q = q
             any_fired = bool(False)
             for kind in range(8):
-                if locatable(kind) and event_active(kind, stage, jammed, soft, matg):
+                # the slack of a sub-step that ends where its contact opens is decided below
+                if locatable(kind) and event_active(kind, stage, jammed, soft, matg) and not (opened and kind == _EV_SLACK):
                     f0 = event_value(kind, x, q, stage, matg)
                     f1 = event_value(kind, xt, qt, stage, matg)
                     tol = event_tol(kind, matg)
@@ -1463,8 +1471,11 @@ def advance_cell(
                                 xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
                         elif kind == _EV_CONE and not no_contact(q):
                             # zero at the start, but cone_at_start's probe stayed inside the cone: the
-                            # branch dips into the cone and leaves it further on (CellCycle._locate)
-                            oke = False
+                            # branch dips into the cone and leaves it further on, located by bisection
+                            # on the sign of phimax - phi (CellCycle._locate)
+                            xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
+                                                            Q_PHI, matg.phimax, wp.float64(-1.0))
+                            oke = Ce != C_from
                         # else: already satisfied at the start of the sub-step, it happens there
                         if oke and in_range(qe[Q_C], C_from, C_goal):
                             if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
@@ -1493,16 +1504,29 @@ def advance_cell(
                             best_C = qe[Q_C]
                             best_x = xe
                             best_q = qe
-            if opened and not any_fired:
+            if opened:
+                # slack on the part of the branch before the opening (CellCycle.advance): eq 7,
+                # F = -2 R cos(beta + phi), with R -> 0+ there; where cos(beta + phi) > 0 at the opening, F
+                # is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a regular zero):
+                # bisection on its sign; else the cell goes slack where the contact opens, if R -> 0 there
+                # (the friction angle inside the cone); else (Rn -> 0 with a tangential force left and no
+                # cone or slide event) the sub-step is halved
                 any_fired = True
-                if no_contact(qt):
-                    # R -> 0 with the friction angle inside the cone: the contact opens, the cell goes
-                    # slack where it does (the zero of F that is R = 0, eq 7)
-                    best_kind = int(_EV_SLACK)
-                    best_C = C_goal
-                    best_x = xt
-                    best_q = qt
-                # else Rn -> 0 with a tangential force left and no cone event: retried on a halved sub-step
+                ks = int(-1)
+                xs = xt
+                qs = qt
+                C_slack = C_goal
+                if wp.cos(qt[Q_BETA] + qt[Q_PHI]) > wp.float64(0.0) and q[Q_F] > wp.float64(0.0):
+                    xs, qs, C_slack = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_F,
+                                                        wp.float64(0.0), wp.float64(1.0))
+                    ks = int(_EV_SLACK)
+                elif no_contact(qt):
+                    ks = int(_EV_SLACK)
+                if ks >= 0 and (best_kind < 0 or wp.abs(C_slack - C_from) < wp.abs(best_C - C_from)):
+                    best_kind = ks
+                    best_C = C_slack
+                    best_x = xs
+                    best_q = qs
             if not any_fired:
                 failures = 0
                 x = xt
