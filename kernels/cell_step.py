@@ -46,7 +46,8 @@ from knitsim.cell.history import (
 )
 from knitsim.cell.quantities import Q_BETA, Q_C, Q_F, Q_L, Q_P, Q_PHI, Q_R, Q_RN, Q_S_BC, Q_T, Q_W
 from knitsim.cell.stages import (
-    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, PROBE_STEP, RELOAD_RHO_SEED, SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
+    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, RELOAD_RHO_SEED,
+    SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
 )
 
 from .effects import (
@@ -117,6 +118,8 @@ _ZERO_CONTACT = wp.constant(wp.float64(ZERO_CONTACT))
 _RHO_SEED = wp.constant(wp.float64(RELOAD_RHO_SEED))
 _SUBSTEP_FLOOR = wp.constant(wp.float64(SUBSTEP_FLOOR))
 _MAX_DAHL_HALVINGS = wp.constant(MAX_DAHL_HALVINGS)
+_OPENING_XTOL = wp.constant(wp.float64(OPENING_XTOL))
+_OPENING_BISECTIONS = wp.constant(OPENING_BISECTIONS)
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -925,6 +928,38 @@ def unjam_at_start(x: vec5d, q: vecQd, stage: int, soft: int, fs: wp.float64, fs
 
 
 @wp.func
+def branch_sign_change(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                       mat: Material, C_from: wp.float64, C_goal: wp.float64, which: int, offset: wp.float64,
+                       sgn: wp.float64):
+    """The last state of the branch before sgn (q[which] - offset) turns negative inside C_from -> C_goal
+    (Rn: the contact opens; F; phimax - phi: the cone), >= 0 at C_from and < 0 at C_goal: bisection on
+    its sign, each point solved from the last state where it is >= 0; a point with no solution counts as
+    past the change (CellCycle._sign_change, which says why not Newton: R = 0 is singular, Rn = 0 is met
+    at phi = -pi/2 too).
+
+    Returns (x_a, q_a, C_a), the quantity >= 0 at C_a, within OPENING_XTOL max(1, C) of where it is < 0
+    (C_a the solved course length of q_a; C_from where the quantity is < 0 at every point tried)."""
+    xa = x
+    qa = q
+    Ca = C_from
+    Cb = C_goal
+    for k in range(_OPENING_BISECTIONS):
+        if wp.abs(Cb - Ca) > _OPENING_XTOL * wp.max(wp.float64(1.0), wp.abs(Cb)):
+            Cm = wp.float64(0.5) * (Ca + Cb)
+            xm, qm, okm = solve_coulomb(xa, stage, jammed, soft, fs, fsbc, mat, Cm, -1, wp.float64(0.0))
+            if okm and sgn * (qm[which] - offset) >= wp.float64(0.0):
+                xa = xm
+                qa = qm
+                Ca = Cm
+            else:
+                Cb = Cm
+    Cout = Ca
+    if Ca != C_from:
+        Cout = qa[Q_C]  # the solved C, as the events located by Newton report it
+    return xa, qa, Cout
+
+
+@wp.func
 def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
@@ -1393,6 +1428,14 @@ def advance_cell(
                     break
                 step = step * wp.float64(0.5)
                 continue
+            opened = bool(False)
+            if not is_loading(stage) and qt[Q_RN] < wp.float64(0.0):
+                # the trial end pulls: the contact opened inside the sub-step (the branch went through
+                # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
+                # every event is judged on that part of the branch (CellCycle.advance)
+                opened = True
+                xt, qt, C_goal = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_RN,
+                                                     wp.float64(0.0), wp.float64(1.0))
             # events fired inside the increment
             best_kind = int(-1)
             best_C = wp.float64(0.0)
@@ -1400,7 +1443,8 @@ def advance_cell(
             best_q = q
             any_fired = bool(False)
             for kind in range(8):
-                if locatable(kind) and event_active(kind, stage, jammed, soft, matg):
+                # the slack of a sub-step that ends where its contact opens is decided below
+                if locatable(kind) and event_active(kind, stage, jammed, soft, matg) and not (opened and kind == _EV_SLACK):
                     f0 = event_value(kind, x, q, stage, matg)
                     f1 = event_value(kind, xt, qt, stage, matg)
                     tol = event_tol(kind, matg)
@@ -1425,6 +1469,13 @@ def advance_cell(
                             xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
                             if not oke:
                                 xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
+                        elif kind == _EV_CONE and not no_contact(q):
+                            # zero at the start, but cone_at_start's probe stayed inside the cone: the
+                            # branch dips into the cone and leaves it further on, located by bisection
+                            # on the sign of phimax - phi (CellCycle._locate)
+                            xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
+                                                            Q_PHI, matg.phimax, wp.float64(-1.0))
+                            oke = Ce != C_from
                         # else: already satisfied at the start of the sub-step, it happens there
                         if oke and in_range(qe[Q_C], C_from, C_goal):
                             if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
@@ -1453,6 +1504,29 @@ def advance_cell(
                             best_C = qe[Q_C]
                             best_x = xe
                             best_q = qe
+            if opened:
+                # slack on the part of the branch before the opening (CellCycle.advance): eq 7,
+                # F = -2 R cos(beta + phi), with R -> 0+ there; where cos(beta + phi) > 0 at the opening, F
+                # is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a regular zero):
+                # bisection on its sign; else the cell goes slack where the contact opens, if R -> 0 there
+                # (the friction angle inside the cone); else (Rn -> 0 with a tangential force left and no
+                # cone or slide event) the sub-step is halved
+                any_fired = True
+                ks = int(-1)
+                xs = xt
+                qs = qt
+                C_slack = C_goal
+                if wp.cos(qt[Q_BETA] + qt[Q_PHI]) > wp.float64(0.0) and q[Q_F] > wp.float64(0.0):
+                    xs, qs, C_slack = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_F,
+                                                        wp.float64(0.0), wp.float64(1.0))
+                    ks = int(_EV_SLACK)
+                elif no_contact(qt):
+                    ks = int(_EV_SLACK)
+                if ks >= 0 and (best_kind < 0 or wp.abs(C_slack - C_from) < wp.abs(best_C - C_from)):
+                    best_kind = ks
+                    best_C = C_slack
+                    best_x = xs
+                    best_q = qs
             if not any_fired:
                 failures = 0
                 x = xt

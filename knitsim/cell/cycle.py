@@ -63,8 +63,8 @@ from .material import CellParams
 from .quantities import UNKNOWN_NAMES
 from ..errors import KnitsimInputError
 from .stages import (
-    EVENT_TOL, MAX_DAHL_HALVINGS, MAX_HALVINGS, PROBE_STEP, RELOAD_RHO_SEED, STICK_CLOSURES, SUBSTEP_FLOOR,
-    ZERO_CONTACT, Stage, stage_label,
+    EVENT_TOL, MAX_DAHL_HALVINGS, MAX_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, RELOAD_RHO_SEED,
+    STICK_CLOSURES, SUBSTEP_FLOOR, ZERO_CONTACT, Stage, stage_label,
 )
 
 from .history import (  # noqa: E402  (re-exported)
@@ -397,6 +397,38 @@ class CellCycle:
         start.x, start.q = xa, qa
         return self._try_unjam(start, C_goal) is not None
 
+    def _sign_change(self, st: CellState, C_goal: float, name) -> tuple[float, np.ndarray, dict]:
+        """The last state of the branch before ``Rn`` (the contact opens), ``F``, or a function of the state
+        (``name`` callable: phimax - phi, the cone) turns negative inside
+        the sub-step st.C -> C_goal, the quantity >= 0 at st.C and < 0 at C_goal: bisection on its sign,
+        each point solved from the last state where it is >= 0; a point with no solution counts as past
+        the change (the kernel's branch_sign_change).
+
+        Why not a root search with Newton: R = 0 is singular (phi drops out of every equation), Rn = 0
+        is met at phi = -pi/2 as well (any R), and where the branch reaches Rn = 0 at |phi| -> pi/2
+        (a stick stage whose tangential force outlives the normal one: SF- with beta frozen) it leaves
+        the chart |phi| < pi/2 there and comes back with R < 0.  Along the branch the sign of Rn is
+        what the unilateral contact needs, and it is well defined at every converged state.
+
+        Returns (C_a, x_a, q_a), the quantity >= 0 at C_a, within OPENING_XTOL max(1, C) of where it is < 0
+        (C_a the solved course length of q_a; st.C where the quantity is < 0 at every point tried)."""
+        Ca, xa, qa = st.C, st.x, st.q
+        Cb = C_goal
+        for _ in range(OPENING_BISECTIONS):
+            if abs(Cb - Ca) <= OPENING_XTOL * max(1.0, abs(Cb)):
+                break
+            Cm = 0.5 * (Ca + Cb)
+            try:
+                xm, qm = self.solve_at(st, Cm, xa)
+            except _SolveFailed:
+                Cb = Cm
+                continue
+            if (name(qm) if callable(name) else qm[name]) >= 0.0:
+                Ca, xa, qa = Cm, xm, qm
+            else:
+                Cb = Cm
+        return (Ca if Ca == st.C else qa["C"]), xa, dict(qa)
+
     def _may_halve(self, failures: int, step: float) -> bool:
         """Whether a failed sub-step is retried on half its length: at most ``max_halvings`` times in
         a row, and not below SUBSTEP_FLOOR C0 (stages.SUBSTEP_FLOOR)."""
@@ -444,6 +476,13 @@ class CellCycle:
                     fa = 0.0
             except _SolveFailed:
                 fa = 0.0
+        if fa is not None and fa >= -tol and name == "cone" and not _no_contact(st.q):
+            # zero at the start, but _cone_at_start's probe stayed inside the cone: the branch dips into
+            # the cone and leaves it further on, located by bisection on the sign of phimax - phi
+            Ce, xe, qe = self._sign_change(st, C_b, lambda q: self.phimax - q["phi"])
+            if Ce == st.C:
+                raise _SolveFailed("event cone: zero at the start, inside the cone on the probe")
+            return Ce, xe, qe
         if fa is not None and fa >= -tol:
             # the event holds at the start of the sub-step (e.g. reloading from
             # slack, where R = 0 and the contact force leaves the friction cone at
@@ -560,20 +599,42 @@ class CellCycle:
                                        f"(sub-step {abs(step):.3g} mm, {failures - 1} halvings)") from None
                 step *= 0.5
                 continue
+            opened = st.stage not in (Stage.SF_LOAD, Stage.S_LOAD) and q["Rn"] < 0.0
+            if opened:
+                # the trial end pulls: the contact opened inside the sub-step (the branch went through
+                # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and every
+                # event is judged on that part of the branch (a stick leaves the cone there first)
+                C_goal, x, q = self._sign_change(st, C_goal, "Rn")
             evs = self.event_functions(st)
+            if opened:
+                evs.pop("slack", None)          # decided below, on the part of the branch before the opening
             fired = [(k, _slack_function(q) if k == "slack" else f) for k, f in evs.items()
                      if f(q) > 0 and f(st.q) <= self._event_tol(k)]
             unjam = self._try_unjam(st, C_goal)
             if unjam is not None:
                 fired.append(("unjam", None))
+            best = None
+            if opened:
+                # eq 7, F = -2 R cos(beta + phi), with R -> 0+ at the opening: where cos(beta + phi) > 0
+                # there, F is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a
+                # regular zero): bisection on its sign; else the cell goes slack where the contact opens,
+                # if R -> 0 there (the friction angle inside the cone); else (Rn -> 0 with a tangential
+                # force left and no cone or slide event) the sub-step is halved, like an event that
+                # cannot be located
+                fired.append(("slack", None))
+                if math.cos(q["beta"] + q["phi"]) > 0.0 and st.q["F"] > 0.0:
+                    best = ("slack",) + self._sign_change(st, C_goal, "F")
+                elif _no_contact(q):
+                    best = ("slack", C_goal, x, q)
             if not fired:
                 failures = 0
                 st.x, st.q, st.C = x, q, C_goal
                 step *= 2.0
                 continue
             # locate each fired event; the first along the path wins
-            best = None
             for kind, fun in fired:
+                if fun is None and kind == "slack":
+                    continue
                 try:
                     Ce, xe, qe = self._locate(st, C_from, C_goal, kind, fun, unjam=(kind == "unjam"))
                 except _SolveFailed:

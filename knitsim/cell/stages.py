@@ -72,6 +72,11 @@ Rules where Table 4 is silent (switchable; labelled in every output):
     cone (or does not continue at all), and the event then happens at the
     reversal point.  ``"table4"``: as printed (no such event; such cells stop
     ``no_convergence``).
+``cone`` zero at the start of a sub-step
+    At a reversal from sliding the cone function is zero at the start; when the
+    probe stays inside the cone but a trial end is outside it, the beta-frozen
+    stick dips into the cone and leaves it further on: located by bisection on
+    the sign of phimax - phi (not placed at the start).
 ``EVENT_TOL``
     An event function within EVENT_TOL of zero (rad; times d for W; N for F)
     at the start of a sub-step counts as satisfied there: the event happens at
@@ -115,11 +120,20 @@ The far side of the cone while loading (why SF+ has no ``phi -> -phimax`` event)
       comes back), the slack event on F alone was missed, the S- branch went
       on with R < 0 and a reload froze that tensile Rn: the stick then ran
       to phi -> -pi/2 (a domain cell on a waypoint program, tests/cell/
-      test_far_side.py).  The slack event now fires on max(-F, -Rn) and is
-      located on F = 0, or on Rn = 0 where only the contact opened at the
-      sub-step's end (F >= 0 there: it touched 0, or dipped below and came
-      back within the sub-step; R = 0 is a zero of F as well, eq 7), the
-      same choice in both engines;
+      test_far_side.py).  A sub-step whose trial end pulls (Rn < 0) now ends
+      where Rn changes sign along the branch, found by bisection on the sign
+      of Rn over converged states (Newton cannot: R = 0 is singular, phi drops
+      out, and Rn = 0 is also met at phi = -pi/2), and every event is judged
+      on that admissible part: a stick whose Rn -> 0 while its tangential
+      force remains leaves the cone first (cone or slide; SF- with beta
+      frozen, bench cells 932, 1632, 2305, 1424 of issue 14, which went slack
+      at the second zero of F with R < 0); where F reached 0 first
+      (cos(beta + phi) > 0 at the opening: beta + phi passed pi/2 with R > 0)
+      the slack is there, by bisection on the sign of F; else the cell goes
+      slack where the contact opens (R -> 0, |R| < ZERO_CONTACT P).  Same in
+      both engines (kernels.cell_step.branch_sign_change, CellCycle._sign_change);
+      an F sign change with R > 0 at the trial end is located by Newton on
+      F = 0 as before;
     - a reload at zero contact (|R| < ZERO_CONTACT P) decides on a probe
       step whether it slides; the probe's angle beyond *either* edge means
       sliding (with R = 0 no tangential force is held; the edge reached is
@@ -206,3 +220,8 @@ MAX_DAHL_HALVINGS = 8
 #: the stick branch left the friction cone on the far side (tests/cell/test_batch.py).
 ZERO_CONTACT = 1.0e-4
 RELOAD_RHO_SEED = 1.0e-3
+#: the contact's opening inside an unloading sub-step (its trial end has Rn < 0) is located by bisection on
+#: the sign of Rn along the branch, to a bracket of OPENING_XTOL max(1, C) mm, at most OPENING_BISECTIONS
+#: halvings (the bracket starts at one sub-step, at most a load increment)
+OPENING_XTOL = 1.0e-13
+OPENING_BISECTIONS = 64

@@ -9,6 +9,16 @@ and printed by the commands:
     again up to the upper strain.  With
     Table 4 it has physical reasons (README, "the reload pocket"), but a user
     must see it rather than read ``all_converged: true``.
+``loop_creates_energy``
+    A load-then-unload excursion that comes back to the strain it started from
+    (:func:`closed_excursions`) with ``oint F dC < 0``: its unloading returned above
+    its loading curve.  Friction at the crossing only dissipates (``-int Rt ds_BC >= 0``:
+    Rt opposes the slip in S+ and S-, the stick holds s_BC), and the elastica stores
+    energy; what supplies it is Table 4's closures, force-type conditions frozen
+    without a conjugate displacement (Rn on loading, T on unloading) while the width
+    W is free, so the lateral direction works on the cell unaccounted.  Met after a
+    reversal from a jammed state, where T frozen at the slide carries the tension
+    the jamming raised into the unjammed unloading (README, "Loops that return energy").
 ``heads_interpenetrate``
     States where the centreline gap between the heads of neighbouring loops of a
     course is below the yarn's in-plane width: the loops pass through each other
@@ -43,6 +53,68 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
     closed = bool(unloads and len(s) > 1 and abs(s[-1] - s[0]) <= 1e-9 * max(span, 1e-12))
     kind = "hysteresis" if closed else ("work" if unloads else "loading_work")
     return {"kind": kind, "closed": closed, "value": float(w)}
+
+
+def closed_excursions(strain: np.ndarray) -> list[tuple[int, int]]:
+    """Load-then-unload excursions that come back to where they started.
+
+    Parameters
+    ----------
+    strain : ndarray, shape [n + 1]
+        Imposed strains with the rest state first (index 0).
+
+    Returns
+    -------
+    list of (i, j)
+        ``strain[i] == strain[j]`` (within 1e-12) with one turning point, a maximum, strictly between.
+        An unload-reload excursion from a peak is not one: it comes back with less stored bending
+        energy (the contact slid back), so its work can be negative without energy being created.
+    """
+    s = np.asarray(strain, float)
+    ds = np.sign(np.diff(s))
+    turns = [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+    out = []
+    for n, t in enumerate(turns):
+        i = turns[n - 1] if n > 0 else 0                # where the excursion starts
+        end = turns[n + 1] if n + 1 < len(turns) else len(s) - 1
+        back = [k for k in range(t + 1, end + 1) if abs(s[k] - s[i]) < 1e-12]
+        if back and s[t] > s[i]:                        # loaded first, then unloaded back
+            out.append((i, back[0]))
+    return out
+
+
+def loop_work_tolerance(strain: np.ndarray, force: np.ndarray) -> float:
+    """Rounding of ``oint F d(strain)`` by trapezoids over a loop's rows [N per unit strain]."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    return 1e-9 * (np.max(np.abs(f)) + 1e-12) * (np.ptp(s) + 1e-12) * len(s)
+
+
+def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
+                          what: str = "the cell") -> list[ResultWarning]:
+    """Warnings for closed load-then-unload excursions whose work ``oint F dC`` is negative.
+
+    Parameters
+    ----------
+    strain, force : ndarray, shape [n + 1]
+        Imposed strains and forces per wale [N], the rest state first.
+    C0 : float
+        Course length at rest [mm] (the work in N mm is the per-strain work times C0).
+    """
+    from ..cell.cycle import dissipated_energy
+
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    out = []
+    for i, j in closed_excursions(s):
+        w = dissipated_energy(s[i:j + 1], f[i:j + 1])
+        if np.isfinite(w) and w < -loop_work_tolerance(s[i:j + 1], f[i:j + 1]):
+            top = float(np.max(s[i:j + 1]))
+            out.append(ResultWarning(
+                "loop_creates_energy",
+                f"{what}: the loop {s[i]:g} -> {top:g} -> {s[i]:g} returns energy (oint F dC = {w * C0:.3g} N mm "
+                f"per wale < 0; force {f[j]:.3g} N back at strain {s[j]:g} against {f[i]:.3g} N on the way up): not "
+                f"a hysteresis; friction only dissipates, the energy comes from Table 4's frozen force closures (T "
+                f"frozen on unloading from a jammed state) (README, 'Loops that return energy')"))
+    return out
 
 
 #: a cycle peak below this fraction of the previous cycle's peak is flagged: it lost (nearly) all its

@@ -37,7 +37,7 @@ import numpy as np
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
-from .checks import cycle_work, interpenetration, zero_force_cycles
+from .checks import cycle_work, energy_creating_loops, interpenetration, zero_force_cycles
 from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
@@ -263,6 +263,9 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     flagged = np.nonzero(status != STATUS_OK)[0]
     stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
     warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out])
+    if h.rest is not None and n_ok:
+        warnings += energy_creating_loops(np.concatenate([[0.0], h.strain[:n_ok]]),
+                                          np.concatenate([[h.rest["F"][cell]], F[:n_ok]]), p.C0)
     if "interpenetrating" in h.values:
         warnings += interpenetration(h.strain[:n_ok], h.values["interpenetrating"][:n_ok, cell],
                                      h.values["head_gap"][:n_ok, cell], p.d_jam, direction=h.direction[:n_ok])
