@@ -154,6 +154,21 @@ def d_asin(a: Dual):
 
 
 @wp.func
+def _assemble_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, g0: Dual, g0_given: int, B: wp.float64,
+                  d: wp.float64):
+    """gamma, k1' and R from rho = R/P (eq 7), then the shared assembly (G(0) given when ``g0_given``)."""
+    bp = d_add(beta, phi)
+    cbp = d_cos(bp)
+    sbp = d_sin(bp)
+    sg = d_neg(d_mul(rho, cbp))
+    gamma = d_asin(sg)
+    cg = d_cos(gamma)
+    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
+    R = d_mul(P, rho)
+    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, g0, g0_given, B, d)
+
+
+@wp.func
 def quarter_loop_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, B: wp.float64, d: wp.float64):
     """:func:`quarter_loop` with R/P = rho given instead of gamma (eqs 6-9).
 
@@ -163,15 +178,7 @@ def quarter_loop_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, B: wp.f
     from phi0 < 0 land on.  gamma = asin(sin gamma) carries the rho column of
     the gradients (chain rule) into the shared assembly.
     """
-    bp = d_add(beta, phi)
-    cbp = d_cos(bp)
-    sbp = d_sin(bp)
-    sg = d_neg(d_mul(rho, cbp))
-    gamma = d_asin(sg)
-    cg = d_cos(gamma)
-    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
-    R = d_mul(P, rho)
-    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, d_const(wp.float64(0.0)), 0, B, d)
+    return _assemble_rho(a, beta, rho, phi, P, d_const(wp.float64(0.0)), 0, B, d)
 
 
 @wp.func
@@ -180,15 +187,7 @@ def quarter_loop_g0(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, g0: Dual
     to full relative precision, ``g0`` (the cell Newton's chart ln G(0): rho = R/P was formed from it,
     :func:`knitsim.kernels.cell_step.rho_of_g0`); elastica BC reads it instead of forming it again by
     cancellation (:func:`~knitsim.kernels.elastica.elastica_bc_g0`).  Same equations."""
-    bp = d_add(beta, phi)
-    cbp = d_cos(bp)
-    sbp = d_sin(bp)
-    sg = d_neg(d_mul(rho, cbp))
-    gamma = d_asin(sg)
-    cg = d_cos(gamma)
-    k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7
-    R = d_mul(P, rho)
-    return _assemble(a, beta, gamma, sg, cg, phi, P, k1p, R, g0, 1, B, d)
+    return _assemble_rho(a, beta, rho, phi, P, g0, 1, B, d)
 
 
 @wp.func
