@@ -73,7 +73,8 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import SweepChunkError, domain_samples, failed_samples, plan_sweep, run_sweep
+    from ..sweep.runner import (SweepChunkError, domain_samples, energy_creating_samples, failed_samples,
+                                 plan_sweep, run_sweep)
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -120,6 +121,7 @@ def _run(args) -> int:
     failed = failed_samples(ds)
     no_rest = domain_samples(ds, DOMAIN_NO_REST_STATE)
     outside = domain_samples(ds, DOMAIN_OUTSIDE_BOX)
+    energy = energy_creating_samples(ds)
     n_bad = len(failed)
     summary = {
         "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
@@ -128,6 +130,8 @@ def _run(args) -> int:
         "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad + len(no_rest), "failed": failed,
         # outside the model (no rest state: not solved) and outside the domain's box (solved, extrapolated)
         "no_rest_state": no_rest, "outside_domain": outside,
+        # a closed loop that returns energy (oint F dC < 0: Table 4's frozen force closures), flagged not fixed
+        "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
         "files": {k: str(v) for k, v in run.files.items()},
     }
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
@@ -144,7 +148,10 @@ def _run(args) -> int:
     for what, rows, note in (("no_rest_state", no_rest, "outside the model, not solved: NaN in results.nc, grey "
                               "squares / //-hatched in the plots"),
                              ("outside_domain", outside, "outside the domain's box, solved (an extrapolation: "
-                              "convergence is promised inside the box only): ringed / dotted in the plots")):
+                              "convergence is promised inside the box only): ringed / dotted in the plots"),
+                             ("loop_creates_energy", energy, "a closed loop returns energy, oint F dC < 0: not a "
+                              "hysteresis; Table 4's frozen force closures, README 'Loops that return energy'; "
+                              "variable loop_creates_energy in results.nc / results.csv")):
         if rows:
             print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
             for f in rows[:10]:

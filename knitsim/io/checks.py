@@ -55,18 +55,21 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
     return {"kind": kind, "closed": closed, "value": float(w)}
 
 
-def closed_excursions(strain: np.ndarray) -> list[tuple[int, int]]:
+def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, int]]:
     """Load-then-unload excursions that come back to where they started.
 
     Parameters
     ----------
     strain : ndarray, shape [n + 1]
         Imposed strains with the rest state first (index 0).
+    atol : float
+        How close the strain must come back (1e-12: an imposed strain; a cell of a patch, whose strain
+        the column coupling solves, comes back only to within its solution).
 
     Returns
     -------
     list of (i, j)
-        ``strain[i] == strain[j]`` (within 1e-12) with one turning point, a maximum, strictly between.
+        ``strain[i] == strain[j]`` (within ``atol``) with one turning point, a maximum, strictly between.
         An unload-reload excursion from a peak is not one: it comes back with less stored bending
         energy (the contact slid back), so its work can be negative without energy being created.
     """
@@ -77,7 +80,7 @@ def closed_excursions(strain: np.ndarray) -> list[tuple[int, int]]:
     for n, t in enumerate(turns):
         i = turns[n - 1] if n > 0 else 0                # where the excursion starts
         end = turns[n + 1] if n + 1 < len(turns) else len(s) - 1
-        back = [k for k in range(t + 1, end + 1) if abs(s[k] - s[i]) < 1e-12]
+        back = [k for k in range(t + 1, end + 1) if abs(s[k] - s[i]) < atol]
         if back and s[t] > s[i]:                        # loaded first, then unloaded back
             out.append((i, back[0]))
     return out
@@ -90,7 +93,7 @@ def loop_work_tolerance(strain: np.ndarray, force: np.ndarray) -> float:
 
 
 def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
-                          what: str = "the cell") -> list[ResultWarning]:
+                          what: str = "the cell", atol: float = 1e-12) -> list[ResultWarning]:
     """Warnings for closed load-then-unload excursions whose work ``oint F dC`` is negative.
 
     Parameters
@@ -99,14 +102,22 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
         Imposed strains and forces per wale [N], the rest state first.
     C0 : float
         Course length at rest [mm] (the work in N mm is the per-strain work times C0).
+    what : str
+        What the path is, for the message.
+    atol : float
+        Closure of a loop (:func:`closed_excursions`).  A loop that comes back to within
+        ``delta = |s_j - s_i|`` differs from a closed one by at most ``max|F| delta`` of work (the segment
+        that would close it), added to the rounding tolerance: only a loop that returns energy beyond it
+        is flagged.
     """
     from ..cell.cycle import dissipated_energy
 
     s, f = np.asarray(strain, float), np.asarray(force, float)
     out = []
-    for i, j in closed_excursions(s):
+    for i, j in closed_excursions(s, atol):
         w = dissipated_energy(s[i:j + 1], f[i:j + 1])
-        if np.isfinite(w) and w < -loop_work_tolerance(s[i:j + 1], f[i:j + 1]):
+        gap = abs(s[j] - s[i]) * float(np.max(np.abs(f[i:j + 1])))
+        if np.isfinite(w) and w < -(loop_work_tolerance(s[i:j + 1], f[i:j + 1]) + gap):
             top = float(np.max(s[i:j + 1]))
             out.append(ResultWarning(
                 "loop_creates_energy",

@@ -45,7 +45,7 @@ from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import cycle_work, interpenetration, zero_force_cycles
+from .checks import ResultWarning, cycle_work, energy_creating_loops, interpenetration, zero_force_cycles
 from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
@@ -371,6 +371,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                                      what="distinct cell", direction=h.direction)
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
+    warnings += _energy_creating_cells(h, row_key, col_key)
     out = dict(info)
     cells = int(h.shape[0] * h.shape[1])
     solved = int(h.info.get("n_groups", cells))
@@ -405,6 +406,46 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         warnings=[w.as_dict() for w in warnings],
     )
     return out
+
+
+#: a cell of a patch comes back to the strain it started from only to within the column coupling's solution
+#: (force_tol + force_rtol |F|, over a tangent): a loop of a cell is closed within this strain
+PATCH_LOOP_ATOL = 1e-6
+
+
+def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:
+    """One warning naming the distinct cells with a closed loop that returns energy (oint F dC < 0).
+
+    Each distinct cell (group) is checked on its own path, rest state first, by
+    :func:`knitsim.io.checks.energy_creating_loops` (closure within :data:`PATCH_LOOP_ATOL`, the open end's
+    work added to the tolerance).  Only where a cell's path has closed loops can the flag fire.
+    """
+    if h.group_rest is None or not h.n_increments:
+        return []
+    g_C, g_F = h.groups["C"], h.groups["F"]
+    n_groups = g_C.shape[1]
+    C0 = np.zeros(n_groups)
+    C0[h.group_of_cell.ravel()] = h.C0.ravel()
+    ok = np.all(h.groups["status"] == STATUS_OK, axis=0)
+    flagged = {}
+    for g in range(n_groups):
+        n = int(np.argmin(h.groups["status"][:, g] == STATUS_OK)) if not ok[g] else h.n_increments
+        s = np.concatenate([[h.group_rest["C"][g]], g_C[:n, g]]) / C0[g] - 1.0
+        f = np.concatenate([[h.group_rest["F"][g]], g_F[:n, g]])
+        w = energy_creating_loops(s, f, C0[g], atol=PATCH_LOOP_ATOL)
+        if w:
+            flagged[g] = w[0].message
+    if not flagged:
+        return []
+    where = []
+    for g in flagged:
+        i, j = np.argwhere(h.group_of_cell == g)[0]
+        where.append(f"{row_key} {int(i)} {col_key} {int(j)}")
+    first = next(iter(flagged.values())).replace("the cell: ", "")
+    return [ResultWarning(
+        "loop_creates_energy",
+        f"{len(flagged)} of {n_groups} distinct cell(s) have a closed loop that returns energy (oint F dC < 0), "
+        f"e.g. at {', '.join(where[:10])}{' ...' if len(where) > 10 else ''}; the first: {first}")]
 
 
 def _png(fig) -> bytes:

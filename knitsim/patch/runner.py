@@ -71,6 +71,8 @@ class PatchHistory:
     rest_force_N, rest_force_per_wale_N : float
         Grip force and force per wale of the rest state, before the first increment (the model's
         rest force is not zero; a column's is the mean of its cells').
+    group_rest : dict of str to ndarray, optional
+        Per group, its rest state before the first increment: ``C`` [mm] and ``F`` [N], shape [n_groups].
     wall_s : float
         Seconds spent solving (this run plus the runs it resumed).
     """
@@ -92,6 +94,7 @@ class PatchHistory:
     group_d_jam: np.ndarray | None = None
     rest_force_N: float = 0.0
     rest_force_per_wale_N: float = 0.0
+    group_rest: dict | None = None
 
     @property
     def n_increments(self) -> int:
@@ -185,6 +188,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     grouping = model.grouping(dedup)
     solver = PatchSolver(grouping, engine, device, **solver_options)
     # the rest state (before any increment, and before a resume restores a later one)
+    group_rest = {k: np.asarray(solver.cells[k], float).copy() for k in ("C", "F")}
     cnt = grouping.group_count.astype(float)
     n_cls = grouping.n_classes
     pw = np.asarray(grouping.group_wales, float)
@@ -286,7 +290,8 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
                         arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
                         arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info,
                         np.array([p.d_jam for p in grouping.params]), float(np.sum(col_rest)),
-                        float(np.mean(col_rest)) if single_stitches else float(np.sum(col_rest) / np.sum(col_wales)))
+                        float(np.mean(col_rest)) if single_stitches else float(np.sum(col_rest) / np.sum(col_wales)),
+                        group_rest)
 
 
 def all_ok(history: PatchHistory) -> bool:

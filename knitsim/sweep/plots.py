@@ -105,6 +105,12 @@ def _outside(ds) -> np.ndarray:
     return _domain(ds) == DOMAIN_OUTSIDE_BOX
 
 
+def _energy(ds) -> np.ndarray:
+    """Where a sample's cell has a closed loop that returns energy (knitsim.io.checks.energy_creating_loops)."""
+    return (np.asarray(ds["loop_creates_energy"].values) == 1 if "loop_creates_energy" in ds.data_vars
+            else np.zeros(ds["final_status"].shape, dtype=bool))
+
+
 def _failed(ds) -> np.ndarray:
     """Where a sample's cell failed (status not ok nor force cap, it ran, and it has a rest state)."""
     return ((np.asarray(ds["expected_end"].values) == 0) & (np.asarray(ds["final_status"].values) >= 0)
@@ -112,7 +118,7 @@ def _failed(ds) -> np.ndarray:
 
 
 def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
-           outside: np.ndarray | None = None) -> str:
+           outside: np.ndarray | None = None, energy: np.ndarray | None = None) -> str:
     parts = []
     n = int(np.count_nonzero(failed))
     if n:
@@ -123,6 +129,9 @@ def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
     n = 0 if outside is None else int(np.count_nonzero(outside))
     if n:
         parts.append(f"{n} outside the domain's box (ringed / dotted): extrapolated")
+    n = 0 if energy is None else int(np.count_nonzero(energy))
+    if n:
+        parts.append(f"{n} with a closed loop that returns energy (loop_creates_energy)")
     return title if not parts else title + "\n" + "; ".join(parts) + "; see summary"
 
 
@@ -157,7 +166,7 @@ def _lines(ds, key: str, title: str) -> bytes:
             ax.set_xticks(xs, [str(v) for v in x])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside, _energy(ds)), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -180,7 +189,7 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
             ax.set_xlabel(kx)
             ax.set_ylabel(ky)
             ax.set_title(f"{label}, cycle {c}", fontsize=8)
-    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx), fontsize=9)
+    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx, _energy(t)), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -228,7 +237,7 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside, _energy(flat)), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 

@@ -26,7 +26,10 @@ Per cell and cycle the results are those of
 :func:`knitsim.io.results.cell_summary` (one definition of each quantity):
 peak force per wale and the imposed strain where it occurs, residual strain,
 energy per cycle; per cell the strain at the first jamming and the final
-status.  With ``curves`` the force per wale at every increment is kept too.
+status, and ``loop_creates_energy``: 1 where the cell summary carries that warning
+(:func:`knitsim.io.checks.energy_creating_loops`: a closed loop with ``oint F dC < 0``), 0 where it
+does not, -1 where the cell was not solved.  With ``curves`` the force per wale at every increment
+is kept too.
 
 Execution backends: ``workers=0`` runs chunks in this process; otherwise a
 Dask ``LocalCluster`` with ``workers`` single-threaded worker processes
@@ -63,7 +66,7 @@ FORMAT = "knitsim-sweep/1"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell
-CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end")
+CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy")
 
 
 class SweepChunkError(RuntimeError):
@@ -319,6 +322,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
     out["strain_at_first_jamming"] = np.full(n, np.nan)
     out["final_status"] = np.asarray(history.status[-1, :], dtype=np.int32)
     out["expected_end"] = np.zeros(n, dtype=np.int8)
+    out["loop_creates_energy"] = np.zeros(n, dtype=np.int8)
     for c in range(n):
         s = cell_summary(history, c)
         for cy in s["cycles"]:
@@ -329,6 +333,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         jam = s["strain_at_first_jamming"]
         out["strain_at_first_jamming"][c] = np.nan if jam is None else jam
         out["expected_end"][c] = 1 if s["expected_end"] else 0
+        out["loop_creates_energy"][c] = int(any(w["code"] == "loop_creates_energy" for w in s["warnings"]))
     if curves:
         out["force_per_wale_N"] = np.ascontiguousarray(history.force_per_wale.T, dtype=np.float64)
     return out
@@ -353,6 +358,7 @@ def run_chunk(task: dict) -> dict:
     red["strain_at_first_jamming"] = np.full(n_all, np.nan)
     red["final_status"] = np.full(n_all, STATUS_NO_REST_STATE, dtype=np.int32)
     red["expected_end"] = np.zeros(n_all, dtype=np.int8)
+    red["loop_creates_energy"] = np.full(n_all, -1, dtype=np.int8)       # -1: not solved
     if task["curves"]:
         red["force_per_wale_N"] = np.full((n_all, len(task["program"])), np.nan)
     if solve.any():
@@ -658,13 +664,15 @@ def assemble(out_dir: str | Path):
     data["strain_at_first_jamming"] = np.full((ns, nc), np.nan)
     data["final_status"] = np.full((ns, nc), -1, dtype=np.int32)
     data["expected_end"] = np.zeros((ns, nc), dtype=np.int8)
+    data["loop_creates_energy"] = np.full((ns, nc), -1, dtype=np.int8)
     if curves:
         data["force_per_wale_N"] = np.full((ns, nc, ni), np.nan)
         data["imposed_strain"] = np.full((ns, ni), np.nan)
     for p in parts:
         idx = p["samples"]
         for k in CYCLE_VARS + CELL_VARS:
-            data[k][idx] = p[k]
+            if k in p:                      # a chunk written before loop_creates_energy existed: -1 unknown
+                data[k][idx] = p[k]
         if curves:
             n = p["force_per_wale_N"].shape[2]
             data["force_per_wale_N"][idx, :, :n] = p["force_per_wale_N"]
@@ -716,6 +724,10 @@ def assemble(out_dir: str | Path):
         "final_status": "status code at the end: " + ", ".join(f"{k} {v}" for k, v in STATUS_NAMES.items())
                         + ", -1 not run",
         "expected_end": "1 if the cell completed the program or stopped at the force cap",
+        "loop_creates_energy": "1 if a closed load-then-unload loop of the cell returns energy (oint F dC < 0: "
+                               "warning loop_creates_energy, knitsim.io.checks.energy_creating_loops; Table 4's "
+                               "frozen force closures after a jammed reversal, README 'Loops that return "
+                               "energy'), 0 if none does, -1 not solved or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
@@ -795,8 +807,9 @@ def dataset_csv(ds) -> str:
             row += [str(c), str(ds["cell_label"].values[c])]
         row.append(str(int(idx[-1, r]) + 1))
         row += [num(flat[k][r]) for k in CYCLE_VARS]
+        loop = int(flat["loop_creates_energy"][r])
         row += [num(flat["strain_at_first_jamming"][r]), names.get(int(flat["final_status"][r]), "?"),
-                str(int(flat["expected_end"][r]))]
+                str(int(flat["expected_end"][r])), "" if loop < 0 else str(loop)]
         if has_domain:
             row.append(domain_names.get(int(flat["domain"][r]), "?"))
         lines.append(",".join(row))
@@ -804,7 +817,7 @@ def dataset_csv(ds) -> str:
 
 
 __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepChunkError", "plan_sweep",
-           "run_sweep", "run_chunk", "failed_samples", "domain_samples",
+           "run_sweep", "run_chunk", "failed_samples", "domain_samples", "energy_creating_samples",
            "reduce_history", "sweep_hash", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
            "CYCLE_VARS", "CELL_VARS"]
 
@@ -865,3 +878,22 @@ def domain_samples(ds, code: int) -> list[dict]:
         return text if st == STATUS_NO_REST_STATE else f"{text} (status {STATUS_NAMES.get(st, 'not_run')})"
 
     return _sample_listing(ds, lambda st, ok, dom: dom == code, why)
+
+
+def energy_creating_samples(ds) -> list[dict]:
+    """The samples whose cell has a closed loop that returns energy (``loop_creates_energy == 1``).
+
+    Returns
+    -------
+    list of dict
+        As :func:`failed_samples`; ``reason`` says what the flag means.
+    """
+    if "loop_creates_energy" not in ds.data_vars:
+        return []
+    keys = json.loads(ds.attrs["parameters"])
+    order = (["sample"] if ds.attrs["method"] == "lhs" else keys) + (["cell"] if "cell" in ds.dims else [])
+    flag = np.asarray(ds["loop_creates_energy"].transpose(*order).values)
+    return _sample_listing(
+        ds, lambda st, ok, dom: flag == 1,
+        lambda i, c, st, dom: "a closed loop returns energy (oint F dC < 0): not a hysteresis; Table 4's frozen "
+                              "force closures (README, 'Loops that return energy')")

@@ -1,0 +1,59 @@
+"""The flag loop_creates_energy (knitsim.io.checks.energy_creating_loops) reaches the sweep results and the
+patch summaries.
+
+Must fire: the head-gap cell of the property test (tests/cell/test_convergence_regressions.py,
+README 'Loops that return energy'), loaded 0 -> 0.5 -> 0: the unloading from the jammed reversal returns
+4.18 N per wale at strain 0 against 2.39 N at rest, oint F dC = -2.67 N mm < 0.  Must not fire: the E-glass
+cell of Dusserre (2015) (Table 1, section 2.2), whose loops dissipate (friction at the crossing only
+dissipates; no jammed reversal)."""
+from __future__ import annotations
+
+import numpy as np
+
+from knitsim.cell.engine import simulate
+from knitsim.cell.load_program import piecewise_linear
+from knitsim.cell.material import CellParams
+from knitsim.io.patch_results import patch_summary
+from knitsim.patch.model import PatchModel
+from knitsim.patch.runner import run_patch
+from knitsim.sweep.runner import dataset_csv, plan_sweep, reduce_history, run_sweep
+
+HEAD_GAP = CellParams(B=3.2320405851281793, d=1.0, L=23.236310302405247, W0=8.440690238335081,
+                      C0=4.929637001818417, m=0.2397704821942555, phi0=0.08383068096173228,
+                      unloading_rule="dusserre", reload_rule="mirror_unloading", jamming_criterion="head_gap",
+                      force_cap_N=68.37937397181895)
+E_GLASS = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, force_cap_N=10.0)   # Table 1, section 2.2
+PROGRAM = piecewise_linear([0.0, 0.5, 0.0], 0.05)
+
+
+def test_sweep_reduction_flags_the_energy_creating_cell_only():
+    h = simulate([HEAD_GAP, E_GLASS], PROGRAM, engine="warp", device="cpu")
+    red = reduce_history(h, n_cycles=1)
+    assert red["loop_creates_energy"].tolist() == [1, 0]
+
+
+def test_sweep_dataset_and_csv_carry_the_flag(tmp_path):
+    scene = {"engine": "warp", "device": "cpu", "yarn": {"material": "e_glass"},
+             "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2, "phi0": 0.0},
+             "load": {"type": "cycles", "lower_strain": 0.0, "upper_strain": 0.3, "cycles": 1,
+                      "max_increment": 0.1}}
+    plan = plan_sweep(scene, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    assert ds["loop_creates_energy"].dims == ("friction.m",)
+    assert ds["loop_creates_energy"].values.tolist() == [0, 0]
+    lines = dataset_csv(ds).splitlines()
+    col = lines[0].split(",").index("loop_creates_energy")
+    assert [ln.split(",")[col] for ln in lines[1:]] == ["0", "0"]
+
+
+def _patch_codes(p: CellParams) -> list[dict]:
+    model = PatchModel.uniform(p, 2, 2)
+    h = run_patch(model, PROGRAM)
+    return [w for w in patch_summary(h, h.info["ref_length_mm"], model=model)["warnings"]
+            if w["code"] == "loop_creates_energy"]
+
+
+def test_patch_summary_names_the_cells_that_return_energy():
+    w = _patch_codes(HEAD_GAP)
+    assert len(w) == 1 and w[0]["message"].startswith("1 of 1 distinct cell(s)")
+    assert _patch_codes(E_GLASS) == []
