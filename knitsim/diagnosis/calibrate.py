@@ -66,6 +66,10 @@ def _variables(free: tuple, effects: tuple) -> dict:
     return known
 
 
+#: share of a variable's range within which a fitted value counts as at its bound
+AT_BOUND_SHARE = 1.0e-3
+
+
 def _default_bounds(base: CellParams, var) -> tuple[float, float]:
     if var.name in ("B", "d"):
         v = getattr(base, var.name)
@@ -330,6 +334,12 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
            "offsets_N": offs, "curves": out_curves,
            "nfev": int(res.nfev), "njev": int(res.njev or 0), "n_batch_calls": counter["calls"],
            "success": bool(res.success), "message": str(res.message)}
+    # a variable that ends within 0.1 % of its range from a bound is "at" it: the data pushed it there,
+    # and its value (and standard error) is the bound's, not an estimate; said in the verdict
+    span = hi - lo
+    out["at_bounds"] = {n: ("lower" if x[j] <= lo[j] + AT_BOUND_SHARE * span[j] else "upper")
+                        for j, n in enumerate(free)
+                        if x[j] <= lo[j] + AT_BOUND_SHARE * span[j] or x[j] >= hi[j] - AT_BOUND_SHARE * span[j]}
     if "phi0" in free:
         jp = free.index("phi0")
         out["phi0_fraction"] = (float(x[jp]), float(math.sqrt(max(cov_x[jp, jp], 0.0))))

@@ -1157,7 +1157,22 @@ def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarra
             "rss_N2": rss, "chi2": fit["chi2"], "k": fit["k"], "stages": _stages(measured, sim, loc.keys, keep),
             "shrink": 1.0 - math.sqrt(rss / base["rss_N2"]) if base["rss_N2"] > 0 else 0.0,
             "score": base["chi2"] - fit["chi2"] - (fit["k"] - base["k"]) * math.log(n),
-            "flagged_curves": flagged, "nfev": fit["nfev"]}
+            "flagged_curves": flagged, "nfev": fit["nfev"], "at_bounds": dict(fit.get("at_bounds") or {})}
+
+
+def _at_bounds_text(base_fit: dict, best_fit: dict | None, effect: str | None) -> str:
+    """Where the verdict's fits ended at a bound of their search (calibrate.AT_BOUND_SHARE): such a value
+    is the bound's, not an estimate, and the user reads it beside the verdict."""
+    parts = []
+    for label, fit in (("baseline", base_fit), (effect, best_fit)):
+        at = (fit or {}).get("at_bounds") or {}
+        if at:
+            vals = fit.get("fit_variables", {})
+            # phi0 is searched as a fraction of phimax = atan(m) (calibrate's module docstring)
+            parts.append(f"{label} fit: " + ", ".join(
+                f"{k} = {vals.get(k, float('nan')):.4g}{' phimax' if k == 'phi0' else ''} at its {side} bound"
+                for k, side in sorted(at.items())))
+    return ("parameters at the bounds of their search (values not estimated): " + "; ".join(parts)) if parts else ""
 
 
 def chi2_by_curve(data: "_Data", fit: dict) -> dict:
@@ -1486,6 +1501,9 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
                            f"further halving still changed a fit's chi2 by {disc.trail[-1][1]:.3g} (a discretisation "
                            "residual of that size may remain)")
     best_fit = fits.get(verdict.effect) if verdict.effect else None
+    bound_txt = _at_bounds_text(base_fit, best_fit, verdict.effect)
+    if bound_txt:
+        verdict.reason += "; " + bound_txt
     return Diagnosis(setup.title, [c.source for c in curves], noise, rates, n, base, outliers, adequacy, loc,
                      candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit),
                      time.perf_counter() - t0)

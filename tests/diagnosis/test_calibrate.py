@@ -108,3 +108,18 @@ def test_rows_the_simulation_did_not_reach_count_at_least_ten_sd():
     assert out[0] == 0.5 and out[3] == 3.0
     assert out[1] == pytest.approx(-np.hypot(0.2, 10.0)) and out[2] == pytest.approx(10.0)
     assert out[4] == pytest.approx(-np.hypot(4.0, 10.0))
+
+
+def test_a_variable_pushed_to_its_bound_is_reported_at_it(curve):
+    """The curve's m is 0.2 (TRUE); with m's search bounded to [0.3, 0.5] the least-squares optimum
+    lies on the lower bound (chi^2 rises away from 0.2 on that side: one basin), which the fit must
+    report as at_bounds {"m": "lower"}, and the verdict's text names it (phi0 held at the truth's, so
+    that it cannot take up the misfit); the free fit of m and phi0 from the same curve ends inside."""
+    from knitsim.diagnosis.diagnose import _at_bounds_text
+
+    r = calibrate_baseline(curve, TRUE.replace(m=0.4), free=("m",), max_increment=0.02, bounds={"m": (0.3, 0.5)})
+    assert r["at_bounds"] == {"m": "lower"}
+    assert r["values"]["m"] == pytest.approx(0.3, abs=1e-3 * 0.2)
+    assert "m = 0.3 at its lower bound" in _at_bounds_text(r, None, None)
+    free = calibrate_baseline(curve, TRUE.replace(m=0.3, phi0=0.0), max_increment=0.02)
+    assert free["at_bounds"] == {} and _at_bounds_text(free, None, None) == ""
