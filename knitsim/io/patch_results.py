@@ -474,11 +474,13 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
         bottom = (0.55 + 0.16 * len(lines)) / (5 + 0.16 * len(lines))
         fig.subplots_adjust(bottom=bottom)
         fig.text(0.02, 0.01, "\n".join(lines), fontsize=6.5, color="#b22222", va="bottom", ha="left")
-    for k in np.unique(h.cycle):
+    for i, k in enumerate(np.unique(h.cycle)):
         r = np.nonzero(h.cycle == k)[0]
         if r[0] > 0:
             r = np.concatenate([[r[0] - 1], r])
-        ax.plot(h.grip_strain[r], F[r], lw=1.2, label=f"cycle {int(k)}")
+        # later cycles thinner and dashed: a cycle that retraces the one before stays visible under it
+        ax.plot(h.grip_strain[r], F[r], lw=max(2.6 - 0.8 * i, 0.9), ls="-" if i == 0 else (0, (4, 2 + i)),
+                label=f"cycle {int(k)}")
     bad = np.any(h.column_status != COL_OK, axis=1)
     if bad.any():
         ax.scatter(h.grip_strain[bad], F[bad], marker="x", color="red", zorder=3,
