@@ -20,7 +20,11 @@ without an admissible rest state was not solved (outside the model): a grey
 hollow square on the axis (lines, scatter) or a grey ``//``-hatched cell (heat
 maps), apart from the failed ones; a sample outside the domain's box was
 solved (an extrapolation): its points are ringed in black (lines, scatter) or
-its heat-map cell is dotted.  The title counts each kind.
+its heat-map cell is dotted.  A sample whose cell has a closed loop that
+returns energy (``loop_creates_energy``: a jammed reversal under Table 4's
+frozen T, README "Loops that return energy") keeps its values, drawn with a
+red diamond around each point (lines, scatter) or a red ``\\\\``-hatched cell
+(heat maps).  The title counts each kind.
 """
 from __future__ import annotations
 
@@ -84,6 +88,7 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
 FAILED_STYLE = {"marker": "x", "color": "0.45", "s": 28, "lw": 1.2, "zorder": 5}
 NO_REST_STYLE = {"marker": "s", "facecolors": "none", "edgecolors": "0.45", "s": 30, "lw": 1.2, "zorder": 5}
 OUTSIDE_STYLE = {"marker": "o", "facecolors": "none", "edgecolors": "k", "s": 46, "lw": 0.9, "zorder": 4}
+ENERGY_STYLE = {"marker": "D", "facecolors": "none", "edgecolors": "tab:red", "s": 60, "lw": 1.1, "zorder": 4}
 
 
 def _domain(ds) -> np.ndarray:
@@ -131,7 +136,7 @@ def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
         parts.append(f"{n} outside the domain's box (ringed / dotted): extrapolated")
     n = 0 if energy is None else int(np.count_nonzero(energy))
     if n:
-        parts.append(f"{n} with a closed loop that returns energy (loop_creates_energy)")
+        parts.append(f"{n} with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)")
     return title if not parts else title + "\n" + "; ".join(parts) + "; see summary"
 
 
@@ -151,14 +156,12 @@ def _lines(ds, key: str, title: str) -> bytes:
     x = ds[key].values
     numeric = np.issubdtype(x.dtype, np.number)
     xs = x if numeric else np.arange(len(x))
-    bad, no_rest, outside = _failed(ds), _no_rest(ds), _outside(ds)
+    bad, no_rest, outside, energy = _failed(ds), _no_rest(ds), _outside(ds), _energy(ds)
     for ax, (q, ylabel) in zip(axes[0], QUANTITIES):
         for c in ds["cycle"].values:
             y = ds[q].sel(cycle=c).values
             ax.plot(xs, y, marker="o", ms=3, label=f"cycle {int(c)}")
-            if outside.any():
-                ax.scatter(xs[outside], y[outside], label="outside domain" if c == ds["cycle"].values[0] else None,
-                           **OUTSIDE_STYLE)
+            _ring(ax, xs, y, outside, energy, first=c == ds["cycle"].values[0])
         _mark_axis(ax, xs, bad, no_rest, lines=True)
         ax.set_xlabel(key)
         ax.set_ylabel(ylabel)
@@ -166,7 +169,7 @@ def _lines(ds, key: str, title: str) -> bytes:
             ax.set_xticks(xs, [str(v) for v in x])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside, _energy(ds)), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside, energy), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -177,7 +180,7 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
     kx, ky = keys[1], keys[0]
     x, y = ds[kx].values, ds[ky].values
     t = ds.transpose(ky, kx, ...)
-    bad_yx, no_rest_yx, outside_yx = _failed(t), _no_rest(t), _outside(t)
+    bad_yx, no_rest_yx, outside_yx, energy_yx = _failed(t), _no_rest(t), _outside(t), _energy(t)
     for r, c in enumerate(cycles):
         for ax, (q, label) in zip(axes[r], QUANTITIES):
             z = ds[q].sel(cycle=c).transpose(ky, kx).values
@@ -185,22 +188,32 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
             _hatch(ax, _edges(x), _edges(y), bad_yx, "xx", "0.85")
             _hatch(ax, _edges(x), _edges(y), no_rest_yx, "//", "0.85")
             _hatch(ax, _edges(x), _edges(y), outside_yx, "..", None)
+            _hatch(ax, _edges(x), _edges(y), energy_yx, "\\\\", None, edge="tab:red")
             fig.colorbar(im, ax=ax, shrink=0.85)
             ax.set_xlabel(kx)
             ax.set_ylabel(ky)
             ax.set_title(f"{label}, cycle {c}", fontsize=8)
-    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx, _energy(t)), fontsize=9)
+    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx, energy_yx), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
 
-def _hatch(ax, xe: np.ndarray, ye: np.ndarray, mask: np.ndarray, hatch: str, face: str | None) -> None:
+def _hatch(ax, xe: np.ndarray, ye: np.ndarray, mask: np.ndarray, hatch: str, face: str | None,
+           edge: str = "0.3") -> None:
     """Hatch the heat-map cells of ``mask`` [y, x]: grey filled (no values) or only hatched (values kept)."""
     from matplotlib.patches import Rectangle
 
     for iy, ix in np.argwhere(mask):
         ax.add_patch(Rectangle((xe[ix], ye[iy]), xe[ix + 1] - xe[ix], ye[iy + 1] - ye[iy], hatch=hatch,
-                               fill=face is not None, facecolor=face or "none", edgecolor="0.3", lw=0.0))
+                               fill=face is not None, facecolor=face or "none", edgecolor=edge, lw=0.0))
+
+
+def _ring(ax, xs: np.ndarray, y: np.ndarray, outside: np.ndarray, energy: np.ndarray, first: bool) -> None:
+    """Ring the points of samples outside the domain's box (black circle) or whose loop returns energy
+    (red diamond); their values are kept."""
+    for mask, style, label in ((outside, OUTSIDE_STYLE, "outside domain"), (energy, ENERGY_STYLE, "loop returns energy")):
+        if mask.any():
+            ax.scatter(xs[mask], y[mask], label=label if first else None, **style)
 
 
 def _edges(v: np.ndarray) -> np.ndarray:
@@ -221,7 +234,7 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
     else:
         flat = ds
         xs = {k: ds[k].values for k in keys}
-    bad, no_rest, outside = _failed(flat), _no_rest(flat), _outside(flat)
+    bad, no_rest, outside, energy = _failed(flat), _no_rest(flat), _outside(flat), _energy(flat)
     skip = bad | no_rest
     for r, (q, label) in enumerate(QUANTITIES):
         for j, k in enumerate(keys):
@@ -229,15 +242,13 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
             for c in cycles:
                 y = flat[q].sel(cycle=c).values
                 ax.scatter(xs[k][~skip], y[~skip], s=8, alpha=0.7, label=f"cycle {c}")
-                if outside.any():
-                    ax.scatter(xs[k][outside], y[outside], label="outside domain" if c == cycles[0] else None,
-                               **OUTSIDE_STYLE)
+                _ring(ax, xs[k], y, outside, energy, first=c == cycles[0])
             _mark_axis(ax, xs[k], bad, no_rest)
             ax.set_xlabel(k)
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside, _energy(flat)), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside, energy), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 

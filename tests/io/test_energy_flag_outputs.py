@@ -57,3 +57,28 @@ def test_patch_summary_names_the_cells_that_return_energy():
     w = _patch_codes(HEAD_GAP)
     assert len(w) == 1 and w[0]["message"].startswith("1 of 1 distinct cell(s)")
     assert _patch_codes(E_GLASS) == []
+
+
+def test_sweep_plot_marks_the_flagged_sample_in_every_panel(tmp_path, monkeypatch):
+    # the flag's source is tested above; here one sample is marked by hand and the plot must show it at
+    # that sample's x in every panel (red diamond around its points, values kept) and count it in the title
+    import matplotlib.colors as mcolors
+
+    import knitsim.sweep.plots as plots
+
+    scene = {"engine": "warp", "device": "cpu", "yarn": {"material": "e_glass"},
+             "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2, "phi0": 0.0},
+             "load": {"type": "cycles", "lower_strain": 0.0, "upper_strain": 0.3, "cycles": 1,
+                      "max_increment": 0.1}}
+    plan = plan_sweep(scene, {"parameters": {"friction.m": {"values": [0.1, 0.2, 0.3]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    ds["loop_creates_energy"].values[:] = [0, 1, 0]
+    figs = []
+    monkeypatch.setattr(plots, "_png", lambda fig: figs.append(fig) or b"")
+    plots.plot_sweep(ds, tmp_path / "out")
+    red = mcolors.to_rgba("tab:red")
+    (fig,) = figs
+    assert "1 with a closed loop that returns energy" in fig._suptitle.get_text()
+    for ax in fig.axes:
+        rings = [c for c in ax.collections if len(c.get_edgecolor()) and np.allclose(c.get_edgecolor()[0], red)]
+        assert len(rings) == 1 and np.allclose(rings[0].get_offsets()[:, 0], [0.2])
