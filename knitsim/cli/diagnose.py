@@ -126,7 +126,9 @@ def run(args) -> int:
         pr = result["pair"]
         print(f"best pair: {' + '.join(pr['effects'])}: rms {pr['rms_N']:.4g} N, shrink {pr['shrink']:.1%}, "
               f"{'a significant' if pr['significant'] else 'no significant'} gain over the best effect alone "
-              f"(BIC {pr['gain_over_best']:+.4g})")
+              f"(BIC {pr['gain_over_best']:+.4g})"
+              + (f"; at the bounds of its search (values not estimated): {pr['at_bounds_note']}"
+                 if pr.get("at_bounds_note") else ""))
     print(f"({result['timing_s']:.1f} s)")
     return 0
 

@@ -1163,16 +1163,20 @@ def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarra
 def _at_bounds_text(base_fit: dict, best_fit: dict | None, effect: str | None) -> str:
     """Where the verdict's fits ended at a bound of their search (calibrate.AT_BOUND_SHARE): such a value
     is the bound's, not an estimate, and the user reads it beside the verdict."""
-    parts = []
-    for label, fit in (("baseline", base_fit), (effect, best_fit)):
-        at = (fit or {}).get("at_bounds") or {}
-        if at:
-            vals = fit.get("fit_variables", {})
-            # phi0 is searched as a fraction of phimax = atan(m) (calibrate's module docstring)
-            parts.append(f"{label} fit: " + ", ".join(
-                f"{k} = {vals.get(k, float('nan')):.4g}{' phimax' if k == 'phi0' else ''} at its {side} bound"
-                for k, side in sorted(at.items())))
+    parts = [t for t in (_fit_bounds_text("baseline", base_fit), _fit_bounds_text(effect, best_fit)) if t]
     return ("parameters at the bounds of their search (values not estimated): " + "; ".join(parts)) if parts else ""
+
+
+def _fit_bounds_text(label: str | None, fit: dict | None) -> str:
+    """``"<label> fit: k = v at its lower bound, ..."`` for one fit's parameters at their bounds ("" if none)."""
+    at = (fit or {}).get("at_bounds") or {}
+    if not at:
+        return ""
+    vals = fit.get("fit_variables", {})
+    # phi0 is searched as a fraction of phimax = atan(m) (calibrate's module docstring)
+    return f"{label} fit: " + ", ".join(
+        f"{k} = {vals.get(k, float('nan')):.4g}{' phimax' if k == 'phi0' else ''} at its {side} bound"
+        for k, side in sorted(at.items()))
 
 
 def chi2_by_curve(data: "_Data", fit: dict) -> dict:
@@ -1341,6 +1345,7 @@ def pair_step(data: _Data, best: CandidateResult, fitted: list, fits: dict, base
         summ["effects"] = list(effs)
         summ["gain_over_best"] = summ["score"] - best.score
         summ["significant"] = bool(summ["gain_over_best"] > STRONG and not summ["flagged_curves"])
+        summ["at_bounds_note"] = _fit_bounds_text(" + ".join(effs), fit)
         trials.append((summ, fit))
         say(f"pair {effs}: rms {summ['rms_N']:.4g} N")
     if not trials:

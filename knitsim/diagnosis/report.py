@@ -378,6 +378,13 @@ def render_report(result: dict) -> str:
     if probs:
         out.append("<p>Probabilities (BIC weights over the candidates and none): " + ", ".join(
             f"{_e(k)} {_e(_fmt(p))}" for k, p in sorted(probs.items(), key=lambda kv: -kv[1])) + ".</p>\n")
+    if pair and pair.get("effects"):
+        gain = pair.get("gain_over_best")
+        out.append(f"<p>{_e(_pair_label(pair))}: "
+                   f"{'a significant' if pair.get('significant') else 'no significant'} gain over the best effect "
+                   f"alone (BIC {_e(_fmt(gain))})"
+                   + (f"; at the bounds of its search (values not estimated): {_e(pair['at_bounds_note'])}"
+                      if pair.get("at_bounds_note") else "") + ".</p>\n")
     rows = [[_e(c.get("source")), _e(_fmt(c.get("sigma_N"))), _e(c.get("method")), _e(c.get("note"))]
             for c in noise.get("curves") or []]
     if not rows:

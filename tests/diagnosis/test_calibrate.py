@@ -115,11 +115,13 @@ def test_a_variable_pushed_to_its_bound_is_reported_at_it(curve):
     lies on the lower bound (chi^2 rises away from 0.2 on that side: one basin), which the fit must
     report as at_bounds {"m": "lower"}, and the verdict's text names it (phi0 held at the truth's, so
     that it cannot take up the misfit); the free fit of m and phi0 from the same curve ends inside."""
-    from knitsim.diagnosis.diagnose import _at_bounds_text
+    from knitsim.diagnosis.diagnose import _at_bounds_text, _fit_bounds_text
 
     r = calibrate_baseline(curve, TRUE.replace(m=0.4), free=("m",), max_increment=0.02, bounds={"m": (0.3, 0.5)})
     assert r["at_bounds"] == {"m": "lower"}
     assert r["values"]["m"] == pytest.approx(0.3, abs=1e-3 * 0.2)
     assert "m = 0.3 at its lower bound" in _at_bounds_text(r, None, None)
+    # the pair's fit is reported the same way (diagnose.pair_step's at_bounds_note)
+    assert _fit_bounds_text("a + b", r) == "a + b fit: m = 0.3 at its lower bound" and _fit_bounds_text("a", None) == ""
     free = calibrate_baseline(curve, TRUE.replace(m=0.3, phi0=0.0), max_increment=0.02)
     assert free["at_bounds"] == {} and _at_bounds_text(free, None, None) == ""

@@ -155,12 +155,24 @@ def test_strings_are_escaped(result):
     result["curves"][0]["source"] = EVIL
     result["inputs"] = [EVIL]
     result["where"][0] = EVIL
+    result["pair"]["at_bounds_note"] = EVIL
     result["baseline"]["stages"][EVIL] = result["baseline"]["stages"].pop("loading_sliding")
     text = report.render_report(result)
     assert "<script" not in text.lower()
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
     p = _parse(text)
     assert "script" not in p.tags
+
+
+def test_pair_line_says_where_its_fit_sits_at_a_bound(result):
+    result["pair"].update(significant=True, gain_over_best=12.5,
+                          at_bounds_note="dahl_transition + yarn_compaction fit: k = 1 at its upper bound")
+    text = report.render_report(result)
+    assert "best pair: dahl_transition + yarn_compaction: a significant gain" in text
+    assert "at the bounds of its search (values not estimated): dahl_transition + yarn_compaction fit: k = 1 at its" \
+        " upper bound" in text
+    del result["pair"]["at_bounds_note"]
+    assert "bounds of its search" not in report.render_report(result)
 
 
 def test_tolerates_missing_best_pair_and_nan(result):
