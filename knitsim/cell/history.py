@@ -10,7 +10,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .stages import EVENT_TOL, LABEL_CODES, stage_label
+from .stages import EVENT_TOL, LABEL_CODES, Stage, stage_label
+
+#: stage_label(stage, jammed) for every stage code (rows) and jammed flag (columns): looked up per increment
+#: (the diagnosis reads the labels of every fit's rows, millions of them)
+_LABELS = np.array([[stage_label(s, j) for j in (False, True)] for s in sorted(int(x) for x in Stage)])
+
+
+def _lookup(table: np.ndarray, stage: np.ndarray, jammed: np.ndarray) -> np.ndarray:
+    """``table[stage, jammed]``, refusing a stage code that is none (as ``Stage(code)`` would)."""
+    stage = np.asarray(stage)
+    if stage.size and (stage.min() < 0 or stage.max() >= len(table)):
+        bad = stage[(stage < 0) | (stage >= len(table))].flat[0]
+        raise ValueError(f"{int(bad)} is not a valid Stage")
+    return table[stage, (np.asarray(jammed) != 0).astype(np.intp)]
 
 #: per-increment quantities recorded for every cell
 HISTORY_QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC", "T", "Rn", "F")
@@ -106,16 +119,16 @@ class BatchHistory:
 
     def label_codes(self) -> np.ndarray:
         """Stage label codes (:data:`~knitsim.cell.stages.LABEL_CODES`) per increment and cell."""
-        out = np.empty(self.stage.shape, np.int32)
-        for s in np.unique(self.stage):
-            for j in (0, 1):
-                mask = (self.stage == s) & (self.jammed == j)
-                out[mask] = LABEL_CODES[stage_label(int(s), bool(j))]
-        return out
+        codes = np.vectorize(LABEL_CODES.get, otypes=[np.int32])(_LABELS)
+        return _lookup(codes, self.stage, self.jammed)
+
+    def label_array(self, cell: int = 0) -> np.ndarray:
+        """Stage labels (adherence / sliding / jamming / slack) of one cell, as an array of str."""
+        return _lookup(_LABELS, self.stage[:, cell], self.jammed[:, cell])
 
     def labels(self, cell: int = 0) -> list[str]:
         """Stage labels (adherence / sliding / jamming / slack) of one cell."""
-        return [stage_label(s, j) for s, j in zip(self.stage[:, cell], self.jammed[:, cell])]
+        return self.label_array(cell).tolist()
 
     def cell(self, i: int) -> "BatchHistory":
         """The history of cell ``i`` alone (a one-column BatchHistory)."""

@@ -371,8 +371,8 @@ def force_at_rows(history: BatchHistory, rows: np.ndarray, cell: int = 0) -> tup
     the label ``adherence`` (the rest state sticks until the first move).
     """
     F = history.force_per_wale[:, cell]
-    labels = history.labels(cell)
     rows = np.asarray(rows)
-    force = np.where(rows >= 0, F[np.maximum(rows, 0)], 0.0)
-    lab = [labels[r] if r >= 0 else "adherence" for r in rows]
+    at = np.maximum(rows, 0)
+    force = np.where(rows >= 0, F[at], 0.0)
+    lab = np.where(rows >= 0, history.label_array(cell)[at], "adherence").tolist()
     return force, lab
