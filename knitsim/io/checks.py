@@ -202,10 +202,17 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
         dirs = set(np.sign(np.asarray(direction)[rows]).astype(int).tolist())
         branch = {frozenset({1}): " while loading", frozenset({-1}): " while unloading"}.get(
             frozenset(dirs), " while loading and unloading")
+    lo, hi, first = float(e.min()), float(e.max()), float(e[0])
+    if lo == hi:
+        where = f"at strain {lo:.4g}"
+    elif first == lo:
+        where = f"at strains {lo:.4g} to {hi:.4g}"
+    else:   # first met on an unloading, below which it later overlaps too
+        where = f"first at strain {first:.4g}, at strains {lo:.4g} to {hi:.4g} in all"
     return [ResultWarning(
         "heads_interpenetrate",
-        f"the heads of neighbouring loops overlap (centreline gap below the in-plane width) from strain "
-        f"{float(e[0]):.4g} on{branch}, at strains {float(e.min()):.4g} to {float(e.max()):.4g}, in {len(rows)} "
+        f"the heads of neighbouring loops overlap (centreline gap below the in-plane width) {where}{branch}, in "
+        f"{len(rows)} "
         f"of {flags.shape[0]} increments and {len(cols)} {what}(s), by up to {float(np.nanmax(depth)):.3g} mm: "
         f"the jamming criterion lets the heads pass through each other (jamming_criterion = \"head_gap\" "
         f"stops them at contact)")]

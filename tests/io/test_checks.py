@@ -37,14 +37,18 @@ def test_interpenetration_message_names_first_strain_and_depth():
     assert interpenetration(strain, np.zeros_like(flags), gap, 0.58) == []
     (w,) = interpenetration(strain, flags, gap, 0.58)
     assert w.code == "heads_interpenetrate"
-    assert "from strain 0.3 on" in w.message and "in 1 of 4 increments" in w.message
+    assert "overlap (centreline gap below the in-plane width) at strain 0.3, in 1 of 4 increments" in w.message
     assert "by up to 0.03 mm" in w.message             # 0.58 - 0.55
     # the branches, from the hand-made directions: rows 2 (unloading) and 3 (loading) overlap
     flags2 = gap < 0.62
     (w,) = interpenetration(strain, flags2, gap, 0.62, direction=np.array([1, 1, -1, 1]))
-    assert "while loading and unloading" in w.message and "at strains 0.3 to 0.4" in w.message
+    assert "at strains 0.3 to 0.4 while loading and unloading," in w.message
     (w,) = interpenetration(strain, flags, gap, 0.58, direction=np.array([1, 1, -1, 1]))
-    assert "from strain 0.3 on while unloading" in w.message
+    assert "at strain 0.3 while unloading," in w.message
+    # first met at 0.4 on a loading, then lower on the unloading: the first strain and the range, each once
+    (w,) = interpenetration(np.array([0.1, 0.4, 0.3]), np.array([[0], [1], [1]]), np.array([[1.0], [0.5], [0.5]]),
+                            0.58)
+    assert "first at strain 0.4, at strains 0.3 to 0.4 in all," in w.message
 
 
 def test_summaries_flag_the_paper_cell_and_not_the_contact_criterion():
