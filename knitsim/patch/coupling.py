@@ -20,40 +20,88 @@ force per wale of the cell), and their course counts weight the lengths:
 column above, and the arithmetic is the same bit for bit.
 
 Solution of one increment, per column (all columns together, one kernel
-launch per iteration): the unknowns are the cells' course lengths C_g (one per
+launch per trial): the unknowns are the cells' course lengths C_g (one per
 group of identical cells, :meth:`~knitsim.patch.model.PatchModel.grouping`,
 counted n_g times).  Each cell answers a trial step of the cell solver from
 its committed state to C_g (``CellSolver.step`` on the committed state does
-not modify it), giving F_g(C_g) along its own path-dependent branch (Table 4
-stages, events, hysteresis).  With the tangent k_g = dF/dC of each cell, the
-linearised equations ``f_g + k_g (C_g' - C_g) = F / p_g`` and
-``sum n_g (C_g' - C0_g) = u`` give::
+not modify it), giving f_g(C_g) along its own path-dependent branch (Table 4
+stages, events, hysteresis).
 
-    a_g = C_g - f_g / k_g                  (zero-force point of the linear model)
-    F   = max(0, (u - sum n_g (a_g - C0_g)) / sum n_g / (p_g k_g))
-    C_g' = a_g + F / (p_g k_g)
+*The column as a scalar problem in its force.*  Within one increment every
+cell's branch is monotone: on a stable branch the force never falls as the
+length grows (a stick branch is stiff, a sliding one a plateau with
+df/dC ~ 0, a slack cell has f = 0 over a range of C, a jammed one stiffens), so
+its inverse C_g(f) is a monotone (non-decreasing) function, flat where the cell
+is stiff and steep on a plateau.  The column's equilibrium is one equation in
+its total force F::
 
-The tangent k_g is the cell's own dF/dC at the end of its trial step, from the
-Jacobian of the cell Newton at that converged state (implicit function theorem,
-:mod:`knitsim.kernels.cell_tangent`): the exact slope of the branch the cell is on,
-so each column iterates as Newton's method on its equations.  The first iterate
-of an increment uses the tangent at the committed state, of the stage that a
-reversal enters (SF- / SF+) when the increment reverses the direction.  Where the
-cell tangent is not defined (Dahl cells, cells with effects, the reference engine)
-or not positive, the secant between successive trial steps is used (the first
-iterate then uses the tangent of the last increment, the very first one a probe
-step); tangents are clamped to [K_MIN, K_MAX].  A cell that is slack
-(F = 0 over a range of C, :class:`~knitsim.cell.stages.Stage` SLACK) has
-``a_g`` = its slack length: the complementarity ``F >= 0``, ``u - sum n_g
-(C_g - C0_g) >= 0``, one of them 0, is solved by the clamp: a column whose
-linear model asks for F < 0 carries zero force, each cell is driven just
-past its zero-force point (where the cell solver locates its slack event and
-keeps its slack length), and the length the grips leave over is reported as
-the column's slack.  A column converges when its cells' forces agree to
-``force_tol`` (or all its cells are slack with F = 0); converged columns are
-committed, the others iterate up to ``max_iterations`` and are then committed
-as they stand and flagged.  A cell that stops (force cap, no convergence)
-stops its column: the column keeps its last state and is flagged.
+    Phi(F) = sum_g n_g (C_g(F / p_g) - C0_g) - u = 0,        F >= 0,
+
+with Phi monotone in F: one root, or none with F > 0 when Phi(0) >= 0 (the
+column is slack: F = 0, and the grips leave ``-Phi(0)`` over).  C_g(f) is not
+known in closed form; every trial adds one exact point (C, f) of each cell's
+branch and its slope k = df/dC there (the cell's own tangent from the Jacobian
+of its converged Newton, implicit function theorem,
+:mod:`knitsim.kernels.cell_tangent`; NaN where undefined: Dahl, effects, the
+reference engine, slack).  :class:`BranchPoints` keeps these points (the committed
+state is the first, with the tangent of the stage a reversal enters) and builds
+from them a monotone model Cm_g(f) that passes through every point:
+
+- between two neighbouring points (sorted by force) the tangent lines of both
+  ends, their upper envelope where the slopes dC/df grow across the interval
+  (C(f) convex there: a stick cell that starts to slide), their lower envelope
+  where they fall (concave: a cell that jams), the chord where the tangents
+  contradict the chord;
+- beyond the lowest and highest points, the tangent line of the end point
+  (else the secant of the two end points, else the last increment's tangent);
+- points that contradict monotonicity (a later trial at a longer length with a
+  lower force) are dropped, the newer kept; of the zero-force (slack) points
+  only the longest.
+
+The column force of the next trial is the root of the model Phi-hat(F) (safeguarded
+Newton on the monotone scalar function, bisection where the Newton step leaves
+the bracket), and each cell is sent to Cm_g(F / p_g): the lengths add up to u
+(where the model has a step, the lengths between the bracket's ends that add
+up to u).  This is Newton's method on the column's equations where every cell's
+tangent line at its latest point is the active piece, and it keeps a bracket:
+since Cm_g interpolates monotonically, a trial whose lengths add up to u has
+``min_g F_g <= F* <= max_g F_g`` and the model's next root stays inside every
+such bracket (while its points are kept), so a plateau cell (dC/df huge) can no longer be sent the wrong
+way: it is only asked for lengths between its known points or along its own
+tangent.  Where a cell's trials keep landing on one side of the column's force
+without closing the gap fourfold (a tangent that misleads across a kink, a
+one-sided regula falsi) its model bisects its bracket in C instead (Illinois /
+bisection fallback), or, outside its points, doubles its extrapolation slope
+until its trials straddle the force.
+
+*Slack.*  A column with Phi-hat(0) >= 0 is asked for zero force: each cell is
+driven just past its zero-force point (where the cell solver locates its slack
+event and keeps its slack length); the column converges when no cell carries
+force (slack, or out of slack at F = 0 to rounding).
+
+*Direction.*  When the committed state is an equilibrium (equal forces), no
+cell of the solution moves against the increment (the column force follows
+the grips and every cell's length follows its force): the model's lengths are
+kept on the increment's side of the committed ones.  Not so at the rest state
+(the cells' rest forces differ) nor after a flagged increment.
+
+*Failed trials, sub-increments.*  A cell whose trial fails at a length (its
+solver stops: no convergence over one long step) bounds its model halfway
+between that length and its nearest good trial (bisection towards the
+failure).  A trial from the committed state may fail where shorter steps do
+not (on SF- near R = 0, README "Where the patch's time goes", cause 1): a
+column that has not converged after its trials (or after 8 of them once a cell
+of it has failed) is taken back to its committed state and brought to u in
+``sub_increments`` equal sub-increments, each solved and committed in turn.
+A cell whose force jumps across the column's force within 1e-11 C0 (a
+discontinuity no column force meets) stops its column early.
+
+A column converges when its cells' forces agree to ``force_tol + force_rtol
+|F|``; converged columns are committed, the others iterate up to
+``max_iterations`` trials and are then committed as they stand and flagged
+(unless a cell failed in the last trial: the column then keeps its state).  A
+cell that stops (force cap, no convergence) stops its column: the column keeps
+its last state and is flagged.
 
 A column made of one group (a uniform column) is driven at exactly the grip
 strain ``u / rest length``, so a uniform patch reproduces the single cell
@@ -70,7 +118,7 @@ import warp as wp
 
 from ..cell.history import STATUS_OK
 from ..cell.quantities import CODE
-from ..cell.stages import LABEL_CODES, Stage
+from ..cell.stages import LABEL_CODES, MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
 from .model import Grouping
 
@@ -94,7 +142,7 @@ def label_codes(stage: np.ndarray, jammed: np.ndarray) -> np.ndarray:
 class WarpBackend:
     """Trial steps of all groups in one launch of the batched cell kernel (:mod:`knitsim.cell.batch`)."""
 
-    def __init__(self, params: list, device: str = "cpu", max_halvings: int = 6):
+    def __init__(self, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
         from .. import warp_runtime
         warp_runtime.init()
         import warp as wp
@@ -220,7 +268,7 @@ class ReferenceBackend:
     changes, ``advance`` (or the Dahl path), failures flagged, Dahl labels.
     """
 
-    def __init__(self, params: list, max_halvings: int = 6):
+    def __init__(self, params: list, max_halvings: int = MAX_HALVINGS):
         from ..cell.cycle import CellCycle
         self.cycles = [CellCycle(p, max_halvings) for p in params]
         self.n = len(params)
@@ -292,7 +340,7 @@ class ReferenceBackend:
         self.dir0 = list(saved["dir"])
 
 
-def make_backend(engine: str, params: list, device: str = "cpu", max_halvings: int = 6):
+def make_backend(engine: str, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
     """The trial-step backend of ``engine`` (``"warp"`` or ``"reference"``)."""
     if engine == "warp":
         return WarpBackend(params, device, max_halvings)
@@ -510,12 +558,14 @@ class PatchSolver:
     max_iterations : int
         Trial steps per increment before a column is committed as it stands and flagged.
     max_halvings : int
-        Passed to the cell solver.
+        Passed to the cell solver: halvings in a row of a failed sub-step (default the cell's own,
+        :data:`~knitsim.cell.stages.MAX_HALVINGS`, so that a cell of a patch reaches the lengths
+        that the cell alone reaches; with 6 a trial from SF- near R = 0 failed 1e-3 mm short).
     """
 
     def __init__(self, grouping: Grouping, engine: str = "warp", device: str = "cpu",
                  force_tol: float = 1e-10, force_rtol: float = 1e-8, max_iterations: int = 40,
-                 max_halvings: int = 6):
+                 max_halvings: int = MAX_HALVINGS):
         self.g = grouping
         self.backend = make_backend(engine, grouping.params, device, max_halvings)
         self.force_tol, self.force_rtol, self.max_iterations = force_tol, force_rtol, int(max_iterations)
