@@ -372,21 +372,24 @@ class BranchPoints:
         self.C_min = np.full(n, -np.inf)          # the model's lengths are kept in [C_min, C_max]
         self.C_max = np.full(n, np.inf)
         self._rows = np.arange(n)
-        # Illinois: trials of a cell that keep landing on one side of the column's force, without
-        # reducing the gap fourfold, count as stalled; the model then leans to the other side
+        # trials of a cell that keep landing on one side of the column's force, without reducing the
+        # gap fourfold (and not because that force moved), count as stalled: its model then overshoots
         self.stall = np.zeros(n, np.int64)
         self.side = np.zeros(n, np.int64)
         self.gap = np.full(n, np.inf)
-        self.f_ref = np.zeros(n)
+        self.f_last = np.full(n, np.inf)
 
     def record(self, mask: np.ndarray, F: np.ndarray, f_ref: np.ndarray, f_tol: np.ndarray) -> None:
         """Update the stall counts from the trial forces ``F`` of the groups in ``mask``, asked for ``f_ref``."""
         gap = np.abs(F - f_ref)
         side = np.where(gap <= f_tol, 0, np.sign(F - f_ref)).astype(np.int64)
-        stalled = (side != 0) & (side == self.side) & (gap > 0.25 * self.gap)
+        # (a gap that the column's own force change accounts for is no stall of the cell)
+        moved = np.abs(f_ref - self.f_last)
+        stalled = (side != 0) & (side == self.side) & (gap > 0.25 * self.gap) & (gap > 2.0 * moved)
         self.stall = np.where(mask, np.where(stalled, self.stall + 1, 0), self.stall)
         self.side = np.where(mask, side, self.side)
         self.gap = np.where(mask, gap, self.gap)
+        self.f_last = np.where(mask, f_ref, self.f_last)
 
     def add(self, mask: np.ndarray, C: np.ndarray, F: np.ndarray, K: np.ndarray, f_target: np.ndarray) -> None:
         """Add the point (C, F, K) of each group in ``mask`` (K: its dF/dC, NaN where unknown).
@@ -417,10 +420,8 @@ class BranchPoints:
         self.C[r, s], self.F[r, s], self.K[r, s] = C[put], F[put], K[put]
         self.valid[r, s] = True
 
-    def prepare(self, f_ref: np.ndarray) -> None:
-        """Sort each group's points by force and set up its model (after the points of a trial are added);
-        ``f_ref``: each group's force in the column's last estimate (the Illinois reference)."""
-        self.f_ref = f_ref
+    def prepare(self) -> None:
+        """Sort each group's points by force and set up its model (after the points of a trial are added)."""
         Fk = np.where(self.valid, self.F, np.inf)
         order = np.argsort(Fk, axis=1, kind="stable")
         take = functools.partial(np.take_along_axis, indices=order, axis=1)
@@ -444,7 +445,7 @@ class BranchPoints:
         self.convex = (da <= hi_d) & (lo_d <= db) & (db >= da)
         self.concave = (da >= lo_d) & (hi_d >= db) & (db < da)
         chord = ~(self.convex | self.concave)
-        self.delta = delta
+        self.da_raw, self.db_raw = da, db
         self.da = np.where(chord, delta, da)
         self.db = np.where(chord, delta, db)
         # slopes dC/df beyond the lowest and the highest point: the cell's tangent there, else the
@@ -477,9 +478,18 @@ class BranchPoints:
             Ch = np.clip(np.where(pick_a, Ta, Tb), np.minimum(Ca, Cb), np.maximum(Ca, Cb))
             dCh = np.where(pick_a, da, db)
             # a stalled cell (its trials keep landing on one side of the column's force without closing
-            # in): bisection of its bracket in C (a step of the model, which the column solve allows)
-            Ci = 0.5 * (Ca + Cb)
-            dCi = np.zeros_like(f)
+            # in): the Newton step from its fresh end (the side its trials land on), 2^stall times as
+            # long, but no further than the middle of its bracket (bisection where the tangent would
+            # throw it across a kink): the trials overshoot into the other side or halve the bracket
+            grow = 2.0 ** self.stall
+            fresh_b = self.side > 0
+            d_f = np.where(fresh_b, self.db_raw[r, ia], self.da_raw[r, ia]) * grow
+            with np.errstate(invalid="ignore"):
+                Tf = np.where(fresh_b, Cb + (f - Fb) * d_f, Ca + (f - Fa) * d_f)
+            mid = 0.5 * (Ca + Cb)
+            lo_C, hi_C = np.where(fresh_b, mid, Ca), np.where(fresh_b, Cb, mid)
+            Ci = np.clip(Tf, lo_C, hi_C)
+            dCi = np.where((Tf > lo_C) & (Tf < hi_C), d_f, 0.0)
             ill = self.stall > 0
             Ch = np.where(ill, Ci, Ch)
             dCh = np.where(ill, dCi, dCh)
@@ -731,7 +741,7 @@ class PatchSolver:
             if not np.any(live):
                 break
             g_live = live[col]
-            pts.prepare(Fcol[col] / p)
+            pts.prepare()
             Fstar, C_try = self._solve_columns(pts, u, Fcol)
             Fcol = np.where(live, Fstar, Fcol)
             if it > 0:
