@@ -372,24 +372,24 @@ class BranchPoints:
         self.C_min = np.full(n, -np.inf)          # the model's lengths are kept in [C_min, C_max]
         self.C_max = np.full(n, np.inf)
         self._rows = np.arange(n)
-        # trials of a cell that keep landing on one side of the column's force, without reducing the
-        # gap fourfold (and not because that force moved), count as stalled: its model then overshoots
+        # trials of a cell that keep landing on one side of the column's force while the column does not
+        # close in count as stalled (record): its model then overshoots
         self.stall = np.zeros(n, np.int64)
         self.side = np.zeros(n, np.int64)
-        self.gap = np.full(n, np.inf)
-        self.f_last = np.full(n, np.inf)
+        self.column_gap = None                   # set by the solver: each group's column's largest gap
 
-    def record(self, mask: np.ndarray, F: np.ndarray, f_ref: np.ndarray, f_tol: np.ndarray) -> None:
-        """Update the stall counts from the trial forces ``F`` of the groups in ``mask``, asked for ``f_ref``."""
+    def record(self, mask: np.ndarray, F: np.ndarray, f_ref: np.ndarray, f_tol: np.ndarray,
+               column_stalled: np.ndarray) -> None:
+        """Update the stall counts from the trial forces ``F`` of the groups in ``mask``, asked for ``f_ref``.
+
+        A group stalls when its column's spread of forces has not shrunk fourfold since the last
+        trial (``column_stalled``, per group), it is among the cells that set that spread (its gap
+        at least half its column's largest), and it lands on the same side as last time."""
         gap = np.abs(F - f_ref)
         side = np.where(gap <= f_tol, 0, np.sign(F - f_ref)).astype(np.int64)
-        # (a gap that the column's own force change accounts for is no stall of the cell)
-        moved = np.abs(f_ref - self.f_last)
-        stalled = (side != 0) & (side == self.side) & (gap > 0.25 * self.gap) & (gap > 2.0 * moved)
+        stalled = (side != 0) & (side == self.side) & column_stalled & (gap >= 0.5 * self.column_gap(gap, mask))
         self.stall = np.where(mask, np.where(stalled, self.stall + 1, 0), self.stall)
         self.side = np.where(mask, side, self.side)
-        self.gap = np.where(mask, gap, self.gap)
-        self.f_last = np.where(mask, f_ref, self.f_last)
 
     def add(self, mask: np.ndarray, C: np.ndarray, F: np.ndarray, K: np.ndarray, f_target: np.ndarray) -> None:
         """Add the point (C, F, K) of each group in ``mask`` (K: its dF/dC, NaN where unknown).
@@ -718,6 +718,8 @@ class PatchSolver:
         k_c = be.tangent(False, direction)
         k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
         pts = BranchPoints(C0, self.k, self.branch_points)
+        pts.column_gap = lambda gap, mask: self._colmax(np.where(mask, gap * p, 0.0), 0.0)[col] / p
+        spread_last = np.full(self.n_cls, np.inf)
         Fc = p * c["F"]
         Fc_max, Fc_min = self._colmax(Fc, -np.inf), -self._colmax(-Fc, -np.inf)
         Fcol = np.maximum(self._colsum(cnt * Fc) / self._colsum(cnt), 0.0)
@@ -786,7 +788,11 @@ class PatchSolver:
             use = g_live & ~failed
             if not np.any(use):
                 continue
-            pts.record(use, t["F"], Fstar[col] / p, (self.force_tol + self.force_rtol * Fstar[col]) / p)
+            spread = np.where(live, Fmax - Fmin, np.inf)
+            col_stalled = (spread > 0.25 * spread_last)[col]
+            spread_last = np.where(live, spread, spread_last)
+            pts.record(use, t["F"], Fstar[col] / p, (self.force_tol + self.force_rtol * Fstar[col]) / p,
+                       col_stalled)
             kt = be.tangent(True)
             kt = np.where(np.isfinite(kt) & (kt > 0) & ~slack, kt, np.nan)
             pts.add(use, t["C"], t["F"], kt, Fcol[col] / p)
