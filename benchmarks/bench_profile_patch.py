@@ -40,7 +40,8 @@ def step(self, g, d, i=0):
 coupling.PatchSolver.step = step
 t0, c0 = time.perf_counter(), time.process_time()
 h = run_patch(pm, prog, dedup=False)
-print(f"{W}x{Cn} x {len(prog)} incr: wall {time.perf_counter()-t0:.2f} s cpu {time.process_time()-c0:.2f} s; trials {sum(x[2] for x in inc)}")
+print(f"{W}x{Cn} x {len(prog)} incr: wall {time.perf_counter()-t0:.2f} s cpu {time.process_time()-c0:.2f} s; trials {sum(x[2] for x in inc)}; "
+      f"cpu in trial steps {sum(x[1] for x in rec if x[0] >= 0):.2f} s (the rest: coupling, tangents, recording)")
 import collections
 agg = collections.defaultdict(lambda: [0, 0.0, 0, 0, 0, 0])
 tr = collections.defaultdict(float)

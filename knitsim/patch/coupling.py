@@ -90,8 +90,8 @@ solver stops: no convergence over one long step) bounds its model halfway
 between that length and its nearest good trial (bisection towards the
 failure).  A trial from the committed state may fail where shorter steps do
 not (on SF- near R = 0, README "Where the patch's time goes", cause 1): a
-column that has not converged after its trials (or after 8 of them once a cell
-of it has failed) is taken back to its committed state and brought to u in
+column that has not converged after its trials (or after 8 of them when a cell
+of it failed in the last) is taken back to its committed state and brought to u in
 ``sub_increments`` equal sub-increments, each solved and committed in turn.
 A cell whose force jumps across the column's force within 1e-11 C0 (a
 discontinuity no column force meets) stops its column early.
@@ -736,10 +736,11 @@ class PatchSolver:
         good_hi, good_lo = c["C"].copy(), c["C"].copy()
         C_last, F_last = c["C"].copy(), c["F"].copy()     # each cell's last good trial
         last = None
-        fail_seen = np.zeros(self.n_cls, bool)
+        prev_failed = np.zeros(self.n_cls, bool)
         for it in range(self.max_iterations):
-            # a column whose cells' trials fail gives up early when it can still be cut (step)
-            live = active_cls & ~done_cls & ~(give_up & fail_seen & (iters >= 8))
+            # a column whose last trial failed in a cell after 8 trials gives up early when it can still
+            # be cut into sub-increments (step)
+            live = active_cls & ~done_cls & ~(give_up & prev_failed & (iters >= 8))
             if not np.any(live):
                 break
             g_live = live[col]
@@ -763,7 +764,6 @@ class PatchSolver:
             t = be.trial(strain, direction, increment)
             last = t
             prev_failed = self._colmax((t["status"] != STATUS_OK).astype(float), 0.0) > 0
-            fail_seen |= live & prev_failed
             iters[live] += 1
             slack = t["stage"] == int(Stage.SLACK)
             failed = t["status"] != STATUS_OK
