@@ -699,7 +699,6 @@ class PatchSolver:
         slack_len = np.where(F_col == 0.0, slack_len, 0.0)
         return IncrementResult(F_col, status.astype(np.int32), slack_len, iters, spread, c)
 
-
     def _solve(self, u_cls: np.ndarray, u_single: np.ndarray, direction: int, increment: int,
                active_cls: np.ndarray, give_up: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Iterate the columns in ``active_cls`` to the grip displacements ``u_cls`` [n_classes] from the
