@@ -571,6 +571,16 @@ class PatchSolver:
         Passed to the cell solver: halvings in a row of a failed sub-step (default the cell's own,
         :data:`~knitsim.cell.stages.MAX_HALVINGS`, so that a cell of a patch reaches the lengths
         that the cell alone reaches; with 6 a trial from SF- near R = 0 failed 1e-3 mm short).
+
+    Attributes
+    ----------
+    branch_points : int
+        Points of each cell's branch kept per increment (:class:`BranchPoints`).
+    sub_increments : int
+        Committed sub-increments of a column that has not converged in one (1: none).
+    jump_columns, cut_columns : ndarray of bool, shape [n_classes]
+        Of the last increment: columns left unconverged by a jump of a cell's force, and columns
+        that needed sub-increments.
     """
 
     def __init__(self, grouping: Grouping, engine: str = "warp", device: str = "cpu",
