@@ -165,7 +165,8 @@ def main(argv=None):
         h, wall, cpu = timed(lambda: run_patch(pm, prog, device=device, dedup=False), device)
         rows.append({"figure": f"specimen 23x110 random phi0 x {len(prog)} incr (no merging)", "wall_s": wall,
                      "cpu_s": cpu, "cell_increments": pm.cell_count * len(prog),
-                     "mean_trials_per_increment": float(h.column_iterations.max(axis=1).mean())})
+                     "mean_trials_per_increment": float(h.column_iterations.max(axis=1).mean()),
+                     "non_converged_column_increments": int((h.column_status == 1).sum())})
 
     # --- a large random patch
     psize = a.patch_size or ("1000x1000" if cuda else None)
@@ -176,7 +177,8 @@ def main(argv=None):
         h, wall, cpu = timed(lambda: run_patch(pm, prog, device=device, dedup=False), device)
         rows.append({"figure": f"patch {wales}x{courses} random phi0 x {len(prog)} incr", "wall_s": wall, "cpu_s": cpu,
                      "cell_increments": pm.cell_count * len(prog),
-                     "mean_trials_per_increment": float(h.column_iterations.max(axis=1).mean())})
+                     "mean_trials_per_increment": float(h.column_iterations.max(axis=1).mean()),
+                     "non_converged_column_increments": int((h.column_status == 1).sum())})
 
     print(f"device {device} ({wp.get_device(device).name}); CPU s = process CPU time (one thread per CPU launch)")
     print(f"{'figure':<58} {'wall s':>9} {'cpu s':>9} {'cell-incr/' + clock[:-2] + ' s':>15} {'x generic':>9} "

@@ -20,40 +20,88 @@ force per wale of the cell), and their course counts weight the lengths:
 column above, and the arithmetic is the same bit for bit.
 
 Solution of one increment, per column (all columns together, one kernel
-launch per iteration): the unknowns are the cells' course lengths C_g (one per
+launch per trial): the unknowns are the cells' course lengths C_g (one per
 group of identical cells, :meth:`~knitsim.patch.model.PatchModel.grouping`,
 counted n_g times).  Each cell answers a trial step of the cell solver from
 its committed state to C_g (``CellSolver.step`` on the committed state does
-not modify it), giving F_g(C_g) along its own path-dependent branch (Table 4
-stages, events, hysteresis).  With the tangent k_g = dF/dC of each cell, the
-linearised equations ``f_g + k_g (C_g' - C_g) = F / p_g`` and
-``sum n_g (C_g' - C0_g) = u`` give::
+not modify it), giving f_g(C_g) along its own path-dependent branch (Table 4
+stages, events, hysteresis).
 
-    a_g = C_g - f_g / k_g                  (zero-force point of the linear model)
-    F   = max(0, (u - sum n_g (a_g - C0_g)) / sum n_g / (p_g k_g))
-    C_g' = a_g + F / (p_g k_g)
+*The column as a scalar problem in its force.*  Within one increment every
+cell's branch is monotone: on a stable branch the force never falls as the
+length grows (a stick branch is stiff, a sliding one a plateau with
+df/dC ~ 0, a slack cell has f = 0 over a range of C, a jammed one stiffens), so
+its inverse C_g(f) is a monotone (non-decreasing) function, flat where the cell
+is stiff and steep on a plateau.  The column's equilibrium is one equation in
+its total force F::
 
-The tangent k_g is the cell's own dF/dC at the end of its trial step, from the
-Jacobian of the cell Newton at that converged state (implicit function theorem,
-:mod:`knitsim.kernels.cell_tangent`): the exact slope of the branch the cell is on,
-so each column iterates as Newton's method on its equations.  The first iterate
-of an increment uses the tangent at the committed state, of the stage that a
-reversal enters (SF- / SF+) when the increment reverses the direction.  Where the
-cell tangent is not defined (Dahl cells, cells with effects, the reference engine)
-or not positive, the secant between successive trial steps is used (the first
-iterate then uses the tangent of the last increment, the very first one a probe
-step); tangents are clamped to [K_MIN, K_MAX].  A cell that is slack
-(F = 0 over a range of C, :class:`~knitsim.cell.stages.Stage` SLACK) has
-``a_g`` = its slack length: the complementarity ``F >= 0``, ``u - sum n_g
-(C_g - C0_g) >= 0``, one of them 0, is solved by the clamp: a column whose
-linear model asks for F < 0 carries zero force, each cell is driven just
-past its zero-force point (where the cell solver locates its slack event and
-keeps its slack length), and the length the grips leave over is reported as
-the column's slack.  A column converges when its cells' forces agree to
-``force_tol`` (or all its cells are slack with F = 0); converged columns are
-committed, the others iterate up to ``max_iterations`` and are then committed
-as they stand and flagged.  A cell that stops (force cap, no convergence)
-stops its column: the column keeps its last state and is flagged.
+    Phi(F) = sum_g n_g (C_g(F / p_g) - C0_g) - u = 0,        F >= 0,
+
+with Phi monotone in F: one root, or none with F > 0 when Phi(0) >= 0 (the
+column is slack: F = 0, and the grips leave ``-Phi(0)`` over).  C_g(f) is not
+known in closed form; every trial adds one exact point (C, f) of each cell's
+branch and its slope k = df/dC there (the cell's own tangent from the Jacobian
+of its converged Newton, implicit function theorem,
+:mod:`knitsim.kernels.cell_tangent`; NaN where undefined: Dahl, effects, the
+reference engine, slack).  :class:`BranchPoints` keeps these points (the committed
+state is the first, with the tangent of the stage a reversal enters) and builds
+from them a monotone model Cm_g(f) that passes through every point:
+
+- between two neighbouring points (sorted by force) the tangent lines of both
+  ends, their upper envelope where the slopes dC/df grow across the interval
+  (C(f) convex there: a stick cell that starts to slide), their lower envelope
+  where they fall (concave: a cell that jams), the chord where the tangents
+  contradict the chord;
+- beyond the lowest and highest points, the tangent line of the end point
+  (else the secant of the two end points, else the last increment's tangent);
+- points that contradict monotonicity (a later trial at a longer length with a
+  lower force) are dropped, the newer kept; of the zero-force (slack) points
+  only the longest.
+
+The column force of the next trial is the root of the model Phi-hat(F) (safeguarded
+Newton on the monotone scalar function, bisection where the Newton step leaves
+the bracket), and each cell is sent to Cm_g(F / p_g): the lengths add up to u
+(where the model has a step, the lengths between the bracket's ends that add
+up to u).  This is Newton's method on the column's equations where every cell's
+tangent line at its latest point is the active piece, and it keeps a bracket:
+since Cm_g interpolates monotonically, a trial whose lengths add up to u has
+``min_g F_g <= F* <= max_g F_g`` and the model's next root stays inside every
+such bracket (while its points are kept), so a plateau cell (dC/df huge) can no longer be sent the wrong
+way: it is only asked for lengths between its known points or along its own
+tangent.  Where a cell's trials keep landing on one side of the column's force
+without closing the gap fourfold (a tangent that misleads across a kink, a
+one-sided regula falsi) its model bisects its bracket in C instead (Illinois /
+bisection fallback), or, outside its points, doubles its extrapolation slope
+until its trials straddle the force.
+
+*Slack.*  A column with Phi-hat(0) >= 0 is asked for zero force: each cell is
+driven just past its zero-force point (where the cell solver locates its slack
+event and keeps its slack length); the column converges when no cell carries
+force (slack, or out of slack at F = 0 to rounding).
+
+*Direction.*  When the committed state is an equilibrium (equal forces), no
+cell of the solution moves against the increment (the column force follows
+the grips and every cell's length follows its force): the model's lengths are
+kept on the increment's side of the committed ones.  Not so at the rest state
+(the cells' rest forces differ) nor after a flagged increment.
+
+*Failed trials, sub-increments.*  A cell whose trial fails at a length (its
+solver stops: no convergence over one long step) bounds its model halfway
+between that length and its nearest good trial (bisection towards the
+failure).  A trial from the committed state may fail where shorter steps do
+not (on SF- near R = 0, README "Where the patch's time goes", cause 1): a
+column that has not converged after its trials (or after 8 of them when a cell
+of it failed in the last) is taken back to its committed state and brought to u in
+``sub_increments`` equal sub-increments, each solved and committed in turn.
+A cell whose force jumps across the column's force within 1e-11 C0 (a
+discontinuity no column force meets) stops its column early.
+
+A column converges when its cells' forces agree to ``force_tol + force_rtol
+|F|``; converged columns are committed, the others iterate up to
+``max_iterations`` trials and are then committed as they stand and flagged
+(unless a cell failed in the last trial: the column then keeps its state).  A
+cell that stops (force cap, no convergence) stops its column: the column keeps
+its last state and is flagged.
 
 A column made of one group (a uniform column) is driven at exactly the grip
 strain ``u / rest length``, so a uniform patch reproduces the single cell
@@ -70,7 +118,7 @@ import warp as wp
 
 from ..cell.history import STATUS_OK
 from ..cell.quantities import CODE
-from ..cell.stages import LABEL_CODES, Stage
+from ..cell.stages import LABEL_CODES, MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
 from .model import Grouping
 
@@ -94,7 +142,7 @@ def label_codes(stage: np.ndarray, jammed: np.ndarray) -> np.ndarray:
 class WarpBackend:
     """Trial steps of all groups in one launch of the batched cell kernel (:mod:`knitsim.cell.batch`)."""
 
-    def __init__(self, params: list, device: str = "cpu", max_halvings: int = 6):
+    def __init__(self, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
         from .. import warp_runtime
         warp_runtime.init()
         import warp as wp
@@ -220,7 +268,7 @@ class ReferenceBackend:
     changes, ``advance`` (or the Dahl path), failures flagged, Dahl labels.
     """
 
-    def __init__(self, params: list, max_halvings: int = 6):
+    def __init__(self, params: list, max_halvings: int = MAX_HALVINGS):
         from ..cell.cycle import CellCycle
         self.cycles = [CellCycle(p, max_halvings) for p in params]
         self.n = len(params)
@@ -292,13 +340,186 @@ class ReferenceBackend:
         self.dir0 = list(saved["dir"])
 
 
-def make_backend(engine: str, params: list, device: str = "cpu", max_halvings: int = 6):
+def make_backend(engine: str, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
     """The trial-step backend of ``engine`` (``"warp"`` or ``"reference"``)."""
     if engine == "warp":
         return WarpBackend(params, device, max_halvings)
     if engine == "reference":
         return ReferenceBackend(params, max_halvings)
     raise KnitsimInputError(f"engine = {engine!r}: expected one of warp, reference")
+
+
+# ===================================================================== branch models
+class BranchPoints:
+    """The points (C, f, df/dC) of every group's branch met within one increment, and the monotone
+    model C(f) through them (module docstring, "The column as a scalar problem in its force").
+
+    Parameters
+    ----------
+    C_ref : ndarray, shape [n]
+        A length scale per group (its C0) for the tolerances [mm].
+    k_fallback : ndarray, shape [n]
+        dF/dC used to extrapolate where no slope of the group is known [N/mm].
+    size : int
+        Points kept per group (the farthest from the column's force is dropped when full).
+    """
+
+    def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = 8):
+        n = len(C_ref)
+        self.C_ref, self.k_fallback = C_ref, k_fallback
+        self.C, self.F, self.K = (np.full((n, size), np.nan) for _ in range(3))
+        self.valid = np.zeros((n, size), bool)
+        self.C_min = np.full(n, -np.inf)          # the model's lengths are kept in [C_min, C_max]
+        self.C_max = np.full(n, np.inf)
+        self._rows = np.arange(n)
+        # trials of a cell that keep landing on one side of the column's force while the column does not
+        # close in count as stalled (record): its model then overshoots
+        self.stall = np.zeros(n, np.int64)
+        self.side = np.zeros(n, np.int64)
+        self.column_gap = None                   # set by the solver: each group's column's largest gap
+
+    def record(self, mask: np.ndarray, F: np.ndarray, f_ref: np.ndarray, f_tol: np.ndarray,
+               column_stalled: np.ndarray) -> None:
+        """Update the stall counts from the trial forces ``F`` of the groups in ``mask``, asked for ``f_ref``.
+
+        A group stalls when its column's spread of forces has not shrunk fourfold since the last
+        trial (``column_stalled``, per group), it is among the cells that set that spread (its gap
+        at least half its column's largest), and it lands on the same side as last time."""
+        gap = np.abs(F - f_ref)
+        side = np.where(gap <= f_tol, 0, np.sign(F - f_ref)).astype(np.int64)
+        stalled = (side != 0) & (side == self.side) & column_stalled & (gap >= 0.5 * self.column_gap(gap, mask))
+        self.stall = np.where(mask, np.where(stalled, self.stall + 1, 0), self.stall)
+        self.side = np.where(mask, side, self.side)
+
+    def add(self, mask: np.ndarray, C: np.ndarray, F: np.ndarray, K: np.ndarray, f_target: np.ndarray) -> None:
+        """Add the point (C, F, K) of each group in ``mask`` (K: its dF/dC, NaN where unknown).
+
+        The branch of a cell within an increment is monotone (F never falls as C grows on a stable
+        branch): a kept point that contradicts the new one (higher C, lower F or the reverse) is
+        dropped; of the zero-force points (slack) only the longest is kept (F = 0 up to at least it)."""
+        C2, F2 = C[:, None], F[:, None]
+        m2 = mask[:, None]
+        conflict = ((self.F < F2) & (self.C > C2)) | ((self.F > F2) & (self.C < C2))
+        dup_zero = (self.F == 0.0) & (F2 == 0.0) & (self.C <= C2)
+        self.valid &= ~(m2 & (conflict | dup_zero | ((self.F == F2) & (self.C == C2))))
+        # a zero-force point shorter than a kept one adds nothing
+        dominated = (F == 0.0) & np.any(self.valid & (self.F == 0.0) & (self.C > C2), axis=1)
+        put = mask & ~dominated
+        full = put & self.valid.all(axis=1)
+        if np.any(full):
+            # drop the point farthest (in force) from the column's force, on a side that keeps another
+            side = self.F > f_target[:, None]
+            n_hi = np.sum(side & self.valid, axis=1, keepdims=True)
+            n_lo = np.sum(~side & self.valid, axis=1, keepdims=True)
+            ok = self.valid & np.where(side, n_hi >= 2, n_lo >= 2)
+            dist = np.where(ok, np.abs(self.F - f_target[:, None]), -1.0)
+            drop = np.argmax(dist, axis=1)
+            self.valid[self._rows[full], drop[full]] = False
+        slot = np.argmin(self.valid, axis=1)
+        r, s = self._rows[put], slot[put]
+        self.C[r, s], self.F[r, s], self.K[r, s] = C[put], F[put], K[put]
+        self.valid[r, s] = True
+
+    def prepare(self) -> None:
+        """Sort each group's points by force and set up its model (after the points of a trial are added)."""
+        Fk = np.where(self.valid, self.F, np.inf)
+        order = np.argsort(Fk, axis=1, kind="stable")
+        take = functools.partial(np.take_along_axis, indices=order, axis=1)
+        self.Fs, self.Cs, self.Ks = take(Fk), take(np.where(self.valid, self.C, np.nan)), take(self.K)
+        self.m = np.sum(self.valid, axis=1)
+        r, top = self._rows, np.maximum(self.m - 1, 0)
+        # each interval between neighbouring points: the tangent lines of its ends (slopes da, db = dC/df),
+        # their upper envelope where the slopes grow across it (C(f) convex: a stick-slip kink), their
+        # lower envelope where they fall (concave: jamming), the chord where they contradict it
+        with np.errstate(invalid="ignore"):
+            h = np.diff(self.Fs, axis=1)
+        good_h = np.isfinite(h) & (h > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            delta = np.where(good_h, (self.Cs[:, 1:] - self.Cs[:, :-1]) / np.where(good_h, h, 1.0), 0.0)
+            delta = np.maximum(delta, 0.0)
+            inv_k = np.where(np.isfinite(self.Ks) & (self.Ks > 0), 1.0 / np.clip(self.Ks, K_MIN, K_MAX), np.nan)
+            da = np.where(np.isfinite(inv_k[:, :-1]), inv_k[:, :-1], delta)
+            db = np.where(np.isfinite(inv_k[:, 1:]), inv_k[:, 1:], delta)
+        # (to 1 % of the chord: a tangent that nearly passes through the other end still counts)
+        lo_d, hi_d = 0.99 * delta, 1.01 * delta
+        self.convex = (da <= hi_d) & (lo_d <= db) & (db >= da)
+        self.concave = (da >= lo_d) & (hi_d >= db) & (db < da)
+        chord = ~(self.convex | self.concave)
+        self.da_raw, self.db_raw = da, db
+        self.da = np.where(chord, delta, da)
+        self.db = np.where(chord, delta, db)
+        # slopes dC/df beyond the lowest and the highest point: the cell's tangent there, else the
+        # secant of its two end points, else the fallback tangent
+        fb = 1.0 / np.clip(self.k_fallback, K_MIN, K_MAX)
+
+        def end_slope(i, j):
+            s = inv_k[r, i]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sec = (self.Cs[r, j] - self.Cs[r, i]) / (self.Fs[r, j] - self.Fs[r, i])
+            sec = np.where((self.m >= 2) & np.isfinite(sec) & (sec > 0), sec, fb)
+            return np.clip(np.where(np.isfinite(s), s, sec), 1.0 / K_MAX, 1.0 / K_MIN)
+
+        self.s_lo = end_slope(np.zeros_like(top), np.minimum(1, top))
+        self.s_hi = end_slope(top, np.maximum(top - 1, 0))
+        self.top = top
+
+    def model(self, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The model's length C(f) and dC/df of every group at its force ``f`` [N]."""
+        r, M = self._rows, self.Fs.shape[1]
+        j = np.sum(self.Fs <= f[:, None], axis=1)
+        ia = np.clip(j - 1, 0, max(M - 2, 0))
+        if M >= 2:
+            Fa, Ca, Fb, Cb = self.Fs[r, ia], self.Cs[r, ia], self.Fs[r, ia + 1], self.Cs[r, ia + 1]
+            da, db = self.da[r, ia], self.db[r, ia]
+            with np.errstate(invalid="ignore"):
+                Ta, Tb = Ca + (f - Fa) * da, Cb + (f - Fb) * db
+            upper = self.convex[r, ia]
+            pick_a = np.where(upper, Ta >= Tb, Ta <= Tb)
+            Ch = np.clip(np.where(pick_a, Ta, Tb), np.minimum(Ca, Cb), np.maximum(Ca, Cb))
+            dCh = np.where(pick_a, da, db)
+            # a stalled cell (its trials keep landing on one side of the column's force without closing
+            # in): the Newton step from its fresh end (the side its trials land on), 2^stall times as
+            # long, but no further than the middle of its bracket (bisection where the tangent would
+            # throw it across a kink): the trials overshoot into the other side or halve the bracket
+            grow = 2.0 ** self.stall
+            fresh_b = self.side > 0
+            d_f = np.where(fresh_b, self.db_raw[r, ia], self.da_raw[r, ia]) * grow
+            with np.errstate(invalid="ignore"):
+                Tf = np.where(fresh_b, Cb + (f - Fb) * d_f, Ca + (f - Fa) * d_f)
+            mid = 0.5 * (Ca + Cb)
+            lo_C, hi_C = np.where(fresh_b, mid, Ca), np.where(fresh_b, Cb, mid)
+            Ci = np.clip(Tf, lo_C, hi_C)
+            dCi = np.where((Tf > lo_C) & (Tf < hi_C), d_f, 0.0)
+            ill = self.stall > 0
+            Ch = np.where(ill, Ci, Ch)
+            dCh = np.where(ill, dCi, dCh)
+        else:
+            Ch = dCh = np.zeros_like(f)
+        below, above = j == 0, j >= self.m
+        # a stalled extrapolation doubles its slope at each stall (the trials then overshoot into a bracket)
+        grow = 2.0 ** self.stall
+        s_lo, s_hi = np.minimum(self.s_lo * grow, 1.0 / K_MIN), np.minimum(self.s_hi * grow, 1.0 / K_MIN)
+        C_lo = self.Cs[:, 0] + (f - self.Fs[:, 0]) * s_lo
+        C_hi = self.Cs[r, self.top] + (f - self.Fs[r, self.top]) * s_hi
+        with np.errstate(invalid="ignore"):
+            C = np.where(below, C_lo, np.where(above, C_hi, Ch))
+            dC = np.where(below, s_lo, np.where(above, s_hi, np.maximum(dCh, 0.0)))
+        clamped = (C < self.C_min) | (C > self.C_max)
+        return np.clip(C, self.C_min, self.C_max), np.where(clamped, 0.0, dC)
+
+    def jump(self, f: np.ndarray, f_tol: np.ndarray) -> np.ndarray:
+        """Groups whose points bracket ``f`` within a length ~1e-11 C0 while their forces differ by more
+        than ``f_tol``: a discontinuity of the cell's force, which no column force between them meets."""
+        r, M = self._rows, self.Fs.shape[1]
+        if M < 2:
+            return np.zeros(len(f), bool)
+        j = np.sum(self.Fs <= f[:, None], axis=1)
+        inside = (j >= 1) & (j < self.m)
+        ia = np.clip(j - 1, 0, M - 2)
+        dC = self.Cs[r, ia + 1] - self.Cs[r, ia]
+        dF = self.Fs[r, ia + 1] - self.Fs[r, ia]
+        with np.errstate(invalid="ignore"):
+            return inside & (dC <= 1e-11 * self.C_ref) & (dF > f_tol)
 
 
 # ===================================================================== solver
@@ -347,12 +568,24 @@ class PatchSolver:
     max_iterations : int
         Trial steps per increment before a column is committed as it stands and flagged.
     max_halvings : int
-        Passed to the cell solver.
+        Passed to the cell solver: halvings in a row of a failed sub-step (default the cell's own,
+        :data:`~knitsim.cell.stages.MAX_HALVINGS`, so that a cell of a patch reaches the lengths
+        that the cell alone reaches; with 6 a trial from SF- near R = 0 failed 1e-3 mm short).
+
+    Attributes
+    ----------
+    branch_points : int
+        Points of each cell's branch kept per increment (:class:`BranchPoints`).
+    sub_increments : int
+        Committed sub-increments of a column that has not converged in one (1: none).
+    jump_columns, cut_columns : ndarray of bool, shape [n_classes]
+        Of the last increment: columns left unconverged by a jump of a cell's force, and columns
+        that needed sub-increments.
     """
 
     def __init__(self, grouping: Grouping, engine: str = "warp", device: str = "cpu",
                  force_tol: float = 1e-10, force_rtol: float = 1e-8, max_iterations: int = 40,
-                 max_halvings: int = 6):
+                 max_halvings: int = MAX_HALVINGS):
         self.g = grouping
         self.backend = make_backend(engine, grouping.params, device, max_halvings)
         self.force_tol, self.force_rtol, self.max_iterations = force_tol, force_rtol, int(max_iterations)
@@ -372,6 +605,14 @@ class PatchSolver:
         self.cells = self.backend.committed()
         self.k = np.full(self.backend.n, np.nan)
         self.direction = 1
+        #: points of each cell's branch kept per increment (BranchPoints)
+        self.branch_points = 8
+        self.jump_columns = np.zeros(self.n_cls, bool)
+        self.cut_columns = np.zeros(self.n_cls, bool)
+        #: sub-increments of a column that has not converged in one (1: none)
+        self.sub_increments = 4
+        #: grip displacement of the last increment of each column [mm]
+        self.u_prev = np.zeros(self.n_cls)
 
     # ------------------------------------------------------------- helpers
     def _colsum(self, v: np.ndarray) -> np.ndarray:
@@ -381,23 +622,6 @@ class PatchSolver:
         out = np.full(self.n_cls, fill)
         np.maximum.at(out, self.col, v)
         return out
-
-    @staticmethod
-    def _along(C: np.ndarray, C_committed: np.ndarray, direction: int) -> np.ndarray:
-        """The trial lengths kept on the side of the committed ones that the increment goes to.
-
-        The column force moves with the grips (it falls on unloading, rises on loading), and on a
-        branch with dF/dC > 0 every cell's length moves with its force: no cell of the solution
-        lengthens on unloading or shortens on loading.  The linear model of a cell that slides
-        (dF/dC ~ 0 on a plateau) can ask for such a move, far along the wrong direction of a stiff
-        stick branch; the trial is kept at the committed length instead."""
-        return np.minimum(C, C_committed) if direction < 0 else np.maximum(C, C_committed)
-
-    @staticmethod
-    def _cell_tangent(kc: np.ndarray, fallback: np.ndarray) -> np.ndarray:
-        """The cells' own tangents where defined and positive, clamped; ``fallback`` elsewhere."""
-        ok = np.isfinite(kc) & (kc > 0)
-        return np.where(ok, np.clip(np.where(ok, kc, 1.0), K_MIN, K_MAX), fallback)
 
     def probe_tangent(self, strain: float = 1e-3) -> None:
         """Initial tangents dF/dC from a trial step of every cell to ``strain`` (loading)."""
@@ -411,12 +635,13 @@ class PatchSolver:
 
     def get_state(self) -> dict:
         return {"backend": self.backend.get_state(), "k": self.k.copy(), "direction": self.direction,
-                "cells": copy.deepcopy(self.cells)}
+                "cells": copy.deepcopy(self.cells), "u_prev": self.u_prev.copy()}
 
     def set_state(self, s: dict) -> None:
         self.backend.set_state(s["backend"])
         self.k = np.array(s["k"])
         self.direction = int(s["direction"])
+        self.u_prev = np.array(s.get("u_prev", np.zeros(self.n_cls)), dtype=float)
         self.cells = self.backend.committed()
 
     # ---------------------------------------------------------------- step
@@ -425,137 +650,234 @@ class PatchSolver:
         if np.any(np.isnan(self.k)):
             self.probe_tangent()
         be, c = self.backend, self.cells
-        n = be.n
-        col, cnt, C0 = self.col, self.cnt, self.C0
+        col, cnt, C0, p = self.col, self.cnt, self.C0, self.p
         u = float(grip_strain) * self.ref_length
         # columns with a stopped cell keep their state (flagged)
         stopped_cls = self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0
         active_cls = ~stopped_cls
-        done_cls = stopped_cls.copy()
-        iters = np.zeros(self.n_cls, np.int64)
+        single_cls = np.bincount(col, minlength=self.n_cls) == 1
         # exact strain of a single-group (uniform) column: the cell itself at the grip strain
         u_single = np.where(self.rest[col] == self.ref_length, float(grip_strain), u / (cnt * C0))
-        committed_strain = c["C"] / C0 - 1.0
         be.begin_increment()
-        # predictor from the committed state and the last tangents
-        C_prev, F_prev = c["C"].copy(), c["F"].copy()
-        k = self._cell_tangent(be.tangent(False, direction), self.k)
-        a = C_prev - F_prev / k
-        C_try, Fstar = self._update(a, k, u)
+        u_cls = np.full(self.n_cls, u)
+        done_cls, iters, jump_cls, last_failed = self._solve(u_cls, u_single, direction, increment, active_cls,
+                                                             give_up=self.sub_increments > 1)
+        retry = active_cls & ~done_cls & ~single_cls
+        self.cut_columns = retry.copy()
+        if np.any(retry) and self.sub_increments > 1:
+            # a column that has not converged: its converged neighbours are committed, and it goes from
+            # its committed state to u in sub-increments (a trial from the committed state to u may fail
+            # where shorter steps do not: README, cause 1), each solved and committed in turn
+            self.cells = be.end_increment()
+            u0 = self.u_prev
+            for k in range(1, self.sub_increments + 1):
+                be.begin_increment()
+                u_k = u0 + (u - u0) * k / self.sub_increments
+                d_k, it_k, j_k, lf_k = self._solve(u_k, u_single, direction, increment, retry)
+                iters += it_k
+                jump_cls = np.where(retry, j_k, jump_cls)
+                last_failed = np.where(retry, lf_k, last_failed)
+                ok = retry & d_k
+                if k < self.sub_increments:
+                    self.cells = be.end_increment()
+                    retry = ok
+                    if not np.any(retry):
+                        break
+                else:
+                    done_cls |= ok
+        not_conv = active_cls & ~done_cls
+        self.jump_columns = jump_cls & not_conv
+        if np.any(not_conv):
+            # committed as it stands and flagged, unless a cell failed in the last trial: then the
+            # column keeps its previous state (flagged) and the next increment tries again from it
+            be.accept(not_conv[col] & ~last_failed[col])
+        status = np.where(stopped_cls, COL_STOPPED, COL_OK)
+        status = np.where(not_conv, COL_NOT_CONVERGED, status)
+        self.cells = c = be.end_increment()
+        self.u_prev = np.where(active_cls, u, self.u_prev)
+        stopped_now = self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0
+        status = np.where(stopped_now & (status == COL_OK), COL_STOPPED, status)
+        self.direction = int(direction)
+        n_cells = self._colsum(cnt)
+        # a single-group column carries its cell's force exactly (no rounding of n F / n)
+        F_one = np.zeros(self.n_cls)
+        F_one[col[self.single_group]] = p[self.single_group] * c["F"][self.single_group]
+        F_col = np.where(single_cls, F_one, self._colsum(cnt * p * c["F"]) / n_cells)
+        Ftot = p * c["F"]
+        spread = self._colmax(Ftot, -np.inf) + self._colmax(-Ftot, -np.inf)
+        slack_len = np.maximum(0.0, self._colsum(cnt * (c["C"] - C0)) - u)
+        slack_len = np.where(F_col == 0.0, slack_len, 0.0)
+        return IncrementResult(F_col, status.astype(np.int32), slack_len, iters, spread, c)
+
+    def _solve(self, u_cls: np.ndarray, u_single: np.ndarray, direction: int, increment: int,
+               active_cls: np.ndarray, give_up: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Iterate the columns in ``active_cls`` to the grip displacements ``u_cls`` [n_classes] from the
+        committed state; converged columns are accepted.  Returns (converged, trials, columns stopped on
+        a jump of a cell's force, columns whose last trial failed), each of shape [n_classes]."""
+        be, c = self.backend, self.cells
+        col, cnt, C0, p = self.col, self.cnt, self.C0, self.p
+        u = u_cls
+        done_cls = ~active_cls
+        jump_cls = np.zeros(self.n_cls, bool)
+        iters = np.zeros(self.n_cls, np.int64)
+        single_cls = np.bincount(col, minlength=self.n_cls) == 1
+        committed_strain = c["C"] / C0 - 1.0
+        # the committed state is a point of every cell's branch, with the tangent of the stage that a
+        # reversal enters; the fallback tangents are the last increment's
+        k_c = be.tangent(False, direction)
+        k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
+        pts = BranchPoints(C0, self.k, self.branch_points)
+        pts.column_gap = lambda gap, mask: self._colmax(np.where(mask, gap * p, 0.0), 0.0)[col] / p
+        spread_last = np.full(self.n_cls, np.inf)
+        Fc = p * c["F"]
+        Fc_max, Fc_min = self._colmax(Fc, -np.inf), -self._colmax(-Fc, -np.inf)
+        Fcol = np.maximum(self._colsum(cnt * Fc) / self._colsum(cnt), 0.0)
+        pts.add(np.ones(be.n, bool), c["C"], c["F"], k_c, Fcol[col] / p)
         # the committed state is an equilibrium of the column (not so at the rest state, whose cells'
         # rest forces differ, nor after a flagged increment): only then do its cells move one way
-        Fc = self.p * c["F"]
-        Fc_max, Fc_min = self._colmax(Fc, -np.inf), -self._colmax(-Fc, -np.inf)
         monotone = ((Fc_max - Fc_min) <= 1e3 * (self.force_tol + self.force_rtol * np.abs(Fc_max)))[col]
-        C_try = np.where(monotone, self._along(C_try, c["C"], direction), C_try)
-        # per-cell brackets of this increment, (C, F) with F below / above the column force,
-        # for a regula falsi with the Illinois modification when the secant stalls at a kink
-        # (e.g. a cell that jams right at the equilibrium)
-        nan = np.full(n, np.nan)
-        lo_C, lo_F, hi_C, hi_F = nan.copy(), nan.copy(), nan.copy(), nan.copy()
-        kept = np.zeros(n, np.int64)        # +1: the hi point was kept last time, -1: the lo point
+        dir_min = np.where(monotone & (direction > 0), c["C"], -np.inf)
+        dir_max = np.where(monotone & (direction < 0), c["C"], np.inf)
+        pts.C_min, pts.C_max = dir_min, dir_max
+        # lengths at which a cell's trial failed, and its good trials' extreme lengths: the model is kept
+        # halfway between them (bisection towards the failure), never beyond
+        fail_hi, fail_lo = np.full(be.n, np.inf), np.full(be.n, -np.inf)
+        good_hi, good_lo = c["C"].copy(), c["C"].copy()
+        C_last, F_last = c["C"].copy(), c["F"].copy()     # each cell's last good trial
         last = None
+        prev_failed = np.zeros(self.n_cls, bool)
         for it in range(self.max_iterations):
-            live = active_cls & ~done_cls
+            # a column whose last trial failed in a cell after 8 trials gives up early when it can still
+            # be cut into sub-increments (step)
+            live = active_cls & ~done_cls & ~(give_up & prev_failed & (iters >= 8))
             if not np.any(live):
                 break
             g_live = live[col]
+            pts.prepare()
+            Fstar, C_try = self._solve_columns(pts, u, Fcol)
+            Fcol = np.where(live, Fstar, Fcol)
+            if it > 0:
+                # a cell whose force jumps across the column's force (cause 1 of the README): flagged
+                f_tol = (self.force_tol + self.force_rtol * Fstar[col]) / p
+                jumped = live & (self._colmax(pts.jump(Fstar[col] / p, f_tol).astype(float), 0.0) > 0)
+                if np.any(jumped):
+                    # committed as its last trial stands (unless a cell failed in it), flagged
+                    be.accept((jumped & ~prev_failed)[col])
+                jump_cls |= jumped
+                live = live & ~jump_cls
+                g_live = live[col]
+                if not np.any(live):
+                    break
             strain = np.where(self.single_group, u_single, C_try / C0 - 1.0)
             strain = np.where(g_live, strain, committed_strain)
             t = be.trial(strain, direction, increment)
             last = t
+            prev_failed = self._colmax((t["status"] != STATUS_OK).astype(float), 0.0) > 0
             iters[live] += 1
             slack = t["stage"] == int(Stage.SLACK)
             failed = t["status"] != STATUS_OK
             # convergence: equal forces at a positive column force (the lengths then add up to u by
             # construction), or every cell slack where the column was asked for zero force; a cell that
             # failed in the trial never converges its column
-            Ftot = self.p * t["F"]                      # the total force each cell's block carries
+            Ftot = p * t["F"]                      # the total force each cell's block carries
             Fmax = self._colmax(np.where(g_live, Ftot, -np.inf), -np.inf)
             Fmin = -self._colmax(np.where(g_live, -Ftot, -np.inf), -np.inf)
-            spread = Fmax - Fmin
             tol = self.force_tol + self.force_rtol * np.abs(Fmax)
-            all_slack = self._colmax(np.where(g_live, (~slack).astype(float), 0.0), 0.0) == 0
+            # a column asked for zero force: converged when no cell carries force (slack, or a cell
+            # that has just left slack at F = 0 to rounding)
+            all_slack = Fmax <= tol
             any_failed = self._colmax(np.where(g_live, failed.astype(float), 0.0), 0.0) > 0
-            single_cls = np.bincount(col, minlength=self.n_cls) == 1
             # a single-group column is the cell itself at the grip strain: its trial is final, failed
             # or not (a failed cell stops its column, flagged, exactly as the single cell stops)
-            conv = live & (single_cls | (~any_failed & (((spread <= tol) & (Fstar > 0)) | (all_slack & (Fstar == 0)))))
+            conv = live & (single_cls | (~any_failed & ((((Fmax - Fmin) <= tol) & (Fstar > 0))
+                                                         | (all_slack & (Fstar == 0)))))
             if np.any(conv):
                 be.accept(conv[col])
                 done_cls |= conv
-            # tangents: secant from the previous iterate, or the chord of the bracket (Illinois);
-            # Ft is the force per wale the column's linear model asks of each cell
-            Ft = Fstar[col] / self.p
-            use = g_live & ~slack & ~failed
-            dC = t["C"] - C_prev
+            use = g_live & ~failed
+            if not np.any(use):
+                continue
+            spread = np.where(live, Fmax - Fmin, np.inf)
+            col_stalled = (spread > 0.25 * spread_last)[col]
+            spread_last = np.where(live, spread, spread_last)
+            pts.record(use, t["F"], Fstar[col] / p, (self.force_tol + self.force_rtol * Fstar[col]) / p,
+                       col_stalled)
+            kt = be.tangent(True)
+            kt = np.where(np.isfinite(kt) & (kt > 0) & ~slack, kt, np.nan)
+            pts.add(use, t["C"], t["F"], kt, Fcol[col] / p)
+            # the fallback tangent: the cell's own, else the secant from its last good trial
+            dC = t["C"] - C_last
             with np.errstate(divide="ignore", invalid="ignore"):
-                ks = (t["F"] - F_prev) / dC
-            good = use & np.isfinite(ks) & (ks > 0) & (np.abs(dC) > 1e-12 * C0)
-            k = np.where(good, np.clip(ks, K_MIN, K_MAX), k)
-            # the cell's own tangent at the trial's end where it is defined (IFT; else the secant)
-            k = np.where(use, self._cell_tangent(be.tangent(True), k), k)
-            above = use & (t["F"] > Ft)
-            below = use & ~above
-            # Illinois: the side kept twice in a row has its residual halved
-            halve_lo = above & (kept == -1)
-            halve_hi = below & (kept == 1)
-            lo_F = np.where(halve_lo, Ft + 0.5 * (lo_F - Ft), lo_F)
-            hi_F = np.where(halve_hi, Ft + 0.5 * (hi_F - Ft), hi_F)
-            hi_C = np.where(above, t["C"], hi_C)
-            hi_F = np.where(above, t["F"], hi_F)
-            lo_C = np.where(below, t["C"], lo_C)
-            lo_F = np.where(below, t["F"], lo_F)
-            kept = np.where(above, -1, np.where(below, 1, kept))
-            both = use & np.isfinite(lo_C) & np.isfinite(hi_C) & (hi_C > lo_C) & (hi_F > lo_F)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                kc = (hi_F - lo_F) / (hi_C - lo_C)
-            kc = np.clip(np.where(both, kc, 1.0), K_MIN, K_MAX)
-            a = np.where(slack, t["C"], t["C"] - t["F"] / k)
-            a = np.where(both, lo_C - lo_F / kc, a)
-            k_model = np.where(both, kc, k)
-            C_prev = np.where(use, t["C"], C_prev)
-            F_prev = np.where(use, t["F"], F_prev)
-            C_new, Fstar = self._update(a, k_model, u)
-            # a failed trial: retreat halfway towards the last good iterate
-            C_new = np.where(monotone, self._along(C_new, c["C"], direction), C_new)
-            C_try = np.where(failed, 0.5 * (C_try + C_prev), C_new)
-        status = np.where(stopped_cls, COL_STOPPED, COL_OK)
-        not_conv = active_cls & ~done_cls
-        if np.any(not_conv) and last is not None:
-            # committed as it stands and flagged, unless a cell failed in the last trial: then the
-            # column keeps its previous state (flagged) and the next increment tries again from it
-            failed_cls = self._colmax((last["status"] != STATUS_OK).astype(float), 0.0) > 0
-            be.accept((not_conv & ~failed_cls)[col])
-        status = np.where(not_conv, COL_NOT_CONVERGED, status)
-        self.cells = c = be.end_increment()
-        stopped_now = self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0
-        status = np.where(stopped_now & (status == COL_OK), COL_STOPPED, status)
-        self.k = np.where(active_cls[col], k, self.k)
-        self.direction = int(direction)
-        n_cells = self._colsum(cnt)
-        # a single-group column carries its cell's force exactly (no rounding of n F / n)
-        F_one = np.zeros(self.n_cls)
-        F_one[col[self.single_group]] = self.p[self.single_group] * c["F"][self.single_group]
-        single_cls = np.bincount(col, minlength=self.n_cls) == 1
-        F_col = np.where(single_cls, F_one, self._colsum(cnt * self.p * c["F"]) / n_cells)
-        Ftot = self.p * c["F"]
-        spread = self._colmax(Ftot, -np.inf) + self._colmax(-Ftot, -np.inf)
-        slack_len = np.maximum(0.0, self._colsum(cnt * (c["C"] - C0)) - u)
-        slack_len = np.where(F_col == 0.0, slack_len, 0.0)
-        return IncrementResult(F_col, status.astype(np.int32), slack_len, iters, spread, c)
+                ks = (t["F"] - F_last) / dC
+            ks = np.where(np.isfinite(ks) & (ks > 0) & (np.abs(dC) > 1e-12 * C0), ks, np.nan)
+            knew = np.where(np.isfinite(kt), kt, ks)
+            self.k = np.where(use & np.isfinite(knew), np.clip(np.nan_to_num(knew, nan=1.0), K_MIN, K_MAX), self.k)
+            F_last = np.where(use, t["F"], F_last)
+            C_last = np.where(use, t["C"], C_last)
+            # a failed trial: no longer than halfway to it from the cell's last good length (or no shorter)
+            # (the length asked of it: a failed cell reports the state it stopped in)
+            gf = g_live & failed & ~self.single_group
+            fail_hi = np.where(gf & (C_try > C_last), np.minimum(fail_hi, C_try), fail_hi)
+            fail_lo = np.where(gf & (C_try < C_last), np.maximum(fail_lo, C_try), fail_lo)
+            good_hi = np.where(use, np.maximum(good_hi, t["C"]), good_hi)
+            good_lo = np.where(use, np.minimum(good_lo, t["C"]), good_lo)
+            fail_hi = np.where(good_hi >= fail_hi, np.inf, fail_hi)
+            fail_lo = np.where(good_lo <= fail_lo, -np.inf, fail_lo)
+            pts.C_max = np.minimum(dir_max, np.where(np.isfinite(fail_hi), 0.5 * (good_hi + fail_hi), np.inf))
+            pts.C_min = np.maximum(dir_min, np.where(np.isfinite(fail_lo), 0.5 * (good_lo + fail_lo), -np.inf))
+        last_failed = np.zeros(self.n_cls, bool)
+        if last is not None:
+            last_failed = self._colmax((last["status"] != STATUS_OK).astype(float), 0.0) > 0
+        return done_cls & active_cls, iters, jump_cls, last_failed
 
-    def _update(self, a: np.ndarray, k: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
-        # returns C [n_groups] and the column force F [n_classes]
-        """Linearised column equations: the common total force F >= 0 and the course lengths
-        C_g = a_g + F / (p_g k_g)."""
-        cnt, C0, p = self.cnt, self.C0, self.p
-        num = u - self._colsum(cnt * (a - C0))
-        den = self._colsum(cnt / (p * k))
-        F = np.maximum(num / den, 0.0)
-        Fg = F[self.col]
-        C = a + Fg / (p * k)
+    def _solve_columns(self, pts: BranchPoints, u: float, F_guess: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The column forces F [n_classes] at which the model lengths add up to u, and those lengths
+        C [n_groups] (a slack column: F = 0, every cell a little short of its zero-force length).
+
+        Phi(F) = sum n_g (C_g(F / p_g) - C0_g) - u is monotone non-decreasing in F: safeguarded Newton
+        on it, bisection (or doubling while no upper bound is known) where the Newton step leaves the
+        bracket or the slope vanishes."""
+        col, cnt, C0, p = self.col, self.cnt, self.C0, self.p
+        scale = self._colsum(cnt * C0)
+        tol_len = 16.0 * np.finfo(float).eps * scale
+
+        def phi(F):
+            C, dC = pts.model(F[col] / p)
+            return C, self._colsum(cnt * (C - C0)) - u, self._colsum(cnt * dC / p)
+
+        zero = np.zeros(self.n_cls)
+        C_zero, phi0, _ = phi(zero)
+        slack = phi0 >= 0.0
+        lo, hi = zero.copy(), np.full(self.n_cls, np.inf)
+        F = np.where(slack, 0.0, np.maximum(F_guess, 0.0))
+        done = slack.copy()
+        C = C_zero
+        for _ in range(200):
+            C, r, dr = phi(F)
+            done |= np.abs(r) <= tol_len
+            if np.all(done):
+                break
+            lo = np.where(~done & (r < 0), F, lo)
+            hi = np.where(~done & (r > 0), F, hi)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                Fn = F - r / dr
+            bad = ~np.isfinite(Fn) | (Fn <= lo) | (Fn >= hi)
+            grow = np.where(lo > 0, 2.0 * lo, 1e-6)
+            Fn = np.where(bad, np.where(np.isfinite(hi), 0.5 * (lo + hi), grow), Fn)
+            done |= np.isfinite(hi) & (hi - lo <= 4.0 * np.finfo(float).eps * hi)
+            F = np.where(done, F, Fn)
+        C, r, _ = phi(F)
+        # a model with a step (a cell's force jumps, or a stalled cell's clipped tangent) may have no exact
+        # root: where the bracket has closed on it, the lengths between the bracket's ends that add up to u
+        gap = ~slack & (np.abs(r) > tol_len) & np.isfinite(hi)
+        if np.any(gap):
+            C_a, r_a, _ = phi(np.where(gap, lo, F))
+            C_b, r_b, _ = phi(np.where(gap, hi, F))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                theta = np.clip(np.where(gap & (r_b > r_a), -r_a / (r_b - r_a), 0.0), 0.0, 1.0)
+            C = np.where(gap[col], C_a + theta[col] * (C_b - C_a), C)
         # a column at zero force: drive each cell a little past its zero-force point, so that the
         # cell solver locates its slack event there (and keeps its slack length)
-        C = np.where(Fg == 0.0, a - 1e-6 * C0, C)
-        return C, F
+        C_slack = np.clip(C_zero - 1e-6 * C0, pts.C_min, pts.C_max)
+        C = np.where(slack[col], C_slack, C)
+        return F, C
