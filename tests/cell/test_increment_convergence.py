@@ -26,6 +26,7 @@ import pytest
 
 from knitsim.cell.batch import run_batch
 from knitsim.cell.cycle import CellCycle
+from knitsim.cell.effects import EffectSet
 from knitsim.cell.load_program import piecewise_linear
 from knitsim.cell.material import CellParams
 from knitsim.cell.stages import Stage
@@ -119,3 +120,37 @@ def test_halving_the_increment_leaves_the_cycle_unchanged():
         assert kinds == [e["kind"] for e in base.events]
         np.testing.assert_allclose([e["C"] for e in r.events], [e["C"] for e in base.events], rtol=0, atol=1e-7)
     assert "slack" in [e["kind"] for e in base.events]   # the unloading reaches F = 0 (the reload matters)
+
+
+#: blind study v3 case 97's own specimen (``make_specimen(433243807)``) with its hidden normal-load friction
+#: (eq 5, strength 0.19: n = 0.843, the reference load the median contact force of its effect-free run)
+CASE97 = CellParams(B=0.31, d=0.5789257926116483, L=13.980015571030775, W0=4.415284241283669,
+                    C0=2.696566571239375, m=0.21410204798385096, phi0=-0.007178809610392524,
+                    effects=EffectSet(on=("normal_load_friction",), load_n=0.8428147318787945,
+                                      load_ref_N=0.09241424730344054))
+
+
+@pytest.mark.parametrize("cell", [
+    CASE97,
+    CASE97.replace(effects=EffectSet(on=("coiling_angle_friction",), coil_mu_k=0.3)),
+    CASE97.replace(effects=EffectSet(on=("coiling_angle_friction", "normal_load_friction"), coil_mu_k=0.3,
+                                     load_n=0.7, load_ref_N=0.05)),
+], ids=["normal_load", "coiling", "both"])
+def test_a_friction_ratio_of_the_state_does_not_depend_on_the_increment(cell):
+    """Coulomb friction whose ratio is a function of the state (eq 10's coiling angle beta, eq 5's
+    normal load Rn) is still rate-independent: read at the solution itself, the cycle has no
+    discretisation error, and halving the increment leaves the force at common strains within 1e-8 N
+    and the events in place.  Before (ratio read at each increment's start), case 97's cell went
+    slack on its first unloading at C = 3.340, 3.720, 3.728, 3.837, 3.880, 3.901 mm for increments
+    0.005 .. 0.00015625 (the ratio grows as Rn -> 0 with n < 1, and F stays within 1e-3 N of 0 over
+    0.2 of strain, so a lagged ratio moved its zero far), and its reload changed the specimen's
+    cycles curve by 35,950 / 2.3 / 177 / 11.5 / 2.9 chi^2 units per halving."""
+    runs = {h: run_batch([cell], piecewise_linear(WAYPOINTS, h)) for h in (0.0025, 0.00125, 0.000625)}
+    base = runs[0.0025]
+    assert "slack" in [e["kind"] for e in base.events]
+    for h, r in runs.items():
+        k = int(round(0.0025 / h))
+        assert np.all(r.status[:, 0] == 0)
+        np.testing.assert_allclose(r.force_per_wale[k - 1::k, 0], base.force_per_wale[:, 0], rtol=0, atol=1e-8)
+        assert [e["kind"] for e in r.events] == [e["kind"] for e in base.events]
+        np.testing.assert_allclose([e["C"] for e in r.events], [e["C"] for e in base.events], rtol=0, atol=1e-7)
