@@ -154,3 +154,65 @@ def test_a_friction_ratio_of_the_state_does_not_depend_on_the_increment(cell):
         np.testing.assert_allclose(r.force_per_wale[k - 1::k, 0], base.force_per_wale[:, 0], rtol=0, atol=1e-8)
         assert [e["kind"] for e in r.events] == [e["kind"] for e in base.events]
         np.testing.assert_allclose([e["C"] for e in r.events], [e["C"] for e in base.events], rtol=0, atol=1e-7)
+
+
+#: a random cell of bench_cell_batch's family (seed 7, cell 138) with a strong normal-load friction (n = 0.72)
+NL_CELL = CellParams(B=0.30853032198181785, d=0.5800856083865428, L=13.984851964135334, W0=4.427598034420687,
+                     C0=2.6646933047855166, m=0.36266080956099667, phi0=0.32013306191831664, force_cap_N=10.0,
+                     effects=EffectSet(on=("normal_load_friction",), load_n=0.7223263326854908,
+                                       load_ref_N=0.08595286380314882))
+
+
+def test_normal_load_cone_and_slack_are_those_of_the_walked_implicit_branch():
+    """Unloading from 0.60, the cell's SF- (beta, s_BC frozen) carries phi up while Rn falls, and the
+    cone of eq 5's ratio widens with it (n < 1): the stick leaves the cone (event ``cone``, T frozen
+    from there) and reaches F = 0 with phi far inside the (now wide) cone: slack, no slide.  Expected
+    from an independent walk: the NumPy reference's equilibrium solve (``solve_state``, another
+    Newton) in committed steps of 2e-5 mm from the Warp batch's reversal state, the cone and slide
+    tested with eq 5 evaluated in NumPy at each walked state.  (With the ratio lagged by an
+    increment the cone was that of a stale, larger Rn: the cell slid at C = 4.22 and went slack at
+    3.57, far down the S- branch.)"""
+    import math
+
+    from knitsim.cell.inverse import solve_state
+    p, e = NL_CELL, NL_CELL.effects
+
+    def edge(Rn):
+        x = max(abs(Rn), 1e-3 * e.load_ref_N)
+        return math.atan(min(p.m * (x / e.load_ref_N) ** (e.load_n - 1.0), 5.0))
+
+    h = run_batch([p], piecewise_linear([0.6, 0.1], 0.01))
+    assert np.all(h.status[:, 0] == 0)
+    k = 59                                              # strain 0.60: the reversal state
+    v = {n: float(h.values[n][k, 0]) for n in ("alpha", "beta", "gamma", "phi", "P", "C", "s_BC")}
+    assert h.labels(0)[k] == "sliding" and abs(v["phi"] - edge(float(h.values["Rn"][k, 0]))) < 1e-9
+    x = [v[n] for n in ("alpha", "beta", "gamma", "phi", "P")]
+    cond = {"L": p.L, "s_BC": v["s_BC"], "beta": v["beta"]}
+    C, step, walked = v["C"], 2.0e-5, {}
+    while "slack" not in walked and C > 4.0:
+        C -= step
+        r = solve_state(dict(cond, C=C), x, p.B, p.d)
+        assert r.success, C
+        x, s = r.x, r.state
+        phi, Rn, F = float(s.phi), float(s.Rn), float(s.F)
+        if "cone" not in walked and phi > edge(Rn):
+            # T is frozen where the stick leaves the cone: that point bisected to 1e-12 mm on the walked
+            # bracket (C, C + step), each point solved from the last walked state
+            a, b = C, C + step
+            while b - a > 1e-12:
+                mid = 0.5 * (a + b)
+                sm = solve_state(dict(cond, C=mid), x, p.B, p.d).state
+                a, b = (mid, b) if float(sm.phi) > edge(float(sm.Rn)) else (a, mid)
+            walked["cone"] = C
+            rc = solve_state(dict(cond, C=b), x, p.B, p.d)
+            cond = {"L": p.L, "s_BC": v["s_BC"], "T": float(rc.state.T)}
+            x = rc.x
+            C = b
+        elif "cone" in walked:
+            assert phi > -edge(Rn)                      # no slide before the load vanishes
+            if F < 0.0 or Rn < 0.0:
+                walked["slack"] = C
+    ev = {ev["kind"]: ev["C"] for ev in h.events if ev["kind"] in ("cone", "slack", "slide") and ev["increment"] >= 60}
+    assert set(ev) == {"cone", "slack"}
+    for kind in ("cone", "slack"):
+        assert walked[kind] <= ev[kind] <= walked[kind] + step + 1e-9
