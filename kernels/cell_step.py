@@ -1208,6 +1208,11 @@ def read_material(
     mat.comp_min = wp.float64(1.0)
     mat.ext_c = wp.float64(0.0)
     mat.ext_p0 = wp.float64(0.0)
+    mat.fr_state = 0  # the friction ratio is m (apply_effects sets the state's law)
+    mat.fr_m0 = mat.m
+    mat.fr_mu = wp.float64(0.0)
+    mat.fr_n = wp.float64(1.0)
+    mat.fr_ref = wp.float64(1.0)
     return mat
 
 
