@@ -53,12 +53,12 @@ from knitsim.cell.stages import (
 from .effects import (
     BIT_BENDING, BIT_COILING, BIT_COMPACTION, BIT_EXTENSION, BIT_NORMAL_LOAD, BIT_VELOCITY, E_B, E_D, E_L, E_M,
     E_P0, E_RN0, E_Z, P_BEND_H, P_BEND_SIGMA, P_COIL_MU, P_COMP_K, P_COMP_MIN, P_EXT_C, P_LOAD_N, P_LOAD_REF,
-    P_RATE_P, P_RATE_REF, _M_MAX, coiling_friction, compaction_ratio, dahl_bending_state, extension_ratio, has,
+    P_RATE_P, P_RATE_REF, _M_MAX, _RN_FLOOR, coiling_friction, compaction_ratio, dahl_bending_state, extension_ratio, has,
     normal_load_factor, velocity_factor,
 )
 from .elastica import (
     PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_inv, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt, d_sub,
-    d_tan, elastica_ab, vec5d,
+    d_tan, dual, elastica_ab, vec5d,
 )
 from .head_gap import head_gap_dual, head_gap_value
 from .inverse import (
@@ -131,12 +131,19 @@ COND_EXT = wp.constant(101)
 #: condition code of jamming by contact: the heads of neighbouring loops at centreline distance d_jam
 #: (jamming_criterion = "head_gap", kernels.head_gap), d_jam shrinking with Rn under yarn_compaction
 COND_GAP = wp.constant(102)
+#: condition code of sliding at the friction cone's edge where the friction ratio is a function of the state
+#: (coiling_angle_friction: m(beta), eq 10; normal_load_friction: m (Rn / Rn_ref)^(n - 1), eq 5):
+#: phi = s atan(m_eff(beta, Rn)), target s = +1 / -1, the ratio read at the solution itself
+COND_PHI_EFF = wp.constant(103)
+#: ``which`` of branch_sign_change for the cone's edge at the state's own friction ratio, phi_edge(q) - phi
+SIGN_CONE_EDGE = wp.constant(-1)
 #: events kept per cell and increment (more are counted, not stored)
 MAX_EVENTS_PER_STEP = 8
 vec8d = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.float64)
 vec8i = wp.types.vector(length=MAX_EVENTS_PER_STEP, dtype=wp.int32)
 #: extra data of the special residuals: (tan(phi_old), s_BC_old, s, sigma, m) of Dahl, (k, Rn_0, c_min)
-#: of jamming, (c, P_0) of the extensible yarn
+#: of jamming, (c, P_0) of the extensible yarn; a Coulomb cell whose friction ratio is a function of the
+#: state holds (m0, mu_k, n, Rn_ref) of friction_ratio in the Dahl slots 0-3
 vec10p = wp.types.vector(length=10, dtype=wp.float64)
 _MAXEV = wp.constant(MAX_EVENTS_PER_STEP)
 
@@ -183,6 +190,11 @@ class Material:
     comp_min: wp.float64  # its smallest d_eff / d
     ext_c: wp.float64  # yarn_extension (issue 6): tensile compliance [1/N], 0 when off
     ext_p0: wp.float64  # its rest yarn force P_0 [N] (L is the length at P_0)
+    fr_state: int  # 1: the friction ratio is a function of the state (coiling and/or normal load, Coulomb)
+    fr_m0: wp.float64  # its factor: m x velocity factor, or the velocity factor alone under coiling
+    fr_mu: wp.float64  # coiling_angle_friction's mu_k of eq 10, 0 when off
+    fr_n: wp.float64  # normal_load_friction's n of eq 5, 1 when off
+    fr_ref: wp.float64  # its reference normal load [N]
 
 
 # ------------------------------------------------------------------ Newton
@@ -242,6 +254,59 @@ def gap_residual(cell: CellEval, z: vec5d, d_jam: wp.float64, dp: vec10p, B: wp.
 
 
 @wp.func
+def friction_ratio(beta: wp.float64, Rn: wp.float64, m0: wp.float64, mu: wp.float64, n: wp.float64,
+                   ref: wp.float64):
+    """The friction ratio of the state (kernels.effects, read at the state instead of the increment's
+    start) and its partial derivatives: returns (m, dm/dbeta, dm/dRn).
+
+    m = m0 c(beta) f(Rn), capped at M_EFF_MAX: c the coiling ratio of eq 10 at the coiling angle beta,
+    tanh(mu beta / 2) tan(beta / 2) (kernels.friction.coiling_ratio_m; 1 when mu = 0), f the
+    normal-load factor of eq 5, (max(|Rn|, floor Rn_ref) / Rn_ref)^(n - 1) (kernels.effects
+    .normal_load_factor; 1 when n = 1)."""
+    c = wp.float64(1.0)
+    dc = wp.float64(0.0)
+    if mu > wp.float64(0.0):
+        th = wp.tanh(wp.float64(0.5) * mu * beta)
+        t = wp.tan(wp.float64(0.5) * beta)
+        c = th * t
+        dc = wp.float64(0.5) * mu * (wp.float64(1.0) - th * th) * t + wp.float64(0.5) * th * (wp.float64(1.0) + t * t)
+    f = wp.float64(1.0)
+    df = wp.float64(0.0)
+    if n != wp.float64(1.0):
+        a = wp.abs(Rn)
+        fl = _RN_FLOOR * ref
+        if a > fl:
+            f = wp.pow(a / ref, n - wp.float64(1.0))
+            df = (n - wp.float64(1.0)) * f / a
+            if Rn < wp.float64(0.0):
+                df = -df
+        else:
+            f = wp.pow(fl / ref, n - wp.float64(1.0))
+    m = m0 * c * f
+    dmb = m0 * dc * f
+    dmr = m0 * c * df
+    if m > _M_MAX:
+        m = _M_MAX
+        dmb = wp.float64(0.0)
+        dmr = wp.float64(0.0)
+    return m, dmb, dmr
+
+
+@wp.func
+def phi_edge_residual(cell: CellEval, s: wp.float64, dp: vec10p):
+    """phi - s atan(m(beta, Rn)): sliding at the edge s = +1 / -1 of the state's own friction cone
+    (friction_ratio; Coulomb cells with coiling_angle_friction or normal_load_friction).  Implicit: a
+    ratio lagged by one increment is a first-order error in the increment, and near F = 0 on unloading
+    (Rn -> 0 raises the ratio when n < 1) it moved the slack point by 0.1 mm from one halving to the
+    next (knitsim issue 12)."""
+    be = quantity(cell, Q_BETA)
+    rn = quantity(cell, Q_RN)
+    m, dmb, dmr = friction_ratio(be.v, rn.v, dp[0], dp[1], dp[2], dp[3])
+    k = s / (wp.float64(1.0) + m * m)
+    return dual(quantity(cell, Q_PHI).v - s * wp.atan(m), quantity(cell, Q_PHI).g - k * (dmb * be.g + dmr * rn.g))
+
+
+@wp.func
 def residuals_ext(cell: CellEval, z: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64,
                   d: wp.float64):
     """As kernels.inverse.residuals, with codes COND_DAHL (the Dahl residual), COND_JAM
@@ -267,6 +332,9 @@ def residuals_ext(cell: CellEval, z: vec5d, codes: wp.vec4i, targets: vec4d, dp:
         is_gap = wp.static(WITH_GAP)
         if wp.static(WITH_GAP):
             is_gap = c == COND_GAP
+        is_edge = wp.static(WITH_EFFECTS)
+        if wp.static(WITH_EFFECTS):
+            is_edge = c == COND_PHI_EFF
         if is_dahl:
             rd = dahl_residual(cell, dp)
             r[k + 1] = rd.v
@@ -283,6 +351,10 @@ def residuals_ext(cell: CellEval, z: vec5d, codes: wp.vec4i, targets: vec4d, dp:
             rg = gap_residual(cell, z, targets[k], dp, B)
             r[k + 1] = rg.v / d
             J[k + 1] = rg.g / d
+        elif is_edge:
+            rp = phi_edge_residual(cell, targets[k], dp)
+            r[k + 1] = rp.v
+            J[k + 1] = rp.g
         else:
             sc = quantity_scale(c, B, d)
             qk = quantity(cell, c)
@@ -528,6 +600,11 @@ def effect_params(mat: Material):
     """The residuals' extra data without Dahl: the compaction law of the jammed condition and the
     extensible yarn's law."""
     dp = vec10p()
+    if mat.fr_state != 0:
+        dp[0] = mat.fr_m0
+        dp[1] = mat.fr_mu
+        dp[2] = mat.fr_n
+        dp[3] = mat.fr_ref
     dp[5] = mat.comp_k
     dp[6] = mat.comp_rn0
     dp[7] = mat.comp_min
@@ -612,10 +689,29 @@ def stage_conditions(stage: int, jammed: int, soft: int, frozen_soft: wp.float64
     elif stage == S_UNLOAD:
         codes[2] = Q_PHI
         tg[2] = -mat.phimax
+    if (stage == S_LOAD or stage == S_UNLOAD) and mat.dahl == 0 and mat.fr_state != 0:
+        codes[2] = COND_PHI_EFF
+        tg[2] = wp.float64(1.0)
+        if stage == S_UNLOAD:
+            tg[2] = wp.float64(-1.0)
     if jammed != 0:
         codes[3] = jam_code(mat)
         tg[3] = jam_target(mat)
     return codes, tg
+
+
+@wp.func
+def phi_edge(q: vecQd, mat: Material) -> wp.float64:
+    """The friction cone's half-angle at the state q: phimax, or atan of the state's own friction ratio
+    (friction_ratio) where it is a function of the state."""
+    e = mat.phimax
+    state_ratio = wp.static(WITH_EFFECTS)
+    if wp.static(WITH_EFFECTS):
+        state_ratio = mat.fr_state != 0
+    if state_ratio:
+        m, dmb, dmr = friction_ratio(q[Q_BETA], q[Q_RN], mat.fr_m0, mat.fr_mu, mat.fr_n, mat.fr_ref)
+        e = wp.atan(m)
+    return e
 
 
 @wp.func
@@ -688,9 +784,9 @@ def event_value(kind: int, z: vec5d, q: vecQd, stage: int, mat: Material) -> wp.
     v = wp.float64(0.0)
     if kind == _EV_SLIDE:
         if stage == SF_LOAD:
-            v = q[Q_PHI] - mat.phimax
+            v = q[Q_PHI] - phi_edge(q, mat)
         else:
-            v = -mat.phimax - q[Q_PHI]
+            v = -phi_edge(q, mat) - q[Q_PHI]
     elif kind == _EV_JAM:
         v = -jam_clearance(z, q, mat)
     elif kind == _EV_CAP:
@@ -701,9 +797,9 @@ def event_value(kind: int, z: vec5d, q: vecQd, stage: int, mat: Material) -> wp.
         v = wp.max(-q[Q_F], -q[Q_RN])
     elif kind == _EV_CONE:
         if stage == SF_UNLOAD:
-            v = q[Q_PHI] - mat.phimax
+            v = q[Q_PHI] - phi_edge(q, mat)
         else:
-            v = -mat.phimax - q[Q_PHI]
+            v = -phi_edge(q, mat) - q[Q_PHI]
     return v
 
 
@@ -753,6 +849,12 @@ def event_condition(kind: int, stage: int, mat: Material):
         tg = -mat.phimax
         if stage == SF_UNLOAD:
             tg = mat.phimax
+    if (kind == _EV_SLIDE or kind == _EV_CONE) and mat.fr_state != 0:
+        # the edge of the state's own cone (friction_ratio): phi = +/-atan(m(beta, Rn))
+        code = int(COND_PHI_EFF)
+        tg = wp.float64(1.0)
+        if (kind == _EV_SLIDE and stage == SF_UNLOAD) or (kind == _EV_CONE and stage != SF_UNLOAD):
+            tg = wp.float64(-1.0)
     return code, tg
 
 
@@ -864,7 +966,12 @@ def narrowed_past(z: vec5d, q: vecQd, stage: int, mat: Material, mat_from: Mater
     cannot be located (that needs its function <= 0 at the start): it slides at the start. (The
     cone's far side after a reversal is left to cone_at_start: unloading moves phi back inside.)"""
     tol = event_tol(_EV_SLIDE, mat)
-    return event_value(_EV_SLIDE, z, q, stage, mat_from) <= tol and event_value(_EV_SLIDE, z, q, stage, mat) > tol
+    out = event_value(_EV_SLIDE, z, q, stage, mat_from) <= tol and event_value(_EV_SLIDE, z, q, stage, mat) > tol
+    if mat.fr_state != 0:
+        # the cone is the state's own (friction_ratio), the same at both ends; only the velocity factor of
+        # a new increment's rate moves it: a stick state found outside it at a sub-step's start slides there
+        out = event_value(_EV_SLIDE, z, q, stage, mat) > tol
+    return out
 
 
 @wp.func
@@ -903,7 +1010,7 @@ def slide_at_start(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: w
         # at zero contact no tangential force can be held: a probe beyond either edge of the cone slides
         # (CellCycle._slide_at_start: the far edge is the seed's sign, not a direction of slip)
         out = (not okp) or event_value(_EV_SLIDE, xp, qp, stage, mat) >= -event_tol(_EV_SLIDE, mat) \
-            or wp.abs(qp[Q_PHI]) >= mat.phimax - event_tol(_EV_SLIDE, mat)
+            or wp.abs(qp[Q_PHI]) >= phi_edge(qp, mat) - event_tol(_EV_SLIDE, mat)
     return out
 
 
@@ -928,6 +1035,15 @@ def unjam_at_start(x: vec5d, q: vecQd, stage: int, soft: int, fs: wp.float64, fs
 
 
 @wp.func
+def cone_which(mat: Material) -> int:
+    """branch_sign_change's quantity for the cone's edge: phimax - phi, or the state's own edge."""
+    w = int(Q_PHI)
+    if mat.fr_state != 0:
+        w = int(SIGN_CONE_EDGE)
+    return w
+
+
+@wp.func
 def branch_sign_change(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
                        mat: Material, C_from: wp.float64, C_goal: wp.float64, which: int, offset: wp.float64,
                        sgn: wp.float64):
@@ -947,7 +1063,12 @@ def branch_sign_change(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, f
         if wp.abs(Cb - Ca) > _OPENING_XTOL * wp.max(wp.float64(1.0), wp.abs(Cb)):
             Cm = wp.float64(0.5) * (Ca + Cb)
             xm, qm, okm = solve_coulomb(xa, stage, jammed, soft, fs, fsbc, mat, Cm, -1, wp.float64(0.0))
-            if okm and sgn * (qm[which] - offset) >= wp.float64(0.0):
+            v = wp.float64(0.0)
+            if which == SIGN_CONE_EDGE:
+                v = phi_edge(qm, mat) - qm[Q_PHI]
+            else:
+                v = sgn * (qm[which] - offset)
+            if okm and v >= wp.float64(0.0):
                 xa = xm
                 qa = qm
                 Ca = Cm
@@ -1087,6 +1208,11 @@ def read_material(
     mat.comp_min = wp.float64(1.0)
     mat.ext_c = wp.float64(0.0)
     mat.ext_p0 = wp.float64(0.0)
+    mat.fr_state = 0  # the friction ratio is m (apply_effects sets the state's law)
+    mat.fr_m0 = mat.m
+    mat.fr_mu = wp.float64(0.0)
+    mat.fr_n = wp.float64(1.0)
+    mat.fr_ref = wp.float64(1.0)
     return mat
 
 
@@ -1097,13 +1223,17 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
                   rate: wp.float64):
     """The cell's parameters for one increment with the effects of ``mask`` on (knitsim.cell.effects).
 
-    m and B are read from the state at the start of the increment (increment-lagged); the
-    compaction and extension laws are handed to the residuals, which read the load at the
-    solution itself (implicit); the bending Dahl state is advanced over the increment's
-    strain ``dstrain``.
+    m and B are read from the state at the start of the increment (increment-lagged); for a
+    Coulomb cell with coiling or normal-load friction the ratio's law is also handed to the
+    sliding condition and the slide and cone events (``fr_*`` fields: friction_ratio, read at the
+    solution itself, implicit), so that the lagged m is only what the frictionless test and the
+    Dahl law read; the compaction and extension laws are handed to the residuals, which read the
+    load at the solution itself (implicit); the bending Dahl state is advanced over the
+    increment's strain ``dstrain``.
     Returns (material, z_bend).
     """
     m = mat.m
+    mat_m0 = mat.m
     if has(mask, BIT_COILING):
         m = coiling_friction(q[Q_BETA], params[r, P_COIL_MU])
     if has(mask, BIT_NORMAL_LOAD):
@@ -1114,6 +1244,22 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
         m = wp.min(m, _M_MAX)
         mat.m = m
         mat.phimax = wp.atan(m)
+    if mat.dahl == 0 and (has(mask, BIT_COILING) or has(mask, BIT_NORMAL_LOAD)):
+        # Coulomb: the sliding condition and the slide and cone events read the ratio at the state itself
+        # (friction_ratio); m and phimax above stay the increment-lagged values (Dahl, the frictionless test)
+        mat.fr_state = 1
+        mat.fr_m0 = mat_m0
+        mat.fr_mu = wp.float64(0.0)
+        mat.fr_n = wp.float64(1.0)
+        mat.fr_ref = wp.float64(1.0)
+        if has(mask, BIT_COILING):
+            mat.fr_m0 = wp.float64(1.0)
+            mat.fr_mu = params[r, P_COIL_MU]
+        if has(mask, BIT_NORMAL_LOAD):
+            mat.fr_n = params[r, P_LOAD_N]
+            mat.fr_ref = params[r, P_LOAD_REF]
+        if has(mask, BIT_VELOCITY):
+            mat.fr_m0 = mat.fr_m0 * velocity_factor(rate, params[r, P_RATE_P], params[r, P_RATE_REF])
     if has(mask, BIT_COMPACTION):
         # implicit: the jammed condition reads the load at the solution (a lagged width oscillates
         # on the stiff jammed branch); see jam_residual
@@ -1474,7 +1620,7 @@ def advance_cell(
                             # branch dips into the cone and leaves it further on, located by bisection
                             # on the sign of phimax - phi (CellCycle._locate)
                             xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
-                                                            Q_PHI, matg.phimax, wp.float64(-1.0))
+                                                            cone_which(matg), matg.phimax, wp.float64(-1.0))
                             oke = Ce != C_from
                         # else: already satisfied at the start of the sub-step, it happens there
                         if oke and in_range(qe[Q_C], C_from, C_goal):
@@ -1689,6 +1835,8 @@ def advance_cell(
         eff_out[i, k] = eff_in[i, k]
     if with_effects:
         eff_out[i, E_M] = mat.m
+        if mat.fr_state != 0:
+            eff_out[i, E_M] = wp.tan(phi_edge(q, mat))  # the ratio at the committed state
         eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
         eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
         eff_out[i, E_B] = mat.B

@@ -6,11 +6,18 @@ increment, the parameters the stage logic reads (``m``, ``d``, ``L``, ``B``);
 the seventh, ``dahl_transition``, is the Dahl friction state that already
 replaces the Coulomb switching (``CellParams.friction = "dahl"``).
 
-The friction ratio m and the bending stiffness B of an increment are computed
-from the state at its start (an explicit, increment-lagged coupling: the
-condition set of Table 4 keeps its four imposed quantities; the lag is a
-first-order error in the increment), the bending Dahl state by its closed
-form, exact over the increment.  The two laws that change the geometry, the
+For a Coulomb cell the friction ratio of the coiling angle and of the normal
+load is read at the solution itself (implicit): the sliding condition of S+/S-
+becomes ``phi = +/-atan(m(beta, Rn))`` and the slide and cone events are judged
+on the edge of the state's own cone (kernels.cell_step.friction_ratio), so the
+curve carries no increment error (issue 12: lagged by one increment, near F = 0
+on unloading, where Rn -> 0 raises the ratio when n < 1, it moved a cell's slack
+point by 0.1 mm from one halving of the increment to the next).  Under Dahl
+friction the ratio, and in every cell the velocity factor (the rate of the
+increment) and the bending stiffness B, are computed from the state at the
+increment's start (an explicit, increment-lagged coupling, a first-order error
+in the increment); the bending Dahl state by its closed form, exact over the
+increment.  The two laws that change the geometry, the
 compacted jam width and the extensible yarn's length, are implicit: they
 replace a condition of Table 4 (W = 4 d, L) by one that reads the load at the
 solution itself, so they carry no increment error.  Every effect is *off* by default
@@ -22,9 +29,9 @@ effect                     law (lagged, unless said implicit)                  p
 =========================  ====================================================  =================
 coiling_angle_friction     ``m = eq10(theta, mu_k)``, theta = beta, the tangent  coil_mu_k
                            angle at the crossing B (eq 11's coiling angle in
-                           the jammed geometry of Fig. 6c)
+                           the jammed geometry of Fig. 6c); implicit (Coulomb)
 normal_load_friction       ``m <- m (Rn / Fn_ref)^(n - 1)`` (eq 5, b absorbed    load_n, load_ref_N
-                           in m: m is the ratio at Fn_ref)
+                           in m: m is the ratio at Fn_ref); implicit (Coulomb)
 velocity_friction          ``m <- m (V / V_ref)^p`` (eq 5), V the test rate of   rate_p, rate_ref_mm_s
                            the increment (the sliding velocity at the crossing
                            is taken proportional to the crosshead rate; the

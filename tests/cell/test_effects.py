@@ -35,12 +35,6 @@ def _run(cells, program, device, rate=None):
     return run_batch(cells, program, device=device)
 
 
-def _previous(h, name, cell):
-    """The quantity at the start of each increment (the rest state before the first)."""
-    v = h.values[name][:, cell]
-    return np.concatenate([[np.nan], v[:-1]])
-
-
 def test_neutral_parameters_leave_the_baseline_bit_for_bit(device):
     """Every effect at its neutral value (n = 1, p with V = V_ref, k = 0, h = 0, c = 0) and an
     EffectSet with nothing on both give the baseline exactly (the kernel skips or multiplies by 1)."""
@@ -57,15 +51,16 @@ def test_neutral_parameters_leave_the_baseline_bit_for_bit(device):
 
 
 def test_normal_load_friction_follows_eq5_while_sliding(device):
-    """m_eff = m (Rn / Rn_ref)^(n - 1) at the start of each increment (eq 5), and tan(phi) = m_eff
-    wherever the cell slides (Table 4: phi = phimax in S+)."""
+    """m_eff = m (Rn / Rn_ref)^(n - 1) at the state itself (eq 5: the ratio of a Coulomb cell is read at
+    the solution, not lagged by an increment), and tan(phi) = m_eff wherever the cell slides (Table 4:
+    phi = phimax in S+, at the cone of the state's own normal load)."""
     n, ref = 0.7, 0.05
     p = GLASS.replace(effects=EffectSet(on=("normal_load_friction",), load_n=n, load_ref_N=ref))
     h = _run([p], MONO, device)
     assert np.all(h.status[:, 0] == 0)
-    rn_prev = _previous(h, "Rn", 0)[1:]
-    expected = np.minimum(0.2 * (np.maximum(np.abs(rn_prev), 1e-3 * ref) / ref) ** (n - 1.0), 5.0)
-    np.testing.assert_allclose(h.values["m_eff"][1:, 0], expected, rtol=1e-12)
+    rn = h.values["Rn"][:, 0]
+    expected = np.minimum(0.2 * (np.maximum(np.abs(rn), 1e-3 * ref) / ref) ** (n - 1.0), 5.0)
+    np.testing.assert_allclose(h.values["m_eff"][:, 0], expected, rtol=1e-12)
     sliding = np.array([lab == "sliding" for lab in h.labels(0)])
     assert sliding.sum() > 10
     np.testing.assert_allclose(np.tan(h.values["phi"][sliding, 0]), h.values["m_eff"][sliding, 0], rtol=1e-9)
@@ -73,12 +68,12 @@ def test_normal_load_friction_follows_eq5_while_sliding(device):
 
 def test_coiling_angle_friction_is_eq10_at_the_crossing_angle(device):
     """m_eff = eq 10 (knitsim.friction.coiling.m_eq10, the NumPy twin) at theta = beta of the state
-    at the start of the increment; m grows as the loop closes around the crossing (section 4)."""
+    itself (a Coulomb cell's ratio is read at the solution); m grows as the loop closes around the
+    crossing (section 4)."""
     mu = 0.3
     p = GLASS.replace(effects=EffectSet(on=("coiling_angle_friction",), coil_mu_k=mu))
     h = _run([p], MONO, device)
-    beta_prev = _previous(h, "beta", 0)[1:]
-    np.testing.assert_allclose(h.values["m_eff"][1:, 0], m_eq10(beta_prev, mu), rtol=1e-12)
+    np.testing.assert_allclose(h.values["m_eff"][:, 0], m_eq10(h.values["beta"][:, 0], mu), rtol=1e-12)
     m = h.values["m_eff"][:, 0]
     assert m[-1] > m[1]
     sliding = np.array([lab == "sliding" for lab in h.labels(0)])
