@@ -1164,6 +1164,17 @@ def push_event(n: int, kinds: vec8i, Cs: vec8d, froms: vec8i, tos: vec8i, kind: 
 
 
 @wp.func
+def take_event(kind: int, C: wp.float64, stage: int, jammed: int, soft: int, frozen_soft: wp.float64, status: int,
+               q: vecQd, n: int, kinds: vec8i, Cs: vec8d, froms: vec8i, tos: vec8i):
+    """A located event of ``kind`` at C: the stage change it makes (:func:`transition`) and its record in the
+    increment's buffer (:func:`push_event`, from the label before to the label after)."""
+    label_from = stage_label(stage, jammed)
+    s2, j2, soft2, fs2, st2 = transition(kind, stage, jammed, soft, frozen_soft, status, q)
+    n2, kinds2, Cs2, froms2, tos2 = push_event(n, kinds, Cs, froms, tos, kind, C, label_from, stage_label(s2, j2))
+    return s2, j2, soft2, fs2, st2, n2, kinds2, Cs2, froms2, tos2
+
+
+@wp.func
 def lerp5(a: vec5d, b: vec5d, t: wp.float64):
     return a + (b - a) * t
 
@@ -1551,20 +1562,16 @@ def advance_cell(
             elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
                 kind0 = int(_EV_SLIDE)
             if kind0 >= 0:
-                lbl_from = stage_label(stage, jammed)
-                stage, jammed, soft, fs, status = transition(kind0, stage, jammed, soft, fs, status, q)
-                n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
-                    kind0, C, lbl_from, stage_label(stage, jammed))
+                stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                    kind0, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
                 n_located += 1
                 continue
             xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
             if not ok and jammed != 0 and not is_loading(stage):
                 # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
                 if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
-                    lbl_from = stage_label(stage, jammed)
-                    stage, jammed, soft, fs, status = transition(_EV_UNJAM, stage, jammed, soft, fs, status, q)
-                    n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
-                        _EV_UNJAM, C, lbl_from, stage_label(stage, jammed))
+                    stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                        _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
                     n_located += 1
                     continue
             if not ok:
@@ -1690,13 +1697,11 @@ def advance_cell(
                 step = step * wp.float64(0.5)
                 continue
             failures = 0
-            lbl_from = stage_label(stage, jammed)
             x = best_x
             q = best_q
             C = best_C
-            stage, jammed, soft, fs, status = transition(best_kind, stage, jammed, soft, fs, status, q)
-            n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
-                best_kind, C, lbl_from, stage_label(stage, jammed))
+            stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                best_kind, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
             if status != ST_OK or stage == SLACK:
                 break
             n_located += 1
@@ -1780,15 +1785,14 @@ def advance_cell(
                                     tq = qt
                                     tC = Ck
                                     break
-                                lbl_from = stage_label(tstage, tjam)
                                 tx = best_x
                                 tq = best_q
                                 tC = best_C
                                 if best_kind == _EV_UNJAM:
                                     tC = Ck
-                                tstage, tjam, tsoft, tfs, tstatus = transition(best_kind, tstage, tjam, tsoft, tfs, tstatus, tq)
-                                n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to,
-                                    best_kind, tC, lbl_from, stage_label(tstage, tjam))
+                                tstage, tjam, tsoft, tfs, tstatus, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                                    best_kind, tC, tstage, tjam, tsoft, tfs, tstatus, tq,
+                                    n_ev, e_kind, e_C, e_from, e_to)
                                 if tstatus != ST_OK or tstage == SLACK or tC == Ck:
                                     break
                 if not failed:
