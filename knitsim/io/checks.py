@@ -167,6 +167,37 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
     return out
 
 
+def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarray, stop_row: int,
+                     cap_N: float, unit: str = "N per wale") -> list[ResultWarning]:
+    """A warning when the force cap stopped a cell before an unloading of its program was run.
+
+    The cap is a stop, not a failure (a monotonic pull to the cap ends there by design), but a cyclic
+    program cut by it has unloadings and later cycles that were never run: its summary would
+    otherwise list only the cycles reached, which reads like a complete result.
+
+    Parameters
+    ----------
+    strain, direction, cycle : ndarray, shape [n]
+        The program's imposed strain, direction (+1 / -1) and cycle of each increment.
+    stop_row : int
+        The increment at which the cell stopped at the cap.
+    cap_N : float
+        The cap.
+    """
+    direction, cycle = np.asarray(direction), np.asarray(cycle)
+    later = np.nonzero(direction[stop_row + 1:] < 0)[0]
+    if stop_row >= len(direction) - 1 or not len(later):
+        return []
+    c_stop, c_last = int(cycle[stop_row]), int(cycle.max())
+    rest = (f"the rest of cycle {c_stop}" + (f" and cycles {c_stop + 1}-{c_last}" if c_last > c_stop + 1 else
+                                             f" and cycle {c_last}" if c_last > c_stop else ""))
+    return [ResultWarning(
+        "program_cut_by_force_cap",
+        f"stopped at the force cap ({cap_N:g} {unit}) at strain {float(strain[stop_row]):.4g} in cycle {c_stop} "
+        f"of {c_last}: {rest} {'were' if c_last > c_stop else 'was'} not run; raise force_cap_N to run "
+        f"{'them' if c_last > c_stop else 'it'}")]
+
+
 def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,
                      what: str = "cell", direction: np.ndarray | None = None) -> list[ResultWarning]:
     """A warning when any state's heads overlap.

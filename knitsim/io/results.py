@@ -37,7 +37,7 @@ import numpy as np
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
-from .checks import cycle_work, energy_creating_loops, interpenetration, zero_force_cycles
+from .checks import cut_by_force_cap, cycle_work, energy_creating_loops, interpenetration, zero_force_cycles
 from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
@@ -252,17 +252,20 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     counts = {STATUS_NAMES[int(s)]: int(np.sum(status == s)) for s in np.unique(status)}
     final = int(status[-1])
     flag = next((e for e in events if e.get("kind") == "flag"), None)
+    flagged = np.nonzero(status != STATUS_OK)[0]
+    stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
+    cut = []
     if final == STATUS_OK:
         end, expected = "completed the load program", True
     elif final == STATUS_FORCE_CAP:
+        cut = cut_by_force_cap(h.strain, h.direction, h.cycle, stop_row, p.force_cap_N)
         end, expected = (f"stopped at the force cap (force per wale = {p.force_cap_N:g} N), "
-                         "the expected end of a run to the cap"), True
+                         + ("before the program's unloadings: later cycles not run (warning "
+                            "program_cut_by_force_cap)" if cut else "the expected end of a run to the cap")), True
     else:
         reason = flag.get("reason", "") if flag else ""
         end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
-    flagged = np.nonzero(status != STATUS_OK)[0]
-    stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
-    warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out])
+    warnings = cut + zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out])
     if h.rest is not None and n_ok:
         warnings += energy_creating_loops(np.concatenate([[0.0], h.strain[:n_ok]]),
                                           np.concatenate([[h.rest["F"][cell]], F[:n_ok]]), p.C0)

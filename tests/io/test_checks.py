@@ -60,3 +60,20 @@ def test_summaries_flag_the_paper_cell_and_not_the_contact_criterion():
     codes = {(w["cell"], w["code"]) for w in s["warnings"]}
     assert ("paper", "zero_force_cycle") in codes and ("paper", "heads_interpenetrate") in codes
     assert not any(c == "contact" for c, _ in codes)
+
+
+def test_force_cap_cut_is_said_only_when_unloadings_were_left():
+    # a hand-made program: cycle 1 loads 0 -> 0.3 and unloads, cycle 2 loads again and unloads
+    from knitsim.io.checks import cut_by_force_cap
+
+    strain = np.array([0.1, 0.2, 0.3, 0.2, 0.1, 0.2, 0.3, 0.2])
+    direction = np.array([1, 1, 1, -1, -1, 1, 1, -1])
+    cycle = np.array([1, 1, 1, 1, 1, 2, 2, 2])
+    (w,) = cut_by_force_cap(strain, direction, cycle, 1, 4.0)
+    assert w.code == "program_cut_by_force_cap"
+    assert "at strain 0.2 in cycle 1 of 2: the rest of cycle 1 and cycle 2 were not run" in w.message
+    (w,) = cut_by_force_cap(strain, direction, cycle, 6, 4.0)          # capped at the last peak
+    assert "in cycle 2 of 2: the rest of cycle 2 was not run" in w.message
+    assert cut_by_force_cap(strain, direction, cycle, 7, 4.0) == []    # the last increment: nothing left
+    mono = np.ones(4, int)
+    assert cut_by_force_cap(strain[:4], mono, mono, 1, 4.0) == []      # a monotonic pull to the cap: its end

@@ -96,9 +96,11 @@ def test_summary_numbers_by_hand():
     assert c0["cycles"][0]["peak_force_per_wale_N"] == 3.0 and c0["cycles"][0]["strain_at_peak"] == 0.3
     assert c0["end"] == "completed the load program" and c0["expected_end"]
     assert c0["strain_at_first_jamming"] is None
-    # cell 1: stopped at the cap = the expected end; rows after the stop ignored
+    # cell 1: stopped at the cap (a stop, not a failure); rows after the stop ignored; the program's
+    # unloading after the stop was never run, which its end and a warning say
     assert c1["final_status"] == "force_cap" and c1["expected_end"]
-    assert "force cap" in c1["end"] and "expected end" in c1["end"]
+    assert "force cap" in c1["end"] and "later cycles not run" in c1["end"]
+    assert [w["code"] for w in c1["warnings"]][:1] == ["program_cut_by_force_cap"]
     assert c1["stopped_at_strain"] == 0.3
     assert c1["status_counts"] == {"ok": 2, "force_cap": 3}
     assert c1["cycles"][0]["energy_N_per_strain"] == pytest.approx(0.15 + 0.25, abs=1e-14)
