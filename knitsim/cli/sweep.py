@@ -73,7 +73,7 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import (SweepChunkError, domain_samples, energy_creating_samples, failed_samples,
+    from ..sweep.runner import (SweepChunkError, capped_samples, domain_samples, energy_creating_samples, failed_samples,
                                  plan_sweep, run_sweep)
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
@@ -122,6 +122,7 @@ def _run(args) -> int:
     no_rest = domain_samples(ds, DOMAIN_NO_REST_STATE)
     outside = domain_samples(ds, DOMAIN_OUTSIDE_BOX)
     energy = energy_creating_samples(ds)
+    capped = capped_samples(ds)
     n_bad = len(failed)
     summary = {
         "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
@@ -132,6 +133,8 @@ def _run(args) -> int:
         "no_rest_state": no_rest, "outside_domain": outside,
         # a closed loop that returns energy (oint F dC < 0: Table 4's frozen force closures), flagged not fixed
         "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
+        # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
+        "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
         "files": {k: str(v) for k, v in run.files.items()},
     }
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
@@ -151,7 +154,9 @@ def _run(args) -> int:
                               "convergence is promised inside the box only): ringed / dotted in the plots"),
                              ("loop_creates_energy", energy, "a closed loop returns energy, oint F dC < 0: not a "
                               "hysteresis; Table 4's frozen force closures, README 'Loops that return energy'; "
-                              "variable loop_creates_energy in results.nc / results.csv")):
+                              "variable loop_creates_energy in results.nc / results.csv"),
+                             ("stopped_at_force_cap", capped, "a stop, not a failure, but the later cycles were "
+                              "not run: NaN in results.nc, grey triangles at the axis foot in the plots")):
         if rows:
             print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
             for f in rows[:10]:

@@ -24,7 +24,10 @@ its heat-map cell is dotted.  A sample whose cell has a closed loop that
 returns energy (``loop_creates_energy``: a jammed reversal under Table 4's
 frozen T, README "Loops that return energy") keeps its values, drawn with a
 red diamond around each point (lines, scatter) or a red ``\\\\``-hatched cell
-(heat maps).  The title counts each kind.
+(heat maps).  A sample whose cell stopped at its force cap before the program's
+last cycle (a stop, not a failure) has no values for the later cycles: a grey
+triangle at the foot of the axis (lines, scatter) or a grey ``--``-hatched cell
+in those cycles' heat maps.  The title counts each kind.
 """
 from __future__ import annotations
 
@@ -88,6 +91,7 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
 FAILED_STYLE = {"marker": "x", "color": "0.45", "s": 28, "lw": 1.2, "zorder": 5}
 NO_REST_STYLE = {"marker": "s", "facecolors": "none", "edgecolors": "0.45", "s": 30, "lw": 1.2, "zorder": 5}
 OUTSIDE_STYLE = {"marker": "o", "facecolors": "none", "edgecolors": "k", "s": 46, "lw": 0.9, "zorder": 4}
+CAPPED_STYLE = {"marker": "^", "facecolors": "none", "edgecolors": "0.45", "s": 30, "lw": 1.2, "zorder": 5}
 ENERGY_STYLE = {"marker": "D", "facecolors": "none", "edgecolors": "tab:red", "s": 60, "lw": 1.1, "zorder": 4}
 
 
@@ -116,6 +120,14 @@ def _energy(ds) -> np.ndarray:
             else np.zeros(ds["final_status"].shape, dtype=bool))
 
 
+def _capped(ds) -> np.ndarray:
+    """Where a sample's cell stopped at its force cap before some cycle of the program (those cycles: NaN)."""
+    from ..cell.history import STATUS_FORCE_CAP
+
+    peaks = np.asarray(ds["peak_force_per_wale_N"].transpose(..., "cycle").values)
+    return (np.asarray(ds["final_status"].values) == STATUS_FORCE_CAP) & np.isnan(peaks).any(axis=-1)
+
+
 def _failed(ds) -> np.ndarray:
     """Where a sample's cell failed (status not ok nor force cap, it ran, and it has a rest state)."""
     return ((np.asarray(ds["expected_end"].values) == 0) & (np.asarray(ds["final_status"].values) >= 0)
@@ -123,7 +135,8 @@ def _failed(ds) -> np.ndarray:
 
 
 def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
-           outside: np.ndarray | None = None, energy: np.ndarray | None = None) -> str:
+           outside: np.ndarray | None = None, energy: np.ndarray | None = None,
+           capped: np.ndarray | None = None) -> str:
     parts = []
     n = int(np.count_nonzero(failed))
     if n:
@@ -134,18 +147,24 @@ def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
     n = 0 if outside is None else int(np.count_nonzero(outside))
     if n:
         parts.append(f"{n} outside the domain's box (ringed / dotted): extrapolated")
+    n = 0 if capped is None else int(np.count_nonzero(capped))
+    if n:
+        parts.append(f"{n} stopped at the force cap before the last cycle (grey triangle): later cycles not run")
     n = 0 if energy is None else int(np.count_nonzero(energy))
     if n:
         parts.append(f"{n} with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)")
     return title if not parts else title + "\n" + "; ".join(parts) + "; see summary"
 
 
-def _mark_axis(ax, xs, bad, no_rest, lines: bool = False) -> None:
-    """Failed and rest-less samples at the foot of the axis (they have no values to plot)."""
+def _mark_axis(ax, xs, bad, no_rest, lines: bool = False, capped=None) -> None:
+    """Failed, rest-less and capped samples at the foot of the axis (they have no values, or none for some
+    cycles, to plot)."""
     lo = ax.get_ylim()[0]
-    for mask, style, label in ((bad, FAILED_STYLE, "failed"), (no_rest, NO_REST_STYLE, "no rest state")):
+    capped = np.zeros_like(bad) if capped is None else capped
+    for mask, style, label in ((bad, FAILED_STYLE, "failed"), (no_rest, NO_REST_STYLE, "no rest state"),
+                               (capped, CAPPED_STYLE, "capped: later cycles not run")):
         if mask.any():
-            if lines:
+            if lines and style is not CAPPED_STYLE:
                 for xv in xs[mask]:
                     ax.axvline(xv, color="0.6", ls=":", lw=0.8)
             ax.scatter(xs[mask], np.full(int(mask.sum()), lo), label=label, clip_on=False, **style)
@@ -156,20 +175,20 @@ def _lines(ds, key: str, title: str) -> bytes:
     x = ds[key].values
     numeric = np.issubdtype(x.dtype, np.number)
     xs = x if numeric else np.arange(len(x))
-    bad, no_rest, outside, energy = _failed(ds), _no_rest(ds), _outside(ds), _energy(ds)
+    bad, no_rest, outside, energy, capped = _failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds)
     for ax, (q, ylabel) in zip(axes[0], QUANTITIES):
         for c in ds["cycle"].values:
             y = ds[q].sel(cycle=c).values
             ax.plot(xs, y, marker="o", ms=3, label=f"cycle {int(c)}")
             _ring(ax, xs, y, outside, energy, first=c == ds["cycle"].values[0])
-        _mark_axis(ax, xs, bad, no_rest, lines=True)
+        _mark_axis(ax, xs, bad, no_rest, lines=True, capped=capped)
         ax.set_xlabel(key)
         ax.set_ylabel(ylabel)
         if not numeric:
             ax.set_xticks(xs, [str(v) for v in x])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside, energy), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside, energy, capped), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -181,6 +200,7 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
     x, y = ds[kx].values, ds[ky].values
     t = ds.transpose(ky, kx, ...)
     bad_yx, no_rest_yx, outside_yx, energy_yx = _failed(t), _no_rest(t), _outside(t), _energy(t)
+    capped_yx = _capped(t)
     for r, c in enumerate(cycles):
         for ax, (q, label) in zip(axes[r], QUANTITIES):
             z = ds[q].sel(cycle=c).transpose(ky, kx).values
@@ -189,11 +209,12 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
             _hatch(ax, _edges(x), _edges(y), no_rest_yx, "//", "0.85")
             _hatch(ax, _edges(x), _edges(y), outside_yx, "..", None)
             _hatch(ax, _edges(x), _edges(y), energy_yx, "\\\\", None, edge="tab:red")
+            _hatch(ax, _edges(x), _edges(y), capped_yx & np.isnan(z), "--", "0.85")
             fig.colorbar(im, ax=ax, shrink=0.85)
             ax.set_xlabel(kx)
             ax.set_ylabel(ky)
             ax.set_title(f"{label}, cycle {c}", fontsize=8)
-    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx, energy_yx), fontsize=9)
+    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx, energy_yx, capped_yx), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -234,7 +255,8 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
     else:
         flat = ds
         xs = {k: ds[k].values for k in keys}
-    bad, no_rest, outside, energy = _failed(flat), _no_rest(flat), _outside(flat), _energy(flat)
+    bad, no_rest, outside, energy, capped = (_failed(flat), _no_rest(flat), _outside(flat), _energy(flat),
+                                             _capped(flat))
     skip = bad | no_rest
     for r, (q, label) in enumerate(QUANTITIES):
         for j, k in enumerate(keys):
@@ -243,12 +265,12 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
                 y = flat[q].sel(cycle=c).values
                 ax.scatter(xs[k][~skip], y[~skip], s=8, alpha=0.7, label=f"cycle {c}")
                 _ring(ax, xs[k], y, outside, energy, first=c == cycles[0])
-            _mark_axis(ax, xs[k], bad, no_rest)
+            _mark_axis(ax, xs[k], bad, no_rest, capped=capped)
             ax.set_xlabel(k)
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside, energy), fontsize=9)
+    fig.suptitle(_title(title, bad, no_rest, outside, energy, capped), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 

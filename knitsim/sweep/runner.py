@@ -880,6 +880,32 @@ def domain_samples(ds, code: int) -> list[dict]:
     return _sample_listing(ds, lambda st, ok, dom: dom == code, why)
 
 
+def capped_samples(ds) -> list[dict]:
+    """The samples whose cell stopped at its force cap before the program's last cycle was reached: a stop,
+    not a failure, but the cycles after it have no results (NaN), which a plot would otherwise just omit.
+
+    Returns
+    -------
+    list of dict
+        As :func:`failed_samples`; ``reason`` names the cycles without results.
+    """
+    from ..cell.history import STATUS_FORCE_CAP
+
+    keys = json.loads(ds.attrs["parameters"])
+    order = (["sample"] if ds.attrs["method"] == "lhs" else keys) + (["cell"] if "cell" in ds.dims else [])
+    peaks = np.asarray(ds["peak_force_per_wale_N"].transpose(*order, "cycle").values)
+    cycles = [int(c) for c in ds["cycle"].values]
+    missing = np.isnan(peaks)
+
+    def reason(i, c, st, dom):
+        idx = np.unravel_index(i, peaks.shape[:len(order) - ("cell" in ds.dims)]) + (((c,) if "cell" in ds.dims else ()))
+        lost = [cyc for cyc, m in zip(cycles, missing[idx]) if m]
+        return (f"stopped at its force cap before cycle{'s' if len(lost) > 1 else ''} "
+                f"{', '.join(str(x) for x in lost)}: not run (NaN); raise rules.force_cap_N to run them")
+
+    return _sample_listing(ds, lambda st, ok, dom: (st == STATUS_FORCE_CAP) & missing.any(axis=-1), reason)
+
+
 def energy_creating_samples(ds) -> list[dict]:
     """The samples whose cell has a closed loop that returns energy (``loop_creates_energy == 1``).
 

@@ -1,0 +1,37 @@
+"""A sweep sample whose cell stops at its force cap before the program's last cycle is listed and drawn as such.
+
+Expected classes from the caps' orders of magnitude, not from a replay: the E-glass cell of Dusserre (2015)
+(Table 1, section 2.2) carries tenths of a newton per wale up to 0.6 strain (the specimen's 4.4 N is for 23
+wales of the whole knit), so a cap of 10 N is never reached and a cap of 0.02 N is reached in cycle 1,
+before any unloading."""
+from __future__ import annotations
+
+import matplotlib.colors as mcolors
+import numpy as np
+
+import knitsim.sweep.plots as plots
+from knitsim.cell.history import STATUS_FORCE_CAP
+from knitsim.sweep.runner import capped_samples, failed_samples, plan_sweep, run_sweep
+
+SCENE = {"engine": "warp", "device": "cpu", "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+         "friction": {"m": 0.2, "phi0": 0.0},
+         "load": {"type": "cycles", "lower_strain": 0.1, "upper_strain": 0.6, "cycles": 2, "max_increment": 0.05}}
+
+
+def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
+    plan = plan_sweep(SCENE, {"parameters": {"rules.force_cap_N": {"values": [0.02, 10.0]}}})
+    ds = run_sweep(plan, tmp_path / "o", workers=0, progress=None, plots=False).dataset
+    assert ds["final_status"].values.tolist() == [STATUS_FORCE_CAP, 0]
+    assert np.isnan(ds["peak_force_per_wale_N"].values[0, 1]) and np.isfinite(ds["peak_force_per_wale_N"].values[1]).all()
+    (c,) = capped_samples(ds)
+    assert c["sample"] == 0 and "before cycle 2" in c["reason"] and failed_samples(ds) == []
+    figs = []
+    monkeypatch.setattr(plots, "_png", lambda fig: figs.append(fig) or b"")
+    plots.plot_sweep(ds, tmp_path / "o")
+    (fig,) = figs
+    assert "1 stopped at the force cap before the last cycle" in fig._suptitle.get_text()
+    grey = mcolors.to_rgba("0.45")
+    for ax in fig.axes:
+        tri = [col for col in ax.collections if col.get_label() == "capped: later cycles not run"]
+        assert len(tri) == 1 and np.allclose(tri[0].get_offsets()[:, 0], [0.02])
+        assert np.allclose(tri[0].get_edgecolor()[0], grey)
