@@ -1,9 +1,9 @@
 """A sweep sample whose cell stops at its force cap before the program's last cycle is listed and drawn as such.
 
 Expected classes from the caps' orders of magnitude, not from a replay: the E-glass cell of Dusserre (2015)
-(Table 1, section 2.2) carries tenths of a newton per wale up to 0.6 strain (the specimen's 4.4 N is for 23
-wales of the whole knit), so a cap of 10 N is never reached and a cap of 0.02 N is reached in cycle 1,
-before any unloading."""
+(Table 1, section 2.2) carries about 0.02 N at rest and tenths of a newton at 0.6 strain (the specimen's
+4.4 N is the force of the whole knit), so a cap of 10 N is never reached and a cap of 0.05 N is reached while
+cycle 1 loads, before any unloading."""
 from __future__ import annotations
 
 import matplotlib.colors as mcolors
@@ -19,9 +19,10 @@ SCENE = {"engine": "warp", "device": "cpu", "yarn": {"material": "e_glass"}, "kn
 
 
 def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
-    plan = plan_sweep(SCENE, {"parameters": {"rules.force_cap_N": {"values": [0.02, 10.0]}}})
+    plan = plan_sweep(SCENE, {"parameters": {"rules.force_cap_N": {"values": [0.05, 10.0]}}})
     ds = run_sweep(plan, tmp_path / "o", workers=0, progress=None, plots=False).dataset
     assert ds["final_status"].values.tolist() == [STATUS_FORCE_CAP, 0]
+    assert 0.0 < ds["strain_at_peak"].values[0, 0] < 0.6                  # capped while loading, not at rest
     assert np.isnan(ds["peak_force_per_wale_N"].values[0, 1]) and np.isfinite(ds["peak_force_per_wale_N"].values[1]).all()
     (c,) = capped_samples(ds)
     assert c["sample"] == 0 and "before cycle 2" in c["reason"] and failed_samples(ds) == []
@@ -33,5 +34,5 @@ def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
     grey = mcolors.to_rgba("0.45")
     for ax in fig.axes:
         tri = [col for col in ax.collections if col.get_label() == "capped: later cycles not run"]
-        assert len(tri) == 1 and np.allclose(tri[0].get_offsets()[:, 0], [0.02])
+        assert len(tri) == 1 and np.allclose(tri[0].get_offsets()[:, 0], [0.05])
         assert np.allclose(tri[0].get_edgecolor()[0], grey)
