@@ -32,6 +32,7 @@ in those cycles' heat maps.  The title counts each kind.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -134,37 +135,46 @@ def _failed(ds) -> np.ndarray:
             & ~_no_rest(ds))
 
 
-def _title(title: str, failed: np.ndarray, no_rest: np.ndarray | None = None,
-           outside: np.ndarray | None = None, energy: np.ndarray | None = None,
-           capped: np.ndarray | None = None) -> str:
-    parts = []
-    n = int(np.count_nonzero(failed))
-    if n:
-        parts.append(f"{n} failed sample(s) (grey x / xx-hatched): no results")
-    n = 0 if no_rest is None else int(np.count_nonzero(no_rest))
-    if n:
-        parts.append(f"{n} without a rest state (grey square / //-hatched): outside the model, not solved")
-    n = 0 if outside is None else int(np.count_nonzero(outside))
-    if n:
-        parts.append(f"{n} outside the domain's box (ringed / dotted): extrapolated")
-    n = 0 if capped is None else int(np.count_nonzero(capped))
-    if n:
-        parts.append(f"{n} stopped at the force cap before the last cycle (grey triangle): later cycles not run")
-    n = 0 if energy is None else int(np.count_nonzero(energy))
-    if n:
-        parts.append(f"{n} with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)")
+@dataclass(frozen=True)
+class _Marks:
+    """Where each kind of marked sample lies (bool arrays in the dataset's sample shape)."""
+
+    failed: np.ndarray
+    no_rest: np.ndarray
+    outside: np.ndarray
+    energy: np.ndarray
+    capped: np.ndarray
+
+
+def _marks(ds) -> _Marks:
+    return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds))
+
+
+#: the title's count of each kind of marked sample, in the order shown
+_TITLE_PHRASES = (
+    ("failed", "failed sample(s) (grey x / xx-hatched): no results"),
+    ("no_rest", "without a rest state (grey square / //-hatched): outside the model, not solved"),
+    ("outside", "outside the domain's box (ringed / dotted): extrapolated"),
+    ("capped", "stopped at the force cap before the last cycle (grey triangle / --hatched): later cycles not run"),
+    ("energy", "with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)"),
+)
+
+
+def _title(title: str, marks: _Marks) -> str:
+    parts = [f"{n} {phrase}" for name, phrase in _TITLE_PHRASES
+             if (n := int(np.count_nonzero(getattr(marks, name))))]
     return title if not parts else title + "\n" + "; ".join(parts) + "; see summary"
 
 
-def _mark_axis(ax, xs, bad, no_rest, lines: bool = False, capped=None) -> None:
+def _mark_axis(ax, xs, marks: _Marks, lines: bool = False) -> None:
     """Failed, rest-less and capped samples at the foot of the axis (they have no values, or none for some
-    cycles, to plot)."""
+    cycles, to plot); with ``lines`` a dotted line marks the samples without any value."""
     lo = ax.get_ylim()[0]
-    capped = np.zeros_like(bad) if capped is None else capped
-    for mask, style, label in ((bad, FAILED_STYLE, "failed"), (no_rest, NO_REST_STYLE, "no rest state"),
-                               (capped, CAPPED_STYLE, "capped: later cycles not run")):
+    for mask, style, label, gap in ((marks.failed, FAILED_STYLE, "failed", True),
+                                    (marks.no_rest, NO_REST_STYLE, "no rest state", True),
+                                    (marks.capped, CAPPED_STYLE, "capped: later cycles not run", False)):
         if mask.any():
-            if lines and style is not CAPPED_STYLE:
+            if lines and gap:
                 for xv in xs[mask]:
                     ax.axvline(xv, color="0.6", ls=":", lw=0.8)
             ax.scatter(xs[mask], np.full(int(mask.sum()), lo), label=label, clip_on=False, **style)
@@ -175,20 +185,20 @@ def _lines(ds, key: str, title: str) -> bytes:
     x = ds[key].values
     numeric = np.issubdtype(x.dtype, np.number)
     xs = x if numeric else np.arange(len(x))
-    bad, no_rest, outside, energy, capped = _failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds)
+    mk = _marks(ds)
     for ax, (q, ylabel) in zip(axes[0], QUANTITIES):
         for c in ds["cycle"].values:
             y = ds[q].sel(cycle=c).values
             ax.plot(xs, y, marker="o", ms=3, label=f"cycle {int(c)}")
-            _ring(ax, xs, y, outside, energy, first=c == ds["cycle"].values[0])
-        _mark_axis(ax, xs, bad, no_rest, lines=True, capped=capped)
+            _ring(ax, xs, y, mk, first=c == ds["cycle"].values[0])
+        _mark_axis(ax, xs, mk, lines=True)
         ax.set_xlabel(key)
         ax.set_ylabel(ylabel)
         if not numeric:
             ax.set_xticks(xs, [str(v) for v in x])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside, energy, capped), fontsize=9)
+    fig.suptitle(_title(title, mk), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -199,22 +209,22 @@ def _heatmaps(ds, keys: list[str], title: str) -> bytes:
     kx, ky = keys[1], keys[0]
     x, y = ds[kx].values, ds[ky].values
     t = ds.transpose(ky, kx, ...)
-    bad_yx, no_rest_yx, outside_yx, energy_yx = _failed(t), _no_rest(t), _outside(t), _energy(t)
-    capped_yx = _capped(t)
+    mk = _marks(t)                                   # [y, x]
+    xe, ye = _edges(x), _edges(y)
     for r, c in enumerate(cycles):
         for ax, (q, label) in zip(axes[r], QUANTITIES):
             z = ds[q].sel(cycle=c).transpose(ky, kx).values
-            im = ax.pcolormesh(_edges(x), _edges(y), np.ma.masked_invalid(z), shading="flat", cmap="viridis")
-            _hatch(ax, _edges(x), _edges(y), bad_yx, "xx", "0.85")
-            _hatch(ax, _edges(x), _edges(y), no_rest_yx, "//", "0.85")
-            _hatch(ax, _edges(x), _edges(y), outside_yx, "..", None)
-            _hatch(ax, _edges(x), _edges(y), energy_yx, "\\\\", None, edge="tab:red")
-            _hatch(ax, _edges(x), _edges(y), capped_yx & np.isnan(z), "--", "0.85")
+            im = ax.pcolormesh(xe, ye, np.ma.masked_invalid(z), shading="flat", cmap="viridis")
+            _hatch(ax, xe, ye, mk.failed, "xx", "0.85")
+            _hatch(ax, xe, ye, mk.no_rest, "//", "0.85")
+            _hatch(ax, xe, ye, mk.outside, "..", None)
+            _hatch(ax, xe, ye, mk.energy, "\\\\", None, edge="tab:red")
+            _hatch(ax, xe, ye, mk.capped & np.isnan(z), "--", "0.85")
             fig.colorbar(im, ax=ax, shrink=0.85)
             ax.set_xlabel(kx)
             ax.set_ylabel(ky)
             ax.set_title(f"{label}, cycle {c}", fontsize=8)
-    fig.suptitle(_title(title, bad_yx, no_rest_yx, outside_yx, energy_yx, capped_yx), fontsize=9)
+    fig.suptitle(_title(title, mk), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
@@ -229,10 +239,11 @@ def _hatch(ax, xe: np.ndarray, ye: np.ndarray, mask: np.ndarray, hatch: str, fac
                                fill=face is not None, facecolor=face or "none", edgecolor=edge, lw=0.0))
 
 
-def _ring(ax, xs: np.ndarray, y: np.ndarray, outside: np.ndarray, energy: np.ndarray, first: bool) -> None:
+def _ring(ax, xs: np.ndarray, y: np.ndarray, marks: _Marks, first: bool) -> None:
     """Ring the points of samples outside the domain's box (black circle) or whose loop returns energy
     (red diamond); their values are kept."""
-    for mask, style, label in ((outside, OUTSIDE_STYLE, "outside domain"), (energy, ENERGY_STYLE, "loop returns energy")):
+    for mask, style, label in ((marks.outside, OUTSIDE_STYLE, "outside domain"),
+                               (marks.energy, ENERGY_STYLE, "loop returns energy")):
         if mask.any():
             ax.scatter(xs[mask], y[mask], label=label if first else None, **style)
 
@@ -255,22 +266,21 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
     else:
         flat = ds
         xs = {k: ds[k].values for k in keys}
-    bad, no_rest, outside, energy, capped = (_failed(flat), _no_rest(flat), _outside(flat), _energy(flat),
-                                             _capped(flat))
-    skip = bad | no_rest
+    mk = _marks(flat)
+    skip = mk.failed | mk.no_rest
     for r, (q, label) in enumerate(QUANTITIES):
         for j, k in enumerate(keys):
             ax = axes[r][j]
             for c in cycles:
                 y = flat[q].sel(cycle=c).values
                 ax.scatter(xs[k][~skip], y[~skip], s=8, alpha=0.7, label=f"cycle {c}")
-                _ring(ax, xs[k], y, outside, energy, first=c == cycles[0])
-            _mark_axis(ax, xs[k], bad, no_rest, capped=capped)
+                _ring(ax, xs[k], y, mk, first=c == cycles[0])
+            _mark_axis(ax, xs[k], mk)
             ax.set_xlabel(k)
             ax.set_ylabel(label, fontsize=8)
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(_title(title, bad, no_rest, outside, energy, capped), fontsize=9)
+    fig.suptitle(_title(title, mk), fontsize=9)
     fig.tight_layout()
     return _png(fig)
 
