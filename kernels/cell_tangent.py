@@ -75,6 +75,6 @@ def branch_tangent_kernel(
         e = vec5d()
         e[2] = wp.float64(1.0) / quantity_scale(Q_C, mat.B, mat.d)   # slot 1 of the conditions: row 2
         dz, singular = solve5(J, e)
-        if st != SLACK and not singular:
+        if not singular:   # reverse() enters SF- / SF+, never SLACK: the guard above holds
             kk = wp.dot(quantity(cell, Q_F).g, dz)
     k[i] = kk

@@ -10,20 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .stages import EVENT_TOL, LABEL_CODES, Stage, stage_label
-
-#: stage_label(stage, jammed) for every stage code (rows) and jammed flag (columns): looked up per increment
-#: (the diagnosis reads the labels of every fit's rows, millions of them)
-_LABELS = np.array([[stage_label(s, j) for j in (False, True)] for s in sorted(int(x) for x in Stage)])
-
-
-def _lookup(table: np.ndarray, stage: np.ndarray, jammed: np.ndarray) -> np.ndarray:
-    """``table[stage, jammed]``, refusing a stage code that is none (as ``Stage(code)`` would)."""
-    stage = np.asarray(stage)
-    if stage.size and (stage.min() < 0 or stage.max() >= len(table)):
-        bad = stage[(stage < 0) | (stage >= len(table))].flat[0]
-        raise ValueError(f"{int(bad)} is not a valid Stage")
-    return table[stage, (np.asarray(jammed) != 0).astype(np.intp)]
+from .stages import EVENT_TOL, stage_label_codes, stage_labels
 
 #: per-increment quantities recorded for every cell
 HISTORY_QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC", "T", "Rn", "F")
@@ -119,12 +106,11 @@ class BatchHistory:
 
     def label_codes(self) -> np.ndarray:
         """Stage label codes (:data:`~knitsim.cell.stages.LABEL_CODES`) per increment and cell."""
-        codes = np.vectorize(LABEL_CODES.get, otypes=[np.int32])(_LABELS)
-        return _lookup(codes, self.stage, self.jammed)
+        return stage_label_codes(self.stage, self.jammed)
 
     def label_array(self, cell: int = 0) -> np.ndarray:
         """Stage labels (adherence / sliding / jamming / slack) of one cell, as an array of str."""
-        return _lookup(_LABELS, self.stage[:, cell], self.jammed[:, cell])
+        return stage_labels(self.stage[:, cell], self.jammed[:, cell])
 
     def labels(self, cell: int = 0) -> list[str]:
         """Stage labels (adherence / sliding / jamming / slack) of one cell."""

@@ -154,6 +154,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+import numpy as np
+
 
 class Stage(IntEnum):
     """Stage codes (stored per cell as int32; the jammed flag is separate)."""
@@ -187,6 +189,30 @@ def stage_label(stage: int, jammed: bool) -> str:
 
 #: label codes used in per-cell output arrays and USD primvars
 LABEL_CODES = {"adherence": 0, "sliding": 1, "jamming": 2, "slack": 3}
+
+#: stage_label(stage, jammed) for every stage code (rows) and jammed flag (columns), and their codes: the
+#: vectorised lookups below serve histories of millions of rows (the diagnosis reads every fit's labels)
+_LABEL_TABLE = np.array([[stage_label(s, j) for j in (False, True)] for s in sorted(int(x) for x in Stage)])
+_CODE_TABLE = np.vectorize(LABEL_CODES.get, otypes=[np.int32])(_LABEL_TABLE)
+
+
+def _table_lookup(table: np.ndarray, stage, jammed) -> np.ndarray:
+    """``table[stage, jammed != 0]``, refusing a stage code that is none (as ``Stage(code)`` would)."""
+    stage = np.asarray(stage)
+    if stage.size and (stage.min() < 0 or stage.max() >= len(table)):
+        bad = stage[(stage < 0) | (stage >= len(table))].flat[0]
+        raise ValueError(f"{int(bad)} is not a valid Stage")
+    return table[stage, (np.asarray(jammed) != 0).astype(np.intp)]
+
+
+def stage_labels(stage, jammed) -> np.ndarray:
+    """:func:`stage_label` of arrays of stage codes and jammed flags (same shape), as an array of str."""
+    return _table_lookup(_LABEL_TABLE, stage, jammed)
+
+
+def stage_label_codes(stage, jammed) -> np.ndarray:
+    """:data:`LABEL_CODES` of :func:`stage_labels`, int32."""
+    return _table_lookup(_CODE_TABLE, stage, jammed)
 
 UNLOADING_RULES = ("dusserre", "hong_constant_t")
 RELOAD_RULES = ("mirror_unloading", "freeze_rn")

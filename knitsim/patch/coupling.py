@@ -118,7 +118,7 @@ import warp as wp
 
 from ..cell.history import STATUS_OK
 from ..cell.quantities import CODE
-from ..cell.stages import LABEL_CODES, MAX_HALVINGS, Stage
+from ..cell.stages import MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
 from .model import Grouping
 
@@ -127,15 +127,6 @@ K_MIN, K_MAX = 1e-6, 1e6
 #: column flags
 COL_OK, COL_NOT_CONVERGED, COL_STOPPED = 0, 1, 2
 COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STOPPED: "stopped"}
-
-
-def label_codes(stage: np.ndarray, jammed: np.ndarray) -> np.ndarray:
-    """Vectorised :func:`~knitsim.cell.stages.stage_label` codes (:data:`LABEL_CODES`)."""
-    stage = np.asarray(stage)
-    out = np.where(np.isin(stage, (int(Stage.S_LOAD), int(Stage.S_UNLOAD))), LABEL_CODES["sliding"],
-                   LABEL_CODES["adherence"])
-    out = np.where(np.asarray(jammed) != 0, LABEL_CODES["jamming"], out)
-    return np.where(stage == int(Stage.SLACK), LABEL_CODES["slack"], out).astype(np.int8)
 
 
 # ===================================================================== backends

@@ -24,8 +24,9 @@ import numpy as np
 
 from ..cell.history import STATUS_OK, head_gap_values
 from ..cell.load_program import LoadProgram
+from ..cell.stages import stage_label_codes
 from ..errors import KnitsimInputError
-from .coupling import COL_OK, PatchSolver, label_codes
+from .coupling import COL_OK, PatchSolver
 from .model import PatchModel
 
 CHECKPOINT_NAME = "checkpoint.pkl"
@@ -249,7 +250,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             rows["g_C"].append(c["C"])
             rows["g_F"].append(c["F"])
             rows["g_phi"].append(c["phi"])
-            rows["g_label"].append(label_codes(c["stage"], c["jammed"]))
+            rows["g_label"].append(stage_label_codes(c["stage"], c["jammed"]).astype(np.int8))
             rows["g_status"].append(c["status"].astype(np.int8))
             gx, gW, gs = _committed_geometry(solver.backend)
             rows["g_x"].append(gx)
