@@ -120,6 +120,9 @@ _SUBSTEP_FLOOR = wp.constant(wp.float64(SUBSTEP_FLOOR))
 _MAX_DAHL_HALVINGS = wp.constant(MAX_DAHL_HALVINGS)
 _OPENING_XTOL = wp.constant(wp.float64(OPENING_XTOL))
 _OPENING_BISECTIONS = wp.constant(OPENING_BISECTIONS)
+#: rounds and relative tolerance of the secant on B(C) at a located event (bending_fixed_point)
+_BEND_ROUNDS = wp.constant(20)
+_BEND_RTOL = wp.constant(wp.float64(1.0e-13))
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -195,6 +198,43 @@ class Material:
     fr_mu: wp.float64  # coiling_angle_friction's mu_k of eq 10, 0 when off
     fr_n: wp.float64  # normal_load_friction's n of eq 5, 1 when off
     fr_ref: wp.float64  # its reference normal load [N]
+    bend_h: wp.float64  # bending_hysteresis (issue 6): h of B (1 + h z), 0 when off
+    bend_sigma: wp.float64  # its Dahl rate in the strain
+    bend_B0: wp.float64  # the yarn's own B [N mm^2]
+    bend_z0: wp.float64  # z at the course length bend_C (the increment's start)
+    bend_C: wp.float64  # that course length [mm]
+    bend_s: wp.float64  # the increment's direction, +1 / -1 (0: no bending over it, z stays bend_z0)
+
+
+@wp.func
+def bends(mat: Material) -> wp.bool:
+    """Whether the cell's B follows its bending Dahl state (bending_hysteresis on)."""
+    out = wp.static(WITH_EFFECTS)
+    if wp.static(WITH_EFFECTS):
+        out = mat.bend_h != wp.float64(0.0)
+    return out
+
+
+@wp.func
+def bending_z(mat: Material, C: wp.float64) -> wp.float64:
+    """The bending Dahl state at course length C of the increment: Dahl's closed form over the
+    monotone strain (C - bend_C) / C0 from bend_z0 (kernels.effects.dahl_bending_state), so that
+    z, hence B, is a function of the state's own C and not of where the increments fall."""
+    z = mat.bend_z0
+    if mat.bend_s != wp.float64(0.0):
+        de = wp.max(mat.bend_s * (C - mat.bend_C), wp.float64(0.0)) / mat.C0
+        z = dahl_bending_state(mat.bend_z0, mat.bend_s * de, mat.bend_sigma)
+    return z
+
+
+@wp.func
+def stiffness_at(mat: Material, C: wp.float64) -> wp.float64:
+    """The bending stiffness of a state at course length C: B (1 + h z(C)) under bending
+    hysteresis (read at the solution itself), else mat.B."""
+    B = mat.B
+    if bends(mat):
+        B = mat.bend_B0 * (wp.float64(1.0) + mat.bend_h * bending_z(mat, C))
+    return B
 
 
 # ------------------------------------------------------------------ Newton
@@ -665,7 +705,7 @@ def jam_clearance(z: vec5d, q: vecQd, mat: Material) -> wp.float64:
     if wp.static(WITH_GAP):
         by_gap = mat.gap != 0
     if by_gap:
-        v = head_gap_value(wp.exp(z[0]), q, mat.B) - wp.float64(0.25) * w
+        v = head_gap_value(wp.exp(z[0]), q, stiffness_at(mat, q[Q_C])) - wp.float64(0.25) * w
     return v
 
 
@@ -925,6 +965,48 @@ def may_halve(failures: int, step: wp.float64, max_halvings: int, mat: Material)
 
 # ------------------------------------------------------------------ solves
 @wp.func
+def bending_fixed_point(x: vec5d, q: vecQd, st: int, codes: wp.vec4i, tg: vec4d, dp: vec10p, C: wp.float64,
+                        mat: Material):
+    """An event solve (C free) under bending hysteresis: the state must be solved with B of its own C.
+
+    ``x, q, st``: the solve with B(C), located at C_e(C).  The located C is a scalar function of the
+    C at which B is read, so the event's C is the root of g(c) = C_e(c) - c, found by the secant
+    method from c = C and c = C_e(C) (a plain fixed point c <- C_e(c) diverges where a stiffness that
+    changes fast, h sigma / C0 ~ 10 per mm, meets a stage whose frozen force makes the event move
+    by more than 1 / (d ln B / dC) per unit of ln B)."""
+    xn = x
+    qn = q
+    s = st
+    ca = C
+    ga = wp.float64(0.0)
+    cb = C
+    gb = wp.float64(0.0)
+    tol = _BEND_RTOL * wp.max(wp.float64(1.0), wp.abs(C))
+    settled = bool(False)
+    if s == STATUS_CONVERGED:
+        ga = qn[Q_C] - ca
+        settled = wp.abs(ga) <= tol
+        cb = qn[Q_C]
+    for k in range(_BEND_ROUNDS):
+        if s == STATUS_CONVERGED and not settled:
+            xn, qn, s = newton(xn, codes, tg, dp, stiffness_at(mat, cb), mat.d)
+            if s == STATUS_CONVERGED:
+                gb = qn[Q_C] - cb
+                if wp.abs(gb) <= tol:
+                    settled = True
+                else:
+                    cn = qn[Q_C]  # the plain fixed point where the secant's slope is degenerate
+                    if gb != ga:
+                        cn = cb - gb * (cb - ca) / (gb - ga)
+                    ca = cb
+                    ga = gb
+                    cb = cn
+    if not settled:
+        s = int(STATUS_MAX_ITER)  # the event's C and its B did not settle: not a state of the law
+    return xn, qn, s
+
+
+@wp.func
 def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
                   mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64):
     """Equilibrium of a Coulomb stage at C (or, with ev_code >= 0, at the event condition, C free)."""
@@ -932,7 +1014,10 @@ def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, 
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
-    xn, qn, st = newton(x, codes, tg, effect_params(mat), mat.B, mat.d)
+    dp = effect_params(mat)
+    xn, qn, st = newton(x, codes, tg, dp, stiffness_at(mat, C), mat.d)
+    if ev_code >= 0 and bends(mat):
+        xn, qn, st = bending_fixed_point(xn, qn, st, codes, tg, dp, C, mat)
     return xn, qn, st == STATUS_CONVERGED
 
 
@@ -1085,7 +1170,7 @@ def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, ma
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
     codes[2] = Q_S_BC
-    xs, qs, st = newton(x, codes, tg, effect_params(mat), mat.B, mat.d)
+    xs, qs, st = newton(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d)
     r0 = wp.tan(qs[Q_PHI]) - wp.tan(q_old[Q_PHI])
     s = wp.float64(1.0)
     if r0 < wp.float64(0.0):
@@ -1111,7 +1196,9 @@ def solve_dahl(x: vec5d, q_old: vecQd, s: wp.float64, jammed: int, soft: int, fs
     dp[2] = s
     dp[3] = mat.sigma
     dp[4] = mat.m
-    xn, qn, st = newton(x, codes, tg, dp, mat.B, mat.d)
+    xn, qn, st = newton(x, codes, tg, dp, stiffness_at(mat, C), mat.d)
+    if ev_code >= 0 and bends(mat):
+        xn, qn, st = bending_fixed_point(xn, qn, st, codes, tg, dp, C, mat)
     ok = st == STATUS_CONVERGED
     # the root must lie on the slip branch s xi >= 0 (the reference brackets xi in [0, s hi])
     xi = q_old[Q_S_BC] - qn[Q_S_BC]
@@ -1220,6 +1307,12 @@ def read_material(
     mat.ext_c = wp.float64(0.0)
     mat.ext_p0 = wp.float64(0.0)
     mat.fr_state = 0  # the friction ratio is m (apply_effects sets the state's law)
+    mat.bend_h = wp.float64(0.0)  # no bending hysteresis (apply_effects sets its law)
+    mat.bend_sigma = wp.float64(0.0)
+    mat.bend_B0 = mat.B
+    mat.bend_z0 = wp.float64(0.0)
+    mat.bend_C = wp.float64(0.0)
+    mat.bend_s = wp.float64(0.0)
     mat.fr_m0 = mat.m
     mat.fr_mu = wp.float64(0.0)
     mat.fr_n = wp.float64(1.0)
@@ -1230,18 +1323,20 @@ def read_material(
 # ------------------------------------------------------------------ effects (issue 6)
 @wp.func
 def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64), r: int, q: vecQd,
-                  z_old: wp.float64, P_rest: wp.float64, Rn_rest: wp.float64, dstrain: wp.float64,
-                  rate: wp.float64):
+                  z_old: wp.float64, P_rest: wp.float64, Rn_rest: wp.float64, C_start: wp.float64,
+                  dstrain: wp.float64, rate: wp.float64):
     """The cell's parameters for one increment with the effects of ``mask`` on (knitsim.cell.effects).
 
-    m and B are read from the state at the start of the increment (increment-lagged); for a
+    m is read from the state at the start of the increment (increment-lagged); for a
     Coulomb cell with coiling or normal-load friction the ratio's law is also handed to the
     sliding condition and the slide and cone events (``fr_*`` fields: friction_ratio, read at the
     solution itself, implicit), so that the lagged m is only what the frictionless test and the
     Dahl law read; the compaction and extension laws are handed to the residuals, which read the
-    load at the solution itself (implicit); the bending Dahl state is advanced over the
-    increment's strain ``dstrain``.
-    Returns (material, z_bend).
+    load at the solution itself (implicit); under bending hysteresis B is that of the state's
+    own C (``bend_*`` fields, stiffness_at: Dahl's closed form from z_old at C_start over the
+    increment's monotone strain, whose direction is that of ``dstrain``), so that a located event
+    and an increment's end read B where they lie.
+    Returns (material, z_bend at the increment's end C_start + dstrain C0).
     """
     m = mat.m
     mat_m0 = mat.m
@@ -1279,8 +1374,19 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
         mat.comp_min = params[r, P_COMP_MIN]
     z = z_old
     if has(mask, BIT_BENDING):
-        z = dahl_bending_state(z_old, dstrain, params[r, P_BEND_SIGMA])
-        mat.B = mat.B * (wp.float64(1.0) + params[r, P_BEND_H] * z)
+        mat.bend_h = params[r, P_BEND_H]
+        mat.bend_sigma = params[r, P_BEND_SIGMA]
+        mat.bend_B0 = mat.B
+        mat.bend_z0 = z_old
+        mat.bend_C = C_start
+        mat.bend_s = wp.float64(0.0)
+        if dstrain > wp.float64(0.0):
+            mat.bend_s = wp.float64(1.0)
+        elif dstrain < wp.float64(0.0):
+            mat.bend_s = wp.float64(-1.0)
+        C_end = C_start + dstrain * mat.C0
+        z = bending_z(mat, C_end)
+        mat.B = stiffness_at(mat, C_end)
     if has(mask, BIT_EXTENSION):
         # implicit, as the compaction: the length condition reads P at the solution (extension_residual)
         mat.ext_c = params[r, P_EXT_C]
@@ -1289,23 +1395,22 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
 
 
 @wp.func
-def material_from_effective(mat: Material, m: wp.float64, B: wp.float64) -> Material:
-    """The material with the effective m, B of the state (the lagged ones; d and L are implicit)."""
+def material_from_effective(mat: Material, m: wp.float64) -> Material:
+    """The material with the effective m of the state (the lagged one; d, L and B are implicit)."""
     out = mat
     out.m = m
     out.phimax = wp.atan(m)
-    out.B = B
     return out
 
 
 @wp.func
 def blend_material(a: Material, b: Material, t: wp.float64) -> Material:
-    """Parameters a fraction t of the way from a to b (b itself at t >= 1)."""
+    """The lagged friction ratio a fraction t of the way from a to b (b itself at t >= 1); B is read
+    at each state's own C (stiffness_at)."""
     out = b
     if t < wp.float64(1.0):
         out.m = a.m + (b.m - a.m) * t
         out.phimax = wp.atan(out.m)
-        out.B = a.B + (b.B - a.B) * t
     return out
 
 
@@ -1490,8 +1595,8 @@ def advance_cell(
     # --- effects (issue 6): this increment's parameters from the state at its start
     mask = int(eff_mask[i % eff_mask.shape[0]])
     z_bend = eff_in[i, E_Z]
-    # the parameters go linearly from those of the last increment (mat_old) to this one's (mat)
-    # along the increment, so that a sudden change of state (a reversal) cannot make them jump
+    # the lagged friction ratio goes linearly from that of the last increment (mat_old) to this one's
+    # (mat) along the increment, so that a sudden change of state (a reversal) cannot make it jump
     mat_old = mat
     # the kernel key's switches (constant False: the branch is not generated)
     with_effects = wp.static(WITH_EFFECTS)
@@ -1501,9 +1606,9 @@ def advance_cell(
         de = (C_target - C) / mat.C0
         if stage == SLACK and C_target <= C:
             de = wp.float64(0.0)  # a slack loop does not bend
-        mat_old = material_from_effective(mat, eff_in[i, E_M], eff_in[i, E_B])
+        mat_old = material_from_effective(mat, eff_in[i, E_M])
         mat, z_bend = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
-                                    eff_in[i, E_RN0], de, rate_i)
+                                    eff_in[i, E_RN0], C, de, rate_i)
 
     # events of this increment (kind, C, from-label, to-label), committed at the end
     n_ev = int(0)
@@ -1833,7 +1938,7 @@ def advance_cell(
     # state that did not move keeps its gap bit for bit: z is rebuilt from x at every increment)
     gap = gap_in[i]
     if go:
-        gap = head_gap_value(wp.exp(x[0]), q, mat.B)
+        gap = head_gap_value(wp.exp(x[0]), q, stiffness_at(mat, C))
     gap_out[i] = gap
     for k in range(eff_in.shape[1]):
         eff_out[i, k] = eff_in[i, k]
@@ -1843,7 +1948,9 @@ def advance_cell(
             eff_out[i, E_M] = wp.tan(phi_edge(q, mat))  # the ratio at the committed state
         eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
         eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
-        eff_out[i, E_B] = mat.B
+        eff_out[i, E_B] = stiffness_at(mat, C)
+        if bends(mat):
+            z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short)
         eff_out[i, E_Z] = z_bend
     if n_ev > 0:
         nk = wp.min(n_ev, _MAXEV)

@@ -14,10 +14,14 @@ curve carries no increment error (issue 12: lagged by one increment, near F = 0
 on unloading, where Rn -> 0 raises the ratio when n < 1, it moved a cell's slack
 point by 0.1 mm from one halving of the increment to the next).  Under Dahl
 friction the ratio, and in every cell the velocity factor (the rate of the
-increment) and the bending stiffness B, are computed from the state at the
-increment's start (an explicit, increment-lagged coupling, a first-order error
-in the increment); the bending Dahl state by its closed form, exact over the
-increment.  The two laws that change the geometry, the
+increment), are computed from the state at the increment's start (an explicit,
+increment-lagged coupling, a first-order error in the increment).  The bending
+stiffness B is that of each state's own course length C: the bending Dahl state
+in its closed form from the increment's start to C (exact over a monotone
+stretch), also at a located event, where B and the event's C are solved together
+(kernels.cell_step.stiffness_at, bending_fixed_point); before, B was that of the
+sub-step's end and the cycle moved by up to 0.02 N per halving of the increment
+(tests/cell/test_increment_convergence.py).  The two laws that change the geometry, the
 compacted jam width and the extensible yarn's length, are implicit: they
 replace a condition of Table 4 (W = 4 d, L) by one that reads the load at the
 solution itself, so they carry no increment error.  Every effect is *off* by default
@@ -43,7 +47,9 @@ yarn_compaction            jamming at ``W = 4 d_eff``,                          
                            oscillates on the stiff jammed branch); the bending
                            and crossing geometry keep d
 bending_hysteresis         ``B <- B (1 + h z)``, z a Dahl state (alpha = 1) in   bend_h, bend_sigma
-                           the strain: ``z = s + (z_old - s) exp(-sigma |de|)``
+                           the strain: ``z = s + (z_old - s) exp(-sigma |de|)``,
+                           de from the increment's start to the state's own C
+                           (implicit)
                            (Dahl 1976; a friction moment proportional to the
                            elastic one, saturating at h of it)
 yarn_extension             the length condition becomes                          ext_c

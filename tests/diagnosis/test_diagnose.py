@@ -250,15 +250,16 @@ def test_discretisation_step_refines_the_replay_until_halving_it_changes_nothing
     from knitsim.diagnosis.calibrate import rss_of_cells
     from knitsim.diagnosis.diagnose import DISCRETISATION_CHI2, _Data, _forces, discretisation_step
     from knitsim.diagnosis.synthetic import _lab_strains
-    # a point of the lab calibration (m 0.2017, phi0 -0.5 phimax) with the bending hysteresis: B read at
-    # the start of each increment (increment-lagged, knitsim.cell.effects), so the replay depends on the
-    # increment.  (The Coulomb events themselves are located inside their increment: since the contact's
-    # opening is located on the branch, issue 14, the plain cell's slack no longer depends on it, and its
-    # replay at 0.01 equals the one at 0.0025 to chi^2 1e-18; a Coulomb cell's coiling or normal-load
-    # friction ratio is read at the solution itself since issue 12, and such a cell's replay does not
-    # depend on the increment either.)
+    # a point of the lab calibration (m 0.2017, phi0 -0.5 phimax) under Dahl friction with the coiling
+    # angle's friction ratio: a Dahl cell reads that ratio at the start of each increment (increment-
+    # lagged, knitsim.cell.effects), so its replay depends on the increment (chi^2 5.7e4 at sd 1e-4
+    # between 0.01 and 0.01 / 64).  (Every other law is read at the state itself: the Coulomb events
+    # are located inside their increment, the plain cell's slack included since issue 14; a Coulomb
+    # cell's coiling or normal-load ratio since issue 12; the bending stiffness at the state's own C
+    # since, its replay at 0.01 equal to the one at 0.01 / 64 to chi^2 1e-16 at sd 1e-4.)
     cell = NOMINAL.replace(m=0.2017, phi0=-0.5 * np.arctan(0.2017), d=0.5778, L=14.2313, C0=2.7129,
-                           effects=EffectSet(on=("bending_hysteresis",), bend_h=0.3))
+                           friction="dahl", dahl_sigma=200.0,
+                           effects=EffectSet(on=("coiling_angle_friction",), coil_mu_k=0.3))
     strain = _lab_strains("cycles")
     shell = curve_from_arrays(strain, np.zeros(len(strain)), source="rows.csv")
     (f_true,), _ = _forces([shell], [cell], 0.01 / 64, "cpu")
