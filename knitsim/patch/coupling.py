@@ -131,7 +131,13 @@ COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STO
 
 # ===================================================================== backends
 class WarpBackend:
-    """Trial steps of all groups in one launch of the batched cell kernel (:mod:`knitsim.cell.batch`)."""
+    """Trial steps of all groups in one launch of the batched cell kernel (:mod:`knitsim.cell.batch`).
+
+    A backend of the coupling: ``committed``, ``trial``, ``tangent``, ``begin_increment``, ``accept``,
+    ``end_increment`` (and ``get_state`` / ``set_state``).  With ``partial_trials`` its ``trial`` and
+    ``tangent`` take a ``mask`` of the groups to step (the others are neither stepped nor read)."""
+
+    partial_trials = True
 
     def __init__(self, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
         from .. import warp_runtime
@@ -153,6 +159,10 @@ class WarpBackend:
         self._mask = wp.zeros(self.n, dtype=wp.int32, device=self.device)
         self._all = wp.ones(self.n, dtype=wp.int32, device=self.device)
         self._k = wp.zeros(self.n, dtype=wp.float64, device=self.device)
+        self._status = wp.zeros(self.n, dtype=wp.int32, device=self.device)
+        # tangents known at the trial (1), committed (0) and result (r) states, and where they are known
+        self._k1, self._k0, self._kr = (np.full(self.n, np.nan) for _ in range(3))
+        self._k1_ok, self._k0_ok, self._kr_ok = (np.zeros(self.n, bool) for _ in range(3))
 
     @staticmethod
     def _read(st) -> dict:
@@ -166,26 +176,58 @@ class WarpBackend:
     def committed(self) -> dict:
         return self._read(self.s0)
 
-    def tangent(self, trial: bool, direction: int = 0) -> np.ndarray:
-        """dF/dC of every group on its branch (:mod:`knitsim.kernels.cell_tangent`; NaN where undefined),
-        at the last trial's states (``trial``) or at the committed ones, there of the stage that a
-        reversal to ``direction`` enters."""
+    def _tangent_launch(self, st, dir_new: int, mask: np.ndarray | None) -> np.ndarray:
+        """The tangent kernel on the states ``st`` (of the groups in ``mask``; NaN elsewhere)."""
         from ..kernels.cell_tangent import branch_tangent_kernel
-        st = self.s1 if trial else self.s0
         m = self.model
-        self.wp.launch(branch_tangent_kernel, dim=self.n,
-                       inputs=m._arrays() + [m.effect_mask] + st._arrays()[:10] + [0 if trial else int(direction)],
+        args = st._arrays()[:10]
+        if mask is not None and not np.all(mask):
+            # the kernel gives NaN, after reading the cell's parameters only, where a state is not ok:
+            # the groups outside the mask are passed a status that is not (the states are not changed)
+            status = np.where(mask, st.status.numpy(), STATUS_OK + 1).astype(np.int32)
+            self._status.assign(status)
+            args = args[:8] + [self._status] + args[9:]
+        self.wp.launch(branch_tangent_kernel, dim=self.n, inputs=m._arrays() + [m.effect_mask] + args + [dir_new],
                        outputs=[self._k], device=self.device)
         return self._k.numpy().copy()
 
-    def trial(self, strain: np.ndarray, direction: int, increment: int) -> dict:
-        """Step every group from its committed state to ``C = C0 (1 + strain)``; the committed state is kept."""
+    def tangent(self, trial: bool, direction: int = 0, mask: np.ndarray | None = None) -> np.ndarray:
+        """dF/dC of every group on its branch (:mod:`knitsim.kernels.cell_tangent`; NaN where undefined),
+        at the last trial's states (``trial``) or at the committed ones, there of the stage that a
+        reversal to ``direction`` enters; with ``mask``, of those groups only (NaN elsewhere).
+
+        The tangents of the trial states are kept: a committed state that is an accepted trial has
+        the tangent computed at that trial (the same kernel on the same state row; the direction only
+        matters where it reverses the state's own), so only the others are launched."""
+        if trial:
+            k = self._tangent_launch(self.s1, 0, mask)
+            have = np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)
+            self._k1 = np.where(have, k, self._k1)
+            self._k1_ok |= have
+            return k
+        out = np.where(self._k0_ok, self._k0, np.nan)
+        need = ~(self._k0_ok & (self.s0.direction.numpy() == int(direction)))
+        if mask is not None:
+            need &= mask
+        if np.any(need):
+            k = self._tangent_launch(self.s0, int(direction), need)
+            out = np.where(need, k, out)
+        if mask is not None:
+            out = np.where(mask, out, np.nan)
+        return out
+
+    def trial(self, strain: np.ndarray, direction: int, increment: int, mask: np.ndarray | None = None) -> dict:
+        """Step every group (with ``mask``: those in it) from its committed state to ``C = C0 (1 + strain)``;
+        the committed state is kept.  The trial rows of groups outside ``mask`` are those of their
+        last trial (not read by the coupling)."""
         self.control.strain.assign(np.ascontiguousarray(strain, dtype=np.float64))
         self.control.direction.fill_(int(direction))
         # the trial steps' events are not used (stage and status are read from the states): the
         # append buffer is reset so that repeated trials never overflow it (CellSolver keeps no API for this)
         self.solver._ev_count.zero_()
-        self.solver.step(self.s0, self.s1, self.control, increment)
+        cells = None if mask is None or np.all(mask) else np.flatnonzero(mask).astype(np.int32)
+        self.solver.step(self.s0, self.s1, self.control, increment, cells=cells)
+        self._k1_ok &= False if mask is None else ~np.asarray(mask, bool)
         return self._read(self.s1)
 
     def _select(self, mask, src, dst):
@@ -194,15 +236,20 @@ class WarpBackend:
 
     def begin_increment(self) -> None:
         self._select(self._all, self.s0, self.res)
+        self._kr, self._kr_ok = self._k0.copy(), self._k0_ok.copy()
 
     def accept(self, mask: np.ndarray) -> None:
         """Keep the last trial of the groups in ``mask`` as their result of this increment."""
         if np.any(mask):
-            self._mask.assign(np.asarray(mask, dtype=np.int32))
+            mask = np.asarray(mask, bool)
+            self._mask.assign(mask.astype(np.int32))
             self._select(self._mask, self.s1, self.res)
+            self._kr = np.where(mask, self._k1, self._kr)
+            self._kr_ok = np.where(mask, self._k1_ok, self._kr_ok)
 
     def end_increment(self) -> dict:
         self.s0, self.res = self.res, self.s0
+        self._k0, self._k0_ok = self._kr, self._kr_ok
         return self.committed()
 
     def get_state(self) -> dict:
@@ -211,6 +258,7 @@ class WarpBackend:
     def set_state(self, saved: dict) -> None:
         for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff]):
             a.assign(saved[f])
+        self._k0_ok = np.zeros(self.n, bool)
 
 
 _STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction",
@@ -259,6 +307,8 @@ class ReferenceBackend:
     changes, ``advance`` (or the Dahl path), failures flagged, Dahl labels.
     """
 
+    partial_trials = True
+
     def __init__(self, params: list, max_halvings: int = MAX_HALVINGS):
         from ..cell.cycle import CellCycle
         self.cycles = [CellCycle(p, max_halvings) for p in params]
@@ -283,14 +333,17 @@ class ReferenceBackend:
     def committed(self) -> dict:
         return self._read(self.s0)
 
-    def tangent(self, trial: bool, direction: int = 0) -> np.ndarray:
+    def tangent(self, trial: bool, direction: int = 0, mask: np.ndarray | None = None) -> np.ndarray:
         """No cell tangent from the reference engine (NaN: the coupling keeps its secants)."""
         return np.full(self.n, np.nan)
 
-    def trial(self, strain: np.ndarray, direction: int, increment: int) -> dict:
+    def trial(self, strain: np.ndarray, direction: int, increment: int, mask: np.ndarray | None = None) -> dict:
         from ..cell.cycle import STATUS_NO_CONVERGENCE, _SolveFailed
         out = []
         for g, cyc in enumerate(self.cycles):
+            if mask is not None and not mask[g]:
+                out.append(self.s1[g])         # not stepped: its last trial stands (not read)
+                continue
             st = self.s0[g].copy()
             if direction != self.dir0[g] and st.status == STATUS_OK and st.stage is not Stage.SLACK:
                 cyc.reverse(st, direction)
@@ -713,6 +766,8 @@ class PatchSolver:
         iters = np.zeros(self.n_cls, np.int64)
         single_cls = np.bincount(col, minlength=self.n_cls) == 1
         committed_strain = c["C"] / C0 - 1.0
+        # a backend that steps (and gives tangents of) a subset of the groups: only the live columns' cells
+        partial = getattr(be, "partial_trials", False)
         # the committed state is a point of every cell's branch, with the tangent of the stage that a
         # reversal enters; the fallback tangents are the last increment's
         k_c = be.tangent(False, direction)
@@ -761,12 +816,17 @@ class PatchSolver:
                     break
             strain = np.where(self.single_group, u_single, C_try / C0 - 1.0)
             strain = np.where(g_live, strain, committed_strain)
-            t = be.trial(strain, direction, increment)
+            # only the cells of the live columns are stepped (the others' trial rows are stale, never read)
+            t = be.trial(strain, direction, increment, g_live) if partial else be.trial(strain, direction, increment)
             last = t
-            prev_failed = self._colmax((t["status"] != STATUS_OK).astype(float), 0.0) > 0
-            iters[live] += 1
             slack = t["stage"] == int(Stage.SLACK)
             failed = t["status"] != STATUS_OK
+            prev_failed = np.where(live, self._colmax((failed & g_live).astype(float), 0.0) > 0, prev_failed)
+            iters[live] += 1
+            use = g_live & ~failed
+            # each good trial's own tangent (before the converged columns are accepted: the backend
+            # keeps it as the committed state's)
+            kt = (be.tangent(True, mask=use) if partial else be.tangent(True)) if np.any(use) else None
             # convergence: equal forces at a positive column force (the lengths then add up to u by
             # construction), or every cell slack where the column was asked for zero force; a cell that
             # failed in the trial never converges its column
@@ -785,15 +845,13 @@ class PatchSolver:
             if np.any(conv):
                 be.accept(conv[col])
                 done_cls |= conv
-            use = g_live & ~failed
-            if not np.any(use):
+            if kt is None:
                 continue
             spread = np.where(live, Fmax - Fmin, np.inf)
             col_stalled = (spread > 0.25 * spread_last)[col]
             spread_last = np.where(live, spread, spread_last)
             pts.record(use, t["F"], Fstar[col] / p, (self.force_tol + self.force_rtol * Fstar[col]) / p,
                        col_stalled)
-            kt = be.tangent(True)
             kt = np.where(np.isfinite(kt) & (kt > 0) & ~slack, kt, np.nan)
             pts.add(use, t["C"], t["F"], kt, Fcol[col] / p)
             # the fallback tangent: the cell's own, else the secant from its last good trial
@@ -816,9 +874,8 @@ class PatchSolver:
             fail_lo = np.where(good_lo <= fail_lo, -np.inf, fail_lo)
             pts.C_max = np.minimum(dir_max, np.where(np.isfinite(fail_hi), 0.5 * (good_hi + fail_hi), np.inf))
             pts.C_min = np.maximum(dir_min, np.where(np.isfinite(fail_lo), 0.5 * (good_lo + fail_lo), -np.inf))
-        last_failed = np.zeros(self.n_cls, bool)
-        if last is not None:
-            last_failed = self._colmax((last["status"] != STATUS_OK).astype(float), 0.0) > 0
+        # whether a cell of the column failed in the column's last trial
+        last_failed = prev_failed if last is not None else np.zeros(self.n_cls, bool)
         return done_cls & active_cls, iters, jump_cls, last_failed
 
     def _solve_columns(self, pts: BranchPoints, u: float, F_guess: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
