@@ -20,9 +20,9 @@ if K: prog = LoadProgram(prog.strain[:K], prog.cycle[:K], prog.direction[:K], pr
 run_patch(pm, LoadProgram(prog.strain[:2], prog.cycle[:2], prog.direction[:2], prog.waypoints), dedup=False)
 rec = []
 orig_trial = coupling.WarpBackend.trial
-def trial(self, strain, direction, increment):
+def trial(self, strain, direction, increment, *a, **k):
     t0 = time.process_time()
-    out = orig_trial(self, strain, direction, increment)
+    out = orig_trial(self, strain, direction, increment, *a, **k)
     rec.append((increment, time.process_time() - t0))  # noqa
     return out
 coupling.WarpBackend.trial = trial

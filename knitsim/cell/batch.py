@@ -523,12 +523,18 @@ class CellSolver:
                     for t in (wp.int32, wp.int32, wp.int32, wp.float64, wp.int32, wp.int32)]
 
     def step(self, state_in: CellBatchState, state_out: CellBatchState, control: CellControl,
-             increment: int = 0) -> None:
-        """One increment for all cells; ``increment`` labels the events it records."""
+             increment: int = 0, cells: np.ndarray | None = None) -> None:
+        """One increment for all cells; ``increment`` labels the events it records.
+
+        ``cells`` (optional, increasing cell indices): advance only these; the other rows of
+        ``state_out`` are left as they are (each cell's step reads only its own rows)."""
         n = self.model.cell_count
         if n == 0:
             return
-        for k, cells in self.groups:
+        groups = self.groups if cells is None else self._subset(np.asarray(cells, dtype=np.int32))
+        for k, cells in groups:
+            if cells is None:
+                continue
             wp.launch(k.step_kernel, dim=cells.shape[0] or n,
                       inputs=[cells] + self.model._arrays() + self.model._effect_arrays()
                       + [self.max_halvings, int(self.stick_closure == "release_beta")]
@@ -536,6 +542,20 @@ class CellSolver:
                       + [control.strain, control.direction, control.rate, int(increment)],
                       outputs=state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev,
                       device=self.model.device)
+
+    def _subset(self, cells: np.ndarray) -> list:
+        """The kernel groups restricted to ``cells``: (module, device index array, or None where the
+        group has none of them)."""
+        if cells.size == self.model.cell_count:
+            return self.groups
+        host = self.__dict__.setdefault("_group_host", [None if g.shape[0] == 0 else g.numpy().copy()
+                                                        for _, g in self.groups])
+        dev = self.model.device
+        out = []
+        for (k, _), idx in zip(self.groups, host):
+            sub = cells if idx is None else cells[np.isin(cells, idx, assume_unique=True)]
+            out.append((k, wp.array(sub, dtype=wp.int32, device=dev) if sub.size else None))
+        return out
 
     def run_program(self, state: CellBatchState, program: LoadProgram, stride: int = 1,
                     k_start: int = 0, k_stop: int | None = None, history: "ProgramHistory | None" = None,

@@ -1,0 +1,84 @@
+"""The coupling's cheaper calls of the unchanged cell kernels, against the full calls they replace.
+
+- a trial step of a subset of the cells (``WarpBackend.trial(..., mask)``, one launch on the
+  subset's indices) gives, for each of those cells, exactly the row that a trial of every cell
+  gives (each cell's step reads only its own rows), and leaves the other rows as they were;
+- the tangent of a subset (the other cells passed a status that is not ok) equals the full
+  launch's on the subset and is NaN elsewhere;
+- the committed state's tangent reused from the accepted trial equals a fresh launch at that
+  state, in the same direction and at a reversal;
+- the bent extrapolation of the column model (``_bent_line``) is the quadratic s x + c x^2 / 2
+  while its slope stays within [s/4, 4 s], then straight and continuous (an identity of its
+  definition), hence monotone.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from knitsim.cell.material import CellParams
+from knitsim.patch.coupling import WarpBackend, _bent_line
+
+# Table 1 / section 2.2 / section 3.4 (dusserre2015.toml), with phi0 of a random patch
+PHI0 = (-0.15, -0.05, 0.0, 0.05, 0.1, 0.19)
+PARAMS = [CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=p, force_cap_N=10.0) for p in PHI0]
+N = len(PARAMS)
+ROWS = ("C", "F", "phi", "W", "stage", "jammed", "status", "head_gap")
+
+
+def _loaded(strain_end: float) -> WarpBackend:
+    be = WarpBackend(PARAMS)
+    for i, e in enumerate(np.arange(0.01, strain_end + 1e-9, 0.01)):
+        be.begin_increment()
+        be.trial(np.full(N, e), 1, i)
+        be.accept(np.ones(N, bool))
+        be.end_increment()
+    return be
+
+
+def test_a_subset_trial_gives_the_rows_of_the_full_trial():
+    be = _loaded(0.2)
+    strain = 0.2 + np.linspace(0.002, 0.012, N)
+    full = be.trial(strain, 1, 20)
+    k_full = be.tangent(True)
+    before = be.trial(np.full(N, 0.205), 1, 20)
+    mask = np.array([True, False, True, True, False, True])
+    part = be.trial(strain, 1, 20, mask)
+    for name in ROWS:
+        np.testing.assert_array_equal(part[name][mask], full[name][mask], err_msg=name)
+        np.testing.assert_array_equal(part[name][~mask], before[name][~mask], err_msg=name)
+    k_part = be.tangent(True, mask=mask)
+    np.testing.assert_array_equal(k_part[mask], k_full[mask])
+    assert np.all(np.isnan(k_part[~mask]))
+    assert np.all(np.isfinite(k_full))
+
+
+def test_the_committed_tangent_reused_from_the_accepted_trial_equals_a_fresh_launch():
+    be = _loaded(0.3)
+    be.begin_increment()
+    be.trial(np.full(N, 0.305), 1, 30)
+    be.tangent(True)                       # known at the trial: kept for the accepted cells
+    mask = np.array([True, True, False, True, False, True])
+    be.accept(mask)
+    be.end_increment()
+    for direction in (1, -1):              # the same direction, and a reversal (SF- entered)
+        cached = be.tangent(False, direction)
+        fresh = be._tangent_launch(be.s0, direction, None)
+        np.testing.assert_array_equal(cached, fresh)
+        assert np.all(np.isfinite(fresh))
+
+
+def test_the_bent_extrapolation_is_the_quadratic_then_straight_and_monotone():
+    s, c = 2.0, np.array([-3.0, 0.0, 5.0, -3.0, 5.0])
+    x = np.linspace(-2.0, 2.0, 4001)
+    for ci in c:
+        d, slope = _bent_line(x, np.full_like(x, s), np.full_like(x, ci))
+        quad = s * x + 0.5 * ci * x * x
+        inside = (s + ci * x >= 0.25 * s) & (s + ci * x <= 4.0 * s)
+        np.testing.assert_allclose(d[inside], quad[inside], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(slope[inside], (s + ci * x)[inside], rtol=0, atol=1e-14)
+        assert np.all((slope >= 0.25 * s - 1e-14) & (slope <= 4.0 * s + 1e-14))
+        assert np.all(np.diff(d) > 0)                       # monotone
+        # continuous: the increments follow the slopes (trapezoid rule of the slope, exact for a
+        # piecewise-linear slope up to the one interval holding the kink)
+        trap = np.cumsum(0.5 * (slope[1:] + slope[:-1]) * np.diff(x))
+        np.testing.assert_allclose(d[1:] - d[0], trap, atol=1e-6)
