@@ -200,7 +200,6 @@ class Material:
     fr_ref: wp.float64  # its reference normal load [N]
     bend_h: wp.float64  # bending_hysteresis (issue 6): h of B (1 + h z), 0 when off
     bend_sigma: wp.float64  # its Dahl rate in the strain
-    bend_B0: wp.float64  # the yarn's own B [N mm^2]
     bend_z0: wp.float64  # z at the course length bend_C (the increment's start)
     bend_C: wp.float64  # that course length [mm]
     bend_s: wp.float64  # the increment's direction, +1 / -1 (0: no bending over it, z stays bend_z0)
@@ -230,10 +229,10 @@ def bending_z(mat: Material, C: wp.float64) -> wp.float64:
 @wp.func
 def stiffness_at(mat: Material, C: wp.float64) -> wp.float64:
     """The bending stiffness of a state at course length C: B (1 + h z(C)) under bending
-    hysteresis (read at the solution itself), else mat.B."""
+    hysteresis (read at the solution itself), else B."""
     B = mat.B
     if bends(mat):
-        B = mat.bend_B0 * (wp.float64(1.0) + mat.bend_h * bending_z(mat, C))
+        B = mat.B * (wp.float64(1.0) + mat.bend_h * bending_z(mat, C))
     return B
 
 
@@ -1309,7 +1308,6 @@ def read_material(
     mat.fr_state = 0  # the friction ratio is m (apply_effects sets the state's law)
     mat.bend_h = wp.float64(0.0)  # no bending hysteresis (apply_effects sets its law)
     mat.bend_sigma = wp.float64(0.0)
-    mat.bend_B0 = mat.B
     mat.bend_z0 = wp.float64(0.0)
     mat.bend_C = wp.float64(0.0)
     mat.bend_s = wp.float64(0.0)
@@ -1335,8 +1333,7 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
     load at the solution itself (implicit); under bending hysteresis B is that of the state's
     own C (``bend_*`` fields, stiffness_at: Dahl's closed form from z_old at C_start over the
     increment's monotone strain, whose direction is that of ``dstrain``), so that a located event
-    and an increment's end read B where they lie.
-    Returns (material, z_bend at the increment's end C_start + dstrain C0).
+    and an increment's end read B where they lie (mat.B stays the yarn's own).
     """
     m = mat.m
     mat_m0 = mat.m
@@ -1372,11 +1369,9 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
         mat.comp_k = params[r, P_COMP_K]
         mat.comp_rn0 = Rn_rest
         mat.comp_min = params[r, P_COMP_MIN]
-    z = z_old
     if has(mask, BIT_BENDING):
         mat.bend_h = params[r, P_BEND_H]
         mat.bend_sigma = params[r, P_BEND_SIGMA]
-        mat.bend_B0 = mat.B
         mat.bend_z0 = z_old
         mat.bend_C = C_start
         mat.bend_s = wp.float64(0.0)
@@ -1384,14 +1379,11 @@ def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64)
             mat.bend_s = wp.float64(1.0)
         elif dstrain < wp.float64(0.0):
             mat.bend_s = wp.float64(-1.0)
-        C_end = C_start + dstrain * mat.C0
-        z = bending_z(mat, C_end)
-        mat.B = stiffness_at(mat, C_end)
     if has(mask, BIT_EXTENSION):
         # implicit, as the compaction: the length condition reads P at the solution (extension_residual)
         mat.ext_c = params[r, P_EXT_C]
         mat.ext_p0 = P_rest
-    return mat, z
+    return mat
 
 
 @wp.func
@@ -1607,8 +1599,8 @@ def advance_cell(
         if stage == SLACK and C_target <= C:
             de = wp.float64(0.0)  # a slack loop does not bend
         mat_old = material_from_effective(mat, eff_in[i, E_M])
-        mat, z_bend = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
-                                    eff_in[i, E_RN0], C, de, rate_i)
+        mat = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
+                            eff_in[i, E_RN0], C, de, rate_i)
 
     # events of this increment (kind, C, from-label, to-label), committed at the end
     n_ev = int(0)
@@ -1950,7 +1942,7 @@ def advance_cell(
         eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
         eff_out[i, E_B] = stiffness_at(mat, C)
         if bends(mat):
-            z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short)
+            z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
         eff_out[i, E_Z] = z_bend
     if n_ev > 0:
         nk = wp.min(n_ev, _MAXEV)
