@@ -516,6 +516,7 @@ class CellSolver:
         self.model = model
         self.max_halvings = int(max_halvings)
         self.groups = model.kernel_groups(specialise)
+        self._group_host = None  # the groups' index arrays on the host, copied at the first subset step
         cap = 64 * model.cell_count + 64 if event_capacity is None else int(event_capacity)
         dev = model.device
         self._ev_count = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -548,11 +549,13 @@ class CellSolver:
         group has none of them)."""
         if cells.size == self.model.cell_count:
             return self.groups
-        host = self.__dict__.setdefault("_group_host", [None if g.shape[0] == 0 else g.numpy().copy()
-                                                        for _, g in self.groups])
+        if self._group_host is None:
+            self._group_host = [None if g.shape[0] == 0 else g.numpy().copy() for _, g in self.groups]
+        host = self._group_host
         dev = self.model.device
         out = []
         for (k, _), idx in zip(self.groups, host):
+            # an empty index array is a group of every cell (step: dim = cells.shape[0] or n)
             sub = cells if idx is None else cells[np.isin(cells, idx, assume_unique=True)]
             out.append((k, wp.array(sub, dtype=wp.int32, device=dev) if sub.size else None))
         return out
