@@ -546,11 +546,13 @@ def plot_map(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayou
             ye = np.concatenate([[0.0], np.cumsum(layout.band_length_mm)])
             im = ax.pcolormesh(xe, ye, data, shading="flat", **style)
             ax.set_xlabel(f"across the width [mm] ({h.shape[1]} strip{'s' * (h.shape[1] != 1)})")
-            ax.set_ylabel(f"from the lower grip, at rest [mm] ({h.shape[0]} band{'s' * (h.shape[0] != 1)})")
+            if ax is axes[0]:   # the panels share their axes; a second y label ran into the first panel
+                ax.set_ylabel(f"from the lower grip, at rest [mm] ({h.shape[0]} band{'s' * (h.shape[0] != 1)})")
         else:
             im = ax.imshow(data, origin="lower", aspect="auto", interpolation="nearest", **style)
             ax.set_xlabel("wale")
-            ax.set_ylabel("course")
+            if ax is axes[0]:
+                ax.set_ylabel("course")
         when = "end" if r == h.n_increments - 1 else f"cycle {int(h.cycle[r])} peak"
         ax.set_title(f"{which} at the {when} (grip strain {h.grip_strain[r]:.3g})", fontsize=10)
     if im is not None:
