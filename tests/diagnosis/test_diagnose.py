@@ -326,3 +326,33 @@ def test_baseline_reaches_the_minimum_of_a_specimen_whose_lengths_are_off():
     assert fit["chi2"] / (fit["n"] - fit["k"]) < 2.0
     assert fit["values"]["C0"] == pytest.approx(truth.C0, rel=2e-3)
     assert fit["values"]["d"] == pytest.approx(truth.d, rel=1e-2)
+
+
+def test_outliers_are_isolated_rows_inside_one_stage_not_misfits_at_a_change_of_stage():
+    """The outlier rule (diagnose._outliers): a row more than OUTLIER_Z (6) sd off the fit whose neighbours
+    are within 3 sd, all three simulated in one stage, or at a change of stage a row that is itself a
+    spike of the measured curve.  Hand-made curve (sd 0.01 N, a load to strain 0.1 and back) and fits:
+    a 10 sd spike of the fit on an interior loading row is an outlier (z = +10); 10 sd misfits on the
+    first unloading row (its neighbour before is loading: a reversal) and on the first row (adherence,
+    its neighbour sliding: the end of the initial stick) are the timing of a change of stage and are
+    kept; a measured row 20 sd below the smooth curve at the reversal (15 sd below both neighbours) is
+    an outlier (z = +20)."""
+    from knitsim.diagnosis.diagnose import OUTLIER_Z, _Data, _outliers
+    assert OUTLIER_Z == 6.0
+    strain = np.concatenate([np.linspace(0.0, 0.1, 11), np.linspace(0.09, 0.0, 10)])
+    force = np.concatenate([np.linspace(0.0, 1.0, 11), np.linspace(0.5, 0.0, 10)])
+    sd = 0.01
+    keys = (["loading_adherence"] + ["loading_sliding"] * 10 + ["unloading_sliding"] * 10)
+    weights = [np.full(len(strain), 1.0 / sd)]
+    curve = curve_from_arrays(strain, force, source="hand.csv")
+    simulated = force.copy()
+    simulated[5] += 10 * sd          # a spike inside loading sliding
+    simulated[11] -= 10 * sd         # the first unloading row
+    simulated[0] += 10 * sd          # the first row, where the initial stick ends
+    found = _outliers(_Data([curve], None, weights), {"curves": [{"simulated": simulated, "keys": keys}]})
+    assert [(o.source, o.row, round(o.z, 6)) for o in found] == [("hand.csv", 7, 10.0)]   # row 5 is spreadsheet row 7
+    spiked = force.copy()
+    spiked[11] -= 20 * sd            # a measured spike on the first unloading row
+    curve = curve_from_arrays(strain, spiked, source="hand.csv")
+    found = _outliers(_Data([curve], None, weights), {"curves": [{"simulated": force, "keys": keys}]})
+    assert [(o.row, round(o.z, 6)) for o in found] == [(13, 20.0)]
