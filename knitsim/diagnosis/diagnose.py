@@ -948,10 +948,13 @@ def basins_step(data: _Data, base_fit: dict, fits: dict, say) -> tuple[dict, lis
         # baseline's geometry fits) ranks every point far off, while the race's first heat, which moves
         # the geometry with the effect on, finds the basin (lab case 75 of the v5 study, hidden bend_h
         # 0.40: screened 2,704 and 2,895, fit 2,044; from the grid with bend_h 0.45, 1,152)
-        scene = {v.name: v.start(setup.base) for v in variables}
+        # (the variables a grid start leaves alone at the calibrated baseline's values: d, and the lengths
+        # of the scene-geometry starts)
+        fill = dict({v.name: v.start(setup.base) for v in variables},
+                    **{k: v for k, v in base_fit["fit_variables"].items() if k in names})
         for g in data.grid_starts:
             for st in spec.extra_starts:
-                pt = dict(scene, **{k: v for k, v in g.items() if k in names}, **{k: v for k, v in st.items() if k in names})
+                pt = dict(fill, **{k: v for k, v in g.items() if k in names}, **{k: v for k, v in st.items() if k in names})
                 if pt not in starts:
                     starts.append(pt)
         more = _fit(data, (name,), x0=starts[0], extra_starts=tuple(starts[1:]), rival_chi2=base_fit["chi2"])

@@ -356,3 +356,46 @@ def test_outliers_are_isolated_rows_inside_one_stage_not_misfits_at_a_change_of_
     curve = curve_from_arrays(strain, spiked, source="hand.csv")
     found = _outliers(_Data([curve], None, weights), {"curves": [{"simulated": force, "keys": keys}]})
     assert [(o.row, round(o.z, 6)) for o in found] == [(13, 20.0)]
+
+
+def test_basins_step_reaches_an_effect_that_moves_the_geometry_that_fits():
+    """A bending hysteresis of h = 0.40 on a specimen whose lengths are a hair off the scene's (the
+    study's lab case 75, seed 0: its parameters below, W0 0.07 % narrow and not calibrated), with the
+    lab model's noise of each test (1 % of its peak + 0.002 N, seeded).  The effect stiffens loading
+    and softens unloading, so the geometry that fits moves with it: the candidate's own race (from the
+    baseline, with h at 0, 0.2, 0.45) and the screen at the baseline's basins both end at h ~ 0.22,
+    chi^2 ~ 2,200 on 1,189 rows, where the truth scores 1,223 (the noise alone: 1,189 +- 49).
+    Expected: after the basins step the fit is in the truth's basin (chi^2 within 2 sd of the noise of
+    the truth's own, an independent number: the generating cell evaluated on these curves) and its h
+    within 0.03 of the generating 0.4014.  Fails without the races from the baseline's grid starts."""
+    from knitsim.diagnosis.diagnose import _Data, basins_step, calibrate_step, candidates_step, noise_step
+    from knitsim.diagnosis.effects import DEFAULT_STUDY_FREE, build_params
+    from knitsim.diagnosis.synthetic import _lab_strains, material_params, pull_end_strain, simulate_rows
+
+    base = material_params("e_glass")
+    m, bend_h = 0.2035, 0.4014
+    truth = base.replace(d=0.5784, L=14.036, W0=4.3968, C0=2.6995, m=m, phi0=0.2803 * np.arctan(m),
+                         effects=EffectSet(on=("bending_hysteresis",), bend_h=bend_h))
+    shells = [curve_from_arrays(s, np.zeros(len(s)), source=src) for src, s in
+              (("pull", _lab_strains("pull", pull_end_strain(truth))), ("cycles", _lab_strains("cycles")))]
+    (sims,) = simulate_rows([truth], shells, 0.01)
+    rng = np.random.default_rng(75)
+    curves = []
+    for c, (f, _, ok) in zip(shells, sims):
+        assert ok
+        sd = 0.01 * float(np.max(f)) + 0.002
+        curves.append(curve_from_arrays(c.strain, f + rng.normal(0.0, sd, len(f)), c.cycle, c.direction,
+                                        source=c.source, noise_N=sd))
+    setup = DiagnosisSetup(base=base, free=DEFAULT_STUDY_FREE, effects=("bending_hysteresis",)).validated()
+    data = _Data(curves, setup, noise_step(curves, setup).weights(curves))
+    base_fit, _ = calibrate_step(data, lambda msg: None)
+    fits = candidates_step(data, base_fit["fit_variables"], setup.effects, [], lambda msg: None,
+                           base_chi2=base_fit["chi2"])
+    fits, tried = basins_step(data, base_fit, fits, lambda msg: None)
+    assert tried == ["bending_hysteresis"]
+    fit = fits["bending_hysteresis"]
+    x_truth = dict(m=m, phi0=0.2803, d=truth.d, L=truth.L, C0=truth.C0, bend_h=bend_h)
+    (chi2_truth,) = data.chi2_of([build_params(base, ("bending_hysteresis",), x_truth, setup.fixed)])
+    n = fit["n"]
+    assert fit["chi2"] < chi2_truth + 2.0 * np.sqrt(2.0 * n)
+    assert fit["fit_variables"]["bend_h"] == pytest.approx(bend_h, abs=0.03)
