@@ -886,9 +886,14 @@ def basins_step(data: _Data, base_fit: dict, fits: dict, say) -> tuple[dict, lis
     starts from the (m, phi0) grids at the scene's geometry and at the corners of the +-1 % square in
     L and C0, :func:`_grid_starts`): each of the :data:`BASIN_POINTS` best distinct ones, with the
     effect where it vanishes, at each of its own starts and at the strength its fit found, is
-    evaluated in one batched launch; the :data:`BASIN_STARTS` best race (:func:`_fit`), and the new fit
-    replaces the old when it is lower and runs through (or runs through where the old did not, within
-    :data:`STRONG` of the baseline).
+    evaluated in one batched launch; the :data:`BASIN_STARTS` best race (:func:`_fit`) together with the
+    baseline's own grid starts (``data.grid_starts``, the rest of their variables at the calibrated
+    baseline's values) with the effect on at each of its own strengths, and the new fit replaces the
+    old when it is lower and runs through (or runs through where the old did not, within
+    :data:`STRONG` of the baseline).  The grid starts are raced unscreened: where the effect moves
+    the geometry that fits, the screen (the effect evaluated at the baseline's geometry) ranks every
+    point far off, and only the race's first heat, which moves the geometry with the effect on, tells
+    the basins apart.
 
     Only when it can change the verdict, and only for the :data:`BASIN_CANDIDATES` best candidates by
     chi^2: when the best fit (baseline or candidate) still misses the curves beyond the noise (a
