@@ -254,14 +254,37 @@ class PatchModel:
         return CellParams(**vals, **{r: self.rules[r][i, j] for r in RULE_NAMES},
                           effects=self.effects[i, j]).validated(where=f"cell[{i}, {j}]")
 
+    def effect_codes(self) -> tuple[np.ndarray, list]:
+        """An integer per cell naming its effect set, and the distinct sets in the order of the codes.
+
+        Without a Python loop over the cells (a patch of 10^6 cells holds a few distinct sets, often
+        one object shared by every cell): the cells are first told apart by the identity of their
+        object, and only the distinct objects are compared by value."""
+        flat = self.effects.ravel()
+        ids = np.fromiter(map(id, flat), dtype=np.int64, count=flat.size)
+        first_ids, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
+        by_value: dict = {}
+        obj_code = np.empty(len(first), np.int64)
+        uniq: list = []
+        # distinct objects in the order the cells first hold them, so that the codes do not depend on
+        # where the objects lie in memory
+        for k in np.argsort(first, kind="stable"):
+            e = flat[first[k]]
+            if e not in by_value:
+                by_value[e] = len(uniq)
+                uniq.append(e)
+            obj_code[k] = by_value[e]
+        return obj_code[inverse].reshape(self.shape), uniq
+
     def material_codes(self) -> np.ndarray:
         """An integer per cell naming its rules and effects (equal codes: equal rules and effects)."""
-        keys: dict = {}
-        out = np.empty(self.shape, np.int64)
-        for idx in np.ndindex(self.shape):
-            k = tuple(self.rules[r][idx] for r in RULE_NAMES) + (self.effects[idx],)
-            out[idx] = keys.setdefault(k, len(keys))
-        return out
+        parts = [np.unique(np.asarray(self.rules[r]).ravel(), return_inverse=True)[1] for r in RULE_NAMES]
+        parts.append(self.effect_codes()[0].ravel())
+        _, first, inverse = np.unique(np.stack(parts, axis=1), axis=0, return_index=True, return_inverse=True)
+        # numbered in the order the cells first hold them (row-major), as the groups always were
+        rank = np.empty(len(first), np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+        return rank[inverse.ravel()].reshape(self.shape)
 
     @property
     def unit_counts(self) -> bool:

@@ -58,3 +58,36 @@ def test_cell_fields_shapes():
     assert (~loaded).any()       # the unloading to 0.10 leaves these columns slack
     np.testing.assert_allclose((dC - u)[~loaded], h.column_slack_mm[~loaded], rtol=1e-12, atol=1e-12)
     assert np.all(h.column_slack_mm[~loaded] > 0)
+
+
+def test_material_codes_name_equal_rules_and_effects_alike_without_a_loop_over_cells():
+    """The vectorised codes (identity of the effect objects first, then their values) against the
+    definition, a loop over the cells keyed by (rules, effect set) numbered in row-major order of first
+    appearance; two equal EffectSet objects are one material, and the resume fingerprint tells a
+    patch from the same patch with one cell's effect changed."""
+    from knitsim.cell.effects import EffectSet
+    from knitsim.patch.model import RULE_NAMES
+    from knitsim.patch.runner import fingerprint
+
+    base = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2)   # Dusserre (2015) Table 1
+    e_a, e_b = EffectSet(on=("bending_hysteresis",), bend_h=0.2), EffectSet(on=("bending_hysteresis",), bend_h=0.2)
+    rng = np.random.default_rng(3)
+    pick = rng.integers(0, 3, (7, 9))
+    dahl = rng.random((7, 9)) < 0.3
+    cells = [[base.replace(effects=(e_a, e_b, EffectSet())[pick[i, j]],
+                           friction="dahl" if dahl[i, j] else "coulomb", dahl_sigma=20.0)
+              for j in range(9)] for i in range(7)]
+    model = PatchModel.from_cells(cells)
+    keys: dict = {}
+    expected = np.empty((7, 9), np.int64)
+    for idx in np.ndindex(7, 9):
+        expected[idx] = keys.setdefault(tuple(model.rules[r][idx] for r in RULE_NAMES) + (model.effects[idx],),
+                                        len(keys))
+    assert np.array_equal(model.material_codes(), expected)
+    assert len(keys) == 4          # {coulomb, dahl} x {bending 0.2 (two equal objects), none}
+    prog = cycles(0.1, 0.3, 1, 0.05)
+    changed = [row[:] for row in cells]
+    changed[6][8] = cells[6][8].replace(effects=EffectSet(on=("bending_hysteresis",), bend_h=0.3))
+    other = PatchModel.from_cells(changed)
+    assert fingerprint(model, prog) == fingerprint(PatchModel.from_cells(cells), prog)
+    assert fingerprint(model, prog) != fingerprint(other, prog)
