@@ -41,7 +41,7 @@ import warp as wp
 from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
-from .effects import EFFECT_STATE, NO_EFFECTS, PARAM_COLUMNS, EffectSet
+from .effects import EFFECT_STATE, NO_EFFECTS, PARAM_COLUMNS, EffectSet, effect_set_codes
 from .history import (HISTORY_QUANTITIES, STATUS_FORCE_CAP, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK,
                       BatchHistory, head_gap_values, rest_at_cap_reason)
 from .inverse import DEFAULT_STARTS
@@ -153,10 +153,11 @@ class CellModel:
         made by :meth:`from_arrays`: a million cells take seconds here, not in the build)."""
         if self._params is None:
             h, n = self._host, self.cell_count
-            col = {k: np.broadcast_to(v, (n,)) for k, v in h.items()}
+            col = {k: np.broadcast_to(v, (n,)) for k, v in h.items() if k != "effects"}
             names = {"friction": FRICTION_MODELS, "unloading": UNLOADING_RULES, "reload": ("freeze_rn", "mirror_unloading"),
                      "criterion": JAMMING_CRITERIA}
             eff = h["effects"]
+            per_cell = isinstance(eff, np.ndarray)
             self.__dict__["_params"] = [
                 CellParams(B=float(col["B"][i]), d=float(col["d"][i]), L=float(col["L"][i]), W0=float(col["W0"][i]),
                            C0=float(col["C0"][i]), m=float(col["m"][i]), phi0=float(col["phi0"][i]),
@@ -166,7 +167,7 @@ class CellModel:
                            jamming_criterion=names["criterion"][col["criterion"][i]],
                            force_cap_N=float(col["cap"][i]),
                            in_plane_width=None if col["djam"][i] == col["d"][i] else float(col["djam"][i]),
-                           effects=eff)
+                           effects=eff[i] if per_cell else eff)
                 for i in range(n)]
         return self._params
 
@@ -240,14 +241,18 @@ class CellModel:
     @classmethod
     def from_arrays(cls, B, d, L, W0, C0, m=0.0, phi0=0.0, *, friction="coulomb", dahl_sigma=0.0,
                     unloading_rule="dusserre", reload_rule="mirror_unloading", jamming_criterion="w_4d",
-                    force_cap_N=50.0, in_plane_width=None, effects=None, device: str = "cpu") -> "CellModel":
+                    force_cap_N=50.0, in_plane_width=None, effects=None, device: str = "cpu",
+                    where=None) -> "CellModel":
         """Build the model of N cells from per-cell arrays, without a Python loop over the cells.
 
         Each argument is a scalar (every cell) or an array of shape [N] (the fields of
-        :class:`CellParams`, same units; the string fields may be arrays of names).  ``effects`` is
-        one :class:`~knitsim.cell.effects.EffectSet` for every cell (None: none).  Every field is
+        :class:`CellParams`, same units; the string fields may be arrays of names; NaN in an
+        ``in_plane_width`` array: none, the cell jams at d).  ``effects`` is one
+        :class:`~knitsim.cell.effects.EffectSet` for every cell (None: none) or an object array of
+        them, shape [N] (a few distinct sets: they are told apart once, not per cell).  Every field is
         validated as :meth:`CellParams.validated` does, vectorised; the error names the first bad
-        cell and field (``cells[i].m = -0.1: ...``).  ``params`` is built only when asked for.
+        cell and field (``cells[i].m = -0.1: ...``; ``where(i)`` names cell i instead of
+        ``cells[i]``).  ``params`` is built only when asked for.
         """
         warp_runtime.init()
         device = warp_runtime.resolve_device(device)
@@ -269,10 +274,10 @@ class CellModel:
                 n, first = sh[0], k
 
         def bad(name, mask, vals, why):
-            i = int(np.argmax(mask))
+            i = int(np.argmax(np.broadcast_to(mask, (n,))))
             v = np.broadcast_to(vals, (n,))[i]
             v = v.item() if isinstance(v, np.generic) else v
-            raise KnitsimInputError(f"cells[{i}].{name} = {v!r}: {why}")
+            raise KnitsimInputError(f"{where(i) if where else f'cells[{i}]'}.{name} = {v!r}: {why}")
 
         f = {}
         for k, v in fl.items():
@@ -303,13 +308,16 @@ class CellModel:
         djam = f["d"]
         if in_plane_width is not None:
             w = np.broadcast_to(np.asarray(in_plane_width, dtype=np.float64), (n,))
-            if not np.all(np.isfinite(w)):
-                bad("in_plane_width", ~np.isfinite(w), w, "must be a finite number or None")
-            if np.any(w < f["d"]):
-                bad("in_plane_width", w < f["d"], w, "the in-plane width cannot be below the compact diameter d")
-            if np.any(f["W0"] < 4.0 * w):
-                bad("in_plane_width", f["W0"] < 4.0 * w, w, "loops jammed at rest: W0 < 4 in_plane_width")
-            djam = w
+            if np.any(np.isinf(w)):
+                bad("in_plane_width", np.isinf(w), w, "must be a finite number or None")
+            # NaN: no in-plane width given (the cell jams at its compact diameter; its W0 is checked against
+            # 4 d below, and the message names W0, not a width the user did not give)
+            given = ~np.isnan(w)
+            if np.any(given & (w < f["d"])):
+                bad("in_plane_width", given & (w < f["d"]), w, "the in-plane width cannot be below the compact diameter d")
+            if np.any(given & (f["W0"] < 4.0 * w)):
+                bad("in_plane_width", given & (f["W0"] < 4.0 * w), w, "loops jammed at rest: W0 < 4 in_plane_width")
+            djam = np.where(given, w, f["d"])
         if np.any(f["W0"] < 4.0 * f["d"]):
             bad("W0", f["W0"] < 4.0 * f["d"], f["W0"], "the wale width at rest must be >= 4 d (loops jammed already)")
         lmin = 2.0 * f["C0"] + f["W0"] - 4.0 * f["d"]
@@ -324,17 +332,30 @@ class CellModel:
         if np.any(dahl & (f["m"] <= 0)):
             bad("m", dahl & (f["m"] <= 0), f["m"], "Dahl friction needs m > 0 (saturation tan(phi) = m)")
         eff = NO_EFFECTS if effects is None else effects
-        if not isinstance(eff, EffectSet):
-            raise KnitsimInputError(f"cells.effects = {effects!r}: expected one EffectSet (knitsim.cell.effects)")
-        eff.validated(where="cells.effects")
+        if isinstance(eff, np.ndarray) and eff.dtype == object and eff.ndim == 1:
+            if len(eff) != n:
+                raise KnitsimInputError(f"cells.effects: {len(eff)} effect sets for {n} cells")
+            codes_e, uniq = effect_set_codes(eff)
+            for k, e in enumerate(uniq):
+                if not isinstance(e, EffectSet):
+                    raise KnitsimInputError(f"cells.effects: {e!r} is not an EffectSet (knitsim.cell.effects)")
+                e.validated(where="cells.effects")
+            mask = np.array([e.mask for e in uniq], np.int32)[codes_e]
+            rows = np.stack([e.row() for e in uniq])[codes_e]
+        elif isinstance(eff, EffectSet):
+            eff.validated(where="cells.effects")
+            mask, rows = np.int32(eff.mask), eff.row()[None]
+        else:
+            raise KnitsimInputError(f"cells.effects = {effects!r}: expected one EffectSet (knitsim.cell.effects) "
+                                    "or an array of them, one per cell")
         cols = {"B": f["B"], "d": f["d"], "L": f["L"], "W0": f["W0"], "C0": f["C0"], "m": f["m"], "phi0": f["phi0"],
                 "sigma": f["dahl_sigma"], "cap": f["force_cap_N"], "djam": djam,
                 "friction": codes["friction"], "unloading": codes["unloading_rule"],
                 "reload": codes["reload_rule"], "criterion": codes["jamming_criterion"],
-                "effect_mask": np.int32(eff.mask)}
+                "effect_mask": mask}
         host = {k: (v if np.ndim(v) == 0 else _compact(np.asarray(v))) for k, v in cols.items()}
         host["effects"] = eff
-        return cls(_device_arrays(cols, eff.row()[None], device), n, None, device, host)
+        return cls(_device_arrays(cols, rows, device), n, None, device, host)
 
     def _arrays(self) -> list:
         return [getattr(self, n) for n in _FLOAT_FIELDS + _INT_FIELDS]

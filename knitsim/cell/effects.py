@@ -199,3 +199,28 @@ class EffectSet:
 
 
 NO_EFFECTS = EffectSet()
+
+
+def effect_set_codes(sets: np.ndarray) -> tuple[np.ndarray, list]:
+    """An integer per element of a 1-d object array of :class:`EffectSet`, and the distinct sets in the
+    order of the codes (the order in which the elements first hold them).
+
+    Without a Python loop over the elements (10^6 cells of a patch hold a few distinct sets, often one
+    object shared by all): the elements are first told apart by the identity of their object, and only
+    the distinct objects are compared by value (two equal sets are one code).
+    """
+    flat = np.asarray(sets, dtype=object).ravel()
+    ids = np.fromiter(map(id, flat), dtype=np.int64, count=flat.size)
+    _, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
+    by_value: dict = {}
+    obj_code = np.empty(len(first), np.int64)
+    uniq: list = []
+    # the distinct objects in the order the elements first hold them: codes independent of where the
+    # objects lie in memory
+    for k in np.argsort(first, kind="stable"):
+        e = flat[first[k]]
+        if e not in by_value:
+            by_value[e] = len(uniq)
+            uniq.append(e)
+        obj_code[k] = by_value[e]
+    return obj_code[inverse.ravel()], uniq

@@ -147,18 +147,29 @@ class WarpBackend:
 
     partial_trials = True
 
-    def __init__(self, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
+    def __init__(self, grouping: "Grouping | list", device: str = "cpu", max_halvings: int = MAX_HALVINGS):
         from .. import warp_runtime
         warp_runtime.init()
         import warp as wp
 
         from ..cell.batch import CellBatchState, CellModel, CellSolver
         self.wp = wp
-        self.model = CellModel.from_params(params, device)
+        if isinstance(grouping, (list, tuple)):   # a CellParams per trial cell
+            self.model = CellModel.from_params(grouping, device)
+            c = {"C0": [p.C0 for p in grouping]}
+        else:
+            # from the groups' arrays (validated vectorised; an error names the patch cell), not from a
+            # CellParams per group: 10^6 cells in a second, not minutes
+            c = grouping.cells
+            self.model = CellModel.from_arrays(
+                c["B"], c["d"], c["L"], c["W0"], c["C0"], c["m"], c["phi0"], friction=c["friction"],
+                dahl_sigma=c["dahl_sigma"], unloading_rule=c["unloading_rule"], reload_rule=c["reload_rule"],
+                jamming_criterion=c["jamming_criterion"], force_cap_N=np.asarray(c["force_cap_N"], dtype=np.float64),
+                in_plane_width=c["in_plane_width"], effects=c["effects"], device=device, where=grouping.where)
         self.device = self.model.device
         self.n = self.model.cell_count
         self.solver = CellSolver(self.model, max_halvings)
-        self.C0 = np.array([p.C0 for p in params])
+        self.C0 = np.asarray(c["C0"], dtype=np.float64)
         self.s0 = self.model.state()
         self.s1 = CellBatchState.empty(self.n, self.device)
         self.res = CellBatchState.empty(self.n, self.device)
@@ -394,12 +405,12 @@ class ReferenceBackend:
         self.dir0 = list(saved["dir"])
 
 
-def make_backend(engine: str, params: list, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
-    """The trial-step backend of ``engine`` (``"warp"`` or ``"reference"``)."""
+def make_backend(engine: str, grouping: Grouping, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
+    """The trial-step backend of ``engine`` (``"warp"`` or ``"reference"``) for the groups' cells."""
     if engine == "warp":
-        return WarpBackend(params, device, max_halvings)
+        return WarpBackend(grouping, device, max_halvings)
     if engine == "reference":
-        return ReferenceBackend(params, max_halvings)
+        return ReferenceBackend(grouping.params, max_halvings)
     raise KnitsimInputError(f"engine = {engine!r}: expected one of warp, reference")
 
 
@@ -685,9 +696,9 @@ class PatchSolver:
                  force_tol: float = 1e-10, force_rtol: float = 1e-8, max_iterations: int = 40,
                  max_halvings: int = MAX_HALVINGS):
         self.g = grouping
-        self.backend = make_backend(engine, grouping.params, device, max_halvings)
+        self.backend = make_backend(engine, grouping, device, max_halvings)
         self.force_tol, self.force_rtol, self.max_iterations = force_tol, force_rtol, int(max_iterations)
-        self.C0 = np.array([p.C0 for p in grouping.params])
+        self.C0 = np.asarray(grouping.cells["C0"], dtype=np.float64)
         self.col = grouping.group_column
         self.n_cls = grouping.n_classes
         self.cnt = grouping.group_count.astype(np.float64)

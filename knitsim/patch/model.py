@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..cell.effects import NO_EFFECTS
+from ..cell.effects import NO_EFFECTS, effect_set_codes
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
 
@@ -58,8 +58,13 @@ class Grouping:
     ----------
     group_of_cell : ndarray of int, shape [courses, wales]
         Group solved for each cell.
-    params : list of CellParams
-        One per group.
+    cells : dict of str to ndarray, shape [n_groups]
+        The parameters of each group's cell: :data:`PARAM_NAMES` (float; NaN: no in-plane width),
+        :data:`RULE_NAMES` (objects) and ``effects`` (EffectSet objects), taken from the patch's
+        arrays without a loop over the cells; ``params`` builds the validated
+        :class:`~knitsim.cell.material.CellParams` list from them on first use.
+    rep : ndarray of int, shape [n_groups, 2]
+        (course, wale) of a cell that stands for each group (names the cell in errors).
     group_column : ndarray of int, shape [n_groups]
         Column class of each group.
     group_count : ndarray of int, shape [n_groups]
@@ -83,7 +88,8 @@ class Grouping:
     """
 
     group_of_cell: np.ndarray
-    params: list
+    cells: dict
+    rep: np.ndarray
     group_column: np.ndarray
     group_count: np.ndarray
     column_class: np.ndarray
@@ -94,7 +100,7 @@ class Grouping:
 
     def __post_init__(self):
         if self.group_wales is None:
-            object.__setattr__(self, "group_wales", np.ones(len(self.params)))
+            object.__setattr__(self, "group_wales", np.ones(self.n_groups))
         if self.class_wales is None:
             object.__setattr__(self, "class_wales", np.ones(len(self.class_rest_length)))
         if self.reference_length is None:
@@ -105,7 +111,35 @@ class Grouping:
 
     @property
     def n_groups(self) -> int:
-        return len(self.params)
+        return len(self.group_column)
+
+    def where(self, g: int) -> str:
+        """The patch cell that stands for group ``g``, as errors name it."""
+        i, j = self.rep[g]
+        return f"cell[{int(i)}, {int(j)}]"
+
+    @property
+    def d_jam(self) -> np.ndarray:
+        """In-plane jamming width of each group's cell [mm]: its in-plane width, or d where none."""
+        w = np.asarray(self.cells["in_plane_width"], dtype=np.float64)
+        return np.where(np.isnan(w), self.cells["d"], w)
+
+    @property
+    def params(self) -> list:
+        """One validated :class:`~knitsim.cell.material.CellParams` per group (built on first use:
+        10^6 cells take seconds here; the Warp engine builds its model from ``cells`` instead)."""
+        cached = self.__dict__.get("_params")
+        if cached is None:
+            c = self.cells
+            cached = []
+            for g in range(self.n_groups):
+                vals = {n: float(c[n][g]) for n in PARAM_NAMES}
+                if not np.isfinite(vals["in_plane_width"]):
+                    vals["in_plane_width"] = None
+                cached.append(CellParams(**vals, **{r: c[r][g] for r in RULE_NAMES},
+                                         effects=c["effects"][g]).validated(where=self.where(g)))
+            object.__setattr__(self, "_params", cached)
+        return cached
 
     @property
     def n_classes(self) -> int:
@@ -197,8 +231,7 @@ class PatchModel:
         eff = self.effects
         if not (isinstance(eff, np.ndarray) and eff.shape == shape):
             a = np.empty(shape, dtype=object)
-            for idx in np.ndindex(shape):
-                a[idx] = NO_EFFECTS if eff is None else eff
+            a.fill(NO_EFFECTS if eff is None else eff)
             object.__setattr__(self, "effects", a)
 
     @classmethod
@@ -255,26 +288,10 @@ class PatchModel:
                           effects=self.effects[i, j]).validated(where=f"cell[{i}, {j}]")
 
     def effect_codes(self) -> tuple[np.ndarray, list]:
-        """An integer per cell naming its effect set, and the distinct sets in the order of the codes.
-
-        Without a Python loop over the cells (a patch of 10^6 cells holds a few distinct sets, often
-        one object shared by every cell): the cells are first told apart by the identity of their
-        object, and only the distinct objects are compared by value."""
-        flat = self.effects.ravel()
-        ids = np.fromiter(map(id, flat), dtype=np.int64, count=flat.size)
-        first_ids, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
-        by_value: dict = {}
-        obj_code = np.empty(len(first), np.int64)
-        uniq: list = []
-        # distinct objects in the order the cells first hold them, so that the codes do not depend on
-        # where the objects lie in memory
-        for k in np.argsort(first, kind="stable"):
-            e = flat[first[k]]
-            if e not in by_value:
-                by_value[e] = len(uniq)
-                uniq.append(e)
-            obj_code[k] = by_value[e]
-        return obj_code[inverse].reshape(self.shape), uniq
+        """An integer per cell naming its effect set, and the distinct sets in the order of the codes
+        (:func:`~knitsim.cell.effects.effect_set_codes`, row-major)."""
+        codes, uniq = effect_set_codes(self.effects.ravel())
+        return codes.reshape(self.shape), uniq
 
     def material_codes(self) -> np.ndarray:
         """An integer per cell naming its rules and effects (equal codes: equal rules and effects)."""
@@ -308,10 +325,10 @@ class PatchModel:
         """Group identical cells (see the module docstring); ``dedup=False``: one group per cell."""
         courses, wales = self.shape
         # (an absent in-plane width, NaN, groups as one value); the wale count is part of a cell's identity
-        stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES]
-                         + [self.material_codes().astype(float), self.wale_count], axis=-1)
         counts = self.course_count
         if dedup:
+            stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES]
+                             + [self.material_codes().astype(float), self.wale_count], axis=-1)
             flat = stack.reshape(-1, stack.shape[-1])
             _, mat_id = np.unique(flat, axis=0, return_inverse=True)
             mat_id = mat_id.reshape(courses, wales)
@@ -347,18 +364,20 @@ class PatchModel:
             group_column = np.tile(np.arange(wales), courses).astype(np.int64)
             group_count = counts.ravel().astype(np.float64)
             rep = np.stack(np.unravel_index(np.arange(courses * wales), (courses, wales)), axis=1)
-        params = [self.cell(int(i), int(j)) for i, j in rep]
+        ri, rj = rep[:, 0], rep[:, 1]
+        cells = {n: np.asarray(self.fields[n], dtype=np.float64)[ri, rj] for n in PARAM_NAMES}
+        cells.update({r: self.rules[r][ri, rj] for r in RULE_NAMES})
+        cells["effects"] = self.effects[ri, rj]
         n_cls = int(column_class.max()) + 1
-        rest = np.zeros(n_cls)
-        for g, p in enumerate(params):
-            rest[group_column[g]] += group_count[g] * p.C0
-        group_wales = np.array([float(self.wale_count[i, j]) for i, j in rep])
-        first = np.array([int(np.argmax(column_class == c)) for c in range(n_cls)])
+        # (bincount adds in group order, as the loop over the groups did)
+        rest = np.bincount(group_column, weights=group_count * cells["C0"], minlength=n_cls).astype(np.float64)
+        group_wales = np.asarray(self.wale_count, dtype=np.float64)[ri, rj]
+        _, first = np.unique(column_class, return_index=True)   # the first wale column of each class
         class_wales = self.column_wales()[first]
         ref = self.gauge_length
         if ref is not None:
             # (equal to it within 1e-9, checked; exactly it for the grip strain); a pretensioned knit
             # rests shorter than the gauge length, and the solver's grip strain runs from its rest state
             rest[:] = ref if self.pretension == 0 else ref / (1.0 + self.pretension)
-        return Grouping(group_of_cell, params, group_column, group_count, column_class, rest, group_wales,
-                        class_wales, ref)
+        return Grouping(group_of_cell, cells, np.asarray(rep, np.int64), group_column, group_count, column_class,
+                        rest, group_wales, class_wales, ref)

@@ -279,7 +279,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     if all(k in arr for k in _GEOMETRY_KEYS):
         groups.update(x=arr["g_x"], W=arr["g_W"], s_AB=arr["g_s_AB"])
         # the interpenetration check of every committed state (knitsim.cell.history.HEAD_GAP_QUANTITIES)
-        groups.update(head_gap_values(arr["g_head_gap"], [p.d_jam for p in grouping.params]))
+        groups.update(head_gap_values(arr["g_head_gap"], grouping.d_jam))
     C0 = model.fields["C0"]
     info = {"engine": engine, "device": getattr(solver.backend, "device", "cpu"), "dedup": bool(dedup),
             "wales_represented": float(np.sum(col_wales)),
@@ -293,7 +293,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     return PatchHistory(grip, np.asarray(program.cycle), np.asarray(program.direction),
                         arr["force_N"], arr["force_per_wale_N"], arr["column_force_N"], arr["column_status"], arr["column_iterations"],
                         arr["column_slack_mm"], grouping.group_of_cell, groups, C0, wall, info,
-                        np.array([p.d_jam for p in grouping.params]), float(np.sum(col_rest)),
+                        grouping.d_jam, float(np.sum(col_rest)),
                         float(np.mean(col_rest)) if single_stitches else float(np.sum(col_rest) / np.sum(col_wales)),
                         group_rest)
 

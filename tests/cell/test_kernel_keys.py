@@ -76,6 +76,28 @@ def test_model_from_arrays_is_the_model_from_params(device):
         np.testing.assert_array_equal(a.values[k], b.values[k], err_msg=k)
 
 
+
+def test_model_from_arrays_takes_an_effect_set_and_an_in_plane_width_per_cell(device):
+    """Per-cell effects (an object array; two equal sets held by two objects are one material) and an
+    in-plane width with NaN where a cell has none: the same model as from_params of the same cells
+    (an independent path: one validated CellParams per cell), its parameters and its curves bit for bit."""
+    bend = EffectSet(on=("bending_hysteresis",), bend_h=0.3)
+    effects = np.array([bend, EffectSet(on=("bending_hysteresis",), bend_h=0.3), EffectSet(),
+                        EffectSet(on=("yarn_compaction",), compaction_k=10.0), bend], dtype=object)
+    width = np.array([np.nan, 0.7, np.nan, 0.62, 0.9])
+    cells = [GLASS.replace(effects=e, in_plane_width=None if np.isnan(w) else float(w)) for e, w in zip(effects, width)]
+    ma = CellModel.from_arrays(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=-0.05, force_cap_N=10.0,
+                               in_plane_width=width, effects=effects, device=device)
+    assert ma.params == cells
+    np.testing.assert_array_equal(ma.d_jam, [0.58, 0.7, 0.58, 0.62, 0.9])
+    a = run_batch(ma, PROG)
+    b = run_batch(cells, PROG, device=device)
+    for k in b.values:
+        np.testing.assert_array_equal(a.values[k], b.values[k], err_msg=k)
+    with pytest.raises(KnitsimInputError, match=r"cell\[0, 3\]\.W0 = 2\.0"):
+        CellModel.from_arrays(B=0.31, d=0.58, L=14.1, W0=[4.4, 4.4, 4.4, 2.0], C0=2.7,
+                              where=lambda i: f"cell[0, {i}]")
+
 def test_strided_history_holds_every_stride_th_row(device):
     cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(m=0.0, phi0=0.0), GLASS.replace(m=0.1)]
     full = run_batch(cells, PROG, device=device)

@@ -91,3 +91,14 @@ def test_material_codes_name_equal_rules_and_effects_alike_without_a_loop_over_c
     other = PatchModel.from_cells(changed)
     assert fingerprint(model, prog) == fingerprint(PatchModel.from_cells(cells), prog)
     assert fingerprint(model, prog) != fingerprint(other, prog)
+
+
+def test_a_bad_patch_cell_is_named_by_its_place_before_any_work():
+    """The patch's model is built from its arrays (no CellParams per cell): a cell with W0 < 4 d
+    (loops jammed at rest, Hong et al. 2002's geometry) is refused, named by its course and wale."""
+    model = PatchModel.uniform(P, 3, 4)
+    fields = {k: np.array(v, dtype=np.float64) for k, v in model.fields.items()}
+    fields["W0"][2, 1] = 2.0
+    bad = PatchModel(3, 4, fields, model.rules, model.effects)
+    with pytest.raises(KnitsimInputError, match=r"cell\[2, 1\]\.W0 = 2\.0"):
+        run_patch(bad, cycles(0.10, 0.40, 1, 0.05), dedup=False)
