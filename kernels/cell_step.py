@@ -46,8 +46,8 @@ from knitsim.cell.history import (
 )
 from knitsim.cell.quantities import Q_BETA, Q_C, Q_F, Q_L, Q_P, Q_PHI, Q_R, Q_RN, Q_S_BC, Q_T, Q_W
 from knitsim.cell.stages import (
-    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, RELOAD_RHO_SEED,
-    SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
+    EVENT_TOL, LABEL_CODES, MAX_DAHL_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, REACHED_RTOL,
+    RELOAD_RHO_SEED, SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
 )
 
 from .effects import (
@@ -114,6 +114,7 @@ _EV_RELOAD = wp.constant(EV_RELOAD)
 _EV_CONE = wp.constant(EV_CONE)
 _EVENT_TOL = wp.constant(wp.float64(EVENT_TOL))
 _PROBE_STEP = wp.constant(wp.float64(PROBE_STEP))
+_REACHED_RTOL = wp.constant(wp.float64(REACHED_RTOL))
 _ZERO_CONTACT = wp.constant(wp.float64(ZERO_CONTACT))
 _RHO_SEED = wp.constant(wp.float64(RELOAD_RHO_SEED))
 _SUBSTEP_FLOOR = wp.constant(wp.float64(SUBSTEP_FLOOR))
@@ -159,12 +160,23 @@ NEWTON_TOL = wp.constant(wp.float64(1.0e-11))
 #: NEWTON_TOL, and a solve there stalled one ulp short and was halved down to failure.
 NEWTON_TOL_STALLED = wp.constant(wp.float64(1.0e-9))
 #: the Newton runs in the chart with ln G(0) in place of R/P when G(0) (theta'_C lambda)^2 / 2, of
-#: elastica BC, is below this at its start (:func:`newton`)
-G0_CHART = wp.constant(wp.float64(1.0e-2))
+#: elastica BC, is below this (and below cos(alpha - gamma), where the chart is one to one) at its start
+#: (:func:`newton`).  1e-2 until the stick stages' crawl was traced: a reload SF+ with Rn frozen at
+#: G(0) ~ 0.05 took 22 iterations for a sub-step of 0.007 mm, its line search accepting steps of 1/32 to
+#: 1/64 (the L residual of the full step 60 times that of the start); with 0.5, 3.7 iterations a solve on
+#: the same cells, results within 3e-11 N (300 random cells x 3 cycles)
+G0_CHART = wp.constant(wp.float64(0.5))
 #: at most this many events located per increment (as the reference)
 MAX_EVENT_LOOPS = wp.constant(12)
 #: guard on the sub-steps of one increment (the reference has none; it is never reached in practice)
 MAX_SUBSTEPS = wp.constant(4096)
+#: status of :func:`newton_first` when its first Newton step is longer than asked (no iteration taken)
+STATUS_STEP_LONG = wp.constant(100)
+#: a sub-step's trial solve is not attempted when the first Newton step from the sub-step's converged start
+#: (the branch's tangent times the sub-step) is longer than this in the Newton variables (max norm): the
+#: sub-step is first shortened so that the step is about PREDICTED_STEP_TARGET (below, :func:`advance_cell`)
+PREDICTED_STEP_MAX = wp.constant(wp.float64(0.1))
+PREDICTED_STEP_TARGET = wp.constant(wp.float64(0.05))
 
 
 # ------------------------------------------------------------------ material
@@ -525,6 +537,14 @@ def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
 
 @wp.func
 def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
+    """:func:`newton_first` without a bound on its first step: returns (z, q, status)."""
+    z, q, st, first = newton_first(z0, codes, targets, dp, B, d, wp.float64(0.0))
+    return z, q, st
+
+
+@wp.func
+def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
+                 max_first: wp.float64):
     """Per-cell Newton (the method of kernels.inverse.solve_conditions_kernel, in the
     variables z = (ln(alpha - gamma), beta, R/P, phi, ln P)).
 
@@ -541,10 +561,17 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
     Each step is damped (|dz_i| <= 1, angle steps <= 0.3 rad) and backtracked (Armijo on |r|^2),
     the backtracking starting from 4 times the step length accepted last (at most 1).
 
-    Returns (z, q, status): the solution (or last admissible iterate) in the variables z, all
-    quantities at it, and an inverse status code (0 converged).
+    With ``max_first > 0`` the solve stops before its first step when that step is longer than
+    ``max_first`` (max norm of dz, before damping), with status STATUS_STEP_LONG, z0 and the step's
+    length: from a converged state of the same conditions that step is the branch's tangent times the
+    change of the driving condition, so its length predicts whether the step can converge at once.
+
+    Returns (z, q, status, first): the solution (or last admissible iterate) in the variables z, all
+    quantities at it, an inverse status code (0 converged), and the first step's length where the
+    solve stopped for it (else 0).
     """
     st = int(STATUS_MAX_ITER)
+    first = wp.float64(0.0)
     z = z0
     q = vecQd()
     if not zr_admissible(z0):
@@ -579,6 +606,10 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                     st = int(STATUS_SINGULAR)
                     break
                 mx = max_abs5(dz)
+                if n == 0 and max_first > wp.float64(0.0) and mx > max_first:
+                    st = int(STATUS_STEP_LONG)
+                    first = mx
+                    break
                 if mx > _MAX_DZ:
                     dz = dz * (_MAX_DZ / mx)
                 # keep the angle steps moderate, as the reference does: the map is only locally smooth
@@ -626,7 +657,7 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
                         st = int(STATUS_MAX_ITER)
                     break
         z = zr
-    return z, q, st
+    return z, q, st, first
 
 
 @wp.func
@@ -756,6 +787,11 @@ def phi_edge(q: vecQd, mat: Material) -> wp.float64:
 @wp.func
 def is_loading(stage: int) -> wp.bool:
     return stage == SF_LOAD or stage == S_LOAD
+
+
+@wp.func
+def is_sliding(stage: int) -> wp.bool:
+    return stage == S_LOAD or stage == S_UNLOAD
 
 
 @wp.func
@@ -1025,9 +1061,20 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
                        mat: Material, C_from: wp.float64, C_goal: wp.float64):
     """solve_coulomb at C_goal; if Newton fails from x, walk there in 4 sub-steps (guesses only:
     the result is the same equilibrium at C_goal, events are still judged on the endpoints)."""
-    xt, qt, ok = solve_coulomb(x, stage, jammed, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0))
-    good = bool(ok)
-    if not good:
+    xt, qt, ok, first = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, mat, C_from, C_goal, wp.float64(0.0))
+    return xt, qt, ok
+
+
+@wp.func
+def solve_coulomb_trial(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                        mat: Material, C_from: wp.float64, C_goal: wp.float64, max_first: wp.float64):
+    """:func:`solve_coulomb_cont` from the converged state x at C_from, not attempted when its first Newton step
+    is longer than ``max_first`` (> 0; :func:`newton_first`): returns (x_t, q_t, ok, first), ``first`` that
+    step's length where the solve was not attempted, else 0."""
+    codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C_goal)
+    xt, qt, st, first = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C_goal), mat.d, max_first)
+    good = st == STATUS_CONVERGED
+    if not good and st != STATUS_STEP_LONG:
         xx = x
         good = bool(True)
         for k in range(1, 5):
@@ -1036,7 +1083,7 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
                 xx, qt, okk = solve_coulomb(xx, stage, jammed, soft, fs, fsbc, mat, Ck, -1, wp.float64(0.0))
                 good = bool(okk)
         xt = xx
-    return xt, qt, good
+    return xt, qt, good, first
 
 
 @wp.func
@@ -1618,8 +1665,8 @@ def advance_cell(
 
     # --- slack: no load until the imposed C returns to where the cell went slack
     if go and stage == SLACK:
-        if C_target <= C:
-            go = False
+        if C_target - C <= _REACHED_RTOL * C_target:
+            go = False  # asked for no more than its slack length (to rounding): it stays slack
         else:
             stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
             x = seed_contact(x)
@@ -1643,7 +1690,7 @@ def advance_cell(
         n_located = int(0)
         for guard in range(MAX_SUBSTEPS):
             C_from = C
-            if wp.abs(C_target - C_from) <= wp.float64(1.0e-15) * C_target:
+            if wp.abs(C_target - C_from) <= _REACHED_RTOL * C_target:
                 break
             if wp.abs(step) > wp.abs(C_target - C_from):
                 step = C_target - C_from
@@ -1663,7 +1710,20 @@ def advance_cell(
                     kind0, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
                 n_located += 1
                 continue
-            xt, qt, ok = solve_coulomb_cont(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal)
+            # the branch's tangent bounds the sub-step: a trial whose first Newton step is long would crawl
+            # (the line search accepts steps of 1/16 to 1/64) or fail after NEWTON_MAX_ITER iterations
+            # where the branch turns fast (the S+ -> SF- reversal, R/P -> 0.05 within 0.01 mm); it is
+            # shortened at once to a step the tangent predicts at PREDICTED_STEP_TARGET, which is not a failure
+            pred = PREDICTED_STEP_MAX
+            if is_sliding(stage) or jammed != 0 or no_contact(q) or wp.abs(step) <= wp.float64(4.0) * _SUBSTEP_FLOOR * matg.C0:
+                pred = wp.float64(0.0)
+            xt, qt, ok, first = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
+            if first > wp.float64(0.0):
+                short = step * wp.max(PREDICTED_STEP_TARGET / first, wp.float64(1.0 / 1024.0))
+                if wp.abs(short) < wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0:
+                    short = wp.sign(step) * wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0
+                step = short
+                continue
             if not ok and jammed != 0 and not is_loading(stage):
                 # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
                 if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):

@@ -63,8 +63,8 @@ from .material import CellParams
 from .quantities import UNKNOWN_NAMES
 from ..errors import KnitsimInputError
 from .stages import (
-    EVENT_TOL, MAX_DAHL_HALVINGS, MAX_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, RELOAD_RHO_SEED,
-    STICK_CLOSURES, SUBSTEP_FLOOR, ZERO_CONTACT, Stage, stage_label,
+    EVENT_TOL, MAX_DAHL_HALVINGS, MAX_HALVINGS, OPENING_BISECTIONS, OPENING_XTOL, PROBE_STEP, REACHED_RTOL,
+    RELOAD_RHO_SEED, STICK_CLOSURES, SUBSTEP_FLOOR, ZERO_CONTACT, Stage, stage_label,
 )
 
 from .history import (  # noqa: E402  (re-exported)
@@ -556,7 +556,7 @@ class CellCycle:
         if st.status != STATUS_OK:
             return st
         if st.stage is Stage.SLACK:
-            if C_target <= st.C:
+            if C_target - st.C <= REACHED_RTOL * C_target:
                 return st
             self.reverse(st, +1)
             st.x = _seed_contact(st.x, st.q)
@@ -566,7 +566,7 @@ class CellCycle:
         n_events = 0
         while True:
             C_from = st.C
-            if abs(C_target - C_from) <= 1e-15 * C_target:
+            if abs(C_target - C_from) <= REACHED_RTOL * C_target:
                 return st
             if abs(step) > abs(C_target - C_from):
                 step = C_target - C_from

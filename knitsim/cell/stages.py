@@ -223,6 +223,9 @@ STICK_CLOSURES = ("release_beta", "table4")
 #: an event function within EVENT_TOL (rad, or times d for W, or N for F) of zero at the
 #: start of a sub-step counts as satisfied there: the event happens at the start
 EVENT_TOL = 1.0e-9
+#: an imposed course length within this fraction of the cell's own C is reached (rounding): the
+#: sub-steps stop there, and a slack cell asked for no more than its slack length stays slack
+REACHED_RTOL = 1.0e-15
 #: probe step (times C0) that decides whether a ``cone`` event at zero at the start happens there
 PROBE_STEP = 1.0e-6
 #: shortest sub-step (times C0) that a failed solve is halved to before the cell is flagged
