@@ -177,6 +177,10 @@ STATUS_STEP_LONG = wp.constant(100)
 #: sub-step is first shortened so that the step is about PREDICTED_STEP_TARGET (below, :func:`advance_cell`)
 PREDICTED_STEP_MAX = wp.constant(wp.float64(0.1))
 PREDICTED_STEP_TARGET = wp.constant(wp.float64(0.05))
+#: a Dahl stick trial whose first Newton step is longer than this is not solved where the step moves phi
+#: by more than DAHL_SIGN_DPHI [rad]: the step's sign of phi is the slip direction (:func:`dahl_sign`)
+DAHL_SIGN_STEP = wp.constant(wp.float64(0.1))
+DAHL_SIGN_DPHI = wp.constant(wp.float64(1.0e-3))
 
 
 # ------------------------------------------------------------------ material
@@ -538,7 +542,7 @@ def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
 @wp.func
 def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
     """:func:`newton_first` without a bound on its first step: returns (z, q, status)."""
-    z, q, st, first = newton_first(z0, codes, targets, dp, B, d, wp.float64(0.0))
+    z, q, st, step0 = newton_first(z0, codes, targets, dp, B, d, wp.float64(0.0))
     return z, q, st
 
 
@@ -562,16 +566,16 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
     the backtracking starting from 4 times the step length accepted last (at most 1).
 
     With ``max_first > 0`` the solve stops before its first step when that step is longer than
-    ``max_first`` (max norm of dz, before damping), with status STATUS_STEP_LONG, z0 and the step's
-    length: from a converged state of the same conditions that step is the branch's tangent times the
-    change of the driving condition, so its length predicts whether the step can converge at once.
+    ``max_first`` (max norm of dz, before damping), with status STATUS_STEP_LONG, z0 and the step: from
+    a converged state of the same conditions that step is the branch's tangent times the change of
+    the driving condition, so it predicts where the branch goes and whether the step can converge at once.
 
-    Returns (z, q, status, first): the solution (or last admissible iterate) in the variables z, all
-    quantities at it, an inverse status code (0 converged), and the first step's length where the
-    solve stopped for it (else 0).
+    Returns (z, q, status, step0): the solution (or last admissible iterate) in the variables z, all
+    quantities at it, an inverse status code (0 converged), and the first step (in the chart's
+    variables; z[3] = phi in both) where the solve stopped for it (else zero).
     """
     st = int(STATUS_MAX_ITER)
-    first = wp.float64(0.0)
+    step0 = vec5d()
     z = z0
     q = vecQd()
     if not zr_admissible(z0):
@@ -608,7 +612,7 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
                 mx = max_abs5(dz)
                 if n == 0 and max_first > wp.float64(0.0) and mx > max_first:
                     st = int(STATUS_STEP_LONG)
-                    first = mx
+                    step0 = dz
                     break
                 if mx > _MAX_DZ:
                     dz = dz * (_MAX_DZ / mx)
@@ -657,7 +661,7 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
                         st = int(STATUS_MAX_ITER)
                     break
         z = zr
-    return z, q, st, first
+    return z, q, st, step0
 
 
 @wp.func
@@ -1072,7 +1076,8 @@ def solve_coulomb_trial(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.flo
     is longer than ``max_first`` (> 0; :func:`newton_first`): returns (x_t, q_t, ok, first), ``first`` that
     step's length where the solve was not attempted, else 0."""
     codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C_goal)
-    xt, qt, st, first = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C_goal), mat.d, max_first)
+    xt, qt, st, step0 = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C_goal), mat.d, max_first)
+    first = max_abs5(step0)
     good = st == STATUS_CONVERGED
     if not good and st != STATUS_STEP_LONG:
         xx = x
@@ -1212,18 +1217,37 @@ def branch_sign_change(x: vec5d, q: vecQd, stage: int, jammed: int, soft: int, f
 
 
 @wp.func
-def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
-    """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it)."""
+def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64,
+              predict: wp.bool):
+    """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it).
+
+    With ``predict`` (x a converged state of these conditions, q_old its quantities) a stick trial whose
+    first Newton step is long (above DAHL_SIGN_STEP: the stick branch leaves the cone far behind, where
+    its Newton crawled for 40-60 iterations and failed, the increment then halved) is not solved: its
+    first step is the stick branch's tangent times the change of C, and where that moves phi by more than
+    DAHL_SIGN_DPHI the sign of tan(phi_stick) - tan(phi_old) is the sign of that change (tan is monotone;
+    only a turn of phi along the stick branch within the increment could undo it).  Returns the start
+    itself as the stick state then.  Returns (s, x_stick, q_stick, ok, solved)."""
     codes, tg = stage_conditions(SF_LOAD, jammed, soft, fs, q_old[Q_S_BC], mat, C)
     codes[2] = Q_S_BC
-    xs, qs, st = newton(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d)
+    bound = wp.float64(0.0)
+    if predict:
+        bound = DAHL_SIGN_STEP
+    xs, qs, st, step0 = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d, bound)
+    if st == STATUS_STEP_LONG:
+        if wp.abs(step0[3]) > DAHL_SIGN_DPHI:
+            s = wp.float64(1.0)
+            if step0[3] < wp.float64(0.0):
+                s = wp.float64(-1.0)
+            return s, x, q_old, True, False
+        xs, qs, st = newton(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d)
     r0 = wp.tan(qs[Q_PHI]) - wp.tan(q_old[Q_PHI])
     s = wp.float64(1.0)
     if r0 < wp.float64(0.0):
         s = wp.float64(-1.0)
     elif r0 == wp.float64(0.0):
         s = wp.float64(0.0)
-    return s, xs, qs, st == STATUS_CONVERGED
+    return s, xs, qs, st == STATUS_CONVERGED, True
 
 
 @wp.func
@@ -1254,16 +1278,18 @@ def solve_dahl(x: vec5d, q_old: vecQd, s: wp.float64, jammed: int, soft: int, fs
 
 
 @wp.func
-def solve_dahl_at(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64):
-    """Dahl increment from q_old to C: stick trial for the slip direction, then the Dahl solve.
+def solve_dahl_at(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, mat: Material, C: wp.float64,
+                  predict: wp.bool):
+    """Dahl increment from q_old to C: stick trial for the slip direction (``predict``: see
+    :func:`dahl_sign`), then the Dahl solve (from the stick state, else from x).
 
     Returns (x, q, s, ok)."""
-    s, xs, qs, ok = dahl_sign(x, q_old, jammed, soft, fs, mat, C)
+    s, xs, qs, ok, solved = dahl_sign(x, q_old, jammed, soft, fs, mat, C, predict)
     xn = xs
     qn = qs
     if ok and s != wp.float64(0.0):
         xn, qn, ok = solve_dahl(xs, q_old, s, jammed, soft, fs, mat, C, -1, wp.float64(0.0))
-        if not ok:
+        if not ok and solved:
             xn, qn, ok = solve_dahl(x, q_old, s, jammed, soft, fs, mat, C, -1, wp.float64(0.0))
     return xn, qn, s, ok
 
@@ -1871,6 +1897,10 @@ def advance_cell(
         matg = mat
         n_ev0 = n_ev
         nsub = int(1)
+        # the slip direction predicted from the stick branch's tangent (dahl_sign) only without effects: with
+        # a lagged friction ratio or stiffness the Dahl path depends on how the increment is split, hence on
+        # which solves fail, and a Dahl solve started from the state instead of the stick trial fails elsewhere
+        dahl_predict = not with_effects
         done = bool(False)
         for attempt in range(wp.min(max_halvings, _MAX_DAHL_HALVINGS) + 1):
             if not done:
@@ -1891,7 +1921,7 @@ def advance_cell(
                             matg = blend_material(mat_old, mat, wp.float64(k) / wp.float64(nsub))
                         for loop in range(MAX_EVENT_LOOPS):
                             if not failed:
-                                xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, matg, Ck)
+                                xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, matg, Ck, dahl_predict and tjam == 0)
                                 if not ok:
                                     failed = True
                                     break
@@ -1930,7 +1960,7 @@ def advance_cell(
                                     break
                                 # unjam (active set): the reference applies it at the target itself
                                 if tjam != 0 and not is_loading(tstage):
-                                    xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck)
+                                    xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck, False)
                                     if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
                                         if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
                                             best_kind = int(_EV_UNJAM)
