@@ -125,6 +125,22 @@ def test_strided_history_holds_every_stride_th_row(device):
     np.testing.assert_array_equal(hist3.q.numpy(), q)
 
 
+def test_run_batch_sorted_by_stage_is_the_plain_run(device):
+    """run_batch's GPU default (one launch per increment, cells sorted by stage) on any device: the same
+    rows, statuses and events, in the caller's order (each cell reads and writes only its own rows)."""
+    cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(m=0.0, phi0=0.0), GLASS.replace(m=0.1),
+             GLASS.replace(friction="dahl", dahl_sigma=30.0), GLASS.replace(unloading_rule="hong_constant_t")]
+    plain = run_batch(cells, PROG, device=device, sort_by_stage=False)
+    done = []
+    sorted_ = run_batch(cells, PROG, device=device, sort_by_stage=True, progress=lambda k, n: done.append(k))
+    assert done[-1] == len(PROG)
+    for name, v in plain.values.items():
+        np.testing.assert_array_equal(sorted_.values[name], v, err_msg=name)
+    np.testing.assert_array_equal(sorted_.stage, plain.stage)
+    np.testing.assert_array_equal(sorted_.status, plain.status)
+    assert sorted_.events == plain.events
+
+
 @pytest.mark.parametrize("kw, message", [
     (dict(m=[0.1, -0.2, 0.1]), r"cells\[1\]\.m = -0\.2"),
     (dict(phi0=[0.0, 0.0, 0.5]), r"cells\[2\]\.phi0"),
