@@ -11,7 +11,10 @@ One thread advances one cell by one load increment:
 2. *trial solve* of the stage's four conditions at the target course length
    (:func:`stage_conditions`, the table of :mod:`knitsim.cell.stages`); a failed
    solve is retried on a halved sub-step, down to SUBSTEP_FLOOR C0 (at most
-   ``max_halvings`` halvings in a row: :func:`may_halve`);
+   ``max_halvings`` halvings in a row: :func:`may_halve`); a stick sub-step whose
+   first Newton step (the branch's tangent times the sub-step) is long is shortened
+   before it is tried (PREDICTED_STEP_MAX; the reference only halves: the same
+   equilibria and events, reached along another partition);
 3. *events* (slide, jam, unjam, slack, force_cap, cone) that fire inside the
    increment are *located* by swapping the driving condition C for the event
    condition (phi = +/-phimax, W = 4d, F = 0, F = cap) and solving with C free
