@@ -5,7 +5,7 @@ The other version is a file, e.g. main before a change::
 
     git show 4254f5d:kernels/cell_step.py > /tmp/cell_step_base.py
     python benchmarks/bench_kernel_ab.py /tmp/cell_step_base.py --device cpu --cells 2000 --increments 0
-    python benchmarks/bench_kernel_ab.py /tmp/cell_step_base.py --device cuda --cells 1000000 --increments 62
+    python benchmarks/bench_kernel_ab.py /tmp/cell_step_base.py --device cuda --cells 1000000 --increments 62 --stride 10
 
 It is loaded once per kernel key as its own module (as :func:`knitsim.kernels.specialise.cell_step_module`
 loads the installed file), so it must keep the installed file's kernel signatures.  Cells: the random
@@ -47,6 +47,9 @@ def main() -> None:
     ap.add_argument("--cells", type=int, default=300)
     ap.add_argument("--increments", type=int, default=62, help="first K increments of the 3 cycles (0: all 310)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--stride", type=int, default=1,
+                    help="rows recorded (and compared) every STRIDE increments: 11 quantities x 8 bytes per cell and "
+                         "row, twice (5.5 GB a version at 10^6 cells x 62 rows)")
     a = ap.parse_args()
 
     from knitsim import warp_runtime
@@ -68,7 +71,7 @@ def main() -> None:
         state = model.state()
         wp.synchronize_device(dev)
         t, c = time.perf_counter(), time.process_time()
-        hist = solver.run_program(state, prog, stride=1)
+        hist = solver.run_program(state, prog, stride=a.stride)
         wp.synchronize_device(dev)
         wall, cpu = time.perf_counter() - t, time.process_time() - c
         status = np.bincount(state.status.numpy(), minlength=4).tolist()

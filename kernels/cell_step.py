@@ -180,9 +180,8 @@ STATUS_STEP_LONG = wp.constant(100)
 #: sub-step is first shortened so that the step is about PREDICTED_STEP_TARGET (below, :func:`advance_cell`)
 PREDICTED_STEP_MAX = wp.constant(wp.float64(0.1))
 PREDICTED_STEP_TARGET = wp.constant(wp.float64(0.05))
-#: a Dahl stick trial whose first Newton step is longer than this is not solved where the step moves phi
-#: by more than DAHL_SIGN_DPHI [rad]: the step's sign of phi is the slip direction (:func:`dahl_sign`)
-DAHL_SIGN_STEP = wp.constant(wp.float64(0.1))
+#: a Dahl stick trial whose first Newton step is longer than PREDICTED_STEP_MAX is not solved where the step
+#: moves phi by more than this [rad]: the step's sign of phi is the slip direction (:func:`dahl_sign`)
 DAHL_SIGN_DPHI = wp.constant(wp.float64(1.0e-3))
 
 
@@ -809,7 +808,7 @@ def stage_label(stage: int, jammed: int) -> int:
         lbl = int(LBL_SLACK)
     elif jammed != 0:
         lbl = int(LBL_JAMMING)
-    elif stage == S_LOAD or stage == S_UNLOAD:
+    elif is_sliding(stage):
         lbl = int(LBL_SLIDING)
     return lbl
 
@@ -1052,15 +1051,24 @@ def bending_fixed_point(x: vec5d, q: vecQd, st: int, codes: wp.vec4i, tg: vec4d,
 def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
                   mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64):
     """Equilibrium of a Coulomb stage at C (or, with ev_code >= 0, at the event condition, C free)."""
+    xn, qn, st, step0 = solve_coulomb_first(x, stage, jammed, soft, fs, fsbc, mat, C, ev_code, ev_target,
+                                            wp.float64(0.0))
+    return xn, qn, st == STATUS_CONVERGED
+
+
+@wp.func
+def solve_coulomb_first(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                        mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64, max_first: wp.float64):
+    """:func:`solve_coulomb` through :func:`newton_first`: returns (x, q, status, step0)."""
     codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C)
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
     dp = effect_params(mat)
-    xn, qn, st = newton(x, codes, tg, dp, stiffness_at(mat, C), mat.d)
+    xn, qn, st, step0 = newton_first(x, codes, tg, dp, stiffness_at(mat, C), mat.d, max_first)
     if ev_code >= 0 and bends(mat):
         xn, qn, st = bending_fixed_point(xn, qn, st, codes, tg, dp, C, mat)
-    return xn, qn, st == STATUS_CONVERGED
+    return xn, qn, st, step0
 
 
 @wp.func
@@ -1078,8 +1086,8 @@ def solve_coulomb_trial(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.flo
     """:func:`solve_coulomb_cont` from the converged state x at C_from, not attempted when its first Newton step
     is longer than ``max_first`` (> 0; :func:`newton_first`): returns (x_t, q_t, ok, step0), ``step0`` that
     step where the solve was not attempted, else zero."""
-    codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C_goal)
-    xt, qt, st, step0 = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C_goal), mat.d, max_first)
+    xt, qt, st, step0 = solve_coulomb_first(x, stage, jammed, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0),
+                                            max_first)
     good = st == STATUS_CONVERGED
     if not good and st != STATUS_STEP_LONG:
         xx = x
@@ -1262,7 +1270,7 @@ def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, ma
     """Stick trial (s_BC frozen at its old value) at C: slip direction s (0: stick solves it).
 
     With ``predict`` (x a converged state of these conditions, q_old its quantities) a stick trial whose
-    first Newton step is long (above DAHL_SIGN_STEP: the stick branch leaves the cone far behind, where
+    first Newton step is long (above PREDICTED_STEP_MAX: the stick branch leaves the cone far behind, where
     its Newton crawled for 40-60 iterations and failed, the increment then halved) is not solved: its
     first step is the stick branch's tangent times the change of C, and where that moves phi by more than
     DAHL_SIGN_DPHI the sign of tan(phi_stick) - tan(phi_old) is the sign of that change (tan is monotone;
@@ -1272,7 +1280,7 @@ def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, ma
     codes[2] = Q_S_BC
     bound = wp.float64(0.0)
     if predict:
-        bound = DAHL_SIGN_STEP
+        bound = PREDICTED_STEP_MAX
     xs, qs, st, step0 = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d, bound)
     if st == STATUS_STEP_LONG:
         if wp.abs(step0[3]) > DAHL_SIGN_DPHI:
@@ -1785,156 +1793,150 @@ def advance_cell(
                 pred = wp.float64(0.0)
             xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
             first = max_abs5(step0)
-            if first > wp.float64(0.0):
-                found, xe, qe = slide_predicted(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, step0)
-                if found:
-                    failures = 0
-                    x = xe
-                    q = qe
-                    C = qe[Q_C]
-                    stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                        _EV_SLIDE, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
-                    if status != ST_OK or stage == SLACK:
-                        break
-                    n_located += 1
-                    if n_located >= MAX_EVENT_LOOPS:
-                        break
-                    step = C_target - C
-                    continue
-                short = step * wp.max(PREDICTED_STEP_TARGET / first, wp.float64(1.0 / 1024.0))
-                if wp.abs(short) < wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0:
-                    short = wp.sign(step) * wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0
-                step = short
-                continue
-            if not ok and jammed != 0 and not is_loading(stage):
-                # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
-                if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
-                    stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                        _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
-                    n_located += 1
-                    continue
-            if not ok:
-                failures += 1
-                if not may_halve(failures, step, max_halvings, matg):
-                    status = int(ST_NO_CONV)
-                    break
-                step = step * wp.float64(0.5)
-                continue
-            opened = bool(False)
-            if not is_loading(stage) and qt[Q_RN] < wp.float64(0.0):
-                # the trial end pulls: the contact opened inside the sub-step (the branch went through
-                # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
-                # every event is judged on that part of the branch (CellCycle.advance)
-                opened = True
-                xt, qt, C_goal = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_RN,
-                                                     wp.float64(0.0), wp.float64(1.0))
-            # events fired inside the increment
+            # the nearest event of the sub-step, committed below
             best_kind = int(-1)
             best_C = wp.float64(0.0)
             best_x = x
             best_q = q
-            any_fired = bool(False)
-            for kind in range(8):
-                # the slack of a sub-step that ends where its contact opens is decided below
-                if locatable(kind) and event_active(kind, stage, jammed, soft, matg) and not (opened and kind == _EV_SLACK):
-                    f0 = event_value(kind, x, q, stage, matg)
-                    f1 = event_value(kind, xt, qt, stage, matg)
-                    tol = event_tol(kind, matg)
-                    if f1 > wp.float64(0.0) and f0 <= tol:
+            if first > wp.float64(0.0):
+                found, xe, qe = slide_predicted(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, step0)
+                if not found:
+                    short = step * wp.max(PREDICTED_STEP_TARGET / first, wp.float64(1.0 / 1024.0))
+                    if wp.abs(short) < wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0:
+                        short = wp.sign(step) * wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0
+                    step = short
+                    continue
+                # the slide, located directly: no trial
+                best_kind = int(_EV_SLIDE)
+                best_C = qe[Q_C]
+                best_x = xe
+                best_q = qe
+            if best_kind < 0:
+                if not ok and jammed != 0 and not is_loading(stage):
+                    # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
+                    if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
+                        stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                            _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                        n_located += 1
+                        continue
+                if not ok:
+                    failures += 1
+                    if not may_halve(failures, step, max_halvings, matg):
+                        status = int(ST_NO_CONV)
+                        break
+                    step = step * wp.float64(0.5)
+                    continue
+                opened = bool(False)
+                if not is_loading(stage) and qt[Q_RN] < wp.float64(0.0):
+                    # the trial end pulls: the contact opened inside the sub-step (the branch went through
+                    # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
+                    # every event is judged on that part of the branch (CellCycle.advance)
+                    opened = True
+                    xt, qt, C_goal = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_RN,
+                                                         wp.float64(0.0), wp.float64(1.0))
+                # events fired inside the increment
+                any_fired = bool(False)
+                for kind in range(8):
+                    # the slack of a sub-step that ends where its contact opens is decided below
+                    if locatable(kind) and event_active(kind, stage, jammed, soft, matg) and not (opened and kind == _EV_SLACK):
+                        f0 = event_value(kind, x, q, stage, matg)
+                        f1 = event_value(kind, xt, qt, stage, matg)
+                        tol = event_tol(kind, matg)
+                        if f1 > wp.float64(0.0) and f0 <= tol:
+                            any_fired = True
+                            xe = x
+                            qe = q
+                            oke = bool(True)
+                            if f0 < -tol and no_contact(q):
+                                # phi is undetermined at a zero-contact start: judge the event on
+                                # a probe step (the new branch's limit); if it holds there, or the
+                                # probe fails, the event happens at the start
+                                hp = _PROBE_STEP * matg.C0
+                                if C_goal < C_from:
+                                    hp = -hp
+                                xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
+                                if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
+                                    f0 = wp.float64(0.0)
+                            if f0 < -tol:
+                                code, etg = event_condition_at(kind, stage, matg, qt)
+                                xg = lerp5(x, xt, interp_t(f0, f1))
+                                xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
+                                if not oke:
+                                    xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
+                            elif kind == _EV_CONE and not no_contact(q):
+                                # zero at the start, but cone_at_start's probe stayed inside the cone: the
+                                # branch dips into the cone and leaves it further on, located by bisection
+                                # on the sign of phimax - phi (CellCycle._locate)
+                                xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
+                                                                cone_which(matg), matg.phimax, wp.float64(-1.0))
+                                oke = Ce != C_from
+                            # else: already satisfied at the start of the sub-step, it happens there
+                            if oke and in_range(qe[Q_C], C_from, C_goal):
+                                if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
+                                    best_kind = kind
+                                    best_C = qe[Q_C]
+                                    best_x = xe
+                                    best_q = qe
+                # active set while unloading jammed: the unjammed branch at the target (walked there
+                # from the start when Newton fails from it; where it has no solution, the cell stays
+                # jammed: CellCycle._try_unjam)
+                if jammed != 0 and not is_loading(stage):
+                    xu, qu, oku = solve_coulomb_cont(x, stage, 0, soft, fs, fsbc, matg, C_from, C_goal)
+                    if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
                         any_fired = True
+                        # the unjammed branch at the start: at the reversal from a jammed
+                        # state it passes through the jammed state itself (event at the start)
+                        xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_from, -1, wp.float64(0.0))
                         xe = x
                         qe = q
                         oke = bool(True)
-                        if f0 < -tol and no_contact(q):
-                            # phi is undetermined at a zero-contact start: judge the event on
-                            # a probe step (the new branch's limit); if it holds there, or the
-                            # probe fails, the event happens at the start
-                            hp = _PROBE_STEP * matg.C0
-                            if C_goal < C_from:
-                                hp = -hp
-                            xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
-                            if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
-                                f0 = wp.float64(0.0)
-                        if f0 < -tol:
-                            code, etg = event_condition_at(kind, stage, matg, qt)
-                            xg = lerp5(x, xt, interp_t(f0, f1))
-                            xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
-                            if not oke:
-                                xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
-                        elif kind == _EV_CONE and not no_contact(q):
-                            # zero at the start, but cone_at_start's probe stayed inside the cone: the
-                            # branch dips into the cone and leaves it further on, located by bisection
-                            # on the sign of phimax - phi (CellCycle._locate)
-                            xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
-                                                            cone_which(matg), matg.phimax, wp.float64(-1.0))
-                            oke = Ce != C_from
-                        # else: already satisfied at the start of the sub-step, it happens there
+                        if not (oka and jam_clearance(xa, qa, matg) >= -event_tol(_EV_UNJAM, matg)):
+                            xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), jam_target(matg))
                         if oke and in_range(qe[Q_C], C_from, C_goal):
                             if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
-                                best_kind = kind
+                                best_kind = int(_EV_UNJAM)
                                 best_C = qe[Q_C]
                                 best_x = xe
                                 best_q = qe
-            # active set while unloading jammed: the unjammed branch at the target (walked there
-            # from the start when Newton fails from it; where it has no solution, the cell stays
-            # jammed: CellCycle._try_unjam)
-            if jammed != 0 and not is_loading(stage):
-                xu, qu, oku = solve_coulomb_cont(x, stage, 0, soft, fs, fsbc, matg, C_from, C_goal)
-                if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
+                if opened:
+                    # slack on the part of the branch before the opening (CellCycle.advance): eq 7,
+                    # F = -2 R cos(beta + phi), with R -> 0+ there; where cos(beta + phi) > 0 at the opening, F
+                    # is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a regular zero):
+                    # bisection on its sign; else the cell goes slack where the contact opens, if R -> 0 there
+                    # (the friction angle inside the cone); else (Rn -> 0 with a tangential force left and no
+                    # cone or slide event) the sub-step is halved
                     any_fired = True
-                    # the unjammed branch at the start: at the reversal from a jammed
-                    # state it passes through the jammed state itself (event at the start)
-                    xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_from, -1, wp.float64(0.0))
-                    xe = x
-                    qe = q
-                    oke = bool(True)
-                    if not (oka and jam_clearance(xa, qa, matg) >= -event_tol(_EV_UNJAM, matg)):
-                        xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), jam_target(matg))
-                    if oke and in_range(qe[Q_C], C_from, C_goal):
-                        if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
-                            best_kind = int(_EV_UNJAM)
-                            best_C = qe[Q_C]
-                            best_x = xe
-                            best_q = qe
-            if opened:
-                # slack on the part of the branch before the opening (CellCycle.advance): eq 7,
-                # F = -2 R cos(beta + phi), with R -> 0+ there; where cos(beta + phi) > 0 at the opening, F
-                # is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a regular zero):
-                # bisection on its sign; else the cell goes slack where the contact opens, if R -> 0 there
-                # (the friction angle inside the cone); else (Rn -> 0 with a tangential force left and no
-                # cone or slide event) the sub-step is halved
-                any_fired = True
-                ks = int(-1)
-                xs = xt
-                qs = qt
-                C_slack = C_goal
-                if wp.cos(qt[Q_BETA] + qt[Q_PHI]) > wp.float64(0.0) and q[Q_F] > wp.float64(0.0):
-                    xs, qs, C_slack = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_F,
-                                                        wp.float64(0.0), wp.float64(1.0))
-                    ks = int(_EV_SLACK)
-                elif no_contact(qt):
-                    ks = int(_EV_SLACK)
-                if ks >= 0 and (best_kind < 0 or wp.abs(C_slack - C_from) < wp.abs(best_C - C_from)):
-                    best_kind = ks
-                    best_C = C_slack
-                    best_x = xs
-                    best_q = qs
-            if not any_fired:
-                failures = 0
-                x = xt
-                q = qt
-                C = C_goal
-                step = step * wp.float64(2.0)
-                continue
-            if best_kind < 0:
-                # the trial end fired an event its branch cannot reach: the solve jumped
-                # to another branch; retried on a halved sub-step (CellCycle.advance)
-                failures += 1
-                if not may_halve(failures, step, max_halvings, matg):
-                    status = int(ST_NOT_LOCATED)
-                    break
-                step = step * wp.float64(0.5)
-                continue
+                    ks = int(-1)
+                    xs = xt
+                    qs = qt
+                    C_slack = C_goal
+                    if wp.cos(qt[Q_BETA] + qt[Q_PHI]) > wp.float64(0.0) and q[Q_F] > wp.float64(0.0):
+                        xs, qs, C_slack = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_F,
+                                                            wp.float64(0.0), wp.float64(1.0))
+                        ks = int(_EV_SLACK)
+                    elif no_contact(qt):
+                        ks = int(_EV_SLACK)
+                    if ks >= 0 and (best_kind < 0 or wp.abs(C_slack - C_from) < wp.abs(best_C - C_from)):
+                        best_kind = ks
+                        best_C = C_slack
+                        best_x = xs
+                        best_q = qs
+                if not any_fired:
+                    failures = 0
+                    x = xt
+                    q = qt
+                    C = C_goal
+                    step = step * wp.float64(2.0)
+                    continue
+                if best_kind < 0:
+                    # the trial end fired an event its branch cannot reach: the solve jumped
+                    # to another branch; retried on a halved sub-step (CellCycle.advance)
+                    failures += 1
+                    if not may_halve(failures, step, max_halvings, matg):
+                        status = int(ST_NOT_LOCATED)
+                        break
+                    step = step * wp.float64(0.5)
+                    continue
             failures = 0
             x = best_x
             q = best_q
