@@ -5,7 +5,9 @@ Rows (each timed after compilation; ratios are taken in the same run):
 - ``batch``: random cells (E-glass / basalt-like, m in [0, 0.4], both unloading rules:
   ``bench_cell_batch.make_cells``) through the paper's 3-cycle program 0.10-0.60 (increment 0.01,
   310 increments), or its first ``--increments`` increments; the specialised kernels (one per
-  kernel key) beside the generic kernel (``specialise=False``) on the same cells;
+  kernel key) beside the generic kernel (``specialise=False``) on the same cells; on CUDA also one
+  launch per increment (as a CUDA graph, sorted by stage, in two passes, both: ``graph_row``), above
+  10^6 cells only the last;
 - ``build``: building the model of 10^6 cells from arrays (``CellModel.from_arrays``) and, for the
   ratio, from a list of ``CellParams`` (10^5 cells, the per-cell path);
 - ``specimen``: the paper's specimen (23 wales x 110 courses) with random phi0, 3 cycles
@@ -80,20 +82,23 @@ def batch_row(model: CellModel, prog: LoadProgram, device: str, specialise: bool
             "wall_s": wall, "cpu_s": cpu, "cell_increments": n, "status_ok_nc_cap_nl": status}
 
 
-def graph_row(model: CellModel, prog: LoadProgram, device: str, stride: int, sort: bool = False) -> dict:
+def graph_row(model: CellModel, prog: LoadProgram, device: str, stride: int, sort: bool = False,
+              compact: bool = False) -> dict:
     """One launch per increment, captured once as a CUDA graph (first call), replayed (timed); or, with
-    ``sort``, the cells sorted by stage on the device before each increment (no graph)."""
+    ``sort``, the cells sorted by stage on the device before each increment (no graph); with
+    ``compact``, each increment in two passes (regular increments, then the listed rest)."""
     from knitsim.cell.batch import ProgramHistory
 
     solver = CellSolver(model, event_capacity=16 * model.cell_count + 64)
     state, fresh = model.state(), model.state()
     hist = ProgramHistory.empty(model, len(prog), stride, model.has_effects)
-    solver.run_program(state, prog, stride=stride, history=hist, per_increment=True, sort_by_stage=sort)  # capture
+    kw = dict(stride=stride, history=hist, per_increment=True, sort_by_stage=sort, compact=compact)
+    solver.run_program(state, prog, **kw)  # capture
     for dst, src in zip(state._arrays() + [state.eff], fresh._arrays() + [fresh.eff]):
         wp.copy(dst, src)
-    _, wall, cpu = timed(lambda: solver.run_program(state, prog, stride=stride, history=hist, per_increment=True,
-                                                    sort_by_stage=sort), device)
-    kind = "specialised, sorted by stage" if sort else "specialised, graph per increment"
+    _, wall, cpu = timed(lambda: solver.run_program(state, prog, **kw), device)
+    kind = ", ".join(["specialised"] + (["two passes"] if compact else [])
+                     + (["sorted by stage"] if sort else ["graph per increment"]))
     return {"cells": model.cell_count, "increments": len(prog), "kernels": kind,
             "wall_s": wall, "cpu_s": cpu, "cell_increments": model.cell_count * len(prog)}
 
@@ -146,11 +151,15 @@ def main(argv=None):
     for n in sizes:
         prog = full if n <= 2000 and a.increments is None else prefix(full, a.increments or (62 if cuda else 0))
         model = CellModel.from_arrays(**random_arrays(n), device=device)
-        kinds = [True] if (a.no_generic or n > 10**6) else [True, False]
+        # (above 10^6 cells only the fastest way: each row is minutes there)
+        kinds = [] if n > 10**6 else [True] if a.no_generic else [True, False]
         res = {sp: batch_row(model, prog, device, sp, a.stride) for sp in kinds}
         if cuda and n <= 10**6:
             res["graph"] = graph_row(model, prog, device, a.stride)
             res["sorted"] = graph_row(model, prog, device, a.stride, sort=True)
+            res["compact"] = graph_row(model, prog, device, a.stride, compact=True)
+        if cuda or n <= 10**4:
+            res["compact sorted"] = graph_row(model, prog, device, a.stride, sort=True, compact=True)
         for sp, r in res.items():
             r["figure"] = f"batch {n} cells x {len(prog)} incr ({r['kernels']})"
             if False in res and sp is not False:
@@ -172,8 +181,11 @@ def main(argv=None):
     psize = a.patch_size or ("1000x1000" if cuda else None)
     if psize and psize.lower() != "none":
         wales, courses = (int(v) for v in psize.lower().split("x"))
-        pm, _ = patch_model("random-phi0", wales, courses)
         prog = prefix(cycles(0.10, 0.60, 3, 0.005), a.patch_increments)
+        # compile (not timed): a small patch of the same cells compiles the same kernels (the step's two
+        # passes from COMPACT_STEP_MIN_CELLS cells on)
+        run_patch(patch_model("random-phi0", 16, 16)[0], prefix(prog, 2), device=device, dedup=False)
+        pm, _ = patch_model("random-phi0", wales, courses)
         h, wall, cpu = timed(lambda: run_patch(pm, prog, device=device, dedup=False), device)
         rows.append({"figure": f"patch {wales}x{courses} random phi0 x {len(prog)} incr", "wall_s": wall, "cpu_s": cpu,
                      "cell_increments": pm.cell_count * len(prog),

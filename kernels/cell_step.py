@@ -86,6 +86,9 @@ WITH_COULOMB = _KEY is None or not _KEY.dahl
 WITH_DAHL = _KEY is None or bool(_KEY.dahl)
 WITH_EFFECTS = _KEY is None or bool(_KEY.effects)
 WITH_GAP = _KEY is None or bool(_KEY.gap)
+#: the keys with a first pass of regular increments (:func:`regular_kernel`): Coulomb friction without
+#: effects, whose regular increment is one trial of the whole increment
+REGULAR_PASS = _KEY is not None and not _KEY.dahl and not _KEY.effects
 
 # ------------------------------------------------------------------ codes
 SF_LOAD = wp.constant(int(Stage.SF_LOAD))
@@ -1651,505 +1654,573 @@ def init_kernel(
 
 
 # ------------------------------------------------------------------ one increment
-@wp.func
-def advance_cell(
-    i: int,
+def _advance_cell_variant(regular_only: bool):
+    """:func:`advance_cell`, or with ``regular_only`` its first pass :func:`advance_regular` (issue 15 item 2).
 
-    # model
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-    djam: wp.array(dtype=wp.float64),
-    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    criterion: wp.array(dtype=wp.int32),
-    eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
-    max_halvings: int, closure: int,
-    # state in
-    x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
-    stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
-    fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
-    status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
-    eff_in: wp.array2d(dtype=wp.float64),
-    # control of this increment
-    strain_i: wp.float64, dir_i: int, rate_i: wp.float64, increment: int,
-    # state out
-    x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
-    stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
-    fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
-    eff_out: wp.array2d(dtype=wp.float64),
-    # events (append buffer; ev_count[0] counts every event, stored or not)
-    ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
-    ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
-    ev_to: wp.array(dtype=wp.int32),
-):
-    """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
+    ``regular_only`` keeps only an increment's regular path: no reversal or reload at its start, one
+    trial of the whole increment that converges on a short first Newton step and fires no event (no
+    slide, jam, slack, cone or opening; not jammed on unloading).  On any other path it returns False
+    at once, before it writes anything: the cell's state is untouched and the full step
+    (``advance_cell``) takes the increment from the same start.  Where it returns True, it has done the
+    full step's arithmetic in the full step's order, so the two-pass increment is bit for bit the
+    one-pass increment.  The code of the other paths is not generated into it (``wp.static``): a GPU
+    warp of the first pass does one kind of work, and the few cells with an event are compacted
+    into a second launch (:func:`regular_kernel`, :func:`program_kernel` with a count).  Coulomb
+    friction without effects only (the kernel keys :data:`REGULAR_PASS` allows).
+    """
 
-    Reads the state arrays ``*_in`` at the start and writes ``*_out`` at the end: they may be the same
-    arrays (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
-    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
-    mat.closure = closure
-    q = vecQd()
-    for k in range(N_QUANTITIES):
-        q[k] = q_in[i, k]
-    # the cell travels in Newton variables z (kernels below name them x)
-    x = z_of(vec5d(x_in[i, 0], x_in[i, 1], x_in[i, 2], x_in[i, 3], x_in[i, 4]), q)
-    C = C_in[i]
-    stage = int(stage_in[i])
-    jammed = int(jammed_in[i])
-    soft = int(soft_in[i])
-    fs = fsoft_in[i]
-    fsbc = fsbc_in[i]
-    status = int(status_in[i])
-    dir_old = int(direction_in[i])
-    dir_new = dir_i
-    C_target = mat.C0 * (wp.float64(1.0) + strain_i)
+    def advance_cell(
+        i: int,
 
-    # --- effects (issue 6): this increment's parameters from the state at its start
-    mask = int(eff_mask[i % eff_mask.shape[0]])
-    z_bend = eff_in[i, E_Z]
-    # the lagged friction ratio goes linearly from that of the last increment (mat_old) to this one's
-    # (mat) along the increment, so that a sudden change of state (a reversal) cannot make it jump
-    mat_old = mat
-    # the kernel key's switches (constant False: the branch is not generated)
-    with_effects = wp.static(WITH_EFFECTS)
-    if wp.static(WITH_EFFECTS):
-        with_effects = mask != 0
-    if with_effects:
-        de = (C_target - C) / mat.C0
-        if stage == SLACK and C_target <= C:
-            de = wp.float64(0.0)  # a slack loop does not bend
-        mat_old = material_from_effective(mat, eff_in[i, E_M])
-        mat = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
-                            eff_in[i, E_RN0], C, de, rate_i)
+        # model
+        B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+        W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+        phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+        djam: wp.array(dtype=wp.float64),
+        friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+        criterion: wp.array(dtype=wp.int32),
+        eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
+        max_halvings: int, closure: int,
+        # state in
+        x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
+        stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
+        fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
+        status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
+        eff_in: wp.array2d(dtype=wp.float64),
+        # control of this increment
+        strain_i: wp.float64, dir_i: int, rate_i: wp.float64, increment: int,
+        # state out
+        x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
+        stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
+        fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
+        status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
+        eff_out: wp.array2d(dtype=wp.float64),
+        # events (append buffer; ev_count[0] counts every event, stored or not)
+        ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
+        ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
+        ev_to: wp.array(dtype=wp.int32),
+    ):
+        """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
 
-    # events of this increment (kind, C, from-label, to-label), committed at the end
-    n_ev = int(0)
-    e_kind = vec8i()
-    e_C = vec8d()
-    e_from = vec8i()
-    e_to = vec8i()
+        Reads the state arrays ``*_in`` at the start and writes ``*_out`` at the end: they may be the same
+        arrays (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
+        mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
+        mat.closure = closure
+        q = vecQd()
+        for k in range(N_QUANTITIES):
+            q[k] = q_in[i, k]
+        # the cell travels in Newton variables z (kernels below name them x)
+        x = z_of(vec5d(x_in[i, 0], x_in[i, 1], x_in[i, 2], x_in[i, 3], x_in[i, 4]), q)
+        C = C_in[i]
+        stage = int(stage_in[i])
+        jammed = int(jammed_in[i])
+        soft = int(soft_in[i])
+        fs = fsoft_in[i]
+        fsbc = fsbc_in[i]
+        status = int(status_in[i])
+        dir_old = int(direction_in[i])
+        dir_new = dir_i
+        C_target = mat.C0 * (wp.float64(1.0) + strain_i)
 
-    # --- reversal (Table 4: SF- on unloading, SF+ on reloading)
-    if dir_new != dir_old and status == ST_OK and stage != SLACK:
-        stage, soft, fs, fsbc = reverse(dir_new, q, mat, soft, fs)
-        n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_REVERSAL, C, -1, -1)
+        # --- effects (issue 6): this increment's parameters from the state at its start
+        mask = int(eff_mask[i % eff_mask.shape[0]])
+        z_bend = eff_in[i, E_Z]
+        # the lagged friction ratio goes linearly from that of the last increment (mat_old) to this one's
+        # (mat) along the increment, so that a sudden change of state (a reversal) cannot make it jump
+        mat_old = mat
+        # the kernel key's switches (constant False: the branch is not generated)
+        with_effects = wp.static(WITH_EFFECTS)
+        if wp.static(WITH_EFFECTS):
+            with_effects = mask != 0
+        if with_effects:
+            de = (C_target - C) / mat.C0
+            if stage == SLACK and C_target <= C:
+                de = wp.float64(0.0)  # a slack loop does not bend
+            mat_old = material_from_effective(mat, eff_in[i, E_M])
+            mat = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
+                                eff_in[i, E_RN0], C, de, rate_i)
 
-    go = status == ST_OK
+        # events of this increment (kind, C, from-label, to-label), committed at the end
+        n_ev = int(0)
+        e_kind = vec8i()
+        e_C = vec8d()
+        e_from = vec8i()
+        e_to = vec8i()
 
-    # --- slack: no load until the imposed C returns to where the cell went slack
-    if go and stage == SLACK:
-        if C_target - C <= _REACHED_RTOL * C_target:
-            go = False  # asked for no more than its slack length (to rounding): it stays slack
-        else:
-            stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
-            x = seed_contact(x)
-            n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_RELOAD, C, -1, -1)
+        # --- reversal (Table 4: SF- on unloading, SF+ on reloading)
+        if dir_new != dir_old and status == ST_OK and stage != SLACK:
+            if wp.static(regular_only):
+                return False
+            stage, soft, fs, fsbc = reverse(dir_new, q, mat, soft, fs)
+            n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_REVERSAL, C, -1, -1)
 
-    go_coulomb = wp.static(WITH_COULOMB)
-    if wp.static(WITH_COULOMB):
-        go_coulomb = go and mat.dahl == 0
-    go_dahl = wp.static(WITH_DAHL)
-    if wp.static(WITH_DAHL):
-        go_dahl = go and mat.dahl != 0
-    if go_coulomb:
-        # ---------------------------------------------------- Coulomb (Table 4)
-        # walked in sub-steps: a failed solve halves the sub-step (at most
-        # max_halvings times in a row), a converged one doubles it back, and
-        # events are checked on every sub-step (CellCycle.advance)
-        step = C_target - C
-        C_start = C
-        matg = mat
-        failures = int(0)
-        n_located = int(0)
-        for guard in range(MAX_SUBSTEPS):
-            C_from = C
-            if wp.abs(C_target - C_from) <= _REACHED_RTOL * C_target:
-                break
-            if wp.abs(step) > wp.abs(C_target - C_from):
-                step = C_target - C_from
-            C_goal = C_from + step
-            if with_effects:
-                matg = blend_material(mat_old, mat, (C_goal - C_start) / (C_target - C_start))
-            kind0 = int(-1)
-            mat_from = matg
-            if with_effects:
-                mat_from = blend_material(mat_old, mat, (C_from - C_start) / (C_target - C_start))
-            if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
-                kind0 = int(_EV_CONE)
-            elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
-                kind0 = int(_EV_SLIDE)
-            if kind0 >= 0:
-                stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                    kind0, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
-                n_located += 1
-                continue
-            # the branch's tangent bounds the sub-step: a trial whose first Newton step is long would crawl
-            # (the line search accepts steps of 1/16 to 1/64) or fail after NEWTON_MAX_ITER iterations
-            # where the branch turns fast (the S+ -> SF- reversal, R/P -> 0.05 within 0.01 mm); it is
-            # shortened at once to a step the tangent predicts at PREDICTED_STEP_TARGET, which is not a failure
-            pred = PREDICTED_STEP_MAX
-            if is_sliding(stage) or jammed != 0 or no_contact(q) or wp.abs(step) <= wp.float64(4.0) * _SUBSTEP_FLOOR * matg.C0:
-                pred = wp.float64(0.0)
-            xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
-            first = max_abs5(step0)
-            # the nearest event of the sub-step, committed below
-            best_kind = int(-1)
-            best_C = wp.float64(0.0)
-            best_x = x
-            best_q = q
-            if first > wp.float64(0.0):
-                found, xe, qe = slide_predicted(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, step0)
-                if not found:
-                    short = step * wp.max(PREDICTED_STEP_TARGET / first, wp.float64(1.0 / 1024.0))
-                    if wp.abs(short) < wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0:
-                        short = wp.sign(step) * wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0
-                    step = short
-                    continue
-                # the slide, located directly: no trial
-                best_kind = int(_EV_SLIDE)
-                best_C = qe[Q_C]
-                best_x = xe
-                best_q = qe
-            if best_kind < 0:
-                if not ok and jammed != 0 and not is_loading(stage):
-                    # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
-                    if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
-                        stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                            _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
-                        n_located += 1
-                        continue
-                if not ok:
-                    failures += 1
-                    if not may_halve(failures, step, max_halvings, matg):
-                        status = int(ST_NO_CONV)
-                        break
-                    step = step * wp.float64(0.5)
-                    continue
-                opened = bool(False)
-                if not is_loading(stage) and qt[Q_RN] < wp.float64(0.0):
-                    # the trial end pulls: the contact opened inside the sub-step (the branch went through
-                    # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
-                    # every event is judged on that part of the branch (CellCycle.advance)
-                    opened = True
-                    xt, qt, C_goal = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_RN,
-                                                         wp.float64(0.0), wp.float64(1.0))
-                # events fired inside the increment
-                any_fired = bool(False)
-                for kind in range(8):
-                    # the slack of a sub-step that ends where its contact opens is decided below
-                    if locatable(kind) and event_active(kind, stage, jammed, soft, matg) and not (opened and kind == _EV_SLACK):
-                        f0 = event_value(kind, x, q, stage, matg)
-                        f1 = event_value(kind, xt, qt, stage, matg)
-                        tol = event_tol(kind, matg)
-                        if f1 > wp.float64(0.0) and f0 <= tol:
-                            any_fired = True
-                            xe = x
-                            qe = q
-                            oke = bool(True)
-                            if f0 < -tol and no_contact(q):
-                                # phi is undetermined at a zero-contact start: judge the event on
-                                # a probe step (the new branch's limit); if it holds there, or the
-                                # probe fails, the event happens at the start
-                                hp = _PROBE_STEP * matg.C0
-                                if C_goal < C_from:
-                                    hp = -hp
-                                xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
-                                if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
-                                    f0 = wp.float64(0.0)
-                            if f0 < -tol:
-                                code, etg = event_condition_at(kind, stage, matg, qt)
-                                xg = lerp5(x, xt, interp_t(f0, f1))
-                                xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
-                                if not oke:
-                                    xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
-                            elif kind == _EV_CONE and not no_contact(q):
-                                # zero at the start, but cone_at_start's probe stayed inside the cone: the
-                                # branch dips into the cone and leaves it further on, located by bisection
-                                # on the sign of phimax - phi (CellCycle._locate)
-                                xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
-                                                                cone_which(matg), matg.phimax, wp.float64(-1.0))
-                                oke = Ce != C_from
-                            # else: already satisfied at the start of the sub-step, it happens there
-                            if oke and in_range(qe[Q_C], C_from, C_goal):
-                                if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
-                                    best_kind = kind
-                                    best_C = qe[Q_C]
-                                    best_x = xe
-                                    best_q = qe
-                # active set while unloading jammed: the unjammed branch at the target (walked there
-                # from the start when Newton fails from it; where it has no solution, the cell stays
-                # jammed: CellCycle._try_unjam)
-                if jammed != 0 and not is_loading(stage):
-                    xu, qu, oku = solve_coulomb_cont(x, stage, 0, soft, fs, fsbc, matg, C_from, C_goal)
-                    if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
-                        any_fired = True
-                        # the unjammed branch at the start: at the reversal from a jammed
-                        # state it passes through the jammed state itself (event at the start)
-                        xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_from, -1, wp.float64(0.0))
-                        xe = x
-                        qe = q
-                        oke = bool(True)
-                        if not (oka and jam_clearance(xa, qa, matg) >= -event_tol(_EV_UNJAM, matg)):
-                            xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), jam_target(matg))
-                        if oke and in_range(qe[Q_C], C_from, C_goal):
-                            if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
-                                best_kind = int(_EV_UNJAM)
-                                best_C = qe[Q_C]
-                                best_x = xe
-                                best_q = qe
-                if opened:
-                    # slack on the part of the branch before the opening (CellCycle.advance): eq 7,
-                    # F = -2 R cos(beta + phi), with R -> 0+ there; where cos(beta + phi) > 0 at the opening, F
-                    # is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a regular zero):
-                    # bisection on its sign; else the cell goes slack where the contact opens, if R -> 0 there
-                    # (the friction angle inside the cone); else (Rn -> 0 with a tangential force left and no
-                    # cone or slide event) the sub-step is halved
-                    any_fired = True
-                    ks = int(-1)
-                    xs = xt
-                    qs = qt
-                    C_slack = C_goal
-                    if wp.cos(qt[Q_BETA] + qt[Q_PHI]) > wp.float64(0.0) and q[Q_F] > wp.float64(0.0):
-                        xs, qs, C_slack = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_F,
-                                                            wp.float64(0.0), wp.float64(1.0))
-                        ks = int(_EV_SLACK)
-                    elif no_contact(qt):
-                        ks = int(_EV_SLACK)
-                    if ks >= 0 and (best_kind < 0 or wp.abs(C_slack - C_from) < wp.abs(best_C - C_from)):
-                        best_kind = ks
-                        best_C = C_slack
-                        best_x = xs
-                        best_q = qs
-                if not any_fired:
-                    failures = 0
-                    x = xt
-                    q = qt
-                    C = C_goal
-                    step = step * wp.float64(2.0)
-                    continue
-                if best_kind < 0:
-                    # the trial end fired an event its branch cannot reach: the solve jumped
-                    # to another branch; retried on a halved sub-step (CellCycle.advance)
-                    failures += 1
-                    if not may_halve(failures, step, max_halvings, matg):
-                        status = int(ST_NOT_LOCATED)
-                        break
-                    step = step * wp.float64(0.5)
-                    continue
-            failures = 0
-            x = best_x
-            q = best_q
-            C = best_C
-            stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                best_kind, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
-            if status != ST_OK or stage == SLACK:
-                break
-            n_located += 1
-            if n_located >= MAX_EVENT_LOOPS:
-                break
+        go = status == ST_OK
+
+        # --- slack: no load until the imposed C returns to where the cell went slack
+        if go and stage == SLACK:
+            if C_target - C <= _REACHED_RTOL * C_target:
+                go = False  # asked for no more than its slack length (to rounding): it stays slack
+            else:
+                if wp.static(regular_only):
+                    return False
+                stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
+                x = seed_contact(x)
+                n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_RELOAD, C, -1, -1)
+
+        go_coulomb = wp.static(WITH_COULOMB)
+        if wp.static(WITH_COULOMB):
+            go_coulomb = go and mat.dahl == 0
+        go_dahl = wp.static(WITH_DAHL)
+        if wp.static(WITH_DAHL):
+            go_dahl = go and mat.dahl != 0
+        if go_coulomb:
+            # ---------------------------------------------------- Coulomb (Table 4)
+            # walked in sub-steps: a failed solve halves the sub-step (at most
+            # max_halvings times in a row), a converged one doubles it back, and
+            # events are checked on every sub-step (CellCycle.advance)
             step = C_target - C
-    elif go_dahl:
-        # ---------------------------------------------------- Dahl (sub-stepped on failure)
-        C_start = C
-        matg = mat
-        n_ev0 = n_ev
-        nsub = int(1)
-        # the slip direction predicted from the stick branch's tangent (dahl_sign) only without effects: with
-        # a lagged friction ratio or stiffness the Dahl path depends on how the increment is split, hence on
-        # which solves fail, and a Dahl solve started from the state instead of the stick trial fails elsewhere
-        dahl_predict = not with_effects
-        done = bool(False)
-        for attempt in range(wp.min(max_halvings, _MAX_DAHL_HALVINGS) + 1):
+            C_start = C
+            matg = mat
+            failures = int(0)
+            n_located = int(0)
+            for guard in range(MAX_SUBSTEPS):
+                C_from = C
+                if wp.abs(C_target - C_from) <= _REACHED_RTOL * C_target:
+                    break
+                if wp.static(regular_only):
+                    if guard > 0:
+                        return False  # the first trial did not reach the target
+                if wp.abs(step) > wp.abs(C_target - C_from):
+                    step = C_target - C_from
+                C_goal = C_from + step
+                if with_effects:
+                    matg = blend_material(mat_old, mat, (C_goal - C_start) / (C_target - C_start))
+                kind0 = int(-1)
+                mat_from = matg
+                if with_effects:
+                    mat_from = blend_material(mat_old, mat, (C_from - C_start) / (C_target - C_start))
+                if cone_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, C, C_target):
+                    kind0 = int(_EV_CONE)
+                elif slide_at_start(x, q, stage, jammed, soft, fs, fsbc, matg, mat_from, C, C_target):
+                    kind0 = int(_EV_SLIDE)
+                if kind0 >= 0:
+                    if wp.static(regular_only):
+                        return False
+                    stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                        kind0, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                    n_located += 1
+                    continue
+                # the branch's tangent bounds the sub-step: a trial whose first Newton step is long would crawl
+                # (the line search accepts steps of 1/16 to 1/64) or fail after NEWTON_MAX_ITER iterations
+                # where the branch turns fast (the S+ -> SF- reversal, R/P -> 0.05 within 0.01 mm); it is
+                # shortened at once to a step the tangent predicts at PREDICTED_STEP_TARGET, which is not a failure
+                if wp.static(regular_only):
+                    if jammed != 0 and not is_loading(stage):
+                        return False  # the jammed unloading's active-set check (below) is not regular
+                pred = PREDICTED_STEP_MAX
+                if is_sliding(stage) or jammed != 0 or no_contact(q) or wp.abs(step) <= wp.float64(4.0) * _SUBSTEP_FLOOR * matg.C0:
+                    pred = wp.float64(0.0)
+                xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
+                first = max_abs5(step0)
+                # the nearest event of the sub-step, committed below
+                best_kind = int(-1)
+                best_C = wp.float64(0.0)
+                best_x = x
+                best_q = q
+                if first > wp.float64(0.0):
+                    if wp.static(regular_only):
+                        return False
+                    found, xe, qe = slide_predicted(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, step0)
+                    if not found:
+                        short = step * wp.max(PREDICTED_STEP_TARGET / first, wp.float64(1.0 / 1024.0))
+                        if wp.abs(short) < wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0:
+                            short = wp.sign(step) * wp.float64(2.0) * _SUBSTEP_FLOOR * matg.C0
+                        step = short
+                        continue
+                    # the slide, located directly: no trial
+                    best_kind = int(_EV_SLIDE)
+                    best_C = qe[Q_C]
+                    best_x = xe
+                    best_q = qe
+                if best_kind < 0:
+                    if wp.static(regular_only):
+                        if not ok:
+                            return False
+                    if not ok and jammed != 0 and not is_loading(stage):
+                        # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
+                        if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
+                            stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                                _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                            n_located += 1
+                            continue
+                    if not ok:
+                        failures += 1
+                        if not may_halve(failures, step, max_halvings, matg):
+                            status = int(ST_NO_CONV)
+                            break
+                        step = step * wp.float64(0.5)
+                        continue
+                    opened = bool(False)
+                    if not is_loading(stage) and qt[Q_RN] < wp.float64(0.0):
+                        if wp.static(regular_only):
+                            return False
+                        # the trial end pulls: the contact opened inside the sub-step (the branch went through
+                        # Rn = 0 and on with R < 0, outside the model).  The sub-step ends where it opens, and
+                        # every event is judged on that part of the branch (CellCycle.advance)
+                        opened = True
+                        xt, qt, C_goal = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_RN,
+                                                             wp.float64(0.0), wp.float64(1.0))
+                    # events fired inside the increment
+                    any_fired = bool(False)
+                    for kind in range(8):
+                        # the slack of a sub-step that ends where its contact opens is decided below
+                        if locatable(kind) and event_active(kind, stage, jammed, soft, matg) and not (opened and kind == _EV_SLACK):
+                            f0 = event_value(kind, x, q, stage, matg)
+                            f1 = event_value(kind, xt, qt, stage, matg)
+                            tol = event_tol(kind, matg)
+                            if f1 > wp.float64(0.0) and f0 <= tol:
+                                if wp.static(regular_only):
+                                    return False
+                                any_fired = True
+                                xe = x
+                                qe = q
+                                oke = bool(True)
+                                if f0 < -tol and no_contact(q):
+                                    # phi is undetermined at a zero-contact start: judge the event on
+                                    # a probe step (the new branch's limit); if it holds there, or the
+                                    # probe fails, the event happens at the start
+                                    hp = _PROBE_STEP * matg.C0
+                                    if C_goal < C_from:
+                                        hp = -hp
+                                    xp, qp, okp = solve_coulomb(seed_contact(x), stage, jammed, soft, fs, fsbc, matg, C_from + hp, -1, wp.float64(0.0))
+                                    if (not okp) or event_value(kind, xp, qp, stage, matg) >= -tol:
+                                        f0 = wp.float64(0.0)
+                                if f0 < -tol:
+                                    code, etg = event_condition_at(kind, stage, matg, qt)
+                                    xg = lerp5(x, xt, interp_t(f0, f1))
+                                    xe, qe, oke = solve_coulomb(xg, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
+                                    if not oke:
+                                        xe, qe, oke = solve_coulomb(xt, stage, jammed, soft, fs, fsbc, matg, C_goal, code, etg)
+                                elif kind == _EV_CONE and not no_contact(q):
+                                    # zero at the start, but cone_at_start's probe stayed inside the cone: the
+                                    # branch dips into the cone and leaves it further on, located by bisection
+                                    # on the sign of phimax - phi (CellCycle._locate)
+                                    xe, qe, Ce = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal,
+                                                                    cone_which(matg), matg.phimax, wp.float64(-1.0))
+                                    oke = Ce != C_from
+                                # else: already satisfied at the start of the sub-step, it happens there
+                                if oke and in_range(qe[Q_C], C_from, C_goal):
+                                    if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
+                                        best_kind = kind
+                                        best_C = qe[Q_C]
+                                        best_x = xe
+                                        best_q = qe
+                    # active set while unloading jammed: the unjammed branch at the target (walked there
+                    # from the start when Newton fails from it; where it has no solution, the cell stays
+                    # jammed: CellCycle._try_unjam)
+                    if wp.static(not regular_only):
+                        if jammed != 0 and not is_loading(stage):
+                            xu, qu, oku = solve_coulomb_cont(x, stage, 0, soft, fs, fsbc, matg, C_from, C_goal)
+                            if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
+                                any_fired = True
+                                # the unjammed branch at the start: at the reversal from a jammed
+                                # state it passes through the jammed state itself (event at the start)
+                                xa, qa, oka = solve_coulomb(x, stage, 0, soft, fs, fsbc, matg, C_from, -1, wp.float64(0.0))
+                                xe = x
+                                qe = q
+                                oke = bool(True)
+                                if not (oka and jam_clearance(xa, qa, matg) >= -event_tol(_EV_UNJAM, matg)):
+                                    xe, qe, oke = solve_coulomb(xu, stage, 0, soft, fs, fsbc, matg, C_goal, jam_code(matg), jam_target(matg))
+                                if oke and in_range(qe[Q_C], C_from, C_goal):
+                                    if best_kind < 0 or wp.abs(qe[Q_C] - C_from) < wp.abs(best_C - C_from):
+                                        best_kind = int(_EV_UNJAM)
+                                        best_C = qe[Q_C]
+                                        best_x = xe
+                                        best_q = qe
+                    if opened:
+                        # slack on the part of the branch before the opening (CellCycle.advance): eq 7,
+                        # F = -2 R cos(beta + phi), with R -> 0+ there; where cos(beta + phi) > 0 at the opening, F
+                        # is < 0 just before it, so F reached 0 first at beta + phi = pi/2 (R > 0, a regular zero):
+                        # bisection on its sign; else the cell goes slack where the contact opens, if R -> 0 there
+                        # (the friction angle inside the cone); else (Rn -> 0 with a tangential force left and no
+                        # cone or slide event) the sub-step is halved
+                        any_fired = True
+                        ks = int(-1)
+                        xs = xt
+                        qs = qt
+                        C_slack = C_goal
+                        if wp.cos(qt[Q_BETA] + qt[Q_PHI]) > wp.float64(0.0) and q[Q_F] > wp.float64(0.0):
+                            xs, qs, C_slack = branch_sign_change(x, q, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, Q_F,
+                                                                wp.float64(0.0), wp.float64(1.0))
+                            ks = int(_EV_SLACK)
+                        elif no_contact(qt):
+                            ks = int(_EV_SLACK)
+                        if ks >= 0 and (best_kind < 0 or wp.abs(C_slack - C_from) < wp.abs(best_C - C_from)):
+                            best_kind = ks
+                            best_C = C_slack
+                            best_x = xs
+                            best_q = qs
+                    if not any_fired:
+                        failures = 0
+                        x = xt
+                        q = qt
+                        C = C_goal
+                        step = step * wp.float64(2.0)
+                        continue
+                    if best_kind < 0:
+                        # the trial end fired an event its branch cannot reach: the solve jumped
+                        # to another branch; retried on a halved sub-step (CellCycle.advance)
+                        failures += 1
+                        if not may_halve(failures, step, max_halvings, matg):
+                            status = int(ST_NOT_LOCATED)
+                            break
+                        step = step * wp.float64(0.5)
+                        continue
+                failures = 0
+                x = best_x
+                q = best_q
+                C = best_C
+                stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                    best_kind, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                if status != ST_OK or stage == SLACK:
+                    break
+                n_located += 1
+                if n_located >= MAX_EVENT_LOOPS:
+                    break
+                step = C_target - C
+        elif go_dahl:
+            # ---------------------------------------------------- Dahl (sub-stepped on failure)
+            if wp.static(regular_only):
+                return False  # (no first pass for Dahl: REGULAR_PASS)
+            C_start = C
+            matg = mat
+            n_ev0 = n_ev
+            nsub = int(1)
+            # the slip direction predicted from the stick branch's tangent (dahl_sign) only without effects: with
+            # a lagged friction ratio or stiffness the Dahl path depends on how the increment is split, hence on
+            # which solves fail, and a Dahl solve started from the state instead of the stick trial fails elsewhere
+            dahl_predict = not with_effects
+            done = bool(False)
+            for attempt in range(wp.min(max_halvings, _MAX_DAHL_HALVINGS) + 1):
+                if not done:
+                    n_ev = n_ev0
+                    tx = x
+                    tq = q
+                    tC = C
+                    tstage = stage
+                    tjam = jammed
+                    tsoft = soft
+                    tfs = fs
+                    tstatus = status
+                    failed = bool(False)
+                    for k in range(1, nsub + 1):
+                        if not failed and tstatus == ST_OK and tstage != SLACK:
+                            Ck = C_start + (C_target - C_start) * wp.float64(k) / wp.float64(nsub)
+                            if with_effects:
+                                matg = blend_material(mat_old, mat, wp.float64(k) / wp.float64(nsub))
+                            for loop in range(MAX_EVENT_LOOPS):
+                                if not failed:
+                                    xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, matg, Ck, dahl_predict and tjam == 0)
+                                    if not ok:
+                                        failed = True
+                                        break
+                                    best_kind = int(-1)
+                                    best_C = wp.float64(0.0)
+                                    best_x = tx
+                                    best_q = tq
+                                    for kind in range(8):
+                                        if locatable(kind) and event_active(kind, tstage, tjam, tsoft, matg):
+                                            f0 = event_value(kind, tx, tq, tstage, matg)
+                                            f1 = event_value(kind, xt, qt, tstage, matg)
+                                            if f1 > wp.float64(0.0) and f0 >= -event_tol(kind, matg) and f0 <= event_tol(kind, matg):
+                                                # already satisfied at the start: it happens there
+                                                if best_kind < 0 or wp.abs(tC - tC) < wp.abs(best_C - tC):
+                                                    best_kind = kind
+                                                    best_C = tC
+                                                    best_x = tx
+                                                    best_q = tq
+                                            elif f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
+                                                code, etg = event_condition_at(kind, tstage, matg, qt)
+                                                xg = lerp5(tx, xt, interp_t(f0, f1))
+                                                se = s
+                                                if se == wp.float64(0.0):
+                                                    se = wp.float64(1.0)  # stick solved it: xi = 0 either way
+                                                xe, qe, oke = solve_dahl(xg, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
+                                                if not oke:
+                                                    xe, qe, oke = solve_dahl(xt, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
+                                                if not (oke and in_range(qe[Q_C], tC, Ck)):
+                                                    failed = True  # the reference's root search raises
+                                                elif best_kind < 0 or wp.abs(qe[Q_C] - tC) < wp.abs(best_C - tC):
+                                                    best_kind = kind
+                                                    best_C = qe[Q_C]
+                                                    best_x = xe
+                                                    best_q = qe
+                                    if failed:
+                                        break
+                                    # unjam (active set): the reference applies it at the target itself
+                                    if tjam != 0 and not is_loading(tstage):
+                                        xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck, False)
+                                        if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
+                                            if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
+                                                best_kind = int(_EV_UNJAM)
+                                                best_C = Ck
+                                                best_x = xu  # the unjammed solution (W >= W_jam) at the sub-step end
+                                                best_q = qu
+                                    if best_kind < 0:
+                                        tx = xt
+                                        tq = qt
+                                        tC = Ck
+                                        break
+                                    tx = best_x
+                                    tq = best_q
+                                    tC = best_C
+                                    if best_kind == _EV_UNJAM:
+                                        tC = Ck
+                                    tstage, tjam, tsoft, tfs, tstatus, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                                        best_kind, tC, tstage, tjam, tsoft, tfs, tstatus, tq,
+                                        n_ev, e_kind, e_C, e_from, e_to)
+                                    if tstatus != ST_OK or tstage == SLACK or tC == Ck:
+                                        break
+                    if not failed:
+                        done = True
+                        x = tx
+                        q = tq
+                        C = tC
+                        stage = tstage
+                        jammed = tjam
+                        soft = tsoft
+                        fs = tfs
+                        status = tstatus
+                    nsub = nsub * 2
             if not done:
                 n_ev = n_ev0
-                tx = x
-                tq = q
-                tC = C
-                tstage = stage
-                tjam = jammed
-                tsoft = soft
-                tfs = fs
-                tstatus = status
-                failed = bool(False)
-                for k in range(1, nsub + 1):
-                    if not failed and tstatus == ST_OK and tstage != SLACK:
-                        Ck = C_start + (C_target - C_start) * wp.float64(k) / wp.float64(nsub)
-                        if with_effects:
-                            matg = blend_material(mat_old, mat, wp.float64(k) / wp.float64(nsub))
-                        for loop in range(MAX_EVENT_LOOPS):
-                            if not failed:
-                                xt, qt, s, ok = solve_dahl_at(tx, tq, tjam, tsoft, tfs, matg, Ck, dahl_predict and tjam == 0)
-                                if not ok:
-                                    failed = True
-                                    break
-                                best_kind = int(-1)
-                                best_C = wp.float64(0.0)
-                                best_x = tx
-                                best_q = tq
-                                for kind in range(8):
-                                    if locatable(kind) and event_active(kind, tstage, tjam, tsoft, matg):
-                                        f0 = event_value(kind, tx, tq, tstage, matg)
-                                        f1 = event_value(kind, xt, qt, tstage, matg)
-                                        if f1 > wp.float64(0.0) and f0 >= -event_tol(kind, matg) and f0 <= event_tol(kind, matg):
-                                            # already satisfied at the start: it happens there
-                                            if best_kind < 0 or wp.abs(tC - tC) < wp.abs(best_C - tC):
-                                                best_kind = kind
-                                                best_C = tC
-                                                best_x = tx
-                                                best_q = tq
-                                        elif f1 > wp.float64(0.0) and f0 <= wp.float64(0.0):
-                                            code, etg = event_condition_at(kind, tstage, matg, qt)
-                                            xg = lerp5(tx, xt, interp_t(f0, f1))
-                                            se = s
-                                            if se == wp.float64(0.0):
-                                                se = wp.float64(1.0)  # stick solved it: xi = 0 either way
-                                            xe, qe, oke = solve_dahl(xg, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
-                                            if not oke:
-                                                xe, qe, oke = solve_dahl(xt, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
-                                            if not (oke and in_range(qe[Q_C], tC, Ck)):
-                                                failed = True  # the reference's root search raises
-                                            elif best_kind < 0 or wp.abs(qe[Q_C] - tC) < wp.abs(best_C - tC):
-                                                best_kind = kind
-                                                best_C = qe[Q_C]
-                                                best_x = xe
-                                                best_q = qe
-                                if failed:
-                                    break
-                                # unjam (active set): the reference applies it at the target itself
-                                if tjam != 0 and not is_loading(tstage):
-                                    xu, qu, su, oku = solve_dahl_at(tx, tq, 0, tsoft, tfs, matg, Ck, False)
-                                    if oku and jam_clearance(xu, qu, matg) >= wp.float64(0.0):
-                                        if best_kind < 0 or wp.abs(Ck - tC) < wp.abs(best_C - tC):
-                                            best_kind = int(_EV_UNJAM)
-                                            best_C = Ck
-                                            best_x = xu  # the unjammed solution (W >= W_jam) at the sub-step end
-                                            best_q = qu
-                                if best_kind < 0:
-                                    tx = xt
-                                    tq = qt
-                                    tC = Ck
-                                    break
-                                tx = best_x
-                                tq = best_q
-                                tC = best_C
-                                if best_kind == _EV_UNJAM:
-                                    tC = Ck
-                                tstage, tjam, tsoft, tfs, tstatus, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                                    best_kind, tC, tstage, tjam, tsoft, tfs, tstatus, tq,
-                                    n_ev, e_kind, e_C, e_from, e_to)
-                                if tstatus != ST_OK or tstage == SLACK or tC == Ck:
-                                    break
-                if not failed:
-                    done = True
-                    x = tx
-                    q = tq
-                    C = tC
-                    stage = tstage
-                    jammed = tjam
-                    soft = tsoft
-                    fs = tfs
-                    status = tstatus
-                nsub = nsub * 2
-        if not done:
-            n_ev = n_ev0
-            status = int(ST_NO_CONV)
-    relabel = wp.static(WITH_DAHL)
-    if wp.static(WITH_DAHL):
-        relabel = mat.dahl != 0
-    if relabel:
-        stage = label_dahl(stage, q, mat)
+                status = int(ST_NO_CONV)
+        relabel = wp.static(WITH_DAHL)
+        if wp.static(WITH_DAHL):
+            relabel = mat.dahl != 0
+        if relabel:
+            stage = label_dahl(stage, q, mat)
 
-    # --- commit
-    xo = x_of_z(x)
-    for k in range(5):
-        x_out[i, k] = xo[k]
-    for k in range(N_QUANTITIES):
-        q_out[i, k] = q[k]
-    C_out[i] = C
-    stage_out[i] = stage
-    jammed_out[i] = jammed
-    soft_out[i] = soft
-    fsoft_out[i] = fs
-    fsbc_out[i] = fsbc
-    status_out[i] = status
-    direction_out[i] = dir_new
-    # the interpenetration check of every accepted state (issue 13): the heads' centreline gap (a
-    # state that did not move keeps its gap bit for bit: z is rebuilt from x at every increment)
-    gap = gap_in[i]
-    if go:
-        gap = head_gap_value(wp.exp(x[0]), q, stiffness_at(mat, C))
-    gap_out[i] = gap
-    for k in range(eff_in.shape[1]):
-        eff_out[i, k] = eff_in[i, k]
-    if with_effects:
-        eff_out[i, E_M] = mat.m
-        if mat.fr_state != 0:
-            eff_out[i, E_M] = wp.tan(phi_edge(q, mat))  # the ratio at the committed state
-        eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
-        eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
-        eff_out[i, E_B] = stiffness_at(mat, C)
-        if bends(mat):
-            z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
-        eff_out[i, E_Z] = z_bend
-    if n_ev > 0:
-        nk = wp.min(n_ev, _MAXEV)
-        base = wp.atomic_add(ev_count, 0, nk)
-        cap_ev = ev_cell.shape[0]
-        for k in range(nk):
-            j = base + k
-            if j < cap_ev:
-                ev_cell[j] = i
-                ev_incr[j] = increment
-                ev_kind[j] = e_kind[k]
-                ev_C[j] = e_C[k]
-                ev_from[j] = e_from[k]
-                ev_to[j] = e_to[k]
+        # --- commit
+        xo = x_of_z(x)
+        for k in range(5):
+            x_out[i, k] = xo[k]
+        for k in range(N_QUANTITIES):
+            q_out[i, k] = q[k]
+        C_out[i] = C
+        stage_out[i] = stage
+        jammed_out[i] = jammed
+        soft_out[i] = soft
+        fsoft_out[i] = fs
+        fsbc_out[i] = fsbc
+        status_out[i] = status
+        direction_out[i] = dir_new
+        # the interpenetration check of every accepted state (issue 13): the heads' centreline gap (a
+        # state that did not move keeps its gap bit for bit: z is rebuilt from x at every increment)
+        gap = gap_in[i]
+        if go:
+            gap = head_gap_value(wp.exp(x[0]), q, stiffness_at(mat, C))
+        gap_out[i] = gap
+        for k in range(eff_in.shape[1]):
+            eff_out[i, k] = eff_in[i, k]
+        if with_effects:
+            eff_out[i, E_M] = mat.m
+            if mat.fr_state != 0:
+                eff_out[i, E_M] = wp.tan(phi_edge(q, mat))  # the ratio at the committed state
+            eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
+            eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
+            eff_out[i, E_B] = stiffness_at(mat, C)
+            if bends(mat):
+                z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
+            eff_out[i, E_Z] = z_bend
+        if n_ev > 0:
+            nk = wp.min(n_ev, _MAXEV)
+            base = wp.atomic_add(ev_count, 0, nk)
+            cap_ev = ev_cell.shape[0]
+            for k in range(nk):
+                j = base + k
+                if j < cap_ev:
+                    ev_cell[j] = i
+                    ev_incr[j] = increment
+                    ev_kind[j] = e_kind[k]
+                    ev_C[j] = e_C[k]
+                    ev_from[j] = e_from[k]
+                    ev_to[j] = e_to[k]
+        return True
+
+    return wp.func(advance_cell, name="advance_regular" if regular_only else "advance_cell")
 
 
-@wp.kernel
-def step_kernel(
-    # the cells this launch advances (a group of one kernel key); empty: every cell, in order
-    cells: wp.array(dtype=wp.int32),
-    # model
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-    djam: wp.array(dtype=wp.float64),
-    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    criterion: wp.array(dtype=wp.int32),
-    eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
-    max_halvings: int, closure: int,
-    # state in
-    x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
-    stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
-    fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
-    status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
-    eff_in: wp.array2d(dtype=wp.float64),
-    # control
-    strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
-    increment: int,
-    # state out
-    x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
-    stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
-    fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
-    eff_out: wp.array2d(dtype=wp.float64),
-    # events (append buffer; ev_count[0] counts every event, stored or not)
-    ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
-    ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
-    ev_to: wp.array(dtype=wp.int32),
-):
-    """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row)."""
-    i = wp.tid()
-    if cells.shape[0] > 0:
-        i = cells[i]
-    advance_cell(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask, eff_params, max_halvings, closure,
-                 x_in, q_in, C_in, stage_in, jammed_in, soft_in, fsoft_in, fsbc_in, status_in, direction_in, gap_in, eff_in,
-                 strain[i % strain.shape[0]], int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]],
-                 increment,
-                 x_out, q_out, C_out, stage_out, jammed_out, soft_out, fsoft_out, fsbc_out, status_out, direction_out, gap_out, eff_out,
-                 ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+advance_cell = _advance_cell_variant(False)
+
+
+# ------------------------------------------------------------------ the launches of one increment
+#: the first pass (regular increments) of the kernel keys that have one (REGULAR_PASS)
+advance_regular = _advance_cell_variant(True) if REGULAR_PASS else None
+
+
+def _step_kernel_variant(first_pass: bool):
+    """:func:`step_kernel`, or with ``first_pass`` :func:`regular_step_kernel`: the same launch with
+    :func:`advance_cell` or its first pass (``_advance_cell_variant``), one signature."""
+    advance = advance_regular if first_pass else advance_cell
+
+    def step_kernel(
+        # the cells this launch advances (a group of one kernel key); empty: every cell, in order
+        cells: wp.array(dtype=wp.int32),
+        # how many of ``cells`` to advance (count[0], set on the device by a first pass); empty: all
+        count: wp.array(dtype=wp.int32),
+        # first pass: where it lists the cells it leaves for the full step (pending[:pending_count[0]])
+        pending: wp.array(dtype=wp.int32), pending_count: wp.array(dtype=wp.int32),
+        # model
+        B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+        W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+        phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+        djam: wp.array(dtype=wp.float64),
+        friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+        criterion: wp.array(dtype=wp.int32),
+        eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
+        max_halvings: int, closure: int,
+        # state in
+        x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
+        stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
+        fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
+        status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
+        eff_in: wp.array2d(dtype=wp.float64),
+        # control
+        strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
+        increment: int,
+        # state out
+        x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
+        stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
+        fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
+        status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
+        eff_out: wp.array2d(dtype=wp.float64),
+        # events (append buffer; ev_count[0] counts every event, stored or not)
+        ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
+        ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
+        ev_to: wp.array(dtype=wp.int32),
+    ):
+        """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row); a first
+        pass leaves the ``*_out`` rows of the cells it lists untouched."""
+        i = wp.tid()
+        if count.shape[0] > 0:
+            if i >= count[0]:
+                return
+        if cells.shape[0] > 0:
+            i = cells[i]
+        done = wp.static(advance)(
+            i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask,
+            eff_params, max_halvings, closure,
+            x_in, q_in, C_in, stage_in, jammed_in, soft_in, fsoft_in, fsbc_in, status_in, direction_in, gap_in, eff_in,
+            strain[i % strain.shape[0]], int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
+            x_out, q_out, C_out, stage_out, jammed_out, soft_out, fsoft_out, fsbc_out, status_out, direction_out,
+            gap_out, eff_out,
+            ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+        if wp.static(first_pass):
+            if not done:
+                pending[wp.atomic_add(pending_count, 0, 1)] = i
+
+    return wp.kernel(step_kernel, name="regular_step_kernel" if first_pass else "step_kernel")
 
 
 @wp.func
@@ -2175,57 +2246,83 @@ def write_history_row(
     hist_gap[row, i] = gap[i]
 
 
-@wp.kernel
-def program_kernel(
-    # the cells this launch advances (a group of one kernel key); empty: every cell, in order
-    cells: wp.array(dtype=wp.int32),
-    # model
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-    djam: wp.array(dtype=wp.float64),
-    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    criterion: wp.array(dtype=wp.int32),
-    eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
-    max_halvings: int, closure: int,
-    # state, advanced in place
-    x: wp.array2d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), C: wp.array(dtype=wp.float64),
-    stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32), soft: wp.array(dtype=wp.int32),
-    fsoft: wp.array(dtype=wp.float64), fsbc: wp.array(dtype=wp.float64),
-    status: wp.array(dtype=wp.int32), direction: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64),
-    eff: wp.array2d(dtype=wp.float64),
-    # the load program: strain, direction and rate of every increment, and the increments to run
-    prog_strain: wp.array(dtype=wp.float64), prog_direction: wp.array(dtype=wp.int32),
-    prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int, stride: int,
-    # events
-    ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
-    ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
-    ev_to: wp.array(dtype=wp.int32),
-    # history rows (record_kernel's layout; hist_eff of shape [0, ...] records no effect state)
-    codes: wp.array(dtype=wp.int32), hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
-    hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
-    hist_gap: wp.array2d(dtype=wp.float64), hist_eff: wp.array3d(dtype=wp.float64),
-):
-    """Advance each cell through increments ``k_start .. k_stop - 1`` of a load program in one launch,
-    recording the rows of increments ``stride - 1, 2 stride - 1, ...`` (every row with stride 1) into
-    preallocated history arrays: the same arithmetic as one :func:`step_kernel` per increment, without a
-    launch (nor a host round trip) per increment."""
-    i = wp.tid()
-    if cells.shape[0] > 0:
-        i = cells[i]
-    for k in range(k_start, k_stop):
-        advance_cell(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask, eff_params, max_halvings, closure,
-                     x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
-                     prog_strain[k], int(prog_direction[k]), prog_rate[k % prog_rate.shape[0]], k,
-                     x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
-                     ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
-        if (k + 1) % stride == 0:
-            # row r holds increment (r + 1) stride - 1 (every increment with stride 1)
-            r = k // stride
-            write_history_row(i, r, q, stage, jammed, status, gap, codes, hist_q, hist_stage, hist_jammed,
-                              hist_status, hist_gap)
-            for j in range(hist_eff.shape[0]):
-                hist_eff[j, r, i] = eff[i, j]
+def _program_kernel_variant(first_pass: bool):
+    """:func:`program_kernel`, or with ``first_pass`` :func:`regular_kernel` (one increment only:
+    ``k_stop = k_start + 1``), one signature."""
+    advance = advance_regular if first_pass else advance_cell
+
+    def program_kernel(
+        # the cells this launch advances (a group of one kernel key); empty: every cell, in order
+        cells: wp.array(dtype=wp.int32),
+        # how many of ``cells`` to advance (count[0], set on the device by a first pass); empty: all
+        count: wp.array(dtype=wp.int32),
+        # first pass: where it lists the cells it leaves for the full step (pending[:pending_count[0]])
+        pending: wp.array(dtype=wp.int32), pending_count: wp.array(dtype=wp.int32),
+        # model
+        B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
+        W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
+        phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
+        djam: wp.array(dtype=wp.float64),
+        friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
+        criterion: wp.array(dtype=wp.int32),
+        eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
+        max_halvings: int, closure: int,
+        # state, advanced in place
+        x: wp.array2d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), C: wp.array(dtype=wp.float64),
+        stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32), soft: wp.array(dtype=wp.int32),
+        fsoft: wp.array(dtype=wp.float64), fsbc: wp.array(dtype=wp.float64),
+        status: wp.array(dtype=wp.int32), direction: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64),
+        eff: wp.array2d(dtype=wp.float64),
+        # the load program: strain, direction and rate of every increment, and the increments to run
+        prog_strain: wp.array(dtype=wp.float64), prog_direction: wp.array(dtype=wp.int32),
+        prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int, stride: int,
+        # events
+        ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
+        ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
+        ev_to: wp.array(dtype=wp.int32),
+        # history rows (record_kernel's layout; hist_eff of shape [0, ...] records no effect state)
+        codes: wp.array(dtype=wp.int32), hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
+        hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
+        hist_gap: wp.array2d(dtype=wp.float64), hist_eff: wp.array3d(dtype=wp.float64),
+    ):
+        """Advance each cell through increments ``k_start .. k_stop - 1`` of a load program in one launch,
+        recording the rows of increments ``stride - 1, 2 stride - 1, ...`` (every row with stride 1) into
+        preallocated history arrays: the same arithmetic as one :func:`step_kernel` per increment, without a
+        launch (nor a host round trip) per increment.  A first pass lists the cells it leaves (their state
+        and row untouched)."""
+        i = wp.tid()
+        if count.shape[0] > 0:
+            if i >= count[0]:
+                return
+        if cells.shape[0] > 0:
+            i = cells[i]
+        for k in range(k_start, k_stop):
+            done = wp.static(advance)(
+                i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask,
+                eff_params, max_halvings, closure,
+                x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
+                prog_strain[k], int(prog_direction[k]), prog_rate[k % prog_rate.shape[0]], k,
+                x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
+                ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+            if not done:
+                pending[wp.atomic_add(pending_count, 0, 1)] = i
+                return
+            if (k + 1) % stride == 0:
+                # row r holds increment (r + 1) stride - 1 (every increment with stride 1)
+                r = k // stride
+                write_history_row(i, r, q, stage, jammed, status, gap, codes, hist_q, hist_stage, hist_jammed,
+                                  hist_status, hist_gap)
+                for j in range(hist_eff.shape[0]):
+                    hist_eff[j, r, i] = eff[i, j]
+
+    return wp.kernel(program_kernel, name="regular_kernel" if first_pass else "program_kernel")
+
+
+step_kernel = _step_kernel_variant(False)
+program_kernel = _program_kernel_variant(False)
+if REGULAR_PASS:
+    regular_step_kernel = _step_kernel_variant(True)
+    regular_kernel = _program_kernel_variant(True)
 
 
 @wp.kernel
@@ -2249,6 +2346,12 @@ def record_columns_kernel(src: wp.array2d(dtype=wp.float64), cols: wp.array(dtyp
     i = wp.tid()
     for k in range(cols.shape[0]):
         hist[k, row, i] = src[i, cols[k]]
+
+
+@wp.kernel
+def zero_count_kernel(count: wp.array(dtype=wp.int32)):
+    """count[0] = 0 (a launch, so that a captured graph replays it)."""
+    count[0] = 0
 
 
 @wp.kernel

@@ -13,7 +13,10 @@ Model / State / Control, as ``warp.sim``:
   kernel key present (friction law, effects, jamming criterion:
   :mod:`knitsim.kernels.specialise`); ``run_program`` runs a range of increments
   of a load program with no host synchronisation, recording every ``stride``-th
-  row into preallocated arrays (:class:`ProgramHistory`).
+  row into preallocated arrays (:class:`ProgramHistory`); on a GPU it runs each
+  increment in two passes (``compact``): the regular increments of every cell
+  (one trial, no event: a small kernel whose warps do one kind of work), then the
+  full step on the few cells the first pass listed.
 
 :meth:`CellModel.from_arrays` builds the model of N cells from per-cell arrays
 (vectorised validation, no Python loop over the cells).
@@ -545,25 +548,46 @@ class CellSolver:
                     for t in (wp.int32, wp.int32, wp.int32, wp.float64, wp.int32, wp.int32)]
 
     def step(self, state_in: CellBatchState, state_out: CellBatchState, control: CellControl,
-             increment: int = 0, cells: np.ndarray | None = None) -> None:
+             increment: int = 0, cells: np.ndarray | None = None, compact: bool | None = None) -> None:
         """One increment for all cells; ``increment`` labels the events it records.
 
         ``cells`` (optional, increasing cell indices): advance only these; the other rows of
-        ``state_out`` are left as they are (each cell's step reads only its own rows)."""
+        ``state_out`` are left as they are (each cell's step reads only its own rows).
+        ``compact``: in two passes (:meth:`run_program`), the same results; default: with at least
+        :data:`COMPACT_STEP_MIN_CELLS` cells."""
         n = self.model.cell_count
         if n == 0:
             return
+        dev = self.model.device
+        if compact is None:
+            compact = n >= COMPACT_STEP_MIN_CELLS
         groups = self.groups if cells is None else self._subset(np.asarray(cells, dtype=np.int32))
-        for k, cells in groups:
+        no_count = self.__dict__.setdefault("_no_count", wp.zeros(0, dtype=wp.int32, device=dev))
+        for g, (k, cells) in enumerate(groups):
             if cells is None:
                 continue
-            wp.launch(k.step_kernel, dim=cells.shape[0] or n,
-                      inputs=[cells] + self.model._arrays() + self.model._effect_arrays()
+            m = cells.shape[0] or n
+            common = (self.model._arrays() + self.model._effect_arrays()
                       + [self.max_halvings, int(self.stick_closure == "release_beta")]
                       + state_in._arrays() + [state_in.eff]
-                      + [control.strain, control.direction, control.rate, int(increment)],
-                      outputs=state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev,
-                      device=self.model.device)
+                      + [control.strain, control.direction, control.rate, int(increment)])
+            outputs = state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev
+            count = no_count
+            if compact and getattr(k, "REGULAR_PASS", False):
+                # the first pass lists the cells it leaves; the full step takes the first count[0] of them
+                pending, count = self._pending_buffers()[g]
+                wp.launch(k.zero_count_kernel, dim=1, inputs=[count], device=dev)
+                wp.launch(k.regular_step_kernel, dim=m, inputs=[cells, no_count, pending, count] + common,
+                          outputs=outputs, device=dev)
+                cells = pending
+            wp.launch(k.step_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common, outputs=outputs,
+                      device=dev)
+
+    def _pending_buffers(self) -> list:
+        """Per kernel group: the list of cells the first pass leaves for the full step, and its count."""
+        return self.__dict__.setdefault("_pending", [
+            (wp.zeros(cells.shape[0] or self.model.cell_count, dtype=wp.int32, device=self.model.device),
+             wp.zeros(1, dtype=wp.int32, device=self.model.device)) for _, cells in self.groups])
 
     def _subset(self, cells: np.ndarray) -> list:
         """The kernel groups restricted to ``cells``: (module, device index array, or None where the
@@ -583,7 +607,8 @@ class CellSolver:
 
     def run_program(self, state: CellBatchState, program: LoadProgram, stride: int = 1,
                     k_start: int = 0, k_stop: int | None = None, history: "ProgramHistory | None" = None,
-                    per_increment: bool = False, sort_by_stage: bool = False) -> "ProgramHistory":
+                    per_increment: bool = False, sort_by_stage: bool = False,
+                    compact: bool = False) -> "ProgramHistory":
         """Advance ``state`` in place through increments ``k_start .. k_stop - 1`` of ``program``, recording
         every ``stride``-th row into preallocated device arrays; no host synchronisation.
 
@@ -612,6 +637,13 @@ class CellSolver:
             device by their stage (radix sort, no host synchronisation), so that neighbouring
             threads (a GPU warp) do the same kind of work; the results are the same.  The increment
             loop is then not captured as a graph (the sort is not a kernel launch).
+        compact : bool
+            With ``per_increment``: each increment in two launches for the kernel keys that have a
+            first pass (Coulomb without effects): every cell's regular increment first (one trial,
+            no event), then the full step on the cells listed by the first pass, compacted on the
+            device (no host synchronisation; the second launch's threads beyond the count return at
+            once).  A GPU warp then does one kind of work in each launch; the results are the same
+            bit for bit (``cell_step._advance_cell_variant``).
         """
         if not (isinstance(stride, (int, np.integer)) and stride >= 1):
             raise KnitsimInputError(f"stride = {stride!r}: expected a whole number >= 1")
@@ -637,6 +669,10 @@ class CellSolver:
         arrays = prog[id(program)][1]
         ranges = [(k, k + 1) for k in range(k_start, k_stop)] if per_increment else [(k_start, k_stop)]
         sort = bool(sort_by_stage and per_increment)
+        compact = bool(compact and per_increment)
+        no_count = self.__dict__.setdefault("_no_count", wp.zeros(0, dtype=wp.int32, device=dev))
+        if compact:
+            pending = self._pending_buffers()
         if sort:
             bufs = self.__dict__.setdefault("_sort", [
                 tuple(wp.zeros(2 * (cells.shape[0] or model.cell_count), dtype=wp.int32, device=dev) for _ in range(2))
@@ -653,11 +689,20 @@ class CellSolver:
                                   device=dev)
                         wp.utils.radix_sort_pairs(keys, order, m)
                         cells = order
-                    wp.launch(k.program_kernel, dim=m,
-                              inputs=[cells] + model._arrays() + model._effect_arrays()
+                    common = (model._arrays() + model._effect_arrays()
                               + [self.max_halvings, int(self.stick_closure == "release_beta")]
-                              + state._arrays() + [state.eff] + arrays + [k0, k1, int(stride)]
-                              + [self._ev_count] + self._ev + hist._arrays(), device=dev)
+                              + state._arrays() + [state.eff] + arrays)
+                    rest = [k0, k1, int(stride)] + [self._ev_count] + self._ev + hist._arrays()
+                    count = no_count
+                    if compact and getattr(k, "REGULAR_PASS", False):
+                        # the first pass lists the cells it leaves; the full step takes the first count[0]
+                        cells_pending, count = pending[g]
+                        wp.launch(k.zero_count_kernel, dim=1, inputs=[count], device=dev)
+                        wp.launch(k.regular_kernel, dim=m, inputs=[cells, no_count, cells_pending, count] + common + rest,
+                                  device=dev)
+                        cells = cells_pending
+                    wp.launch(k.program_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common + rest,
+                              device=dev)
 
         if per_increment and not sort:
             # the increment loop captured once as a graph (CUDA graph; Warp's recorded launches on the
@@ -733,16 +778,21 @@ class ProgramHistory:
 
 
 #: on a GPU, a batch of at least this many cells runs one launch per increment with its cells sorted by
-#: stage (run_batch): 1.72x the rate of one launch per range at 10^6 random cells x 62 increments on an
-#: H200 (4.31 vs 2.50 x 10^6 cell-increments / s, README "Throughput"); below it the per-increment sort
+#: stage, each increment in two passes (run_batch).  At 10^6 random cells x 62 increments on an H200,
+#: same run (bench_table.py, README "Throughput"): 6.03 x 10^6 cell-increments / s, against 5.30 x 10^6
+#: sorted in one pass and 2.91 x 10^6 in one launch per range; below this size the per-increment sort
 #: and launches cost more than the warps' divergence they save
 SORT_BY_STAGE_MIN_CELLS = 10_000
+#: CellSolver.step (the patch's trials) runs in two passes from this many cells, on any device: on one
+#: CPU core a 23 x 20 random-phi0 patch through the 3 cycles took 6.82 instead of 7.26 CPU s (1.06 x),
+#: the same rows; below it, the two extra launches per trial are not paid back
+COMPACT_STEP_MIN_CELLS = 256
 
 
 def run_batch(params, program: LoadProgram, device: str = "cpu",
               progress: Callable[[int, int], None] | None = None, max_halvings: int = MAX_HALVINGS,
               stick_closure: str = "release_beta", specialise: bool = True,
-              sort_by_stage: bool | None = None) -> BatchHistory:
+              sort_by_stage: bool | None = None, compact: bool | None = None) -> BatchHistory:
     """Run N cells through a strain program on a Warp device.
 
     Parameters
@@ -762,6 +812,10 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         One launch per increment with the cells sorted by stage on the device, so that a GPU warp's
         threads do the same kind of work (:meth:`CellSolver.run_program`); the results are the same.
         Default: on a CUDA device with at least :data:`SORT_BY_STAGE_MIN_CELLS` cells.
+    compact : bool, optional
+        One launch per increment in two passes: the regular increments of every cell, then the
+        full step of the cells listed by the first pass (:meth:`CellSolver.run_program`); the
+        results are the same.  Default: as ``sort_by_stage``.
 
     Returns
     -------
@@ -787,11 +841,13 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     # increments loop on the device
     if sort_by_stage is None:
         sort_by_stage = wp.get_device(dev).is_cuda and nc >= SORT_BY_STAGE_MIN_CELLS
+    if compact is None:
+        compact = sort_by_stage
     chunk = n if progress is None else max(1, min(n, 25))
     for k0 in range(0, n, chunk):
         k1 = min(n, k0 + chunk)
-        solver.run_program(s0, program, 1, k0, k1, hist, per_increment=bool(sort_by_stage),
-                           sort_by_stage=bool(sort_by_stage))
+        solver.run_program(s0, program, 1, k0, k1, hist, per_increment=bool(sort_by_stage or compact),
+                           sort_by_stage=bool(sort_by_stage), compact=bool(compact))
         if progress is not None:
             progress(k1, n)
     hqn = hq.numpy()

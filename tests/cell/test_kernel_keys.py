@@ -123,6 +123,15 @@ def test_strided_history_holds_every_stride_th_row(device):
     state3 = model.state()
     hist3 = CellSolver(model).run_program(state3, PROG, stride=3, per_increment=True, sort_by_stage=True)
     np.testing.assert_array_equal(hist3.q.numpy(), q)
+    # two passes per increment (regular increments, then the listed rest), captured and replayed
+    solver4, state4 = CellSolver(model), model.state()
+    hist4 = solver4.run_program(state4, PROG, stride=3, per_increment=True, compact=True)
+    np.testing.assert_array_equal(hist4.q.numpy(), q)
+    for dst, src in zip(state4._arrays() + [state4.eff], fresh._arrays() + [fresh.eff]):
+        wp.copy(dst, src)
+    hist4.q.zero_()
+    solver4.run_program(state4, PROG, stride=3, history=hist4, per_increment=True, compact=True)
+    np.testing.assert_array_equal(hist4.q.numpy(), q)
 
 
 def test_run_batch_sorted_by_stage_is_the_plain_run(device):
@@ -139,6 +148,40 @@ def test_run_batch_sorted_by_stage_is_the_plain_run(device):
     np.testing.assert_array_equal(sorted_.stage, plain.stage)
     np.testing.assert_array_equal(sorted_.status, plain.status)
     assert sorted_.events == plain.events
+    # and in two passes per increment, sorted or not (the Dahl cell has no first pass: its group runs
+    # the full step alone)
+    for sort in (False, True):
+        two = run_batch(cells, PROG, device=device, sort_by_stage=sort, compact=True)
+        for name, v in plain.values.items():
+            np.testing.assert_array_equal(two.values[name], v, err_msg=name)
+        np.testing.assert_array_equal(two.stage, plain.stage)
+        np.testing.assert_array_equal(two.status, plain.status)
+        assert two.events == plain.events
+
+
+def test_first_pass_takes_the_regular_increments_and_lists_the_others(device):
+    """The two-pass increment's first pass (cell_step._advance_cell_variant): on the sliding plateau of
+    the paper's loading (increments of 0.01, Dusserre 2015 Fig. 10: no event between 0.2 and 0.4 for
+    E-glass) every cell's increment is regular and none is left for the second pass; the reversal's
+    increment (Table 4: S+ -> SF-, an event) is regular for none.  Both passes are thus exercised by
+    the bit-for-bit tests above."""
+    from knitsim.cell.batch import ProgramHistory
+
+    cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(unloading_rule="hong_constant_t"),
+             GLASS.replace(m=0.1, phi0=0.0)]
+    prog = cycles(0.10, 0.60, 1, max_increment=0.01)
+    model = CellModel.from_params(cells, device)
+    solver, state = CellSolver(model), model.state()
+    hist = ProgramHistory.empty(model, len(prog), 1, False)
+    reversal = int(np.flatnonzero(np.diff(prog.direction))[0]) + 1
+    pending = []
+    for k in range(len(prog)):
+        solver.run_program(state, prog, 1, k, k + 1, hist, per_increment=True, compact=True)
+        pending.append(sum(int(count.numpy()[0]) for _, count in solver._pending))
+    plateau = [k for k in range(len(prog)) if 0.2 <= prog.strain[k] <= 0.4 and prog.direction[k] > 0]
+    assert len(plateau) > 10 and all(pending[k] == 0 for k in plateau), pending
+    assert pending[reversal] == len(cells), pending
+    assert pending[0] == len(cells)  # the first increment leaves the rest state (its first stage change)
 
 
 @pytest.mark.parametrize("kw, message", [
@@ -153,3 +196,31 @@ def test_model_from_arrays_names_the_first_bad_cell(kw, message):
     arr.update(kw)
     with pytest.raises(KnitsimInputError, match=message):
         CellModel.from_arrays(**arr)
+
+
+def test_step_in_two_passes_is_the_one_pass_step(device):
+    """CellSolver.step (a patch's trial: committed state in, trial state out) in two passes gives the
+    one-pass rows bit for bit, on all cells and on a subset (the other rows of the output untouched),
+    through a loading, a reversal and an unloading (identity: the first pass is the full step's
+    regular path, cell_step._advance_cell_variant)."""
+    cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(unloading_rule="hong_constant_t"),
+             GLASS.replace(friction="dahl", dahl_sigma=30.0), GLASS.replace(m=0.1, phi0=0.0),
+             GLASS.replace(jamming_criterion="head_gap")]
+    prog = cycles(0.10, 0.60, 1, max_increment=0.02)
+    model = CellModel.from_params(cells, device)
+    solver = CellSolver(model)
+    runs = {}
+    for compact in (False, True):
+        s_in, s_out, ctrl = model.state(), model.state(), model.control()
+        rows = []
+        for k in range(len(prog)):
+            ctrl.set(prog.strain[k], prog.direction[k])
+            subset = np.array([0, 2, 3, 5], np.int32) if k % 3 == 1 else None
+            for dst, src in zip(s_out._arrays() + [s_out.eff], s_in._arrays() + [s_in.eff]):
+                wp.copy(dst, src)
+            solver.step(s_in, s_out, ctrl, k, cells=subset, compact=compact)
+            rows.append(np.concatenate([s_out.q.numpy().ravel(), s_out.C.numpy(), s_out.stage.numpy(),
+                                        s_out.status.numpy(), s_out.x.numpy().ravel()]))
+            s_in, s_out = s_out, s_in
+        runs[compact] = np.array(rows)
+    np.testing.assert_array_equal(runs[True], runs[False])
