@@ -109,12 +109,19 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
         ``delta = |s_j - s_i|`` differs from a closed one by at most ``max|F| delta`` of work (the segment
         that would close it), added to the rounding tolerance: only a loop that returns energy beyond it
         is flagged.
+
+    A loop that starts at a compressive rest state (``force[0] < 0``: Table 4's initial state at C0, W0
+    needs the grips to push) is not judged: that state is not free, and a path that comes back to its
+    strain slack (F = 0) has released the energy stored at rest, which no friction law forbids.
+    :func:`compressive_rest_state` says so instead.
     """
     from ..cell.cycle import dissipated_energy
 
     s, f = np.asarray(strain, float), np.asarray(force, float)
     out = []
     for i, j in closed_excursions(s, atol):
+        if i == 0 and f[0] < 0.0:
+            continue
         w = dissipated_energy(s[i:j + 1], f[i:j + 1])
         gap = abs(s[j] - s[i]) * float(np.max(np.abs(f[i:j + 1])))
         if np.isfinite(w) and w < -(loop_work_tolerance(s[i:j + 1], f[i:j + 1]) + gap):
@@ -126,6 +133,25 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"a hysteresis; friction only dissipates, the energy comes from Table 4's frozen force closures (T "
                 f"frozen on unloading from a jammed state) (README, 'Loops that return energy')"))
     return out
+
+
+def compressive_rest_state(force_rest: float, what: str = "the cell") -> list[ResultWarning]:
+    """A warning when the rest state's force per wale is compressive (< 0).
+
+    The rest state is Table 4's initial state at C = C0, W = W0 (eq 6 with the contact force R >= 0,
+    :func:`knitsim.cell.domain.rest_state_problem`); its force F is what the grips must apply to hold the
+    loop there.  F < 0 means they push: the knit as described is not free at C0, W0 and springs back when
+    released.  Its stored energy comes back in the first unloading that goes slack, so loops from rest are
+    not judged (:func:`energy_creating_loops`)."""
+    f = float(force_rest)
+    if not (np.isfinite(f) and f < 0.0):
+        return []
+    return [ResultWarning(
+        "rest_state_compressive",
+        f"{what}: the rest state carries a compressive force per wale (F = {f:.3g} N at C0, W0): the grips must "
+        f"push to hold the loop there, so the knit as described is not free at rest and springs back when "
+        f"released; check W0 and C0 against the relaxed knit (a smaller C0 or W0 gives F >= 0). Loops from rest "
+        f"are not checked for energy balance (they release the energy stored at rest)")]
 
 
 #: a cycle peak below this fraction of the previous cycle's peak is flagged: it lost (nearly) all its

@@ -45,7 +45,8 @@ from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import ResultWarning, cycle_work, energy_creating_loops, interpenetration, zero_force_cycles
+from .checks import (ResultWarning, compressive_rest_state, cycle_work, energy_creating_loops, interpenetration,
+                     zero_force_cycles)
 from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
@@ -371,6 +372,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                                      what="distinct cell", direction=h.direction)
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
+    warnings += _compressive_rest_cells(h, row_key, col_key)
     warnings += _energy_creating_cells(h, row_key, col_key)
     out = dict(info)
     cells = int(h.shape[0] * h.shape[1])
@@ -411,6 +413,26 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
 #: a cell of a patch comes back to the strain it started from only to within the column coupling's solution
 #: (force_tol + force_rtol |F|, over a tangent): a loop of a cell is closed within this strain
 PATCH_LOOP_ATOL = 1e-6
+
+
+def _compressive_rest_cells(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:
+    """One warning naming the distinct cells whose rest state is compressive
+    (:func:`knitsim.io.checks.compressive_rest_state`; their loops from rest are not judged)."""
+    if h.group_rest is None:
+        return []
+    F = np.asarray(h.group_rest["F"], float)
+    bad = np.flatnonzero(np.isfinite(F) & (F < 0.0))
+    if not bad.size:
+        return []
+    where = []
+    for g in bad[:10]:
+        i, j = np.argwhere(h.group_of_cell == g)[0]
+        where.append(f"{row_key} {int(i)} {col_key} {int(j)}")
+    first = compressive_rest_state(F[bad[0]])[0].message.replace("the cell: ", "")
+    return [ResultWarning(
+        "rest_state_compressive",
+        f"{bad.size} of {F.size} distinct cell(s) have a compressive rest state, e.g. at {', '.join(where)}"
+        f"{' ...' if bad.size > 10 else ''}; the first: {first}")]
 
 
 def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:

@@ -37,7 +37,8 @@ import numpy as np
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
-from .checks import cut_by_force_cap, cycle_work, energy_creating_loops, interpenetration, zero_force_cycles
+from .checks import (compressive_rest_state, cut_by_force_cap, cycle_work, energy_creating_loops, interpenetration,
+                     zero_force_cycles)
 from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
@@ -266,6 +267,8 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         reason = flag.get("reason", "") if flag else ""
         end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
     warnings = cut + zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out])
+    if h.rest is not None:
+        warnings += compressive_rest_state(h.rest["F"][cell])
     if h.rest is not None and n_ok:
         warnings += energy_creating_loops(np.concatenate([[0.0], h.strain[:n_ok]]),
                                           np.concatenate([[h.rest["F"][cell]], F[:n_ok]]), p.C0)

@@ -77,3 +77,47 @@ def test_force_cap_cut_is_said_only_when_unloadings_were_left():
     assert cut_by_force_cap(strain, direction, cycle, 7, 4.0) == []    # the last increment: nothing left
     mono = np.ones(4, int)
     assert cut_by_force_cap(strain[:4], mono, mono, 1, 4.0) == []      # a monotonic pull to the cap: its end
+
+
+def test_a_loop_from_a_compressive_rest_state_is_said_not_judged():
+    """A hand-made path: rest F = -1 N per wale (the grips push at C0, W0), loaded to strain 0.05
+    (F = 0.5 N), unloaded back to 0 slack (F = 0).  Its trapezoidal loop work is
+    (-1 + 0.5) / 2 * 0.05 + (0.5 + 0) / 2 * (-0.05) = -0.025 N per unit strain: negative, but the rest
+    state was not free, so the loop released the energy stored at rest (no friction law is broken).
+    A loop that starts after the rest state (0.02 -> 0.05 -> 0.02 after a first load to 0.05, coming back
+    above its way up:
+    (0.1 + 0.5) / 2 * 0.03 - (0.5 + 0.4) / 2 * 0.03 = -0.0045 < 0) is still flagged."""
+    from knitsim.cell.cycle import dissipated_energy
+    from knitsim.io.checks import compressive_rest_state, energy_creating_loops
+
+    s, f = np.array([0.0, 0.05, 0.0]), np.array([-1.0, 0.5, 0.0])
+    assert dissipated_energy(s, f) == pytest.approx(-0.025)
+    assert energy_creating_loops(s, f, C0=2.7) == []
+    (w,) = compressive_rest_state(f[0])
+    assert w.code == "rest_state_compressive" and "-1 N" in w.message
+    assert compressive_rest_state(0.0) == [] and compressive_rest_state(0.3) == []
+    # a later loop 0.02 -> 0.05 -> 0.02 that comes back above its way up
+    s2 = np.array([0.0, 0.05, 0.02, 0.05, 0.02])
+    f2 = np.array([0.0, 0.5, 0.1, 0.5, 0.4])
+    flagged = energy_creating_loops(s2, f2, C0=2.7)
+    assert [x.code for x in flagged] == ["loop_creates_energy"] and "0.02 -> 0.05 -> 0.02" in flagged[0].message
+
+
+def test_cell_and_patch_summaries_say_a_compressive_rest_state():
+    """A stiff yarn on a short course (B = 9.84 N mm^2, C0 = 2.0 mm, W0 = 4.4 mm: Table 4's initial state
+    exists with R >= 0, knitsim.cell.domain) has a compressive rest force (-0.89 N per wale, solved).
+    Both summaries say so (warning rest_state_compressive) and neither calls a loop from rest one that
+    creates energy."""
+    from knitsim.io.patch_results import patch_summary
+    from knitsim.patch.model import PatchModel
+    from knitsim.patch.runner import run_patch
+
+    stiff = CellParams(B=9.84, d=0.58, L=14.1, W0=4.4, C0=2.0, m=0.2, phi0=0.0, force_cap_N=1e3)
+    prog = cycles(0.10, 0.30, 2, 0.05)
+    h = run_batch([stiff], prog)
+    assert h.rest["F"][0] < -0.5
+    codes = [w["code"] for w in summarise(h, ["stiff"])["warnings"]]
+    assert "rest_state_compressive" in codes and "loop_creates_energy" not in codes
+    ph = run_patch(PatchModel.uniform(stiff, 2, 2), prog)
+    codes = [w["code"] for w in patch_summary(ph, ph.info["ref_length_mm"])["warnings"]]
+    assert "rest_state_compressive" in codes and "loop_creates_energy" not in codes
