@@ -53,6 +53,7 @@ from knitsim.cell.stages import (
     RELOAD_RHO_SEED, SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
 )
 
+from .cell_arrays import EventArrays, HistoryArrays, ModelArrays, StateArrays
 from .effects import (
     BIT_BENDING, BIT_COILING, BIT_COMPACTION, BIT_EXTENSION, BIT_NORMAL_LOAD, BIT_VELOCITY, E_B, E_D, E_L, E_M,
     E_P0, E_RN0, E_Z, P_BEND_H, P_BEND_SIGMA, P_COIL_MU, P_COMP_K, P_COMP_MIN, P_EXT_C, P_LOAD_N, P_LOAD_REF,
@@ -1671,60 +1672,44 @@ def _advance_cell_variant(regular_only: bool):
 
     def advance_cell(
         i: int,
-
-        # model
-        B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-        W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-        phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-        djam: wp.array(dtype=wp.float64),
-        friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-        criterion: wp.array(dtype=wp.int32),
-        eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
-        max_halvings: int, closure: int,
-        # state in
-        x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
-        stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
-        fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
-        status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
-        eff_in: wp.array2d(dtype=wp.float64),
+        model: ModelArrays,
+        max_halvings: int,
+        closure: int,
+        s_in: StateArrays,
         # control of this increment
-        strain_i: wp.float64, dir_i: int, rate_i: wp.float64, increment: int,
-        # state out
-        x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
-        stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
-        fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-        status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
-        eff_out: wp.array2d(dtype=wp.float64),
-        # events (append buffer; ev_count[0] counts every event, stored or not)
-        ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
-        ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
-        ev_to: wp.array(dtype=wp.int32),
+        strain_i: wp.float64,
+        dir_i: int,
+        rate_i: wp.float64,
+        increment: int,
+        s_out: StateArrays,
+        ev: EventArrays,
     ):
         """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
 
-        Reads the state arrays ``*_in`` at the start and writes ``*_out`` at the end: they may be the same
-        arrays (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
-        mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
+        Reads the state ``s_in`` at the start and writes ``s_out`` at the end: they may be the same arrays
+        (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
+        mat = read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
+                            model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
         mat.closure = closure
         q = vecQd()
         for k in range(N_QUANTITIES):
-            q[k] = q_in[i, k]
+            q[k] = s_in.q[i, k]
         # the cell travels in Newton variables z (kernels below name them x)
-        x = z_of(vec5d(x_in[i, 0], x_in[i, 1], x_in[i, 2], x_in[i, 3], x_in[i, 4]), q)
-        C = C_in[i]
-        stage = int(stage_in[i])
-        jammed = int(jammed_in[i])
-        soft = int(soft_in[i])
-        fs = fsoft_in[i]
-        fsbc = fsbc_in[i]
-        status = int(status_in[i])
-        dir_old = int(direction_in[i])
+        x = z_of(vec5d(s_in.x[i, 0], s_in.x[i, 1], s_in.x[i, 2], s_in.x[i, 3], s_in.x[i, 4]), q)
+        C = s_in.C[i]
+        stage = int(s_in.stage[i])
+        jammed = int(s_in.jammed[i])
+        soft = int(s_in.soft[i])
+        fs = s_in.fsoft[i]
+        fsbc = s_in.fsbc[i]
+        status = int(s_in.status[i])
+        dir_old = int(s_in.direction[i])
         dir_new = dir_i
         C_target = mat.C0 * (wp.float64(1.0) + strain_i)
 
         # --- effects (issue 6): this increment's parameters from the state at its start
-        mask = int(eff_mask[i % eff_mask.shape[0]])
-        z_bend = eff_in[i, E_Z]
+        mask = int(model.eff_mask[i % model.eff_mask.shape[0]])
+        z_bend = s_in.eff[i, E_Z]
         # the lagged friction ratio goes linearly from that of the last increment (mat_old) to this one's
         # (mat) along the increment, so that a sudden change of state (a reversal) cannot make it jump
         mat_old = mat
@@ -1736,9 +1721,9 @@ def _advance_cell_variant(regular_only: bool):
             de = (C_target - C) / mat.C0
             if stage == SLACK and C_target <= C:
                 de = wp.float64(0.0)  # a slack loop does not bend
-            mat_old = material_from_effective(mat, eff_in[i, E_M])
-            mat = apply_effects(mat, mask, eff_params, i % eff_params.shape[0], q, z_bend, eff_in[i, E_P0],
-                                eff_in[i, E_RN0], C, de, rate_i)
+            mat_old = material_from_effective(mat, s_in.eff[i, E_M])
+            mat = apply_effects(mat, mask, model.eff_params, i % model.eff_params.shape[0], q, z_bend, s_in.eff[i, E_P0],
+                                s_in.eff[i, E_RN0], C, de, rate_i)
 
         # events of this increment (kind, C, from-label, to-label), committed at the end
         n_ev = int(0)
@@ -2104,48 +2089,48 @@ def _advance_cell_variant(regular_only: bool):
         # --- commit
         xo = x_of_z(x)
         for k in range(5):
-            x_out[i, k] = xo[k]
+            s_out.x[i, k] = xo[k]
         for k in range(N_QUANTITIES):
-            q_out[i, k] = q[k]
-        C_out[i] = C
-        stage_out[i] = stage
-        jammed_out[i] = jammed
-        soft_out[i] = soft
-        fsoft_out[i] = fs
-        fsbc_out[i] = fsbc
-        status_out[i] = status
-        direction_out[i] = dir_new
+            s_out.q[i, k] = q[k]
+        s_out.C[i] = C
+        s_out.stage[i] = stage
+        s_out.jammed[i] = jammed
+        s_out.soft[i] = soft
+        s_out.fsoft[i] = fs
+        s_out.fsbc[i] = fsbc
+        s_out.status[i] = status
+        s_out.direction[i] = dir_new
         # the interpenetration check of every accepted state (issue 13): the heads' centreline gap (a
         # state that did not move keeps its gap bit for bit: z is rebuilt from x at every increment)
-        gap = gap_in[i]
+        gap = s_in.gap[i]
         if go:
             gap = head_gap_value(wp.exp(x[0]), q, stiffness_at(mat, C))
-        gap_out[i] = gap
-        for k in range(eff_in.shape[1]):
-            eff_out[i, k] = eff_in[i, k]
+        s_out.gap[i] = gap
+        for k in range(s_in.eff.shape[1]):
+            s_out.eff[i, k] = s_in.eff[i, k]
         if with_effects:
-            eff_out[i, E_M] = mat.m
+            s_out.eff[i, E_M] = mat.m
             if mat.fr_state != 0:
-                eff_out[i, E_M] = wp.tan(phi_edge(q, mat))  # the ratio at the committed state
-            eff_out[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
-            eff_out[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
-            eff_out[i, E_B] = stiffness_at(mat, C)
+                s_out.eff[i, E_M] = wp.tan(phi_edge(q, mat))  # the ratio at the committed state
+            s_out.eff[i, E_D] = jam_width(mat, q[Q_RN]) * (mat.d / mat.w_jam)
+            s_out.eff[i, E_L] = mat.L * extension_ratio(q[Q_P], mat.ext_p0, mat.ext_c)
+            s_out.eff[i, E_B] = stiffness_at(mat, C)
             if bends(mat):
                 z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
-            eff_out[i, E_Z] = z_bend
+            s_out.eff[i, E_Z] = z_bend
         if n_ev > 0:
             nk = wp.min(n_ev, _MAXEV)
-            base = wp.atomic_add(ev_count, 0, nk)
-            cap_ev = ev_cell.shape[0]
+            base = wp.atomic_add(ev.count, 0, nk)
+            cap_ev = ev.cell.shape[0]
             for k in range(nk):
                 j = base + k
                 if j < cap_ev:
-                    ev_cell[j] = i
-                    ev_incr[j] = increment
-                    ev_kind[j] = e_kind[k]
-                    ev_C[j] = e_C[k]
-                    ev_from[j] = e_from[k]
-                    ev_to[j] = e_to[k]
+                    ev.cell[j] = i
+                    ev.incr[j] = increment
+                    ev.kind[j] = e_kind[k]
+                    ev.C[j] = e_C[k]
+                    ev.label_from[j] = e_from[k]
+                    ev.label_to[j] = e_to[k]
         return True
 
     return wp.func(advance_cell, name="advance_regular" if regular_only else "advance_cell")
@@ -2161,7 +2146,7 @@ advance_regular = _advance_cell_variant(True) if REGULAR_PASS else None
 
 def _step_kernel_variant(first_pass: bool):
     """:func:`step_kernel`, or with ``first_pass`` :func:`regular_step_kernel`: the same launch with
-    :func:`advance_cell` or its first pass (``_advance_cell_variant``), one signature."""
+    :func:`advance_cell` or its first pass (``_advance_cell_variant``)."""
     advance = advance_regular if first_pass else advance_cell
 
     def step_kernel(
@@ -2171,51 +2156,25 @@ def _step_kernel_variant(first_pass: bool):
         count: wp.array(dtype=wp.int32),
         # first pass: where it lists the cells it leaves for the full step (pending[:pending_count[0]])
         pending: wp.array(dtype=wp.int32), pending_count: wp.array(dtype=wp.int32),
-        # model
-        B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-        W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-        phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-        djam: wp.array(dtype=wp.float64),
-        friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-        criterion: wp.array(dtype=wp.int32),
-        eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
-        max_halvings: int, closure: int,
-        # state in
-        x_in: wp.array2d(dtype=wp.float64), q_in: wp.array2d(dtype=wp.float64), C_in: wp.array(dtype=wp.float64),
-        stage_in: wp.array(dtype=wp.int32), jammed_in: wp.array(dtype=wp.int32), soft_in: wp.array(dtype=wp.int32),
-        fsoft_in: wp.array(dtype=wp.float64), fsbc_in: wp.array(dtype=wp.float64),
-        status_in: wp.array(dtype=wp.int32), direction_in: wp.array(dtype=wp.int32), gap_in: wp.array(dtype=wp.float64),
-        eff_in: wp.array2d(dtype=wp.float64),
+        model: ModelArrays, max_halvings: int, closure: int,
+        s_in: StateArrays,
         # control
         strain: wp.array(dtype=wp.float64), direction: wp.array(dtype=wp.int32), rate: wp.array(dtype=wp.float64),
         increment: int,
-        # state out
-        x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
-        stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
-        fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-        status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
-        eff_out: wp.array2d(dtype=wp.float64),
-        # events (append buffer; ev_count[0] counts every event, stored or not)
-        ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
-        ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
-        ev_to: wp.array(dtype=wp.int32),
+        s_out: StateArrays,
+        ev: EventArrays,
     ):
         """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row); a first
-        pass leaves the ``*_out`` rows of the cells it lists untouched."""
+        pass leaves the ``s_out`` rows of the cells it lists untouched."""
         i = wp.tid()
         if count.shape[0] > 0:
             if i >= count[0]:
                 return
         if cells.shape[0] > 0:
             i = cells[i]
-        done = wp.static(advance)(
-            i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask,
-            eff_params, max_halvings, closure,
-            x_in, q_in, C_in, stage_in, jammed_in, soft_in, fsoft_in, fsbc_in, status_in, direction_in, gap_in, eff_in,
-            strain[i % strain.shape[0]], int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
-            x_out, q_out, C_out, stage_out, jammed_out, soft_out, fsoft_out, fsbc_out, status_out, direction_out,
-            gap_out, eff_out,
-            ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+        done = wp.static(advance)(i, model, max_halvings, closure, s_in, strain[i % strain.shape[0]],
+                                  int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
+                                  s_out, ev)
         if wp.static(first_pass):
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
@@ -2224,31 +2183,27 @@ def _step_kernel_variant(first_pass: bool):
 
 
 @wp.func
-def write_history_row(
-    i: int, row: int, q: wp.array2d(dtype=wp.float64), stage: wp.array(dtype=wp.int32),
-    jammed: wp.array(dtype=wp.int32), status: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64),
-    codes: wp.array(dtype=wp.int32), hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
-    hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
-    hist_gap: wp.array2d(dtype=wp.float64),
-):
-    """History row ``row`` of cell i: hist_q[k, row, i] = q[i, codes[k]] (F = 0 while slack), stage, jam
-    flag, status and head gap."""
-    st = stage[i]
-    for k in range(codes.shape[0]):
-        c = codes[k]
-        v = q[i, c]
+def write_history_row(i: int, row: int, state: StateArrays, hist: HistoryArrays):
+    """History row ``row`` of cell i: hist.q[k, row, i] = q[i, codes[k]] (F = 0 while slack), stage, jam
+    flag, status, head gap and (where recorded) the effects' state."""
+    st = state.stage[i]
+    for k in range(hist.codes.shape[0]):
+        c = hist.codes[k]
+        v = state.q[i, c]
         if c == Q_F and st == SLACK:
             v = wp.float64(0.0)
-        hist_q[k, row, i] = v
-    hist_stage[row, i] = st
-    hist_jammed[row, i] = jammed[i]
-    hist_status[row, i] = status[i]
-    hist_gap[row, i] = gap[i]
+        hist.q[k, row, i] = v
+    hist.stage[row, i] = st
+    hist.jammed[row, i] = state.jammed[i]
+    hist.status[row, i] = state.status[i]
+    hist.gap[row, i] = state.gap[i]
+    for j in range(hist.eff.shape[0]):
+        hist.eff[j, row, i] = state.eff[i, j]
 
 
 def _program_kernel_variant(first_pass: bool):
     """:func:`program_kernel`, or with ``first_pass`` :func:`regular_kernel` (one increment only:
-    ``k_stop = k_start + 1``), one signature."""
+    ``k_stop = k_start + 1``)."""
     advance = advance_regular if first_pass else advance_cell
 
     def program_kernel(
@@ -2258,32 +2213,14 @@ def _program_kernel_variant(first_pass: bool):
         count: wp.array(dtype=wp.int32),
         # first pass: where it lists the cells it leaves for the full step (pending[:pending_count[0]])
         pending: wp.array(dtype=wp.int32), pending_count: wp.array(dtype=wp.int32),
-        # model
-        B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-        W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-        phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-        djam: wp.array(dtype=wp.float64),
-        friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-        criterion: wp.array(dtype=wp.int32),
-        eff_mask: wp.array(dtype=wp.int32), eff_params: wp.array2d(dtype=wp.float64),
-        max_halvings: int, closure: int,
-        # state, advanced in place
-        x: wp.array2d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), C: wp.array(dtype=wp.float64),
-        stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32), soft: wp.array(dtype=wp.int32),
-        fsoft: wp.array(dtype=wp.float64), fsbc: wp.array(dtype=wp.float64),
-        status: wp.array(dtype=wp.int32), direction: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64),
-        eff: wp.array2d(dtype=wp.float64),
+        model: ModelArrays, max_halvings: int, closure: int,
+        # advanced in place
+        state: StateArrays,
         # the load program: strain, direction and rate of every increment, and the increments to run
         prog_strain: wp.array(dtype=wp.float64), prog_direction: wp.array(dtype=wp.int32),
         prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int, stride: int,
-        # events
-        ev_count: wp.array(dtype=wp.int32), ev_cell: wp.array(dtype=wp.int32), ev_incr: wp.array(dtype=wp.int32),
-        ev_kind: wp.array(dtype=wp.int32), ev_C: wp.array(dtype=wp.float64), ev_from: wp.array(dtype=wp.int32),
-        ev_to: wp.array(dtype=wp.int32),
-        # history rows (record_kernel's layout; hist_eff of shape [0, ...] records no effect state)
-        codes: wp.array(dtype=wp.int32), hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
-        hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
-        hist_gap: wp.array2d(dtype=wp.float64), hist_eff: wp.array3d(dtype=wp.float64),
+        ev: EventArrays,
+        hist: HistoryArrays,
     ):
         """Advance each cell through increments ``k_start .. k_stop - 1`` of a load program in one launch,
         recording the rows of increments ``stride - 1, 2 stride - 1, ...`` (every row with stride 1) into
@@ -2297,23 +2234,14 @@ def _program_kernel_variant(first_pass: bool):
         if cells.shape[0] > 0:
             i = cells[i]
         for k in range(k_start, k_stop):
-            done = wp.static(advance)(
-                i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion, eff_mask,
-                eff_params, max_halvings, closure,
-                x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
-                prog_strain[k], int(prog_direction[k]), prog_rate[k % prog_rate.shape[0]], k,
-                x, q, C, stage, jammed, soft, fsoft, fsbc, status, direction, gap, eff,
-                ev_count, ev_cell, ev_incr, ev_kind, ev_C, ev_from, ev_to)
+            done = wp.static(advance)(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
+                                      prog_rate[k % prog_rate.shape[0]], k, state, ev)
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
                 return
             if (k + 1) % stride == 0:
                 # row r holds increment (r + 1) stride - 1 (every increment with stride 1)
-                r = k // stride
-                write_history_row(i, r, q, stage, jammed, status, gap, codes, hist_q, hist_stage, hist_jammed,
-                                  hist_status, hist_gap)
-                for j in range(hist_eff.shape[0]):
-                    hist_eff[j, r, i] = eff[i, j]
+                write_history_row(i, k // stride, state, hist)
 
     return wp.kernel(program_kernel, name="regular_kernel" if first_pass else "program_kernel")
 
@@ -2323,29 +2251,6 @@ program_kernel = _program_kernel_variant(False)
 if REGULAR_PASS:
     regular_step_kernel = _step_kernel_variant(True)
     regular_kernel = _program_kernel_variant(True)
-
-
-@wp.kernel
-def record_kernel(
-    q: wp.array2d(dtype=wp.float64), stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32),
-    status: wp.array(dtype=wp.int32), gap: wp.array(dtype=wp.float64), codes: wp.array(dtype=wp.int32), row: int,
-    hist_q: wp.array3d(dtype=wp.float64), hist_stage: wp.array2d(dtype=wp.int32),
-    hist_jammed: wp.array2d(dtype=wp.int32), hist_status: wp.array2d(dtype=wp.int32),
-    hist_gap: wp.array2d(dtype=wp.float64),
-):
-    """Write one history row (:func:`write_history_row`)."""
-    i = wp.tid()
-    write_history_row(i, row, q, stage, jammed, status, gap, codes, hist_q, hist_stage, hist_jammed, hist_status,
-                      hist_gap)
-
-
-@wp.kernel
-def record_columns_kernel(src: wp.array2d(dtype=wp.float64), cols: wp.array(dtype=wp.int32), row: int,
-                          hist: wp.array3d(dtype=wp.float64)):
-    """Write one history row of per-cell columns: hist[k, row, i] = src[i, cols[k]]."""
-    i = wp.tid()
-    for k in range(cols.shape[0]):
-        hist[k, row, i] = src[i, cols[k]]
 
 
 @wp.kernel

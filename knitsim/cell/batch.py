@@ -58,6 +58,20 @@ from .stages import (
 _LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
 
 
+#: the fields of the kernels' structs (knitsim.kernels.cell_arrays), in the order of the host lists
+_MODEL_STRUCT_FIELDS = ("B", "d", "L", "W0", "C0", "m", "phi0", "sigma", "cap", "djam", "friction", "unloading",
+                        "reload", "criterion", "eff_mask", "eff_params")
+_STATE_STRUCT_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "fsoft", "fsbc", "status", "direction", "gap", "eff")
+
+
+def _fill(struct, fields: Sequence[str], arrays: list):
+    """Set a Warp struct's array fields from a list (same order)."""
+    assert len(fields) == len(arrays)
+    for name, a in zip(fields, arrays):
+        setattr(struct, name, a)
+    return struct
+
+
 def _compact(a: np.ndarray) -> np.ndarray:
     """A per-cell column as stored: one value when every cell has the same (broadcast 1 or N)."""
     a = np.atleast_1d(a)
@@ -366,6 +380,14 @@ class CellModel:
     def _effect_arrays(self) -> list:
         return [self.effect_mask, self.effect_params]
 
+    def arrays(self):
+        """The parameter arrays as one Warp struct (:class:`knitsim.kernels.cell_arrays.ModelArrays`), made once."""
+        if "_struct" not in self.__dict__:
+            from knitsim.kernels.cell_arrays import ModelArrays
+            self.__dict__["_struct"] = _fill(ModelArrays(), _MODEL_STRUCT_FIELDS,
+                                             self._arrays() + self._effect_arrays())
+        return self.__dict__["_struct"]
+
     def nbytes(self) -> int:
         """Device bytes of the parameter arrays."""
         return int(sum(a.capacity for a in self._arrays() + self._effect_arrays()))
@@ -464,6 +486,11 @@ class CellBatchState:
         return [self.x, self.q, self.C, self.stage, self.jammed, self.soft, self.frozen_soft,
                 self.frozen_sbc, self.status, self.direction, self.head_gap]
 
+    def arrays(self):
+        """The state's arrays as one Warp struct (:class:`knitsim.kernels.cell_arrays.StateArrays`)."""
+        from knitsim.kernels.cell_arrays import StateArrays
+        return _fill(StateArrays(), _STATE_STRUCT_FIELDS, self._arrays() + [self.eff])
+
     @property
     def cell_count(self) -> int:
         return int(self.C.shape[0])
@@ -546,6 +573,9 @@ class CellSolver:
         self._ev_count = wp.zeros(1, dtype=wp.int32, device=dev)
         self._ev = [wp.zeros(max(cap, 1), dtype=t, device=dev)
                     for t in (wp.int32, wp.int32, wp.int32, wp.float64, wp.int32, wp.int32)]
+        from knitsim.kernels.cell_arrays import EventArrays
+        self._ev_struct = _fill(EventArrays(), ("count", "cell", "incr", "kind", "C", "label_from", "label_to"),
+                                [self._ev_count] + self._ev)
 
     def step(self, state_in: CellBatchState, state_out: CellBatchState, control: CellControl,
              increment: int = 0, cells: np.ndarray | None = None, compact: bool | None = None) -> None:
@@ -563,25 +593,21 @@ class CellSolver:
             compact = n >= COMPACT_STEP_MIN_CELLS
         groups = self.groups if cells is None else self._subset(np.asarray(cells, dtype=np.int32))
         no_count = self.__dict__.setdefault("_no_count", wp.zeros(0, dtype=wp.int32, device=dev))
+        model_s, s_in, s_out = self.model.arrays(), state_in.arrays(), state_out.arrays()
         for g, (k, cells) in enumerate(groups):
             if cells is None:
                 continue
             m = cells.shape[0] or n
-            common = (self.model._arrays() + self.model._effect_arrays()
-                      + [self.max_halvings, int(self.stick_closure == "release_beta")]
-                      + state_in._arrays() + [state_in.eff]
-                      + [control.strain, control.direction, control.rate, int(increment)])
-            outputs = state_out._arrays() + [state_out.eff] + [self._ev_count] + self._ev
+            common = [model_s, self.max_halvings, int(self.stick_closure == "release_beta"), s_in,
+                      control.strain, control.direction, control.rate, int(increment), s_out, self._ev_struct]
             count = no_count
             if compact and getattr(k, "REGULAR_PASS", False):
                 # the first pass lists the cells it leaves; the full step takes the first count[0] of them
                 pending, count = self._pending_buffers()[g]
                 wp.launch(k.zero_count_kernel, dim=1, inputs=[count], device=dev)
-                wp.launch(k.regular_step_kernel, dim=m, inputs=[cells, no_count, pending, count] + common,
-                          outputs=outputs, device=dev)
+                wp.launch(k.regular_step_kernel, dim=m, inputs=[cells, no_count, pending, count] + common, device=dev)
                 cells = pending
-            wp.launch(k.step_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common, outputs=outputs,
-                      device=dev)
+            wp.launch(k.step_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common, device=dev)
 
     def _pending_buffers(self) -> list:
         """Per kernel group: the list of cells the first pass leaves for the full step, and its count."""
@@ -677,6 +703,7 @@ class CellSolver:
             bufs = self.__dict__.setdefault("_sort", [
                 tuple(wp.zeros(2 * (cells.shape[0] or model.cell_count), dtype=wp.int32, device=dev) for _ in range(2))
                 for _, cells in self.groups])
+        model_s, state_s, hist_s = model.arrays(), state.arrays(), hist.arrays()
 
         def launches():
             for k0, k1 in ranges:
@@ -689,10 +716,8 @@ class CellSolver:
                                   device=dev)
                         wp.utils.radix_sort_pairs(keys, order, m)
                         cells = order
-                    common = (model._arrays() + model._effect_arrays()
-                              + [self.max_halvings, int(self.stick_closure == "release_beta")]
-                              + state._arrays() + [state.eff] + arrays)
-                    rest = [k0, k1, int(stride)] + [self._ev_count] + self._ev + hist._arrays()
+                    common = [model_s, self.max_halvings, int(self.stick_closure == "release_beta"), state_s] + arrays
+                    rest = [k0, k1, int(stride), self._ev_struct, hist_s]
                     count = no_count
                     if compact and getattr(k, "REGULAR_PASS", False):
                         # the first pass lists the cells it leaves; the full step takes the first count[0]
@@ -775,6 +800,11 @@ class ProgramHistory:
 
     def _arrays(self) -> list:
         return [self.codes, self.q, self.stage, self.jammed, self.status, self.head_gap, self.eff]
+
+    def arrays(self):
+        """The history's arrays as one Warp struct (:class:`knitsim.kernels.cell_arrays.HistoryArrays`)."""
+        from knitsim.kernels.cell_arrays import HistoryArrays
+        return _fill(HistoryArrays(), ("codes", "q", "stage", "jammed", "status", "gap", "eff"), self._arrays())
 
 
 #: on a GPU, a batch of at least this many cells runs one launch per increment with its cells sorted by

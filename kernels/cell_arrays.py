@@ -1,0 +1,76 @@
+"""The arrays a cell step reads and writes, grouped as Warp structs (issue 15 item 3): the model
+(per-cell parameters, shape ``(1 or N, ...)``, read as ``p[i % p.shape[0]]``), a state (per cell, shape
+``(N, ...)``), the event append buffer and the recorded history rows.  One definition, shared by every
+kernel-key instance of :mod:`knitsim.kernels.cell_step` (a struct type is its module's), so that a
+host-side struct made once (:meth:`knitsim.cell.batch.CellModel.arrays` and the like) is passed to any of
+them.  Field meanings and units: :mod:`knitsim.cell.batch`."""
+from __future__ import annotations
+
+import warp as wp
+
+
+@wp.struct
+class ModelArrays:
+    """Per-cell parameters (CellModel): lengths in mm, B in N mm^2, forces in N, angles in rad."""
+
+    B: wp.array(dtype=wp.float64)
+    d: wp.array(dtype=wp.float64)
+    L: wp.array(dtype=wp.float64)
+    W0: wp.array(dtype=wp.float64)
+    C0: wp.array(dtype=wp.float64)
+    m: wp.array(dtype=wp.float64)
+    phi0: wp.array(dtype=wp.float64)
+    sigma: wp.array(dtype=wp.float64)
+    cap: wp.array(dtype=wp.float64)
+    djam: wp.array(dtype=wp.float64)
+    friction: wp.array(dtype=wp.int32)
+    unloading: wp.array(dtype=wp.int32)
+    reload: wp.array(dtype=wp.int32)
+    criterion: wp.array(dtype=wp.int32)
+    eff_mask: wp.array(dtype=wp.int32)
+    eff_params: wp.array2d(dtype=wp.float64)
+
+
+@wp.struct
+class StateArrays:
+    """The evolving state of every cell (CellBatchState)."""
+
+    x: wp.array2d(dtype=wp.float64)
+    q: wp.array2d(dtype=wp.float64)
+    C: wp.array(dtype=wp.float64)
+    stage: wp.array(dtype=wp.int32)
+    jammed: wp.array(dtype=wp.int32)
+    soft: wp.array(dtype=wp.int32)
+    fsoft: wp.array(dtype=wp.float64)
+    fsbc: wp.array(dtype=wp.float64)
+    status: wp.array(dtype=wp.int32)
+    direction: wp.array(dtype=wp.int32)
+    gap: wp.array(dtype=wp.float64)
+    eff: wp.array2d(dtype=wp.float64)
+
+
+@wp.struct
+class EventArrays:
+    """The event append buffer: ``count[0]`` counts every event, stored or not (CellSolver.events)."""
+
+    count: wp.array(dtype=wp.int32)
+    cell: wp.array(dtype=wp.int32)
+    incr: wp.array(dtype=wp.int32)
+    kind: wp.array(dtype=wp.int32)
+    C: wp.array(dtype=wp.float64)
+    label_from: wp.array(dtype=wp.int32)
+    label_to: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class HistoryArrays:
+    """Recorded rows (ProgramHistory): ``q[k, row, i] = state q[i, codes[k]]``; ``eff`` of shape
+    ``[0, ...]`` records no effect state."""
+
+    codes: wp.array(dtype=wp.int32)
+    q: wp.array3d(dtype=wp.float64)
+    stage: wp.array2d(dtype=wp.int32)
+    jammed: wp.array2d(dtype=wp.int32)
+    status: wp.array2d(dtype=wp.int32)
+    gap: wp.array2d(dtype=wp.float64)
+    eff: wp.array3d(dtype=wp.float64)
