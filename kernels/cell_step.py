@@ -67,7 +67,7 @@ from .elastica import (
 from .head_gap import head_gap_dual, head_gap_value
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
-    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, mat55d, max_abs5, quantity_scale, solve5, vec4d,
+    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, imposed_residual, mat55d, max_abs5, solve5, vec4d,
 )
 from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
 
@@ -417,10 +417,9 @@ def residuals_ext(cell: CellEval, z: vec5d, codes: wp.vec4i, targets: vec4d, dp:
             r[k + 1] = rp.v
             J[k + 1] = rp.g
         else:
-            sc = quantity_scale(c, B, d)
-            qk = quantity(cell, c)
-            r[k + 1] = (qk.v - targets[k]) / sc
-            J[k + 1] = qk.g / sc
+            rk, gk = imposed_residual(cell, c, targets[k], B, d)
+            r[k + 1] = rk
+            J[k + 1] = gk
     return r, J
 
 

@@ -83,18 +83,25 @@ def quantity_scale(code: int, B: wp.float64, d: wp.float64) -> wp.float64:
 
 
 @wp.func
+def imposed_residual(cell: CellEval, c: int, target: wp.float64, B: wp.float64, d: wp.float64):
+    """Scaled residual of one imposed condition ``quantity[c] = target`` (Table 4) and its gradient."""
+    sc = quantity_scale(c, B, d)
+    qk = quantity(cell, c)
+    return (qk.v - target) / sc, qk.g / sc
+
+
+@wp.func
 def residuals(cell: CellEval, codes: wp.vec4i, targets: vec4d, B: wp.float64, d: wp.float64):
-    """Scaled residuals r (5) and their Jacobian J = dr/dseed (5x5)."""
+    """Scaled residuals r (5) and their Jacobian J = dr/dseed (5x5): the intrinsic condition g = 0 (eq 6,
+    scaled by d) and the four imposed conditions."""
     r = vec5d()
     J = mat55d()
     r[0] = cell.g / d
     J[0] = cell.dg / d
     for k in range(4):
-        c = codes[k]
-        sc = quantity_scale(c, B, d)
-        qk = quantity(cell, c)
-        r[k + 1] = (qk.v - targets[k]) / sc
-        J[k + 1] = qk.g / sc
+        rk, gk = imposed_residual(cell, codes[k], targets[k], B, d)
+        r[k + 1] = rk
+        J[k + 1] = gk
     return r, J
 
 
