@@ -3,7 +3,8 @@
 ``(N, ...)``), the event append buffer and the recorded history rows.  One definition, shared by every
 kernel-key instance of :mod:`knitsim.kernels.cell_step` (a struct type is its module's), so that a
 host-side struct made once (:meth:`knitsim.cell.batch.CellModel.arrays` and the like) is passed to any of
-them.  Field meanings and units: :mod:`knitsim.cell.batch`."""
+them.  Field meanings and units: :mod:`knitsim.cell.batch`.  Also the one kernel that only moves state
+rows (:func:`select_state_kernel`)."""
 from __future__ import annotations
 
 import warp as wp
@@ -74,3 +75,26 @@ class HistoryArrays:
     status: wp.array2d(dtype=wp.int32)
     gap: wp.array2d(dtype=wp.float64)
     eff: wp.array3d(dtype=wp.float64)
+
+
+@wp.kernel
+def select_state_kernel(mask: wp.array(dtype=wp.int32), src: StateArrays, dst: StateArrays):
+    """``dst[i] = src[i]`` where ``mask[i]``, for every field of a state (the patch coupling keeps a
+    column's trial states as its result this way)."""
+    i = wp.tid()
+    if mask[i] != 0:
+        for k in range(src.x.shape[1]):
+            dst.x[i, k] = src.x[i, k]
+        for k in range(src.q.shape[1]):
+            dst.q[i, k] = src.q[i, k]
+        dst.C[i] = src.C[i]
+        dst.stage[i] = src.stage[i]
+        dst.jammed[i] = src.jammed[i]
+        dst.soft[i] = src.soft[i]
+        dst.fsoft[i] = src.fsoft[i]
+        dst.fsbc[i] = src.fsbc[i]
+        dst.status[i] = src.status[i]
+        dst.direction[i] = src.direction[i]
+        dst.gap[i] = src.gap[i]
+        for k in range(src.eff.shape[1]):
+            dst.eff[i, k] = src.eff[i, k]

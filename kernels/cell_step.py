@@ -1530,22 +1530,6 @@ def blend_material(a: Material, b: Material, t: wp.float64) -> Material:
     return out
 
 
-@wp.kernel
-def init_effects_kernel(
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    m: wp.array(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), eff: wp.array2d(dtype=wp.float64),
-):
-    """Effective state at rest: the given m, d, L, B, z = 0, and the rest values P_0, Rn_0."""
-    i = wp.tid()
-    eff[i, E_M] = m[i % m.shape[0]]
-    eff[i, E_D] = d[i % d.shape[0]]
-    eff[i, E_L] = L[i % L.shape[0]]
-    eff[i, E_B] = B[i % B.shape[0]]
-    eff[i, E_Z] = wp.float64(0.0)
-    eff[i, E_P0] = q[i, Q_P]
-    eff[i, E_RN0] = q[i, Q_RN]
-
-
 # ------------------------------------------------------------------ initial state
 @wp.func
 def closing_force(al: wp.float64, be: wp.float64, ga: wp.float64, B: wp.float64, d: wp.float64) -> wp.float64:
@@ -1564,23 +1548,13 @@ def closing_force(al: wp.float64, be: wp.float64, ga: wp.float64, B: wp.float64,
 
 
 @wp.kernel
-def init_kernel(
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-    djam: wp.array(dtype=wp.float64),
-    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    criterion: wp.array(dtype=wp.int32),
-    starts: wp.array2d(dtype=wp.float64),
-    x_out: wp.array2d(dtype=wp.float64), q_out: wp.array2d(dtype=wp.float64), C_out: wp.array(dtype=wp.float64),
-    stage_out: wp.array(dtype=wp.int32), jammed_out: wp.array(dtype=wp.int32), soft_out: wp.array(dtype=wp.int32),
-    fsoft_out: wp.array(dtype=wp.float64), fsbc_out: wp.array(dtype=wp.float64),
-    status_out: wp.array(dtype=wp.int32), direction_out: wp.array(dtype=wp.int32), gap_out: wp.array(dtype=wp.float64),
-):
+def init_kernel(model: ModelArrays, starts: wp.array2d(dtype=wp.float64), s_out: StateArrays):
     """Table 4 initial state {C0, W0, L, phi0}: multistart at phi = 0 (the starts of
-    knitsim.cell.inverse.initial_state, first converged wins), then continuation in phi."""
+    knitsim.cell.inverse.initial_state, first converged wins), then continuation in phi; and the
+    effects' state at rest (the given m, d, L, B, z = 0, and the rest values P_0, Rn_0)."""
     i = wp.tid()
-    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
+    mat = read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
+                        model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
     codes = wp.vec4i(Q_C, Q_W, Q_L, Q_PHI)
     tg = vec4d(mat.C0, mat.W0, mat.L, wp.float64(0.0))
     found = bool(False)
@@ -1639,18 +1613,25 @@ def init_kernel(
         stage = int(S_LOAD)  # phi0 = phimax: at the sliding limit already (m = 0: slides from the start)
     xo = x_of_z(x)
     for k in range(5):
-        x_out[i, k] = xo[k]
+        s_out.x[i, k] = xo[k]
     for k in range(N_QUANTITIES):
-        q_out[i, k] = q[k]
-    C_out[i] = q[Q_C]
-    stage_out[i] = stage
-    jammed_out[i] = 0
-    soft_out[i] = int(Q_RN)
-    fsoft_out[i] = q[Q_RN]
-    fsbc_out[i] = q[Q_S_BC]
-    status_out[i] = status
-    direction_out[i] = 1
-    gap_out[i] = head_gap_value(wp.exp(x[0]), q, mat.B)
+        s_out.q[i, k] = q[k]
+    s_out.C[i] = q[Q_C]
+    s_out.stage[i] = stage
+    s_out.jammed[i] = 0
+    s_out.soft[i] = int(Q_RN)
+    s_out.fsoft[i] = q[Q_RN]
+    s_out.fsbc[i] = q[Q_S_BC]
+    s_out.status[i] = status
+    s_out.direction[i] = 1
+    s_out.gap[i] = head_gap_value(wp.exp(x[0]), q, mat.B)
+    s_out.eff[i, E_M] = mat.m
+    s_out.eff[i, E_D] = mat.d
+    s_out.eff[i, E_L] = mat.L
+    s_out.eff[i, E_B] = mat.B
+    s_out.eff[i, E_Z] = wp.float64(0.0)
+    s_out.eff[i, E_P0] = q[Q_P]
+    s_out.eff[i, E_RN0] = q[Q_RN]
 
 
 # ------------------------------------------------------------------ one increment

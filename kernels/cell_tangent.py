@@ -27,6 +27,7 @@ from knitsim.cell.quantities import Q_C, Q_F
 from .cell_step import (
     SLACK, ST_OK, evaluate_zr, read_material, residuals_ext, reverse, stage_conditions, vec10p, z_of,
 )
+from .cell_arrays import ModelArrays, StateArrays
 from .elastica import vec5d
 from .inverse import quantity_scale, solve5
 from .quarter_loop import N_QUANTITIES, quantity, vecQd
@@ -36,18 +37,8 @@ wp.set_module_options({"max_unroll": 1, "enable_backward": False})
 
 @wp.kernel
 def branch_tangent_kernel(
-    # model (knitsim.cell.batch.CellModel._arrays order)
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-    djam: wp.array(dtype=wp.float64),
-    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    criterion: wp.array(dtype=wp.int32), eff_mask: wp.array(dtype=wp.int32),
-    # state (CellBatchState, the fields read)
-    x: wp.array2d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), C: wp.array(dtype=wp.float64),
-    stage: wp.array(dtype=wp.int32), jammed: wp.array(dtype=wp.int32), soft: wp.array(dtype=wp.int32),
-    fsoft: wp.array(dtype=wp.float64), fsbc: wp.array(dtype=wp.float64), status: wp.array(dtype=wp.int32),
-    direction: wp.array(dtype=wp.int32),
+    model: ModelArrays,
+    state: StateArrays,
     # the direction of the coming increment (0: none); where it reverses the state's own, the
     # tangent is that of the stage the reversal enters (kernels.cell_step.reverse: SF- / SF+)
     dir_new: int,
@@ -56,20 +47,21 @@ def branch_tangent_kernel(
 ):
     """k[i] = dF/dC of cell i at its state (module docstring), NaN where undefined."""
     i = wp.tid()
-    mat = read_material(i, B, d, L, W0, C0, m, phi0, sigma, cap, djam, friction, unloading, reload, criterion)
+    mat = read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
+                        model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
     kk = wp.float64(wp.nan)
-    st = int(stage[i])
-    if status[i] == ST_OK and st != SLACK and mat.dahl == 0 and eff_mask[i % eff_mask.shape[0]] == 0:
+    st = int(state.stage[i])
+    if state.status[i] == ST_OK and st != SLACK and mat.dahl == 0 and model.eff_mask[i % model.eff_mask.shape[0]] == 0:
         qi = vecQd()
         for j in range(N_QUANTITIES):
-            qi[j] = q[i, j]
-        sf = int(soft[i])
-        fs = fsoft[i]
-        fb = fsbc[i]
-        if dir_new != 0 and dir_new != direction[i]:
+            qi[j] = state.q[i, j]
+        sf = int(state.soft[i])
+        fs = state.fsoft[i]
+        fb = state.fsbc[i]
+        if dir_new != 0 and dir_new != state.direction[i]:
             st, sf, fs, fb = reverse(dir_new, qi, mat, sf, fs)
-        z = z_of(vec5d(x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4]), qi)
-        codes, tg = stage_conditions(st, int(jammed[i]), sf, fs, fb, mat, C[i])
+        z = z_of(vec5d(state.x[i, 0], state.x[i, 1], state.x[i, 2], state.x[i, 3], state.x[i, 4]), qi)
+        codes, tg = stage_conditions(st, int(state.jammed[i]), sf, fs, fb, mat, state.C[i])
         cell = evaluate_zr(z, mat.B, mat.d)
         r, J = residuals_ext(cell, z, codes, tg, vec10p(), mat.B, mat.d)
         e = vec5d()

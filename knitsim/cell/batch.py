@@ -399,10 +399,7 @@ class CellModel:
         from knitsim.kernels.specialise import INIT_KEY
 
         k = _kernel_module(INIT_KEY)  # the initial solve uses no optional residual: any key's kernel
-        wp.launch(k.init_kernel, dim=self.cell_count, inputs=self._arrays() + [starts],
-                  outputs=st._arrays(), device=self.device)
-        wp.launch(k.init_effects_kernel, dim=self.cell_count, inputs=[self.B, self.d, self.L, self.m, st.q],
-                  outputs=[st.eff], device=self.device)
+        wp.launch(k.init_kernel, dim=self.cell_count, inputs=[self.arrays(), starts, st.arrays()], device=self.device)
         # no admissible rest state (knitsim.cell.domain.rest_state_problem): none found, or a contact
         # force R < 0 (the unilateral contact at B would pull): flagged before any increment
         status = st.status.numpy()

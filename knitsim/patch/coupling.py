@@ -180,8 +180,10 @@ class WarpBackend:
         self._k = wp.zeros(self.n, dtype=wp.float64, device=self.device)
         self._status = wp.zeros(self.n, dtype=wp.int32, device=self.device)
         # imported once (an import inside the per-trial call cost ~0.3 ms a call)
+        from ..kernels.cell_arrays import select_state_kernel
         from ..kernels.cell_tangent import branch_tangent_kernel
         self._tangent_kernel = branch_tangent_kernel
+        self._select_kernel = select_state_kernel
         # tangents known at the trial (1), committed (0) and result (r) states, and where they are known
         self._k1, self._k0, self._kr = (np.full(self.n, np.nan) for _ in range(3))
         self._k1_ok, self._k0_ok, self._kr_ok = (np.zeros(self.n, bool) for _ in range(3))
@@ -200,15 +202,14 @@ class WarpBackend:
 
     def _tangent_launch(self, st, dir_new: int, mask: np.ndarray | None) -> np.ndarray:
         """The tangent kernel on the states ``st`` (of the groups in ``mask``; NaN elsewhere)."""
-        m = self.model
-        args = st._arrays()[:10]
+        state = st.arrays()
         if mask is not None and not np.all(mask):
             # the kernel gives NaN, after reading the cell's parameters only, where a state is not ok:
             # the groups outside the mask are passed a status that is not (the states are not changed)
             status = np.where(mask, st.status.numpy(), STATUS_OK + 1).astype(np.int32)
             self._status.assign(status)
-            args = args[:8] + [self._status] + args[9:]
-        self.wp.launch(self._tangent_kernel, dim=self.n, inputs=m._arrays() + [m.effect_mask] + args + [dir_new],
+            state.status = self._status
+        self.wp.launch(self._tangent_kernel, dim=self.n, inputs=[self.model.arrays(), state, dir_new],
                        outputs=[self._k], device=self.device)
         return self._k.numpy().copy()
 
@@ -252,8 +253,7 @@ class WarpBackend:
         return self._read(self.s1)
 
     def _select(self, mask, src, dst):
-        self.wp.launch(_select_kernel(), dim=self.n, inputs=[mask] + src._arrays() + [src.eff],
-                       outputs=dst._arrays() + [dst.eff], device=self.device)
+        self.wp.launch(self._select_kernel, dim=self.n, inputs=[mask, src.arrays(), dst.arrays()], device=self.device)
 
     def begin_increment(self) -> None:
         self._select(self._all, self.s0, self.res)
@@ -284,41 +284,6 @@ class WarpBackend:
 
 _STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction",
                  "head_gap", "eff")
-
-
-@functools.lru_cache(maxsize=None)
-def _select_kernel():
-    """``dst[i] = src[i]`` where ``mask[i]``, for every field of a CellBatchState (defined after Warp's init)."""
-
-    @wp.kernel
-    def select_state(mask: wp.array(dtype=wp.int32),
-                     xa: wp.array2d(dtype=wp.float64), qa: wp.array2d(dtype=wp.float64), Ca: wp.array(dtype=wp.float64),
-                     sa: wp.array(dtype=wp.int32), ja: wp.array(dtype=wp.int32), ka: wp.array(dtype=wp.int32),
-                     fa: wp.array(dtype=wp.float64), ba: wp.array(dtype=wp.float64), ta: wp.array(dtype=wp.int32),
-                     da: wp.array(dtype=wp.int32), ga: wp.array(dtype=wp.float64), ea: wp.array2d(dtype=wp.float64),
-                     xb: wp.array2d(dtype=wp.float64), qb: wp.array2d(dtype=wp.float64), Cb: wp.array(dtype=wp.float64),
-                     sb: wp.array(dtype=wp.int32), jb: wp.array(dtype=wp.int32), kb: wp.array(dtype=wp.int32),
-                     fb: wp.array(dtype=wp.float64), bb: wp.array(dtype=wp.float64), tb: wp.array(dtype=wp.int32),
-                     db: wp.array(dtype=wp.int32), gb: wp.array(dtype=wp.float64), eb: wp.array2d(dtype=wp.float64)):
-        i = wp.tid()
-        if mask[i] != 0:
-            for k in range(xa.shape[1]):
-                xb[i, k] = xa[i, k]
-            for k in range(qa.shape[1]):
-                qb[i, k] = qa[i, k]
-            Cb[i] = Ca[i]
-            sb[i] = sa[i]
-            jb[i] = ja[i]
-            kb[i] = ka[i]
-            fb[i] = fa[i]
-            bb[i] = ba[i]
-            tb[i] = ta[i]
-            db[i] = da[i]
-            gb[i] = ga[i]
-            for k in range(ea.shape[1]):
-                eb[i, k] = ea[i, k]
-
-    return select_state
 
 
 class ReferenceBackend:
