@@ -676,7 +676,7 @@ class CellSolver:
         hist = ProgramHistory.empty(model, n, stride, model.has_effects) if history is None else history
         if hist.stride != stride:
             raise KnitsimInputError(f"history recorded with stride {hist.stride}, asked for {stride}")
-        key = (id(state), id(program), id(hist), int(k_start), k_stop, bool(per_increment))
+        key = (id(state), id(program), id(hist), int(k_start), k_stop, bool(per_increment), bool(compact))
         graphs = self.__dict__.setdefault("_graphs", {})
         if key in graphs:
             # the objects are held with the graph, so their ids cannot be reused meanwhile
