@@ -73,8 +73,8 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import (SweepChunkError, capped_samples, domain_samples, energy_creating_samples, failed_samples,
-                                 plan_sweep, run_sweep)
+    from ..sweep.runner import (SweepChunkError, capped_samples, compressive_rest_samples, domain_samples,
+                                 energy_creating_samples, failed_samples, plan_sweep, run_sweep)
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -122,6 +122,7 @@ def _run(args) -> int:
     no_rest = domain_samples(ds, DOMAIN_NO_REST_STATE)
     outside = domain_samples(ds, DOMAIN_OUTSIDE_BOX)
     energy = energy_creating_samples(ds)
+    compressive = compressive_rest_samples(ds)
     capped = capped_samples(ds)
     n_bad = len(failed)
     summary = {
@@ -133,6 +134,8 @@ def _run(args) -> int:
         "no_rest_state": no_rest, "outside_domain": outside,
         # a closed loop that returns energy (oint F dC < 0: Table 4's frozen force closures), flagged not fixed
         "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
+        # a rest state the grips must push to hold (F < 0 at C0, W0): not free at rest
+        "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
         # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
         "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
         "files": {k: str(v) for k, v in run.files.items()},
@@ -155,6 +158,9 @@ def _run(args) -> int:
                              ("loop_creates_energy", energy, "a closed loop returns energy, oint F dC < 0: not a "
                               "hysteresis; Table 4's frozen force closures, README 'Loops that return energy'; "
                               "variable loop_creates_energy in results.nc / results.csv"),
+                             ("rest_state_compressive", compressive, "the rest state carries a compressive force "
+                              "(the knit is not free at C0, W0); its loops from rest are not judged; variable "
+                              "rest_state_compressive in results.nc / results.csv"),
                              ("stopped_at_force_cap", capped, "a stop, not a failure, but the later cycles were "
                               "not run: NaN in results.nc, grey triangles at the axis foot in the plots")):
         if rows:

@@ -66,7 +66,7 @@ FORMAT = "knitsim-sweep/1"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell
-CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy")
+CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive")
 
 
 class SweepChunkError(RuntimeError):
@@ -323,6 +323,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
     out["final_status"] = np.asarray(history.status[-1, :], dtype=np.int32)
     out["expected_end"] = np.zeros(n, dtype=np.int8)
     out["loop_creates_energy"] = np.zeros(n, dtype=np.int8)
+    out["rest_state_compressive"] = np.zeros(n, dtype=np.int8)
     for c in range(n):
         s = cell_summary(history, c)
         for cy in s["cycles"]:
@@ -334,6 +335,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         out["strain_at_first_jamming"][c] = np.nan if jam is None else jam
         out["expected_end"][c] = 1 if s["expected_end"] else 0
         out["loop_creates_energy"][c] = int(any(w["code"] == "loop_creates_energy" for w in s["warnings"]))
+        out["rest_state_compressive"][c] = int(any(w["code"] == "rest_state_compressive" for w in s["warnings"]))
     if curves:
         out["force_per_wale_N"] = np.ascontiguousarray(history.force_per_wale.T, dtype=np.float64)
     return out
@@ -359,6 +361,7 @@ def run_chunk(task: dict) -> dict:
     red["final_status"] = np.full(n_all, STATUS_NO_REST_STATE, dtype=np.int32)
     red["expected_end"] = np.zeros(n_all, dtype=np.int8)
     red["loop_creates_energy"] = np.full(n_all, -1, dtype=np.int8)       # -1: not solved
+    red["rest_state_compressive"] = np.full(n_all, -1, dtype=np.int8)
     if task["curves"]:
         red["force_per_wale_N"] = np.full((n_all, len(task["program"])), np.nan)
     if solve.any():
@@ -665,13 +668,14 @@ def assemble(out_dir: str | Path):
     data["final_status"] = np.full((ns, nc), -1, dtype=np.int32)
     data["expected_end"] = np.zeros((ns, nc), dtype=np.int8)
     data["loop_creates_energy"] = np.full((ns, nc), -1, dtype=np.int8)
+    data["rest_state_compressive"] = np.full((ns, nc), -1, dtype=np.int8)
     if curves:
         data["force_per_wale_N"] = np.full((ns, nc, ni), np.nan)
         data["imposed_strain"] = np.full((ns, ni), np.nan)
     for p in parts:
         idx = p["samples"]
         for k in CYCLE_VARS + CELL_VARS:
-            if k in p:                      # a chunk written before loop_creates_energy existed: -1 unknown
+            if k in p:                      # a chunk written before a flag existed: -1 unknown
                 data[k][idx] = p[k]
         if curves:
             n = p["force_per_wale_N"].shape[2]
@@ -728,6 +732,10 @@ def assemble(out_dir: str | Path):
                                "warning loop_creates_energy, knitsim.io.checks.energy_creating_loops; Table 4's "
                                "frozen force closures after a jammed reversal, README 'Loops that return "
                                "energy'), 0 if none does, -1 not solved or unknown",
+        "rest_state_compressive": "1 if the cell's rest state carries a compressive force (F < 0 at C0, W0: the knit "
+                                  "is not free at rest; warning rest_state_compressive, knitsim.io.checks."
+                                  "compressive_rest_state; its loops from rest are not judged for energy), 0 if not, "
+                                  "-1 not solved or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
@@ -808,8 +816,9 @@ def dataset_csv(ds) -> str:
         row.append(str(int(idx[-1, r]) + 1))
         row += [num(flat[k][r]) for k in CYCLE_VARS]
         loop = int(flat["loop_creates_energy"][r])
+        rest = int(flat["rest_state_compressive"][r])
         row += [num(flat["strain_at_first_jamming"][r]), names.get(int(flat["final_status"][r]), "?"),
-                str(int(flat["expected_end"][r])), "" if loop < 0 else str(loop)]
+                str(int(flat["expected_end"][r])), "" if loop < 0 else str(loop), "" if rest < 0 else str(rest)]
         if has_domain:
             row.append(domain_names.get(int(flat["domain"][r]), "?"))
         lines.append(",".join(row))
@@ -818,6 +827,7 @@ def dataset_csv(ds) -> str:
 
 __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepChunkError", "plan_sweep",
            "run_sweep", "run_chunk", "failed_samples", "domain_samples", "energy_creating_samples",
+           "compressive_rest_samples",
            "reduce_history", "sweep_hash", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
            "CYCLE_VARS", "CELL_VARS"]
 
@@ -904,6 +914,26 @@ def capped_samples(ds) -> list[dict]:
                 f"{', '.join(str(x) for x in lost)}: not run (NaN); raise rules.force_cap_N to run them")
 
     return _sample_listing(ds, lambda st, ok, dom: (st == STATUS_FORCE_CAP) & missing.any(axis=-1), reason)
+
+
+def compressive_rest_samples(ds) -> list[dict]:
+    """The samples whose cell has a compressive rest state (``rest_state_compressive == 1``).
+
+    Returns
+    -------
+    list of dict
+        As :func:`failed_samples`; ``reason`` says what the flag means.
+    """
+    if "rest_state_compressive" not in ds.data_vars:
+        return []
+    keys = json.loads(ds.attrs["parameters"])
+    order = (["sample"] if ds.attrs["method"] == "lhs" else keys) + (["cell"] if "cell" in ds.dims else [])
+    flag = np.asarray(ds["rest_state_compressive"].transpose(*order).values)
+    return _sample_listing(
+        ds, lambda st, ok, dom: flag == 1,
+        lambda i, c, st, dom: "the rest state carries a compressive force (F < 0 at C0, W0): the knit is not free "
+                              "at rest; its loops from rest are not judged for energy (README, 'Loops that "
+                              "return energy')")
 
 
 def energy_creating_samples(ds) -> list[dict]:

@@ -164,3 +164,20 @@ def test_in_plane_width_is_a_sweep_parameter(tmp_path):
     assert plan.base.params[0].in_plane_width is None
     h = simulate([plan.base.params[0]], plan.programs[0], engine="warp", device="cpu")
     np.testing.assert_array_equal(run.dataset["force_per_wale_N"].values.reshape(3, -1)[0], h.force_per_wale[:, 0])
+
+
+def test_a_compressive_rest_state_is_a_flagged_sample(tmp_path):
+    """A stiff yarn on a short course has a compressive rest force (B = 9.84 N mm^2, C0 = 2.0 mm, W0 = 4.4 mm:
+    F = -0.89 N per wale at rest, tests/io/test_checks.py), the paper's C0 = 2.7 mm does not: the sweep
+    flags the first sample (variable, CSV column, listing) and only it."""
+    from knitsim.sweep.runner import compressive_rest_samples, dataset_csv
+
+    sweep = {"chunk_size": 2, "parameters": {"yarn.B": {"values": [9.84]}, "knit.C0": {"values": [2.0, 2.7]}}}
+    _, run = _run(tmp_path, sweep=sweep)
+    ds = run.dataset
+    assert ds["rest_state_compressive"].values.ravel().tolist() == [1, 0]
+    rows = compressive_rest_samples(ds)
+    assert len(rows) == 1 and rows[0]["parameters"]["knit.C0"] == 2.0 and "compressive" in rows[0]["reason"]
+    header, first = dataset_csv(ds).splitlines()[:2]
+    col = header.split(",").index("rest_state_compressive")
+    assert first.split(",")[col] == "1"
