@@ -916,6 +916,16 @@ def capped_samples(ds) -> list[dict]:
     return _sample_listing(ds, lambda st, ok, dom: (st == STATUS_FORCE_CAP) & missing.any(axis=-1), reason)
 
 
+def _flagged_samples(ds, var: str, reason: str) -> list[dict]:
+    """The samples (and cells) whose per-cell flag ``var`` is 1, each with ``reason``."""
+    if var not in ds.data_vars:
+        return []
+    keys = json.loads(ds.attrs["parameters"])
+    order = (["sample"] if ds.attrs["method"] == "lhs" else keys) + (["cell"] if "cell" in ds.dims else [])
+    flag = np.asarray(ds[var].transpose(*order).values)
+    return _sample_listing(ds, lambda st, ok, dom: flag == 1, lambda i, c, st, dom: reason)
+
+
 def compressive_rest_samples(ds) -> list[dict]:
     """The samples whose cell has a compressive rest state (``rest_state_compressive == 1``).
 
@@ -924,16 +934,10 @@ def compressive_rest_samples(ds) -> list[dict]:
     list of dict
         As :func:`failed_samples`; ``reason`` says what the flag means.
     """
-    if "rest_state_compressive" not in ds.data_vars:
-        return []
-    keys = json.loads(ds.attrs["parameters"])
-    order = (["sample"] if ds.attrs["method"] == "lhs" else keys) + (["cell"] if "cell" in ds.dims else [])
-    flag = np.asarray(ds["rest_state_compressive"].transpose(*order).values)
-    return _sample_listing(
-        ds, lambda st, ok, dom: flag == 1,
-        lambda i, c, st, dom: "the rest state carries a compressive force (F < 0 at C0, W0): the knit is not free "
-                              "at rest; its loops from rest are not judged for energy (README, 'Loops that "
-                              "return energy')")
+    return _flagged_samples(ds, "rest_state_compressive",
+                            "the rest state carries a compressive force (F < 0 at C0, W0): the knit is not free "
+                            "at rest; its loops from rest are not judged for energy (README, 'Loops that "
+                            "return energy')")
 
 
 def energy_creating_samples(ds) -> list[dict]:
@@ -944,12 +948,6 @@ def energy_creating_samples(ds) -> list[dict]:
     list of dict
         As :func:`failed_samples`; ``reason`` says what the flag means.
     """
-    if "loop_creates_energy" not in ds.data_vars:
-        return []
-    keys = json.loads(ds.attrs["parameters"])
-    order = (["sample"] if ds.attrs["method"] == "lhs" else keys) + (["cell"] if "cell" in ds.dims else [])
-    flag = np.asarray(ds["loop_creates_energy"].transpose(*order).values)
-    return _sample_listing(
-        ds, lambda st, ok, dom: flag == 1,
-        lambda i, c, st, dom: "a closed loop returns energy (oint F dC < 0): not a hysteresis; Table 4's frozen "
-                              "force closures (README, 'Loops that return energy')")
+    return _flagged_samples(ds, "loop_creates_energy",
+                            "a closed loop returns energy (oint F dC < 0): not a hysteresis; Table 4's frozen "
+                            "force closures (README, 'Loops that return energy')")
