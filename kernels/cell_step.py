@@ -39,6 +39,14 @@ four-condition solve: the two are independent checks.
 
 Status codes are those of :mod:`knitsim.cell.history`; a failed cell keeps
 its last converged state.
+
+Launches (issue 15): :func:`step_kernel` (one increment, state in -> state out) and
+:func:`program_kernel` (a range of increments in place, rows recorded) take the model,
+state, event buffer and history as structs (:mod:`knitsim.kernels.cell_arrays`).  Where a
+kernel key allows it (:data:`REGULAR_PASS`), each has a first pass
+(:func:`regular_step_kernel`, :func:`regular_kernel`) that advances only the increments
+that are regular (one trial, no event: :func:`_advance_cell_variant`) and lists the other
+cells for the full kernel's launch, bit for bit the one-pass results.
 """
 from __future__ import annotations
 
