@@ -27,7 +27,9 @@ red diamond around each point (lines, scatter) or a red ``\\\\``-hatched cell
 (heat maps).  A sample whose cell stopped at its force cap before the program's
 last cycle (a stop, not a failure) has no values for the later cycles: a grey
 triangle at the foot of the axis (lines, scatter) or a grey ``--``-hatched cell
-in those cycles' heat maps.  The title counts each kind.
+in those cycles' heat maps.  A sample whose cell's rest state is compressive
+(``rest_state_compressive``: the knit is not free at rest) is not marked on the axes; the title
+counts it.  The title counts each kind.
 """
 from __future__ import annotations
 
@@ -121,6 +123,12 @@ def _energy(ds) -> np.ndarray:
             else np.zeros(ds["final_status"].shape, dtype=bool))
 
 
+def _compressive(ds) -> np.ndarray:
+    """Where a sample's cell has a compressive rest state (knitsim.io.checks.compressive_rest_state)."""
+    return (np.asarray(ds["rest_state_compressive"].values) == 1 if "rest_state_compressive" in ds.data_vars
+            else np.zeros(ds["final_status"].shape, dtype=bool))
+
+
 def _capped(ds) -> np.ndarray:
     """Where a sample's cell stopped at its force cap before some cycle of the program (those cycles: NaN)."""
     from ..cell.history import STATUS_FORCE_CAP
@@ -144,10 +152,11 @@ class _Marks:
     outside: np.ndarray
     energy: np.ndarray
     capped: np.ndarray
+    compressive: np.ndarray
 
 
 def _marks(ds) -> _Marks:
-    return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds))
+    return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds), _compressive(ds))
 
 
 #: the title's count of each kind of marked sample, in the order shown
@@ -157,6 +166,7 @@ _TITLE_PHRASES = (
     ("outside", "outside the domain's box (ringed / dotted): extrapolated"),
     ("capped", "stopped at the force cap before the last cycle (grey triangle / --hatched): later cycles not run"),
     ("energy", "with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)"),
+    ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; not marked)"),
 )
 
 

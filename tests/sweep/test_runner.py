@@ -181,3 +181,5 @@ def test_a_compressive_rest_state_is_a_flagged_sample(tmp_path):
     header, first = dataset_csv(ds).splitlines()[:2]
     col = header.split(",").index("rest_state_compressive")
     assert first.split(",")[col] == "1"
+    from knitsim.sweep.plots import _marks, _title
+    assert "1 with a compressive rest state" in _title("sweep", _marks(ds))
