@@ -1450,6 +1450,13 @@ def read_material(
     return mat
 
 
+@wp.func
+def material_of(i: int, model: ModelArrays):
+    """Cell ``i``'s parameters from the model struct (:func:`read_material`)."""
+    return read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
+                         model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
+
+
 # ------------------------------------------------------------------ effects (issue 6)
 @wp.func
 def apply_effects(mat: Material, mask: int, params: wp.array2d(dtype=wp.float64), r: int, q: vecQd,
@@ -1561,8 +1568,7 @@ def init_kernel(model: ModelArrays, starts: wp.array2d(dtype=wp.float64), s_out:
     knitsim.cell.inverse.initial_state, first converged wins), then continuation in phi; and the
     effects' state at rest (the given m, d, L, B, z = 0, and the rest values P_0, Rn_0)."""
     i = wp.tid()
-    mat = read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
-                        model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
+    mat = material_of(i, model)
     codes = wp.vec4i(Q_C, Q_W, Q_L, Q_PHI)
     tg = vec4d(mat.C0, mat.W0, mat.L, wp.float64(0.0))
     found = bool(False)
@@ -1676,8 +1682,7 @@ def _advance_cell_variant(regular_only: bool):
 
         Reads the state ``s_in`` at the start and writes ``s_out`` at the end: they may be the same arrays
         (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
-        mat = read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
-                            model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
+        mat = material_of(i, model)
         mat.closure = closure
         q = vecQd()
         for k in range(N_QUANTITIES):
