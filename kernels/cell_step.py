@@ -1407,31 +1407,24 @@ def interp_t(f0: wp.float64, f1: wp.float64) -> wp.float64:
 
 
 @wp.func
-def read_material(
-    i: int,
-    B: wp.array(dtype=wp.float64), d: wp.array(dtype=wp.float64), L: wp.array(dtype=wp.float64),
-    W0: wp.array(dtype=wp.float64), C0: wp.array(dtype=wp.float64), m: wp.array(dtype=wp.float64),
-    phi0: wp.array(dtype=wp.float64), sigma: wp.array(dtype=wp.float64), cap: wp.array(dtype=wp.float64),
-    djam: wp.array(dtype=wp.float64),
-    friction: wp.array(dtype=wp.int32), unloading: wp.array(dtype=wp.int32), reload: wp.array(dtype=wp.int32),
-    criterion: wp.array(dtype=wp.int32),
-):
+def read_material(i: int, model: ModelArrays):
+    """Cell ``i``'s parameters (each model array of shape 1 or N, read as ``p[i % p.shape[0]]``)."""
     mat = Material()
-    mat.B = B[i % B.shape[0]]
-    mat.d = d[i % d.shape[0]]
-    mat.L = L[i % L.shape[0]]
-    mat.W0 = W0[i % W0.shape[0]]
-    mat.C0 = C0[i % C0.shape[0]]
-    mat.m = m[i % m.shape[0]]
+    mat.B = model.B[i % model.B.shape[0]]
+    mat.d = model.d[i % model.d.shape[0]]
+    mat.L = model.L[i % model.L.shape[0]]
+    mat.W0 = model.W0[i % model.W0.shape[0]]
+    mat.C0 = model.C0[i % model.C0.shape[0]]
+    mat.m = model.m[i % model.m.shape[0]]
     mat.phimax = wp.atan(mat.m)
-    mat.phi0 = phi0[i % phi0.shape[0]]
-    mat.sigma = sigma[i % sigma.shape[0]]
-    mat.cap = cap[i % cap.shape[0]]
-    mat.w_jam = wp.float64(4.0) * djam[i % djam.shape[0]]  # Hong's W = 4d, d the in-plane jam width
-    mat.dahl = friction[i % friction.shape[0]]
-    mat.hong = unloading[i % unloading.shape[0]]
-    mat.mirror = reload[i % reload.shape[0]]
-    mat.gap = criterion[i % criterion.shape[0]]
+    mat.phi0 = model.phi0[i % model.phi0.shape[0]]
+    mat.sigma = model.sigma[i % model.sigma.shape[0]]
+    mat.cap = model.cap[i % model.cap.shape[0]]
+    mat.w_jam = wp.float64(4.0) * model.djam[i % model.djam.shape[0]]  # Hong's W = 4d, d the in-plane jam width
+    mat.dahl = model.friction[i % model.friction.shape[0]]
+    mat.hong = model.unloading[i % model.unloading.shape[0]]
+    mat.mirror = model.reload[i % model.reload.shape[0]]
+    mat.gap = model.criterion[i % model.criterion.shape[0]]
     mat.comp_k = wp.float64(0.0)
     mat.comp_rn0 = wp.float64(0.0)
     mat.comp_min = wp.float64(1.0)
@@ -1448,13 +1441,6 @@ def read_material(
     mat.fr_n = wp.float64(1.0)
     mat.fr_ref = wp.float64(1.0)
     return mat
-
-
-@wp.func
-def material_of(i: int, model: ModelArrays):
-    """Cell ``i``'s parameters from the model struct (:func:`read_material`)."""
-    return read_material(i, model.B, model.d, model.L, model.W0, model.C0, model.m, model.phi0, model.sigma,
-                         model.cap, model.djam, model.friction, model.unloading, model.reload, model.criterion)
 
 
 # ------------------------------------------------------------------ effects (issue 6)
@@ -1568,7 +1554,7 @@ def init_kernel(model: ModelArrays, starts: wp.array2d(dtype=wp.float64), s_out:
     knitsim.cell.inverse.initial_state, first converged wins), then continuation in phi; and the
     effects' state at rest (the given m, d, L, B, z = 0, and the rest values P_0, Rn_0)."""
     i = wp.tid()
-    mat = material_of(i, model)
+    mat = read_material(i, model)
     codes = wp.vec4i(Q_C, Q_W, Q_L, Q_PHI)
     tg = vec4d(mat.C0, mat.W0, mat.L, wp.float64(0.0))
     found = bool(False)
@@ -1682,7 +1668,7 @@ def _advance_cell_variant(regular_only: bool):
 
         Reads the state ``s_in`` at the start and writes ``s_out`` at the end: they may be the same arrays
         (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
-        mat = material_of(i, model)
+        mat = read_material(i, model)
         mat.closure = closure
         q = vecQd()
         for k in range(N_QUANTITIES):
@@ -2137,6 +2123,19 @@ advance_cell = _advance_cell_variant(False)
 advance_regular = _advance_cell_variant(True) if REGULAR_PASS else None
 
 
+@wp.func
+def listed_cell(j: int, cells: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32)) -> int:
+    """The cell of thread ``j`` of a launch: ``cells[j]`` (empty ``cells``: every cell, ``j``), or -1 beyond
+    ``count[0]`` (a list whose length a first pass set on the device; empty ``count``: no limit)."""
+    i = j
+    if count.shape[0] > 0:
+        if j >= count[0]:
+            i = -1
+    if i >= 0 and cells.shape[0] > 0:
+        i = cells[j]
+    return i
+
+
 def _step_kernel_variant(first_pass: bool):
     """:func:`step_kernel`, or with ``first_pass`` :func:`regular_step_kernel`: the same launch with
     :func:`advance_cell` or its first pass (``_advance_cell_variant``)."""
@@ -2159,12 +2158,9 @@ def _step_kernel_variant(first_pass: bool):
     ):
         """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row); a first
         pass leaves the ``s_out`` rows of the cells it lists untouched."""
-        i = wp.tid()
-        if count.shape[0] > 0:
-            if i >= count[0]:
-                return
-        if cells.shape[0] > 0:
-            i = cells[i]
+        i = listed_cell(wp.tid(), cells, count)
+        if i < 0:
+            return
         done = wp.static(advance)(i, model, max_halvings, closure, s_in, strain[i % strain.shape[0]],
                                   int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
                                   s_out, ev)
@@ -2220,12 +2216,9 @@ def _program_kernel_variant(first_pass: bool):
         preallocated history arrays: the same arithmetic as one :func:`step_kernel` per increment, without a
         launch (nor a host round trip) per increment.  A first pass lists the cells it leaves (their state
         and row untouched)."""
-        i = wp.tid()
-        if count.shape[0] > 0:
-            if i >= count[0]:
-                return
-        if cells.shape[0] > 0:
-            i = cells[i]
+        i = listed_cell(wp.tid(), cells, count)
+        if i < 0:
+            return
         for k in range(k_start, k_stop):
             done = wp.static(advance)(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
                                       prog_rate[k % prog_rate.shape[0]], k, state, ev)

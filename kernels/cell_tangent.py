@@ -25,7 +25,7 @@ import warp as wp
 from knitsim.cell.quantities import Q_C, Q_F
 
 from .cell_step import (
-    SLACK, ST_OK, evaluate_zr, material_of, residuals_ext, reverse, stage_conditions, vec10p, z_of,
+    SLACK, ST_OK, evaluate_zr, read_material, residuals_ext, reverse, stage_conditions, vec10p, z_of,
 )
 from .cell_arrays import ModelArrays, StateArrays
 from .elastica import vec5d
@@ -47,7 +47,7 @@ def branch_tangent_kernel(
 ):
     """k[i] = dF/dC of cell i at its state (module docstring), NaN where undefined."""
     i = wp.tid()
-    mat = material_of(i, model)
+    mat = read_material(i, model)
     kk = wp.float64(wp.nan)
     st = int(state.stage[i])
     if state.status[i] == ST_OK and st != SLACK and mat.dahl == 0 and model.eff_mask[i % model.eff_mask.shape[0]] == 0:

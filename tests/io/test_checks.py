@@ -105,17 +105,24 @@ def test_a_loop_from_a_compressive_rest_state_is_said_not_judged():
 
 def test_cell_and_patch_summaries_say_a_compressive_rest_state():
     """A stiff yarn on a short course (B = 9.84 N mm^2, C0 = 2.0 mm, W0 = 4.4 mm: Table 4's initial state
-    exists with R >= 0, knitsim.cell.domain) has a compressive rest force (-0.89 N per wale, solved).
+    exists with R >= 0, knitsim.cell.domain) has a compressive rest force (-0.89 N per wale: the NumPy
+    reference's initial state).
     Both summaries say so (warning rest_state_compressive) and neither calls a loop from rest one that
     creates energy."""
     from knitsim.io.patch_results import patch_summary
     from knitsim.patch.model import PatchModel
     from knitsim.patch.runner import run_patch
 
+    from knitsim.cell.inverse import initial_state
+
     stiff = CellParams(B=9.84, d=0.58, L=14.1, W0=4.4, C0=2.0, m=0.2, phi0=0.0, force_cap_N=1e3)
+    # the float64 NumPy reference's rest state (an independent solve of Table 4's initial state) is
+    # compressive, and the Warp run starts from the same force
+    ref = initial_state(stiff.C0, stiff.W0, stiff.L, stiff.phi0, stiff.B, stiff.d)
+    assert ref.success and ref.state.F < -0.5
     prog = cycles(0.10, 0.30, 2, 0.05)
     h = run_batch([stiff], prog)
-    assert h.rest["F"][0] < -0.5
+    assert h.rest["F"][0] == pytest.approx(ref.state.F, rel=1e-9)
     codes = [w["code"] for w in summarise(h, ["stiff"])["warnings"]]
     assert "rest_state_compressive" in codes and "loop_creates_energy" not in codes
     ph = run_patch(PatchModel.uniform(stiff, 2, 2), prog)
