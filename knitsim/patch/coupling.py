@@ -402,6 +402,7 @@ class BranchPoints:
         self.C_min = np.full(n, -np.inf)          # the model's lengths are kept in [C_min, C_max]
         self.C_max = np.full(n, np.inf)
         self._rows = np.arange(n)
+        self.rows = self._rows                   # the groups prepared (prepare)
         # trials of a cell that keep landing on one side of the column's force while the column does not
         # close in count as stalled (record): its model then overshoots
         self.stall = np.zeros(n, np.int64)
@@ -427,40 +428,57 @@ class BranchPoints:
 
         The branch of a cell within an increment is monotone (F never falls as C grows on a stable
         branch): a kept point that contradicts the new one (higher C, lower F or the reverse) is
-        dropped; of the zero-force points (slack) only the longest is kept (F = 0 up to at least it)."""
+        dropped; of the zero-force points (slack) only the longest is kept (F = 0 up to at least it).
+        Only the rows in ``mask`` are read and written (the cost goes with the groups still iterating)."""
+        rows = np.flatnonzero(mask)
+        if rows.size == 0:
+            return
+        every = rows.size == len(self._rows)     # (then the kept points are changed in place)
+        if not every:
+            C, F, K, f_target = C[rows], F[rows], K[rows], f_target[rows]
+        Ck, Fk, Kk, valid = ((a, a[rows])[not every] for a in (self.C, self.F, self.K, self.valid))
         C2, F2 = C[:, None], F[:, None]
-        m2 = mask[:, None]
-        conflict = ((self.F < F2) & (self.C > C2)) | ((self.F > F2) & (self.C < C2))
-        dup_zero = (self.F == 0.0) & (F2 == 0.0) & (self.C <= C2)
-        self.valid &= ~(m2 & (conflict | dup_zero | ((self.F == F2) & (self.C == C2))))
+        conflict = ((Fk < F2) & (Ck > C2)) | ((Fk > F2) & (Ck < C2))
+        dup_zero = (Fk == 0.0) & (F2 == 0.0) & (Ck <= C2)
+        valid &= ~(conflict | dup_zero | ((Fk == F2) & (Ck == C2)))
         # a zero-force point shorter than a kept one adds nothing
-        dominated = (F == 0.0) & np.any(self.valid & (self.F == 0.0) & (self.C > C2), axis=1)
-        put = mask & ~dominated
-        full = put & self.valid.all(axis=1)
+        dominated = (F == 0.0) & np.any(valid & (Fk == 0.0) & (Ck > C2), axis=1)
+        put = ~dominated
+        full = put & valid.all(axis=1)
+        local = np.arange(rows.size)
         if np.any(full):
             # drop the point farthest (in force) from the column's force, on a side that keeps another
-            side = self.F > f_target[:, None]
-            n_hi = np.sum(side & self.valid, axis=1, keepdims=True)
-            n_lo = np.sum(~side & self.valid, axis=1, keepdims=True)
-            ok = self.valid & np.where(side, n_hi >= 2, n_lo >= 2)
-            dist = np.where(ok, np.abs(self.F - f_target[:, None]), -1.0)
+            side = Fk > f_target[:, None]
+            n_hi = np.sum(side & valid, axis=1, keepdims=True)
+            n_lo = np.sum(~side & valid, axis=1, keepdims=True)
+            ok = valid & np.where(side, n_hi >= 2, n_lo >= 2)
+            dist = np.where(ok, np.abs(Fk - f_target[:, None]), -1.0)
             drop = np.argmax(dist, axis=1)
-            self.valid[self._rows[full], drop[full]] = False
-        slot = np.argmin(self.valid, axis=1)
-        r, s = self._rows[put], slot[put]
-        self.C[r, s], self.F[r, s], self.K[r, s] = C[put], F[put], K[put]
-        self.valid[r, s] = True
+            valid[local[full], drop[full]] = False
+        slot = np.argmin(valid, axis=1)
+        r, s = local[put], slot[put]
+        Ck[r, s], Fk[r, s], Kk[r, s] = C[put], F[put], K[put]
+        valid[r, s] = True
+        if not every:
+            self.C[rows], self.F[rows], self.K[rows], self.valid[rows] = Ck, Fk, Kk, valid
 
-    def prepare(self) -> None:
-        """Sort each group's points by force and set up its model (after the points of a trial are added)."""
-        Fk = np.where(self.valid, self.F, np.inf)
-        self.m = np.count_nonzero(self.valid, axis=1)
+    def prepare(self, rows: np.ndarray | None = None) -> None:
+        """Sort each group's points by force and set up its model (after the points of a trial are added).
+
+        With ``rows`` (ascending group indices), of those groups only: :meth:`model` and :meth:`jump` then
+        take and give values of these groups, in this order.  A group's model does not depend on the
+        others', so it is the same either way; the work goes with the groups still iterating."""
+        self.rows = self._rows if rows is None or len(rows) == len(self._rows) else np.asarray(rows)
+        valid = self._prepared(self.valid)
+        Fk = np.where(valid, self._prepared(self.F), np.inf)
+        self.m = np.count_nonzero(valid, axis=1)
         # sorted, the valid points come first: the slots beyond the most points of any group are dropped
         M = max(int(self.m.max(initial=0)), 1)
         order = np.argsort(Fk, axis=1, kind="stable")[:, :M]
         take = functools.partial(np.take_along_axis, indices=order, axis=1)
-        self.Fs, self.Cs, self.Ks = take(Fk), take(np.where(self.valid, self.C, np.nan)), take(self.K)
-        r, top = self._rows, np.maximum(self.m - 1, 0)
+        self.Fs, self.Cs = take(Fk), take(np.where(valid, self._prepared(self.C), np.nan))
+        self.Ks = take(self._prepared(self.K))
+        r, top = np.arange(self.rows.size), np.maximum(self.m - 1, 0)
         # each interval between neighbouring points: the tangent lines of its ends (slopes da, db = dC/df),
         # their upper envelope where the slopes grow across it (C(f) convex: a stick-slip kink), their
         # lower envelope where they fall (concave: jamming), the chord where they contradict it
@@ -483,7 +501,7 @@ class BranchPoints:
         self.db = np.where(chord, delta, db)
         # slopes dC/df beyond the lowest and the highest point: the cell's tangent there, else the
         # secant of its two end points, else the fallback tangent
-        fb = 1.0 / np.clip(self.k_fallback, K_MIN, K_MAX)
+        fb = 1.0 / np.clip(self._prepared(self.k_fallback), K_MIN, K_MAX)
 
         def end_slope(i, j):
             s = inv_k[r, i]
@@ -502,10 +520,15 @@ class BranchPoints:
         j = np.maximum(top - 1, 0)
         self.c_hi = self._end_curvature(inv_k, j, (self.convex[r, j] | self.concave[r, j]) if M > 1 else None)
 
+    def _prepared(self, a: np.ndarray) -> np.ndarray:
+        """The prepared rows of the per-group array ``a`` (``a`` itself when every group is prepared)."""
+        return a if self.rows is self._rows else a[self.rows]
+
     def _end_curvature(self, inv_k: np.ndarray, j: np.ndarray | int, smooth: np.ndarray | None) -> np.ndarray:
-        """(dC/df at point j+1 - dC/df at point j) / (f_j+1 - f_j), where defined; else the history's."""
-        r = self._rows
-        c = np.full(len(r), np.nan) if self.curvature is None else self.curvature.copy()
+        """(dC/df at point j+1 - dC/df at point j) / (f_j+1 - f_j), where defined; else the history's
+        (of the prepared rows)."""
+        r = np.arange(self.rows.size)
+        c = np.full(len(r), np.nan) if self.curvature is None else self._prepared(self.curvature).copy()
         if smooth is not None:
             j = np.broadcast_to(j, r.shape)
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -517,7 +540,8 @@ class BranchPoints:
         return np.where(np.isfinite(c), c, 0.0)
 
     def model(self, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The model's length C(f) and dC/df of every group at its force ``f`` [N]."""
+        """The model's length C(f) and dC/df of each prepared group (:meth:`prepare`) at its force ``f`` [N]."""
+        stall, side = self._prepared(self.stall), self._prepared(self.side)
         j = np.count_nonzero(self.Fs <= f[:, None], axis=1)
         below, above = j == 0, j >= self.m
         C, dC = np.empty(len(f)), np.empty(len(f))
@@ -533,7 +557,7 @@ class BranchPoints:
             pick_a = np.where(upper, Ta >= Tb, Ta <= Tb)
             Ch = np.clip(np.where(pick_a, Ta, Tb), np.minimum(Ca, Cb), np.maximum(Ca, Cb))
             dCh = np.where(pick_a, da, db)
-            ill = np.flatnonzero(self.stall[r] > 0)
+            ill = np.flatnonzero(stall[r] > 0)
             if ill.size:
                 # a stalled cell (its trials keep landing on one side of the column's force without closing
                 # in): the Newton step from its fresh end (the side its trials land on), 2^stall times as
@@ -541,8 +565,8 @@ class BranchPoints:
                 # throw it across a kink): the trials overshoot into the other side or halve the bracket
                 ri, ii = r[ill], ia[ill]
                 Fa, Ca, Fb, Cb, fi = Fa[ill], Ca[ill], Fb[ill], Cb[ill], fr[ill]
-                fresh_b = self.side[ri] > 0
-                d_f = np.where(fresh_b, self.db_raw[ri, ii], self.da_raw[ri, ii]) * 2.0 ** self.stall[ri]
+                fresh_b = side[ri] > 0
+                d_f = np.where(fresh_b, self.db_raw[ri, ii], self.da_raw[ri, ii]) * 2.0 ** stall[ri]
                 with np.errstate(invalid="ignore"):
                     Tf = np.where(fresh_b, Cb + (fi - Fb) * d_f, Ca + (fi - Fa) * d_f)
                 mid = 0.5 * (Ca + Cb)
@@ -558,18 +582,20 @@ class BranchPoints:
                                       (np.flatnonzero(above), None, self.s_hi, self.c_hi)):
             if rows.size:
                 k = self.top[rows] if k is None else k
-                st = self.stall[rows]
+                st = stall[rows]
                 s_e = np.minimum(s_end[rows] * 2.0 ** st, 1.0 / K_MIN)
                 d_e, sl_e = _bent_line(f[rows] - self.Fs[rows, k], s_e, np.where(st > 0, 0.0, c_end[rows]))
                 C[rows] = self.Cs[rows, k] + d_e
                 dC[rows] = sl_e
-        clamped = (C < self.C_min) | (C > self.C_max)
-        return np.clip(C, self.C_min, self.C_max), np.where(clamped, 0.0, dC)
+        C_min, C_max = self._prepared(self.C_min), self._prepared(self.C_max)
+        clamped = (C < C_min) | (C > C_max)
+        return np.clip(C, C_min, C_max), np.where(clamped, 0.0, dC)
 
     def jump(self, f: np.ndarray, f_tol: np.ndarray) -> np.ndarray:
-        """Groups whose points bracket ``f`` within a length ~1e-11 C0 while their forces differ by more
-        than ``f_tol``: a discontinuity of the cell's force, which no column force between them meets."""
-        r, M = self._rows, self.Fs.shape[1]
+        """Of the prepared groups, those whose points bracket ``f`` within a length ~1e-11 C0 while their
+        forces differ by more than ``f_tol``: a discontinuity of the cell's force, which no column force
+        between them meets."""
+        r, M = np.arange(self.rows.size), self.Fs.shape[1]
         if M < 2:
             return np.zeros(len(f), bool)
         j = np.sum(self.Fs <= f[:, None], axis=1)
@@ -578,7 +604,7 @@ class BranchPoints:
         dC = self.Cs[r, ia + 1] - self.Cs[r, ia]
         dF = self.Fs[r, ia + 1] - self.Fs[r, ia]
         with np.errstate(invalid="ignore"):
-            return inside & (dC <= 1e-11 * self.C_ref) & (dF > f_tol)
+            return inside & (dC <= 1e-11 * self._prepared(self.C_ref)) & (dF > f_tol)
 
 
 def _bent_line(x: np.ndarray, s: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -847,13 +873,16 @@ class PatchSolver:
             if not np.any(live):
                 break
             g_live = live[col]
-            pts.prepare()
-            Fstar, C_try = self._solve_columns(pts, u, Fcol)
+            # the models of the live columns' groups only (a converged column's are not read again)
+            pts.prepare(np.flatnonzero(g_live))
+            Fstar, C_try = self._solve_columns(pts, u, Fcol, live)
             Fcol = np.where(live, Fstar, Fcol)
             if it > 0:
                 # a cell whose force jumps across the column's force (cause 1 of the README): flagged
                 f_tol = (self.force_tol + self.force_rtol * Fstar[col]) / p
-                jumped = live & (self._colmax(pts.jump(Fstar[col] / p, f_tol).astype(float), 0.0) > 0)
+                g_jump = np.zeros(be.n, bool)
+                g_jump[pts.rows] = pts.jump(Fstar[col[pts.rows]] / p[pts.rows], f_tol[pts.rows])
+                jumped = live & (self._colmax(g_jump.astype(float), 0.0) > 0)
                 if np.any(jumped):
                     # committed as its last trial stands (unless a cell failed in it), flagged
                     be.accept((jumped & ~prev_failed)[col])
@@ -926,27 +955,34 @@ class PatchSolver:
         last_failed = prev_failed if last is not None else np.zeros(self.n_cls, bool)
         return done_cls & active_cls, iters, jump_cls, last_failed
 
-    def _solve_columns(self, pts: BranchPoints, u: float, F_guess: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The column forces F [n_classes] at which the model lengths add up to u, and those lengths
-        C [n_groups] (a slack column: F = 0, every cell a little short of its zero-force length).
+    def _solve_columns(self, pts: BranchPoints, u: float, F_guess: np.ndarray,
+                       live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The forces F [n_classes] of the columns in ``live`` at which the model lengths add up to u, and
+        those lengths C [n_groups] (a slack column: F = 0, every cell a little short of its zero-force
+        length); ``pts`` prepared for the live columns' groups.  Elsewhere F is ``F_guess`` and C the
+        committed length (not read).
 
         Phi(F) = sum n_g (C_g(F / p_g) - C0_g) - u is monotone non-decreasing in F: safeguarded Newton
         on it, bisection (or doubling while no upper bound is known) where the Newton step leaves the
-        bracket or the slope vanishes."""
-        col, cnt, C0, p = self.col, self.cnt, self.C0, self.p
-        scale = self._colsum(cnt * C0)
+        bracket or the slope vanishes.  Each column's iteration is its own: the columns that are not
+        live are left out of the sums (their groups are not prepared), not iterated."""
+        rows = pts.rows
+        col, cnt, C0, p = self.col[rows], self.cnt[rows], self.C0[rows], self.p[rows]
+        colsum = lambda v: np.bincount(col, weights=v, minlength=self.n_cls)   # noqa: E731
+        scale = colsum(cnt * C0)
         tol_len = 16.0 * np.finfo(float).eps * scale
 
         def phi(F):
             C, dC = pts.model(F[col] / p)
-            return C, self._colsum(cnt * (C - C0)) - u, self._colsum(cnt * dC / p)
+            return C, colsum(cnt * (C - C0)) - u, colsum(cnt * dC / p)
 
         zero = np.zeros(self.n_cls)
         C_zero, phi0, _ = phi(zero)
-        slack = phi0 >= 0.0
+        slack = live & (phi0 >= 0.0)
         lo, hi = zero.copy(), np.full(self.n_cls, np.inf)
         F = np.where(slack, 0.0, np.maximum(F_guess, 0.0))
-        done = slack.copy()
+        F = np.where(live, F, F_guess)
+        done = slack | ~live
         C = C_zero
         for _ in range(200):
             C, r, dr = phi(F)
@@ -974,6 +1010,8 @@ class PatchSolver:
             C = np.where(gap[col], C_a + theta[col] * (C_b - C_a), C)
         # a column at zero force: drive each cell a little past its zero-force point, so that the
         # cell solver locates its slack event there (and keeps its slack length)
-        C_slack = np.clip(C_zero - 1e-6 * C0, pts.C_min, pts.C_max)
+        C_slack = np.clip(C_zero - 1e-6 * C0, pts.C_min[rows], pts.C_max[rows])
         C = np.where(slack[col], C_slack, C)
-        return F, C
+        C_all = self.cells["C"].copy()
+        C_all[rows] = C
+        return F, C_all
