@@ -892,12 +892,12 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         for name in HISTORY_QUANTITIES:
             rest[name][norest] = np.nan
     events = solver.events()
-    cap = model.cap.numpy()
+    cap = model.cap.numpy()      # one value per cell, or one for all (the kernels read cap[i % len])
     for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
         i0 = int(np.argmax(status[:, c] != STATUS_OK))
         why = STATUS_NAMES[int(status[i0, c])]
         if s0_status0[c] == STATUS_FORCE_CAP:
-            why = rest_at_cap_reason(float(rest["F"][c]), float(cap[c]))
+            why = rest_at_cap_reason(float(rest["F"][c]), float(cap[c % cap.shape[0]]))
         events.append({"cell": int(c), "increment": i0, "kind": "flag", "reason": why,
                        "status": STATUS_NAMES[int(status[i0, c])]})
     events.sort(key=lambda e: (e["cell"], e["increment"], e["kind"] == "flag"))

@@ -70,7 +70,7 @@ def _variables(free: tuple, effects: tuple) -> dict:
 AT_BOUND_SHARE = 1.0e-3
 
 
-def _default_bounds(base: CellParams, var) -> tuple[float, float]:
+def default_bounds(base: CellParams, var) -> tuple[float, float]:
     if var.name in ("B", "d"):
         v = getattr(base, var.name)
         return 0.5 * v, 2.0 * v
@@ -244,7 +244,7 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     bounds = dict(bounds or {})
     lo, hi = np.empty(len(free)), np.empty(len(free))
     for j, name in enumerate(free):
-        lo[j], hi[j] = bounds.get(name, _default_bounds(base, known[name]))
+        lo[j], hi[j] = bounds.get(name, default_bounds(base, known[name]))
         if not lo[j] < hi[j]:
             raise KnitsimInputError(f"bounds[{name!r}] = ({lo[j]}, {hi[j]}): expected low < high")
     start = {n: known[n].start(base) for n in free}
@@ -257,7 +257,10 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     k = len(free)
     k_total = k + (len(curves) if offsets else 0)
     if n_rows <= k_total:
-        raise KnitsimInputError(f"curves: {n_rows} measured rows cannot fit {k_total} parameters")
+        names = ", ".join(getattr(c, "source", "curve") for c in curves)
+        raise KnitsimInputError(f"{names}: {n_rows} measured rows cannot fit {k_total} parameters "
+                                f"({k} of the knit{f' and a force offset per curve' if offsets else ''}); "
+                                "give more rows or fewer free parameters")
 
     cache: dict[bytes, tuple] = {}
     counter = {"calls": 0}

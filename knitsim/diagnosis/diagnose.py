@@ -109,10 +109,10 @@ import numpy as np
 from ..cell.effects import EFFECT_NAMES
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
-from .calibrate import calibrate_baseline, rss_of_cells
+from .calibrate import default_bounds, calibrate_baseline, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
-from .measured import MeasuredCurve
+from .measured import MeasuredCurve, check_reachable, check_response, reachable_strain
 from .noise import CurveNoise, curve_noise
 
 #: BIC difference counted as very strong evidence (Kass and Raftery 1995, 2 ln B > 10)
@@ -1480,6 +1480,15 @@ def _curves_out(curves, base_fit, best_fit, pair_fit) -> list:
     return out
 
 
+def _reachable(setup: DiagnosisSetup) -> tuple[float, str]:
+    """The largest strain any calibrated specimen can reach (L at its upper, C0 at its lower bound where
+    they are free), and how it follows."""
+    b = setup.base
+    L = setup.bounds.get("L", default_bounds(b, BASELINE_VARIABLES["L"]))[1] if "L" in setup.free else b.L
+    C0 = setup.bounds.get("C0", default_bounds(b, BASELINE_VARIABLES["C0"]))[0] if "C0" in setup.free else b.C0
+    return reachable_strain(L, C0), f"C = C0 (1 + strain) < L/2 with L = {L:.4g} mm, C0 = {C0:.4g} mm"
+
+
 def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose the gap between measured curves and the model (see the module docstring).
@@ -1507,6 +1516,14 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         if unknown:
             raise KnitsimInputError(f"noise given for {', '.join(unknown)}, which is not among the curves "
                                     f"({', '.join(c.source for c in curves)})")
+    sources = [c.source for c in curves]
+    twice = sorted({x for x in sources if sources.count(x) > 1})
+    if twice:
+        raise KnitsimInputError(f"{', '.join(twice)}: given more than once (its rows would count twice)")
+    limit, why = _reachable(setup)
+    for c in curves:
+        check_reachable(c, limit, why)
+        check_response(c)
     say = progress or (lambda msg: None)
     measured = np.concatenate([c.force for c in curves])
     rates = sorted({float(r) for c in curves if c.rate_mm_s is not None for r in np.unique(c.rate_mm_s)})

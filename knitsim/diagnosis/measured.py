@@ -119,6 +119,42 @@ class MeasuredCurve:
         return int(self.rows[i]) if self.rows is not None else i + 2
 
 
+#: a strain below -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL x the largest strain) is a compression, not an
+#: extensometer's zero offset (refused: the knit is modelled in tension)
+NEGATIVE_STRAIN_ABS = 5.0e-3
+NEGATIVE_STRAIN_REL = 0.05
+
+
+def reachable_strain(L: float, C0: float) -> float:
+    """The largest strain a quarter-stitch cell reaches: C = C0 (1 + strain) < L/2 (a straight yarn)."""
+    return L / (2.0 * C0) - 1.0
+
+
+def check_reachable(curve: "MeasuredCurve", limit: float, why: str) -> None:
+    """Refuse a curve whose strain reaches ``limit`` (:func:`reachable_strain`), naming its row: a strain in
+    per cent (or a length) read as a strain is the usual cause."""
+    s = curve.strain_read if curve.strain_read is not None else curve.strain
+    i = int(np.argmax(s))
+    if s[i] >= limit:
+        pct = " Is the column in per cent? A strain of 5 % is 0.05." if s[i] >= 1.0 else ""
+        raise KnitsimInputError(f"{curve.source}: row {curve.row_of(i)}, column strain: {float(s[i]):g} cannot be "
+                                f"reached by the scene's knit ({why}: strain < {limit:.4g}).{pct}")
+
+
+def check_response(curve: "MeasuredCurve") -> None:
+    """Refuse a measured curve whose force never rises above NEGATIVE_SIGMAS noise sd (a load cell that
+    was not connected, the wrong column): there is nothing to compare.  (A strain-only shell, force 0,
+    that only carries a replay program is not a measurement and is not checked.)"""
+    f = curve.force
+    top = int(np.argmax(f))
+    sigma = curve.noise.sigma_N if curve.noise is not None else 0.0
+    if not f[top] > NEGATIVE_SIGMAS * sigma:
+        raise KnitsimInputError(
+            f"{curve.source}: column force_per_wale_N: the force never rises above the noise (largest "
+            f"{float(f[top]):g} N at row {curve.row_of(top)}, noise sd {sigma:.3g} N): there is no measured response "
+            "to compare; check the column and the load cell")
+
+
 def strain_tolerance(strain) -> float:
     """Strain jitter tolerated inside a branch: :data:`STRAIN_TOL_REL` of the strain range (>= 1e-9)."""
     s = np.asarray(strain, float)
@@ -247,6 +283,17 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                                 "means a non-positive course length (is the column a strain, not a length?)")
     if noise_N is not None and not (np.isfinite(noise_N) and noise_N > 0):
         raise KnitsimInputError(f"{source}: noise sd {noise_N!r} N: must be a number > 0")
+    if n > 1 and np.all(s == s[0]):
+        raise KnitsimInputError(f"{source}: column strain: every row holds {float(s[0]):g}: the specimen is never "
+                                "stretched, so there is no curve to compare (is it the right column?)")
+    # a knit is modelled in tension: a strain below zero by more than an extensometer's zero offset is a
+    # compression (or a reversed sign), not jitter
+    limit = -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL * max(float(np.max(s)), 0.0))
+    bad = np.nonzero(s < limit)[0]
+    if len(bad):
+        raise KnitsimInputError(f"{source}: row {row(bad[0])}, column strain: {float(s[bad[0]]):g} is a compression "
+                                f"(below {limit:.3g}, more than a zero offset): the knit model runs in tension, "
+                                "strain >= 0; check the sign of the column and the extensometer's zero")
     tol = strain_tolerance(s) if strain_tol is None else float(strain_tol)
     if direction is None:
         inf_cycle, d = infer_branches(s, f, tol)
@@ -321,8 +368,10 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
         cycle / rate; the message names the file, row and column.
     """
     cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"))
-    return curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
-                             cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
+    curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
+                              cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
+    check_response(curve)
+    return curve
 
 
 def program_for_curve(curve: MeasuredCurve, max_increment: float = 0.005) -> tuple[LoadProgram, np.ndarray]:

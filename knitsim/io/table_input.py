@@ -1,18 +1,28 @@
 """Reading measured tables as laboratories write them (CSV from a test machine, from Excel).
 
 :func:`read_csv_columns` accepts what a lab produces and refuses only what is
-wrong, naming the file, the row (as a spreadsheet shows it: the header is row
-1), the column and the value, and what to do:
+wrong, naming the file, the row (the file's own line number, as a spreadsheet
+shows it), the column and the value, and what to do:
 
-- a UTF-8 byte-order mark (Excel's "CSV UTF-8"), or Windows-1252 text;
+- a UTF-8 byte-order mark (Excel's "CSV UTF-8"), UTF-16 with its byte-order
+  mark (Excel's "Unicode Text", tab-separated), or Windows-1252 text;
 - CRLF or LF line ends, blank lines, spaces around cells, quoted cells;
 - ``,`` ``;`` or tab as the delimiter, found from the header line (the one
   that splits it into the most fields);
 - decimal commas where the delimiter is ``;`` or a tab (``0,125``);
-- header names matched after trimming spaces and quotes.
+- header names matched after trimming spaces and quotes, in any case
+  (``Strain``, `` FORCE_PER_WALE_N ``); the keys returned are the names asked for;
+- lines starting with ``#`` (comments), anywhere;
+- a preamble above the header (``Specimen: A3``, ``Test date;2026-03-01``): the
+  header is the first line that holds every required column (and, when none is
+  required, at least one of the optional ones); the lines above it are skipped;
+- a units row directly under the header (``-,N,-,-``, ``[mm],[N],(-),mm/s``):
+  the first data row is skipped when none of its non-empty cells is a number.
+  Text in a number column further down is refused as before.
 """
 from __future__ import annotations
 
+import codecs
 import csv
 import math
 from pathlib import Path
@@ -28,6 +38,10 @@ _NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 
 def _text(path: Path) -> str:
     raw = path.read_bytes()
+    if raw.startswith((codecs.BOM_UTF32_LE, codecs.BOM_UTF32_BE)):
+        return raw.decode("utf-32", errors="replace")
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return raw.decode("utf-16", errors="replace")   # Excel's "Unicode Text"; the BOM is dropped
     try:
         return raw.decode("utf-8-sig")       # strips Excel's byte-order mark
     except UnicodeDecodeError:
@@ -47,6 +61,56 @@ def _number(cell: str, decimal_comma: bool) -> float:
     return float(c)
 
 
+def _is_number(cell: str, decimal_comma: bool) -> bool:
+    try:
+        _number(cell, decimal_comma)
+    except ValueError:
+        return False
+    return True
+
+
+def _trim(name: str) -> str:
+    return name.strip().strip('"').strip()
+
+
+def _key(name: str) -> str:
+    return _trim(name).casefold()
+
+
+def _is_comment(line: str) -> bool:
+    return line.lstrip().lstrip('"').startswith("#")
+
+
+def _split(line: str, delim: str) -> list[str]:
+    return next(csv.reader([line], delimiter=delim), [])
+
+
+def _find_header(lines: list[str], required: list[str], optional: list[str]) -> int | None:
+    """Index of the header line: the first line holding every required name (and one wanted name).
+
+    ``#`` lines are looked at only when no other line qualifies (a first column named ``#``).
+    """
+    want_all = {_key(c) for c in required}
+    want_any = want_all | {_key(c) for c in optional}
+    for comments in (False, True):
+        for i, ln in enumerate(lines):
+            if not ln.strip() or _is_comment(ln) != comments:
+                continue
+            cells = {_key(c) for c in _split(ln, _delimiter(ln))}
+            if want_all <= cells and (not want_any or want_any & cells):
+                return i
+    return None
+
+
+def has_columns(path: str | Path, names: Iterable[str]) -> bool:
+    """Whether a line of the file names every column of ``names``, as :func:`read_csv_columns` finds its
+    header (any case, after a preamble or ``#`` comments, in any of the encodings it reads)."""
+    path = Path(path)
+    if not path.is_file():
+        raise KnitsimInputError(f"{path}: no such file")
+    return _find_header(_text(path).splitlines(), list(names), []) is not None
+
+
 def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterable[str] = (),
                      numeric: Iterable[str] | None = None) -> dict[str, np.ndarray]:
     """Read named columns of a CSV file (see the module docstring).
@@ -54,48 +118,68 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     Parameters
     ----------
     path : path-like
-        The CSV file; its first non-blank line names the columns (with units, e.g. ``F0_N``).
+        The CSV file; its header line names the columns (with units, e.g. ``F0_N``):
+        the first line that holds every required column (lines above it and
+        ``#`` lines are skipped), matched after trimming, in any case.
     required, optional : iterable of str
         Column names that must / may be present.
     numeric : iterable of str, optional
         Columns to parse as finite floats (default: all required and optional
         columns present).  A NaN, an empty cell or text there is an error naming
-        the row and the column.
+        the row and the column.  A units row directly under the header (none of
+        its non-empty cells a number) is skipped.
 
     Returns
     -------
     dict of str to ndarray
-        Float arrays for numeric columns, arrays of str otherwise; the key
-        ``"_row"`` holds the spreadsheet row number of each data row.
+        Float arrays for numeric columns, arrays of str otherwise, keyed by the
+        names asked for; the key ``"_row"`` holds the file's line number (the
+        spreadsheet row) of each data row.
     """
     path = Path(path)
     if not path.is_file():
         raise KnitsimInputError(f"{path}: no such file")
     lines = _text(path).splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.strip()), None)
-    if first is None:
+    if not any(ln.strip() for ln in lines):
         raise KnitsimInputError(f"{path}: the file is empty")
-    delim = _delimiter(lines[first])
-    decimal_comma = delim != ","
-    reader = csv.reader(lines[first:], delimiter=delim)
-    header = [h.strip().strip('"').strip() for h in next(reader)]
-    rows, numbers = [], []
-    for k, r in enumerate(reader, start=first + 2):
-        if any(c.strip() for c in r):
-            rows.append(r)
-            numbers.append(k)
     required, optional = list(required), list(optional)
-    missing = [c for c in required if c not in header]
+    h = _find_header(lines, required, optional)
+    if h is None:      # no line names the columns: read the first non-comment line as the header
+        h = next((i for i, ln in enumerate(lines) if ln.strip() and not _is_comment(ln)), None)
+        if h is None:
+            raise KnitsimInputError(f"{path}: no header line (only blank lines and # comments)")
+    delim = _delimiter(lines[h])
+    decimal_comma = delim != ","
+    header = [_trim(c) for c in _split(lines[h], delim)]
+    keys = [c.casefold() for c in header]
+    missing = [c for c in required if _key(c) not in keys]
     if missing:
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
                                 f"read as {_NAMES[delim]}-separated)")
+    rows, numbers = [], []
+    first_data = True                     # the row that may be a units row
+    reader = csv.reader(lines[h + 1:], delimiter=delim)
+    while True:
+        line = h + 1 + reader.line_num + 1  # the file's line number (1-based) where the next record begins
+        try:
+            r = next(reader)
+        except StopIteration:
+            break
+        if _is_comment(lines[line - 1]) or not any(c.strip() for c in r):
+            continue
+        if first_data:
+            first_data = False
+            if not any(_is_number(c, decimal_comma) for c in r if c.strip()):
+                continue                  # units under the header (-, N, [mm], mm/s): no cell is a number
+        rows.append(r)
+        numbers.append(line)
     if not rows:
         raise KnitsimInputError(f"{path}: no data rows")
-    present = required + [c for c in optional if c in header]
+    present = required + [c for c in optional if _key(c) in keys]
     numeric = set(present if numeric is None else numeric)
     out: dict[str, np.ndarray] = {}
     for name in present:
-        j = header.index(name)
+        j = keys.index(_key(name))
         cells = []
         for line, row in zip(numbers, rows):
             cell = row[j].strip() if j < len(row) else ""

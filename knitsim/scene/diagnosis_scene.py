@@ -33,6 +33,7 @@ import copy
 from pathlib import Path
 
 from ..cell.effects import EFFECT_NAMES, EffectSet
+from ..diagnosis.calibrate import default_bounds
 from ..diagnosis.diagnose import DiagnosisSetup
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, check_effects
 from ..errors import KnitsimInputError
@@ -128,7 +129,18 @@ def load_diagnosis_scene(source: str | Path | dict, device: str | None = None) -
                                     f"({', '.join(known)})")
         if k in ("B", "d", "in_plane_width", "L", "W0", "C0") and v[0] <= 0:
             raise KnitsimInputError(f"diagnosis.bounds.{k} = {v!r}: {k} must stay > 0")
+        if k == "phi0" and not (-1.0 <= v[0] and v[1] <= 1.0):
+            raise KnitsimInputError(f"diagnosis.bounds.phi0 = {v!r}: phi0 is fitted as a fraction of phimax "
+                                    "(|phi0| <= phimax), so its bounds lie within [-1, 1]")
         bounds[k] = tuple(v)
+    # the specimen must stay a knit at every corner of the bounds: W0 >= 4 d, as the cell scene checks it
+    if "d" in bounds:
+        W0_low = base.W0
+        if "W0" in diag["free"]:
+            W0_low = bounds.get("W0", default_bounds(base, BASELINE_VARIABLES["W0"]))[0]
+        if bounds["d"][1] > W0_low / 4.0:
+            raise KnitsimInputError(f"diagnosis.bounds.d = {list(bounds['d'])!r}: the upper bound must keep "
+                                    f"W0 >= 4 d (W0 = {W0_low:.4g} mm: d <= {W0_low / 4.0:.4g} mm)")
     fixed = dict(diag["fixed"])
     EffectSet(**fixed).validated(where="diagnosis.fixed")
     noise = diag.get("noise_N")

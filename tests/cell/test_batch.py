@@ -347,3 +347,15 @@ def test_head_gap_jamming_batch_matches_reference(device):
         np.testing.assert_allclose(eng.values["head_gap"][jammed], np.broadcast_to([d, 0.7], jammed.shape)[jammed],
                                    atol=1e-9)
         assert not eng.values["interpenetrating"].any()
+
+
+def test_a_cell_at_its_cap_at_rest_is_flagged_when_the_cap_is_shared():
+    # one force_cap_N for all cells (the model keeps a single value, read as cap[i % 1]); the second
+    # cell (C0 = 3.4 mm, a tight loop) carries more than 0.05 N per wale at rest, so it stops there with
+    # the rest-at-cap reason (knitsim.cell.history.rest_at_cap_reason); its index is beyond the cap array
+    model = CellModel.from_arrays(B=[0.31] * 2, d=[0.58] * 2, L=[14.1] * 2, W0=[4.4] * 2, C0=[2.7, 3.4],
+                                  m=[0.2] * 2, phi0=[0.0, 0.0], force_cap_N=0.05, device="cpu")
+    assert model.cap.shape == (1,)
+    h = run_batch(model, monotonic(0.02, 0.01))
+    flag = [e for e in h.events if e["kind"] == "flag" and e["cell"] == 1]
+    assert flag and "already at force_cap_N = 0.05 N" in flag[0]["reason"]

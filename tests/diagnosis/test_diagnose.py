@@ -178,6 +178,10 @@ pair = false
     (lambda t: t + "noise_N = -1\n", "noise_N"),
     (lambda t: t.replace("W0 = 4.4", "W0 = 2.0"), "W0"),
     (lambda t: t + '[load]\ntype = "monotonic"\ntarget_strain = 0.5\n', "no \\[load\\]"),
+    # phi0 is fitted as a fraction of phimax (|phi0| <= phimax): a bound of 5 is 5 phimax
+    (lambda t: t + "bounds = { phi0 = [-5.0, 5.0] }\n", "bounds.phi0.*within \\[-1, 1\\]"),
+    # W0 = 4.4 mm: d above 4.4 / 4 = 1.1 mm would jam the loops at rest (the cell scene's W0 >= 4 d)
+    (lambda t: t + "bounds = { d = [0.5, 1.2] }\n", "bounds.d.*W0 >= 4 d.*d <= 1.1 mm"),
 ])
 def test_bad_scenes_are_refused_naming_the_key(tmp_path, patch, message):
     path = tmp_path / "s.toml"
@@ -399,3 +403,22 @@ def test_basins_step_reaches_an_effect_that_moves_the_geometry_that_fits():
     n = fit["n"]
     assert fit["chi2"] < chi2_truth + 2.0 * np.sqrt(2.0 * n)
     assert fit["fit_variables"]["bend_h"] == pytest.approx(bend_h, abs=0.03)
+
+
+def test_a_strain_in_per_cent_is_refused_before_any_solve():
+    # L = 14.1 mm, C0 = 2.7 mm: C < L/2 (a straight yarn) means strain < 14.1 / 5.4 - 1 = 1.611; the
+    # curve 0 .. 0.03 logged in per cent reaches 3 on its last row (spreadsheet row 5: the header is
+    # row 1), and the message says what per cent would mean
+    setup = DiagnosisSetup(base=NOMINAL, effects=("yarn_extension",), pair=False)
+    c = curve_from_arrays([0.0, 1.0, 2.0, 3.0], [0.0, 0.1, 0.2, 0.3], source="pct.csv")
+    with pytest.raises(KnitsimInputError, match=r"pct.csv: row 5, column strain: 3 cannot be reached.*"
+                                                r"strain < 1.611.*per cent"):
+        diagnose([c], setup)
+
+
+def test_a_curve_given_twice_is_refused():
+    # the same rows twice would double their weight in every chi2
+    setup = DiagnosisSetup(base=NOMINAL, effects=("yarn_extension",), pair=False)
+    c = curve_from_arrays([0.0, 0.01, 0.02], [0.0, 0.1, 0.2], source="a.csv")
+    with pytest.raises(KnitsimInputError, match="a.csv: given more than once"):
+        diagnose([c, c], setup)

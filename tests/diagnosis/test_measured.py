@@ -30,6 +30,12 @@ def _write(tmp_path, text, name="curve.csv"):
     ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n", "row 2, column direction"),
     ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,0\n", "row 2, column rate_mm_s"),
     ("strain,force_per_wale_N,cycle\n0.1,0.1,1\n0.0,0.0,1\n0.1,0.1,1\n", "row 4, column cycle"),
+    # a strain that never moves (a wrong column, or a hold logged without its ramp): nothing to compare
+    ("strain,force_per_wale_N\n0.1,0.1\n0.1,0.2\n0.1,0.3\n", "column strain: every row holds 0.1"),
+    # compression (or a reversed sign) beyond an extensometer's zero offset of 0.005: row 4 at -0.01
+    ("strain,force_per_wale_N\n0,0\n-0.004,0.1\n-0.01,0.2\n", "row 4, column strain: -0.01 is a compression"),
+    # a load cell that was never connected: the force is 0 on every row
+    ("strain,force_per_wale_N\n0,0\n0.1,0\n0.2,0\n0.3,0\n", "force never rises above the noise"),
 ])
 def test_csv_errors_name_row_and_column(tmp_path, text, where):
     with pytest.raises(KnitsimInputError, match=where):
@@ -69,3 +75,11 @@ def test_program_row_at_rest_maps_to_rest():
     prog, rows = program_for_curve(c, 0.02)
     assert rows[0] == -1 and len(prog) == 10
     np.testing.assert_allclose(prog.strain[rows[1:]], [0.1, 0.0], atol=1e-12)
+
+
+def test_a_zero_offset_and_jitter_below_zero_are_accepted(tmp_path):
+    # an extensometer zeroed 0.001 low and load cell readings of -0.002 N at rest, as labs log them:
+    # within the 0.005 zero offset and within the noise, so read (not refused)
+    text = "strain,force_per_wale_N\n-0.001,-0.002\n0.05,0.10\n0.10,0.21\n0.15,0.29\n0.20,0.41\n0.25,0.50\n"
+    c = read_measured_curve(_write(tmp_path, text))
+    assert len(c) == 6 and c.strain_read[0] == -0.001

@@ -1,0 +1,252 @@
+"""read_csv_columns on lab files as a test machine or Excel writes them, typed by hand here.
+
+Each file below imitates a lab practice named in its test; none is produced by knitsim.
+Expected values are the numbers typed into the files: a file with a units row, a preamble,
+comments, capitalised headers or UTF-16 text reads as the same numbers as its plain twin,
+and what is wrong is refused naming the file, its own line number, the column and the value.
+"""
+from __future__ import annotations
+
+import codecs
+
+import numpy as np
+import pytest
+
+from knitsim.errors import KnitsimInputError
+from knitsim.io.table_input import read_csv_columns
+
+REQ = ("strain", "force_per_wale_N")
+OPT = ("direction", "cycle", "rate_mm_s")
+NUM = ("strain", "force_per_wale_N", "cycle", "rate_mm_s")
+
+# the plain twin: header, then four rows typed by hand (a load cell reading -0.002 N at rest)
+PLAIN = ("strain,force_per_wale_N,direction,cycle\n"
+         "0.0,-0.002,load,1\n"
+         "0.1,0.053,load,1\n"
+         "0.2,0.098,load,1\n"
+         "0.1,0.018,unload,1\n")
+
+
+def _write(tmp_path, text: str, name="m.csv", encoding="utf-8"):
+    p = tmp_path / name
+    p.write_bytes(text.encode(encoding))
+    return p
+
+
+def _read(path):
+    return read_csv_columns(path, REQ, OPT, numeric=NUM)
+
+
+def _same_values(a, b):
+    assert set(a) == set(b)
+    for k in a:
+        if k != "_row":
+            np.testing.assert_array_equal(a[k], b[k])
+
+
+@pytest.fixture
+def plain(tmp_path):
+    return _read(_write(tmp_path, PLAIN, "plain.csv"))
+
+
+def test_the_plain_twin_reads_as_typed(plain):
+    np.testing.assert_array_equal(plain["strain"], [0.0, 0.1, 0.2, 0.1])
+    np.testing.assert_array_equal(plain["force_per_wale_N"], [-0.002, 0.053, 0.098, 0.018])
+    assert list(plain["direction"]) == ["load", "load", "load", "unload"]
+    assert list(plain["_row"]) == [2, 3, 4, 5]
+
+
+@pytest.mark.parametrize("units", [
+    "-,N,-,-",                       # a test machine's units line
+    "[mm],[N],(-),",                 # bracketed units, an empty cell
+    "1/mm,N.mm/mm,,mm/s",            # a KES-style unit with a slash and a dot, empty cells mixed in
+    '"(-)","[N]","",""',             # quoted by Excel
+])
+def test_a_units_row_under_the_header_is_skipped(tmp_path, plain, units):
+    # Lab practice: exports from tensile testers write the units on the line under the names.
+    lines = PLAIN.split("\n")
+    lines.insert(1, units)
+    cols = _read(_write(tmp_path, "\n".join(lines)))
+    _same_values(cols, plain)
+    assert list(cols["_row"]) == [3, 4, 5, 6]       # the file's own line numbers
+
+
+def test_a_units_row_on_a_semicolon_decimal_comma_file(tmp_path, plain):
+    # Lab practice: a German-locale Excel export, units row, decimal commas.
+    text = ("strain;force_per_wale_N;direction;cycle\r\n"
+            "-;N;-;-\r\n"
+            "0,0;-0,002;load;1\r\n0,1;0,053;load;1\r\n0,2;0,098;load;1\r\n0,1;0,018;unload;1\r\n")
+    _same_values(_read(_write(tmp_path, text)), plain)
+
+
+def test_a_units_row_with_a_number_in_it_is_data_and_refused(tmp_path):
+    # Lab practice gone wrong: a units line with "1" for a dimensionless column is not skipped,
+    # its text cell is then refused like any text in a number column, with its line number.
+    lines = PLAIN.split("\n")
+    lines.insert(1, "1,N,-,-")
+    p = _write(tmp_path, "\n".join(lines))
+    with pytest.raises(KnitsimInputError) as e:
+        _read(p)
+    msg = str(e.value)
+    assert str(p) in msg and "row 2, column force_per_wale_N: 'N' is not a number" in msg
+
+
+def test_text_further_down_is_refused_with_its_real_line_number(tmp_path):
+    # Lab practice gone wrong: an operator typed "n/a" into a force cell of the 3rd data row;
+    # a units row, a comment and a blank line come before it, and the line number stays the file's.
+    text = ("# exported 2026-03-01\n"
+            "strain,force_per_wale_N,direction,cycle\n"
+            "-,N,-,-\n"
+            "0.0,-0.002,load,1\n"
+            "\n"
+            "0.1,0.053,load,1\n"
+            "0.2,n/a,load,1\n")
+    p = _write(tmp_path, text)
+    with pytest.raises(KnitsimInputError) as e:
+        _read(p)
+    assert f"{p}: row 7, column force_per_wale_N: 'n/a' is not a number" in str(e.value)
+
+
+def test_a_second_text_row_after_a_units_row_is_refused(tmp_path):
+    # Only the first data row may be units: a second line of text is refused.
+    lines = PLAIN.split("\n")
+    lines[1:1] = ["-,N,-,-", "mm,kN,-,-"]
+    p = _write(tmp_path, "\n".join(lines))
+    with pytest.raises(KnitsimInputError, match=r"row 3, column strain: 'mm' is not a number"):
+        _read(p)
+
+
+def test_comments_and_a_two_line_preamble_are_skipped(tmp_path, plain):
+    # Lab practice: a test machine writes specimen and date above the table (with ; and :),
+    # and the analyst adds # comments, some of them between the rows.
+    text = ("Specimen: A3; operator: JB\n"
+            "Test date;2026-03-01\n"
+            "# Prüfung µm, 20 °C\n"
+            "strain,force_per_wale_N,direction,cycle\n"
+            "0.0,-0.002,load,1\n"
+            "# the extensometer was re-clipped here\n"
+            "0.1,0.053,load,1\n"
+            "0.2,0.098,load,1\n"
+            "0.1,0.018,unload,1\n"
+            "# end of test\n")
+    for enc in ("utf-8", "cp1252"):
+        cols = _read(_write(tmp_path, text, encoding=enc))
+        _same_values(cols, plain)
+        assert list(cols["_row"]) == [5, 7, 8, 9]
+
+
+def test_preamble_comment_and_units_row_together(tmp_path, plain):
+    # Lab practice: an Excel sheet with a title line, a comment, the names, then the units.
+    text = ('"Knit tensile test, wale direction";;;\n'
+            "# analyst JB\n"
+            '"Strain";"Force_per_wale_N";"Direction";"Cycle"\n'
+            '"[-]";"[N]";"";""\n'
+            "0;-0,002;load;1\n0,1;0,053;load;1\n0,2;0,098;load;1\n0,1;0,018;unload;1\n")
+    cols = _read(_write(tmp_path, text))
+    _same_values(cols, plain)
+    assert list(cols["_row"]) == [5, 6, 7, 8]
+
+
+def test_capitalised_and_padded_headers_are_read_under_the_names_asked_for(tmp_path, plain):
+    # Lab practice: a spreadsheet user capitalises the names and leaves spaces around them.
+    text = PLAIN.replace("strain,force_per_wale_N,direction,cycle",
+                         'Strain, FORCE_PER_WALE_N ," Direction ",CYCLE')
+    cols = _read(_write(tmp_path, text))
+    _same_values(cols, plain)                        # keys: strain, force_per_wale_N, direction, cycle
+
+
+def test_a_column_named_hash_is_a_header_not_a_comment(tmp_path):
+    # Lab practice: a test machine numbers its samples in a first column named "#".
+    text = "#,strain,force_per_wale_N\n1,0.0,-0.002\n2,0.1,0.053\n"
+    cols = read_csv_columns(_write(tmp_path, text), REQ)
+    np.testing.assert_array_equal(cols["force_per_wale_N"], [-0.002, 0.053])
+
+
+@pytest.mark.parametrize("bom, enc", [(codecs.BOM_UTF16_LE, "utf-16-le"), (codecs.BOM_UTF16_BE, "utf-16-be")])
+def test_utf16_unicode_text_is_read_as_its_utf8_twin(tmp_path, plain, bom, enc):
+    # Lab practice: Excel's "Unicode Text" export: UTF-16 LE with a byte-order mark, tab-separated,
+    # CRLF line ends (BE tested too), with a non-ASCII comment and a units row.
+    text = ("# Prüfung µm\r\n"
+            "strain\tforce_per_wale_N\tdirection\tcycle\r\n"
+            "-\tN\t-\t-\r\n"
+            "0,0\t-0,002\tload\t1\r\n0,1\t0,053\tload\t1\r\n0,2\t0,098\tload\t1\r\n0,1\t0,018\tunload\t1\r\n")
+    p16 = tmp_path / "unicode.txt"
+    p16.write_bytes(bom + text.encode(enc))
+    assert p16.read_bytes()[:2] == bom
+    p8 = _write(tmp_path, text, "utf8.txt")
+    c16, c8 = _read(p16), _read(p8)
+    _same_values(c16, c8)
+    np.testing.assert_array_equal(c16["_row"], c8["_row"])
+    _same_values(c16, plain)
+
+
+def test_utf16_text_in_a_number_cell_is_refused_with_the_row(tmp_path):
+    text = "strain\tforce_per_wale_N\r\n0\t0,1\r\n0,1\tx\r\n"
+    p = tmp_path / "u.txt"
+    p.write_bytes(codecs.BOM_UTF16_LE + text.encode("utf-16-le"))
+    with pytest.raises(KnitsimInputError, match=r"row 3, column force_per_wale_N: 'x' is not a number"):
+        read_csv_columns(p, REQ)
+
+
+def test_a_file_without_the_columns_is_refused_listing_what_was_found(tmp_path):
+    # Lab practice gone wrong: the export named the columns otherwise; the comment line is not listed.
+    text = "# exported by the machine\nDehnung;Kraft\n0,0;0,1\n"
+    p = _write(tmp_path, text)
+    with pytest.raises(KnitsimInputError) as e:
+        _read(p)
+    assert str(e.value) == (f"{p}: missing column(s) strain, force_per_wale_N (found: Dehnung, Kraft; "
+                            "read as semicolon-separated)")
+
+
+def test_a_preamble_without_the_columns_lists_the_first_line(tmp_path):
+    # No line holds both names: the first (non-comment) line is read as the header and listed.
+    text = "Specimen: A3\nstrain,force\n0,0.1\n"
+    p = _write(tmp_path, text)
+    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) strain, force_per_wale_N \(found: Specimen: A3; "
+                                                r"read as comma-separated\)"):
+        read_csv_columns(p, REQ)
+
+
+def test_only_optional_columns_find_the_header_below_a_preamble(tmp_path):
+    # The specimen reader asks for no required column, only optional ones: the header is then
+    # the first line holding one of them.
+    text = "Specimen: A3\nTest date;2026-03-01\nstrain,force_N\n-,N\n0.0,0.0\n0.1,2.5\n"
+    cols = read_csv_columns(_write(tmp_path, text), (), ("strain", "force_N", "force_per_wale_N"))
+    assert set(cols) == {"strain", "force_N", "_row"}
+    np.testing.assert_array_equal(cols["force_N"], [0.0, 2.5])
+    assert list(cols["_row"]) == [5, 6]
+
+
+def test_only_comments_or_only_a_units_row(tmp_path):
+    with pytest.raises(KnitsimInputError, match=r"the file is empty"):
+        _read(_write(tmp_path, "\n\n \n", "blank.csv"))
+    with pytest.raises(KnitsimInputError, match=r"no header line"):
+        _read(_write(tmp_path, "# nothing\n# here\n", "comments.csv"))
+    with pytest.raises(KnitsimInputError, match=r"no data rows"):
+        _read(_write(tmp_path, "strain,force_per_wale_N\n-,N\n", "units.csv"))
+
+
+def test_a_nan_or_empty_cell_is_still_refused(tmp_path):
+    with pytest.raises(KnitsimInputError, match=r"row 3, column strain: 'nan' is not finite"):
+        read_csv_columns(_write(tmp_path, "strain,force_per_wale_N\n0,0\nnan,0.1\n"), REQ)
+    with pytest.raises(KnitsimInputError, match=r"row 2, column force_per_wale_N: '' is not a number"):
+        read_csv_columns(_write(tmp_path, "strain,force_per_wale_N\n0,\n0.1,0.1\n", "e.csv"), REQ)
+
+
+def test_has_columns_finds_the_header_as_the_reader_does(tmp_path):
+    # a test machine's export: UTF-8 BOM, a comment, a preamble line, capitalised names, ';' and
+    # decimal commas: the x_mm / F_N pair is found, the KES pair is not (knitsim dahl fit chooses by it)
+    from knitsim.io.table_input import has_columns
+    p = tmp_path / "loop.csv"
+    p.write_bytes("\ufeff# KES bending, specimen 3\nOperator;JB\nX_MM;F_N\n-1,0;-0,5\n1,0;0,5\n".encode("utf-8"))
+    assert has_columns(p, ["x_mm", "F_N"])
+    assert not has_columns(p, ["kappa_1_mm", "M_N_mm_per_mm"])
+
+
+def test_dahl_fit_picks_the_x_f_columns_of_such_a_file(tmp_path):
+    from pathlib import Path
+
+    from knitsim.cli.dahl import _choose_columns
+    p = tmp_path / "loop.csv"
+    p.write_text("# pull-out loop\nX_mm,F_N\n0,0\n")
+    assert _choose_columns(Path(p), None) == ("x_mm", "F_N")
