@@ -54,7 +54,10 @@ def register(subparsers) -> None:
 
     fit = sub.add_parser("fit", help="fit b, p, n to capstan records",
                          description="Fit eq 5's (b, p, n) to capstan records by least squares on F1. "
-                                     "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent).")
+                                     "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent). "
+                                     "A parameter that ends at a bound of the fit (b >= 1e-6, |p| <= 1, "
+                                     "0.3 <= n <= 1) or whose standard error is not finite is flagged as not "
+                                     "identified; records with F1 = F0 on every row (no friction) are refused.")
     fit.add_argument("file", metavar="FILE.csv", help="capstan records")
     fit.add_argument("--fix-p", type=float, default=None, metavar="P",
                      help="hold the velocity exponent p at this value (the paper's basalt: 0)")
@@ -84,12 +87,30 @@ def register(subparsers) -> None:
     pred.set_defaults(func=_run_predict)
 
 
+#: What the printed table appends to a parameter that is not identified.
+_FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound": "AT UPPER BOUND: not identified",
+              "not_identified": "NOT IDENTIFIED"}
+
+
+def _resolution(path, rows) -> np.ndarray:
+    """Per-record resolution [N] of F1_N - F0_N: half the last digit written in each of the two cells.
+
+    ``rows`` are the spreadsheet rows of the records read as numbers; the cells are read again as text.
+    """
+    raw = read_csv_columns(path, ("F0_N", "F1_N"), numeric=())
+    res = {int(r): capstan.decimal_resolution(a) + capstan.decimal_resolution(b)
+           for r, a, b in zip(raw["_row"], raw["F0_N"], raw["F1_N"])}
+    return np.array([res.get(int(r), 0.0) for r in rows])
+
+
 def _run_fit(args) -> int:
-    cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3])
     if args.fix_p is not None and not np.isfinite(args.fix_p):
         raise KnitsimInputError(f"--fix-p = {args.fix_p}: not a finite number")
+    disc = _discretisation(args)
+    cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3])
     res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
-                                   _discretisation(args), fix_p=args.fix_p, source=str(args.file))
+                                   disc, fix_p=args.fix_p, source=str(args.file),
+                                   resolution_N=_resolution(args.file, cols["_row"]), rows=cols["_row"])
     if args.json:
         out = res.as_dict()
         out["records"] = int(len(cols["F0_N"]))
@@ -97,13 +118,18 @@ def _run_fit(args) -> int:
         return 0
     b, p, n = res.params
     sb, sp, sn = res.stderr
+
+    def flag(name: str) -> str:
+        text = _FLAG_TEXT.get(res.param_status.get(name, ""), "")
+        return f"   <- {text}" if text else ""
+
     print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})")
-    print(f"  b = {b:.5g} +/- {sb:.2g}   [s^p mm^-p N^(1-n)]")
-    print(f"  p = {p:.5g} +/- {sp:.2g}" + ("   (fixed)" if args.fix_p is not None else ""))
-    print(f"  n = {n:.5g} +/- {sn:.2g}")
+    print(f"  b = {b:.5g} +/- {sb:.2g}   [s^p mm^-p N^(1-n)]" + flag("b"))
+    print(f"  p = {p:.5g} +/- {sp:.2g}" + ("   (fixed)" if args.fix_p is not None else "") + flag("p"))
+    print(f"  n = {n:.5g} +/- {sn:.2g}" + flag("n"))
     print(f"  residual RMS of F1 = {res.rms_N:.3g} N, dof = {res.dof}, corr(b, n) = {res.corr[0, 2]:.3f}")
-    if not res.success:
-        print(f"  warning: {res.message}")
+    for w in res.warnings:
+        print(f"  warning: {w}")
     return 0
 
 

@@ -28,8 +28,9 @@ import numpy as np
 
 from ..data import dahl_kes
 from ..errors import KnitsimInputError
-from ..friction.dahl import DahlParams, fit_dahl_loop, kes_loop
+from ..friction.dahl import ALPHA_MAX, ALPHA_MIN, DahlParams, fit_dahl_loop, kes_loop
 from ..io.results import add_output_flags, prepare_output_file
+from ..io.table_input import has_columns
 from .common import add_json_flag, plain_help, print_json, read_csv_columns
 
 KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
@@ -59,10 +60,14 @@ def register(subparsers) -> None:
                      "(default kappa_1_mm,M_N_mm_per_mm, else x_mm,F_N)")
     fit.add_argument("--elastic", action="store_true", help="fit an elastic part B x in parallel")
     fit.add_argument("--alpha", default="1", metavar="free|VALUE",
-                     help="Dahl shape exponent: 'free' to fit it, or a fixed value > 0 (default 1, as in the paper)")
+                     help="exponent alpha of the Dahl law dF/dx = sigma (1 - F/Fc sign(dx))^alpha (shape of the "
+                          "approach to Fc): 'free' to fit it, or a fixed value in "
+                          f"[{ALPHA_MIN:g}, {ALPHA_MAX:g}] (default 1, as in the paper)")
     fit.add_argument("--png", metavar="OUT.png", help="plot file (default FILE_dahl_fit.png next to the CSV)")
     fit.add_argument("--no-png", action="store_true", help="do not write a plot")
-    add_output_flags(fit, what="plot")
+    fit.add_argument("--overwrite", action="store_true",
+                     help="replace an existing plot file (--png, or the default FILE_dahl_fit.png); "
+                          "without it an existing plot file is refused")
     add_json_flag(fit)
     fit.set_defaults(func=run_fit)
 
@@ -102,11 +107,9 @@ def _parse_columns(text: str) -> tuple[str, str]:
 def _choose_columns(path: Path, columns: str | None) -> tuple[str, str]:
     if columns:
         return _parse_columns(columns)
-    if not path.is_file():
-        raise KnitsimInputError(f"{path}: no such file")
-    with path.open(newline="", encoding="utf-8") as fh:
-        header = [h.strip() for h in next(csv.reader(fh), [])]
-    if all(c in header for c in KES_COLUMNS) or not all(c in header for c in XF_COLUMNS):
+    # the header as the reader finds it (a preamble, # comments, any case, UTF-16): KES columns unless
+    # only the x_mm, F_N pair is there
+    if has_columns(path, KES_COLUMNS) or not has_columns(path, XF_COLUMNS):
         return KES_COLUMNS
     return XF_COLUMNS
 
@@ -124,16 +127,26 @@ def _units(xcol: str, fcol: str) -> dict[str, str]:
 def _parse_alpha(text: str) -> float | None:
     if text.strip().lower() == "free":
         return None
+    expected = f"expected 'free' or a number in [{ALPHA_MIN:g}, {ALPHA_MAX:g}] (the paper: 1)"
     try:
         value = float(text)
     except ValueError:
-        raise KnitsimInputError(f"--alpha = {text!r}: expected 'free' or a number > 0") from None
-    if not (math.isfinite(value) and value > 0):
-        raise KnitsimInputError(f"--alpha = {text!r}: expected 'free' or a number > 0")
+        raise KnitsimInputError(f"--alpha = {text!r}: {expected}") from None
+    if not (math.isfinite(value) and ALPHA_MIN <= value <= ALPHA_MAX):
+        raise KnitsimInputError(f"--alpha = {text!r}: {expected}")
     return value
 
 
-def _plot(path: Path, x, F, fit, xcol: str, fcol: str) -> None:
+#: What the printed table appends to a parameter that is not identified.
+_FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound": "AT UPPER BOUND: not identified",
+              "not_identified": "NOT IDENTIFIED"}
+
+
+def _flagged(fit) -> list[str]:
+    return [n for n in fit.names if fit.param_status.get(n) in _FLAG_TEXT]
+
+
+def _plot(path: Path, x, F, fit, xcol: str, fcol: str, source: Path | None = None) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -148,6 +161,14 @@ def _plot(path: Path, x, F, fit, xcol: str, fcol: str) -> None:
     ax.set_ylabel(fcol)
     ax.grid(alpha=0.3)
     ax.legend(loc="center", fontsize=8)  # a Dahl loop is empty inside
+    title = f"Dahl fit of {(source or path).name}"
+    bad = _flagged(fit)
+    notes = ([f"NOT IDENTIFIED: {', '.join(bad)}"] if bad else []) \
+        + (["rows may be out of order"] if any("out of order" in w for w in fit.warnings) else [])
+    if notes:
+        ax.set_title(title + "\n" + "; ".join(notes), fontsize=9, color="C3")
+    else:
+        ax.set_title(title, fontsize=9)
     fig.tight_layout()
     try:
         fig.savefig(path, dpi=120)
@@ -158,19 +179,19 @@ def _plot(path: Path, x, F, fit, xcol: str, fcol: str) -> None:
 def run_fit(args) -> int:
     """``knitsim dahl fit``."""
     path = Path(args.file)
-    xcol, fcol = _choose_columns(path, args.columns)
     alpha = _parse_alpha(args.alpha)
+    xcol, fcol = _choose_columns(path, args.columns)
     png = None
     if not args.no_png:
         png = prepare_output_file(args.png or path.with_name(path.stem + "_dahl_fit.png"), args.overwrite, "--png")
     data = read_csv_columns(path, [xcol, fcol])
     x, F = data[xcol], data[fcol]
     try:
-        fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha)
+        fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha, labels=(xcol, fcol))
     except KnitsimInputError as exc:
         raise KnitsimInputError(f"{path}: {exc}") from None
     if png is not None:
-        _plot(png, x, F, fit, xcol, fcol)
+        _plot(png, x, F, fit, xcol, fcol, source=path)
     units = _units(xcol, fcol)
     values = {n: getattr(fit, n) for n in ("sigma", "Fc", "alpha", "B", "F0")}
     kes = None
@@ -183,7 +204,7 @@ def run_fit(args) -> int:
             "file": str(path), "columns": {"x": xcol, "F": fcol}, "n_points": fit.n_points,
             "reversals": fit.reversals, "parameters": values, "stderr": fit.stderr, "fixed": fit.fixed,
             "units": units, "kes_units": kes, "rms": fit.rms, "success": fit.success, "message": fit.message,
-            "png": str(png) if png else None,
+            "png": str(png) if png else None, "param_status": fit.param_status, "warnings": fit.warnings,
         })
         return 0
     print(f"Dahl fit of {path} ({fit.n_points} points, {fit.reversals} reversals; x = {xcol}, F = {fcol})")
@@ -195,8 +216,13 @@ def run_fit(args) -> int:
         if kes and n in kes and n in fit.stderr:
             unit = "gf.cm/cm" if n in ("Fc", "F0") else "gf.cm^2/cm"
             line += f"   [{kes[n]['value']:.4g} +- {kes[n]['stderr']:.2g} {unit}]"
+        flag = _FLAG_TEXT.get(fit.param_status.get(n, ""))
+        if flag:
+            line += f"   <- {flag}"
         print(line)
     print(f"  rms residual = {fit.rms:.3g} {units['F0']}" + ("" if fit.success else f"  (optimizer: {fit.message})"))
+    for w in fit.warnings:
+        print(f"  warning: {w}")
     if png:
         print(f"  plot: {png}")
     return 0

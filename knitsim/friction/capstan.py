@@ -81,6 +81,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from ..errors import KnitsimInputError
+from .identification import at_bound, parameter_status  # noqa: F401  (at_bound: re-exported)
 
 #: Wrap angle on each cylinder, theta0 = theta1 = pi/2 (section 2.4).
 THETA_EACH = 0.5 * np.pi
@@ -405,7 +406,10 @@ class FitResult:
     ``params`` is ``(b, p, n)``; ``stderr`` their standard errors (0 for a
     parameter held fixed); ``corr`` the 3x3 correlation matrix (NaN rows for
     fixed parameters); ``rms_N`` the residual RMS of F1 [N]; ``dof`` the
-    residual degrees of freedom.
+    residual degrees of freedom; ``param_status`` per parameter
+    ``"identified"``, ``"fixed"``, ``"at_lower_bound"``, ``"at_upper_bound"``
+    or ``"not_identified"``; ``warnings`` what makes the result less than
+    believable (shown to the user).
     """
 
     params: tuple[float, float, float]
@@ -417,28 +421,93 @@ class FitResult:
     message: str
     discretisation: str
     residuals_N: np.ndarray
+    #: per parameter: ``"identified"``, ``"fixed"``, ``"at_lower_bound"``,
+    #: ``"at_upper_bound"`` or ``"not_identified"`` (see :func:`parameter_status`)
+    param_status: dict = field(default_factory=dict)
+    #: sentences for the user: why a parameter is not identified, optimiser failure
+    warnings: list = field(default_factory=list)
+
+    @property
+    def identified(self) -> bool:
+        """True when every free parameter is identified (none at a bound, finite non-zero stderr)."""
+        return all(v in ("identified", "fixed") for v in self.param_status.values())
 
     def as_dict(self) -> dict:
         b, p, n = self.params
         sb, sp, sn = self.stderr
+        st = {k: self.param_status.get(k, "identified") for k in PARAM_NAMES}
         return {"b": b, "p": p, "n": n, "b_stderr": sb, "p_stderr": sp, "n_stderr": sn,
+                "b_status": st["b"], "p_status": st["p"], "n_status": st["n"],
                 "corr": self.corr, "rms_N": self.rms_N, "dof": self.dof, "success": self.success,
-                "message": self.message, "discretisation": self.discretisation}
+                "message": self.message, "discretisation": self.discretisation,
+                "warnings": list(self.warnings)}
+
+
+#: Names of the parameters of eq 5, in the order of ``FitResult.params``.
+PARAM_NAMES = ("b", "p", "n")
+#: Search box of :func:`fit_friction_law` for ``(b, p, n)``: ``b > 0`` (a
+#: friction coefficient), ``|p| <= 1`` (a weak velocity dependence), ``n`` in
+#: ``[0.3, 1]`` (Howell's exponent for fibres; ``n = 1`` is Amontons' law).
+FIT_LOWER = (1e-6, -1.0, 0.3)
+FIT_UPPER = (10.0, 1.0, 1.0)
+
+
+def decimal_resolution(cell: str) -> float:
+    """Half a unit of the last digit written in a numeric cell (``"6.31"`` -> 0.005).
+
+    Decimal commas and exponents are understood (``"0,125"``, ``"1.2e-3"``);
+    a cell that is not a plain decimal number gives 0.
+    """
+    from decimal import Decimal, InvalidOperation
+
+    c = str(cell).strip().replace("\u2212", "-")
+    if "," in c and "." not in c:
+        c = c.replace(",", ".")
+    try:
+        exp = Decimal(c).as_tuple().exponent
+    except (InvalidOperation, ValueError):
+        return 0.0
+    if not isinstance(exp, int):
+        return 0.0
+    return 0.5 * 10.0 ** exp
+
+
+def check_friction_present(F0, F1, resolution_N=None, source: str = "records") -> None:
+    """Refuse records that carry no friction: ``F1 = F0`` on every row.
+
+    ``F1`` equals ``F0`` within ``resolution_N`` (scalar or per row; default:
+    1e-9 of the tension, i.e. equal up to float rounding) on every record
+    means the load cell saw the dead weight itself: eq 1 gives ``mu_k = 0``
+    and no value of ``b`` (nor ``p``, ``n``) is identified.
+    """
+    F0 = np.asarray(F0, dtype=float)
+    F1 = np.asarray(F1, dtype=float)
+    tol = 1e-9 * np.maximum(np.abs(F0), np.abs(F1))
+    if resolution_N is not None:
+        tol = np.maximum(tol, np.broadcast_to(np.asarray(resolution_N, dtype=float), F0.shape))
+    if F0.size and np.all(np.abs(F1 - F0) <= tol):
+        raise KnitsimInputError(
+            f"{source}: F1_N = F0_N on every row (within the data's resolution): the records carry no "
+            "friction (eq 1 gives mu_k = 0), so b, p and n cannot be identified; check that F1_N is the "
+            "load-cell reading, not the dead weight")
 
 
 def validate_records(F0: Sequence[float], F1: Sequence[float], V: Sequence[float],
-                     direction: Sequence[str], source: str = "records") -> np.ndarray:
+                     direction: Sequence[str], source: str = "records", rows=None) -> np.ndarray:
     """Check capstan records row by row; return the direction signs.
 
-    Rows are numbered as in a CSV file with a header (first data row = 2).
+    Rows are numbered as in a CSV file with a header (first data row = 2),
+    or as given by ``rows`` (the spreadsheet row of each record).
     """
     F0, F1, V = (np.asarray(x, dtype=float) for x in (F0, F1, V))
     direction = list(direction)
     if not (len(F0) == len(F1) == len(V) == len(direction)):
         raise KnitsimInputError(f"{source}: F0_N, F1_N, V_mm_s and direction have different lengths")
+    if rows is None or len(rows) != len(F0):
+        rows = np.arange(len(F0)) + 2
     signs = np.empty(len(F0), dtype=int)
     for i in range(len(F0)):
-        where = f"{source}: row {i + 2}"
+        where = f"{source}: row {int(rows[i])}"
         signs[i] = check_record(F0[i], F1[i], direction[i], where)
         if not np.isfinite(V[i]) or V[i] <= 0.0:
             raise KnitsimInputError(f"{where}: V_mm_s = {V[i]:g}: must be positive")
@@ -447,12 +516,18 @@ def validate_records(F0: Sequence[float], F1: Sequence[float], V: Sequence[float
 
 def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRETISATION,
                      fix_p: float | None = None, x0: Sequence[float] = (0.15, 0.01, 0.93),
-                     source: str = "records") -> FitResult:
+                     source: str = "records", resolution_N=None, rows=None) -> FitResult:
     """Identify ``(b, p, n)`` of eq 5 from capstan records (Table 3).
 
     Least squares on the load-cell tension ``F1`` (the paper fitted its raw F1
-    records) with :func:`scipy.optimize.least_squares`.  Standard errors are
+    records) with :func:`scipy.optimize.least_squares` inside the box
+    :data:`FIT_LOWER` - :data:`FIT_UPPER`.  Standard errors are
     ``sqrt(diag(s^2 (J^T J)^-1))`` with ``s^2 = SSR / (m - k)``.
+
+    Records with ``F1 = F0`` on every row (within ``resolution_N``) carry no
+    friction and are refused before fitting.  A parameter that ends at a bound
+    of the box, or whose standard error is not finite (or 0 with a non-zero
+    residual), is reported as not identified in ``param_status`` and ``warnings``.
 
     Parameters
     ----------
@@ -466,9 +541,17 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
         Hold ``p`` at this value (the paper's basalt has ``p = 0``).
     x0 : (b, p, n)
         Starting point.
+    source : str
+        Name of the data (file) used in error messages.
+    resolution_N : float or array_like, optional
+        Resolution of the tensions (e.g. half the last digit written); used
+        only to recognise records without friction.
+    rows : array_like of int, optional
+        Spreadsheet row of each record, for error messages.
     """
-    signs = validate_records(F0, F1, V, direction, source)
+    signs = validate_records(F0, F1, V, direction, source, rows)
     F0, F1, V = (np.asarray(x, dtype=float) for x in (F0, F1, V))
+    check_friction_present(F0, F1, resolution_N, source)
     dirs = [DIRECTIONS[0] if s > 0 else DIRECTIONS[1] for s in signs]
     free = [0, 2] if fix_p is not None else [0, 1, 2]
     m, k = len(F0), len(free)
@@ -485,8 +568,8 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
         return np.array([predict_f1(F0[i], V[i], dirs[i], b, p, n, disc) for i in range(m)]) - F1
 
     start = np.array([x0[i] for i in free], dtype=float)
-    lo = np.array([1e-6, -1.0, 0.3])[free]
-    hi = np.array([10.0, 1.0, 1.0])[free]
+    lo = np.array(FIT_LOWER)[free]
+    hi = np.array(FIT_UPPER)[free]
     res = least_squares(residuals, start, bounds=(lo, hi), x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14)
     dof = m - k
     s2 = 2.0 * res.cost / dof
@@ -501,9 +584,16 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     for a_i, i in enumerate(free):
         for a_j, j in enumerate(free):
             corr[i, j] = c[a_i, a_j]
-    return FitResult(params=tuple(float(v) for v in full(res.x)), stderr=tuple(float(v) for v in se),
+    params = tuple(float(v) for v in full(res.x))
+    status, warns = parameter_status(PARAM_NAMES, params, se, FIT_LOWER, FIT_UPPER,
+                                     fixed=("p",) if fix_p is not None else (), exact_fit=res.cost == 0.0,
+                                     positive=("b",))
+    if not res.success:
+        warns.append(f"the optimiser did not converge: {res.message}")
+    return FitResult(params=params, stderr=tuple(float(v) for v in se),
                      corr=corr, rms_N=float(np.sqrt(2.0 * res.cost / m)), dof=dof, success=bool(res.success),
-                     message=str(res.message), discretisation=disc.describe(), residuals_N=res.fun)
+                     message=str(res.message), discretisation=disc.describe(), residuals_N=res.fun,
+                     param_status=status, warnings=warns)
 
 
 # --------------------------------------------------------------------------

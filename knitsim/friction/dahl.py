@@ -55,11 +55,26 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import KnitsimInputError
+from .identification import parameter_status
 
 #: Fewest samples accepted for an identification.
 MIN_FIT_POINTS = 20
 #: A reversal counts when x travels back by this fraction of its range.
 REVERSAL_FRACTION = 0.05
+#: Range of the shape exponent alpha accepted by :func:`fit_dahl_loop`, fixed or
+#: fitted (the box the free fit searches).  Dahl (1976) and the KES paper use
+#: alpha = 1; alpha < 1 reaches Fc after a finite travel, alpha > 1 only
+#: asymptotically.  Beyond 50 the force stalls far below Fc for any travel a
+#: loop can have (``u^50``), below 0.02 the law is a step: neither is a
+#: friction law one can identify from a loop.
+ALPHA_MIN = 0.02
+ALPHA_MAX = 50.0
+#: Lower bound of sigma and Fc in the fit's scaled units (data scaled to order 1).
+_POSITIVE_FLOOR = 1e-12
+#: More significant reversals than this fraction of the samples (and more than
+#: :data:`REVERSAL_WARN_MIN`) is not a loop: the rows are probably out of order.
+REVERSAL_WARN_FRACTION = 0.05
+REVERSAL_WARN_MIN = 10
 
 
 @dataclass(frozen=True)
@@ -369,6 +384,11 @@ class DahlFit:
     message : str
         As reported by :func:`scipy.optimize.least_squares`.
     nfev : int
+    param_status : dict of str to str
+        Per parameter ``"identified"``, ``"fixed"``, ``"at_lower_bound"``,
+        ``"at_upper_bound"`` or ``"not_identified"``.
+    warnings : list of str
+        What makes the result less than believable (shown to the user).
     """
 
     sigma: float
@@ -387,6 +407,16 @@ class DahlFit:
     message: str
     nfev: int
     fixed: dict = field(default_factory=dict)
+    #: per parameter: ``"identified"``, ``"fixed"``, ``"at_lower_bound"``,
+    #: ``"at_upper_bound"`` or ``"not_identified"`` (non-finite or zero stderr)
+    param_status: dict = field(default_factory=dict)
+    #: sentences for the user: parameters not identified, implausible loops
+    warnings: list = field(default_factory=list)
+
+    @property
+    def identified(self) -> bool:
+        """True when every fitted parameter is identified."""
+        return all(v in ("identified", "fixed") for v in self.param_status.values())
 
     @property
     def params(self) -> DahlParams:
@@ -399,21 +429,39 @@ class DahlFit:
         return self.B * x + dahl_response(x, self.sigma, self.Fc, self.alpha, self.F0)
 
 
-def _validate_loop(x, F):
+def _validate_loop(x, F, labels=("x", "F")):
     x = np.asarray(x, dtype=float)
     F = np.asarray(F, dtype=float)
+    xl, fl = labels
     if x.ndim != 1 or F.ndim != 1 or x.size != F.size:
-        raise KnitsimInputError(f"loop data: x and F must be 1-D of equal length (got {x.shape} and {F.shape})")
+        raise KnitsimInputError(f"loop data: {xl} and {fl} must be 1-D of equal length (got {x.shape} and {F.shape})")
     if x.size < MIN_FIT_POINTS:
         raise KnitsimInputError(f"loop data: {x.size} points, need at least {MIN_FIT_POINTS}")
-    for name, a in (("x", x), ("F", F)):
+    for name, a in ((xl, x), (fl, F)):
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
             raise KnitsimInputError(f"loop data: {name}[{bad[0]}] = {a[bad[0]]!r} is not finite")
     turns = turning_points(x)
     if not turns:
-        raise KnitsimInputError("loop data: x has no reversal (a hysteresis loop must go and come back)")
+        raise KnitsimInputError(f"loop data: {xl} has no reversal (a hysteresis loop must go and come back)")
+    if np.ptp(F) == 0.0:
+        what = "never leaves zero" if F[0] == 0.0 else f"is {F[0]:g} on every row"
+        raise KnitsimInputError(f"loop data: column {fl} {what}: the loop carries no friction force, so sigma and "
+                                "Fc cannot be identified (is it the right column?)")
     return x, F, turns
+
+
+def reversal_warning(n_points: int, reversals: int, label: str = "x") -> str | None:
+    """A warning when ``x`` reverses too often for a hysteresis loop, else None.
+
+    A measured loop reverses a few times (a KES test: 6 times in about 1200
+    samples); more than :data:`REVERSAL_WARN_FRACTION` of the samples (and
+    more than :data:`REVERSAL_WARN_MIN`) means rows out of order.
+    """
+    if reversals > max(REVERSAL_WARN_FRACTION * n_points, REVERSAL_WARN_MIN):
+        return (f"{label} reverses {reversals} times in {n_points} points ({100.0 * reversals / n_points:.0f} %): "
+                "a loop reverses a few times; the rows may be out of order (give them in order of acquisition)")
+    return None
 
 
 def _local_slope(x, F, idx):
@@ -469,7 +517,7 @@ def initial_guess(x, F, elastic=False, turns=None):
     return sigma0, Fc0, B0, F0
 
 
-def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None):
+def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", "F")):
     """Identify Dahl parameters from a measured hysteresis loop.
 
     Model: ``F = B x + F_dahl(x history; sigma, Fc, alpha, F0)`` (B = 0 unless
@@ -486,25 +534,38 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None):
     elastic : bool
         Fit an elastic part ``B x`` in parallel.
     alpha : float or None
-        Fixed shape exponent (default 1, as in the paper); ``None`` fits it.
+        Fixed shape exponent in [:data:`ALPHA_MIN`, :data:`ALPHA_MAX`]
+        (default 1, as in the paper); ``None`` fits it in that range.
     initial : dict, optional
         Starting values overriding the guesses (keys sigma, Fc, alpha, B, F0).
+    labels : (str, str)
+        Names of x and F in error messages and warnings (e.g. CSV columns).
 
     Returns
     -------
     DahlFit
         Parameters, standard errors ``sqrt(diag(s^2 (J^T J)^-1))`` with
-        ``s^2 = SSR / (n - p)``, fit statistics.
+        ``s^2 = SSR / (n - p)``, fit statistics, and ``param_status`` / ``warnings``:
+        a parameter at a bound of the fit (sigma, Fc -> 0; alpha at
+        ALPHA_MIN or ALPHA_MAX), with a non-finite or zero standard error, or
+        (sigma, Fc, alpha, all > 0) with a standard error above its value is
+        not identified; implausibly many reversals (rows out of order) warn.
 
     Raises
     ------
     KnitsimInputError
-        Fewer than :data:`MIN_FIT_POINTS` samples, non-finite values, or no
-        reversal in ``x``.
+        Fewer than :data:`MIN_FIT_POINTS` samples, non-finite values, a force
+        that never changes, no reversal in ``x``, or alpha out of range.
     """
-    x, F, turns = _validate_loop(x, F)
-    if alpha is not None and not (math.isfinite(alpha) and alpha > 0):
-        raise KnitsimInputError(f"alpha = {alpha!r}: must be a finite number > 0 (or None to fit it)")
+    if alpha is not None:
+        try:
+            ok = math.isfinite(float(alpha)) and ALPHA_MIN <= float(alpha) <= ALPHA_MAX
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise KnitsimInputError(f"alpha = {alpha!r}: must be a number in [{ALPHA_MIN:g}, {ALPHA_MAX:g}] "
+                                    "(or None to fit it)")
+    x, F, turns = _validate_loop(x, F, labels)
     # work in scaled units so that every parameter is of order one
     xs = max(float(np.max(np.abs(x))), 1e-300)
     Fs = max(float(np.max(np.abs(F - np.mean(F)))), 1e-300)
@@ -523,8 +584,9 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None):
         fixed["alpha"] = float(alpha)
     if not elastic:
         fixed["B"] = 0.0
-    lower = np.array([1e-12 if n in ("sigma", "Fc") else (0.02 if n == "alpha" else -np.inf) for n in names])
-    upper = np.array([50.0 if n == "alpha" else np.inf for n in names])
+    lower = np.array([_POSITIVE_FLOOR if n in ("sigma", "Fc") else (ALPHA_MIN if n == "alpha" else -np.inf)
+                      for n in names])
+    upper = np.array([ALPHA_MAX if n == "alpha" else np.inf for n in names])
 
     def unpack(theta):
         v = dict(zip(names, theta))
@@ -549,19 +611,38 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None):
     J = res.jac
     dof = max(n - p, 1)
     s2 = 2.0 * res.cost / dof
-    _, sv, vt = np.linalg.svd(J, full_matrices=False)
-    tol = np.finfo(float).eps * max(J.shape) * (sv[0] if sv.size else 0.0)
-    inv = np.where(sv > tol, 1.0 / np.where(sv > tol, sv, 1.0) ** 2, np.inf)
-    cov_n = (vt.T * inv) @ vt * s2
-    if np.any(~np.isfinite(inv)):
-        cov_n = np.full((p, p), np.inf)
     sc = np.array([scale[nm] for nm in names])
-    cov = cov_n * np.outer(sc, sc)
+    with np.errstate(all="ignore"):
+        if np.all(np.isfinite(J)):
+            _, sv, vt = np.linalg.svd(J, full_matrices=False)
+            tol = np.finfo(float).eps * max(J.shape) * (sv[0] if sv.size else 0.0)
+        else:
+            sv, vt, tol = np.zeros(p), np.eye(p), np.inf
+        if sv.size == p and np.all(sv > tol):
+            # (J^T J)^-1 = V diag(1/sv^2) V^T; a singular J leaves the parameters undetermined
+            cov_n = (vt.T / sv ** 2) @ vt * s2
+        else:
+            cov_n = np.full((p, p), np.inf)
+        cov = cov_n * np.outer(sc, sc)
     sg, fc, a, b, f0 = unpack(res.x)
     values = {"sigma": sg * scale["sigma"], "Fc": fc * scale["Fc"], "alpha": a, "B": b * scale["B"], "F0": f0 * scale["F0"]}
-    stderr = {nm: float(math.sqrt(cov[i, i])) if math.isfinite(cov[i, i]) else math.inf for i, nm in enumerate(names)}
+    stderr = {nm: float(math.sqrt(cov[i, i])) if math.isfinite(cov[i, i]) and cov[i, i] >= 0 else math.inf
+              for i, nm in enumerate(names)}
+    # believable or say why not: parameters at a bound or with a degenerate stderr (the bounds are in the
+    # fit's scaled units; sigma and Fc have the floor _POSITIVE_FLOOR, written 0)
+    floor = [n in ("sigma", "Fc") for n in names]
+    status, warns = parameter_status(names, [float(v) for v in res.x], [stderr[n] for n in names], lower, upper,
+                                     exact_fit=res.cost == 0.0, positive=("sigma", "Fc", "alpha"),
+                                     shown=[values[n] for n in names], atol=[1e-9 if f else 0.0 for f in floor],
+                                     bound_text=["0" if f else None for f in floor])
+    status.update({nm: "fixed" for nm in fixed})
+    rev = reversal_warning(n, len(turns), labels[0])
+    if rev:
+        warns.append(rev)
+    if not res.success:
+        warns.append(f"the optimiser did not converge: {res.message}")
     return DahlFit(sigma=float(values["sigma"]), Fc=float(values["Fc"]), alpha=float(values["alpha"]),
                    B=float(values["B"]), F0=float(values["F0"]), stderr=stderr, names=tuple(names), cov=cov,
                    rms=float(math.sqrt(2.0 * res.cost / n)) * Fs, n_points=n, reversals=len(turns),
                    success=bool(res.success), status=int(res.status), message=str(res.message),
-                   nfev=int(res.nfev), fixed=fixed)
+                   nfev=int(res.nfev), fixed=fixed, param_status=status, warnings=warns)

@@ -115,3 +115,76 @@ def test_predict_bad_direction(capsys):
 def test_predict_negative_tension(capsys):
     assert main(["capstan", "predict", "--F0", "-1", "--V", "1", "--direction", "ascent", "--fibre", "basalt"]) == 2
     assert "F0_N" in capsys.readouterr().err
+
+
+# ------------------------------------------------- believable results (audit)
+_HEADER = "F0_N,F1_N,V_mm_s,direction\n"
+
+
+def _csv(tmp_path, body, name="rec.csv"):
+    path = tmp_path / name
+    path.write_text(_HEADER + body)
+    return str(path)
+
+
+def test_fit_refuses_records_without_friction(tmp_path, capsys):
+    # F1 = F0 on every row: the load cell reads the dead weight, eq 1 gives
+    # mu_k = 0, so b (and p, n) cannot be identified: refused before fitting.
+    path = _csv(tmp_path, "6.31,6.31,0.2,ascent\n6.31,6.31,1,ascent\n6.31,6.31,0.2,descent\n"
+                          "12.62,12.62,0.2,ascent\n12.62,12.62,1,descent\n12.62,12.62,10,ascent\n")
+    assert main(["capstan", "fit", path, "--json"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err.count("\n") == 1 and "Traceback" not in cap.err
+    assert path in cap.err and "no friction" in cap.err and "F1_N = F0_N on every row" in cap.err
+
+
+def test_fit_refuses_f1_equal_f0_within_written_resolution(tmp_path, capsys):
+    # "6.3" is written to 0.05 N, "6.31" to 0.005 N: a difference of 0.01 N is
+    # within what these numbers resolve, so these records carry no friction either.
+    path = _csv(tmp_path, "6.3,6.31,0.2,ascent\n6.3,6.3,1,ascent\n6.3,6.29,0.2,descent\n"
+                          "12.6,12.6,0.2,ascent\n12.6,12.6,1,descent\n")
+    assert main(["capstan", "fit", path]) == 2
+    assert "no friction" in capsys.readouterr().err
+
+
+def _amontons_rows(mu_by_F0):
+    # eq 1 written by hand: F1 = F0 exp(+/- mu pi) with mu depending on F0 only
+    rows = []
+    for F0, mu in mu_by_F0:
+        for V in (0.2, 1.0, 10.0):
+            rows.append(f"{F0},{F0 * math.exp(mu * math.pi):.6f},{V},ascent")
+            rows.append(f"{F0},{F0 * math.exp(-mu * math.pi):.6f},{V},descent")
+    return "\n".join(rows) + "\n"
+
+
+def test_fit_flags_parameter_at_bound(tmp_path, capsys):
+    # mu_k rises from 0.15 to 0.20 when F0 doubles: eq 5, mu_k = b V^p Fn^(n-1),
+    # then needs n > 1, outside the fit's box n <= 1, so n ends at the bound 1
+    # and must be flagged in the table and in the JSON.
+    path = _csv(tmp_path, _amontons_rows([(6.31, 0.15), (12.62, 0.20)]))
+    out = _json(capsys, ["capstan", "fit", path, "--json"])
+    assert out["n"] == pytest.approx(1.0, abs=1e-3)
+    assert out["n_status"] == "at_upper_bound"
+    assert any(w.startswith("n = ") and "upper bound" in w for w in out["warnings"])
+    assert main(["capstan", "fit", path]) == 0
+    text = capsys.readouterr().out
+    n_line = next(ln for ln in text.splitlines() if ln.strip().startswith("n ="))
+    assert "AT UPPER BOUND" in n_line and "not identified" in n_line
+    assert "warning: n = 1" in text
+
+
+def test_fit_bundled_csv_is_identified(capsys):
+    # Table 2 of e-glass identifies all three parameters inside the box (Table 3
+    # values b = 0.15, p = 0.02, n = 0.93 lie inside it): nothing is flagged.
+    out = _json(capsys, ["capstan", "fit", str(REPO / "scenes/capstan/e_glass_table2.csv"), "--json"])
+    assert (out["b_status"], out["p_status"], out["n_status"]) == ("identified",) * 3
+    assert out["warnings"] == []
+    out = _json(capsys, ["capstan", "fit", str(REPO / "scenes/capstan/basalt_table2.csv"), "--fix-p", "0", "--json"])
+    assert out["p_status"] == "fixed" and out["warnings"] == []
+
+
+def test_fit_bad_row_names_spreadsheet_row(tmp_path, capsys):
+    # a blank line and a comment-free file: the bad record is on line 4 of the file
+    path = _csv(tmp_path, "6.31,10.3,0.2,ascent\n\n6.31,5,1,ascent\n" + _GOOD)
+    assert main(["capstan", "fit", path]) == 2
+    assert "row 4" in capsys.readouterr().err

@@ -94,3 +94,140 @@ def test_help(argv, capsys):
         main(argv)
     assert exc.value.code == 0
     assert "usage: knitsim dahl" in capsys.readouterr().out
+
+
+# ------------------------------------------------- believable results (audit)
+def _hand_loop(sigma=2.0, Fc=0.5, A=1.0, per_branch=50, cycles=2):
+    """A Dahl loop written by hand from the alpha = 1 closed form (not by knitsim):
+    along a run of direction s, F = s Fc + (F_start - s Fc) exp(-sigma |x - x_start| / Fc)."""
+    import math as m
+
+    xs = [0.0] + [A * i / per_branch for i in range(1, per_branch + 1)]
+    for _ in range(cycles):
+        xs += [A - 2 * A * i / (2 * per_branch) for i in range(1, 2 * per_branch + 1)]
+        xs += [-A + 2 * A * i / (2 * per_branch) for i in range(1, 2 * per_branch + 1)]
+    F = [0.0]
+    for a, b in zip(xs[:-1], xs[1:]):
+        s = 1.0 if b > a else -1.0
+        F.append(s * Fc + (F[-1] - s * Fc) * m.exp(-sigma * abs(b - a) / Fc))
+    noise = [0.002 * ((7 * k) % 11 - 5) / 5 for k in range(len(xs))]   # deterministic +-0.002 N
+    return xs, [f + e for f, e in zip(F, noise)]
+
+
+def _write_xf(path, xs, F):
+    path.write_text("x_mm,F_N\n" + "".join(f"{a:.9g},{b:.9g}\n" for a, b in zip(xs, F)))
+    return str(path)
+
+
+def test_fit_refuses_zero_force_column(tmp_path, capsys):
+    # A loop whose force column is 0 on every row carries no friction: no sigma
+    # or Fc can be read from it (the audit's fit returned 1e-309 +- 0).
+    xs, _ = _hand_loop()
+    path = _write_xf(tmp_path / "zero.csv", xs, [0.0] * len(xs))
+    assert main(["dahl", "fit", path, "--no-png", "--json"]) == 2
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()
+    assert cap.out == "" and len(err) == 1 and "Traceback" not in cap.err
+    assert path in err[0] and "column F_N" in err[0] and "never leaves zero" in err[0]
+
+
+@pytest.mark.parametrize("value", ["1e9", "0.001", "0", "nan", "inf", "-1", "fifty"])
+def test_alpha_out_of_range_refused_before_any_work(value, tmp_path, capsys):
+    # alpha is the exponent of eq 1, dF/dx = sigma (1 - F/Fc s)^alpha; the fit
+    # searches [0.02, 50] (knitsim/friction/dahl.py ALPHA_MIN/ALPHA_MAX): a value
+    # outside is refused before the file is even read (it does not exist here).
+    missing = str(tmp_path / "does_not_exist.csv")
+    assert main(["dahl", "fit", missing, "--alpha", value, "--no-png"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("knitsim: error: --alpha")
+    assert "[0.02, 50]" in err[0]
+
+
+@pytest.mark.parametrize("alpha", ["0.02", "50", "free"])
+def test_valid_alpha_leaks_no_runtime_warning(alpha, tmp_path, capsys):
+    # Ends of the accepted range and a free alpha: the fit runs with NumPy's
+    # RuntimeWarnings turned into errors, so none reaches the console.
+    import warnings
+
+    xs, F = _hand_loop()
+    path = _write_xf(tmp_path / "loop.csv", xs, F)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        out = _run_json(capsys, ["dahl", "fit", path, "--alpha", alpha, "--no-png", "--json"])
+    assert all(isinstance(v, float) for v in out["stderr"].values())
+    assert capsys.readouterr().err == ""
+
+
+def test_clean_loop_identified_no_warnings(tmp_path, capsys):
+    # The hand-made loop (sigma = 2, Fc = 0.5, 4 reversals): every fitted
+    # parameter identified, nothing to warn about, and the truth recovered.
+    xs, F = _hand_loop()
+    out = _run_json(capsys, ["dahl", "fit", _write_xf(tmp_path / "loop.csv", xs, F), "--no-png", "--json"])
+    assert out["param_status"] == {"sigma": "identified", "Fc": "identified", "F0": "identified",
+                                   "alpha": "fixed", "B": "fixed"}
+    assert out["warnings"] == [] and out["reversals"] == 4
+    assert out["parameters"]["sigma"] == pytest.approx(2.0, rel=0.02)
+    assert out["parameters"]["Fc"] == pytest.approx(0.5, rel=0.02)
+
+
+def test_elastic_line_flags_dahl_part_not_identified(tmp_path, capsys, monkeypatch):
+    # F = 2 x exactly on a back-and-forth path: no hysteresis, so with --elastic
+    # B = 2 takes it all and the Dahl part vanishes (sigma or Fc driven to the
+    # lower bound 0): flagged in the table, the JSON and the plot title.
+    from matplotlib.figure import Figure
+
+    xs = [i / 20 for i in range(21)] + [1 - i / 20 for i in range(1, 41)] + [-1 + i / 20 for i in range(1, 41)]
+    path = _write_xf(tmp_path / "line.csv", xs, [2 * x for x in xs])
+    out = _run_json(capsys, ["dahl", "fit", path, "--elastic", "--no-png", "--json"])
+    flagged = [n for n in ("sigma", "Fc") if out["param_status"][n] != "identified"]
+    assert flagged and out["parameters"]["B"] == pytest.approx(2.0, rel=1e-6)
+    assert any(w.startswith(flagged[0]) and "not identified" in w for w in out["warnings"])
+
+    titles = []
+    real_savefig = Figure.savefig
+
+    def spy(self, *a, **k):
+        titles.append(self.axes[0].get_title())
+        return real_savefig(self, *a, **k)
+
+    monkeypatch.setattr(Figure, "savefig", spy)
+    assert main(["dahl", "fit", path, "--elastic", "--png", str(tmp_path / "line.png")]) == 0
+    text = capsys.readouterr().out
+    line = next(ln for ln in text.splitlines() if ln.strip().startswith(flagged[0]))
+    assert "not identified" in line.lower() and "warning:" in text
+    assert titles and "NOT IDENTIFIED" in titles[0] and flagged[0] in titles[0] and "line.csv" in titles[0]
+
+
+def test_shuffled_rows_warn_out_of_order(tmp_path, capsys):
+    # The same loop with its rows in a scrambled order: x reverses at most
+    # places, far more than a few percent of the points; a loop reverses a few
+    # times, so the rows are probably out of order: warned in JSON and text.
+    xs, F = _hand_loop(per_branch=25)
+    order = sorted(range(len(xs)), key=lambda k: (k * 37) % len(xs))   # a fixed scramble
+    path = _write_xf(tmp_path / "shuffled.csv", [xs[k] for k in order], [F[k] for k in order])
+    out = _run_json(capsys, ["dahl", "fit", path, "--no-png", "--json"])
+    assert out["reversals"] > 0.05 * out["n_points"]
+    assert any("out of order" in w for w in out["warnings"])
+    assert main(["dahl", "fit", path, "--no-png"]) == 0
+    assert "rows may be out of order" in capsys.readouterr().out
+
+
+def test_fit_help_overwrite_names_existing_options(capsys):
+    # --overwrite of 'dahl fit' replaces the plot; 'dahl fit' has no --out option.
+    with pytest.raises(SystemExit):
+        main(["dahl", "fit", "--help"])
+    text = capsys.readouterr().out
+    assert "--out" not in text.replace("--overwrite", "")
+    assert "--png" in text.split("--overwrite", 2)[2]
+
+
+def test_overwrite_policy_of_the_plot(tmp_path, capsys):
+    # an existing plot file is refused without --overwrite, replaced with it
+    xs, F = _hand_loop()
+    path = _write_xf(tmp_path / "loop.csv", xs, F)
+    png = tmp_path / "p.png"
+    png.write_bytes(b"old")
+    assert main(["dahl", "fit", path, "--png", str(png)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(["dahl", "fit", path, "--png", str(png), "--overwrite"]) == 0
+    assert png.read_bytes() != b"old"

@@ -221,3 +221,51 @@ def test_fit_eq4_fine_march_within_one_stderr(fibre):
                                fix_p=0.0 if fibre == "basalt" else None)
     for got, se, ref in zip(res.params, res.stderr, cap.table3_params(fibre)):
         assert abs(got - ref) <= se + 1e-12
+
+
+# ---------------------------------------------------------------- believable fits
+def test_fit_refuses_records_without_friction():
+    # F1 = F0 on every record: eq 1 gives mu_k = 0, nothing to identify.
+    F0 = [6.31, 6.31, 12.62, 12.62, 6.31]
+    with pytest.raises(KnitsimInputError, match="no friction"):
+        cap.fit_friction_law(F0, F0, [0.2, 1, 0.2, 1, 10], ["ascent", "descent"] * 2 + ["ascent"], source="lab.csv")
+
+
+def test_friction_within_resolution_is_refused_only_with_resolution():
+    # F1 - F0 = 0.004 N on every row: real friction for exact numbers, none
+    # for numbers written to 0.01 N (half a digit each: 0.005 + 0.005).
+    F0 = np.array([6.31, 6.31, 12.62, 12.62, 6.31])
+    F1 = F0 + np.array([0.004, -0.004, 0.004, -0.004, 0.004])
+    cap.check_friction_present(F0, F1)                      # no error
+    with pytest.raises(KnitsimInputError, match="no friction"):
+        cap.check_friction_present(F0, F1, resolution_N=0.01)
+
+
+@pytest.mark.parametrize("cell,res", [("6.31", 0.005), ("10.300826", 5e-7), ("12", 0.5), ("0,125", 5e-4),
+                                      ("1.2e-3", 5e-5), ("N", 0.0)])
+def test_decimal_resolution(cell, res):
+    # half a unit of the last digit written
+    assert cap.decimal_resolution(cell) == pytest.approx(res)
+
+
+@pytest.mark.parametrize("value,lo,hi,side", [
+    (1e-6, 1e-6, 10.0, "lower"), (1.0000001e-6, 1e-6, 10.0, "lower"), (0.15, 1e-6, 10.0, None),  # b's box
+    (0.3, 0.3, 1.0, "lower"), (0.9995, 0.3, 1.0, "upper"), (0.99, 0.3, 1.0, None),              # n's box
+])
+def test_at_bound(value, lo, hi, side):
+    # within 1e-3 of the bound (relative) counts as at the bound; 1 % away does not
+    assert cap.at_bound(value, lo, hi) == side
+
+
+def test_fit_status_of_a_clean_fit():
+    # Noise-free records made with (b, p, n) = (0.2, 0.05, 0.9), inside the box:
+    # all three identified and no warning.
+    truth = (0.2, 0.05, 0.9)
+    F0 = np.array([3.0, 3.0, 8.0, 8.0, 5.0, 5.0])
+    V = np.array([0.1, 0.1, 1.0, 1.0, 30.0, 30.0])
+    d = ["ascent", "descent"] * 3
+    F1 = np.array([cap.predict_f1(F0[i], V[i], d[i], *truth) for i in range(6)])
+    F1 = F1 * (1 + 1e-4 * np.array([1, -1, 1, 1, -1, 1]))   # a little measurement error
+    res = cap.fit_friction_law(F0, F1, V, d)
+    assert res.param_status == {"b": "identified", "p": "identified", "n": "identified"} and res.identified
+    assert res.warnings == []

@@ -305,3 +305,45 @@ def test_initial_guess_reads_loop():
 def test_fit_rejects_bad_loops(x, F, match):
     with pytest.raises(KnitsimInputError, match=match):
         fit_dahl_loop(x, F)
+
+
+# ---------------------------------------------------------------- believable fits
+def _triangle(n_branch=40):
+    return np.r_[np.linspace(0, 1, n_branch + 1), np.linspace(1, -1, 2 * n_branch + 1)[1:],
+                 np.linspace(-1, 1, 2 * n_branch + 1)[1:]]
+
+
+@pytest.mark.parametrize("value", [0.0, 3.5])
+def test_fit_rejects_constant_force(value):
+    # a force that never changes carries no friction: sigma, Fc not identifiable
+    x = _triangle()
+    with pytest.raises(KnitsimInputError, match="cannot be identified"):
+        fit_dahl_loop(x, np.full(x.size, value), labels=("x_mm", "F_N"))
+
+
+@pytest.mark.parametrize("alpha", [1e9, 0.001, math.nan, -1.0])
+def test_fit_rejects_alpha_out_of_range(alpha):
+    # ALPHA_MIN = 0.02 .. ALPHA_MAX = 50: the box the free fit searches
+    x = _triangle()
+    with pytest.raises(KnitsimInputError, match="alpha"):
+        fit_dahl_loop(x, np.sin(3 * x), alpha=alpha)
+
+
+def test_reversal_warning_threshold():
+    # a KES record: 6 reversals in 1201 points is a loop; 746 in 1201 is not
+    from knitsim.friction.dahl import reversal_warning
+
+    assert reversal_warning(1201, 6) is None
+    assert reversal_warning(40, 6) is None            # a short coarse loop: a few reversals are fine
+    assert "out of order" in reversal_warning(1201, 746)
+
+
+def test_fit_status_identified_on_clean_loop():
+    # paper row 'fabric weft', 1 % noise: all fitted parameters identified
+    row = ROWS[1]
+    p = DahlParams(row["sigma"], row["Fc"], row["alpha"])
+    x, M = kes_loop(p, KES_K, cycles=2, points_per_quarter=50, noise=0.01 * row["Fc"], seed=5)
+    fit = fit_dahl_loop(x, M)
+    assert fit.param_status == {"alpha": "fixed", "B": "fixed", "sigma": "identified", "Fc": "identified",
+                                "F0": "identified"}
+    assert fit.identified and fit.warnings == []

@@ -1,0 +1,87 @@
+"""Whether a fitted parameter is identified: the one classifier of the capstan and Dahl fits.
+
+A fit's value is believable only where the data set it.  A parameter is *not identified* when it ends
+at a bound of the search (the bound, not the data, set it), when its standard error is not finite, or
+0 while the residual is not (a singular Jacobian), or, for a parameter that must be positive, larger
+than its value (its one-standard-error interval reaches 0).  The statuses and the sentences go to the
+user (the printed table, the JSON, the plot title), not to a log.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+#: A fitted value this close to a bound, relative to the bound (or to 1e-3 of the box width for a bound
+#: near 0), counts as sitting at the bound.
+AT_BOUND_RTOL = 1e-3
+
+
+def at_bound(value: float, lower: float, upper: float, rtol: float = AT_BOUND_RTOL,
+             atol: float = 0.0) -> str | None:
+    """``"lower"`` / ``"upper"`` when ``value`` sits at (within ``rtol`` relative, plus ``atol``) that
+    bound, else None."""
+    width = upper - lower if np.isfinite(upper - lower) else 0.0
+    for side, bound in (("lower", lower), ("upper", upper)):
+        if not np.isfinite(bound):
+            continue
+        if abs(value - bound) <= rtol * max(abs(bound), 1e-3 * width) + atol:
+            return side
+    return None
+
+
+def parameter_status(names: Sequence[str], values: Sequence[float], stderr: Sequence[float],
+                     lower: Sequence[float], upper: Sequence[float], fixed: Sequence[str] = (),
+                     exact_fit: bool = False, positive: Sequence[str] = (), shown: Sequence[float] | None = None,
+                     atol: Sequence[float] | None = None,
+                     bound_text: Sequence[str | None] | None = None) -> tuple[dict, list]:
+    """Classify fitted parameters; return ``(status, warnings)``.
+
+    Parameters
+    ----------
+    names, values, stderr, lower, upper : sequences, one entry per parameter
+        The fit's variables as the optimiser saw them (``values`` inside ``[lower, upper]``) and the
+        standard errors of the reported values.
+    fixed : names held fixed (status ``"fixed"``)
+    exact_fit : bool
+        Zero residual: every standard error is legitimately 0; one warning says so instead.
+    positive : names that must be > 0 (a standard error above the value: not identified)
+    shown : the reported values where they differ from ``values`` (a fit in scaled units)
+    atol : per parameter, an absolute tolerance added at its bounds (a floor such as 1e-12)
+    bound_text : per parameter, how its lower bound is written for the user (e.g. ``"0"``)
+
+    Returns
+    -------
+    status : dict
+        Per name ``"identified"``, ``"fixed"``, ``"at_lower_bound"``, ``"at_upper_bound"`` or
+        ``"not_identified"``.
+    warnings : list of str
+    """
+    shown = values if shown is None else shown
+    atol = [0.0] * len(names) if atol is None else atol
+    bound_text = [None] * len(names) if bound_text is None else bound_text
+    status, warns = {}, []
+    for nm, v, sv, se, lo, hi, at, bt in zip(names, values, shown, stderr, lower, upper, atol, bound_text):
+        if nm in fixed:
+            status[nm] = "fixed"
+            continue
+        side = at_bound(v, lo, hi, atol=at)
+        if side is not None:
+            status[nm] = f"at_{side}_bound"
+            where = (bt if side == "lower" and bt else f"{lo if side == 'lower' else hi:g}")
+            warns.append(f"{nm} = {sv:.4g} is at the {side} bound ({where}) of the fit: the bound, not the data, "
+                         "sets it (not identified; its standard error means nothing)")
+        elif not np.isfinite(se) or (se == 0.0 and not exact_fit):
+            status[nm] = "not_identified"
+            warns.append(f"{nm} = {sv:.4g} has a standard error of {se:g}: the data do not determine it "
+                         "(not identified)")
+        elif nm in positive and se > abs(sv):
+            status[nm] = "not_identified"
+            warns.append(f"{nm} = {sv:.4g} has a standard error of {se:.2g}, larger than the value: the data do not "
+                         "determine it (not identified)")
+        else:
+            status[nm] = "identified"
+    if exact_fit:
+        warns.append("the fit is exact (zero residual): the standard errors are 0 and say nothing about "
+                     "the uncertainty")
+    return status, warns
