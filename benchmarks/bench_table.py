@@ -112,6 +112,7 @@ def main(argv=None):
                     help="increments of the batch program (default: all 310 on CPU, 62 on CUDA; 2000 cells run all 310)")
     ap.add_argument("--no-generic", action="store_true", help="skip the generic-kernel rows")
     ap.add_argument("--no-batch", action="store_true", help="skip the batch rows")
+    ap.add_argument("--no-build", action="store_true", help="skip the model-building rows")
     ap.add_argument("--stride", type=int, default=10, help="history rows recorded every STRIDE increments")
     ap.add_argument("--patch-size", default=None, help="WALESxCOURSES of the random patch, or none (default 1000x1000 on CUDA, none on CPU)")
     ap.add_argument("--patch-increments", type=int, default=62)
@@ -139,13 +140,14 @@ def main(argv=None):
     rows = Rows()
 
     # --- build
-    arr = random_arrays(10**6)
-    model, wall, cpu = timed(lambda: CellModel.from_arrays(**arr, device=device), device)
-    rows.append({"figure": "build 10^6 cells from arrays", "wall_s": wall, "cpu_s": cpu})
-    cells = make_cells(10**5)
-    _, wall, cpu = timed(lambda: CellModel.from_params(cells, device), device)
-    rows.append({"figure": "build 10^5 cells from CellParams", "wall_s": wall, "cpu_s": cpu})
-    del cells, model
+    if not a.no_build:
+        arr = random_arrays(10**6)
+        model, wall, cpu = timed(lambda: CellModel.from_arrays(**arr, device=device), device)
+        rows.append({"figure": "build 10^6 cells from arrays", "wall_s": wall, "cpu_s": cpu})
+        cells = make_cells(10**5)
+        _, wall, cpu = timed(lambda: CellModel.from_params(cells, device), device)
+        rows.append({"figure": "build 10^5 cells from CellParams", "wall_s": wall, "cpu_s": cpu})
+        del cells, model
 
     # --- batches
     for n in sizes:

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import KnitsimInputError
+from ..diagnosis.measured import NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL, strain_tolerance
 from ..io.table_input import read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
@@ -72,19 +73,26 @@ def read_table(path: str | Path) -> MeasuredTable:
                                 "keep one column")
     strain, rows = cols[s_name], cols["_row"]
     force = cols[f_total or f_wale]
-    bad = np.nonzero(strain < 0)[0]
+    # a lab's zero offset and jitter are kept, as the diagnosis keeps them (knitsim.diagnosis.measured): a
+    # strain down to -max(0.005, 5 % of the largest) is an extensometer's zero, a step back by at most 1e-3
+    # of the strain range is jitter (the running maximum is used, the force is kept); beyond, it is wrong
+    limit = -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL * max(float(np.max(strain)), 0.0))
+    bad = np.nonzero(strain < limit)[0]
     if len(bad):
         i = int(bad[0])
-        raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is negative (a tensile "
-                                "test starts at strain 0)")
-    back = np.nonzero(np.diff(strain) < 0)[0]
+        raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is negative beyond a "
+                                f"zero offset ({limit:.3g}): a tensile test starts at strain 0")
+    tol = strain_tolerance(strain)
+    clean = np.maximum.accumulate(strain)
+    back = np.nonzero(clean - strain > tol)[0]
     if len(back):
-        i = int(back[0]) + 1
-        raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is below the row before "
-                                f"({float(strain[i - 1])!r}); a calibration reads loading curves (strain non-decreasing)")
-    if len(strain) < 2 or strain[-1] <= strain[0]:
+        i = int(back[0])
+        raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is below the rows before "
+                                f"(up to {float(clean[i])!r}) by more than the jitter tolerance {tol:.3g}; a calibration "
+                                "reads loading curves (strain non-decreasing)")
+    if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
-    return MeasuredTable(np.asarray(strain, float), np.asarray(force, float), f_total is not None, str(path), rows)
+    return MeasuredTable(np.asarray(clean, float), np.asarray(force, float), f_total is not None, str(path), rows)
 
 
 def pretension_strain(grip_strain, pretension: float):

@@ -150,11 +150,17 @@ def test_band_weights_and_lab_files(tmp_path):
     assert np.all(sp.sigma_N[sp.strain < 0.1] == 0.005 * mid[sp.strain < 0.1])     # the closed band
     assert np.all(sp.in_band(mid)) and not np.any(sp.in_band(1.2 * sp.band_high_N))
     (tmp_path / "bad.csv").write_text("strain,load_N\n0.0,0.0\n0.1,1.0\n0.05,2.0\n")
-    with pytest.raises(KnitsimInputError, match=r"bad\.csv: row 4, column strain: 0\.05 is below the row before"):
+    with pytest.raises(KnitsimInputError, match=r"bad\.csv: row 4, column strain: 0\.05 is below the rows before"):
         read_table(tmp_path / "bad.csv")
     (tmp_path / "neg.csv").write_text("strain,force_per_wale_N\n-0.01,0.0\n0.1,1.0\n")
     with pytest.raises(KnitsimInputError, match=r"neg\.csv: row 2, column strain: -0\.01 is negative"):
         read_table(tmp_path / "neg.csv")
+    # what a lab's logger writes: an extensometer zeroed 0.001 low and a step back of 5e-5 (jitter, below
+    # 1e-3 of the 0.2 strain range): read, the strain as its running maximum, the force as measured
+    (tmp_path / "lab.csv").write_text("strain,force_per_wale_N\n-0.001,0.0\n0.1,1.0\n0.09995,1.01\n0.2,2.0\n")
+    t = read_table(tmp_path / "lab.csv")
+    np.testing.assert_array_equal(t.strain, [-0.001, 0.1, 0.1, 0.2])
+    np.testing.assert_array_equal(t.force, [0.0, 1.0, 1.01, 2.0])
 
 
 @pytest.mark.parametrize("objective", ["midline", "band"])
