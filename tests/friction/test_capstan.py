@@ -170,14 +170,20 @@ def test_fit_with_set_up_crossings_gets_n_p_but_not_b(fibre):
     assert (b - b3) > 3 * sb
 
 
-def test_fit_recovers_synthetic_parameters():
-    # Independent check of the inverse: noise-free records made with known
-    # (b, p, n) on a different grid than Table 2.
-    truth = (0.2, 0.05, 0.9)
+def _records(truth):
+    """Noise-free capstan records (eq 1 with eq 5 at ``truth``) on a grid other than Table 2's."""
     F0 = np.array([3.0, 3.0, 8.0, 8.0, 5.0, 5.0])
     V = np.array([0.1, 0.1, 1.0, 1.0, 30.0, 30.0])
     d = ["ascent", "descent"] * 3
     F1 = np.array([cap.predict_f1(F0[i], V[i], d[i], *truth) for i in range(6)])
+    return F0, F1, V, d
+
+
+def test_fit_recovers_synthetic_parameters():
+    # Independent check of the inverse: noise-free records made with known
+    # (b, p, n) on a different grid than Table 2.
+    truth = (0.2, 0.05, 0.9)
+    F0, F1, V, d = _records(truth)
     res = cap.fit_friction_law(F0, F1, V, d)
     np.testing.assert_allclose(res.params, truth, rtol=1e-6)
 
@@ -260,11 +266,7 @@ def test_at_bound(value, lo, hi, side):
 def test_fit_status_of_a_clean_fit():
     # Noise-free records made with (b, p, n) = (0.2, 0.05, 0.9), inside the box:
     # all three identified and no warning.
-    truth = (0.2, 0.05, 0.9)
-    F0 = np.array([3.0, 3.0, 8.0, 8.0, 5.0, 5.0])
-    V = np.array([0.1, 0.1, 1.0, 1.0, 30.0, 30.0])
-    d = ["ascent", "descent"] * 3
-    F1 = np.array([cap.predict_f1(F0[i], V[i], d[i], *truth) for i in range(6)])
+    F0, F1, V, d = _records((0.2, 0.05, 0.9))
     F1 = F1 * (1 + 1e-4 * np.array([1, -1, 1, 1, -1, 1]))   # a little measurement error
     res = cap.fit_friction_law(F0, F1, V, d)
     assert res.param_status == {"b": "identified", "p": "identified", "n": "identified"} and res.identified
