@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..friction import capstan
+from ..friction.identification import FLAG_TEXT
 from .common import add_json_flag, print_json, read_csv_columns
 
 _COLUMNS = ("F0_N", "F1_N", "V_mm_s", "direction")
@@ -87,9 +88,6 @@ def register(subparsers) -> None:
     pred.set_defaults(func=_run_predict)
 
 
-#: What the printed table appends to a parameter that is not identified.
-_FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound": "AT UPPER BOUND: not identified",
-              "not_identified": "NOT IDENTIFIED"}
 
 
 def _resolution(path, rows) -> np.ndarray:
@@ -120,7 +118,7 @@ def _run_fit(args) -> int:
     sb, sp, sn = res.stderr
 
     def flag(name: str) -> str:
-        text = _FLAG_TEXT.get(res.param_status.get(name, ""), "")
+        text = FLAG_TEXT.get(res.param_status.get(name, ""), "")
         return f"   <- {text}" if text else ""
 
     print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})")

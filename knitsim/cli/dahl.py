@@ -29,6 +29,7 @@ import numpy as np
 from ..data import dahl_kes
 from ..errors import KnitsimInputError
 from ..friction.dahl import ALPHA_MAX, ALPHA_MIN, DahlParams, fit_dahl_loop, kes_loop
+from ..friction.identification import FLAG_TEXT
 from ..io.results import add_output_flags, prepare_output_file
 from ..io.table_input import has_columns
 from .common import add_json_flag, plain_help, print_json, read_csv_columns
@@ -137,13 +138,10 @@ def _parse_alpha(text: str) -> float | None:
     return value
 
 
-#: What the printed table appends to a parameter that is not identified.
-_FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound": "AT UPPER BOUND: not identified",
-              "not_identified": "NOT IDENTIFIED"}
 
 
 def _flagged(fit) -> list[str]:
-    return [n for n in fit.names if fit.param_status.get(n) in _FLAG_TEXT]
+    return [n for n in fit.names if fit.param_status.get(n) in FLAG_TEXT]
 
 
 def _plot(path: Path, x, F, fit, xcol: str, fcol: str, source: Path | None = None) -> None:
@@ -216,7 +214,7 @@ def run_fit(args) -> int:
         if kes and n in kes and n in fit.stderr:
             unit = "gf.cm/cm" if n in ("Fc", "F0") else "gf.cm^2/cm"
             line += f"   [{kes[n]['value']:.4g} +- {kes[n]['stderr']:.2g} {unit}]"
-        flag = _FLAG_TEXT.get(fit.param_status.get(n, ""))
+        flag = FLAG_TEXT.get(fit.param_status.get(n, ""))
         if flag:
             line += f"   <- {flag}"
         print(line)

@@ -109,7 +109,7 @@ import numpy as np
 from ..cell.effects import EFFECT_NAMES
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
-from .calibrate import default_bounds, calibrate_baseline, rss_of_cells
+from .calibrate import calibrate_baseline, default_bounds, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
 from .measured import MeasuredCurve, check_reachable, check_response, reachable_strain

@@ -15,6 +15,9 @@ import numpy as np
 #: A fitted value this close to a bound, relative to the bound (or to 1e-3 of the box width for a bound
 #: near 0), counts as sitting at the bound.
 AT_BOUND_RTOL = 1e-3
+#: What a printed table appends to a parameter by its status (nothing where identified or fixed).
+FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound": "AT UPPER BOUND: not identified",
+             "not_identified": "NOT IDENTIFIED"}
 
 
 def at_bound(value: float, lower: float, upper: float, rtol: float = AT_BOUND_RTOL,
