@@ -59,6 +59,8 @@ class EventArrays:
     incr: wp.array(dtype=wp.int32)
     kind: wp.array(dtype=wp.int32)
     C: wp.array(dtype=wp.float64)
+    # the force per wale at the event (the state it was located at)
+    F: wp.array(dtype=wp.float64)
     label_from: wp.array(dtype=wp.int32)
     label_to: wp.array(dtype=wp.int32)
 

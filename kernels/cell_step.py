@@ -1370,26 +1370,29 @@ def label_dahl(stage: int, q: vecQd, mat: Material) -> int:
 
 
 @wp.func
-def push_event(n: int, kinds: vec8i, Cs: vec8d, froms: vec8i, tos: vec8i, kind: int, C: wp.float64,
-               label_from: int, label_to: int):
-    """Append an event to the increment's buffer (the first MAX_EVENTS_PER_STEP are kept, all are counted)."""
+def push_event(n: int, kinds: vec8i, Cs: vec8d, Fs: vec8d, froms: vec8i, tos: vec8i, kind: int, C: wp.float64,
+               F: wp.float64, label_from: int, label_to: int):
+    """Append an event (at C, with the force per wale F there) to the increment's buffer (the first
+    MAX_EVENTS_PER_STEP are kept, all are counted)."""
     if n < _MAXEV:
         kinds[n] = kind
         Cs[n] = C
+        Fs[n] = F
         froms[n] = label_from
         tos[n] = label_to
-    return n + 1, kinds, Cs, froms, tos
+    return n + 1, kinds, Cs, Fs, froms, tos
 
 
 @wp.func
 def take_event(kind: int, C: wp.float64, stage: int, jammed: int, soft: int, frozen_soft: wp.float64, status: int,
-               q: vecQd, n: int, kinds: vec8i, Cs: vec8d, froms: vec8i, tos: vec8i):
+               q: vecQd, n: int, kinds: vec8i, Cs: vec8d, Fs: vec8d, froms: vec8i, tos: vec8i):
     """A located event of ``kind`` at C: the stage change it makes (:func:`transition`) and its record in the
     increment's buffer (:func:`push_event`, from the label before to the label after)."""
     label_from = stage_label(stage, jammed)
     s2, j2, soft2, fs2, st2 = transition(kind, stage, jammed, soft, frozen_soft, status, q)
-    n2, kinds2, Cs2, froms2, tos2 = push_event(n, kinds, Cs, froms, tos, kind, C, label_from, stage_label(s2, j2))
-    return s2, j2, soft2, fs2, st2, n2, kinds2, Cs2, froms2, tos2
+    n2, kinds2, Cs2, Fs2, froms2, tos2 = push_event(n, kinds, Cs, Fs, froms, tos, kind, C, q[Q_F], label_from,
+                                                    stage_label(s2, j2))
+    return s2, j2, soft2, fs2, st2, n2, kinds2, Cs2, Fs2, froms2, tos2
 
 
 @wp.func
@@ -1708,6 +1711,7 @@ def _advance_cell_variant(regular_only: bool):
         n_ev = int(0)
         e_kind = vec8i()
         e_C = vec8d()
+        e_F = vec8d()
         e_from = vec8i()
         e_to = vec8i()
 
@@ -1716,7 +1720,8 @@ def _advance_cell_variant(regular_only: bool):
             if wp.static(regular_only):
                 return False
             stage, soft, fs, fsbc = reverse(dir_new, q, mat, soft, fs)
-            n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_REVERSAL, C, -1, -1)
+            n_ev, e_kind, e_C, e_F, e_from, e_to = push_event(n_ev, e_kind, e_C, e_F, e_from, e_to, _EV_REVERSAL, C,
+                                                              q[Q_F], -1, -1)
 
         go = status == ST_OK
 
@@ -1729,7 +1734,8 @@ def _advance_cell_variant(regular_only: bool):
                     return False
                 stage, soft, fs, fsbc = reverse(1, q, mat, soft, fs)
                 x = seed_contact(x)
-                n_ev, e_kind, e_C, e_from, e_to = push_event(n_ev, e_kind, e_C, e_from, e_to, _EV_RELOAD, C, -1, -1)
+                n_ev, e_kind, e_C, e_F, e_from, e_to = push_event(n_ev, e_kind, e_C, e_F, e_from, e_to, _EV_RELOAD, C,
+                                                                  q[Q_F], -1, -1)
 
         go_coulomb = wp.static(WITH_COULOMB)
         if wp.static(WITH_COULOMB):
@@ -1770,8 +1776,8 @@ def _advance_cell_variant(regular_only: bool):
                 if kind0 >= 0:
                     if wp.static(regular_only):
                         return False
-                    stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                        kind0, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                    stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_F, e_from, e_to = take_event(
+                        kind0, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_F, e_from, e_to)
                     n_located += 1
                     continue
                 # the branch's tangent bounds the sub-step: a trial whose first Newton step is long would crawl
@@ -1813,8 +1819,8 @@ def _advance_cell_variant(regular_only: bool):
                     if not ok and jammed != 0 and not is_loading(stage):
                         # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
                         if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
-                            stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                                _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                            stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_F, e_from, e_to = take_event(
+                                _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_F, e_from, e_to)
                             n_located += 1
                             continue
                     if not ok:
@@ -1944,8 +1950,8 @@ def _advance_cell_variant(regular_only: bool):
                 x = best_x
                 q = best_q
                 C = best_C
-                stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_from, e_to = take_event(
-                    best_kind, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_from, e_to)
+                stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_F, e_from, e_to = take_event(
+                    best_kind, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_F, e_from, e_to)
                 if status != ST_OK or stage == SLACK:
                     break
                 n_located += 1
@@ -2040,9 +2046,9 @@ def _advance_cell_variant(regular_only: bool):
                                     tC = best_C
                                     if best_kind == _EV_UNJAM:
                                         tC = Ck
-                                    tstage, tjam, tsoft, tfs, tstatus, n_ev, e_kind, e_C, e_from, e_to = take_event(
+                                    tstage, tjam, tsoft, tfs, tstatus, n_ev, e_kind, e_C, e_F, e_from, e_to = take_event(
                                         best_kind, tC, tstage, tjam, tsoft, tfs, tstatus, tq,
-                                        n_ev, e_kind, e_C, e_from, e_to)
+                                        n_ev, e_kind, e_C, e_F, e_from, e_to)
                                     if tstatus != ST_OK or tstage == SLACK or tC == Ck:
                                         break
                     if not failed:
@@ -2108,6 +2114,7 @@ def _advance_cell_variant(regular_only: bool):
                     ev.incr[j] = increment
                     ev.kind[j] = e_kind[k]
                     ev.C[j] = e_C[k]
+                    ev.F[j] = e_F[k]
                     ev.label_from[j] = e_from[k]
                     ev.label_to[j] = e_to[k]
         return True

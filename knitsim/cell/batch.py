@@ -569,9 +569,9 @@ class CellSolver:
         dev = model.device
         self._ev_count = wp.zeros(1, dtype=wp.int32, device=dev)
         self._ev = [wp.zeros(max(cap, 1), dtype=t, device=dev)
-                    for t in (wp.int32, wp.int32, wp.int32, wp.float64, wp.int32, wp.int32)]
+                    for t in (wp.int32, wp.int32, wp.int32, wp.float64, wp.float64, wp.int32, wp.int32)]
         from knitsim.kernels.cell_arrays import EventArrays
-        self._ev_struct = _fill(EventArrays(), ("count", "cell", "incr", "kind", "C", "label_from", "label_to"),
+        self._ev_struct = _fill(EventArrays(), ("count", "cell", "incr", "kind", "C", "F", "label_from", "label_to"),
                                 [self._ev_count] + self._ev)
 
     def step(self, state_in: CellBatchState, state_out: CellBatchState, control: CellControl,
@@ -739,18 +739,27 @@ class CellSolver:
             launches()
         return hist
 
-    def events(self) -> list[dict]:
-        """Events recorded so far (host copy), ordered by cell, then as they happened."""
-        k = _k()
+    def event_arrays(self) -> dict[str, np.ndarray]:
+        """Events recorded so far as host arrays (``cell``, ``increment``, ``kind`` code, ``C``, ``F`` the force
+        per wale at the event, ``label_from``, ``label_to``), ordered by cell, then as they happened."""
         total = int(self._ev_count.numpy()[0])
         n = min(total, self._ev[0].shape[0])
         if total > n:
             raise RuntimeError(f"event buffer overflow: {total} events, capacity {n}; pass event_capacity=")
-        cell, incr, kind, C, lf, lt = (a.numpy()[:n] for a in self._ev)
-        order = np.lexsort((np.arange(n), cell))
+        cols = [a.numpy()[:n] for a in self._ev]
+        order = np.lexsort((np.arange(n), cols[0]))
+        return {name: c[order] for name, c in zip(("cell", "increment", "kind", "C", "F", "label_from", "label_to"),
+                                                    cols)}
+
+    def events(self) -> list[dict]:
+        """Events recorded so far (host copy), ordered by cell, then as they happened."""
+        k = _k()
+        a = self.event_arrays()
+        cell, incr, kind, C, F, lf, lt = (a[n] for n in ("cell", "increment", "kind", "C", "F", "label_from", "label_to"))
         out = []
-        for j in order:
-            e = {"cell": int(cell[j]), "increment": int(incr[j]), "kind": k.EVENT_NAMES[int(kind[j])], "C": float(C[j])}
+        for j in range(len(cell)):
+            e = {"cell": int(cell[j]), "increment": int(incr[j]), "kind": k.EVENT_NAMES[int(kind[j])], "C": float(C[j]),
+                 "F": float(F[j])}
             if lf[j] >= 0:
                 e["from"] = _LABEL_NAMES[int(lf[j])]
                 e["to"] = _LABEL_NAMES[int(lt[j])]

@@ -153,7 +153,9 @@ class WarpBackend:
         import warp as wp
 
         from ..cell.batch import CellBatchState, CellModel, CellSolver
+        from ..kernels.cell_step import EV_SLIDE
         self.wp = wp
+        self._ev_slide = EV_SLIDE
         if isinstance(grouping, (list, tuple)):   # a CellParams per trial cell
             self.model = CellModel.from_params(grouping, device)
             c = {"C0": [p.C0 for p in grouping]}
@@ -250,7 +252,12 @@ class WarpBackend:
         cells = None if mask is None or np.all(mask) else np.flatnonzero(mask).astype(np.int32)
         self.solver.step(self.s0, self.s1, self.control, increment, cells=cells)
         self._k1_ok &= False if mask is None else ~np.asarray(mask, bool)
-        return self._read(self.s1)
+        t = self._read(self.s1)
+        ev = self.solver.event_arrays()
+        last = np.flatnonzero(np.r_[ev["cell"][1:] != ev["cell"][:-1], True]) if len(ev["cell"]) else np.zeros(0, int)
+        t["slide_C"], t["slide_F"] = slide_points(self.n, ev["cell"][last], ev["kind"][last] == self._ev_slide,
+                                                  ev["C"][last], ev["F"][last], t)
+        return t
 
     def _select(self, mask, src, dst):
         self.wp.launch(self._select_kernel, dim=self.n, inputs=[mask, src.arrays(), dst.arrays()], device=self.device)
@@ -326,6 +333,7 @@ class ReferenceBackend:
     def trial(self, strain: np.ndarray, direction: int, increment: int, mask: np.ndarray | None = None) -> dict:
         from ..cell.cycle import STATUS_NO_CONVERGENCE, _SolveFailed
         out = []
+        last_events: dict = {}
         for g, cyc in enumerate(self.cycles):
             if mask is not None and not mask[g]:
                 out.append(self.s1[g])         # not stepped: its last trial stands (not read)
@@ -335,6 +343,7 @@ class ReferenceBackend:
                 cyc.reverse(st, direction)
             C_target = cyc.p.C0 * (1.0 + float(strain[g]))
             events: list = []
+            last_events[g] = events
             try:
                 if cyc.p.friction == "dahl" and st.stage is not Stage.SLACK:
                     st = cyc._advance_dahl(st, C_target, events, increment)
@@ -347,7 +356,13 @@ class ReferenceBackend:
             out.append(st)
         self.s1 = out
         self._dir1 = int(direction)
-        return self._read(out)
+        t = self._read(out)
+        cells = np.array([g for g, e in last_events.items() if e], dtype=np.int64)
+        ends = [last_events[g][-1] for g in cells]
+        t["slide_C"], t["slide_F"] = slide_points(
+            len(out), cells, np.array([e["kind"] == "slide" for e in ends], bool),
+            np.array([e["C"] for e in ends], float), np.array([e.get("F", np.nan) for e in ends], float), t)
+        return t
 
     def begin_increment(self) -> None:
         self.res = list(self.s0)
@@ -368,6 +383,18 @@ class ReferenceBackend:
     def set_state(self, saved: dict) -> None:
         self.s0 = [s.copy() for s in saved["states"]]
         self.dir0 = list(saved["dir"])
+
+
+def slide_points(n: int, cells: np.ndarray, is_slide: np.ndarray, C: np.ndarray, F: np.ndarray,
+                 trial: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(C, F) of each group's slide onset in its last trial, NaN elsewhere: where the trial's last event
+    (``cells``, ``is_slide``, ``C``, ``F``: one per group that had events) is a slide and the trial ends
+    sliding, not jammed.  There stick turned into sliding: the kink of the branch (:meth:`PatchSolver._solve`)."""
+    sC, sF = np.full(n, np.nan), np.full(n, np.nan)
+    cells = np.asarray(cells, np.int64)[np.asarray(is_slide, bool)]
+    sC[cells], sF[cells] = np.asarray(C)[is_slide], np.asarray(F)[is_slide]
+    sliding = ((trial["stage"] == int(Stage.S_LOAD)) | (trial["stage"] == int(Stage.S_UNLOAD))) & (trial["jammed"] == 0)
+    return np.where(sliding, sC, np.nan), np.where(sliding, sF, np.nan)
 
 
 def make_backend(engine: str, grouping: Grouping, device: str = "cpu", max_halvings: int = MAX_HALVINGS):
@@ -931,6 +958,16 @@ class PatchSolver:
                        col_stalled)
             kt = np.where(np.isfinite(kt) & (kt > 0) & ~slack, kt, np.nan)
             pts.add(use, t["C"], t["F"], kt, Fcol[col] / p)
+            # the slide onset a trial crossed (its last event; it ends sliding) is a point of the cell's branch
+            # exactly at its kink, where stick turns into sliding and the model's tangents disagree most: at the
+            # rest-state start a column's cells slide one after another, and without these points its trials
+            # crept onto each cell's kink (20-30 trials; 3-5 with them); its own slopes are not known (NaN)
+            # (a backend that locates no events gives none)
+            sC, sF = t.get("slide_C"), t.get("slide_F")
+            if sC is not None:
+                kink = use & np.isfinite(sC) & (sF > 0) & ((sC - t["C"]) * direction < 0)
+                if np.any(kink):
+                    pts.add(kink, sC, sF, np.full(be.n, np.nan), Fcol[col] / p)
             # the fallback tangent: the cell's own, else the secant from its last good trial
             dC = t["C"] - C_last
             with np.errstate(divide="ignore", invalid="ignore"):
