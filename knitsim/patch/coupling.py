@@ -281,12 +281,17 @@ class WarpBackend:
         return self.committed()
 
     def get_state(self) -> dict:
-        return {f: a.numpy().copy() for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff])}
+        out = {f: a.numpy().copy() for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff])}
+        # the committed states' tangents (those of the accepted trials): a resumed run reuses them, as the
+        # uninterrupted run does, instead of recomputing them (a different rounding, another trial path)
+        out["tangent"], out["tangent_ok"] = self._k0.copy(), self._k0_ok.copy()
+        return out
 
     def set_state(self, saved: dict) -> None:
         for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff]):
             a.assign(saved[f])
-        self._k0_ok = np.zeros(self.n, bool)
+        self._k0 = np.array(saved.get("tangent", np.full(self.n, np.nan)), dtype=float)
+        self._k0_ok = np.array(saved.get("tangent_ok", np.zeros(self.n, bool)), dtype=bool)
 
 
 _STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction",
@@ -962,10 +967,13 @@ class PatchSolver:
             # exactly at its kink, where stick turns into sliding and the model's tangents disagree most: at the
             # rest-state start a column's cells slide one after another, and without these points its trials
             # crept onto each cell's kink (20-30 trials; 3-5 with them); its own slopes are not known (NaN)
-            # (a backend that locates no events gives none)
+            # (a backend that locates no events gives none). Only from a committed stick state: a trial from
+            # slack goes through the reload first, and there the onset's force (a few mN, located to the cell
+            # solver's tolerance) left the trials' spread stalled at 8x the column's tolerance
             sC, sF = t.get("slide_C"), t.get("slide_F")
             if sC is not None:
-                kink = use & np.isfinite(sC) & (sF > 0) & ((sC - t["C"]) * direction < 0)
+                stick = (c["stage"] == int(Stage.SF_LOAD)) | (c["stage"] == int(Stage.SF_UNLOAD))
+                kink = use & stick & np.isfinite(sC) & (sF > 0) & ((sC - t["C"]) * direction < 0)
                 if np.any(kink):
                     pts.add(kink, sC, sF, np.full(be.n, np.nan), Fcol[col] / p)
             # the fallback tangent: the cell's own, else the secant from its last good trial

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import hashlib
 import pickle
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -233,8 +235,22 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
 
     t0 = time.perf_counter()
     i = start
+    # A checkpoint must hold the state between two increments: the solver updates its tangents and branch
+    # history during an increment, and a state saved halfway would resume onto another trial path. So a
+    # Ctrl-C during an increment lets it finish (a second one stops at once, keeping the last checkpoint).
+    clean, stop = [True], []
+
+    def on_sigint(signum, frame):
+        if stop or clean[0]:
+            raise KeyboardInterrupt
+        stop.append(signum)
+
+    old_handler = None
+    if ck is not None and threading.current_thread() is threading.main_thread():
+        old_handler = signal.signal(signal.SIGINT, on_sigint)
     try:
         for i in range(start, n):
+            clean[0] = False
             r = solver.step(float(program.strain[i]), int(program.direction[i]), i)
             c = r.cells
             colT = r.column_force[cls]                 # total force of each column (strip)
@@ -260,6 +276,9 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             rows["g_W"].append(gW)
             rows["g_s_AB"].append(gs)
             rows["g_head_gap"].append(c["head_gap"])
+            clean[0] = True
+            if stop:
+                raise KeyboardInterrupt
             if progress is not None:
                 progress(i + 1, n)
             done = i + 1
@@ -269,8 +288,12 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
                 save(done, wall_before + time.perf_counter() - t0)
                 raise PatchInterrupted(done, ck)
     except KeyboardInterrupt:
-        save(len(rows["force_N"]), wall_before + time.perf_counter() - t0)
+        if clean[0]:
+            save(len(rows["force_N"]), wall_before + time.perf_counter() - t0)
         raise
+    finally:
+        if old_handler is not None:
+            signal.signal(signal.SIGINT, old_handler)
     wall = wall_before + time.perf_counter() - t0
     n_rows = len(rows["force_N"])
     arr = {k: np.asarray(v) for k, v in rows.items() if k not in _GEOMETRY_KEYS or len(v) == n_rows}

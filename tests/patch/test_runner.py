@@ -102,3 +102,32 @@ def test_a_bad_patch_cell_is_named_by_its_place_before_any_work():
     bad = PatchModel(3, 4, fields, model.rules, model.effects)
     with pytest.raises(KnitsimInputError, match=r"cell\[2, 1\]\.W0 = 2\.0"):
         run_patch(bad, cycles(0.10, 0.40, 1, 0.05), dedup=False)
+
+
+def test_a_ctrl_c_during_an_increment_checkpoints_after_it(tmp_path, monkeypatch):
+    # The solver updates its tangents and branch history inside an increment: a checkpoint saved there would
+    # resume onto another trial path. A Ctrl-C (SIGINT) arriving inside increment 3 lets it finish; the
+    # checkpoint then holds 4 increments and the resumed run equals the uninterrupted one bit for bit.
+    import os
+    import signal
+
+    from knitsim.patch import coupling
+
+    prog = cycles(0.10, 0.40, 1, 0.05)
+    full = run_patch(_model(), prog)
+    ck = tmp_path / "checkpoint.pkl"
+    step = coupling.PatchSolver.step
+
+    def step_with_ctrl_c(self, grip_strain, direction, increment=0):
+        if increment == 3:
+            os.kill(os.getpid(), signal.SIGINT)      # arrives while the increment is under way
+        return step(self, grip_strain, direction, increment)
+
+    monkeypatch.setattr(coupling.PatchSolver, "step", step_with_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        run_patch(_model(), prog, checkpoint=ck, checkpoint_every=0)
+    monkeypatch.setattr(coupling.PatchSolver, "step", step)
+    resumed = run_patch(_model(), prog, checkpoint=ck, resume=True)
+    assert resumed.info["resumed_from"] == 4
+    for name in ("force_N", "column_force_N", "column_status", "column_iterations"):
+        assert np.array_equal(getattr(resumed, name), getattr(full, name)), name
