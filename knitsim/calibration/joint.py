@@ -39,7 +39,16 @@ rows and priors in the reported variables (B, d, w in mm, m, effect
 variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
 ``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits);
 correlations from it.  A variable within 0.1 % of its range of a bound is
-flagged, with what that bound means.
+flagged, with what that bound means; one whose standard error is not finite or
+larger than half its range is flagged not identified (:func:`identification_rule`).
+:attr:`JointResult.flags` lists these, the optimiser's failure (its message) and
+cells that did not solve: a result with a flag is not a calibration to use.
+
+Before any solve (:func:`check_setup`, which the calibration scene runs when it is
+read): the variables, bounds and priors, and every specimen's strains against the
+reach of its knit in the loosest case the fit allows (:func:`reachable_strain` at
+L's upper and C0's lower bound, through the largest pretension): a strain column in
+per cent is refused, naming the file, row, column and value.
 """
 from __future__ import annotations
 
@@ -57,9 +66,9 @@ from ..cell.history import STATUS_NAMES, STATUS_OK
 from ..cell.load_program import LoadProgram, monotonic, pretensioned
 from ..cell.material import CellParams
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
-from ..diagnosis.measured import MeasuredCurve, program_for_curve
+from ..diagnosis.measured import MeasuredCurve, program_for_curve, reachable_strain
 from ..errors import KnitsimInputError
-from .specimen import GEOMETRY, SpecimenData, pretension_strain
+from .specimen import GEOMETRY, SpecimenData, check_reach, pretension_strain
 
 #: yarn variables that may be shared (besides the effects' own)
 YARN_VARIABLES = ("B", "d", "in_plane_width", "m")
@@ -72,6 +81,8 @@ UNITS = {"B": "N mm^2", "d": "mm", "in_plane_width": "mm", "m": "-", "phi0": "ra
          "C0": "mm", "pretension": "-"}
 #: a variable this close to a bound (share of its range) is flagged
 BOUND_TOL = 1e-3
+#: a parameter whose standard error exceeds this share of its range (high - low) is not identified
+NOT_IDENTIFIED_SHARE = 0.5
 #: residual of a row whose cell failed (not ok), times max(1, |target| / sd)
 FAIL_RESIDUAL = 30.0
 
@@ -156,12 +167,16 @@ class Estimate:
     low, high : float
         The range it was fitted in (same unit; phi0's at the fitted m).
     at_bound : str or None
-        ``"low"`` / ``"high"`` when within 0.1 % of the range of a bound, ``"not identified"`` when the
-        rows do not depend on it (infinite sd); ``bound_note`` says what it means.
+        ``"low"`` / ``"high"`` when within 0.1 % of the range of a bound, else ``"not identified"`` when
+        it is not identified (``not_identified``); ``bound_note`` says what it means.
     bound_note : str
     stated : float or None
         A geometry's stated value (L, W0, C0) [mm]; ``deviation_sd`` its distance from it in prior sds.
     deviation_sd : float or None
+    not_identified : str
+        Empty when the rows set it; else the rule that says they do not (:data:`NOT_IDENTIFIED_SHARE`):
+        its standard error is not finite (the rows do not depend on it), or larger than half its range
+        (any value in the range fits as well).  Set whether or not it is at a bound.
     """
 
     name: str
@@ -175,6 +190,7 @@ class Estimate:
     bound_note: str = ""
     stated: float | None = None
     deviation_sd: float | None = None
+    not_identified: str = ""
 
     @property
     def label(self) -> str:
@@ -183,7 +199,8 @@ class Estimate:
     def as_dict(self) -> dict:
         return {"name": self.name, "specimen": self.specimen, "value": self.value, "std_error": self.std_error,
                 "unit": self.unit, "low": self.low, "high": self.high, "at_bound": self.at_bound,
-                "bound_note": self.bound_note, "stated": self.stated, "deviation_sd": self.deviation_sd}
+                "bound_note": self.bound_note, "stated": self.stated, "deviation_sd": self.deviation_sd,
+                "not_identified": self.not_identified}
 
 
 @dataclass(frozen=True)
@@ -285,6 +302,14 @@ class JointResult:
     setup : JointSetup
     yarn : CellParams
         The calibrated yarn on the first specimen's knit (the shared values, effects and rules).
+    converged : bool or None
+        Whether the least squares of the chosen start converged (None: not recorded, read from ``success``).
+    optimizer_message : str
+        The least squares' own message for the chosen start.
+
+    ``flags`` (one line each): the optimiser's failure (with its message), every parameter at a bound,
+    every parameter not identified (with the rule), every specimen whose cell did not solve on every row.
+    A result with a flag is not a calibration to use as it is (``usable``).
     """
 
     estimates: list
@@ -301,6 +326,8 @@ class JointResult:
     wall_s: float
     setup: JointSetup
     yarn: CellParams
+    converged: bool | None = None
+    optimizer_message: str = ""
 
     def estimate(self, name: str, specimen: str | None = None) -> Estimate:
         for e in self.estimates:
@@ -310,16 +337,38 @@ class JointResult:
 
     @property
     def flags(self) -> list[str]:
-        """One line per estimate at a bound or not identified."""
-        return [f"{e.label} = {e.value:.4g} {e.unit} is " + (f"at its {e.at_bound} bound" if e.at_bound in
-                                                             ("low", "high") else "not identified")
-                + f" ({e.bound_note})" for e in self.estimates if e.at_bound]
+        """One line per reason not to use this calibration: the optimiser did not converge (its message),
+        an estimate at a bound, an estimate not identified (which rule), a specimen whose cell did not solve."""
+        out = []
+        converged = self.success if self.converged is None else self.converged
+        if not converged:
+            out.append("the fit failed: the optimiser (least squares) did not converge: "
+                       + (self.optimizer_message or self.message).rstrip("."))
+        for e in self.estimates:
+            if e.at_bound in ("low", "high"):
+                out.append(f"{e.label} = {e.value:.4g} {e.unit} is at its {e.at_bound} bound ({e.bound_note})")
+        for e in self.estimates:
+            if e.not_identified or (e.at_bound == "not identified"):
+                out.append(f"{e.label} = {e.value:.4g} +- {e.std_error:.4g} {e.unit} is not identified: "
+                           + (e.not_identified or e.bound_note or "its standard error is not finite"))
+        for f in self.fits:
+            if f.status != "ok":
+                out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
+                           "the fitted curve is not the model's")
+        return out
+
+    @property
+    def usable(self) -> bool:
+        """No flag: converged, every cell solved, no parameter at a bound or not identified."""
+        return self.success and not self.flags
 
     def as_dict(self, curves: bool = True) -> dict:
         return {"estimates": [e.as_dict() for e in self.estimates],
                 "correlation": {"names": [e.label for e in self.estimates], "matrix": self.correlation.tolist()},
                 "specimens": [f.as_dict(curves) for f in self.fits], "chi2": self.chi2, "n": self.n, "k": self.k,
                 "s2": self.s2, "success": self.success, "message": self.message, "flags": self.flags,
+                "usable": self.usable, "converged": self.success if self.converged is None else self.converged,
+                "optimizer_message": self.optimizer_message,
                 "starts": self.starts, "nfev": self.nfev, "wall_s": self.wall_s,
                 "effects": list(self.setup.effects), "shared": list(self.setup.shared),
                 "per_specimen": list(self.setup.per_specimen)}
@@ -401,6 +450,8 @@ class _Problem:
         self.k = len(self.vars)
         if self.k == 0:
             raise KnitsimInputError("calibration: nothing to fit (shared and per_specimen are empty)")
+        for s in self.sp:
+            self._check_reach(s)
         self.n_rows = sum(len(s.strain) for s in self.sp)
         self.n_prior = sum(1 for v in self.vars if v.name in GEOMETRY or v.name == "pretension")
         if self.n_rows <= self.k:
@@ -425,6 +476,32 @@ class _Problem:
         self.objective = "midline"
 
     # ------------------------------------------------------------ bounds
+    def _check_reach(self, s: SpecimenData) -> None:
+        """Refuse rows the specimen's knit cannot reach in the loosest case the fit allows: a quarter-stitch
+        cell is a straight yarn at C = C0 (1 + knit strain) = L/2 (:func:`reachable_strain`), at L's upper
+        bound and C0's lower bound where they are fitted, through the largest pretension (knit strain
+        (1 + e_p)(1 + grip strain) - 1, :func:`pretension_strain`)."""
+        L, C0 = s.knit["L"], s.knit["C0"]
+        loose = []
+        if "L" in self.own:
+            L *= math.exp(self._fit_bounds("L", s)[1])
+            loose.append("L at its upper bound")
+        if "C0" in self.own:
+            C0 *= math.exp(self._fit_bounds("C0", s)[0])
+            loose.append("C0 at its lower bound")
+        pre = s.pretension
+        if "pretension" in self.own:
+            pre = max(pre, self._fit_bounds("pretension")[1])
+            loose.append("the pretension at its upper bound")
+        knit = reachable_strain(L, C0)
+        grip = (1.0 + knit) / (1.0 + pre) - 1.0
+        why = (f"a quarter-stitch cell is a straight yarn at C = C0 (1 + strain) = L/2: knit strain < L / (2 C0) - 1 "
+               f"= {knit:.4g} with L = {L:.4g} mm, C0 = {C0:.4g} mm"
+               + (f" ({', '.join(loose)}: the loosest the fit allows)" if loose else "")
+               + (f"; through a pretension of {pre:.4g}, knit strain = (1 + {pre:.4g})(1 + grip strain) - 1"
+                  if pre > 0 else ""))
+        check_reach(s, grip, why)
+
     def _fit_bounds(self, name: str, s: SpecimenData | None = None) -> tuple[float, float]:
         b = self.base
         if name == "B":
@@ -763,6 +840,30 @@ def _note(name: str, side: str, specimen: str | None) -> str:
     return f"the {side} end of the stated range"
 
 
+def identification_rule(std_error: float, low: float, high: float, unit: str = "") -> str:
+    """Why an estimate is not identified, or ``""`` when it is: its standard error is not finite (the rows
+    do not depend on it), or larger than :data:`NOT_IDENTIFIED_SHARE` (half) of its range ``high - low``
+    (any value in the range fits as well).  All in the estimate's unit."""
+    u = f" {unit}" if unit else ""
+    if not math.isfinite(std_error):
+        return "its standard error is not finite: the rows do not depend on it"
+    if std_error > NOT_IDENTIFIED_SHARE * (high - low):
+        return (f"its standard error {std_error:.4g}{u} is larger than half its range {low:.4g} .. {high:.4g}{u}: "
+                "any value in the range fits as well")
+    return ""
+
+
+def check_setup(specimens: Sequence[SpecimenData], setup: JointSetup) -> None:
+    """Every check :func:`calibrate_joint` makes before its first solve (the variables, bounds, priors, the
+    rows' grid, strains the knits cannot reach), without solving: a scene is refused before any work.
+
+    Raises
+    ------
+    KnitsimInputError
+    """
+    _Problem(specimens, setup)
+
+
 class CalibrationInterrupted(Exception):
     """The fit stopped early (``stop_after`` evaluations); its checkpoint holds the work done."""
 
@@ -994,11 +1095,14 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
                 and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
             note = "the high end of the stated range (below W0/4 of the narrowest knit)"
-        if not np.isfinite(se[j]):
+        unid = identification_rule(float(se[j]), float(los[j]), float(his[j]), unit)
+        if unid:
             side = side or "not identified"
-            note = (note + "; " if note else "") + "the rows do not depend on it (not identified)"
+            note = (note + "; " if note else "") + ("the rows do not depend on it (not identified)"
+                                                    if not np.isfinite(se[j]) else
+                                                    "standard error above half its range (not identified)")
         estimates.append(Estimate(nme, spname, float(val), float(se[j]), unit, float(los[j]), float(his[j]), side,
-                                  note, stated, dev))
+                                  note, stated, dev, unid))
     # each specimen's fit
     cells = pb.cells_at(x)
     sims = pb.simulate(list(enumerate(cells)))
@@ -1035,8 +1139,8 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,
                        int(sol.nfev), wall_before + time.perf_counter() - t0,
-                       setup, cells[0])
+                       setup, cells[0], bool(sol.success), str(sol.message))
 
 
-__all__ = ["CalibrationInterrupted", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+__all__ = ["CalibrationInterrupted", "check_setup", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
            "SPECIMEN_VARIABLES", "UNITS", "OBJECTIVES"]

@@ -13,6 +13,12 @@
   correlations, each specimen's fit (numbers and curves);
 - ``report.md``: the same for a reader; ``fit_<specimen>.png``: each fit in its band, with
   its share inside the band and its RMS, and the weighted residuals.
+
+A calibration with a flag (:attr:`knitsim.calibration.joint.JointResult.flags`: the optimiser did not
+converge, a parameter at a bound or not identified, a cell that did not solve) says so in every file:
+``calibration.json`` (``flags``, ``usable``), the top of ``report.md`` ("NOT A CALIBRATION YOU CAN
+USE"), a comment block at the top of ``materials.toml`` and of each scene (so a file reused elsewhere
+carries it), and the title of each plot.
 """
 from __future__ import annotations
 
@@ -38,6 +44,9 @@ def library_of(result: JointResult, yarn_name: str, source: str = "") -> dict:
     """The library document of a calibration: its yarn and one knit per specimen."""
     p = result.fits[0].params
     std = {e.name: e.std_error for e in result.estimates if e.specimen is None}
+    if result.flags:
+        source = (f"{source} ({UNUSABLE}: {len(result.flags)} flags, listed at the top of the file it "
+                  "wrote and in its report.md)").strip()
     yarn = LibraryYarn(yarn_name, d=p.d, B=p.B, in_plane_width=p.in_plane_width,
                        friction={"model": p.friction, "m": p.m, "dahl_sigma": p.dahl_sigma}, rules=_rules(p),
                        effects=p.effects.as_dict() if p.effects.on else {}, std_errors=std,
@@ -56,6 +65,23 @@ def _cell_tables(p) -> dict:
     if p.effects.on:
         out["effects"] = p.effects.as_dict()
     return out
+
+
+#: the first line of what a flagged calibration writes, everywhere
+UNUSABLE = "NOT A CALIBRATION YOU CAN USE"
+
+
+def flag_lines(result: JointResult) -> list[str]:
+    """The comment block of a flagged calibration (empty when it has no flag): a heading and one line per flag."""
+    flags = result.flags
+    if not flags:
+        return []
+    return ([f"{UNUSABLE}: {len(flags)} flag{'s' if len(flags) > 1 else ''} (calibration.json, report.md):"]
+            + [f"  - {x}" for x in flags] + [""])
+
+
+def _header(result: JointResult, text: str) -> str:
+    return "\n".join(flag_lines(result) + [text])
 
 
 def _fit_line(f) -> str:
@@ -80,7 +106,7 @@ def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu")
               f" by knitsim calibrate {source}\n"
               f"the cell of one stitch: force per wale; the specimen's total force is {f.wales:.6g} x it "
               f"(its wales)\n{_fit_line(f)}{pre_line}\nunits N, mm, rad")
-    return dumps(doc, header=header)
+    return dumps(doc, header=_header(result, header))
 
 
 def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, gauge_length_mm: float,
@@ -103,7 +129,7 @@ def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, ga
               + (f"\npretension: the knit is at strain {pre:.4g} at grip strain 0 ({f.pretension_N:.4g} N; the run "
                  "starts at rest, at negative grip strain)" if pre else "")
               + f"\n{_fit_line(f)}\nunits N, mm, rad")
-    return dumps(doc, header=header)
+    return dumps(doc, header=_header(result, header))
 
 
 def _fmt(v: float) -> str:
@@ -112,10 +138,27 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
+def _flag_cell(e) -> str:
+    """The flag column of an estimate: at a bound, not identified, or both."""
+    bits = [f"at {e.at_bound} bound"] if e.at_bound in ("low", "high") else []
+    if getattr(e, "not_identified", "") or e.at_bound == "not identified":
+        bits.append("NOT IDENTIFIED")
+    return "; ".join(bits)
+
+
 def report_md(result: JointResult, title: str, source: str, files: list[str]) -> str:
     """A readable report of the calibration."""
     r = result
-    lines = [f"# knitsim calibrate: {title}", "", f"Scene: `{source}`. {len(r.fits)} specimens, one yarn; "
+    flags = r.flags
+    lines = [f"# knitsim calibrate: {title}", ""]
+    if flags:
+        lines += [f"**{UNUSABLE}:** {len(flags)} flag{'s' if len(flags) > 1 else ''} below. "
+                  + ("The fit failed (the optimiser did not converge" + (", or a cell did not solve" if any(
+                      f.status != "ok" for f in r.fits) else "") + "): its values are where it stopped, not a "
+                     "minimum. " if not r.success else "")
+                  + "The files written (materials.toml, the scenes) carry these flags in their header.", "",
+                  "## Flags", ""] + [f"- **{x}**" for x in flags] + [""]
+    lines += [f"Scene: `{source}`. {len(r.fits)} specimens, one yarn; "
              f"{r.k} variables fitted to {r.n} rows (priors included); chi2 = {r.chi2:.4g}, "
              f"chi2 / (n - k) = {r.s2:.3g} (the factor on the covariance). "
              + ("Objective: the band likelihood (anywhere inside the band at no cost, just outside a Gaussian of "
@@ -123,27 +166,26 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
                 if r.setup.objective == "band" else "Objective: the band mid-line, sd = half-width (at least "
                 "the force accuracy). ")
              + f"{'Converged' if r.success else 'NOT CONVERGED'}: {r.message.rstrip('.')}. Wall time {r.wall_s:.0f} s.", ""]
-    if r.flags:
-        lines += ["## Flags", ""] + [f"- **{x}**" for x in r.flags] + [""]
-    else:
-        lines += ["No parameter is at a bound.", ""]
-    lines += ["## The yarn (shared by every specimen)", "", "| parameter | value | std error | unit | range | bound |",
+    if not flags:
+        lines += ["No flag: the optimiser converged, every cell solved, and no parameter is at a bound or not "
+                  "identified (standard error finite and at most half its range).", ""]
+    lines += ["## The yarn (shared by every specimen)", "", "| parameter | value | std error | unit | range | flag |",
               "|---|---|---|---|---|---|"]
     for e in r.estimates:
         if e.specimen is None:
             lines.append(f"| {e.name} | {_fmt(e.value)} | {_fmt(e.std_error)} | {e.unit} | {_fmt(e.low)} .. "
-                         f"{_fmt(e.high)} | {e.at_bound or ''} |")
+                         f"{_fmt(e.high)} | {_flag_cell(e)} |")
     p = r.fits[0].params
     lines += ["", f"Friction law {p.friction}"
               + (f" (Dahl stiffness {p.dahl_sigma:.4g} / mm)" if p.friction == "dahl" else "")
               + f"; effects {', '.join(p.effects.on) or 'none'}; rules " + ", ".join(f"{k} = {v}" for k, v in
                                                                                     _rules(p).items()) + ".", ""]
     lines += ["## Each specimen's knit", "", "| specimen | parameter | value | std error | unit | stated | "
-              "from stated [sd] | bound |", "|---|---|---|---|---|---|---|---|"]
+              "from stated [sd] | flag |", "|---|---|---|---|---|---|---|---|"]
     for e in r.estimates:
         if e.specimen is not None:
             lines.append(f"| {e.specimen} | {e.name} | {_fmt(e.value)} | {_fmt(e.std_error)} | {e.unit} | "
-                         f"{_fmt(e.stated)} | {_fmt(e.deviation_sd)} | {e.at_bound or ''} |")
+                         f"{_fmt(e.stated)} | {_fmt(e.deviation_sd)} | {_flag_cell(e)} |")
     lines += ["", "phi0 in rad (a fraction of phimax = atan(m) in the fit); pretension: the knit's strain at grip "
               "strain 0 (the tester's pretension before the strain origin; rows at knit strain "
               "(1 + pretension)(1 + grip strain) - 1).", "", "## Fits", "",
@@ -172,8 +214,9 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
     return "\n".join(lines)
 
 
-def plot_fit(fit, title: str = "") -> bytes:
-    """PNG of one specimen's fit: its band, the target, the simulation, and the weighted residuals."""
+def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
+    """PNG of one specimen's fit: its band, the target, the simulation, and the weighted residuals; with
+    ``flags`` (the calibration's), "NOT A CALIBRATION YOU CAN USE" and the first flags above it."""
     import io
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -206,6 +249,12 @@ def plot_fit(fit, title: str = "") -> bytes:
     ax2.set_xlabel("grip strain")
     ax2.grid(alpha=0.3)
     fig.tight_layout()
+    if flags:
+        shown = [x if len(x) <= 110 else x[:107] + "..." for x in flags[:3]]
+        more = f" (+{len(flags) - 3} more: report.md)" if len(flags) > 3 else ""
+        fig.subplots_adjust(top=0.94 - 0.022 * (len(shown) + 1))
+        fig.text(0.01, 0.995, f"{UNUSABLE}{more}\n" + "\n".join(shown), color="tab:red", fontsize=7,
+                 va="top", ha="left", weight="bold")
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
@@ -216,14 +265,14 @@ def write_calibration(out_dir: str | Path, result: JointResult, scene, source: s
     from ..io.results import write_result_set
     files: dict[str, bytes] = {}
     files["materials.toml"] = dumps(library_of(result, scene.yarn_name, source),
-                                    header=f"material library written by knitsim calibrate {source}\n"
-                                           "units N, mm, rad; std_errors are informative").encode()
+                                    header=_header(result, f"material library written by knitsim calibrate {source}\n"
+                                                           "units N, mm, rad; std_errors are informative")).encode()
     device = scene.setup.device
     for k, (f, s) in enumerate(zip(result.fits, scene.specimens)):
         files[f"{f.name}.cell.toml"] = cell_scene_of(result, k, source, device).encode()
         files[f"{f.name}.patch.toml"] = patch_scene_of(result, k, source, s.width_mm, s.gauge_length_mm,
                                                        device).encode()
-        files[f"fit_{f.name}.png"] = plot_fit(f)
+        files[f"fit_{f.name}.png"] = plot_fit(f, flags=result.flags)
     names = sorted(files) + ["calibration.json", "report.md"]
     files["report.md"] = report_md(result, scene.resolved.get("title", source), source, names).encode()
     doc = {"scene": source, "title": scene.resolved.get("title", ""), "yarn": scene.yarn_name,
@@ -258,4 +307,4 @@ def _json_default(v):
     raise TypeError(type(v).__name__)
 
 
-__all__ = ["library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]
+__all__ = ["UNUSABLE", "flag_lines", "library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]

@@ -45,7 +45,10 @@ else its noise is estimated) instead of, or with, the band.  With
 ``"pretension"`` in ``per_specimen`` each specimen's strain at grip strain 0
 is fitted (``pretension_sd``: the sd of its prior around 0, required;
 ``pretension``: its start; :func:`knitsim.calibration.specimen.pretension_strain`).  Everything is
-checked before any solve; errors name the key path and the value.
+checked here, before any solve or output (the fit's own checks included:
+:func:`knitsim.calibration.joint.check_setup`, e.g. a variable that is not the yarn's, or a strain the
+knit cannot reach, such as a column in per cent); errors name the key path and the value, or the file,
+row and column.
 """
 from __future__ import annotations
 
@@ -56,7 +59,7 @@ from pathlib import Path
 from ..errors import KnitsimInputError
 from ..scene.cell_scene import _device_check, _effects_table, _friction_table, _rules_table, load_cell_scene
 from ..scene.schema import OPTIONAL, REQUIRED, Field, Table, TableArray, error, load_toml, set_value, validate
-from .joint import JointSetup
+from .joint import JointSetup, check_setup
 from .specimen import GEOMETRY, SpecimenData, specimen_from_files
 
 _GEOMETRY_TABLE = Table({k: Field(("float",), REQUIRED, f"stated {k}", "mm", min=0.0, min_inclusive=False)
@@ -246,6 +249,8 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
     if cal["row_step"] < cal["max_increment"] * (1 - 1e-12):
         raise error("calibration.row_step", cal["row_step"], f"must be >= calibration.max_increment = "
                     f"{cal['max_increment']!r}")
+    # the fit's own checks (variable names, bounds, priors, strains the knits cannot reach), without a solve
+    check_setup(specimens, setup)
     return CalibrationScene(specimens, setup, doc["yarn"]["name"], doc, name, base_dir)
 
 

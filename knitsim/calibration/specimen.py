@@ -54,6 +54,7 @@ class MeasuredTable:
     total: bool
     source: str
     rows: np.ndarray
+    strain_column: str = "strain"
 
 
 def read_table(path: str | Path) -> MeasuredTable:
@@ -92,7 +93,8 @@ def read_table(path: str | Path) -> MeasuredTable:
                                 "reads loading curves (strain non-decreasing)")
     if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
-    return MeasuredTable(np.asarray(clean, float), np.asarray(force, float), f_total is not None, str(path), rows)
+    return MeasuredTable(np.asarray(clean, float), np.asarray(force, float), f_total is not None, str(path), rows,
+                         s_name)
 
 
 def pretension_strain(grip_strain, pretension: float):
@@ -117,6 +119,41 @@ def pretension_strain(grip_strain, pretension: float):
     float or ndarray
     """
     return (1.0 + pretension) * (1.0 + np.asarray(grip_strain, float)) - 1.0
+
+
+def check_reach(sp: "SpecimenData", limit: float, why: str, where: str | None = None) -> None:
+    """Refuse a specimen whose data reach grip strain ``limit``, naming the file, row, column and value.
+
+    ``limit`` is the largest grip strain the specimen's knit can reach, in the loosest case the fit allows
+    (:func:`knitsim.diagnosis.measured.reachable_strain` at the largest L and smallest C0, through the largest
+    pretension: :func:`pretension_strain`); ``why`` says how it was obtained.  Every row of every file read is
+    checked (as the diagnosis checks a whole curve, :func:`knitsim.diagnosis.measured.check_reachable`), not
+    only the rows fitted: a file whose strain is in per cent would otherwise be read, up to the end of the
+    other files, at its first rows.  The row named is the file's largest strain.  Nothing is solved.
+
+    Raises
+    ------
+    KnitsimInputError
+    """
+    where = where or f"specimens.{sp.name}"
+    for src in sp.sources:
+        try:
+            t = read_table(src)
+        except (KnitsimInputError, OSError):       # pragma: no cover - it was read before
+            continue
+        i = int(np.argmax(t.strain))
+        if t.strain[i] >= limit:
+            _unreachable(where, f"{t.source}: row {int(t.rows[i])}, column {t.strain_column}:", float(t.strain[i]),
+                         limit, why)
+    top = float(sp.strain[-1])
+    if top >= limit:                                # rows without a file (a SpecimenData made in code)
+        _unreachable(where, "the last row fitted, grip strain", top, limit, why)
+
+
+def _unreachable(where: str, place: str, value: float, limit: float, why: str):
+    pct = " Is the column in per cent? A strain of 5 % is 0.05." if value >= 1.0 else ""
+    raise KnitsimInputError(f"{where}: {place} {value:g} is a strain the specimen's knit cannot reach "
+                            f"({why}: grip strain < {limit:.4g}).{pct}")
 
 
 def band_residuals(force, low, high, accuracy) -> np.ndarray:
@@ -375,5 +412,6 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
                         float(accuracy_rel))
 
 
-__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "GEOMETRY",
+__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "check_reach",
+           "GEOMETRY",
            "band_residuals", "cauchy_tail"]

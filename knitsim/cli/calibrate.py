@@ -19,8 +19,13 @@ refined start's evaluations.  The finished work is kept in ``DIR/calibration_che
 when the results are written): after Ctrl-C or a lost session, ``--resume`` continues it and
 gives the result of an uninterrupted fit.  An ``--out`` that holds results is refused unless
 ``--resume`` or ``--overwrite``.
+Every check of the scene (the fit's own included: an unknown variable, a strain the knit cannot
+reach) runs before anything is printed or written.
 Exit status 0 when the fit converged, every cell solved and no parameter is at
-a bound; 1 otherwise (the flags are printed and in the report); 2 on bad input.
+a bound or not identified; 1 otherwise: the flags are printed (stderr, and first in the summary on
+stdout, "NOT A CALIBRATION YOU CAN USE"), in calibration.json (``flags``, ``usable``), at the top of
+report.md, and in a comment block at the top of materials.toml and of each scene written; 2 on bad
+input.
 """
 from __future__ import annotations
 
@@ -59,7 +64,7 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     t0 = time.perf_counter()
     from ..calibration.joint import calibrate_joint
-    from ..calibration.outputs import write_calibration
+    from ..calibration.outputs import UNUSABLE, write_calibration
     from ..calibration.scene import load_calibration_scene
 
     scene = load_calibration_scene(args.scene, args.overrides, device=args.device)
@@ -103,18 +108,30 @@ def _run(args) -> int:
     ck.unlink(missing_ok=True)
     print(f"knitsim calibrate: done in {time.perf_counter() - t0:.1f} s; wrote {', '.join(sorted(files))} to {out}",
           file=sys.stderr, flush=True)
-    for line in result.flags:
+    flags = result.flags
+    if flags and not args.json:         # the summary on stdout lists them
+        print(f"knitsim calibrate: warning: {UNUSABLE}: {len(flags)} flag{'s' if len(flags) > 1 else ''} (listed "
+              "in the summary below)", file=sys.stderr, flush=True)
+    for line in flags if args.json else ():
         print(f"knitsim calibrate: warning: {line}", file=sys.stderr, flush=True)
-    if not result.success:
+    if not result.success and not any(x.startswith("the fit failed") for x in flags):
         print(f"knitsim calibrate: warning: {result.message}", file=sys.stderr, flush=True)
     if args.json:
         print_json(result.as_dict(curves=False))
     else:
+        if flags:
+            print(f"{UNUSABLE}: {len(flags)} flag{'s' if len(flags) > 1 else ''} (also at the top of report.md, "
+                  "materials.toml and the scenes):")
+            for line in flags:
+                print(f"  - {line}")
         for e in result.estimates:
-            flag = f"  AT {e.at_bound.upper()} BOUND ({e.bound_note})" if e.at_bound else ""
+            flag = f"  AT {e.at_bound.upper()} BOUND ({e.bound_note})" if e.at_bound in ("low", "high") else ""
+            if e.not_identified or e.at_bound == "not identified":
+                flag += "  NOT IDENTIFIED"
             print(f"{e.label:28s} {e.value:12.5g} +- {e.std_error:.3g} {e.unit}{flag}")
         for f in result.fits:
             band = "" if f.in_band_fraction is None else f"; {100 * f.in_band_fraction:.0f} % of the strain range " \
                                                          "inside the band"
-            print(f"{f.name}: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}; cells {f.status}")
-    return 0 if result.success and not result.flags else 1
+            print(f"{f.name}: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}; cells {f.status}"
+                  + ("" if f.status == "ok" else " (DID NOT SOLVE ON EVERY ROW)"))
+    return 0 if result.success and not flags else 1

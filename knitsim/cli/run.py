@@ -7,8 +7,10 @@ The scene (:mod:`knitsim.scene.patch_scene`) is validated in full before any
 work.  A progress bar goes to stderr; the patch state is checkpointed into
 ``DIR/checkpoint.pkl`` every ``output.checkpoint_every`` increments and on
 Ctrl-C, and ``--resume`` continues from it (same results as an uninterrupted
-run).  Results (:mod:`knitsim.io.patch_results`) go to ``DIR`` (default
-``<scene stem>_out``); the checkpoint is removed once they are written.
+run); on Ctrl-C the command says up to which increment the checkpoint holds and
+prints the command that continues the run (exit status 130).  Results
+(:mod:`knitsim.io.patch_results`) go to ``DIR`` (default ``<scene stem>_out``);
+the checkpoint is removed once they are written.
 With ``--usd FILE`` the patch is also written as USD (``.usda`` text for small
 patches, ``.usdc`` / ``.usd`` binary crate for large ones; see
 :mod:`knitsim.usd.from_results`), the same file ``knitsim usd DIR --out FILE``
@@ -97,6 +99,43 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     return warnings
 
 
+def resume_command(args, out: Path) -> str:
+    """The command that continues this run from its checkpoint: the command line as typed, without
+    ``--overwrite`` (it and ``--resume`` exclude each other), with ``--out`` and ``--resume``."""
+    import shlex
+
+    argv = sys.argv[2:] if len(sys.argv) > 2 and sys.argv[1] == "run" else None
+    if argv is None:                                   # not called as `knitsim run ...` (a test, an API)
+        argv = [args.scene] + [a for kv in args.overrides for a in ("--set", kv)]
+    argv = [a for a in argv if a not in ("--resume", "--overwrite")]
+    if args.out is None:
+        argv += ["--out", str(out)]
+    return "knitsim run " + " ".join(shlex.quote(a) for a in argv) + " --resume"
+
+
+def interrupted_message(ck: Path | None, total: int, resume_cmd: str) -> str:
+    """What ``knitsim run`` says on Ctrl-C: the checkpoint kept, up to which increment, and the command that
+    continues from it; or that nothing was kept.
+
+    The increment is the checkpoint's own (``done``): :func:`knitsim.patch.runner.run_patch` writes it on
+    Ctrl-C between two increments, and a Ctrl-C in the middle of one that is not let finish keeps the last
+    periodic checkpoint."""
+    import pickle
+
+    if ck is None:
+        return ("knitsim run: interrupted; nothing was kept (output.checkpoint_every = 0: no checkpoint); "
+                "run again from the start")
+    if not ck.is_file():
+        return (f"knitsim run: interrupted before the first checkpoint; nothing was kept in {ck.parent}; run again "
+                f"from the start")
+    try:
+        done = int(pickle.loads(ck.read_bytes())["done"])
+    except Exception as exc:  # noqa: BLE001 - a damaged checkpoint: say so instead of a traceback
+        return f"knitsim run: interrupted; the checkpoint {ck} cannot be read ({exc}); run again from the start"
+    return (f"knitsim run: interrupted; {done}/{total} increment(s) kept in the checkpoint {ck} (up to increment "
+            f"{done}); continue with: {resume_cmd}")
+
+
 def _run(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import patch_summary, specimen_layout, write_patch_results
@@ -134,10 +173,16 @@ def _run(args) -> int:
               f"{len(scene.program)} increments, engine {scene.engine}, device {device}, "
               f"dedup {'on' if scene.dedup else 'off'}", file=sys.stderr, flush=True)
         every = scene.output["checkpoint_every"]
-        h = run_patch(m, scene.program, engine=scene.engine, device=device, dedup=scene.dedup,
-                      progress=Progress(len(scene.program), "knitsim run: increments", not args.no_progress),
-                      checkpoint=ck if every > 0 or args.resume else None, checkpoint_every=every,
-                      resume=args.resume, **scene.solver_options)
+        keep = every > 0 or args.resume
+        try:
+            h = run_patch(m, scene.program, engine=scene.engine, device=device, dedup=scene.dedup,
+                          progress=Progress(len(scene.program), "knitsim run: increments", not args.no_progress),
+                          checkpoint=ck if keep else None, checkpoint_every=every,
+                          resume=args.resume, **scene.solver_options)
+        except KeyboardInterrupt:
+            print(interrupted_message(ck if keep else None, len(scene.program), resume_command(args, out)),
+                  file=sys.stderr, flush=True)
+            return 130
     summary = patch_summary(h, h.info["ref_length_mm"], model=m, scene=scene.source, title=scene.resolved.get("title", ""),
                             engine=scene.engine, device=device, load=scene.resolved["load"])
     summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
@@ -176,6 +221,8 @@ def _run(args) -> int:
             peak = (f"{c['peak_force_N']:.4g} N ({c['peak_force_per_wale_N']:.4g} N per wale of the "
                     f"{layout.wales_across:.4g} wales across the width)" if layout.blocks
                     else f"{c['peak_force_per_wale_N']:.4g} N per wale")
+            if c.get("peak_is_force_cap"):
+                peak += " (= force cap)"
             print(f"cycle {c['cycle']}: peak {peak} at grip strain "
                   f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}; "
                   f"{work}")

@@ -19,6 +19,10 @@ and printed by the commands:
     W is free, so the lateral direction works on the cell unaccounted.  Met after a
     reversal from a jammed state, where T frozen at the slide carries the tension
     the jamming raised into the unjammed unloading (README, "Loops that return energy").
+``force_cap_reached``
+    Cells of a patch stopped at their force cap (status ``force_cap``) or held within
+    :data:`FORCE_CAP_RTOL` of it (a column that cannot pass the cap and does not converge): from that
+    grip strain on the curve is the cap, not the knit's response (:func:`force_cap_reached`).
 ``heads_interpenetrate``
     States where the centreline gap between the heads of neighbouring loops of a
     course is below the yarn's in-plane width: the loops pass through each other
@@ -222,6 +226,104 @@ def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarra
         f"stopped at the force cap ({cap_N:g} {unit}) at strain {float(strain[stop_row]):.4g} in cycle {c_stop} "
         f"of {c_last}: {rest} {'were' if c_last > c_stop else 'was'} not run; raise force_cap_N to run "
         f"{'them' if c_last > c_stop else 'it'}")]
+
+
+#: a cell's force per wale within this fraction of its force_cap_N is at the cap: a column whose cells would
+#: cross the cap does not converge and keeps its last committed state, one trial step below the cap (0.25 %
+#: below it in a 3 x 4 E-glass patch pulled to grip strain 1.2 with force_cap_N = 10: 9.975 N per wale)
+FORCE_CAP_RTOL = 0.01
+
+
+def held_at_force_cap(force: np.ndarray, status: np.ndarray, cap_N, column_not_ok: np.ndarray | None = None,
+                      rtol: float = FORCE_CAP_RTOL) -> np.ndarray:
+    """Where a cell's force is its force cap, not the knit's response.
+
+    Parameters
+    ----------
+    force, status : ndarray, shape [n, k]
+        Force per wale [N] and status code (:data:`knitsim.cell.history.STATUS_NAMES`) of k cells.
+    cap_N : float or ndarray, shape [k], or None
+        Their ``force_cap_N`` (None: unknown, only the status counts).
+    column_not_ok : ndarray of bool, shape [n, k], optional
+        Where the column holding the cell did not converge or stopped.
+    rtol : float
+        At the cap: ``force >= (1 - rtol) cap``.
+
+    Returns
+    -------
+    ndarray of bool, shape [n, k]
+        True where the cell stopped at the cap (status force_cap) or is held at it: within ``rtol`` of it
+        while its column did not converge or stopped, or over two or more increments in a row (a plateau;
+        one increment near the cap that a converged column passes through is a response).
+    """
+    from ..cell.history import STATUS_FORCE_CAP
+
+    status = np.asarray(status)
+    out = status == STATUS_FORCE_CAP
+    if cap_N is None:
+        return out
+    F = np.asarray(force, float)
+    cap = np.broadcast_to(np.asarray(cap_N, float), F.shape[-1:])
+    with np.errstate(invalid="ignore"):
+        near = np.isfinite(F) & (F >= (1.0 - rtol) * cap)
+    held = np.zeros_like(near)
+    held[1:] |= near[:-1]
+    held[:-1] |= near[1:]
+    if column_not_ok is not None:
+        held |= np.asarray(column_not_ok, bool)
+    return out | (near & held)
+
+
+def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells: int, cells_at_cap: int,
+                      cells_stopped: int, columns: int, columns_at_cap: int, peak: float | None = None,
+                      what: str = "cell", column: str = "column", unit: str = "N per wale",
+                      remedy: str = "") -> list[ResultWarning]:
+    """A warning when the force of a patch is its cells' force cap from some grip strain on.
+
+    The cap stops a cell (status ``force_cap``), or holds a column that cannot pass it (not converged, its
+    force one trial step below the cap): past that grip strain the curve is a plateau at the cap, and a
+    peak there is the cap, not the knit's strength.
+
+    Parameters
+    ----------
+    grip_strain : ndarray, shape [n]
+    at_cap : ndarray of bool, shape [n]
+        Increments where some cell is at its cap (:func:`held_at_force_cap`).
+    cap_N : float, sequence of float, or None
+        The caps of the cells at the cap (None: not known).
+    cells, cells_at_cap, cells_stopped : int
+        Cells of the patch, those at the cap at some increment, those of them stopped (status force_cap).
+    columns, columns_at_cap : int
+        Columns, and those holding a cell at the cap.
+    peak : float, optional
+        The largest force in ``unit`` (said where it is the cap).
+    remedy : str
+        Appended to the message (another way out, e.g. a smaller pretension).
+    """
+    at = np.asarray(at_cap, bool)
+    if not at.any():
+        return []
+    rows = np.nonzero(at)[0]
+    e = np.asarray(grip_strain, float)
+    e0 = float(e[rows[0]])
+    if cap_N is None:
+        cap = "force_cap_N"
+    else:
+        caps = np.unique(np.asarray(cap_N, float).ravel())
+        cap = f"{caps[0]:g} {unit}" if len(caps) == 1 else f"{caps.min():g}-{caps.max():g} {unit}"
+    how = []
+    if cells_stopped:
+        how.append(f"{cells_stopped} stopped at it, status force_cap")
+    if cells_at_cap - cells_stopped > 0:
+        how.append(f"{cells_at_cap - cells_stopped} held within {FORCE_CAP_RTOL:.0%} of it, their column unable "
+                   "to pass it")
+    peak_txt = f"; the peak {peak:.4g} {unit} is the cap, not the knit's strength" if peak is not None else ""
+    return [ResultWarning(
+        "force_cap_reached",
+        f"from grip strain {e0:.4g} the force is the force cap ({cap}), not the knit's response: {cells_at_cap} "
+        f"of {cells} {what}(s) in {columns_at_cap} of {columns} {column}(s) reached it ({', '.join(how)}), "
+        f"in {len(rows)} of {len(e)} increments{peak_txt}; raise rules.force_cap_N, or lower the program's "
+        f"largest grip strain below {e0:.4g} (load.target_strain / load.upper_strain){remedy}")]
 
 
 def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,

@@ -45,8 +45,8 @@ from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (ResultWarning, compressive_rest_state, cycle_work, energy_creating_loops, interpenetration,
-                     zero_force_cycles)
+from .checks import (ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work, energy_creating_loops,
+                     force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
 from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
@@ -315,6 +315,83 @@ def cells_nc(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout
     return bytes(ds.to_netcdf(engine="h5netcdf", encoding=_encoding(ds)))
 
 
+@dataclass(frozen=True)
+class ForceCapRows:
+    """Where a patch's force is its cells' force cap (:func:`force_cap_rows`).
+
+    Attributes
+    ----------
+    rows : ndarray of bool, shape [n]
+        Increments where some cell stopped at its cap or is held at it.
+    group_at_cap : ndarray of bool, shape [n_groups]
+        Groups at the cap at some increment; ``group_stopped`` those stopped (status force_cap).
+    first_stop : int or None
+        The first increment where a cell stopped at its cap (status force_cap).
+    caps : ndarray or None
+        The caps of the groups at the cap (None: the model was not given).
+    """
+
+    rows: np.ndarray
+    group_at_cap: np.ndarray
+    group_stopped: np.ndarray
+    first_stop: int | None
+    caps: np.ndarray | None
+
+
+def force_cap_rows(h: PatchHistory, model: PatchModel | None = None) -> ForceCapRows:
+    """Increments and cells at the force cap (:func:`knitsim.io.checks.held_at_force_cap`, per group).
+
+    Without ``model`` the caps are unknown and only cells stopped at the cap (status force_cap) count."""
+    from ..cell.history import STATUS_FORCE_CAP
+
+    n_groups = int(h.group_of_cell.max()) + 1 if h.group_of_cell.size else 0
+    empty = np.zeros(n_groups, bool)
+    if not h.n_increments or not n_groups:
+        return ForceCapRows(np.zeros(h.n_increments, bool), empty, empty, None, None)
+    goc = np.asarray(h.group_of_cell)
+    caps = None
+    if model is not None and "force_cap_N" in model.rules:
+        cap_cell = np.asarray(model.rules["force_cap_N"], dtype=float)
+        caps = np.zeros(n_groups)
+        caps[goc.ravel()] = np.broadcast_to(cap_cell, goc.shape).ravel()   # identical cells share their rules
+    # the columns holding each group: a group is held where one of them did not converge or stopped
+    member = np.zeros((h.shape[1], n_groups), bool)
+    member[np.broadcast_to(np.arange(h.shape[1]), goc.shape).ravel(), goc.ravel()] = True
+    col_bad = (np.asarray(h.column_status) != COL_OK).astype(np.int32) @ member.astype(np.int32) > 0
+    status = np.asarray(h.groups["status"])
+    at = held_at_force_cap(h.groups["F"], status, caps, col_bad)
+    stopped = status == STATUS_FORCE_CAP
+    first = np.nonzero(stopped.any(axis=1))[0]
+    return ForceCapRows(at.any(axis=1), at.any(axis=0), stopped.any(axis=0),
+                        int(first[0]) if len(first) else None,
+                        None if caps is None else caps[at.any(axis=0)])
+
+
+def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayout, peak: float) -> list[ResultWarning]:
+    """``force_cap_reached`` (cells stopped at or held at their cap) and, where a stop at the cap left
+    unloadings of the program to the stopped columns, ``program_cut_by_force_cap``."""
+    if not fc.rows.any():
+        return []
+    cells_of = np.bincount(np.asarray(h.group_of_cell).ravel(), minlength=len(fc.group_at_cap))
+    at_cell = fc.group_at_cap[h.group_of_cell]
+    what, column = ("block", "strip") if layout.blocks else ("cell", "wale column")
+    out = force_cap_reached(h.grip_strain, fc.rows, fc.caps, cells=int(h.group_of_cell.size),
+                            cells_at_cap=int(cells_of[fc.group_at_cap].sum()),
+                            cells_stopped=int(cells_of[fc.group_stopped].sum()),
+                            columns=int(h.shape[1]), columns_at_cap=int(at_cell.any(axis=0).sum()), peak=peak,
+                            what=what, column=column, remedy=(
+                                f", or a smaller specimen.pretension ({pre:g}: the knit starts stretched)"
+                                if (pre := float(h.info.get("pretension") or 0.0)) > 0 else ""))
+    if fc.first_stop is not None:
+        cap = float(np.max(fc.caps)) if fc.caps is not None and len(fc.caps) else float("nan")
+        cut = cut_by_force_cap(h.grip_strain, h.direction, h.cycle, fc.first_stop, cap)
+        n_stop = int(fc.group_stopped[h.group_of_cell].any(axis=0).sum())
+        out += [ResultWarning(w.code, f"{n_stop} {column}(s) " + w.message.replace(" at strain ", " at grip strain ", 1)
+                              .replace(" (nan N per wale)", ""))
+                for w in cut]
+    return out
+
+
 def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None, **info) -> dict:
     """The ``summary.json`` document (``model``: the run's, needed for a specimen; ``info`` is copied in).
 
@@ -334,14 +411,23 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     closed cycle, ``work_N_mm`` of an open one, ``loading_work_N_mm`` of a loading.  Also the grip
     strain at the first jamming of any cell, non-converged column increments,
     cells whose status is not ok, and rows with a non-finite force.
+
+    Force cap: ``grip_strain_at_force_cap`` is where the force first is the cells' force cap
+    (:func:`force_cap_rows`: a cell stopped at it, or held within
+    :data:`~knitsim.io.checks.FORCE_CAP_RTOL` of it), null if never; each cycle's
+    ``peak_is_force_cap`` says whether its peak is the cap; and the warning ``force_cap_reached``
+    (with ``program_cut_by_force_cap`` where a stop left unloadings of the program unrun) says so.
     """
     F, e = h.force_N, h.grip_strain
+    fc = force_cap_rows(h, model)
     cycles = []
     for k in np.unique(h.cycle):
         rows = np.nonzero(h.cycle == k)[0]
         j = rows[np.argmax(F[rows])]
         entry = {"cycle": int(k), "peak_force_N": float(F[j]), "peak_force_per_wale_N": float(h.force_per_wale_N[j]),
-                 "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length)}
+                 "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length),
+                 # the peak is the cells' force cap, not the knit's response (warning force_cap_reached)
+                 "peak_is_force_cap": bool(fc.rows[j])}
         unload = rows[h.direction[rows] < 0]
         res = None
         if len(unload):
@@ -372,6 +458,8 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                                      what="distinct cell", direction=h.direction)
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
+    capped_peaks = [c["peak_force_per_wale_N"] for c in cycles if c["peak_is_force_cap"]]
+    warnings += _force_cap_warnings(h, fc, layout, max(capped_peaks) if capped_peaks else None)
     warnings += _compressive_rest_cells(h, row_key, col_key)
     warnings += _energy_creating_cells(h, row_key, col_key)
     out = dict(info)
@@ -404,6 +492,8 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         non_ok_cells_at_end=int(len(bad_cells)),
         non_ok_cells_first=[{row_key: int(i), col_key: int(j)} for i, j in bad_cells[:20]],
         nonfinite_force_rows=[int(i) for i in nonfinite[:20]],
+        # from which grip strain the force is the cells' force cap (warning force_cap_reached), or null
+        grip_strain_at_force_cap=float(e[np.argmax(fc.rows)]) if fc.rows.any() else None,
         all_converged=bool(len(nc) == 0 and len(bad_cells) == 0 and len(nonfinite) == 0),
         warnings=[w.as_dict() for w in warnings],
     )
@@ -477,11 +567,13 @@ def _png(fig) -> bytes:
 
 
 def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout | None = None,
-                      warnings: list | None = None) -> bytes:
-    """PNG: force vs grip strain (cycles coloured), non-converged increments and increments where the
-    heads of neighbouring loops overlap marked: the force per wale of a patch of single stitches, the
-    total force on a specimen (what a tester reports).  ``warnings`` (the summary's, dicts with a
-    ``message``) are printed under the axes, so that the figure never looks cleaner than the run."""
+                      warnings: list | None = None, force_cap: np.ndarray | None = None) -> bytes:
+    """PNG: force vs grip strain (cycles coloured), non-converged increments, increments where the
+    heads of neighbouring loops overlap and increments whose force is the cells' force cap
+    (``force_cap``, shape [n] bool: :attr:`ForceCapRows.rows`) marked: the force per wale of a patch of
+    single stitches, the total force on a specimen (what a tester reports).  ``warnings`` (the
+    summary's, dicts with a ``message``) are printed under the axes, so that the figure never looks
+    cleaner than the run."""
     import textwrap
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -512,6 +604,10 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
         if over.any():
             ax.scatter(h.grip_strain[over], F[over], marker="o", s=9, color="darkorange", zorder=3,
                        label="heads of neighbouring loops overlap")
+    if force_cap is not None and np.any(force_cap):
+        at = np.asarray(force_cap, bool)
+        ax.scatter(h.grip_strain[at], F[at], marker="s", s=22, facecolors="none", edgecolors="purple", zorder=3,
+                   label="force = force cap, not the knit's response")
     if layout.blocks:
         ax.set_xlabel("grip strain (grip displacement / gauge length)")
         ax.set_ylabel(f"total force on the {layout.width_mm:.4g} mm wide specimen [N]")
@@ -603,7 +699,8 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
     if cell_fields:
         files["cells.nc"] = cells_nc(h, fields, layout)
     if plot:
-        files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"))
+        files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"),
+                                                      force_cap_rows(h, model).rows)
         files["strain_map.png"] = plot_map(h, "strain", layout=layout)
         files["stage_map.png"] = plot_map(h, "stage", layout=layout)
     files["summary.json"] = summary_json(summary).encode()
@@ -611,5 +708,5 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
 
 
 __all__ = ["CURVE_COLUMNS", "COLUMNS_COLUMNS", "PATCH_OUTPUT_FILES", "SpecimenLayout", "specimen_layout",
-           "column_forces", "curve_csv", "columns_csv", "cells_dataset", "cells_nc",
+           "column_forces", "curve_csv", "columns_csv", "cells_dataset", "cells_nc", "ForceCapRows", "force_cap_rows",
            "patch_summary", "plot_force_strain", "plot_map", "write_patch_results", "PARAM_NAMES"]

@@ -46,6 +46,8 @@ from ..errors import KnitsimInputError
 from ..scene.schema import fmt, load_toml
 
 METHODS = ("grid", "lhs")
+#: most samples of a sweep (a grid's product of axis lengths, or an LHS's ``samples``): more is split by the user
+MAX_SAMPLES = 10_000_000
 SWEEP_KEYS = ("method", "samples", "seed", "chunk_size", "curves", "parameters")
 DEFAULT_CHUNK_SIZE = 256
 
@@ -210,6 +212,28 @@ def _param(key: str, raw: Any, method: str) -> tuple[SweepParameter, dict]:
     return SweepParameter(key, values=vals, low=lo, high=hi), {"min": lo, "max": hi, "count": n}
 
 
+def _check_grid_size(params_raw: dict) -> None:
+    """Refuse a grid whose product of axis lengths exceeds :data:`MAX_SAMPLES`, naming each axis's count.
+
+    Read from the raw entries, before any axis is built: ``count = 1000000000`` would otherwise allocate
+    its linspace (8 GB) and the product of the axes before the cap is met.  Malformed entries are left to
+    :func:`_param` (they are not counted)."""
+    sizes = []
+    for key, raw in params_raw.items():
+        if not isinstance(raw, dict):
+            continue
+        if isinstance(raw.get("values"), list):
+            sizes.append((key, len(raw["values"]), "values"))
+        elif isinstance(raw.get("count"), int) and not isinstance(raw.get("count"), bool) and raw["count"] >= 1:
+            sizes.append((key, raw["count"], "count"))
+    total = math.prod(n for _, n, _ in sizes)
+    if total > MAX_SAMPLES:
+        axes = " x ".join(f"{json.dumps(k)} {'count = ' if how == 'count' else ''}{n}"
+                          f"{' values' if how == 'values' else ''}" for k, n, how in sizes)
+        raise KnitsimInputError(f"sweep.parameters: a grid of {total} samples ({axes}): more than 10^7 samples; "
+                                "split the sweep")
+
+
 def parse_sweep(table: Any, source: str = "sweep") -> SweepSpec:
     """Validate a ``[sweep]`` table (the key paths are checked against the scene later).
 
@@ -253,6 +277,8 @@ def parse_sweep(table: Any, source: str = "sweep") -> SweepSpec:
     if not isinstance(params_raw, dict) or not params_raw:
         raise KnitsimInputError(f"sweep.parameters = {fmt(params_raw) if params_raw is not None else 'missing'}: "
                                 'needs at least one swept key path, e.g. "friction.m" = { values = [0.1, 0.2] }')
+    if method == "grid":
+        _check_grid_size(params_raw)       # before any axis is built (linspace of a huge count)
     params, norm = [], {}
     for key, raw in params_raw.items():
         p, n = _param(key, raw, method)
@@ -262,14 +288,14 @@ def parse_sweep(table: Any, source: str = "sweep") -> SweepSpec:
         for k in ("samples", "seed"):
             if k in table:
                 raise KnitsimInputError(f"sweep.{k} = {fmt(table[k])}: only used with method = \"lhs\"")
-        samples = int(np.prod([len(p.values) for p in params]))
+        samples = math.prod(len(p.values) for p in params)     # Python ints: no int64 wrap-around
         seed = 0
     else:
         if "samples" not in table:
             raise KnitsimInputError("sweep.samples: missing (method = \"lhs\" needs the number of samples)")
         samples = whole("samples", None, 1)
         seed = whole("seed", 0, 0)
-    if samples > 10_000_000:
+    if samples > MAX_SAMPLES:
         raise KnitsimInputError(f"sweep.samples = {samples}: more than 10^7 samples; split the sweep")
     norm_table = {"method": method, "chunk_size": chunk_size, "curves": curves,
                   "parameters": [{"key": k, **v} for k, v in norm.items()]}

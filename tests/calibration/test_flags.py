@@ -1,0 +1,146 @@
+"""A calibration that is not believable says so in every file it writes (project standard: "A result must be
+believable or say why not ... flagged where the user looks, never only in a log"; "No partial output left
+looking complete").
+
+The scenes and curves are written here by hand (a straight line of 0.5 N per 0.02 strain on Dusserre's E-glass
+knit, L = 14.1, W0 = 4.4, C0 = 2.7 mm); the expected outcomes come from the rules themselves, not from a run
+of the package: the optimiser's failure is forced (its result monkeypatched), the not-identified rule is
+"standard error not finite, or larger than half the range", and the estimates and fits of the hand-built
+results are chosen to set (or not set) each flag.
+"""
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+import knitsim.calibration.joint as joint
+from knitsim.calibration.joint import Estimate, JointResult, JointSetup, SpecimenFit, identification_rule
+from knitsim.calibration.outputs import UNUSABLE, cell_scene_of, library_of, report_md
+from knitsim.cell.material import CellParams
+from knitsim.scene.schema import dumps
+
+CAL = {"title": "flags", "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
+       "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
+       "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
+                       "starts": 1, "refine": 1, "max_nfev": 3},
+       "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv", "noise_N": 0.05,
+                      "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
+CURVE = "strain,load_N\n" + "".join(f"{0.02 * k},{0.5 * k}\n" for k in range(11))
+STOPPED = "stopped by the test before it converged"
+
+
+def test_a_failed_optimiser_is_flagged_in_every_file(tmp_path, monkeypatch, capsys):
+    """The least squares is made to report failure (its own x kept): calibration.json, report.md,
+    materials.toml, the scenes and the console must all say the calibration is not usable, with the message."""
+    real = joint.least_squares
+
+    def failing(*a, **k):
+        r = real(*a, **k)
+        r.success, r.status, r.message = False, 0, STOPPED
+        return r
+    monkeypatch.setattr(joint, "least_squares", failing)
+    from knitsim.cli import main
+    (tmp_path / "a.csv").write_text(CURVE)
+    (tmp_path / "cal.toml").write_text(dumps(CAL))
+    out = tmp_path / "out"
+    rc = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(out), "--no-progress"])
+    cap = capsys.readouterr()
+    assert rc == 1, cap.err
+    # calibration.json: success false, and the failure (with the optimiser's message) among the flags
+    doc = json.loads((out / "calibration.json").read_text())
+    assert doc["success"] is False and doc["converged"] is False and doc["usable"] is False
+    assert doc["optimizer_message"] == STOPPED
+    assert any("did not converge" in f and STOPPED in f for f in doc["flags"]), doc["flags"]
+    # report.md: the verdict at the top, the message, and never the all-clear
+    report = (out / "report.md").read_text()
+    head = report.split("## The yarn")[0]
+    assert f"**{UNUSABLE}:**" in head and "## Flags" in head and STOPPED in head
+    assert report.index(UNUSABLE) < report.index("Scene:")
+    assert "No parameter is at a bound" not in report and "No flag" not in report
+    # materials.toml and every scene: a comment block first, naming the failure; still readable TOML
+    for name in ("materials.toml", "tight.cell.toml", "tight.patch.toml"):
+        text = (out / name).read_text()
+        assert text.startswith(f"# {UNUSABLE}"), name
+        comments = text.split("\n\n")[0]
+        assert STOPPED in comments, name
+        tomllib.loads(text)
+    assert UNUSABLE in tomllib.loads((out / "materials.toml").read_text())["title"]
+    # the console summary (stdout) lists the flags; stderr warns once
+    assert cap.out.startswith(UNUSABLE) and STOPPED in cap.out
+    assert f"warning: {UNUSABLE}" in cap.err
+
+
+@pytest.mark.parametrize("se, low, high, expected", [
+    (math.inf, 0.1, 0.29, "not finite"),
+    (143.8, 0.1, 0.2877, "larger than half its range"),     # the audit's d
+    (0.0940, 0.1, 0.2877, "larger than half its range"),    # just above half of 0.1877
+    (0.0935, 0.1, 0.2877, ""),                              # just below it
+    (0.001, 0.1, 0.2877, ""),
+])
+def test_identification_rule(se, low, high, expected):
+    rule = identification_rule(se, low, high, "mm")
+    assert (expected in rule) if expected else rule == ""
+
+
+def _fit(status="ok"):
+    p = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.3, in_plane_width=0.79, force_cap_N=200.0)
+    s = np.array([0.02, 0.04, 0.06, 0.08])
+    y = np.array([0.5, 1.0, 1.5, 2.0])
+    return SpecimenFit("tight", p, 50 / 4.4, s, y, y, np.full(4, 0.05), None, None, None, 0.0, 0.0, 0.0, status)
+
+
+def _result(estimates, success=True, converged=True, status="ok", message="converged"):
+    setup = JointSetup(base=_fit().params, shared=("B",), max_increment=0.02)
+    k = len(estimates)
+    return JointResult(estimates, np.eye(k), [_fit(status)], 1.0, 10, k, 0.1, success, message,
+                       [{"start": 0, "chi2_start": 2.0, "chi2": 1.0, "nfev": 3}], 3, 0.1, setup, _fit().params,
+                       converged, message)
+
+
+def test_each_reason_is_one_flag_and_the_report_leads_with_it():
+    """Hand-built estimates: d at its high bound; compaction_k with an sd 1000 x its range; phi0 with an
+    infinite sd; B fine; and a cell that did not solve.  Each is one flag, naming the rule."""
+    es = [Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3),
+          Estimate("d", None, 0.2877, 0.001, "mm", 0.1, 0.2877, "high", "the high end of the stated range"),
+          Estimate("compaction_k", None, 12.0, 1.45e4, "1/N", 0.0, 100.0, "not identified", "",
+                   not_identified=identification_rule(1.45e4, 0.0, 100.0, "1/N")),
+          Estimate("phi0", "tight", -0.6, math.inf, "rad", -0.29, 0.29, "not identified",
+                   not_identified=identification_rule(math.inf, -0.29, 0.29, "rad"))]
+    r = _result(es, success=False, converged=True, status="not converged",
+                message="converged; a specimen's cell did not solve on every row")
+    flags = r.flags
+    assert len(flags) == 4, flags                       # no optimiser flag: it converged
+    assert any(f.startswith("d = ") and "high bound" in f for f in flags)
+    assert any(f.startswith("compaction_k") and "larger than half its range" in f for f in flags)
+    assert any(f.startswith("phi0[tight]") and "not finite" in f for f in flags)
+    assert any("specimen tight" in f and "did not solve" in f for f in flags)
+    assert not any(f.startswith("B ") for f in flags)
+    d = r.as_dict(curves=False)
+    assert d["flags"] == flags and d["usable"] is False
+    assert [e["not_identified"] != "" for e in d["estimates"]] == [False, False, True, True]
+    rep = report_md(r, "t", "s.toml", [])
+    assert rep.index(UNUSABLE) < rep.index("## The yarn") and "No parameter is at a bound" not in rep
+    assert "NOT IDENTIFIED" in rep and "at high bound" in rep
+    assert cell_scene_of(r, 0, "s.toml").startswith(f"# {UNUSABLE}: 4 flags")
+    assert UNUSABLE in library_of(r, "glass", "s.toml")["title"]
+
+
+def test_a_clean_result_has_no_flag_and_says_so():
+    r = _result([Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)])
+    assert r.flags == [] and r.usable
+    rep = report_md(r, "t", "s.toml", [])
+    assert UNUSABLE not in rep and "No flag" in rep
+    assert not cell_scene_of(r, 0, "s.toml").startswith(f"# {UNUSABLE}")
+
+
+def test_an_optimiser_failure_alone_is_a_flag():
+    r = _result([Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)], success=False, converged=False,
+                message="The maximum number of function evaluations is exceeded.")
+    assert r.flags == ["the fit failed: the optimiser (least squares) did not converge: The maximum number of "
+                       "function evaluations is exceeded"]
+    rep = report_md(r, "t", "s.toml", [])
+    assert "The fit failed" in rep and "No parameter is at a bound" not in rep

@@ -1,0 +1,100 @@
+"""``knitsim calibrate`` refuses, before it prints or writes anything, a scene the fit would refuse and a
+strain the specimen's knit cannot reach (a column in per cent).
+
+The scenes and curves are written here by hand: Dusserre's E-glass knit L = 14.1, C0 = 2.7 mm, whose
+quarter-stitch cell is a straight yarn at C = C0 (1 + strain) = L/2, i.e. at strain L / (2 C0) - 1 = 1.611
+(the expected limits below are that formula, worked by hand, with the bounds each scene gives).
+"""
+from __future__ import annotations
+
+import copy
+import re
+
+import pytest
+
+from knitsim.calibration.scene import load_calibration_scene
+from knitsim.cli import main
+from knitsim.errors import KnitsimInputError
+from knitsim.scene.schema import dumps
+
+CAL = {"title": "refusals", "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
+       "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
+       "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
+                       "starts": 1, "refine": 1, "max_nfev": 2},
+       "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv", "noise_N": 0.05,
+                      "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
+
+
+def _curve(top, n=11):
+    """n rows from strain 0 to ``top`` (header row 1, so the last data row is spreadsheet row n + 1)."""
+    return "strain,load_N\n" + "".join(f"{top * k / (n - 1)!r},{0.5 * k}\n" for k in range(n))
+
+
+def _run(tmp_path, capsys, doc, curve):
+    (tmp_path / "a.csv").write_text(curve)
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    rc = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(tmp_path / "out")])
+    cap = capsys.readouterr()
+    return rc, cap
+
+
+def _one_line_refusal(tmp_path, rc, cap):
+    assert rc == 2, cap.err
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("knitsim: error: "), cap.err    # no progress header first
+    assert "Traceback" not in cap.err and cap.out == ""
+    assert not (tmp_path / "out").exists()
+    return lines[0]
+
+
+def test_strain_in_per_cent_is_refused_naming_file_row_column_and_value(tmp_path, capsys):
+    """Strains 0..20 (per cent of 0..0.2): 20 >= 1.611, refused at the file's largest strain, row 12."""
+    rc, cap = _run(tmp_path, capsys, copy.deepcopy(CAL), _curve(20.0))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert re.search(r"specimens\.tight: .*a\.csv: row 12, column strain: 20 is a strain the specimen's knit "
+                     r"cannot reach", line), line
+    assert "grip strain < 1.611" in line
+    assert "Is the column in per cent? A strain of 5 % is 0.05." in line
+
+
+def test_a_strain_below_one_beyond_reach_is_refused_without_the_per_cent_hint(tmp_path):
+    doc = copy.deepcopy(CAL)
+    (tmp_path / "a.csv").write_text(_curve(0.9))
+    doc["specimens"][0]["knit"]["C0"] = 4.0            # 14.1 / 8 - 1 = 0.7625 < 0.9
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    with pytest.raises(KnitsimInputError, match=r"0\.9 is a strain .*grip strain < 0\.7625\)\.$"):
+        load_calibration_scene(tmp_path / "cal.toml")
+
+
+def test_the_reach_is_the_loosest_the_fit_allows(tmp_path):
+    """Strain 1.7: beyond 1.611 with L and C0 as stated; within reach when L may rise to 14.1 e^(4 x 0.02)
+    = 15.27 mm (1.829); beyond again through a pretension of up to 0.2: (1 + 1.611) / 1.2 - 1 = 1.176 with
+    L, C0 as stated (strain 1.3 < 1.611 then refused)."""
+    (tmp_path / "a.csv").write_text(_curve(1.7))
+    doc = copy.deepcopy(CAL)
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    with pytest.raises(KnitsimInputError, match=r"1\.7 is a strain .*grip strain < 1\.611"):
+        load_calibration_scene(tmp_path / "cal.toml")
+    doc["calibration"]["per_specimen"] = ["L"]
+    doc["specimens"][0]["uncertainty"] = {"L": 0.02}
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    load_calibration_scene(tmp_path / "cal.toml")       # L at its upper bound reaches it
+    doc = copy.deepcopy(CAL)
+    doc["calibration"]["per_specimen"] = ["pretension"]
+    doc["calibration"]["bounds"] = {"pretension": [0.0, 0.2]}
+    doc["specimens"][0]["pretension_sd"] = 0.01
+    (tmp_path / "a.csv").write_text(_curve(1.3))
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    with pytest.raises(KnitsimInputError, match=r"1\.3 is a strain .*pretension of 0\.2.*grip strain < 1\.176"):
+        load_calibration_scene(tmp_path / "cal.toml")
+    doc["calibration"]["bounds"] = {"pretension": [0.0, 0.05]}     # (2.611 / 1.05) - 1 = 1.487 > 1.3
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    load_calibration_scene(tmp_path / "cal.toml")
+
+
+def test_an_unknown_shared_variable_is_refused_before_anything_is_printed(tmp_path, capsys):
+    doc = copy.deepcopy(CAL)
+    doc["calibration"]["shared"] = ["B", "bogus"]
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert "calibration.shared: 'bogus' is not a yarn variable" in line

@@ -1,0 +1,197 @@
+"""A patch whose force is its cells' force cap says so (warning force_cap_reached, the peak "(= force cap)").
+
+Where the expected outcomes come from:
+
+- the E-glass cell of Dusserre (2015) (Table 1, section 2.2; m = 0.2) run alone with ``run_batch`` on
+  ``monotonic(0.6, 0.05)`` carries 0.0925 N per wale at strain 0.15 and 0.1005 N at 0.2, so with
+  ``force_cap_N = 0.1`` it stops at the cap (status force_cap) at strain 0.2, and with 10 N never; a uniform
+  patch drives every column at exactly the grip strain and reproduces that cell bit for bit
+  (:mod:`knitsim.patch.coupling`), so its cells stop at grip strain 0.2;
+- the hand-made histories follow the definition of :func:`knitsim.io.checks.held_at_force_cap` (at the cap:
+  status force_cap, or within 1 % of the cap while the column did not converge or over two increments in a
+  row), modelled on the 3 x 4 patch of random phi0 pulled to grip strain 1.2 with a cap of 10 N, whose
+  columns stayed at 9.975 N per wale, not converged, from grip strain 0.82 on.
+"""
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+
+import numpy as np
+import pytest
+
+from knitsim.cell.history import STATUS_FORCE_CAP, STATUS_OK
+from knitsim.cell.load_program import cycles, monotonic
+from knitsim.cell.material import CellParams
+from knitsim.io.checks import FORCE_CAP_RTOL, force_cap_reached, held_at_force_cap
+from knitsim.io.patch_results import force_cap_rows, patch_summary
+from knitsim.patch.coupling import COL_NOT_CONVERGED, COL_OK
+from knitsim.patch.model import PatchModel
+from knitsim.patch.runner import PatchHistory, run_patch
+
+P = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, force_cap_N=0.1)
+
+
+def test_held_at_force_cap_by_its_definition():
+    F = np.array([[5.0, 5.0], [9.95, 9.0], [9.95, 9.96], [9.97, 9.0], [9.0, 9.0]])
+    status = np.zeros_like(F, dtype=int)
+    status[4, 1] = STATUS_FORCE_CAP
+    bad = np.zeros_like(F, dtype=bool)
+    bad[2, 1] = True
+    at = held_at_force_cap(F, status, 10.0, bad)
+    # column 0: 9.95, 9.95, 9.97 are within 1 % of 10 three increments in a row (a plateau)
+    # column 1: 9.96 once, its column not converged; then the status force_cap
+    assert at.tolist() == [[False, False], [True, False], [True, True], [True, False], [False, True]]
+    # without the cap (no model) only the status counts; one increment near the cap in a converged column is a
+    # response, not the cap
+    assert held_at_force_cap(F, status, None).tolist() == (status == STATUS_FORCE_CAP).tolist()
+    assert not held_at_force_cap(np.array([[5.0], [9.99], [8.0]]), np.zeros((3, 1), int), 10.0).any()
+    assert FORCE_CAP_RTOL == 0.01
+
+
+def test_force_cap_reached_message_says_where_how_many_and_what_to_do():
+    (w,) = force_cap_reached(np.array([0.1, 0.2, 0.3]), np.array([False, True, True]), [10.0, 10.0], cells=12,
+                             cells_at_cap=12, cells_stopped=0, columns=3, columns_at_cap=3, peak=9.975)
+    assert w.code == "force_cap_reached"
+    for words in ("from grip strain 0.2", "force cap (10 N per wale)", "12 of 12 cell(s)", "3 of 3 column(s)",
+                  "12 held within 1% of it", "2 of 3 increments", "the peak 9.975", "raise rules.force_cap_N",
+                  "below 0.2"):
+        assert words in w.message, words
+    assert force_cap_reached(np.array([0.1]), np.array([False]), 10.0, 1, 0, 0, 1, 0) == []
+
+
+def _held_history():
+    """1 course x 2 wales, each column its own group, loaded to the cap: the forces of repro A (8.55 N, then
+    9.975 N not converged from grip strain 0.82 on)."""
+    e = np.array([0.78, 0.80, 0.82, 0.84, 0.86])
+    Fc = np.array([4.88, 8.55, 9.975, 9.975, 9.975])
+    col = np.repeat(Fc[:, None], 2, axis=1)
+    st = np.where(Fc[:, None] > 9.0, COL_NOT_CONVERGED, COL_OK).repeat(2, axis=1)
+    n = len(e)
+    groups = {"C": np.full((n, 2), 3.0), "F": col.copy(), "phi": np.zeros((n, 2)),
+              "label": np.zeros((n, 2), np.int8), "status": np.full((n, 2), STATUS_OK, np.int8)}
+    h = PatchHistory(e, np.ones(n, int), np.ones(n, int), col.sum(axis=1), Fc, col, st, np.ones((n, 2), int),
+                     np.zeros((n, 2)), np.array([[0, 1]]), groups, np.full((1, 2), 2.7), info={"n_groups": 2})
+    return h, PatchModel.uniform(P.replace(force_cap_N=10.0), 1, 2)
+
+
+def test_a_column_held_under_the_cap_is_named_from_its_first_increment():
+    h, model = _held_history()
+    s = patch_summary(h, 2.7, model=model)
+    assert s["grip_strain_at_force_cap"] == pytest.approx(0.82)
+    assert s["cycles"][0]["peak_is_force_cap"] is True
+    (w,) = [w for w in s["warnings"] if w["code"] == "force_cap_reached"]
+    assert "from grip strain 0.82" in w["message"] and "2 of 2 cell(s) in 2 of 2 wale column(s)" in w["message"]
+    assert "2 held within 1% of it" in w["message"]
+    # without the model the caps are unknown: a held column (no status force_cap) is not named
+    assert force_cap_rows(h, None).rows.tolist() == [False] * 5
+
+
+def test_patch_cells_stopped_at_the_cap_are_named_and_the_peak_is_the_cap():
+    h = run_patch(PatchModel.uniform(P, 2, 2), monotonic(0.3, 0.05))
+    s = patch_summary(h, h.info["ref_length_mm"], model=PatchModel.uniform(P, 2, 2))
+    assert s["grip_strain_at_force_cap"] == pytest.approx(0.2)
+    assert s["cycles"][0]["peak_is_force_cap"] is True
+    (w,) = [w for w in s["warnings"] if w["code"] == "force_cap_reached"]
+    assert "from grip strain 0.2 " in w["message"] and "4 of 4 cell(s)" in w["message"]
+    assert "4 stopped at it, status force_cap" in w["message"] and "(0.1 N per wale)" in w["message"]
+    assert not [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]   # monotonic: nothing cut
+
+
+def test_cyclic_patch_stopped_at_the_cap_says_the_unloadings_were_not_run():
+    model = PatchModel.uniform(P, 1, 2)
+    h = run_patch(model, cycles(0.1, 0.3, 2, 0.05))
+    s = patch_summary(h, h.info["ref_length_mm"], model=model)
+    (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
+    assert cut["message"].startswith("2 wale column(s) stopped at the force cap (0.1 N per wale) at grip strain 0.2")
+    assert "cycle 2" in cut["message"]
+
+
+def test_a_patch_below_its_cap_says_nothing_of_it():
+    model = PatchModel.uniform(P.replace(force_cap_N=10.0), 1, 2)
+    s = patch_summary(run_patch(model, monotonic(0.3, 0.05)), 2.7, model=model)
+    assert s["grip_strain_at_force_cap"] is None and s["cycles"][0]["peak_is_force_cap"] is False
+    assert not [w for w in s["warnings"] if "force_cap" in w["code"]]
+
+
+SCENE = """
+title = "tiny patch to the cap"
+engine = "warp"
+device = "cpu"
+[patch]
+wales = 2
+courses = 1
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.2
+phi0 = 0.0
+[rules]
+force_cap_N = 0.1
+[load]
+type = "monotonic"
+target_strain = 0.3
+max_increment = 0.05
+[output]
+checkpoint_every = 1
+"""
+
+
+def test_knitsim_run_prints_the_cap_warning_and_marks_the_peak(tmp_path, capsys):
+    from knitsim.cli import main
+    scene = tmp_path / "cap.toml"
+    scene.write_text(SCENE)
+    rc = main(["run", str(scene), "--out", str(tmp_path / "o"), "--no-progress"])
+    out, err = capsys.readouterr()
+    assert rc == 1                                   # stopped cells: not all converged
+    assert "knitsim run: warning: from grip strain 0.2 the force is the force cap" in err
+    assert "(= force cap) at grip strain 0.2" in out
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert "force_cap_reached" in [w["code"] for w in s["warnings"]]
+
+
+def test_ctrl_c_says_what_was_kept_and_the_command_that_resumes(tmp_path, capsys, monkeypatch):
+    """Ctrl-C after 2 increments: run_patch's stop_after writes the checkpoint with done = 2 (its docstring);
+    the printed command, run as printed, finishes the run (the 6 increments of monotonic(0.3, 0.05))."""
+    import knitsim.patch.runner as runner
+    from knitsim.cli import main
+    scene = tmp_path / "cap.toml"
+    scene.write_text(SCENE)
+    real = runner.run_patch
+
+    def interrupted(*a, **k):
+        try:
+            return real(*a, stop_after=2, **k)
+        except runner.PatchInterrupted:
+            raise KeyboardInterrupt from None
+
+    argv = ["run", str(scene), "--no-progress", "--set", "load.target_strain=0.3", "--out", str(tmp_path / "o")]
+    monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
+    monkeypatch.setattr(runner, "run_patch", interrupted)
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    ck = tmp_path / "o" / "checkpoint.pkl"
+    assert f"2/6 increment(s) kept in the checkpoint {ck} (up to increment 2)" in err
+    cmd = err.split("continue with: ")[1].strip().splitlines()[0]
+    assert cmd.startswith("knitsim run ") and cmd.endswith(" --resume")
+    monkeypatch.setattr(runner, "run_patch", real)
+    assert main(shlex.split(cmd)[1:]) == 1           # the cap stops the cells (rc 1), the run is complete
+    assert len((tmp_path / "o" / "curve.csv").read_text().splitlines()) == 1 + 1 + 6
+    assert not ck.exists()
+
+
+def test_ctrl_c_without_checkpoints_says_nothing_was_kept(tmp_path, capsys, monkeypatch):
+    import knitsim.patch.runner as runner
+    from knitsim.cli import main
+    scene = tmp_path / "cap.toml"
+    scene.write_text(SCENE.replace("checkpoint_every = 1", "checkpoint_every = 0"))
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "run_patch", interrupted)
+    assert main(["run", str(scene), "--no-progress", "--out", str(tmp_path / "o")]) == 130
+    assert "nothing was kept (output.checkpoint_every = 0" in capsys.readouterr().err
