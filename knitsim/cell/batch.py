@@ -746,7 +746,7 @@ class CellSolver:
         n = min(total, self._ev[0].shape[0])
         if total > n:
             raise RuntimeError(f"event buffer overflow: {total} events, capacity {n}; pass event_capacity=")
-        cols = [a.numpy()[:n] for a in self._ev]
+        cols = [a[:n].numpy() for a in self._ev]      # (only the n recorded: the buffer holds ~64 per cell)
         order = np.lexsort((np.arange(n), cols[0]))
         return {name: c[order] for name, c in zip(("cell", "increment", "kind", "C", "F", "label_from", "label_to"),
                                                     cols)}
