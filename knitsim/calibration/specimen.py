@@ -126,26 +126,28 @@ def check_reach(sp: "SpecimenData", limit: float, why: str, where: str | None = 
 
     ``limit`` is the largest grip strain the specimen's knit can reach, in the loosest case the fit allows
     (:func:`knitsim.diagnosis.measured.reachable_strain` at the largest L and smallest C0, through the largest
-    pretension: :func:`pretension_strain`); ``why`` says how it was obtained.  Every row of every file read is
-    checked (as the diagnosis checks a whole curve, :func:`knitsim.diagnosis.measured.check_reachable`), not
-    only the rows fitted: a file whose strain is in per cent would otherwise be read, up to the end of the
-    other files, at its first rows.  The row named is the file's largest strain.  Nothing is solved.
+    pretension: :func:`pretension_strain`); ``why`` says how it was obtained.  The rows of each file up to the
+    end of the fit are checked, and the first that reaches the limit is named: a tail cut off with
+    ``end_strain`` (a test run on past what the model can reach) is not refused.  (A band whose files end
+    ten times apart, one in per cent, is refused when it is read: :func:`specimen_from_files`.)  Nothing is
+    solved.
 
     Raises
     ------
     KnitsimInputError
     """
     where = where or f"specimens.{sp.name}"
+    top = float(sp.strain[-1])
     for src in sp.sources:
         try:
             t = read_table(src)
         except (KnitsimInputError, OSError):       # pragma: no cover - it was read before
             continue
-        i = int(np.argmax(t.strain))
-        if t.strain[i] >= limit:
+        fitted = t.strain <= top * (1.0 + 1e-12) + 1e-12
+        if np.any(fitted & (t.strain >= limit)):
+            i = int(np.argmax(np.where(fitted, t.strain, -np.inf)))     # the largest strain fitted
             _unreachable(where, f"{t.source}: row {int(t.rows[i])}, column {t.strain_column}:", float(t.strain[i]),
                          limit, why)
-    top = float(sp.strain[-1])
     if top >= limit:                                # rows without a file (a SpecimenData made in code)
         _unreachable(where, "the last row fitted, grip strain", top, limit, why)
 
@@ -371,6 +373,13 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         raise KnitsimInputError(f"{where}: the files mix total forces and forces per wale "
                                 f"({', '.join(t.source for t in tables)})")
     end = min(t.strain[-1] for t in tables)
+    far = max(t.strain[-1] for t in tables)
+    if far > 10.0 * max(end, 1e-12):
+        # the two envelopes of one specimen's scatter span the same test: one ten times longer is in
+        # other units (per cent)
+        raise KnitsimInputError(f"{where}: the files' strains end at "
+                                f"{', '.join(f'{t.source}: {float(t.strain[-1]):g}' for t in tables)}, ten times apart "
+                                "or more; is one in per cent? A strain of 5 % is 0.05.")
     if end_strain is not None:
         if end_strain > end:
             raise KnitsimInputError(f"{where}.end_strain = {end_strain!r}: beyond the data (ends at {end:g})")

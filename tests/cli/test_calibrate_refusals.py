@@ -98,3 +98,27 @@ def test_an_unknown_shared_variable_is_refused_before_anything_is_printed(tmp_pa
     rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
     line = _one_line_refusal(tmp_path, rc, cap)
     assert "calibration.shared: 'bogus' is not a yarn variable" in line
+
+
+def test_a_tail_cut_off_with_end_strain_is_not_refused(tmp_path):
+    # a test run on to strain 1.8, past what the knit reaches (1.611 for L = 14.1, C0 = 2.7), with the fit
+    # stopped at 0.2 by end_strain: the tail is not fitted, so the file is read (a lab keeps its whole record)
+    doc = copy.deepcopy(CAL)
+    (tmp_path / "a.csv").write_text("strain,load_N\n" + "".join(f"{0.02 * k!r},{0.5 * k}\n" for k in range(91)))
+    doc["specimens"][0]["end_strain"] = 0.2
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    load_calibration_scene(tmp_path / "cal.toml")
+
+
+def test_a_band_with_one_file_in_per_cent_is_refused(tmp_path):
+    # the two envelopes of one specimen's scatter cover one test: one ending at 20 and the other at 0.2
+    # (the same test in per cent) end 100 times apart
+    doc = copy.deepcopy(CAL)
+    spec = doc["specimens"][0]
+    del spec["curve"], spec["noise_N"]
+    spec["band"] = ["lo.csv", "hi.csv"]
+    (tmp_path / "lo.csv").write_text(_curve(0.2))
+    (tmp_path / "hi.csv").write_text(_curve(20.0).replace(",0.5", ",0.6"))
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    with pytest.raises(KnitsimInputError, match=r"ten times apart or more; is one in per cent"):
+        load_calibration_scene(tmp_path / "cal.toml")
