@@ -144,7 +144,8 @@ def _load_table() -> Table:
                               min=0.0, min_inclusive=False),
         "cycles": Field(("int",), OPTIONAL, "cycles: number of load-unload cycles", min=1),
         "waypoints": Field(("float_list",), OPTIONAL, "piecewise: strains to pass through, from rest"),
-        "max_increment": Field(("float",), 0.005, "largest strain increment", min=0.0, min_inclusive=False),
+        "max_increment": Field(("float",), 0.005, "largest strain increment (at most 0.1: a row every 10 % of "
+                               "strain cannot show a cycle's stages)", min=0.0, min_inclusive=False, max=0.1),
     }, "strain-controlled load program of the course length", required=True)
 
 

@@ -114,6 +114,8 @@ def test_phi0_forms():
     # a quarter stitch of length L/4 spans C/2: C < L/2, strain < 14.1/5.4 - 1 = 1.611
     (dict(load__target_strain=2.0), r"^load\.target_strain = 2\.0: strain 2 cannot be reached: .* strain < 1\.611$"),
     (dict(load__max_increment=0.0), r"^load\.max_increment = 0\.0: must be > 0$"),
+    # an increment past the whole program (1e9) records one row: a cycle's stages cannot show (at most 0.1)
+    (dict(load__max_increment=1e9), r"^load\.max_increment = 1000000000\.0: must be <= 0\.1$"),
 ])
 def test_bad_scenes_refused_naming_key_and_value(changes, match):
     refused(scene(**changes), match)
