@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import KnitsimInputError
-from ..diagnosis.measured import NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL, strain_tolerance
+from ..diagnosis.measured import PER_CENT_HINT, compression_limit, strain_tolerance
 from ..io.table_input import read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
@@ -77,7 +77,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     # a lab's zero offset and jitter are kept, as the diagnosis keeps them (knitsim.diagnosis.measured): a
     # strain down to -max(0.005, 5 % of the largest) is an extensometer's zero, a step back by at most 1e-3
     # of the strain range is jitter (the running maximum is used, the force is kept); beyond, it is wrong
-    limit = -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL * max(float(np.max(strain)), 0.0))
+    limit = compression_limit(strain)
     bad = np.nonzero(strain < limit)[0]
     if len(bad):
         i = int(bad[0])
@@ -153,7 +153,7 @@ def check_reach(sp: "SpecimenData", limit: float, why: str, where: str | None = 
 
 
 def _unreachable(where: str, place: str, value: float, limit: float, why: str):
-    pct = " Is the column in per cent? A strain of 5 % is 0.05." if value >= 1.0 else ""
+    pct = " " + PER_CENT_HINT if value >= 1.0 else ""
     raise KnitsimInputError(f"{where}: {place} {value:g} is a strain the specimen's knit cannot reach "
                             f"({why}: grip strain < {limit:.4g}).{pct}")
 
@@ -379,7 +379,7 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         # other units (per cent)
         raise KnitsimInputError(f"{where}: the files' strains end at "
                                 f"{', '.join(f'{t.source}: {float(t.strain[-1]):g}' for t in tables)}, ten times apart "
-                                "or more; is one in per cent? A strain of 5 % is 0.05.")
+                                f"or more. {PER_CENT_HINT}")
     if end_strain is not None:
         if end_strain > end:
             raise KnitsimInputError(f"{where}.end_strain = {end_strain!r}: beyond the data (ends at {end:g})")

@@ -125,6 +125,16 @@ NEGATIVE_STRAIN_ABS = 5.0e-3
 NEGATIVE_STRAIN_REL = 0.05
 
 
+def compression_limit(strain) -> float:
+    """The lowest strain read as an extensometer's zero offset, not a compression:
+    -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL x the largest strain)."""
+    return -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL * max(float(np.max(strain)), 0.0))
+
+
+#: what an unreachable strain of 1 or more most likely is (the refusals of the diagnosis and the calibration)
+PER_CENT_HINT = "Is the column in per cent? A strain of 5 % is 0.05."
+
+
 def reachable_strain(L: float, C0: float) -> float:
     """The largest strain a quarter-stitch cell reaches: C = C0 (1 + strain) < L/2 (a straight yarn)."""
     return L / (2.0 * C0) - 1.0
@@ -136,7 +146,7 @@ def check_reachable(curve: "MeasuredCurve", limit: float, why: str) -> None:
     s = curve.strain_read if curve.strain_read is not None else curve.strain
     i = int(np.argmax(s))
     if s[i] >= limit:
-        pct = " Is the column in per cent? A strain of 5 % is 0.05." if s[i] >= 1.0 else ""
+        pct = " " + PER_CENT_HINT if s[i] >= 1.0 else ""
         raise KnitsimInputError(f"{curve.source}: row {curve.row_of(i)}, column strain: {float(s[i]):g} cannot be "
                                 f"reached by the scene's knit ({why}: strain < {limit:.4g}).{pct}")
 
@@ -288,7 +298,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                                 "stretched, so there is no curve to compare (is it the right column?)")
     # a knit is modelled in tension: a strain below zero by more than an extensometer's zero offset is a
     # compression (or a reversed sign), not jitter
-    limit = -max(NEGATIVE_STRAIN_ABS, NEGATIVE_STRAIN_REL * max(float(np.max(s)), 0.0))
+    limit = compression_limit(s)
     bad = np.nonzero(s < limit)[0]
     if len(bad):
         raise KnitsimInputError(f"{source}: row {row(bad[0])}, column strain: {float(s[bad[0]]):g} is a compression "

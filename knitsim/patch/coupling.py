@@ -468,7 +468,7 @@ class BranchPoints:
         every = rows.size == len(self._rows)     # (then the kept points are changed in place)
         if not every:
             C, F, K, f_target = C[rows], F[rows], K[rows], f_target[rows]
-        Ck, Fk, Kk, valid = ((a, a[rows])[not every] for a in (self.C, self.F, self.K, self.valid))
+        Ck, Fk, Kk, valid = (a if every else a[rows] for a in (self.C, self.F, self.K, self.valid))
         C2, F2 = C[:, None], F[:, None]
         conflict = ((Fk < F2) & (Ck > C2)) | ((Fk > F2) & (Ck < C2))
         dup_zero = (Fk == 0.0) & (F2 == 0.0) & (Ck <= C2)

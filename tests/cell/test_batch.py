@@ -63,6 +63,10 @@ def _assert_histories_agree(h, r, rtol=1e-6, floor=1e-3):
     for eh, er in zip(h.events, r.events):
         if "C" in er:
             assert eh["C"] == pytest.approx(er["C"], rel=rtol)
+        # the force per wale at a located event (the kernel's record, read by the patch coupling as the
+        # kink of a branch) against the reference's own event state
+        if "F" in er:
+            assert eh["F"] == pytest.approx(er["F"], rel=rtol, abs=rtol * floor), (eh, er)
 
 
 @pytest.fixture(scope="module")

@@ -120,5 +120,5 @@ def test_a_band_with_one_file_in_per_cent_is_refused(tmp_path):
     (tmp_path / "lo.csv").write_text(_curve(0.2))
     (tmp_path / "hi.csv").write_text(_curve(20.0).replace(",0.5", ",0.6"))
     (tmp_path / "cal.toml").write_text(dumps(doc))
-    with pytest.raises(KnitsimInputError, match=r"ten times apart or more; is one in per cent"):
+    with pytest.raises(KnitsimInputError, match=r"ten times apart or more\. Is the column in per cent"):
         load_calibration_scene(tmp_path / "cal.toml")
