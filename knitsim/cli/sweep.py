@@ -8,7 +8,10 @@ The ``[sweep]`` table (in the scene, or a separate file with ``--sweep``) is
 described in :mod:`knitsim.sweep.spec`; every sample is validated before
 anything runs.  Results go to ``DIR`` (default ``<scene stem>_sweep``):
 ``sweep.json``, ``chunks/``, ``results.nc``, ``results.csv``,
-``plot_sweep.png`` (:mod:`knitsim.sweep.runner`).  Chunks run on a local Dask
+``plot_sweep.png`` (:mod:`knitsim.sweep.runner`) and ``summary.json``: the
+samples that failed, have no rest state, lie outside the domain's box,
+return energy, rest compressed or stopped at the force cap, each with its
+reason (what ``--json`` prints, and what the plot's title counts).  Chunks run on a local Dask
 cluster with one worker process per core unless ``--workers 0`` (in this
 process) or ``--scheduler tcp://host:port`` (an existing cluster).  Killing a
 run keeps the finished chunks; ``--resume`` finishes it.
@@ -22,7 +25,8 @@ from pathlib import Path
 
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
-from ..io.results import add_output_flags, prepare_output_dir
+from ..io.jsonable import json_text
+from ..io.results import add_output_flags, atomic_write_text, prepare_output_dir
 from .common import add_json_flag, print_json
 
 
@@ -138,10 +142,12 @@ def _run(args) -> int:
         "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
         # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
         "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
-        "files": {k: str(v) for k, v in run.files.items()},
+        "files": {k: str(v) for k, v in run.files.items()} | {"summary.json": str(out / "summary.json")},
     }
+    # the flags go where the user looks: the plot's title counts them and says "see summary.json"
+    atomic_write_text(out / "summary.json", json_text(summary))
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
-          f"{run.wall_s:.1f} s; wrote {', '.join(sorted(run.files))} to {out}", file=sys.stderr, flush=True)
+          f"{run.wall_s:.1f} s; wrote {', '.join(sorted(summary['files']))} to {out}", file=sys.stderr, flush=True)
     if n_bad:
         print(f"knitsim sweep: warning: {n_bad} sample cell(s) failed (no results: NaN in results.nc, grey in "
               "the plots):", file=sys.stderr, flush=True)

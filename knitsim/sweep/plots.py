@@ -173,7 +173,7 @@ _TITLE_PHRASES = (
 def _title(title: str, marks: _Marks) -> str:
     parts = [f"{n} {phrase}" for name, phrase in _TITLE_PHRASES
              if (n := int(np.count_nonzero(getattr(marks, name))))]
-    return title if not parts else title + "\n" + "; ".join(parts) + "; see summary"
+    return title if not parts else title + "\n" + "; ".join(parts) + "; see summary.json"
 
 
 def _mark_axis(ax, xs, marks: _Marks, lines: bool = False) -> None:

@@ -50,7 +50,7 @@ def test_sweep_runs_and_prints_json(tmp_path, capsys, monkeypatch):
     assert rc == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["samples"] == 3 and doc["chunks"] == 2 and doc["parameters"] == ["friction.m"]
-    for f in ("sweep.json", "results.nc", "results.csv", "plot_sweep.png"):
+    for f in ("sweep.json", "results.nc", "results.csv", "plot_sweep.png", "summary.json"):
         assert (out / f).is_file()
 
 

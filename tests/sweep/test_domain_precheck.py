@@ -85,6 +85,10 @@ def test_sweep_cli_summary_lists_the_domain(tmp_path, capsys):
     s = json.loads(cap.out)
     assert rc == 0 and len(s["no_rest_state"]) == 2 and len(s["outside_domain"]) == 1 and s["failed"] == []
     assert "2 of 4 sample(s) have no admissible rest state" in cap.err      # said before the solve
+    # the same lists, with their reasons, stay in the output folder (the plot's title points there)
+    kept = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert [r["sample"] for r in kept["no_rest_state"]] == [2, 3] and [r["sample"] for r in kept["outside_domain"]] == [1]
+    assert all("would pull" in r["reason"] for r in kept["no_rest_state"]) and kept["failed"] == []
 
 
 def test_patch_run_refuses_a_rest_less_cell_before_any_work(tmp_path, capsys):
