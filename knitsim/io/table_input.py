@@ -5,7 +5,9 @@ wrong, naming the file, the row (the file's own line number, as a spreadsheet
 shows it), the column and the value, and what to do:
 
 - a UTF-8 byte-order mark (Excel's "CSV UTF-8"), UTF-16 with its byte-order
-  mark (Excel's "Unicode Text", tab-separated), or Windows-1252 text;
+  mark (Excel's "Unicode Text", tab-separated) or without one (a machine's
+  export or a BOM lost in a copy: recognised by its zero bytes), or
+  Windows-1252 text;
 - CRLF or LF line ends, blank lines, spaces around cells, quoted cells;
 - ``,`` ``;`` or tab as the delimiter, found from the header line (the one
   that splits it into the most fields);
@@ -42,10 +44,29 @@ def _text(path: Path) -> str:
         return raw.decode("utf-32", errors="replace")
     if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
         return raw.decode("utf-16", errors="replace")   # Excel's "Unicode Text"; the BOM is dropped
+    utf16 = _utf16_without_bom(raw)
+    if utf16:
+        return raw.decode(utf16, errors="replace")
     try:
         return raw.decode("utf-8-sig")       # strips Excel's byte-order mark
     except UnicodeDecodeError:
         return raw.decode("cp1252", errors="replace")
+
+
+def _utf16_without_bom(raw: bytes) -> str | None:
+    """"utf-16-le" / "utf-16-be" for UTF-16 text without a byte-order mark, else None.
+
+    A table is mostly ASCII, whose UTF-16 has a zero byte in every other place: in the odd places for
+    little-endian, the even ones for big-endian.  Text in UTF-8 or Windows-1252 has no zero bytes."""
+    head = raw[:4096]
+    if len(head) < 4 or len(head) % 2 or head.count(0) < len(head) // 4:
+        return None
+    odd, even = head[1::2].count(0), head[0::2].count(0)
+    if odd >= 0.9 * (len(head) // 2) and even == 0:
+        return "utf-16-le"
+    if even >= 0.9 * (len(head) // 2) and odd == 0:
+        return "utf-16-be"
+    return None
 
 
 def _delimiter(header_line: str) -> str:
