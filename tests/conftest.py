@@ -12,3 +12,18 @@ warp_runtime.init()
 def device(request) -> str:
     """A Warp device alias: ``"cpu"``, plus ``"cuda:0"`` when a GPU is present."""
     return request.param
+
+
+@pytest.fixture
+def e_glass_calibration():
+    """A one-specimen ``knitsim calibrate`` scene as a dict (a fresh one per call), on Dusserre's E-glass yarn
+    and knit (Table 1, section 2.2: d = 0.58 mm, B = 0.31 N mm^2; L = 14.1, W0 = 4.4, C0 = 2.7 mm), fitting
+    B and m, its curve in ``a.csv`` beside the scene: ``make(title, starts=1, max_nfev=2)``."""
+    def make(title: str, starts: int = 1, max_nfev: int = 2) -> dict:
+        return {"title": title, "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
+                "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
+                "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
+                                "starts": starts, "refine": 1, "max_nfev": max_nfev},
+                "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv",
+                               "noise_N": 0.05, "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
+    return make

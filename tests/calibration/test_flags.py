@@ -23,17 +23,11 @@ from knitsim.calibration.outputs import UNUSABLE, cell_scene_of, library_of, rep
 from knitsim.cell.material import CellParams
 from knitsim.scene.schema import dumps
 
-CAL = {"title": "flags", "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
-       "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
-       "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
-                       "starts": 1, "refine": 1, "max_nfev": 3},
-       "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv", "noise_N": 0.05,
-                      "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
 CURVE = "strain,load_N\n" + "".join(f"{0.02 * k},{0.5 * k}\n" for k in range(11))
 STOPPED = "stopped by the test before it converged"
 
 
-def test_a_failed_optimiser_is_flagged_in_every_file(tmp_path, monkeypatch, capsys):
+def test_a_failed_optimiser_is_flagged_in_every_file(tmp_path, monkeypatch, capsys, e_glass_calibration):
     """The least squares is made to report failure (its own x kept): calibration.json, report.md,
     materials.toml, the scenes and the console must all say the calibration is not usable, with the message."""
     real = joint.least_squares
@@ -45,7 +39,7 @@ def test_a_failed_optimiser_is_flagged_in_every_file(tmp_path, monkeypatch, caps
     monkeypatch.setattr(joint, "least_squares", failing)
     from knitsim.cli import main
     (tmp_path / "a.csv").write_text(CURVE)
-    (tmp_path / "cal.toml").write_text(dumps(CAL))
+    (tmp_path / "cal.toml").write_text(dumps(e_glass_calibration("flags", max_nfev=3)))
     out = tmp_path / "out"
     rc = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(out), "--no-progress"])
     cap = capsys.readouterr()

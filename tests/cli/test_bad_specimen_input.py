@@ -10,13 +10,6 @@ import pytest
 from knitsim.cli import main
 from knitsim.scene.schema import dumps
 
-# E-glass yarn and knit (Table 1, section 2.2): W0 = 4.4, C0 = 2.7 mm
-CAL = {"title": "bad input", "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
-       "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
-       "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
-                       "starts": 2, "refine": 1, "max_nfev": 2},
-       "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv", "noise_N": 0.05,
-                      "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
 CURVE = "strain,load_N\n" + "".join(f"{0.02 * k},{0.5 * k}\n" for k in range(11))
 
 
@@ -45,8 +38,8 @@ _DEL = object()
     (None, None, "strain,load_N\n0,0\n0.1,abc\n", r"specimens\[0\]\.curve: .*a\.csv: row 3, column load_N"),
     (None, None, "time_s,load_N\n0,0\n0.1,1\n", r"specimens\[0\]\.curve: .*a\.csv: no strain column"),
 ])
-def test_calibrate_refuses_bad_input_in_one_line(tmp_path, capsys, path, value, curve, match):
-    doc = copy.deepcopy(CAL)
+def test_calibrate_refuses_bad_input_in_one_line(tmp_path, capsys, path, value, curve, match, e_glass_calibration):
+    doc = e_glass_calibration("bad input", starts=2)
     if path is not None:
         _set(doc, path, value)
     (tmp_path / "a.csv").write_text(curve)
@@ -98,9 +91,9 @@ def test_specimen_and_grades_refuse_bad_input_in_one_line(tmp_path, capsys, edit
     assert not (tmp_path / "out").exists()
 
 
-def test_progress_and_the_out_policy(tmp_path, capsys):
+def test_progress_and_the_out_policy(tmp_path, capsys, e_glass_calibration):
     (tmp_path / "a.csv").write_text(CURVE)
-    (tmp_path / "cal.toml").write_text(dumps(copy.deepcopy(CAL)))
+    (tmp_path / "cal.toml").write_text(dumps(e_glass_calibration("bad input", starts=2)))
     out = tmp_path / "out"
     argv = ["calibrate", str(tmp_path / "cal.toml"), "--out", str(out)]
     rc = main(argv)

@@ -7,7 +7,6 @@ quarter-stitch cell is a straight yarn at C = C0 (1 + strain) = L/2, i.e. at str
 """
 from __future__ import annotations
 
-import copy
 import re
 
 import pytest
@@ -17,12 +16,6 @@ from knitsim.cli import main
 from knitsim.errors import KnitsimInputError
 from knitsim.scene.schema import dumps
 
-CAL = {"title": "refusals", "yarn": {"name": "glass", "d": 0.58, "B": 0.31, "in_plane_width": 0.79},
-       "friction": {"m": 0.3}, "rules": {"force_cap_N": 200.0},
-       "calibration": {"shared": ["B", "m"], "per_specimen": [], "max_increment": 0.02, "row_step": 0.02,
-                       "starts": 1, "refine": 1, "max_nfev": 2},
-       "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv", "noise_N": 0.05,
-                      "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
 
 
 def _curve(top, n=11):
@@ -47,9 +40,9 @@ def _one_line_refusal(tmp_path, rc, cap):
     return lines[0]
 
 
-def test_strain_in_per_cent_is_refused_naming_file_row_column_and_value(tmp_path, capsys):
+def test_strain_in_per_cent_is_refused_naming_file_row_column_and_value(tmp_path, capsys, e_glass_calibration):
     """Strains 0..20 (per cent of 0..0.2): 20 >= 1.611, refused at the file's largest strain, row 12."""
-    rc, cap = _run(tmp_path, capsys, copy.deepcopy(CAL), _curve(20.0))
+    rc, cap = _run(tmp_path, capsys, e_glass_calibration("refusals"), _curve(20.0))
     line = _one_line_refusal(tmp_path, rc, cap)
     assert re.search(r"specimens\.tight: .*a\.csv: row 12, column strain: 20 is a strain the specimen's knit "
                      r"cannot reach", line), line
@@ -57,8 +50,8 @@ def test_strain_in_per_cent_is_refused_naming_file_row_column_and_value(tmp_path
     assert "Is the column in per cent? A strain of 5 % is 0.05." in line
 
 
-def test_a_strain_below_one_beyond_reach_is_refused_without_the_per_cent_hint(tmp_path):
-    doc = copy.deepcopy(CAL)
+def test_a_strain_below_one_beyond_reach_is_refused_without_the_per_cent_hint(tmp_path, e_glass_calibration):
+    doc = e_glass_calibration("refusals")
     (tmp_path / "a.csv").write_text(_curve(0.9))
     doc["specimens"][0]["knit"]["C0"] = 4.0            # 14.1 / 8 - 1 = 0.7625 < 0.9
     (tmp_path / "cal.toml").write_text(dumps(doc))
@@ -66,12 +59,12 @@ def test_a_strain_below_one_beyond_reach_is_refused_without_the_per_cent_hint(tm
         load_calibration_scene(tmp_path / "cal.toml")
 
 
-def test_the_reach_is_the_loosest_the_fit_allows(tmp_path):
+def test_the_reach_is_the_loosest_the_fit_allows(tmp_path, e_glass_calibration):
     """Strain 1.7: beyond 1.611 with L and C0 as stated; within reach when L may rise to 14.1 e^(4 x 0.02)
     = 15.27 mm (1.829); beyond again through a pretension of up to 0.2: (1 + 1.611) / 1.2 - 1 = 1.176 with
     L, C0 as stated (strain 1.3 < 1.611 then refused)."""
     (tmp_path / "a.csv").write_text(_curve(1.7))
-    doc = copy.deepcopy(CAL)
+    doc = e_glass_calibration("refusals")
     (tmp_path / "cal.toml").write_text(dumps(doc))
     with pytest.raises(KnitsimInputError, match=r"1\.7 is a strain .*grip strain < 1\.611"):
         load_calibration_scene(tmp_path / "cal.toml")
@@ -79,7 +72,7 @@ def test_the_reach_is_the_loosest_the_fit_allows(tmp_path):
     doc["specimens"][0]["uncertainty"] = {"L": 0.02}
     (tmp_path / "cal.toml").write_text(dumps(doc))
     load_calibration_scene(tmp_path / "cal.toml")       # L at its upper bound reaches it
-    doc = copy.deepcopy(CAL)
+    doc = e_glass_calibration("refusals")
     doc["calibration"]["per_specimen"] = ["pretension"]
     doc["calibration"]["bounds"] = {"pretension": [0.0, 0.2]}
     doc["specimens"][0]["pretension_sd"] = 0.01
@@ -92,28 +85,28 @@ def test_the_reach_is_the_loosest_the_fit_allows(tmp_path):
     load_calibration_scene(tmp_path / "cal.toml")
 
 
-def test_an_unknown_shared_variable_is_refused_before_anything_is_printed(tmp_path, capsys):
-    doc = copy.deepcopy(CAL)
+def test_an_unknown_shared_variable_is_refused_before_anything_is_printed(tmp_path, capsys, e_glass_calibration):
+    doc = e_glass_calibration("refusals")
     doc["calibration"]["shared"] = ["B", "bogus"]
     rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
     line = _one_line_refusal(tmp_path, rc, cap)
     assert "calibration.shared: 'bogus' is not a yarn variable" in line
 
 
-def test_a_tail_cut_off_with_end_strain_is_not_refused(tmp_path):
+def test_a_tail_cut_off_with_end_strain_is_not_refused(tmp_path, e_glass_calibration):
     # a test run on to strain 1.8, past what the knit reaches (1.611 for L = 14.1, C0 = 2.7), with the fit
     # stopped at 0.2 by end_strain: the tail is not fitted, so the file is read (a lab keeps its whole record)
-    doc = copy.deepcopy(CAL)
+    doc = e_glass_calibration("refusals")
     (tmp_path / "a.csv").write_text("strain,load_N\n" + "".join(f"{0.02 * k!r},{0.5 * k}\n" for k in range(91)))
     doc["specimens"][0]["end_strain"] = 0.2
     (tmp_path / "cal.toml").write_text(dumps(doc))
     load_calibration_scene(tmp_path / "cal.toml")
 
 
-def test_a_band_with_one_file_in_per_cent_is_refused(tmp_path):
+def test_a_band_with_one_file_in_per_cent_is_refused(tmp_path, e_glass_calibration):
     # the two envelopes of one specimen's scatter cover one test: one ending at 20 and the other at 0.2
     # (the same test in per cent) end 100 times apart
-    doc = copy.deepcopy(CAL)
+    doc = e_glass_calibration("refusals")
     spec = doc["specimens"][0]
     del spec["curve"], spec["noise_N"]
     spec["band"] = ["lo.csv", "hi.csv"]
