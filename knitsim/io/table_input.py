@@ -59,12 +59,13 @@ def _utf16_without_bom(raw: bytes) -> str | None:
     A table is mostly ASCII, whose UTF-16 has a zero byte in every other place: in the odd places for
     little-endian, the even ones for big-endian.  Text in UTF-8 or Windows-1252 has no zero bytes."""
     head = raw[:4096]
-    if len(head) < 4 or len(head) % 2 or head.count(0) < len(head) // 4:
+    if len(head) < 4 or len(head) % 2:
         return None
+    half = len(head) // 2
     odd, even = head[1::2].count(0), head[0::2].count(0)
-    if odd >= 0.9 * (len(head) // 2) and even == 0:
+    if odd >= 0.9 * half and even == 0:
         return "utf-16-le"
-    if even >= 0.9 * (len(head) // 2) and odd == 0:
+    if even >= 0.9 * half and odd == 0:
         return "utf-16-be"
     return None
 
