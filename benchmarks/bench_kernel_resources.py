@@ -33,7 +33,7 @@ import warp as wp
 from knitsim import warp_runtime
 from knitsim.kernels.specialise import KernelKey, cell_step_module
 
-KERNELS = ("program_kernel", "regular_kernel", "step_kernel", "regular_step_kernel")
+KERNELS = ("program_kernel", "regular_kernel", "substep_kernel", "step_kernel", "regular_step_kernel")
 
 
 def offline(keys, arch: int = 90) -> None:

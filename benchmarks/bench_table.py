@@ -40,7 +40,7 @@ from bench_cell_batch import make_cells  # noqa: E402
 from bench_patch import model as patch_model  # noqa: E402
 
 from knitsim import warp_runtime  # noqa: E402
-from knitsim.cell.batch import CellModel, CellSolver  # noqa: E402
+from knitsim.cell.batch import SUBSTEP_SLICES, CellModel, CellSolver  # noqa: E402
 from knitsim.cell.load_program import LoadProgram, cycles  # noqa: E402
 from knitsim.patch.runner import run_patch  # noqa: E402
 
@@ -86,18 +86,20 @@ def graph_row(model: CellModel, prog: LoadProgram, device: str, stride: int, sor
               compact: bool = False) -> dict:
     """One launch per increment, captured once as a CUDA graph (first call), replayed (timed); or, with
     ``sort``, the cells sorted by stage on the device before each increment (no graph); with
-    ``compact``, each increment in two passes (regular increments, then the listed rest)."""
+    ``compact``, each increment in two passes (regular increments, then the listed rest, its full step
+    in run_batch's slices of sub-steps, ``SUBSTEP_SLICES``)."""
     from knitsim.cell.batch import ProgramHistory
 
     solver = CellSolver(model, event_capacity=16 * model.cell_count + 64)
     state, fresh = model.state(), model.state()
     hist = ProgramHistory.empty(model, len(prog), stride, model.has_effects)
-    kw = dict(stride=stride, history=hist, per_increment=True, sort_by_stage=sort, compact=compact)
+    kw = dict(stride=stride, history=hist, per_increment=True, sort_by_stage=sort, compact=compact,
+              slices=SUBSTEP_SLICES if compact else ())
     solver.run_program(state, prog, **kw)  # capture
     for dst, src in zip(state._arrays() + [state.eff], fresh._arrays() + [fresh.eff]):
         wp.copy(dst, src)
     _, wall, cpu = timed(lambda: solver.run_program(state, prog, **kw), device)
-    kind = ", ".join(["specialised"] + (["two passes"] if compact else [])
+    kind = ", ".join(["specialised"] + (["two passes, sliced full step"] if compact else [])
                      + (["sorted by stage"] if sort else ["graph per increment"]))
     return {"cells": model.cell_count, "increments": len(prog), "kernels": kind,
             "wall_s": wall, "cpu_s": cpu, "cell_increments": model.cell_count * len(prog)}

@@ -79,6 +79,29 @@ class HistoryArrays:
     eff: wp.array3d(dtype=wp.float64)
 
 
+@wp.struct
+class SuspendedArrays:
+    """Cells suspended inside an increment's sub-step walk by the sliced full step (issue 15 item 2:
+    the sub-steps of an increment spread over launches, the cells still walking compacted between
+    them).  Per cell, what the walk carries from one sub-step to the next, stored exactly (fp64 as
+    fp64, the Newton variables z, not x), so that a resumed walk is bit for bit the one-launch walk.
+
+    ``active[i]``: 1 while cell i is suspended.  ``real[i]``: C, the sub-step, the frozen soft-stage
+    force, fsbc.  ``ints[i]``: stage, jammed, soft, status, failed trials in a row, events located,
+    sub-steps taken, events counted, events already written to the event buffer."""
+
+    active: wp.array(dtype=wp.int32)
+    z: wp.array2d(dtype=wp.float64)
+    q: wp.array2d(dtype=wp.float64)
+    real: wp.array2d(dtype=wp.float64)
+    ints: wp.array2d(dtype=wp.int32)
+
+
+#: widths of SuspendedArrays.real and .ints
+SUSPENDED_REALS = 4
+SUSPENDED_INTS = 9
+
+
 @wp.kernel
 def select_state_kernel(mask: wp.array(dtype=wp.int32), src: StateArrays, dst: StateArrays):
     """``dst[i] = src[i]`` where ``mask[i]``, for every field of a state (the patch coupling keeps a

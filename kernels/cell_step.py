@@ -46,7 +46,11 @@ state, event buffer and history as structs (:mod:`knitsim.kernels.cell_arrays`).
 kernel key allows it (:data:`REGULAR_PASS`), each has a first pass
 (:func:`regular_step_kernel`, :func:`regular_kernel`) that advances only the increments
 that are regular (one trial, no event: :func:`_advance_cell_variant`) and lists the other
-cells for the full kernel's launch, bit for bit the one-pass results.
+cells for the full kernel's launch, bit for bit the one-pass results.  Those keys also have
+:func:`substep_kernel`, the full step in slices of a few sub-steps: a cell whose increment is
+not done by then is suspended (its walk kept in :class:`~knitsim.kernels.cell_arrays.SuspendedArrays`)
+and listed for the next launch, so that the cells still walking are compacted between launches;
+bit for bit the one-launch results again.
 """
 from __future__ import annotations
 
@@ -61,7 +65,7 @@ from knitsim.cell.stages import (
     RELOAD_RHO_SEED, SUBSTEP_FLOOR, ZERO_CONTACT, Stage,
 )
 
-from .cell_arrays import EventArrays, HistoryArrays, ModelArrays, StateArrays
+from .cell_arrays import EventArrays, HistoryArrays, ModelArrays, StateArrays, SuspendedArrays
 from .effects import (
     BIT_BENDING, BIT_COILING, BIT_COMPACTION, BIT_EXTENSION, BIT_NORMAL_LOAD, BIT_VELOCITY, E_B, E_D, E_L, E_M,
     E_P0, E_RN0, E_Z, P_BEND_H, P_BEND_SIGMA, P_COIL_MU, P_COMP_K, P_COMP_MIN, P_EXT_C, P_LOAD_N, P_LOAD_REF,
@@ -1638,8 +1642,76 @@ def init_kernel(model: ModelArrays, starts: wp.array2d(dtype=wp.float64), s_out:
 
 
 # ------------------------------------------------------------------ one increment
-def _advance_cell_variant(regular_only: bool):
-    """:func:`advance_cell`, or with ``regular_only`` its first pass :func:`advance_regular` (issue 15 item 2).
+@wp.func
+def write_events(i: int, increment: int, n_written: int, n_ev: int, e_kind: vec8i, e_C: vec8d, e_F: vec8d,
+                 e_from: vec8i, e_to: vec8i, ev: EventArrays) -> int:
+    """Append events ``n_written .. min(n_ev, MAX_EVENTS_PER_STEP) - 1`` of cell i's increment to the event
+    buffer (those before were written by a suspended call); returns how many of the increment's are
+    written now."""
+    nk = wp.min(n_ev, _MAXEV)
+    if nk > n_written:
+        base = wp.atomic_add(ev.count, 0, nk - n_written)
+        cap_ev = ev.cell.shape[0]
+        for k in range(n_written, nk):
+            j = base + k - n_written
+            if j < cap_ev:
+                ev.cell[j] = i
+                ev.incr[j] = increment
+                ev.kind[j] = e_kind[k]
+                ev.C[j] = e_C[k]
+                ev.F[j] = e_F[k]
+                ev.label_from[j] = e_from[k]
+                ev.label_to[j] = e_to[k]
+    return wp.max(nk, n_written)
+
+
+@wp.func
+def suspend_walk(i: int, sus: SuspendedArrays, z: vec5d, q: vecQd, C: wp.float64, step: wp.float64,
+                 fs: wp.float64, fsbc: wp.float64, stage: int, jammed: int, soft: int, status: int, failures: int,
+                 n_located: int, guard: int, n_ev: int, n_written: int):
+    """Keep cell i's sub-step walk at the top of sub-step ``guard`` (:class:`SuspendedArrays`)."""
+    for k in range(5):
+        sus.z[i, k] = z[k]
+    for k in range(N_QUANTITIES):
+        sus.q[i, k] = q[k]
+    sus.real[i, 0] = C
+    sus.real[i, 1] = step
+    sus.real[i, 2] = fs
+    sus.real[i, 3] = fsbc
+    sus.ints[i, 0] = stage
+    sus.ints[i, 1] = jammed
+    sus.ints[i, 2] = soft
+    sus.ints[i, 3] = status
+    sus.ints[i, 4] = failures
+    sus.ints[i, 5] = n_located
+    sus.ints[i, 6] = guard
+    sus.ints[i, 7] = n_ev
+    sus.ints[i, 8] = n_written
+    sus.active[i] = 1
+
+
+@wp.func
+def resume_walk(i: int, sus: SuspendedArrays):
+    """The state of cell i's suspended walk (:func:`suspend_walk`): z, q, C, fs, fsbc, stage, jammed, soft,
+    status, events counted, events written."""
+    z = vec5d(sus.z[i, 0], sus.z[i, 1], sus.z[i, 2], sus.z[i, 3], sus.z[i, 4])
+    q = vecQd()
+    for k in range(N_QUANTITIES):
+        q[k] = sus.q[i, k]
+    return (z, q, sus.real[i, 0], sus.real[i, 2], sus.real[i, 3], int(sus.ints[i, 0]), int(sus.ints[i, 1]),
+            int(sus.ints[i, 2]), int(sus.ints[i, 3]), int(sus.ints[i, 7]), int(sus.ints[i, 8]))
+
+
+@wp.func
+def resume_walk_counters(i: int, sus: SuspendedArrays):
+    """The counters of cell i's suspended walk: the sub-step, failed trials in a row, events located, the
+    sub-step to resume at."""
+    return sus.real[i, 1], int(sus.ints[i, 4]), int(sus.ints[i, 5]), int(sus.ints[i, 6])
+
+
+def _advance_cell_variant(regular_only: bool, sliced: bool = False):
+    """:func:`advance_cell`, or with ``regular_only`` its first pass :func:`advance_regular`, or with
+    ``sliced`` the full step in slices :func:`advance_sliced` (issue 15 item 2).
 
     ``regular_only`` keeps only an increment's regular path: no reversal or reload at its start, one
     trial of the whole increment that converges on a short first Newton step and fires no event (no
@@ -1651,6 +1723,16 @@ def _advance_cell_variant(regular_only: bool):
     warp of the first pass does one kind of work, and the few cells with an event are compacted
     into a second launch (:func:`regular_kernel`, :func:`program_kernel` with a count).  Coulomb
     friction without effects only (the kernel keys :data:`REGULAR_PASS` allows).
+
+    ``sliced`` walks at most ``budget`` sub-steps of the Coulomb path per call: where the increment is
+    not done by then, it stores what the walk carries (``sus``, :class:`SuspendedArrays`), writes the
+    events located so far and returns False, the state arrays untouched; the next call on that cell
+    resumes the walk where it stopped, in the same arithmetic, so the result is bit for bit the one-call
+    increment.  A GPU warp then waits for the slowest of its cells' next few sub-steps, not for the
+    slowest cell's whole increment (a reversal: 3 to 16 sub-steps per cell, up to 246 Newton
+    iterations), and the cells still walking are compacted between calls (:func:`substep_kernel`).
+    Only the keys of :data:`REGULAR_PASS` (without effects: what the walk carries is its state alone).
+    The other variants take ``sus`` and ``budget`` and ignore them (no code is generated for them).
     """
 
     def advance_cell(
@@ -1666,6 +1748,9 @@ def _advance_cell_variant(regular_only: bool):
         increment: int,
         s_out: StateArrays,
         ev: EventArrays,
+        # the sliced variant: where a suspended walk is kept, and the sub-steps this call may take
+        sus: SuspendedArrays,
+        budget: int,
     ):
         """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
 
@@ -1714,9 +1799,19 @@ def _advance_cell_variant(regular_only: bool):
         e_F = vec8d()
         e_from = vec8i()
         e_to = vec8i()
+        # events of this increment already in the event buffer (written by a suspended call)
+        n_written = int(0)
+
+        # --- a walk suspended by an earlier call (the sliced variant) resumes where it stopped: the
+        # start of the increment (reversal, reload) is behind it
+        resumed = bool(False)
+        if wp.static(sliced):
+            if sus.active[i] != 0:
+                resumed = True
+                x, q, C, fs, fsbc, stage, jammed, soft, status, n_ev, n_written = resume_walk(i, sus)
 
         # --- reversal (Table 4: SF- on unloading, SF+ on reloading)
-        if dir_new != dir_old and status == ST_OK and stage != SLACK:
+        if dir_new != dir_old and status == ST_OK and stage != SLACK and not resumed:
             if wp.static(regular_only):
                 return False
             stage, soft, fs, fsbc = reverse(dir_new, q, mat, soft, fs)
@@ -1753,13 +1848,24 @@ def _advance_cell_variant(regular_only: bool):
             matg = mat
             failures = int(0)
             n_located = int(0)
-            for guard in range(MAX_SUBSTEPS):
+            guard0 = int(0)
+            if wp.static(sliced):
+                if resumed:
+                    step, failures, n_located, guard0 = resume_walk_counters(i, sus)
+            for guard in range(guard0, MAX_SUBSTEPS):
                 C_from = C
                 if wp.abs(C_target - C_from) <= _REACHED_RTOL * C_target:
                     break
                 if wp.static(regular_only):
                     if guard > 0:
                         return False  # the first trial did not reach the target
+                if wp.static(sliced):
+                    if guard - guard0 >= budget:
+                        # this call's sub-steps are spent: the walk is kept for the next call
+                        n_written = write_events(i, increment, n_written, n_ev, e_kind, e_C, e_F, e_from, e_to, ev)
+                        suspend_walk(i, sus, x, q, C, step, fs, fsbc, stage, jammed, soft, status, failures,
+                                     n_located, guard, n_ev, n_written)
+                        return False
                 if wp.abs(step) > wp.abs(C_target - C_from):
                     step = C_target - C_from
                 C_goal = C_from + step
@@ -2103,23 +2209,13 @@ def _advance_cell_variant(regular_only: bool):
             if bends(mat):
                 z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
             s_out.eff[i, E_Z] = z_bend
-        if n_ev > 0:
-            nk = wp.min(n_ev, _MAXEV)
-            base = wp.atomic_add(ev.count, 0, nk)
-            cap_ev = ev.cell.shape[0]
-            for k in range(nk):
-                j = base + k
-                if j < cap_ev:
-                    ev.cell[j] = i
-                    ev.incr[j] = increment
-                    ev.kind[j] = e_kind[k]
-                    ev.C[j] = e_C[k]
-                    ev.F[j] = e_F[k]
-                    ev.label_from[j] = e_from[k]
-                    ev.label_to[j] = e_to[k]
+        write_events(i, increment, n_written, n_ev, e_kind, e_C, e_F, e_from, e_to, ev)
+        if wp.static(sliced):
+            if resumed:
+                sus.active[i] = 0
         return True
 
-    return wp.func(advance_cell, name="advance_regular" if regular_only else "advance_cell")
+    return wp.func(advance_cell, name="advance_regular" if regular_only else ("advance_sliced" if sliced else "advance_cell"))
 
 
 advance_cell = _advance_cell_variant(False)
@@ -2128,6 +2224,8 @@ advance_cell = _advance_cell_variant(False)
 # ------------------------------------------------------------------ the launches of one increment
 #: the first pass (regular increments) of the kernel keys that have one (REGULAR_PASS)
 advance_regular = _advance_cell_variant(True) if REGULAR_PASS else None
+#: the full step in slices of a few sub-steps (the keys of REGULAR_PASS)
+advance_sliced = _advance_cell_variant(False, sliced=True) if REGULAR_PASS else None
 
 
 @wp.func
@@ -2170,7 +2268,7 @@ def _step_kernel_variant(first_pass: bool):
             return
         done = wp.static(advance)(i, model, max_halvings, closure, s_in, strain[i % strain.shape[0]],
                                   int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
-                                  s_out, ev)
+                                  s_out, ev, SuspendedArrays(), 0)
         if wp.static(first_pass):
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
@@ -2228,7 +2326,7 @@ def _program_kernel_variant(first_pass: bool):
             return
         for k in range(k_start, k_stop):
             done = wp.static(advance)(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
-                                      prog_rate[k % prog_rate.shape[0]], k, state, ev)
+                                      prog_rate[k % prog_rate.shape[0]], k, state, ev, SuspendedArrays(), 0)
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
                 return
@@ -2244,6 +2342,37 @@ program_kernel = _program_kernel_variant(False)
 if REGULAR_PASS:
     regular_step_kernel = _step_kernel_variant(True)
     regular_kernel = _program_kernel_variant(True)
+
+    @wp.kernel
+    def substep_kernel(
+        # the cells this launch advances, the first count[0] of them (a list a first pass or an earlier
+        # substep_kernel made on the device)
+        cells: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),
+        # where it lists the cells it suspends (pending[:pending_count[0]]); unused with a budget of MAX_SUBSTEPS
+        pending: wp.array(dtype=wp.int32), pending_count: wp.array(dtype=wp.int32),
+        model: ModelArrays, max_halvings: int, closure: int,
+        # advanced in place
+        state: StateArrays,
+        prog_strain: wp.array(dtype=wp.float64), prog_direction: wp.array(dtype=wp.int32),
+        prog_rate: wp.array(dtype=wp.float64), k: int, stride: int,
+        ev: EventArrays,
+        hist: HistoryArrays,
+        sus: SuspendedArrays,
+        budget: int,
+    ):
+        """Increment ``k`` of the listed cells, at most ``budget`` sub-steps of each (:func:`advance_sliced`):
+        a cell whose increment is done is committed and its row recorded as :func:`program_kernel` does;
+        the others are suspended and listed for the next launch."""
+        i = listed_cell(wp.tid(), cells, count)
+        if i < 0:
+            return
+        done = advance_sliced(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
+                              prog_rate[k % prog_rate.shape[0]], k, state, ev, sus, budget)
+        if not done:
+            pending[wp.atomic_add(pending_count, 0, 1)] = i
+            return
+        if (k + 1) % stride == 0:
+            write_history_row(i, k // stride, state, hist)
 
 
 @wp.kernel

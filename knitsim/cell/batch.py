@@ -16,7 +16,8 @@ Model / State / Control, as ``warp.sim``:
   row into preallocated arrays (:class:`ProgramHistory`); on a GPU it runs each
   increment in two passes (``compact``): the regular increments of every cell
   (one trial, no event: a small kernel whose warps do one kind of work), then the
-  full step on the few cells the first pass listed.
+  full step on the few cells the first pass listed, in slices of a few sub-steps
+  (``slices``) with the cells still walking compacted between the launches.
 
 :meth:`CellModel.from_arrays` builds the model of N cells from per-cell arrays
 (vectorised validation, no Python loop over the cells).
@@ -606,11 +607,27 @@ class CellSolver:
                 cells = pending
             wp.launch(k.step_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common, device=dev)
 
-    def _pending_buffers(self) -> list:
-        """Per kernel group: the list of cells the first pass leaves for the full step, and its count."""
-        return self.__dict__.setdefault("_pending", [
+    def _pending_buffers(self, second: bool = False) -> list:
+        """Per kernel group: the list of cells the first pass leaves for the full step, and its count
+        (``second``: another such list, for the sliced full step's ping-pong)."""
+        return self.__dict__.setdefault("_pending2" if second else "_pending", [
             (wp.zeros(cells.shape[0] or self.model.cell_count, dtype=wp.int32, device=self.model.device),
              wp.zeros(1, dtype=wp.int32, device=self.model.device)) for _, cells in self.groups])
+
+    def _suspended(self):
+        """Where the sliced full step keeps the walks it suspends (:class:`~knitsim.kernels.cell_arrays.SuspendedArrays`,
+        one row per cell, made on first use)."""
+        if "_sus" not in self.__dict__:
+            from knitsim.kernels.cell_arrays import SUSPENDED_INTS, SUSPENDED_REALS, SuspendedArrays
+            n, dev = self.model.cell_count, self.model.device
+            sus = SuspendedArrays()
+            sus.active = wp.zeros(n, dtype=wp.int32, device=dev)
+            sus.z = wp.zeros((n, 5), dtype=wp.float64, device=dev)
+            sus.q = wp.zeros((n, len(QUANTITY_NAMES)), dtype=wp.float64, device=dev)
+            sus.real = wp.zeros((n, SUSPENDED_REALS), dtype=wp.float64, device=dev)
+            sus.ints = wp.zeros((n, SUSPENDED_INTS), dtype=wp.int32, device=dev)
+            self._sus = sus
+        return self._sus
 
     def _subset(self, cells: np.ndarray) -> list:
         """The kernel groups restricted to ``cells``: (module, device index array, or None where the
@@ -631,7 +648,7 @@ class CellSolver:
     def run_program(self, state: CellBatchState, program: LoadProgram, stride: int = 1,
                     k_start: int = 0, k_stop: int | None = None, history: "ProgramHistory | None" = None,
                     per_increment: bool = False, sort_by_stage: bool = False,
-                    compact: bool = False) -> "ProgramHistory":
+                    compact: bool = False, slices: Sequence[int] = ()) -> "ProgramHistory":
         """Advance ``state`` in place through increments ``k_start .. k_stop - 1`` of ``program``, recording
         every ``stride``-th row into preallocated device arrays; no host synchronisation.
 
@@ -667,6 +684,12 @@ class CellSolver:
             device (no host synchronisation; the second launch's threads beyond the count return at
             once).  A GPU warp then does one kind of work in each launch; the results are the same
             bit for bit (``cell_step._advance_cell_variant``).
+        slices : sequence of int
+            With ``compact``: the full step of the listed cells in launches of at most ``slices[0]``,
+            ``slices[1]``, ... sub-steps per cell (``substep_kernel``), then one launch that finishes
+            them; the cells still inside their increment are suspended (their walk kept on the device)
+            and compacted between launches, so that a GPU warp does not wait for its slowest cell's
+            whole increment.  The same results bit for bit.  Default: none (the full step in one launch).
         """
         if not (isinstance(stride, (int, np.integer)) and stride >= 1):
             raise KnitsimInputError(f"stride = {stride!r}: expected a whole number >= 1")
@@ -676,7 +699,10 @@ class CellSolver:
         hist = ProgramHistory.empty(model, n, stride, model.has_effects) if history is None else history
         if hist.stride != stride:
             raise KnitsimInputError(f"history recorded with stride {hist.stride}, asked for {stride}")
-        key = (id(state), id(program), id(hist), int(k_start), k_stop, bool(per_increment), bool(compact))
+        slices = tuple(int(b) for b in slices)
+        if any(b < 1 for b in slices):
+            raise KnitsimInputError(f"slices = {slices!r}: expected sub-step budgets >= 1")
+        key = (id(state), id(program), id(hist), int(k_start), k_stop, bool(per_increment), bool(compact), slices)
         graphs = self.__dict__.setdefault("_graphs", {})
         if key in graphs:
             # the objects are held with the graph, so their ids cannot be reused meanwhile
@@ -696,6 +722,9 @@ class CellSolver:
         no_count = self.__dict__.setdefault("_no_count", wp.zeros(0, dtype=wp.int32, device=dev))
         if compact:
             pending = self._pending_buffers()
+            if slices:
+                resumed = self._pending_buffers(second=True)
+                sus = self._suspended()
         if sort:
             bufs = self.__dict__.setdefault("_sort", [
                 tuple(wp.zeros(2 * (cells.shape[0] or model.cell_count), dtype=wp.int32, device=dev) for _ in range(2))
@@ -723,6 +752,20 @@ class CellSolver:
                         wp.launch(k.regular_kernel, dim=m, inputs=[cells, no_count, cells_pending, count] + common + rest,
                                   device=dev)
                         cells = cells_pending
+                        if slices:
+                            # the full step in slices of sub-steps, the cells still walking compacted
+                            # between them (ping-pong lists), then one launch finishing them
+                            lists = [pending[g], resumed[g]]
+                            tail = [k0, int(stride), self._ev_struct, hist_s, sus]
+                            for r, budget in enumerate(slices):
+                                nxt, nxt_count = lists[(r + 1) % 2]
+                                wp.launch(k.zero_count_kernel, dim=1, inputs=[nxt_count], device=dev)
+                                wp.launch(k.substep_kernel, dim=m, inputs=[cells, count, nxt, nxt_count] + common + tail
+                                          + [budget], device=dev)
+                                cells, count = nxt, nxt_count
+                            wp.launch(k.substep_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common + tail
+                                      + [int(k.MAX_SUBSTEPS)], device=dev)
+                            continue
                     wp.launch(k.program_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common + rest,
                               device=dev)
 
@@ -823,12 +866,19 @@ SORT_BY_STAGE_MIN_CELLS = 10_000
 #: CPU core a 23 x 20 random-phi0 patch through the 3 cycles took 6.82 instead of 7.26 CPU s (1.06 x),
 #: the same rows; below it, the two extra launches per trial are not paid back
 COMPACT_STEP_MIN_CELLS = 256
+#: the sub-step budgets of the sliced full step (run_program's ``slices``) that run_batch uses with its
+#: two passes: 8 launches of one sub-step, 4 of two, 2 of four, then one finishing the cells still
+#: walking.  At 10^6 random cells x 62 increments on an H100, same run (bench_substep_slices.py, README
+#: "Throughput"): 1.37 x the unsliced full step (24 launches of one sub-step: 1.39 x; 48: 1.16 x, each
+#: launch of 10^6 threads costing even where few are still walking); the same results bit for bit
+SUBSTEP_SLICES = (1,) * 8 + (2,) * 4 + (4,) * 2
 
 
 def run_batch(params, program: LoadProgram, device: str = "cpu",
               progress: Callable[[int, int], None] | None = None, max_halvings: int = MAX_HALVINGS,
               stick_closure: str = "release_beta", specialise: bool = True,
-              sort_by_stage: bool | None = None, compact: bool | None = None) -> BatchHistory:
+              sort_by_stage: bool | None = None, compact: bool | None = None,
+              slices: Sequence[int] | None = None) -> BatchHistory:
     """Run N cells through a strain program on a Warp device.
 
     Parameters
@@ -852,6 +902,11 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         One launch per increment in two passes: the regular increments of every cell, then the
         full step of the cells listed by the first pass (:meth:`CellSolver.run_program`); the
         results are the same.  Default: as ``sort_by_stage``.
+    slices : sequence of int, optional
+        With ``compact``: the full step in launches of at most so many sub-steps per cell, the cells
+        still inside their increment compacted between them (:meth:`CellSolver.run_program`); the
+        results are the same.  Default: :data:`SUBSTEP_SLICES` on a CUDA device, none on the CPU
+        (where a launch's threads run one after the other and nothing diverges).
 
     Returns
     -------
@@ -879,11 +934,13 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         sort_by_stage = wp.get_device(dev).is_cuda and nc >= SORT_BY_STAGE_MIN_CELLS
     if compact is None:
         compact = sort_by_stage
+    if slices is None:
+        slices = SUBSTEP_SLICES if wp.get_device(dev).is_cuda else ()
     chunk = n if progress is None else max(1, min(n, 25))
     for k0 in range(0, n, chunk):
         k1 = min(n, k0 + chunk)
         solver.run_program(s0, program, 1, k0, k1, hist, per_increment=bool(sort_by_stage or compact),
-                           sort_by_stage=bool(sort_by_stage), compact=bool(compact))
+                           sort_by_stage=bool(sort_by_stage), compact=bool(compact), slices=slices)
         if progress is not None:
             progress(k1, n)
     hqn = hq.numpy()

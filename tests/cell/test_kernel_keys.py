@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from knitsim.cell.batch import CellModel, CellSolver, run_batch
+from knitsim.cell.batch import CellModel, CellSolver, ProgramHistory, run_batch
+from knitsim.cell.history import HISTORY_QUANTITIES
 from knitsim.cell.effects import EffectSet
 from knitsim.cell.load_program import cycles
 from knitsim.cell.material import CellParams
@@ -106,7 +107,6 @@ def test_strided_history_holds_every_stride_th_row(device):
     hist = CellSolver(model).run_program(state, PROG, stride=3)
     q = hist.q.numpy()
     rows = np.arange(2, len(PROG), 3)
-    from knitsim.cell.history import HISTORY_QUANTITIES
     np.testing.assert_array_equal(q[HISTORY_QUANTITIES.index("F")], full.values["F"][rows])
     np.testing.assert_array_equal(hist.stage.numpy(), full.stage[rows])
     # one launch per increment, captured as a graph, is the same arithmetic; so is its replay
@@ -165,8 +165,6 @@ def test_first_pass_takes_the_regular_increments_and_lists_the_others(device):
     E-glass) every cell's increment is regular and none is left for the second pass; the reversal's
     increment (Table 4: S+ -> SF-, an event) is regular for none.  Both passes are thus exercised by
     the bit-for-bit tests above."""
-    from knitsim.cell.batch import ProgramHistory
-
     cells = [GLASS, GLASS.replace(m=0.3, phi0=0.2), GLASS.replace(unloading_rule="hong_constant_t"),
              GLASS.replace(m=0.1, phi0=0.0)]
     prog = cycles(0.10, 0.60, 1, max_increment=0.01)
@@ -182,6 +180,56 @@ def test_first_pass_takes_the_regular_increments_and_lists_the_others(device):
     assert len(plateau) > 10 and all(pending[k] == 0 for k in plateau), pending
     assert pending[reversal] == len(cells), pending
     assert pending[0] == len(cells)  # the first increment leaves the rest state (its first stage change)
+
+
+def test_full_step_in_slices_is_the_one_launch_full_step(device):
+    """The full step in slices (``run_program(..., slices=...)``, ``cell_step._advance_cell_variant``
+    with ``sliced``): a walk suspended after each budget of sub-steps keeps what it carries exactly and
+    resumes in the next launch, so the rows, statuses and events are those of the full step in one
+    launch, bit for bit (an identity), sorted by stage or not, captured as a graph and replayed; the
+    Dahl cell's group has no sliced step and runs the full step alone.  At the reversal (Table 4:
+    S+ -> SF-, several sub-steps per cell at increments of 0.1) a budget of one sub-step suspends
+    cells, so the resumed walk is what is compared."""
+    # 40 cells of random friction (m in [0, 0.4], phi0 inside the cone, both unloading rules: a mutation
+    # that resumes a walk with the sub-step it started with changes some of them) and a Dahl cell,
+    # through 3 cycles at increments of 0.1 (several sub-steps per increment)
+    rng = np.random.default_rng(1)
+    m = rng.uniform(0.0, 0.4, 40)
+    cells = [GLASS.replace(m=float(mj), phi0=float(rng.uniform(-1, 1) * np.arctan(mj)),
+                           unloading_rule=("dusserre", "hong_constant_t")[j % 2]) for j, mj in enumerate(m)]
+    cells.append(GLASS.replace(friction="dahl", dahl_sigma=30.0))
+    prog = cycles(0.10, 0.60, 3, max_increment=0.1)
+    plain = run_batch(cells, prog, device=device, sort_by_stage=False, compact=True, slices=())
+    for sort in (False, True):
+        for slices in ((1,), (1, 2), (3,)):
+            sliced = run_batch(cells, prog, device=device, sort_by_stage=sort, compact=True, slices=slices)
+            for name, v in plain.values.items():
+                np.testing.assert_array_equal(sliced.values[name], v, err_msg=f"{name} {sort} {slices}")
+            np.testing.assert_array_equal(sliced.stage, plain.stage)
+            np.testing.assert_array_equal(sliced.status, plain.status)
+            assert sliced.events == plain.events
+    # captured as a graph (not sorted), replayed from the start: the same rows
+    model = CellModel.from_params(cells, device)
+    solver, state, fresh = CellSolver(model), model.state(), model.state()
+    hist = solver.run_program(state, prog, per_increment=True, compact=True, slices=(1, 1))
+    np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F")], plain.values["F"])
+    for dst, src in zip(state._arrays() + [state.eff], fresh._arrays() + [fresh.eff]):
+        wp.copy(dst, src)
+    hist.q.zero_()
+    solver.run_program(state, prog, history=hist, per_increment=True, compact=True, slices=(1, 1))
+    np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F")], plain.values["F"])
+    # the reversal's increment with a budget of one sub-step: cells are suspended after the first
+    # sliced launch (its list, the second of the ping-pong), and none is left suspended after the last
+    solver, state = CellSolver(model), model.state()
+    hist = ProgramHistory.empty(model, len(prog), 1, False)
+    reversal = int(np.flatnonzero(np.diff(prog.direction))[0]) + 1
+    for k in range(reversal + 1):
+        solver.run_program(state, prog, 1, k, k + 1, hist, per_increment=True, compact=True, slices=(1,))
+    suspended = sum(int(count.numpy()[0]) for _, count in solver._pending2)
+    assert suspended > 0
+    assert not solver._suspended().active.numpy().any()
+    np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F"), :reversal + 1],
+                                  plain.values["F"][:reversal + 1])
 
 
 @pytest.mark.parametrize("kw, message", [
