@@ -46,14 +46,16 @@ from knitsim import warp_runtime
 from knitsim.errors import KnitsimInputError
 
 from .effects import EFFECT_STATE, NO_EFFECTS, PARAM_COLUMNS, EffectSet, effect_set_codes
-from .history import (HISTORY_QUANTITIES, STATUS_FORCE_CAP, STATUS_NAMES, STATUS_NO_REST_STATE, STATUS_OK,
-                      BatchHistory, head_gap_values, rest_at_cap_reason)
+from .history import (HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
+                      STATUS_NO_CONVERGENCE, STATUS_NO_REST_STATE, STATUS_OK, BatchHistory, head_gap_values,
+                      rest_at_cap_reason, solver_stop_reason)
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
 from .stages import (
     FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, MAX_HALVINGS, RELOAD_RULES, STICK_CLOSURES, UNLOADING_RULES,
+    stage_labels,
 )
 
 _LABEL_NAMES = {v: k for k, v in LABEL_CODES.items()}
@@ -959,16 +961,25 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
             rest[name][norest] = np.nan
     events = solver.events()
     cap = model.cap.numpy()      # one value per cell, or one for all (the kernels read cap[i % len])
+    C0 = model.C0.numpy()
+    stage, jammed = hs.numpy(), hj.numpy()
     for c in np.nonzero(np.any(status != STATUS_OK, axis=0))[0]:
         i0 = int(np.argmax(status[:, c] != STATUS_OK))
-        why = STATUS_NAMES[int(status[i0, c])]
+        st0 = int(status[i0, c])
+        why = STATUS_NAMES[st0]
         if s0_status0[c] == STATUS_FORCE_CAP:
             why = rest_at_cap_reason(float(rest["F"][c]), float(cap[c % cap.shape[0]]))
+        elif st0 in (STATUS_NO_CONVERGENCE, STATUS_EVENT_NOT_LOCATED):
+            # row i0 holds the last converged state (a failed cell keeps it)
+            why = solver_stop_reason(st0, float(values["C"][i0, c]) / float(C0[c % C0.shape[0]]) - 1.0,
+                                     float(program.strain[i0]), str(stage_labels(stage[i0:i0 + 1, c], jammed[i0:i0 + 1, c])[0]),
+                                     float(values["F"][i0, c]), float(cap[c % cap.shape[0]]),
+                                     int(program.direction[i0]) > 0)
         events.append({"cell": int(c), "increment": i0, "kind": "flag", "reason": why,
                        "status": STATUS_NAMES[int(status[i0, c])]})
     events.sort(key=lambda e: (e["cell"], e["increment"], e["kind"] == "flag"))
     return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle), np.asarray(program.direction),
-                        hs.numpy(), hj.numpy(), status, values, events, list(model.params), rest)
+                        stage, jammed, status, values, events, list(model.params), rest)
 
 
 def memory_per_cell(model: CellModel, state: CellBatchState, n_increments: int) -> dict[str, float]:

@@ -70,7 +70,7 @@ from .stages import (
 from .history import (  # noqa: E402  (re-exported)
     HEAD_GAP_QUANTITIES, HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE_CAP, STATUS_NAMES,
     STATUS_NO_REST_STATE,
-    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values, rest_at_cap_reason,
+    STATUS_NO_CONVERGENCE, STATUS_OK, BatchHistory, head_gap_values, rest_at_cap_reason, solver_stop_reason,
 )
 
 
@@ -699,7 +699,11 @@ class CellCycle:
                 else:
                     st = self.advance(st, C_target, events, i)
             except _SolveFailed as exc:
-                st.status, st.reason = STATUS_NO_CONVERGENCE, str(exc)
+                # st is the last converged state (a failed solve leaves it)
+                st.status = STATUS_NO_CONVERGENCE
+                st.reason = solver_stop_reason(STATUS_NO_CONVERGENCE, st.C / p.C0 - 1.0, float(program.strain[i]),
+                                               stage_label(st.stage, st.jammed), float(st.q["F"]), p.force_cap_N,
+                                               d_i > 0) + f" ({exc})"
             if p.friction == "dahl":
                 self._label_dahl(st)
             stage[i], jammed[i], status[i] = int(st.stage), int(st.jammed), st.status

@@ -25,8 +25,7 @@ from pathlib import Path
 
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
-from ..io.jsonable import json_text
-from ..io.results import add_output_flags, atomic_write_text, prepare_output_dir
+from ..io.results import add_output_flags, prepare_output_dir
 from .common import add_json_flag, print_json
 
 
@@ -77,8 +76,7 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import (SweepChunkError, capped_samples, compressive_rest_samples, domain_samples,
-                                 energy_creating_samples, failed_samples, plan_sweep, run_sweep)
+    from ..sweep.runner import SweepChunkError, plan_sweep, run_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -119,33 +117,8 @@ def _run(args) -> int:
         print(f"knitsim sweep: {exc}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
               f"after fixing the cause, finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
         return 1
-    from ..cell.domain import DOMAIN_NO_REST_STATE, DOMAIN_OUTSIDE_BOX
-
-    ds = run.dataset
-    failed = failed_samples(ds)
-    no_rest = domain_samples(ds, DOMAIN_NO_REST_STATE)
-    outside = domain_samples(ds, DOMAIN_OUTSIDE_BOX)
-    energy = energy_creating_samples(ds)
-    compressive = compressive_rest_samples(ds)
-    capped = capped_samples(ds)
-    n_bad = len(failed)
-    summary = {
-        "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
-        "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
-        "computed_chunks": len(run.computed), "skipped_chunks": len(run.skipped), "wall_s": run.wall_s,
-        "samples_per_s": run.samples_per_s, "cells_not_finished": n_bad + len(no_rest), "failed": failed,
-        # outside the model (no rest state: not solved) and outside the domain's box (solved, extrapolated)
-        "no_rest_state": no_rest, "outside_domain": outside,
-        # a closed loop that returns energy (oint F dC < 0: Table 4's frozen force closures), flagged not fixed
-        "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
-        # a rest state the grips must push to hold (F < 0 at C0, W0): not free at rest
-        "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
-        # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
-        "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
-        "files": {k: str(v) for k, v in run.files.items()} | {"summary.json": str(out / "summary.json")},
-    }
-    # the flags go where the user looks: the plot's title counts them and says "see summary.json"
-    atomic_write_text(out / "summary.json", json_text(summary))
+    summary = run.summary                            # written to summary.json by run_sweep
+    failed, n_bad = summary["failed"], len(summary["failed"])
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
           f"{run.wall_s:.1f} s; wrote {', '.join(sorted(summary['files']))} to {out}", file=sys.stderr, flush=True)
     if n_bad:
@@ -157,18 +130,19 @@ def _run(args) -> int:
                   file=sys.stderr, flush=True)
         if n_bad > 20:
             print(f"  ... and {n_bad - 20} more (summary failed list with --json)", file=sys.stderr, flush=True)
-    for what, rows, note in (("no_rest_state", no_rest, "outside the model, not solved: NaN in results.nc, grey "
-                              "squares / //-hatched in the plots"),
-                             ("outside_domain", outside, "outside the domain's box, solved (an extrapolation: "
-                              "convergence is promised inside the box only): ringed / dotted in the plots"),
-                             ("loop_creates_energy", energy, "a closed loop returns energy, oint F dC < 0: not a "
-                              "hysteresis; Table 4's frozen force closures, README 'Loops that return energy'; "
-                              "variable loop_creates_energy in results.nc / results.csv"),
-                             ("rest_state_compressive", compressive, "the rest state carries a compressive force "
-                              "(the knit is not free at C0, W0); its loops from rest are not judged; variable "
-                              "rest_state_compressive in results.nc / results.csv"),
-                             ("stopped_at_force_cap", capped, "a stop, not a failure, but the later cycles were "
-                              "not run: NaN in results.nc, grey triangles at the axis foot in the plots")):
+    for what, note in (("no_rest_state", "outside the model, not solved: NaN in results.nc, grey squares / "
+                                         "//-hatched in the plots"),
+                       ("outside_domain", "outside the domain's box, solved (an extrapolation: convergence is "
+                                          "promised inside the box only): ringed / dotted in the plots"),
+                       ("loop_creates_energy", "a closed loop returns energy, oint F dC < 0: not a hysteresis; "
+                                               "Table 4's frozen force closures, README 'Loops that return "
+                                               "energy'; variable loop_creates_energy in results.nc / results.csv"),
+                       ("rest_state_compressive", "the rest state carries a compressive force (the knit is not "
+                                                  "free at C0, W0); its loops from rest are not judged; variable "
+                                                  "rest_state_compressive in results.nc / results.csv"),
+                       ("stopped_at_force_cap", "a stop, not a failure, but the later cycles were not run: NaN "
+                                                "in results.nc, grey triangles at the axis foot in the plots")):
+        rows = summary[what]
         if rows:
             print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
             for f in rows[:10]:

@@ -14,6 +14,8 @@ Output directory ``OUT``::
     OUT/results.nc                 xarray Dataset (netCDF3 through SciPy)
     OUT/results.csv                one row per sample, cell and cycle
     OUT/plot_*.png                 (knitsim.sweep.plots)
+    OUT/summary.json               the run's figures and every flagged sample cell with its reason
+                                   (:func:`sweep_summary`; also :attr:`SweepRun.summary`)
 
 A chunk file is written through a temporary sibling and a rename, by the
 process that computed it (in-process, or the Dask worker), so a run that is
@@ -55,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import KnitsimInputError
+from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
 from ..scene.schema import load_toml, set_value
@@ -459,6 +462,9 @@ class SweepRun:
     wall_s: float = 0.0
     files: dict = field(default_factory=dict)
     dataset: Any = None
+    #: the flags of the run (failed, rest-less, out-of-box, energy-returning, compressive, force-capped
+    #: samples with their reasons) and its figures, as written to summary.json (:func:`sweep_summary`)
+    summary: dict = field(default_factory=dict)
 
     @property
     def samples_per_s(self) -> float:
@@ -602,7 +608,41 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
     ds = assemble(out)
     run.dataset = ds
     run.files = write_results(out, ds, plots=plots)
+    # the flags go where the user looks: the plot's title counts them and says "see summary.json"; a
+    # library caller gets the file too, not only the command line
+    run.files["summary.json"] = out / "summary.json"
+    run.summary = sweep_summary(plan, run)
+    atomic_write_text(out / "summary.json", json_text(run.summary))
     return run
+
+
+def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
+    """The ``summary.json`` document of a finished run: its figures, its files and every flagged sample
+    cell with its reason (failed, no rest state, outside the domain's box, a loop that returns energy, a
+    compressive rest state, stopped at the force cap before the last cycle)."""
+    from ..cell.domain import DOMAIN_NO_REST_STATE, DOMAIN_OUTSIDE_BOX
+
+    ds, out = run.dataset, run.out
+    failed = failed_samples(ds)
+    no_rest = domain_samples(ds, DOMAIN_NO_REST_STATE)
+    energy = energy_creating_samples(ds)
+    compressive = compressive_rest_samples(ds)
+    capped = capped_samples(ds)
+    return {
+        "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
+        "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
+        "computed_chunks": len(run.computed), "skipped_chunks": len(run.skipped), "wall_s": run.wall_s,
+        "samples_per_s": run.samples_per_s, "cells_not_finished": len(failed) + len(no_rest), "failed": failed,
+        # outside the model (no rest state: not solved) and outside the domain's box (solved, extrapolated)
+        "no_rest_state": no_rest, "outside_domain": domain_samples(ds, DOMAIN_OUTSIDE_BOX),
+        # a closed loop that returns energy (oint F dC < 0: Table 4's frozen force closures), flagged not fixed
+        "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
+        # a rest state the grips must push to hold (F < 0 at C0, W0): not free at rest
+        "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
+        # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
+        "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
+        "files": {k: str(v) for k, v in run.files.items()},
+    }
 
 
 def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path]:

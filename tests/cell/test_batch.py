@@ -17,6 +17,7 @@ import pytest
 
 from knitsim.cell.batch import CellModel, CellSolver, run_batch
 from knitsim.cell.cycle import dissipated_energy, run_cells_reference
+from knitsim.cell.history import solver_stop_reason
 from knitsim.cell.load_program import cycles, monotonic, piecewise_linear
 from knitsim.cell.material import CellParams
 from knitsim.cell.stages import Stage
@@ -363,3 +364,27 @@ def test_a_cell_at_its_cap_at_rest_is_flagged_when_the_cap_is_shared():
     h = run_batch(model, monotonic(0.02, 0.01))
     flag = [e for e in h.events if e["kind"] == "flag" and e["cell"] == 1]
     assert flag and "already at force_cap_N = 0.05 N" in flag[0]["reason"]
+
+
+def test_a_cell_failing_up_the_jammed_branch_below_its_cap_says_where_and_what_cap_ends_it(device):
+    # E-glass (Table 1) pulled to strain 1.0 with force_cap_N = 1e12 N per wale: it jams (W = 4 d) before
+    # 0.7 and the jammed branch's force diverges (W held at 4 d while C grows), so the solve fails far up
+    # that branch, never at the cap.  Both engines say where the cell stopped (its last
+    # converged state: a jammed state, loading, its force per wale the recorded row's) and that a cap
+    # below that force is the expected end there; the numbers come from the flagged row itself.
+    cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0, force_cap_N=1e12)
+    prog = monotonic(1.0, 0.005)
+    for h in (run_batch([cell], prog, device=device), run_cells_reference([cell], prog)):
+        flag = [e for e in h.events if e["kind"] == "flag"]
+        assert len(flag) == 1 and flag[0]["status"] == "no_convergence"
+        i0 = flag[0]["increment"]
+        reason = flag[0]["reason"]
+        F = float(h.values["F"][i0, 0])
+        assert h.jammed[i0, 0] == 1 and 10.0 < F < 1e12
+        assert f"to strain {prog.strain[i0]:.4g}" in reason
+        assert f"stopped at strain {h.values['C'][i0, 0] / 2.7 - 1.0:.4g} (jamming, force per wale {F:.4g} N)" in reason
+        assert f"a force_cap_N below {F:.3g} N ends the run there" in reason
+    # not jammed, or unloading: where and what, without the cap's advice
+    assert "force_cap_N" not in solver_stop_reason(1, 0.3, 0.31, "sliding", 0.2, 10.0, True)
+    assert "force_cap_N" not in solver_stop_reason(1, 0.5, 0.49, "jamming", 4.0, 10.0, False)
+    assert "could not be located" in solver_stop_reason(3, 0.3, 0.31, "adherence", 0.2, 10.0, True)

@@ -65,6 +65,11 @@ def test_sweep_flags_before_solving_and_solves_only_the_model(tmp_path, monkeypa
     assert [r["sample"] for r in domain_samples(ds, DOMAIN_NO_REST_STATE)] == [2, 3]
     assert [r["sample"] for r in domain_samples(ds, DOMAIN_OUTSIDE_BOX)] == [1]
     assert "would pull" in domain_samples(ds, DOMAIN_NO_REST_STATE)[0]["reason"]
+    # a library call writes them too, where the plot's title points (summary.json), as the command does
+    kept = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert set(kept) == set(run.summary) and run.files["summary.json"] == tmp_path / "o" / "summary.json"
+    assert [r["sample"] for r in kept["no_rest_state"]] == [2, 3] and [r["sample"] for r in kept["outside_domain"]] == [1]
+    assert kept["failed"] == [] and kept["samples"] == 4
     csv = (tmp_path / "o" / "results.csv").read_text().splitlines()
     assert csv[0].endswith(",domain") and [r.rsplit(",", 1)[1] for r in csv[1:]] == \
         ["inside", "outside_domain", "no_rest_state", "no_rest_state"]
