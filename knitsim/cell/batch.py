@@ -982,9 +982,15 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
                         stage, jammed, status, values, events, list(model.params), rest)
 
 
-def memory_per_cell(model: CellModel, state: CellBatchState, n_increments: int) -> dict[str, float]:
-    """Device bytes per cell: model, two states (in/out), history of ``n_increments`` rows."""
+def memory_per_cell(model: CellModel, state: CellBatchState, n_increments: int,
+                    sliced: bool = False) -> dict[str, float]:
+    """Device bytes per cell: model, two states (in/out), history of ``n_increments`` rows and, with
+    ``sliced`` (``run_batch``'s GPU default), the suspended walks of the sliced full step and its second
+    list of cells (:class:`~knitsim.kernels.cell_arrays.SuspendedArrays`)."""
+    from knitsim.kernels.cell_arrays import SUSPENDED_INTS, SUSPENDED_REALS
+
     nc = model.cell_count
     hist = n_increments * (len(HISTORY_QUANTITIES) * 8 + 3 * 4)
+    sus = float((5 + len(QUANTITY_NAMES) + SUSPENDED_REALS) * 8 + (1 + SUSPENDED_INTS + 1) * 4) if sliced else 0.0
     return {"model": model.nbytes() / nc, "states": 2 * state.nbytes() / nc, "history": float(hist),
-            "total": model.nbytes() / nc + 2 * state.nbytes() / nc + hist}
+            "suspended": sus, "total": model.nbytes() / nc + 2 * state.nbytes() / nc + hist + sus}

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from knitsim.cell.batch import CellModel, CellSolver, ProgramHistory, run_batch
+from knitsim.cell.batch import CellModel, CellSolver, ProgramHistory, memory_per_cell, run_batch
 from knitsim.cell.history import HISTORY_QUANTITIES
 from knitsim.cell.effects import EffectSet
 from knitsim.cell.load_program import cycles
@@ -227,7 +227,12 @@ def test_full_step_in_slices_is_the_one_launch_full_step(device):
         solver.run_program(state, prog, 1, k, k + 1, hist, per_increment=True, compact=True, slices=(1,))
     suspended = sum(int(count.numpy()[0]) for _, count in solver._pending2)
     assert suspended > 0
-    assert not solver._suspended().active.numpy().any()
+    sus = solver._suspended()
+    assert not sus.active.numpy().any()
+    # what memory_per_cell counts for it is what was allocated: the walks and the second list of cells
+    allocated = (sum(a.capacity for a in (sus.active, sus.z, sus.q, sus.real, sus.ints))
+                 + sum(lst.capacity for lst, _ in solver._pending2))
+    assert memory_per_cell(model, state, len(prog), sliced=True)["suspended"] == allocated / model.cell_count
     np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F"), :reversal + 1],
                                   plain.values["F"][:reversal + 1])
 
