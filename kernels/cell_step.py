@@ -66,14 +66,16 @@ from knitsim.cell.stages import (
 )
 
 from .cell_arrays import EventArrays, HistoryArrays, ModelArrays, StateArrays, SuspendedArrays
+from .dahl import dahl_alpha1_dual
 from .effects import (
     BIT_BENDING, BIT_COILING, BIT_COMPACTION, BIT_EXTENSION, BIT_NORMAL_LOAD, BIT_VELOCITY, E_B, E_D, E_L, E_M,
     E_P0, E_RN0, E_Z, P_BEND_H, P_BEND_SIGMA, P_COIL_MU, P_COMP_K, P_COMP_MIN, P_EXT_C, P_LOAD_N, P_LOAD_REF,
-    P_RATE_P, P_RATE_REF, _M_MAX, _RN_FLOOR, coiling_friction, compaction_ratio, dahl_bending_state, extension_ratio, has,
+    P_RATE_P, P_RATE_REF, _M_MAX, _RN_FLOOR, coiling_friction, compaction_ratio, compaction_ratio_dual, dahl_bending_state, extension_ratio,
+    extension_ratio_dual, has,
     normal_load_factor, velocity_factor,
 )
 from .elastica import (
-    PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_inv, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt, d_sub,
+    PI, Dual, d_add, d_addc, d_const, d_cos, d_div, d_exp, d_mul, d_neg, d_scale, d_seed, d_sin, d_sqrt, d_sub,
     d_tan, dual, elastica_ab, vec5d,
 )
 from .head_gap import head_gap_dual, head_gap_value
@@ -283,28 +285,13 @@ def dahl_residual(cell: CellEval, dp: vec10p):
     m = dp[4]
     t = d_tan(quantity(cell, Q_PHI))
     xi = d_sub(d_const(dp[1]), quantity(cell, Q_S_BC))
-    e = d_exp(d_scale(xi, -dp[3] * s / m))
-    return d_sub(t, d_addc(d_scale(e, t_old - s * m), s * m))
-
-
-@wp.func
-def compaction_ratio_dual(Rn: Dual, k: wp.float64, Rn0: wp.float64, c_min: wp.float64):
-    """kernels.effects.compaction_ratio as a Dual: (1 + k Rn_0) / (1 + k |Rn|), clamped to [c_min, 1]."""
-    a = Rn
-    if Rn.v < wp.float64(0.0):
-        a = d_scale(Rn, wp.float64(-1.0))
-    r = d_scale(d_inv(d_addc(d_scale(a, k), wp.float64(1.0))), wp.float64(1.0) + k * wp.abs(Rn0))
-    if r.v > wp.float64(1.0):
-        r = d_const(wp.float64(1.0))
-    elif r.v < c_min:
-        r = d_const(c_min)
-    return r
+    return d_sub(t, dahl_alpha1_dual(t_old, xi, s, dp[3], m))
 
 
 @wp.func
 def jam_residual(cell: CellEval, w_jam: wp.float64, dp: vec10p):
     """W - w_jam d_eff(Rn)/d: jamming at four compacted diameters, the load read at the solution itself."""
-    ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[5], dp[6], dp[7])
+    ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[6], dp[5], dp[7])
     return d_sub(quantity(cell, Q_W), d_scale(ratio, w_jam))
 
 
@@ -313,7 +300,7 @@ def extension_residual(cell: CellEval, L_rest: wp.float64, dp: vec10p):
     """L - L_0 (1 + c (P - P_0)) (kernels.effects.extension_ratio): the length that the yarn force at
     the solution itself gives (implicit: a length lagged by one increment is a first-order error in
     the increment, large beside the noise of a measured curve on the stiff jammed branch)."""
-    ratio = d_addc(d_scale(quantity(cell, Q_P), dp[8]), wp.float64(1.0) - dp[8] * dp[9])
+    ratio = extension_ratio_dual(quantity(cell, Q_P), dp[9], dp[8])
     return d_sub(quantity(cell, Q_L), d_scale(ratio, L_rest))
 
 
@@ -322,7 +309,7 @@ def gap_residual(cell: CellEval, z: vec5d, d_jam: wp.float64, dp: vec10p, B: wp.
     """head gap - d_jam d_eff(Rn)/d: neighbouring heads in contact (jamming_criterion = "head_gap"), the
     compacted width read at the solution itself as in jam_residual (ratio 1 without compaction)."""
     a = d_exp(d_seed(z[0], 0))
-    ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[5], dp[6], dp[7])
+    ratio = compaction_ratio_dual(quantity(cell, Q_RN), dp[6], dp[5], dp[7])
     return d_sub(head_gap_dual(cell, a, B), d_scale(ratio, d_jam))
 
 

@@ -5,11 +5,14 @@ The float64 NumPy reference, with the derivation of the closed forms, is
 equal it.  At a yarn crossing call them with ``F = tan(phi)``, ``dx = d xi``,
 ``Fc = m`` and ``sigma`` = the crossing's friction stiffness.
 
-Two ``@wp.func`` building blocks, to be picked at kernel-build time
-(``wp.static``) by the cell:
+The ``@wp.func`` building blocks:
 
-* :func:`dahl_increment_alpha1`: eq 1 with alpha = 1 (the paper's value),
-  ``F_new = s Fc + (F - s Fc) exp(-sigma |dx| / Fc)``;
+* :func:`dahl_alpha1_dual`: eq 1 with alpha = 1 (the paper's value),
+  ``F_new = s Fc + (F - s Fc) exp(-sigma |dx| / Fc)``, as a dual number in the slip: the one
+  place of this law, which the cell's Newton solves as a residual
+  (``cell_step.dahl_residual``) and the bending hysteresis reads with ``Fc = 1``
+  (``effects.dahl_bending_state``);
+* :func:`dahl_increment_alpha1`: the same at a value (bit for bit the closed form written out);
 * :func:`dahl_increment`: any alpha > 0 (separable closed form).
 
 :func:`dahl_increment_kernel` evaluates the general update over arrays; every
@@ -19,6 +22,8 @@ parameter array has a leading batch axis of length 1 or N, read as
 from __future__ import annotations
 
 import warp as wp
+
+from .elastica import Dual, d_addc, d_const, d_div, d_exp, d_scale
 
 
 @wp.func
@@ -32,12 +37,23 @@ def _log1p(x: wp.float64):
 
 
 @wp.func
+def dahl_alpha1_dual(F: wp.float64, dx: Dual, s: wp.float64, sigma: wp.float64, Fc: wp.float64):
+    """Eq 1 with alpha = 1 integrated over a slip ``dx`` of sign ``s`` (``s dx = |dx|``), as a Dual in the
+    slip: ``F_new = s Fc + (F - s Fc) exp(-sigma |dx| / Fc)``.  The one law of the Dahl update: the cell's
+    Newton solves its residual at the slip of the solution itself (``cell_step.dahl_residual``, with the
+    predicted slip direction ``s``), :func:`dahl_increment_alpha1` takes it at a value, and the bending
+    hysteresis (``effects.dahl_bending_state``) with ``Fc = 1``."""
+    e = d_exp(d_div(d_scale(d_scale(dx, s), -sigma), d_const(Fc)))
+    return d_addc(d_scale(e, F - s * Fc), s * Fc)
+
+
+@wp.func
 def dahl_increment_alpha1(F: wp.float64, dx: wp.float64, sigma: wp.float64, Fc: wp.float64):
-    """Exact Dahl update over ``dx`` for alpha = 1 (eq 1 integrated)."""
+    """Exact Dahl update over ``dx`` for alpha = 1 (eq 1 integrated): :func:`dahl_alpha1_dual` at a value,
+    in the direction of the slip."""
     if dx == wp.float64(0.0):
         return F
-    s = wp.sign(dx)
-    return s * Fc + (F - s * Fc) * wp.exp(-sigma * wp.abs(dx) / Fc)
+    return dahl_alpha1_dual(F, d_const(dx), wp.sign(dx), sigma, Fc).v
 
 
 @wp.func

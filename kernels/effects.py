@@ -20,6 +20,8 @@ import warp as wp
 from knitsim.cell.effects import EFFECT_BITS, EFFECT_STATE, M_EFF_MAX, PARAM_COLUMNS
 from knitsim.cell.quantities import Q_BETA, Q_P, Q_RN
 
+from .dahl import dahl_increment_alpha1
+from .elastica import Dual, d_addc, d_const, d_div, d_scale
 from .friction import coiling_ratio_m, howell_mu_k
 
 wp.set_module_options({"enable_backward": False})
@@ -86,24 +88,44 @@ def velocity_factor(V: wp.float64, p: wp.float64, V_ref: wp.float64) -> wp.float
 
 
 @wp.func
-def compaction_ratio(Rn: wp.float64, Rn_rest: wp.float64, k: wp.float64, c_min: wp.float64) -> wp.float64:
+def compaction_ratio_dual(Rn: Dual, Rn_rest: wp.float64, k: wp.float64, c_min: wp.float64):
     """d_eff / d = clamp((1 + k Rn_0) / (1 + k |Rn|), c_min, 1): a yarn that flattens under the crossing
-    load beyond the rest load (d is the diameter at rest; below the rest load it keeps d)."""
-    r = (wp.float64(1.0) + k * wp.abs(Rn_rest)) / (wp.float64(1.0) + k * wp.abs(Rn))
-    return wp.clamp(r, c_min, wp.float64(1.0))
+    load beyond the rest load (d is the diameter at rest; below the rest load it keeps d).  The one
+    law, as a Dual: the Newton's jamming residual reads it at the solution's own load
+    (``cell_step.jam_residual``), :func:`compaction_ratio` at a value."""
+    a = Rn
+    if Rn.v < wp.float64(0.0):
+        a = d_scale(Rn, wp.float64(-1.0))
+    r = d_div(d_const(wp.float64(1.0) + k * wp.abs(Rn_rest)), d_addc(d_scale(a, k), wp.float64(1.0)))
+    if r.v > wp.float64(1.0):
+        r = d_const(wp.float64(1.0))
+    elif r.v < c_min:
+        r = d_const(c_min)
+    return r
+
+
+@wp.func
+def compaction_ratio(Rn: wp.float64, Rn_rest: wp.float64, k: wp.float64, c_min: wp.float64) -> wp.float64:
+    """:func:`compaction_ratio_dual` at a value."""
+    return compaction_ratio_dual(d_const(Rn), Rn_rest, k, c_min).v
 
 
 @wp.func
 def dahl_bending_state(z: wp.float64, dstrain: wp.float64, sigma: wp.float64) -> wp.float64:
-    """Dahl (alpha = 1) in the strain, exact over a monotone increment: z -> s + (z - s) exp(-sigma |de|)."""
-    out = z
-    if dstrain != wp.float64(0.0):
-        s = wp.sign(dstrain)
-        out = s + (z - s) * wp.exp(-sigma * wp.abs(dstrain))
-    return out
+    """Dahl (alpha = 1) in the strain, exact over a monotone increment: z -> s + (z - s) exp(-sigma |de|),
+    the Dahl update of the friction law (:func:`kernels.dahl.dahl_increment_alpha1`) with a unit limit."""
+    return dahl_increment_alpha1(z, dstrain, sigma, wp.float64(1.0))
+
+
+@wp.func
+def extension_ratio_dual(P: Dual, P_rest: wp.float64, c: wp.float64):
+    """L_eff / L = 1 + c (P - P_0): the yarn force at A (where the moment vanishes) stretches the yarn.
+    The one law, as a Dual: the Newton's length residual reads it at the solution's own force
+    (``cell_step.extension_residual``), :func:`extension_ratio` at a value."""
+    return d_addc(d_scale(d_addc(P, -P_rest), c), wp.float64(1.0))
 
 
 @wp.func
 def extension_ratio(P: wp.float64, P_rest: wp.float64, c: wp.float64) -> wp.float64:
-    """L_eff / L = 1 + c (P - P_0): the yarn force at A (where the moment vanishes) stretches the yarn."""
-    return wp.float64(1.0) + c * (P - P_rest)
+    """:func:`extension_ratio_dual` at a value."""
+    return extension_ratio_dual(d_const(P), P_rest, c).v
