@@ -392,6 +392,41 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
     return out
 
 
+def _failed_cells_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout, row_key: str,
+                       col_key: str) -> tuple[int | None, list[ResultWarning]]:
+    """The first row where a cell failed (no_convergence, event_not_located), and the warning
+    ``run_stopped_by_failed_cells`` naming where, why (:func:`knitsim.cell.history.solver_stop_reason`
+    of the first failed cell) and what of the program is not counted; (None, []) where none failed.
+    A stop at the force cap is an expected end, not this (``force_cap_reached``)."""
+    from ..cell.history import STATUS_EVENT_NOT_LOCATED, STATUS_NO_CONVERGENCE, solver_stop_reason
+    from ..cell.stages import LABEL_CODES
+
+    if not h.n_increments:
+        return None, []
+    status = np.asarray(h.groups["status"])
+    failed = np.isin(status, (STATUS_NO_CONVERGENCE, STATUS_EVENT_NOT_LOCATED))
+    rows = np.nonzero(failed.any(axis=1))[0]
+    if not len(rows):
+        return None, []
+    stop = int(rows[0])
+    g = int(np.nonzero(failed[stop])[0][0])
+    i, j = (int(v) for v in np.argwhere(h.group_of_cell == g)[0])
+    cap = float("inf")
+    if model is not None and "force_cap_N" in model.rules:
+        cap = float(np.broadcast_to(np.asarray(model.rules["force_cap_N"], float), h.group_of_cell.shape)[i, j])
+    label = {v: k for k, v in LABEL_CODES.items()}.get(int(h.groups["label"][stop, g]), "unknown stage")
+    why = solver_stop_reason(int(status[stop, g]), float(h.groups["C"][stop, g]) / float(h.C0[i, j]) - 1.0, None,
+                             label, float(h.groups["F"][stop, g]), cap, int(h.direction[stop]) > 0)
+    cells = int(failed.any(axis=0)[h.group_of_cell].sum())
+    what, column = ("block", "strip") if layout.blocks else ("cell", "column")
+    cut = [int(k) for k in np.unique(h.cycle) if np.nonzero(h.cycle == k)[0][0] >= stop]
+    msg = (f"{cells} {what}(s) failed from grip strain {h.grip_strain[stop]:.4g} (increment {stop + 1}); the first, "
+           f"{row_key} {i} {col_key} {j}: {why}. Their {column}s hold the last converged state, so from there the "
+           f"grip force is not the knit's: the cycle figures stop there"
+           + (f" (cycle(s) {', '.join(map(str, cut))} not run)" if cut else ""))
+    return stop, [ResultWarning("run_stopped_by_failed_cells", msg)]
+
+
 def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None, **info) -> dict:
     """The ``summary.json`` document (``model``: the run's, needed for a specimen; ``info`` is copied in).
 
@@ -420,9 +455,18 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     """
     F, e = h.force_N, h.grip_strain
     fc = force_cap_rows(h, model)
+    layout = _layout_of(h, model)
+    row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
+    # from the first row with a failed cell on, its column holds the cell's last converged state: the
+    # grip force is not the knit's there, and the cycle figures stop before it (warning run_stopped_by_failed_cells)
+    stop, stop_warnings = _failed_cells_stop(h, model, layout, row_key, col_key)
     cycles = []
     for k in np.unique(h.cycle):
         rows = np.nonzero(h.cycle == k)[0]
+        if stop is not None:
+            rows = rows[rows < stop]
+            if not len(rows):
+                continue                           # not run: the warning names it
         j = rows[np.argmax(F[rows])]
         entry = {"cycle": int(k), "peak_force_N": float(F[j]), "peak_force_per_wale_N": float(h.force_per_wale_N[j]),
                  "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length),
@@ -438,6 +482,11 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                     res = float(e[a] + t * (e[b] - e[a]))
                     break
         entry["residual_grip_strain"] = res
+        if stop is not None and stop <= np.nonzero(h.cycle == k)[0][-1]:
+            # cut by the failed cells: no work over a part of a cycle (warning run_stopped_by_failed_cells)
+            entry["cut_at_grip_strain"] = float(e[stop])
+            cycles.append(entry)
+            continue
         path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
         s_path, f_path = e[path], F[path]
         if rows[0] == 0:                           # the first cycle starts from the rest state
@@ -452,12 +501,10 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     nc = np.argwhere(h.column_status == COL_NOT_CONVERGED)
     bad_cells = np.argwhere(h.cell_field("status")[-1] != STATUS_OK) if h.n_increments else np.zeros((0, 2))
     nonfinite = np.nonzero(~np.isfinite(F))[0]
-    warnings = zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
+    warnings = stop_warnings + zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
     if "interpenetrating" in h.groups:
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
                                      what="distinct cell", direction=h.direction)
-    layout = _layout_of(h, model)
-    row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
     capped_peaks = [c["peak_force_per_wale_N"] for c in cycles if c["peak_is_force_cap"]]
     warnings += _force_cap_warnings(h, fc, layout, max(capped_peaks) if capped_peaks else None)
     warnings += _compressive_rest_cells(h, row_key, col_key)
