@@ -452,6 +452,11 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     :data:`~knitsim.io.checks.FORCE_CAP_RTOL` of it), null if never; each cycle's
     ``peak_is_force_cap`` says whether its peak is the cap; and the warning ``force_cap_reached``
     (with ``program_cut_by_force_cap`` where a stop left unloadings of the program unrun) says so.
+
+    Failed cells (no_convergence, event_not_located): from the first row with one, its column holds the
+    cell's last converged state, so the cycle figures use the rows before only; the cycle cut there has
+    ``cut_at_grip_strain`` and no work, later cycles are left out, and the warning
+    ``run_stopped_by_failed_cells`` says where, the first failed cell and why (:func:`_failed_cells_stop`).
     """
     F, e = h.force_N, h.grip_strain
     fc = force_cap_rows(h, model)
