@@ -45,8 +45,8 @@ from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work, energy_creating_loops,
-                     force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
+from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work,
+                     energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
 from .results import _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
@@ -392,39 +392,84 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
     return out
 
 
-def _failed_cells_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout, row_key: str,
-                       col_key: str) -> tuple[int | None, list[ResultWarning]]:
-    """The first row where a cell failed (no_convergence, event_not_located), and the warning
-    ``run_stopped_by_failed_cells`` naming where, why (:func:`knitsim.cell.history.solver_stop_reason`
-    of the first failed cell) and what of the program is not counted; (None, []) where none failed.
+def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout, row_key: str,
+              col_key: str) -> tuple[int | None, list[ResultWarning]]:
+    """The first row from which the grip force is no longer the knit's, and the warning saying so; (None, [])
+    where there is none.  Two cases, the earlier one counts:
+
+    - ``run_stopped_by_failed_cells``: a cell failed (no_convergence, event_not_located); its column
+      holds the cell's last converged state from there.  Where, the first failed cell and why
+      (:func:`knitsim.cell.history.solver_stop_reason`);
+    - ``run_held_by_unconverged_columns``: a column stops converging and holds its last converged state
+      (its force constant) to the end of the run, the grip moving (the coupling finds no balance of its
+      cells' forces), below its cells' force cap (held at the cap, ``force_cap_reached`` says so).  A column that fails to converge on an increment and moves again later is not this:
+      those increments are counted in ``non_converged_column_increments`` and marked.
+
     A stop at the force cap is an expected end, not this (``force_cap_reached``)."""
     from ..cell.history import STATUS_EVENT_NOT_LOCATED, STATUS_NO_CONVERGENCE, solver_stop_reason
-    from ..cell.stages import LABEL_CODES
 
-    if not h.n_increments:
+    n = h.n_increments
+    if not n:
         return None, []
+    names = {v: k for k, v in LABEL_CODES.items()}
+    goc = np.asarray(h.group_of_cell)
+    caps = np.full(goc.shape, np.inf)
+    if model is not None and "force_cap_N" in model.rules:
+        caps = np.broadcast_to(np.asarray(model.rules["force_cap_N"], float), goc.shape)
+    what, column = ("block", "strip") if layout.blocks else ("cell", "column")
+
+    def not_run(stop: int) -> str:
+        cut = [int(k) for k in np.unique(h.cycle) if np.nonzero(h.cycle == k)[0][0] >= stop]
+        return f" (cycle(s) {', '.join(map(str, cut))} not run)" if cut else ""
+
+    out = []
     status = np.asarray(h.groups["status"])
     failed = np.isin(status, (STATUS_NO_CONVERGENCE, STATUS_EVENT_NOT_LOCATED))
     rows = np.nonzero(failed.any(axis=1))[0]
-    if not len(rows):
+    if len(rows):
+        stop = int(rows[0])
+        g = int(np.nonzero(failed[stop])[0][0])
+        i, j = (int(v) for v in np.argwhere(goc == g)[0])
+        why = solver_stop_reason(int(status[stop, g]), float(h.groups["C"][stop, g]) / float(h.C0[i, j]) - 1.0, None,
+                                 names.get(int(h.groups["label"][stop, g]), "unknown stage"),
+                                 float(h.groups["F"][stop, g]), float(caps[i, j]), int(h.direction[stop]) > 0)
+        cells = int(failed.any(axis=0)[goc].sum())
+        out.append((stop, ResultWarning("run_stopped_by_failed_cells", (
+            f"{cells} {what}(s) failed from grip strain {h.grip_strain[stop]:.4g} (increment {stop + 1}); the first, "
+            f"{row_key} {i} {col_key} {j}: {why}. Their {column}s hold the last converged state, so from there the "
+            f"grip force is not the knit's: the cycle figures stop there" + not_run(stop)))))
+    # a column held to the end: its force is constant from its last converged state on, and the hold begins
+    # with an increment it did not converge on (a slack column's zero force is constant too, but converged)
+    unconverged = np.asarray(h.column_status) == COL_NOT_CONVERGED
+    Fcol = np.asarray(h.column_force_N)
+    held_from = {}
+    for j in np.nonzero(unconverged.any(axis=0))[0]:
+        moved = np.nonzero(Fcol[:, j] != Fcol[-1, j])[0]
+        c0 = int(moved[-1]) + 1 if len(moved) else 0
+        if Fcol[-1, j] >= (1.0 - FORCE_CAP_RTOL) * float(np.min(caps[:, j])):
+            continue                    # held at its cells' force cap: force_cap_reached says so
+        for r in (c0, c0 + 1):
+            if r < n and unconverged[r, j] and np.ptp(h.grip_strain[r:]) > 0:
+                held_from[int(j)] = r
+                break
+    if held_from:
+        held = min(held_from.values())
+        cols = sorted(held_from)
+        j = min(cols, key=lambda c: (held_from[c], c))
+        F = float(Fcol[held, j])
+        jammed = bool(np.any(h.groups["label"][held, goc[:, j]] == LABEL_CODES["jamming"]))
+        cap = float(np.min(caps[:, j]))
+        advice = (f"; its {what}s are jammed and the jammed branch's force diverges: a force_cap_N below {F:.3g} N "
+                  "ends the run there as expected" if jammed and int(h.direction[held]) > 0 and F < cap else "")
+        out.append((held, ResultWarning("run_held_by_unconverged_columns", (
+            f"from grip strain {h.grip_strain[held]:.4g} (increment {held + 1}), {len(cols)} of {h.shape[1]} "
+            f"{column}(s) no longer converge: the coupling finds no balance of their {what}s' forces, and they hold "
+            f"their last converged state to the end of the run, so the grip force there is not the knit's: the "
+            f"cycle figures stop there" + not_run(held) + f"; the first, {col_key} {j}, held at {F:.4g} N per "
+            f"wale{' (jamming)' if jammed else ''}" + advice))))
+    if not out:
         return None, []
-    stop = int(rows[0])
-    g = int(np.nonzero(failed[stop])[0][0])
-    i, j = (int(v) for v in np.argwhere(h.group_of_cell == g)[0])
-    cap = float("inf")
-    if model is not None and "force_cap_N" in model.rules:
-        cap = float(np.broadcast_to(np.asarray(model.rules["force_cap_N"], float), h.group_of_cell.shape)[i, j])
-    label = {v: k for k, v in LABEL_CODES.items()}.get(int(h.groups["label"][stop, g]), "unknown stage")
-    why = solver_stop_reason(int(status[stop, g]), float(h.groups["C"][stop, g]) / float(h.C0[i, j]) - 1.0, None,
-                             label, float(h.groups["F"][stop, g]), cap, int(h.direction[stop]) > 0)
-    cells = int(failed.any(axis=0)[h.group_of_cell].sum())
-    what, column = ("block", "strip") if layout.blocks else ("cell", "column")
-    cut = [int(k) for k in np.unique(h.cycle) if np.nonzero(h.cycle == k)[0][0] >= stop]
-    msg = (f"{cells} {what}(s) failed from grip strain {h.grip_strain[stop]:.4g} (increment {stop + 1}); the first, "
-           f"{row_key} {i} {col_key} {j}: {why}. Their {column}s hold the last converged state, so from there the "
-           f"grip force is not the knit's: the cycle figures stop there"
-           + (f" (cycle(s) {', '.join(map(str, cut))} not run)" if cut else ""))
-    return stop, [ResultWarning("run_stopped_by_failed_cells", msg)]
+    return min(r for r, _ in out), [w for _, w in out]
 
 
 def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None, **info) -> dict:
@@ -453,18 +498,19 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     ``peak_is_force_cap`` says whether its peak is the cap; and the warning ``force_cap_reached``
     (with ``program_cut_by_force_cap`` where a stop left unloadings of the program unrun) says so.
 
-    Failed cells (no_convergence, event_not_located): from the first row with one, its column holds the
-    cell's last converged state, so the cycle figures use the rows before only; the cycle cut there has
-    ``cut_at_grip_strain`` and no work, later cycles are left out, and the warning
-    ``run_stopped_by_failed_cells`` says where, the first failed cell and why (:func:`_failed_cells_stop`).
+    Failed cells (no_convergence, event_not_located), or columns that no longer converge to the end of the
+    run: from the first such row, a column holds its last converged state, so the cycle figures use the
+    rows before only; the cycle cut there has ``cut_at_grip_strain`` and no work, later cycles are left
+    out, and the warning ``run_stopped_by_failed_cells`` or ``run_held_by_unconverged_columns`` says
+    where and why (:func:`_run_stop`).
     """
     F, e = h.force_N, h.grip_strain
     fc = force_cap_rows(h, model)
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
-    # from the first row with a failed cell on, its column holds the cell's last converged state: the
-    # grip force is not the knit's there, and the cycle figures stop before it (warning run_stopped_by_failed_cells)
-    stop, stop_warnings = _failed_cells_stop(h, model, layout, row_key, col_key)
+    # from the first row with a failed cell on (its column holds the cell's last converged state), or from
+    # where columns stop converging for good, the grip force is not the knit's: the cycle figures stop there
+    stop, stop_warnings = _run_stop(h, model, layout, row_key, col_key)
     cycles = []
     for k in np.unique(h.cycle):
         rows = np.nonzero(h.cycle == k)[0]
@@ -488,7 +534,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                     break
         entry["residual_grip_strain"] = res
         if stop is not None and stop <= np.nonzero(h.cycle == k)[0][-1]:
-            # cut by the failed cells: no work over a part of a cycle (warning run_stopped_by_failed_cells)
+            # cut where the force stops being the knit's: no work over a part of a cycle (_run_stop's warning)
             entry["cut_at_grip_strain"] = float(e[stop])
             cycles.append(entry)
             continue

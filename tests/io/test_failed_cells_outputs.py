@@ -1,12 +1,15 @@
-"""A patch whose cells fail says where and why, and its cycle figures stop there (warning
-run_stopped_by_failed_cells).
+"""A patch whose cells fail, or whose columns stop converging for good, says where and why, and its
+cycle figures stop there (warnings run_stopped_by_failed_cells, run_held_by_unconverged_columns).
 
 Where the expected outcomes come from:
 
 - a failed cell keeps its last converged state (knitsim.cell.history.BatchHistory), so its column holds
   that force on every later row: those rows are not the knit's response, and a cycle's work or a peak taken
   over them is not a result. The hand-made history below has that shape: two columns, two cycles, one cell
-  failing on the first unloading, its column's force held from there;
+  failing on the first unloading, its column's force held from there. A column whose coupling finds no
+  balance holds its last converged state the same way (the random-phi0 scene pulled to 0.9 under a 1e12 N
+  cap: every column held at 150.8 N per wale from grip strain 0.86 on, its cells still ok); one that fails
+  on an increment and moves again later does not (the paper specimen's one unconverged reload increment);
 - the bundled E-glass specimen (scenes/specimen_e_glass_cyclic.toml) pulled to grip strain 0.85 with
   force_cap_N = 1e12 jams and then fails up the jammed branch, whose force diverges (W held at the
   jamming width while C grows), far below that cap: every one of its identical cells fails on the
@@ -22,7 +25,7 @@ from knitsim.cell.history import STATUS_NO_CONVERGENCE, STATUS_OK
 from knitsim.cell.material import CellParams
 from knitsim.cell.stages import LABEL_CODES
 from knitsim.io.patch_results import patch_summary
-from knitsim.patch.coupling import COL_OK, COL_STOPPED
+from knitsim.patch.coupling import COL_NOT_CONVERGED, COL_OK, COL_STOPPED
 from knitsim.patch.model import PatchModel
 from knitsim.patch.runner import PatchHistory
 
@@ -70,6 +73,36 @@ def test_failed_cells_cut_the_cycle_figures_and_say_where_and_why():
     assert s["all_converged"] is False
 
 
+def _unconverged_history(hold: bool):
+    """The history above without a failed cell; the second column does not converge from row 3 on and holds
+    2 N per wale to the end (``hold``), or only on row 3, moving on after it."""
+    h = _history(None)
+    h.column_status[3:, 1] = COL_NOT_CONVERGED if hold else COL_OK
+    h.column_status[3, 1] = COL_NOT_CONVERGED
+    if hold:
+        h.column_force_N[3:, 1] = 2.0
+        h.groups["label"][3:, 1] = LABEL_CODES["jamming"]
+    h.force_N[:] = h.column_force_N.sum(axis=1)
+    return h
+
+
+def test_columns_that_no_longer_converge_cut_the_cycle_figures():
+    model = PatchModel.uniform(P, 1, 2)
+    s = patch_summary(_unconverged_history(True), 2.7, model=model)
+    (w,) = [w for w in s["warnings"] if w["code"] == "run_held_by_unconverged_columns"]
+    for words in ("from grip strain 0.2 (increment 4), 1 of 2 column(s) no longer converge",
+                  "hold their last converged state to the end of the run", "cycle(s) 2 not run",
+                  "wale 1, held at 2 N per wale (jamming)"):
+        assert words in w["message"], words
+    assert "force_cap_N" not in w["message"]            # held from an unloading: the cap bounds loading only
+    (c1,) = s["cycles"]
+    assert c1["cut_at_grip_strain"] == 0.2 and not [k for k in c1 if k.endswith("_N_mm")]
+    # a column that misses one increment and moves on: counted and marked, nothing cut
+    s = patch_summary(_unconverged_history(False), 2.7, model=model)
+    assert not [w for w in s["warnings"] if w["code"].startswith("run_")]
+    assert [c["cycle"] for c in s["cycles"]] == [1, 2] and s["non_converged_column_increments"] == 1
+
+
 def test_without_failed_cells_nothing_is_cut():
     s = patch_summary(_history(None), 2.7, model=PatchModel.uniform(P, 1, 2))
     assert [c["cycle"] for c in s["cycles"]] == [1, 2]
@@ -108,5 +141,5 @@ def test_knitsim_run_of_a_specimen_failing_up_the_jammed_branch_says_so(tmp_path
     # the console says it, the cycle line says the cut instead of a work over held forces, the plot's
     # warnings carry it (printed under the axes from the summary)
     assert "knitsim run: warning: " + w["message"] in err
-    assert f"cut at grip strain {grip:.4g} by failed cells" in out and "work" not in out
+    assert f"cut at grip strain {grip:.4g}, where the force stops being the knit's" in out and "work" not in out
     assert [c["cycle"] for c in s["cycles"]] == [1] and s["cycles"][0]["cut_at_grip_strain"] == grip
