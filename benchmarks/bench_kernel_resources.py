@@ -50,16 +50,17 @@ def offline(keys, arch: int = 90) -> None:
             ptx = Path(path).read_bytes().replace(b"\x00", b"")
             have = re.search(rb"^\.version (\d+\.\d+)", ptx, re.M).group(1).decode()
             fixed = out / "fixed.ptx"
-            fixed.write_bytes(ptx)
-            r = subprocess.run([ptxas, f"-arch=sm_{arch}", "-v", "-o", str(out / "x.cubin"), str(fixed)],
-                               capture_output=True, text=True)
+
+            def assemble(text: bytes):
+                fixed.write_bytes(text)
+                return subprocess.run([ptxas, f"-arch=sm_{arch}", "-v", "-o", str(out / "x.cubin"), str(fixed)],
+                                      capture_output=True, text=True)
+
+            r = assemble(ptx)
             m = re.search(r"Unsupported \.version (\d+\.\d+); current version is '(\d+\.\d+)'", r.stderr)
             if m:
                 print(f"(PTX .version {have} lowered to {m.group(2)} for this ptxas)")
-                fixed.write_bytes(re.sub(rb"^\.version \d+\.\d+", f".version {m.group(2)}".encode(), ptx, count=1,
-                                         flags=re.M))
-                r = subprocess.run([ptxas, f"-arch=sm_{arch}", "-v", "-o", str(out / "x.cubin"), str(fixed)],
-                                   capture_output=True, text=True)
+                r = assemble(re.sub(rb"^\.version \d+\.\d+", f".version {m.group(2)}".encode(), ptx, count=1, flags=re.M))
             if r.returncode:
                 raise SystemExit(f"ptxas failed:\n{r.stderr[-2000:]}")
             lines = r.stderr.splitlines()
@@ -79,15 +80,15 @@ def main(argv=None):
     ap.add_argument("--ptxas", action="store_true", help="offline: Warp's PTX for sm_90 through the toolkit's ptxas -v")
     a = ap.parse_args(argv)
     warp_runtime.init()
+    keys = ([KernelKey(*bits) for bits in itertools.product((False, True), repeat=3)] if a.all_keys
+            else [KernelKey(dahl=False, effects=False, gap=False)])
     if a.ptxas:
-        offline([KernelKey(*bits) for bits in itertools.product((False, True), repeat=3)] if a.all_keys
-                else [KernelKey(dahl=False, effects=False, gap=False)])
+        offline(keys)
         return
     device = warp_runtime.resolve_device(a.device)
     if not str(device).startswith("cuda"):
         raise SystemExit("bench_kernel_resources: CUDA only (registers and local memory are CUDA properties)")
-    keys = ([KernelKey(*bits) for bits in itertools.product((False, True), repeat=3)] if a.all_keys
-            else [KernelKey(dahl=False, effects=False, gap=False)]) + [None]
+    keys = keys + [None]
     print(f"{'kernel key':<26} {'kernel':<20} {'registers':>9} {'local memory B / thread':>24}  ({wp.get_device(device).name})")
     for key in keys:
         mod = cell_step_module(key)

@@ -725,7 +725,7 @@ class CellSolver:
         if compact:
             pending = self._pending_buffers()
             if slices:
-                resumed = self._pending_buffers(second=True)
+                pending2 = self._pending_buffers(second=True)
                 sus = self._suspended()
         if sort:
             bufs = self.__dict__.setdefault("_sort", [
@@ -757,7 +757,7 @@ class CellSolver:
                         if slices:
                             # the full step in slices of sub-steps, the cells still walking compacted
                             # between them (ping-pong lists), then one launch finishing them
-                            lists = [pending[g], resumed[g]]
+                            lists = [pending[g], pending2[g]]
                             tail = [k0, int(stride), self._ev_struct, hist_s, sus]
                             for r, budget in enumerate(slices):
                                 nxt, nxt_count = lists[(r + 1) % 2]

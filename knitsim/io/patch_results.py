@@ -411,7 +411,6 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
     n = h.n_increments
     if not n:
         return None, []
-    names = {v: k for k, v in LABEL_CODES.items()}
     goc = np.asarray(h.group_of_cell)
     caps = np.full(goc.shape, np.inf)
     if model is not None and "force_cap_N" in model.rules:
@@ -431,7 +430,7 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
         g = int(np.nonzero(failed[stop])[0][0])
         i, j = (int(v) for v in np.argwhere(goc == g)[0])
         why = solver_stop_reason(int(status[stop, g]), float(h.groups["C"][stop, g]) / float(h.C0[i, j]) - 1.0, None,
-                                 names.get(int(h.groups["label"][stop, g]), "unknown stage"),
+                                 _LABELS.get(int(h.groups["label"][stop, g]), "unknown stage"),
                                  float(h.groups["F"][stop, g]), float(caps[i, j]), int(h.direction[stop]) > 0)
         cells = int(failed.any(axis=0)[goc].sum())
         out.append((stop, ResultWarning("run_stopped_by_failed_cells", (
@@ -513,9 +512,9 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     stop, stop_warnings = _run_stop(h, model, layout, row_key, col_key)
     cycles = []
     for k in np.unique(h.cycle):
-        rows = np.nonzero(h.cycle == k)[0]
+        rows = cycle_rows = np.nonzero(h.cycle == k)[0]
         if stop is not None:
-            rows = rows[rows < stop]
+            rows = cycle_rows[cycle_rows < stop]
             if not len(rows):
                 continue                           # not run: the warning names it
         j = rows[np.argmax(F[rows])]
@@ -533,7 +532,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                     res = float(e[a] + t * (e[b] - e[a]))
                     break
         entry["residual_grip_strain"] = res
-        if stop is not None and stop <= np.nonzero(h.cycle == k)[0][-1]:
+        if len(rows) < len(cycle_rows):
             # cut where the force stops being the knit's: no work over a part of a cycle (_run_stop's warning)
             entry["cut_at_grip_strain"] = float(e[stop])
             cycles.append(entry)

@@ -17,7 +17,6 @@ from knitsim.errors import KnitsimInputError
 from knitsim.scene.schema import dumps
 
 
-
 def _curve(top, n=11):
     """n rows from strain 0 to ``top`` (header row 1, so the last data row is spreadsheet row n + 1)."""
     return "strain,load_N\n" + "".join(f"{top * k / (n - 1)!r},{0.5 * k}\n" for k in range(n))
