@@ -81,9 +81,10 @@ from .elastica import (
 from .head_gap import head_gap_dual, head_gap_value
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
-    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, imposed_residual, mat55d, max_abs5, solve5, vec4d,
+    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, evaluate_x, imposed_residual, mat55d, max_abs5, solve5, vec4d,
 )
-from .quarter_loop import N_QUANTITIES, CellEval, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
+from .quarter_loop import N_QUANTITIES, CellEval, admissible, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
+from .specialise import INIT_KEY
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
 
@@ -553,8 +554,19 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
 @wp.func
 def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
                  max_first: wp.float64):
-    """Per-cell Newton (the method of kernels.inverse.solve_conditions_kernel, in the
-    variables z = (ln(alpha - gamma), beta, R/P, phi, ln P)).
+    """:func:`newton_solve` with the cell step's tolerances: returns (z, q, status, step0)."""
+    z, q, st, step0, n = newton_solve(z0, codes, targets, dp, B, d, max_first, NEWTON_TOL, NEWTON_TOL_STALLED,
+                                      NEWTON_MAX_ITER)
+    return z, q, st, step0
+
+
+@wp.func
+def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
+                 max_first: wp.float64, tol: wp.float64, tol_stalled: wp.float64, max_iter: int):
+    """The Newton solve of one cell: g = 0 (eq 6) and the four conditions ``codes`` = ``targets``
+    (Table 4; :func:`residuals_ext`), in the variables z = (ln(alpha - gamma), beta, R/P, phi, ln P).
+    The one Newton of the package: the cell step (:func:`newton_first`) and the inverse solve
+    (:func:`solve_conditions_kernel`, ``knitsim.cell.warp_solve.solve_batch``) both call it.
 
     Near the edge G(0) = 0 of the domain (:func:`apex_g0`; theta' vanishes at the apex C, where
     T > 0) the iteration runs in the chart (ln(alpha - gamma), beta, ln G(0), phi, ln P) instead
@@ -574,14 +586,18 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
     a converged state of the same conditions that step is the branch's tangent times the change of
     the driving condition, so it predicts where the branch goes and whether the step can converge at once.
 
-    Returns (z, q, status, step0): the solution (or last admissible iterate) in the variables z, all
-    quantities at it, an inverse status code (0 converged), and the first step (in the chart's
-    variables; z[3] = phi in both) where the solve stopped for it (else zero).
+    Converged when every scaled residual is <= ``tol``; after ``max_iter`` steps, or where the line
+    search finds no decrease, also when they are <= ``tol_stalled`` (creeping along the rounding floor).
+
+    Returns (z, q, status, step0, steps): the solution (or last admissible iterate) in the variables z,
+    all quantities at it, an inverse status code (0 converged), the first step (in the chart's
+    variables; z[3] = phi in both) where the solve stopped for it (else zero), and the Newton steps taken.
     """
     st = int(STATUS_MAX_ITER)
     step0 = vec5d()
     z = z0
     q = vecQd()
+    n = int(0)
     if not zr_admissible(z0):
         st = int(STATUS_DOMAIN)
     else:
@@ -594,19 +610,18 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
         zr = chart_to_zr(z, chart)
         r, J = residuals_ext(cell, zr, codes, targets, dp, B, d)
         q = cell.q
-        n = int(0)
         if not all_finite(r, J):
             st = int(STATUS_NONFINITE)
         else:
             f = wp.dot(r, r)
             lam_prev = wp.float64(1.0)
             while True:
-                if max_abs5(r) <= NEWTON_TOL:
+                if max_abs5(r) <= tol:
                     st = int(STATUS_CONVERGED)
                     break
-                if n >= NEWTON_MAX_ITER:
+                if n >= max_iter:
                     st = int(STATUS_MAX_ITER)
-                    if max_abs5(r) <= NEWTON_TOL_STALLED:
+                    if max_abs5(r) <= tol_stalled:
                         st = int(STATUS_CONVERGED)  # creeping along the rounding floor
                     break
                 dz, singular = solve5(J, -r)
@@ -659,13 +674,13 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
                         st = int(STATUS_DOMAIN)
                     elif any_nonfinite:
                         st = int(STATUS_NONFINITE)
-                    elif max_abs5(r) <= NEWTON_TOL_STALLED:
+                    elif max_abs5(r) <= tol_stalled:
                         st = int(STATUS_CONVERGED)  # at the rounding floor of the residuals
                     else:
                         st = int(STATUS_MAX_ITER)
                     break
         z = zr
-    return z, q, st, step0
+    return z, q, st, step0, n
 
 
 @wp.func
@@ -1540,6 +1555,54 @@ def closing_force(al: wp.float64, be: wp.float64, ga: wp.float64, B: wp.float64,
         if xhat > wp.float64(0.0) and target > wp.float64(0.0):
             P = B * (xhat / target) * (xhat / target)
     return P
+
+
+if _KEY is not None and _KEY == INIT_KEY:
+    # the inverse solve needs none of the optional residuals: it is compiled in the instance of the
+    # state initialisation only, which every batch loads
+
+    @wp.kernel
+    def solve_conditions_kernel(
+        codes: wp.array2d(dtype=wp.int32),
+        targets: wp.array2d(dtype=wp.float64),
+        B: wp.array(dtype=wp.float64),
+        d: wp.array(dtype=wp.float64),
+        x_guess: wp.array2d(dtype=wp.float64),
+        max_iter: int,
+        tol: wp.float64,
+        x_out: wp.array2d(dtype=wp.float64),
+        status: wp.array(dtype=wp.int32),
+        iters: wp.array(dtype=wp.int32),
+    ):
+        """The inverse solve (``knitsim.cell.warp_solve.solve_batch``): g = 0 (eq 6) and
+        quantity[codes[i, k]] = targets[i, k], k = 0..3, by the cell step's Newton (:func:`newton_solve`,
+        converged at ``tol``, no relaxed floor).
+
+        Inputs, shape (1 or N, ...): codes [.,4], targets [.,4], B [N mm^2], d [mm],
+        x_guess [.,5] = (alpha, beta, gamma, phi, P) [rad, N].  Outputs, shape N:
+        x_out [N,5], status [N] (kernels.inverse's codes), iters [N] (Newton steps taken).  A guess
+        outside the domain is returned as it is, with status STATUS_DOMAIN.
+        """
+        i = wp.tid()
+        ic = i % codes.shape[0]
+        it_ = i % targets.shape[0]
+        ig = i % x_guess.shape[0]
+        Bi = B[i % B.shape[0]]
+        di = d[i % d.shape[0]]
+        cds = wp.vec4i(codes[ic, 0], codes[ic, 1], codes[ic, 2], codes[ic, 3])
+        tg = vec4d(targets[it_, 0], targets[it_, 1], targets[it_, 2], targets[it_, 3])
+        x = vec5d(x_guess[ig, 0], x_guess[ig, 1], x_guess[ig, 2], x_guess[ig, 3], x_guess[ig, 4])
+        st = int(STATUS_DOMAIN)
+        n = int(0)
+        if admissible(x[0] - x[2], x[1], x[2], x[3], x[4]):
+            # R/P of the guess from its quantities (z_of: no 0/0 where beta + phi = pi/2)
+            z, q, st, step0, n = newton_solve(z_of(x, evaluate_x(x, Bi, di).q), cds, tg, vec10p(), Bi, di,
+                                              wp.float64(0.0), tol, tol, max_iter)
+            x = x_of_z(z)
+        for k in range(5):
+            x_out[i, k] = x[k]
+        status[i] = st
+        iters[i] = n
 
 
 @wp.kernel

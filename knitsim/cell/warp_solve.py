@@ -1,8 +1,9 @@
 """Batched quarter-stitch cells on a Warp device: forward map and inverse solve.
 
-Thin wrappers over :mod:`knitsim.kernels.inverse` (eqs 6-9 of Dusserre 2015 in
-``knitsim.kernels.quarter_loop`` / ``knitsim.kernels.elastica``): arrays in,
-one kernel launch, arrays out; no Python loop over cells.
+Thin wrappers over the forward kernels of :mod:`knitsim.kernels.inverse` and the cell step's
+Newton (``knitsim.kernels.cell_step.solve_conditions_kernel``; eqs 6-9 of Dusserre 2015 in
+``knitsim.kernels.quarter_loop`` / ``knitsim.kernels.elastica``): arrays in, one kernel launch,
+arrays out; no Python loop over cells.
 
 Per-cell inputs are broadcast MuJoCo-Warp style: each has a leading axis of
 length 1 or N (a scalar counts as length 1), and the kernels read
@@ -156,14 +157,17 @@ def solve_batch(
     d,
     x_guess,
     device: str = "cpu",
-    max_iter: int = 50,
+    max_iter: int = 60,
     tol: float = 1e-11,
 ):
     """Solve N quarter stitches for the unknowns that meet four conditions each.
 
     Each cell solves g = 0 (eq 6, third line) and ``quantity[conditions[k]] = targets[k]``
     for k = 0..3 (Dusserre 2015 Table 4) by Newton's method with exact forward-mode
-    Jacobian and a backtracking line search (see :mod:`knitsim.kernels.inverse`).
+    Jacobian and a backtracking line search: the cell step's Newton
+    (:func:`knitsim.kernels.cell_step.newton_solve`, in the variables ln(alpha - gamma), beta, R/P,
+    phi, ln P, or ln G(0) in place of R/P near the apex edge), without its relaxed floor: converged
+    means every scaled residual <= ``tol``.
 
     Parameters
     ----------
@@ -178,7 +182,7 @@ def solve_batch(
     device : str
         Warp device.
     max_iter : int
-        Newton iteration cap.
+        Newton iteration cap (the cell step's, 60).
     tol : float
         Convergence when every scaled residual is <= tol (g and lengths over d,
         forces over B/d^2, moment over B/d, angles in rad).
@@ -204,12 +208,13 @@ def solve_batch(
     if not (np.isfinite(tol) and tol > 0):
         raise KnitsimInputError(f"tol: must be finite and > 0, got {tol}")
     n = _batch_size(conditions=codes, targets=targets, x_guess=x_guess, B=B, d=d)
-    inv = _kernels()
+    from knitsim.kernels.specialise import INIT_KEY, cell_step_module
+
     x_out = wp.empty((n, 5), dtype=wp.float64, device=device)
     status = wp.empty(n, dtype=wp.int32, device=device)
     iters = wp.empty(n, dtype=wp.int32, device=device)
     wp.launch(
-        inv.solve_conditions_kernel,
+        cell_step_module(INIT_KEY).solve_conditions_kernel,
         dim=n,
         inputs=[_wp(codes, device, wp.int32), _wp(targets, device), _wp(B, device), _wp(d, device),
                 _wp(x_guess, device), int(max_iter), float(tol)],
