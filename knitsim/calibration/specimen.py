@@ -9,7 +9,8 @@ holds that, on the rows the fit uses:
 
 - the rows are a uniform grid of grip strains from one step to the end of the
   data (the smaller of the envelopes' last strains), so that a share of rows
-  is a share of the strain range;
+  is a share of the strain range; a file that starts above the first row is
+  refused (its rows there would be made up);
 - the target is the measured curve there (linear interpolation) when one is
   given, else the mid-line of the envelopes;
 - each row's weight is 1 / its sd: the half-width of the envelope band (the
@@ -33,7 +34,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import KnitsimInputError
-from ..diagnosis.measured import PER_CENT_HINT, compression_limit, strain_tolerance
+from ..diagnosis.measured import (
+    PER_CENT_HINT, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
+    strain_tolerance,
+)
+from ..diagnosis.noise import CurveNoise, curve_noise
 from ..io.table_input import read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
@@ -55,12 +60,14 @@ class MeasuredTable:
     source: str
     rows: np.ndarray
     strain_column: str = "strain"
+    #: the force's noise, from the curve (knitsim.diagnosis.noise)
+    noise: CurveNoise | None = None
 
 
 def read_table(path: str | Path) -> MeasuredTable:
     """Read a strain-force file (module docstring); refuses what is wrong, naming file, row and column."""
     path = Path(path)
-    cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS)
+    cols = drop_copied_rows(read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS))
     s_name = next((c for c in STRAIN_COLUMNS if c in cols), None)
     f_total = next((c for c in TOTAL_COLUMNS if c in cols), None)
     f_wale = next((c for c in PER_WALE_COLUMNS if c in cols), None)
@@ -74,6 +81,7 @@ def read_table(path: str | Path) -> MeasuredTable:
                                 "keep one column")
     strain, rows = cols[s_name], cols["_row"]
     force = cols[f_total or f_wale]
+    refuse_few_rows(path, rows)
     # a lab's zero offset and jitter are kept, as the diagnosis keeps them (knitsim.diagnosis.measured): a
     # strain down to -max(0.005, 5 % of the largest) is an extensometer's zero, a step back by at most 1e-3
     # of the strain range is jitter (the running maximum is used, the force is kept); beyond, it is wrong
@@ -93,8 +101,18 @@ def read_table(path: str | Path) -> MeasuredTable:
                                 "reads loading curves (strain non-decreasing)")
     if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
+    # the force as the diagnosis reads it: a reading around zero is kept, a wrong sign or zero and a
+    # force that never rises above the noise (all zero, not connected) are refused
+    one = np.ones(len(clean), int)
+    noise = curve_noise(clean, force, one, one, source=str(path))
+    column = f_total or f_wale
+
+    def row(i):
+        return int(rows[i])
+    refuse_negative_force(str(path), force, noise, row, column)
+    refuse_no_response(str(path), force, noise.sigma_N, row, column)
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float), f_total is not None, str(path), rows,
-                         s_name)
+                         s_name, noise)
 
 
 def pretension_strain(grip_strain, pretension: float):
@@ -384,6 +402,15 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         if end_strain > end:
             raise KnitsimInputError(f"{where}.end_strain = {end_strain!r}: beyond the data (ends at {end:g})")
         end = end_strain
+    # every row lies where every file measured: a file that starts above the first row (its lab dropped
+    # the pre-load part) would have its first force held constant down to that row, made-up data
+    late = [t for t in tables if t.strain[0] > row_step + 1e-9]
+    if late:
+        t = late[0]
+        raise KnitsimInputError(f"{where}: {t.source} starts at strain {float(t.strain[0]):g} (row {int(t.rows[0])}), "
+                                f"above the first row of the fit ({row_step:g}, row_step): the rows below it would "
+                                "be made up. Give the curve from the start of its test (strain 0), or a calibration.row_step of at least "
+                                "that strain")
     n = int(np.floor(end / row_step + 1e-9))
     if n < 4:
         raise KnitsimInputError(f"{where}: the data end at strain {end:g}, fewer than 4 rows of "
@@ -403,10 +430,7 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         rule = f"{how}, at least {100 * accuracy_rel:.3g} % of the force (the machine's accuracy)"
     else:
         if noise_N is None:
-            from ..diagnosis.noise import curve_noise
-            one = np.ones(len(cur.strain), int)
-            nz = curve_noise(cur.strain, cur.force, one, one, source=cur.source)
-            noise_N, how = float(nz.sigma_N), f"{nz.method} from the curve"
+            noise_N, how = float(cur.noise.sigma_N), f"{cur.noise.method} from the curve"
         else:
             how = "given"
         sigma = np.full(len(strain), max(float(noise_N), 1e-6 * scale))

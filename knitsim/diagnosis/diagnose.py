@@ -383,8 +383,8 @@ def estimate_noise(curves: Sequence[MeasuredCurve]) -> float:
     """The noise sd [N] of curves that share one noise level (their chords pooled); see
     :mod:`knitsim.diagnosis.noise`.  The diagnosis itself estimates every curve on its own
     (:func:`noise_step`)."""
-    from .noise import MAD_TO_SD, MIN_SAMPLES, chord_residuals
-    z = np.concatenate([chord_residuals(c.strain, c.force, c.cycle, c.direction) for c in curves])
+    from .noise import MAD_TO_SD, MIN_SAMPLES, noise_samples
+    z = np.concatenate([noise_samples(c.strain, c.force, c.cycle, c.direction) for c in curves])
     if len(z) < MIN_SAMPLES:
         raise KnitsimInputError("curves: too few rows on monotone branches to estimate the noise; give diagnosis.noise_N")
     return float(MAD_TO_SD * np.median(z))
@@ -1520,6 +1520,14 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     twice = sorted({x for x in sources if sources.count(x) > 1})
     if twice:
         raise KnitsimInputError(f"{', '.join(twice)}: given more than once (its rows would count twice)")
+    seen: dict[bytes, str] = {}
+    for c in curves:    # the same file under another name or path, or a copy of it
+        rows = np.ascontiguousarray(np.column_stack([c.strain_read if c.strain_read is not None else c.strain,
+                                                     c.force])).tobytes()
+        if rows in seen:
+            raise KnitsimInputError(f"{c.source}: the same rows as {seen[rows]} (the same test given twice, or a "
+                                    "copy of it: its rows would count twice)")
+        seen[rows] = c.source
     limit, why = _reachable(setup)
     for c in curves:
         check_reachable(c, limit, why)

@@ -72,6 +72,8 @@ NEGATIVE_SPIKES = 2
 NEGATIVE_SPIKE_SHARE = 0.005
 #: strain jitter tolerated inside a branch, as a fraction of the curve's strain range
 STRAIN_TOL_REL = 1.0e-3
+#: the fewest data rows of a measured curve file (a shape, and a noise, need more than a line's points)
+MIN_CURVE_ROWS = 4
 
 
 @dataclass(frozen=True)
@@ -155,14 +157,38 @@ def check_response(curve: "MeasuredCurve") -> None:
     """Refuse a measured curve whose force never rises above NEGATIVE_SIGMAS noise sd (a load cell that
     was not connected, the wrong column): there is nothing to compare.  (A strain-only shell, force 0,
     that only carries a replay program is not a measurement and is not checked.)"""
-    f = curve.force
-    top = int(np.argmax(f))
     sigma = curve.noise.sigma_N if curve.noise is not None else 0.0
-    if not f[top] > NEGATIVE_SIGMAS * sigma:
+    refuse_no_response(curve.source, curve.force, sigma, curve.row_of)
+
+
+def refuse_no_response(source: str, force, sigma_N: float, row, column: str = "force_per_wale_N") -> None:
+    """Refuse a force column that never rises above NEGATIVE_SIGMAS noise sd ``sigma_N`` (all zero, not
+    connected, or of the wrong sign); ``row(i)`` is the spreadsheet row of entry i."""
+    f = np.asarray(force, float)
+    top = int(np.argmax(f))
+    if not f[top] > NEGATIVE_SIGMAS * sigma_N:
         raise KnitsimInputError(
-            f"{curve.source}: column force_per_wale_N: the force never rises above the noise (largest "
-            f"{float(f[top]):g} N at row {curve.row_of(top)}, noise sd {sigma:.3g} N): there is no measured response "
-            "to compare; check the column and the load cell")
+            f"{source}: column {column}: the force never rises above the noise (largest "
+            f"{float(f[top]):g} N at row {row(top)}, noise sd {sigma_N:.3g} N): there is no measured response "
+            "to compare; check the column, its sign and the load cell")
+
+
+def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: str = "force_per_wale_N") -> None:
+    """Refuse a force column below zero by more than NEGATIVE_SIGMAS noise sd, beyond a few spikes
+    (outliers, only where the noise is known): a wrong zero or sign.  ``row(i)`` is the spreadsheet row
+    of entry i."""
+    f = np.asarray(force, float)
+    bad = np.nonzero(f < -NEGATIVE_SIGMAS * noise.sigma_N)[0]
+    # a spike or two on a curve whose noise is known is an outlier (the diagnosis leaves isolated outliers
+    # out); more, or any without a known noise, is a wrong zero or sign
+    spikes = max(NEGATIVE_SPIKES, NEGATIVE_SPIKE_SHARE * len(f)) if noise.known else 0
+    if len(bad) > spikes:
+        i = int(bad[0])
+        how = noise.method if noise.known else f"assumed: {noise.note}"
+        raise KnitsimInputError(
+            f"{source}: row {row(i)}, column {column}: {float(f[i]):g} N is below zero by more than "
+            f"{NEGATIVE_SIGMAS:g} noise sd ({noise.sigma_N:.3g} N, {how}): a knit carries no compression; "
+            "check the load cell's zero and the sign of the column")
 
 
 def strain_tolerance(strain) -> float:
@@ -351,18 +377,28 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
             raise KnitsimInputError(f"{source}: row {row(bad[0])}, column rate_mm_s: {float(r[bad[0]]):g} must be > 0")
     clean = _monotone(s, d)
     noise = curve_noise(clean, f, c, d, source, noise_N)
-    limit = -NEGATIVE_SIGMAS * noise.sigma_N
-    bad = np.nonzero(f < limit)[0]
-    # a spike or two on a curve whose noise is known is an outlier (the diagnosis leaves isolated outliers
-    # out); more, or any without a known noise, is a wrong zero or sign
-    spikes = max(NEGATIVE_SPIKES, NEGATIVE_SPIKE_SHARE * n) if noise.known else 0
-    if len(bad) > spikes:
-        i = bad[0]
-        raise KnitsimInputError(
-            f"{source}: row {row(i)}, column force_per_wale_N: {float(f[i]):g} N is below zero by more than "
-            f"{NEGATIVE_SIGMAS:g} noise sd ({noise.sigma_N:.3g} N, {noise.method}): a knit carries no compression; "
-            "check the load cell's zero and the sign of the column")
+    refuse_negative_force(source, f, noise, row)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
+
+
+def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns read from a file (:func:`~knitsim.io.table_input.read_csv_columns`, ``_row`` the line
+    numbers) without a row that repeats the row above it in every column: a row copied (pasted twice, a
+    logger writing one record twice) is not a second measurement, and counted twice it would weigh
+    twice and read as zero noise.  A row at the same strain with another force is kept: a second reading."""
+    names = [k for k in cols if k != "_row"]
+    n = len(cols["_row"])
+    copy = np.zeros(n, bool)
+    if n > 1:
+        copy[1:] = np.logical_and.reduce([cols[k][1:] == cols[k][:-1] for k in names])
+    return cols if not copy.any() else {k: v[~copy] for k, v in cols.items()}
+
+
+def refuse_few_rows(source, rows) -> None:
+    """Refuse a measured file of fewer than :data:`MIN_CURVE_ROWS` data rows (``rows``: their line numbers)."""
+    if len(rows) < MIN_CURVE_ROWS:
+        raise KnitsimInputError(f"{source}: {len(rows)} data row(s) (rows {', '.join(map(str, rows))}): a measured "
+                                f"curve needs at least {MIN_CURVE_ROWS}, for its shape and its noise")
 
 
 def read_measured_curve(path: str | Path, noise_N: float | None = None) -> MeasuredCurve:
@@ -378,6 +414,8 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
         cycle / rate; the message names the file, row and column.
     """
     cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"))
+    cols = drop_copied_rows(cols)
+    refuse_few_rows(path, cols["_row"])
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     check_response(curve)

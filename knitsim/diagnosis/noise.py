@@ -17,7 +17,10 @@ sequences of 300 and 900 rows: 0.90 and 1.02; the plain MAD gives 1.9), which
 the diagnosis' adequacy test adds to the spread of chi^2.
 A chord through two or more rows at exactly zero force is left out: a force
 clipped at zero (a slack knit on an instrument that cannot read below zero)
-is not noise.
+is not noise.  Rows logged at one strain (a logger reading the force faster
+than the extensometer updates) have no chord between them; the difference of
+two such neighbours measures the noise directly, ``(f_{i+1} - f_i) / sqrt(2)``
+of sd sigma, and counts as one more sample (:func:`repeat_differences`).
 
 A curve whose noise cannot be estimated says so (:attr:`CurveNoise.estimable`):
 
@@ -132,6 +135,22 @@ def _chords(strain, force, cycle, direction):
     return np.asarray(z), pairs
 
 
+def repeat_differences(strain, force, cycle, direction) -> np.ndarray:
+    """``|f_{i+1} - f_i| / sqrt(2)`` of neighbouring rows at one strain inside a branch (module docstring);
+    not where both read exactly zero (a clipped slack knit)."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    cycle, direction = np.asarray(cycle), np.asarray(direction)
+    same = (s[1:] == s[:-1]) & (cycle[1:] == cycle[:-1]) & (direction[1:] == direction[:-1])
+    same &= ~((f[1:] == 0.0) & (f[:-1] == 0.0))
+    return np.abs(np.diff(f)[same]) / math.sqrt(2.0)
+
+
+def noise_samples(strain, force, cycle, direction) -> np.ndarray:
+    """Every sample of the noise sd a curve holds: its scaled chord residuals and its repeat differences."""
+    return np.concatenate([chord_residuals(strain, force, cycle, direction),
+                           repeat_differences(strain, force, cycle, direction)])
+
+
 def chord_residuals(strain, force, cycle, direction) -> np.ndarray:
     """Scaled chord residuals ``|f_i - chord| / sqrt(1 + w1^2 + w2^2)`` of the inner rows of each branch."""
     return np.abs(_chords(strain, force, cycle, direction)[0])
@@ -167,10 +186,11 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
     span = float(np.max(f) - min(float(np.min(f)), 0.0)) if len(f) else 0.0
     if given is not None:
         return CurveNoise(source, float(given), "given", 0, True, "given by the user")
-    z = chord_residuals(strain, force, cycle, direction)
+    z = noise_samples(strain, force, cycle, direction)
     rho, _ = chord_correlation(strain, force, cycle, direction)
     if len(z) < MIN_SAMPLES:
-        why = f"only {len(z)} rows on monotone branches (an estimate needs {MIN_SAMPLES})"
+        why = (f"only {len(z)} rows on monotone branches or repeated at one strain (an estimate needs "
+               f"{MIN_SAMPLES})")
     elif rho is not None and rho > WHITE_RHO_MAX:
         why = (f"its rows deviate from their neighbours' chord in step (lag-one correlation {rho:+.2f}; white "
                f"noise gives -0.67): a digitised, smoothed or filtered curve, whose scatter is not its "
@@ -179,8 +199,8 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
         sigma = clipped_sd(z)
         if span > 0 and sigma > SMOOTH_REL * span:
             return CurveNoise(source, sigma, "estimated", len(z), True,
-                              f"deviation of each row from its neighbours' chord: RMS within {CLIP:g} robust sd of "
-                              f"{len(z)} rows", KAPPA / len(z))
+                              f"deviation of each row from its neighbours' chord (or from its twin at one strain): "
+                              f"RMS within {CLIP:g} robust sd of {len(z)} rows", KAPPA / len(z))
         why = (f"its rows scatter by {sigma:.2g} N, below {SMOOTH_REL:g} of its force range: a digitised or "
                "smoothed curve, whose scatter is not measurement noise")
     assumed = ASSUMED_REL * span if span > 0 else 1e-6

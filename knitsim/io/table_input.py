@@ -14,7 +14,9 @@ shows it), the column and the value, and what to do:
 - decimal commas where the delimiter is ``;`` or a tab (``0,125``);
 - header names matched after trimming spaces and quotes, in any case
   (``Strain``, `` FORCE_PER_WALE_N ``); the keys returned are the names asked for;
-- lines starting with ``#`` (comments), anywhere;
+- lines starting with ``#`` (comments), anywhere; but not a row whose first cell is a
+  spreadsheet's error value (``#DIV/0!``, ``#N/A``, ``#VALUE!``): that is a data row, and
+  it is refused as text in a number column, naming its row, not dropped as a comment;
 - a preamble above the header (``Specimen: A3``, ``Test date;2026-03-01``): the
   header is the first line that holds every required column (and, when none is
   required, at least one of the optional ones); the lines above it are skipped;
@@ -27,6 +29,7 @@ from __future__ import annotations
 import codecs
 import csv
 import math
+import re
 from pathlib import Path
 from typing import Iterable
 
@@ -99,8 +102,16 @@ def _key(name: str) -> str:
     return _trim(name).casefold()
 
 
+#: a spreadsheet's error value in a cell (Excel: #DIV/0!, #N/A, #VALUE!, #REF!, #NAME?, #NUM!, #NULL!, ...)
+_SHEET_ERROR = re.compile(r"#(N/A|[A-Z][A-Z0-9/_]*[!?])")
+
+
 def _is_comment(line: str) -> bool:
-    return line.lstrip().lstrip('"').startswith("#")
+    text = line.lstrip().lstrip('"')
+    if not text.startswith("#"):
+        return False
+    first = re.split(r"[,;\t\"]", text, maxsplit=1)[0].strip()
+    return _SHEET_ERROR.fullmatch(first) is None   # a row starting with #DIV/0! is data, not a comment
 
 
 def _split(line: str, delim: str) -> list[str]:

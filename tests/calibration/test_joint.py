@@ -149,11 +149,11 @@ def test_band_weights_and_lab_files(tmp_path):
     np.testing.assert_allclose(sp.sigma_N, np.maximum(half, 0.005 * mid), rtol=1e-12)
     assert np.all(sp.sigma_N[sp.strain < 0.1] == 0.005 * mid[sp.strain < 0.1])     # the closed band
     assert np.all(sp.in_band(mid)) and not np.any(sp.in_band(1.2 * sp.band_high_N))
-    (tmp_path / "bad.csv").write_text("strain,load_N\n0.0,0.0\n0.1,1.0\n0.05,2.0\n")
+    (tmp_path / "bad.csv").write_text("strain,load_N\n0.0,0.0\n0.1,1.0\n0.05,2.0\n0.2,3.0\n")
     with pytest.raises(KnitsimInputError, match=r"bad\.csv: row 4, column strain: 0\.05 is below the rows before"):
         read_table(tmp_path / "bad.csv")
-    (tmp_path / "neg.csv").write_text("strain,force_per_wale_N\n-0.01,0.0\n0.1,1.0\n")
-    with pytest.raises(KnitsimInputError, match=r"neg\.csv: row 2, column strain: -0\.01 is negative"):
+    (tmp_path / "neg.csv").write_text("strain,force_per_wale_N\n-0.02,0.0\n0.1,1.0\n0.2,2.0\n0.3,3.0\n")
+    with pytest.raises(KnitsimInputError, match=r"neg\.csv: row 2, column strain: -0\.02 is negative"):
         read_table(tmp_path / "neg.csv")
     # what a lab's logger writes: an extensometer zeroed 0.001 low and a step back of 5e-5 (jitter, below
     # 1e-3 of the 0.2 strain range): read, the strain as its running maximum, the force as measured
@@ -161,6 +161,38 @@ def test_band_weights_and_lab_files(tmp_path):
     t = read_table(tmp_path / "lab.csv")
     np.testing.assert_array_equal(t.strain, [-0.001, 0.1, 0.1, 0.2])
     np.testing.assert_array_equal(t.force, [0.0, 1.0, 1.01, 2.0])
+
+
+def test_the_calibration_refuses_the_forces_the_diagnosis_refuses(tmp_path):
+    """A calibration reads its files as the diagnosis reads its curves (knitsim.diagnosis.measured):
+    hand-typed files of 6 rows, force per wale rising 0, 0.1, ..., 0.5 N."""
+    s = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10]
+
+    def table(name, force):
+        (tmp_path / name).write_text("strain,force_per_wale_N\n" + "".join(f"{a},{b}\n" for a, b in zip(s, force)))
+        return tmp_path / name
+    # the column's sign reversed (a load cell mounted the other way): below zero beyond the noise
+    with pytest.raises(KnitsimInputError, match=r"sign\.csv: row 3, column force_per_wale_N: -0\.1 N is below zero"):
+        read_table(table("sign.csv", [0.0, -0.1, -0.2, -0.3, -0.4, -0.5]))
+    # a load cell not connected: zero on every row (before: a ZeroDivisionError inside the fit, and a
+    # checkpoint left behind that blocked the next run)
+    with pytest.raises(KnitsimInputError, match=r"zero\.csv: column force_per_wale_N: the force never rises"):
+        read_table(table("zero.csv", [0.0] * 6))
+    # three rows: too few
+    (tmp_path / "three.csv").write_text("strain,load_N\n0,0\n0.1,1\n0.2,2\n")
+    with pytest.raises(KnitsimInputError, match=r"three\.csv: 3 data row\(s\)"):
+        read_table(tmp_path / "three.csv")
+    # a load cell reading 2 mN below zero at rest is kept as measured
+    t = read_table(table("rest.csv", [-0.002, 0.1, 0.2, 0.3, 0.4, 0.5]))
+    assert t.force[0] == -0.002
+    # a curve whose pre-load part was cut (first row at strain 0.06, above the first fit row 0.02): its
+    # rows below 0.06 would be its first force held constant, made-up data; refused naming the file's row
+    late = tmp_path / "late.csv"
+    late.write_text("strain,force_per_wale_N\n" + "".join(
+        f"{a + 0.06},{b}\n" for a, b in zip(s, [0.3, 0.4, 0.5, 0.6, 0.7, 0.8])))
+    with pytest.raises(KnitsimInputError, match=r"late\.csv starts at strain 0\.06 \(row 2\), above the first row"):
+        specimen_from_files("x", width_mm=50, gauge_length_mm=100, knit={"L": 4.5, "W0": 1.2, "C0": 0.9},
+                            curve=late, row_step=0.02)
 
 
 @pytest.mark.parametrize("objective", ["midline", "band"])

@@ -422,3 +422,8 @@ def test_a_curve_given_twice_is_refused():
     c = curve_from_arrays([0.0, 0.01, 0.02], [0.0, 0.1, 0.2], source="a.csv")
     with pytest.raises(KnitsimInputError, match="a.csv: given more than once"):
         diagnose([c, c], setup)
+    # the same file by another path (./a.csv) or a copy (b.csv): the same rows, refused as well
+    for other in ("./a.csv", "b.csv"):
+        d = curve_from_arrays([0.0, 0.01, 0.02], [0.0, 0.1, 0.2], source=other)
+        with pytest.raises(KnitsimInputError, match=f"{other}: the same rows as a.csv"):
+            diagnose([c, d], setup)

@@ -181,15 +181,16 @@ def test_a_few_rows_without_a_noise_estimate_refuse_a_negative_spike(tmp_path):
     assert str(p) in msg and "row 5" in msg and "-0.4 N" in msg and "assumed" in msg
 
 
-# every rejection of the reader: (file text, the row, the column, the value as typed, what to do)
+# every rejection of the reader: (file text, the row, the column, the value as typed, what to do); each file
+# has the 4 rows a measured curve needs at least (MIN_CURVE_ROWS), so the rejection is its own
 _BAD = [
     ("strain,force_per_wale_N\n0.1,0.2\n0.2,inf\n", "row 3", "force_per_wale_N", "'inf'", "fix or delete the row"),
-    ("strain,force_per_wale_N\n0.1,0.2\n-1.5,0.2\n", "row 3", "strain", "-1.5", "is the column a strain"),
-    ("strain,force_per_wale_N,direction\n0.1,0.1,load\n0.3,0.2,load\n0.2,0.2,load\n", "row 4", "strain", "0.2",
+    ("strain,force_per_wale_N\n0.1,0.2\n-1.5,0.2\n0.3,0.3\n0.4,0.4\n", "row 3", "strain", "-1.5", "is the column a strain"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,load\n0.3,0.2,load\n0.2,0.2,load\n0.4,0.3,load\n", "row 4", "strain", "0.2",
      "check the direction column"),
-    ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n", "row 2", "direction", "'pull'", "'load' or 'unload'"),
-    ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,-0.5\n", "row 2", "rate_mm_s", "-0.5", "must be > 0"),
-    ("strain,force_per_wale_N,cycle\n0.1,0.1,1.5\n", "row 2", "cycle", "1.5", "whole number"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n0.2,0.2,load\n0.3,0.3,load\n0.4,0.4,load\n", "row 2", "direction", "'pull'", "'load' or 'unload'"),
+    ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,-0.5\n0.2,0.2,1\n0.3,0.3,1\n0.4,0.4,1\n", "row 2", "rate_mm_s", "-0.5", "must be > 0"),
+    ("strain,force_per_wale_N,cycle\n0.1,0.1,1.5\n0.2,0.2,1\n0.3,0.3,1\n0.4,0.4,1\n", "row 2", "cycle", "1.5", "whole number"),
     ("strain;force_per_wale_N\n0,1;0,2\n0,2;-0,3\n0,3;-0,31\n0,4;-0,32\n", "row 3", "force_per_wale_N", "-0.3 N",
      "check the load cell's zero"),
 ]

@@ -24,22 +24,44 @@ def _write(tmp_path, text, name="curve.csv"):
 @pytest.mark.parametrize("text, where", [
     ("strain\n0.1\n", "force_per_wale_N"),                                          # missing column
     ("strain,force_per_wale_N\n0.1,0.2\n0.2,nan\n", "row 3, column force_per_wale_N"),
-    ("strain,force_per_wale_N\n0.1,0.2\n0.2,-0.01\n", "row 3, column force_per_wale_N"),
-    ("strain,force_per_wale_N,direction\n0.1,0.1,load\n0.3,0.2,load\n0.2,0.2,load\n", "row 4, column strain"),
-    ("strain,force_per_wale_N,direction\n0.3,0.1,load\n0.2,0.05,unload\n0.25,0.0,unload\n", "row 4, column strain"),
-    ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n", "row 2, column direction"),
-    ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,0\n", "row 2, column rate_mm_s"),
-    ("strain,force_per_wale_N,cycle\n0.1,0.1,1\n0.0,0.0,1\n0.1,0.1,1\n", "row 4, column cycle"),
+    ("strain,force_per_wale_N\n0.1,0.2\n0.2,-0.05\n0.3,0.3\n0.4,0.4\n", "row 3, column force_per_wale_N"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,load\n0.3,0.2,load\n0.2,0.2,load\n0.4,0.3,load\n",
+     "row 4, column strain"),
+    ("strain,force_per_wale_N,direction\n0.3,0.1,load\n0.2,0.05,unload\n0.25,0.0,unload\n0.1,0.0,unload\n",
+     "row 4, column strain"),
+    ("strain,force_per_wale_N,direction\n0.1,0.1,pull\n0.2,0.2,load\n0.3,0.3,load\n0.4,0.4,load\n",
+     "row 2, column direction"),
+    ("strain,force_per_wale_N,rate_mm_s\n0.1,0.1,0\n0.2,0.2,1\n0.3,0.3,1\n0.4,0.4,1\n", "row 2, column rate_mm_s"),
+    ("strain,force_per_wale_N,cycle\n0.1,0.1,1\n0.0,0.0,1\n0.1,0.1,1\n0.2,0.2,1\n", "row 4, column cycle"),
     # a strain that never moves (a wrong column, or a hold logged without its ramp): nothing to compare
-    ("strain,force_per_wale_N\n0.1,0.1\n0.1,0.2\n0.1,0.3\n", "column strain: every row holds 0.1"),
+    ("strain,force_per_wale_N\n0.1,0.1\n0.1,0.2\n0.1,0.3\n0.1,0.4\n", "column strain: every row holds 0.1"),
     # compression (or a reversed sign) beyond an extensometer's zero offset of 0.005: row 4 at -0.01
-    ("strain,force_per_wale_N\n0,0\n-0.004,0.1\n-0.01,0.2\n", "row 4, column strain: -0.01 is a compression"),
+    ("strain,force_per_wale_N\n0,0\n-0.004,0.1\n-0.01,0.2\n0.02,0.3\n", "row 4, column strain: -0.01 is a compression"),
+    # three rows (an export cut short): too few for a shape and a noise, said as such (not as a
+    # compression measured against a noise that three rows cannot tell)
+    ("strain,force_per_wale_N\n0.0025,0.030\n0.0050,0.071\n0.0075,-0.020\n", "3 data row\\(s\\) \\(rows 2, 3, 4\\)"),
+    # a row starting with an Excel error value is a data row, refused, not a comment dropped
+    ("strain,force_per_wale_N\n0,0\n#DIV/0!,0.1\n0.2,0.2\n0.3,0.3\n0.4,0.4\n", "row 3, column strain: '#DIV/0!'"),
     # a load cell that was never connected: the force is 0 on every row
     ("strain,force_per_wale_N\n0,0\n0.1,0\n0.2,0\n0.3,0\n", "force never rises above the noise"),
 ])
 def test_csv_errors_name_row_and_column(tmp_path, text, where):
     with pytest.raises(KnitsimInputError, match=where):
         read_measured_curve(_write(tmp_path, text))
+
+
+def test_a_copied_row_is_read_once_and_a_second_reading_at_one_strain_is_kept(tmp_path):
+    # Lab practice: an operator pasted row 4 twice, and the logger read the force twice at strain 0.3
+    # (another value). The copy is no second measurement (it would weigh twice and read as zero noise):
+    # the curve equals its twin typed without it; the second reading stays.
+    twin = "strain,force_per_wale_N\n0.0,0.0\n0.1,0.05\n0.2,0.11\n0.3,0.2\n0.3,0.21\n0.4,0.3\n"
+    lines = twin.splitlines(keepends=True)
+    copied = read_measured_curve(_write(tmp_path, "".join(lines[:4] + lines[3:4] + lines[4:]), "copied.csv"))
+    plain = read_measured_curve(_write(tmp_path, twin, "twin.csv"))
+    np.testing.assert_array_equal(copied.strain, plain.strain)
+    np.testing.assert_array_equal(copied.force, plain.force)
+    np.testing.assert_array_equal(copied.rows, [2, 3, 4, 6, 7, 8])      # the file's own lines (5 is the copy)
+    assert len(plain.force) == 6
 
 
 def test_branches_inferred_from_turning_points():

@@ -235,6 +235,20 @@ def test_a_nan_or_empty_cell_is_still_refused(tmp_path):
         read_csv_columns(_write(tmp_path, "strain,force_per_wale_N\n0,\n0.1,0.1\n", "e.csv"), REQ)
 
 
+@pytest.mark.parametrize("error", ["#DIV/0!", "#N/A", "#VALUE!", "#NAME?"])
+@pytest.mark.parametrize("delim", [",", ";", "\t"])
+def test_a_spreadsheet_error_in_the_first_cell_is_a_data_row_refused(tmp_path, error, delim):
+    # Lab practice gone wrong: a strain computed in Excel (=B4/C4) over an empty cell exports as
+    # #DIV/0! in the first column. It is a data row (refused with its row), not a "# comment" that
+    # would drop the row without a word; a real comment above it is still skipped.
+    text = "\n".join(delim.join(r) for r in [["# exported 2026-03-01"], ["strain", "force_per_wale_N"],
+                                               ["0.0", "0.01"], [error, "0.05"], ["0.2", "0.1"]]) + "\n"
+    p = _write(tmp_path, text)
+    with pytest.raises(KnitsimInputError) as e:
+        read_csv_columns(p, REQ)
+    assert f"{p}: row 4, column strain: {error!r} is not a number" in str(e.value)
+
+
 def test_has_columns_finds_the_header_as_the_reader_does(tmp_path):
     # a test machine's export: UTF-8 BOM, a comment, a preamble line, capitalised names, ';' and
     # decimal commas: the x_mm / F_N pair is found, the KES pair is not (knitsim dahl fit chooses by it)
