@@ -60,7 +60,7 @@ cell that has none.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..errors import KnitsimInputError
 from .material import CellParams
@@ -208,6 +208,13 @@ class DomainCheck:
 
     outside: list
     no_rest: list
+    #: per cell, the force per wale of its rest state [N] (NaN without one)
+    rest_F: list = field(default_factory=list)
+
+    def at_cap(self, caps) -> list:
+        """Per cell, why its rest state already carries its force cap ``caps[i]`` (force_cap_N), else None:
+        a load program cannot start from it (:func:`rest_at_cap_problem`)."""
+        return [rest_at_cap_problem(F, cap) for F, cap in zip(self.rest_F, caps)]
 
     @property
     def codes(self):
@@ -244,6 +251,24 @@ def _solve_rest_state(p):
         return res, bool(res.success)
     except (RuntimeError, KnitsimInputError):
         return None, False
+
+
+def rest_at_cap_problem(F_rest: float, cap: float) -> str | None:
+    """Why a rest state of force per wale ``F_rest`` cannot be loaded under ``cap`` (force_cap_N), else None.
+
+    The engines stop such a cell at rest with status force_cap (knitsim.cell.history.rest_at_cap_reason),
+    so a program run from it has no curve; a scene refuses it before any work."""
+    if not (F_rest >= cap):     # also a NaN rest force: no rest state, said by no_rest
+        return None
+    return (f"its force per wale at rest, {F_rest:.4g} N, is already at or above force_cap_N = {cap:.4g} N: "
+            "no load program can start from it; raise force_cap_N above the rest force")
+
+
+def rest_force_per_wale(p: CellParams) -> float:
+    """The force per wale of ``p``'s rest state (Table 4's initial state, the NumPy reference) [N], NaN
+    without one."""
+    res, ok = _solve_rest_state(p)
+    return float(res.state.F) if ok else float("nan")
 
 
 def _no_rest_reason(R: float | None) -> str:
@@ -297,13 +322,17 @@ def check_cells(params, engine: str = "warp", device: str = "cpu",
         st = CellModel.from_params(first, device=device).state()
         status0 = np.asarray(st.status.numpy())
         R = np.asarray(st.q.numpy()[:, CODE["R"]])
+        F_u = [float(v) for v in st.q.numpy()[:, CODE["F"]]]
         # CellModel.state has set NO_REST_STATE where the solve failed or R < 0: a finite R < 0 says which
         for i in np.nonzero(status0 == STATUS_NO_REST_STATE)[0]:
             why_u[i] = _no_rest_reason(float(R[i]) if np.isfinite(R[i]) else None)
     elif first:
+        F_u = []
         for i, p in enumerate(first):
             res, ok = _solve_rest_state(p)
+            F_u.append(float(res.state.F) if ok else float("nan"))
             if not ok or float(res.state.R) < 0.0:
                 why_u[i] = _no_rest_reason(float(res.state.R) if ok else None)
     no_rest = [why_u[keys[_rest_key(p)]] for p in params]
-    return DomainCheck(outside, no_rest)
+    rest_F = [float("nan") if why_u[keys[_rest_key(p)]] is not None else F_u[keys[_rest_key(p)]] for p in params]
+    return DomainCheck(outside, no_rest, rest_F)

@@ -43,18 +43,25 @@ def register(subparsers) -> None:
 
 def check_cells_domain(params, labels, strains) -> list[dict]:
     """Before any solve: a cell without an admissible rest state is an error (one line, naming the
-    cell: it is outside the model, knitsim.cell.domain.rest_state_problem); a cell or a program
+    cell: it is outside the model, knitsim.cell.domain.rest_state_problem), and so is one whose rest
+    state already carries its force cap (rest_at_cap_problem); a cell or a program
     outside the documented domain's box is an extrapolation: returned as warnings for the summary."""
-    from ..cell.domain import DOMAIN, rest_state_problem
+    from ..cell.domain import DOMAIN, rest_at_cap_problem, rest_force_per_wale, rest_state_problem
     from ..errors import KnitsimInputError
 
     warnings, seen = [], {}
     for p, label in zip(params, labels):
         key = (p.B, p.d, p.L, p.W0, p.C0, p.phi0)
         if key not in seen:
-            seen[key] = rest_state_problem(p)
-        if seen[key] is not None:
-            raise KnitsimInputError(f"cell {label}: {seen[key]} (knitsim.cell.domain)")
+            why = rest_state_problem(p)
+            seen[key] = (why, rest_force_per_wale(p) if why is None else float("nan"))
+        why, F_rest = seen[key]
+        name = str(label) if str(label).startswith("cell") else f"cell {label}"
+        if why is not None:
+            raise KnitsimInputError(f"{name}: {why} (knitsim.cell.domain)")
+        why = rest_at_cap_problem(F_rest, p.force_cap_N)
+        if why is not None:
+            raise KnitsimInputError(f"{name}: {why}")
         why = DOMAIN.why_outside(p)
         if why is not None:
             warnings.append({"code": "outside_domain", "message": f"extrapolation: {why}", "cell": label})

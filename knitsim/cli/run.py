@@ -61,7 +61,7 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
 
     A cell without an admissible rest state is an error (one line: how many cells, the first one's
     course and wale, the reason): the model cannot run it, and a column holding it has no rest state
-    either.  Cells outside the domain's box, and a grip program whose strains leave it, are an
+    either.  So is a cell whose rest state already carries its force cap (no program can load it).  Cells outside the domain's box, and a grip program whose strains leave it, are an
     extrapolation: returned as ``outside_domain`` warnings for the summary (how many cells, by the
     quantity outside).  Identical cells are checked once (the patch's grouping).
     """
@@ -79,6 +79,13 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
         i, j = np.argwhere(np.isin(grouping.group_of_cell, bad))[0]
         raise KnitsimInputError(f"{n} of {n_cells} cell(s) have no admissible rest state, e.g. course {i}, wale {j}: "
                                 f"{check.no_rest[int(grouping.group_of_cell[i, j])]} (knitsim.cell.domain)")
+    at_cap = check.at_cap([p.force_cap_N for p in grouping.params])
+    bad = [g for g, why in enumerate(at_cap) if why is not None]
+    if bad:
+        n = int(cells_of[bad].sum())
+        i, j = np.argwhere(np.isin(grouping.group_of_cell, bad))[0]
+        raise KnitsimInputError(f"{n} of {n_cells} cell(s) cannot be loaded, e.g. course {i}, wale {j}: "
+                                f"{at_cap[int(grouping.group_of_cell[i, j])]}")
     warnings = []
     counts: dict[str, int] = {}
     example = None

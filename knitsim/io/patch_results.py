@@ -501,7 +501,8 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     run: from the first such row, a column holds its last converged state, so the cycle figures use the
     rows before only; the cycle cut there has ``cut_at_grip_strain`` and no work, later cycles are left
     out, and the warning ``run_stopped_by_failed_cells`` or ``run_held_by_unconverged_columns`` says
-    where and why (:func:`_run_stop`).
+    where and why (:func:`_run_stop`).  Likewise after cells stopped at their force cap where unloadings
+    of the program were left (``program_cut_by_force_cap``): the figures stop at the row reaching the cap.
     """
     F, e = h.force_N, h.grip_strain
     fc = force_cap_rows(h, model)
@@ -510,6 +511,12 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     # from the first row with a failed cell on (its column holds the cell's last converged state), or from
     # where columns stop converging for good, the grip force is not the knit's: the cycle figures stop there
     stop, stop_warnings = _run_stop(h, model, layout, row_key, col_key)
+    cut_at = None if stop is None else float(e[stop])
+    if fc.first_stop is not None and np.any(h.direction[fc.first_stop:] < 0) and (stop is None or fc.first_stop < stop):
+        # cells stopped at their force cap with unloadings of the program left (warning
+        # program_cut_by_force_cap): the row reaching the cap is the last of the knit's; their columns
+        # hold the cap after it, so the cycle figures stop there too (not a cycle "run" over held forces)
+        stop, cut_at = fc.first_stop + 1, float(e[fc.first_stop])
     cycles = []
     for k in np.unique(h.cycle):
         rows = cycle_rows = np.nonzero(h.cycle == k)[0]
@@ -534,13 +541,14 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         entry["residual_grip_strain"] = res
         if len(rows) < len(cycle_rows):
             # cut where the force stops being the knit's: no work over a part of a cycle (_run_stop's warning)
-            entry["cut_at_grip_strain"] = float(e[stop])
+            entry["cut_at_grip_strain"] = cut_at
             cycles.append(entry)
             continue
         path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
         s_path, f_path = e[path], F[path]
         if rows[0] == 0:                           # the first cycle starts from the rest state
-            s_path = np.concatenate([[0.0], s_path])
+            # at grip strain 0, or below it for a pretensioned specimen (its rest state, curve.csv's row 0)
+            s_path = np.concatenate([[float(h.info.get("rest_grip_strain", 0.0))], s_path])
             f_path = np.concatenate([[h.rest_force_N], f_path])
         work = cycle_work(s_path, f_path, bool(len(unload)))
         entry["closed"] = work["closed"]

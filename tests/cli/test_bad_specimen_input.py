@@ -76,6 +76,11 @@ GRADE = {"from": "e_glass_plain", "to": "e_glass_plain", "axis": "courses"}
     ({"grades": [dict(GRADE, fractions=[-0.2, 1.0])]}, r"grades\[0\]\.fractions\[0\] = -0\.2: a blend fraction"),
     ({"grades": [{"from": "e_glass_plain", "to": "e_glass_plain"}]}, r"grades\[0\]\.axis: missing required key"),
     ({"grades": [dict(GRADE, to="nope")]}, r"grades\[0\]\.to = \"nope\": unknown knit"),
+    # a cap below the force per wale the knit carries at rest (E-glass: about 0.02 N, above 0.015 N):
+    # no program can load it (before: run, then "the peak 0.02159 N per wale is the cap" and advice to
+    # lower the program's strain, which cannot help)
+    ({"rules": {"force_cap_N": 0.015}}, r"cell\(s\) cannot be loaded, e\.g\. course 0, wale 0: its force per "
+                                        r"wale at rest, 0\.02\d* N, is already at or above force_cap_N = 0\.015 N"),
 ])
 def test_specimen_and_grades_refuse_bad_input_in_one_line(tmp_path, capsys, edit, match):
     doc = copy.deepcopy(SPECIMEN)

@@ -141,6 +141,10 @@ BAD = [
     ("lower_upper", lambda t: t.replace("lower_strain = 0.10", "lower_strain = 0.70"),
      r"^knitsim: error: load\.lower_strain = 0\.7: must be < load\.upper_strain = 0\.6$"),
     ("syntax", lambda t: t.replace("[load]", "[load"), r"^knitsim: error: .*bad\.toml: not valid TOML"),
+    # a cap below the force per wale at rest (E-glass, about 0.02 N): no program can load the cell
+    ("cap_below_rest", lambda t: t.replace("force_cap_N = 10.0", "force_cap_N = 0.015"),
+     r"^knitsim: error: cell .*: its force per wale at rest, 0\.02\d* N, is already at or above force_cap_N = "
+     r"0\.015 N: no load program can start from it"),
 ]
 
 

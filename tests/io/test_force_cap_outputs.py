@@ -106,6 +106,12 @@ def test_cyclic_patch_stopped_at_the_cap_says_the_unloadings_were_not_run():
     (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
     assert cut["message"].startswith("2 wale column(s) stopped at the force cap (0.1 N per wale) at grip strain 0.2")
     assert "cycle 2" in cut["message"]
+    # the cycle figures stop at the row reaching the cap (grip strain 0.2, on cycle 1's loading): cycle 1 is
+    # cut there with no work, cycle 2 was not run and has no figures (before, its 'hysteresis energy' over
+    # the held cap was reported as a result)
+    (c1,) = s["cycles"]
+    assert c1["cycle"] == 1 and c1["cut_at_grip_strain"] == pytest.approx(0.2) and c1["peak_is_force_cap"]
+    assert not [k for k in c1 if k.endswith("_N_mm")]
 
 
 def test_a_patch_below_its_cap_says_nothing_of_it():

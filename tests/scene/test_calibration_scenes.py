@@ -110,3 +110,14 @@ def test_pretensioned_specimen_scene_is_its_cell_at_the_knit_strain():
     hc = run_batch([cell], piecewise_linear([0.0, 0.01, 0.02] + list(pretension_strain(grip[1:], 0.02)), 0.005))
     at = [int(np.argmin(np.abs(hc.strain - x))) for x in pretension_strain(grip, 0.02)]
     np.testing.assert_allclose(h.force_N[rows], 50.0 / cell.W0 * hc.force_per_wale[at, 0], rtol=1e-9)
+    # the loading's work is the trapezoids over curve.csv's own rows, from its rest row at grip strain
+    # -0.02 / 1.02 (before, the summary started the path at grip strain 0 with the rest force: a made-up
+    # segment, -34.95 against -33.89 N mm on a cyclic pretensioned specimen)
+    import io
+    from knitsim.io.patch_results import curve_csv, patch_summary
+    ref = h.info["ref_length_mm"]
+    summary = patch_summary(h, ref, model=ps.model)
+    written = np.genfromtxt(io.StringIO(curve_csv(h)), delimiter=",", names=True, dtype=None, encoding=None)
+    assert written["grip_strain"][0] == pytest.approx(-0.02 / 1.02)
+    assert summary["cycles"][0]["loading_work_N_mm"] == pytest.approx(
+        float(np.trapezoid(written["force_N"], written["grip_strain"])) * ref, rel=1e-9)
