@@ -11,7 +11,9 @@ anything runs.  Results go to ``DIR`` (default ``<scene stem>_sweep``):
 ``plot_sweep.png`` (:mod:`knitsim.sweep.runner`) and ``summary.json``: the
 samples that failed, have no rest state, lie outside the domain's box,
 return energy, rest compressed or stopped at the force cap, each with its
-reason (what ``--json`` prints, and what the plot's title counts).  Chunks run on a local Dask
+reason (what ``--json`` prints, and what the plot's title counts).  Exit
+status 1 when the solver failed on a sample (a missing result), as ``knitsim
+cell`` and ``run`` do for a failed cell.  Chunks run on a local Dask
 cluster with one worker process per core unless ``--workers 0`` (in this
 process) or ``--scheduler tcp://host:port`` (an existing cluster).  Killing a
 run keeps the finished chunks; ``--resume`` finishes it.
@@ -155,4 +157,6 @@ def _run(args) -> int:
         print_json(summary)
     else:
         print(f"{plan.n_samples} samples -> {out / 'results.nc'}")
-    return 0
+    # a sample the solver failed on is a missing result, as a failed cell is for knitsim cell and run:
+    # exit status 1 (samples outside the model, with no rest state, are part of the map: said, status 0)
+    return 1 if n_bad else 0

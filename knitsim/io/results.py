@@ -193,7 +193,12 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
 
     Also: strain at the first jamming (located ``jam`` event, else the first
     jammed row), rows per status, the final status and whether it is the
-    expected end of the run (completed, or stopped at the force cap).
+    expected end of the run (completed, or stopped at the force cap).  A failed
+    cell: ``stopped_at_strain`` is the imposed strain of the increment it could
+    not finish, ``final_force_per_wale_N`` its force at the last increment it
+    finished, and ``last_converged_strain`` / ``last_converged_force_per_wale_N``
+    the state it reached inside the failed increment and holds on its later rows
+    (the strain and force its stop reason names).
     """
     h = history
     p = h.params[cell]
@@ -286,6 +291,11 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         "expected_end": expected,
         "stopped_at_strain": None if stop_row is None else float(h.strain[stop_row]),  # imposed strain
         "final_force_per_wale_N": float(F[n_ok - 1]) if n_ok else None,
+        # where a failed cell stays: its last converged state, inside the increment it could not finish (the
+        # state its later rows hold, status not ok; the strain and force the stop's reason names)
+        "last_converged_strain": (float(h.values["C"][stop_row, cell]) / p.C0 - 1.0
+                                  if stop_row is not None and not expected else None),
+        "last_converged_force_per_wale_N": float(F[stop_row]) if stop_row is not None and not expected else None,
         "status_counts": counts,
         "strain_at_first_jamming": jam_strain,
         "strain_at_first_jamming_from": jam_from,

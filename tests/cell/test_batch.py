@@ -384,6 +384,12 @@ def test_a_cell_failing_up_the_jammed_branch_below_its_cap_says_where_and_what_c
         assert f"to strain {prog.strain[i0]:.4g}" in reason
         assert f"stopped at strain {h.values['C'][i0, 0] / 2.7 - 1.0:.4g} (jamming, force per wale {F:.4g} N)" in reason
         assert f"a force_cap_N below {F:.3g} N ends the run there" in reason
+        # the summary names the same state (before: only the last finished increment's force, 44 N against
+        # the 240 N of the reason), beside the increment it could not finish
+        from knitsim.io.results import cell_summary
+        sm = cell_summary(h, 0)
+        assert sm["stopped_at_strain"] == prog.strain[i0] and sm["last_converged_force_per_wale_N"] == F
+        assert f"stopped at strain {sm['last_converged_strain']:.4g} (" in reason
     # not jammed, or unloading: where and what, without the cap's advice
     assert "force_cap_N" not in solver_stop_reason(1, 0.3, 0.31, "sliding", 0.2, 10.0, True)
     assert "force_cap_N" not in solver_stop_reason(1, 0.5, 0.49, "jamming", 4.0, 10.0, False)

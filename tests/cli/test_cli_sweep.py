@@ -106,3 +106,17 @@ def test_resume_without_a_sweep_and_rerun_over_one_exit_2(tmp_path, capsys, monk
     (tmp_path / "s.toml").write_text(SCENE + SWEEP.replace("0.3]", "0.25]"))
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--resume"]) == 2
     assert "different sweep" in capsys.readouterr().err
+
+
+def test_a_sweep_whose_samples_fail_exits_1_and_lists_them(tmp_path, capsys):
+    # E-glass (Table 1) pulled to strain 1.0 under a 1e12 N cap fails up its jammed branch whatever m
+    # (tests/cell/test_batch.py: the jammed branch's force diverges): every sample is a missing result,
+    # listed, and the exit status says so, as knitsim cell and run do for a failed cell (before: 0)
+    scene = tmp_path / "s.toml"
+    scene.write_text('engine = "warp"\ndevice = "cpu"\n[yarn]\nmaterial = "e_glass"\n[knit]\n'
+                     'material = "e_glass_plain"\n[friction]\nm = 0.2\nphi0 = 0.0\n[rules]\nforce_cap_N = 1e12\n'
+                     '[load]\ntype = "monotonic"\ntarget_strain = 1.0\nmax_increment = 0.02\n[sweep]\n'
+                     'method = "grid"\n[sweep.parameters]\n"friction.m" = { min = 0.1, max = 0.3, count = 3 }\n')
+    rc = main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--json", "--no-plot"])
+    s = json.loads(capsys.readouterr().out)
+    assert rc == 1 and [f["sample"] for f in s["failed"]] == [0, 1, 2]
