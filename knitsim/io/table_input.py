@@ -14,6 +14,10 @@ shows it), the column and the value, and what to do:
 - decimal commas where the delimiter is ``;`` or a tab (``0,125``);
 - header names matched after trimming spaces and quotes, in any case
   (``Strain``, `` FORCE_PER_WALE_N ``); the keys returned are the names asked for;
+- a unit after a header name, in brackets (``strain [-]``, ``force_per_wale_N (N)``,
+  ``V_mm_s [mm/s]``), when it is the unit the name implies (``_N``: N, ``_mm``: mm,
+  ``_mm_s``: mm/s, ``_1_mm``: 1/mm; others dimensionless: ``-``, ``1``, ``mm/mm``);
+  another unit (``strain [%]``, ``F0_N [kN]``) is refused naming the header cell;
 - lines starting with ``#`` (comments), anywhere; but not a row whose first cell is a
   spreadsheet's error value (``#DIV/0!``, ``#N/A``, ``#VALUE!``): that is a data row, and
   it is refused as text in a number column, naming its row, not dropped as a comment;
@@ -102,6 +106,30 @@ def _key(name: str) -> str:
     return _trim(name).casefold()
 
 
+#: a header cell with its unit: ``strain [-]``, ``force_per_wale_N (N)``, ``V_mm_s [mm/s]``
+_WITH_UNIT = re.compile(r"^(.*?\S)\s*[\[(]\s*([^\])]*?)\s*[\])]$")
+#: the units a column's name implies, by the end of its name (casefold, no spaces); else dimensionless
+_UNITS = (("_1_mm", ("1/mm", "mm^-1", "mm-1")), ("_n_mm_per_mm", ("nmm/mm", "n.mm/mm", "n*mm/mm")),
+          ("_mm_per_mm", ("mm/mm", "-", "1", "")), ("_mm_s", ("mm/s",)), ("_n", ("n",)), ("_mm", ("mm",)))
+_DIMENSIONLESS = ("-", "1", "", "mm/mm")
+
+
+def _name_and_unit(cell: str) -> tuple[str, str | None]:
+    """A header cell's name (its key) and the unit written after it in brackets, if any."""
+    text = _trim(cell)
+    m = _WITH_UNIT.match(text)
+    return (m.group(1).casefold(), m.group(2)) if m else (text.casefold(), None)
+
+
+def _unit_fits(name: str, unit: str) -> bool:
+    u = unit.casefold().replace(" ", "")
+    key = name.casefold()
+    for end, units in _UNITS:
+        if key.endswith(end):
+            return u in units
+    return u in _DIMENSIONLESS
+
+
 #: a spreadsheet's error value in a cell (Excel: #DIV/0!, #N/A, #VALUE!, #REF!, #NAME?, #NUM!, #NULL!, ...)
 _SHEET_ERROR = re.compile(r"#(N/A|[A-Z][A-Z0-9/_]*[!?])")
 
@@ -129,7 +157,7 @@ def _find_header(lines: list[str], required: list[str], optional: list[str]) -> 
         for i, ln in enumerate(lines):
             if not ln.strip() or _is_comment(ln) != comments:
                 continue
-            cells = {_key(c) for c in _split(ln, _delimiter(ln))}
+            cells = {_name_and_unit(c)[0] for c in _split(ln, _delimiter(ln))}
             if want_all <= cells and (not want_any or want_any & cells):
                 return i
     return None
@@ -184,11 +212,19 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     delim = _delimiter(lines[h])
     decimal_comma = delim != ","
     header = [_trim(c) for c in _split(lines[h], delim)]
-    keys = [c.casefold() for c in header]
+    keys, units = zip(*[_name_and_unit(c) for c in header]) if header else ((), ())
+    keys = list(keys)
     missing = [c for c in required if _key(c) not in keys]
     if missing:
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
                                 f"read as {_NAMES[delim]}-separated)")
+    for name in required + [c for c in optional if _key(c) in keys]:
+        unit = units[keys.index(_key(name))]
+        if unit is not None and not _unit_fits(name, unit):
+            hint = " A strain of 5 % is 0.05." if unit.strip() == "%" else ""
+            raise KnitsimInputError(f"{path}: row {h + 1}, column {header[keys.index(_key(name))]!r}: the unit "
+                                    f"{unit!r} is not that of {name} (its name says its unit); convert the column "
+                                    f"and write the unit its name implies, or none.{hint}")
     rows, numbers = [], []
     first_data = True                     # the row that may be a units row
     reader = csv.reader(lines[h + 1:], delimiter=delim)

@@ -434,6 +434,11 @@ def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram,
     if kind == "cycles" and load["lower_strain"] >= load["upper_strain"]:
         raise error("load.lower_strain", load["lower_strain"],
                     f"must be < load.upper_strain = {fmt(load['upper_strain'])}")
+    if kind == "cycles" and load["upper_strain"] - load["lower_strain"] < 2.0 * inc * (1.0 - 1e-12):
+        # a branch of one increment: each cycle two rows, a line there and back, its hysteresis 0 by construction
+        raise error("load.max_increment", inc, f"the branches between load.lower_strain = {fmt(load['lower_strain'])} "
+                    f"and load.upper_strain = {fmt(load['upper_strain'])} would be one increment each (a cycle of two "
+                    f"rows, no loop to measure); use at most {(load['upper_strain'] - load['lower_strain']) / 2:.4g}")
     if kind == "piecewise" and not load["waypoints"]:
         raise error("load.waypoints", load["waypoints"], "needs at least one strain")
     corners, top_key = _corners(load)
@@ -526,6 +531,9 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
                        **tables["rules"])
         p.validated(where or "cell")   # backstop: the same checks as the engines
         params.append(p)
+        if label in labels:
+            raise error(f"cells[{i}].label", label, f"the label of cells[{labels.index(label)}] too: outputs name "
+                        "cells by label, so each needs its own")
         labels.append(label)
         notes.append(note)
         resolved_cells.append({"label": label, **tables})

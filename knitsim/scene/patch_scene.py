@@ -566,6 +566,14 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                 line = "strip" if axis == 0 else "band"
                 raise error(f"specimen.{key}", value, f"{what} ({spacing} = {fmt(float(fields[spacing].max()))} mm): "
                             f"{line} {k} holds {total[k]:.4g} {'courses' if axis == 0 else 'wales'}")
+        # and every block at least one stitch: a band shorter than a course (a strip narrower than a wale)
+        # is a cell standing for a fraction of a stitch
+        for counts, key, across, what in ((course_count, "bands", 0, "courses"), (wale_count, "strips", 1, "wales")):
+            if np.any(counts < 1.0 - 1e-9):
+                i, j = (int(v) for v in np.unravel_index(int(np.argmin(counts)), counts.shape))
+                most = int(np.floor(counts.sum(axis=across).min() * (1.0 + 1e-9)))
+                raise error(f"specimen.{key}", sp[key], f"the block at band {i}, strip {j} holds {counts[i, j]:.4g} "
+                            f"{what}, less than one stitch: at most {most} {key}")
         model = PatchModel(courses, wales, fields, rule_arr, effects_arr, course_count=course_count,
                            wale_count=wale_count, gauge_length=G, pretension=pre)
         ref = G

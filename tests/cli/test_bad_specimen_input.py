@@ -76,6 +76,10 @@ GRADE = {"from": "e_glass_plain", "to": "e_glass_plain", "axis": "courses"}
     ({"grades": [dict(GRADE, fractions=[-0.2, 1.0])]}, r"grades\[0\]\.fractions\[0\] = -0\.2: a blend fraction"),
     ({"grades": [{"from": "e_glass_plain", "to": "e_glass_plain"}]}, r"grades\[0\]\.axis: missing required key"),
     ({"grades": [dict(GRADE, to="nope")]}, r"grades\[0\]\.to = \"nope\": unknown knit"),
+    # 50 bands over 100 mm of C0 = 2.7 mm courses: 0.74 course per block, a cell less than a stitch
+    ({"specimen": {"width": 50.0, "gauge_length": 100.0, "bands": 50}},
+     r"specimen\.bands = 50: the block at band 0, strip 0 holds 0\.7407 courses, less than one stitch: at most "
+     r"37 bands"),
     # a cap below the force per wale the knit carries at rest (E-glass: about 0.02 N, above 0.015 N):
     # no program can load it (before: run, then "the peak 0.02159 N per wale is the cap" and advice to
     # lower the program's strain, which cannot help)

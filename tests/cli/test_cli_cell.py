@@ -141,6 +141,15 @@ BAD = [
     ("lower_upper", lambda t: t.replace("lower_strain = 0.10", "lower_strain = 0.70"),
      r"^knitsim: error: load\.lower_strain = 0\.7: must be < load\.upper_strain = 0\.6$"),
     ("syntax", lambda t: t.replace("[load]", "[load"), r"^knitsim: error: .*bad\.toml: not valid TOML"),
+    # an increment as large as half the cycle's range: every branch one increment, a cycle of two rows
+    # (its trapezoid "hysteresis" 0 by construction, before reported as a result)
+    ("one_increment_branches", lambda t: t.replace("max_increment = 0.005", "max_increment = 0.05").replace(
+        "lower_strain = 0.10", "lower_strain = 0.55"),
+     r"^knitsim: error: load\.max_increment = 0\.05: the branches between load\.lower_strain = 0\.55 and "
+     r"load\.upper_strain = 0\.6 would be one increment each .*use at most 0\.025$"),
+    # two cells under one label: the outputs name cells by label
+    ("same_label", lambda t: t + '\n[[cells]]\nlabel = "a"\n[[cells]]\nlabel = "a"\n',
+     r'^knitsim: error: cells\[1\]\.label = "a": the label of cells\[0\] too'),
     # a cap below the force per wale at rest (E-glass, about 0.02 N): no program can load the cell
     ("cap_below_rest", lambda t: t.replace("force_cap_N = 10.0", "force_cap_N = 0.015"),
      r"^knitsim: error: cell .*: its force per wale at rest, 0\.02\d* N, is already at or above force_cap_N = "

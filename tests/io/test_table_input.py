@@ -249,6 +249,21 @@ def test_a_spreadsheet_error_in_the_first_cell_is_a_data_row_refused(tmp_path, e
     assert f"{p}: row 4, column strain: {error!r} is not a number" in str(e.value)
 
 
+def test_units_after_the_header_names_are_read_when_they_are_the_names_units(tmp_path, plain):
+    # Lab practice: a test machine writes the unit after each column name, "strain [-]", "(N)". The file
+    # reads as its plain twin; a unit that is not the one the name implies (per cent, kN) is refused
+    # naming the header cell (row 1), never read as if it were.
+    text = PLAIN.replace("strain,force_per_wale_N,direction,cycle",
+                         "Strain [-],force_per_wale_N (N),direction,cycle [ - ]")
+    _same_values(_read(_write(tmp_path, text, "units.csv")), plain)
+    for header, unit in (("strain [%],force_per_wale_N", "'%'"), ("strain,force_per_wale_N [kN]", "'kN'")):
+        p = _write(tmp_path, header + "\n0,0\n1,0.1\n2,0.2\n3,0.3\n", "bad_unit.csv")
+        with pytest.raises(KnitsimInputError) as e:
+            read_csv_columns(p, REQ)
+        assert f"{p}: row 1, column" in str(e.value) and f"the unit {unit} is not that of" in str(e.value)
+        assert ("A strain of 5 % is 0.05" in str(e.value)) == (unit == "'%'")
+
+
 def test_has_columns_finds_the_header_as_the_reader_does(tmp_path):
     # a test machine's export: UTF-8 BOM, a comment, a preamble line, capitalised names, ';' and
     # decimal commas: the x_mm / F_N pair is found, the KES pair is not (knitsim dahl fit chooses by it)
