@@ -24,7 +24,8 @@ What a laboratory writes is accepted (:func:`curve_from_arrays`):
   leaves out); more rows lower are an error naming the first (a knit carries
   no compression: a wrong zero or sign);
 - **strain jitter**: a strain that steps back by at most the tolerance
-  (:func:`strain_tolerance`: 1e-3 of the curve's strain range) inside a
+  (:func:`strain_tolerance`: 1e-3 of the curve's strain range, or 5 sd of
+  the strain's own jitter where that is more) inside a
   branch is extensometer jitter or round-off, not a reversal.  The branch
   follows its overall direction and the replayed strain is the running
   extreme (the knit is not unloaded by the jitter); the measured force stays.
@@ -72,6 +73,10 @@ NEGATIVE_SPIKES = 2
 NEGATIVE_SPIKE_SHARE = 0.005
 #: strain jitter tolerated inside a branch, as a fraction of the curve's strain range
 STRAIN_TOL_REL = 1.0e-3
+#: or as this many sd of the strain's own jitter (an extensometer noisier than 1e-3 of the range: a step
+#: back of 3 sd is then common, and read as a reversal it cut a pull into cycles), from this many rows
+STRAIN_JITTER_SIGMAS = 5.0
+STRAIN_JITTER_MIN_ROWS = 50
 #: the fewest data rows of a measured curve file (a shape, and a noise, need more than a line's points)
 MIN_CURVE_ROWS = 4
 
@@ -192,10 +197,23 @@ def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: st
 
 
 def strain_tolerance(strain) -> float:
-    """Strain jitter tolerated inside a branch: :data:`STRAIN_TOL_REL` of the strain range (>= 1e-9)."""
+    """Strain jitter tolerated inside a branch: :data:`STRAIN_TOL_REL` of the strain range, or
+    :data:`STRAIN_JITTER_SIGMAS` sd of the strain's own jitter (:func:`strain_jitter`) where that is more
+    (>= 1e-9)."""
     s = np.asarray(strain, float)
     span = float(np.max(s) - min(float(np.min(s)), 0.0)) if len(s) else 0.0
-    return max(1e-9, STRAIN_TOL_REL * span)
+    return max(1e-9, STRAIN_TOL_REL * span, STRAIN_JITTER_SIGMAS * strain_jitter(s))
+
+
+def strain_jitter(strain) -> float:
+    """The sd of a strain column's own jitter (an extensometer's noise): 1.4826 x the median of
+    ``|s[i-1] - 2 s[i] + s[i+1]|`` / sqrt(6), which a steady ramp cancels and whose median keeps the few
+    turning points out; 0 below :data:`STRAIN_JITTER_MIN_ROWS` rows (a few hand-typed rows are mostly
+    corners)."""
+    s = np.asarray(strain, float)
+    if len(s) < STRAIN_JITTER_MIN_ROWS:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(np.diff(s, 2))) / np.sqrt(6.0))
 
 
 def _force_scale(force) -> float:

@@ -64,6 +64,24 @@ def test_a_copied_row_is_read_once_and_a_second_reading_at_one_strain_is_kept(tm
     assert len(plain.force) == 6
 
 
+def test_an_extensometer_noisier_than_the_range_tolerance_does_not_cut_a_pull_into_cycles():
+    """A pull 0 -> 0.75 in 300 rows (steps of 0.0025) read by an extensometer with jitter of sd 1e-3, above
+    1e-3 of the range (7.5e-4): its steps back of 2-4e-3 are jitter (5 sd of the strain's own jitter, read
+    from its second differences), so the curve is one loading branch, as it was made (before: 6 cycles,
+    the reversals followed by the noisy force). The same jitter on 2 cycles 0.1 <-> 0.6 keeps its 2 cycles."""
+    rng = np.random.default_rng(3)
+    s = np.linspace(0.0025, 0.75, 300)
+    f = 0.1 + 5.0 * s ** 3
+    jitter = rng.normal(0.0, 1e-3, len(s))
+    c = curve_from_arrays(s + jitter, f + rng.normal(0.0, 0.05, len(s)))
+    assert c.cycle.max() == 1 and np.all(c.direction == 1)
+    leg = np.linspace(0.1, 0.6, 200)
+    sc = np.concatenate([np.linspace(0.0025, 0.6, 240), leg[::-1][1:], leg[1:], leg[::-1][1:]])
+    fc = 0.1 + 5.0 * sc ** 3 * np.concatenate([np.ones(240), np.full(len(sc) - 240, 0.5)])
+    c2 = curve_from_arrays(sc + rng.normal(0.0, 1e-3, len(sc)), fc)
+    assert c2.cycle.max() == 2 and len(np.flatnonzero(np.diff(c2.direction))) == 3
+
+
 def test_branches_inferred_from_turning_points():
     # hand-derived: up to 0.2, down to 0, up to 0.2, down; a row at a turning point ends its branch
     cyc, d = infer_branches([0.1, 0.2, 0.1, 0.0, 0.2, 0.1])
