@@ -69,7 +69,10 @@ FORMAT = "knitsim-sweep/1"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell
-CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive")
+CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
+             "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
+#: where a failed cell stopped (knitsim.io.results.cell_summary), NaN for a cell that did not fail
+_STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
 
 
 class SweepChunkError(RuntimeError):
@@ -327,6 +330,8 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
     out["expected_end"] = np.zeros(n, dtype=np.int8)
     out["loop_creates_energy"] = np.zeros(n, dtype=np.int8)
     out["rest_state_compressive"] = np.zeros(n, dtype=np.int8)
+    for k in _STOP_VARS:
+        out[k] = np.full(n, np.nan)
     for c in range(n):
         s = cell_summary(history, c)
         for cy in s["cycles"]:
@@ -339,6 +344,9 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         out["expected_end"][c] = 1 if s["expected_end"] else 0
         out["loop_creates_energy"][c] = int(any(w["code"] == "loop_creates_energy" for w in s["warnings"]))
         out["rest_state_compressive"][c] = int(any(w["code"] == "rest_state_compressive" for w in s["warnings"]))
+        if not s["expected_end"]:
+            for k in _STOP_VARS:
+                out[k][c] = np.nan if s[k] is None else s[k]
     if curves:
         out["force_per_wale_N"] = np.ascontiguousarray(history.force_per_wale.T, dtype=np.float64)
     return out
@@ -365,6 +373,8 @@ def run_chunk(task: dict) -> dict:
     red["expected_end"] = np.zeros(n_all, dtype=np.int8)
     red["loop_creates_energy"] = np.full(n_all, -1, dtype=np.int8)       # -1: not solved
     red["rest_state_compressive"] = np.full(n_all, -1, dtype=np.int8)
+    for k in _STOP_VARS:
+        red[k] = np.full(n_all, np.nan)
     if task["curves"]:
         red["force_per_wale_N"] = np.full((n_all, len(task["program"])), np.nan)
     if solve.any():
@@ -709,6 +719,8 @@ def assemble(out_dir: str | Path):
     data["expected_end"] = np.zeros((ns, nc), dtype=np.int8)
     data["loop_creates_energy"] = np.full((ns, nc), -1, dtype=np.int8)
     data["rest_state_compressive"] = np.full((ns, nc), -1, dtype=np.int8)
+    for k in _STOP_VARS:
+        data[k] = np.full((ns, nc), np.nan)
     if curves:
         data["force_per_wale_N"] = np.full((ns, nc, ni), np.nan)
         data["imposed_strain"] = np.full((ns, ni), np.nan)
@@ -756,7 +768,8 @@ def assemble(out_dir: str | Path):
     coords["cycle"] = np.arange(1, ny + 1, dtype=np.int32)
     units = {"peak_force_per_wale_N": "N", "strain_at_peak": "1", "residual_strain": "1", "energy_N_mm": "N mm",
              "energy_N_per_strain": "N", "strain_at_first_jamming": "1", "force_per_wale_N": "N",
-             "imposed_strain": "1"}
+             "imposed_strain": "1", "stopped_at_strain": "1", "last_converged_strain": "1",
+             "last_converged_force_per_wale_N": "N"}
     docs = {
         "peak_force_per_wale_N": "largest force per wale of the cycle",
         "strain_at_peak": "imposed strain (C - C0)/C0 at the peak force",
@@ -781,6 +794,11 @@ def assemble(out_dir: str | Path):
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
                   "promised; no_rest_state: outside the model, not solved), -1 unknown; reasons in the "
                   "attribute domain_reasons",
+        "stopped_at_strain": "a failed cell: the imposed strain of the increment it could not finish (NaN: it "
+                             "did not fail)",
+        "last_converged_strain": "a failed cell: the strain C/C0 - 1 of its last converged state, inside that "
+                                 "increment (NaN: it did not fail)",
+        "last_converged_force_per_wale_N": "a failed cell: its force per wale there (NaN: it did not fail)",
         "force_per_wale_N": "force per wale at every increment (NaN past the program's end)",
         "imposed_strain": "imposed strain of the course length at every increment",
     }
@@ -872,8 +890,9 @@ __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepCh
            "CYCLE_VARS", "CELL_VARS"]
 
 
-def _sample_listing(ds, select, reason) -> list[dict]:
-    """Samples (and cells) where ``select(status, expected_end, domain)`` holds, with ``reason(...)``."""
+def _sample_listing(ds, select, reason, extra: tuple = ()) -> list[dict]:
+    """Samples (and cells) where ``select(status, expected_end, domain)`` holds, with ``reason(sample, cell,
+    status, domain)`` (and a dict of the ``extra`` variables' values there, when named)."""
     keys = json.loads(ds.attrs["parameters"])
     lead = ["sample"] if ds.attrs["method"] == "lhs" else keys
     has_cell = "cell" in ds.dims
@@ -882,6 +901,7 @@ def _sample_listing(ds, select, reason) -> list[dict]:
     ok = np.asarray(ds["expected_end"].transpose(*order).values)
     dom = (np.asarray(ds["domain"].transpose(*order).values) if "domain" in ds.data_vars
            else np.full(status.shape, -1, dtype=np.int8))
+    more = {k: np.asarray(ds[k].transpose(*order).values) for k in extra if k in ds.data_vars}
     bad = np.argwhere(select(status, ok, dom))
     lead_shape = status.shape[:len(lead)]
     out = []
@@ -891,8 +911,10 @@ def _sample_listing(ds, select, reason) -> list[dict]:
         sample = int(np.ravel_multi_index(idx[:len(lead)], lead_shape)) if lead_shape else 0
         point = ds.isel({d: sel[d] for d in lead})
         params = {k: (point[k].values.item() if hasattr(point[k].values, "item") else point[k].values) for k in keys}
-        out.append({"sample": sample, "parameters": params, "cell": sel.get("cell"),
-                    "reason": reason(sample, sel.get("cell") or 0, int(status[idx]), int(dom[idx]))})
+        args = (sample, sel.get("cell") or 0, int(status[idx]), int(dom[idx]))
+        if extra:
+            args += ({k: float(v[idx]) for k, v in more.items()},)
+        out.append({"sample": sample, "parameters": params, "cell": sel.get("cell"), "reason": reason(*args)})
     return out
 
 
@@ -905,14 +927,24 @@ def failed_samples(ds) -> list[dict]:
     -------
     list of dict
         ``sample`` (flat index), ``parameters`` (key path -> value), ``cell`` (None for one cell)
-        and ``reason`` (the status name).
+        and ``reason``: the status name, and where it stopped (the increment it could not finish, its last
+        converged strain and force per wale) where the dataset holds it.
     """
     from ..cell.domain import DOMAIN_NO_REST_STATE
     from ..cell.history import STATUS_NAMES, STATUS_NO_REST_STATE
 
+    def reason(i, c, st, dom, at):
+        why = STATUS_NAMES.get(st, "unknown")
+        if np.isfinite(at.get("stopped_at_strain", np.nan)) and np.isfinite(at.get("last_converged_strain", np.nan)):
+            why += (f": no converged solution on the increment to strain {at['stopped_at_strain']:.4g}; stopped at "
+                    f"strain {at['last_converged_strain']:.4g}, force per wale "
+                    f"{at.get('last_converged_force_per_wale_N', np.nan):.4g} N (knitsim cell on this sample's "
+                    "scene says why)")
+        return why
+
     return _sample_listing(
         ds, lambda st, ok, dom: (ok == 0) & (st >= 0) & (st != STATUS_NO_REST_STATE) & (dom != DOMAIN_NO_REST_STATE),
-        lambda i, c, st, dom: STATUS_NAMES.get(st, "unknown"))
+        reason, extra=_STOP_VARS)
 
 
 def domain_samples(ds, code: int) -> list[dict]:
