@@ -75,6 +75,9 @@ _POSITIVE_FLOOR = 1e-12
 #: :data:`REVERSAL_WARN_MIN`) is not a loop: the rows are probably out of order.
 REVERSAL_WARN_FRACTION = 0.05
 REVERSAL_WARN_MIN = 10
+#: a loop whose circulation oint F dx is below -this x its bounding box (range of x times range of F) gains
+#: energy, which a Dahl loop (sigma, Fc > 0) cannot: rows in reverse order, or a sign flipped
+ENERGY_GAIN_REL = 0.01
 
 
 @dataclass(frozen=True)
@@ -451,6 +454,23 @@ def _validate_loop(x, F, labels=("x", "F")):
     return x, F, turns
 
 
+def energy_gain_warning(x, F, labels=("x", "F")) -> str | None:
+    """A warning when the rows, in their order, circulate the loop the way that gains energy, else None.
+
+    A Dahl loop (sigma, Fc > 0) dissipates: ``oint F dx > 0`` over the rows in their order of acquisition
+    (the force lags behind on each reversal).  Below -:data:`ENERGY_GAIN_REL` of the loop's bounding box
+    the rows run in reverse order, or the sign of x or of F is flipped (each changes the circulation's
+    sign); the fit then finds no Dahl loop and says "not identified" without the cause."""
+    x, F = np.asarray(x, float), np.asarray(F, float)
+    work = float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(x)))
+    box = float(np.ptp(x) * np.ptp(F))
+    if box > 0 and work < -ENERGY_GAIN_REL * box:
+        return (f"the loop gains energy: oint {labels[1]} d{labels[0]} = {work:.4g} < 0 over the rows in their "
+                f"order, where a Dahl loop dissipates (> 0): the rows run in reverse order, or the sign of "
+                f"{labels[0]} or {labels[1]} is flipped")
+    return None
+
+
 def reversal_warning(n_points: int, reversals: int, label: str = "x") -> str | None:
     """A warning when ``x`` reverses too often for a hysteresis loop, else None.
 
@@ -639,6 +659,9 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
     rev = reversal_warning(n, len(turns), labels[0])
     if rev:
         warns.append(rev)
+    gain = energy_gain_warning(x, F, labels)
+    if gain:
+        warns.append(gain)
     if not res.success:
         warns.append(f"the optimiser did not converge: {res.message}")
     return DahlFit(sigma=float(values["sigma"]), Fc=float(values["Fc"]), alpha=float(values["alpha"]),

@@ -338,6 +338,19 @@ def test_reversal_warning_threshold():
     assert "out of order" in reversal_warning(1201, 746)
 
 
+def test_a_loop_that_gains_energy_says_its_rows_are_reversed_or_a_sign_flipped():
+    # paper row 'fabric weft', 1 % noise: the loop as acquired dissipates (oint M dK > 0, no warning); the
+    # same rows in reverse order, or with M or K negated, circulate the other way (the identity
+    # oint F dx -> -oint F dx), which no Dahl loop does: the fit says so beside "not identified"
+    row = ROWS[1]
+    p = DahlParams(row["sigma"], row["Fc"], row["alpha"])
+    x, M = kes_loop(p, KES_K, cycles=2, points_per_quarter=50, noise=0.01 * row["Fc"], seed=5)
+    assert not [w for w in fit_dahl_loop(x, M).warnings if "gains energy" in w]
+    for xx, MM in ((x[::-1], M[::-1]), (x, -M), (-x, M)):
+        (w,) = [w for w in fit_dahl_loop(xx, MM, labels=("kappa", "M")).warnings if "gains energy" in w]
+        assert "oint M dkappa = -" in w and "reverse order" in w
+
+
 def test_fit_status_identified_on_clean_loop():
     # paper row 'fabric weft', 1 % noise: all fitted parameters identified
     row = ROWS[1]
