@@ -1417,6 +1417,14 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
             f"{small[0].probability or 0.0:.3g}) but lowers chi2 by {small[0].chi2_drop:.3g} where the size threshold "
             f"asks for {small[0].size_needed:.3g} (half the excess over noise at its 95 % lower bound, at least "
             f"half of chi2's spread for noise alone): too small to explain anything")
+        # a candidate that outweighs none in the probabilities without the evidence to be named: said, so
+        # that "none" beside a larger probability of an effect reads as what it is (weak evidence)
+        heavier = [c for c in fitted if not c.significant and (c.probability or 0.0) > probs["none"]]
+        if heavier and not small:
+            c = heavier[0]
+            aside += (f"; {c.effect} weighs {c.probability or 0.0:.2g} against none {probs['none']:.2g} in the "
+                      f"probabilities, but its BIC score {c.score:.3g} is below the {STRONG:g} that naming an effect "
+                      "needs: weak evidence, not a finding")
         return Verdict("none", None, stage, 0.0, True,
                        f"the model explains these curves within their noise: {fit_txt}{aside}", [], probs)
     if not named:

@@ -427,3 +427,23 @@ def test_a_curve_given_twice_is_refused():
         d = curve_from_arrays([0.0, 0.01, 0.02], [0.0, 0.1, 0.2], source=other)
         with pytest.raises(KnitsimInputError, match=f"{other}: the same rows as a.csv"):
             diagnose([c, d], setup)
+
+
+def test_a_none_verdict_beside_a_heavier_effect_says_its_evidence_is_weak():
+    """Step 8 on hand-set candidates: the baseline within its noise, and coiling_angle_friction with a BIC
+    score of 2 (below the STRONG 10 that naming needs) yet a probability of 0.41 against none's 0.34. The
+    verdict stays none, confident (the rule), and now says why the heavier probability is not a finding;
+    with no candidate heavier than none, nothing is added."""
+    from knitsim.diagnosis.diagnose import (STRONG, Adequacy, CandidateResult, Localisation, NoiseModel,
+                                            verdict_step)
+    adequacy = Adequacy(chi2=110.0, dof=100, chi2_per_dof=1.1, expected_sd=0.14, within_noise=True, excess=10.0)
+    loc = Localisation(keys=["loading_sliding"], stages={}, where=["loading_sliding"])
+
+    def cand(effect, score, prob):
+        return CandidateResult(effect, "", True, score=score, probability=prob, significant=score > STRONG)
+    heavy = [cand("coiling_angle_friction", 2.0, 0.41), cand("yarn_extension", -1.0, 0.25)]
+    v = verdict_step(adequacy, heavy, loc, {}, NoiseModel([]), [])
+    assert v.kind == "none" and v.confident and v.probabilities["none"] == pytest.approx(0.34)
+    assert "coiling_angle_friction weighs 0.41 against none 0.34" in v.reason and "weak evidence" in v.reason
+    light = [cand("coiling_angle_friction", 2.0, 0.2), cand("yarn_extension", -1.0, 0.1)]
+    assert "weighs" not in verdict_step(adequacy, light, loc, {}, NoiseModel([]), []).reason
