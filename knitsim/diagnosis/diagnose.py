@@ -112,11 +112,16 @@ from ..errors import KnitsimInputError
 from .calibrate import calibrate_baseline, default_bounds, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
-from .measured import MeasuredCurve, check_reachable, check_response, reachable_strain
+from .measured import NEGATIVE_SIGMAS, MeasuredCurve, check_reachable, check_response, reachable_strain
 from .noise import CurveNoise, curve_noise
 
 #: BIC difference counted as very strong evidence (Kass and Raftery 1995, 2 ln B > 10)
 STRONG = 10.0
+#: a verdict on curves of which fewer rows than this carry force above NEGATIVE_SIGMAS noise sd (an
+#: unloading logged at the slack end, a test that barely loaded the knit) is not confident.  A count, not
+#: a share: a noisy pull whose plateau lies within the noise still has its jammed rows (the study's lab
+#: pulls: 13 % of 308 rows, 40)
+MIN_LOADED_ROWS = 10
 #: share of the baseline's excess over noise an effect must remove to be named (module docstring, step 6)
 PRACTICAL_SHARE = 0.5
 #: the excess enters the size threshold by its one-sided 95 % lower bound, excess - SIZE_Z x its spread
@@ -1588,6 +1593,14 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     bound_txt = _at_bounds_text(base_fit, best_fit, verdict.effect)
     if bound_txt:
         verdict.reason += "; " + bound_txt
+    loaded = sum(int(np.sum(c.force > NEGATIVE_SIGMAS * nz.sigma_N)) for c, nz in zip(curves, noise.curves))
+    total = sum(len(c.force) for c in curves)
+    if loaded < MIN_LOADED_ROWS:
+        # within the noise is easy where the knit carries nothing: said, and not confident
+        verdict.confident = False
+        verdict.reason += (f"; only {loaded} of {total} rows ({loaded / total:.0%}) carry force above "
+                           f"{NEGATIVE_SIGMAS:g} noise sd: the curves say little of the knit, so the verdict "
+                           "rests on little")
     return Diagnosis(setup.title, [c.source for c in curves], noise, rates, n, base, outliers, adequacy, loc,
                      candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit),
                      time.perf_counter() - t0)

@@ -447,3 +447,18 @@ def test_a_none_verdict_beside_a_heavier_effect_says_its_evidence_is_weak():
     assert "coiling_angle_friction weighs 0.41 against none 0.34" in v.reason and "weak evidence" in v.reason
     light = [cand("coiling_angle_friction", 2.0, 0.2), cand("yarn_extension", -1.0, 0.1)]
     assert "weighs" not in verdict_step(adequacy, light, loc, {}, NoiseModel([]), []).reason
+
+
+def test_a_verdict_on_curves_that_carry_almost_no_force_is_not_confident():
+    """A hand-made unloading logged at the slack end: 60 rows from strain 0.6 down to 0.1, the first two
+    carrying 3 and 1 N per wale, the rest a load cell reading 0 +- 4 mN (white noise). Within its noise
+    whatever the model (it carries nothing), so "none" would be easy; with 2 rows above 5 noise sd
+    (fewer than MIN_LOADED_ROWS = 10) the verdict says the curves say little, and is not confident."""
+    from knitsim.diagnosis.diagnose import MIN_LOADED_ROWS
+    rng = np.random.default_rng(2)
+    s = np.linspace(0.6, 0.1, 60)
+    f = np.concatenate([[3.0, 1.0], rng.normal(0.0, 0.004, 58)])
+    c = curve_from_arrays(s, f, source="unload.csv")     # the first row ends the loading from rest
+    d = diagnose([c], DiagnosisSetup(base=NOMINAL, effects=("yarn_extension",), pair=False))
+    assert MIN_LOADED_ROWS == 10 and not d.verdict.confident
+    assert "only 2 of 60 rows (3%) carry force above 5 noise sd" in d.verdict.reason
