@@ -184,7 +184,9 @@ def run_fit(args) -> int:
     png = None
     if not args.no_png:
         png = prepare_output_file(args.png or path.with_name(path.stem + "_dahl_fit.png"), args.overwrite, "--png")
-    data = read_csv_columns(path, [xcol, fcol])
+    from ..diagnosis.measured import drop_copied_rows
+    # a row copied (pasted twice) is no second measurement: counted twice it would shrink the standard errors
+    data = drop_copied_rows(read_csv_columns(path, [xcol, fcol]))
     x, F = data[xcol], data[fcol]
     try:
         fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha, labels=(xcol, fcol))

@@ -37,6 +37,18 @@ def test_fit_bundled_csv_recovers_paper_yarn_row(tmp_path, capsys):
     assert out["parameters"]["alpha"] == 1.0 and out["fixed"] == {"alpha": 1.0, "B": 0.0}
 
 
+def test_a_loop_pasted_twice_row_by_row_fits_as_the_loop(tmp_path, capsys):
+    # Lab practice gone wrong: every row of the bundled KES loop pasted twice. A copy is no second
+    # measurement: the fit, standard errors included, is the bundled file's (before: errors / sqrt 2)
+    lines = BUNDLED.read_text().splitlines(keepends=True)
+    head = next(i for i, ln in enumerate(lines) if "kappa_1_mm" in ln) + 1
+    (tmp_path / "twice.csv").write_text("".join(lines[:head] + [ln for ln in lines[head:] for _ in (0, 1)]))
+    one = _run_json(capsys, ["dahl", "fit", str(BUNDLED), "--no-png", "--json"])
+    two = _run_json(capsys, ["dahl", "fit", str(tmp_path / "twice.csv"), "--no-png", "--json"])
+    assert two["n_points"] == one["n_points"]
+    assert two["parameters"] == one["parameters"] and two["stderr"] == one["stderr"]
+
+
 def test_fit_default_png_next_to_csv_and_text_output(tmp_path, capsys):
     csv = tmp_path / "loop.csv"
     shutil.copy(BUNDLED, csv)
