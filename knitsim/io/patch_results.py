@@ -49,7 +49,7 @@ from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_
                      energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
 from .results import _num, summary_json, write_result_set
 
-CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N")
+CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
 PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
                       "strain_map.png", "stage_map.png", "summary.json")
 _LABELS = {v: k for k, v in LABEL_CODES.items()}
@@ -178,16 +178,28 @@ def _layout_of(h: PatchHistory, model: PatchModel | None) -> SpecimenLayout:
     return specimen_layout(model)
 
 
+def columns_held(h: PatchHistory) -> np.ndarray:
+    """Per increment, the columns (strips) whose force is held rather than the knit's: the column did not
+    converge on it, or holds a cell stopped (failed, or at its force cap), whose last state it keeps."""
+    if not h.n_increments:
+        return np.zeros(0, dtype=np.int64)
+    stopped = (np.asarray(h.groups["status"]) != STATUS_OK)[:, np.asarray(h.group_of_cell)].any(axis=1)
+    return ((np.asarray(h.column_status) != COL_OK) | stopped).sum(axis=1)
+
+
 def curve_csv(h: PatchHistory) -> str:
-    """The text of ``curve.csv``."""
+    """The text of ``curve.csv``; ``columns_held``: :func:`columns_held` (0: every column is the knit's)."""
     lines = [",".join(CURVE_COLUMNS)]
     # increment 0 is the rest state (grip strain 0); the program's increments are 1 .. n
     cyc0 = str(int(h.cycle[0])) if h.n_increments else "1"
     rest_grip = float(h.info.get("rest_grip_strain", 0.0))     # < 0: a pretensioned specimen at rest
-    lines.append(",".join(["0", cyc0, "load", _num(rest_grip), _num(h.rest_force_N), _num(h.rest_force_per_wale_N)]))
+    lines.append(",".join(["0", cyc0, "load", _num(rest_grip), _num(h.rest_force_N), _num(h.rest_force_per_wale_N),
+                           "0"]))
+    held = columns_held(h)
     for i in range(h.n_increments):
         lines.append(",".join([str(i + 1), str(int(h.cycle[i])), "load" if h.direction[i] > 0 else "unload",
-                               _num(h.grip_strain[i]), _num(h.force_N[i]), _num(h.force_per_wale_N[i])]))
+                               _num(h.grip_strain[i]), _num(h.force_N[i]), _num(h.force_per_wale_N[i]),
+                               str(int(held[i]))]))
     return "\n".join(lines) + "\n"
 
 

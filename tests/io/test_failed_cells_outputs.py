@@ -103,6 +103,21 @@ def test_columns_that_no_longer_converge_cut_the_cycle_figures():
     assert [c["cycle"] for c in s["cycles"]] == [1, 2] and s["non_converged_column_increments"] == 1
 
 
+def test_curve_csv_says_on_which_rows_columns_are_held():
+    # curve.csv's columns_held: 0 on the rest row and before the failure, 1 from the failed cell's row on
+    # (its column keeps the cell's last state); the column that misses one increment: 1 on that row only
+    import csv
+    import io
+
+    from knitsim.io.patch_results import curve_csv
+
+    def held(h):
+        return [int(r["columns_held"]) for r in csv.DictReader(io.StringIO(curve_csv(h)))]
+    assert held(_history(3)) == [0, 0, 0, 0, 1, 1, 1, 1, 1, 1]
+    assert held(_unconverged_history(False)) == [0, 0, 0, 0, 1, 0, 0, 0, 0, 0]
+    assert held(_history(None)) == [0] * 10
+
+
 def test_without_failed_cells_nothing_is_cut():
     s = patch_summary(_history(None), 2.7, model=PatchModel.uniform(P, 1, 2))
     assert [c["cycle"] for c in s["cycles"]] == [1, 2]
