@@ -14,6 +14,7 @@ shape (:mod:`knitsim.usd.instanced`).  Exit status 0, or 2 on bad input.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags, prepare_output_file
@@ -79,11 +80,13 @@ def _run(args) -> int:
     res = export_results(args.results, args.out, color_by=args.color_by, stride=args.usd_stride,
                          n_points=args.usd_points or DEFAULT_POINTS, device=device, quicklook=args.quicklook,
                          layout=args.usd_layout)
+    # what the run itself warned of (a failed or capped run): the file shows those states too, so said here
+    run_warnings = _run_warnings(args.results)
     doc = {"usd": res.path, "bytes": res.file_bytes, "time_codes": len(res.time_codes), "courses": res.courses,
            "wales": res.wales, "vertices_per_course": res.vertices_per_course, "seconds": res.seconds,
            "fallback_cells_max": max(res.fallback_cells) if res.fallback_cells else 0,
            "stitches_drawn": res.stitches or None, "prototypes": res.prototypes or None,
-           "quicklook": args.quicklook}
+           "quicklook": args.quicklook, "run_warnings": run_warnings}
     if args.json:
         print_json(doc)
     else:
@@ -94,4 +97,22 @@ def _run(args) -> int:
         print(f"knitsim usd: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time samples, "
               f"{what}) in {res.seconds:.2f} s"
               + (f"; quick-look {args.quicklook}" if args.quicklook else ""), file=sys.stderr)
+        for w in run_warnings:
+            print(f"knitsim usd: warning: the run shown ({Path(args.results) / 'summary.json'}): {w['code']}: "
+                  f"{w['message']}", file=sys.stderr)
     return 0
+
+
+#: the run's warnings that say its later states are not the knit's (held, failed or capped)
+_RUN_STOP_CODES = ("run_stopped_by_failed_cells", "run_held_by_unconverged_columns", "force_cap_reached",
+                   "program_cut_by_force_cap")
+
+
+def _run_warnings(results) -> list[dict]:
+    """The run's warnings of :data:`_RUN_STOP_CODES` from its ``summary.json`` (none without one)."""
+    import json
+    try:
+        doc = json.loads((Path(results) / "summary.json").read_text())
+    except (OSError, ValueError):
+        return []
+    return [w for w in doc.get("warnings", []) if isinstance(w, dict) and w.get("code") in _RUN_STOP_CODES]

@@ -71,6 +71,25 @@ def test_usd_from_results_equals_run_export(run_dir, capsys):
     assert np.mean(np.any(img[..., :3] < 0.9, axis=-1)) > 0.02          # not blank: yarn drawn
 
 
+def test_usd_of_a_run_that_warned_of_held_forces_says_so(run_dir, tmp_path, capsys):
+    # the run's folder with a summary.json warning that its cells failed (hand-written): the USD file shows
+    # those held states too, so knitsim usd repeats the warning (stderr, and --json run_warnings); an
+    # unrelated warning (heads overlap) is not repeated
+    import shutil
+    folder = tmp_path / "o"
+    shutil.copytree(run_dir / "o", folder)
+    doc = json.loads((folder / "summary.json").read_text())
+    doc["warnings"] = [{"code": "run_stopped_by_failed_cells", "message": "1 cell(s) failed from grip strain 0.2"},
+                       {"code": "heads_interpenetrate", "message": "heads overlap"}]
+    (folder / "summary.json").write_text(json.dumps(doc))
+    assert main(["usd", str(folder), "--out", str(tmp_path / "x.usda")]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the run shown" in err and "run_stopped_by_failed_cells: 1 cell(s) failed" in err
+    assert "heads overlap" not in err
+    assert main(["usd", str(folder), "--out", str(tmp_path / "y.usda"), "--json"]) == 0
+    assert [w["code"] for w in json.loads(capsys.readouterr().out)["run_warnings"]] == ["run_stopped_by_failed_cells"]
+
+
 @pytest.mark.parametrize("argv,needle", [
     (["usd", "{tmp}/missing", "--out", "{tmp}/x.usda"], "not a directory"),
     (["usd", "{tmp}/nostate", "--out", "{tmp}/x.usda"], "no per-cell states"),
