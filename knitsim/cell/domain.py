@@ -59,6 +59,7 @@ cell that has none.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -244,10 +245,17 @@ def _rest_key(p: CellParams) -> tuple:
 
 
 def _solve_rest_state(p):
-    """Table 4's initial state of ``p`` by the NumPy inverse solve: ``(result, converged)``."""
+    """Table 4's initial state of ``p`` by the NumPy inverse solve: ``(result, converged)``; solved once per
+    geometry (:func:`rest_state_problem` and :func:`rest_force_per_wale` both ask for it)."""
+    return _solve_rest_state_of(_rest_key(p))
+
+
+@functools.lru_cache(maxsize=4096)
+def _solve_rest_state_of(key: tuple):
     from .inverse import initial_state
+    B, d, L, W0, C0, phi0 = key
     try:
-        res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
+        res = initial_state(C0, W0, L, phi0, B, d)
         return res, bool(res.success)
     except (RuntimeError, KnitsimInputError):
         return None, False

@@ -59,12 +59,13 @@ def rest_at_cap_reason(F_rest: float, cap: float) -> str:
             "the cell stops at rest (raise force_cap_N to load it)")
 
 
-def solver_stop_reason(status: int, strain: float, strain_to: float | None, label: str, F: float, cap: float,
+def solver_stop_reason(status: int, strain: float, strain_to: float | None, label: str | None, F: float, cap: float,
                        loading: bool) -> str:
     """Why a cell stopped short of its load program (status no_convergence or event_not_located), in the
     facts a user can act on: where it stopped (its last converged state: the strain of its course
-    length, its stage label, its force per wale) and the increment it could not finish (``strain_to``;
-    None in a patch, where a cell's target is the column coupling's trial).
+    length, its stage label (None where it is not kept, a sweep's dataset), its force per wale) and the
+    increment it could not finish (``strain_to``; None in a patch, where a cell's target is the column
+    coupling's trial).
 
     On the jammed branch while loading, below the cell's force cap, it also says that a lower cap would
     have been the expected end there: the jammed branch's force diverges (W held at the jamming width
@@ -72,7 +73,7 @@ def solver_stop_reason(status: int, strain: float, strain_to: float | None, labe
     what the branch can carry (1e12 N per wale) otherwise ends every such run in a failure."""
     what = ("no converged solution" if status == STATUS_NO_CONVERGENCE else "an event could not be located")
     msg = (f"{what}{'' if strain_to is None else f' on the increment to strain {strain_to:.4g}'}; "
-           f"stopped at strain {strain:.4g} ({label}, force per wale {F:.4g} N)")
+           f"stopped at strain {strain:.4g} ({'' if label is None else label + ', '}force per wale {F:.4g} N)")
     if label == "jamming" and loading and F < cap:
         msg += (f"; the jammed branch's force diverges and the cell did not reach force_cap_N = {cap:.4g} N: "
                 f"a force_cap_N below {F:.3g} N ends the run there as expected")

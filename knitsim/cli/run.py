@@ -73,19 +73,14 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     check = check_cells(grouping.params, engine=engine, device=device)
     cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=len(grouping.params))
     n_cells = int(grouping.group_of_cell.size)
-    bad = [g for g, why in enumerate(check.no_rest) if why is not None]
-    if bad:
-        n = int(cells_of[bad].sum())
-        i, j = np.argwhere(np.isin(grouping.group_of_cell, bad))[0]
-        raise KnitsimInputError(f"{n} of {n_cells} cell(s) have no admissible rest state, e.g. course {i}, wale {j}: "
-                                f"{check.no_rest[int(grouping.group_of_cell[i, j])]} (knitsim.cell.domain)")
-    at_cap = check.at_cap([p.force_cap_N for p in grouping.params])
-    bad = [g for g, why in enumerate(at_cap) if why is not None]
-    if bad:
-        n = int(cells_of[bad].sum())
-        i, j = np.argwhere(np.isin(grouping.group_of_cell, bad))[0]
-        raise KnitsimInputError(f"{n} of {n_cells} cell(s) cannot be loaded, e.g. course {i}, wale {j}: "
-                                f"{at_cap[int(grouping.group_of_cell[i, j])]}")
+    for whys, what, source in ((check.no_rest, "have no admissible rest state", " (knitsim.cell.domain)"),
+                               (check.at_cap([p.force_cap_N for p in grouping.params]), "cannot be loaded", "")):
+        bad = [g for g, why in enumerate(whys) if why is not None]
+        if bad:
+            n = int(cells_of[bad].sum())
+            i, j = np.argwhere(np.isin(grouping.group_of_cell, bad))[0]
+            raise KnitsimInputError(f"{n} of {n_cells} cell(s) {what}, e.g. course {i}, wale {j}: "
+                                    f"{whys[int(grouping.group_of_cell[i, j])]}{source}")
     warnings = []
     counts: dict[str, int] = {}
     example = None

@@ -405,9 +405,10 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
 
 
 def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout, row_key: str,
-              col_key: str) -> tuple[int | None, list[ResultWarning]]:
-    """The first row from which the grip force is no longer the knit's, and the warning saying so; (None, [])
-    where there is none.  Two cases, the earlier one counts:
+              col_key: str, fc: ForceCapRows) -> tuple[int | None, float | None, list[ResultWarning]]:
+    """The first row from which the grip force is no longer the knit's, the grip strain the cycle figures
+    are cut at, and the warnings saying so; (None, None, []) where there is none.  Three cases, the earliest
+    one counts:
 
     - ``run_stopped_by_failed_cells``: a cell failed (no_convergence, event_not_located); its column
       holds the cell's last converged state from there.  Where, the first failed cell and why
@@ -415,14 +416,16 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
     - ``run_held_by_unconverged_columns``: a column stops converging and holds its last converged state
       (its force constant) to the end of the run, the grip moving (the coupling finds no balance of its
       cells' forces), below its cells' force cap (held at the cap, ``force_cap_reached`` says so).  A column that fails to converge on an increment and moves again later is not this:
-      those increments are counted in ``non_converged_column_increments`` and marked.
-
-    A stop at the force cap is an expected end, not this (``force_cap_reached``)."""
+      those increments are counted in ``non_converged_column_increments`` and marked;
+    - cells stopped at their force cap with unloadings of the program left: the row reaching the cap is
+      the last of the knit's, their columns hold the cap after it (cut at that row's grip strain; the
+      warnings ``force_cap_reached`` and ``program_cut_by_force_cap`` say so, none is added here).  A stop
+      at the cap on the last loading is an expected end, and cuts nothing."""
     from ..cell.history import STATUS_EVENT_NOT_LOCATED, STATUS_NO_CONVERGENCE, solver_stop_reason
 
     n = h.n_increments
     if not n:
-        return None, []
+        return None, None, []
     goc = np.asarray(h.group_of_cell)
     caps = np.full(goc.shape, np.inf)
     if model is not None and "force_cap_N" in model.rules:
@@ -445,7 +448,7 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
                                  _LABELS.get(int(h.groups["label"][stop, g]), "unknown stage"),
                                  float(h.groups["F"][stop, g]), float(caps[i, j]), int(h.direction[stop]) > 0)
         cells = int(failed.any(axis=0)[goc].sum())
-        out.append((stop, ResultWarning("run_stopped_by_failed_cells", (
+        out.append((stop, float(h.grip_strain[stop]), ResultWarning("run_stopped_by_failed_cells", (
             f"{cells} {what}(s) failed from grip strain {h.grip_strain[stop]:.4g} (increment {stop + 1}); the first, "
             f"{row_key} {i} {col_key} {j}: {why}. Their {column}s hold the last converged state, so from there the "
             f"grip force is not the knit's: the cycle figures stop there" + not_run(stop)))))
@@ -472,15 +475,18 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
         cap = float(np.min(caps[:, j]))
         advice = (f"; its {what}s are jammed and the jammed branch's force diverges: a force_cap_N below {F:.3g} N "
                   "ends the run there as expected" if jammed and int(h.direction[held]) > 0 and F < cap else "")
-        out.append((held, ResultWarning("run_held_by_unconverged_columns", (
+        out.append((held, float(h.grip_strain[held]), ResultWarning("run_held_by_unconverged_columns", (
             f"from grip strain {h.grip_strain[held]:.4g} (increment {held + 1}), {len(cols)} of {h.shape[1]} "
             f"{column}(s) no longer converge: the coupling finds no balance of their {what}s' forces, and they hold "
             f"their last converged state to the end of the run, so the grip force there is not the knit's: the "
             f"cycle figures stop there" + not_run(held) + f"; the first, {col_key} {j}, held at {F:.4g} N per "
             f"wale{' (jamming)' if jammed else ''}" + advice))))
+    if fc.first_stop is not None and np.any(h.direction[fc.first_stop:] < 0):
+        out.append((fc.first_stop + 1, float(h.grip_strain[fc.first_stop]), None))
     if not out:
-        return None, []
-    return min(r for r, _ in out), [w for _, w in out]
+        return None, None, []
+    stop, cut_at, _ = min(out, key=lambda o: o[0])
+    return stop, cut_at, [w for _, _, w in out if w is not None]
 
 
 def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None, **info) -> dict:
@@ -520,15 +526,10 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     fc = force_cap_rows(h, model)
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
-    # from the first row with a failed cell on (its column holds the cell's last converged state), or from
-    # where columns stop converging for good, the grip force is not the knit's: the cycle figures stop there
-    stop, stop_warnings = _run_stop(h, model, layout, row_key, col_key)
-    cut_at = None if stop is None else float(e[stop])
-    if fc.first_stop is not None and np.any(h.direction[fc.first_stop:] < 0) and (stop is None or fc.first_stop < stop):
-        # cells stopped at their force cap with unloadings of the program left (warning
-        # program_cut_by_force_cap): the row reaching the cap is the last of the knit's; their columns
-        # hold the cap after it, so the cycle figures stop there too (not a cycle "run" over held forces)
-        stop, cut_at = fc.first_stop + 1, float(e[fc.first_stop])
+    # from the first row with a failed cell on (its column holds the cell's last converged state), from
+    # where columns stop converging for good, or after cells stopped at their cap with unloadings left, the
+    # grip force is not the knit's: the cycle figures stop there (_run_stop)
+    stop, cut_at, stop_warnings = _run_stop(h, model, layout, row_key, col_key, fc)
     cycles = []
     for k in np.unique(h.cycle):
         rows = cycle_rows = np.nonzero(h.cycle == k)[0]

@@ -931,15 +931,14 @@ def failed_samples(ds) -> list[dict]:
         converged strain and force per wale) where the dataset holds it.
     """
     from ..cell.domain import DOMAIN_NO_REST_STATE
-    from ..cell.history import STATUS_NAMES, STATUS_NO_REST_STATE
+    from ..cell.history import STATUS_NAMES, STATUS_NO_REST_STATE, solver_stop_reason
 
     def reason(i, c, st, dom, at):
         why = STATUS_NAMES.get(st, "unknown")
-        if np.isfinite(at.get("stopped_at_strain", np.nan)) and np.isfinite(at.get("last_converged_strain", np.nan)):
-            why += (f": no converged solution on the increment to strain {at['stopped_at_strain']:.4g}; stopped at "
-                    f"strain {at['last_converged_strain']:.4g}, force per wale "
-                    f"{at.get('last_converged_force_per_wale_N', np.nan):.4g} N (knitsim cell on this sample's "
-                    "scene says why)")
+        if all(np.isfinite(at.get(k, np.nan)) for k in _STOP_VARS):
+            # the stage is not kept in the dataset: knitsim cell on the sample's scene adds it and the cap advice
+            why += ": " + solver_stop_reason(st, at["last_converged_strain"], at["stopped_at_strain"], None,
+                                             at["last_converged_force_per_wale_N"], float("inf"), False)
         return why
 
     return _sample_listing(

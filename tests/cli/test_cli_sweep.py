@@ -129,5 +129,5 @@ def test_a_sweep_whose_samples_fail_exits_1_and_lists_them(tmp_path, capsys):
     cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0, force_cap_N=1e12)
     one = cell_summary(run_batch([cell], monotonic(1.0, 0.02)), 0)
     assert (f"no converged solution on the increment to strain {one['stopped_at_strain']:.4g}; stopped at strain "
-            f"{one['last_converged_strain']:.4g}, force per wale {one['last_converged_force_per_wale_N']:.4g} N"
+            f"{one['last_converged_strain']:.4g} (force per wale {one['last_converged_force_per_wale_N']:.4g} N)"
             in s["failed"][1]["reason"])
