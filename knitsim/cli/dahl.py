@@ -206,7 +206,8 @@ def run_fit(args) -> int:
             "file": str(path), "columns": {"x": xcol, "F": fcol}, "n_points": fit.n_points,
             "reversals": fit.reversals, "parameters": values, "stderr": fit.stderr, "fixed": fit.fixed,
             "units": units, "kes_units": kes, "rms": fit.rms, "success": fit.success, "message": fit.message,
-            "png": str(png) if png else None, "param_status": fit.param_status, "warnings": fit.warnings,
+            "png": str(png) if png else None, "param_status": fit.param_status, "lower_bounds": fit.lower_bounds,
+            "warnings": fit.warnings,
         })
         return 0
     print(f"Dahl fit of {path} ({fit.n_points} points, {fit.reversals} reversals; x = {xcol}, F = {fcol})")
@@ -221,6 +222,8 @@ def run_fit(args) -> int:
         flag = FLAG_TEXT.get(fit.param_status.get(n, ""))
         if flag:
             line += f"   <- {flag}"
+        if n in fit.lower_bounds:
+            line += f" ({n} >= {fit.lower_bounds[n]:.3g} {units[n]}, one-sided 95 %)".replace(" ,", ",")
         print(line)
     print(f"  rms residual = {fit.rms:.3g} {units['F0']}" + ("" if fit.success else f"  (optimizer: {fit.message})"))
     for w in fit.warnings:

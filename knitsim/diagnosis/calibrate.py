@@ -66,6 +66,9 @@ def _variables(free: tuple, effects: tuple) -> dict:
     return known
 
 
+#: the default upper bound of d as a fraction of W0 / 4 (the loops jam at rest at W0 = 4 d)
+D_MAX_OF_W0 = 0.999
+
 #: share of a variable's range within which a fitted value counts as at its bound
 AT_BOUND_SHARE = 1.0e-3
 
@@ -76,7 +79,7 @@ def default_bounds(base: CellParams, var) -> tuple[float, float]:
         return 0.5 * v, 2.0 * v
     if var.name == "in_plane_width":
         # from the compact diameter to the width at which the loops would be jammed at rest
-        return base.d, 0.999 * base.W0 / 4.0
+        return base.d, D_MAX_OF_W0 * base.W0 / 4.0
     if var.name in ("L", "W0", "C0"):
         # specimen-to-specimen scatter of the knit geometry: a few per cent
         v = getattr(base, var.name)
@@ -245,6 +248,14 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     lo, hi = np.empty(len(free)), np.empty(len(free))
     for j, name in enumerate(free):
         lo[j], hi[j] = bounds.get(name, default_bounds(base, known[name]))
+    if "d" in free and "d" not in bounds:
+        # the default range of d (up to 2 d) must keep the knit a knit at every W0 the fit may take: W0 >= 4 d
+        # (a scene's own bound is refused otherwise, knitsim.scene.diagnosis_scene); the paper's E-glass knit
+        # has W0 = 4.4 mm < 8 d = 4.64 mm, and a trial point at W0 < 4 d stopped the fit with an input error
+        W0_low = lo[free.index("W0")] if "W0" in free else base.W0
+        j = free.index("d")
+        hi[j] = min(hi[j], D_MAX_OF_W0 * W0_low / 4.0)
+    for j, name in enumerate(free):
         if not lo[j] < hi[j]:
             raise KnitsimInputError(f"bounds[{name!r}] = ({lo[j]}, {hi[j]}): expected low < high")
     start = {n: known[n].start(base) for n in free}

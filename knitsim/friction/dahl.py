@@ -389,7 +389,10 @@ class DahlFit:
     nfev : int
     param_status : dict of str to str
         Per parameter ``"identified"``, ``"fixed"``, ``"at_lower_bound"``,
-        ``"at_upper_bound"`` or ``"not_identified"``.
+        ``"at_upper_bound"``, ``"not_identified"`` or ``"lower_bound_only"`` (sigma, where an
+        instantaneous transition fits as well: :func:`_sigma_lower_bound`).
+    lower_bounds : dict of str to float
+        The one-sided 95 % lower bound of each ``"lower_bound_only"`` parameter.
     warnings : list of str
         What makes the result less than believable (shown to the user).
     """
@@ -411,10 +414,13 @@ class DahlFit:
     nfev: int
     fixed: dict = field(default_factory=dict)
     #: per parameter: ``"identified"``, ``"fixed"``, ``"at_lower_bound"``,
-    #: ``"at_upper_bound"`` or ``"not_identified"`` (non-finite or zero stderr)
+    #: ``"at_upper_bound"``, ``"not_identified"`` (non-finite or zero stderr) or ``"lower_bound_only"``
     param_status: dict = field(default_factory=dict)
     #: sentences for the user: parameters not identified, implausible loops
     warnings: list = field(default_factory=list)
+    #: one-sided 95 % lower bounds of the parameters the data bound from one side only (status
+    #: ``"lower_bound_only"``: sigma where the transitions are shorter than the row spacing)
+    lower_bounds: dict = field(default_factory=dict)
 
     @property
     def identified(self) -> bool:
@@ -537,6 +543,92 @@ def initial_guess(x, F, elastic=False, turns=None):
     return sigma0, Fc0, B0, F0
 
 
+#: chi^2 rise (in noise variances) of the one-sided 95 % bound of one parameter (the chi^2_1 quantile at 0.90)
+SIGMA_BOUND_CHI2 = 2.706
+#: the sharp limit of a transition: its length Fc / sigma this fraction of the shortest step between rows
+SHARP_STEP_SHARE = 1.0e-3
+#: rows per branch (between reversals) on which a transition must show above the noise to be measured
+MIN_TRANSITION_ROWS = 2
+#: ... unless the sharp limit costs at least this chi^2 (5 noise sd): the first row after each reversal
+#: then measures the decay (sigma = 1 in that probe: one row a branch at 3.8 sd, chi^2 +70, sigma within 1 SE)
+SIGMA_RESOLVED_CHI2 = 25.0
+
+
+def _sigma_lower_bound(residual, theta, names, lower, upper, s2, xn, branches):
+    """Whether the loop bounds sigma from below only: ``(bound, d_chi2, shown)`` (the bound, the rise of
+    chi^2 at the sharp limit, the rows the fitted transition shows on) or None.
+
+    After a reversal the Dahl force relaxes over a travel Fc / sigma (alpha = 1).  Where that travel is
+    shorter than the step between rows, the transition is over by the next row and the data cannot tell
+    sigma from infinity: the standard error of the fit (the curvature of chi^2 at its minimum) then
+    describes where the fit stopped, not what the data know (a blind probe: sigma = 50 and 5, rows every
+    0.05 with Fc = 0.014, both fitted at 1.9 +- 0.23, "identified").  Two tests, either of which says
+    that the data bound sigma from below only:
+
+    - the profile of chi^2: the other parameters refitted with sigma at the sharp limit
+      (:data:`SHARP_STEP_SHARE`) raise chi^2 by less than :data:`SIGMA_BOUND_CHI2` noise variances
+      (``s2``, from the best fit);
+    - the fitted transition shows on fewer than :data:`MIN_TRANSITION_ROWS` rows per branch
+      (``branches``: its force differs from the sharp limit's by more than the noise sd on fewer rows)
+      and the sharp limit costs less than :data:`SIGMA_RESOLVED_CHI2`.
+      The profile alone is not enough there: in that probe the sharp limit cost chi^2 +6.0, a rise made
+      by the noise of the four rows after the reversals, with the truth 26 times the fit.
+
+    The bound is the sigma below the fit where the profile rises by :data:`SIGMA_BOUND_CHI2` (bisection
+    in log sigma).  ``theta`` is the best fit in the scaled units of ``residual``, sigma first.
+    """
+    rest = [i for i, nm in enumerate(names) if nm != "sigma"]
+    best = float(residual(theta) @ residual(theta))
+
+    def profile(sg, start):
+        def r(th):
+            full = theta.copy()
+            full[rest] = th
+            full[0] = sg
+            return residual(full)
+        fit = least_squares(r, np.clip(start, lower[rest] + 1e-9, upper[rest] - 1e-9), jac="3-point",
+                            bounds=(lower[rest], upper[rest]), method="trf", x_scale="jac", ftol=1e-12,
+                            xtol=1e-12, gtol=1e-12, max_nfev=500)
+        return (2.0 * fit.cost - best) / s2, fit.x
+
+    steps = np.abs(np.diff(xn))
+    steps = steps[steps > 0]
+    if not steps.size or not s2 > 0:
+        return None
+    Fc = theta[names.index("Fc")]
+    sharp = max(theta[0], Fc / (SHARP_STEP_SHARE * float(np.min(steps))))
+    d_sharp, _ = profile(sharp, theta[rest])
+    # the rows on which the fitted transition shows: its force differs from the instantaneous transition's
+    # (the same other parameters) by more than the noise sd
+    at_sharp = theta.copy()
+    at_sharp[0] = sharp
+    shown = int(np.count_nonzero(np.abs(residual(theta) - residual(at_sharp)) > math.sqrt(s2)))
+    if d_sharp >= SIGMA_BOUND_CHI2 and (shown >= MIN_TRANSITION_ROWS * branches or d_sharp >= SIGMA_RESOLVED_CHI2):
+        return None
+    # the bracket: halve sigma until chi^2 rises past the bound (the data do set a lower bound: the
+    # loop's rounding after a reversal, at most over a row)
+    hi, lo, start = float(theta[0]), None, theta[rest]
+    for _ in range(60):
+        trial = hi * 0.5
+        d, x = profile(trial, start)
+        if d >= SIGMA_BOUND_CHI2:
+            lo = trial
+            break
+        hi, start = trial, x
+    if lo is None:
+        return None
+    for _ in range(30):
+        mid = math.sqrt(lo * hi)
+        d, x = profile(mid, start)
+        if d >= SIGMA_BOUND_CHI2:
+            lo = mid
+        else:
+            hi, start = mid, x
+        if hi / lo < 1.0 + 1e-3:
+            break
+    return hi, max(d_sharp, 0.0), shown
+
+
 def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", "F")):
     """Identify Dahl parameters from a measured hysteresis loop.
 
@@ -656,6 +748,25 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
                                      shown=[values[n] for n in names], atol=[1e-9 if f else 0.0 for f in floor],
                                      bound_text=["0" if f else None for f in floor])
     status.update({nm: "fixed" for nm in fixed})
+    lower_bounds = {}
+    if status.get("sigma") == "identified" and res.cost > 0.0:
+        lb = _sigma_lower_bound(residual, res.x, names, lower, upper, s2, xn, len(turns) + 1)
+        if lb is not None:
+            bound, d_chi2, shown = lb
+            lower_bounds["sigma"] = bound * scale["sigma"]
+            status["sigma"] = "lower_bound_only"
+            if d_chi2 < SIGMA_BOUND_CHI2:
+                why = (f"an instantaneous transition (sigma -> infinity) fits as well (chi2 +{d_chi2:.2g} in noise "
+                       f"variances, below {SIGMA_BOUND_CHI2:g})")
+            else:
+                why = (f"the fitted transition shows above the noise on {shown} row(s) of {len(turns) + 1} branches "
+                       f"(fewer than {MIN_TRANSITION_ROWS} a branch), and an instantaneous transition (sigma -> "
+                       f"infinity) fits only {d_chi2:.2g} noise variances worse: a difference the noise of a few rows makes")
+            warns.append(
+                f"sigma: the loop's transitions after its reversals are not resolved by its rows: {why}; the data "
+                f"set only a lower bound, sigma >= {lower_bounds['sigma']:.3g} (one-sided 95 %); its value "
+                f"{values['sigma']:.4g} and standard error mean nothing (record the loop with more rows after each "
+                "reversal)")
     rev = reversal_warning(n, len(turns), labels[0])
     if rev:
         warns.append(rev)
@@ -668,4 +779,5 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
                    B=float(values["B"]), F0=float(values["F0"]), stderr=stderr, names=tuple(names), cov=cov,
                    rms=float(math.sqrt(2.0 * res.cost / n)) * Fs, n_points=n, reversals=len(turns),
                    success=bool(res.success), status=int(res.status), message=str(res.message),
-                   nfev=int(res.nfev), fixed=fixed, param_status=status, warnings=warns)
+                   nfev=int(res.nfev), fixed=fixed, param_status=status, warnings=warns,
+                   lower_bounds=lower_bounds)

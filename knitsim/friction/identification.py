@@ -17,7 +17,7 @@ import numpy as np
 AT_BOUND_RTOL = 1e-3
 #: What a printed table appends to a parameter by its status (nothing where identified or fixed).
 FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound": "AT UPPER BOUND: not identified",
-             "not_identified": "NOT IDENTIFIED"}
+             "not_identified": "NOT IDENTIFIED", "lower_bound_only": "ONLY A LOWER BOUND: not identified"}
 
 
 def at_bound(value: float, lower: float, upper: float, rtol: float = AT_BOUND_RTOL,

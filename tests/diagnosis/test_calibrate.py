@@ -125,3 +125,30 @@ def test_a_variable_pushed_to_its_bound_is_reported_at_it(curve):
     assert _fit_bounds_text("a + b", r) == "a + b fit: m = 0.3 at its lower bound" and _fit_bounds_text("a", None) == ""
     free = calibrate_baseline(curve, TRUE.replace(m=0.3, phi0=0.0), max_increment=0.02)
     assert free["at_bounds"] == {} and _at_bounds_text(free, None, None) == ""
+
+
+@pytest.mark.parametrize("free", [("m", "d"), ("m", "d", "W0")])
+def test_default_bounds_of_d_keep_every_corner_a_knit(curve, monkeypatch, free):
+    """The paper's E-glass knit has W0 = 4.4 mm < 8 d = 4.64 mm: the default range of d (up to 2 d) reached
+    W0 < 4 d, where the loops are jammed at rest, and a trial point there stopped a diagnosis with an input
+    error about the scene's W0 (a blind probe: a reversed pull, after 25 s of fitting).  Every corner of the
+    fit's box must be a cell that exists (build_params validates it, the W0 >= 4 d rule of the cell scene)."""
+    import itertools
+
+    from knitsim.diagnosis.effects import build_params
+
+    assert 2 * TRUE.d > TRUE.W0 / 4          # the case: 2 d = 1.16 mm > W0 / 4 = 1.1 mm
+    seen = {}
+    real = calibrate_mod.least_squares
+
+    def capture(fun, x0, bounds, **kw):
+        seen["bounds"] = bounds
+        return real(fun, x0, bounds=bounds, **dict(kw, max_nfev=1))
+
+    monkeypatch.setattr(calibrate_mod, "least_squares", capture)
+    calibrate_baseline(curve, TRUE, free=free, max_increment=0.02)
+    lo, hi = seen["bounds"]
+    W0_low = lo[free.index("W0")] if "W0" in free else TRUE.W0
+    assert hi[free.index("d")] == pytest.approx(0.999 * W0_low / 4.0)
+    for corner in itertools.product(*zip(lo, hi)):
+        build_params(TRUE, (), dict(zip(free, corner)))     # raises KnitsimInputError where W0 < 4 d

@@ -360,3 +360,42 @@ def test_fit_status_identified_on_clean_loop():
     assert fit.param_status == {"alpha": "fixed", "B": "fixed", "sigma": "identified", "Fc": "identified",
                                 "F0": "identified"}
     assert fit.identified and fit.warnings == []
+
+
+def _closed_form_loop(sigma, Fc, A, rows_per_branch=100, cycles=2, noise=2e-4, seed=3):
+    """A Dahl loop (alpha = 1) written from its closed-form branches, F = s Fc - (s Fc - F_start)
+    exp(-sigma |x - x_start| / Fc) (Dahl 1976), not through dahl_response: 0 -> A, then A <-> -A."""
+    xs, Fs, x0, F0 = [0.0], [0.0], 0.0, 0.0
+    for x1 in [A] + [-A, A] * cycles:
+        x = np.linspace(x0, x1, rows_per_branch + 1)[1:]
+        s = np.sign(x1 - x0)
+        xs.extend(x)
+        Fs.extend(s * Fc - (s * Fc - F0) * np.exp(-sigma * np.abs(x - x0) / Fc))
+        x0, F0 = x1, Fs[-1]
+    return np.array(xs), np.array(Fs) + noise * np.random.default_rng(seed).standard_normal(len(Fs))
+
+
+@pytest.mark.parametrize("sigma", [5.0, 50.0])
+def test_a_transition_shorter_than_the_rows_gives_sigma_a_lower_bound_only(sigma):
+    """Rows every 0.05 with Fc = 0.014: the transition travel Fc / sigma is 2.8e-3 (sigma 5) or 2.8e-4
+    (sigma 50), over before the next row.  Before, both fitted at sigma = 1.90 +- 0.23, "identified"
+    (a blind probe: z = -206 for sigma = 50).  The data bound sigma from below only: the status says
+    so, and the bound (one-sided 95 %) lies below the truth."""
+    x, F = _closed_form_loop(sigma, 0.014, 2.5)
+    fit = fit_dahl_loop(x, F)
+    assert fit.param_status["sigma"] == "lower_bound_only" and not fit.identified
+    assert 1.0 < fit.lower_bounds["sigma"] < sigma
+    (w,) = [w for w in fit.warnings if w.startswith("sigma:")]
+    assert "only a lower bound" in w and "mean nothing" in w
+    assert fit.param_status["Fc"] == "identified" and abs(fit.Fc - 0.014) < 3 * fit.stderr["Fc"]
+
+
+def test_a_transition_over_a_few_rows_keeps_sigma_identified():
+    """The same rows with sigma = 0.3 (travel 0.047, about a row) and 1.0 (0.014: the first row after a
+    reversal still 0.027 of 2 Fc off the plateau, 3.8 noise sd): the decay is measured, sigma is
+    identified and within 3 standard errors of the truth."""
+    for sigma in (0.3, 1.0):
+        x, F = _closed_form_loop(sigma, 0.014, 2.5)
+        fit = fit_dahl_loop(x, F)
+        assert fit.param_status["sigma"] == "identified" and fit.lower_bounds == {}
+        assert abs(fit.sigma - sigma) < 3 * fit.stderr["sigma"]
