@@ -430,11 +430,12 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         rule = f"{how}, at least {100 * accuracy_rel:.3g} % of the force (the machine's accuracy)"
     else:
         if noise_N is None:
-            noise_N, how = float(cur.noise.sigma_N), f"{cur.noise.method} from the curve"
+            # where the curve's scatter grows with the force, each row's own sd (knitsim.diagnosis.noise)
+            sigma = np.maximum(cur.noise.sd_at(target), 1e-6 * scale)
+            rule = f"noise of the curve, {cur.noise.describe()} ({cur.noise.method} from the curve)"
         else:
-            how = "given"
-        sigma = np.full(len(strain), max(float(noise_N), 1e-6 * scale))
-        rule = f"noise of the curve, {noise_N:.3g} N ({how})"
+            sigma = np.full(len(strain), max(float(noise_N), 1e-6 * scale))
+            rule = f"noise of the curve, {noise_N:.3g} N (given)"
     unc = {k: float((uncertainty or {}).get(k, 0.0)) for k in GEOMETRY}
     for k, v in unc.items():
         if not (0.0 <= v < 1.0):

@@ -95,7 +95,9 @@ def run(args) -> int:
     nz = result["noise"]
     print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(f'{k} = {x:.4g}' for k, x in b['params'].items())})")
     for c in nz["curves"]:
-        print(f"  noise of {c['source']}: {c['sigma_N']:.3g} N ({c['method']}{'' if c['estimable'] else ': ' + c['note']})")
+        grows = f" + {100.0 * c['per_N']:.3g} % of the force" if c.get("per_N") else ""
+        print(f"  noise of {c['source']}: {c['sigma_N']:.3g} N{grows} ({c['method']}"
+              f"{'' if c['estimable'] else ': ' + c['note']})")
     if b["outliers"]:
         print(f"  {len(b['outliers'])} outlier row(s) left out: " + ", ".join(
             f"{Path(o['source']).name} row {o['row']} ({o['z']:+.1f} sd)" for o in b["outliers"][:5]))

@@ -216,13 +216,15 @@ class NoiseModel:
         return all(c.known for c in self.curves)
 
     def weights(self, curves) -> list[np.ndarray]:
-        return [np.full(len(c), 1.0 / n.sigma_N) for c, n in zip(curves, self.curves)]
+        """1 / sd of every row: its curve's sd, at the row's force where the noise grows with it."""
+        return [1.0 / n.sd_at(c.force) for c, n in zip(curves, self.curves)]
 
     def as_dict(self) -> dict:
         sig = [c.sigma_N for c in self.curves]
+        one = len(set(sig)) == 1 and not any(c.per_N > 0 for c in self.curves)
         return {"curves": [c.as_dict() for c in self.curves],
-                "sigma_N": float(min(sig)) if len(set(sig)) == 1 else None,
-                "method": "per curve: " + "; ".join(f"{c.source}: {c.sigma_N:.3g} N ({c.method})" for c in self.curves),
+                "sigma_N": float(min(sig)) if one else None,
+                "method": "per curve: " + "; ".join(f"{c.source}: {c.describe()} ({c.method})" for c in self.curves),
                 "all_known": self.all_known}
 
 
@@ -1593,7 +1595,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     bound_txt = _at_bounds_text(base_fit, best_fit, verdict.effect)
     if bound_txt:
         verdict.reason += "; " + bound_txt
-    loaded = sum(int(np.sum(c.force > NEGATIVE_SIGMAS * nz.sigma_N)) for c, nz in zip(curves, noise.curves))
+    loaded = sum(int(np.sum(c.force > NEGATIVE_SIGMAS * nz.sd_at(c.force))) for c, nz in zip(curves, noise.curves))
     total = sum(len(c.force) for c in curves)
     if loaded < MIN_LOADED_ROWS:
         # within the noise is easy where the knit carries nothing: said, and not confident

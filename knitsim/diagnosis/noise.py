@@ -22,6 +22,21 @@ than the extensometer updates) have no chord between them; the difference of
 two such neighbours measures the noise directly, ``(f_{i+1} - f_i) / sqrt(2)``
 of sd sigma, and counts as one more sample (:func:`repeat_differences`).
 
+*Noise that grows with the force* (:func:`level_model`).  A load cell's scatter is often a share of
+its reading plus a floor (an accuracy class of "x % of the reading + y % of full scale"): one sd per
+curve then weights the rows near zero too little and those at the peak too much, and a model that
+reproduces the curve exactly was judged to miss it beyond its noise (chi2/dof 1.35, confident
+`unexplained`, the two highest rows of a pull left out as 7 and 12 sd outliers: a blind probe with sd
+= 0.002 N + 1 % of the force).  Each sample of the noise (a row's deviation from the cubic through its
+two neighbours on each side, :func:`cubic_deviations`; a repeat difference) is taken at its row's
+force, and the sd ``a + b max(F, 0)`` is fitted to them by maximum likelihood (started from the
+robust sd of the samples in bins of force, clipped at :data:`CLIP` of its own sd, refitted).  It replaces the one sd only where the data demand it: the likelihood ratio against one sd
+on the same samples above :data:`LEVEL_LR_MIN` (a chance of 1e-3 for constant noise) and the sd
+growing by :data:`LEVEL_GROWTH_MIN` over the curve's forces (5th to 95th percentile of its
+samples).  Curvature is not noise: the chord deviation of a smooth curve is about ``f'' h^2 / 4``,
+largest where the knit jams and the force is high, which would pass for noise growing with the force;
+the cubic deviations leave ``O(h^4)`` of it.
+
 A curve whose noise cannot be estimated says so (:attr:`CurveNoise.estimable`):
 
 - fewer than :data:`MIN_SAMPLES` chords (too few rows on monotone branches);
@@ -69,6 +84,13 @@ CLIP = 3.5
 _TRUNC = 1.0 - 2.0 * CLIP * math.exp(-0.5 * CLIP * CLIP) / math.sqrt(2.0 * math.pi) / math.erf(CLIP / math.sqrt(2.0))
 #: n var(sigma_hat / sigma) of the clipped-RMS estimate of n chord differences (module docstring)
 KAPPA = 1.0
+#: likelihood ratio (2 delta log L) from which the noise is read as growing with the force (chi^2_1 at 1e-3)
+LEVEL_LR_MIN = 10.83
+#: ... and by at least this factor between the 5th and 95th percentile of the curve's forces
+LEVEL_GROWTH_MIN = 1.5
+#: samples per bin of force for the level model's robust start, and bins at least
+LEVEL_BIN_SAMPLES = 20
+LEVEL_MIN_BINS = 3
 
 
 @dataclass(frozen=True)
@@ -90,7 +112,11 @@ class CurveNoise:
     note : str
         Why an estimate was not possible, or how it was made.
     rel_var : float
-        Variance of sigma_N / sd (0 when given): :data:`KAPPA` / samples for an estimate.
+        Variance of sigma_N / sd (0 when given): :data:`KAPPA` / samples for an estimate (twice that
+        for the two parameters of a noise that grows with the force).
+    per_N : float
+        Growth of the sd with the force [N per N]: the sd of a row at force F is ``sigma_N + per_N
+        max(F, 0)`` (:meth:`sd_at`); 0 for one sd (module docstring, :func:`level_model`).
     """
 
     source: str
@@ -100,6 +126,16 @@ class CurveNoise:
     estimable: bool
     note: str
     rel_var: float = 0.0
+    per_N: float = 0.0
+
+    def sd_at(self, force) -> np.ndarray:
+        """The noise sd [N] of rows at ``force`` [N]."""
+        f = np.asarray(force, float)
+        return self.sigma_N + self.per_N * np.maximum(f, 0.0)
+
+    def describe(self) -> str:
+        """The sd in words: ``0.0021 N`` or ``0.0021 N + 1.02 % of the force``."""
+        return f"{self.sigma_N:.3g} N" + (f" + {100.0 * self.per_N:.3g} % of the force" if self.per_N > 0 else "")
 
     @property
     def known(self) -> bool:
@@ -110,8 +146,9 @@ class CurveNoise:
         return asdict(self)
 
 
-def _chords(strain, force, cycle, direction):
-    """Signed scaled chord deviations of the inner rows of each branch, and the pairs of neighbours."""
+def _chords(strain, force, cycle, direction, levels: list | None = None):
+    """Signed scaled chord deviations of the inner rows of each branch, and the pairs of neighbours
+    (with ``levels``, each deviation's row force is appended to it)."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     cycle, direction = np.asarray(cycle), np.asarray(direction)
     br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
@@ -129,26 +166,66 @@ def _chords(strain, force, cycle, direction):
             w1, w2 = h2 / (h1 + h2), h1 / (h1 + h2)
             r = f[i] - (w1 * f[i - 1] + w2 * f[i + 1])
             z.append(r / math.sqrt(1.0 + w1 * w1 + w2 * w2))
+            if levels is not None:
+                levels.append(f[i])
             if prev is not None:
                 pairs.append((prev, len(z) - 1))
             prev = len(z) - 1
     return np.asarray(z), pairs
 
 
-def repeat_differences(strain, force, cycle, direction) -> np.ndarray:
-    """``|f_{i+1} - f_i| / sqrt(2)`` of neighbouring rows at one strain inside a branch (module docstring);
-    not where both read exactly zero (a clipped slack knit)."""
+def _repeats(strain, force, cycle, direction):
+    """``|f_{i+1} - f_i| / sqrt(2)`` of neighbouring rows at one strain inside a branch, and their mean force."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     cycle, direction = np.asarray(cycle), np.asarray(direction)
     same = (s[1:] == s[:-1]) & (cycle[1:] == cycle[:-1]) & (direction[1:] == direction[:-1])
     same &= ~((f[1:] == 0.0) & (f[:-1] == 0.0))
-    return np.abs(np.diff(f)[same]) / math.sqrt(2.0)
+    return np.abs(np.diff(f)[same]) / math.sqrt(2.0), (0.5 * (f[1:] + f[:-1]))[same]
+
+
+def repeat_differences(strain, force, cycle, direction) -> np.ndarray:
+    """``|f_{i+1} - f_i| / sqrt(2)`` of neighbouring rows at one strain inside a branch (module docstring);
+    not where both read exactly zero (a clipped slack knit)."""
+    return _repeats(strain, force, cycle, direction)[0]
 
 
 def noise_samples(strain, force, cycle, direction) -> np.ndarray:
     """Every sample of the noise sd a curve holds: its scaled chord residuals and its repeat differences."""
-    return np.concatenate([chord_residuals(strain, force, cycle, direction),
-                           repeat_differences(strain, force, cycle, direction)])
+    return noise_samples_at(strain, force, cycle, direction)[0]
+
+
+def cubic_deviations(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
+    """Scaled deviations ``|f_i - p(s_i)| / sqrt(1 + sum w_k^2)`` of each row from the cubic ``p`` through its
+    two neighbours on each side (one branch, strain strictly monotone; ``w`` the Lagrange weights), and
+    the row's force.  White noise of sd sigma gives sd sigma, as the chord deviations do, but a smooth
+    curve leaves ``O(h^4 f'''')`` instead of ``f'' h^2 / 4``: the stiffening where the knit jams, where the
+    force is high, does not pass for noise that grows with the force (:func:`level_model`)."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    cycle, direction = np.asarray(cycle), np.asarray(direction)
+    br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
+    z, levels = [], []
+    for a, b in zip(br[:-1], br[1:]):
+        for i in range(a + 2, b - 2):
+            xs = s[i - 2:i + 3]
+            h = np.diff(xs)
+            if not (np.all(h > 0) or np.all(h < 0)):
+                continue
+            if np.count_nonzero(f[i - 2:i + 3] == 0.0) >= 2:
+                continue  # clipped at zero (a slack knit read by an instrument that cannot go below 0)
+            nb = np.array([xs[0], xs[1], xs[3], xs[4]])
+            w = np.array([np.prod([(xs[2] - nb[m]) / (nb[k] - nb[m]) for m in range(4) if m != k]) for k in range(4)])
+            r = f[i] - float(w @ np.array([f[i - 2], f[i - 1], f[i + 1], f[i + 2]]))
+            z.append(abs(r) / math.sqrt(1.0 + float(w @ w)))
+            levels.append(f[i])
+    return np.asarray(z, float), np.asarray(levels, float)
+
+
+def noise_samples_at(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`noise_samples` and the force of the row each sample belongs to."""
+    levels: list = []
+    z = np.abs(_chords(strain, force, cycle, direction, levels)[0])
+    rep, rep_levels = _repeats(strain, force, cycle, direction)
+    return np.concatenate([z, rep]), np.concatenate([np.asarray(levels, float), rep_levels])
 
 
 def chord_residuals(strain, force, cycle, direction) -> np.ndarray:
@@ -180,13 +257,54 @@ def clipped_sd(z: np.ndarray) -> float:
     return float(math.sqrt(np.mean(inside * inside) / _TRUNC)) if len(inside) else 0.0
 
 
+def level_model(z: np.ndarray, levels: np.ndarray) -> tuple[float, float, float] | None:
+    """The noise sd ``a + b max(F, 0)`` of samples ``z`` (absolute, :func:`noise_samples_at`) taken at
+    forces ``levels``: ``(a, b, lr)``, lr the likelihood ratio (2 delta log L) against one sd on the same
+    samples; None with too few samples for :data:`LEVEL_MIN_BINS` bins of :data:`LEVEL_BIN_SAMPLES`.
+
+    Start: the robust sd (:data:`MAD_TO_SD` times the median) of each bin of force, a line through them;
+    then three rounds of: keep the samples within :data:`CLIP` of the line's sd, maximise the likelihood
+    of a Gaussian of that sd (the variance read through the clip, as :func:`clipped_sd` does)."""
+    from scipy.optimize import minimize
+
+    z = np.abs(np.asarray(z, float))
+    lev = np.maximum(np.asarray(levels, float), 0.0)
+    bins = min(8, len(z) // LEVEL_BIN_SAMPLES)
+    if bins < LEVEL_MIN_BINS:
+        return None
+    order = np.argsort(lev, kind="stable")
+    parts = np.array_split(order, bins)
+    centre = np.array([float(np.median(lev[p])) for p in parts])
+    sd = np.array([MAD_TO_SD * float(np.median(z[p])) for p in parts])
+    if not np.all(sd > 0):
+        return None
+    b0, a0 = np.polyfit(centre, sd, 1) if np.ptp(centre) > 0 else (0.0, float(np.mean(sd)))
+    a, b = max(float(a0), 0.05 * float(np.median(sd))), max(float(b0), 0.0)
+
+    def neg_loglik(theta, zz, ll):
+        s_ = np.exp(theta[0]) + np.exp(theta[1]) * ll
+        return float(np.sum(np.log(s_) + 0.5 * zz * zz / (_TRUNC * s_ * s_)))
+
+    for _ in range(3):
+        keep = z < CLIP * (a + b * lev)
+        zz, ll = z[keep], lev[keep]
+        if len(zz) < LEVEL_MIN_BINS * LEVEL_BIN_SAMPLES:
+            return None
+        res = minimize(neg_loglik, [math.log(a), math.log(max(b, 1e-12 * a))], args=(zz, ll), method="Nelder-Mead",
+                       options={"xatol": 1e-6, "fatol": 1e-9, "maxiter": 2000})
+        a, b = math.exp(res.x[0]), math.exp(res.x[1])
+    one = math.sqrt(float(np.mean(zz * zz)) / _TRUNC)
+    lr = 2.0 * (len(zz) * (math.log(one) + 0.5) - neg_loglik(res.x, zz, ll))
+    return a, b, lr
+
+
 def curve_noise(strain, force, cycle, direction, source: str = "curve", given: float | None = None) -> CurveNoise:
     """The noise of one curve: ``given`` [N], or estimated from its rows (module docstring)."""
     f = np.asarray(force, float)
     span = float(np.max(f) - min(float(np.min(f)), 0.0)) if len(f) else 0.0
     if given is not None:
         return CurveNoise(source, float(given), "given", 0, True, "given by the user")
-    z = noise_samples(strain, force, cycle, direction)
+    z, levels = noise_samples_at(strain, force, cycle, direction)
     rho, _ = chord_correlation(strain, force, cycle, direction)
     if len(z) < MIN_SAMPLES:
         why = (f"only {len(z)} rows on monotone branches or repeated at one strain (an estimate needs "
@@ -198,9 +316,23 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
     else:
         sigma = clipped_sd(z)
         if span > 0 and sigma > SMOOTH_REL * span:
-            return CurveNoise(source, sigma, "estimated", len(z), True,
-                              f"deviation of each row from its neighbours' chord (or from its twin at one strain): "
-                              f"RMS within {CLIP:g} robust sd of {len(z)} rows", KAPPA / len(z))
+            how = (f"deviation of each row from its neighbours' chord (or from its twin at one strain): "
+                   f"RMS within {CLIP:g} robust sd of {len(z)} rows")
+            # the level model on samples that curvature does not bias: cubic deviations and repeat differences
+            zc, lc = cubic_deviations(strain, force, cycle, direction)
+            rep, rep_levels = _repeats(strain, force, cycle, direction)
+            zc, lc = np.concatenate([zc, rep]), np.concatenate([lc, rep_levels])
+            grows = level_model(zc, lc)
+            if grows is not None:
+                a, b, lr = grows
+                lo, hi = np.percentile(np.maximum(lc, 0.0), [5.0, 95.0])
+                growth = (a + b * hi) / (a + b * lo)
+                if lr > LEVEL_LR_MIN and growth > LEVEL_GROWTH_MIN:
+                    return CurveNoise(source, a, "estimated", len(z), True,
+                                      how + f"; the sd grows with the force, {a:.3g} N + {100.0 * b:.3g} % of it "
+                                      f"(x{growth:.3g} over the curve's forces; likelihood ratio {lr:.3g} against one sd)",
+                                      2.0 * KAPPA / len(z), b)
+            return CurveNoise(source, sigma, "estimated", len(z), True, how, KAPPA / len(z))
         why = (f"its rows scatter by {sigma:.2g} N, below {SMOOTH_REL:g} of its force range: a digitised or "
                "smoothed curve, whose scatter is not measurement noise")
     assumed = ASSUMED_REL * span if span > 0 else 1e-6

@@ -385,7 +385,9 @@ def render_report(result: dict) -> str:
                    f"alone (BIC {_e(_fmt(gain))})"
                    + (f"; at the bounds of its search (values not estimated): {_e(pair['at_bounds_note'])}"
                       if pair.get("at_bounds_note") else "") + ".</p>\n")
-    rows = [[_e(c.get("source")), _e(_fmt(c.get("sigma_N"))), _e(c.get("method")), _e(c.get("note"))]
+    rows = [[_e(c.get("source")), _e(_fmt(c.get("sigma_N")) + (f" + {100.0 * c['per_N']:.3g} % of the force"
+                                                                 if c.get("per_N") else "")),
+             _e(c.get("method")), _e(c.get("note"))]
             for c in noise.get("curves") or []]
     if not rows:
         out.append(f"<p>Measurement noise: sigma = {_e(_fmt(noise.get('sigma_N')))} N per wale "
