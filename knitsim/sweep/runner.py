@@ -20,8 +20,12 @@ Output directory ``OUT``::
 A chunk file is written through a temporary sibling and a rename, by the
 process that computed it (in-process, or the Dask worker), so a run that is
 killed keeps every finished chunk; ``resume=True`` re-reads the manifest,
-refuses a different sweep (hash of the spec, the scene, the engine, the device
-and the sample table) and computes only the chunks whose file is missing.
+refuses a different sweep and computes only the chunks whose file is missing.
+What "different" means is :func:`sweep_inputs`: everything that determines the
+results, as resolved (every sample's cells after the material library and the
+defaults are read, the load programs), the spec, the scene, the engine, the
+device and the knitsim version; so a library edited between the run and its
+resume is refused, naming the values that changed (the scene only names it).
 Results do not depend on the order chunks finish in, nor on the backend.
 
 Per cell and cycle the results are those of
@@ -136,6 +140,8 @@ class SweepPlan:
     labels: list
     source: str = "<dict>"
     hash: str = ""
+    #: :func:`sweep_inputs` (stored in sweep.json; --resume names what differs)
+    inputs: dict | None = None
     #: per sample and cell, shape [n_samples, n_cells]: knitsim.cell.domain codes (0 inside, 1 outside the
     #: box: solved, an extrapolation; 2 no admissible rest state: not solved), found before any solve
     domain: np.ndarray | None = None
@@ -172,6 +178,18 @@ def _text(v: Any) -> str:
 
 def _assignments(keys: list[str], row: tuple) -> list[str]:
     return [f"{k}={_text(v)}" for k, v in zip(keys, row)]
+
+
+def _load_sample(scene_doc: dict, assignments: list[str], base_dir: Path | None, engine, device):
+    """The cell scene of ``scene_doc`` with ``assignments`` set, its library file (``materials``) read
+    relative to ``base_dir`` (the scene's folder; None: the working directory, a scene given as a dict)."""
+    doc = copy.deepcopy(scene_doc)
+    for a in assignments:
+        set_value(doc, CELL_SCENE, a)
+    lib = doc.get("materials")
+    if base_dir is not None and isinstance(lib, str) and not Path(lib).is_absolute():
+        doc["materials"] = str(base_dir / lib)
+    return load_cell_scene(doc, engine=engine, device=device)
 
 
 def _check_key(doc: dict, key: str, value: Any) -> None:
@@ -230,7 +248,9 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         spec = parse_sweep(table)
     for a in overrides:
         set_value(scene_doc, CELL_SCENE, a)
-    base = load_cell_scene(scene_doc, engine=engine, device=device)
+    # a library file (materials = FILE) is relative to the scene, as for knitsim cell and run
+    base_dir = None if source == "<dict>" else Path(source).resolve().parent
+    base = _load_sample(scene_doc, [], base_dir, engine, device)
     for p in spec.parameters:
         _check_key(scene_doc, p.key, p.values[0] if p.values is not None else p.low)
 
@@ -246,7 +266,7 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
     n_cells = len(base.params)
     for i, row in enumerate(table):
         try:
-            s = load_cell_scene(scene_doc, _assignments(keys, row), engine=engine, device=device)
+            s = _load_sample(scene_doc, _assignments(keys, row), base_dir, engine, device)
         except KnitsimInputError as exc:
             vals = ", ".join(f"{k} = {_text(v)}" for k, v in zip(keys, row))
             raise KnitsimInputError(f"sweep sample {i} ({vals}): {exc}") from None
@@ -268,7 +288,8 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
             chunks.append(Chunk(len(chunks), g, idx[a:a + spec.chunk_size]))
     plan = SweepPlan(spec, scene_doc, base, base.engine, dev, table, params, programs, loads, group, chunks,
                      list(base.labels), source, domain=domain, domain_reasons=reasons)
-    plan.hash = sweep_hash(plan)
+    plan.inputs = sweep_inputs(plan)
+    plan.hash = sweep_hash(plan, plan.inputs)
     return plan
 
 
@@ -301,12 +322,103 @@ def _domain_of(params: list, programs: list, group: np.ndarray, engine: str, dev
     return codes, reasons
 
 
-def sweep_hash(plan: SweepPlan) -> str:
-    """SHA-256 identifying a sweep: spec, scene, engine, device and the sample table."""
-    rows = hashlib.sha256(canonical_json([list(r) for r in plan.table]).encode()).hexdigest()
-    what = {"format": FORMAT, "spec": plan.spec.table, "scene": plan.scene_doc, "engine": plan.engine,
-            "device": plan.device, "samples": rows}
-    return hashlib.sha256(canonical_json(what).encode()).hexdigest()
+def _sha(text: str | bytes) -> str:
+    return hashlib.sha256(text.encode() if isinstance(text, str) else text).hexdigest()
+
+
+def _sample_digest(cells: list) -> str:
+    """Digest of one sample's resolved cells (every CellParams field, effects included)."""
+    return _sha(canonical_json([p.as_dict() for p in cells]))[:16]
+
+
+def sweep_inputs(plan: SweepPlan) -> dict:
+    """Digests of everything that determines a sweep's results, by what they cover.
+
+    The idea of ``knitsim run``'s checkpoint fingerprint (:func:`knitsim.patch.runner.fingerprint`): hash
+    what the solver is given, as resolved, not the text that names it.  A scene's ``materials = FILE``
+    only names a library; ``cells`` covers every sample's cells after the library, the defaults and the
+    sample's values are read, so an edited library changes it.  ``samples_cells`` (one short digest per
+    sample) says which samples changed.
+
+    Returns
+    -------
+    dict
+        ``format``, ``knitsim`` (version), ``engine``, ``device``, and SHA-256 digests of ``spec`` (the
+        normalised ``[sweep]`` table: parameters, chunking, curves), ``samples`` (the sample table),
+        ``scene`` (the scene document, overrides applied), ``cells`` (the resolved cells of every sample),
+        ``programs`` (each load program's strains, cycles, directions, rates and which sample runs which);
+        and ``samples_cells``.
+    """
+    from .. import __version__
+
+    per_sample = [_sample_digest(cells) for cells in plan.params]
+    prog = hashlib.sha256(np.ascontiguousarray(plan.group, dtype=np.int64).tobytes())
+    for p in plan.programs:
+        for a in (p.strain, p.cycle, p.direction) + (() if p.rate is None else (p.rate,)):
+            prog.update(np.ascontiguousarray(a).tobytes())
+        prog.update(b"|")
+    return {"format": FORMAT, "knitsim": __version__, "engine": plan.engine, "device": plan.device,
+            "spec": _sha(canonical_json(plan.spec.table)),
+            "samples": _sha(canonical_json([list(r) for r in plan.table])),
+            "scene": _sha(canonical_json(plan.scene_doc)), "cells": _sha("".join(per_sample)),
+            "programs": prog.hexdigest(), "samples_cells": per_sample}
+
+
+def sweep_hash(plan: SweepPlan, inputs: dict | None = None) -> str:
+    """SHA-256 identifying a sweep: of :func:`sweep_inputs` (what ``--resume`` compares)."""
+    what = dict(inputs if inputs is not None else sweep_inputs(plan))
+    what.pop("samples_cells")                    # covered by "cells"
+    return _sha(canonical_json(what))
+
+
+def _flat(d: Any, prefix: str = "") -> dict:
+    """``{"a.b[0].c": value}`` of a nested JSON document."""
+    if isinstance(d, dict):
+        return {k2: v for k, x in d.items() for k2, v in _flat(x, f"{prefix}.{k}" if prefix else str(k)).items()}
+    if isinstance(d, list) and any(isinstance(x, (dict, list)) for x in d):
+        return {k2: v for i, x in enumerate(d) for k2, v in _flat(x, f"{prefix}[{i}]").items()}
+    return {prefix: d}
+
+
+def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
+    """What differs between a manifest's sweep and ``plan``, in words (for --resume's refusal)."""
+    was = old.get("inputs")
+    what = []
+    for key, name in (("knitsim", "knitsim version"), ("engine", "engine"), ("device", "device")):
+        if was.get(key) != inputs[key]:
+            what.append(f"{name} {was.get(key)} -> {inputs[key]}")
+    for key, name in (("spec", "the [sweep] table"), ("samples", "the sample table"), ("scene", "the scene")):
+        if was.get(key) != inputs[key]:
+            what.append(name)
+    if was.get("cells") != inputs["cells"]:
+        # name the values: the base scene's resolved cells are in the manifest
+        # (as scene key paths: yarn.B for a scene of one cell, cells[1].yarn.B for a batch)
+        a_cells = old.get("base_resolved", {}).get("cells", [])
+        b_cells = json.loads(json.dumps(plan.base.resolved.get("cells", [])))
+        one = len(a_cells) == len(b_cells) == 1
+        a = _flat(a_cells[0] if one else a_cells, "" if one else "cells")
+        b = _flat(b_cells[0] if one else b_cells, "" if one else "cells")
+        diff = [f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in sorted(set(a) | set(b), key=str)
+                if a.get(k) != b.get(k)]
+        # a changed scene, sample table or knitsim explains changed cells; else what the scene names did
+        upstream = any(was.get(k) != inputs[k] for k in ("knitsim", "spec", "samples", "scene"))
+        olds = was.get("samples_cells")
+        if not diff and not upstream and isinstance(olds, list) and len(olds) == len(inputs["samples_cells"]):
+            bad = [i for i, (x, y) in enumerate(zip(olds, inputs["samples_cells"])) if x != y]
+            if bad:
+                i = bad[0]
+                vals = ", ".join(f"{k} = {_text(v)}" for k, v in zip(plan.spec.keys, plan.table[i]))
+                diff = [f"those of {len(bad)} of {plan.n_samples} sample(s), e.g. sample {i} ({vals})"]
+        lib = plan.scene_doc.get("materials")
+        parts = diff[:3] + (["..."] if len(diff) > 3 else [])
+        if not upstream:
+            parts.append(f"read from the material library {lib}" if isinstance(lib, str)
+                         else "from knitsim's built-in materials or defaults")
+        if parts:
+            what.append("the resolved cells: " + ", ".join(parts))
+    if was.get("programs") != inputs["programs"]:
+        what.append("the load programs")
+    return "; ".join(what) or "its fingerprint"
 
 
 # ----------------------------------------------------------------- reduction
@@ -425,7 +537,8 @@ def versions() -> dict:
 def manifest(plan: SweepPlan) -> dict:
     """The ``sweep.json`` document."""
     return {
-        "format": FORMAT, "hash": plan.hash, "source": plan.source, "spec": plan.spec.table,
+        "format": FORMAT, "hash": plan.hash, "inputs": plan.inputs if plan.inputs is not None else sweep_inputs(plan),
+        "source": plan.source, "spec": plan.spec.table,
         "engine": plan.engine, "device": plan.device, "scene": plan.scene_doc,
         "base_resolved": plan.base.resolved, "parameters": plan.spec.keys, "shape": list(plan.spec.shape),
         "cell_labels": plan.labels, "loads": plan.loads,
@@ -449,10 +562,16 @@ def _prepare_out(plan: SweepPlan, out: Path, resume: bool) -> None:
         except (OSError, json.JSONDecodeError) as exc:
             raise KnitsimInputError(f"--resume: {mpath} is not a sweep manifest ({exc})") from None
         if old.get("hash") != plan.hash:
+            advice = "run without --resume into a new --out, or with --overwrite to replace it"
+            if not isinstance(old.get("inputs"), dict):
+                raise KnitsimInputError(
+                    f"--resume: {mpath} was written by an earlier knitsim that did not record the resolved inputs "
+                    f"(material library values, load programs, version): its finished chunks cannot be checked "
+                    f"against this sweep; {advice}")
+            inputs = plan.inputs if plan.inputs is not None else sweep_inputs(plan)
             raise KnitsimInputError(
-                f"--resume: {out} holds a different sweep (hash {str(old.get('hash'))[:12]}, this one "
-                f"{plan.hash[:12]}: the sweep spec, scene, engine, device or sample table changed); "
-                "use another --out, or delete the directory")
+                f"--resume: {out} holds a different sweep: the resolved inputs differ from those of its finished "
+                f"chunks ({_changes(old, plan, inputs)}); reusing them would mix two sweeps: {advice}")
         return
     if mpath.exists() or (out / CHUNK_DIR).exists():
         raise KnitsimInputError(f"--out = {str(out)!r}: already holds a sweep; add --resume to finish it, "
@@ -886,7 +1005,7 @@ def dataset_csv(ds) -> str:
 __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepChunkError", "plan_sweep",
            "run_sweep", "run_chunk", "failed_samples", "domain_samples", "energy_creating_samples",
            "compressive_rest_samples",
-           "reduce_history", "sweep_hash", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
+           "reduce_history", "sweep_hash", "sweep_inputs", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
            "CYCLE_VARS", "CELL_VARS"]
 
 
