@@ -5,21 +5,30 @@
 
 The scene (:mod:`knitsim.scene.patch_scene`) is validated in full before any
 work.  A progress bar goes to stderr; the patch state is checkpointed into
-``DIR/checkpoint.pkl`` every ``output.checkpoint_every`` increments and on
-Ctrl-C, and ``--resume`` continues from it (same results as an uninterrupted
-run); on Ctrl-C the command says up to which increment the checkpoint holds and
-prints the command that continues the run (exit status 130).  Results
-(:mod:`knitsim.io.patch_results`) go to ``DIR`` (default ``<scene stem>_out``);
-the checkpoint is removed once they are written.
+``DIR/checkpoint.pkl`` every ``output.checkpoint_every`` increments, on
+Ctrl-C and when the solve is finished, before any output is written; ``--resume``
+continues from it (same results as an uninterrupted run; from a finished solve
+it writes the outputs without solving again, on the device that solved: another
+is refused).  On Ctrl-C, during the solve or while the outputs are written, the
+command says what the checkpoint holds and prints the command that continues
+the run (exit status 130).  Results (:mod:`knitsim.io.patch_results`) go to
+``DIR`` (default ``<scene stem>_out``), the USD file first, then the result set
+(``summary.json`` last: its presence marks a complete set); the checkpoint is
+removed once they are written.
 With ``--usd FILE`` the patch is also written as USD (``.usda`` text for small
 patches, ``.usdc`` / ``.usd`` binary crate for large ones; see
 :mod:`knitsim.usd.from_results`), the same file ``knitsim usd DIR --out FILE``
-writes from the saved results.
+writes from the saved results.  It is written to a hidden file beside ``FILE``
+and renamed in when complete.  An existing ``FILE`` is replaced only with
+``--overwrite``; on ``--resume`` (which excludes ``--overwrite``) only where the
+interrupted run had that consent (its checkpoint records the file it may write).
 The first line says what the grid stands for: ``wales x courses`` single stitches, or a
 specimen's ``strips x bands`` blocks with the wales and courses of each strip
 (:class:`knitsim.io.patch_results.SpecimenLayout`); the USD of a specimen draws
 every stitch, each an instance of its block's stitch (:mod:`knitsim.usd.instanced`).
-Exit status 0 when every column converged, 1 otherwise, 2 on bad input.
+Exit status 0 when the run ended as expected (summary ``all_expected_end``: no failed cell, no column that
+failed to converge other than one held at its cells' force cap; a stop at the force cap is an expected end,
+its warning shown), 1 otherwise, 2 on bad input, 130 on Ctrl-C.
 """
 from __future__ import annotations
 
@@ -63,7 +72,9 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     course and wale, the reason): the model cannot run it, and a column holding it has no rest state
     either.  So is a cell whose rest state already carries its force cap (no program can load it).  Cells outside the domain's box, and a grip program whose strains leave it, are an
     extrapolation: returned as ``outside_domain`` warnings for the summary (how many cells, by the
-    quantity outside).  Identical cells are checked once (the patch's grouping).
+    quantity outside).  Identical cells are checked once (the patch's grouping).  The strains the cells
+    reach are judged after the run, from the results (a pretension, or cells in series with stiffer ones,
+    take them past the grip's): :func:`knitsim.io.patch_results.patch_summary`.
     """
     import numpy as np
 
@@ -115,36 +126,80 @@ def resume_command(args, out: Path) -> str:
     return "knitsim run " + " ".join(shlex.quote(a) for a in argv) + " --resume"
 
 
-def interrupted_message(ck: Path | None, total: int, resume_cmd: str) -> str:
+def interrupted_message(ck: Path | None, total: int, resume_cmd: str, writing: bool = False) -> str:
     """What ``knitsim run`` says on Ctrl-C: the checkpoint kept, up to which increment, and the command that
-    continues from it; or that nothing was kept.
+    continues from it; or that nothing was kept.  ``writing``: the Ctrl-C came while the outputs were
+    written, after the solve.
 
-    The increment is the checkpoint's own (``done``): :func:`knitsim.patch.runner.run_patch` writes it on
-    Ctrl-C between two increments, and a Ctrl-C in the middle of one that is not let finish keeps the last
-    periodic checkpoint."""
-    import pickle
+    The increment is the checkpoint's own (``done``, :func:`knitsim.patch.runner.read_checkpoint_header`):
+    :func:`knitsim.patch.runner.run_patch` writes it on Ctrl-C between two increments, and when the solve is
+    finished; a Ctrl-C in the middle of an increment that is not let finish keeps the last one."""
+    from ..patch.runner import read_checkpoint_header
 
+    during = " while the outputs were written" if writing else ""
     if ck is None:
-        return ("knitsim run: interrupted; nothing was kept (output.checkpoint_every = 0: no checkpoint); "
+        return (f"knitsim run: interrupted{during}; nothing was kept (output.checkpoint_every = 0: no checkpoint); "
                 "run again from the start")
     if not ck.is_file():
         return (f"knitsim run: interrupted before the first checkpoint; nothing was kept in {ck.parent}; run again "
                 f"from the start")
     try:
-        done = int(pickle.loads(ck.read_bytes())["done"])
+        done = int(read_checkpoint_header(ck)["done"])
     except Exception as exc:  # noqa: BLE001 - a damaged checkpoint: say so instead of a traceback
         return f"knitsim run: interrupted; the checkpoint {ck} cannot be read ({exc}); run again from the start"
-    return (f"knitsim run: interrupted; {done}/{total} increment(s) kept in the checkpoint {ck} (up to increment "
-            f"{done}); continue with: {resume_cmd}")
+    if done >= total:
+        return (f"knitsim run: interrupted{during}; the solve is finished and kept: {done}/{total} increment(s) in "
+                f"the checkpoint {ck}; the outputs in {ck.parent} are not complete (summary.json is written last); "
+                f"write them, without solving again, with: {resume_cmd}")
+    return (f"knitsim run: interrupted{during}; {done}/{total} increment(s) kept in the checkpoint {ck} (up to "
+            f"increment {done}); continue with: {resume_cmd}")
+
+
+def _usd_on_resume(path: str, head: dict, ck: Path) -> None:
+    """``--usd FILE`` with ``--resume``: an existing FILE is replaced only where the interrupted run could
+    replace it (it was absent when that run started, or it had --overwrite): its checkpoint names the file.
+    Otherwise the file is not this run's, and --resume cannot take --overwrite: refused before any work."""
+    from ..io.results import prepare_output_file
+
+    prepare_output_file(path, True, "--usd")                   # a folder, or not writable: refused as always
+    p = Path(path)
+    granted = (head.get("meta") or {}).get("usd")
+    if p.exists() and granted != str(p.resolve()):
+        was = (f"it may write {granted}" if granted else "it was started without --usd")
+        raise KnitsimInputError(f"--usd = {path!r}: exists, and the run resumed from {ck} did not have it to "
+                                f"replace ({was}); --resume does not replace a file without consent: remove it or "
+                                "choose another --usd")
+
+
+def _write_usd(h, m, args, scene, device):
+    """The USD file, written to a hidden file beside ``args.usd`` and renamed in when complete (an interrupted
+    export leaves no file that looks whole)."""
+    import os
+
+    from ..usd.from_results import DEFAULT_POINTS, export_history
+    target = Path(args.usd)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(f".{target.stem}.partial-{os.getpid()}{target.suffix}")
+    try:
+        res = export_history(h, m.fields, str(tmp), scene_text=scene.to_toml(), color_by=args.color_by,
+                             course_count=m.course_count, wale_count=m.wale_count,
+                             stride=args.usd_stride, n_points=args.usd_points or DEFAULT_POINTS,
+                             device=device if scene.engine == "warp" else "cpu", layout=args.usd_layout)
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return res
 
 
 def _run(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import patch_summary, specimen_layout, write_patch_results
     from ..io.results import prepare_output_dir
-    from ..patch.runner import CHECKPOINT_NAME, run_patch
+    from ..patch.runner import CHECKPOINT_NAME, read_checkpoint_header, run_patch
     from ..scene.patch_scene import load_patch_scene
 
+    if args.resume and args.overwrite:
+        raise KnitsimInputError("--resume and --overwrite: choose one (continue the run in --out, or replace it)")
     if args.usd is not None:
         from .usd import check_usd_options
         check_usd_options(args)
@@ -161,46 +216,67 @@ def _run(args) -> int:
             device = warp_runtime.resolve_device(scene.device)
         # the model's domain, before any output is touched (a cell without a rest state: error)
         domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device)
-    if args.resume and args.overwrite:
-        raise KnitsimInputError("--resume and --overwrite: choose one (continue the run in --out, or replace it)")
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
                              resume=args.resume, resumable=True)
     ck = out / CHECKPOINT_NAME
-    if args.resume and not ck.is_file():
-        raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
+    total = len(scene.program)
+    head = None
+    if args.resume:
+        if not ck.is_file():
+            raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
+        try:
+            head = read_checkpoint_header(ck)
+        except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
+            raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
+        if args.usd is not None:
+            _usd_on_resume(args.usd, head, ck)
+    resume_cmd = resume_command(args, out)
+    # what a later command needs to know of this run: how to resume it, and the --usd file it may replace
+    import os
+    meta = {"resume_command": resume_cmd, "cwd": os.getcwd(), "scene": str(args.scene),
+            "usd": str(Path(args.usd).resolve()) if args.usd is not None else None}
     with contextlib.redirect_stdout(sys.stderr):
         m = scene.model
         layout = specimen_layout(m)
         print(f"knitsim run: {layout.describe()}, "
-              f"{len(scene.program)} increments, engine {scene.engine}, device {device}, "
+              f"{total} increments, engine {scene.engine}, device {device}, "
               f"dedup {'on' if scene.dedup else 'off'}", file=sys.stderr, flush=True)
+        if head is not None and head.get("done", 0) >= total:
+            print(f"knitsim run: the checkpoint {ck} holds the finished solve ({total}/{total} increments): writing "
+                  "the outputs without solving again", file=sys.stderr, flush=True)
         every = scene.output["checkpoint_every"]
         keep = every > 0 or args.resume
         try:
             h = run_patch(m, scene.program, engine=scene.engine, device=device, dedup=scene.dedup,
-                          progress=Progress(len(scene.program), "knitsim run: increments", not args.no_progress),
+                          progress=Progress(total, "knitsim run: increments", not args.no_progress),
                           checkpoint=ck if keep else None, checkpoint_every=every,
-                          resume=args.resume, **scene.solver_options)
+                          resume=args.resume, checkpoint_meta=meta, **scene.solver_options)
         except KeyboardInterrupt:
-            print(interrupted_message(ck if keep else None, len(scene.program), resume_command(args, out)),
-                  file=sys.stderr, flush=True)
+            print(interrupted_message(ck if keep else None, total, resume_cmd), file=sys.stderr, flush=True)
             return 130
-    summary = patch_summary(h, h.info["ref_length_mm"], model=m, scene=scene.source, title=scene.resolved.get("title", ""),
-                            engine=scene.engine, device=device, load=scene.resolved["load"])
-    summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
-    files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
-                                cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
+    # the solve is in the checkpoint (run_patch saves the finished solve): a Ctrl-C from here loses no solving,
+    # and says so. The USD first, then the result set, summary.json last: a folder without summary.json is
+    # incomplete, and a USD file is renamed in only when whole.
+    try:
+        summary = patch_summary(h, h.info["ref_length_mm"], model=m, zones=scene.resolved.get("zones"),
+                                scene=scene.source, title=scene.resolved.get("title", ""),
+                                engine=scene.engine, device=device, load=scene.resolved["load"])
+        summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
+        res = None
+        if args.usd is not None:
+            res = _write_usd(h, m, args, scene, device)
+        files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
+                                    cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
+    except KeyboardInterrupt:
+        print(interrupted_message(ck if keep else None, total, resume_cmd, writing=True), file=sys.stderr,
+              flush=True)
+        return 130
     ck.unlink(missing_ok=True)
-    if args.usd is not None:
-        from ..usd.from_results import DEFAULT_POINTS, export_history
-        res = export_history(h, m.fields, args.usd, scene_text=scene.to_toml(), color_by=args.color_by,
-                             course_count=m.course_count, wale_count=m.wale_count,
-                             stride=args.usd_stride, n_points=args.usd_points or DEFAULT_POINTS,
-                             device=device if scene.engine == "warp" else "cpu", layout=args.usd_layout)
+    if res is not None:
         drawn = (f", {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch "
                  f"shape{'' if res.prototypes == 1 else 's'}"
                  if res.stitches else "")
-        print(f"knitsim run: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
+        print(f"knitsim run: wrote {args.usd} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
               f"samples{drawn}) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
     what = (f"{m.cell_count} blocks standing for {layout.stitches:,.0f} stitches" if layout.blocks
             else f"{m.cell_count} represented")
@@ -209,10 +285,12 @@ def _run(args) -> int:
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
         print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
-    if not summary["all_converged"]:
-        print(f"knitsim run: warning: {summary['non_converged_column_increments']} non-converged column "
-              f"increment(s), {summary['non_ok_cells_at_end']} cell(s) not ok at the end; see summary.json",
-              file=sys.stderr, flush=True)
+    if not summary["all_expected_end"]:
+        nc, at_cap = summary["non_converged_column_increments"], summary["non_converged_column_increments_at_force_cap"]
+        print(f"knitsim run: warning: the run did not end as expected: {nc - at_cap} non-converged column "
+              f"increment(s) (besides {at_cap} held at the force cap), {summary['failed_cells_at_end']} failed "
+              f"cell(s) at the end, {len(summary['nonfinite_force_rows'])} row(s) with a non-finite force; see "
+              "summary.json", file=sys.stderr, flush=True)
     if args.json:
         print_json(summary)
     else:
@@ -227,7 +305,9 @@ def _run(args) -> int:
                     else f"{c['peak_force_per_wale_N']:.4g} N per wale")
             if c.get("peak_is_force_cap"):
                 peak += " (= force cap)"
+            how = {"slack_lengths": "located", "linear": "between rows", "secant": "extrapolated"}.get(
+                c.get("residual_grip_strain_from"), "")
             print(f"cycle {c['cycle']}: peak {peak} at grip strain "
-                  f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}; "
-                  f"{work}")
-    return 0 if summary["all_converged"] else 1
+                  f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}"
+                  f"{f' ({how})' if res is not None and how else ''}; {work}")
+    return 0 if summary["all_expected_end"] else 1

@@ -70,10 +70,42 @@ def register(subparsers) -> None:
     p.set_defaults(func=_run)
 
 
+def unfinished_run(results) -> str | None:
+    """Why a results folder holds no complete run, where it holds the checkpoint of an interrupted
+    ``knitsim run`` and no ``summary.json`` (written last: its presence marks a complete set); None otherwise.
+    Says how far the run got and the command that finishes it (recorded in the checkpoint)."""
+    from ..patch.runner import CHECKPOINT_NAME, read_checkpoint_header
+
+    folder = Path(results)
+    ck = folder / CHECKPOINT_NAME
+    if not ck.is_file() or (folder / "summary.json").is_file():
+        return None
+    try:
+        head = read_checkpoint_header(ck)
+    except Exception as exc:  # noqa: BLE001 - a damaged checkpoint: still an unfinished run
+        return (f"RESULTS_DIR = {str(results)!r}: holds the checkpoint of an unfinished knitsim run ({ck}, not "
+                f"readable: {exc}) and no results; run it again")
+    done, total = int(head["done"]), head.get("total")
+    meta = head.get("meta") or {}
+    cmd = meta.get("resume_command") or f"knitsim run SCENE.toml --out {folder} --resume (the run's own scene)"
+    where = f" (in {meta['cwd']})" if meta.get("cwd") else ""
+    held = (f"its solve is finished ({done}/{total} increments) but its outputs were not written"
+            if total is not None and done >= total else
+            f"its checkpoint {ck} holds {done}{'' if total is None else f'/{total}'} solved increment(s)")
+    old = ("" if head.get("format") else
+           " (a checkpoint of an older knitsim, which does not record its device: a warp run may be refused on "
+           "--resume and then runs again with --overwrite in place of --resume)")
+    return (f"RESULTS_DIR = {str(results)!r}: the run is unfinished (interrupted): {held}, and there are no results "
+            f"to export yet; finish it with{where}: {cmd}{old}; then run knitsim usd again")
+
+
 def _run(args) -> int:
     from .. import warp_runtime
     from ..usd.from_results import DEFAULT_POINTS, export_results
     check_usd_options(args)
+    why = unfinished_run(args.results)
+    if why is not None:
+        raise KnitsimInputError(why)
     prepare_output_file(args.out, args.overwrite)
     prepare_output_file(args.quicklook, args.overwrite, "--quicklook")
     device = warp_runtime.resolve_device(args.device)

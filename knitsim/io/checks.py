@@ -327,7 +327,8 @@ def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells:
 
 
 def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,
-                     what: str = "cell", direction: np.ndarray | None = None) -> list[ResultWarning]:
+                     what: str = "cell", direction: np.ndarray | None = None, strain_is: str = "strain",
+                     note: str = "") -> list[ResultWarning]:
     """A warning when any state's heads overlap.
 
     Parameters
@@ -344,6 +345,11 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
         What the k columns are, for the message.
     direction : ndarray, shape [n], optional
         +1 loading, -1 unloading: the message says on which branches the heads overlap.
+    strain_is : str
+        What ``strain`` is, for the message: ``"strain"`` (a cell's own) or ``"grip strain"`` (a patch's rows,
+        whose cells reach other strains: ``note`` can say which).
+    note : str
+        Appended after the strains, e.g. ``" (cell strains 0.31 to 0.69)"``.
     """
     flags = np.asarray(flags) > 0
     if flags.ndim == 1:
@@ -363,11 +369,12 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
             frozenset(dirs), " while loading and unloading")
     lo, hi, first = float(e.min()), float(e.max()), float(e[0])
     if lo == hi:
-        where = f"at strain {lo:.4g}"
+        where = f"at {strain_is} {lo:.4g}"
     elif first == lo:
-        where = f"at strains {lo:.4g} to {hi:.4g}"
+        where = f"at {strain_is}s {lo:.4g} to {hi:.4g}"
     else:   # first met on an unloading, below which it later overlaps too
-        where = f"first at strain {first:.4g}, at strains {lo:.4g} to {hi:.4g} in all"
+        where = f"first at {strain_is} {first:.4g}, at {strain_is}s {lo:.4g} to {hi:.4g} in all"
+    where += note
     return [ResultWarning(
         "heads_interpenetrate",
         f"the heads of neighbouring loops overlap (centreline gap below the in-plane width) {where}{branch}, in "

@@ -35,12 +35,13 @@ Files are built in a hidden sibling directory and renamed in, ``summary.json`` l
 from __future__ import annotations
 
 import io
+import warnings as _warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..cell.history import STATUS_NAMES, STATUS_OK
+from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
 from ..cell.stages import LABEL_CODES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
@@ -341,6 +342,8 @@ class ForceCapRows:
         The first increment where a cell stopped at its cap (status force_cap).
     caps : ndarray or None
         The caps of the groups at the cap (None: the model was not given).
+    column_rows : ndarray of bool, shape [n, columns]
+        Increments where a column holds a cell at its cap (None where built without it).
     """
 
     rows: np.ndarray
@@ -348,6 +351,7 @@ class ForceCapRows:
     group_stopped: np.ndarray
     first_stop: int | None
     caps: np.ndarray | None
+    column_rows: np.ndarray | None = None
 
 
 def force_cap_rows(h: PatchHistory, model: PatchModel | None = None) -> ForceCapRows:
@@ -359,7 +363,8 @@ def force_cap_rows(h: PatchHistory, model: PatchModel | None = None) -> ForceCap
     n_groups = int(h.group_of_cell.max()) + 1 if h.group_of_cell.size else 0
     empty = np.zeros(n_groups, bool)
     if not h.n_increments or not n_groups:
-        return ForceCapRows(np.zeros(h.n_increments, bool), empty, empty, None, None)
+        return ForceCapRows(np.zeros(h.n_increments, bool), empty, empty, None, None,
+                            np.zeros((h.n_increments, h.shape[1]), bool))
     goc = np.asarray(h.group_of_cell)
     caps = None
     if model is not None and "force_cap_N" in model.rules:
@@ -376,7 +381,8 @@ def force_cap_rows(h: PatchHistory, model: PatchModel | None = None) -> ForceCap
     first = np.nonzero(stopped.any(axis=1))[0]
     return ForceCapRows(at.any(axis=1), at.any(axis=0), stopped.any(axis=0),
                         int(first[0]) if len(first) else None,
-                        None if caps is None else caps[at.any(axis=0)])
+                        None if caps is None else caps[at.any(axis=0)],
+                        (at.astype(np.int32) @ member.T.astype(np.int32)) > 0)
 
 
 def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayout, peak: float) -> list[ResultWarning]:
@@ -489,7 +495,188 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
     return stop, cut_at, [w for _, _, w in out if w is not None]
 
 
-def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None, **info) -> dict:
+#: how a cycle's residual grip strain is obtained (summary.json: ``residual_grip_strain_from``)
+RESIDUAL_FROM = {
+    "slack_lengths": "located: the grip strain at which the last column went slack (F = 0), from the columns' "
+                     "slack lengths on the first row without grip force (each cell keeps the length at which it "
+                     "located its own F = 0)",
+    "linear": "linear interpolation of the grip force between the last row with force and the first without",
+    "secant": "the last two rows with grip force extrapolated linearly to F = 0 (no slack lengths to read; "
+              "error at most h^2 |F''/F'|, h the increment)",
+}
+#: how the first jamming is obtained (summary.json: ``grip_strain_at_first_jamming_from``)
+FIRST_JAMMING_FROM = {
+    "located": "located between rows: each cell jamming on the first row with a jammed cell has its jamming "
+               "quantity (W - 4 w, or the head gap - w, from cells.nc's state) extrapolated linearly from its two "
+               "unjammed rows before to zero; the earliest counts (error at most h^2 |q''/q'|, h the increment: "
+               "2e-5 at h = 0.01 on the calibrated E-glass knit, against 0.0075 for the row)",
+    "row": "the first row with a jammed cell, not located between rows (the rows before do not allow it)",
+}
+
+
+def _residual_grip_strain(h: PatchHistory, a: int, b: int, ref_length: float) -> tuple[float, str]:
+    """Where the grip force reaches 0 between rows ``a`` (F > 0) and ``b`` (F <= 0) of an unloading.
+
+    A slack column keeps the length at which its cells located F = 0 (:class:`~knitsim.patch.coupling.PatchSolver`:
+    its cells' elongations exceed the grip displacement by ``column_slack_mm``), so the grip strain at which
+    column j went slack is ``e[b] + slack_j / ref_length``, and the grip force is 0 from the last of them,
+    the smallest.  Where row ``b`` carries a negative force (no slack), or the slack lengths do not fall
+    between the rows, the rows are interpolated (:data:`RESIDUAL_FROM`)."""
+    F, e = np.asarray(h.force_N, float), np.asarray(h.grip_strain, float)
+    lo, hi = min(e[a], e[b]), max(e[a], e[b])
+    tol = 1e-9 * max(abs(hi), abs(lo), 1.0)
+    if F[b] == 0.0 and a != b:
+        colF = np.asarray(h.column_force_N, float)[b]
+        slack = np.asarray(h.column_slack_mm, float)[b]
+        if np.all(colF == 0.0) and np.all(np.isfinite(slack)) and ref_length > 0:
+            at = float(np.min(e[b] + slack / ref_length))
+            if lo - tol <= at <= hi + tol:
+                return float(np.clip(at, lo, hi)), "slack_lengths"
+        a0 = a - 1
+        if a0 >= 0 and h.direction[a0] == h.direction[a] and F[a0] > F[a] > 0 and e[a0] != e[a]:
+            at = float(e[a] - F[a] * (e[a0] - e[a]) / (F[a0] - F[a]))
+            return float(np.clip(at, lo, hi)), "secant"
+    t = F[a] / (F[a] - F[b])
+    return float(e[a] + t * (e[b] - e[a])), "linear"
+
+
+def _first_jamming(h: PatchHistory) -> tuple[float | None, str | None]:
+    """The grip strain of the first jamming, located between rows where the cells' states allow it
+    (:data:`FIRST_JAMMING_FROM`), and how it was obtained; (None, None) where no cell jams.
+
+    A jammed cell holds its criterion (W = 4 w, or the head gap = w, w the in-plane width); on its two rows
+    before, unjammed on the same branch, the quantity q = W - 4 w (or gap - w) falls towards 0.  The secant
+    through them reaches 0 at the located jamming to O(h^2) (the 1 x 1 patch of the E-glass knit at increment
+    0.01: 0.47253 against the cell's 0.47251)."""
+    label = np.asarray(h.groups["label"])
+    jam = label == LABEL_CODES["jamming"]
+    rows = np.nonzero(jam.any(axis=1))[0]
+    if not len(rows):
+        return None, None
+    b = int(rows[0])
+    e, d = np.asarray(h.grip_strain, float), np.asarray(h.direction)
+    row = float(e[b])
+    if (b < 2 or "W" not in h.groups or h.group_d_jam is None or not (d[b - 2] == d[b - 1] == d[b])
+            or e[b - 2] == e[b - 1]):
+        return row, "row"
+    w = np.asarray(h.group_d_jam, float)
+    W = np.asarray(h.groups["W"], float)
+    gap = np.asarray(h.groups["head_gap"], float) if "head_gap" in h.groups else None
+    found = []
+    for g in np.nonzero(jam[b])[0]:
+        # the criterion the jammed state holds: W = 4 w, or the head gap = w
+        qs = [W[:, g] - 4.0 * w[g]] + ([gap[:, g] - w[g]] if gap is not None else [])
+        q = min(qs, key=lambda v: abs(v[b]) if np.isfinite(v[b]) else np.inf)
+        if not (np.isfinite(q[b]) and abs(q[b]) <= 1e-6 * max(w[g], 1e-12)):
+            continue
+        q1, q2 = q[b - 2], q[b - 1]
+        if not (np.isfinite(q1) and np.isfinite(q2) and q1 > q2 > 0):
+            continue
+        at = e[b - 1] + q2 * (e[b - 1] - e[b - 2]) / (q1 - q2)
+        found.append(float(np.clip(at, min(e[b - 1], e[b]), max(e[b - 1], e[b]))))
+    if not found:
+        return row, "row"
+    # the earliest on this branch: the smallest grip strain while loading, the largest while unloading
+    return (min(found) if d[b] > 0 else max(found)), "located"
+
+
+def _group_C0(h: PatchHistory) -> tuple[np.ndarray, np.ndarray]:
+    """Per group: its rest course length C0 [mm] (identical cells share it), and how many cells it stands for."""
+    goc = np.asarray(h.group_of_cell)
+    n_groups = int(goc.max()) + 1 if goc.size else 0
+    C0 = np.zeros(n_groups)
+    C0[goc.ravel()] = np.asarray(h.C0, float).ravel()
+    return C0, np.bincount(goc.ravel(), minlength=n_groups)
+
+
+def _zone_of(zones: list | None, i: int, j: int) -> str:
+    """The zone of the resolved scene a cell lies in (the last that covers it: later zones win), or the base."""
+    name = "base knit"
+    for k, z in enumerate(zones or []):
+        ci, wi = z.get("courses", [0, 0]), z.get("wales", [0, 0])
+        if ci[0] <= i < ci[1] and wi[0] <= j < wi[1]:
+            name = (f"zone {z['label']!r}" if z.get("label") else
+                    f"the zone of courses {ci[0]}-{ci[1] - 1}, wales {wi[0]}-{wi[1] - 1}")
+    return name
+
+
+def _cells_beyond_domain(h: PatchHistory, layout: SpecimenLayout, row_key: str, col_key: str,
+                         zones: list | None = None) -> list[ResultWarning]:
+    """``cells_outside_domain``: cells whose strain (C - C0)/C0 went past the model's domain
+    (:data:`knitsim.cell.domain.DOMAIN`'s strains), judged on the strains they reached, not on the grip's.
+
+    The grip strain is not a cell's: cells of another material in series stretch more or less than the
+    grip, and a specimen's pretension stretches the knit before the grip strain's origin; the pre-run check
+    (``knitsim run``'s ``check_patch_domain``) sees only the grip program.  Only the upper end is judged:
+    the lower end, 0, is the rest state, which a cell of a mixed column passes by a little when the
+    column balances its cells' rest forces (a few 1e-3)."""
+    from ..cell.domain import DOMAIN
+
+    if not h.n_increments:
+        return []
+    hi = float(DOMAIN.strain[1])
+    C0, cells_of = _group_C0(h)
+    C = np.asarray(h.groups["C"], float)
+    # the largest strain of each group (C0 > 0: the strain grows with C), without a copy of the rows
+    with _warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        _warnings.simplefilter("ignore", RuntimeWarning)            # a group of NaN lengths only (failed): NaN
+        smax_g = np.nanmax(C, axis=0) / C0 - 1.0
+    out_g = np.nonzero(np.isfinite(smax_g) & (smax_g > hi * (1.0 + 1e-9)))[0]
+    if not len(out_g):
+        return []
+    n_out = int(cells_of[out_g].sum())
+    g = int(out_g[np.argmax(smax_g[out_g])])
+    with np.errstate(invalid="ignore"):
+        sg = C[:, g] / C0[g] - 1.0
+        r = int(np.nanargmax(sg))
+        first = int(np.nonzero((C[:, out_g] / C0[out_g] - 1.0 > hi * (1.0 + 1e-9)).any(axis=1))[0][0])
+    goc = np.asarray(h.group_of_cell)
+    i, j = (int(v) for v in np.argwhere(goc == g)[0])
+    e = np.asarray(h.grip_strain, float)
+    what = "block" if layout.blocks else "cell"
+    zone_txt = ""
+    if zones:
+        # each cell's zone (-1: the base knit; later zones win, as they are applied) and its largest strain
+        zid = np.full(goc.shape, -1)
+        for k, z in enumerate(zones):
+            ci, wi = z.get("courses", [0, 0]), z.get("wales", [0, 0])
+            zid[ci[0]:ci[1], wi[0]:wi[1]] = k
+        out_cell = np.isin(goc, out_g)
+        parts = []
+        for k in np.unique(zid[out_cell]):
+            at = out_cell & (zid == k)
+            i0, j0 = (int(v) for v in np.argwhere(at)[0])
+            parts.append(f"{_zone_of(zones, i0, j0)}: {int(at.sum())} {what}(s) up to "
+                         f"{float(smax_g[goc[at]].max()):.4g}")
+        zone_txt = "; by zone: " + ", ".join(parts)
+    emax = float(np.nanmax(e))
+    grip = (f", while the grip strain stays within it (at most {emax:.4g})" if emax <= hi else
+            f" (the grip strain too reaches {emax:.4g})")
+    pre = float(h.info.get("pretension") or 0.0)
+    why = (f"; specimen.pretension = {pre:g} stretches the knit before the grip strain's origin" if pre > 0 else
+           "; cells in series with stiffer ones stretch more than the grip" if zones or len(cells_of) > 1 else "")
+    return [ResultWarning("cells_outside_domain", (
+        f"extrapolation: {n_out} of {goc.size} {what}(s) stretched beyond the model's domain (strain of the "
+        f"course length (C - C0)/C0 up to {hi:g}, knitsim.cell.domain){grip}: up to {float(sg[r]):.4g} "
+        f"at {row_key} {i} {col_key} {j}{f' ({_zone_of(zones, i, j)})' if zones else ''} at grip strain "
+        f"{e[r]:.4g} (increment {r + 1}), past {hi:g} from grip strain {e[first]:.4g} (increment {first + 1})"
+        f"{why}{zone_txt}"))]
+
+
+def _overlap_cell_strains(h: PatchHistory) -> str:
+    """`` (cell strains a to b)`` where the heads overlap: the interpenetration warning's rows are grip strains."""
+    rows, cols = np.nonzero(np.asarray(h.groups["interpenetrating"]) > 0)
+    if not len(rows):
+        return ""
+    C0, _ = _group_C0(h)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.asarray(h.groups["C"], float)[rows, cols] / C0[cols] - 1.0
+    s = s[np.isfinite(s)]
+    return f" (cell strains {float(s.min()):.4g} to {float(s.max()):.4g})" if s.size else ""
+
+
+def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None,
+                  zones: list | None = None, **info) -> dict:
     """The ``summary.json`` document (``model``: the run's, needed for a specimen; ``info`` is copied in).
 
     What a cell is: ``cell_is`` (``stitch`` or ``block of stitches``), ``cells`` (grid cells),
@@ -500,14 +687,26 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     width (``wales_across``).
 
     Per cycle: peak grip force (and per wale) and the grip strain there;
-    residual grip strain, where the force per wale reaches 0 on the cycle's
-    unloading branch (linear interpolation between rows; null if it never
-    does); ``oint F_grip du`` over the cycle's rows [N mm] (u = grip strain x
+    residual grip strain, where the grip force reaches 0 on the cycle's
+    unloading branch (null if it never does), located from the columns' slack
+    lengths where they allow it, else interpolated between rows
+    (:func:`_residual_grip_strain`; ``residual_grip_strain_from`` says which, the
+    top-level ``residual_grip_strain_from`` what each means); ``oint F_grip du``
+    over the cycle's rows [N mm] (u = grip strain x
     rest length, from the last row of the previous cycle; the first from rest),
     named by :func:`knitsim.io.checks.cycle_work`: ``hysteresis_energy_N_mm`` of a
     closed cycle, ``work_N_mm`` of an open one, ``loading_work_N_mm`` of a loading.  Also the grip
-    strain at the first jamming of any cell, non-converged column increments,
-    cells whose status is not ok, and rows with a non-finite force.
+    strain at the first jamming of any cell, located between rows where the cells' states allow it
+    (:func:`_first_jamming`; ``grip_strain_at_first_jamming_from`` says how), non-converged column
+    increments (and of them those held at their cells' force cap), cells whose status is not ok (by
+    status: failed, or stopped at the force cap), and rows with a non-finite force.  ``all_converged``:
+    every column converged on every increment and no cell failed; ``all_expected_end``: no failure, a stop
+    at the force cap (a cell's status, or a column held at the cap) being an expected end (``knitsim run``
+    exits 0 on it).
+
+    Cells whose strain (C - C0)/C0 went past the model's domain are a ``cells_outside_domain`` warning (the
+    pre-run check's are ``outside_domain``), judged on
+    the strains they reached (:func:`_cells_beyond_domain`; ``zones``: the resolved scene's, to name them).
 
     Force cap: ``grip_strain_at_force_cap`` is where the force first is the cells' force cap
     (:func:`force_cap_rows`: a cell stopped at it, or held within
@@ -543,15 +742,16 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                  # the peak is the cells' force cap, not the knit's response (warning force_cap_reached)
                  "peak_is_force_cap": bool(fc.rows[j])}
         unload = rows[h.direction[rows] < 0]
-        res = None
+        res = res_from = None
         if len(unload):
             prev = np.concatenate([[unload[0] - 1], unload]) if unload[0] > 0 else unload
             for a, b in zip(prev[:-1], prev[1:]):
                 if F[a] > 0 >= F[b]:
-                    t = F[a] / (F[a] - F[b])
-                    res = float(e[a] + t * (e[b] - e[a]))
+                    res, res_from = _residual_grip_strain(h, int(a), int(b), ref_length)
                     break
         entry["residual_grip_strain"] = res
+        # how it was obtained (RESIDUAL_FROM): located from the slack lengths, or interpolated between rows
+        entry["residual_grip_strain_from"] = res_from
         if len(rows) < len(cycle_rows):
             # cut where the force stops being the knit's: no work over a part of a cycle (_run_stop's warning)
             entry["cut_at_grip_strain"] = cut_at
@@ -568,14 +768,22 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         entry[f"{'hysteresis_energy' if work['kind'] == 'hysteresis' else work['kind']}_N_mm"] = \
             work["value"] * ref_length
         cycles.append(entry)
-    jam_rows = np.nonzero(np.any(h.groups["label"] == LABEL_CODES["jamming"], axis=1))[0]
+    first_jam, first_jam_from = _first_jamming(h)
     nc = np.argwhere(h.column_status == COL_NOT_CONVERGED)
-    bad_cells = np.argwhere(h.cell_field("status")[-1] != STATUS_OK) if h.n_increments else np.zeros((0, 2))
+    # a column that cannot pass its cells' force cap does not converge and holds the cap: the cap's stop
+    nc_at_cap = np.array([bool(fc.column_rows[i, j]) for i, j in nc], bool) if len(nc) else np.zeros(0, bool)
+    end_status = h.cell_field("status")[-1] if h.n_increments else np.zeros((0, 0), np.int8)
+    bad_cells = np.argwhere(end_status != STATUS_OK) if h.n_increments else np.zeros((0, 2))
+    failed = np.argwhere((end_status != STATUS_OK) & (end_status != STATUS_FORCE_CAP)) if h.n_increments \
+        else np.zeros((0, 2))
     nonfinite = np.nonzero(~np.isfinite(F))[0]
     warnings = stop_warnings + zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
+    warnings += _cells_beyond_domain(h, layout, row_key, col_key, zones)
     if "interpenetrating" in h.groups:
+        # the rows are grip strains; the cells where the heads overlap are at their own strains
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
-                                     what="distinct cell", direction=h.direction)
+                                     what="distinct cell", direction=h.direction, strain_is="grip strain",
+                                     note=_overlap_cell_strains(h))
     capped_peaks = [c["peak_force_per_wale_N"] for c in cycles if c["peak_is_force_cap"]]
     warnings += _force_cap_warnings(h, fc, layout, max(capped_peaks) if capped_peaks else None)
     warnings += _compressive_rest_cells(h, row_key, col_key)
@@ -602,17 +810,34 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         represented_stitch_increments_per_s=(float(layout.stitches * h.n_increments / h.wall_s) if h.wall_s > 0
                                              else None),
         solver=h.info, cycles=cycles,
-        grip_strain_at_first_jamming=float(e[jam_rows[0]]) if len(jam_rows) else None,
+        grip_strain_at_first_jamming=first_jam,
+        grip_strain_at_first_jamming_from=FIRST_JAMMING_FROM.get(first_jam_from),
+        residual_grip_strain_from=RESIDUAL_FROM,
+        # (row, column) pairs that did not converge, and of them those held at their cells' force cap
         non_converged_column_increments=int(len(nc)),
+        non_converged_column_increments_at_force_cap=int(nc_at_cap.sum()),
         # where: a wale and a course of single stitches, a strip and a band of a specimen
         non_converged_first=[{"increment": int(i) + 1, col_key: int(j)} for i, j in nc[:20]],
         columns_stopped_at_end=int(np.sum(h.column_status[-1] != COL_OK)) if h.n_increments else 0,
+        # cells whose status is not ok at the end: failed (no_convergence, event_not_located) or stopped at
+        # their force cap (an expected end, README "Rules where Table 4 is silent")
         non_ok_cells_at_end=int(len(bad_cells)),
         non_ok_cells_first=[{row_key: int(i), col_key: int(j)} for i, j in bad_cells[:20]],
+        cells_at_end_by_status={STATUS_NAMES[int(k)]: int(v) for k, v in
+                                zip(*np.unique(end_status, return_counts=True))},
+        failed_cells_at_end=int(len(failed)),
+        failed_cells_first=[{row_key: int(i), col_key: int(j)} for i, j in failed[:20]],
+        cells_stopped_at_force_cap_at_end=int(np.sum(end_status == STATUS_FORCE_CAP)),
         nonfinite_force_rows=[int(i) for i in nonfinite[:20]],
         # from which grip strain the force is the cells' force cap (warning force_cap_reached), or null
         grip_strain_at_force_cap=float(e[np.argmax(fc.rows)]) if fc.rows.any() else None,
-        all_converged=bool(len(nc) == 0 and len(bad_cells) == 0 and len(nonfinite) == 0),
+        # every column converged on every increment, no cell failed, every force finite; cells stopped at
+        # their force cap converged (their stop is all_expected_end's business)
+        all_converged=bool(len(nc) == 0 and len(failed) == 0 and len(nonfinite) == 0),
+        # the run ended as a run may: no failed cell, no column that failed to converge other than one
+        # held at its cells' force cap, every force finite; a stop at the force cap is expected (as in
+        # knitsim cell's summary); knitsim run exits 0 on it, 1 otherwise
+        all_expected_end=bool(len(nc) == int(nc_at_cap.sum()) and len(failed) == 0 and len(nonfinite) == 0),
         warnings=[w.as_dict() for w in warnings],
     )
     return out

@@ -7,9 +7,17 @@ the course length, stage label, phi, force, status) and, per group of
 identical cells, the state x = (alpha, beta, gamma, phi, P) with W and s_AB,
 from which the yarn geometry is rebuilt (:mod:`knitsim.usd.from_results`).  With ``checkpoint``
 set, the solver state and the rows so far are written atomically every
-``checkpoint_every`` increments (and when the run is interrupted by Ctrl-C);
+``checkpoint_every`` increments, when the run is interrupted by Ctrl-C, and once
+more when the program is finished (so that the outputs written after the solve
+can be written again from it: a resume of a finished solve solves nothing);
 ``resume=True`` continues from that file and gives the same results as an
-uninterrupted run (the state is restored bit for bit).
+uninterrupted run (the state is restored bit for bit).  A checkpoint is refused
+on another device than its own (devices differ in rounding: a run continued on
+another one would mix the two).
+
+The file holds two pickles: a small header (:func:`read_checkpoint_header`: fingerprint, increments
+done of how many, device, the caller's ``meta``) and the body (solver state and rows), so that a
+command can say what a checkpoint holds without reading the rows.
 """
 from __future__ import annotations
 
@@ -116,7 +124,8 @@ class PatchHistory:
 
 
 def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
-    """Hash of everything that determines the results (checked on resume)."""
+    """Hash of everything that determines the results (checked on resume): the model, the program and the
+    ``options`` (engine, dedup, the device that solves, the solver's options)."""
     h = hashlib.sha256()
     h.update(repr((model.courses, model.wales, sorted(options.items()))).encode())
     for r in sorted(model.rules):
@@ -151,15 +160,66 @@ def _committed_geometry(backend) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.array([float(s.q["W"]) for s in s0]), np.array([float(s.q["s_AB"]) for s in s0]))
 
 
-def _atomic_pickle(path: Path, obj) -> None:
+def _atomic_pickle(path: Path, *objs) -> None:
+    """``objs`` pickled one after the other into one file, written atomically."""
     from ..io.results import atomic_write_bytes
-    atomic_write_bytes(path, pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
+    atomic_write_bytes(path, b"".join(pickle.dumps(o, protocol=pickle.HIGHEST_PROTOCOL) for o in objs))
+
+
+#: header keys of a checkpoint (:func:`read_checkpoint_header`)
+CHECKPOINT_FORMAT = 2
+
+
+def read_checkpoint_header(path: str | Path) -> dict:
+    """What a checkpoint holds, without its rows: ``done`` (increments solved), ``total`` (the program's
+    increments; None in a checkpoint of an older knitsim), ``fingerprint``, ``engine``, ``device`` (None where
+    older), ``wall_s`` and ``meta`` (what the caller stored, e.g. the command that resumes; {} where none).
+
+    Raises whatever unpickling raises on a damaged file."""
+    with open(path, "rb") as fh:
+        head = pickle.load(fh)
+    if not isinstance(head, dict) or "done" not in head:
+        raise ValueError("not a knitsim patch checkpoint")
+    if "rows" in head:                                  # an older checkpoint: one pickle, no header
+        head = {k: v for k, v in head.items() if k not in ("rows", "solver")}
+    head.setdefault("total", None)
+    head.setdefault("device", None)
+    head.setdefault("engine", None)
+    head.setdefault("meta", {})
+    return head
+
+
+def _read_checkpoint(path: Path) -> tuple[dict, dict]:
+    """(header, body) of a checkpoint file, either format."""
+    with open(path, "rb") as fh:
+        head = pickle.load(fh)
+        if isinstance(head, dict) and "rows" in head:   # older: one pickle
+            return read_checkpoint_header(path), head
+        body = pickle.load(fh)
+    return head, body
+
+
+def device_identity(engine: str, device) -> str:
+    """The device that solves, as far as it changes the rounding of the results: ``cpu``, or a CUDA device's
+    name and architecture (two cards of one model give the same results; the reference engine is NumPy)."""
+    if engine != "warp":
+        return "cpu (reference engine, NumPy)"
+    name = str(device)
+    if name.startswith("cuda"):
+        try:
+            import warp as wp
+            d = wp.get_device(name)
+            return f"cuda ({d.name}, sm_{d.arch})"
+        except Exception:  # noqa: BLE001 - no CUDA here: the alias is all there is to say
+            return name
+    return "cpu"
 
 
 def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", device: str = "cpu",
               dedup: bool = True, progress: Callable[[int, int], None] | None = None,
               checkpoint: str | Path | None = None, checkpoint_every: int = 50, resume: bool = False,
-              stop_after: int | None = None, **solver_options) -> PatchHistory:
+              stop_after: int | None = None, checkpoint_meta: dict | None = None,
+              **solver_options) -> PatchHistory:
     """Run a patch through a grip-strain program.
 
     Parameters
@@ -177,11 +237,15 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     checkpoint : path, optional
         Checkpoint file (``OUT/checkpoint.pkl``); None: no checkpoints.
     checkpoint_every : int
-        Increments between checkpoints.
+        Increments between checkpoints (0: none in between; with ``checkpoint`` set, the finished solve and
+        a Ctrl-C are still checkpointed).
     resume : bool
-        Continue from ``checkpoint`` (refused if it belongs to another scene or options).
+        Continue from ``checkpoint`` (refused if it belongs to another scene, options or device).  A checkpoint
+        of a finished solve gives its history without solving.
     stop_after : int, optional
         Stop (with a checkpoint) after this many increments: raises :class:`PatchInterrupted`.
+    checkpoint_meta : dict, optional
+        Stored in the checkpoint's header (:func:`read_checkpoint_header`), e.g. the command that resumes.
     **solver_options
         Passed to :class:`~knitsim.patch.coupling.PatchSolver`.
 
@@ -204,7 +268,10 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     col_wales = np.asarray(grouping.class_wales, float)[grouping.column_class]
     single_stitches = bool(np.all(col_wales == 1.0))
     n = len(program)
-    fp = fingerprint(model, program, engine=engine, dedup=bool(dedup), **solver_options)
+    dev_id = device_identity(engine, getattr(solver.backend, "device", device))
+    # the device is part of what determines the results (rounding); the reference engine runs on none
+    fp = fingerprint(model, program, engine=engine, dedup=bool(dedup),
+                     **({"device": dev_id} if engine == "warp" else {}), **solver_options)
     ck = Path(checkpoint) if checkpoint is not None else None
     rows: dict = {k: [] for k in _ROW_KEYS}
     start, wall_before = 0, 0.0
@@ -213,25 +280,26 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             raise KnitsimInputError("--resume: no checkpoint file given (needs --out DIR)")
         if ck.is_file():
             try:
-                saved = pickle.loads(ck.read_bytes())
+                head, saved = _read_checkpoint(ck)
             except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
                 raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
-            if saved.get("fingerprint") != fp:
-                raise KnitsimInputError(f"--resume: {ck} belongs to another scene, program or engine; "
-                                        "remove it or run without --resume")
+            if head.get("fingerprint") != fp:
+                raise KnitsimInputError(_resume_mismatch(ck, head, engine, dev_id))
             solver.set_state(saved["solver"])
             rows = saved["rows"]
             for k in _ROW_KEYS:
                 rows.setdefault(k, [])
-            start, wall_before = int(saved["done"]), float(saved["wall_s"])
+            start, wall_before = int(head["done"]), float(head["wall_s"])
     wales = model.wales
     cls = grouping.column_class
 
     def save(done: int, wall: float) -> None:
         if ck is not None:
             ck.parent.mkdir(parents=True, exist_ok=True)
-            _atomic_pickle(ck, {"fingerprint": fp, "done": done, "solver": solver.get_state(), "rows": rows,
-                                "wall_s": wall})
+            _atomic_pickle(ck, {"format": CHECKPOINT_FORMAT, "fingerprint": fp, "done": done, "total": n,
+                                "engine": engine, "device": dev_id, "wall_s": wall,
+                                "meta": dict(checkpoint_meta or {})},
+                           {"solver": solver.get_state(), "rows": rows})
 
     t0 = time.perf_counter()
     i = start
@@ -287,14 +355,18 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             if stop_after is not None and done >= stop_after and done < n:
                 save(done, wall_before + time.perf_counter() - t0)
                 raise PatchInterrupted(done, ck)
+        wall = wall_before + time.perf_counter() - t0
+        if ck is not None and start < n:
+            # the finished solve, before the caller writes its outputs: a Ctrl-C there loses no solving
+            # (a resume of it builds the history without solving again)
+            save(n, wall)
     except KeyboardInterrupt:
-        if clean[0]:
+        if clean[0] and len(rows["force_N"]) > start:
             save(len(rows["force_N"]), wall_before + time.perf_counter() - t0)
         raise
     finally:
         if old_handler is not None:
             signal.signal(signal.SIGINT, old_handler)
-    wall = wall_before + time.perf_counter() - t0
     n_rows = len(rows["force_N"])
     arr = {k: np.asarray(v) for k, v in rows.items() if k not in _GEOMETRY_KEYS or len(v) == n_rows}
     groups = {"C": arr["g_C"], "F": arr["g_F"], "phi": arr["g_phi"], "label": arr["g_label"],
@@ -319,6 +391,24 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
                         grouping.d_jam, float(np.sum(col_rest)),
                         float(np.mean(col_rest)) if single_stitches else float(np.sum(col_rest) / np.sum(col_wales)),
                         group_rest)
+
+
+def _resume_mismatch(ck: Path, head: dict, engine: str, dev_id: str) -> str:
+    """Why a checkpoint does not fit this run (one line): its device, its engine, or the scene."""
+    saved_dev, saved_engine = head.get("device"), head.get("engine")
+    if saved_engine is not None and saved_engine != engine:
+        return (f"--resume: {ck} was computed by the {saved_engine} engine, this run uses {engine}: resume with "
+                f"--engine {saved_engine}, or run again without --resume")
+    if saved_dev is not None and saved_dev != dev_id:
+        alias = "cpu" if saved_dev.startswith("cpu") else "cuda"
+        return (f"--resume: {ck} was computed on {saved_dev}, this run is on {dev_id}: devices differ in rounding "
+                f"and a run continued on another one would mix the two; resume with --device {alias} (on a "
+                f"machine with that device), or run again without --resume")
+    if saved_dev is None and engine == "warp":
+        return (f"--resume: {ck} was written by an older knitsim that did not record its device (or belongs to "
+                "another scene, program or engine): it cannot be resumed safely; run again without --resume "
+                "(--overwrite)")
+    return f"--resume: {ck} belongs to another scene, program or engine; remove it or run without --resume"
 
 
 def all_ok(history: PatchHistory) -> bool:

@@ -25,7 +25,7 @@ def test_scene_runs_small(capsys, tmp_path, name):
                "--no-progress", *sets])
     cap = capsys.readouterr()
     summary = json.loads(cap.out)
-    assert rc == (0 if summary["all_converged"] else 1)
+    assert rc == (0 if summary["all_expected_end"] else 1)       # a stop at the force cap is an expected end
     assert {p.name for p in (tmp_path / "o").iterdir()} == FILES      # checkpoint removed when done
     with open(tmp_path / "o" / "curve.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))

@@ -131,3 +131,51 @@ def test_a_ctrl_c_during_an_increment_checkpoints_after_it(tmp_path, monkeypatch
     assert resumed.info["resumed_from"] == 4
     for name in ("force_N", "column_force_N", "column_status", "column_iterations"):
         assert np.array_equal(getattr(resumed, name), getattr(full, name)), name
+
+
+def test_the_finished_solve_is_checkpointed_and_resumes_without_solving(tmp_path, monkeypatch):
+    """The outputs are written after the solve: the solve is checkpointed first (done = every increment of the
+    program), so that a Ctrl-C while they are written loses no solving; a resume of it solves nothing and
+    gives the uninterrupted history bit for bit."""
+    from knitsim.patch import coupling
+    from knitsim.patch.runner import read_checkpoint_header
+
+    prog = cycles(0.10, 0.40, 1, 0.05)
+    ck = tmp_path / "checkpoint.pkl"
+    full = run_patch(_model(), prog, checkpoint=ck, checkpoint_every=4)
+    head = read_checkpoint_header(ck)
+    assert (head["done"], head["total"]) == (len(prog), len(prog))       # before: the last periodic one, 8
+
+    def no_solving(*a, **kw):
+        raise AssertionError("solved again")
+
+    monkeypatch.setattr(coupling.PatchSolver, "step", no_solving)
+    again = run_patch(_model(), prog, checkpoint=ck, resume=True)
+    assert again.info["resumed_from"] == len(prog)
+    for name in ("force_N", "column_force_N", "column_status", "column_slack_mm"):
+        assert np.array_equal(getattr(again, name), getattr(full, name)), name
+    for k in full.groups:
+        assert np.array_equal(again.groups[k], full.groups[k]), k
+
+
+def test_a_checkpoint_is_refused_on_another_device(tmp_path, monkeypatch):
+    """Devices differ in rounding: a run stopped on one and continued on another would mix the two. The
+    checkpoint records the device that solved (in its fingerprint and its header); a resume on another is
+    refused with what to do. (No CUDA needed: the device this run is on is what device_identity says.)"""
+    from knitsim.patch import runner
+
+    prog = cycles(0.10, 0.40, 1, 0.05)
+    ck = tmp_path / "checkpoint.pkl"
+    with pytest.raises(PatchInterrupted):
+        run_patch(_model(), prog, checkpoint=ck, stop_after=3)
+    assert runner.read_checkpoint_header(ck)["device"] == "cpu"
+    monkeypatch.setattr(runner, "device_identity", lambda engine, device: "cuda (NVIDIA H100 80GB HBM3, sm_90)")
+    with pytest.raises(KnitsimInputError, match=r"computed on cpu, this run is on cuda \(NVIDIA H100 80GB HBM3, "
+                                                r"sm_90\): devices differ in rounding.*resume with --device cpu"):
+        run_patch(_model(), prog, checkpoint=ck, resume=True)
+    monkeypatch.undo()
+    assert run_patch(_model(), prog, checkpoint=ck, resume=True).info["resumed_from"] == 3   # its own device
+    # the fingerprint tells the devices apart (the reference engine runs on none and hashes as before)
+    m = _model()
+    assert (runner.fingerprint(m, prog, engine="warp", device="cpu")
+            != runner.fingerprint(m, prog, engine="warp", device="cuda (NVIDIA H100 80GB HBM3, sm_90)"))

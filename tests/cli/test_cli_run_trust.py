@@ -1,0 +1,346 @@
+"""``knitsim run``: what a run says of itself where the user looks, and work that is never lost.
+
+Where the expected outcomes come from:
+
+- cells past the model's domain (strain 0.6, ``knitsim.cell.domain.DOMAIN``) while the grip stays inside it:
+  a specimen pretensioned by p has its knit at rest over ``gauge / (1 + p)`` (``PatchModel.pretension``),
+  so at grip strain g (displacement / gauge from the pretensioned origin) a uniform knit is at strain
+  ``(1 + p)(1 + g) - 1`` (construction: 0.8 for p = 0.5, g = 0.2); two cells of equal C0 in series between
+  rigid grips have elongations that add up to the grip displacement, so their strains add up to twice the
+  grip strain while the column carries load (identity);
+- increments: ``cycles(0.1, 0.3, 1, 0.05)`` has 6 loading and 4 unloading increments, ``monotonic`` its
+  target over the increment (``knitsim.cell.load_program``, counted here from the program itself);
+- the 1 x 1 patch reproduces its cell bit for bit (README, "Patches"), so its residual strain and first
+  jamming are compared with ``knitsim cell``'s located events (events.csv), the tolerance of the first
+  jamming from the cell's own curve (the secant's error, bound below).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import shlex
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from knitsim.cell.load_program import cycles, monotonic
+from knitsim.cli import main
+
+PATCH = """
+title = "tiny"
+[patch]
+wales = 2
+courses = 2
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.2
+phi0 = 0.0
+[load]
+type = "cycles"
+lower_strain = 0.1
+upper_strain = 0.3
+cycles = 1
+max_increment = 0.05
+[output]
+checkpoint_every = 1
+"""
+N_PATCH = len(cycles(0.1, 0.3, 1, 0.05))           # 10 increments
+
+
+def _scene(tmp_path, text=PATCH, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _interrupt_after(monkeypatch, k):
+    """knitsim run's solve stopped after k increments (checkpoint written), as a Ctrl-C there would."""
+    import knitsim.patch.runner as runner
+    real = runner.run_patch
+
+    def interrupted(*a, **kw):
+        try:
+            return real(*a, stop_after=k, **kw)
+        except runner.PatchInterrupted:
+            raise KeyboardInterrupt from None
+
+    monkeypatch.setattr(runner, "run_patch", interrupted)
+    return lambda: monkeypatch.setattr(runner, "run_patch", real)
+
+
+def _argv(monkeypatch, argv):
+    monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)     # the resume command is the command line as typed
+    return argv
+
+
+# ----------------------------------------------------------------------------------------- 1: the domain
+
+
+def test_a_pretensioned_specimen_past_the_domain_is_warned_though_its_grip_strain_is_inside(tmp_path, capsys,
+                                                                                          monkeypatch):
+    scene = _scene(tmp_path, """
+[specimen]
+width = 50.0
+gauge_length = 100.0
+pretension = 0.5
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+model = "coulomb"
+m = 0.2
+[load]
+type = "monotonic"
+target_strain = 0.2
+max_increment = 0.05
+""")
+    import knitsim.io.patch_results as pr
+    shown = {}
+    real_plot = pr.plot_force_strain
+
+    def plot(h, title="", layout=None, warnings=None, force_cap=None):
+        shown["warnings"] = warnings
+        return real_plot(h, title, layout, warnings, force_cap)
+
+    monkeypatch.setattr(pr, "plot_force_strain", plot)
+    rc = main(["run", str(scene), "--out", str(tmp_path / "o"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    (w,) = [w for w in s["warnings"] if w["code"] == "cells_outside_domain"]   # before: none (grip program 0.2)
+    p, g = 0.5, 0.2
+    knit = (1 + p) * (1 + g) - 1                                            # 0.8 (construction)
+    assert f"up to {knit:.4g} at band 0 strip 0" in w["message"], w["message"]
+    assert "while the grip strain stays within it (at most 0.2)" in w["message"]
+    assert "specimen.pretension = 0.5" in w["message"]
+    # from the first row whose knit strain (1 + p)(1 + g) - 1 passes 0.6
+    with open(tmp_path / "o" / "curve.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))[1:]
+    first = next(r for r in rows if (1 + p) * (1 + float(r["grip_strain"])) - 1 > 0.6 + 1e-9)
+    assert f"past 0.6 from grip strain {float(first['grip_strain']):.4g} (increment {first['increment']})" \
+        in w["message"]
+    # where the user looks: the console and the plot, as the pre-run domain warnings are
+    assert "knitsim run: warning: " + w["message"] in err
+    assert w in shown["warnings"]
+
+
+def test_zones_in_series_past_the_domain_are_named_and_the_overlap_says_grip_strain(tmp_path, capsys):
+    scene = _scene(tmp_path, """
+[patch]
+wales = 1
+courses = 2
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+model = "coulomb"
+phi0 = 0.0
+[[zones]]
+label = "basalt"
+courses = [1, 2]
+yarn = { material = "basalt" }
+knit = { material = "basalt_plain" }
+[load]
+type = "monotonic"
+target_strain = 0.55
+max_increment = 0.05
+""")
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    (w,) = [w for w in s["warnings"] if w["code"] == "cells_outside_domain"]   # before: none (grip 0.55 < 0.6)
+    import xarray as xr
+    with xr.open_dataset(tmp_path / "o" / "cells.nc", engine="h5netcdf") as ds:
+        C0 = ds["C0"].values[:, 0]
+        basalt_end = float(ds["strain"].values[-1, 1, 0])
+    assert C0[0] == C0[1]
+    e_glass_end = 2 * 0.55 - basalt_end               # identity: equal rest lengths, elongations add up to u
+    assert e_glass_end > 0.6
+    assert f"up to {e_glass_end:.4g} at course 0 wale 0 (base knit) at grip strain 0.55" in w["message"]
+    assert "1 of 2 cell(s)" in w["message"] and "by zone: base knit: 1 cell(s)" in w["message"]
+    assert "knitsim run: warning: " + w["message"] in err
+    # the overlap warning's strains are the grip's, and it says so, with the cells' own beside them
+    (o,) = [w for w in s["warnings"] if w["code"] == "heads_interpenetrate"]
+    assert " at grip strains " in o["message"] and "(cell strains " in o["message"]
+    assert f"to {e_glass_end:.4g})" in o["message"]
+
+
+# ----------------------------------------------------------------------------------- 2: --usd on --resume
+
+
+def test_resume_never_replaces_a_usd_file_it_was_not_given(tmp_path, capsys, monkeypatch):
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    precious = tmp_path / "precious.usda"
+    precious.write_text("x\n")
+    restore = _interrupt_after(monkeypatch, 2)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])) == 130
+    restore()
+    capsys.readouterr()
+    # resumed with --usd naming a file that was there before and that the run was never given: refused
+    # before any work (before: replaced without a word)
+    rc = main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume",
+                                  "--usd", str(precious)]))
+    err = capsys.readouterr().err
+    assert rc == 2 and "exists" in err and "without consent" in err, err
+    assert precious.read_text() == "x\n" and (out / "checkpoint.pkl").is_file() and not (out / "summary.json").exists()
+    # a file that is not there is this run's to write
+    fresh = tmp_path / "fresh.usda"
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume",
+                                    "--usd", str(fresh)])) == 0
+    assert fresh.read_text().startswith("#usda")
+
+    # consent given when the run started (--overwrite) holds for its resume, which cannot repeat --overwrite
+    given = tmp_path / "given.usda"
+    given.write_text("old\n")
+    restore = _interrupt_after(monkeypatch, 2)
+    argv = _argv(monkeypatch, ["run", str(scene), "--out", str(tmp_path / "o2"), "--no-progress", "--usd",
+                               str(given), "--overwrite"])
+    assert main(argv) == 130
+    restore()
+    cmd = capsys.readouterr().err.split("continue with: ")[1].strip().splitlines()[0]
+    assert "--overwrite" not in cmd
+    assert main(_argv(monkeypatch, shlex.split(cmd)[1:])) == 0
+    assert given.read_text().startswith("#usda")
+
+
+# ------------------------------------------------------------------------- 3: Ctrl-C while writing outputs
+
+
+def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_writes_them(tmp_path, capsys,
+                                                                                        monkeypatch):
+    import knitsim.io.patch_results as pr
+    from knitsim.patch import coupling
+    scene = _scene(tmp_path)
+    full = tmp_path / "full"
+    assert main(["run", str(scene), "--out", str(full), "--no-progress"]) == 0
+    out = tmp_path / "o"
+    real_write = pr.write_patch_results
+
+    def ctrl_c(*a, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pr, "write_patch_results", ctrl_c)
+    argv = _argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    # before: "knitsim: interrupted" alone, and the checkpoint held the last periodic one (done < total)
+    assert f"the solve is finished and kept: {N_PATCH}/{N_PATCH} increment(s) in the checkpoint" in err, err
+    cmd = err.split("without solving again, with: ")[1].strip().splitlines()[0]
+    assert cmd.endswith(" --resume")
+    # nothing that looks complete: the checkpoint alone (summary.json, written last, marks a complete set)
+    assert sorted(p.name for p in out.iterdir()) == ["checkpoint.pkl"]
+    monkeypatch.setattr(pr, "write_patch_results", real_write)
+
+    def no_solving(*a, **kw):
+        raise AssertionError("the finished solve was solved again")
+
+    monkeypatch.setattr(coupling.PatchSolver, "step", no_solving)
+    assert main(_argv(monkeypatch, shlex.split(cmd)[1:])) == 0
+    assert "holds the finished solve" in capsys.readouterr().err
+    assert not (out / "checkpoint.pkl").exists()
+    for name in ("curve.csv", "columns.csv"):                # the uninterrupted run's, bit for bit
+        assert (out / name).read_bytes() == (full / name).read_bytes(), name
+
+
+def test_an_interrupted_usd_export_leaves_no_file_that_looks_whole(tmp_path, capsys, monkeypatch):
+    import knitsim.usd.from_results as fr
+    scene = _scene(tmp_path)
+    out, usd = tmp_path / "o", tmp_path / "y.usda"
+
+    def half_then_ctrl_c(h, params, out_path, **kw):
+        Path(out_path).write_text("#usda 1.0\n(\n")             # a USD file cut off where the Ctrl-C came
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(fr, "export_history", half_then_ctrl_c)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--usd", str(usd)])) == 130
+    assert "the solve is finished and kept" in capsys.readouterr().err
+    assert not usd.exists() and not [p for p in tmp_path.iterdir() if "partial" in p.name]
+    assert not (out / "summary.json").exists() and (out / "checkpoint.pkl").is_file()
+
+
+# ------------------------------------------------------------------------------- 4: see test_force_cap_outputs
+# ------------------------------------------------------------------------- 5: knitsim usd of an unfinished run
+
+
+def test_knitsim_usd_of_an_unfinished_run_says_so_and_how_to_finish_it(tmp_path, capsys, monkeypatch):
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    restore = _interrupt_after(monkeypatch, 3)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])) == 130
+    restore()
+    capsys.readouterr()
+    rc = main(["usd", str(out), "--out", str(tmp_path / "y.usda")])
+    err = capsys.readouterr().err
+    # before: "no cells.nc (was the run made with output.cell_fields = false?)"
+    assert rc == 2 and "the run is unfinished" in err and f"holds 3/{N_PATCH} solved increment(s)" in err, err
+    cmd = err.split("finish it with (in ")[1].split("): ", 1)[1].split("; then run knitsim usd")[0]
+    assert cmd.startswith("knitsim run ") and cmd.endswith(" --resume")
+    assert main(_argv(monkeypatch, shlex.split(cmd)[1:])) == 0
+    assert main(["usd", str(out), "--out", str(tmp_path / "y.usda")]) == 0
+
+
+# -------------------------------------------------------------- 6: residual strain and first jamming, located
+
+CELL = """
+title = "E-glass, m = 0.45"
+[yarn]
+material = "e_glass"
+in_plane_width = 0.79
+[knit]
+material = "e_glass_plain"
+[friction]
+model = "coulomb"
+m = 0.45
+phi0 = 0.0
+[rules]
+force_cap_N = 50.0
+[load]
+type = "cycles"
+lower_strain = 0.1
+upper_strain = 0.6
+cycles = 1
+max_increment = 0.01
+"""
+
+
+def test_a_1x1_patch_locates_residual_strain_and_first_jamming_as_its_cell_does(tmp_path, capsys):
+    cell_scene = _scene(tmp_path, CELL, "cell.toml")
+    patch_scene = _scene(tmp_path, CELL.replace("[yarn]", "[patch]\nwales = 1\ncourses = 1\n[yarn]"), "patch.toml")
+    assert main(["cell", str(cell_scene), "--out", str(tmp_path / "c")]) == 0
+    assert main(["run", str(patch_scene), "--out", str(tmp_path / "r"), "--no-progress"]) == 0
+    capsys.readouterr()
+    with open(tmp_path / "c" / "events.csv", newline="") as fh:
+        events = list(csv.DictReader(fh))
+    slack = float(next(e for e in events if e["kind"] == "slack")["event_strain"])
+    jam = float(next(e for e in events if e["kind"] == "jam")["event_strain"])
+    with open(tmp_path / "c" / "curve.csv", newline="") as fh:
+        curve = [r for r in csv.DictReader(fh)]
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    (c1,) = s["cycles"]
+
+    # the residual: the slack length the cell located (the patch's cell is the cell, bit for bit), read
+    # through the column's slack length: equal to the rounding of (u + slack) / C0 against C / C0 - 1
+    assert c1["residual_grip_strain"] == pytest.approx(slack, abs=1e-12)
+    assert abs(0.15 - slack) > 1e-3                    # the row value reported before (0.15) is not it
+    assert c1["residual_grip_strain_from"] == "slack_lengths"
+
+    # the first jamming: the secant of q = W - 4 w through the two unjammed rows before the first jammed
+    # one, extrapolated to 0 at t past the last, errs by |q''| t (t + h) / (2 |q'|) <= |q''| h^2 / |q'|;
+    # q' and q'' from the cell's own rows (finite differences)
+    h = 0.01
+    b = next(k for k, r in enumerate(curve) if r["stage"] == "jamming")
+    q = np.array([float(curve[k]["W"]) - 4 * 0.79 for k in (b - 3, b - 2, b - 1)])
+    dq, d2q = (q[2] - q[1]) / h, (q[2] - 2 * q[1] + q[0]) / h ** 2
+    bound = abs(d2q) * h ** 2 / abs(dq)
+    assert abs(s["grip_strain_at_first_jamming"] - jam) <= bound, (s["grip_strain_at_first_jamming"], jam, bound)
+    row = float(curve[b]["strain"])                    # what was reported before: the first jammed row
+    assert abs(row - jam) > bound
+    assert s["grip_strain_at_first_jamming_from"].startswith("located between rows")
