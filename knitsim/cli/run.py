@@ -307,6 +307,8 @@ def _run(args) -> int:
                 peak += " (= force cap)"
             how = {"slack_lengths": "located", "linear": "between rows", "secant": "extrapolated"}.get(
                 c.get("residual_grip_strain_from"), "")
+            if c.get("held_rows"):
+                work += f" (includes {c['held_rows']} held row(s): not the knit's force)"
             print(f"cycle {c['cycle']}: peak {peak} at grip strain "
                   f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}"
                   f"{f' ({how})' if res is not None and how else ''}; {work}")

@@ -729,6 +729,10 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     # where columns stop converging for good, or after cells stopped at their cap with unloadings left, the
     # grip force is not the knit's: the cycle figures stop there (_run_stop)
     stop, cut_at, stop_warnings = _run_stop(h, model, layout, row_key, col_key, fc)
+    # rows whose grip force holds columns that are not the knit's (not converged, or a stopped cell's last
+    # state), other than at the force cap (its own warning): a cycle figure over them is not the knit's
+    held = (columns_held(h) > 0) & ~np.asarray(fc.rows, bool) if h.n_increments else np.zeros(0, bool)
+    held_in = []
     cycles = []
     for k in np.unique(h.cycle):
         rows = cycle_rows = np.nonzero(h.cycle == k)[0]
@@ -741,6 +745,10 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                  "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length),
                  # the peak is the cells' force cap, not the knit's response (warning force_cap_reached)
                  "peak_is_force_cap": bool(fc.rows[j])}
+        n_held = int(np.count_nonzero(held[rows]))
+        if n_held:
+            entry["held_rows"] = n_held
+            held_in.append((int(k), rows[held[rows]]))
         unload = rows[h.direction[rows] < 0]
         res = res_from = None
         if len(unload):
@@ -778,6 +786,13 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         else np.zeros((0, 2))
     nonfinite = np.nonzero(~np.isfinite(F))[0]
     warnings = stop_warnings + zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
+    if held_in:
+        warnings.append(ResultWarning("cycle_figures_include_held_rows", (
+            "the figures of cycle(s) " + ", ".join(
+                f"{k} ({len(r)} row(s), grip strains {e[r].min():.4g} to {e[r].max():.4g})" for k, r in held_in)
+            + " include rows whose force is held, not the knit's (a column that did not converge keeps its last "
+            "state; curve.csv's columns_held): their peak, work and hysteresis count a force the knit did not carry "
+            "there")))
     warnings += _cells_beyond_domain(h, layout, row_key, col_key, zones)
     if "interpenetrating" in h.groups:
         # the rows are grip strains; the cells where the heads overlap are at their own strains

@@ -132,6 +132,9 @@ from .model import Grouping
 
 #: bounds of the tangent dF/dC of a cell [N/mm]
 K_MIN, K_MAX = 1e-6, 1e6
+#: a column carrying force closes when its lengths add up to the grip displacement within this share of its rest
+#: length (rounding: the trial lengths are sent to add up to it exactly)
+LENGTH_RTOL = 1e-9
 #: column flags
 COL_OK, COL_NOT_CONVERGED, COL_STOPPED = 0, 1, 2
 COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STOPPED: "stopped"}
@@ -949,7 +952,13 @@ class PatchSolver:
             any_failed = self._colmax(np.where(g_live, failed.astype(float), 0.0), 0.0) > 0
             # a single-group column is the cell itself at the grip strain: its trial is final, failed
             # or not (a failed cell stops its column, flagged, exactly as the single cell stops)
-            conv = live & (single_cls | (~any_failed & ((((Fmax - Fmin) <= tol) & (Fstar > 0))
+            # a column carrying force must also close: its lengths add up to u.  By construction where every
+            # cell reaches the length it was sent to; not where the direction kept them from it (unloading
+            # from a column held short of the grip, which had not converged: the cells keep the held lengths,
+            # their forces agree, and the grip is elsewhere; a blind probe found such rows reported ok)
+            gap = np.abs(self._colsum(np.where(g_live, cnt * (t["C"] - C0), 0.0)) - u)
+            closes = gap <= LENGTH_RTOL * self._colsum(cnt * C0)
+            conv = live & (single_cls | (~any_failed & ((((Fmax - Fmin) <= tol) & (Fstar > 0) & closes)
                                                          | (all_slack & (Fstar == 0)))))
             if np.any(conv):
                 be.accept(conv[col])

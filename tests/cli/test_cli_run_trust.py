@@ -344,3 +344,58 @@ def test_a_1x1_patch_locates_residual_strain_and_first_jamming_as_its_cell_does(
     row = float(curve[b]["strain"])                    # what was reported before: the first jammed row
     assert abs(row - jam) > bound
     assert s["grip_strain_at_first_jamming_from"].startswith("located between rows")
+
+
+HELD_SERIES = """
+title = "series 1x2, C0 2.7 + 3.0, jams below its cap"
+[patch]
+wales = 1
+courses = 2
+dedup = false
+[yarn]
+material = "e_glass"
+in_plane_width = 0.79
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.45
+[rules]
+force_cap_N = 10.0
+[load]
+type = "cycles"
+lower_strain = 0.10
+upper_strain = 0.60
+cycles = 2
+max_increment = 0.01
+[[zones]]
+label = "long"
+courses = [1, 2]
+wales = [0, 1]
+knit = { C0 = 3.0 }
+"""
+
+
+def test_rows_after_a_held_column_are_not_reported_as_the_knits(tmp_path, capsys):
+    """Two cells in series between rigid grips: where the column carries load, their elongations add up to
+    the grip displacement, sum C0 (C/C0 - 1) = u (identity).  This column jams and cannot follow the grip from
+    0.55 to 0.6 (not converged, held: 9.705 N, below its cap).  Unloading from 0.6, the cells were kept at the
+    held lengths by the direction of the increment, their forces agreed, and the rows at grip 0.59 to 0.56 were
+    reported ok (1 trial, columns_held 0) with the lengths 0.057 to 0.228 mm short of the grips (a blind
+    probe).  Every row reported the knit's must close, the others are held, and the summary says that the
+    cycle figures include held rows."""
+    out = tmp_path / "o"
+    rc = main(["run", str(_scene(tmp_path, HELD_SERIES)), "--out", str(out), "--no-progress", "--json"])
+    s = json.loads(capsys.readouterr().out)
+    assert rc == 1
+    import xarray as xr
+    with xr.open_dataset(out / "cells.nc") as ds:
+        e, C0, g = ds.strain.values[:, :, 0], ds.C0.values[:, 0], ds.grip_strain.values
+    with open(out / "curve.csv") as f:
+        held = np.array([int(r["columns_held"]) for r in csv.DictReader(f)][1:])      # row 0: the rest state
+    gap = np.abs((C0 * e).sum(axis=1) - g * C0.sum())
+    knit = held == 0
+    assert knit.sum() > 150 and gap[knit].max() <= 1e-9 * C0.sum()
+    assert np.all(held[gap > 1e-6] > 0) and (gap > 1e-3).sum() == 18           # 0.56 .. 0.6 and back, twice
+    (w,) = [w for w in s["warnings"] if w["code"] == "cycle_figures_include_held_rows"]
+    assert "cycle(s) 1 (9 row(s), grip strains 0.56 to 0.6), 2 (9 row(s)" in w["message"]
+    assert [c.get("held_rows") for c in s["cycles"]] == [9, 9]
