@@ -32,6 +32,7 @@ class OdeShape:
     x_C: float      #: X_C - X_A
     y_C: float      #: Y_C
     curvature_C: float  #: theta'(C), so that B theta'(C) is the moment at C
+    bending_energy: float = float("nan")  #: (B/2) int theta'^2 ds from A to C [N mm], accumulated along the rod
 
     @property
     def X_A(self) -> float:
@@ -71,7 +72,7 @@ def integrate_quarter_loop(alpha, beta, gamma, phi, P, B, *, rtol=1e-13, atol_re
 
     def rhs_ab(_s, z):
         m = cross(z[:2], fa)
-        return [np.cos(z[2]), np.sin(z[2]), m / B]
+        return [np.cos(z[2]), np.sin(z[2]), m / B, 0.5 * m * m / B]
 
     def at_beta(_s, z):
         return z[2] - beta
@@ -80,7 +81,7 @@ def integrate_quarter_loop(alpha, beta, gamma, phi, P, B, *, rtol=1e-13, atol_re
 
     # the AB leg is ~ lam ln(1/(alpha - gamma)) long; give generous room
     s_max = lam * (50.0 + 4.0 * np.log(1.0 / max(alpha - gamma, 1e-300)))
-    sol1 = solve_ivp(rhs_ab, (0.0, s_max), [0.0, 0.0, alpha], method=method, rtol=rtol,
+    sol1 = solve_ivp(rhs_ab, (0.0, s_max), [0.0, 0.0, alpha, 0.0], method=method, rtol=rtol,
                      atol=atol, events=at_beta)
     if sol1.status != 1:
         raise RuntimeError("ode_check: theta never reached beta on AB")
@@ -90,14 +91,14 @@ def integrate_quarter_loop(alpha, beta, gamma, phi, P, B, *, rtol=1e-13, atol_re
 
     def rhs_bc(_s, z):
         m = cross(z[:2], fa) + cross(z[:2] - r_b, r_vec)
-        return [np.cos(z[2]), np.sin(z[2]), m / B]
+        return [np.cos(z[2]), np.sin(z[2]), m / B, 0.5 * m * m / B]
 
     def at_pi(_s, z):
         return z[2] - np.pi
     at_pi.terminal = True
     at_pi.direction = 1.0
 
-    sol2 = solve_ivp(rhs_bc, (s_b, s_b + s_max), [z_b[0], z_b[1], beta], method=method,
+    sol2 = solve_ivp(rhs_bc, (s_b, s_b + s_max), [z_b[0], z_b[1], beta, z_b[3]], method=method,
                      rtol=rtol, atol=atol, events=at_pi)
     if sol2.status != 1:
         raise RuntimeError("ode_check: theta never reached pi on BC")
@@ -105,4 +106,4 @@ def integrate_quarter_loop(alpha, beta, gamma, phi, P, B, *, rtol=1e-13, atol_re
     z_c = sol2.y_events[0][0]
     m_c = cross(z_c[:2], fa) + cross(z_c[:2] - r_b, r_vec)
     return OdeShape(s_AB=s_b, s_BC=s_c - s_b, x_B=float(r_b[0]), y_B=float(r_b[1]),
-                    x_C=float(z_c[0]), y_C=float(z_c[1]), curvature_C=float(m_c / B))
+                    x_C=float(z_c[0]), y_C=float(z_c[1]), curvature_C=float(m_c / B), bending_energy=float(z_c[3]))

@@ -136,6 +136,30 @@ def closing_force(alpha, beta, gamma, phi, B, d, *, a=None):
     return np.where((xhat > 0.0) & (target > 0.0), p, np.nan)
 
 
+def stored_energy(alpha, beta, gamma, phi, P, B, *, a=None, rho=None):
+    """Bending energy ``U = (B/2) int_A^C theta'^2 ds`` of the quarter stitch [N mm] (NaN where inadmissible).
+
+    From the first integrals of eqs 8-9 (:mod:`knitsim.cell.elastica`), ``(B/2) theta'^2 = P (cos a - cos u)``
+    on AB and ``P D(v)`` on BC, the integrals of the shape give it in closed form::
+
+        U / (P sqrt(B/P)) = s_AB cos(a) - x0_AB + (delta - k1' cos v_B) s_BC + k1' x_BC
+
+    (``x0_AB = int cos u ds``, ``x_BC = int cos v ds``, in units sqrt(B/P)).  A stitch holds four quarter
+    stitches.  What it is for: the work put into a stitch, ``int F dC`` per wale, is its stored energy
+    ``4 U`` plus what friction dissipated; on a path without slip the work must equal ``4 dU``
+    (virtual work), and over any path the dissipation ``int F dC - 4 dU`` cannot fall
+    (:func:`knitsim.io.checks.energy_balance`).  ``a`` and ``rho`` as for :func:`quarter_loop`.
+    """
+    sh = _shape(alpha, beta, gamma, phi, a, rho)
+    P = np.asarray(P, dtype=np.float64)
+    u_b = sh["beta"] - sh["gamma"]
+    delta = elastica.bc_delta(sh["a"], u_b)
+    v_b = np.pi - sh["beta"]
+    dimless = (sh["s_ab"] * np.cos(sh["a"]) - sh["x0"] + (delta - sh["k1p"] * np.cos(v_b)) * sh["s_bc"]
+               + sh["k1p"] * sh["x_bc"])
+    return P * np.sqrt(np.asarray(B, dtype=np.float64) / P) * dimless
+
+
 def quarter_loop(alpha, beta, gamma, phi, P, B, d, *, a=None, rho=None) -> QuarterLoop:
     """Forward map: angles and force -> :class:`QuarterLoop` (eqs 6-9).
 

@@ -31,6 +31,7 @@ and printed by the commands:
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -74,8 +75,8 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     -------
     list of (i, j)
         ``strain[i] == strain[j]`` (within ``atol``) with one turning point, a maximum, strictly between.
-        An unload-reload excursion from a peak is not one: it comes back with less stored bending
-        energy (the contact slid back), so its work can be negative without energy being created.
+        An unload-reload excursion from a peak is not one (:func:`reload_excursions`): it may come back
+        with less stored bending energy, so its work alone does not tell.
     """
     s = np.asarray(strain, float)
     ds = np.sign(np.diff(s))
@@ -90,6 +91,24 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     return out
 
 
+def reload_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, int]]:
+    """Unload-then-reload excursions from a peak that come back to its strain: ``(i, j)`` with ``i`` a
+    maximum turning point, ``strain[j] == strain[i]`` (within ``atol``) and one turning point, a minimum,
+    strictly between (:func:`closed_excursions` gives the load-then-unload ones)."""
+    s = np.asarray(strain, float)
+    ds = np.sign(np.diff(s))
+    turns = [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+    out = []
+    for n, t in enumerate(turns[:-1]):
+        if s[t] <= s[t - 1]:
+            continue                                    # a minimum
+        end = turns[n + 2] if n + 2 < len(turns) else len(s) - 1
+        back = [k for k in range(turns[n + 1] + 1, end + 1) if abs(s[k] - s[t]) < atol]
+        if back:
+            out.append((t, back[0]))
+    return out
+
+
 def loop_work_tolerance(strain: np.ndarray, force: np.ndarray) -> float:
     """Rounding of ``oint F d(strain)`` by trapezoids over a loop's rows [N per unit strain]."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
@@ -97,8 +116,11 @@ def loop_work_tolerance(strain: np.ndarray, force: np.ndarray) -> float:
 
 
 def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
-                          what: str = "the cell", atol: float = 1e-12) -> list[ResultWarning]:
-    """Warnings for closed load-then-unload excursions whose work ``oint F dC`` is negative.
+                          what: str = "the cell", atol: float = 1e-12,
+                          stored_at: Callable[[int], float] | None = None) -> list[ResultWarning]:
+    """Warnings for closed load-then-unload excursions whose work ``oint F dC`` is negative, and, with
+    ``stored_at``, for unload-then-reload excursions from a peak whose work is negative while the stored
+    bending energy did not fall.
 
     Parameters
     ----------
@@ -113,6 +135,16 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
         ``delta = |s_j - s_i|`` differs from a closed one by at most ``max|F| delta`` of work (the segment
         that would close it), added to the rounding tolerance: only a loop that returns energy beyond it
         is flagged.
+    stored_at : callable, optional
+        ``stored_at(k)``: the bending energy stored in one stitch at row ``k`` [N mm], four quarter stitches
+        (:func:`knitsim.cell.quarter_loop.stored_energy`).  An unload-reload loop from a peak ends in
+        another state than it started (the state is path-dependent), so its work ``W`` may be negative by
+        the stored energy it released, ``W = dU + D`` with friction's ``D >= 0``; where ``W < 0`` and
+        ``dU >= 0`` nothing was released and the loop created energy (a blind probe: m = 0.2, phi0 = 0.19,
+        0.6 -> 0.1 -> 0.6: W = -3.3e-3 N mm, dU = +3.4e-3 N mm, the reload pocket of cycle 2; -2.29e-3 N mm
+        at increments of 5e-4).  The work by trapezoids is judged against its error bound where the force is
+        monotone between rows, half of ``|dF| |dC|`` summed: a force that drops to slack inside one increment
+        would otherwise pass for energy created.  Without ``stored_at`` these loops are not judged.
 
     A loop that starts at a compressive rest state (``force[0] < 0``: Table 4's initial state at C0, W0
     needs the grips to push) is not judged: that state is not free, and a path that comes back to its
@@ -136,6 +168,26 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"per wale < 0; force {f[j]:.3g} N back at strain {s[j]:g} against {f[i]:.3g} N on the way up): not "
                 f"a hysteresis; friction only dissipates, the energy comes from Table 4's frozen force closures (T "
                 f"frozen on unloading from a jammed state) (README, 'Loops that return energy')"))
+    if stored_at is None:
+        return out
+    for i, j in reload_excursions(s, atol):
+        w = dissipated_energy(s[i:j + 1], f[i:j + 1])
+        gap = abs(s[j] - s[i]) * float(np.max(np.abs(f[i:j + 1])))
+        # the trapezoids' error where the force is monotone between rows: at most half the rectangle of each
+        # increment (an unloading from a peak drops steeply, often going slack inside an increment)
+        between = 0.5 * float(np.sum(np.abs(np.diff(f[i:j + 1])) * np.abs(np.diff(s[i:j + 1]))))
+        tol = loop_work_tolerance(s[i:j + 1], f[i:j + 1]) + gap + between
+        if not (np.isfinite(w) and w < -tol):
+            continue
+        dU = float(stored_at(j)) - float(stored_at(i))
+        if np.isfinite(dU) and dU >= -tol * C0:
+            low = float(np.min(s[i:j + 1]))
+            out.append(ResultWarning(
+                "loop_creates_energy",
+                f"{what}: the loop {s[i]:g} -> {low:g} -> {s[i]:g} (unloaded from a peak and reloaded) returns energy "
+                f"(oint F dC = {w * C0:.3g} N mm per wale < 0; force {f[j]:.3g} N back at strain {s[j]:g} against "
+                f"{f[i]:.3g} N at the peak) while the bending energy stored in the stitch rose by {dU:.3g} N mm: no "
+                f"stored energy was released; it comes from Table 4's closures (README, 'Loops that return energy')"))
     return out
 
 

@@ -888,7 +888,9 @@ def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[
 
     Each distinct cell (group) is checked on its own path, rest state first, by
     :func:`knitsim.io.checks.energy_creating_loops` (closure within :data:`PATCH_LOOP_ATOL`, the open end's
-    work added to the tolerance).  Only where a cell's path has closed loops can the flag fire.
+    work added to the tolerance).  Only where a cell's path has closed loops can the flag fire.  Unload-reload
+    loops from a peak are judged on single cells and sweeps only (``stored_at``, from the cell's angles and P):
+    a patch keeps no angles per row.
     """
     if h.group_rest is None or not h.n_increments:
         return []

@@ -177,6 +177,19 @@ def rules_of(params) -> dict:
     return out
 
 
+
+def _stitch_energy(h, cell: int, B: float):
+    """``k -> `` the bending energy stored in one stitch (four quarter stitches) at row k of the path whose
+    row 0 is the rest state (:func:`knitsim.cell.quarter_loop.stored_energy`)."""
+    from ..cell.quarter_loop import stored_energy
+
+    names = ("alpha", "beta", "gamma", "phi", "P")
+
+    def at(k: int) -> float:
+        src = h.rest if k == 0 else {n: h.values[n][k - 1] for n in names}
+        return 4.0 * float(stored_energy(*(src[n][cell] for n in names), B))
+    return at
+
 def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None) -> dict:
     """Summary numbers of one cell.
 
@@ -276,7 +289,8 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         warnings += compressive_rest_state(h.rest["F"][cell])
     if h.rest is not None and n_ok:
         warnings += energy_creating_loops(np.concatenate([[0.0], h.strain[:n_ok]]),
-                                          np.concatenate([[h.rest["F"][cell]], F[:n_ok]]), p.C0)
+                                          np.concatenate([[h.rest["F"][cell]], F[:n_ok]]), p.C0,
+                                          stored_at=_stitch_energy(h, cell, p.B))
     if "interpenetrating" in h.values:
         warnings += interpenetration(h.strain[:n_ok], h.values["interpenetrating"][:n_ok, cell],
                                      h.values["head_gap"][:n_ok, cell], p.d_jam, direction=h.direction[:n_ok])

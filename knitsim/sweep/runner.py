@@ -900,10 +900,11 @@ def assemble(out_dir: str | Path):
         "final_status": "status code at the end: " + ", ".join(f"{k} {v}" for k, v in STATUS_NAMES.items())
                         + ", -1 not run",
         "expected_end": "1 if the cell completed the program or stopped at the force cap",
-        "loop_creates_energy": "1 if a closed load-then-unload loop of the cell returns energy (oint F dC < 0: "
-                               "warning loop_creates_energy, knitsim.io.checks.energy_creating_loops; Table 4's "
-                               "frozen force closures after a jammed reversal, README 'Loops that return "
-                               "energy'), 0 if none does, -1 not solved or unknown",
+        "loop_creates_energy": "1 if a closed load-then-unload loop of the cell returns energy (oint F dC < 0), or "
+                               "an unload-reload loop from a peak does while the stitch's stored bending energy "
+                               "did not fall (warning loop_creates_energy, knitsim.io.checks.energy_creating_loops; "
+                               "Table 4's frozen force closures, README 'Loops that return energy'), 0 if none "
+                               "does, -1 not solved or unknown",
         "rest_state_compressive": "1 if the cell's rest state carries a compressive force (F < 0 at C0, W0: the knit "
                                   "is not free at rest; warning rest_state_compressive, knitsim.io.checks."
                                   "compressive_rest_state; its loops from rest are not judged for energy), 0 if not, "

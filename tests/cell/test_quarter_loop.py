@@ -140,3 +140,17 @@ def test_centreline_runs_from_a_through_b_to_c():
     heading = np.arctan2(np.diff(c["Y"]), np.diff(c["X"]))
     mid = 0.5 * (c["theta"][1:] + c["theta"][:-1])
     assert np.max(np.abs(heading - mid)) < 2e-2
+
+
+@pytest.mark.parametrize("state", _random_states(6, seed=23))
+def test_stored_energy_is_the_integrated_rods(state):
+    """The closed form of the bending energy (``stored_energy``: P sqrt(B/P) times the shape's integrals)
+    against the rod integrated from A to C with solve_ivp, accumulating (B/2) theta'^2 = M^2 / (2 B) along
+    it (``ode_check``: an independent method), and its units: U scales with B at fixed angles and P B."""
+    from knitsim.cell.quarter_loop import stored_energy
+    al, be, ga, ph, p = state
+    o = integrate_quarter_loop(al, be, ga, ph, p, B)
+    u = float(stored_energy(al, be, ga, ph, p, B))
+    assert u > 0 and u == pytest.approx(o.bending_energy, rel=1e-8)
+    # (B/2) theta'^2 ds with theta' ~ sqrt(P/B): U = sqrt(B P) x (a function of the angles)
+    assert float(stored_energy(al, be, ga, ph, 4.0 * p, B)) == pytest.approx(2.0 * u, rel=1e-12)
