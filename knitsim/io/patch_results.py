@@ -883,14 +883,29 @@ def _compressive_rest_cells(h: PatchHistory, row_key: str, col_key: str) -> list
         f"{' ...' if bad.size > 10 else ''}; the first: {first}")]
 
 
+def _group_stitch_energy(h: PatchHistory, g: int):
+    """``k ->`` the bending energy stored in one stitch of group ``g`` at row k of its path, row 0 its rest
+    state (:func:`knitsim.cell.quarter_loop.stored_energy`); None where the history keeps no angles."""
+    rest = h.group_rest or {}
+    if "x" not in h.groups or "x" not in rest or "B" not in rest:
+        return None
+    from ..cell.quarter_loop import stored_energy
+
+    def at(k: int) -> float:
+        x = rest["x"][g] if k == 0 else h.groups["x"][k - 1, g]
+        return 4.0 * float(stored_energy(*x, rest["B"][g]))
+    return at
+
+
 def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:
     """One warning naming the distinct cells with a closed loop that returns energy (oint F dC < 0).
 
     Each distinct cell (group) is checked on its own path, rest state first, by
     :func:`knitsim.io.checks.energy_creating_loops` (closure within :data:`PATCH_LOOP_ATOL`, the open end's
-    work added to the tolerance).  Only where a cell's path has closed loops can the flag fire.  Unload-reload
-    loops from a peak are judged on single cells and sweeps only (``stored_at``, from the cell's angles and P):
-    a patch keeps no angles per row.
+    work added to the tolerance).  Only where a cell's path has closed loops can the flag fire.  Loops that
+    start on a loading and unload-reload loops from a peak are judged with the stitch's stored bending energy
+    (``stored_at``: the group's angles and P of each row, ``groups["x"]``, and of its rest state), where the
+    history keeps them.
     """
     if h.group_rest is None or not h.n_increments:
         return []
@@ -904,7 +919,7 @@ def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[
         n = int(np.argmin(h.groups["status"][:, g] == STATUS_OK)) if not ok[g] else h.n_increments
         s = np.concatenate([[h.group_rest["C"][g]], g_C[:n, g]]) / C0[g] - 1.0
         f = np.concatenate([[h.group_rest["F"][g]], g_F[:n, g]])
-        w = energy_creating_loops(s, f, C0[g], atol=PATCH_LOOP_ATOL)
+        w = energy_creating_loops(s, f, C0[g], atol=PATCH_LOOP_ATOL, stored_at=_group_stitch_energy(h, g))
         if w:
             flagged[g] = w[0].message
     if not flagged:

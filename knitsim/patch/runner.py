@@ -83,7 +83,8 @@ class PatchHistory:
         Grip force and force per wale of the rest state, before the first increment (the model's
         rest force is not zero; a column's is the mean of its cells').
     group_rest : dict of str to ndarray, optional
-        Per group, its rest state before the first increment: ``C`` [mm] and ``F`` [N], shape [n_groups].
+        Per group, its rest state before the first increment: ``C`` [mm] and ``F`` [N], shape [n_groups],
+        ``x`` (shape [n_groups, 5], as ``groups["x"]``), and the group's bending stiffness ``B`` [N mm^2].
     wall_s : float
         Seconds spent solving (this run plus the runs it resumed).
     """
@@ -259,6 +260,10 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     solver = PatchSolver(grouping, engine, device, **solver_options)
     # the rest state (before any increment, and before a resume restores a later one)
     group_rest = {k: np.asarray(solver.cells[k], float).copy() for k in ("C", "F")}
+    # its angles and P, and each group's B: the stored bending energy of the rest state (the energy check of
+    # knitsim.io.patch_results judges loops that start on a loading with it)
+    group_rest["x"] = _committed_geometry(solver.backend)[0]
+    group_rest["B"] = np.asarray(grouping.cells["B"], float).copy()
     cnt = grouping.group_count.astype(float)
     n_cls = grouping.n_classes
     pw = np.asarray(grouping.group_wales, float)

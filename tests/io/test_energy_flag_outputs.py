@@ -118,3 +118,18 @@ def test_an_unload_reload_loop_from_a_peak_that_creates_energy_is_flagged():
             assert f"{work:.3g}" in x["message"]
         else:
             assert work > 0 and w == []
+
+
+def test_a_patch_judges_a_loop_from_the_loading_as_its_cell_does():
+    """The head-gap contact cell (E-glass, w = 0.88 mm, Table 1) on the paper's program 0.1-0.6: its first
+    loop, from the loading at 0.1 through the jam and back, returns 1.79 N mm per wale while its stored
+    bending energy rises (tests/io/test_checks.py, the cell's own summary).  A uniform 2 x 1 patch of it is
+    its cell bit for bit (README, 'Patches'), and its summary must say the same (the group's angles of
+    every row, groups["x"], and of its rest state, group_rest["x"])."""
+    from knitsim.cell.load_program import cycles
+
+    contact = E_GLASS.replace(jamming_criterion="head_gap", in_plane_width=0.88, force_cap_N=50.0)
+    h = run_patch(PatchModel.uniform(contact, 2, 1), cycles(0.10, 0.60, 2, 0.02))
+    (w,) = [w for w in patch_summary(h, h.info["ref_length_mm"])["warnings"] if w["code"] == "loop_creates_energy"]
+    assert "the loop 0.1 -> 0.6 -> 0.1 (from the loading at strain 0.1)" in w["message"]
+    assert "oint F dC = -1.79 N mm per wale" in w["message"]
