@@ -264,6 +264,7 @@ class Localisation:
     keys: list
     stages: dict
     where: list                 # stage keys, largest share first
+    weights: np.ndarray | None = None   # 1 / noise sd of every row (the stages' chi^2)
 
 
 @dataclass
@@ -1161,19 +1162,22 @@ def final_fits_step(data: _Data, base_fit: dict, fits: dict, disc: Discretisatio
     return fdata, base_f, out
 
 
-def _stages(measured, simulated, keys, keep) -> dict:
-    g = stage_gap(measured[keep], simulated[keep], [k for k, ok in zip(keys, keep) if ok])
-    return {k: {"n": v["n"], "rms_N": v["rms_N"], "max_abs_N": v["max_abs_N"], "share": v["share"],
-                "sse_N2": v["sse_N2"]} for k, v in g["stages"].items()}
+def _stages(measured, simulated, keys, keep, weights=None) -> dict:
+    g = stage_gap(measured[keep], simulated[keep], [k for k, ok in zip(keys, keep) if ok],
+                  None if weights is None else np.asarray(weights)[keep])
+    return {k: {n: v[n] for n in ("n", "rms_N", "max_abs_N", "share", "sse_N2", "chi2", "chi2_excess") if n in v}
+            for k, v in g["stages"].items()}
 
 
-def localise_step(base_fit: dict, measured: np.ndarray, keep: np.ndarray) -> Localisation:
-    """Step 4: the gap per stage key of the calibrated baseline (rows kept by the fit)."""
+def localise_step(base_fit: dict, measured: np.ndarray, keep: np.ndarray,
+                  weights: np.ndarray | None = None) -> Localisation:
+    """Step 4: the gap per stage key of the calibrated baseline (rows kept by the fit), ranked by the
+    stages' chi^2 excess over noise where the rows' ``weights`` (1 / sd) are given (:func:`stage_gap`)."""
     keys = [k for c in base_fit["curves"] for k in c["keys"]]
     sim = np.concatenate([c["simulated"] for c in base_fit["curves"]])
-    stages = _stages(measured, sim, keys, keep)
+    stages = _stages(measured, sim, keys, keep, weights)
     where = sorted(stages, key=lambda k: -np.nan_to_num(stages[k]["share"]))
-    return Localisation(keys, stages, where)
+    return Localisation(keys, stages, where, weights)
 
 
 def adequacy_step(data: _Data, base_fit: dict, noise: NoiseModel) -> Adequacy:
@@ -1207,7 +1211,7 @@ def _summary(fit: dict, loc: Localisation, measured: np.ndarray, keep: np.ndarra
     rss = float(e @ e)
     flagged = [c["source"] for c in fit["curves"] if c["final_status"] not in ("ok", "force_cap")]
     return {"params": dict(fit["values"]), "std_errors": dict(fit["std_errors"]), "rms_N": math.sqrt(rss / n),
-            "rss_N2": rss, "chi2": fit["chi2"], "k": fit["k"], "stages": _stages(measured, sim, loc.keys, keep),
+            "rss_N2": rss, "chi2": fit["chi2"], "k": fit["k"], "stages": _stages(measured, sim, loc.keys, keep, loc.weights),
             "shrink": 1.0 - math.sqrt(rss / base["rss_N2"]) if base["rss_N2"] > 0 else 0.0,
             "score": base["chi2"] - fit["chi2"] - (fit["k"] - base["k"]) * math.log(n),
             "flagged_curves": flagged, "nfev": fit["nfev"], "at_bounds": dict(fit.get("at_bounds") or {})}
@@ -1452,6 +1456,9 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
                        f"the largest gap is in stage {stage}; the probabilities weigh the candidates and none "
                        "against each other only, and none of them fits within the noise", [], probs)
     best = named[0]
+    # where the named effect changes the fit most, in squared newtons: the stage where it acts on the force
+    # most (the blind study's measure of localisation, the noise-free curves' largest change; ranked by the
+    # stages' chi^2 instead, its score fell from 64.9 to 33.3 %: chi^2 points at the quieter curve's stages)
     drops = {k: base["stages"][k]["sse_N2"] - best.stages.get(k, {}).get("sse_N2", 0.0) for k in base["stages"]}
     where = max(drops, key=drops.get) if drops else stage
     rivals = [p[1] for p in indist if p[0] == best.effect] + [p[0] for p in indist if p[1] == best.effect]
@@ -1467,6 +1474,15 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
     if best.within_noise is False:
         reason += (f"; with it the model still misses the curves beyond their noise (chi2/dof = "
                    f"{best.chi2_per_dof:.4g}): a further cause remains")
+    if adequacy.within_noise is False and best.share_of_excess is not None and best.share_of_excess < PRACTICAL_SHARE:
+        # named (the size rule asks its share of what the excess is at least), but offered as *the* explanation
+        # it should be the larger part of the gap, and its share of the excess as measured is not: a blind
+        # probe's stiffer yarn with B held fixed (forces x 1.3) was named normal_load_friction, confident,
+        # removing 48 %; the study's one named effect below half (case 77) was a wrong one
+        confident = False
+        reason += (f"; it removes {best.share_of_excess:.0%} of the baseline's excess over noise, less than half: the "
+                   "larger part of the gap may have another cause (a property held fixed, such as B, whose scatter the "
+                   "effect stands in for: free it to see)")
     if assumed:
         reason += f"; the noise of {', '.join(assumed)} is assumed, not measured"
         if best.rests_on_assumed_noise:
@@ -1564,7 +1580,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     data, base_fit, fits = final_fits_step(data, base_fit, fits, disc, say)
     keep = np.concatenate([w > 0 for w in data.weights])
     n = int(np.count_nonzero(keep))
-    loc = localise_step(base_fit, measured, keep)
+    loc = localise_step(base_fit, measured, keep, np.concatenate(data.weights))
     base = _summary(base_fit, loc, measured, keep, {"rss_N2": 1.0, "chi2": base_fit["chi2"], "k": base_fit["k"]}, n)
     for key in ("shrink", "score"):
         base.pop(key)

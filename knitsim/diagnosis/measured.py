@@ -394,9 +394,56 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         if len(bad):
             raise KnitsimInputError(f"{source}: row {row(bad[0])}, column rate_mm_s: {float(r[bad[0]]):g} must be > 0")
     clean = _monotone(s, d)
+    refuse_merged_branches(source, clean, f, c, d, row)
     noise = curve_noise(clean, f, c, d, source, noise_N)
     refuse_negative_force(source, f, noise, row)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
+
+
+#: rows at one strain that differ by more than this many times the curve's scatter between strains are
+#: readings of different branches (:func:`refuse_merged_branches`)
+MERGED_REPEAT_RATIO = 5.0
+#: ... on at least this many strains, and this share of the curve's distinct strains
+MERGED_MIN_STRAINS = 10
+MERGED_MIN_SHARE = 0.1
+
+
+def refuse_merged_branches(source: str, strain, force, cycle, direction, row) -> None:
+    """Refuse a curve whose rows at one strain are readings of different branches, not one reading twice.
+
+    A logger faster than the extensometer writes the force twice at one strain, and the two differ by the
+    noise (:func:`knitsim.diagnosis.noise.repeat_differences`).  A file sorted by strain (a spreadsheet sort,
+    its row order lost) puts the loading, the unloading and the reloading at one strain next to each other:
+    their forces differ by the hysteresis, many times the scatter between neighbouring strains, and the
+    curve as read (one branch, the force jumping up and down) is no measurement; a blind probe's sorted file
+    had its noise estimated at 96.5 % of the force and an effect named with confidence.  Refused where the
+    robust sd of the differences at one strain exceeds :data:`MERGED_REPEAT_RATIO` times that of the
+    chord deviations, on at least :data:`MERGED_MIN_STRAINS` strains and :data:`MERGED_MIN_SHARE` of the
+    distinct strains (a relaxation hold at a few strains is not caught: its rows are one branch).  Branches
+    read on grids of their own and interleaved by a sort are not caught either: the chords between their
+    rows are no scatter, and the ratio does not show."""
+    from .noise import MAD_TO_SD, MIN_SAMPLES, _repeats, chord_residuals
+
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    rep, _ = _repeats(s, f, cycle, direction)
+    chords = chord_residuals(s, f, cycle, direction)
+    n_strains = len(np.unique(s))
+    if len(rep) < max(MERGED_MIN_STRAINS, MERGED_MIN_SHARE * n_strains) or len(chords) < MIN_SAMPLES:
+        return
+    repeated = len(np.unique(s[1:][(s[1:] == s[:-1])]))
+    sd_rep = MAD_TO_SD * float(np.median(rep))
+    sd_chord = MAD_TO_SD * float(np.median(chords))
+    if repeated < max(MERGED_MIN_STRAINS, MERGED_MIN_SHARE * n_strains) or not sd_rep > MERGED_REPEAT_RATIO * sd_chord:
+        return
+    same = np.nonzero((s[1:] == s[:-1]) & (np.asarray(cycle)[1:] == np.asarray(cycle)[:-1])
+                      & (np.asarray(direction)[1:] == np.asarray(direction)[:-1]))[0]
+    i = int(same[np.argmax(np.abs(np.diff(f)[same]))])
+    raise KnitsimInputError(
+        f"{source}: rows {row(i)} and {row(i + 1)} read {float(f[i]):g} and {float(f[i + 1]):g} N at one strain "
+        f"{float(s[i]):g}; on {repeated} strains the rows at one strain differ by {sd_rep / max(sd_chord, 1e-300):.3g} "
+        f"times the curve's scatter between strains (robust sd {sd_rep:.3g} against {sd_chord:.3g} N): readings of "
+        "different branches, not of one state.  Was the file sorted by strain (its row order lost), or are its "
+        "cycles written without cycle / direction columns?  Give the rows in the order they were measured")
 
 
 def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

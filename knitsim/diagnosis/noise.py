@@ -88,6 +88,9 @@ KAPPA = 1.0
 LEVEL_LR_MIN = 10.83
 #: ... and by at least this factor between the 5th and 95th percentile of the curve's forces
 LEVEL_GROWTH_MIN = 1.5
+#: ... and by at most this share of the force (no load cell scatters by more than a tenth of its reading:
+#: a larger share is the curve's own shape or merged branches, not noise)
+LEVEL_SHARE_MAX = 0.1
 #: samples per bin of force for the level model's robust start, and bins at least
 LEVEL_BIN_SAMPLES = 20
 LEVEL_MIN_BINS = 3
@@ -327,7 +330,7 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
                 a, b, lr = grows
                 lo, hi = np.percentile(np.maximum(lc, 0.0), [5.0, 95.0])
                 growth = (a + b * hi) / (a + b * lo)
-                if lr > LEVEL_LR_MIN and growth > LEVEL_GROWTH_MIN:
+                if lr > LEVEL_LR_MIN and growth > LEVEL_GROWTH_MIN and b <= LEVEL_SHARE_MAX:
                     return CurveNoise(source, a, "estimated", len(z), True,
                                       how + f"; the sd grows with the force, {a:.3g} N + {100.0 * b:.3g} % of it "
                                       f"(x{growth:.3g} over the curve's forces; likelihood ratio {lr:.3g} against one sd)",

@@ -462,3 +462,23 @@ def test_a_verdict_on_curves_that_carry_almost_no_force_is_not_confident():
     d = diagnose([c], DiagnosisSetup(base=NOMINAL, effects=("yarn_extension",), pair=False))
     assert MIN_LOADED_ROWS == 10 and not d.verdict.confident
     assert "only 2 of 60 rows (3%) carry force above 5 noise sd" in d.verdict.reason
+
+
+def test_an_effect_that_removes_less_than_half_of_a_clear_excess_is_not_confident():
+    """Step 8 on hand-set candidates: a baseline beyond its noise (chi2 1,493 on 1,000 dof), one effect with
+    the evidence (BIC score 58) and the size (its drop clears half the excess at the excess's 95 % lower bound)
+    that removes 48 % of the excess (a blind probe: the forces of a stiffer yarn x 1.3 with B held fixed,
+    named normal_load_friction, confident).  Offered as the explanation it should be the larger part of the
+    gap: named, not confident, and the reason says why and what to try; at 60 % it stays confident."""
+    from knitsim.diagnosis.diagnose import Adequacy, CandidateResult, Localisation, NoiseModel, verdict_step
+    adequacy = Adequacy(chi2=1493.0, dof=1000, chi2_per_dof=1.493, expected_sd=0.069, within_noise=False,
+                        excess=493.0)
+    loc = Localisation(keys=["loading_sliding"], stages={}, where=["loading_sliding"])
+
+    def cand(share):
+        return CandidateResult("normal_load_friction", "", True, score=58.0, probability=1.0, significant=True,
+                               practical=True, share_of_excess=share, chi2_per_dof=1.26, within_noise=False)
+    v = verdict_step(adequacy, [cand(0.48)], loc, {"stages": {}}, NoiseModel([]), [])
+    assert v.kind == "effect" and v.effect == "normal_load_friction" and not v.confident
+    assert "removes 48% of the baseline's excess over noise, less than half" in v.reason and "free it" in v.reason
+    assert verdict_step(adequacy, [cand(0.6)], loc, {"stages": {}}, NoiseModel([]), []).confident

@@ -70,3 +70,22 @@ def test_bic_hand_example():
     assert bic(2.0, 4, 2) - bic(2.0, 4, 1) == pytest.approx(math.log(4.0), rel=1e-14)
     with pytest.raises(KnitsimInputError, match="rss"):
         bic(0.0, 4, 1)
+
+
+def test_stages_are_ranked_by_their_chi2_excess_where_the_noise_is_known():
+    """Two curves pooled: a quiet one (sd 0.004 N) missed by 3 sd on its 10 unloading rows, a noisy one
+    (sd 0.036 N) missed by 1 sd on its 10 loading rows.  In squared newtons the noisy stage dominates
+    (10 x 0.036^2 = 0.01296 against 10 x 0.012^2 = 0.00144); in chi^2 its excess is 0 (10 rows at 1 sd:
+    chi^2 10, what noise alone gives) and the quiet stage's is 90 - 10 = 80: it is the whole gap (a blind
+    probe: effect-free curves read "loading_sliding 86 %" from the noisy pull)."""
+    from knitsim.diagnosis.gap import stage_gap
+    measured = np.zeros(20)
+    simulated = np.concatenate([np.full(10, 0.012), np.full(10, 0.036)])
+    keys = ["unloading_sliding"] * 10 + ["loading_sliding"] * 10
+    plain = stage_gap(measured, simulated, keys)["stages"]
+    assert plain["loading_sliding"]["share"] == pytest.approx(0.01296 / (0.01296 + 0.00144))
+    weighted = stage_gap(measured, simulated, keys, np.concatenate([np.full(10, 1 / 0.004), np.full(10, 1 / 0.036)]))
+    st = weighted["stages"]
+    assert st["unloading_sliding"]["chi2"] == pytest.approx(90.0) and st["loading_sliding"]["chi2"] == pytest.approx(10.0)
+    assert st["unloading_sliding"]["share"] == pytest.approx(1.0) and st["loading_sliding"]["share"] == 0.0
+    assert st["loading_sliding"]["sse_N2"] == pytest.approx(0.01296)        # the newtons stay reported

@@ -204,3 +204,55 @@ def test_every_rejection_names_file_row_column_plain_value_and_what_to_do(tmp_pa
     msg = str(info.value)
     assert str(p) in msg and f"{row}, column {column}" in msg and value in msg and todo in msg, msg
     assert "np." not in msg and "float64" not in msg and "\n" not in msg
+
+
+def _three_cycles(seed=4):
+    """Hand-made cycles 0 -> 0.3 -> 0.1 -> 0.3 -> 0.1 -> 0.3, every branch on one strain grid (steps of
+    0.005, an extensometer read at fixed steps), as measured (in time order): loading F = 2 s^2, unloading
+    half of it, forces with a hand-set white scatter of 1 mN."""
+    rng = np.random.default_rng(seed)
+    k = np.arange(61)                                   # 0 .. 0.3 in steps of 0.005
+    up0 = k
+    down = np.arange(59, 19, -1)                        # 0.295 .. 0.1
+    up = np.arange(21, 61)                              # 0.105 .. 0.3
+    idx = np.concatenate([up0, down, up, down, up])
+    load = np.concatenate([np.ones(len(up0)), np.zeros(len(down)), np.ones(len(up)), np.zeros(len(down)),
+                           np.ones(len(up))])
+    s = np.round(0.005 * idx, 6)
+    f = np.where(load > 0, 2.0 * s ** 2, 1.0 * s ** 2) + rng.normal(0.0, 0.001, len(s))
+    return s, f
+
+
+def test_a_file_sorted_by_strain_is_refused_naming_two_rows_at_one_strain(tmp_path):
+    """The same cycles in time order are read; sorted by strain (a spreadsheet sort, no cycle / direction
+    columns) the loading and unloading rows at one strain sit next to each other, their forces 2 s^2 and s^2
+    apart (hysteresis, 0.09 N at 0.3 against a scatter of 1 mN): read as one branch of repeated readings, a
+    blind probe's such file had its noise estimated at 96.5 % of the force and an effect named with
+    confidence.  Refused, naming two rows and the ratio of the differences to the scatter.  (Branches on
+    grids of their own, interleaved by the sort, are not caught: the chords between them are no scatter
+    either; the probe's file, like this one, had every branch on one grid.)"""
+    s, f = _three_cycles()
+    ok = _write(tmp_path, _csv(list(zip(s.round(6).tolist(), f.round(6).tolist()))), "timed.csv")
+    assert read_measured_curve(ok).noise.method == "estimated"
+    order = np.argsort(s, kind="stable")
+    bad = _write(tmp_path, _csv(list(zip(s[order].round(6).tolist(), f[order].round(6).tolist()))), "sorted.csv")
+    with pytest.raises(KnitsimInputError, match=r"sorted\.csv: rows \d+ and \d+ read .* at one strain .*readings of "
+                                                r"different branches.*sorted by strain"):
+        read_measured_curve(bad)
+
+
+def test_a_relaxation_hold_at_a_few_strains_is_not_a_merged_file(tmp_path):
+    """A pull with three holds (20 rows each at strains 0.1, 0.2, 0.3, the force relaxing by 2 % at each) is
+    one branch measured in time: its rows at one strain are not other branches (only 3 strains repeat, below
+    the 10 the refusal asks), and it is read."""
+    rng = np.random.default_rng(9)
+    s, f = [], []
+    for a, b in ((0.0, 0.1), (0.1, 0.2), (0.2, 0.3)):
+        g = np.linspace(a, b, 21)[1:]
+        s += list(g)
+        f += list(2.0 * g ** 2)
+        s += [b] * 20
+        f += list(2.0 * b * b * (1.0 - 0.02 * np.linspace(0, 1, 20)))
+    f = np.array(f) + rng.normal(0.0, 0.001, len(f))
+    p = _write(tmp_path, _csv(list(zip(np.round(s, 6).tolist(), f.round(6).tolist()))), "holds.csv")
+    assert len(read_measured_curve(p).force) == len(s)
