@@ -183,7 +183,12 @@ class CellCycle:
     def initial(self) -> CellState:
         """Table 4 initialisation: C = C0, W = W0, L, phi = phi0."""
         p = self.p
-        res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
+        try:
+            res = initial_state(p.C0, p.W0, p.L, p.phi0, p.B, p.d)
+        except RuntimeError as exc:
+            # no start of the inverse converged: no rest state, flagged as the Warp batch flags it (a tight
+            # loop, L = 10.3 with the paper's W0 and C0, raised this out of run_cell: a blind probe)
+            raise _SolveFailed(f"initial state: {exc}") from None
         if not res.success:
             raise _SolveFailed("initial state: " + res.message)
         q = _q(res, p.B, p.d)
@@ -858,4 +863,8 @@ def dissipated_energy(strain: np.ndarray, force: np.ndarray) -> float:
     """
     strain = np.asarray(strain, float)
     force = np.asarray(force, float)
+    if strain.ndim != 1 or force.shape != strain.shape:
+        # numpy would broadcast a strain and a force of other lengths into a number (a blind probe)
+        raise KnitsimInputError(f"dissipated_energy: strain {strain.shape} and force {force.shape} must be 1-D arrays "
+                                "of one length")
     return float(np.sum(0.5 * (force[1:] + force[:-1]) * np.diff(strain)))

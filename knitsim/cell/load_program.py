@@ -16,6 +16,10 @@ import numpy as np
 from ..errors import KnitsimInputError
 
 
+#: largest step of a program's strain against its direction (LoadProgram)
+OPPOSITE_STEP_MAX = 1e-3
+
+
 @dataclass(frozen=True)
 class LoadProgram:
     """Sampled strain history.
@@ -41,6 +45,57 @@ class LoadProgram:
     direction: np.ndarray
     waypoints: tuple[float, ...]
     rate: np.ndarray | None = None
+
+    def __post_init__(self):
+        # a hand-built program is checked as the built ones are made: before, one whose direction said
+        # unloading while its strain rose ran "ok" to 92.8 N past a 50 N cap, and arrays of other lengths
+        # were read past their end (a blind probe of the Python API)
+        strain = np.asarray(self.strain, dtype=np.float64)
+        if strain.ndim != 1:
+            raise KnitsimInputError(f"LoadProgram.strain: expected a 1-D array, got shape {strain.shape}")
+        n = len(strain)
+        bad = np.nonzero(~np.isfinite(strain) | (strain <= -1.0))[0]
+        if len(bad):
+            raise KnitsimInputError(f"LoadProgram.strain[{bad[0]}] = {float(strain[bad[0]])!r}: expected a finite strain > -1 "
+                                    "(C = C0 (1 + strain) > 0)")
+        arrays = {"cycle": self.cycle, "direction": self.direction}
+        if self.rate is not None:
+            arrays["rate"] = self.rate
+        out = {}
+        for name, v in arrays.items():
+            a = np.asarray(v)
+            if a.ndim != 1 or len(a) != n:
+                raise KnitsimInputError(f"LoadProgram.{name}: expected one value per increment ({n}, as strain), "
+                                        f"got shape {a.shape}")
+            out[name] = a
+        d = out["direction"]
+        bad = np.nonzero(~np.isin(d, (-1, 1)))[0]
+        if len(bad):
+            raise KnitsimInputError(f"LoadProgram.direction[{bad[0]}] = {d[bad[0]].item()!r}: expected +1 (loading) or -1")
+        # a step against its direction beyond OPPOSITE_STEP_MAX: the cell would be driven back along its branch
+        # without a reversal (a patch's cells may move a little against the grips at the rest state, where
+        # the column balances their rest forces: a few 1e-4; replayed, such a path is a program too)
+        step = np.diff(np.concatenate([[0.0], strain]))
+        bad = np.nonzero(-step * d > OPPOSITE_STEP_MAX)[0]
+        if len(bad):
+            i = bad[0]
+            raise KnitsimInputError(f"LoadProgram.direction[{i}] = {int(d[i])} but the strain goes from "
+                                    f"{0.0 if i == 0 else float(strain[i - 1])!r} to {float(strain[i])!r}: the direction "
+                                    "is the sign of the strain's change (a held strain may carry either)")
+        c = out["cycle"]
+        if not (np.issubdtype(c.dtype, np.number) and np.all(np.isfinite(c)) and np.all(c == np.round(c))
+                and np.all(c >= 1) and np.all(np.diff(c) >= 0)):
+            raise KnitsimInputError(f"LoadProgram.cycle: expected whole numbers >= 1 that never decrease, got "
+                                    f"{np.asarray(c)[:8].tolist()}{' ...' if n > 8 else ''}")
+        if self.rate is not None:
+            r = np.asarray(out["rate"], dtype=np.float64)
+            bad = np.nonzero(~(np.isfinite(r) & (r > 0)))[0]
+            if len(bad):
+                raise KnitsimInputError(f"LoadProgram.rate[{bad[0]}] = {float(r[bad[0]])!r}: expected a rate > 0 [mm/s]")
+            object.__setattr__(self, "rate", r)
+        object.__setattr__(self, "strain", strain)
+        object.__setattr__(self, "cycle", c.astype(np.int32) if c.dtype != np.int32 else c)
+        object.__setattr__(self, "direction", d.astype(np.int32) if d.dtype != np.int32 else d)
 
     def __len__(self) -> int:
         return len(self.strain)

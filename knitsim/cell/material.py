@@ -7,7 +7,10 @@ so that bad input is refused before any solve.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict, dataclass, replace
+
+import numpy as np
 
 from ..errors import KnitsimInputError
 from .effects import NO_EFFECTS, EffectSet
@@ -93,6 +96,17 @@ class CellParams:
         def bad(name, why):
             raise KnitsimInputError(f"{where}.{name} = {getattr(self, name)!r}: {why}")
 
+        # a NumPy number (np.float32(0.31), np.int64(15), a 0-d array) is a number: read as a Python float
+        # (it was refused as "must be a finite number", a blind probe of the API)
+        numeric = ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma", "force_cap_N", "in_plane_width")
+        conv = {}
+        for name in numeric:
+            v = getattr(self, name)
+            if isinstance(v, (numbers.Real, np.ndarray)) and not isinstance(v, (bool, np.bool_, float)) \
+                    and np.ndim(v) == 0 and np.issubdtype(np.asarray(v).dtype, np.number):
+                conv[name] = float(v)
+        if conv:
+            return replace(self, **conv).validated(where)
         for name in ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma", "force_cap_N"):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):

@@ -186,6 +186,9 @@ class DiagnosisSetup:
         if not isinstance(self.base, CellParams):
             raise KnitsimInputError(f"diagnosis.base = {self.base!r}: expected a CellParams")
         self.base.validated(where="scene")
+        if isinstance(self.free, str):
+            # a string would be read letter by letter ("unknown parameter 'p'" for free = "phi0")
+            raise KnitsimInputError(f"diagnosis.free = {self.free!r}: expected a list of names, e.g. [{self.free!r}]")
         free = tuple(self.free)
         for n in free:
             if n not in BASELINE_VARIABLES:
@@ -194,6 +197,26 @@ class DiagnosisSetup:
         if not free or len(set(free)) != len(free):
             raise KnitsimInputError(f"diagnosis.free = {list(free)!r}: expected distinct names, at least one")
         check_effects(self.effects)
+        # bounds of what is fitted only, each (low, high) inside the model (as the scene's [diagnosis] bounds
+        # are checked): a typo or a bound on a fixed variable was ignored, phi0 = (-5, 5) failed mid-fit
+        fitted = set(free) | {v.name for e in self.effects for v in EFFECT_SPECS[e].variables}
+        for k, v in dict(self.bounds or {}).items():
+            if k not in fitted:
+                raise KnitsimInputError(f"diagnosis.bounds[{k!r}]: not a fitted variable (free: {', '.join(free)}; "
+                                        "and the effects' own)")
+            try:
+                lo, hi = (float(x) for x in v)
+            except (TypeError, ValueError):
+                raise KnitsimInputError(f"diagnosis.bounds[{k!r}] = {v!r}: expected (low, high)") from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise KnitsimInputError(f"diagnosis.bounds[{k!r}] = {v!r}: expected finite low < high")
+            if k == "phi0" and not (-1.0 <= lo and hi <= 1.0):
+                raise KnitsimInputError(f"diagnosis.bounds['phi0'] = {v!r}: phi0 is fitted as a fraction of phimax "
+                                        "(|phi0| <= phimax), so its bounds lie within [-1, 1]")
+            if k in ("B", "d", "in_plane_width", "L", "W0", "C0") and lo <= 0:
+                raise KnitsimInputError(f"diagnosis.bounds[{k!r}] = {v!r}: {k} must stay > 0")
+        if not (isinstance(self.max_nfev, int) and not isinstance(self.max_nfev, bool) and self.max_nfev >= 2):
+            raise KnitsimInputError(f"diagnosis.max_nfev = {self.max_nfev!r}: expected a whole number >= 2")
         given = self.noise_N.values() if isinstance(self.noise_N, dict) else (
             [] if self.noise_N is None else [self.noise_N])
         for v in given:

@@ -321,6 +321,12 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         raise KnitsimInputError(f"{source}: no data rows")
     if len(f) != n:
         raise KnitsimInputError(f"{source}: column force_per_wale_N has {len(f)} rows, strain has {n}")
+    # every column one value a row: a shorter one was read past its end (uninitialised memory, a curve
+    # accepted with made-up directions one run and refused the next: a blind probe of the Python API)
+    for name, v in (("cycle", cycle), ("direction", direction), ("rate_mm_s", rate_mm_s), ("rows", rows)):
+        if v is not None and (np.ndim(v) != 1 or len(v) != n):
+            raise KnitsimInputError(f"{source}: column {name} has {len(v) if np.ndim(v) == 1 else np.shape(v)} "
+                                    f"values, strain has {n} rows")
     row_no = np.arange(2, n + 2) if rows is None else np.asarray(rows, np.int64)
 
     def row(i):

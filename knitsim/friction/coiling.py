@@ -74,9 +74,24 @@ def m_eq10(theta, mu_k):
         ``m = (e^{mu theta} - 1)/(e^{mu theta} + 1) * tan(theta/2)``.
     """
     theta = np.asarray(theta, dtype=float)
+    _check_coiling(theta, mu_k, "m_eq10")
     e = np.exp(np.asarray(mu_k, dtype=float) * theta)
     # (e - 1)/(e + 1) = tanh(mu theta/2): the drive-belt factor (eq 1 on the arc)
     return (e - 1.0) / (e + 1.0) * np.tan(0.5 * theta)
+
+
+def _check_coiling(theta, mu_k, where: str) -> None:
+    """Refuse a coiling angle outside (0, pi) [rad] or a friction coefficient that is not >= 0: an angle in
+    degrees by mistake (110) gave m = -45.2, a NaN hung the belt's integration (a blind probe)."""
+    th = np.asarray(theta, dtype=float)
+    mu = np.asarray(mu_k, dtype=float)
+    if not np.all(np.isfinite(th) & (th > 0.0) & (th < np.pi)):
+        bad = float(th[~(np.isfinite(th) & (th > 0.0) & (th < np.pi))].ravel()[0])
+        hint = " (in degrees? use m_eq10_deg, or radians)" if np.isfinite(bad) and bad >= np.pi else ""
+        raise KnitsimInputError(f"{where}: coiling angle theta = {bad!r} rad: expected 0 < theta < pi{hint}")
+    if not np.all(np.isfinite(mu) & (mu >= 0.0)):
+        bad = float(mu[~(np.isfinite(mu) & (mu >= 0.0))].ravel()[0])
+        raise KnitsimInputError(f"{where}: mu_k = {bad!r}: expected a friction coefficient >= 0")
 
 
 def m_eq10_deg(theta_deg, mu_k):
@@ -107,6 +122,9 @@ def drive_belt_resultant(theta: float, mu_k: float, T0: float = 1.0) -> tuple[fl
     (R_chord, R_bisector, T1) : tuple of float
         Chord and bisector components of the contact load [N], end tension [N].
     """
+    _check_coiling(theta, mu_k, "drive_belt_resultant")
+    if not (np.isfinite(T0) and T0 > 0):
+        raise KnitsimInputError(f"drive_belt_resultant: T0 = {T0!r}: expected a tension > 0 [N]")
     sol = solve_ivp(lambda phi, T: mu_k * T, (0.0, theta), [T0], dense_output=True, rtol=1e-12, atol=1e-14)
 
     def T(phi):

@@ -245,3 +245,24 @@ def test_cone_event_releases_beta_on_unloading_from_sliding():
 def test_stick_closure_checked():
     with pytest.raises(KnitsimInputError):
         CellCycle(cell(m=0.2), stick_closure="nope")
+
+
+def test_a_cell_without_a_rest_state_is_flagged_by_the_reference_as_by_the_batch():
+    """A tight loop (L = 10.3 mm with the paper's W0 and C0) has no rest state: the Warp batch flags it
+    no_rest_state before any increment, and the README says the NumPy reference does too; run_cell raised
+    "initial_state: no start converged; pass starts=..." instead (a blind probe).  Both engines now give
+    the same status on every row and no force."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.cycle import dissipated_energy, run_cell
+    from knitsim.cell.history import STATUS_NO_REST_STATE
+    from knitsim.cell.load_program import cycles
+    from knitsim.cell.material import CellParams
+    from knitsim.errors import KnitsimInputError
+
+    tight = CellParams(B=0.31, d=0.58, L=10.3, W0=4.4, C0=2.7, m=0.2, phi0=0.0)
+    prog = cycles(0.1, 0.6, 1, 0.05)
+    ref, warp = run_cell(tight, prog), run_batch([tight], prog)
+    assert np.all(ref.status[:, 0] == STATUS_NO_REST_STATE) and np.all(warp.status[:, 0] == STATUS_NO_REST_STATE)
+    # and the README example's integral refuses a strain and a force of other lengths (numpy broadcast them)
+    with pytest.raises(KnitsimInputError, match="must be 1-D arrays of one length"):
+        dissipated_energy([0.0, 0.1, 0.2], [0.0, 1.0])

@@ -50,3 +50,26 @@ def test_monotonic():
 def test_unreachable_programs_refused(call):
     with pytest.raises(KnitsimInputError):
         call()
+
+
+def test_a_hand_built_program_is_checked_before_any_work():
+    """A LoadProgram built by hand, as the API allows: a rising strain labelled unloading ran "ok" to 92.8 N
+    past a 50 N cap, and direction / cycle arrays shorter than the strain were read past their end (a blind
+    probe).  Each is refused naming the field, the index and the value; a step of 5e-4 against the
+    direction (a patch cell at the rest state, replayed) is not."""
+    from knitsim.cell.load_program import LoadProgram
+    from knitsim.errors import KnitsimInputError
+
+    s = np.array([0.05, 0.10, 0.15])
+    with pytest.raises(KnitsimInputError, match=r"LoadProgram.direction\[0\] = -1 but the strain goes from 0.0 to 0.05"):
+        LoadProgram(s, np.ones(3, int), -np.ones(3, int), (0.0,))
+    with pytest.raises(KnitsimInputError, match=r"LoadProgram.direction: expected one value per increment \(3"):
+        LoadProgram(s, np.ones(3, int), np.ones(2, int), (0.0,))
+    with pytest.raises(KnitsimInputError, match=r"LoadProgram.strain\[1\] = nan"):
+        LoadProgram(np.array([0.05, np.nan, 0.1]), np.ones(3, int), np.ones(3, int), (0.0,))
+    with pytest.raises(KnitsimInputError, match="LoadProgram.cycle: expected whole numbers >= 1 that never decrease"):
+        LoadProgram(s, np.array([2, 1, 1]), np.ones(3, int), (0.0,))
+    with pytest.raises(KnitsimInputError, match=r"LoadProgram.direction\[1\] = 0"):
+        LoadProgram(s, np.ones(3, int), np.array([1, 0, 1]), (0.0,))
+    ok = LoadProgram([-5e-4, 0.05, 0.05], [1, 1, 1], [1, 1, -1], (0.0,))       # lists, a held strain either way
+    assert ok.strain.dtype == np.float64 and ok.direction.tolist() == [1, 1, -1]

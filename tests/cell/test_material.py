@@ -41,3 +41,13 @@ def test_dahl_needs_sigma():
 
 def test_phi0_at_minus_phimax_accepted():
     CellParams(**OK, m=0.3, phi0=-math.atan(0.3)).validated()
+
+
+def test_numpy_numbers_are_numbers():
+    """np.float32(0.31), np.int64(14) and a 0-d array are finite numbers (refused as "must be a finite number"
+    before: a blind probe of the API); read as Python floats, the value kept to its own precision."""
+    import numpy as np
+    c = CellParams(B=np.float32(0.31), d=0.58, L=np.int64(14), W0=4.4, C0=np.array(2.7), m=0.2, phi0=0.0).validated()
+    assert type(c.B) is float and c.B == float(np.float32(0.31)) and c.L == 14.0 and c.C0 == 2.7
+    with pytest.raises(KnitsimInputError, match=r"cell.B = nan: must be a finite number"):
+        CellParams(B=np.float32("nan"), d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0).validated()

@@ -482,3 +482,17 @@ def test_an_effect_that_removes_less_than_half_of_a_clear_excess_is_not_confiden
     assert v.kind == "effect" and v.effect == "normal_load_friction" and not v.confident
     assert "removes 48% of the baseline's excess over noise, less than half" in v.reason and "free it" in v.reason
     assert verdict_step(adequacy, [cand(0.6)], loc, {"stages": {}}, NoiseModel([]), []).confident
+
+
+def test_a_setup_built_in_python_is_checked_as_the_scene_is():
+    """DiagnosisSetup from the API: a typo in bounds, a bound on a variable not fitted, phi0 bounds in
+    radians beyond a fraction of phimax, free as one string, max_nfev = 0 were ignored or failed mid-fit
+    (a blind probe); each is refused before any work, as the scene's [diagnosis] is."""
+    for kw, msg in ((dict(bounds={"dd": (0.1, 0.2)}), r"bounds\['dd'\]: not a fitted variable"),
+                    (dict(bounds={"B": (0.1, 0.7)}), r"bounds\['B'\]: not a fitted variable"),
+                    (dict(bounds={"phi0": (-5.0, 5.0)}), r"a fraction of phimax"),
+                    (dict(free="phi0"), r"expected a list of names"),
+                    (dict(max_nfev=0), r"max_nfev = 0")):
+        with pytest.raises(KnitsimInputError, match=msg):
+            DiagnosisSetup(base=NOMINAL, **kw).validated()
+    DiagnosisSetup(base=NOMINAL, bounds={"m": (0.05, 0.5)}).validated()

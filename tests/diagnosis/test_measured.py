@@ -123,3 +123,15 @@ def test_a_zero_offset_and_jitter_below_zero_are_accepted(tmp_path):
     text = "strain,force_per_wale_N\n-0.001,-0.002\n0.05,0.10\n0.10,0.21\n0.15,0.29\n0.20,0.41\n0.25,0.50\n"
     c = read_measured_curve(_write(tmp_path, text))
     assert len(c) == 6 and c.strain_read[0] == -0.001
+
+
+def test_columns_of_other_lengths_than_the_strain_are_refused():
+    """curve_from_arrays with 40 rows and 10 directions read the rest from uninitialised memory: accepted one
+    run with directions such as -2 and -4, refused the next (a blind probe).  Refused at once, naming the
+    column and both lengths; a rate column too."""
+    s = np.linspace(0.0, 0.3, 40)
+    f = 2.0 * s ** 2
+    with pytest.raises(KnitsimInputError, match="column direction has 10 values, strain has 40 rows"):
+        curve_from_arrays(s, f, direction=np.ones(10))
+    with pytest.raises(KnitsimInputError, match="column rate_mm_s has 3 values, strain has 40 rows"):
+        curve_from_arrays(s, f, rate_mm_s=[1.0, 1.0, 1.0])

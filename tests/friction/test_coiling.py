@@ -109,3 +109,16 @@ def test_eq11_length_increases_with_angle():
 def test_eq11_bad_input(L, C, d, field):
     with pytest.raises(KnitsimInputError, match=field):
         co.coiling_angle_jammed(L, C, d)
+
+
+def test_coiling_angles_outside_zero_to_pi_are_refused():
+    """A coiling angle in degrees by mistake (110) gave m = -45.2 from eq 10, and a NaN hung the belt's
+    integration (solve_ivp over (0, nan), a blind probe): both refused, the degree one with a hint."""
+    from knitsim.errors import KnitsimInputError
+    with pytest.raises(KnitsimInputError, match=r"theta = 110.0 rad: expected 0 < theta < pi \(in degrees\?"):
+        co.m_eq10(110.0, 0.17)
+    with pytest.raises(KnitsimInputError, match="theta = nan"):
+        co.drive_belt_resultant(float("nan"), 0.2)
+    with pytest.raises(KnitsimInputError, match="mu_k = -0.1"):
+        co.m_eq10(1.9, -0.1)
+    assert co.m_eq10_deg(110.0, 0.17) == pytest.approx(co.m_eq10(np.deg2rad(110.0), 0.17))
