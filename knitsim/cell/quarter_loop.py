@@ -160,6 +160,11 @@ def stored_energy(alpha, beta, gamma, phi, P, B, *, a=None, rho=None):
     return P * np.sqrt(np.asarray(B, dtype=np.float64) / P) * dimless
 
 
+def stitch_energy(alpha, beta, gamma, phi, P, B):
+    """Bending energy stored in one stitch [N mm]: its four quarter stitches (:func:`stored_energy`)."""
+    return 4.0 * stored_energy(alpha, beta, gamma, phi, P, B)
+
+
 def quarter_loop(alpha, beta, gamma, phi, P, B, d, *, a=None, rho=None) -> QuarterLoop:
     """Forward map: angles and force -> :class:`QuarterLoop` (eqs 6-9).
 

@@ -131,6 +131,12 @@ def crossing_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[i
     return out
 
 
+def _between_rows(strain: np.ndarray, force: np.ndarray) -> float:
+    """Bound of the trapezoids' error on ``int F d(strain)`` where the force is monotone between rows: half
+    the rectangle of each increment (an unloading from a peak drops steeply, often going slack inside one)."""
+    return 0.5 * float(np.sum(np.abs(np.diff(force)) * np.abs(np.diff(strain))))
+
+
 def loop_work_tolerance(strain: np.ndarray, force: np.ndarray) -> float:
     """Rounding of ``oint F d(strain)`` by trapezoids over a loop's rows [N per unit strain]."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
@@ -201,8 +207,7 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
         ss = np.concatenate([[s[j]], s[k + 1:j + 1]])
         ff = np.concatenate([[fx], f[k + 1:j + 1]])
         w = dissipated_energy(ss, ff)
-        between = 0.5 * float(np.sum(np.abs(np.diff(f[k:j + 1])) * np.abs(np.diff(s[k:j + 1]))))
-        if not (np.isfinite(w) and w < -(loop_work_tolerance(ss, ff) + between)):
+        if not (np.isfinite(w) and w < -(loop_work_tolerance(ss, ff) + _between_rows(s[k:j + 1], f[k:j + 1]))):
             continue
         ux = float(stored_at(k)) + t * (float(stored_at(k + 1)) - float(stored_at(k)))
         dU = float(stored_at(j)) - ux
@@ -218,10 +223,7 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
     for i, j in reload_excursions(s, atol):
         w = dissipated_energy(s[i:j + 1], f[i:j + 1])
         gap = abs(s[j] - s[i]) * float(np.max(np.abs(f[i:j + 1])))
-        # the trapezoids' error where the force is monotone between rows: at most half the rectangle of each
-        # increment (an unloading from a peak drops steeply, often going slack inside an increment)
-        between = 0.5 * float(np.sum(np.abs(np.diff(f[i:j + 1])) * np.abs(np.diff(s[i:j + 1]))))
-        tol = loop_work_tolerance(s[i:j + 1], f[i:j + 1]) + gap + between
+        tol = loop_work_tolerance(s[i:j + 1], f[i:j + 1]) + gap + _between_rows(s[i:j + 1], f[i:j + 1])
         if not (np.isfinite(w) and w < -tol):
             continue
         dU = float(stored_at(j)) - float(stored_at(i))

@@ -889,11 +889,11 @@ def _group_stitch_energy(h: PatchHistory, g: int):
     rest = h.group_rest or {}
     if "x" not in h.groups or "x" not in rest or "B" not in rest:
         return None
-    from ..cell.quarter_loop import stored_energy
+    from ..cell.quarter_loop import stitch_energy
 
     def at(k: int) -> float:
         x = rest["x"][g] if k == 0 else h.groups["x"][k - 1, g]
-        return 4.0 * float(stored_energy(*x, rest["B"][g]))
+        return float(stitch_energy(*x, rest["B"][g]))
     return at
 
 

@@ -181,13 +181,13 @@ def rules_of(params) -> dict:
 def _stitch_energy(h, cell: int, B: float):
     """``k -> `` the bending energy stored in one stitch (four quarter stitches) at row k of the path whose
     row 0 is the rest state (:func:`knitsim.cell.quarter_loop.stored_energy`)."""
-    from ..cell.quarter_loop import stored_energy
+    from ..cell.quarter_loop import stitch_energy
 
     names = ("alpha", "beta", "gamma", "phi", "P")
 
     def at(k: int) -> float:
         src = h.rest if k == 0 else {n: h.values[n][k - 1] for n in names}
-        return 4.0 * float(stored_energy(*(src[n][cell] for n in names), B))
+        return float(stitch_energy(*(src[n][cell] for n in names), B))
     return at
 
 def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None) -> dict:
