@@ -26,6 +26,7 @@ patch thus collapses to one cell.
 """
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -146,6 +147,14 @@ class Grouping:
         return len(self.class_rest_length)
 
 
+def _grid_size(name: str, v) -> int:
+    """A patch's courses or wales: a whole number >= 1 (a zero, negative, fractional or text size failed
+    inside numpy: a blind probe of the API)."""
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1:
+        raise KnitsimInputError(f"PatchModel.{name} = {v!r}: expected a whole number >= 1")
+    return int(v)
+
+
 @dataclass(frozen=True)
 class PatchModel:
     """A patch of cells.
@@ -191,7 +200,17 @@ class PatchModel:
         return self.pretension / (1.0 + self.pretension)
 
     def __post_init__(self):
+        # checked before numpy sees them: a zero, negative, fractional or text size, a missing or misshapen
+        # field failed deep inside numpy (a blind probe of the API)
+        for name in ("courses", "wales"):
+            object.__setattr__(self, name, _grid_size(name, getattr(self, name)))
         shape = (self.courses, self.wales)
+        for n in PARAM_NAMES:
+            if n not in self.fields:
+                raise KnitsimInputError(f"PatchModel.fields: no {n!r} (expected {', '.join(PARAM_NAMES)})")
+            if np.shape(self.fields[n]) != shape:
+                raise KnitsimInputError(f"PatchModel.fields[{n!r}]: shape {np.shape(self.fields[n])}, expected "
+                                        f"(courses, wales) = {shape}")
         for name in ("course_count", "wale_count"):
             v = getattr(self, name)
             a = np.ones(shape) if v is None else np.array(np.broadcast_to(np.asarray(v, dtype=np.float64), shape))
@@ -238,12 +257,15 @@ class PatchModel:
     def uniform(cls, params: CellParams, courses: int, wales: int) -> "PatchModel":
         """A patch of ``courses x wales`` copies of one cell."""
         params = params.validated()
+        courses, wales = _grid_size("courses", courses), _grid_size("wales", wales)
         fields = {n: np.full((courses, wales), _number(getattr(params, n))) for n in PARAM_NAMES}
         return cls(int(courses), int(wales), fields, {r: getattr(params, r) for r in RULE_NAMES}, params.effects)
 
     @classmethod
     def from_cells(cls, cells: list[list[CellParams]]) -> "PatchModel":
         """A patch from a nested list ``cells[course][wale]`` (each cell its own rules and effects)."""
+        if not len(cells) or not len(cells[0]):
+            raise KnitsimInputError("cells: expected a nested list cells[course][wale] of at least one cell")
         courses, wales = len(cells), len(cells[0])
         fields = {n: np.empty((courses, wales)) for n in PARAM_NAMES}
         rules = {r: np.empty((courses, wales), dtype=object) for r in RULE_NAMES}
@@ -274,6 +296,17 @@ class PatchModel:
         """A uniform specimen ``width`` x ``gauge_length`` [mm] of one knit: one cell standing for
         ``gauge_length / (1 + pretension) / C0`` courses of ``width / W0`` wales."""
         params = params.validated()
+        for name, v in (("width", width), ("gauge_length", gauge_length), ("pretension", pretension)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(v):
+                raise KnitsimInputError(f"specimen {name} = {v!r}: expected a finite number")
+        # at least one wale across and one course along, as the scene's [specimen] asks: a width and gauge in
+        # metres (0.05, 0.1) made 0.01 wales and a force 1,000 times too small (a blind probe of the API)
+        if width < params.W0:
+            raise KnitsimInputError(f"specimen width = {width!r} mm: narrower than one wale (W0 = {params.W0:g} mm); "
+                                    "widths are in mm")
+        if gauge_length / (1.0 + max(float(pretension), 0.0)) < params.C0:
+            raise KnitsimInputError(f"specimen gauge_length = {gauge_length!r} mm: shorter than one course "
+                                    f"(C0 = {params.C0:g} mm); lengths are in mm")
         base = cls.uniform(params, 1, 1)
         return cls(1, 1, base.fields, base.rules, base.effects,
                    course_count=np.array([[gauge_length / (1.0 + pretension) / params.C0]]),

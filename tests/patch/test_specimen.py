@@ -110,3 +110,31 @@ def test_gauge_length_must_be_every_column_rest_length():
         PatchModel(1, 1, fields, course_count=np.array([[10.0]]), gauge_length=GAUGE)
     with pytest.raises(KnitsimInputError, match="positive, finite"):
         PatchModel(1, 1, fields, wale_count=np.array([[0.0]]))
+
+
+def test_the_api_refuses_what_the_scene_refuses():
+    """PatchModel from Python: sizes 0, -1, 2.5 or "3" and a field of another shape failed inside numpy;
+    a specimen 0.05 x 0.1 (metres by mistake) was accepted as 0.011 wales with a force 1,000 times too small
+    (a blind probe).  Each is refused naming what is wrong, as the scene's [patch] and [specimen] are."""
+    import numpy as np
+
+    from knitsim.cell.material import CellParams
+    from knitsim.errors import KnitsimInputError
+    from knitsim.patch.model import PatchModel
+
+    c = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0)
+    for courses in (0, -1, 2.5, "3", True):
+        with pytest.raises(KnitsimInputError, match=r"PatchModel.courses = .*: expected a whole number >= 1"):
+            PatchModel.uniform(c, courses, 2)
+    good = PatchModel.uniform(c, 2, 2)
+    with pytest.raises(KnitsimInputError, match=r"fields\['C0'\]: shape \(3,\), expected \(courses, wales\) = \(2, 2\)"):
+        PatchModel(2, 2, dict(good.fields, C0=np.ones(3)))
+    with pytest.raises(KnitsimInputError, match="no 'C0'"):
+        PatchModel(2, 2, {k: v for k, v in good.fields.items() if k != "C0"})
+    with pytest.raises(KnitsimInputError, match="narrower than one wale .*widths are in mm"):
+        PatchModel.specimen(c, width=0.05, gauge_length=0.1)
+    with pytest.raises(KnitsimInputError, match="shorter than one course"):
+        PatchModel.specimen(c, width=50.0, gauge_length=2.0)
+    with pytest.raises(KnitsimInputError, match="at least one cell"):
+        PatchModel.from_cells([])
+    assert PatchModel.specimen(c, width=50.0, gauge_length=100.0).wale_count[0, 0] == pytest.approx(50.0 / 4.4)
