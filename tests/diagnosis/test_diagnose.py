@@ -496,3 +496,23 @@ def test_a_setup_built_in_python_is_checked_as_the_scene_is():
         with pytest.raises(KnitsimInputError, match=msg):
             DiagnosisSetup(base=NOMINAL, **kw).validated()
     DiagnosisSetup(base=NOMINAL, bounds={"m": (0.05, 0.5)}).validated()
+
+
+def test_two_curves_met_halfway_are_said_to_disagree():
+    """Hand-made: a pull f = 2 s^2 and the same pull x 1.3 (another specimen), one fit through both at 1.15 f
+    (what one model does with two that differ): on each curve's loaded rows (f > 5 sd, sd 0.01 N) the fit
+    lies above the first (+0.15 f / sd) and below the second (-0.15 f / sd), far beyond 3 standard errors:
+    said.  The fit above both (1.5 f): not a disagreement, nothing said."""
+    from knitsim.diagnosis.diagnose import NoiseModel, curves_disagree
+    from knitsim.diagnosis.noise import curve_noise
+
+    s = np.linspace(0.0, 0.6, 121)
+    f = 2.0 * s ** 2
+    a = curve_from_arrays(s, f, source="a.csv", noise_N=0.01)
+    b = curve_from_arrays(s, 1.3 * f, source="b.csv", noise_N=0.01)
+    one = np.ones(len(s), int)
+    noise = NoiseModel([curve_noise(s, f, one, one, "a.csv", 0.01), curve_noise(s, 1.3 * f, one, one, "b.csv", 0.01)])
+    w = [np.full(len(s), 100.0)] * 2
+    said = curves_disagree([a, b], {"curves": [{"simulated": 1.15 * f}] * 2}, w, noise)
+    assert "the fit lies above a.csv" in said and "below b.csv" in said
+    assert curves_disagree([a, b], {"curves": [{"simulated": 1.5 * f}] * 2}, w, noise) == ""
