@@ -845,6 +845,9 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_H
     BatchHistory
         One row per increment, one column; ``events`` lists located stage changes.
     """
+    if not isinstance(program, LoadProgram) or len(program) == 0:
+        # as run_batch: a list of strains raised AttributeError inside, an empty program gave an empty history
+        raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram (knitsim.cell.load_program)")
     return CellCycle(params, max_halvings, stick_closure).run(program)
 
 

@@ -180,7 +180,7 @@ def cycles(lower: float, upper: float, n_cycles: int, max_increment: float = 0.0
     The first loading starts at rest (strain 0); the paper's program is
     ``cycles(0.10, 0.60, 3)`` (Dusserre 2015, section 2.3).
     """
-    if not (isinstance(n_cycles, (int, np.integer)) and n_cycles >= 1):
+    if isinstance(n_cycles, (bool, np.bool_)) or not (isinstance(n_cycles, (int, np.integer)) and n_cycles >= 1):
         raise KnitsimInputError(f"load.cycles = {n_cycles}: must be a whole number >= 1")
     if not (math.isfinite(upper) and upper > 0):
         raise KnitsimInputError(f"load.upper_strain = {upper}: must be a positive number")

@@ -73,3 +73,19 @@ def test_a_hand_built_program_is_checked_before_any_work():
         LoadProgram(s, np.ones(3, int), np.array([1, 0, 1]), (0.0,))
     ok = LoadProgram([-5e-4, 0.05, 0.05], [1, 1, 1], [1, 1, -1], (0.0,))       # lists, a held strain either way
     assert ok.strain.dtype == np.float64 and ok.direction.tolist() == [1, 1, -1]
+
+
+def test_the_reference_engine_and_cycles_refuse_what_the_batch_refuses():
+    """run_cell(c, [0, 0.1]) raised AttributeError inside and an empty program gave an empty history, where
+    run_batch refuses both; cycles(0.1, 0.6, True) ran one cycle (a blind probe of the API)."""
+    from knitsim.cell.cycle import run_cell
+    from knitsim.cell.load_program import LoadProgram, cycles
+    from knitsim.cell.material import CellParams
+    from knitsim.errors import KnitsimInputError
+
+    c = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0)
+    for prog in ([0.0, 0.1], LoadProgram(np.zeros(0), np.zeros(0, int), np.zeros(0, int), (0.0,))):
+        with pytest.raises(KnitsimInputError, match="expected a non-empty LoadProgram"):
+            run_cell(c, prog)
+    with pytest.raises(KnitsimInputError, match="load.cycles = True: must be a whole number >= 1"):
+        cycles(0.1, 0.6, True)
