@@ -135,6 +135,8 @@ K_MIN, K_MAX = 1e-6, 1e6
 #: a column carrying force closes when its lengths add up to the grip displacement within this share of its rest
 #: length (rounding: the trial lengths are sent to add up to it exactly)
 LENGTH_RTOL = 1e-9
+#: largest column force [N] the scalar search of a column's force grows its bracket to
+FORCE_SEARCH_MAX = 1e12
 #: column flags
 COL_OK, COL_NOT_CONVERGED, COL_STOPPED = 0, 1, 2
 COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STOPPED: "stopped"}
@@ -1051,6 +1053,10 @@ class PatchSolver:
             grow = np.where(lo > 0, 2.0 * lo, 1e-6)
             Fn = np.where(bad, np.where(np.isfinite(hi), 0.5 * (lo + hi), grow), Fn)
             done |= np.isfinite(hi) & (hi - lo <= 4.0 * np.finfo(float).eps * hi)
+            # no root below FORCE_SEARCH_MAX (a column held short of the grips, whose cells cannot lengthen
+            # on unloading: its lengths never add up to u): the search stops there instead of doubling to
+            # overflow; the column does not converge and is flagged, as before
+            done |= ~np.isfinite(hi) & (lo >= FORCE_SEARCH_MAX)
             F = np.where(done, F, Fn)
         C, r, _ = phi(F)
         # a model with a step (a cell's force jumps, or a stalled cell's clipped tangent) may have no exact
