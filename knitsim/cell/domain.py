@@ -303,6 +303,8 @@ def check_cells(params, engine: str = "warp", device: str = "cpu",
     engine : {"warp", "reference"}
     device : str
         Warp device (warp engine).
+    domain : ParameterDomain
+        The box a cell must lie in to be inside the domain (default :data:`DOMAIN`).
 
     Returns
     -------

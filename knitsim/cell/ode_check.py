@@ -59,6 +59,8 @@ def integrate_quarter_loop(alpha, beta, gamma, phi, P, B, *, rtol=1e-13, atol_re
         Bending stiffness [N mm^2].
     rtol, atol_rel : float
         Relative tolerance, and absolute tolerance in units of ``sqrt(B/P)``.
+    method : str
+        The :func:`scipy.integrate.solve_ivp` method (an explicit high-order Runge-Kutta by default).
     """
     alpha, beta, gamma, phi, P, B = (float(z) for z in (alpha, beta, gamma, phi, P, B))
     lam = np.sqrt(B / P)

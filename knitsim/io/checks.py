@@ -281,6 +281,10 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
     ----------
     peaks : sequence of (cycle, peak)
         Cycle numbers and peak forces, in order.
+    unit : str
+        Unit of the peaks, for the message.
+    fraction : float
+        Share of the previous cycle's peak below which a cycle carries no force.
     """
     out = []
     peaks = list(peaks)
@@ -312,6 +316,8 @@ def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarra
         The increment at which the cell stopped at the cap.
     cap_N : float
         The cap.
+    unit : str
+        Unit of the cap, for the message.
     """
     direction, cycle = np.asarray(direction), np.asarray(cycle)
     later = np.nonzero(direction[stop_row + 1:] < 0)[0]
@@ -396,6 +402,9 @@ def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells:
         Columns, and those holding a cell at the cap.
     peak : float, optional
         The largest force in ``unit`` (said where it is the cap).
+    what, column, unit : str
+        What a cell and a column are called in the message (``cell`` / ``block``, ``column`` / ``strip``)
+        and the unit of the forces.
     remedy : str
         Appended to the message (another way out, e.g. a smaller pretension).
     """

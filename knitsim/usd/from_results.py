@@ -358,6 +358,10 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         Warp device of the centreline kernel.
     quicklook : path, optional
         PNG of the first and last frame rendered from the written file.
+    curve_basis : str
+        USD BasisCurves basis of the yarn centrelines (``"catmullRom"``: through every point).
+    metadata : dict, optional
+        Added to the file's ``customLayerData["knitsim"]["metadata"]``.
     layout : {"auto", "courses", "instanced"}
         One BasisCurves yarn per course (read back with :func:`knitsim.usd.read_patch_usd`), or
         one stitch shape per distinct cell instanced over its stitches (read back with

@@ -144,6 +144,8 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
     material_id_group : ndarray of int, shape [G], optional
     color_by, scene_text, metadata, field_units, curve_basis, frame_indices, frame_scalars
         As :func:`knitsim.usd.export.write_patch_usd`.
+    time_codes_per_second : float
+        Playback rate of the stage's time samples (one per exported increment).
 
     Returns
     -------
