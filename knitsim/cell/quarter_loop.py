@@ -165,6 +165,15 @@ def stitch_energy(alpha, beta, gamma, phi, P, B):
     return 4.0 * stored_energy(alpha, beta, gamma, phi, P, B)
 
 
+def stitch_energy_along(x_rest, x_rows, B: float):
+    """``k ->`` :func:`stitch_energy` at row k of a path whose row 0 is the rest state ``x_rest`` and row
+    k > 0 is ``x_rows[k - 1]`` (each (alpha, beta, gamma, phi, P)): what
+    :func:`knitsim.io.checks.energy_creating_loops` asks for (``stored_at``), evaluated only where asked."""
+    def at(k: int) -> float:
+        return float(stitch_energy(*(x_rest if k == 0 else x_rows[k - 1]), B))
+    return at
+
+
 def quarter_loop(alpha, beta, gamma, phi, P, B, d, *, a=None, rho=None) -> QuarterLoop:
     """Forward map: angles and force -> :class:`QuarterLoop` (eqs 6-9).
 

@@ -149,9 +149,8 @@ class CurveNoise:
         return asdict(self)
 
 
-def _chords(strain, force, cycle, direction, levels: list | None = None):
-    """Signed scaled chord deviations of the inner rows of each branch, and the pairs of neighbours
-    (with ``levels``, each deviation's row force is appended to it)."""
+def _chords(strain, force, cycle, direction):
+    """Signed scaled chord deviations of the inner rows of each branch, and the pairs of neighbours."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     cycle, direction = np.asarray(cycle), np.asarray(direction)
     br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
@@ -169,8 +168,6 @@ def _chords(strain, force, cycle, direction, levels: list | None = None):
             w1, w2 = h2 / (h1 + h2), h1 / (h1 + h2)
             r = f[i] - (w1 * f[i - 1] + w2 * f[i + 1])
             z.append(r / math.sqrt(1.0 + w1 * w1 + w2 * w2))
-            if levels is not None:
-                levels.append(f[i])
             if prev is not None:
                 pairs.append((prev, len(z) - 1))
             prev = len(z) - 1
@@ -194,7 +191,8 @@ def repeat_differences(strain, force, cycle, direction) -> np.ndarray:
 
 def noise_samples(strain, force, cycle, direction) -> np.ndarray:
     """Every sample of the noise sd a curve holds: its scaled chord residuals and its repeat differences."""
-    return noise_samples_at(strain, force, cycle, direction)[0]
+    return np.concatenate([chord_residuals(strain, force, cycle, direction),
+                           repeat_differences(strain, force, cycle, direction)])
 
 
 def cubic_deviations(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
@@ -221,14 +219,6 @@ def cubic_deviations(strain, force, cycle, direction) -> tuple[np.ndarray, np.nd
             z.append(abs(r) / math.sqrt(1.0 + float(w @ w)))
             levels.append(f[i])
     return np.asarray(z, float), np.asarray(levels, float)
-
-
-def noise_samples_at(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`noise_samples` and the force of the row each sample belongs to."""
-    levels: list = []
-    z = np.abs(_chords(strain, force, cycle, direction, levels)[0])
-    rep, rep_levels = _repeats(strain, force, cycle, direction)
-    return np.concatenate([z, rep]), np.concatenate([np.asarray(levels, float), rep_levels])
 
 
 def chord_residuals(strain, force, cycle, direction) -> np.ndarray:
@@ -261,7 +251,7 @@ def clipped_sd(z: np.ndarray) -> float:
 
 
 def level_model(z: np.ndarray, levels: np.ndarray) -> tuple[float, float, float] | None:
-    """The noise sd ``a + b max(F, 0)`` of samples ``z`` (absolute, :func:`noise_samples_at`) taken at
+    """The noise sd ``a + b max(F, 0)`` of samples ``z`` (absolute: :func:`cubic_deviations`, repeat differences) taken at
     forces ``levels``: ``(a, b, lr)``, lr the likelihood ratio (2 delta log L) against one sd on the same
     samples; None with too few samples for :data:`LEVEL_MIN_BINS` bins of :data:`LEVEL_BIN_SAMPLES`.
 
@@ -307,7 +297,8 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
     span = float(np.max(f) - min(float(np.min(f)), 0.0)) if len(f) else 0.0
     if given is not None:
         return CurveNoise(source, float(given), "given", 0, True, "given by the user")
-    z, levels = noise_samples_at(strain, force, cycle, direction)
+    rep, rep_levels = _repeats(strain, force, cycle, direction)
+    z = np.concatenate([chord_residuals(strain, force, cycle, direction), rep])
     rho, _ = chord_correlation(strain, force, cycle, direction)
     if len(z) < MIN_SAMPLES:
         why = (f"only {len(z)} rows on monotone branches or repeated at one strain (an estimate needs "
@@ -323,7 +314,6 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
                    f"RMS within {CLIP:g} robust sd of {len(z)} rows")
             # the level model on samples that curvature does not bias: cubic deviations and repeat differences
             zc, lc = cubic_deviations(strain, force, cycle, direction)
-            rep, rep_levels = _repeats(strain, force, cycle, direction)
             zc, lc = np.concatenate([zc, rep]), np.concatenate([lc, rep_levels])
             grows = level_model(zc, lc)
             if grows is not None:

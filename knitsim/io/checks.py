@@ -60,6 +60,12 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
     return {"kind": kind, "closed": closed, "value": float(w)}
 
 
+def _turns(s: np.ndarray) -> list[int]:
+    """Rows where the strain path turns (its steps before and after change sign, neither a hold)."""
+    ds = np.sign(np.diff(s))
+    return [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+
+
 def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, int]]:
     """Load-then-unload excursions that come back to where they started.
 
@@ -79,8 +85,7 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
         with less stored bending energy, so its work alone does not tell.
     """
     s = np.asarray(strain, float)
-    ds = np.sign(np.diff(s))
-    turns = [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+    turns = _turns(s)
     out = []
     for n, t in enumerate(turns):
         i = turns[n - 1] if n > 0 else 0                # where the excursion starts
@@ -96,8 +101,7 @@ def reload_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     maximum turning point, ``strain[j] == strain[i]`` (within ``atol``) and one turning point, a minimum,
     strictly between (:func:`closed_excursions` gives the load-then-unload ones)."""
     s = np.asarray(strain, float)
-    ds = np.sign(np.diff(s))
-    turns = [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+    turns = _turns(s)
     out = []
     for n, t in enumerate(turns[:-1]):
         if s[t] <= s[t - 1]:
@@ -116,8 +120,7 @@ def crossing_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[i
     loading passing ``strain[j]`` at ``strain[k] + t (strain[k + 1] - strain[k])``, ``0 <= t < 1``.  The
     first cycle of a program whose lower strain is above 0 (0 -> 0.8 -> 0.32) is one."""
     s = np.asarray(strain, float)
-    ds = np.sign(np.diff(s))
-    turns = [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+    turns = _turns(s)
     out = []
     for n, top in enumerate(turns):
         if s[top] <= s[top - 1]:

@@ -889,12 +889,8 @@ def _group_stitch_energy(h: PatchHistory, g: int):
     rest = h.group_rest or {}
     if "x" not in h.groups or "x" not in rest or "B" not in rest:
         return None
-    from ..cell.quarter_loop import stitch_energy
-
-    def at(k: int) -> float:
-        x = rest["x"][g] if k == 0 else h.groups["x"][k - 1, g]
-        return float(stitch_energy(*x, rest["B"][g]))
-    return at
+    from ..cell.quarter_loop import stitch_energy_along
+    return stitch_energy_along(rest["x"][g], h.groups["x"][:, g], rest["B"][g])
 
 
 def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:

@@ -179,16 +179,13 @@ def rules_of(params) -> dict:
 
 
 def _stitch_energy(h, cell: int, B: float):
-    """``k -> `` the bending energy stored in one stitch (four quarter stitches) at row k of the path whose
-    row 0 is the rest state (:func:`knitsim.cell.quarter_loop.stored_energy`)."""
-    from ..cell.quarter_loop import stitch_energy
+    """The cell's stored energy along its path, rest first (:func:`knitsim.cell.quarter_loop.stitch_energy_along`)."""
+    from ..cell.quarter_loop import stitch_energy_along
 
     names = ("alpha", "beta", "gamma", "phi", "P")
+    return stitch_energy_along([h.rest[n][cell] for n in names],
+                               np.stack([np.asarray(h.values[n])[:, cell] for n in names], axis=1), B)
 
-    def at(k: int) -> float:
-        src = h.rest if k == 0 else {n: h.values[n][k - 1] for n in names}
-        return float(stitch_energy(*(src[n][cell] for n in names), B))
-    return at
 
 def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None) -> dict:
     """Summary numbers of one cell.

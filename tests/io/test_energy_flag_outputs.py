@@ -133,3 +133,8 @@ def test_a_patch_judges_a_loop_from_the_loading_as_its_cell_does():
     (w,) = [w for w in patch_summary(h, h.info["ref_length_mm"])["warnings"] if w["code"] == "loop_creates_energy"]
     assert "the loop 0.1 -> 0.6 -> 0.1 (from the loading at strain 0.1)" in w["message"]
     assert "oint F dC = -1.79 N mm per wale" in w["message"]
+    # the same loop, work and stored energy as the single cell's own summary says (the identity above)
+    from knitsim.io.results import cell_summary
+    (c,) = [x for x in cell_summary(simulate([contact], cycles(0.10, 0.60, 2, 0.02), engine="warp", device="cpu"), 0)
+            ["warnings"] if x["code"] == "loop_creates_energy"]
+    assert c["message"].split("the cell: ", 1)[1] in w["message"]
