@@ -578,7 +578,8 @@ def _sigma_lower_bound(residual, theta, names, lower, upper, s2, xn, branches):
     in log sigma).  ``theta`` is the best fit in the scaled units of ``residual``, sigma first.
     """
     rest = [i for i, nm in enumerate(names) if nm != "sigma"]
-    best = float(residual(theta) @ residual(theta))
+    r0 = residual(theta)
+    best = float(r0 @ r0)
 
     def profile(sg, start):
         def r(th):
