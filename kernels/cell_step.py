@@ -1943,6 +1943,16 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                 if wp.static(regular_only):
                     if jammed != 0 and not is_loading(stage):
                         return False  # the jammed unloading's active-set check (below) is not regular
+                if jammed != 0 and not is_loading(stage):
+                    # jammed unloading: the unjam at the start is checked before the jammed trial, which has no
+                    # solution where the unjammed branch opens (the reversal from a jammed state: its direct
+                    # solve and its sub-step walk fail after up to 60 Newton iterations each, then this check
+                    # finds the unjam in about 6)
+                    if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
+                        stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_F, e_from, e_to = take_event(
+                            _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_F, e_from, e_to)
+                        n_located += 1
+                        continue
                 pred = PREDICTED_STEP_MAX
                 if is_sliding(stage) or jammed != 0 or no_contact(q) or wp.abs(step) <= wp.float64(4.0) * _SUBSTEP_FLOOR * matg.C0:
                     pred = wp.float64(0.0)
