@@ -11,7 +11,10 @@ shows it), the column and the value, and what to do:
 - CRLF or LF line ends, blank lines, spaces around cells, quoted cells;
 - ``,`` ``;`` or tab as the delimiter, found from the header line (the one
   that splits it into the most fields);
-- decimal commas where the delimiter is ``;`` or a tab (``0,125``);
+- decimal commas where the delimiter is ``;`` or a tab (``0,125``), and in quoted cells of a
+  comma-separated file (``"0,125"``) when at least one of its numbers reads only that way (``1,250``
+  alone could be 1250: such a file is refused); thousands separators with a decimal point
+  (``"1,234.5"``; ``1.234,5`` in a ``;`` or tab file);
 - header names matched after trimming spaces and quotes, in any case
   (``Strain``, `` FORCE_PER_WALE_N ``); the keys returned are the names asked for;
 - a unit after a header name, in brackets (``strain [-]``, ``force_per_wale_N (N)``,
@@ -83,11 +86,51 @@ def _delimiter(header_line: str) -> str:
     return best if counts[best] > 0 else ","
 
 
+#: a number written with a decimal comma and no other separator (``0,125``, ``-12,5``, ``1,5e-3``)
+_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+#: thousands grouped with commas and a decimal point (``1,234.5``: an en-US spreadsheet's formatted value)
+_GROUPED_POINT = re.compile(r"[+-]?\d{1,3}(?:,\d{3})+\.\d*")
+#: thousands grouped with points and a decimal comma (``1.234,5``: a German spreadsheet's formatted value)
+_GROUPED_COMMA = re.compile(r"[+-]?\d{1,3}(?:\.\d{3})+,\d+")
+
+
 def _number(cell: str, decimal_comma: bool) -> float:
     c = cell.strip().replace("\u2212", "-")       # a typographic minus sign
     if decimal_comma and "," in c and "." not in c:
         c = c.replace(",", ".")
+    elif decimal_comma and _GROUPED_COMMA.fullmatch(c):
+        c = c.replace(".", "").replace(",", ".")
+    elif not decimal_comma and _GROUPED_POINT.fullmatch(c):
+        c = c.replace(",", "")
     return float(c)
+
+
+def _ambiguous_comma(cell: str) -> bool:
+    """``1,250``: three digits after the comma and a non-zero integer part read as 1.25 (a decimal comma) or
+    as 1250 (a thousands separator) alike; ``0,125``, ``12,5`` and ``1,2500`` read one way only."""
+    c = cell.strip().lstrip("+-").split("e")[0].split("E")[0]
+    whole, _, frac = c.partition(",")
+    return len(frac) == 3 and whole.strip("0") != ""
+
+
+def _comma_file_decimal_comma(path: Path, rows: list[list[str]], numbers: list[int], columns: list[int],
+                              names: list[str]) -> bool:
+    """Whether a comma-separated file writes its numbers with decimal commas, in quoted cells (``"0,125"``:
+    LibreOffice and Google Sheets in a decimal-comma locale).  A comma inside a cell of a comma file is
+    either that or a thousands separator; the file is read with decimal commas when every such cell is a
+    plain decimal-comma number and at least one of them reads only that way (:func:`_ambiguous_comma`);
+    when every one reads both ways the file is refused, naming the first."""
+    cells = [(line, name, row[j].strip()) for line, row in zip(numbers, rows)
+             for j, name in zip(columns, names) if j < len(row) and "," in row[j]]
+    if not cells or not all(_DECIMAL_COMMA.fullmatch(c) for _, _, c in cells):
+        return False
+    if all(_ambiguous_comma(c) for _, _, c in cells):
+        line, name, c = cells[0]
+        raise KnitsimInputError(
+            f"{path}: row {line}, column {name}: {c!r} in a comma-separated file reads as a decimal comma "
+            f"({_number(c, True):g}) or as a thousands separator ({_number(c.replace(',', ''), False):g}), and so "
+            "does every comma number of the file; save it with ';' as the delimiter, or with decimal points")
+    return True
 
 
 def _is_number(cell: str, decimal_comma: bool) -> bool:
@@ -238,7 +281,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             continue
         if first_data:
             first_data = False
-            if not any(_is_number(c, decimal_comma) for c in r if c.strip()):
+            if not any(_is_number(c, decimal_comma) or _is_number(c, True) for c in r if c.strip()):
                 continue                  # units under the header (-, N, [mm], mm/s): no cell is a number
         rows.append(r)
         numbers.append(line)
@@ -246,6 +289,10 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         raise KnitsimInputError(f"{path}: no data rows")
     present = required + [c for c in optional if _key(c) in keys]
     numeric = set(present if numeric is None else numeric)
+    if delim == ",":
+        numeric_present = [c for c in present if c in numeric]
+        decimal_comma = _comma_file_decimal_comma(path, rows, numbers, [keys.index(_key(c)) for c in numeric_present],
+                                                  numeric_present)
     out: dict[str, np.ndarray] = {}
     for name in present:
         j = keys.index(_key(name))

@@ -79,6 +79,35 @@ def test_a_units_row_on_a_semicolon_decimal_comma_file(tmp_path, plain):
     _same_values(_read(_write(tmp_path, text)), plain)
 
 
+def test_quoted_decimal_commas_in_a_comma_file_read_as_the_plain_twin(tmp_path, plain):
+    # Lab practice: LibreOffice / Google Sheets in a German locale, saved as comma-separated: every number
+    # with a decimal comma is quoted.  "0,053" reads only as 0.053 (no thousands separator follows a 0),
+    # so the file's commas are decimal commas; the first row is data, not a units row.
+    text = ('strain,force_per_wale_N,direction,cycle\n'
+            '"0,0","-0,002",load,1\n"0,1","0,053",load,1\n"0,2","0,098",load,1\n"0,1","0,018",unload,1\n')
+    cols = _read(_write(tmp_path, text))
+    _same_values(cols, plain)
+    assert list(cols["_row"]) == [2, 3, 4, 5]
+
+
+def test_comma_numbers_that_read_two_ways_are_refused_naming_both_readings(tmp_path):
+    # "1,250" is 1.25 with a decimal comma and 1250 with a thousands separator; a file where every comma
+    # number reads both ways cannot be read without guessing
+    text = 'strain,force_per_wale_N\n0.1,"1,250"\n0.2,"2,500"\n'
+    with pytest.raises(KnitsimInputError, match=r"row 2, column force_per_wale_N: '1,250'.*1\.25.*1250"):
+        read_csv_columns(_write(tmp_path, text), REQ)
+
+
+@pytest.mark.parametrize("text", [
+    'strain,force_per_wale_N\n0.1,"1,234.5"\n0.2,"2,000.25"\n',      # en-US formatted values, quoted
+    "strain;force_per_wale_N\n0,1;1.234,5\n0,2;2.000,25\n",           # German formatted values
+])
+def test_thousands_separators_with_a_decimal_mark_are_read(tmp_path, text):
+    cols = read_csv_columns(_write(tmp_path, text), REQ)
+    np.testing.assert_array_equal(cols["force_per_wale_N"], [1234.5, 2000.25])
+    np.testing.assert_array_equal(cols["strain"], [0.1, 0.2])
+
+
 def test_a_units_row_with_a_number_in_it_is_data_and_refused(tmp_path):
     # Lab practice gone wrong: a units line with "1" for a dimensionless column is not skipped,
     # its text cell is then refused like any text in a number column, with its line number.
