@@ -184,19 +184,48 @@ def f1_eq1(F0: float, mu_k: float, direction: str, wrap: float = CYLINDERS * THE
 # --------------------------------------------------------------------------
 # eqs 2 and 5: Howell's law
 # --------------------------------------------------------------------------
+def _check_finite(name: str, value: float) -> float:
+    v = float(value)
+    if not np.isfinite(v):
+        raise KnitsimInputError(f"{name} = {value!r}: not a finite number")
+    return v
+
+
+def _check_howell_n(n: float) -> float:
+    """Howell's index: ``Ft = a Fn^n`` with n > 0 (n = 1 is Amontons; n <= 0 would make the friction
+    force fall as the normal load rises)."""
+    return _check_positive("n", n)
+
+
+def _check_array(name: str, value, positive: bool) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    bad = ~np.isfinite(a) | ((a <= 0.0) if positive else (a < 0.0))
+    if bad.any():
+        v = float(a.reshape(-1)[int(np.flatnonzero(bad.reshape(-1))[0])])
+        raise KnitsimInputError(f"{name} = {v!r}: must be finite and {'> 0' if positive else '>= 0'}")
+    return a
+
+
 def howell_a(b: float, p: float, V: float) -> float:
-    """Velocity-dependent Howell coefficient ``a = b V^p`` (section 2.4, before eq 5)."""
-    return b * V ** p
+    """Velocity-dependent Howell coefficient ``a = b V^p`` (section 2.4, before eq 5).
+
+    ``b`` > 0 and the sliding speed ``V`` > 0 [mm/s] (``V^p`` of a speed <= 0 is not a real number), ``p``
+    finite; anything else is refused (:class:`KnitsimInputError`).
+    """
+    return _check_positive("b", b) * _check_positive("V_mm_s", V) ** _check_finite("p", p)
 
 
 def tangential_load_eq2(Fn, b: float, p: float, n: float, V: float):
-    """Tangential load at one crossing, ``Ft = a Fn^n`` with ``a = b V^p`` (eqs 2, 5) [N]."""
-    return howell_a(b, p, V) * np.asarray(Fn, dtype=float) ** n
+    """Tangential load at one crossing, ``Ft = a Fn^n`` with ``a = b V^p`` (eqs 2, 5) [N]; ``Fn`` >= 0 [N]."""
+    return howell_a(b, p, V) * _check_array("Fn_N", Fn, positive=False) ** _check_howell_n(n)
 
 
 def mu_k_eq5(b: float, p: float, n: float, V, Fn):
-    """Friction coefficient ``mu_k = b V^p Fn^(n-1)`` (eq 5); ``V`` [mm/s], ``Fn`` [N]."""
-    return b * np.asarray(V, dtype=float) ** p * np.asarray(Fn, dtype=float) ** (n - 1.0)
+    """Friction coefficient ``mu_k = b V^p Fn^(n-1)`` (eq 5); ``V`` > 0 [mm/s], ``Fn`` > 0 [N]."""
+    _check_positive("b", b)
+    _check_finite("p", p)
+    return b * _check_array("V_mm_s", V, positive=True) ** p * _check_array("Fn_N", Fn, positive=True) ** (
+        _check_howell_n(n) - 1.0)
 
 
 # --------------------------------------------------------------------------
@@ -341,6 +370,8 @@ def predict_f1_continuous(F0: float, V: float, direction: str, b: float, p: floa
     Closed form ``F1^(1-n) = F0^(1-n) +/- (1-n) a wrap``.
     """
     s = direction_sign(direction)
+    F0 = _check_positive("F0_N", F0)
+    n = _check_howell_n(n)
     a = howell_a(b, p, V)
     if abs(1.0 - n) < 1e-12:
         return F0 * np.exp(s * a * wrap)

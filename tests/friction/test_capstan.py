@@ -51,6 +51,22 @@ def test_eq1_bad_input(F0, F1, direction, field):
 
 
 # ---------------------------------------------------------------- eqs 2, 5
+@pytest.mark.parametrize("call,field", [
+    # V^p of a negative speed is complex (it was returned as one); the capstan runs at V > 0
+    (lambda: cap.howell_a(0.1, 0.1, -1.0), "V_mm_s"),
+    (lambda: cap.howell_a(0.1, float("nan"), 0.5), "p"),
+    # b < 0 reverses the friction; n <= 0 makes it fall as the normal load rises
+    (lambda: cap.predict_f1_continuous(6.31, 0.5, "ascent", -0.1, 0.1, 0.8), "b"),
+    (lambda: cap.predict_f1_continuous(6.31, 0.5, "ascent", 0.1, 0.1, 0.0), "n"),
+    (lambda: cap.predict_f1_continuous(-6.31, 0.5, "ascent", 0.1, 0.1, 0.8), "F0_N"),
+    (lambda: cap.tangential_load_eq2([1.0, -1.0], 0.1, 0.1, 0.8, 0.5), "Fn_N"),
+    (lambda: cap.mu_k_eq5(0.1, 0.1, 0.8, 0.5, 0.0), "Fn_N"),
+])
+def test_howell_law_refuses_what_it_cannot_mean(call, field):
+    with pytest.raises(KnitsimInputError, match=field):
+        call()
+
+
 @pytest.mark.parametrize("fibre,expected", [("e_glass", 0.156), ("basalt", 0.137)])
 def test_eq5_section_3_4(fibre, expected):
     # Section 3.4: eq 5 with Table 3 at V = 0.5 mm/s, Fn = 1 N gives 0.156 / 0.137.

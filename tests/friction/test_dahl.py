@@ -297,6 +297,23 @@ def test_initial_guess_reads_loop():
     assert B0 == 0.0
 
 
+@pytest.mark.parametrize("kwargs,match", [
+    ({"sigma": 1.0, "Fc": -1.0}, "Fc"),          # no limit to approach (eq 1)
+    ({"sigma": 0.0, "Fc": 0.5}, "sigma"),
+    ({"sigma": 1.0, "Fc": 0.5, "alpha": 0.0}, "alpha"),
+    ({"sigma": 1.0, "Fc": [0.5, float("nan")]}, "Fc"),
+    ({"sigma": 1.0, "Fc": 0.5, "F0": float("inf")}, "F0"),
+])
+def test_dahl_response_refuses_parameters_eq1_cannot_mean(kwargs, match):
+    with pytest.raises(KnitsimInputError, match=match):
+        dahl_response(np.linspace(0.0, 1.0, 5), **kwargs)
+
+
+def test_dahl_response_refuses_a_nan_displacement():
+    with pytest.raises(KnitsimInputError, match="sample 2"):
+        dahl_response(np.array([0.0, 0.1, np.nan]), 1.0, 0.5)
+
+
 @pytest.mark.parametrize("x,F,match", [
     (np.linspace(0, 1, 10), np.zeros(10), "at least"),
     (np.linspace(0, 1, 50), np.zeros(50), "no reversal"),
