@@ -18,7 +18,11 @@ removed once they are written.
 With ``--usd FILE`` the patch is also written as USD (``.usda`` text for small
 patches, ``.usdc`` / ``.usd`` binary crate for large ones; see
 :mod:`knitsim.usd.from_results`), the same file ``knitsim usd DIR --out FILE``
-writes from the saved results.  It is written to a hidden file beside ``FILE``
+writes from the saved results (time code k is increment k, 0 the rest state; increments
+after the knit stopped, every column held, are not written; the run's warnings go into the
+file).  ``FILE`` is checked writable before any work, and the USD options
+(``--usd-stride``, ``--color-by``, ``--usd-points``, ``--usd-layout``) are refused
+without ``--usd``.  It is written to a hidden file beside ``FILE``
 and renamed in when complete.  An existing ``FILE`` is replaced only with
 ``--overwrite``; on ``--resume`` (which excludes ``--overwrite``) only where the
 interrupted run had that consent (its checkpoint records the file it may write).
@@ -160,8 +164,10 @@ def _usd_on_resume(path: str, head: dict, ck: Path) -> None:
     replace it (it was absent when that run started, or it had --overwrite): its checkpoint names the file.
     Otherwise the file is not this run's, and --resume cannot take --overwrite: refused before any work."""
     from ..io.results import prepare_output_file
+    from ..usd.export import check_usd_path
 
     prepare_output_file(path, True, "--usd")                   # a folder, or not writable: refused as always
+    check_usd_path(path, "--usd")
     p = Path(path)
     granted = (head.get("meta") or {}).get("usd")
     if p.exists() and granted != str(p.resolve()):
@@ -171,18 +177,21 @@ def _usd_on_resume(path: str, head: dict, ck: Path) -> None:
                                 "choose another --usd")
 
 
-def _write_usd(h, m, args, scene, device):
+def _write_usd(h, m, args, scene, device, summary=None):
     """The USD file, written to a hidden file beside ``args.usd`` and renamed in when complete (an interrupted
-    export leaves no file that looks whole)."""
+    export leaves no file that looks whole); ``summary``: the run's, whose warnings and flags go into it."""
     import os
 
     from ..usd.from_results import DEFAULT_POINTS, export_history
     target = Path(args.usd)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:                 # checked before the solve; a folder changed since: still one line
+        raise KnitsimInputError(f"--usd = {args.usd!r}: cannot create its folder ({exc.strerror or exc})") from None
     tmp = target.with_name(f".{target.stem}.partial-{os.getpid()}{target.suffix}")
     try:
         res = export_history(h, m.fields, str(tmp), scene_text=scene.to_toml(), color_by=args.color_by,
-                             course_count=m.course_count, wale_count=m.wale_count,
+                             course_count=m.course_count, wale_count=m.wale_count, summary=summary,
                              stride=args.usd_stride, n_points=args.usd_points or DEFAULT_POINTS,
                              device=device if scene.engine == "warp" else "cpu", layout=args.usd_layout)
         os.replace(tmp, target)
@@ -200,14 +209,24 @@ def _run(args) -> int:
 
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the run in --out, or replace it)")
-    if args.usd is not None:
-        from .usd import check_usd_options
+    from .usd import check_usd_options, usd_options_without_usd
+    if args.usd is None:
+        # refused rather than warned of: they ask for a file that would not be written, and a warning would
+        # come after the solve (or scroll by); refusing costs nothing, before any work
+        given = usd_options_without_usd(args)
+        if given:
+            raise KnitsimInputError(f"{', '.join(given)}: USD option(s) given without --usd; they only shape the USD "
+                                    "file: add --usd FILE, or leave them out")
+    else:
         check_usd_options(args)
         if not args.usd.lower().endswith((".usda", ".usdc", ".usd")):
             raise KnitsimInputError(f"--usd = {args.usd!r}: must end in .usda, .usdc or .usd")
         from ..io.results import prepare_output_file
+        from ..usd.export import check_usd_path
         if not args.resume:
             prepare_output_file(args.usd, args.overwrite, "--usd")
+            # writable before the solve (a parent that is a file, /proc: pxr failed after the whole solve)
+            check_usd_path(args.usd, "--usd")
     scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     with contextlib.redirect_stdout(sys.stderr):
         device = "cpu"
@@ -264,7 +283,7 @@ def _run(args) -> int:
         summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
         res = None
         if args.usd is not None:
-            res = _write_usd(h, m, args, scene, device)
+            res = _write_usd(h, m, args, scene, device, summary)
         files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
                                     cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
     except KeyboardInterrupt:
@@ -278,6 +297,9 @@ def _run(args) -> int:
                  if res.stitches else "")
         print(f"knitsim run: wrote {args.usd} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time "
               f"samples{drawn}) in {res.seconds:.2f} s", file=sys.stderr, flush=True)
+        from .usd import timeline_lines
+        for line in timeline_lines(res.timeline):
+            print(f"knitsim run: USD {line}", file=sys.stderr, flush=True)
     what = (f"{m.cell_count} blocks standing for {layout.stitches:,.0f} stitches" if layout.blocks
             else f"{m.cell_count} represented")
     print(f"knitsim run: done in {time.perf_counter() - t_command:.2f} s (solving {h.wall_s:.2f} s: "

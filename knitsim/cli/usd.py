@@ -9,7 +9,12 @@ results folder and writes the same file that ``knitsim run --usd`` writes
 (:mod:`knitsim.usd.from_results`): ``.usda`` text, ``.usdc`` / ``.usd`` binary
 crate (use it for large patches).  A specimen (cells that stand for blocks of
 stitches) is drawn stitch by stitch, each stitch an instance of its block's
-shape (:mod:`knitsim.usd.instanced`).  Exit status 0, or 2 on bad input.
+shape (:mod:`knitsim.usd.instanced`).  Time code k is increment k (0 the rest
+state) where cells.nc holds the rest state, else increment k + 1 (the file says
+which); increments after the knit stopped (every column held: the force cap,
+failed cells) are not written, and the file says so with the run's warnings.
+The output path is checked writable before any work.  Exit status 0, or 2 on
+bad input.
 """
 from __future__ import annotations
 
@@ -24,23 +29,44 @@ from .common import add_json_flag, print_json
 COLOR_CHOICES = ("stage", "phi", "force", "material", "strain")
 
 
+#: defaults of the USD options shared by knitsim usd and knitsim run (argparse dest -> value)
+USD_OPTION_DEFAULTS = {"color_by": "stage", "usd_stride": 1, "usd_points": None, "usd_layout": "auto"}
+
+
 def add_usd_options(p, prefix: str = "") -> None:
-    """``--color-by``, ``--[usd-]stride``, ``--usd-points`` (shared with ``knitsim run``)."""
-    p.add_argument("--color-by", default="stage", metavar="FIELD",
-                   help=f"displayColor by one of {', '.join(COLOR_CHOICES)} (default stage)")
-    p.add_argument(f"--{prefix}stride", dest="usd_stride", type=int, default=1, metavar="N",
-                   help="write every N-th saved increment (and the last one); default 1")
+    """``--color-by``, ``--[usd-]stride``, ``--usd-points``, ``--usd-layout`` (shared with ``knitsim run``).
+
+    With a ``prefix`` (``knitsim run``, where they only apply with ``--usd``) their defaults are None, so that
+    :func:`usd_options_without_usd` can tell which were given; :func:`check_usd_options` fills them in."""
+    dflt = (lambda name: None) if prefix else USD_OPTION_DEFAULTS.get
+    p.add_argument("--color-by", default=dflt("color_by"), metavar="FIELD",
+                   help=f"displayColor by one of {', '.join(COLOR_CHOICES)} (default stage; force: the force per "
+                        "wale of each cell [N], the file's force_per_wale_N)")
+    p.add_argument(f"--{prefix}stride", dest="usd_stride", type=int, default=dflt("usd_stride"), metavar="N",
+                   help="write increments 0, N, 2N, ... counted from the rest state, and the last one written; "
+                        "default 1")
     p.add_argument("--usd-points", dest="usd_points", type=int, default=None, metavar="N",
                    help="points per quarter centreline (>= 6, default 9)")
-    p.add_argument("--usd-layout", dest="usd_layout", default="auto", metavar="LAYOUT",
+    p.add_argument("--usd-layout", dest="usd_layout", default=dflt("usd_layout"), metavar="LAYOUT",
                    help="courses (one yarn curve per course), instanced (one stitch shape per distinct cell, "
                         "placed at every stitch of it) or auto (default: instanced when the distinct cells are "
                         "at most a quarter of the cells, as in a uniform patch)")
     p.set_defaults(usd_stride_flag=f"--{prefix}stride")
 
 
+def usd_options_without_usd(args) -> list[str]:
+    """The USD options of ``knitsim run`` given on its command line (their values not None), by flag."""
+    flags = {"color_by": "--color-by", "usd_stride": args.usd_stride_flag, "usd_points": "--usd-points",
+             "usd_layout": "--usd-layout"}
+    return [flag for dest, flag in flags.items() if getattr(args, dest, None) is not None]
+
+
 def check_usd_options(args) -> None:
-    """Validate the shared options before any work (exit 2 with one line)."""
+    """Validate the shared options before any work (exit 2 with one line); options not given take their
+    defaults."""
+    for dest, value in USD_OPTION_DEFAULTS.items():
+        if getattr(args, dest, None) is None:
+            setattr(args, dest, value)
     if args.color_by not in COLOR_CHOICES:
         raise KnitsimInputError(f"--color-by = {args.color_by!r}: expected one of {', '.join(COLOR_CHOICES)}")
     if args.usd_stride < 1:
@@ -101,12 +127,16 @@ def unfinished_run(results) -> str | None:
 
 def _run(args) -> int:
     from .. import warp_runtime
+    from ..usd.export import check_usd_path
     from ..usd.from_results import DEFAULT_POINTS, export_results
     check_usd_options(args)
     why = unfinished_run(args.results)
     if why is not None:
         raise KnitsimInputError(why)
     prepare_output_file(args.out, args.overwrite)
+    # writable before any work: the parent a folder, and a file can be created in it (pxr's own error came
+    # as a traceback after the export)
+    check_usd_path(args.out, "--out")
     prepare_output_file(args.quicklook, args.overwrite, "--quicklook")
     device = warp_runtime.resolve_device(args.device)
     res = export_results(args.results, args.out, color_by=args.color_by, stride=args.usd_stride,
@@ -114,11 +144,15 @@ def _run(args) -> int:
                          layout=args.usd_layout)
     # what the run itself warned of (a failed or capped run): the file shows those states too, so said here
     run_warnings = _run_warnings(args.results)
+    tl = res.timeline
     doc = {"usd": res.path, "bytes": res.file_bytes, "time_codes": len(res.time_codes), "courses": res.courses,
            "wales": res.wales, "vertices_per_course": res.vertices_per_course, "seconds": res.seconds,
            "fallback_cells_max": max(res.fallback_cells) if res.fallback_cells else 0,
            "stitches_drawn": res.stitches or None, "prototypes": res.prototypes or None,
-           "quicklook": args.quicklook, "run_warnings": run_warnings}
+           "quicklook": args.quicklook, "run_warnings": run_warnings,
+           "time_code_0_is_increment": tl["time_code_0_is_increment"],
+           "last_increment_written": tl["last_increment_written"], "increments_in_run": tl["increments_in_run"],
+           "increments_not_written": tl.get("increments_not_written")}
     if args.json:
         print_json(doc)
     else:
@@ -129,10 +163,25 @@ def _run(args) -> int:
         print(f"knitsim usd: wrote {res.path} ({res.file_bytes / 2**20:.2f} MiB, {len(res.time_codes)} time samples, "
               f"{what}) in {res.seconds:.2f} s"
               + (f"; quick-look {args.quicklook}" if args.quicklook else ""), file=sys.stderr)
+        for line in timeline_lines(tl):
+            print(f"knitsim usd: {line}", file=sys.stderr)
         for w in run_warnings:
             print(f"knitsim usd: warning: the run shown ({Path(args.results) / 'summary.json'}): {w['code']}: "
                   f"{w['message']}", file=sys.stderr)
     return 0
+
+
+def timeline_lines(tl: dict) -> list[str]:
+    """What a user is told of an exported timeline (``UsdExportResult.timeline``): the increments left out,
+    and a time code 0 that is not the rest state."""
+    out = []
+    if tl.get("increments_not_written"):
+        out.append(f"note: increments {tl['increments_not_written']} of {tl['increments_in_run']} not written: "
+                   f"{tl['why_not_written']}")
+    if tl.get("time_code_0_is_increment", 0) != 0:
+        out.append("note: the results hold no rest state (cells.nc of an older knitsim): time code k is increment "
+                   "k + 1, not k (customLayerData knitsim.timeline)")
+    return out
 
 
 #: the run's warnings that say its later states are not the knit's (held, failed or capped)

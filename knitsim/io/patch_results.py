@@ -303,6 +303,25 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenL
                              ("s_AB", "arc length A -> B (eq 8)")):
             ds[f"state_{k}"] = (("increment", "group"), np.asarray(h.groups[k], dtype=np.float64),
                                 {"long_name": long_name, "units": "mm"})
+        rest = h.group_rest or {}
+        if all(k in rest for k in ("x", "C", "F")):
+            # increment 0, the rest state (not on the increment axis: the per-cell fields start at 1); the
+            # USD export draws it as time code 0 (knitsim.usd.from_results.REST_VARIABLES)
+            ds["rest_state_x"] = (("group", "state"), np.asarray(rest["x"], dtype=np.float64),
+                                  {"long_name": "cell state at rest, increment 0 (alpha, beta, gamma, phi, P)",
+                                   "units": "rad rad rad rad N"})
+            ds["rest_state_C"] = (("group",), np.asarray(rest["C"], dtype=np.float64),
+                                  {"long_name": "course length of the cell at rest", "units": "mm"})
+            ds["rest_force_per_wale_N"] = (("group",), np.asarray(rest["F"], dtype=np.float64),
+                                           {"long_name": "force per wale of the cell at rest", "units": "N"})
+            for k, long_name in (("W", "wale width at rest (eq 6)"), ("s_AB", "arc length A -> B at rest (eq 8)")):
+                if k in rest:
+                    ds[f"rest_state_{k}"] = (("group",), np.asarray(rest[k], dtype=np.float64),
+                                             {"long_name": long_name, "units": "mm"})
+            if "label" in rest:
+                ds["rest_stage"] = (("group",), np.asarray(rest["label"]).astype(np.int8),
+                                    {"long_name": "stage label at rest", "flag_values": np.array(sorted(_LABELS), np.int8),
+                                     "flag_meanings": meanings})
     if "head_gap" in h.groups:
         ds["head_gap"] = (dims, h.cell_field("head_gap"),
                           {"long_name": "centreline gap between the heads of neighbouring loops", "units": "mm"})

@@ -84,7 +84,8 @@ class PatchHistory:
         rest force is not zero; a column's is the mean of its cells').
     group_rest : dict of str to ndarray, optional
         Per group, its rest state before the first increment: ``C`` [mm] and ``F`` [N], shape [n_groups],
-        ``x`` (shape [n_groups, 5], as ``groups["x"]``), and the group's bending stiffness ``B`` [N mm^2].
+        ``x`` (shape [n_groups, 5], as ``groups["x"]``), ``W`` and ``s_AB`` [mm], the stage ``label`` (as
+        ``groups["label"]``) and the group's bending stiffness ``B`` [N mm^2].
     wall_s : float
         Seconds spent solving (this run plus the runs it resumed).
     """
@@ -262,8 +263,10 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     group_rest = {k: np.asarray(solver.cells[k], float).copy() for k in ("C", "F")}
     # its angles and P, and each group's B: the stored bending energy of the rest state (the energy check of
     # knitsim.io.patch_results judges loops that start on a loading with it)
-    group_rest["x"] = _committed_geometry(solver.backend)[0]
+    group_rest["x"], group_rest["W"], group_rest["s_AB"] = _committed_geometry(solver.backend)
     group_rest["B"] = np.asarray(grouping.cells["B"], float).copy()
+    # its stage label (the USD export draws the rest state as time code 0, coloured by stage)
+    group_rest["label"] = stage_label_codes(solver.cells["stage"], solver.cells["jammed"]).astype(np.int8)
     cnt = grouping.group_count.astype(float)
     n_cls = grouping.n_classes
     pw = np.asarray(grouping.group_wales, float)

@@ -12,8 +12,10 @@ What is written
 Stage metadata: ``metersPerUnit = 0.001`` (mm), ``upAxis = Z`` (the knit lies
 in the x-y plane, x along the course, y along the wale), start/end time codes,
 ``defaultPrim = /Patch``.  ``customLayerData["knitsim"]`` holds the scene text,
-the colour legend, the vertex layout, the frame indices and times and the
-caller's metadata.
+the colour legend, the vertex layout, the frame indices (= the time codes) and
+times, ``timeline`` (``time_samples`` written, ``frames_passed`` to the writer,
+its ``stride``, and what a caller adds: what a time code is), the caller's
+``layer_info`` and metadata.
 
 Per course prim (a ``BasisCurves`` with one curve):
 
@@ -26,6 +28,17 @@ Per course prim (a ``BasisCurves`` with one curve):
   frame): one value per cell, element j = wale j; ``stage`` is int
   (0 adherence, 1 sliding, 2 jamming, 3 slack);
 - ``primvars:knitsim:material_id`` (same layout, static).
+
+Per wale column, on ``/Patch`` (where the frames carry them): ``knitsim:column_slack_mm``
+(float[], one per column, sampled per frame): the length by which the column's
+cells, stacked at their course lengths, exceed the grip span [mm]; such a slack
+column is drawn compressed between the grips, its stitches overlapping
+(:mod:`knitsim.usd.yarn_geometry`, "Slack columns"); other per-column values
+(``column_values``) likewise.
+
+The file is checked to be writable before any work (:func:`check_usd_path`); a
+file that cannot be written raises :class:`~knitsim.errors.KnitsimInputError`
+naming the path, never a raw ``pxr`` error.
 
 Per-cell fields are stored once per cell, not per vertex: a 10^5-cell patch
 has a few million vertices.  ``displayColor`` is an *indexed* primvar (a static
@@ -173,6 +186,12 @@ def _check_frame(k: int, fr: Mapping, shape: tuple | None):
     out["fields"] = out_fields
     if fr.get("time") is not None:
         out["time"] = float(fr["time"])
+    if fr.get("column_slack_mm") is not None:
+        sl = np.asarray(fr["column_slack_mm"], dtype=float)
+        if sl.shape != cw[1:] or not np.all(np.isfinite(sl) & (sl >= 0)):
+            raise KnitsimInputError(f"frames[{k}]['column_slack_mm'] must be {cw[1]} finite lengths >= 0 (one per "
+                                    f"wale column) [mm], got {fr['column_slack_mm']!r}")
+        out["column_slack_mm"] = sl
     return out
 
 
@@ -272,15 +291,157 @@ def _user_metadata(metadata) -> dict:
     return out
 
 
+def _layer_value(v):
+    """``v`` as a value a USD dictionary holds: mappings recursively, scalars, strings, and lists of
+    strings / ints / floats as Vt arrays; None where USD has no value for it (the key is left out)."""
+    from pxr import Vt
+    if isinstance(v, Mapping):
+        out = {}
+        for k, x in v.items():
+            x = _layer_value(x)
+            if x is not None:
+                out[str(k)] = x
+        return out
+    if v is None:
+        return None
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple, np.ndarray)):
+        a = list(np.asarray(v).ravel()) if isinstance(v, np.ndarray) else list(v)
+        if all(isinstance(x, (bool, np.bool_, int, np.integer)) for x in a) and a:
+            return Vt.IntArray([int(x) for x in a])
+        if all(isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+               for x in a) and a:
+            return Vt.DoubleArray([float(x) for x in a])
+        return _vt_strings(a)
+    return str(v)
+
+
+#: what ``knitsim:column_slack_mm`` is (its attribute's documentation)
+COLUMN_SLACK_DOC = ("length [mm] by which the wale column's cells, stacked at their own course lengths, exceed the "
+                    "grip span: the column is slack (no force) and drawn compressed between the grips")
+#: what a file with slack columns says of them (customLayerData["knitsim"]["drawing"]["slack_columns"])
+SLACK_COLUMNS_NOTE = (
+    "slack columns are drawn compressed: a column whose cells, stacked at their own course lengths, are longer "
+    "than the grip span by knitsim:column_slack_mm (the run does not say where that length goes) has its course "
+    "pitch scaled so that its drawn length (last course origin + its course length) is the grip span; each stitch "
+    "keeps its own shape, so the stitches overlap (the knit piles up between the grips); loaded columns "
+    "(column_slack_mm = 0) are drawn at their cells' course lengths")
+
+
+def _column_values(values: Mapping | None, n_frames: int, columns: int) -> dict:
+    """``values`` (name -> (frames, columns) array) validated, as arrays."""
+    out = {}
+    for name, v in (values or {}).items():
+        a = np.asarray(v)
+        if a.shape != (n_frames, columns) or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+            raise KnitsimInputError(f"column_values[{name!r}] must be numbers of shape {(n_frames, columns)} (frames, "
+                                    f"columns), got {a.dtype} {a.shape}")
+        out[str(name)] = a
+    return out
+
+
+def _add_layer_info(info: dict, layer_info: Mapping | None, timeline: dict) -> None:
+    """``info["timeline"]`` (the writer's ``timeline`` updated by ``layer_info["timeline"]``) and the other keys
+    of ``layer_info``; ``drawing`` notes are merged with the writer's own."""
+    extra = _layer_value(dict(layer_info or {}))
+    timeline.update(extra.pop("timeline", {}) or {})
+    info["timeline"] = _layer_value(timeline)
+    drawing = {**info.get("drawing", {}), **(extra.pop("drawing", {}) or {})}
+    if drawing:
+        info["drawing"] = drawing
+    info.update(extra)
+
+
 # --------------------------------------------------------------------------- writer
+
+USD_EXTENSIONS = (".usda", ".usdc", ".usd")
+
+
+def check_usd_path(path, flag: str | None = None) -> str:
+    """Check, before any work, that a USD file can be written at ``path``; returns it as a str.
+
+    The extension must be ``.usda``, ``.usdc`` or ``.usd``; ``path`` must not be a folder; its
+    nearest existing parent must be a folder (the missing ones are created when the file is
+    written), and a file must be creatable in it: a probe file is created there and removed (the
+    permission bits do not tell: root passes ``os.access`` in ``/proc``, where nothing can be
+    created).  An existing file at ``path`` is not touched.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    flag : str, optional
+        The command-line option that gave the path (``"--usd"``); messages then read
+        ``--usd = 'x.usda': ...``, else ``path='x.usda': ...``.
+
+    Raises
+    ------
+    KnitsimInputError
+        One line naming the path and why it cannot be written.
+    """
+    import tempfile
+
+    p = os.fspath(path)
+    where = f"{flag} = {p!r}" if flag else f"path={p!r}"
+    if os.path.splitext(p)[1].lower() not in USD_EXTENSIONS:
+        raise KnitsimInputError(f"{where}: must end in .usda, .usdc or .usd")
+    if os.path.isdir(p):
+        raise KnitsimInputError(f"{where}: is a folder")
+    parent = os.path.dirname(os.path.abspath(p))
+    probe = parent
+    while not os.path.lexists(probe):
+        up = os.path.dirname(probe)
+        if up == probe:
+            break
+        probe = up
+    if not os.path.isdir(probe):
+        raise KnitsimInputError(f"{where}: cannot be written: {probe} is a file, not a folder")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".knitsim-usd-probe-", dir=probe)
+        os.close(fd)
+        os.remove(name)
+    except OSError as exc:
+        raise KnitsimInputError(f"{where}: cannot be written: no file can be created in {probe} "
+                                f"({exc.strerror or exc})") from None
+    return p
+
+
+def _check_rate(time_codes_per_second) -> float:
+    """The playback rate, a finite number > 0 (USD stores it; 0, a negative or a NaN rate plays nothing)."""
+    ok = (not isinstance(time_codes_per_second, (bool, np.bool_))
+          and isinstance(time_codes_per_second, (int, float, np.integer, np.floating))
+          and np.isfinite(time_codes_per_second) and time_codes_per_second > 0)
+    if not ok:
+        raise KnitsimInputError(f"time_codes_per_second={time_codes_per_second!r}: must be a finite number > 0")
+    return float(time_codes_per_second)
+
+
+def _usd_write_error(path: str, exc) -> KnitsimInputError:
+    """A failed write (a ``pxr`` error, an OSError) as knitsim's error, naming the path: one line."""
+    msg = " ".join(str(exc).split())
+    # pxr's message starts with the C++ function and source line: keep the reason it quotes
+    if "'" in msg and "Error in" in msg:
+        parts = msg.split(" : ", 1)
+        msg = parts[1] if len(parts) == 2 else msg
+    return KnitsimInputError(f"path={path!r}: the USD file cannot be written ({msg[:300]})")
+
 
 def _new_stage(path: str, time_codes, time_codes_per_second: float):
     """A new stage at ``path`` (replacing a file there), in mm with z up, spanning ``time_codes``; returns
     ``(stage, root Xform)``, the root the default prim."""
-    from pxr import Usd, UsdGeom
-    if os.path.exists(path):
-        os.remove(path)  # CreateNew refuses an existing layer
-    stage = Usd.Stage.CreateNew(path)
+    from pxr import Tf, Usd, UsdGeom
+    try:
+        if os.path.exists(path):
+            os.remove(path)  # CreateNew refuses an existing layer
+        stage = Usd.Stage.CreateNew(path)
+    except (Tf.ErrorException, OSError) as exc:
+        raise _usd_write_error(path, exc) from None
     UsdGeom.SetStageMetersPerUnit(stage, 0.001)   # lengths in mm
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     stage.SetStartTimeCode(time_codes[0])
@@ -298,6 +459,33 @@ def _write_frame_scalars(root, scalars: Mapping, time_codes) -> None:
         sa = root.GetPrim().CreateAttribute(FIELD_PREFIX + name, Sdf.ValueTypeNames.Double)
         for tc, val in zip(time_codes, v):
             sa.Set(float(val), tc)
+
+
+def _write_column_values(root, values: Mapping, time_codes, docs: Mapping | None = None) -> None:
+    """One time-sampled array attribute ``knitsim:<name>`` on ``root`` per per-column value (one array of
+    one value per wale column per time code: float[], or int[] for integer values)."""
+    from pxr import Sdf, Vt
+    for name, v in values.items():
+        a = np.asarray(v)
+        is_int = np.issubdtype(a.dtype, np.integer) or a.dtype == bool
+        attr = root.GetPrim().CreateAttribute(FIELD_PREFIX + name, Sdf.ValueTypeNames.IntArray if is_int
+                                              else Sdf.ValueTypeNames.FloatArray)
+        if docs and name in docs:
+            attr.SetDocumentation(str(docs[name]))
+        for tc, row in zip(time_codes, a):
+            attr.Set(Vt.IntArray.FromNumpy(np.asarray(row, np.int32)) if is_int
+                     else Vt.FloatArray.FromNumpy(np.asarray(row, np.float32)), tc)
+
+
+def _save(stage, path: str) -> None:
+    """Save the stage's root layer; a failure as knitsim's error naming the path."""
+    from pxr import Tf
+    try:
+        ok = stage.GetRootLayer().Save()
+    except (Tf.ErrorException, OSError) as exc:
+        raise _usd_write_error(path, exc) from None
+    if not ok:
+        raise KnitsimInputError(f"path={path!r}: the USD file cannot be written (the layer did not save)")
 
 
 def _define_curve(stage, path: str, curve_basis: str):
@@ -318,7 +506,8 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
                     color_range: tuple[float, float] | None = None, field_units: Mapping[str, str] | None = None,
                     curve_basis: str = "catmullRom", points_per_quarter: int | None = None,
                     time_codes_per_second: float = 24.0, frame_indices=None,
-                    frame_scalars: Mapping | None = None) -> UsdExportResult:
+                    frame_scalars: Mapping | None = None, column_values: Mapping | None = None,
+                    docs: Mapping[str, str] | None = None, layer_info: Mapping | None = None) -> UsdExportResult:
     """Write a knit patch over time as a USD stage.
 
     Parameters
@@ -332,7 +521,11 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         ``C`` (courses, wales) [mm]; optional ``s_AB`` (courses, wales) [mm]
         (places the out-of-plane crossing, see :mod:`~knitsim.usd.yarn_geometry`);
         optional ``time`` [s]; optional ``fields``: name -> (courses, wales)
-        array, e.g. ``stage`` (Stage codes), ``phi`` [rad], ``F`` [N per wale].
+        array, e.g. ``stage`` (Stage codes), ``phi`` [rad], ``F`` [N per wale];
+        optional ``column_slack_mm`` (wales,) [mm]: the length by which each wale
+        column's cells, stacked, exceed the grip span (a slack column: drawn
+        compressed between the grips, :func:`~knitsim.usd.yarn_geometry.slack_pitch_scale`;
+        written as ``knitsim:column_slack_mm`` of ``/Patch``), in every frame or none.
         Shapes must not change between frames.
     d : float or array (courses, wales)
         Yarn diameter [mm]: curve widths and the out-of-plane offset.
@@ -359,7 +552,7 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         A and the apex kept) to keep large files small; default: as given.
         6 to 9 look smooth with the Catmull-Rom basis.
     time_codes_per_second : float
-        Playback rate of the frame index.
+        Playback rate of the frame index, finite and > 0.
     frame_indices : sequence of int, optional
         Time code of each input frame (increasing), when the frames are a
         selection of a longer run (e.g. increment numbers); default 0, 1, ...
@@ -367,18 +560,32 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         name -> one number per input frame (e.g. ``grip_strain``), written as
         the time-sampled double attribute ``knitsim:<name>`` of ``/Patch`` and
         listed in ``customLayerData["knitsim"]["frame_scalars"]``.
+    column_values : mapping, optional
+        name -> array (frames, wales): one value per wale column per input
+        frame (e.g. ``column_held``), written as the time-sampled array
+        attribute ``knitsim:<name>`` of ``/Patch`` (int[] for integers, else float[]).
+    docs : mapping, optional
+        name -> text: the documentation of the field primvar, frame scalar or
+        per-column attribute of that name (what it is, its units).
+    layer_info : mapping, optional
+        Keys added to ``customLayerData["knitsim"]`` (strings, numbers, lists,
+        mappings); a ``timeline`` mapping is merged into the writer's own.
 
     Returns
     -------
     UsdExportResult
+
+    Raises
+    ------
+    KnitsimInputError
+        Bad input, or a path that cannot be written (checked first, :func:`check_usd_path`;
+        a failure while writing names the path too).
     """
     from pxr import Gf, Sdf, UsdGeom, Vt
 
     t_start = _time.perf_counter()
-    path = os.fspath(path)
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in (".usda", ".usdc", ".usd"):
-        raise KnitsimInputError(f"path={path!r} must end in .usda, .usdc or .usd")
+    path = check_usd_path(path)
+    time_codes_per_second = _check_rate(time_codes_per_second)
     if curve_basis not in CURVE_BASES:
         raise KnitsimInputError(f"curve_basis={curve_basis!r} is not one of {CURVE_BASES}")
     raw = _normalise_frames(frames)
@@ -395,6 +602,8 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         if checked and set(fr["fields"]) != set(checked[0]["fields"]):
             raise KnitsimInputError(
                 f"frames[{k}]['fields'] has {sorted(fr['fields'])}, frame {sel[0]} has {sorted(checked[0]['fields'])}")
+        if checked and ("column_slack_mm" in fr) != ("column_slack_mm" in checked[0]):
+            raise KnitsimInputError(f"frames[{k}]: 'column_slack_mm' must be given in every frame or in none")
         checked.append(fr)
     courses, wales, n = checked[0]["quarter_xy"].shape[:3]
     if courses < 1 or wales < 1:
@@ -428,6 +637,12 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
             raise KnitsimInputError(f"frame_scalars[{name!r}] must have one value per frame ({len(raw)}), "
                                     f"got shape {v.shape}")
         scalars[str(name)] = v[sel]
+    columns = _column_values(column_values, len(raw), wales)
+    columns = {name: v[sel] for name, v in columns.items()}
+    slack = None
+    if "column_slack_mm" in checked[0]:
+        slack = np.array([fr["column_slack_mm"] for fr in checked])
+        columns = {"column_slack_mm": slack, **columns}
 
     stage, root = _new_stage(path, time_codes, time_codes_per_second)
     UsdGeom.Scope.Define(stage, YARNS_PATH)
@@ -438,6 +653,11 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
             ta.Set(t, tc)
 
     _write_frame_scalars(root, scalars, time_codes)
+    docs = {**({"column_slack_mm": COLUMN_SLACK_DOC} if slack is not None else {}), **(docs or {})}
+    _write_column_values(root, columns, time_codes, docs)
+    for name in scalars:
+        if name in docs:
+            root.GetPrim().GetAttribute(FIELD_PREFIX + name).SetDocumentation(str(docs[name]))
 
     palette = Vt.Vec3fArray.FromNumpy(coloring.palette.astype(np.float32))
     field_names = sorted(checked[0]["fields"])
@@ -456,6 +676,8 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
             is_int = np.issubdtype(checked[0]["fields"][name].dtype, np.integer)
             fpv[name] = pv_api.CreatePrimvar(FIELD_PREFIX + name, Sdf.ValueTypeNames.IntArray if is_int
                                              else Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform, wales)
+            if name in docs:
+                fpv[name].GetAttr().SetDocumentation(str(docs[name]))
         if mat is not None:
             pv_api.CreatePrimvar(FIELD_PREFIX + "material_id", Sdf.ValueTypeNames.IntArray,
                                  UsdGeom.Tokens.uniform, wales).Set(Vt.IntArray.FromNumpy(mat[i]))
@@ -464,8 +686,11 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
         color_pvs.append(col)
 
     half_w = 0.5 * dd.max(axis=1)
-    for tc, fr in zip(time_codes, checked):
-        pts = yg.patch_points(fr["quarter_xy"], fr["W"], fr["C"], dd, fr.get("s_AB")).astype(np.float32)
+    for f, (tc, fr) in enumerate(zip(time_codes, checked)):
+        # a slack column is drawn between the grips (yarn_geometry, "Slack columns"); 1 where loaded
+        scale = None if slack is None else yg.slack_pitch_scale(fr["C"], slack[f])
+        pts = yg.patch_points(fr["quarter_xy"], fr["W"], fr["C"], dd, fr.get("s_AB"),
+                              pitch_scale=scale).astype(np.float32)
         ci = coloring.code(fr)                                  # (courses, wales)
         vi = ci[:, vcell].astype(np.int32)                      # (courses, m)
         lo = pts.min(axis=1) - half_w[:, None]
@@ -497,15 +722,16 @@ def write_patch_usd(path, frames, d, *, material_id=None, color_by: str | None =
                    "prim_name_format": COURSE_PRIM_FORMAT},
         "frame_indices": Vt.IntArray([int(t) for t in time_codes]),
         "frame_scalars": {name: Vt.DoubleArray([float(x) for x in v]) for name, v in scalars.items()},
-        "frames_in_input": len(raw),
-        "stride": int(stride),
         "metadata": _user_metadata(metadata),
     }
+    if slack is not None:
+        info["drawing"] = {"slack_columns": SLACK_COLUMNS_NOTE}
+    _add_layer_info(info, layer_info, {"time_samples": len(sel), "frames_passed": len(raw), "stride": int(stride)})
     if all(t is not None for t in times):
         info["time_s"] = Vt.DoubleArray(times)
     layer = stage.GetRootLayer()
     layer.customLayerData = {"knitsim": info}
-    layer.Save()
+    _save(stage, path)
     return UsdExportResult(path=path, time_codes=np.array(time_codes), courses=courses, wales=wales,
                            points_per_quarter=n, vertices_per_course=m_verts, file_bytes=os.path.getsize(path),
                            seconds=_time.perf_counter() - t_start)

@@ -14,11 +14,35 @@ rebuilds the frames that :func:`knitsim.usd.write_patch_usd` takes:
   (:mod:`knitsim.usd.yarn_geometry` completes the full stitch by the model's
   symmetries and stacks the stitches);
 - per-cell fields ``stage`` (label codes of :data:`knitsim.cell.stages.LABEL_CODES`),
-  ``phi`` [rad], ``force`` (force per wale of the cell [N]), ``strain``
-  ((C - C0)/C0), ``status``; ``material_id`` (static) numbers the distinct
-  parameter sets (``d, B, m, dahl_sigma, L, W0, C0, phi0``) in sorted order;
-- per frame, ``grip_strain``, ``cycle`` and ``direction`` as time-sampled
-  attributes of ``/Patch``.
+  ``phi`` [rad], ``force_per_wale_N`` (force per wale of the cell [N], as
+  cells.nc's variable of that name), ``strain`` ((C - C0)/C0), ``status`` (codes of
+  :data:`knitsim.cell.history.STATUS_NAMES`; the legend is in
+  ``customLayerData["knitsim"]["field_legends"]``); ``material_id`` (static) numbers the
+  distinct parameter sets (``d, B, m, dahl_sigma, L, W0, C0, phi0``) in sorted order;
+- per frame, ``grip_strain``, ``cycle``, ``direction`` and ``columns_held`` as
+  time-sampled attributes of ``/Patch``; per wale column (strip) and frame,
+  ``knitsim:column_slack_mm`` (a slack column is drawn compressed between the grips,
+  :mod:`knitsim.usd.yarn_geometry`) and ``knitsim:column_held`` (1: the column's
+  state is held, not the knit's: it did not converge, or holds a stopped cell).
+
+Time codes.  Time code k is increment k of the run, as numbered in curve.csv:
+0 is the rest state (grip strain 0, or a pretensioned specimen's rest grip
+strain), drawn from the per-group rest state that the run records
+(:attr:`knitsim.patch.runner.PatchHistory.group_rest`; in a results folder,
+cells.nc's :data:`REST_VARIABLES`).  ``stride`` s writes increments 0, s, 2s, ...
+and always the last one written.  A results folder whose cells.nc holds no rest
+state (written by a knitsim that did not save it) is exported as before: time
+code k is increment k + 1, and ``customLayerData["knitsim"]["timeline"]`` says so
+(``time_code_0_is_increment``).
+
+Increments the knit did not reach.  Where, from some increment to the end of the
+run, every column is held (stopped at its cells' force cap, failed cells, columns
+that no longer converge: the run goes on moving the grip while the knit keeps its
+last state), only the increments up to the first of them are written; the file
+says which were left out and why (``timeline``), carries the run's warnings and
+flags (``customLayerData["knitsim"]["run"]``, from its summary) and the legend of
+the status codes.  A column held while others move is drawn, marked by
+``knitsim:column_held``.
 
 A cell whose state is not admissible (theta not monotone A -> C, e.g. a failed
 cell) or whose quarter does not close on X_A = W/4 within
@@ -43,8 +67,31 @@ from . import yarn_geometry as yg
 DEFAULT_POINTS = 9
 MIN_POINTS = 6
 #: --color-by names and the frame field each one colours by
-COLOR_FIELDS = {"stage": "stage", "phi": "phi", "force": "force", "material": "material_id", "strain": "strain"}
-FIELD_UNITS = {"phi": "rad", "force": "N", "strain": "1"}
+COLOR_FIELDS = {"stage": "stage", "phi": "phi", "force": "force_per_wale_N", "material": "material_id",
+                "strain": "strain"}
+FIELD_UNITS = {"phi": "rad", "force_per_wale_N": "N", "strain": "1"}
+#: what each per-cell primvar and per-frame / per-column attribute is (their USD documentation)
+FIELD_DOCS = {
+    "stage": "stage label code of the cell (0 adherence, 1 sliding, 2 jamming, 3 slack)",
+    "phi": "friction angle at the crossing [rad]",
+    "force_per_wale_N": "force per wale of the cell [N] (cells.nc force_per_wale_N; a specimen's block carries "
+                        "wale_count times it)",
+    "strain": "strain of the cell's course length, (C - C0)/C0 [1]",
+    "status": "cell status code (customLayerData knitsim.field_legends.status: 0 ok, 1 no_convergence, 2 force_cap, "
+              "3 event_not_located, 4 no_rest_state)",
+    "grip_strain": "grip strain of the increment (grip displacement / the columns' rest length, or a specimen's "
+                   "gauge length) [1]",
+    "cycle": "cycle of the load program (from 1)",
+    "direction": "+1 loading, -1 unloading",
+    "columns_held": "wale columns (strips) whose state is held, not the knit's (curve.csv columns_held)",
+    "column_held": "per wale column (strip): 1 where its state is held, not the knit's (it did not converge, or "
+                   "holds a cell stopped at its force cap or failed: it keeps its last state while the grip moves)",
+}
+#: cells.nc variables of the rest state (per group) read where present: time code 0 is then the rest state
+REST_VARIABLES = {"x": "rest_state_x", "C": "rest_state_C", "F": "rest_force_per_wale_N",
+                  "W": "rest_state_W", "s_AB": "rest_state_s_AB", "label": "rest_stage"}
+#: of them, those needed (W and s_AB follow from x, eq 6; the label from the Table 4 initial stage)
+REST_REQUIRED = ("x", "C", "F")
 #: USD layouts: one BasisCurves yarn per course, or one stitch shape per distinct cell instanced
 #: (knitsim.usd.instanced); "auto" instances where it writes at least INSTANCE_GAIN times fewer shapes
 LAYOUTS = ("auto", "courses", "instanced")
@@ -142,6 +189,15 @@ class PatchRecord:
     scene_text : str
     course_count, wale_count : (courses, wales) or None
         Stitches each cell stands for (a specimen's blocks; None: single stitches).
+    rest : dict or None
+        The rest state before increment 1, per group: ``x`` (G, 5), ``C``, ``F`` (G,) and, where known,
+        ``W``, ``s_AB`` [mm] and ``label`` (G,); ``grip_strain`` and ``cycle`` of curve.csv's row 0.
+        None: not recorded (time code 0 is then increment 1).
+    column_slack_mm, column_status : (T, wales) or None
+        Each column's slack length [mm] (columns.csv ``slack_mm``) and status code
+        (:data:`knitsim.patch.coupling.COLUMN_STATUS_NAMES`).
+    run_summary : dict or None
+        The run's summary (``summary.json``): its warnings and flags go into the file.
     """
 
     group_of_cell: np.ndarray
@@ -156,6 +212,10 @@ class PatchRecord:
     source: str = ""
     course_count: np.ndarray | None = None
     wale_count: np.ndarray | None = None
+    rest: dict | None = None
+    column_slack_mm: np.ndarray | None = None
+    column_status: np.ndarray | None = None
+    run_summary: dict | None = None
 
     @property
     def blocks(self) -> bool:
@@ -180,9 +240,13 @@ def material_ids(params: dict) -> np.ndarray:
     return inv.reshape(stack.shape[:2]).astype(np.int32)
 
 
-def record_from_history(h, params: dict, scene_text: str = "", course_count=None, wale_count=None) -> PatchRecord:
+def record_from_history(h, params: dict, scene_text: str = "", course_count=None, wale_count=None,
+                        summary: dict | None = None) -> PatchRecord:
     """A :class:`PatchRecord` from a :class:`~knitsim.patch.runner.PatchHistory` and the model's fields (and,
-    for a specimen, the stitches each cell stands for: the model's ``course_count`` and ``wale_count``)."""
+    for a specimen, the stitches each cell stands for: the model's ``course_count`` and ``wale_count``).
+
+    ``summary``: the run's summary (:func:`knitsim.io.patch_results.patch_summary`), whose warnings and
+    flags the file carries.  The rest state is the history's ``group_rest`` (time code 0)."""
     wales = float(h.info.get("wales_represented", h.shape[1]))
     if course_count is None and wale_count is None and not np.isclose(wales, h.shape[1], rtol=1e-12):
         raise KnitsimInputError("the history is a specimen's (cells stand for blocks of stitches): give its "
@@ -191,15 +255,26 @@ def record_from_history(h, params: dict, scene_text: str = "", course_count=None
         if k not in h.groups:
             raise KnitsimInputError(f"history has no per-cell states ('{k}' not recorded: the run resumed from a "
                                     "checkpoint that predates them); rerun the scene to export USD")
-    cf = {"stage": h.cell_field("label"), "phi": h.cell_field("phi"), "force": h.cell_field("F"),
+    cf = {"stage": h.cell_field("label"), "phi": h.cell_field("phi"), "force_per_wale_N": h.cell_field("F"),
           "strain": h.cell_field("strain"), "status": h.cell_field("status")}
     fs = {"grip_strain": np.asarray(h.grip_strain, float), "cycle": np.asarray(h.cycle, float),
           "direction": np.asarray(h.direction, float)}
+    rest = None
+    gr = getattr(h, "group_rest", None)
+    if gr is not None and all(k in gr for k in REST_REQUIRED):
+        rest = {k: np.asarray(gr[k], float) for k in ("x", "C", "F", "W", "s_AB") if k in gr}
+        if "label" in gr:
+            rest["label"] = np.asarray(gr["label"], np.int64)
+        # curve.csv's row 0: the rest grip strain (< 0 for a pretensioned specimen), the first cycle
+        rest["grip_strain"] = float(h.info.get("rest_grip_strain", 0.0))
+        rest["cycle"] = float(h.cycle[0]) if h.n_increments else 1.0
     return PatchRecord(np.asarray(h.group_of_cell), np.asarray(h.groups["x"], float), np.asarray(h.groups["W"], float),
                        np.asarray(h.groups["C"], float), np.asarray(h.groups["s_AB"], float), cf,
                        {k: np.asarray(v, float) for k, v in params.items()}, fs, scene_text, "history",
                        None if course_count is None else np.asarray(course_count, float),
-                       None if wale_count is None else np.asarray(wale_count, float))
+                       None if wale_count is None else np.asarray(wale_count, float),
+                       rest, np.asarray(h.column_slack_mm, float), np.asarray(h.column_status, np.int64),
+                       summary)
 
 
 def record_from_results(results_dir) -> PatchRecord:
@@ -221,7 +296,8 @@ def record_from_results(results_dir) -> PatchRecord:
     if missing:
         raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: cells.nc has no per-cell states ({', '.join(missing)} "
                                 "missing); rerun the scene with this knitsim to export USD")
-    cf = {"stage": ds["stage"].values.astype(np.int64), "phi": ds["phi"].values, "force": ds["force_per_wale_N"].values,
+    cf = {"stage": ds["stage"].values.astype(np.int64), "phi": ds["phi"].values,
+          "force_per_wale_N": ds["force_per_wale_N"].values,
           "strain": ds["strain"].values, "status": ds["status"].values.astype(np.int64)}
     params = {k: ds[k].values for k in _MATERIAL_PARAMS if k in ds}
     fs = {k: np.asarray(ds[k].values, float) for k in ("grip_strain", "cycle")}
@@ -231,14 +307,76 @@ def record_from_results(results_dir) -> PatchRecord:
                        else np.asarray(dvals, float))
     scene = d / "scene.resolved.toml"
     counts = [np.asarray(ds[k].values, float) if k in ds else None for k in ("course_count", "wale_count")]
+    T, wales = ds["state_x"].shape[0], ds["group_of_cell"].shape[1]
+    status = ds["column_status"].values.astype(np.int64) if "column_status" in ds else None
     return PatchRecord(ds["group_of_cell"].values.astype(np.int64), ds["state_x"].values, ds["state_W"].values,
                        ds["state_C"].values, ds["state_s_AB"].values, cf, params, fs,
-                       scene.read_text() if scene.is_file() else "", str(d), *counts)
+                       scene.read_text() if scene.is_file() else "", str(d), *counts,
+                       _rest_of_results(d, ds), _column_slack_of_results(d, T, wales), status, _summary_of(d))
+
+
+def _csv_rows(path: Path) -> list[dict] | None:
+    """The rows of a CSV file as dicts, or None where it is absent or unreadable."""
+    import csv
+    try:
+        with open(path, newline="") as fh:
+            return list(csv.DictReader(fh))
+    except (OSError, csv.Error, UnicodeDecodeError):
+        return None
+
+
+def _rest_of_results(d: Path, ds) -> dict | None:
+    """The rest state of a results folder: cells.nc's :data:`REST_VARIABLES` (per group) and curve.csv's row 0
+    (grip strain, cycle); None where cells.nc does not hold it (a results folder of an older knitsim)."""
+    if not all(REST_VARIABLES[k] in ds for k in REST_REQUIRED):
+        return None
+    rest = {k: np.asarray(ds[v].values, float) for k, v in REST_VARIABLES.items() if v in ds and k != "label"}
+    if REST_VARIABLES["label"] in ds:
+        rest["label"] = np.asarray(ds[REST_VARIABLES["label"]].values, np.int64)
+    rows = _csv_rows(d / "curve.csv") or []
+    row0 = next((r for r in rows if str(r.get("increment", "")).strip() == "0"), None)
+    try:
+        rest["grip_strain"] = float(row0["grip_strain"]) if row0 else float(ds.attrs.get("rest_grip_strain", 0.0))
+        rest["cycle"] = float(row0["cycle"]) if row0 else float(ds["cycle"].values[0])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return rest
+
+
+def _column_slack_of_results(d: Path, n: int, columns: int) -> np.ndarray | None:
+    """Each column's slack length per increment, (n, columns) [mm], from columns.csv ``slack_mm``; None where
+    the file or the column is missing or does not cover every increment and column."""
+    rows = _csv_rows(d / "columns.csv")
+    if not rows or "slack_mm" not in rows[0]:
+        return None
+    out = np.full((n, columns), np.nan)
+    try:
+        for r in rows:
+            i, j = int(r["increment"]) - 1, int(r["column"])
+            if 0 <= i < n and 0 <= j < columns:
+                out[i, j] = float(r["slack_mm"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return out if np.all(np.isfinite(out)) else None
+
+
+def _summary_of(d: Path) -> dict | None:
+    """The run's summary.json, or None."""
+    import json
+    try:
+        doc = json.loads((d / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
 
 
 @dataclass
 class PatchFrames:
-    """Frames ready for :func:`~knitsim.usd.write_patch_usd` (only the selected ones are built)."""
+    """Frames ready for :func:`~knitsim.usd.write_patch_usd` (only the selected ones are built).
+
+    ``frame_indices`` are the time codes (:class:`Timeline`); ``column_values`` name -> (frames,
+    columns) per-column values (``column_held``); ``timeline`` what the time codes are.
+    """
 
     frames: list
     d: np.ndarray
@@ -247,6 +385,8 @@ class PatchFrames:
     frame_scalars: dict
     fallback_cells: list = field(default_factory=list)
     seconds_geometry: float = 0.0
+    column_values: dict = field(default_factory=dict)
+    timeline: "Timeline | None" = None
 
 
 def _fallback_quarter(W, C, n):
@@ -276,13 +416,107 @@ def resolve_layout(rec: PatchRecord, layout: str = "auto") -> str:
     return layout
 
 
+def column_held(rec: PatchRecord) -> np.ndarray:
+    """Per saved increment and wale column (strip): whether its state is held rather than the knit's,
+    shape (T, wales) bool: the column did not converge or is stopped (``column_status`` != ok), or it
+    holds a cell whose status is not ok (failed, or stopped at its force cap), whose last state it
+    keeps (as :func:`knitsim.io.patch_results.columns_held`, curve.csv's ``columns_held``)."""
+    status = rec.cell_fields.get("status")
+    held = (np.asarray(status) != 0).any(axis=1) if status is not None else np.zeros((rec.n_frames, rec.shape[1]), bool)
+    if rec.column_status is not None:
+        held = held | (np.asarray(rec.column_status) != 0)
+    return held
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """Which increments of a record a USD file shows, and what its time codes are.
+
+    Attributes
+    ----------
+    rest : bool
+        The rest state is known: time code k is increment k (0 the rest state); else time code k is
+        increment k + 1 (saved row k).
+    last_row : int
+        The last saved row written (0-based; increment ``last_row + 1``): the run's last, or the first
+        row of a tail in which every column is held (:func:`column_held`).
+    n_rows : int
+        Saved rows of the run (its program's increments).
+    """
+
+    rest: bool
+    last_row: int
+    n_rows: int
+
+    @property
+    def length(self) -> int:
+        """Time codes available: 0 .. length - 1."""
+        return self.last_row + 1 + (1 if self.rest else 0)
+
+    def row(self, tc: int) -> int:
+        """The saved row of time code ``tc`` (-1: the rest state)."""
+        return tc - 1 if self.rest else tc
+
+    def select(self, stride: int) -> list[int]:
+        """Time codes 0, stride, 2 stride, ... and the last one."""
+        sel = list(range(0, self.length, int(stride)))
+        if sel[-1] != self.length - 1:
+            sel.append(self.length - 1)
+        return sel
+
+    def info(self, stride: int, written: int) -> dict:
+        """The file's ``customLayerData["knitsim"]["timeline"]``."""
+        out = {"time_code_is": ("the increment number of the run (curve.csv's increment; 0 is the rest state)"
+                                if self.rest else
+                                "the saved increment's index: time code k is increment k + 1 (curve.csv's numbering); "
+                                "this results folder holds no rest state (cells.nc has no "
+                                f"{REST_VARIABLES['x']}), so increment 0 is not drawn"),
+               "time_code_0_is_increment": 0 if self.rest else 1, "rest_state": self.rest,
+               "increments_in_run": self.n_rows, "last_increment_written": self.last_row + 1,
+               "stride": int(stride), "time_samples": int(written)}
+        if self.last_row + 1 < self.n_rows:
+            out["increments_not_written"] = f"{self.last_row + 2}-{self.n_rows}"
+            out["why_not_written"] = (
+                f"from increment {self.last_row + 2} on every column is held (stopped at its cells' force cap, "
+                f"failed cells, or not converging: see run.warning_codes): the run moves the grip on while the knit "
+                f"keeps the state of increment {self.last_row + 1}, which is the last written")
+        return out
+
+
+def timeline(rec: PatchRecord) -> Timeline:
+    """The :class:`Timeline` of a record: its rest state if recorded, and the rows the knit reached (every row,
+    up to the first of a tail of rows in which every column is held: there the knit no longer moves)."""
+    T = rec.n_frames
+    held = column_held(rec).all(axis=1)
+    free = np.nonzero(~held)[0]
+    last = T - 1 if not held[-1] else (min(int(free[-1]) + 1, T - 1) if len(free) else 0)
+    return Timeline(rec.rest is not None, last, T)
+
+
+def _rest_label(rec: PatchRecord) -> np.ndarray:
+    """Stage label code of each cell at rest, (courses, wales): the Table 4 initial stage, stick-free loading
+    (adherence), or sliding where phi0 is at the sliding limit under Coulomb friction (the cell kernel's
+    initial stage; Dahl cells, dahl_sigma > 0, stay in adherence).  Used where the rest label is not recorded."""
+    from ..cell.stages import LABEL_CODES
+    p = rec.params
+    if "m" not in p or "phi0" not in p:
+        return np.full(rec.shape, LABEL_CODES["adherence"], np.int64)
+    m = np.asarray(p["m"], float)
+    phi0 = np.asarray(p["phi0"], float)
+    dahl = np.asarray(p.get("dahl_sigma", 0.0), float) > 0
+    sliding = ~dahl & (phi0 >= np.arctan(m) - 1e-12)
+    return np.where(sliding, LABEL_CODES["sliding"], LABEL_CODES["adherence"]).astype(np.int64) \
+        * np.ones(rec.shape, np.int64)
+
+
 def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POINTS, device: str = "cpu",
                  frames: list | None = None, per_group: bool | None = None) -> PatchFrames:
-    """The frames of a record: frames 0, stride, 2 stride, ... and the last (or the indices ``frames``).
+    """The frames of a record at time codes 0, stride, 2 stride, ... and the last (or the time codes ``frames``).
 
-    The unselected frames are not built (the exporter is then called with
-    ``stride=1``); their indices are kept as the time codes.  ``per_group``: one entry per
-    distinct cell (the instanced layout) instead of one per cell; default: a specimen's record.
+    The time codes are those of :func:`timeline`: increment numbers, 0 the rest state where the record has
+    it, up to the last increment the knit reached.  The unselected frames are not built (the exporter is then
+    called with ``stride=1``).  ``per_group``: one entry per distinct cell (the instanced layout) instead of
+    one per cell; default: a specimen's record.
     """
     per_group = rec.blocks if per_group is None else bool(per_group)
     import time
@@ -291,9 +525,14 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
     T = rec.n_frames
     if T == 0:
         raise KnitsimInputError(f"{rec.source or 'record'}: no saved increments")
-    sel = list(range(0, T, int(stride))) if frames is None else [int(k) for k in frames]
-    if sel[-1] != T - 1 and frames is None:
-        sel.append(T - 1)
+    tl = timeline(rec)
+    if frames is None:
+        sel = tl.select(stride)
+    else:
+        sel = [int(k) for k in frames]
+        if not sel or min(sel) < 0 or max(sel) >= tl.length or np.any(np.diff(sel) <= 0):
+            raise KnitsimInputError(f"frames = {frames!r}: must be increasing time codes in 0..{tl.length - 1}")
+    rows = [tl.row(tc) for tc in sel]                   # -1: the rest state
     goc = rec.group_of_cell
     G = rec.x.shape[1]
     # B and d of each group from a cell of it (identical cells share every parameter)
@@ -301,16 +540,40 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
     _, rep = np.unique(flat, return_index=True)
     Bg = rec.params["B"].ravel()[rep]
     dg = rec.params["d"].ravel()[rep]
+    rest = rec.rest
+    xs = np.stack([rest["x"] if k < 0 else rec.x[k] for k in rows]).reshape(-1, 5)
     t0 = time.perf_counter()
-    xs = rec.x[sel].reshape(-1, 5)
     cl = quarter_centrelines(xs, np.tile(Bg, len(sel)), np.tile(dg, len(sel)), n_points, device)
     secs = time.perf_counter() - t0
     q_all = cl["xy"].reshape(len(sel), G, -1, 2)
     ok_all = cl["ok"].reshape(len(sel), G)
     mat = material_ids(rec.params)
-    out, fallback = [], []
-    for f, k in enumerate(sel):
-        Wg, Cg = rec.W[k], rec.C[k]
+    held = column_held(rec)
+    rest_fields = None
+    if rest is not None:
+        C0 = rec.params["C0"] if "C0" in rec.params else None
+        label = rest["label"][goc] if "label" in rest else _rest_label(rec)
+        rest_fields = {"stage": label, "phi": rest["x"][:, 3][goc], "force_per_wale_N": rest["F"][goc],
+                       "strain": (rest["C"][goc] / C0 - 1.0) if C0 is not None else np.full(rec.shape, np.nan),
+                       "status": np.zeros(rec.shape, np.int64)}
+        rest_fields = {n: np.asarray(a).astype(np.asarray(rec.cell_fields[n]).dtype) for n, a in rest_fields.items()
+                       if n in rec.cell_fields}
+    out, fallback, col_held, slack = [], [], [], []
+    for f, k in enumerate(rows):
+        if k < 0:
+            # the rest state: its W and s_AB from its angles where not recorded (eq 6, the same integrals)
+            Wg = rest["W"] if "W" in rest else cl["W"].reshape(len(sel), G)[f]
+            Cg = rest["C"]
+            sg = rest["s_AB"] if "s_AB" in rest else cl["s_AB"].reshape(len(sel), G)[f]
+            cell_fields = rest_fields
+            col_held.append(np.zeros(rec.shape[1], np.int32))
+            slack.append(np.zeros(rec.shape[1]))           # at rest every column spans its rest length
+        else:
+            Wg, Cg, sg = rec.W[k], rec.C[k], rec.s_AB[k]
+            cell_fields = {n: a[k] for n, a in rec.cell_fields.items()}
+            col_held.append(held[k].astype(np.int32))
+            if rec.column_slack_mm is not None:
+                slack.append(np.asarray(rec.column_slack_mm[k], float))
         q = q_all[f]
         good = ok_all[f] & np.isfinite(Wg) & (Wg > 0) & np.isfinite(Cg) & (Cg > 0)
         with np.errstate(invalid="ignore"):
@@ -326,32 +589,75 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
             Cg = np.where(np.isfinite(Cg) & (Cg > 0), Cg, C0g)
             q = q.copy()
             q[bad] = _fallback_quarter(Wg[bad], Cg[bad], q.shape[1])
-        s_ab = np.where(good & np.isfinite(rec.s_AB[k]) & (rec.s_AB[k] > 0), rec.s_AB[k], np.nan)
+        s_ab = np.where(good & np.isfinite(sg) & (sg > 0), sg, np.nan)
         s_ab = np.where(np.isfinite(s_ab), s_ab, 0.25 * np.hypot(Wg / 4, Cg / 2))
         fallback.append(int(np.sum(~good[goc])))
         if per_group:
             # one stitch shape per group, instanced (knitsim.usd.instanced)
-            out.append({"quarter_xy": q, "W": Wg, "C": Cg, "s_AB": s_ab,
-                        "fields": {n: a[k].ravel()[rep] for n, a in rec.cell_fields.items()}})
+            fr = {"quarter_xy": q, "W": Wg, "C": Cg, "s_AB": s_ab,
+                  "fields": {n: a.ravel()[rep] for n, a in cell_fields.items()}}
         else:
-            out.append({"quarter_xy": q[goc], "W": Wg[goc], "C": Cg[goc], "s_AB": s_ab[goc],
-                        "fields": {n: a[k] for n, a in rec.cell_fields.items()}})
-    scalars = {n: np.asarray(a, float)[sel] for n, a in rec.frame_scalars.items()}
-    return PatchFrames(out, np.asarray(rec.params["d"], float), mat, sel, scalars, fallback, secs)
+            fr = {"quarter_xy": q[goc], "W": Wg[goc], "C": Cg[goc], "s_AB": s_ab[goc], "fields": cell_fields}
+        if len(slack) == f + 1:
+            # an unknown (non-finite) slack length is drawn as no slack: the cells at their own lengths
+            fr["column_slack_mm"] = np.where(np.isfinite(slack[f]), np.maximum(slack[f], 0.0), 0.0)
+        out.append(fr)
+    scalars = {}
+    for n, a in rec.frame_scalars.items():
+        at_rest = {"grip_strain": rest["grip_strain"], "cycle": rest["cycle"], "direction": 1.0}.get(n, np.nan) \
+            if rest is not None else np.nan
+        scalars[n] = np.array([at_rest if k < 0 else float(np.asarray(a, float)[k]) for k in rows])
+    scalars["columns_held"] = np.array([float(np.sum(h)) for h in col_held])
+    return PatchFrames(out, np.asarray(rec.params["d"], float), mat, sel, scalars, fallback, secs,
+                       {"column_held": np.array(col_held)}, tl)
+
+
+def run_flags(summary: dict | None) -> dict:
+    """What a file says of the run it shows (``customLayerData["knitsim"]["run"]``): the summary's warnings
+    (``warning_codes``, ``warning_messages``) and its flags (``all_expected_end``, ``all_converged``, the force
+    cap, failed and stopped cells, non-converged columns); ``{}`` without a summary."""
+    if not summary:
+        return {}
+    ws = [w for w in summary.get("warnings", []) if isinstance(w, dict)]
+    out = {"warning_codes": [str(w.get("code", "")) for w in ws],
+           "warning_messages": [str(w.get("message", "")) for w in ws]}
+    for k in ("all_expected_end", "all_converged", "grip_strain_at_force_cap", "cells_stopped_at_force_cap_at_end",
+              "failed_cells_at_end", "non_converged_column_increments",
+              "non_converged_column_increments_at_force_cap", "columns_stopped_at_end", "n_increments"):
+        if summary.get(k) is not None:
+            out[k] = summary[k]
+    cut = [c.get("cut_at_grip_strain") for c in summary.get("cycles", []) if isinstance(c, dict)]
+    if any(c is not None for c in cut):
+        out["cycles_cut_at_grip_strain"] = [float("nan") if c is None else float(c) for c in cut]
+    return out
+
+
+def field_legends() -> dict:
+    """Legends of the integer codes the file holds: ``status`` (cell status, primvars:knitsim:status),
+    ``stage`` (label codes) and ``column_held``."""
+    from ..cell.history import STATUS_NAMES
+    from ..cell.stages import LABEL_CODES
+    return {"status": {"codes": sorted(STATUS_NAMES), "labels": [STATUS_NAMES[k] for k in sorted(STATUS_NAMES)]},
+            "stage": {"codes": sorted(LABEL_CODES.values()), "labels": sorted(LABEL_CODES, key=LABEL_CODES.get)},
+            "column_held": {"codes": [0, 1], "labels": ["the knit's state", "held: not the knit's (the column keeps "
+                                                        "its last state while the grip moves)"]}}
 
 
 def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride: int = 1,
                   n_points: int = DEFAULT_POINTS, device: str = "cpu", quicklook=None, curve_basis: str = "catmullRom",
-                  metadata: dict | None = None, layout: str = "auto"):
+                  metadata: dict | None = None, layout: str = "auto", time_codes_per_second: float = 24.0):
     """Write a record as USD (``.usda`` text, ``.usdc``/``.usd`` binary crate); optionally a quick-look PNG.
 
     Parameters
     ----------
     rec : PatchRecord
     out_path : path
+        Checked writable before any work (:func:`knitsim.usd.export.check_usd_path`).
     color_by : {"stage", "phi", "force", "material", "strain"}
+        ``force`` colours by the force per wale of each cell [N] (field ``force_per_wale_N``).
     stride : int, >= 1
-        Frames 0, stride, 2 stride, ... and the last one; time code = increment index.
+        Increments 0, stride, 2 stride, ... and the last one written; time code = increment number
+        (module docstring, "Time codes").
     n_points : int, >= 6
         Points per quarter centreline.
     device : str
@@ -366,20 +672,21 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         One BasisCurves yarn per course (read back with :func:`knitsim.usd.read_patch_usd`), or
         one stitch shape per distinct cell instanced over its stitches (read back with
         :func:`knitsim.usd.instanced.read_specimen_usd`); ``"auto"``: :func:`resolve_layout`.
+    time_codes_per_second : float
+        Playback rate, finite and > 0.
 
     Returns
     -------
     UsdExportResult
-        With ``geometry_seconds`` (kernel) and ``fallback_cells`` added as attributes.
+        With ``geometry_seconds`` (kernel), ``fallback_cells`` and ``timeline`` (what was written, the
+        file's ``customLayerData["knitsim"]["timeline"]``) added as attributes.
     """
-    from .export import write_patch_usd
+    from .export import _check_rate, check_usd_path, write_patch_usd
     from .quicklook import render_quicklook
     if color_by not in COLOR_FIELDS:
         raise KnitsimInputError(f"color_by = {color_by!r}: expected one of {', '.join(COLOR_FIELDS)}")
-    out_path = os.fspath(out_path)
-    ext = os.path.splitext(out_path)[1].lower()
-    if ext not in (".usda", ".usdc", ".usd"):
-        raise KnitsimInputError(f"--out = {out_path!r}: must end in .usda, .usdc or .usd")
+    out_path = check_usd_path(out_path)
+    _check_rate(time_codes_per_second)
     if quicklook is not None and not os.fspath(quicklook).lower().endswith(".png"):
         raise KnitsimInputError(f"--quicklook = {os.fspath(quicklook)!r}: must end in .png")
     instanced = resolve_layout(rec, layout) == "instanced"
@@ -388,13 +695,25 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
     geometry = "quarter centreline from the elastica state (kernels/centreline.py, eqs 8-9)"
     md = {"source": rec.source, **({"bands": courses, "strips": wales} if instanced else
                                    {"courses": courses, "wales": wales}),
-          "points_per_quarter": int(n_points), "stride": int(stride), "frames_in_run": rec.n_frames,
+          "points_per_quarter": int(n_points),
           "fallback_cells": ",".join(str(c) for c in pf.fallback_cells),
           "geometry": geometry + (", one stitch shape per distinct cell, instanced over the stitches of its "
                                   "blocks" if instanced else "")}
     md.update(metadata or {})
+    tl_info = pf.timeline.info(stride, len(pf.frame_indices))
+    drawing = {}
+    if rec.column_slack_mm is None:
+        drawing["slack_columns"] = ("the results hold no column slack lengths (columns.csv slack_mm): slack "
+                                    "columns are drawn at their cells' course lengths, longer than the grip span")
+    if len(np.unique(pf.material_id)) > 1:
+        drawing["non_uniform"] = yg.NON_UNIFORM_NOTE
+    layer_info = {"timeline": tl_info, "field_legends": field_legends(), "field_docs": dict(FIELD_DOCS),
+                  **({"run": run_flags(rec.run_summary)} if rec.run_summary else {}),
+                  **({"drawing": drawing} if drawing else {})}
     common = dict(color_by=COLOR_FIELDS[color_by], scene_text=rec.scene_text, metadata=md, field_units=FIELD_UNITS,
-                  curve_basis=curve_basis, frame_indices=pf.frame_indices, frame_scalars=pf.frame_scalars)
+                  curve_basis=curve_basis, frame_indices=pf.frame_indices, frame_scalars=pf.frame_scalars,
+                  column_values=pf.column_values, docs=FIELD_DOCS, layer_info=layer_info,
+                  time_codes_per_second=time_codes_per_second)
     if instanced:
         from .instanced import write_specimen_usd
         _, rep = np.unique(rec.group_of_cell.ravel(), return_index=True)
@@ -407,15 +726,19 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         res = write_patch_usd(out_path, pf.frames, pf.d, material_id=pf.material_id, stride=1, **common)
     res.geometry_seconds = pf.seconds_geometry
     res.fallback_cells = pf.fallback_cells
+    res.timeline = tl_info
     if quicklook is not None:
         render_quicklook(out_path, quicklook)
     return res
 
 
-def export_history(h, params: dict, out_path, *, scene_text: str = "", course_count=None, wale_count=None, **kw):
+def export_history(h, params: dict, out_path, *, scene_text: str = "", course_count=None, wale_count=None,
+                   summary: dict | None = None, **kw):
     """Write a :class:`~knitsim.patch.runner.PatchHistory` as USD (keywords of :func:`export_record`); a
-    specimen's history with its model's ``course_count`` and ``wale_count`` (drawn instanced)."""
-    return export_record(record_from_history(h, params, scene_text, course_count, wale_count), out_path, **kw)
+    specimen's history with its model's ``course_count`` and ``wale_count`` (drawn instanced); ``summary``:
+    the run's summary, whose warnings and flags the file carries."""
+    return export_record(record_from_history(h, params, scene_text, course_count, wale_count, summary),
+                         out_path, **kw)
 
 
 def export_results(results_dir, out_path, **kw):

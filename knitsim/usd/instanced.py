@@ -34,7 +34,11 @@ strip the courses by cumulative rounding of the course counts (block k of a stri
 The stitches of a block sit on its lattice, ``(a W, b C)`` from the block's origin, the
 blocks stacked as the stitches of a ``[patch]`` (x cumulative along a band, y cumulative
 along a strip).  The drawn specimen is within half a stitch of the real one in each
-direction; the counts drawn and represented are in ``customLayerData``.
+direction; the counts drawn and represented are in ``customLayerData``.  A slack strip
+(``column_slack_mm`` > 0 in a frame: its blocks, stacked, are longer than the grip span) is drawn
+compressed between the grips, every stitch keeping its shape (positions along y scaled by
+:func:`knitsim.usd.yarn_geometry.slack_pitch_scale`); ``knitsim:column_slack_mm`` of ``/Patch``
+gives that length per strip and time.
 """
 from __future__ import annotations
 
@@ -126,7 +130,8 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
                        wale_count, *, material_id_group=None, color_by: str | None = "stage",
                        scene_text: str = "", metadata: dict | None = None, field_units: dict | None = None,
                        curve_basis: str = "catmullRom", frame_indices=None, frame_scalars: dict | None = None,
-                       time_codes_per_second: float = 24.0):
+                       time_codes_per_second: float = 24.0, column_values: dict | None = None,
+                       docs: dict | None = None, layer_info: dict | None = None):
     """Write a specimen over time as an instanced USD stage (module docstring).
 
     Parameters
@@ -135,7 +140,8 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
         ``.usda`` text, ``.usdc`` / ``.usd`` binary crate.
     frames : list of dict
         Per frame and per group of identical cells: ``quarter_xy`` (G, n, 2) [mm], ``W``, ``C``,
-        ``s_AB`` (G,) [mm], ``fields`` name -> (G,) values (``stage`` label codes, ...).
+        ``s_AB`` (G,) [mm], ``fields`` name -> (G,) values (``stage`` label codes, ...); optional
+        ``column_slack_mm`` (strips,) [mm] (a slack strip is drawn compressed between the grips).
     d_group : ndarray, shape [G]
         Yarn diameter of each group [mm].
     group_of_cell : ndarray of int, shape [bands, strips]
@@ -145,21 +151,29 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
     color_by, scene_text, metadata, field_units, curve_basis, frame_indices, frame_scalars
         As :func:`knitsim.usd.export.write_patch_usd`.
     time_codes_per_second : float
-        Playback rate of the stage's time samples (one per exported increment).
+        Playback rate of the stage's time samples (one per exported increment), finite and > 0.
+    column_values, docs, layer_info
+        As :func:`knitsim.usd.export.write_patch_usd` (a column is a strip).
 
     Returns
     -------
     UsdExportResult
         With ``stitches`` and ``prototypes`` set.
+
+    Raises
+    ------
+    KnitsimInputError
+        Bad input, or a path that cannot be written (:func:`knitsim.usd.export.check_usd_path`).
     """
     from pxr import Gf, Sdf, UsdGeom, Vt
 
-    from .export import (CURVE_BASES, FIELD_PREFIX, STAGE_LABELS, UsdExportResult, _coloring, _define_curve,
-                         _new_stage, _user_metadata, _vt_strings, _write_frame_scalars)
+    from .export import (COLUMN_SLACK_DOC, CURVE_BASES, FIELD_PREFIX, SLACK_COLUMNS_NOTE, STAGE_LABELS,
+                         UsdExportResult, _add_layer_info, _check_rate, _coloring, _column_values, _define_curve,
+                         _new_stage, _save, _user_metadata, _vt_strings, _write_column_values, _write_frame_scalars,
+                         check_usd_path)
     t_start = _time.perf_counter()
-    path = os.fspath(path)
-    if os.path.splitext(path)[1].lower() not in (".usda", ".usdc", ".usd"):
-        raise KnitsimInputError(f"path={path!r} must end in .usda, .usdc or .usd")
+    path = check_usd_path(path)
+    time_codes_per_second = _check_rate(time_codes_per_second)
     if curve_basis not in CURVE_BASES:
         raise KnitsimInputError(f"curve_basis={curve_basis!r} is not one of {CURVE_BASES}")
     if not frames:
@@ -187,8 +201,25 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
         if v.shape != (len(frames),):
             raise KnitsimInputError(f"frame_scalars[{name!r}] must have one value per frame ({len(frames)})")
 
+    strips = int(goc.shape[1])
+    columns = _column_values(column_values, len(frames), strips)
+    has_slack = [fr.get("column_slack_mm") is not None for fr in frames]
+    if any(has_slack) and not all(has_slack):
+        raise KnitsimInputError("frames: 'column_slack_mm' must be given in every frame or in none")
+    slack = None
+    if all(has_slack):
+        slack = np.array([np.asarray(fr["column_slack_mm"], float) for fr in frames])
+        if slack.shape != (len(frames), strips) or not np.all(np.isfinite(slack) & (slack >= 0)):
+            raise KnitsimInputError(f"frames: 'column_slack_mm' must be {strips} finite lengths >= 0 per frame [mm]")
+        columns = {"column_slack_mm": slack, **columns}
+    docs = {**({"column_slack_mm": COLUMN_SLACK_DOC} if slack is not None else {}), **(docs or {})}
+
     stage, root = _new_stage(path, time_codes, time_codes_per_second)
     _write_frame_scalars(root, scalars, time_codes)
+    _write_column_values(root, columns, time_codes, docs)
+    for name in scalars:
+        if name in docs:
+            root.GetPrim().GetAttribute(FIELD_PREFIX + name).SetDocumentation(str(docs[name]))
 
     inst = UsdGeom.PointInstancer.Define(stage, INSTANCER_PATH)
     field_names = sorted(frames[0]["fields"])
@@ -205,6 +236,8 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
             is_int = np.issubdtype(np.asarray(frames[0]["fields"][name]).dtype, np.integer)
             fpv[name] = pv_api.CreatePrimvar(FIELD_PREFIX + name, Sdf.ValueTypeNames.Int if is_int
                                              else Sdf.ValueTypeNames.Float, UsdGeom.Tokens.constant)
+            if name in docs:
+                fpv[name].GetAttr().SetDocumentation(str(docs[name]))
         if mat is not None:
             pv_api.CreatePrimvar(FIELD_PREFIX + "material_id", Sdf.ValueTypeNames.Int,
                                  UsdGeom.Tokens.constant).Set(int(mat[g, 0]))
@@ -222,7 +255,8 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
     pos_attr = inst.CreatePositionsAttr()
     ext_attr = inst.CreateExtentAttr()
     palette = coloring.palette
-    for tc, fr, cf in zip(time_codes, frames, col_frames):
+    cc_rep = np.asarray(course_count, float)
+    for f, (tc, fr, cf) in enumerate(zip(time_codes, frames, col_frames)):
         q = np.asarray(fr["quarter_xy"], float)
         Wg, Cg = np.asarray(fr["W"], float), np.asarray(fr["C"], float)
         pts = yg.stitch_points(q, Wg, d_group, fr.get("s_AB")).astype(np.float32)     # (G, m, 3)
@@ -237,6 +271,11 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
                 v = np.asarray(fr["fields"][name])[g]
                 pv.Set(int(v) if np.issubdtype(np.asarray(v).dtype, np.integer) else float(v), tc)
         pos = lattice.positions(Wg[goc], Cg[goc])
+        if slack is not None:
+            # a slack strip between the grips: its stitches' y scaled (yarn_geometry, "Slack columns"),
+            # its length stood for by the blocks' represented courses, drawn by the courses drawn
+            scale = yg.slack_pitch_scale(Cg[goc], slack[f], drawn=lattice.courses_drawn, represented=cc_rep)
+            pos[:, 1] *= scale[lattice.strip]
         pos_attr.Set(Vt.Vec3fArray.FromNumpy(pos.astype(np.float32)), tc)
         plo = pts.min(axis=1) - 0.5 * d_group[:, None]
         phi = pts.max(axis=1) + 0.5 * d_group[:, None]
@@ -269,12 +308,14 @@ def write_specimen_usd(path, frames: list, d_group: np.ndarray, group_of_cell: n
         "frame_indices": Vt.IntArray([int(t) for t in time_codes]),
         "frame_scalars": {name: Vt.DoubleArray([float(x) for x in np.asarray(v, float)])
                           for name, v in (frame_scalars or {}).items()},
-        "frames_in_input": len(frames),
         "metadata": _user_metadata(metadata),
     }
+    if slack is not None:
+        info["drawing"] = {"slack_columns": SLACK_COLUMNS_NOTE + " (here a column is a strip of blocks)"}
+    _add_layer_info(info, layer_info, {"time_samples": len(frames), "frames_passed": len(frames), "stride": 1})
     layer = stage.GetRootLayer()
     layer.customLayerData = {"knitsim": info}
-    layer.Save()
+    _save(stage, path)
     return UsdExportResult(path=path, time_codes=np.array(time_codes), courses=int(lattice.courses_drawn.sum(axis=0)
                                                                                      .max()),
                            wales=int(lattice.wales_drawn.sum(axis=1).max()), points_per_quarter=n,

@@ -74,7 +74,26 @@ y0 + C - Y_C).  One continuous polyline per course: the last point of each cell
 (its A'') is dropped and the next cell's A' follows; when neighbouring cells of
 a course have the same y0 these points coincide.  When they differ (C varying
 across a course) the yarn steps between them: the lattice rule above does not
-make the cells of a non-uniform patch fit, and the picture shows it.
+make the cells of a non-uniform patch fit, and the picture shows it.  So in a
+non-uniform patch (random phi0, gradients, zones) the yarn is stretched (one
+course curve: a segment jumps between the two end points) or broken (an
+instanced stitch per cell: a gap) where neighbouring stitches of a course meet;
+this is a display artefact of the lattice rule, not a result of the model
+(:data:`NON_UNIFORM_NOTE`).
+
+Slack columns.  A column whose cells, stacked at their own course lengths, are
+longer than the grip span (a slack column after an unloading: its extra length
+``slack`` [mm] is the run's ``column_slack_mm``, the knit does not say where
+it goes) is drawn between the grips: its course pitch is scaled by
+:func:`slack_pitch_scale` so that its drawn length, the last course's origin
+plus that course's C, is ``sum C - slack``, the grip span.  Each stitch keeps
+its own shape, so neighbouring courses overlap (the knit piles up)::
+
+    y0[i, j] = s_j * sum_{m < i} C[m, j]
+    s_j = (sum_m C[m, j] - slack_j - C[-1, j]) / (sum_m C[m, j] - C[-1, j])
+
+clipped to [0, 1]; s_j = 1 exactly in a column without slack (a loaded
+column is drawn as before).
 
 Vertex layout of a course curve with ``w`` wales and ``n`` points per quarter:
 cell j owns vertices ``j*4(n-1) ... (j+1)*4(n-1) - 1``; within it the offsets of
@@ -93,6 +112,14 @@ LANDMARKS: dict[str, int] = {"A_prime": 0, "head_apex": 1, "A": 2, "sinker_apex"
 
 #: tolerance on the closure checks X_A = W/4, Y_A = 0, X_C = 0, relative to W
 ENDPOINT_RTOL = 1e-4
+
+#: what a file of a non-uniform patch says of the joins between stitches (module docstring, "Patch lattice")
+NON_UNIFORM_NOTE = (
+    "non-uniform patch: neighbouring stitches of a course differ in course length (and wale width), and each "
+    "wale column is stacked at its own course lengths, so where two stitches of a course meet the yarn is "
+    "stretched (course yarns: a segment jumps between their end points) or broken (instanced stitches: a gap); "
+    "this is a display artefact of the lattice (knitsim.usd.yarn_geometry), not a result of the model, which "
+    "does not resolve the yarn between cells")
 
 
 def vertices_per_cell(n: int) -> int:
@@ -260,11 +287,49 @@ def stitch_polyline(quarter_xy, W: float, d: float = 0.0, s_ab: float | None = N
     return p
 
 
-def cell_origins(W, C) -> tuple[np.ndarray, np.ndarray]:
+def slack_pitch_scale(C, slack, drawn=None, represented=None) -> np.ndarray:
+    """Scale of the course pitch of each wale column that puts a slack column between the grips.
+
+    Parameters
+    ----------
+    C : array, shape (courses, wales)
+        Course length of each cell [mm].
+    slack : array, shape (wales,)
+        Length by which each column's cells, stacked, exceed the grip span [mm] (the run's
+        ``column_slack_mm``; 0 for a loaded column).
+    drawn, represented : array, shape (courses, wales), optional
+        Courses drawn and courses stood for by each cell (a specimen's blocks,
+        :mod:`knitsim.usd.instanced`); default 1 and 1.  The grip span is then the drawn column's
+        length times ``1 - slack / (its represented length)``.
+
+    Returns
+    -------
+    array, shape (wales,)
+        ``s`` in [0, 1] (module docstring, "Slack columns"): origins ``y0 = s * sum C`` put the top
+        of the column's last stitch at the grip span; exactly 1 where ``slack`` is 0.
+    """
+    C = np.asarray(C, dtype=float)
+    slack = np.broadcast_to(np.asarray(slack, dtype=float), C.shape[1:])
+    n_d = np.ones_like(C) if drawn is None else np.asarray(drawn, dtype=float)
+    n_r = n_d if represented is None else np.asarray(represented, dtype=float)
+    length = (n_d * C).sum(axis=0)                       # drawn length of each column [mm]
+    rep = (n_r * C).sum(axis=0)
+    # the top stitch of each column: the last course that draws one
+    top_row = np.where(n_d > 0, np.arange(C.shape[0])[:, None], -1).max(axis=0)
+    top = C[np.maximum(top_row, 0), np.arange(C.shape[1])]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        span = length * (1.0 - slack / rep)
+        s = np.clip((span - top) / (length - top), 0.0, 1.0)
+    # a loaded column (no slack), or one of a single course (nothing to compress), is drawn as it is
+    return np.where((slack > 0) & np.isfinite(slack) & (length - top > 0) & np.isfinite(s), s, 1.0)
+
+
+def cell_origins(W, C, pitch_scale=None) -> tuple[np.ndarray, np.ndarray]:
     """Lattice position of each cell's A' point [mm], shapes (courses, wales).
 
     x0 is cumulative W along the course (over wales), y0 cumulative C along
-    the wale column (over courses), both starting at 0.
+    the wale column (over courses), both starting at 0; ``pitch_scale``
+    (wales,): y0 of each column times it (a slack column, :func:`slack_pitch_scale`).
     """
     W = np.asarray(W, dtype=float)
     C = np.asarray(C, dtype=float)
@@ -272,10 +337,12 @@ def cell_origins(W, C) -> tuple[np.ndarray, np.ndarray]:
     y0 = np.zeros_like(C)
     np.cumsum(W[:, :-1], axis=1, out=x0[:, 1:])
     np.cumsum(C[:-1, :], axis=0, out=y0[1:, :])
+    if pitch_scale is not None:
+        y0 *= np.asarray(pitch_scale, dtype=float)[None, :]
     return x0, y0
 
 
-def patch_points(quarter_xy, W, C, d, s_ab=None) -> np.ndarray:
+def patch_points(quarter_xy, W, C, d, s_ab=None, pitch_scale=None) -> np.ndarray:
     """Course curves of a patch as one array.
 
     Parameters
@@ -288,6 +355,9 @@ def patch_points(quarter_xy, W, C, d, s_ab=None) -> np.ndarray:
         Yarn diameter [mm].
     s_ab : array, shape (courses, wales), optional
         Arc length A -> B [mm].
+    pitch_scale : array, shape (wales,), optional
+        Scale of each column's course pitch (a slack column drawn between the grips,
+        :func:`slack_pitch_scale`); default 1.
 
     Returns
     -------
@@ -297,7 +367,7 @@ def patch_points(quarter_xy, W, C, d, s_ab=None) -> np.ndarray:
     q = np.asarray(quarter_xy, dtype=float)
     courses, wales, n, _ = q.shape
     cells = stitch_points(q, W, d, s_ab)                 # (courses, wales, 4(n-1)+1, 3)
-    x0, y0 = cell_origins(W, C)
+    x0, y0 = cell_origins(W, C, pitch_scale)
     cells[..., 0] += x0[..., None]
     cells[..., 1] += y0[..., None]
     k = vertices_per_cell(n)

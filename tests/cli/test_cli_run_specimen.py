@@ -134,7 +134,7 @@ def test_usd_draws_every_stitch_between_the_grips(run):
     import xarray as xr
     with xr.open_dataset(out / "cells.nc", engine="h5netcdf") as ds:
         C = (ds["C0"].values * (1 + ds["strain"].values))[-1]           # block course lengths at the end
-    assert u.time_codes[-1] == 6 - 1                                 # the last increment is drawn
+    assert u.time_codes[-1] == 6                                     # the last increment is drawn (0: rest)
     for j in range(2):
         # the top stitch's A' plus its course length: the strip's drawn height, within a course of the grips'
         # distance (u = 0.3 x 50 mm)

@@ -1,9 +1,12 @@
 """``knitsim run --usd`` and ``knitsim usd``: files open in USD, match the run, quick-look, bad input exits 2.
 
-Expected values: the run's own saved outputs (curve.csv rows = saved
-increments, scene.resolved.toml text, summary.json cell counts), the vertex
+Expected values: the run's own saved outputs (curve.csv rows = increments 0
+(rest) .. n, scene.resolved.toml text, summary.json cell counts), the vertex
 count of the symmetric full stitch (4 (n - 1) per cell + 1 per course,
-knitsim.usd.yarn_geometry) and the stride rule (0, s, 2s, ..., last).
+knitsim.usd.yarn_geometry) and the stride rule (increments 0, s, 2s, ..., last,
+counted from the rest state; time code = increment).  ``knitsim usd`` of a
+results folder whose cells.nc holds no rest state draws increments 1 .. n at
+time codes 0 .. n - 1 and says so (customLayerData knitsim.timeline).
 """
 from __future__ import annotations
 
@@ -35,7 +38,7 @@ def run_dir(tmp_path_factory):
 
 def test_run_usd_file(run_dir):
     n = sum(1 for _ in open(run_dir / "o" / "curve.csv")) - 2            # saved increments (header, rest row)
-    sel = list(range(0, n, 3)) + ([n - 1] if (n - 1) % 3 else [])
+    sel = list(range(0, n + 1, 3)) + ([n] if n % 3 else [])            # increments 0 (rest) .. n
     stage = Usd.Stage.Open(str(run_dir / "run.usda"))
     curves = [UsdGeom.BasisCurves(p) for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)]
     assert len(curves) == 3                                              # one per course
@@ -43,8 +46,12 @@ def test_run_usd_file(run_dir):
         assert list(c.GetCurveVertexCountsAttr().Get()) == [2 * 4 * (9 - 1) + 1]
         assert c.GetPointsAttr().GetTimeSamples() == [float(k) for k in sel]
     assert UsdGeom.GetStageMetersPerUnit(stage) == 0.001 and UsdGeom.GetStageUpAxis(stage) == "Z"
-    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, float(n - 1))
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, float(n))
     info = stage.GetRootLayer().customLayerData["knitsim"]
+    assert info["timeline"]["time_code_0_is_increment"] == 0 and info["timeline"]["increments_in_run"] == n
+    # the run's warnings, as summary.json holds them
+    summary = json.loads((run_dir / "o" / "summary.json").read_text())
+    assert list(info["run"]["warning_codes"]) == [w["code"] for w in summary["warnings"]]
     assert info["scene"] == (run_dir / "o" / "scene.resolved.toml").read_text()
     assert info["color_by"] == "phi" and info["legend"]["units"] == "rad"
     back = read_patch_usd(run_dir / "run.usda")
@@ -54,17 +61,25 @@ def test_run_usd_file(run_dir):
 
 
 def test_usd_from_results_equals_run_export(run_dir, capsys):
+    # the results folder's cells.nc holds the rest state (rest_state_*): time code k is increment k, 0 the rest
+    # state (said in the --json document), and every sample equals the run's own file
+    full = run_dir / "full.usda"
+    assert main(["run", str(SCENE), "--out", str(run_dir / "o1"), "--no-progress", *SMALL,
+                 "--usd", str(full), "--color-by", "phi"]) in (0, 1)
+    capsys.readouterr()
     out = run_dir / "again.usdc"
     png = run_dir / "ql.png"
-    rc = main(["usd", str(run_dir / "o"), "--out", str(out), "--stride", "3", "--color-by", "phi",
+    rc = main(["usd", str(run_dir / "o1"), "--out", str(out), "--color-by", "phi",
                "--quicklook", str(png), "--json"])
     assert rc == 0
-    doc = json.loads(capsys.readouterr().out)
-    assert doc["courses"] == 3 and doc["wales"] == 2
-    a, b = read_patch_usd(run_dir / "run.usda"), read_patch_usd(out)
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
+    assert doc["courses"] == 3 and doc["wales"] == 2 and doc["time_code_0_is_increment"] == 0
+    a, b = read_patch_usd(full), read_patch_usd(out)
     assert np.array_equal(a.points, b.points) and np.array_equal(a.time_codes, b.time_codes)
     assert a.fields.keys() == b.fields.keys() and all(np.array_equal(a.fields[k], b.fields[k]) for k in a.fields)
     assert a.info["scene"] == b.info["scene"]
+    assert b.info["timeline"]["time_code_0_is_increment"] == 0 and a.info["timeline"] == b.info["timeline"]
     import matplotlib.image as mpimg
     img = mpimg.imread(png)
     assert img.shape[0] > 100 and img.shape[1] > 100
