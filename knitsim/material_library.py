@@ -105,12 +105,14 @@ class MaterialLibrary:
     knits: dict
 
     def yarn(self, name: str, key: str) -> LibraryYarn:
+        """The yarn ``name``; an unknown name raises :class:`KnitsimInputError` naming ``key``."""
         if name not in self.yarns:
             raise KnitsimInputError(f"{key} = {name!r}: not a yarn of {self.path} (its yarns: "
                                     f"{', '.join(sorted(self.yarns)) or 'none'})")
         return self.yarns[name]
 
     def knit(self, name: str, key: str) -> LibraryKnit:
+        """The knit ``name``; an unknown name raises :class:`KnitsimInputError` naming ``key``."""
         if name not in self.knits:
             raise KnitsimInputError(f"{key} = {name!r}: not a knit of {self.path} (its knits: "
                                     f"{', '.join(sorted(self.knits)) or 'none'})")

@@ -68,6 +68,7 @@ class Yarn:
     source: str
 
     def as_dict(self) -> dict:
+        """Fields by name."""
         return asdict(self)
 
 
@@ -97,6 +98,7 @@ class Knit:
     source: str
 
     def as_dict(self) -> dict:
+        """Fields by name."""
         return asdict(self)
 
 

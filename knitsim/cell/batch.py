@@ -474,6 +474,7 @@ class CellBatchState:
 
     @classmethod
     def empty(cls, n: int, device: str) -> "CellBatchState":
+        """A state of ``n`` cells on ``device``, every array zero."""
         f, i = wp.float64, wp.int32
         return cls(wp.zeros((n, 5), dtype=f, device=device), wp.zeros((n, len(QUANTITY_NAMES)), dtype=f, device=device),
                    wp.zeros(n, dtype=f, device=device), wp.zeros(n, dtype=i, device=device),
@@ -493,9 +494,11 @@ class CellBatchState:
 
     @property
     def cell_count(self) -> int:
+        """Cells in the batch."""
         return int(self.C.shape[0])
 
     def nbytes(self) -> int:
+        """Device bytes of the state arrays."""
         return int(sum(a.capacity for a in self._arrays() + [self.eff]))
 
     def values(self) -> dict[str, np.ndarray]:
@@ -841,6 +844,23 @@ class ProgramHistory:
 
     @classmethod
     def empty(cls, model: CellModel, n_increments: int, stride: int = 1, with_effects: bool = False):
+        """A zeroed history of the cells of ``model``, on its device.
+
+        Parameters
+        ----------
+        model : CellModel
+            The batch whose cells are recorded.
+        n_increments : int
+            Increments of the run.
+        stride : int
+            Record every ``stride``-th increment (``n_increments // stride`` rows).
+        with_effects : bool
+            Record the effects' state (``eff`` with ``len(EFFECT_STATE)`` quantities; else none).
+
+        Returns
+        -------
+        ProgramHistory
+        """
         dev, nc = model.device, model.cell_count
         rows = n_increments // stride
         codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)

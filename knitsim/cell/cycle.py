@@ -96,6 +96,7 @@ class CellState:
     reason: str = ""
 
     def copy(self) -> "CellState":
+        """An independent copy (``x`` and ``q`` copied)."""
         return CellState(self.x.copy(), dict(self.q), self.stage, self.jammed, self.soft,
                          self.frozen_soft, self.frozen_sbc, self.C, self.status, self.reason)
 

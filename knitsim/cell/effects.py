@@ -162,6 +162,7 @@ class EffectSet:
         return replace(self, on=on, **params).validated()
 
     def as_dict(self) -> dict:
+        """Fields by name, ``on`` as a list."""
         d = asdict(self)
         d["on"] = list(self.on)
         return d

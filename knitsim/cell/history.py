@@ -118,6 +118,7 @@ class BatchHistory:
 
     @property
     def n_cells(self) -> int:
+        """Cells in the batch (columns of the history)."""
         return int(self.stage.shape[1])
 
     @property

@@ -81,6 +81,7 @@ class Progress:
                   file=self.stream, flush=True)
 
     def close(self) -> None:
+        """Close the progress bar, if one is shown."""
         if self.bar is not None:
             self.bar.close()
 

@@ -26,6 +26,7 @@ from ..errors import KnitsimInputError
 
 
 def register(subparsers) -> None:
+    """Add ``knitsim diagnose``."""
     p = subparsers.add_parser(
         "diagnose", help="sim-to-real gap: calibrate, test the fit against the noise, rank the unmodelled effects",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -54,6 +55,8 @@ def _check_out(path: str | None, suffix: str, flag: str, overwrite: bool) -> Pat
 
 
 def run(args) -> int:
+    """``knitsim diagnose``: diagnose the measured curves, write ``--json`` / ``--report`` if asked and
+    print the summary."""
     from dataclasses import replace
 
     from ..diagnosis.diagnose import diagnose

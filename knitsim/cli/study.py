@@ -35,6 +35,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """``knitsim study``: run the named study, print its table (or JSON) and write the table and
+    figures to ``--out`` if given."""
     if args.out:
         prepare_output_dir(args.out, overwrite=args.overwrite)
     if args.name == "dusserre2015-experiment":

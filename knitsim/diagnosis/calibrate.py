@@ -74,6 +74,11 @@ AT_BOUND_SHARE = 1.0e-3
 
 
 def default_bounds(base: CellParams, var) -> tuple[float, float]:
+    """Default search bounds (low, high) of the fitted variable ``var`` for the cell ``base``.
+
+    B and d within a factor of 2 of ``base``'s; in_plane_width from d to :data:`D_MAX_OF_W0` x W0 / 4
+    (the loops jammed at rest); L, W0 and C0 within 5 %; any other variable its own ``var.bounds``.
+    """
     if var.name in ("B", "d"):
         v = getattr(base, var.name)
         return 0.5 * v, 2.0 * v

@@ -183,6 +183,8 @@ class DiagnosisSetup:
     title: str = ""
 
     def validated(self) -> "DiagnosisSetup":
+        """Check every field; raise :class:`KnitsimInputError` naming the first bad one; ``self`` when
+        all are good."""
         if not isinstance(self.base, CellParams):
             raise KnitsimInputError(f"diagnosis.base = {self.base!r}: expected a CellParams")
         self.base.validated(where="scene")
@@ -236,6 +238,7 @@ class NoiseModel:
 
     @property
     def all_known(self) -> bool:
+        """Whether every curve's noise is known (measured or given, none assumed)."""
         return all(c.known for c in self.curves)
 
     def weights(self, curves) -> list[np.ndarray]:
@@ -243,6 +246,8 @@ class NoiseModel:
         return [1.0 / n.sd_at(c.force) for c, n in zip(curves, self.curves)]
 
     def as_dict(self) -> dict:
+        """The ``noise`` entry of the diagnosis JSON: each curve's noise, the common sd [N] (None unless
+        every curve has the same constant one), how they were obtained and ``all_known``."""
         sig = [c.sigma_N for c in self.curves]
         one = len(set(sig)) == 1 and not any(c.per_N > 0 for c in self.curves)
         return {"curves": [c.as_dict() for c in self.curves],
@@ -361,6 +366,7 @@ class Diagnosis:
     timing_s: float
 
     def as_dict(self) -> dict:
+        """The JSON of ``knitsim diagnose`` (its ``noise`` entry with the baseline's adequacy test)."""
         noise = self.noise.as_dict()
         a = self.adequacy
         noise.update(rates_mm_s=self.rates_mm_s, baseline_chi2=a.chi2, dof=a.dof, baseline_chi2_per_dof=a.chi2_per_dof,

@@ -146,6 +146,7 @@ class CurveNoise:
         return self.method in ("given", "estimated")
 
     def as_dict(self) -> dict:
+        """Fields by name."""
         return asdict(self)
 
 

@@ -464,6 +464,8 @@ class FitResult:
         return all(v in ("identified", "fixed") for v in self.param_status.values())
 
     def as_dict(self) -> dict:
+        """The fit as a JSON-ready dict (``knitsim capstan fit --json``): b, p, n with their ``*_stderr``
+        and ``*_status``, ``corr``, ``rms_N`` [N], ``dof`` and the optimiser's outcome."""
         b, p, n = self.params
         sb, sp, sn = self.stderr
         st = {k: self.param_status.get(k, "identified") for k in PARAM_NAMES}

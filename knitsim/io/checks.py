@@ -274,6 +274,7 @@ class ResultWarning:
     message: str
 
     def as_dict(self) -> dict:
+        """``{"code": ..., "message": ...}``."""
         return asdict(self)
 
 

@@ -96,10 +96,12 @@ class SpecimenLayout:
 
     @property
     def rows(self) -> int:
+        """Rows of cells (bands of a specimen, courses of a patch)."""
         return int(self.course_count.shape[0])
 
     @property
     def columns(self) -> int:
+        """Columns of cells (strips of a specimen, wales of a patch)."""
         return int(self.course_count.shape[1])
 
     @property

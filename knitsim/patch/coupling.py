@@ -205,6 +205,8 @@ class WarpBackend:
                 "head_gap": st.head_gap.numpy().copy()}
 
     def committed(self) -> dict:
+        """Each group's committed state, arrays of shape [n]: ``C`` [mm], ``F`` [N] (0 while slack),
+        ``phi`` [rad], ``W`` [mm], ``stage``, ``jammed``, ``status`` and ``head_gap`` [mm]."""
         return self._read(self.s0)
 
     def _tangent_launch(self, st, dir_new: int, mask: np.ndarray | None) -> np.ndarray:
@@ -268,6 +270,7 @@ class WarpBackend:
         self.wp.launch(self._select_kernel, dim=self.n, inputs=[mask, src.arrays(), dst.arrays()], device=self.device)
 
     def begin_increment(self) -> None:
+        """Start an increment: every group's result starts as its committed state."""
         self._select(self._all, self.s0, self.res)
         self._kr, self._kr_ok = self._k0.copy(), self._k0_ok.copy()
 
@@ -281,11 +284,14 @@ class WarpBackend:
             self._kr_ok = np.where(mask, self._k1_ok, self._kr_ok)
 
     def end_increment(self) -> dict:
+        """Commit the increment's results (accepted trials, else the committed states); they are returned
+        as :meth:`committed`."""
         self.s0, self.res = self.res, self.s0
         self._k0, self._k0_ok = self._kr, self._kr_ok
         return self.committed()
 
     def get_state(self) -> dict:
+        """Host copies of the committed states and their tangents (a checkpoint; :meth:`set_state`)."""
         out = {f: a.numpy().copy() for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff])}
         # the committed states' tangents (those of the accepted trials): a resumed run reuses them, as the
         # uninterrupted run does, instead of recomputing them (a different rounding, another trial path)
@@ -293,6 +299,7 @@ class WarpBackend:
         return out
 
     def set_state(self, saved: dict) -> None:
+        """Restore the committed states and tangents saved by :meth:`get_state`."""
         for f, a in zip(_STATE_FIELDS, self.s0._arrays() + [self.s0.eff]):
             a.assign(saved[f])
         self._k0 = np.array(saved.get("tangent", np.full(self.n, np.nan)), dtype=float)
@@ -334,6 +341,7 @@ class ReferenceBackend:
                 "status": np.array([s.status for s in states], np.int32), "head_gap": gap}
 
     def committed(self) -> dict:
+        """Each group's committed state, as :meth:`WarpBackend.committed`."""
         return self._read(self.s0)
 
     def tangent(self, trial: bool, direction: int = 0, mask: np.ndarray | None = None) -> np.ndarray:
@@ -341,6 +349,26 @@ class ReferenceBackend:
         return np.full(self.n, np.nan)
 
     def trial(self, strain: np.ndarray, direction: int, increment: int, mask: np.ndarray | None = None) -> dict:
+        """Step every group (with ``mask``: those in it) from its committed state to ``C = C0 (1 + strain)``;
+        the committed state is kept.
+
+        Parameters
+        ----------
+        strain : ndarray, shape [n]
+            Strain of each group's course length.
+        direction : int
+            +1 loading, -1 unloading (a change reverses a group that is ok and not slack first).
+        increment : int
+            Index of the increment (recorded with its events).
+        mask : ndarray of bool, shape [n], optional
+            Groups to step; the others keep their last trial (not read by the coupling).
+
+        Returns
+        -------
+        dict
+            The trial states, as :meth:`WarpBackend.committed`, with ``slide_C`` [mm] and ``slide_F`` [N]
+            (:func:`slide_points`).
+        """
         from ..cell.cycle import STATUS_NO_CONVERGENCE, _SolveFailed
         out = []
         last_events: dict = {}
@@ -375,22 +403,28 @@ class ReferenceBackend:
         return t
 
     def begin_increment(self) -> None:
+        """Start an increment: every group's result starts as its committed state."""
         self.res = list(self.s0)
         self.dir_res = list(self.dir0)
 
     def accept(self, mask: np.ndarray) -> None:
+        """Keep the last trial of the groups in ``mask`` as their result of this increment."""
         for g in np.nonzero(mask)[0]:
             self.res[g] = self.s1[g]
             self.dir_res[g] = self._dir1
 
     def end_increment(self) -> dict:
+        """Commit the increment's results (accepted trials, else the committed states); they are returned
+        as :meth:`committed`."""
         self.s0, self.dir0 = list(self.res), list(self.dir_res)
         return self.committed()
 
     def get_state(self) -> dict:
+        """Copies of the committed states and directions (a checkpoint; :meth:`set_state`)."""
         return {"states": [s.copy() for s in self.s0], "dir": list(self.dir0)}
 
     def set_state(self, saved: dict) -> None:
+        """Restore the committed states and directions saved by :meth:`get_state`."""
         self.s0 = [s.copy() for s in saved["states"]]
         self.dir0 = list(saved["dir"])
 
@@ -773,11 +807,14 @@ class PatchSolver:
         self.k = np.clip(np.where(ok, k, 1.0), K_MIN, K_MAX)
 
     def get_state(self) -> dict:
+        """The solver's state between increments (backend state, tangents, direction, cells, last grip
+        displacements, branch history), for a checkpoint."""
         return {"backend": self.backend.get_state(), "k": self.k.copy(), "direction": self.direction,
                 "cells": copy.deepcopy(self.cells), "u_prev": self.u_prev.copy(),
                 "branch_history": copy.deepcopy(self._branch_history)}
 
     def set_state(self, s: dict) -> None:
+        """Restore a state saved by :meth:`get_state`."""
         self.backend.set_state(s["backend"])
         self.k = np.array(s["k"])
         self.direction = int(s["direction"])

@@ -112,6 +112,7 @@ class Grouping:
 
     @property
     def n_groups(self) -> int:
+        """Groups solved."""
         return len(self.group_column)
 
     def where(self, g: int) -> str:
@@ -144,6 +145,7 @@ class Grouping:
 
     @property
     def n_classes(self) -> int:
+        """Column classes."""
         return len(self.class_rest_length)
 
 
@@ -284,10 +286,12 @@ class PatchModel:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """(courses, wales)."""
         return (self.courses, self.wales)
 
     @property
     def cell_count(self) -> int:
+        """Cells in the patch (courses x wales)."""
         return self.courses * self.wales
 
     @classmethod

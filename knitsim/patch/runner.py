@@ -111,10 +111,12 @@ class PatchHistory:
 
     @property
     def n_increments(self) -> int:
+        """Grip increments recorded (rows)."""
         return len(self.grip_strain)
 
     @property
     def shape(self) -> tuple[int, int]:
+        """(courses, wales) of the patch."""
         return tuple(self.group_of_cell.shape)
 
     def cell_field(self, name: str) -> np.ndarray:

@@ -239,6 +239,7 @@ class CellScene:
 
     @property
     def plot(self) -> bool:
+        """Whether to write plot.png (``[output] plot``)."""
         return bool(self.resolved["output"]["plot"])
 
     def to_toml(self) -> str:

@@ -265,13 +265,16 @@ class PatchScene:
 
     @property
     def output(self) -> dict:
+        """The resolved ``[output]`` table."""
         return self.resolved["output"]
 
     @property
     def solver_options(self) -> dict:
+        """A copy of the resolved ``[solver]`` table (the coupling's options)."""
         return dict(self.resolved["solver"])
 
     def to_toml(self) -> str:
+        """The resolved scene as TOML (every default filled in)."""
         return dumps(self.resolved, header=f"knitsim patch scene, resolved from {self.source}\n"
                                            "every default filled in; units N, mm, rad (degrees only in *_deg)")
 

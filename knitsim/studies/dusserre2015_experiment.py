@@ -207,6 +207,8 @@ class Scalars:
 
 
 def program(increment: float):
+    """The experiment's load program: two cycles between the tensile test's lower and upper strains,
+    increments of at most ``increment``."""
     t = _data()["tensile_test"]
     return cycles(float(t["cycle_lower_strain"]), float(t["cycle_upper_strain"]), 2, increment)
 
@@ -285,6 +287,7 @@ class Fit:
     note: str = ""
 
     def as_dict(self) -> dict:
+        """Fields by name."""
         return asdict(self)
 
 

@@ -94,6 +94,7 @@ class Chunk:
 
     @property
     def name(self) -> str:
+        """File name of the chunk's results (under ``chunks/``)."""
         return f"chunk_{self.index:05d}.npz"
 
 
@@ -150,18 +151,22 @@ class SweepPlan:
 
     @property
     def n_samples(self) -> int:
+        """Samples in the sweep."""
         return len(self.table)
 
     @property
     def n_cells(self) -> int:
+        """Cells per sample."""
         return len(self.labels)
 
     @property
     def n_cycles(self) -> int:
+        """Most cycles of any program group."""
         return max(int(p.cycle.max()) for p in self.programs)
 
     @property
     def n_increments(self) -> int:
+        """Most increments of any program group."""
         return max(len(p) for p in self.programs)
 
 
@@ -597,6 +602,7 @@ class SweepRun:
 
     @property
     def samples_per_s(self) -> float:
+        """Samples computed per second of this run's wall time [1/s] (NaN when no time was recorded)."""
         return float("nan") if not self.wall_s else self.n_computed_samples / self.wall_s
 
     n_computed_samples: int = 0

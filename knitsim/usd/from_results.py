@@ -224,10 +224,12 @@ class PatchRecord:
 
     @property
     def n_frames(self) -> int:
+        """Frames saved (T)."""
         return int(self.x.shape[0])
 
     @property
     def shape(self) -> tuple[int, int]:
+        """(courses, wales)."""
         return tuple(self.group_of_cell.shape)
 
 

@@ -93,10 +93,13 @@ class StitchLattice:
 
     @property
     def n(self) -> int:
+        """Stitches drawn (N)."""
         return int(len(self.band))
 
     @classmethod
     def of(cls, course_count, wale_count) -> "StitchLattice":
+        """The stitches drawn for blocks standing for ``course_count`` x ``wale_count`` stitches
+        (shape [bands, strips]), rounded to whole stitches by :func:`drawn_counts`."""
         nc = drawn_counts(course_count, axis=0)      # along each strip
         nw = drawn_counts(wale_count, axis=1)        # across each band
         band, strip, a, b = [], [], [], []
