@@ -326,7 +326,11 @@ def _run(args) -> int:
                     f"{layout.wales_across:.4g} wales across the width)" if layout.blocks
                     else f"{c['peak_force_per_wale_N']:.4g} N per wale")
             if c.get("peak_is_force_cap"):
-                peak += " (= force cap)"
+                n_cap = c.get("columns_at_force_cap_at_peak", 0)
+                n_col = int(summary.get("strips") or summary.get("wales") or 0)
+                # the peak per wale is the cap only where every column is at it; else it mixes capped and free ones
+                peak += (" (= force cap)" if not n_col or n_cap >= n_col
+                         else f" ({n_cap} of {n_col} columns at their force cap)")
             how = {"slack_lengths": "located", "linear": "between rows", "secant": "extrapolated"}.get(
                 c.get("residual_grip_strain_from"), "")
             if c.get("held_rows"):

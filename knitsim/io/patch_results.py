@@ -181,6 +181,11 @@ def _layout_of(h: PatchHistory, model: PatchModel | None) -> SpecimenLayout:
     return specimen_layout(model)
 
 
+#: a column whose cells' rest forces differ by more than this share of the largest is not balanced at rest
+#: (identical cells give equal forces to rounding; :func:`_unbalanced_rest_columns`)
+UNBALANCED_REST_RTOL = 1e-6
+
+
 def columns_held(h: PatchHistory) -> np.ndarray:
     """Per increment, the columns (strips) whose force is held rather than the knit's: the column did not
     converge on it, or holds a cell stopped (failed, or at its force cap), whose last state it keeps."""
@@ -424,11 +429,53 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
     if fc.first_stop is not None:
         cap = float(np.max(fc.caps)) if fc.caps is not None and len(fc.caps) else float("nan")
         cut = cut_by_force_cap(h.grip_strain, h.direction, h.cycle, fc.first_stop, cap)
-        n_stop = int(fc.group_stopped[h.group_of_cell].any(axis=0).sum())
-        out += [ResultWarning(w.code, f"{n_stop} {column}(s) " + w.message.replace(" at strain ", " at grip strain ", 1)
-                              .replace(" (nan N per wale)", ""))
-                for w in cut]
+        stopped_cols = fc.group_stopped[h.group_of_cell].any(axis=0)
+        n_stop, n_cols = int(stopped_cols.sum()), int(h.shape[1])
+        k = fc.first_stop
+        c_stop, c_last = int(h.cycle[k]), int(h.cycle.max())
+        rest = (f"the rest of cycle {c_stop}" + (f" and cycles {c_stop + 1}-{c_last}" if c_last > c_stop + 1 else
+                                                 f" and cycle {c_last}" if c_last > c_stop else ""))
+        # the rows after the stop are in curve.csv: the stopped columns keep their last state (curve.csv's
+        # columns_held) while the grip moves on (and the other columns follow it), so the grip force there is
+        # not the knit's, and the cycle figures stop at the stop (before, the message said "not run")
+        others = (f"; the other {n_cols - n_stop} {column}(s) follow the grip" if n_stop < n_cols else "")
+        out += [ResultWarning(w.code, (
+            f"{n_stop} of {n_cols} {column}(s) stopped at the force cap"
+            + (f" ({cap:g} N per wale)" if np.isfinite(cap) else "")
+            + f" at grip strain {float(h.grip_strain[k]):.4g} in cycle {c_stop} of {c_last}: from there the stopped "
+            f"{column}(s) keep their last state while the grip moves on (curve.csv's columns_held){others}, so the "
+            f"grip force is not the knit's and the figures of {rest} are not given; raise force_cap_N to run "
+            f"{'them' if c_last > c_stop else 'it'}")) for w in cut]
     return out
+
+
+def _unbalanced_rest_columns(h: PatchHistory, col_key: str) -> list[ResultWarning]:
+    """``rest_state_unbalanced``: columns whose cells carry different forces at rest.
+
+    Each cell's rest state is its own (C = C0, its phi0); cells in series carry one force, so a column of
+    unequal rest forces (zones in series, a phi0 field) is not in equilibrium at rest.  The first increment
+    balances it with every cell moving in the grip's direction: a cell that shortens there moves back along its
+    loading branch instead of reversing (Table 4's SF-), and curve.csv's row 0 is the mean of the unequal rest
+    forces.  (A blind probe's E-glass/basalt column, by its own solver with each cell's own direction: 0.6 % of
+    the force at grip strain 0.01, the basalt cell shortening 15 times too far.)"""
+    rest = h.group_rest or {}
+    if "F" not in rest or not h.group_of_cell.size:
+        return []
+    F = np.asarray(rest["F"], float)[np.asarray(h.group_of_cell)]
+    if not np.all(np.isfinite(F)):
+        return []
+    lo, hi = F.min(axis=0), F.max(axis=0)
+    scale = np.maximum(np.abs(F).max(axis=0), 1e-12)
+    bad = np.flatnonzero(hi - lo > UNBALANCED_REST_RTOL * scale)
+    if not bad.size:
+        return []
+    j = int(bad[np.argmax((hi - lo)[bad])])
+    return [ResultWarning("rest_state_unbalanced", (
+        f"{bad.size} of {F.shape[1]} {col_key} column(s) carry unequal forces at rest (their cells' own rest states; "
+        f"the widest, {col_key} {j}: {lo[j]:.4g} to {hi[j]:.4g} N per wale): not an equilibrium of cells in series. "
+        "The first increment balances them with every cell moving in the grip's direction (a cell that shortens "
+        "there moves back along its loading branch rather than reversing), so the first rows are approximate, and "
+        "curve.csv's row 0 is the mean of the unequal rest forces"))]
 
 
 def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout, row_key: str,
@@ -752,7 +799,9 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     stop, cut_at, stop_warnings = _run_stop(h, model, layout, row_key, col_key, fc)
     # rows whose grip force holds columns that are not the knit's (not converged, or a stopped cell's last
     # state), other than at the force cap (its own warning): a cycle figure over them is not the knit's
-    held = (columns_held(h) > 0) & ~np.asarray(fc.rows, bool) if h.n_increments else np.zeros(0, bool)
+    # (a column held at its cells' force cap too: its force is the cap, constant while the grip moves, and a
+    # cycle's work over such rows counts it; force_cap_reached says where the force is the cap)
+    held = (columns_held(h) > 0) if h.n_increments else np.zeros(0, bool)
     held_in = []
     cycles = []
     for k in np.unique(h.cycle):
@@ -765,7 +814,9 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         entry = {"cycle": int(k), "peak_force_N": float(F[j]), "peak_force_per_wale_N": float(h.force_per_wale_N[j]),
                  "grip_strain_at_peak": float(e[j]), "grip_displacement_at_peak_mm": float(e[j] * ref_length),
                  # the peak is the cells' force cap, not the knit's response (warning force_cap_reached)
-                 "peak_is_force_cap": bool(fc.rows[j])}
+                 "peak_is_force_cap": bool(fc.rows[j]),
+                 # of how many columns: all (the peak per wale is the cap) or some (the peak mixes them)
+                 "columns_at_force_cap_at_peak": int(fc.column_rows[j].sum()) if fc.column_rows is not None else 0}
         n_held = int(np.count_nonzero(held[rows]))
         if n_held:
             entry["held_rows"] = n_held
@@ -811,18 +862,21 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         warnings.append(ResultWarning("cycle_figures_include_held_rows", (
             "the figures of cycle(s) " + ", ".join(
                 f"{k} ({len(r)} row(s), grip strains {e[r].min():.4g} to {e[r].max():.4g})" for k, r in held_in)
-            + " include rows whose force is held, not the knit's (a column that did not converge keeps its last "
-            "state; curve.csv's columns_held): their peak, work and hysteresis count a force the knit did not carry "
-            "there")))
+            + " include rows whose force is held, not the knit's (a column that did not converge, or is held at its "
+            "cells' force cap, keeps its last state; curve.csv's columns_held): their peak, work and hysteresis count "
+            "a force the knit did not carry there")))
     warnings += _cells_beyond_domain(h, layout, row_key, col_key, zones)
     if "interpenetrating" in h.groups:
         # the rows are grip strains; the cells where the heads overlap are at their own strains
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
                                      what="distinct cell", direction=h.direction, strain_is="grip strain",
                                      note=_overlap_cell_strains(h))
-    capped_peaks = [c["peak_force_per_wale_N"] for c in cycles if c["peak_is_force_cap"]]
+    # a peak per wale is the cap where every column is at it (else it mixes capped and free columns)
+    capped_peaks = [c["peak_force_per_wale_N"] for c in cycles
+                    if c["peak_is_force_cap"] and c["columns_at_force_cap_at_peak"] >= h.shape[1]]
     warnings += _force_cap_warnings(h, fc, layout, max(capped_peaks) if capped_peaks else None)
     warnings += _compressive_rest_cells(h, row_key, col_key)
+    warnings += _unbalanced_rest_columns(h, col_key)
     warnings += _energy_creating_cells(h, row_key, col_key)
     out = dict(info)
     cells = int(h.shape[0] * h.shape[1])

@@ -108,8 +108,9 @@ def test_cyclic_patch_stopped_at_the_cap_says_the_unloadings_were_not_run():
     h = run_patch(model, cycles(0.1, 0.3, 2, 0.05))
     s = patch_summary(h, h.info["ref_length_mm"], model=model)
     (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
-    assert cut["message"].startswith("2 wale column(s) stopped at the force cap (0.1 N per wale) at grip strain 0.2")
-    assert "cycle 2" in cut["message"]
+    assert cut["message"].startswith("2 of 2 wale column(s) stopped at the force cap (0.1 N per wale) at grip "
+                                     "strain 0.2")
+    assert "cycle 2" in cut["message"] and "not run" not in cut["message"]      # its rows are in curve.csv, held
     # the cycle figures stop at the row reaching the cap (grip strain 0.2, on cycle 1's loading): cycle 1 is
     # cut there with no work, cycle 2 was not run and has no figures (before, its 'hysteresis energy' over
     # the held cap was reported as a result)
@@ -213,3 +214,56 @@ def test_ctrl_c_without_checkpoints_says_nothing_was_kept(tmp_path, capsys, monk
     monkeypatch.setattr(runner, "run_patch", interrupted)
     assert main(["run", str(scene), "--no-progress", "--out", str(tmp_path / "o")]) == 130
     assert "nothing was kept (output.checkpoint_every = 0" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- zones (a blind probe's scenes)
+def _zoned(zone_axis: str, cap_basalt: float, cycles_n: int = 2):
+    """E-glass with a basalt zone (Table 1's two yarns): across the width (wales [1, 2): in parallel) or along
+    the wale (courses [1, 2): in series); the basalt zone's force cap ``cap_basalt``."""
+    from knitsim.scene.patch_scene import load_patch_scene
+    zone = {"label": "basalt", zone_axis: [1, 2], "yarn": {"material": "basalt"},
+            "knit": {"material": "basalt_plain"}, "rules": {"force_cap_N": cap_basalt}}
+    sc = load_patch_scene({"title": "zoned", "engine": "warp", "device": "cpu",
+                           "patch": {"wales": 2, "courses": 2}, "yarn": {"material": "e_glass"},
+                           "knit": {"material": "e_glass_plain"}, "friction": {"model": "coulomb", "phi0": 0.0},
+                           "rules": {"force_cap_N": 10.0}, "zones": [zone],
+                           "load": {"type": "cycles", "lower_strain": 0.05, "upper_strain": 0.45,
+                                    "cycles": cycles_n, "max_increment": 0.05}})
+    h = run_patch(sc.model, sc.program)
+    return h, patch_summary(h, h.info["ref_length_mm"], model=sc.model)
+
+
+def test_one_column_stopped_at_its_cap_while_the_other_runs_on():
+    # The basalt column (Table 1's basalt carries 0.1026 N per wale at rest) stops at a cap of 0.12 on the
+    # first increments while the E-glass column follows the grip: the rows after the stop are in the
+    # history with the basalt column held (not "not run"), the figures stop at the stop, and the peak per
+    # wale there, the mean of a capped and a free column, is not called the cap.
+    h, s = _zoned("wales", 0.12)
+    (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
+    assert cut["message"].startswith("1 of 2 wale column(s) stopped at the force cap (0.12 N per wale)")
+    assert "not run" not in cut["message"] and "the other 1 wale column(s) follow the grip" in cut["message"]
+    assert h.n_increments == len(h.grip_strain) and h.grip_strain[-1] == pytest.approx(0.05)   # every row solved
+    (c1,) = s["cycles"]
+    assert c1["peak_is_force_cap"] and c1["columns_at_force_cap_at_peak"] == 1
+    (reached,) = [w for w in s["warnings"] if w["code"] == "force_cap_reached"]
+    assert "is the cap, not the knit's strength" not in reached["message"]
+
+
+def test_cycle_figures_over_a_column_held_at_its_cap_are_said_to_include_held_rows():
+    # In series, the basalt course caps at 0.15: the column cannot pass it, is held (not converged) at the
+    # cap while the grip moves on, and cycle 1's work counts that held force: said, with the held rows
+    h, s = _zoned("courses", 0.15, cycles_n=1)
+    (c1,) = s["cycles"]
+    assert c1["held_rows"] > 0
+    assert [w for w in s["warnings"] if w["code"] == "cycle_figures_include_held_rows"]
+
+
+def test_a_series_column_of_unequal_rest_forces_is_said_to_be_unbalanced_at_rest():
+    # E-glass and basalt cells carry 0.0216 and 0.1026 N per wale at rest (their own rest states, Table 1):
+    # in series they are not in equilibrium at rest; a uniform patch's column is
+    h, s = _zoned("courses", 10.0, cycles_n=1)
+    (w,) = [w for w in s["warnings"] if w["code"] == "rest_state_unbalanced"]
+    assert "2 of 2 wale column(s)" in w["message"] and "0.02159 to 0.1026" in w["message"]
+    hu = run_patch(PatchModel.uniform(P, 2, 2), monotonic(0.1, 0.05))
+    su = patch_summary(hu, hu.info["ref_length_mm"], model=PatchModel.uniform(P, 2, 2))
+    assert not [w for w in su["warnings"] if w["code"] == "rest_state_unbalanced"]
