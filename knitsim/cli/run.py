@@ -116,6 +116,34 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     return warnings
 
 
+def zone_overlaps(resolved: dict) -> list[dict]:
+    """``zones_overlap`` warnings: zones (and grade elements) of the resolved scene that share cells.
+
+    Zones do not stack: a cell in two of them is the base scene with the later one's own keys, not the
+    earlier zone's (a zone giving only ``knit.L`` over a basalt zone makes E-glass cells of that L).  Allowed
+    (later ones on top, as the scene schema says), but rarely what a user means, so said before the run.
+    """
+    zones = resolved.get("zones") or []
+    out = []
+    for b in range(len(zones)):
+        for a in range(b):
+            za, zb = zones[a], zones[b]
+            c0, c1 = max(za["courses"][0], zb["courses"][0]), min(za["courses"][1], zb["courses"][1])
+            w0, w1 = max(za["wales"][0], zb["wales"][0]), min(za["wales"][1], zb["wales"][1])
+            if c1 > c0 and w1 > w0:
+                # by label, else by rectangle (grade elements come first in the resolved list: an index would
+                # not be the scene's [[zones]] index)
+                name_a, name_b = (f"zone {z['label']!r}" if z.get("label") else
+                                  f"the zone on courses [{z['courses'][0]}, {z['courses'][1]}) x wales "
+                                  f"[{z['wales'][0]}, {z['wales'][1]})" for z in (za, zb))
+                out.append({"code": "zones_overlap", "message": (
+                    f"{name_a} and {name_b} overlap on courses [{c0}, {c1}) x wales [{w0}, {w1}) "
+                    f"({(c1 - c0) * (w1 - w0)} cells): there the cells are the base scene with {name_b}'s own keys, "
+                    f"not {name_a}'s (zones do not stack; the later one is on top); give the overlap its own zone "
+                    "with every key it needs")})
+    return out
+
+
 def resume_command(args, out: Path) -> str:
     """The command that continues this run from its checkpoint: the command line as typed, without
     ``--overwrite`` (it and ``--resume`` exclude each other), with ``--out`` and ``--resume``."""
@@ -235,6 +263,9 @@ def _run(args) -> int:
             device = warp_runtime.resolve_device(scene.device)
         # the model's domain, before any output is touched (a cell without a rest state: error)
         domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device)
+        domain_warnings += zone_overlaps(scene.resolved)
+        for w in zone_overlaps(scene.resolved):
+            print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
                              resume=args.resume, resumable=True)
     ck = out / CHECKPOINT_NAME

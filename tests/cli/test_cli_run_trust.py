@@ -172,6 +172,45 @@ max_increment = 0.05
     assert f"to {e_glass_end:.4g})" in o["message"]
 
 
+def test_overlapping_zones_are_warned_before_the_run_naming_the_cells(tmp_path, capsys):
+    # Zones do not stack (the scene schema: later ones on top, each the base scene with its own keys): a zone
+    # giving only knit.L over a basalt zone makes E-glass cells there.  The overlap of courses [0, 3) and [2, 4)
+    # on wales [0, 2) is course 2 of both wales: 2 cells; adjacent zones (courses [3, 4) after [0, 3)) do not.
+    body = """
+[patch]
+wales = 2
+courses = 4
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[[zones]]
+label = "a"
+courses = [0, 3]
+yarn = { material = "basalt" }
+knit = { material = "basalt_plain" }
+[[zones]]
+label = "b"
+courses = [%s, 4]
+knit = { L = 13.5 }
+[load]
+type = "monotonic"
+target_strain = 0.1
+max_increment = 0.05
+"""
+    assert main(["run", str(_scene(tmp_path, body % 2)), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    (w,) = [w for w in s["warnings"] if w["code"] == "zones_overlap"]
+    assert "zone 'a' and zone 'b' overlap on courses [2, 3) x wales [0, 2) (2 cells)" in w["message"]
+    assert "knitsim run: warning: " + w["message"] in err
+    (tmp_path / "p").mkdir()
+    assert main(["run", str(_scene(tmp_path / "p", body % 3)), "--out", str(tmp_path / "o2"), "--no-progress"]) == 0
+    capsys.readouterr()
+    s = json.loads((tmp_path / "o2" / "summary.json").read_text())
+    assert not [w for w in s["warnings"] if w["code"] == "zones_overlap"]
+
+
 # ----------------------------------------------------------------------------------- 2: --usd on --resume
 
 
