@@ -138,7 +138,7 @@ def _run(args) -> int:
                                 specimen=args.specimen, materials=materials, only=only)
     except KeyboardInterrupt:
         print(f"knitsim diagnose-study: interrupted; the finished cases are kept in {args.out}/cases and "
-              f"summarised in {args.out}/summary.md (marked partial); the same command resumes",
+              f"summarised in {args.out}/summary.md (marked partial); resume with: {_resume_command(args)}",
               file=sys.stderr, flush=True)
         return 130
     if args.json:
@@ -150,3 +150,13 @@ def _run(args) -> int:
             print(f"partial: {len(summary['cases_missing'])} of {summary['cases_planned']} planned cases not "
                   "finished; run without --summary-only to finish them")
     return 0
+
+
+def _resume_command(args) -> str:
+    """The command that continues an interrupted study: the command line as typed, ``--overwrite`` (which
+    would discard the finished cases) dropped and ``--resume`` added."""
+    import shlex
+    argv = sys.argv[2:] if len(sys.argv) > 2 and sys.argv[1] == "diagnose-study" else [
+        "--cases", str(args.cases), "--seed", str(args.seed), "--out", str(args.out)]
+    argv = [a for a in argv if a not in ("--resume", "--overwrite")] + ["--resume"]
+    return "knitsim diagnose-study " + " ".join(shlex.quote(a) for a in argv)

@@ -293,7 +293,7 @@ def summary_markdown(summary: dict) -> str:
     if summary.get("complete") is False:
         missing = summary.get("cases_missing", [])
         lines += [f"**Partial: {m['n_cases']} of {summary.get('cases_planned', '?')} planned cases finished** "
-                  f"(not yet: {', '.join(str(i) for i in missing)}); run the study again to finish it.", ""]
+                  f"(not yet: {', '.join(str(i) for i in missing)}); run the same command with `--resume` to finish it.", ""]
     def ci(x, how="Wilson"):
         return "" if not x else f" (95 % {how} {100 * x[0]:.1f} .. {100 * x[1]:.1f} %)"
 

@@ -279,7 +279,11 @@ class ResultWarning:
 
 
 def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CYCLE_FRACTION) -> list[ResultWarning]:
-    """Warnings for cycles whose peak falls below ``fraction`` of the previous cycle's peak.
+    """Warnings for cycles whose peak falls below ``fraction`` of the largest peak of the cycles before it.
+
+    Against the largest earlier peak, not the previous cycle's: a knit that went slack carries (almost) no
+    force in every later cycle, and cycle 3 at 8 % of cycle 1 is as empty as cycle 2 was (compared with
+    cycle 2 alone it passed unflagged).
 
     Parameters
     ----------
@@ -288,19 +292,22 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
     unit : str
         Unit of the peaks, for the message.
     fraction : float
-        Share of the previous cycle's peak below which a cycle carries no force.
+        Share of the largest earlier peak below which a cycle carries no force.
     """
     out = []
-    peaks = list(peaks)
-    for (c0, p0), (c1, p1) in zip(peaks[:-1], peaks[1:]):
-        if p0 is None or p1 is None or not np.isfinite(p0) or not np.isfinite(p1):
+    best = None                                   # (cycle, peak) of the largest finite peak so far
+    for c1, p1 in peaks:
+        if p1 is None or not np.isfinite(p1):
             continue
-        if p0 > 0 and p1 < fraction * p0:
+        if best is not None and best[1] > 0 and p1 < fraction * best[1]:
+            c0, p0 = best
             out.append(ResultWarning(
                 "zero_force_cycle",
                 f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
                 f"went slack and took (almost) no load again up to the upper strain (README, 'the reload "
                 f"pocket')"))
+        if best is None or p1 > best[1]:
+            best = (c1, p1)
     return out
 
 

@@ -181,6 +181,13 @@ def main(argv=None) -> int:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder with the two data sets")
     ap.add_argument("--out", type=Path, default=HERE, help="output folder (default: this folder)")
     args = ap.parse_args(argv)
+    need = [args.data / "do2020_single_jersey_tensile", args.data / "singal2024_knit_uniaxial"]
+    missing = [str(p) for p in need if not p.is_dir()]
+    if missing:
+        # the raw data sets are not shipped with the repository (the curves made from them are)
+        print(f"make_real_curves: error: no data set folder {', '.join(missing)}; give the folder that holds "
+              "do2020_single_jersey_tensile/ and singal2024_knit_uniaxial/ with --data", file=sys.stderr)
+        return 2
     args.out.mkdir(parents=True, exist_ok=True)
     for name, (stem, L) in DO2020.items():
         c = do2020_curve(args.data / "do2020_single_jersey_tensile", stem, L)
