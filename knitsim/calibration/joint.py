@@ -41,8 +41,16 @@ variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
 correlations from it.  A variable within 0.1 % of its range of a bound is
 flagged, with what that bound means; one whose standard error is not finite or
 larger than half its range is flagged not identified (:func:`identification_rule`).
-:attr:`JointResult.flags` lists these, the optimiser's failure (its message) and
-cells that did not solve: a result with a flag is not a calibration to use.
+:attr:`JointResult.flags` lists these, the optimiser's failure (its message),
+cells that did not solve, and specimens that do not look like one yarn: a result with a flag is not a
+calibration to use.
+
+One yarn? (:func:`_one_yarn_check`, :class:`OneYarnCheck`): a knit's geometry, free within its priors, can
+absorb a yarn that differs from specimen to specimen (a specimen of B x 2.5 was fitted with
+chi2 / (n - k) = 0.51 and no flag).  So, after a converged fit of two specimens or more, each specimen is
+refitted alone with every shared variable its own, from the joint solution (its knit, phi0 and priors as
+before; checkpointed like the fit): the drop of chi2 against the variables added, read as an F test (Chow's
+test) against the residual variance of the fits with a yarn each, is flagged where p < :data:`ONE_YARN_P`.
 
 Before any solve (:func:`check_setup`, which the calibration scene runs when it is
 read): the variables, bounds and priors, and every specimen's strains against the
@@ -85,6 +93,9 @@ BOUND_TOL = 1e-3
 NOT_IDENTIFIED_SHARE = 0.5
 #: residual of a row whose cell failed (not ok), times max(1, |target| / sd)
 FAIL_RESIDUAL = 30.0
+#: the one-yarn check (:func:`one_yarn_check`) flags a p-value below this: the chance that one yarn's
+#: specimens, fitted as well as the model fits them, are flagged by noise alone
+ONE_YARN_P = 1e-3
 
 
 @dataclass(frozen=True)
@@ -275,6 +286,117 @@ class SpecimenFit:
 
 
 @dataclass(frozen=True)
+class OneYarnCheck:
+    """Whether the specimens look like one yarn (:func:`one_yarn_check`).
+
+    The joint fit (one yarn, each specimen its own knit) against the same fit with every shared variable
+    made each specimen's own (a yarn per specimen, its knit and priors as before), refined from the
+    joint solution: a likelihood-ratio test of nested models, read as an F test (Chow's test of one
+    regression against one per group) so that it holds whatever the scale of the rows' sds (the
+    covariance's ``s^2`` is estimated the same way).
+
+    Attributes
+    ----------
+    ran : bool
+        False when it was not run (``why_not``): one specimen, nothing shared, the fit did not converge
+        or a cell did not solve (its chi2 is then not its minimum), or too few rows.
+    why_not : str
+    specimens : tuple of str
+    shared : tuple of str
+        The variables made each specimen's own.
+    chi2_joint : float
+        chi2 of the joint fit (rows and priors).
+    chi2_joint_each, chi2_own_each : tuple of float
+        Per specimen: its rows and priors under the joint fit, and with its own yarn.
+    dof : int
+        Variables added: ``len(shared) x (specimens - 1)``.
+    dof_resid : int
+        n - k - dof (rows and priors less the variables of the fit with a yarn per specimen).
+    F, p : float
+        ``F = [(chi2_joint - chi2_own) / dof] / [chi2_own / dof_resid]`` and its upper tail under
+        F(dof, dof_resid): the chance of a drop at least this large if the specimens are one yarn.
+    own_yarns : tuple of dict
+        Per specimen, its own yarn's values (``shared`` names, reported units).
+    units : dict
+    converged : tuple of bool
+        Whether each own-yarn refinement converged (one that did not makes the test conservative: its
+        chi2 is above its minimum, the drop smaller).
+    nfev : int
+        Evaluations of the refinements (each one specimen's cells: 1 / specimens of a joint evaluation).
+    wall_s : float
+    largest_pull : tuple or None
+        ``(label, deviation_sd, stated, unit)``: the per-specimen prior furthest from its stated value
+        (in prior sds) in the joint fit, where any is fitted.
+    threshold : float
+        p below which it flags (:data:`ONE_YARN_P`).
+    """
+
+    ran: bool
+    why_not: str = ""
+    specimens: tuple = ()
+    shared: tuple = ()
+    chi2_joint: float = math.nan
+    chi2_joint_each: tuple = ()
+    chi2_own_each: tuple = ()
+    dof: int = 0
+    dof_resid: int = 0
+    F: float = math.nan
+    p: float = math.nan
+    own_yarns: tuple = ()
+    units: dict = field(default_factory=dict)
+    converged: tuple = ()
+    nfev: int = 0
+    wall_s: float = 0.0
+    largest_pull: tuple | None = None
+    threshold: float = ONE_YARN_P
+
+    @property
+    def chi2_own(self) -> float:
+        return float(sum(self.chi2_own_each))
+
+    @property
+    def flagged(self) -> bool:
+        return self.ran and self.p < self.threshold
+
+    def yarn_text(self) -> str:
+        """Each own yarn's values: ``B 0.25 | 0.57 N mm^2; m ...`` (specimens in order)."""
+        parts = []
+        for n in self.shared:
+            u = self.units.get(n, "")
+            parts.append(f"{n} " + " | ".join(f"{y[n]:.4g}" for y in self.own_yarns) + (f" {u}" if u and u != "-" else ""))
+        return "; ".join(parts) + f" ({' | '.join(self.specimens)})"
+
+    def pull_text(self) -> str:
+        if self.largest_pull is None:
+            return ""
+        label, dev, stated, unit = self.largest_pull
+        return f"{label}, {abs(dev):.2g} prior sd from its stated {stated:.4g} {unit}".rstrip()
+
+    def flag(self) -> str:
+        """The flag line (empty when not flagged)."""
+        if not self.flagged:
+            return ""
+        pull = self.pull_text()
+        return (f"the specimens do not look like one yarn (p = {self.p:.2g} < {self.threshold:g}): with a yarn each "
+                f"({', '.join(self.shared)}) they fit better than noise explains (chi2 {self.chi2_joint:.4g} -> "
+                f"{self.chi2_own:.4g}, F = {self.F:.3g} on {self.dof} and {self.dof_resid} dof), each its own "
+                f"{self.yarn_text()}; one yarn makes both curves only with worse rows or knits moved from their "
+                "stated values" + (f" (the largest move: {pull})" if pull else "") + ": they are different yarns, "
+                "or the model cannot make both curves with one yarn; the yarn calibrated on them is neither's")
+
+    def as_dict(self) -> dict:
+        return {"ran": self.ran, "why_not": self.why_not, "flagged": self.flagged, "specimens": list(self.specimens),
+                "shared": list(self.shared), "chi2_joint": self.chi2_joint, "chi2_own": self.chi2_own if self.ran else None,
+                "chi2_joint_each": list(self.chi2_joint_each), "chi2_own_each": list(self.chi2_own_each),
+                "dof": self.dof, "dof_resid": self.dof_resid, "F": self.F, "p": self.p, "threshold": self.threshold,
+                "own_yarns": [dict(y) for y in self.own_yarns], "units": dict(self.units),
+                "converged": list(self.converged), "nfev": self.nfev, "wall_s": self.wall_s,
+                "largest_pull": None if self.largest_pull is None else
+                {"label": self.largest_pull[0], "deviation_sd": self.largest_pull[1], "stated": self.largest_pull[2],
+                 "unit": self.largest_pull[3]}}
+
+
+@dataclass(frozen=True)
 class JointResult:
     """A joint calibration.
 
@@ -307,8 +429,12 @@ class JointResult:
     optimizer_message : str
         The least squares' own message for the chosen start.
 
+    one_yarn : OneYarnCheck or None
+        Whether the specimens look like one yarn (None: not recorded).
+
     ``flags`` (one line each): the optimiser's failure (with its message), every parameter at a bound,
-    every parameter not identified (with the rule), every specimen whose cell did not solve on every row.
+    every parameter not identified (with the rule), every specimen whose cell did not solve on every row,
+    specimens that do not look like one yarn (``one_yarn``).
     A result with a flag is not a calibration to use as it is (``usable``).
     """
 
@@ -328,6 +454,7 @@ class JointResult:
     yarn: CellParams
     converged: bool | None = None
     optimizer_message: str = ""
+    one_yarn: OneYarnCheck | None = None
 
     def estimate(self, name: str, specimen: str | None = None) -> Estimate:
         for e in self.estimates:
@@ -338,7 +465,8 @@ class JointResult:
     @property
     def flags(self) -> list[str]:
         """One line per reason not to use this calibration: the optimiser did not converge (its message),
-        an estimate at a bound, an estimate not identified (which rule), a specimen whose cell did not solve."""
+        an estimate at a bound, an estimate not identified (which rule), a specimen whose cell did not solve,
+        specimens that do not look like one yarn (:attr:`one_yarn`, what was measured and the largest knit move)."""
         out = []
         converged = self.success if self.converged is None else self.converged
         if not converged:
@@ -355,11 +483,13 @@ class JointResult:
             if f.status != "ok":
                 out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
                            "the fitted curve is not the model's")
+        if self.one_yarn is not None and self.one_yarn.flagged:
+            out.append(self.one_yarn.flag())
         return out
 
     @property
     def usable(self) -> bool:
-        """No flag: converged, every cell solved, no parameter at a bound or not identified."""
+        """No flag: converged, every cell solved, no parameter at a bound or not identified, one yarn."""
         return self.success and not self.flags
 
     def as_dict(self, curves: bool = True) -> dict:
@@ -369,6 +499,7 @@ class JointResult:
                 "s2": self.s2, "success": self.success, "message": self.message, "flags": self.flags,
                 "usable": self.usable, "converged": self.success if self.converged is None else self.converged,
                 "optimizer_message": self.optimizer_message,
+                "one_yarn": None if self.one_yarn is None else self.one_yarn.as_dict(),
                 "starts": self.starts, "nfev": self.nfev, "wall_s": self.wall_s,
                 "effects": list(self.setup.effects), "shared": list(self.setup.shared),
                 "per_specimen": list(self.setup.per_specimen)}
@@ -1006,28 +1137,28 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         order = list(np.argsort(costs, kind="stable")[:max(1, setup.refine)])
         log = state["log"]            # the evaluations of the refinement under way (x bytes -> (r, J))
 
-        def ev(x):
+        def ev(x, problem):
             key = np.asarray(x, float).tobytes()
             if key not in log:
                 if stop_after is not None and new_evals[0] >= stop_after:
                     save()
                     raise CalibrationInterrupted(new_evals[0], ck)
-                log[key] = pb.evaluate_with_jacobian(x)
+                log[key] = problem.evaluate_with_jacobian(x)
                 new_evals[0] += 1
                 if time.perf_counter() - last_save[0] > 10.0:
                     save()
             tick_ev(len(log))
             return log[key]
 
-        def refine(x0, what):
+        def refine(x0, what, problem=pb, into="refined"):
             nonlocal tick_ev
             tick_ev = count(f"{what}: evaluations", setup.max_nfev)
-            r = least_squares(lambda x: ev(x)[0], x0, jac=lambda x: ev(x)[1], bounds=(pb.lo, pb.hi),
-                              method="trf", x_scale="jac", max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8,
-                              gtol=1e-10)
+            r = least_squares(lambda x: ev(x, problem)[0], x0, jac=lambda x: ev(x, problem)[1],
+                              bounds=(problem.lo, problem.hi), method="trf", x_scale="jac",
+                              max_nfev=setup.max_nfev, ftol=1e-8, xtol=1e-8, gtol=1e-10)
             tick_ev(setup.max_nfev)
             sol = _Refined(np.asarray(r.x, float), float(r.cost), int(r.nfev), bool(r.success), str(r.message))
-            state["refined"].append(sol)
+            state[into].append(sol)
             log.clear()
             save()
             return sol
@@ -1135,12 +1266,106 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                                 frac, rms, rms / float(np.sqrt(np.mean(s.target_N ** 2))),
                                 float(np.sum(res ** 2)), STATUS_NAMES[worst], e_p, pre_N, frac_tol, res,
                                 setup.objective))
-    shared, _ = pb.model_values(x)
+    # do the specimens look like one yarn? each refitted with its own yarn (checkpointed like the fit)
+    own_done = state.setdefault("one_yarn", [])
+
+    def own_refine(x0, what, problem, k):
+        return own_done[k] if k < len(own_done) else refine(x0, what, problem, "one_yarn")
+    try:
+        check = _one_yarn_check(pb, x, estimates, own_refine, say, bool(sol.success), all_ok)
+    except KeyboardInterrupt:
+        save()
+        raise
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,
                        int(sol.nfev), wall_before + time.perf_counter() - t0,
-                       setup, cells[0], bool(sol.success), str(sol.message))
+                       setup, cells[0], bool(sol.success), str(sol.message), check)
 
 
-__all__ = ["CalibrationInterrupted", "check_setup", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, converged: bool,
+                    cells_ok: bool) -> OneYarnCheck:
+    """Do the specimens look like one yarn?  (:class:`OneYarnCheck`.)
+
+    Each specimen is refitted alone with every shared variable its own (its knit, phi0, pretension and
+    priors as in the joint fit), from the joint solution: its rows and priors then cost ``chi2_own_k <=
+    chi2_joint_k``.  The drop ``D = sum_k (chi2_joint_k - chi2_own_k)`` is the likelihood ratio of one
+    yarn against a yarn per specimen, ``dof = len(shared) (S - 1)`` variables more; read against the
+    residual variance of the larger model (an F test: Chow's test), ``F = (D / dof) / (chi2_own / (n - k -
+    dof))``, flagged where its upper tail ``p < ONE_YARN_P``.  A refinement that stops early leaves ``D``
+    smaller (the test conservative); the geometry priors let a specimen's own yarn trade with its knit, so
+    fewer than ``dof`` directions are free and the test is conservative again.
+
+    ``refine(x0, what, problem, k)`` refines specimen ``k``'s problem from ``x0`` (the calibration's own,
+    checkpointed); ``say`` reports progress.
+    """
+    from scipy.stats import f as f_dist
+    t0 = time.perf_counter()
+    names = tuple(s.name for s in pb.sp)
+    shared = tuple(pb.shared)
+    pulls = [e for e in estimates if e.deviation_sd is not None and math.isfinite(e.deviation_sd)]
+    top = max(pulls, key=lambda e: abs(e.deviation_sd), default=None)
+    base = {"specimens": names, "shared": shared, "largest_pull": None if top is None else
+            (top.label, float(top.deviation_sd), float(top.stated), top.unit)}
+
+    def skipped(why):
+        return OneYarnCheck(False, why, **base)
+    if len(pb.sp) < 2:
+        return skipped("one specimen: nothing to compare it with")
+    if not shared:
+        return skipped("nothing is shared: each specimen already has its own yarn")
+    if not converged:
+        return skipped("the fit did not converge: its chi2 is not its minimum, so a drop from it does not measure "
+                       "how far the specimens are from one yarn")
+    if not cells_ok:
+        return skipped("a specimen's cell did not solve on every row")
+    q = len(shared) * (len(pb.sp) - 1)
+    dof_resid = pb.n_rows + pb.n_prior - pb.k - q
+    if dof_resid <= 0:
+        return skipped(f"too few rows: {pb.n_rows + pb.n_prior} rows and priors for {pb.k + q} variables of a "
+                       "yarn per specimen")
+    problems = []
+    for s in pb.sp:
+        try:
+            problems.append(_Problem([s], pb.setup))
+        except KnitsimInputError as exc:
+            return skipped(f"specimen {s.name} cannot be fitted with a yarn of its own ({exc})")
+    shared_v, own_v = pb.model_values(x)
+    idx = {(v.name, v.specimen): j for j, v in enumerate(pb.vars)}
+    joint_each, own_each, yarns, conv, nfev = [], [], [], [], 0
+    for k, (s, pk) in enumerate(zip(pb.sp, problems)):
+        pk.objective = pb.objective
+        x0 = []
+        for v in pk.vars:                 # the joint solution in this specimen's variables
+            xi = x[idx[(v.name, None if v.specimen is None else k)]]
+            if v.name == "d":             # fractions of ranges that depend on the narrowest knit: its own here
+                lo, hi = pk.d_range([own_v[k]["W0"]])
+                xi = (shared_v["d"] - lo) / (hi - lo) if hi > lo else 0.0
+            elif v.name == "in_plane_width":
+                lo, hi = pk.w_range(shared_v.get("d", pk.base.d), [own_v[k]["W0"]])
+                xi = (shared_v["in_plane_width"] - lo) / (hi - lo) if hi > lo else 0.0
+            x0.append(xi)
+        x0 = np.clip(np.array(x0, float), pk.lo, pk.hi)
+        r0 = pk.evaluate_points([x0])[0]
+        c0 = float(r0 @ r0)
+        sol = refine(x0, f"one-yarn check: {s.name} with a yarn of its own", pk, k)
+        c1 = min(c0, 2.0 * sol.cost)
+        xs = sol.x if 2.0 * sol.cost <= c0 else x0
+        say(f"one-yarn check: {s.name} with a yarn of its own: chi2 {c0:.4g} -> {c1:.4g} in {sol.nfev} evaluations")
+        own_shared, _ = pk.model_values(xs)
+        joint_each.append(c0)
+        own_each.append(c1)
+        yarns.append({n: float(own_shared[n]) for n in shared})
+        conv.append(bool(sol.success))
+        nfev += int(sol.nfev)
+    drop = max(0.0, sum(joint_each) - sum(own_each))
+    resid = sum(own_each) / dof_resid
+    F = (drop / q) / resid if resid > 0 else (math.inf if drop > 0 else 0.0)
+    p = float(f_dist.sf(F, q, dof_resid)) if math.isfinite(F) else 0.0
+    units = {n: UNITS.get(n, pb.effect_vars[n].unit if n in pb.effect_vars else "") for n in shared}
+    return OneYarnCheck(True, "", names, shared, float(sum(joint_each)), tuple(joint_each), tuple(own_each), q,
+                        dof_resid, float(F), p, tuple(yarns), units, tuple(conv), nfev, time.perf_counter() - t0,
+                        base["largest_pull"])
+
+
+__all__ = ["CalibrationInterrupted", "check_setup", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
            "SPECIMEN_VARIABLES", "UNITS", "OBJECTIVES"]

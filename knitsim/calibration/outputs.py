@@ -15,7 +15,8 @@
   its share inside the band and its RMS, and the weighted residuals.
 
 A calibration with a flag (:attr:`knitsim.calibration.joint.JointResult.flags`: the optimiser did not
-converge, a parameter at a bound or not identified, a cell that did not solve) says so in every file:
+converge, a parameter at a bound or not identified, a cell that did not solve, specimens that do not look
+like one yarn) says so in every file:
 ``calibration.json`` (``flags``, ``usable``), the top of ``report.md`` ("NOT A CALIBRATION YOU CAN
 USE"), a comment block at the top of ``materials.toml`` and of each scene (so a file reused elsewhere
 carries it), and the title of each plot.
@@ -167,8 +168,10 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
                 "the force accuracy). ")
              + f"{'Converged' if r.success else 'NOT CONVERGED'}: {r.message.rstrip('.')}. Wall time {r.wall_s:.0f} s.", ""]
     if not flags:
+        oy = r.one_yarn
         lines += ["No flag: the optimiser converged, every cell solved, and no parameter is at a bound or not "
-                  "identified (standard error finite and at most half its range).", ""]
+                  "identified (standard error finite and at most half its range)"
+                  + ("; the specimens look like one yarn (below)." if oy is not None and oy.ran else "."), ""]
     lines += ["## The yarn (shared by every specimen)", "", "| parameter | value | std error | unit | range | flag |",
               "|---|---|---|---|---|---|"]
     for e in r.estimates:
@@ -202,6 +205,7 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
               "envelopes; +- force accuracy: the band widened by the force reading's accuracy "
               "(calibration.force_accuracy, of the force) on either side: where the envelopes meet or cross the band "
               "has no width, though the specimens scatter and the machine reads no better."]
+    lines += one_yarn_md(r)
     names = [e.label for e in r.estimates]
     strong = [(names[i], names[j], r.correlation[i, j]) for i in range(len(names)) for j in range(i + 1, len(names))
               if abs(r.correlation[i, j]) > 0.9]
@@ -212,6 +216,36 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
               for s in r.starts]
     lines += ["", "## Files", ""] + [f"- `{f}`" for f in files] + [""]
     return "\n".join(lines)
+
+
+def one_yarn_md(result: JointResult) -> list[str]:
+    """The report's section on the one-yarn check (:class:`knitsim.calibration.joint.OneYarnCheck`)."""
+    c = result.one_yarn
+    if c is None:
+        return []
+    out = ["", "## One yarn?", ""]
+    if not c.ran:
+        return out + [f"Not tested: {c.why_not}."]
+    out += [f"Each specimen refitted alone with its own {', '.join(c.shared)} (its knit, phi0 and priors as in the "
+            f"joint fit), from the joint solution: chi2 {c.chi2_joint:.4g} -> {c.chi2_own:.4g} with "
+            f"{c.dof} variables more; F = (drop / {c.dof}) / (chi2 / {c.dof_resid}) = {c.F:.3g}, p = {c.p:.2g} "
+            f"(the upper tail of F({c.dof}, {c.dof_resid}): the chance of a drop this large if they are one yarn; "
+            f"flagged below {c.threshold:g}). "
+            + ("**They do not look like one yarn**: different yarns, or the model cannot make their curves with one "
+               "yarn; the calibrated yarn is neither's." if c.flagged else
+               "Consistent with one yarn: a yarn each does not fit them better than noise explains (a difference the "
+               "knits' stated uncertainties can absorb is not seen)."), "",
+            "| specimen | chi2, one yarn | chi2, its own yarn | " + " | ".join(
+                f"own {n} [{c.units.get(n, '')}]" for n in c.shared) + " | converged |",
+            "|---|---|---|" + "---|" * len(c.shared) + "---|"]
+    for name, cj, co, y, ok in zip(c.specimens, c.chi2_joint_each, c.chi2_own_each, c.own_yarns, c.converged):
+        out.append(f"| {name} | {cj:.4g} | {co:.4g} | " + " | ".join(_fmt(y[n]) for n in c.shared)
+                   + f" | {'yes' if ok else 'no (the drop is then smaller)'} |")
+    out += [""]
+    if c.largest_pull is not None:
+        out += [f"The largest move of a knit from its stated value in the joint fit: {c.pull_text()}.", ""]
+    out += [f"Cost: {c.nfev} evaluations of one specimen's cells, {c.wall_s:.1f} s."]
+    return out
 
 
 def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
@@ -307,4 +341,4 @@ def _json_default(v):
     raise TypeError(type(v).__name__)
 
 
-__all__ = ["UNUSABLE", "flag_lines", "library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]
+__all__ = ["UNUSABLE", "flag_lines", "one_yarn_md", "library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]
