@@ -1,6 +1,8 @@
 """Shared fixtures: every Warp test runs on the CPU, and on CUDA when present."""
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from knitsim import warp_runtime
@@ -27,3 +29,18 @@ def e_glass_calibration():
                 "specimens": [{"name": "tight", "width": 50.0, "gauge_length": 100.0, "curve": "a.csv",
                                "noise_N": 0.05, "knit": {"L": 14.1, "W0": 4.4, "C0": 2.7}}]}
     return make
+
+
+@pytest.fixture(scope="session")
+def proc_refuses_files() -> str:
+    """``/proc``, a folder that exists and takes no new file (Linux, even for root: the permission bits do
+    not say so); the test is skipped where there is none."""
+    try:
+        fd = os.open("/proc/.knitsim-probe", os.O_CREAT | os.O_WRONLY)
+    except OSError:
+        if os.path.isdir("/proc"):
+            return "/proc"
+        pytest.skip("needs a /proc that refuses new files (Linux)")
+    os.close(fd)
+    os.remove("/proc/.knitsim-probe")
+    pytest.skip("needs a /proc that refuses new files (Linux)")

@@ -80,7 +80,7 @@ from typing import Sequence
 import numpy as np
 from scipy.optimize import brentq, least_squares
 
-from ..errors import KnitsimInputError
+from ..errors import KnitsimInputError, require_finite
 from .identification import at_bound, parameter_status  # noqa: F401  (at_bound: re-exported)
 
 #: Wrap angle on each cylinder, theta0 = theta1 = pi/2 (section 2.4).
@@ -197,15 +197,6 @@ def _check_howell_n(n: float) -> float:
     return _check_positive("n", n)
 
 
-def _check_array(name: str, value, positive: bool) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
-    bad = ~np.isfinite(a) | ((a <= 0.0) if positive else (a < 0.0))
-    if bad.any():
-        v = float(a.reshape(-1)[int(np.flatnonzero(bad.reshape(-1))[0])])
-        raise KnitsimInputError(f"{name} = {v!r}: must be finite and {'> 0' if positive else '>= 0'}")
-    return a
-
-
 def howell_a(b: float, p: float, V: float) -> float:
     """Velocity-dependent Howell coefficient ``a = b V^p`` (section 2.4, before eq 5).
 
@@ -217,14 +208,14 @@ def howell_a(b: float, p: float, V: float) -> float:
 
 def tangential_load_eq2(Fn, b: float, p: float, n: float, V: float):
     """Tangential load at one crossing, ``Ft = a Fn^n`` with ``a = b V^p`` (eqs 2, 5) [N]; ``Fn`` >= 0 [N]."""
-    return howell_a(b, p, V) * _check_array("Fn_N", Fn, positive=False) ** _check_howell_n(n)
+    return howell_a(b, p, V) * require_finite("Fn_N", Fn, ">=0") ** _check_howell_n(n)
 
 
 def mu_k_eq5(b: float, p: float, n: float, V, Fn):
     """Friction coefficient ``mu_k = b V^p Fn^(n-1)`` (eq 5); ``V`` > 0 [mm/s], ``Fn`` > 0 [N]."""
     _check_positive("b", b)
     _check_finite("p", p)
-    return b * _check_array("V_mm_s", V, positive=True) ** p * _check_array("Fn_N", Fn, positive=True) ** (
+    return b * require_finite("V_mm_s", V, ">0") ** p * require_finite("Fn_N", Fn, ">0") ** (
         _check_howell_n(n) - 1.0)
 
 

@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..errors import KnitsimInputError
+from ..errors import KnitsimInputError, require_finite
 from .identification import parameter_status
 
 #: Fewest samples accepted for an identification.
@@ -156,18 +156,6 @@ def dahl_increment(F, dx, sigma, Fc, alpha=1.0):
     return out[()] if out.ndim == 0 else out
 
 
-def _check_dahl_parameters(sigma, Fc, alpha, F0) -> None:
-    """sigma, Fc and alpha finite and > 0 (eq 1: a stiffness, a limiting force and an exponent; Fc <= 0
-    has no limit to approach), F0 finite; else :class:`KnitsimInputError` naming the first bad value."""
-    for name, v, positive in (("sigma", sigma, True), ("Fc", Fc, True), ("alpha", alpha, True),
-                              ("F0", F0, False)):
-        a = np.asarray(v, dtype=np.float64).reshape(-1)
-        bad = ~np.isfinite(a) | ((a <= 0.0) if positive else False)
-        if np.any(bad):
-            raise KnitsimInputError(f"Dahl {name} = {float(a[int(np.flatnonzero(bad)[0])])!r}: must be finite"
-                                    + (" and > 0" if positive else ""))
-
-
 def dahl_slope(F, s, sigma, Fc, alpha=1.0):
     """Right-hand side of eq 1, dF/dx, extended oddly for ``|F| > Fc``.
 
@@ -217,7 +205,10 @@ def dahl_response(x, sigma, Fc, alpha=1.0, F0=0.0):
         raise KnitsimInputError(f"displacement history x: sample {int(np.flatnonzero(~np.isfinite(x))[0])} is "
                                 "not a finite number")
     sigma, Fc, alpha, F0 = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (sigma, Fc, alpha, F0)))
-    _check_dahl_parameters(sigma, Fc, alpha, F0)
+    # eq 1: a stiffness, a limiting force (Fc <= 0 has no limit to approach) and an exponent
+    for name, v in (("Dahl sigma", sigma), ("Dahl Fc", Fc), ("Dahl alpha", alpha)):
+        require_finite(name, v, ">0")
+    require_finite("Dahl F0", F0)
     shape = sigma.shape
     F = np.empty(shape + (x.size,))
     F[..., 0] = F0

@@ -10,7 +10,6 @@ from the increment that reaches the cap on).
 from __future__ import annotations
 
 import csv
-import os
 
 import pytest
 
@@ -44,16 +43,6 @@ checkpoint_every = 0
 """
 
 
-def _proc_refuses() -> bool:
-    try:
-        fd = os.open("/proc/.knitsim-probe", os.O_CREAT | os.O_WRONLY)
-    except OSError:
-        return os.path.isdir("/proc")
-    os.close(fd)
-    os.remove("/proc/.knitsim-probe")
-    return False
-
-
 @pytest.fixture
 def scene(tmp_path):
     p = tmp_path / "uni.toml"
@@ -69,8 +58,7 @@ def _one_line_error(capsys, rc, *needles):
     assert all(n in lines[0] for n in needles), lines[0]
 
 
-@pytest.mark.skipif(not _proc_refuses(), reason="needs a /proc that refuses new files (Linux)")
-def test_unwritable_usd_path_refused_before_the_solve(tmp_path, scene, capsys):
+def test_unwritable_usd_path_refused_before_the_solve(tmp_path, scene, capsys, proc_refuses_files):
     rc = main(["run", str(scene), "--out", str(tmp_path / "e2"), "--no-progress", "--usd", "/proc/x.usda"])
     _one_line_error(capsys, rc, "--usd = '/proc/x.usda'", "cannot be written")
     assert not (tmp_path / "e2").exists()                           # nothing solved, nothing written

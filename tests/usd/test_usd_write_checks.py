@@ -28,22 +28,7 @@ _spec.loader.exec_module(_export_tests)
 make_frames = _export_tests.make_frames
 
 
-def _proc_refuses() -> bool:
-    """Whether /proc exists and takes no new file (Linux, even for root)."""
-    try:
-        fd = os.open("/proc/.knitsim-probe", os.O_CREAT | os.O_WRONLY)
-    except OSError:
-        return os.path.isdir("/proc")
-    os.close(fd)
-    os.remove("/proc/.knitsim-probe")
-    return False
-
-
-needs_proc = pytest.mark.skipif(not _proc_refuses(), reason="needs a /proc that refuses new files (Linux)")
-
-
-@needs_proc
-def test_unwritable_folder_refused_before_any_work():
+def test_unwritable_folder_refused_before_any_work(proc_refuses_files):
     frames = make_frames(2, courses=2, wales=3, n=5)
     with pytest.raises(KnitsimInputError, match=r"path='/proc/x\.usda': cannot be written: no file can be created"):
         write_patch_usd("/proc/x.usda", frames, 0.3)
@@ -63,8 +48,7 @@ def test_parent_that_is_a_file_refused(tmp_path):
     assert write_patch_usd(tmp_path / "new" / "deeper" / "x.usda", frames, 0.3).file_bytes > 0
 
 
-@needs_proc
-def test_a_pxr_failure_is_knitsims_error_naming_the_path(monkeypatch):
+def test_a_pxr_failure_is_knitsims_error_naming_the_path(monkeypatch, proc_refuses_files):
     """Past the check (bypassed here), pxr's own error while writing comes back as KnitsimInputError."""
     monkeypatch.setattr(ex, "check_usd_path", lambda path, flag=None: os.fspath(path))
     frames = make_frames(2, courses=2, wales=3, n=5)
