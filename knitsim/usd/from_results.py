@@ -90,8 +90,8 @@ FIELD_DOCS = {
 #: cells.nc variables of the rest state (per group) read where present: time code 0 is then the rest state
 REST_VARIABLES = {"x": "rest_state_x", "C": "rest_state_C", "F": "rest_force_per_wale_N",
                   "W": "rest_state_W", "s_AB": "rest_state_s_AB", "label": "rest_stage"}
-#: of them, those needed (W and s_AB follow from x, eq 6; the label from the Table 4 initial stage)
-REST_REQUIRED = ("x", "C", "F")
+#: of them, those needed: every one (knitsim.io.patch_results writes them together, from the run's group_rest)
+REST_REQUIRED = tuple(REST_VARIABLES)
 #: USD layouts: one BasisCurves yarn per course, or one stitch shape per distinct cell instanced
 #: (knitsim.usd.instanced); "auto" instances where it writes at least INSTANCE_GAIN times fewer shapes
 LAYOUTS = ("auto", "courses", "instanced")
@@ -190,7 +190,7 @@ class PatchRecord:
     course_count, wale_count : (courses, wales) or None
         Stitches each cell stands for (a specimen's blocks; None: single stitches).
     rest : dict or None
-        The rest state before increment 1, per group: ``x`` (G, 5), ``C``, ``F`` (G,) and, where known,
+        The rest state before increment 1, per group: ``x`` (G, 5), ``C``, ``F`` (G,),
         ``W``, ``s_AB`` [mm] and ``label`` (G,); ``grip_strain`` and ``cycle`` of curve.csv's row 0.
         None: not recorded (time code 0 is then increment 1).
     column_slack_mm, column_status : (T, wales) or None
@@ -264,9 +264,7 @@ def record_from_history(h, params: dict, scene_text: str = "", course_count=None
     rest = None
     gr = getattr(h, "group_rest", None)
     if gr is not None and all(k in gr for k in REST_REQUIRED):
-        rest = {k: np.asarray(gr[k], float) for k in ("x", "C", "F", "W", "s_AB") if k in gr}
-        if "label" in gr:
-            rest["label"] = np.asarray(gr["label"], np.int64)
+        rest = {k: np.asarray(gr[k], np.int64 if k == "label" else float) for k in REST_REQUIRED}
         # curve.csv's row 0: the rest grip strain (< 0 for a pretensioned specimen), the first cycle
         rest["grip_strain"] = float(h.info.get("rest_grip_strain", 0.0))
         rest["cycle"] = float(h.cycle[0]) if h.n_increments else 1.0
@@ -332,9 +330,7 @@ def _rest_of_results(d: Path, ds) -> dict | None:
     (grip strain, cycle); None where cells.nc does not hold it (a results folder of an older knitsim)."""
     if not all(REST_VARIABLES[k] in ds for k in REST_REQUIRED):
         return None
-    rest = {k: np.asarray(ds[v].values, float) for k, v in REST_VARIABLES.items() if v in ds and k != "label"}
-    if REST_VARIABLES["label"] in ds:
-        rest["label"] = np.asarray(ds[REST_VARIABLES["label"]].values, np.int64)
+    rest = {k: np.asarray(ds[v].values, np.int64 if k == "label" else float) for k, v in REST_VARIABLES.items()}
     rows = _csv_rows(d / "curve.csv") or []
     row0 = next((r for r in rows if str(r.get("increment", "")).strip() == "0"), None)
     try:
@@ -495,22 +491,6 @@ def timeline(rec: PatchRecord) -> Timeline:
     return Timeline(rec.rest is not None, last, T)
 
 
-def _rest_label(rec: PatchRecord) -> np.ndarray:
-    """Stage label code of each cell at rest, (courses, wales): the Table 4 initial stage, stick-free loading
-    (adherence), or sliding where phi0 is at the sliding limit under Coulomb friction (the cell kernel's
-    initial stage; Dahl cells, dahl_sigma > 0, stay in adherence).  Used where the rest label is not recorded."""
-    from ..cell.stages import LABEL_CODES
-    p = rec.params
-    if "m" not in p or "phi0" not in p:
-        return np.full(rec.shape, LABEL_CODES["adherence"], np.int64)
-    m = np.asarray(p["m"], float)
-    phi0 = np.asarray(p["phi0"], float)
-    dahl = np.asarray(p.get("dahl_sigma", 0.0), float) > 0
-    sliding = ~dahl & (phi0 >= np.arctan(m) - 1e-12)
-    return np.where(sliding, LABEL_CODES["sliding"], LABEL_CODES["adherence"]).astype(np.int64) \
-        * np.ones(rec.shape, np.int64)
-
-
 def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POINTS, device: str = "cpu",
                  frames: list | None = None, per_group: bool | None = None) -> PatchFrames:
     """The frames of a record at time codes 0, stride, 2 stride, ... and the last (or the time codes ``frames``).
@@ -554,7 +534,7 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
     rest_fields = None
     if rest is not None:
         C0 = rec.params["C0"] if "C0" in rec.params else None
-        label = rest["label"][goc] if "label" in rest else _rest_label(rec)
+        label = rest["label"][goc]
         rest_fields = {"stage": label, "phi": rest["x"][:, 3][goc], "force_per_wale_N": rest["F"][goc],
                        "strain": (rest["C"][goc] / C0 - 1.0) if C0 is not None else np.full(rec.shape, np.nan),
                        "status": np.zeros(rec.shape, np.int64)}
@@ -563,10 +543,7 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
     out, fallback, col_held, slack = [], [], [], []
     for f, k in enumerate(rows):
         if k < 0:
-            # the rest state: its W and s_AB from its angles where not recorded (eq 6, the same integrals)
-            Wg = rest["W"] if "W" in rest else cl["W"].reshape(len(sel), G)[f]
-            Cg = rest["C"]
-            sg = rest["s_AB"] if "s_AB" in rest else cl["s_AB"].reshape(len(sel), G)[f]
+            Wg, Cg, sg = rest["W"], rest["C"], rest["s_AB"]          # the rest state, as recorded
             cell_fields = rest_fields
             col_held.append(np.zeros(rec.shape[1], np.int32))
             slack.append(np.zeros(rec.shape[1]))           # at rest every column spans its rest length
