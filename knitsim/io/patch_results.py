@@ -1038,8 +1038,13 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
         r = np.nonzero(h.cycle == k)[0]
         if r[0] > 0:
             r = np.concatenate([[r[0] - 1], r])
+        e_k, F_k = h.grip_strain[r], F[r]
+        if r[0] == 0:
+            # the first cycle starts from the rest state (curve.csv's row 0), as a tensile test's curve does
+            e_k = np.concatenate([[float(h.info.get("rest_grip_strain", 0.0))], e_k])
+            F_k = np.concatenate([[h.rest_force_N if layout.blocks else h.rest_force_per_wale_N], F_k])
         # later cycles thinner and dashed: a cycle that retraces the one before stays visible under it
-        ax.plot(h.grip_strain[r], F[r], lw=max(2.6 - 0.8 * i, 0.9), ls="-" if i == 0 else (0, (4, 2 + i)),
+        ax.plot(e_k, F_k, lw=max(2.6 - 0.8 * i, 0.9), ls="-" if i == 0 else (0, (4, 2 + i)),
                 label=f"cycle {int(k)}")
     bad = np.any(h.column_status != COL_OK, axis=1)
     if bad.any():
