@@ -94,3 +94,14 @@ def plain_help(text: str) -> str:
     a literal block's ``::`` as ``:``."""
     text = _RST_ROLE.sub(r"\1", text)
     return text.replace("``", "'").replace("::\n", ":\n")
+
+
+def resume_command(command: str, fallback_argv: list[str], extra: list[str] = ()) -> str:
+    """The command line that continues an interrupted ``knitsim COMMAND``: as typed (``sys.argv``; where it
+    was not called as ``knitsim COMMAND ...``, a test or the API, ``fallback_argv``), without ``--resume``
+    and ``--overwrite`` (which would discard the finished work, and excludes ``--resume``), with ``extra``
+    and ``--resume`` added."""
+    import shlex
+    argv = sys.argv[2:] if len(sys.argv) > 2 and sys.argv[1] == command else list(fallback_argv)
+    argv = [a for a in argv if a not in ("--resume", "--overwrite")] + list(extra) + ["--resume"]
+    return f"knitsim {command} " + " ".join(shlex.quote(a) for a in argv)

@@ -153,10 +153,7 @@ def _run(args) -> int:
 
 
 def _resume_command(args) -> str:
-    """The command that continues an interrupted study: the command line as typed, ``--overwrite`` (which
-    would discard the finished cases) dropped and ``--resume`` added."""
-    import shlex
-    argv = sys.argv[2:] if len(sys.argv) > 2 and sys.argv[1] == "diagnose-study" else [
-        "--cases", str(args.cases), "--seed", str(args.seed), "--out", str(args.out)]
-    argv = [a for a in argv if a not in ("--resume", "--overwrite")] + ["--resume"]
-    return "knitsim diagnose-study " + " ".join(shlex.quote(a) for a in argv)
+    """The command that continues an interrupted study (:func:`knitsim.cli.common.resume_command`)."""
+    from .common import resume_command
+    return resume_command("diagnose-study", ["--cases", str(args.cases), "--seed", str(args.seed), "--out",
+                                             str(args.out)])

@@ -147,15 +147,9 @@ def zone_overlaps(resolved: dict) -> list[dict]:
 def resume_command(args, out: Path) -> str:
     """The command that continues this run from its checkpoint: the command line as typed, without
     ``--overwrite`` (it and ``--resume`` exclude each other), with ``--out`` and ``--resume``."""
-    import shlex
-
-    argv = sys.argv[2:] if len(sys.argv) > 2 and sys.argv[1] == "run" else None
-    if argv is None:                                   # not called as `knitsim run ...` (a test, an API)
-        argv = [args.scene] + [a for kv in args.overrides for a in ("--set", kv)]
-    argv = [a for a in argv if a not in ("--resume", "--overwrite")]
-    if args.out is None:
-        argv += ["--out", str(out)]
-    return "knitsim run " + " ".join(shlex.quote(a) for a in argv) + " --resume"
+    from .common import resume_command as command_line
+    return command_line("run", [args.scene] + [a for kv in args.overrides for a in ("--set", kv)],
+                        ["--out", str(out)] if args.out is None else [])
 
 
 def interrupted_message(ck: Path | None, total: int, resume_cmd: str, writing: bool = False) -> str:
@@ -263,9 +257,10 @@ def _run(args) -> int:
             device = warp_runtime.resolve_device(scene.device)
         # the model's domain, before any output is touched (a cell without a rest state: error)
         domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device)
-        domain_warnings += zone_overlaps(scene.resolved)
-        for w in zone_overlaps(scene.resolved):
+        overlaps = zone_overlaps(scene.resolved)
+        for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
+        domain_warnings += overlaps
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
                              resume=args.resume, resumable=True)
     ck = out / CHECKPOINT_NAME

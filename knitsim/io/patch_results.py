@@ -428,6 +428,7 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
                                 if (pre := float(h.info.get("pretension") or 0.0)) > 0 else ""))
     if fc.first_stop is not None:
         cap = float(np.max(fc.caps)) if fc.caps is not None and len(fc.caps) else float("nan")
+        # cut_by_force_cap decides whether unloadings were left (its wording is a cell's: rewritten for a patch)
         cut = cut_by_force_cap(h.grip_strain, h.direction, h.cycle, fc.first_stop, cap)
         stopped_cols = fc.group_stopped[h.group_of_cell].any(axis=0)
         n_stop, n_cols = int(stopped_cols.sum()), int(h.shape[1])
@@ -445,7 +446,7 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
             + f" at grip strain {float(h.grip_strain[k]):.4g} in cycle {c_stop} of {c_last}: from there the stopped "
             f"{column}(s) keep their last state while the grip moves on (curve.csv's columns_held){others}, so the "
             f"grip force is not the knit's and the figures of {rest} are not given; raise force_cap_N to run "
-            f"{'them' if c_last > c_stop else 'it'}")) for w in cut]
+            f"{'them' if c_last > c_stop else 'it'}")) for w in cut[:1]]
     return out
 
 
