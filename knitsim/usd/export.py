@@ -271,24 +271,13 @@ def _vt_strings(seq):
 
 
 def _user_metadata(metadata) -> dict:
-    """Caller's metadata as a dictionary USD can store (scalars and strings; else str())."""
+    """Caller's metadata as a dictionary USD can store (:func:`_layer_value`: scalars, strings, lists as
+    arrays, mappings recursively; anything else as its str())."""
     if metadata is None:
         return {}
     if not isinstance(metadata, Mapping):
         raise KnitsimInputError(f"metadata must be a mapping, got {type(metadata).__name__}")
-    out = {}
-    for k, v in metadata.items():
-        if isinstance(v, Mapping):
-            out[str(k)] = _user_metadata(v)
-        elif isinstance(v, (bool, np.bool_)):
-            out[str(k)] = bool(v)
-        elif isinstance(v, (int, np.integer)):
-            out[str(k)] = int(v)
-        elif isinstance(v, (float, np.floating)):
-            out[str(k)] = float(v)
-        else:
-            out[str(k)] = str(v)
-    return out
+    return _layer_value(metadata)
 
 
 def _layer_value(v):
