@@ -1982,13 +1982,7 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                     if wp.static(regular_only):
                         if not ok:
                             return False
-                    if not ok and jammed != 0 and not is_loading(stage):
-                        # the jammed branch ends here on unloading: unjam at the start if the unjammed one opens
-                        if unjam_at_start(x, q, stage, soft, fs, fsbc, matg, C_from, C_goal):
-                            stage, jammed, soft, fs, status, n_ev, e_kind, e_C, e_F, e_from, e_to = take_event(
-                                _EV_UNJAM, C, stage, jammed, soft, fs, status, q, n_ev, e_kind, e_C, e_F, e_from, e_to)
-                            n_located += 1
-                            continue
+                    # (a jammed unloading trial that failed: its unjam at the start was checked before the trial)
                     if not ok:
                         failures += 1
                         if not may_halve(failures, step, max_halvings, matg):
