@@ -1801,11 +1801,21 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         # the sliced variant: where a suspended walk is kept, and the sub-steps this call may take
         sus: SuspendedArrays,
         budget: int,
+        # 1: ``s_out`` holds this cell's converged trial of this increment from ``s_in``, without an event
+        # (a patch's later coupling trial, :class:`knitsim.cell.batch.CellControl`)
+        warm_i: int,
     ):
         """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
 
         Reads the state ``s_in`` at the start and writes ``s_out`` at the end: they may be the same arrays
-        (a cell reads and writes only its own row), as :func:`program_kernel` passes them."""
+        (a cell reads and writes only its own row), as :func:`program_kernel` passes them.
+
+        With ``warm_i`` the Newton of the increment's first sub-step starts from the state ``s_out``
+        holds (the last trial's end, on the same branch: no event, the same stage) instead of the
+        state at the start: the same equilibrium, reached in one or two iterations instead of three to
+        five and without the predicted sub-steps.  Everything else (the checks at the start, the events
+        judged between the start and the end) is the same; where that solve fails, the sub-step is
+        solved from the start as without ``warm_i``."""
         mat = read_material(i, model)
         mat.closure = closure
         q = vecQd()
@@ -1902,6 +1912,14 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
             if wp.static(sliced):
                 if resumed:
                     step, failures, n_located, guard0 = resume_walk_counters(i, sus)
+            # a later coupling trial of the increment: the last trial's end state (read before s_out is written)
+            warm_go = warm_i != 0 and not resumed and not with_effects
+            x_warm = x
+            if warm_go:
+                q_warm = vecQd()
+                for k in range(N_QUANTITIES):
+                    q_warm[k] = s_out.q[i, k]
+                x_warm = z_of(vec5d(s_out.x[i, 0], s_out.x[i, 1], s_out.x[i, 2], s_out.x[i, 3], s_out.x[i, 4]), q_warm)
             for guard in range(guard0, MAX_SUBSTEPS):
                 C_from = C
                 if wp.abs(C_target - C_from) <= _REACHED_RTOL * C_target:
@@ -1956,7 +1974,19 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                 pred = PREDICTED_STEP_MAX
                 if is_sliding(stage) or jammed != 0 or no_contact(q) or wp.abs(step) <= wp.float64(4.0) * _SUBSTEP_FLOOR * matg.C0:
                     pred = wp.float64(0.0)
-                xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
+                xt = x
+                qt = q
+                ok = bool(False)
+                step0 = vec5d()
+                warmed = bool(False)
+                if warm_go and guard == 0:
+                    # the whole increment from the last trial's end: no predicted sub-steps (that trial walked them)
+                    xt, qt, st_w, step_w = solve_coulomb_first(x_warm, stage, jammed, soft, fs, fsbc, matg, C_goal, -1,
+                                                               wp.float64(0.0), wp.float64(0.0))
+                    warmed = st_w == STATUS_CONVERGED
+                    ok = warmed
+                if not warmed:
+                    xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
                 first = max_abs5(step0)
                 # the nearest event of the sub-step, committed below
                 best_kind = int(-1)
@@ -2314,6 +2344,8 @@ def _step_kernel_variant(first_pass: bool):
         increment: int,
         s_out: StateArrays,
         ev: EventArrays,
+        # 1 where s_out holds the cell's converged trial of this increment, without an event (CellControl.warm)
+        warm: wp.array(dtype=wp.int32),
     ):
         """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row); a first
         pass leaves the ``s_out`` rows of the cells it lists untouched."""
@@ -2322,7 +2354,7 @@ def _step_kernel_variant(first_pass: bool):
             return
         done = wp.static(advance)(i, model, max_halvings, closure, s_in, strain[i % strain.shape[0]],
                                   int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
-                                  s_out, ev, SuspendedArrays(), 0)
+                                  s_out, ev, SuspendedArrays(), 0, int(warm[i % warm.shape[0]]))
         if wp.static(first_pass):
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
@@ -2380,7 +2412,7 @@ def _program_kernel_variant(first_pass: bool):
             return
         for k in range(k_start, k_stop):
             done = wp.static(advance)(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
-                                      prog_rate[k % prog_rate.shape[0]], k, state, ev, SuspendedArrays(), 0)
+                                      prog_rate[k % prog_rate.shape[0]], k, state, ev, SuspendedArrays(), 0, 0)
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
                 return
@@ -2421,7 +2453,7 @@ if REGULAR_PASS:
         if i < 0:
             return
         done = advance_sliced(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
-                              prog_rate[k % prog_rate.shape[0]], k, state, ev, sus, budget)
+                              prog_rate[k % prog_rate.shape[0]], k, state, ev, sus, budget, 0)
         if not done:
             pending[wp.atomic_add(pending_count, 0, 1)] = i
             return

@@ -520,15 +520,25 @@ class CellControl:
     rate : float64 [1 or N]
         Test (crosshead) rate of the increment [mm/s], read by ``velocity_friction``
         only; 0 means not given (no velocity effect).
+    warm : int32 [1 or N]
+        Read by :meth:`CellSolver.step` only: 1 where ``state_out`` already holds the cell's
+        converged trial of this increment from the same ``state_in`` that fired no event and
+        kept its stage (a patch's later coupling trial, the column's lengths corrected a little):
+        its Newton starts from that state, the same equilibrium in fewer iterations (results
+        within the Newton tolerance of a cold start, not bit for bit).  Default 0: every step
+        starts from ``state_in``.
     """
 
     strain: wp.array
     direction: wp.array
     rate: wp.array | None = None
+    warm: wp.array | None = None
 
     def __post_init__(self):
         if self.rate is None:
             self.rate = wp.zeros(1, dtype=wp.float64, device=self.strain.device)
+        if self.warm is None:
+            self.warm = wp.zeros(1, dtype=wp.int32, device=self.strain.device)
 
     def set(self, strain: float, direction: int, rate: float = 0.0) -> None:
         """Impose one strain, direction (and test rate) on every cell (device fill, no host sync)."""
@@ -602,7 +612,8 @@ class CellSolver:
                 continue
             m = cells.shape[0] or n
             common = [model_s, self.max_halvings, int(self.stick_closure == "release_beta"), s_in,
-                      control.strain, control.direction, control.rate, int(increment), s_out, self._ev_struct]
+                      control.strain, control.direction, control.rate, int(increment), s_out, self._ev_struct,
+                      control.warm]
             count = no_count
             if compact and getattr(k, "REGULAR_PASS", False):
                 # the first pass lists the cells it leaves; the full step takes the first count[0] of them
@@ -787,6 +798,10 @@ class CellSolver:
             launches()
         return hist
 
+    def event_counts(self) -> tuple[int, int]:
+        """(events recorded so far, events the buffer keeps): more recorded than kept is an overflow."""
+        return int(self._ev_count.numpy()[0]), int(self._ev[0].shape[0])
+
     def event_arrays(self) -> dict[str, np.ndarray]:
         """Events recorded so far as host arrays (``cell``, ``increment``, ``kind`` code, ``C``, ``F`` the force
         per wale at the event, ``label_from``, ``label_to``), ordered by cell, then as they happened."""
@@ -941,15 +956,7 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
     dev = model.device
     n, nc = len(program), model.cell_count
-    solver = CellSolver(model, max_halvings, stick_closure=stick_closure, specialise=specialise)
-    s0 = model.state()
-    s0_status0 = s0.status.numpy().copy()
-    q0 = s0.q.numpy()
-    rest = {name: q0[:, CODE[name]].copy() for name in HISTORY_QUANTITIES}
-    rest.update(stage=s0.stage.numpy().copy(), jammed=s0.jammed.numpy().copy())
     with_effects = model.has_effects
-    hist = ProgramHistory.empty(model, n, 1, with_effects)
-    hq, hs, hj, hst, hg, he = hist.q, hist.stage, hist.jammed, hist.status, hist.head_gap, hist.eff
     # the whole program in one launch per kernel group (chunks only to report progress): the
     # increments loop on the device
     if sort_by_stage is None:
@@ -959,12 +966,31 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
     if slices is None:
         slices = SUBSTEP_SLICES if wp.get_device(dev).is_cuda else ()
     chunk = n if progress is None else max(1, min(n, 25))
-    for k0 in range(0, n, chunk):
-        k1 = min(n, k0 + chunk)
-        solver.run_program(s0, program, 1, k0, k1, hist, per_increment=bool(sort_by_stage or compact),
-                           sort_by_stage=bool(sort_by_stage), compact=bool(compact), slices=slices)
-        if progress is not None:
-            progress(k1, n)
+    s0 = model.state()
+    s0_status0 = s0.status.numpy().copy()
+    q0 = s0.q.numpy()
+    rest = {name: q0[:, CODE[name]].copy() for name in HISTORY_QUANTITIES}
+    rest.update(stage=s0.stage.numpy().copy(), jammed=s0.jammed.numpy().copy())
+    capacity = None                  # CellSolver's default: 64 events per cell
+    while True:
+        solver = CellSolver(model, max_halvings, event_capacity=capacity, stick_closure=stick_closure,
+                            specialise=specialise)
+        hist = ProgramHistory.empty(model, n, 1, with_effects)
+        for k0 in range(0, n, chunk):
+            k1 = min(n, k0 + chunk)
+            solver.run_program(s0, program, 1, k0, k1, hist, per_increment=bool(sort_by_stage or compact),
+                               sort_by_stage=bool(sort_by_stage), compact=bool(compact), slices=slices)
+            if progress is not None:
+                progress(k1, n)
+        recorded, kept = solver.event_counts()
+        if recorded <= kept:
+            break
+        # a program of many reversals (a measured curve of tens of cycles) records more events than the
+        # default buffer keeps: the same run again with room for every one (the count is exact: the
+        # run is deterministic), not an error after the solve
+        capacity = recorded + 64
+        s0 = model.state()           # (the run advanced the state in place)
+    hq, hs, hj, hst, hg, he = hist.q, hist.stage, hist.jammed, hist.status, hist.head_gap, hist.eff
     hqn = hq.numpy()
     values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
     values.update(head_gap_values(hg.numpy(), model.d_jam))

@@ -182,6 +182,11 @@ class WarpBackend:
         self.res = CellBatchState.empty(self.n, self.device)
         self.control = self.model.control()
         self.control.strain = wp.zeros(self.n, dtype=wp.float64, device=self.device)
+        # the cells whose trial row (s1) is a converged trial of this increment that fired no event and kept
+        # the committed stage: their next trial's Newton starts from it (CellControl.warm)
+        self.control.warm = wp.zeros(self.n, dtype=wp.int32, device=self.device)
+        self._warm = np.zeros(self.n, bool)
+        self._committed_branch = None            # the committed (stage, jammed), read once per increment
         self._mask = wp.zeros(self.n, dtype=wp.int32, device=self.device)
         self._all = wp.ones(self.n, dtype=wp.int32, device=self.device)
         self._k = wp.zeros(self.n, dtype=wp.float64, device=self.device)
@@ -253,6 +258,7 @@ class WarpBackend:
         last trial (not read by the coupling)."""
         self.control.strain.assign(np.ascontiguousarray(strain, dtype=np.float64))
         self.control.direction.fill_(int(direction))
+        self.control.warm.assign(self._warm.astype(np.int32))
         # the trial steps' events are not used (stage and status are read from the states): the
         # append buffer is reset so that repeated trials never overflow it (CellSolver keeps no API for this)
         self.solver._ev_count.zero_()
@@ -264,6 +270,12 @@ class WarpBackend:
         last = np.flatnonzero(np.r_[ev["cell"][1:] != ev["cell"][:-1], True]) if len(ev["cell"]) else np.zeros(0, int)
         t["slide_C"], t["slide_F"] = slide_points(self.n, ev["cell"][last], ev["kind"][last] == self._ev_slide,
                                                   ev["C"][last], ev["F"][last], t)
+        if self._committed_branch is None:
+            self._committed_branch = (self.s0.stage.numpy().copy(), self.s0.jammed.numpy().copy())
+        stage0, jammed0 = self._committed_branch
+        same_branch = (t["status"] == STATUS_OK) & (t["stage"] == stage0) & (t["jammed"] == jammed0)
+        same_branch[ev["cell"]] = False
+        self._warm = same_branch if mask is None else np.where(mask, same_branch, self._warm)
         return t
 
     def _select(self, mask, src, dst):
@@ -273,6 +285,8 @@ class WarpBackend:
         """Start an increment: every group's result starts as its committed state."""
         self._select(self._all, self.s0, self.res)
         self._kr, self._kr_ok = self._k0.copy(), self._k0_ok.copy()
+        self._warm[:] = False                    # no trial of this increment yet
+        self._committed_branch = None
 
     def accept(self, mask: np.ndarray) -> None:
         """Keep the last trial of the groups in ``mask`` as their result of this increment."""

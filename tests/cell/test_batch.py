@@ -394,3 +394,28 @@ def test_a_cell_failing_up_the_jammed_branch_below_its_cap_says_where_and_what_c
     assert "force_cap_N" not in solver_stop_reason(1, 0.3, 0.31, "sliding", 0.2, 10.0, True)
     assert "force_cap_N" not in solver_stop_reason(1, 0.5, 0.49, "jamming", 4.0, 10.0, False)
     assert "could not be located" in solver_stop_reason(3, 0.3, 0.31, "adherence", 0.2, 10.0, True)
+
+
+def test_a_program_of_many_reversals_keeps_every_event():
+    """A measured curve of tens of small cycles records more events than the default buffer (64 per
+    cell): the run is repeated with room for them instead of failing after the solve (a blind probe's
+    raw lab pull of 28 step-and-hold "cycles" ended in a traceback).  Expected: one event per direction
+    change of the program (the program's own corners): a ``reversal`` where the cell carries load, a
+    ``reload`` where it went slack while unloading and loads again (Table 4); and the same rows as the run
+    of the first cycles alone (a cell's history does not depend on later rows)."""
+    waypoints = [0.0, 0.30]
+    for k in range(40):
+        waypoints += [0.29, 0.30 + 0.001 * (k + 1)]
+    program = piecewise_linear(waypoints, max_increment=0.005)
+    cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0, force_cap_N=10.0)
+    h = run_batch([cell], program)
+    turns = int(np.sum(program.direction[1:] != program.direction[:-1]))
+    assert turns == 80
+    kinds = [e["kind"] for e in h.events]
+    assert len(kinds) > 128                     # more than CellSolver's default buffer for one cell
+    assert kinds.count("reversal") + kinds.count("reload") == turns
+    assert kinds.count("reload") == kinds.count("slack") > 0
+    assert not any(k == "flag" for k in kinds)
+    short = piecewise_linear(waypoints[:6], max_increment=0.005)
+    h_short = run_batch([cell], short)
+    np.testing.assert_array_equal(h.values["F"][:len(short)], h_short.values["F"])

@@ -3,6 +3,9 @@
 - a trial step of a subset of the cells (``WarpBackend.trial(..., mask)``, one launch on the
   subset's indices) gives, for each of those cells, exactly the row that a trial of every cell
   gives (each cell's step reads only its own rows), and leaves the other rows as they were;
+- a later trial of an increment, whose Newton starts from the last trial's state where that trial
+  fired no event and kept its stage (``CellControl.warm``), meets the equilibrium of a trial from
+  the committed state: the same stages, the same lengths, forces within the Newton tolerance;
 - the tangent of a subset (the other cells passed a status that is not ok) equals the full
   launch's on the subset and is NaN elsewhere;
 - the committed state's tangent reused from the accepted trial equals a fresh launch at that
@@ -38,10 +41,14 @@ def _loaded(strain_end: float) -> WarpBackend:
 def test_a_subset_trial_gives_the_rows_of_the_full_trial():
     be = _loaded(0.2)
     strain = 0.2 + np.linspace(0.002, 0.012, N)
+    # each trial the first of its increment (from the committed state: a later one starts from the last)
+    be.begin_increment()
     full = be.trial(strain, 1, 20)
     k_full = be.tangent(True)
+    be.begin_increment()
     before = be.trial(np.full(N, 0.205), 1, 20)
     mask = np.array([True, False, True, True, False, True])
+    be.begin_increment()
     part = be.trial(strain, 1, 20, mask)
     for name in ROWS:
         np.testing.assert_array_equal(part[name][mask], full[name][mask], err_msg=name)
@@ -50,6 +57,28 @@ def test_a_subset_trial_gives_the_rows_of_the_full_trial():
     np.testing.assert_array_equal(k_part[mask], k_full[mask])
     assert np.all(np.isnan(k_part[~mask]))
     assert np.all(np.isfinite(k_full))
+
+
+def test_a_later_trial_starts_from_the_last_and_meets_the_trial_from_the_committed_state():
+    be = _loaded(0.3)
+    first = 0.3 + np.linspace(0.002, 0.008, N)
+    corrected = first * (1.0 + np.linspace(-2e-5, 3e-5, N))     # a column's correction: a little each way
+    be.begin_increment()
+    t1 = be.trial(first, 1, 30)
+    warm = be._warm.copy()
+    # warm where the first trial converged without an event and kept the committed stage (the cells of this
+    # patch at 0.3 slide on: every one of them)
+    assert np.all(warm == ((t1["status"] == 0) & (t1["stage"] == be.s0.stage.numpy())))
+    assert np.all(warm)
+    later = be.trial(corrected, 1, 30)
+    be.begin_increment()
+    cold = be.trial(corrected, 1, 30)
+    for name in ("stage", "jammed", "status", "C"):
+        np.testing.assert_array_equal(later[name], cold[name], err_msg=name)
+    # the same equilibrium to the Newton's tolerance (every scaled residual <= 1e-11, NEWTON_TOL)
+    np.testing.assert_allclose(later["F"], cold["F"], rtol=1e-9, atol=0)
+    np.testing.assert_allclose(later["phi"], cold["phi"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(later["W"], cold["W"], rtol=1e-9, atol=0)
 
 
 def test_the_committed_tangent_reused_from_the_accepted_trial_equals_a_fresh_launch():
