@@ -78,6 +78,11 @@ def run(args) -> int:
         setup = replace(setup, pair=False)
     noise = _noise_args(args.noise_N, args.curves, setup.noise_N)
     curves = [read_measured_curve(c, noise.get(c)) for c in args.curves]
+    for c in curves:
+        # what was read, in the units it was read in: a column per specimen or in kN shows here, before the fits
+        print(f"read {c.source}: {len(c)} rows, strain {float(c.strain.min()):.4g} to {float(c.strain.max()):.4g}, "
+              f"force {float(c.force.min()):.4g} to {float(c.force.max()):.4g} N per wale, "
+              f"{int(c.cycle.max()) - int(c.cycle.min()) + 1} cycle(s)", flush=True)
     setup = replace(setup, noise_N=noise or None)
     t0 = time.perf_counter()
 
@@ -110,6 +115,9 @@ def run(args) -> int:
     for c in result["candidates"]:
         if c["score"] is None:
             print(f"  {c['effect']:<24s} not identifiable: {c['note']}")
+        elif c.get("flagged_curves"):
+            # its fit's chi2 is no model's (rows held at a failed increment): no score, share or p to show
+            print(f"  {c['effect']:<24s} {c['note']}")
         else:
             share = "n/a" if c["share_of_excess"] is None else f"{c['share_of_excess']:.0%}"
             prob = "  n/a" if c["probability"] is None else f"{c['probability']:.3f}"

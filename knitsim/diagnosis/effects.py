@@ -205,6 +205,16 @@ def variables_for(free: tuple[str, ...], effects: tuple[str, ...]) -> tuple[Vari
     return tuple(out)
 
 
+def parameter_unit(name: str) -> str:
+    """The unit of a fitted parameter as the diagnosis reports it (``""`` if not one of its variables): phi0
+    in rad (the fit searches it as a fraction of phimax, the results give the angle)."""
+    if name == "phi0":
+        return "rad"
+    var = BASELINE_VARIABLES.get(name) or next((v for e in EFFECT_SPECS.values() for v in e.variables
+                                                if v.name == name), None)
+    return var.unit if var is not None else ""
+
+
 def build_params(base: CellParams, effects: tuple[str, ...], values: dict, fixed: dict | None = None) -> CellParams:
     """The cell of the model with ``effects`` on and the fitted ``values`` (validated).
 

@@ -68,6 +68,10 @@ _DIRECTIONS = {"load": 1, "unload": -1, "loading": 1, "unloading": -1}
 
 #: a force this many noise sd below zero is kept as a reading around zero; lower is refused
 NEGATIVE_SIGMAS = 5.0
+#: a load cell's zero below zero is read off the lowest this share of a curve's readings, and accepted
+#: up to this share of its peak force (:func:`zero_offset_below`)
+ZERO_OFFSET_ROWS = 0.05
+ZERO_OFFSET_SHARE = 0.05
 #: rows below that limit tolerated as spikes (outliers): at most this many, or this share of the rows
 NEGATIVE_SPIKES = 2
 NEGATIVE_SPIKE_SHARE = 0.005
@@ -178,12 +182,28 @@ def refuse_no_response(source: str, force, sigma_N: float, row, column: str = "f
             "to compare; check the column, its sign and the load cell")
 
 
+def zero_offset_below(force, sigma_N: float) -> float:
+    """A load cell's zero offset below zero read off a force column (0.0 where there is none to see).
+
+    A knit carries no compression, so its lowest readings (at rest, slack) are the load cell's zero plus
+    noise: the median of the lowest :data:`ZERO_OFFSET_ROWS` share (at least 5 rows), where it lies more
+    than 2 noise sd below zero and within :data:`ZERO_OFFSET_SHARE` of the peak force (a zero, not a sign
+    or a column gone wrong).  The diagnosis fits each curve's offset; a blind probe found a -12 mN zero
+    refused while the same +12 mN was read and fitted."""
+    f = np.sort(np.asarray(force, float))
+    if len(f) == 0:
+        return 0.0
+    z = float(np.median(f[:max(5, int(ZERO_OFFSET_ROWS * len(f)))]))
+    return z if (z < -2.0 * sigma_N and -z <= ZERO_OFFSET_SHARE * float(f[-1])) else 0.0
+
+
 def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: str = "force_per_wale_N") -> None:
-    """Refuse a force column below zero by more than NEGATIVE_SIGMAS noise sd, beyond a few spikes
-    (outliers, only where the noise is known): a wrong zero or sign.  ``row(i)`` is the spreadsheet row
-    of entry i."""
+    """Refuse a force column below zero (or below a load cell's zero offset, :func:`zero_offset_below`) by
+    more than NEGATIVE_SIGMAS noise sd, beyond a few spikes (outliers, only where the noise is known): a
+    wrong zero or sign.  ``row(i)`` is the spreadsheet row of entry i."""
     f = np.asarray(force, float)
-    bad = np.nonzero(f < -NEGATIVE_SIGMAS * noise.sigma_N)[0]
+    zero = zero_offset_below(f, noise.sigma_N)
+    bad = np.nonzero(f < zero - NEGATIVE_SIGMAS * noise.sigma_N)[0]
     # a spike or two on a curve whose noise is known is an outlier (the diagnosis leaves isolated outliers
     # out); more, or any without a known noise, is a wrong zero or sign
     spikes = max(NEGATIVE_SPIKES, NEGATIVE_SPIKE_SHARE * len(f)) if noise.known else 0
@@ -193,7 +213,8 @@ def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: st
         raise KnitsimInputError(
             f"{source}: row {row(i)}, column {column}: {float(f[i]):g} N is below zero by more than "
             f"{NEGATIVE_SIGMAS:g} noise sd ({noise.sigma_N:.3g} N, {how}): a knit carries no compression; "
-            "check the load cell's zero and the sign of the column")
+            f"check the load cell's zero and the sign of the column (a zero offset below zero by up to "
+            f"{ZERO_OFFSET_SHARE:.0%} of the peak force is read as such, and fitted)")
 
 
 def strain_tolerance(strain) -> float:
@@ -355,6 +376,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                                 f"(below {limit:.3g}, more than a zero offset): the knit model runs in tension, "
                                 "strain >= 0; check the sign of the column and the extensometer's zero")
     tol = strain_tolerance(s) if strain_tol is None else float(strain_tol)
+    refuse_strain_spikes(source, s, f, tol, row)
     if direction is None:
         inf_cycle, d = infer_branches(s, f, tol)
     else:
@@ -404,6 +426,44 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     noise = curve_noise(clean, f, c, d, source, noise_N)
     refuse_negative_force(source, f, noise, row)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
+
+
+#: a row whose strain leaves its neighbours and returns by more than this many times the neighbouring
+#: steps, while its force stays in line with theirs, is a typo (:func:`refuse_strain_spikes`)
+SPIKE_STEPS = 10.0
+
+
+def refuse_strain_spikes(source: str, strain, force, tol: float, row) -> None:
+    """Refuse a row whose strain jumps away from both neighbours and back while its force does not move.
+
+    A mistyped strain (0.843 for 0.343, 0.154 for 0.254; rows with two neighbours on each side) is read without cycle / direction columns as a
+    reversal and back: a made-up cycle (a blind probe: one such row gave an effect-free specimen a
+    confident ``yarn_extension``).  A real turn of the test changes the force with the strain; a real
+    excursion recorded by one row is as sparse as its neighbouring steps.  Refused where the strain
+    leaves and returns by more than :data:`SPIKE_STEPS` times the neighbouring steps (and the jitter
+    tolerance ``tol``), the neighbours agreeing within half the jump, and the force lies within the
+    noise of its neighbours' chord."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    n = len(s)
+    if n < 3:
+        return
+    noise = 3.0 * _force_scale(f)
+    # (rows with two neighbours on each side: the steps around a row say what a jump is)
+    for i in range(2, n - 2):
+        a, b = s[i] - s[i - 1], s[i + 1] - s[i]
+        jump = min(abs(a), abs(b))
+        if a * b >= 0 or abs(s[i + 1] - s[i - 1]) > 0.5 * jump:
+            continue
+        local = max(abs(s[i - 1] - s[i - 2]), abs(s[i + 2] - s[i + 1]), tol)
+        if jump <= SPIKE_STEPS * local:
+            continue
+        if abs(f[i] - 0.5 * (f[i - 1] + f[i + 1])) > noise + abs(f[i + 1] - f[i - 1]):
+            continue   # the force follows the strain: a turn of the test recorded by one row
+        raise KnitsimInputError(
+            f"{source}: row {row(i)}, column strain: {float(s[i]):g} jumps from {float(s[i - 1]):g} (row {row(i - 1)}) "
+            f"and back to {float(s[i + 1]):g} (row {row(i + 1)}), {jump / local:.0f} times the neighbouring steps, while "
+            f"the force stays in line ({float(f[i - 1]):g}, {float(f[i]):g}, {float(f[i + 1]):g} N): a typo or a logger "
+            "glitch, not a turn of the test.  Correct or delete the row")
 
 
 #: rows at one strain that differ by more than this many times the curve's scatter between strains are

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..errors import KnitsimInputError
+from .effects import parameter_unit
 from ..io.results import atomic_write_bytes
 
 #: resolution of both figures [dots per inch]
@@ -116,6 +117,9 @@ def _params_text(params: Mapping | None, errors: Mapping | None = None) -> str:
         txt = f"{name} = {_fmt(val)}"
         if name in errors and errors[name] is not None:
             txt += f" ± {_fmt(errors[name], 2)}"
+        unit = parameter_unit(name)
+        if unit and unit != "-":
+            txt += f" {unit}"
         parts.append(txt)
     return _e(", ".join(parts))
 
@@ -409,8 +413,14 @@ def render_report(result: dict) -> str:
     # baseline
     out.append("<h2>Baseline</h2>\n")
     errs = base.get("std_errors") or {}
-    rows = [[_e(k), _e(_fmt(v)), _e(_fmt(errs.get(k)))] for k, v in (base.get("params") or {}).items()]
-    out.append(_table(["parameter", "value", "standard error"], rows))
+    rows = [[_e(k), _e(_fmt(v)), _e(parameter_unit(k) or "-"), _e(_fmt(errs.get(k)))]
+            for k, v in (base.get("params") or {}).items()]
+    out.append(_table(["parameter", "value", "unit", "standard error"], rows))
+    offsets = base.get("offsets_N") or {}
+    if offsets:
+        # fitted with the baseline: a load cell's zero, not the knit (a curve's rows shifted by it)
+        out.append("<p>Load-cell zero offsets fitted with it (added to the model's force per wale): " + ", ".join(
+            f"{_e(Path(str(k)).name)} {_e(_fmt(v))} N" for k, v in offsets.items()) + ".</p>\n")
     out.append(f"<p>RMS force error {_e(_fmt(base.get('rms_N')))} N per wale, "
                f"BIC {_e(_fmt(base.get('bic')))}.</p>\n")
 

@@ -28,8 +28,12 @@ shows it), the column and the value, and what to do:
   header is the first line that holds every required column (and, when none is
   required, at least one of the optional ones); the lines above it are skipped;
 - a units row directly under the header (``-,N,-,-``, ``[mm],[N],(-),mm/s``):
-  the first data row is skipped when none of its non-empty cells is a number.
-  Text in a number column further down is refused as before.
+  the first data row is skipped when none of its non-empty cells is a number; the unit
+  under each column read is checked as one in its header cell (``%`` under ``strain``,
+  ``kN`` under ``force_per_wale_N``: refused naming the row and the column).
+  Text in a number column further down is refused as before;
+- refused: a value in a row beyond the header's columns (a shifted or merged row), and a
+  column read that is named twice (which one is meant is not said).
 """
 from __future__ import annotations
 
@@ -154,7 +158,7 @@ _WITH_UNIT = re.compile(r"^(.*?\S)\s*[\[(]\s*([^\])]*?)\s*[\])]$")
 #: the units a column's name implies, by the end of its name (casefold, no spaces); else dimensionless
 _UNITS = (("_1_mm", ("1/mm", "mm^-1", "mm-1")), ("_n_mm_per_mm", ("nmm/mm", "n.mm/mm", "n*mm/mm")),
           ("_mm_per_mm", ("mm/mm", "-", "1", "")), ("_mm_s", ("mm/s",)), ("_n", ("n",)), ("_mm", ("mm",)))
-_DIMENSIONLESS = ("-", "1", "", "mm/mm")
+_DIMENSIONLESS = ("-", "1", "", "mm/mm", "m/m")
 
 
 def _name_and_unit(cell: str) -> tuple[str, str | None]:
@@ -261,13 +265,26 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     if missing:
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
                                 f"read as {_NAMES[delim]}-separated)")
-    for name in required + [c for c in optional if _key(c) in keys]:
-        unit = units[keys.index(_key(name))]
-        if unit is not None and not _unit_fits(name, unit):
+    present = required + [c for c in optional if _key(c) in keys]
+    for name in present:
+        at = [j for j, k in enumerate(keys) if k == _key(name)]
+        if len(at) > 1:
+            # which one is meant is not said by the file (a blind probe's second force column, twice the
+            # first, was read as the first without a word)
+            raise KnitsimInputError(f"{path}: row {h + 1}: the columns {at[0] + 1} and {at[1] + 1} are both named "
+                                    f"{header[at[1]]!r}: rename or delete one")
+
+    def refuse_unit(name: str, unit: str, line: int, cell: str) -> None:
+        if not _unit_fits(name, unit):
             hint = " A strain of 5 % is 0.05." if unit.strip() == "%" else ""
-            raise KnitsimInputError(f"{path}: row {h + 1}, column {header[keys.index(_key(name))]!r}: the unit "
-                                    f"{unit!r} is not that of {name} (its name says its unit); convert the column "
-                                    f"and write the unit its name implies, or none.{hint}")
+            raise KnitsimInputError(f"{path}: row {line}, column {cell!r}: the unit {unit!r} is not that of {name} "
+                                    f"(its name says its unit); convert the column and write the unit its name "
+                                    f"implies, or none.{hint}")
+
+    for name in present:
+        unit = units[keys.index(_key(name))]
+        if unit is not None:
+            refuse_unit(name, unit, h + 1, header[keys.index(_key(name))])
     rows, numbers = [], []
     first_data = True                     # the row that may be a units row
     reader = csv.reader(lines[h + 1:], delimiter=delim)
@@ -282,12 +299,25 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         if first_data:
             first_data = False
             if not any(_is_number(c, decimal_comma) or _is_number(c, True) for c in r if c.strip()):
-                continue                  # units under the header (-, N, [mm], mm/s): no cell is a number
+                # units under the header (-, N, [mm], mm/s): no cell is a number.  Each read column's unit is
+                # checked as one in its header cell is (a blind probe's "%" and "kN" rows were skipped unread,
+                # the numbers taken as a fraction and as N)
+                for name in present:
+                    j = keys.index(_key(name))
+                    unit = _trim(r[j]) if j < len(r) else ""
+                    m = re.fullmatch(r"[\[(]\s*(.*?)\s*[\])]", unit)
+                    refuse_unit(name, m.group(1) if m else unit, line, header[j])
+                continue
+        extra = [j for j in range(len(header), len(r)) if r[j].strip()]
+        if extra:
+            # a value where the header names no column: a row shifted or merged, not a measurement to guess at
+            raise KnitsimInputError(f"{path}: row {line}, column {extra[0] + 1}: {r[extra[0]].strip()!r} lies beyond "
+                                    f"the header's {len(header)} columns (a shifted or merged row?): fix or delete "
+                                    "the row")
         rows.append(r)
         numbers.append(line)
     if not rows:
         raise KnitsimInputError(f"{path}: no data rows")
-    present = required + [c for c in optional if _key(c) in keys]
     numeric = set(present if numeric is None else numeric)
     if delim == ",":
         numeric_present = [c for c in present if c in numeric]

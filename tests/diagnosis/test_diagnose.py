@@ -469,19 +469,23 @@ def test_an_effect_that_removes_less_than_half_of_a_clear_excess_is_not_confiden
     the evidence (BIC score 58) and the size (its drop clears half the excess at the excess's 95 % lower bound)
     that removes 48 % of the excess (a blind probe: the forces of a stiffer yarn x 1.3 with B held fixed,
     named normal_load_friction, confident).  Offered as the explanation it should be the larger part of the
-    gap: named, not confident, and the reason says why and what to try; at 60 % it stays confident."""
+    gap: named, not confident, and the reason says why and what to try; at 60 % it stays confident; one
+    that leaves the curves beyond their noise says a further cause remains."""
     from knitsim.diagnosis.diagnose import Adequacy, CandidateResult, Localisation, NoiseModel, verdict_step
     adequacy = Adequacy(chi2=1493.0, dof=1000, chi2_per_dof=1.493, expected_sd=0.069, within_noise=False,
                         excess=493.0)
     loc = Localisation(keys=["loading_sliding"], stages={}, where=["loading_sliding"])
 
-    def cand(share):
+    def cand(share, chi2_per_dof=1.04, within_noise=True):
         return CandidateResult("normal_load_friction", "", True, score=58.0, probability=1.0, significant=True,
-                               practical=True, share_of_excess=share, chi2_per_dof=1.26, within_noise=False)
+                               practical=True, share_of_excess=share, chi2_per_dof=chi2_per_dof,
+                               within_noise=within_noise)
     v = verdict_step(adequacy, [cand(0.48)], loc, {"stages": {}}, NoiseModel([]), [])
     assert v.kind == "effect" and v.effect == "normal_load_friction" and not v.confident
     assert "removes 48% of the baseline's excess over noise, less than half" in v.reason and "free it" in v.reason
     assert verdict_step(adequacy, [cand(0.6)], loc, {"stages": {}}, NoiseModel([]), []).confident
+    v = verdict_step(adequacy, [cand(0.7, 4.018, False)], loc, {"stages": {}}, NoiseModel([]), [])
+    assert v.kind == "effect" and "chi2/dof = 4.018): a further cause remains" in v.reason
 
 
 def test_a_setup_built_in_python_is_checked_as_the_scene_is():
@@ -516,3 +520,22 @@ def test_two_curves_met_halfway_are_said_to_disagree():
     said = curves_disagree([a, b], {"curves": [{"simulated": 1.15 * f}] * 2}, w, noise)
     assert "the fit lies above a.csv" in said and "below b.csv" in said
     assert curves_disagree([a, b], {"curves": [{"simulated": 1.5 * f}] * 2}, w, noise) == ""
+
+
+def test_an_effect_pressed_against_a_bound_that_leaves_a_misfit_larger_than_the_noise_is_not_confirmed():
+    """The rule of pressed_and_short on hand-set fits: a blind probe's stiffer yarn (x 1.4, B held fixed) was
+    named bending_hysteresis, confident, with phi0 at its upper bound and chi2/dof 4.0 left.  A parameter at a
+    bound *and* chi2/dof above 2 (a misfit larger than the noise itself): not confirmed.  Each alone is not
+    enough (the blind study's right effects: a bound with chi2/dof 1.28 left, yarn extension removing 99.6 %
+    of its excess)."""
+    from knitsim.diagnosis.diagnose import SHORT_CHI2_PER_DOF, CandidateResult, pressed_and_short
+    assert SHORT_CHI2_PER_DOF == 2.0
+
+    def cand(chi2_per_dof, within):
+        return CandidateResult("bending_hysteresis", "", True, score=900.0, probability=1.0, significant=True,
+                               practical=True, share_of_excess=0.7, chi2_per_dof=chi2_per_dof, within_noise=within)
+    at = {"at_bounds": {"phi0": "upper"}}
+    assert pressed_and_short(cand(4.018, False), at)
+    assert not pressed_and_short(cand(4.018, False), {"at_bounds": {}})
+    assert not pressed_and_short(cand(1.28, False), at)
+    assert not pressed_and_short(cand(1.02, True), at)

@@ -256,3 +256,49 @@ def test_a_relaxation_hold_at_a_few_strains_is_not_a_merged_file(tmp_path):
     f = np.array(f) + rng.normal(0.0, 0.001, len(f))
     p = _write(tmp_path, _csv(list(zip(np.round(s, 6).tolist(), f.round(6).tolist()))), "holds.csv")
     assert len(read_measured_curve(p).force) == len(s)
+
+
+def _dense_pull():
+    """A pull to 0.3 in steps of 0.005, its force 0.5 N per unit strain with a typed +-2 mN zigzag."""
+    return [(round(0.005 * k, 3), round(0.5 * 0.005 * k + (0.002 if k % 2 else -0.002), 4)) for k in range(61)]
+
+
+@pytest.mark.parametrize("typo", [0.5, -0.1])
+def test_a_mistyped_strain_is_refused_not_read_as_a_cycle(tmp_path, typo):
+    # a blind probe's typo (0.843 for 0.343) was read as an unloading and a second cycle, and an effect-free
+    # specimen got a confident effect: the strain leaves both neighbours by 100 or 20 steps and returns, the
+    # force does not move
+    rows = _dense_pull()
+    k = 40
+    rows[k] = (round(rows[k][0] + typo, 3), rows[k][1])
+    p = _write(tmp_path, _csv(rows))
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(p)
+    msg = str(e.value)
+    assert f"row {k + 2}, column strain: {rows[k][0]:g} jumps from" in msg
+    assert "typo" in msg and "Correct or delete the row" in msg
+
+
+def test_a_turn_recorded_by_one_row_whose_force_follows_is_a_cycle(tmp_path):
+    # a logger that wrote one row at the bottom of an unloading (the force fell to zero there): a real
+    # excursion, read as the unloading and the reloading of a second cycle
+    rows = _dense_pull() + [(0.05, 0.0)] + [(round(0.05 + 0.005 * k, 3), round(0.0025 * k, 4)) for k in range(1, 11)]
+    c = read_measured_curve(_write(tmp_path, _csv(rows)))
+    assert list(np.unique(c.cycle)) == [1, 2]
+    assert int(np.sum(c.direction == -1)) == 1
+
+
+@pytest.mark.parametrize("offset, read", [(-0.012, True), (0.012, True), (-0.05, False)])
+def test_a_load_cell_zero_below_zero_is_read_as_the_same_zero_above(tmp_path, offset, read):
+    # a blind probe: 60 rows of 2 (s - 0.1)^2 N beyond s = 0.1, a +-2 mN zigzag, the zero at -12 mN, was
+    # refused while the same file at +12 mN was read (and its offset fitted).  Up to 5 % of the peak
+    # (0.32 N here: 16 mN) a zero below zero is a zero; -50 mN is not
+    s = np.linspace(0.0, 0.5, 60)
+    f = np.where(s < 0.1, 0.0, 2.0 * (s - 0.1) ** 2) + np.where(np.arange(60) % 2, 0.002, -0.002) + offset
+    rows = [(round(float(a), 5), round(float(b), 5)) for a, b in zip(s, f)]
+    p = _write(tmp_path, _csv(rows))
+    if read:
+        np.testing.assert_allclose(read_measured_curve(p).force, [b for _, b in rows])
+    else:
+        with pytest.raises(KnitsimInputError, match=r"row 2, column force_per_wale_N: -0.052 N is below zero"):
+            read_measured_curve(p)

@@ -58,12 +58,13 @@ def test_the_plain_twin_reads_as_typed(plain):
 
 @pytest.mark.parametrize("units", [
     "-,N,-,-",                       # a test machine's units line
-    "[mm],[N],(-),",                 # bracketed units, an empty cell
-    "1/mm,N.mm/mm,,mm/s",            # a KES-style unit with a slash and a dot, empty cells mixed in
+    "[-],[N],(-),",                  # bracketed units, an empty cell
+    "mm/mm,N,,",                     # a strain as mm/mm, empty cells mixed in
     '"(-)","[N]","",""',             # quoted by Excel
 ])
 def test_a_units_row_under_the_header_is_skipped(tmp_path, plain, units):
-    # Lab practice: exports from tensile testers write the units on the line under the names.
+    # Lab practice: exports from tensile testers write the units on the line under the names (each the
+    # unit of its column: another one is refused, test_a_units_row_is_read_and_a_unit_that_is_not_...)
     lines = PLAIN.split("\n")
     lines.insert(1, units)
     cols = _read(_write(tmp_path, "\n".join(lines)))
@@ -310,3 +311,38 @@ def test_dahl_fit_picks_the_x_f_columns_of_such_a_file(tmp_path):
     p = tmp_path / "loop.csv"
     p.write_text("# pull-out loop\nX_mm,F_N\n0,0\n")
     assert _choose_columns(Path(p), None) == ("x_mm", "F_N")
+
+
+@pytest.mark.parametrize("units, column, unit", [("%,N", "strain", "%"), ("-,kN", "force_per_wale_N", "kN"),
+                                                  ("[-],[mN]", "force_per_wale_N", "mN"), ("mm,N", "strain", "mm")])
+def test_a_units_row_is_read_and_a_unit_that_is_not_the_columns_refused(tmp_path, units, column, unit):
+    # a blind probe's units rows were skipped unread: "%" read as a fraction (100 x), "kN" as N (1000 x),
+    # an extension in mm as a strain
+    p = tmp_path / "u.csv"
+    p.write_text(f"strain,force_per_wale_N\n{units}\n0.0,0.0\n0.1,0.05\n0.2,0.1\n")
+    with pytest.raises(KnitsimInputError) as e:
+        read_csv_columns(p, ["strain", "force_per_wale_N"])
+    assert f"row 2, column '{column}': the unit '{unit}' is not that of {column}" in str(e.value)
+
+
+@pytest.mark.parametrize("units", ["-,N", "mm/mm,N", "[-],(N)", ",N", "m/m;N"])
+def test_a_units_row_of_the_columns_units_is_skipped(tmp_path, units):
+    p = tmp_path / "u.csv"
+    sep = ";" if ";" in units else ","
+    p.write_text(f"strain{sep}force_per_wale_N\n{units}\n0.0{sep}0.0\n0.1{sep}0.05\n")
+    out = read_csv_columns(p, ["strain", "force_per_wale_N"])
+    np.testing.assert_array_equal(out["strain"], [0.0, 0.1])
+    np.testing.assert_array_equal(out["_row"], [3, 4])
+
+
+def test_a_value_beyond_the_header_and_a_column_named_twice_are_refused(tmp_path):
+    p = tmp_path / "long.csv"
+    p.write_text("strain,force_per_wale_N\n0.0,0.0\n0.1,0.05,0.3\n0.2,0.1\n")
+    with pytest.raises(KnitsimInputError, match=r"row 3, column 3: '0.3' lies beyond the header's 2 columns"):
+        read_csv_columns(p, ["strain", "force_per_wale_N"])
+    # trailing empty cells (a spreadsheet's export) are no values
+    p.write_text("strain,force_per_wale_N\n0.0,0.0,,\n0.1,0.05,,\n")
+    assert len(read_csv_columns(p, ["strain", "force_per_wale_N"])["strain"]) == 2
+    p.write_text("strain,force_per_wale_N,force_per_wale_N\n0.0,0.0,0.0\n0.1,0.05,0.1\n")
+    with pytest.raises(KnitsimInputError, match=r"columns 2 and 3 are both named 'force_per_wale_N'"):
+        read_csv_columns(p, ["strain", "force_per_wale_N"])
