@@ -54,7 +54,8 @@ from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
 from .stages import (
-    FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, MAX_HALVINGS, RELOAD_RULES, STICK_CLOSURES, UNLOADING_RULES,
+    DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, MAX_HALVINGS, RELOAD_RULES,
+    STICK_CLOSURES, UNLOADING_RULES,
     stage_labels,
 )
 
@@ -349,6 +350,8 @@ class CellModel:
         dahl = codes["friction"] == 1
         if np.any(dahl & (f["dahl_sigma"] <= 0)):
             bad("dahl_sigma", dahl & (f["dahl_sigma"] <= 0), f["dahl_sigma"], "Dahl friction needs a stiffness > 0 (1/mm)")
+        if np.any(dahl & (f["dahl_sigma"] > DAHL_SIGMA_MAX)):
+            bad("dahl_sigma", dahl & (f["dahl_sigma"] > DAHL_SIGMA_MAX), f["dahl_sigma"], DAHL_SIGMA_TOO_STIFF)
         if np.any(dahl & (f["m"] <= 0)):
             bad("m", dahl & (f["m"] <= 0), f["m"], "Dahl friction needs m > 0 (saturation tan(phi) = m)")
         eff = NO_EFFECTS if effects is None else effects

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from .effects import NO_EFFECTS, EffectSet
-from .stages import FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
+from .stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
 
 
 @dataclass(frozen=True)
@@ -135,6 +135,8 @@ class CellParams:
             bad("friction", f"expected one of {', '.join(FRICTION_MODELS)}")
         if self.friction == "dahl" and self.dahl_sigma <= 0:
             bad("dahl_sigma", "Dahl friction needs a stiffness > 0 (1/mm)")
+        if self.friction == "dahl" and self.dahl_sigma > DAHL_SIGMA_MAX:
+            bad("dahl_sigma", DAHL_SIGMA_TOO_STIFF)
         if self.unloading_rule not in UNLOADING_RULES:
             bad("unloading_rule", f"expected one of {', '.join(UNLOADING_RULES)}")
         if self.reload_rule not in RELOAD_RULES:

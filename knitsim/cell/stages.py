@@ -218,6 +218,13 @@ UNLOADING_RULES = ("dusserre", "hong_constant_t")
 RELOAD_RULES = ("mirror_unloading", "freeze_rn")
 JAMMING_CRITERIA = ("w_4d", "head_gap")
 FRICTION_MODELS = ("coulomb", "dahl")
+#: the largest Dahl stiffness [1/mm] a cell takes: beyond it the Dahl transition (m / sigma of slip) is
+#: shorter than 3e-7 mm and the law is Coulomb's (a patch at sigma = 1e6 within 1e-6 N of the Coulomb one,
+#: a blind probe), while the cell Newton, whose residual turns within that slip, no longer converges (at
+#: 1e7, a cycle failed at strain 0.49, and on its first increment at increments of 0.001)
+DAHL_SIGMA_MAX = 1.0e6
+DAHL_SIGMA_TOO_STIFF = (f"above {DAHL_SIGMA_MAX:g} 1/mm the Dahl law is Coulomb friction to 1e-6 N and its "
+                        "solve does not converge: use friction.model = \"coulomb\"")
 #: closures of a stick stage whose frozen beta asks for friction beyond the cone
 STICK_CLOSURES = ("release_beta", "table4")
 #: an event function within EVENT_TOL (rad, or times d for W, or N for F) of zero at the

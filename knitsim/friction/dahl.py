@@ -757,8 +757,31 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
                                      bound_text=["0" if f else None for f in floor])
     status.update({nm: "fixed" for nm in fixed})
     lower_bounds = {}
-    if status.get("sigma") == "identified" and res.cost > 0.0:
+    # (also where sigma came out not identified: on a loop whose transitions are over within a row the fit
+    # ends where chi^2 no longer depends on sigma, its Jacobian column vanishes and every standard error
+    # is infinite; a blind probe's sharp loops, sigma 1000 at Fc 0.8, had Fc and F0 "not identified")
+    if status.get("sigma") in ("identified", "not_identified") and res.cost > 0.0:
         lb = _sigma_lower_bound(residual, res.x, names, lower, upper, s2, xn, len(turns) + 1)
+        if lb is not None and status["sigma"] == "not_identified":
+            # the other parameters at sigma's sharp limit: their covariance without sigma's column
+            rest = [i for i, nm in enumerate(names) if nm != "sigma"]
+            Jr = J[:, rest]
+            with np.errstate(all="ignore"):
+                _, svr, vtr = np.linalg.svd(Jr, full_matrices=False) if np.all(np.isfinite(Jr)) else (None, np.zeros(0), None)
+                tol_r = np.finfo(float).eps * max(Jr.shape) * (svr[0] if svr.size else 0.0)
+                cov_r = ((vtr.T / svr ** 2) @ vtr * s2 if svr.size == len(rest) and np.all(svr > tol_r)
+                         else np.full((len(rest), len(rest)), np.inf))
+            cov = np.full((p, p), np.inf)
+            cov[np.ix_(rest, rest)] = cov_r * np.outer(sc[rest], sc[rest])
+            for k, i in enumerate(rest):
+                v = cov_r[k, k] * sc[i] ** 2
+                stderr[names[i]] = float(math.sqrt(v)) if math.isfinite(v) and v >= 0 else math.inf
+            status, warns = parameter_status(
+                [names[i] for i in rest], [float(res.x[i]) for i in rest], [stderr[names[i]] for i in rest],
+                lower[rest], upper[rest], exact_fit=False, positive=("Fc", "alpha"),
+                shown=[values[names[i]] for i in rest], atol=[1e-9 if floor[i] else 0.0 for i in rest],
+                bound_text=["0" if floor[i] else None for i in rest])
+            status.update({nm: "fixed" for nm in fixed})
         if lb is not None:
             bound, d_chi2, shown = lb
             lower_bounds["sigma"] = bound * scale["sigma"]

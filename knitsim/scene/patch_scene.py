@@ -99,6 +99,7 @@ from typing import Any
 import numpy as np
 
 from ..cell.load_program import LoadProgram, pretensioned
+from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
@@ -306,6 +307,9 @@ def _check_cells(fields: dict, origins: dict, friction) -> None:
         bad = dahl & ~(fields["dahl_sigma"] > 0)
         if bad.any():
             fail("dahl_sigma", bad, lambda i, j: "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]")
+        bad = dahl & (fields["dahl_sigma"] > DAHL_SIGMA_MAX)
+        if bad.any():
+            fail("dahl_sigma", bad, lambda i, j: DAHL_SIGMA_TOO_STIFF)
         bad = dahl & ~(fields["m"] > 0)
         if bad.any():
             fail("m", bad, lambda i, j: "Dahl friction needs m > 0")

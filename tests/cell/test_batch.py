@@ -419,3 +419,17 @@ def test_a_program_of_many_reversals_keeps_every_event():
     short = piecewise_linear(waypoints[:6], max_increment=0.005)
     h_short = run_batch([cell], short)
     np.testing.assert_array_equal(h.values["F"][:len(short)], h_short.values["F"])
+
+
+def test_the_stiffest_dahl_cell_taken_runs_a_cycle_as_coulomb_does():
+    """At the largest Dahl stiffness a cell takes (DAHL_SIGMA_MAX = 1e6 1/mm, a transition of m / sigma =
+    2e-7 mm of slip) a cycle runs at increments of 0.01 and 0.001 and gives the Coulomb cell's peak with
+    hong_constant_t (Dahl 1976: sigma -> infinity is Coulomb friction); at 1e7 a blind probe's cycle failed."""
+    from knitsim.cell.stages import DAHL_SIGMA_MAX
+    base = dict(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0, force_cap_N=10.0,
+                unloading_rule="hong_constant_t")
+    coulomb = run_batch([CellParams(**base)], cycles(0.1, 0.5, 1, 0.01))
+    for inc in (0.01, 0.001):
+        h = run_batch([CellParams(**base, friction="dahl", dahl_sigma=DAHL_SIGMA_MAX)], cycles(0.1, 0.5, 1, inc))
+        assert np.all(h.status == 0)
+        assert abs(np.max(h.values["F"]) - np.max(coulomb.values["F"])) < 1e-5

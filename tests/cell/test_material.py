@@ -39,6 +39,15 @@ def test_dahl_needs_sigma():
         CellParams(**OK, m=0.2, friction="dahl").validated()
 
 
+def test_a_dahl_stiffness_beyond_the_coulomb_limit_is_refused_with_what_to_use():
+    # a blind probe: sigma = 1e7 1/mm failed on the Warp engine at strain 0.49 (on its first increment at
+    # increments of 0.001) while the law there is Coulomb's to 1e-6 N; 1e6 runs a cycle (tests/cell/test_batch)
+    CellParams(**OK, m=0.2, friction="dahl", dahl_sigma=1e6).validated()
+    with pytest.raises(KnitsimInputError, match=r'dahl_sigma = 10000000.0: above 1e\+06 1/mm the Dahl law is '
+                                                r'Coulomb friction .* use friction.model = "coulomb"'):
+        CellParams(**OK, m=0.2, friction="dahl", dahl_sigma=1e7).validated()
+
+
 def test_phi0_at_minus_phimax_accepted():
     CellParams(**OK, m=0.3, phi0=-math.atan(0.3)).validated()
 

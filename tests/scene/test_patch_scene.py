@@ -119,6 +119,12 @@ def test_zones_carry_their_friction_model_rules_and_effects():
     assert again.model.cell(0, 2) == m.cell(0, 2) and again.model.cell(3, 0) == m.cell(3, 0)
 
 
+def test_a_zone_of_a_dahl_stiffness_beyond_the_coulomb_limit_is_refused():
+    doc = base(zones=[{"wales": [1, 3], "friction": {"model": "dahl", "dahl_sigma": 1e7}}])
+    with pytest.raises(KnitsimInputError, match=r"dahl_sigma.*above 1e\+06 1/mm the Dahl law is Coulomb friction"):
+        load_patch_scene(doc)
+
+
 def test_effects_need_the_warp_engine():
     with pytest.raises(KnitsimInputError, match="warp engine only"):
         load_patch_scene(base(engine="reference", effects={"on": ["yarn_extension"], "ext_c": 0.01}))
