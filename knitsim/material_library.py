@@ -127,9 +127,36 @@ def _number(path: str, key: str, v, positive: bool = True) -> float:
     return float(v)
 
 
+def _check_yarn_law(path: str, where: str, y: dict) -> None:
+    """The values of a yarn's friction and rules that need no scene to judge: the law and rule names, m,
+    dahl_sigma and the force cap (a blind probe's ``model = "coloumb"`` in a library yarn was reported as the
+    scene's ``zones[0].friction.model``, in no file the user wrote it in).  What combines with the scene
+    (a missing m the scene may give, the knit's phi0 within atan m) stays the scene's check."""
+    from .cell.stages import (DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES,
+                              UNLOADING_RULES)
+    f, r = y.get("friction", {}), y.get("rules", {})
+    for table, key, choices in (("friction", "model", FRICTION_MODELS), ("rules", "unloading_rule", UNLOADING_RULES),
+                                ("rules", "reload_rule", RELOAD_RULES), ("rules", "jamming_criterion", JAMMING_CRITERIA)):
+        v = y.get(table, {}).get(key)
+        if v is not None and v not in choices:
+            raise KnitsimInputError(f"{path}: {where}.{table}.{key} = {v!r}: expected one of {', '.join(choices)}")
+    if "m" in f and _number(path, f"{where}.friction.m", f["m"], positive=False) < 0:
+        raise KnitsimInputError(f"{path}: {where}.friction.m = {f['m']!r}: the friction ratio must be >= 0")
+    if f.get("model") == "dahl":
+        sigma = _number(path, f"{where}.friction.dahl_sigma", f.get("dahl_sigma", 0.0), positive=False)
+        if not sigma > 0:
+            raise KnitsimInputError(f"{path}: {where}.friction.dahl_sigma = {f.get('dahl_sigma', 0.0)!r}: "
+                                    "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]")
+        if sigma > DAHL_SIGMA_MAX:
+            raise KnitsimInputError(f"{path}: {where}.friction.dahl_sigma = {sigma!r}: {DAHL_SIGMA_TOO_STIFF}")
+    if "force_cap_N" in r:
+        _number(path, f"{where}.rules.force_cap_N", r["force_cap_N"])
+
+
 def parse_library(doc: dict, path: str) -> MaterialLibrary:
-    """Check a parsed library document (the scene-level checks of friction, rules and effects are the
-    scene's, when a scene uses the material); errors name ``path`` and the key."""
+    """Check a parsed library document (the scene-level checks of friction, rules and effects that combine
+    with a scene are the scene's, when a scene uses the material; the law's own values here,
+    :func:`_check_yarn_law`); errors name ``path`` and the key."""
     for k in doc:
         if k not in ("yarns", "knits", "title", "source"):
             raise KnitsimInputError(f"{path}: unknown key {k!r} (expected yarns, knits, title, source)")
@@ -148,6 +175,7 @@ def parse_library(doc: dict, path: str) -> MaterialLibrary:
         for t in YARN_TABLES:
             if t in y and not isinstance(y[t], dict):
                 raise KnitsimInputError(f"{path}: {where}.{t}: expected a table")
+        _check_yarn_law(path, where, y)
         w = y.get("in_plane_width")
         yarns[name] = LibraryYarn(name, _number(path, f"{where}.d", y["d"]), _number(path, f"{where}.B", y["B"]),
                                   None if w is None else _number(path, f"{where}.in_plane_width", w),

@@ -20,7 +20,9 @@ Every file says which (:class:`SpecimenLayout`):
   (of each of the cell's wales), ``stage`` (label codes with ``flag_values`` /
   ``flag_meanings``), ``status``; per column ``column_force_N`` (its total force),
   ``column_force_per_wale_N``, ``column_status``, ``column_wales``; per cell the parameters
-  (``d, B, m, dahl_sigma, L, W0, C0, phi0, in_plane_width``) and the stitches it stands for,
+  (``d, B, m, dahl_sigma, L, W0, C0, phi0, in_plane_width``), the rules (``friction``,
+  ``unloading_rule``, ``reload_rule``, ``jamming_criterion`` as flag codes with their meanings,
+  ``force_cap_N``) and the stitches it stands for,
   ``course_count`` and ``wale_count`` (1 and 1 for single stitches); coordinates ``grip_strain,
   cycle, direction``; units in attributes, with ``cell_is`` (``stitch`` / ``block of stitches``),
   ``stitches`` and, for a specimen, ``width_mm`` and ``gauge_length_mm``; and, for the yarn
@@ -42,13 +44,13 @@ from pathlib import Path
 import numpy as np
 
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
-from ..cell.stages import LABEL_CODES
+from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD_RULES, UNLOADING_RULES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work,
                      energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
-from .results import _num, summary_json, write_result_set
+from .results import RULE_MEANINGS, _num, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
 PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
@@ -240,8 +242,42 @@ def columns_csv(h: PatchHistory, layout: SpecimenLayout | None = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None):
-    """The per-cell fields as an :class:`xarray.Dataset` (see the module docstring)."""
+#: the rule choices of a patch's cells, by name (cells.nc writes each as a flag variable)
+RULE_CHOICES = {"friction": FRICTION_MODELS, "unloading_rule": UNLOADING_RULES, "reload_rule": RELOAD_RULES,
+                "jamming_criterion": JAMMING_CRITERIA}
+
+
+def rule_sets(model: PatchModel | None) -> list[dict] | None:
+    """The rule sets the patch's cells ran with (``summary.json``: ``rules``), each with its meaning and the
+    cells that ran it, in order of first appearance (course by course); None without a model.  A blind
+    probe found a patch's summary naming no friction law or rule (``knitsim cell``'s names them)."""
+    if model is None or not model.rules:
+        return None
+    names = [n for n in ("friction", "unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
+             if n in model.rules]
+    shape = (model.courses, model.wales)
+    cols = [np.broadcast_to(np.asarray(model.rules[n], dtype=object), shape).ravel() for n in names]
+    seen: dict[tuple, int] = {}
+    for key in zip(*cols):
+        seen[key] = seen.get(key, 0) + 1
+    out = []
+    for key, count in seen.items():
+        entry = {}
+        for n, v in zip(names, key):
+            if n == "force_cap_N":
+                entry[n] = {"value": float(v), "meaning": "a cell stops when its force per wale reaches this value"}
+            else:
+                entry[n] = {"value": str(v), "meaning": RULE_MEANINGS.get(n, {}).get(str(v), "")}
+        entry["cells"] = int(count)
+        out.append(entry)
+    return out
+
+
+def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None,
+                  rules: dict | None = None):
+    """The per-cell fields as an :class:`xarray.Dataset` (see the module docstring); ``rules``: the model's
+    rules of every cell (``PatchModel.rules``), written as flag variables (``friction``: which cells are
+    Coulomb, which Dahl) and ``force_cap_N``."""
     import xarray as xr
     layout = layout or _layout_of(h, None)
     dims = ("increment", "course", "wale")
@@ -293,6 +329,17 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenL
         ds.attrs["width_mm"] = float(layout.width_mm)
     if layout.gauge_length_mm is not None:
         ds.attrs["gauge_length_mm"] = float(layout.gauge_length_mm)
+    for n, choices in RULE_CHOICES.items():
+        if rules and n in rules:
+            v = np.broadcast_to(np.asarray(rules[n], dtype=object), (courses, wales))
+            code = np.vectorize(lambda x: choices.index(str(x)), otypes=[np.int8])(v)
+            ds[n] = (("course", "wale"), code, {"long_name": f"cell rule {n}",
+                                                "flag_values": np.arange(len(choices), dtype=np.int8),
+                                                "flag_meanings": " ".join(choices)})
+    if rules and "force_cap_N" in rules:
+        ds["force_cap_N"] = (("course", "wale"), np.broadcast_to(np.asarray(rules["force_cap_N"], dtype=float),
+                                                                 (courses, wales)).copy(),
+                             {"long_name": "cell rule force_cap_N: a cell stops at this force per wale", "units": "N"})
     for n, arr in (fields or {}).items():
         attrs = {"long_name": f"cell parameter {n}"}
         if n == "in_plane_width":
@@ -348,9 +395,10 @@ def _encoding(ds) -> dict:
     return enc
 
 
-def cells_nc(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None) -> bytes:
+def cells_nc(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None,
+             rules: dict | None = None) -> bytes:
     """``cells.nc`` as bytes: netCDF-4 (HDF5) through h5netcdf, compressed and chunked by increment."""
-    ds = cells_dataset(h, fields, layout)
+    ds = cells_dataset(h, fields, layout, rules)
     return bytes(ds.to_netcdf(engine="h5netcdf", encoding=_encoding(ds)))
 
 
@@ -900,7 +948,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         solved_cell_increments_per_s=float(solved * h.n_increments / h.wall_s) if h.wall_s > 0 else None,
         represented_stitch_increments_per_s=(float(layout.stitches * h.n_increments / h.wall_s) if h.wall_s > 0
                                              else None),
-        solver=h.info, cycles=cycles,
+        solver=h.info, rules=rule_sets(model), cycles=cycles,
         grip_strain_at_first_jamming=first_jam,
         grip_strain_at_first_jamming_from=FIRST_JAMMING_FROM.get(first_jam_from),
         residual_grip_strain_from=RESIDUAL_FROM,
@@ -1149,7 +1197,7 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
     files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h, layout).encode(),
              "scene.resolved.toml": resolved_toml.encode()}
     if cell_fields:
-        files["cells.nc"] = cells_nc(h, fields, layout)
+        files["cells.nc"] = cells_nc(h, fields, layout, model.rules if model is not None else None)
     if plot:
         files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"),
                                                       force_cap_rows(h, model).rows)

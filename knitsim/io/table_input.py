@@ -150,7 +150,8 @@ def _trim(name: str) -> str:
 
 
 def _key(name: str) -> str:
-    return _trim(name).casefold()
+    """A column's key: its name without a unit in brackets, any case (``x [mm]`` -> ``x``)."""
+    return _name_and_unit(name)[0]
 
 
 #: a header cell with its unit: ``strain [-]``, ``force_per_wale_N (N)``, ``V_mm_s [mm/s]``
@@ -169,8 +170,13 @@ def _name_and_unit(cell: str) -> tuple[str, str | None]:
 
 
 def _unit_fits(name: str, unit: str) -> bool:
+    """Whether ``unit`` is that of the column asked for as ``name``: the unit the name states in brackets
+    (``x [mm]``: a blind probe's ``--columns "x [mm],F [N]"`` was told the columns it named were missing),
+    else the one its ending implies (``_N``, ``_mm``, ...), else dimensionless."""
     u = unit.casefold().replace(" ", "")
-    key = name.casefold()
+    key, asked = _name_and_unit(name)
+    if asked is not None:
+        return u == asked.casefold().replace(" ", "")
     for end, units in _UNITS:
         if key.endswith(end):
             return u in units

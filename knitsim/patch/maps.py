@@ -44,15 +44,18 @@ def _err(path: str, value, why: str) -> KnitsimInputError:
     return KnitsimInputError(f"{path} = {fmt(value)}: {why}")
 
 
-def index_range(rng, n: int, path: str, axis: str) -> slice:
-    """``[start, stop)`` as a slice, checked against ``n`` cells along ``axis``."""
+def index_range(rng, n: int, path: str, axis: str, counted: str | None = None) -> slice:
+    """``[start, stop)`` as a slice, checked against ``n`` cells along ``axis``; ``counted``: what a
+    specimen's ``axis`` counts there (``"bands"`` of courses, ``"strips"`` of wales), named in the message
+    (a blind probe's specimen of 10 wales in 2 strips was told "the patch has 2 wales")."""
     if (not isinstance(rng, (list, tuple)) or len(rng) != 2
             or any(isinstance(v, bool) or not isinstance(v, (int, float)) or float(v) != int(v) for v in rng)):
         raise _err(path, list(rng) if isinstance(rng, (list, tuple)) else rng,
                    f"expected [start, stop], two whole numbers (0-based, stop excluded) of {axis}")
     a, b = int(rng[0]), int(rng[1])
     if not (0 <= a < b <= n):
-        raise _err(path, [a, b], f"expected 0 <= start < stop <= {n} (the patch has {n} {axis})")
+        has = f"the specimen has {n} {counted}" if counted else f"the patch has {n} {axis}"
+        raise _err(path, [a, b], f"expected 0 <= start < stop <= {n} ({has})")
     return slice(a, b)
 
 

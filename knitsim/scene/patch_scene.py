@@ -453,6 +453,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         return zres
 
     zones_out = []
+    # a specimen's zones index its bands (courses) and strips (wales): said so in a range error
+    counted_courses, counted_wales = ("bands", "strips") if specimen else (None, None)
     # grades: blends of two knits of one yarn along an axis (each element a zone of the resolved scene)
     for g, grade in enumerate(doc.get("grades", [])):
         gp = f"grades[{g}]"
@@ -463,8 +465,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                         f"{ya!r}, {grade['to']!r} of yarn {yb!r}")
         if (pa is None) != (pb is None):
             raise error(f"{gp}.to", grade["to"], "both knits of a grade must state phi0, or neither")
-        ci = index_range(grade.get("courses", [0, courses]), courses, f"{gp}.courses", "courses")
-        wi = index_range(grade.get("wales", [0, wales]), wales, f"{gp}.wales", "wales")
+        ci = index_range(grade.get("courses", [0, courses]), courses, f"{gp}.courses", "courses", counted_courses)
+        wi = index_range(grade.get("wales", [0, wales]), wales, f"{gp}.wales", "wales", counted_wales)
         along = ci if grade["axis"] == "courses" else wi
         n = along.stop - along.start
         steps = grade.get("steps", 2)
@@ -508,8 +510,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         raw_over = {t: validate(PATCH_SCENE.fields["zones"].item.fields[t], data["zones"][z].get(t, {}),
                                 f"zones[{z}].{t}", fill_defaults=False) for t in zone_names}
         ztables = zone_tables(raw_over, f"zones[{z}]", _ZoneOrigins(z, raw_over))
-        ci = index_range(zone.get("courses", [0, courses]), courses, f"zones[{z}].courses", "courses")
-        wi = index_range(zone.get("wales", [0, wales]), wales, f"zones[{z}].wales", "wales")
+        ci = index_range(zone.get("courses", [0, courses]), courses, f"zones[{z}].courses", "courses", counted_courses)
+        wi = index_range(zone.get("wales", [0, wales]), wales, f"zones[{z}].wales", "wales", counted_wales)
 
         def origin_of(n, raw_over=raw_over, z=z):
             tbl = {"d": "yarn", "B": "yarn", "in_plane_width": "yarn", "L": "knit", "W0": "knit",

@@ -346,3 +346,16 @@ def test_a_value_beyond_the_header_and_a_column_named_twice_are_refused(tmp_path
     p.write_text("strain,force_per_wale_N,force_per_wale_N\n0.0,0.0,0.0\n0.1,0.05,0.1\n")
     with pytest.raises(KnitsimInputError, match=r"columns 2 and 3 are both named 'force_per_wale_N'"):
         read_csv_columns(p, ["strain", "force_per_wale_N"])
+
+
+def test_a_column_asked_for_with_its_unit_matches_the_header_with_that_unit(tmp_path):
+    # a blind probe's `dahl fit --columns "x [mm],F [N]"` on a file headed `x [mm];F [N]` was told the columns
+    # it named were missing ("found: x [mm], F [N]"); a header in another unit is refused naming both
+    p = tmp_path / "xf.csv"
+    p.write_bytes("\ufeffx [mm];F [N]\r\n0,0;0,0\r\n0,5;0,25\r\n".encode())
+    out = read_csv_columns(p, ["x [mm]", "F [N]"])
+    np.testing.assert_array_equal(out["x [mm]"], [0.0, 0.5])
+    np.testing.assert_array_equal(out["F [N]"], [0.0, 0.25])
+    p.write_text("x [cm];F [N]\n0,0;0,0\n0,5;0,25\n")
+    with pytest.raises(KnitsimInputError, match=r"column 'x \[cm\]': the unit 'cm' is not that of x \[mm\]"):
+        read_csv_columns(p, ["x [mm]", "F [N]"])

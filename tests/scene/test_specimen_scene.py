@@ -150,3 +150,32 @@ def test_maps_of_effect_parameters_set_each_cells_effects():
     doc["zones"] = []
     with pytest.raises(KnitsimInputError, match=r"no cell has the effect yarn_compaction on"):
         load_patch_scene(doc)
+
+
+def test_a_zone_outside_a_specimens_strips_or_bands_names_them(lib):
+    # a blind probe's specimen of 10 wales in 2 strips was told "the patch has 2 wales"
+    doc = specimen(lib, zones=[{"wales": [2, 3], "knit": {"material": "b"}}])
+    doc["specimen"].update(strips=2, bands=1)
+    with pytest.raises(KnitsimInputError, match=r"zones\[0\]\.wales = \[2, 3\]: expected 0 <= start < stop <= 2 "
+                                                r"\(the specimen has 2 strips\)"):
+        load_patch_scene(doc)
+    doc = specimen(lib, zones=[{"courses": [0, 5], "knit": {"material": "b"}}])
+    doc["specimen"].update(strips=2, bands=1)
+    with pytest.raises(KnitsimInputError, match=r"\(the specimen has 1 bands\)"):
+        load_patch_scene(doc)
+
+
+@pytest.mark.parametrize("friction, rules, msg", [
+    ({"model": "coloumb", "m": 0.2}, {}, r"yarns\.z\.friction\.model = 'coloumb': expected one of coulomb, dahl"),
+    ({"model": "dahl", "m": 0.3, "dahl_sigma": 0.0}, {}, r"yarns\.z\.friction\.dahl_sigma = 0\.0: friction\.model = \"dahl\" needs"),
+    ({"model": "coulomb", "m": -0.1}, {}, r"yarns\.z\.friction\.m = -0\.1: the friction ratio must be >= 0"),
+    ({"m": 0.2}, {"unloading_rule": "hong"}, r"yarns\.z\.rules\.unloading_rule = 'hong': expected one of"),
+    ({"m": 0.2}, {"force_cap_N": -1.0}, r"yarns\.z\.rules\.force_cap_N = -1\.0: must be > 0"),
+])
+def test_a_bad_law_in_a_library_yarn_names_the_file(tmp_path, friction, rules, msg):
+    # a blind probe's typo in a library yarn was reported as the scene's zones[0].friction.model
+    path = tmp_path / "lib.toml"
+    path.write_text(dumps(library_document([LibraryYarn("z", d=0.2, B=0.02, friction=friction, rules=rules)],
+                                           [LibraryKnit("k", "z", 4.0, 1.0, 0.8)])))
+    with pytest.raises(KnitsimInputError, match=str(path).replace(".", r"\.") + ": " + msg):
+        load_library(path)

@@ -1,0 +1,35 @@
+"""A patch's outputs name the rules its cells ran with: ``summary.json``'s ``rules`` (each set, its meaning and
+its cells) and ``cells.nc``'s per-cell flag variables (which cells are Coulomb, which Dahl).  A blind probe
+found a patch summary naming no friction law or rule and a cells.nc that could not tell Dahl cells from
+Coulomb ones (knitsim cell's summary names them).  Expected values: the scene's own zones (a 4 x 3 patch
+whose wales 1 and 2 are Dahl with hong_constant_t: 8 cells, the other 4 Coulomb with the defaults)."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import xarray as xr
+
+from knitsim.io.patch_results import cells_nc, patch_summary
+from knitsim.patch.runner import run_patch
+from knitsim.scene.patch_scene import load_patch_scene
+
+
+def test_a_patch_of_two_rule_sets_names_both_with_their_cells():
+    doc = {"patch": {"wales": 3, "courses": 4}, "yarn": {"material": "e_glass"},
+           "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2},
+           "load": {"type": "monotonic", "target_strain": 0.1, "max_increment": 0.05},
+           "zones": [{"wales": [1, 3], "friction": {"model": "dahl", "dahl_sigma": 30.0},
+                      "rules": {"unloading_rule": "hong_constant_t"}}]}
+    scene = load_patch_scene(doc)
+    m = scene.model
+    h = run_patch(m, scene.program)
+    rules = patch_summary(h, h.info["ref_length_mm"], model=m)["rules"]
+    assert [(r["friction"]["value"], r["unloading_rule"]["value"], r["cells"]) for r in rules] == [
+        ("coulomb", "dusserre", 4), ("dahl", "hong_constant_t", 8)]
+    assert "Dahl" in rules[1]["friction"]["meaning"] and rules[0]["force_cap_N"]["value"] == float(m.rules["force_cap_N"][0, 0])
+    ds = xr.open_dataset(io.BytesIO(cells_nc(h, m.fields, None, m.rules)), engine="h5netcdf")
+    assert ds["friction"].attrs["flag_meanings"] == "coulomb dahl"
+    assert ds["friction"].values.tolist() == [[0, 1, 1]] * 4
+    assert ds["unloading_rule"].values.tolist() == [[0, 1, 1]] * 4
+    assert np.all(ds["force_cap_N"].values == float(m.rules["force_cap_N"][0, 0]))
