@@ -1003,6 +1003,9 @@ def dataset_csv(ds) -> str:
         rest = int(flat["rest_state_compressive"][r])
         row += [num(flat["strain_at_first_jamming"][r]), names.get(int(flat["final_status"][r]), "?"),
                 str(int(flat["expected_end"][r])), "" if loop < 0 else str(loop), "" if rest < 0 else str(rest)]
+        # where a failed cell stopped (empty for one that did not fail): a blind probe found these three
+        # header columns never written, every later value one column to the left of its name
+        row += [num(flat[k][r]) for k in _STOP_VARS]
         if has_domain:
             row.append(domain_names.get(int(flat["domain"][r]), "?"))
         lines.append(",".join(row))
