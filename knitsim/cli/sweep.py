@@ -108,7 +108,8 @@ def _run(args) -> int:
     resume_cmd = "knitsim sweep " + " ".join(shlex.quote(a) for a in sys.argv[2:] if a != "--resume") \
         if len(sys.argv) > 2 and sys.argv[1] == "sweep" else f"knitsim sweep {args.scene} --out {out}"
     try:
-        run = run_sweep(plan, out, resume=args.resume, workers=workers, scheduler=args.scheduler)
+        run = run_sweep(plan, out, resume=args.resume, workers=workers, scheduler=args.scheduler,
+                        plots=not args.no_plot)
     except KeyboardInterrupt:
         done = len(list((out / "chunks").glob("chunk_*.npz"))) if (out / "chunks").is_dir() else 0
         print(f"knitsim sweep: interrupted; {done}/{len(plan.chunks)} finished chunk(s) kept in {out / 'chunks'}; "

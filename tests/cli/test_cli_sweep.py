@@ -131,3 +131,13 @@ def test_a_sweep_whose_samples_fail_exits_1_and_lists_them(tmp_path, capsys):
     assert (f"no converged solution on the increment to strain {one['stopped_at_strain']:.4g}; stopped at strain "
             f"{one['last_converged_strain']:.4g} (force per wale {one['last_converged_force_per_wale_N']:.4g} N)"
             in s["failed"][1]["reason"])
+
+
+def test_no_plot_writes_no_plot(tmp_path, capsys, monkeypatch):
+    # a blind probe: --no-plot wrote plot_sweep.png and said so
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    out = tmp_path / "o"
+    assert main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--no-plot"]) == 0
+    assert not list(out.glob("*.png")) and (out / "results.csv").is_file()
+    assert "plot_sweep.png" not in capsys.readouterr().out
