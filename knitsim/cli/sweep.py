@@ -97,10 +97,12 @@ def _run(args) -> int:
     spec = parse_sweep(table)
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (finish the sweep in --out, or replace it)")
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_sweep", overwrite=args.overwrite,
-                             resume=args.resume, resumable=True)
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
         plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
+    # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
+    # typo'd key or a bad sample was refused (a blind probe lost its results to it)
+    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_sweep", overwrite=args.overwrite,
+                             resume=args.resume, resumable=True)
     _announce_domain(plan)
     workers = args.workers
     if workers is None and plan.device != "cpu" and not args.scheduler:

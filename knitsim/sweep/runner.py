@@ -197,8 +197,17 @@ def _load_sample(scene_doc: dict, assignments: list[str], base_dir: Path | None,
     return load_cell_scene(doc, engine=engine, device=device)
 
 
+#: scene keys that say how a sweep runs, not what it simulates: one value for every sample
+NOT_SWEPT = ("engine", "device", "title")
+
+
 def _check_key(doc: dict, key: str, value: Any) -> None:
-    """Refuse a key path that is not a scalar of the cell scene schema, naming it."""
+    """Refuse a key path that is not a scalar of the cell scene schema, or that says how the sweep runs
+    (:data:`NOT_SWEPT`: a blind probe's sweep over ``engine`` ran every sample on warp and labelled one of
+    them reference), naming it."""
+    if key in NOT_SWEPT:
+        raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: the whole sweep "
+                                f"runs with one {key} (give it in the scene, or --{key} for engine and device)")
     try:
         set_value(copy.deepcopy(doc), CELL_SCENE, f"{key}={_text(value)}")
     except KnitsimInputError as exc:

@@ -141,3 +141,16 @@ def test_no_plot_writes_no_plot(tmp_path, capsys, monkeypatch):
     assert main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--no-plot"]) == 0
     assert not list(out.glob("*.png")) and (out / "results.csv").is_file()
     assert "plot_sweep.png" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("bad", ['"friction.mu" = { values = [0.1, 0.2] }', '"knit.W0" = { values = [2.0, 4.4] }'])
+def test_overwrite_keeps_the_earlier_results_when_the_new_sweep_is_refused(tmp_path, capsys, monkeypatch, bad):
+    # a blind probe: `--overwrite` emptied the folder, then the typo'd key (or the sample with W0 < 4 d) was refused
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    out = tmp_path / "o"
+    assert main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--no-plot"]) == 0
+    before = sorted(p.name for p in out.iterdir())
+    (tmp_path / "bad.toml").write_text(SCENE + "\n[sweep]\n[sweep.parameters]\n" + bad + "\n")
+    assert main(["sweep", str(tmp_path / "bad.toml"), "--out", str(out), "--workers", "0", "--overwrite"]) == 2
+    assert sorted(p.name for p in out.iterdir()) == before and "results.csv" in before

@@ -2,7 +2,8 @@
 name: a blind probe found the three columns of where a failed cell stopped (stopped_at_strain,
 last_converged_strain, last_converged_force_per_wale_N) never written, so every later value, the domain
 among them, sat one column to the left of its name (pandas read domain = NaN, stopped_at_strain =
-"inside").  The values are checked against the dataset the file is written from."""
+"inside").  The values are checked against the dataset the file is written from.  And the keys that say how
+a sweep runs (engine, device) are not swept: each sample would carry a label it did not run with."""
 from __future__ import annotations
 
 import csv
@@ -35,3 +36,12 @@ def test_every_row_has_a_value_under_every_header_column(tmp_path):
         v = float(ds[k].sel({"friction.m": 3.0}).values.ravel()[0])
         assert np.isfinite(v) and float(rec[1][k]) == v, k
     assert rec[1]["final_status"] not in ("ok", "force_cap")
+
+
+def test_engine_and_device_are_not_swept():
+    # a blind probe's sweep over engine ran both samples on warp, one labelled "reference"
+    import pytest
+    from knitsim.errors import KnitsimInputError
+    for key, vals in (("engine", ["warp", "reference"]), ("device", ["cpu", "cuda"])):
+        with pytest.raises(KnitsimInputError, match=rf'sweep.parameters."{key}": not a parameter of the cells'):
+            plan_sweep(SCENE, {"parameters": {key: {"values": vals}}})
