@@ -276,11 +276,21 @@ def _scatter(ds, keys: list[str], title: str, grid: bool) -> bytes:
     else:
         flat = ds
         xs = {k: ds[k].values for k in keys}
+    # a parameter of text values (a rule) is drawn at positions 0, 1, ... named by its values: matplotlib's own
+    # categorical axis failed on the masked points of flagged samples (a blind probe's traceback)
+    ticks = {}
+    for k in keys:
+        if not np.issubdtype(np.asarray(xs[k]).dtype, np.number):
+            names, pos = np.unique(np.asarray(xs[k]).astype(str), return_inverse=True)
+            xs[k], ticks[k] = pos.astype(float), list(names)
     mk = _marks(flat)
     skip = mk.failed | mk.no_rest
     for r, (q, label) in enumerate(QUANTITIES):
         for j, k in enumerate(keys):
             ax = axes[r][j]
+            if k in ticks:
+                ax.set_xticks(range(len(ticks[k])), ticks[k])
+                ax.set_xlim(-0.5, len(ticks[k]) - 0.5)   # every value shown, also one without a point
             for c in cycles:
                 y = flat[q].sel(cycle=c).values
                 ax.scatter(xs[k][~skip], y[~skip], s=8, alpha=0.7, label=f"cycle {c}")

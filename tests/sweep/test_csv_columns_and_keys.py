@@ -45,3 +45,14 @@ def test_engine_and_device_are_not_swept():
     for key, vals in (("engine", ["warp", "reference"]), ("device", ["cpu", "cuda"])):
         with pytest.raises(KnitsimInputError, match=rf'sweep.parameters."{key}": not a parameter of the cells'):
             plan_sweep(SCENE, {"parameters": {key: {"values": vals}}})
+
+
+def test_a_text_parameter_beside_flagged_samples_is_plotted(tmp_path):
+    # a blind probe: jamming_criterion x m over 2 cycles to 0.6 (head_gap samples flagged loop_creates_energy)
+    # ended in a matplotlib ConversionError after results.csv / results.nc were written
+    scene = dict(SCENE, load=dict(SCENE["load"], cycles=2))
+    plan = plan_sweep(scene, {"parameters": {"rules.jamming_criterion": {"values": ["w_4d", "head_gap"]},
+                                             "friction.m": {"values": [0.1, 0.2]}}})
+    run = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=True)
+    assert int(np.sum(run.dataset["loop_creates_energy"].values == 1)) >= 1
+    assert (tmp_path / "out" / "plot_sweep.png").stat().st_size > 10_000
