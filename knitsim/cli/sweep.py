@@ -145,8 +145,9 @@ def _run(args) -> int:
                        ("rest_state_compressive", "the rest state carries a compressive force (the knit is not "
                                                   "free at C0, W0); its loops from rest are not judged; variable "
                                                   "rest_state_compressive in results.nc / results.csv"),
-                       ("stopped_at_force_cap", "a stop, not a failure, but the later cycles were not run: NaN "
-                                                "in results.nc, grey triangles at the axis foot in the plots")):
+                       ("stopped_at_force_cap", "a stop, not a failure, but the rest of the program was not run: "
+                                                "that cycle's peak is the cap, its energy loading work, later cycles "
+                                                "NaN in results.nc; grey triangles at the axis foot in the plots")):
         rows = summary[what]
         if rows:
             print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)

@@ -130,11 +130,11 @@ def _compressive(ds) -> np.ndarray:
 
 
 def _capped(ds) -> np.ndarray:
-    """Where a sample's cell stopped at its force cap before some cycle of the program (those cycles: NaN)."""
+    """Where a sample's cell stopped at its force cap (the rest of the program not run: the peak of the cycle it
+    stopped in is the cap, later cycles NaN)."""
     from ..cell.history import STATUS_FORCE_CAP
 
-    peaks = np.asarray(ds["peak_force_per_wale_N"].transpose(..., "cycle").values)
-    return (np.asarray(ds["final_status"].values) == STATUS_FORCE_CAP) & np.isnan(peaks).any(axis=-1)
+    return np.asarray(ds["final_status"].values) == STATUS_FORCE_CAP
 
 
 def _failed(ds) -> np.ndarray:
@@ -164,7 +164,7 @@ _TITLE_PHRASES = (
     ("failed", "failed sample(s) (grey x / xx-hatched): no results"),
     ("no_rest", "without a rest state (grey square / //-hatched): outside the model, not solved"),
     ("outside", "outside the domain's box (ringed / dotted): extrapolated"),
-    ("capped", "stopped at the force cap before the last cycle (grey triangle / --hatched): later cycles not run"),
+    ("capped", "stopped at the force cap (grey triangle / --hatched): peak = the cap, the rest not run"),
     ("energy", "with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)"),
     ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; not marked)"),
 )
@@ -182,7 +182,7 @@ def _mark_axis(ax, xs, marks: _Marks, lines: bool = False) -> None:
     lo = ax.get_ylim()[0]
     for mask, style, label, gap in ((marks.failed, FAILED_STYLE, "failed", True),
                                     (marks.no_rest, NO_REST_STYLE, "no rest state", True),
-                                    (marks.capped, CAPPED_STYLE, "capped: later cycles not run", False)):
+                                    (marks.capped, CAPPED_STYLE, "stopped at the force cap", False)):
         if mask.any():
             if lines and gap:
                 for xv in xs[mask]:

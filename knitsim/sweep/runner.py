@@ -1100,8 +1100,10 @@ def domain_samples(ds, code: int) -> list[dict]:
 
 
 def capped_samples(ds) -> list[dict]:
-    """The samples whose cell stopped at its force cap before the program's last cycle was reached: a stop,
-    not a failure, but the cycles after it have no results (NaN), which a plot would otherwise just omit.
+    """The samples whose cell stopped at its force cap: a stop, not a failure, but the rest of the program
+    was not run: the cycles after it have no results (NaN), which a plot would otherwise just omit, and the
+    cycle it stopped in has the cap for its peak and loading work for its energy (a blind probe's stop in a
+    one-cycle program was reported nowhere, its 10 N peak and loading work drawn as the knit's).
 
     Returns
     -------
@@ -1119,10 +1121,14 @@ def capped_samples(ds) -> list[dict]:
     def reason(i, c, st, dom):
         idx = np.unravel_index(i, peaks.shape[:len(order) - ("cell" in ds.dims)]) + (((c,) if "cell" in ds.dims else ()))
         lost = [cyc for cyc, m in zip(cycles, missing[idx]) if m]
-        return (f"stopped at its force cap before cycle{'s' if len(lost) > 1 else ''} "
-                f"{', '.join(str(x) for x in lost)}: not run (NaN); raise rules.force_cap_N to run them")
+        last = max((cyc for cyc, m in zip(cycles, missing[idx]) if not m), default=None)
+        at = (f"in cycle {last}, whose peak is the cap and whose energy is loading work only (the rest of the "
+              "program not run)" if last is not None else "")
+        gone = (f"before cycle{'s' if len(lost) > 1 else ''} {', '.join(str(x) for x in lost)}: not run (NaN)"
+                if lost else "")
+        return f"stopped at its force cap {'; '.join(t for t in (at, gone) if t)}; raise rules.force_cap_N to run it all"
 
-    return _sample_listing(ds, lambda st, ok, dom: (st == STATUS_FORCE_CAP) & missing.any(axis=-1), reason)
+    return _sample_listing(ds, lambda st, ok, dom: st == STATUS_FORCE_CAP, reason)
 
 
 def _flagged_samples(ds, var: str, reason: str) -> list[dict]:

@@ -25,14 +25,16 @@ def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
     assert 0.0 < ds["strain_at_peak"].values[0, 0] < 0.6                  # capped while loading, not at rest
     assert np.isnan(ds["peak_force_per_wale_N"].values[0, 1]) and np.isfinite(ds["peak_force_per_wale_N"].values[1]).all()
     (c,) = capped_samples(ds)
-    assert c["sample"] == 0 and "before cycle 2" in c["reason"] and failed_samples(ds) == []
+    assert c["sample"] == 0 and "in cycle 1" in c["reason"] and "before cycle 2" in c["reason"]
+    assert failed_samples(ds) == []
     figs = []
     monkeypatch.setattr(plots, "_png", lambda fig: figs.append(fig) or b"")
     plots.plot_sweep(ds, tmp_path / "o")
     (fig,) = figs
-    assert "1 stopped at the force cap before the last cycle" in fig._suptitle.get_text()
+    assert "1 stopped at the force cap (grey triangle / --hatched): peak = the cap, the rest not run" \
+        in fig._suptitle.get_text()
     grey = mcolors.to_rgba("0.45")
     for ax in fig.axes:
-        tri = [col for col in ax.collections if col.get_label() == "capped: later cycles not run"]
+        tri = [col for col in ax.collections if col.get_label() == "stopped at the force cap"]
         assert len(tri) == 1 and np.allclose(tri[0].get_offsets()[:, 0], [0.05])
         assert np.allclose(tri[0].get_edgecolor()[0], grey)

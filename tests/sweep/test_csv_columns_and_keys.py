@@ -56,3 +56,17 @@ def test_a_text_parameter_beside_flagged_samples_is_plotted(tmp_path):
     run = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=True)
     assert int(np.sum(run.dataset["loop_creates_energy"].values == 1)) >= 1
     assert (tmp_path / "out" / "plot_sweep.png").stat().st_size > 10_000
+
+
+def test_a_stop_at_the_force_cap_in_the_only_cycle_is_listed(tmp_path):
+    # a blind probe: in_plane_width 1.0 mm (W0 / 4 w = 1.1: jamming early) stops at the 10 N cap before the
+    # unloading of a one-cycle program (knitsim cell warns program_cut_by_force_cap); the sweep listed nothing
+    from knitsim.cell.history import STATUS_FORCE_CAP
+    from knitsim.sweep.runner import capped_samples
+    scene = dict(SCENE, load=dict(SCENE["load"], upper_strain=0.5), rules={"force_cap_N": 10.0})
+    plan = plan_sweep(scene, {"parameters": {"yarn.in_plane_width": {"values": [0.58, 1.0]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    assert ds["final_status"].values.ravel().tolist()[1] == STATUS_FORCE_CAP
+    rows = capped_samples(ds)
+    assert [r["sample"] for r in rows] == [1]
+    assert "in cycle 1, whose peak is the cap and whose energy is loading work only" in rows[0]["reason"]
