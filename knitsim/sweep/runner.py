@@ -474,7 +474,13 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
             for k in _STOP_VARS:
                 out[k][c] = np.nan if s[k] is None else s[k]
     if curves:
-        out["force_per_wale_N"] = np.ascontiguousarray(history.force_per_wale.T, dtype=np.float64)
+        F = np.array(history.force_per_wale.T, dtype=np.float64)
+        # the rows a cell did not solve (after a failure, or past its stop at the force cap) hold its last state:
+        # NaN, as the variable's description says (a blind probe read held values as the knit's curve)
+        from ..io.results import _stopped_rows
+        for c in range(F.shape[0]):
+            F[c, _stopped_rows(np.asarray(history.status[:, c])):] = np.nan
+        out["force_per_wale_N"] = np.ascontiguousarray(F)
     return out
 
 
@@ -934,7 +940,8 @@ def assemble(out_dir: str | Path):
         "last_converged_strain": "a failed cell: the strain C/C0 - 1 of its last converged state, inside that "
                                  "increment (NaN: it did not fail)",
         "last_converged_force_per_wale_N": "a failed cell: its force per wale there (NaN: it did not fail)",
-        "force_per_wale_N": "force per wale at every increment (NaN past the program's end)",
+        "force_per_wale_N": "force per wale at every increment (NaN past the program's end, and where the cell did "
+                            "not solve: after a failure, past a stop at the force cap)",
         "imposed_strain": "imposed strain of the course length at every increment",
     }
     vars_ = {}

@@ -70,3 +70,22 @@ def test_a_stop_at_the_force_cap_in_the_only_cycle_is_listed(tmp_path):
     rows = capped_samples(ds)
     assert [r["sample"] for r in rows] == [1]
     assert "in cycle 1, whose peak is the cap and whose energy is loading work only" in rows[0]["reason"]
+
+
+def test_curves_are_nan_where_a_cell_did_not_solve(tmp_path):
+    # a blind probe: --curves held a failed cell's last force (and a capped cell's cap) to the program's end
+    from knitsim.cell.engine import simulate
+    from knitsim.io.results import _stopped_rows
+    plan = plan_sweep(SCENE, {"curves": True, "parameters": {"friction.m": {"values": [0.2, 3.0]},
+                                                              "rules.force_cap_N": {"values": [0.12, 10.0]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    F = ds["force_per_wale_N"].values.reshape(4, -1)
+    cells = [plan.base.params[0].replace(m=m, force_cap_N=cap) for m in (0.2, 3.0) for cap in (0.12, 10.0)]
+    h = simulate(cells, plan.programs[0], engine="warp", device="cpu")
+    n_stopped = 0
+    for c in range(4):
+        k = _stopped_rows(h.status[:, c])           # the rows the cell solved (its status says where it stopped)
+        np.testing.assert_array_equal(F[c, :k], h.force_per_wale[:k, c])
+        assert np.all(np.isnan(F[c, k:]))
+        n_stopped += k < F.shape[1]
+    assert n_stopped >= 2                          # the capped (0.12 N) and the failed (m = 3) samples
