@@ -170,6 +170,15 @@ class SweepPlan:
         return max(len(p) for p in self.programs)
 
 
+def _chunk_readable(path: Path) -> bool:
+    """Whether a chunk file opens as the NumPy archive it was written as."""
+    try:
+        with np.load(path) as z:
+            return "peak_force_per_wale_N" in z.files
+    except Exception:              # a damaged file: zipfile.BadZipFile, OSError, ValueError, EOFError ...
+        return False
+
+
 def _text(v: Any) -> str:
     """A value as ``--set`` text (parsed back exactly by the schema's field types)."""
     if isinstance(v, bool):
@@ -177,7 +186,9 @@ def _text(v: Any) -> str:
     if isinstance(v, str):
         return json.dumps(v)
     if isinstance(v, float):
-        return repr(v)
+        # a whole number as one (a grid's {min, max, count} gives floats: 1.0 was refused for load.cycles, a
+        # blind probe); a number field reads "2" as 2.0
+        return str(int(v)) if v.is_integer() and abs(v) < 2.0 ** 53 else repr(v)
     return str(v)
 
 
@@ -260,7 +271,13 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         if chunk_size is not None:
             table = dict(table, chunk_size=chunk_size)
         spec = parse_sweep(table)
+    swept = {p.key for p in spec.parameters}
     for a in overrides:
+        key = a.split("=", 1)[0].strip()
+        if key in swept:
+            # the sweep's values would replace it in every sample without a word (a blind probe)
+            raise KnitsimInputError(f"--set {a}: {key} is a parameter of the sweep (its values come from "
+                                    "[sweep.parameters]): drop one of the two")
         set_value(scene_doc, CELL_SCENE, a)
     # a library file (materials = FILE) is relative to the scene, as for knitsim cell and run
     base_dir = None if source == "<dict>" else Path(source).resolve().parent
@@ -734,9 +751,14 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
     run = SweepRun(out)
     pending = []
     for c in plan.chunks:
-        if resume and (out / CHUNK_DIR / c.name).is_file():
+        path = out / CHUNK_DIR / c.name
+        if resume and path.is_file() and _chunk_readable(path):
             run.skipped.append(c.index)
         else:
+            if resume and path.is_file() and progress is not None:
+                # (chunks are written whole, through a temporary file: one that cannot be read was damaged
+                # after; a blind probe's ended in a BadZipFile traceback)
+                print(f"knitsim sweep: {path} cannot be read: computed again", file=progress, flush=True)
             pending.append(c)
     if progress is not None:
         print(f"knitsim sweep: {plan.n_samples} samples x {plan.n_cells} cell(s), {len(plan.chunks)} chunk(s) "

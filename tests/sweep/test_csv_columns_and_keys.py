@@ -89,3 +89,33 @@ def test_curves_are_nan_where_a_cell_did_not_solve(tmp_path):
         assert np.all(np.isnan(F[c, k:]))
         n_stopped += k < F.shape[1]
     assert n_stopped >= 2                          # the capped (0.12 N) and the failed (m = 3) samples
+
+
+def test_a_grid_range_over_a_whole_number_key_runs():
+    # a blind probe: "load.cycles" = { min = 1, max = 3, count = 3 } was refused as '"1.0": expected a whole number'
+    plan = plan_sweep(SCENE, {"parameters": {"load.cycles": {"min": 1, "max": 3, "count": 3},
+                                             "rules.force_cap_N": {"values": [10.0, 12.5]}}})
+    # the programs' cycles: 1, 2, 3 (each twice: the force caps)
+    assert sorted(int(p.cycle.max()) for p in plan.programs) == [1, 2, 3]
+    assert sorted({float(c.force_cap_N) for cells in plan.params for c in cells}) == [10.0, 12.5]
+
+
+def test_a_set_of_a_swept_key_is_refused():
+    # a blind probe: --set friction.m=0.3 on a sweep of friction.m was overridden by the sweep without a word
+    import pytest
+    from knitsim.errors import KnitsimInputError
+    with pytest.raises(KnitsimInputError, match=r"--set friction.m=0.3: friction.m is a parameter of the sweep"):
+        plan_sweep(SCENE, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}}, overrides=["friction.m=0.3"])
+    plan_sweep(SCENE, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}}, overrides=["friction.phi0=0.05"])
+
+
+def test_a_damaged_chunk_is_computed_again_on_resume(tmp_path, capsys):
+    # a blind probe: a chunk file that is not a valid archive ended --resume in a BadZipFile traceback
+    sweep = {"chunk_size": 1, "parameters": {"friction.m": {"values": [0.1, 0.2]}}}
+    ref = run_sweep(plan_sweep(SCENE, sweep), tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    (tmp_path / "out" / "chunks" / "chunk_00001.npz").write_bytes(b"not an archive")
+    import sys
+    run = run_sweep(plan_sweep(SCENE, sweep), tmp_path / "out", resume=True, workers=0, progress=sys.stderr,
+                    plots=False)
+    assert run.skipped == [0] and run.dataset.identical(ref)
+    assert "chunk_00001.npz cannot be read: computed again" in capsys.readouterr().err
