@@ -145,6 +145,11 @@ def _run(args) -> int:
                        ("rest_state_compressive", "the rest state carries a compressive force (the knit is not "
                                                   "free at C0, W0); its loops from rest are not judged; variable "
                                                   "rest_state_compressive in results.nc / results.csv"),
+                       ("heads_interpenetrate", "the heads of neighbouring loops overlap: knitsim cell on the "
+                                                "sample says where; variable heads_interpenetrate in results.nc / "
+                                                "results.csv"),
+                       ("zero_force_cycle", "a later cycle carries nearly no force (a few per cent of the largest "
+                                            "earlier peak); variable zero_force_cycle in results.nc / results.csv"),
                        ("stopped_at_force_cap", "a stop, not a failure, but the rest of the program was not run: "
                                                 "that cycle's peak is the cap, its energy loading work, later cycles "
                                                 "NaN in results.nc; grey triangles at the axis foot in the plots")):

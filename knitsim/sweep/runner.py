@@ -74,7 +74,12 @@ FORMAT = "knitsim-sweep/1"
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
-             "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
+             "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
+             "zero_force_cycle")
+#: warnings of the cell's summary (knitsim.io.results.cell_summary, as knitsim cell gives them) carried per
+#: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
+#: and zero_force_cycle in no sweep output)
+_WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle")
 #: where a failed cell stopped (knitsim.io.results.cell_summary), NaN for a cell that did not fail
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
 
@@ -473,6 +478,8 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
     out["expected_end"] = np.zeros(n, dtype=np.int8)
     out["loop_creates_energy"] = np.zeros(n, dtype=np.int8)
     out["rest_state_compressive"] = np.zeros(n, dtype=np.int8)
+    for k in _WARNING_FLAGS:
+        out[k] = np.zeros(n, dtype=np.int8)
     for k in _STOP_VARS:
         out[k] = np.full(n, np.nan)
     for c in range(n):
@@ -487,6 +494,8 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         out["expected_end"][c] = 1 if s["expected_end"] else 0
         out["loop_creates_energy"][c] = int(any(w["code"] == "loop_creates_energy" for w in s["warnings"]))
         out["rest_state_compressive"][c] = int(any(w["code"] == "rest_state_compressive" for w in s["warnings"]))
+        for k in _WARNING_FLAGS:
+            out[k][c] = int(any(w["code"] == k for w in s["warnings"]))
         if not s["expected_end"]:
             for k in _STOP_VARS:
                 out[k][c] = np.nan if s[k] is None else s[k]
@@ -522,6 +531,8 @@ def run_chunk(task: dict) -> dict:
     red["expected_end"] = np.zeros(n_all, dtype=np.int8)
     red["loop_creates_energy"] = np.full(n_all, -1, dtype=np.int8)       # -1: not solved
     red["rest_state_compressive"] = np.full(n_all, -1, dtype=np.int8)
+    for k in _WARNING_FLAGS:
+        red[k] = np.full(n_all, -1, dtype=np.int8)
     for k in _STOP_VARS:
         red[k] = np.full(n_all, np.nan)
     if task["curves"]:
@@ -800,6 +811,7 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
     energy = energy_creating_samples(ds)
     compressive = compressive_rest_samples(ds)
     capped = capped_samples(ds)
+    warned = {k: warning_samples(ds, k) for k in _WARNING_FLAGS}
     return {
         "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
         "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
@@ -813,6 +825,8 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
         "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
         # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
         "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
+        # the cell's own warnings (knitsim cell's): overlapping heads, a cycle that lost nearly all its force
+        **{key: v for k, rows in warned.items() for key, v in ((f"{k}_count", len(rows)), (k, rows))},
         "files": {k: str(v) for k, v in run.files.items()},
     }
 
@@ -881,6 +895,8 @@ def assemble(out_dir: str | Path):
     data["expected_end"] = np.zeros((ns, nc), dtype=np.int8)
     data["loop_creates_energy"] = np.full((ns, nc), -1, dtype=np.int8)
     data["rest_state_compressive"] = np.full((ns, nc), -1, dtype=np.int8)
+    for k in _WARNING_FLAGS:
+        data[k] = np.full((ns, nc), -1, dtype=np.int8)
     for k in _STOP_VARS:
         data[k] = np.full((ns, nc), np.nan)
     if curves:
@@ -952,6 +968,12 @@ def assemble(out_dir: str | Path):
                                   "is not free at rest; warning rest_state_compressive, knitsim.io.checks."
                                   "compressive_rest_state; its loops from rest are not judged for energy), 0 if not, "
                                   "-1 not solved or unknown",
+        "heads_interpenetrate": "1 if the heads of neighbouring loops overlap somewhere in the program (centreline gap "
+                                "below the in-plane width: warning heads_interpenetrate of knitsim cell), 0 if not, "
+                                "-1 not solved or unknown",
+        "zero_force_cycle": "1 if a later cycle peaks at a few per cent of the largest earlier peak (warning "
+                            "zero_force_cycle of knitsim cell, knitsim.io.checks.zero_force_cycles), 0 if not, -1 not "
+                            "solved or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
@@ -1044,6 +1066,7 @@ def dataset_csv(ds) -> str:
         # where a failed cell stopped (empty for one that did not fail): a blind probe found these three
         # header columns never written, every later value one column to the left of its name
         row += [num(flat[k][r]) for k in _STOP_VARS]
+        row += ["" if int(flat[k][r]) < 0 else str(int(flat[k][r])) for k in _WARNING_FLAGS]
         if has_domain:
             row.append(domain_names.get(int(flat["domain"][r]), "?"))
         lines.append(",".join(row))
@@ -1182,6 +1205,27 @@ def compressive_rest_samples(ds) -> list[dict]:
                             "the rest state carries a compressive force (F < 0 at C0, W0): the knit is not free "
                             "at rest; its loops from rest are not judged for energy (README, 'Loops that "
                             "return energy')")
+
+
+#: what each carried warning means, for the listings
+_WARNING_REASONS = {
+    "heads_interpenetrate": "the heads of neighbouring loops overlap (centreline gap below the in-plane width): the "
+                            "jamming criterion lets them pass through each other (jamming_criterion = \"head_gap\" "
+                            "stops them at contact); knitsim cell on the sample says where",
+    "zero_force_cycle": "a later cycle peaks at a few per cent of the largest earlier peak: it carries nearly no force "
+                        "(README, 'Cycles that carry no force'); knitsim cell on the sample says which",
+}
+
+
+def warning_samples(ds, flag: str) -> list[dict]:
+    """The samples whose cell carries the cell summary's warning ``flag`` (:data:`_WARNING_FLAGS`).
+
+    Returns
+    -------
+    list of dict
+        As :func:`failed_samples`; ``reason`` says what the warning means.
+    """
+    return _flagged_samples(ds, flag, _WARNING_REASONS[flag])
 
 
 def energy_creating_samples(ds) -> list[dict]:

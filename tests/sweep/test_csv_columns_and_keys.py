@@ -119,3 +119,24 @@ def test_a_damaged_chunk_is_computed_again_on_resume(tmp_path, capsys):
                     plots=False)
     assert run.skipped == [0] and run.dataset.identical(ref)
     assert "chunk_00001.npz cannot be read: computed again" in capsys.readouterr().err
+
+
+def test_the_cells_own_warnings_are_carried_per_sample(tmp_path):
+    # a blind probe: knitsim cell warns heads_interpenetrate (m 0.2 and 0.5 to 0.6) and zero_force_cycle (m 0.2:
+    # cycle 2 peaks at 8 % of cycle 1); no sweep output carried either.  Expected: the warnings of the cell's own
+    # summary (knitsim.io.results.cell_summary on the same cells run alone), sample by sample
+    from knitsim.cell.engine import simulate
+    from knitsim.io.results import cell_summary
+    from knitsim.sweep.runner import warning_samples
+    scene = dict(SCENE, load=dict(SCENE["load"], cycles=2))
+    plan = plan_sweep(scene, {"parameters": {"friction.m": {"values": [0.2, 0.5]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    text = dataset_csv(ds)
+    h = simulate([plan.base.params[0].replace(m=m) for m in (0.2, 0.5)], plan.programs[0], engine="warp", device="cpu")
+    for flag in ("heads_interpenetrate", "zero_force_cycle"):
+        alone = [int(any(w["code"] == flag for w in cell_summary(h, c)["warnings"])) for c in range(2)]
+        assert ds[flag].values.ravel().tolist() == alone, flag
+        assert [r["sample"] for r in warning_samples(ds, flag)] == [i for i, a in enumerate(alone) if a]
+    assert ds["zero_force_cycle"].values.ravel().tolist() == [1, 0]
+    header = text.splitlines()[0].split(",")
+    assert header[-3:] == ["heads_interpenetrate", "zero_force_cycle", "domain"]
