@@ -13,7 +13,8 @@ samples that failed, have no rest state, lie outside the domain's box,
 return energy, rest compressed or stopped at the force cap, each with its
 reason (what ``--json`` prints, and what the plot's title counts).  Exit
 status 1 when the solver failed on a sample (a missing result), as ``knitsim
-cell`` and ``run`` do for a failed cell.  Chunks run on a local Dask
+cell`` and ``run`` do for a failed cell, or when the plot could not be drawn
+(``plot_error`` in ``summary.json``; the results are written).  Chunks run on a local Dask
 cluster with one worker process per core unless ``--workers 0`` (in this
 process) or ``--scheduler tcp://host:port`` (an existing cluster).  Killing a
 run keeps the finished chunks; ``--resume`` finishes it.
@@ -21,14 +22,13 @@ run keeps the finished chunks; ``--resume`` finishes it.
 from __future__ import annotations
 
 import contextlib
-import shlex
 import sys
 from pathlib import Path
 
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags, prepare_output_dir
-from .common import add_json_flag, print_json
+from .common import add_json_flag, print_json, resume_command
 
 
 def register(subparsers) -> None:
@@ -107,20 +107,21 @@ def _run(args) -> int:
     workers = args.workers
     if workers is None and plan.device != "cpu" and not args.scheduler:
         workers = 1                                   # one GPU: one worker process feeds it
-    resume_cmd = "knitsim sweep " + " ".join(shlex.quote(a) for a in sys.argv[2:] if a != "--resume") \
-        if len(sys.argv) > 2 and sys.argv[1] == "sweep" else f"knitsim sweep {args.scene} --out {out}"
+    # as typed, without --overwrite (a blind probe was told to resume with --overwrite --resume, refused)
+    resume_cmd = resume_command("sweep", [args.scene] + (["--sweep", args.sweep] if args.sweep else [])
+                                + ["--out", str(out)])
     try:
         run = run_sweep(plan, out, resume=args.resume, workers=workers, scheduler=args.scheduler,
                         plots=not args.no_plot)
     except KeyboardInterrupt:
         done = len(list((out / "chunks").glob("chunk_*.npz"))) if (out / "chunks").is_dir() else 0
         print(f"knitsim sweep: interrupted; {done}/{len(plan.chunks)} finished chunk(s) kept in {out / 'chunks'}; "
-              f"finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
+              f"finish with: {resume_cmd}", file=sys.stderr, flush=True)
         return 130
     except SweepChunkError as exc:
         done = len(list((out / "chunks").glob("chunk_*.npz")))
         print(f"knitsim sweep: {exc}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
-              f"after fixing the cause, finish with: {resume_cmd} --resume", file=sys.stderr, flush=True)
+              f"after fixing the cause, finish with: {resume_cmd}", file=sys.stderr, flush=True)
         return 1
     summary = run.summary                            # written to summary.json by run_sweep
     failed, n_bad = summary["failed"], len(summary["failed"])
@@ -151,8 +152,10 @@ def _run(args) -> int:
                        ("zero_force_cycle", "a later cycle carries nearly no force (a few per cent of the largest "
                                             "earlier peak); variable zero_force_cycle in results.nc / results.csv"),
                        ("stopped_at_force_cap", "a stop, not a failure, but the rest of the program was not run: "
-                                                "that cycle's peak is the cap, its energy loading work, later cycles "
-                                                "NaN in results.nc; grey triangles at the axis foot in the plots")):
+                                                "that cycle's peak is the cap (peak_at_force_cap = 1), its energy "
+                                                "loading work if it never unloaded (energy_kind), later cycles NaN "
+                                                "in results.nc / results.csv; grey stars and triangles in the "
+                                                "plots")):
         rows = summary[what]
         if rows:
             print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
@@ -162,10 +165,14 @@ def _run(args) -> int:
             if len(rows) > 10:
                 print(f"  ... and {len(rows) - 10} more (summary {what} list with --json)", file=sys.stderr,
                       flush=True)
+    if run.plot_error:
+        # the results are complete without the figure; the status says something is missing
+        print(f"knitsim sweep: error: plot_sweep.png could not be drawn ({run.plot_error}); results.nc, "
+              f"results.csv and summary.json are complete", file=sys.stderr, flush=True)
     if args.json:
         print_json(summary)
     else:
         print(f"{plan.n_samples} samples -> {out / 'results.nc'}")
     # a sample the solver failed on is a missing result, as a failed cell is for knitsim cell and run:
     # exit status 1 (samples outside the model, with no rest state, are part of the map: said, status 0)
-    return 1 if n_bad else 0
+    return 1 if n_bad or run.plot_error else 0

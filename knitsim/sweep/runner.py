@@ -31,8 +31,10 @@ Results do not depend on the order chunks finish in, nor on the backend.
 Per cell and cycle the results are those of
 :func:`knitsim.io.results.cell_summary` (one definition of each quantity):
 peak force per wale and the imposed strain where it occurs, residual strain,
-energy per cycle; per cell the strain at the first jamming and the final
-status, and ``loop_creates_energy``: 1 where the cell summary carries that warning
+energy per cycle with what that energy is (``energy_kind``: hysteresis, work,
+loading_work; ``closed``) and whether the peak is the force cap
+(``peak_at_force_cap``); per cell the strain at the first jamming, the final
+status, where it stopped, and ``loop_creates_energy``: 1 where the cell summary carries that warning
 (:func:`knitsim.io.checks.energy_creating_loops`: a closed loop with ``oint F dC < 0``), 0 where it
 does not, -1 where the cell was not solved.  With ``curves`` the force per wale at every increment
 is kept too.
@@ -46,6 +48,7 @@ and loads the compiled kernels from the shared on-disk cache.
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import io
@@ -64,7 +67,7 @@ from ..errors import KnitsimInputError
 from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
-from ..scene.schema import load_toml, set_value
+from ..scene.schema import fmt, load_toml, set_value
 from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
@@ -72,6 +75,13 @@ CHUNK_DIR = "chunks"
 FORMAT = "knitsim-sweep/1"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
+#: per cell and cycle, integer codes (-1 where the cycle has no results): what its energy is
+#: (:data:`ENERGY_KINDS`, knitsim.io.checks.cycle_work), whether its path is closed, and whether its peak is
+#: the force cap (the cycle a cell stopped in at its cap).  A blind probe's stops at the 10 N cap were drawn and
+#: tabulated as the knit's peaks and hysteresis: the loading work of a cycle never unloaded, 10x the others
+CYCLE_FLAGS = ("energy_kind", "closed", "peak_at_force_cap")
+#: codes of ``energy_kind``: the names knitsim cell's summary gives (energy_kind of each cycle)
+ENERGY_KINDS = {0: "hysteresis", 1: "work", 2: "loading_work"}
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
@@ -80,7 +90,8 @@ CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_cr
 #: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
 #: and zero_force_cycle in no sweep output)
 _WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle")
-#: where a failed cell stopped (knitsim.io.results.cell_summary), NaN for a cell that did not fail
+#: where a cell stopped (knitsim.io.results.cell_summary): a failed cell (all three), a cell stopped at its force
+#: cap (stopped_at_strain only); NaN for a cell that ran the whole program
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
 
 
@@ -197,16 +208,29 @@ def _text(v: Any) -> str:
     return str(v)
 
 
-def _assignments(keys: list[str], row: tuple) -> list[str]:
-    return [f"{k}={_text(v)}" for k, v in zip(keys, row)]
+def _set(doc: dict, key: str, value: Any) -> None:
+    """Set the swept ``key`` of ``doc`` to ``value`` (by the schema's own key-path walk and field types).
+
+    The value travels as ``--set`` text (:func:`_text`), so a type error from the schema quotes that text
+    (``load.cycles = "1.5"``); it is said with the value as the sweep gave it (``load.cycles = 1.5``)."""
+    text = _text(value)
+    try:
+        set_value(doc, CELL_SCENE, f"{key}={text}")
+    except KnitsimInputError as exc:
+        quoted = f"{key} = {json.dumps(text)}:"
+        msg = str(exc)
+        if msg.startswith(quoted):
+            raise KnitsimInputError(f"{key} = {fmt(value)}:{msg[len(quoted):]}") from None
+        raise
 
 
-def _load_sample(scene_doc: dict, assignments: list[str], base_dir: Path | None, engine, device):
-    """The cell scene of ``scene_doc`` with ``assignments`` set, its library file (``materials``) read
-    relative to ``base_dir`` (the scene's folder; None: the working directory, a scene given as a dict)."""
+def _load_sample(scene_doc: dict, keys: list[str], row: tuple, base_dir: Path | None, engine, device):
+    """The cell scene of ``scene_doc`` with each of ``keys`` set to its value in ``row``, its library file
+    (``materials``) read relative to ``base_dir`` (the scene's folder; None: the working directory, a scene
+    given as a dict)."""
     doc = copy.deepcopy(scene_doc)
-    for a in assignments:
-        set_value(doc, CELL_SCENE, a)
+    for k, v in zip(keys, row):
+        _set(doc, k, v)
     lib = doc.get("materials")
     if base_dir is not None and isinstance(lib, str) and not Path(lib).is_absolute():
         doc["materials"] = str(base_dir / lib)
@@ -225,7 +249,7 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: the whole sweep "
                                 f"runs with one {key} (give it in the scene, or --{key} for engine and device)")
     try:
-        set_value(copy.deepcopy(doc), CELL_SCENE, f"{key}={_text(value)}")
+        _set(copy.deepcopy(doc), key, value)
     except KnitsimInputError as exc:
         msg = str(exc)
         prefix = f"--set {key}: "
@@ -286,7 +310,7 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         set_value(scene_doc, CELL_SCENE, a)
     # a library file (materials = FILE) is relative to the scene, as for knitsim cell and run
     base_dir = None if source == "<dict>" else Path(source).resolve().parent
-    base = _load_sample(scene_doc, [], base_dir, engine, device)
+    base = _load_sample(scene_doc, [], (), base_dir, engine, device)
     for p in spec.parameters:
         _check_key(scene_doc, p.key, p.values[0] if p.values is not None else p.low)
 
@@ -302,9 +326,9 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
     n_cells = len(base.params)
     for i, row in enumerate(table):
         try:
-            s = _load_sample(scene_doc, _assignments(keys, row), base_dir, engine, device)
+            s = _load_sample(scene_doc, keys, row, base_dir, engine, device)
         except KnitsimInputError as exc:
-            vals = ", ".join(f"{k} = {_text(v)}" for k, v in zip(keys, row))
+            vals = ", ".join(f"{k} = {fmt(v)}" for k, v in zip(keys, row))
             raise KnitsimInputError(f"sweep sample {i} ({vals}): {exc}") from None
         if len(s.params) != n_cells:  # pragma: no cover - a scalar key cannot change the cell count
             raise KnitsimInputError(f"sweep sample {i}: {len(s.params)} cells, the base scene has {n_cells}")
@@ -443,7 +467,7 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
             bad = [i for i, (x, y) in enumerate(zip(olds, inputs["samples_cells"])) if x != y]
             if bad:
                 i = bad[0]
-                vals = ", ".join(f"{k} = {_text(v)}" for k, v in zip(plan.spec.keys, plan.table[i]))
+                vals = ", ".join(f"{k} = {fmt(v)}" for k, v in zip(plan.spec.keys, plan.table[i]))
                 diff = [f"those of {len(bad)} of {plan.n_samples} sample(s), e.g. sample {i} ({vals})"]
         lib = plan.scene_doc.get("materials")
         parts = diff[:3] + (["..."] if len(diff) > 3 else [])
@@ -471,8 +495,12 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         if the cell never jams), and with ``curves`` the force per wale
         ``force_per_wale_N`` of shape ``[n_cells, n_increments]``.
     """
+    from ..cell.history import STATUS_FORCE_CAP, STATUS_OK
+
     n = history.n_cells
     out = {k: np.full((n, n_cycles), np.nan) for k in CYCLE_VARS}
+    out.update({k: np.full((n, n_cycles), -1, dtype=np.int8) for k in CYCLE_FLAGS})
+    kind_code = {v: k for k, v in ENERGY_KINDS.items()}
     out["strain_at_first_jamming"] = np.full(n, np.nan)
     out["final_status"] = np.asarray(history.status[-1, :], dtype=np.int32)
     out["expected_end"] = np.zeros(n, dtype=np.int8)
@@ -489,6 +517,14 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
             for k in CYCLE_VARS:
                 v = cy[k]
                 out[k][c, j] = np.nan if v is None else v
+            out["energy_kind"][c, j] = kind_code[cy["energy_kind"]]
+            out["closed"][c, j] = int(cy["closed"])
+            out["peak_at_force_cap"][c, j] = 0
+        status = np.asarray(history.status[:, c])
+        if status[-1] == STATUS_FORCE_CAP:
+            # the cycle of the located cap state (the cell's first row not ok, kept): its peak is the cap
+            stop = int(np.nonzero(status != STATUS_OK)[0][0])
+            out["peak_at_force_cap"][c, int(history.cycle[stop]) - 1] = 1
         jam = s["strain_at_first_jamming"]
         out["strain_at_first_jamming"][c] = np.nan if jam is None else jam
         out["expected_end"][c] = 1 if s["expected_end"] else 0
@@ -496,9 +532,10 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         out["rest_state_compressive"][c] = int(any(w["code"] == "rest_state_compressive" for w in s["warnings"]))
         for k in _WARNING_FLAGS:
             out[k][c] = int(any(w["code"] == k for w in s["warnings"]))
-        if not s["expected_end"]:
-            for k in _STOP_VARS:
-                out[k][c] = np.nan if s[k] is None else s[k]
+        # where the cell stopped: a failure, or its force cap (cell_summary gives the last converged state of a
+        # failure only: a capped cell's is the located cap state, its last row)
+        for k in _STOP_VARS:
+            out[k][c] = np.nan if s[k] is None else s[k]
     if curves:
         F = np.array(history.force_per_wale.T, dtype=np.float64)
         # the rows a cell did not solve (after a failure, or past its stop at the force cap) hold its last state:
@@ -526,6 +563,7 @@ def run_chunk(task: dict) -> dict:
     solve = np.asarray(task.get("solve", [True] * len(task["params"])), dtype=bool)
     n_all = len(task["params"])
     red = {k: np.full((n_all, task["n_cycles"]), np.nan) for k in CYCLE_VARS}
+    red.update({k: np.full((n_all, task["n_cycles"]), -1, dtype=np.int8) for k in CYCLE_FLAGS})
     red["strain_at_first_jamming"] = np.full(n_all, np.nan)
     red["final_status"] = np.full(n_all, STATUS_NO_REST_STATE, dtype=np.int32)
     red["expected_end"] = np.zeros(n_all, dtype=np.int8)
@@ -539,7 +577,6 @@ def run_chunk(task: dict) -> dict:
         red["force_per_wale_N"] = np.full((n_all, len(task["program"])), np.nan)
     if solve.any():
         # Warp's messages must not reach stdout (kept for --json)
-        import contextlib
         with contextlib.redirect_stdout(sys.stderr):
             history = simulate([p for p, s in zip(task["params"], solve) if s], task["program"],
                                engine=task["engine"], device=task["device"])
@@ -649,6 +686,8 @@ class SweepRun:
         return float("nan") if not self.wall_s else self.n_computed_samples / self.wall_s
 
     n_computed_samples: int = 0
+    #: why plot_sweep.png could not be drawn (``"TypeError: ..."``), None when it was or was not asked for
+    plot_error: str | None = None
 
 
 class _Progress:
@@ -674,6 +713,25 @@ def _run_local(tasks: list[dict], progress: _Progress, done: list) -> None:
         progress(r["samples"])
 
 
+@contextlib.contextmanager
+def _workers_ignore_sigint():
+    """Start worker processes that ignore Ctrl-C: the driver handles it (cancels, closes the cluster, says
+    how to resume).  A Ctrl-C at a terminal reaches the whole process group, and each Dask worker process
+    printed its own CancelledError / KeyboardInterrupt traceback before the "interrupted" message (a blind
+    probe).  An ignored signal stays ignored in a spawned child; the driver's handler is restored at once."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():   # signal handlers: the main thread's only
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int | None,
               scheduler: str | None, stream) -> None:
     try:
@@ -689,8 +747,9 @@ def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int |
                 raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
         else:
             n = workers or os.cpu_count() or 1
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
+            with _workers_ignore_sigint():
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=40)
             client = Client(cluster)
         if stream is not None:
             nw = len(client.scheduler_info().get("workers", {}))
@@ -759,6 +818,9 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
     if workers is not None and workers < 0:
         raise KnitsimInputError(f"--workers = {workers}: expected 0 (no Dask) or a positive number")
     _prepare_out(plan, out, resume)
+    # summary.json says the outputs beside it are complete: not while this run changes them (an interrupted
+    # resume of a finished sweep would leave the old one beside new chunks)
+    (out / "summary.json").unlink(missing_ok=True)
     run = SweepRun(out)
     pending = []
     for c in plan.chunks:
@@ -790,9 +852,12 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
         run.n_computed_samples = sum(len(plan.chunks[i].samples) for i in run.computed)
     ds = assemble(out)
     run.dataset = ds
-    run.files = write_results(out, ds, plots=plots)
+    files = write_results(out, ds, plots=plots)
+    run.plot_error = files.pop("plot_error", None)
+    run.files = files
     # the flags go where the user looks: the plot's title counts them and says "see summary.json"; a
-    # library caller gets the file too, not only the command line
+    # library caller gets the file too, not only the command line.  Written last: its presence says the
+    # outputs beside it are complete
     run.files["summary.json"] = out / "summary.json"
     run.summary = sweep_summary(plan, run)
     atomic_write_text(out / "summary.json", json_text(run.summary))
@@ -802,7 +867,7 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
 def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
     """The ``summary.json`` document of a finished run: its figures, its files and every flagged sample
     cell with its reason (failed, no rest state, outside the domain's box, a loop that returns energy, a
-    compressive rest state, stopped at the force cap before the last cycle)."""
+    compressive rest state, stopped at the force cap in any cycle, the last included)."""
     from ..cell.domain import DOMAIN_NO_REST_STATE, DOMAIN_OUTSIDE_BOX
 
     ds, out = run.dataset, run.out
@@ -823,28 +888,55 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
         "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
         # a rest state the grips must push to hold (F < 0 at C0, W0): not free at rest
         "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
-        # stopped at the force cap before the last cycle (a stop, not a failure): later cycles NaN
+        # stopped at the force cap in any cycle (a stop, not a failure): that peak the cap, later cycles NaN
         "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
         # the cell's own warnings (knitsim cell's): overlapping heads, a cycle that lost nearly all its force
         **{key: v for k, rows in warned.items() for key, v in ((f"{k}_count", len(rows)), (k, rows))},
         "files": {k: str(v) for k, v in run.files.items()},
+        # the plot could not be drawn (the results are complete without it): why
+        **({"plot_error": run.plot_error} if run.plot_error else {}),
     }
 
 
-def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path]:
-    """Write ``results.nc``, ``results.csv`` and the plots of an assembled dataset."""
-    from .plots import plot_sweep
+def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path | str]:
+    """Write ``results.nc``, ``results.csv`` and the plots of an assembled dataset.
 
-    files = {}
+    Everything is rendered before any file is written, and the previous run's ``summary.json`` (what says
+    the outputs are complete, written last by :func:`run_sweep`) is removed first: a blind probe's plot
+    crashed after results.csv and results.nc were written, leaving them looking complete.  A plot that
+    cannot be drawn does not cost the results: they are written, ``plot_sweep.png`` is not (an older one is
+    removed), and the error is returned under the key ``"plot_error"`` (a string, not a path).
+
+    Returns
+    -------
+    dict
+        File name -> path of each written file, and ``"plot_error"`` when the plot failed.
+    """
+    from .plots import PLOT_FILES, render_sweep
+
+    (out / "summary.json").unlink(missing_ok=True)
+    text = dataset_csv(ds)
+    images, plot_error = {}, None
+    if plots:
+        try:
+            images = render_sweep(ds)
+        except Exception as exc:      # noqa: BLE001 - a plot bug must not cost the results; it is reported
+            plot_error = f"{type(exc).__name__}: {exc}"
+    for name in PLOT_FILES:
+        if name not in images:        # --no-plot or a failed plot: no stale figure of an earlier run
+            (out / name).unlink(missing_ok=True)
+    files: dict = {}
     tmp = out / ".results.nc.tmp"
     ds.to_netcdf(tmp, engine="scipy")
     os.replace(tmp, out / "results.nc")
     files["results.nc"] = out / "results.nc"
-    atomic_write_text(out / "results.csv", dataset_csv(ds))
+    atomic_write_text(out / "results.csv", text)
     files["results.csv"] = out / "results.csv"
-    if plots:
-        for p in plot_sweep(ds, out):
-            files[p.name] = p
+    for name, data in images.items():
+        atomic_write_bytes(out / name, data)
+        files[name] = out / name
+    if plot_error is not None:
+        files["plot_error"] = plot_error
     return files
 
 
@@ -890,6 +982,7 @@ def assemble(out_dir: str | Path):
     curves = bool(parts) and "force_per_wale_N" in parts[0]
     ni = max((p["force_per_wale_N"].shape[2] for p in parts), default=0) if curves else 0
     data = {k: np.full((ns, nc, ny), np.nan) for k in CYCLE_VARS}
+    data.update({k: np.full((ns, nc, ny), -1, dtype=np.int8) for k in CYCLE_FLAGS})
     data["strain_at_first_jamming"] = np.full((ns, nc), np.nan)
     data["final_status"] = np.full((ns, nc), -1, dtype=np.int32)
     data["expected_end"] = np.zeros((ns, nc), dtype=np.int8)
@@ -904,7 +997,7 @@ def assemble(out_dir: str | Path):
         data["imposed_strain"] = np.full((ns, ni), np.nan)
     for p in parts:
         idx = p["samples"]
-        for k in CYCLE_VARS + CELL_VARS:
+        for k in CYCLE_VARS + CYCLE_FLAGS + CELL_VARS:
             if k in p:                      # a chunk written before a flag existed: -1 unknown
                 data[k][idx] = p[k]
         if curves:
@@ -915,6 +1008,8 @@ def assemble(out_dir: str | Path):
     failed = (data["expected_end"] == 0) & (data["final_status"] >= 0)
     for k in CYCLE_VARS:
         data[k][failed] = np.nan
+    for k in CYCLE_FLAGS:
+        data[k][failed] = -1
     data["strain_at_first_jamming"][failed] = np.nan
     # where each cell stands with the model's domain, found by the planner before any solve (older
     # manifests without it: unknown, -1)
@@ -955,6 +1050,15 @@ def assemble(out_dir: str | Path):
         "energy_N_mm": "oint F dC over the cycle per wale, N mm: the hysteresis of a closed cycle, the work of "
                        "an open one (knitsim.io.checks.cycle_work)",
         "energy_N_per_strain": "oint F d(strain) over the cycle",
+        "energy_kind": "what energy_N_mm is (knitsim.io.checks.cycle_work, energy_kind of knitsim cell): "
+                       + ", ".join(f"{k} {v}" for k, v in ENERGY_KINDS.items())
+                       + " (hysteresis: a closed cycle's dissipated energy; work: an open cycle's, elastic energy "
+                       "included; loading_work: a cycle that never unloaded, e.g. cut by the force cap), -1 no value",
+        "closed": "1 if the cycle's path ends at the strain it started from (its energy is a hysteresis), 0 if "
+                  "not, -1 no value",
+        "peak_at_force_cap": "1 for the cycle in which the cell stopped at its force cap: its peak is the cap "
+                             "(rules.force_cap_N), not the knit's, and the rest of the program was not run; 0 "
+                             "otherwise, -1 no value",
         "strain_at_first_jamming": "strain C/C0 - 1 at the first jamming (NaN: never jammed)",
         "final_status": "status code at the end: " + ", ".join(f"{k} {v}" for k, v in STATUS_NAMES.items())
                         + ", -1 not run",
@@ -979,17 +1083,20 @@ def assemble(out_dir: str | Path):
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
                   "promised; no_rest_state: outside the model, not solved), -1 unknown; reasons in the "
                   "attribute domain_reasons",
-        "stopped_at_strain": "a failed cell: the imposed strain of the increment it could not finish (NaN: it "
-                             "did not fail)",
+        "stopped_at_strain": "a failed cell: the imposed strain of the increment it could not finish; a cell "
+                             "stopped at its force cap: the imposed strain of the increment it reached the cap in "
+                             "(NaN: it ran the whole program)",
         "last_converged_strain": "a failed cell: the strain C/C0 - 1 of its last converged state, inside that "
                                  "increment (NaN: it did not fail)",
         "last_converged_force_per_wale_N": "a failed cell: its force per wale there (NaN: it did not fail)",
         "force_per_wale_N": "force per wale at every increment (NaN past the program's end, and where the cell did "
-                            "not solve: after a failure, past a stop at the force cap)",
-        "imposed_strain": "imposed strain of the course length at every increment",
+                            "not solve: after a failure, past a stop at the force cap); increment 0 is the "
+                            "program's first increment, not the rest state (knitsim cell's curve.csv row 0)",
+        "imposed_strain": "imposed strain of the course length at every increment (increment 0: the program's "
+                          "first, not the rest state)",
     }
     vars_ = {}
-    for k in CYCLE_VARS:
+    for k in CYCLE_VARS + CYCLE_FLAGS:
         a = reshape(data[k])
         vars_[k] = (lead + cell_dims + ["cycle"], a[..., 0, :] if squeeze else a)
     for k in CELL_VARS + ("domain",):
@@ -1005,6 +1112,9 @@ def assemble(out_dir: str | Path):
         ds[k].attrs["description"] = docs[k]
         if k in units:
             ds[k].attrs["units"] = units[k]
+    # CF flag attributes: a netCDF reader names the codes without the description
+    ds["energy_kind"].attrs.update(flag_values=np.array(list(ENERGY_KINDS), dtype=np.int8),
+                                   flag_meanings=" ".join(ENERGY_KINDS.values()))
     for k in keys:
         ds[k].attrs["key_path"] = k
     ds.attrs.update({
@@ -1027,8 +1137,8 @@ def dataset_csv(ds) -> str:
     has_domain = "domain" in ds.data_vars
     cell_vars = list(CELL_VARS) + (["domain"] if has_domain else [])
     cols = ["sample"] + keys + (["cell", "cell_label"] if has_cell else []) + ["cycle"] + list(CYCLE_VARS) \
-        + cell_vars
-    parts = {k: ds[k].transpose(*order) for k in CYCLE_VARS}
+        + list(CYCLE_FLAGS) + cell_vars
+    parts = {k: ds[k].transpose(*order) for k in CYCLE_VARS + CYCLE_FLAGS}
     parts.update({k: ds[k].broadcast_like(ds["peak_force_per_wale_N"]).transpose(*order) for k in cell_vars})
     shape = parts["peak_force_per_wale_N"].shape
     flat = {k: np.asarray(v.values).reshape(-1) for k, v in parts.items()}
@@ -1059,11 +1169,14 @@ def dataset_csv(ds) -> str:
             row += [str(c), str(ds["cell_label"].values[c])]
         row.append(str(int(idx[-1, r]) + 1))
         row += [num(flat[k][r]) for k in CYCLE_VARS]
+        kind = int(flat["energy_kind"][r])
+        row.append(ENERGY_KINDS.get(kind, ""))           # empty where the cycle has no value
+        row += ["" if int(flat[k][r]) < 0 else str(int(flat[k][r])) for k in ("closed", "peak_at_force_cap")]
         loop = int(flat["loop_creates_energy"][r])
         rest = int(flat["rest_state_compressive"][r])
         row += [num(flat["strain_at_first_jamming"][r]), names.get(int(flat["final_status"][r]), "?"),
                 str(int(flat["expected_end"][r])), "" if loop < 0 else str(loop), "" if rest < 0 else str(rest)]
-        # where a failed cell stopped (empty for one that did not fail): a blind probe found these three
+        # where a cell stopped (empty for one that ran the whole program): a blind probe found these three
         # header columns never written, every later value one column to the left of its name
         row += [num(flat[k][r]) for k in _STOP_VARS]
         row += ["" if int(flat[k][r]) < 0 else str(int(flat[k][r])) for k in _WARNING_FLAGS]
@@ -1077,7 +1190,7 @@ __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepCh
            "run_sweep", "run_chunk", "failed_samples", "domain_samples", "energy_creating_samples",
            "compressive_rest_samples",
            "reduce_history", "sweep_hash", "sweep_inputs", "manifest", "write_results", "MANIFEST", "CHUNK_DIR",
-           "CYCLE_VARS", "CELL_VARS"]
+           "CYCLE_VARS", "CYCLE_FLAGS", "ENERGY_KINDS", "CELL_VARS"]
 
 
 def _sample_listing(ds, select, reason, extra: tuple = ()) -> list[dict]:

@@ -31,10 +31,16 @@ def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
     monkeypatch.setattr(plots, "_png", lambda fig: figs.append(fig) or b"")
     plots.plot_sweep(ds, tmp_path / "o")
     (fig,) = figs
-    assert "1 stopped at the force cap (grey triangle / --hatched): peak = the cap, the rest not run" \
-        in fig._suptitle.get_text()
+    title = " ".join(fig._suptitle.get_text().split())           # the title is wrapped to the figure
+    assert "1 stopped at the force cap: peak = the cap and energy = loading work" in title
     grey = mcolors.to_rgba("0.45")
     for ax in fig.axes:
         tri = [col for col in ax.collections if col.get_label() == "stopped at the force cap"]
         assert len(tri) == 1 and np.allclose(tri[0].get_offsets()[:, 0], [0.05])
         assert np.allclose(tri[0].get_edgecolor()[0], grey)
+    # the capped peak is drawn apart from the line, at the cap (the scene's 0.05 N)
+    peak_ax = fig.axes[0]
+    (star,) = [col for col in peak_ax.collections if col.get_label() == "peak = the force cap (not the knit's)"]
+    np.testing.assert_allclose(star.get_offsets(), [[0.05, 0.05]], rtol=1e-9)
+    line1 = peak_ax.get_lines()[0]
+    assert line1.get_label() == "cycle 1" and np.isnan(line1.get_ydata()[0]) and np.isfinite(line1.get_ydata()[1])
