@@ -561,6 +561,19 @@ MIN_TRANSITION_ROWS = 2
 SIGMA_RESOLVED_CHI2 = 25.0
 
 
+def _covariance(J: np.ndarray, s2: float) -> np.ndarray:
+    """``s2 (J^T J)^-1`` by the SVD of ``J`` (V diag(1/sv^2) V^T); infinite everywhere where ``J`` is singular
+    or not finite (its parameters undetermined)."""
+    k = J.shape[1]
+    with np.errstate(all="ignore"):
+        if np.all(np.isfinite(J)):
+            _, sv, vt = np.linalg.svd(J, full_matrices=False)
+            tol = np.finfo(float).eps * max(J.shape) * (sv[0] if sv.size else 0.0)
+            if sv.size == k and np.all(sv > tol):
+                return (vt.T / sv ** 2) @ vt * s2
+    return np.full((k, k), np.inf)
+
+
 def _sigma_lower_bound(residual, theta, names, lower, upper, s2, xn, branches):
     """Whether the loop bounds sigma from below only: ``(bound, d_chi2, shown)`` (the bound, the rise of
     chi^2 at the sharp limit, the rows the fitted transition shows on) or None.
@@ -732,30 +745,34 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
     dof = max(n - p, 1)
     s2 = 2.0 * res.cost / dof
     sc = np.array([scale[nm] for nm in names])
-    with np.errstate(all="ignore"):
-        if np.all(np.isfinite(J)):
-            _, sv, vt = np.linalg.svd(J, full_matrices=False)
-            tol = np.finfo(float).eps * max(J.shape) * (sv[0] if sv.size else 0.0)
-        else:
-            sv, vt, tol = np.zeros(p), np.eye(p), np.inf
-        if sv.size == p and np.all(sv > tol):
-            # (J^T J)^-1 = V diag(1/sv^2) V^T; a singular J leaves the parameters undetermined
-            cov_n = (vt.T / sv ** 2) @ vt * s2
-        else:
-            cov_n = np.full((p, p), np.inf)
-        cov = cov_n * np.outer(sc, sc)
     sg, fc, a, b, f0 = unpack(res.x)
     values = {"sigma": sg * scale["sigma"], "Fc": fc * scale["Fc"], "alpha": a, "B": b * scale["B"], "F0": f0 * scale["F0"]}
-    stderr = {nm: float(math.sqrt(cov[i, i])) if math.isfinite(cov[i, i]) and cov[i, i] >= 0 else math.inf
-              for i, nm in enumerate(names)}
-    # believable or say why not: parameters at a bound or with a degenerate stderr (the bounds are in the
-    # fit's scaled units; sigma and Fc have the floor _POSITIVE_FLOOR, written 0)
     floor = [n in ("sigma", "Fc") for n in names]
-    status, warns = parameter_status(names, [float(v) for v in res.x], [stderr[n] for n in names], lower, upper,
-                                     exact_fit=res.cost == 0.0, positive=("sigma", "Fc", "alpha"),
-                                     shown=[values[n] for n in names], atol=[1e-9 if f else 0.0 for f in floor],
-                                     bound_text=["0" if f else None for f in floor])
-    status.update({nm: "fixed" for nm in fixed})
+
+    def errors(cols: list[int]) -> np.ndarray:
+        """The covariance of the parameters ``cols`` (the others held), in the reported units, p x p (inf
+        outside ``cols``); their standard errors go into ``stderr``."""
+        cov = np.full((p, p), np.inf)
+        cov[np.ix_(cols, cols)] = _covariance(J[:, cols], s2) * np.outer(sc[cols], sc[cols])
+        for i in cols:
+            stderr[names[i]] = float(math.sqrt(cov[i, i])) if math.isfinite(cov[i, i]) and cov[i, i] >= 0 else math.inf
+        return cov
+
+    def classify(cols: list[int], positive: tuple[str, ...]) -> tuple[dict, list]:
+        """Believable or say why not: parameters at a bound or with a degenerate stderr (the bounds are in the
+        fit's scaled units; sigma and Fc have the floor _POSITIVE_FLOOR, written 0)."""
+        st, w = parameter_status([names[i] for i in cols], [float(res.x[i]) for i in cols],
+                                 [stderr[names[i]] for i in cols], lower[cols], upper[cols],
+                                 exact_fit=res.cost == 0.0, positive=positive,
+                                 shown=[values[names[i]] for i in cols], atol=[1e-9 if floor[i] else 0.0 for i in cols],
+                                 bound_text=["0" if floor[i] else None for i in cols])
+        st.update({nm: "fixed" for nm in fixed})
+        return st, w
+
+    stderr: dict[str, float] = {}
+    every = list(range(p))
+    cov = errors(every)
+    status, warns = classify(every, ("sigma", "Fc", "alpha"))
     lower_bounds = {}
     # (also where sigma came out not identified: on a loop whose transitions are over within a row the fit
     # ends where chi^2 no longer depends on sigma, its Jacobian column vanishes and every standard error
@@ -765,23 +782,8 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
         if lb is not None and status["sigma"] == "not_identified":
             # the other parameters at sigma's sharp limit: their covariance without sigma's column
             rest = [i for i, nm in enumerate(names) if nm != "sigma"]
-            Jr = J[:, rest]
-            with np.errstate(all="ignore"):
-                _, svr, vtr = np.linalg.svd(Jr, full_matrices=False) if np.all(np.isfinite(Jr)) else (None, np.zeros(0), None)
-                tol_r = np.finfo(float).eps * max(Jr.shape) * (svr[0] if svr.size else 0.0)
-                cov_r = ((vtr.T / svr ** 2) @ vtr * s2 if svr.size == len(rest) and np.all(svr > tol_r)
-                         else np.full((len(rest), len(rest)), np.inf))
-            cov = np.full((p, p), np.inf)
-            cov[np.ix_(rest, rest)] = cov_r * np.outer(sc[rest], sc[rest])
-            for k, i in enumerate(rest):
-                v = cov_r[k, k] * sc[i] ** 2
-                stderr[names[i]] = float(math.sqrt(v)) if math.isfinite(v) and v >= 0 else math.inf
-            status, warns = parameter_status(
-                [names[i] for i in rest], [float(res.x[i]) for i in rest], [stderr[names[i]] for i in rest],
-                lower[rest], upper[rest], exact_fit=False, positive=("Fc", "alpha"),
-                shown=[values[names[i]] for i in rest], atol=[1e-9 if floor[i] else 0.0 for i in rest],
-                bound_text=["0" if floor[i] else None for i in rest])
-            status.update({nm: "fixed" for nm in fixed})
+            cov = errors(rest)
+            status, warns = classify(rest, ("Fc", "alpha"))
         if lb is not None:
             bound, d_chi2, shown = lb
             lower_bounds["sigma"] = bound * scale["sigma"]
