@@ -36,6 +36,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+#: what a cycle's ``oint F d(strain)`` is (:func:`cycle_work`): a closed path's dissipated energy, an open
+#: path's work (elastic energy included), a path that only loads
+ENERGY_KINDS = ("hysteresis", "work", "loading_work")
+
+
 def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
     """The work of one cycle's path, named for what it is.
 
@@ -56,7 +61,8 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
     w = dissipated_energy(s, f) if len(s) > 1 else 0.0
     span = float(np.ptp(s)) if len(s) else 0.0
     closed = bool(unloads and len(s) > 1 and abs(s[-1] - s[0]) <= 1e-9 * max(span, 1e-12))
-    kind = "hysteresis" if closed else ("work" if unloads else "loading_work")
+    hysteresis, work, loading_work = ENERGY_KINDS
+    kind = hysteresis if closed else (work if unloads else loading_work)
     return {"kind": kind, "closed": closed, "value": float(w)}
 
 

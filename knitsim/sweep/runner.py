@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import KnitsimInputError
+from ..io import checks
 from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
@@ -80,8 +81,8 @@ CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "ene
 #: the force cap (the cycle a cell stopped in at its cap).  A blind probe's stops at the 10 N cap were drawn and
 #: tabulated as the knit's peaks and hysteresis: the loading work of a cycle never unloaded, 10x the others
 CYCLE_FLAGS = ("energy_kind", "closed", "peak_at_force_cap")
-#: codes of ``energy_kind``: the names knitsim cell's summary gives (energy_kind of each cycle)
-ENERGY_KINDS = {0: "hysteresis", 1: "work", 2: "loading_work"}
+#: codes of ``energy_kind``: the names knitsim cell's summary gives (knitsim.io.checks.ENERGY_KINDS)
+ENERGY_KINDS = dict(enumerate(checks.ENERGY_KINDS))
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
@@ -901,8 +902,8 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
 def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path | str]:
     """Write ``results.nc``, ``results.csv`` and the plots of an assembled dataset.
 
-    Everything is rendered before any file is written, and the previous run's ``summary.json`` (what says
-    the outputs are complete, written last by :func:`run_sweep`) is removed first: a blind probe's plot
+    Everything is rendered before any file is written (the previous run's ``summary.json``, what says the
+    outputs are complete, was removed by :func:`run_sweep` before any chunk ran): a blind probe's plot
     crashed after results.csv and results.nc were written, leaving them looking complete.  A plot that
     cannot be drawn does not cost the results: they are written, ``plot_sweep.png`` is not (an older one is
     removed), and the error is returned under the key ``"plot_error"`` (a string, not a path).
@@ -914,7 +915,6 @@ def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path | str]:
     """
     from .plots import PLOT_FILES, render_sweep
 
-    (out / "summary.json").unlink(missing_ok=True)
     text = dataset_csv(ds)
     images, plot_error = {}, None
     if plots:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import pytest
 
@@ -85,12 +86,18 @@ def test_interrupt_keeps_finished_chunks_and_tells_how_to_resume(tmp_path, capsy
         return real(task)
 
     monkeypatch.setattr(runner, "run_chunk", interrupted)
-    rc = main(["sweep", str(scene), "--out", str(out), "--workers", "0"])
+    # run with --overwrite, as typed (sys.argv): a blind probe was told to finish with "--overwrite --resume",
+    # which is refused; the command it is given must run as printed
+    argv = ["sweep", str(scene), "--out", str(out), "--workers", "0", "--overwrite"]
+    monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
+    rc = main(argv)
     err = capsys.readouterr().err
     assert rc == 130 and "--resume" in err and "1/2" in err
     assert [p.name for p in (out / "chunks").iterdir()] == ["chunk_00000.npz"]
+    cmd = err.split("finish with: ", 1)[1].strip()
+    assert "--overwrite" not in cmd and cmd.endswith("--resume")
     monkeypatch.setattr(runner, "run_chunk", real)
-    rc = main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--resume", "--json"])
+    rc = main(cmd.split()[1:] + ["--json"])
     doc = json.loads(capsys.readouterr().out)
     assert rc == 0 and doc["computed_chunks"] == 1 and doc["skipped_chunks"] == 1
 

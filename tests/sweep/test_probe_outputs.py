@@ -7,14 +7,14 @@
 * every cell's flags in the title of a scene of several ``[[cells]]``: the statuses of the same cells run
   directly (``knitsim.cell.engine.simulate``);
 * a text axis drawn in the sweep's own order; error text that quotes the sweep's values as given;
-* Ctrl-C: Dask worker processes ignore it (the driver handles it), and the resume command is one that runs.
+* Ctrl-C: Dask worker processes ignore it (the driver handles it); the resume command printed after an
+  interrupt is run as printed in tests/cli/test_cli_sweep.py.
 """
 from __future__ import annotations
 
 import csv
 import json
 import signal
-import sys
 
 import numpy as np
 import pytest
@@ -195,31 +195,6 @@ def test_a_text_value_for_a_number_is_quoted_once():
     with pytest.raises(KnitsimInputError) as exc:
         plan_sweep(SCENE, {"parameters": {"friction.m": {"values": ["a", 0.2]}}})
     assert str(exc.value) == 'sweep.parameters."friction.m": friction.m = "a": expected a number'
-
-
-def test_the_resume_command_after_an_interrupt_has_no_overwrite(tmp_path, capsys, monkeypatch):
-    # a blind probe interrupted a sweep run with --overwrite and was told to finish it with
-    # "... --overwrite --resume", which is refused
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-    scene = tmp_path / "base.toml"
-    scene.write_text(BASE + '[sweep]\nchunk_size = 1\n[sweep.parameters]\n"friction.m" = { values = [0.1, 0.2] }\n')
-    out = tmp_path / "o"
-    real = runner.run_chunk
-
-    def interrupted(task):
-        if task["chunk"] == 1:
-            raise KeyboardInterrupt
-        return real(task)
-
-    monkeypatch.setattr(runner, "run_chunk", interrupted)
-    argv = ["sweep", str(scene), "--out", str(out), "--workers", "0", "--overwrite"]
-    monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
-    assert main(argv) == 130
-    err = capsys.readouterr().err
-    cmd = err.split("finish with: ", 1)[1].strip()
-    assert "--overwrite" not in cmd and cmd.endswith("--resume")
-    monkeypatch.setattr(runner, "run_chunk", real)
-    assert main(cmd.split()[1:]) == 0                      # the command it gives runs
 
 
 def test_dask_workers_ignore_ctrl_c():
