@@ -128,6 +128,7 @@ from ..cell.history import STATUS_OK
 from ..cell.quantities import CODE
 from ..cell.stages import MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
+from ..kernels.branch_points import SIZE as DEVICE_BRANCH_SIZE
 from .model import Grouping
 
 #: bounds of the tangent dF/dC of a cell [N/mm]
@@ -479,6 +480,9 @@ class BranchPoints:
         Points kept per group (the farthest from the column's force is dropped when full).
     """
 
+    #: whether the points live on a Warp device (:class:`~knitsim.patch.device_coupling.DeviceBranchPoints`)
+    on_device = False
+
     def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = 8):
         n = len(C_ref)
         self.C_ref, self.k_fallback = C_ref, k_fallback
@@ -763,10 +767,18 @@ class PatchSolver:
         Points of each cell's branch kept per increment (:class:`BranchPoints`).
     sub_increments : int
         Committed sub-increments of a column that has not converged in one (1: none).
+    device_branch_points : bool
+        The branch points, their model and the column solve on the cells' Warp device
+        (:mod:`knitsim.patch.device_coupling`; the warp engine with 8 branch points), else in NumPy
+        (:class:`BranchPoints`, their twin; the same results bit for bit on the CPU).
     jump_columns, cut_columns : ndarray of bool, shape [n_classes]
         Of the last increment: columns left unconverged by a jump of a cell's force, and columns
         that needed sub-increments.
     """
+
+    #: the branch points, their model and the column solve on the cells' Warp device (DeviceBranchPoints,
+    #: DeviceColumnSolve: the warp engine with 8 points), else in NumPy (BranchPoints, their twin)
+    device_branch_points = True
 
     def __init__(self, grouping: Grouping, engine: str = "warp", device: str = "cpu",
                  force_tol: float = 1e-10, force_rtol: float = 1e-8, max_iterations: int = 40,
@@ -792,6 +804,8 @@ class PatchSolver:
         self.direction = 1
         #: points of each cell's branch kept per increment (BranchPoints)
         self.branch_points = 8
+        # the branch points and the column solve on the device (DeviceBranchPoints, DeviceColumnSolve), made once
+        self._device_points = self._device_columns = None
         self.jump_columns = np.zeros(self.n_cls, bool)
         self.cut_columns = np.zeros(self.n_cls, bool)
         #: sub-increments of a column that has not converged in one (1: none)
@@ -920,7 +934,17 @@ class PatchSolver:
         # reversal enters; the fallback tangents are the last increment's
         k_c = be.tangent(False, direction)
         k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
-        pts = BranchPoints(C0, self.k, self.branch_points)
+        if self.device_branch_points and self.branch_points == DEVICE_BRANCH_SIZE and isinstance(be, WarpBackend):
+            if self._device_columns is None:
+                # made once (10^6 groups: ~0.5 GB of points on the device), reset each increment
+                from .device_coupling import DeviceBranchPoints, DeviceColumnSolve
+                self._device_points = DeviceBranchPoints(C0, self.k, self.branch_points, be.device)
+                self._device_columns = DeviceColumnSolve(col, cnt, C0, p, self.n_cls, be.device)
+            else:
+                self._device_points.reset(self.k)
+            pts = self._device_points
+        else:
+            pts = BranchPoints(C0, self.k, self.branch_points)
         # the curvature of each cell's branch from its last two committed points (their tangents), where
         # both are on one branch: the same stage, the same direction, a force that moved
         kinv_c = np.where(np.isfinite(k_c), 1.0 / np.clip(k_c, K_MIN, K_MAX), np.nan)
@@ -1073,6 +1097,8 @@ class PatchSolver:
         on it, bisection (or doubling while no upper bound is known) where the Newton step leaves the
         bracket or the slope vanishes.  Each column's iteration is its own: the columns that are not
         live are left out of the sums (their groups are not prepared), not iterated."""
+        if pts.on_device:
+            return self._device_columns.solve(pts, u, F_guess, live, self.cells["C"])
         rows = pts.rows
         col, cnt, C0, p = self.col[rows], self.cnt[rows], self.C0[rows], self.p[rows]
         colsum = lambda v: np.bincount(col, weights=v, minlength=self.n_cls)   # noqa: E731

@@ -1,0 +1,238 @@
+"""The patch coupling's per-group work on the Warp device of the cells (:mod:`knitsim.kernels.branch_points`).
+
+:class:`DeviceBranchPoints` is :class:`~knitsim.patch.coupling.BranchPoints` with its points and model kept on
+the device: ``add``, ``prepare``, ``model`` and ``jump`` run one thread per group instead of NumPy over
+[groups, points] arrays (on a 10^6-group patch those took ~1 s of host time per trial, several times the
+cells' own trial on a GPU).  The NumPy class is its twin and test oracle
+(``tests/patch/test_device_coupling.py``); ``record`` (stall counts) and the bounds the solver sets stay on the
+host and are sent with ``prepare``.
+"""
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..kernels import branch_points as kbp
+from .coupling import BranchPoints
+
+
+class DeviceBranchPoints(BranchPoints):
+    """:class:`~knitsim.patch.coupling.BranchPoints` on a Warp device (the same parameters and methods).
+
+    Parameters
+    ----------
+    C_ref, k_fallback : ndarray, shape [n]
+        As :class:`~knitsim.patch.coupling.BranchPoints`.
+    size : int
+        Points kept per group: :data:`knitsim.kernels.branch_points.SIZE` (the only size compiled).
+    device : str
+        Warp device.
+    """
+
+    on_device = True
+    _NOT_SENT = object()
+
+    def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = kbp.SIZE, device: str = "cpu"):
+        if size != kbp.SIZE:
+            raise ValueError(f"DeviceBranchPoints keeps {kbp.SIZE} points per group, not {size}")
+        n = len(C_ref)
+        self.C_ref = C_ref
+        self.device = device
+        self.n = n
+        self._rows = np.arange(n)
+        S = kbp.SIZE
+
+        def arr(shape, dtype=wp.float64, fill=None):
+            a = wp.empty(shape, dtype=dtype, device=device)
+            if fill is not None:
+                a.fill_(fill)
+            return a
+
+        b = kbp.BranchArrays()
+        b.C, b.F, b.K = (arr((n, S)) for _ in range(3))         # (set by reset)
+        b.valid = arr((n, S), wp.int32)
+        b.Fs, b.Cs, b.Ks = (arr((n, S), fill=np.nan) for _ in range(3))
+        b.m = arr(n, wp.int32, 0)
+        b.da, b.db, b.da_raw, b.db_raw = (arr((n, S - 1), fill=0.0) for _ in range(4))
+        b.convex, b.concave = (arr((n, S - 1), wp.int32, 0) for _ in range(2))
+        b.s_lo, b.s_hi, b.c_lo, b.c_hi = (arr(n, fill=0.0) for _ in range(4))
+        b.C_min, b.C_max, b.curvature = (arr(n) for _ in range(3))
+        b.stall, b.side = arr(n, wp.int32), arr(n, wp.int32)
+        b.k_fallback = arr(n)
+        b.C_ref = wp.array(np.asarray(C_ref, dtype=np.float64), dtype=wp.float64, device=device)
+        self.b = b
+        self._all_rows = wp.array(self._rows.astype(np.int32), dtype=wp.int32, device=device)
+        self.reset(k_fallback)
+
+    def reset(self, k_fallback: np.ndarray) -> None:
+        """Forget every point (a new increment), with the fallback tangents ``k_fallback`` [N/mm]: the state of
+        a new instance, without allocating its arrays again."""
+        n, b = self.n, self.b
+        self.k_fallback = k_fallback
+        self.C_min = np.full(n, -np.inf)
+        self.C_max = np.full(n, np.inf)
+        self.rows = self._rows
+        self._rows_dev = self._all_rows
+        self.stall = np.zeros(n, np.int64)
+        self.side = np.zeros(n, np.int64)
+        self.column_gap = None
+        self.curvature = None
+        self._curvature_sent = self._NOT_SENT
+        for a in (b.C, b.F, b.K):
+            a.fill_(np.nan)
+        b.valid.zero_()
+        b.k_fallback.assign(np.ascontiguousarray(k_fallback, dtype=np.float64))
+
+    # --------------------------------------------------------------- helpers
+    def _send(self, a: np.ndarray, dtype=wp.float64) -> wp.array:
+        np_type = np.float64 if dtype is wp.float64 else np.int32
+        return wp.array(np.ascontiguousarray(a, dtype=np_type), dtype=dtype, device=self.device)
+
+    def _row_list(self, rows: np.ndarray) -> wp.array:
+        return self._all_rows if rows is self._rows else self._send(rows, wp.int32)
+
+    # --------------------------------------------------------------- the twin's methods
+    def add(self, mask: np.ndarray, C: np.ndarray, F: np.ndarray, K: np.ndarray, f_target: np.ndarray) -> None:
+        rows = np.flatnonzero(mask)
+        if rows.size == 0:
+            return
+        if rows.size == self.n:
+            rows_dev, pick = self._all_rows, (lambda a: a)
+        else:
+            rows_dev, pick = self._send(rows, wp.int32), (lambda a: np.asarray(a)[rows])
+        wp.launch(kbp.add_points_kernel, dim=rows.size, device=self.device,
+                  inputs=[self.b, rows_dev, self._send(pick(C)), self._send(pick(F)), self._send(pick(K)),
+                          self._send(pick(f_target))])
+
+    def prepare(self, rows: np.ndarray | None = None) -> None:
+        self.rows = self._rows if rows is None or len(rows) == self.n else np.asarray(rows)
+        self._rows_dev = self._row_list(self.rows)
+        b = self.b
+        # the bounds and stall state the solver keeps on the host (set between trials) go with the model
+        b.C_min.assign(np.ascontiguousarray(self.C_min, dtype=np.float64))
+        b.C_max.assign(np.ascontiguousarray(self.C_max, dtype=np.float64))
+        b.stall.assign(self.stall.astype(np.int32))
+        b.side.assign(self.side.astype(np.int32))
+        if self._curvature_sent is not self.curvature:
+            curv = np.full(self.n, np.nan) if self.curvature is None else self.curvature
+            b.curvature.assign(np.ascontiguousarray(curv, dtype=np.float64))
+            self._curvature_sent = self.curvature
+        if self.rows.size:
+            wp.launch(kbp.prepare_model_kernel, dim=self.rows.size, inputs=[b, self._rows_dev], device=self.device)
+
+    def model(self, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = self.rows.size
+        C = wp.empty(n, dtype=wp.float64, device=self.device)
+        dC = wp.empty(n, dtype=wp.float64, device=self.device)
+        if n:
+            wp.launch(kbp.model_kernel, dim=n, inputs=[self.b, self._rows_dev, self._send(f)], outputs=[C, dC],
+                      device=self.device)
+        return C.numpy(), dC.numpy()
+
+    def jump(self, f: np.ndarray, f_tol: np.ndarray) -> np.ndarray:
+        n = self.rows.size
+        out = wp.zeros(n, dtype=wp.int32, device=self.device)
+        if n:
+            wp.launch(kbp.jump_kernel, dim=n, inputs=[self.b, self._rows_dev, self._send(f), self._send(f_tol)],
+                      outputs=[out], device=self.device)
+        return out.numpy().astype(bool)
+
+    def points(self) -> dict:
+        """Host copies of the kept points (C, F, K, valid), as the twin's attributes of those names."""
+        b = self.b
+        return {"C": b.C.numpy(), "F": b.F.numpy(), "K": b.K.numpy(), "valid": b.valid.numpy().astype(bool)}
+
+
+class DeviceColumnSolve:
+    """``PatchSolver._solve_columns`` on the device of a :class:`DeviceBranchPoints` (its twin and oracle).
+
+    The groups' models are evaluated one thread per group at their column's force, each column's sums one
+    thread per column over its groups in ascending order (those of ``numpy.bincount``: the same sums), and
+    the safeguarded Newton steps one thread per column (:mod:`knitsim.kernels.branch_points`, "the column's
+    scalar solve"); the host reads one count per iteration (are columns still open).
+
+    Parameters
+    ----------
+    col : ndarray of int, shape [n_groups]
+        Each group's column.
+    cnt, C0, p : ndarray, shape [n_groups]
+        Courses in series, rest length [mm] and wales in parallel of each group.
+    n_columns : int
+    device : str
+    """
+
+    MAX_ITERATIONS = 200            # the twin's
+
+    def __init__(self, col: np.ndarray, cnt: np.ndarray, C0: np.ndarray, p: np.ndarray, n_columns: int,
+                 device: str):
+        self.device, self.n_cls = device, int(n_columns)
+        n = len(col)
+        f64 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.float64, device=device)  # noqa: E731
+        i32 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=device)  # noqa: E731
+        self.col, self.cnt, self.C0, self.p = i32(col), f64(cnt), f64(C0), f64(p)
+        counts = np.bincount(col, minlength=self.n_cls)
+        self.col_start = i32(np.r_[0, np.cumsum(counts)])
+        self.col_groups = i32(np.argsort(col, kind="stable"))
+        scale = np.bincount(col, weights=np.asarray(cnt) * np.asarray(C0), minlength=self.n_cls)
+        self.tol_len_host = 16.0 * np.finfo(float).eps * scale
+        self.tol_len = f64(self.tol_len_host)
+        g = lambda: wp.zeros(n, dtype=wp.float64, device=device)  # noqa: E731
+        self.C, self.dC, self.C_zero, self.C_a, self.C_b = g(), g(), g(), g(), g()
+        k = lambda dtype=wp.float64: wp.zeros(self.n_cls, dtype=dtype, device=device)  # noqa: E731
+        self.r, self.dr, self.r_a, self.r_b, self.F, self.F_x, self.lo, self.hi, self.u = (k() for _ in range(9))
+        self.live, self.done, self.slack, self.gap = (k(wp.int32) for _ in range(4))
+        self.still_open = wp.zeros(1, dtype=wp.int32, device=device)
+
+    def _phi(self, pts: DeviceBranchPoints, F: wp.array, C: wp.array, r: wp.array, dr: wp.array) -> None:
+        """C (and self.dC) of the prepared groups at their columns' forces F, and each live column's Phi, dPhi/dF."""
+        n = pts.rows.size
+        if n:
+            wp.launch(kbp.model_at_column_force_kernel, dim=n, device=self.device,
+                      inputs=[pts.b, pts._rows_dev, self.col, self.p, F], outputs=[C, self.dC])
+        wp.launch(kbp.column_sums_kernel, dim=self.n_cls, device=self.device,
+                  inputs=[self.col_start, self.col_groups, self.live, self.cnt, self.C0, self.p, C, self.dC, self.u],
+                  outputs=[r, dr])
+
+    def solve(self, pts: DeviceBranchPoints, u, F_guess: np.ndarray, live: np.ndarray,
+              C_committed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The columns' forces [n_columns] and the groups' lengths [n_groups]: ``PatchSolver._solve_columns``."""
+        live = np.asarray(live, bool)
+        self.live.assign(live.astype(np.int32))
+        self.u.assign(np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64), (self.n_cls,))))
+        self.F.zero_()
+        self._phi(pts, self.F, self.C_zero, self.r, self.dr)
+        phi0 = self.r.numpy()
+        slack = live & (phi0 >= 0.0)
+        F = np.where(slack, 0.0, np.maximum(F_guess, 0.0))
+        self.F.assign(np.where(live, F, F_guess))
+        self.done.assign((slack | ~live).astype(np.int32))
+        self.lo.zero_()
+        self.hi.fill_(np.inf)
+        for _ in range(self.MAX_ITERATIONS):
+            self._phi(pts, self.F, self.C, self.r, self.dr)
+            self.still_open.zero_()
+            wp.launch(kbp.column_newton_kernel, dim=self.n_cls, device=self.device,
+                      inputs=[self.r, self.dr, self.tol_len, self.F, self.lo, self.hi, self.done, self.still_open])
+            if int(self.still_open.numpy()[0]) == 0:
+                break
+        self._phi(pts, self.F, self.C, self.r, self.dr)
+        F, r, lo, hi = self.F.numpy(), self.r.numpy(), self.lo.numpy(), self.hi.numpy()
+        rows = pts.rows
+        # a model with a step may have no exact root: where the bracket has closed on it, the lengths between
+        # the bracket's ends that add up to u
+        gap = live & ~slack & (np.abs(r) > self.tol_len_host) & np.isfinite(hi)
+        if np.any(gap) and rows.size:
+            self.F_x.assign(np.where(gap, lo, F))
+            self._phi(pts, self.F_x, self.C_a, self.r_a, self.dr)
+            self.F_x.assign(np.where(gap, hi, F))
+            self._phi(pts, self.F_x, self.C_b, self.r_b, self.dr)
+            self.gap.assign(gap.astype(np.int32))
+            wp.launch(kbp.column_bridge_kernel, dim=rows.size, device=self.device,
+                      inputs=[pts._rows_dev, self.col, self.gap, self.r_a, self.r_b, self.C_a, self.C_b, self.C])
+        if np.any(slack) and rows.size:
+            self.slack.assign(slack.astype(np.int32))
+            wp.launch(kbp.column_slack_lengths_kernel, dim=rows.size, device=self.device,
+                      inputs=[pts.b, pts._rows_dev, self.col, self.slack, self.C_zero, self.C0, self.C])
+        C_all = np.array(C_committed, dtype=np.float64, copy=True)
+        C_all[rows] = self.C.numpy()[rows]
+        return F, C_all
