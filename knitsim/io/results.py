@@ -21,6 +21,11 @@ event_not_located).  ``strain`` is the imposed strain of the course length
 ((C - C0)/C0 of the program); ``C`` is the cell's own course length [mm], which
 differs from ``C0 (1 + strain)`` only while the cell is slack (it stays where
 the force reached 0) or stopped.  Angles in rad, lengths in mm, forces in N.
+A cell that stops (force cap, a failure) has one row with its status at the
+state where it stopped (the located cap state, or the last converged state
+inside the increment it could not finish: its ``C`` says where); the later rows
+keep their strain and status, with no values (``nan``): the cell never reached
+them.
 """
 from __future__ import annotations
 
@@ -113,9 +118,12 @@ def curve_csv(history: BatchHistory) -> str:
             lines.append(",".join([str(c), str(int(h.cycle[0])), "load",
                                    stage_label(int(r["stage"][c]), bool(r["jammed"][c])), _num(0.0),
                                    _num(r["F"][c])] + [_num(r[q][c]) for q in _QUANTITIES] + ["ok"]))
+        # the rows after the one where the cell stopped hold that state at strains it never reached: no values
+        solved = _stopped_rows(h.status[:, c])
         for i in range(len(h.strain)):
-            row = [str(c), str(int(h.cycle[i])), direction[i], _LABELS[int(labels[i, c])], _num(h.strain[i]),
-                   _num(F[i, c])] + [_num(col[i]) for col in cols] + [STATUS_NAMES[int(h.status[i, c])]]
+            values = [F[i, c]] + [col[i] for col in cols] if i < solved else [math.nan] * (1 + len(cols))
+            row = [str(c), str(int(h.cycle[i])), direction[i], _LABELS[int(labels[i, c])], _num(h.strain[i])] \
+                + [_num(v) for v in values] + [STATUS_NAMES[int(h.status[i, c])]]
             lines.append(",".join(row))
     return "\n".join(lines) + "\n"
 
@@ -155,14 +163,15 @@ def events_csv(history: BatchHistory) -> str:
 def _stopped_rows(status: np.ndarray) -> int:
     """Number of meaningful rows of a cell.
 
-    A cell stopped by the force cap holds the located cap state in its first
-    flagged row (kept); a failed cell repeats its last converged state from its
-    first flagged row on (dropped).
+    The first flagged row is the state where the cell stopped, kept: the located
+    cap state of a cell stopped by the force cap, the last converged state inside
+    the increment it could not finish of a failed cell.  The rows after it repeat
+    that state at strains the cell never reached (dropped).
     """
     bad = np.nonzero(status != STATUS_OK)[0]
     if not len(bad):
         return len(status)
-    return int(bad[0]) + (1 if status[bad[0]] == STATUS_FORCE_CAP else 0)
+    return int(bad[0]) + 1
 
 
 def rules_of(params) -> dict:
@@ -229,7 +238,8 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         entry: dict[str, Any] = {"cycle": int(k)}
         j = rows[np.argmax(F[rows])]
         entry["peak_force_per_wale_N"] = float(F[j])
-        entry["strain_at_peak"] = float(h.strain[j])
+        # (the imposed strain; where the cell stopped inside an increment, its own strain there)
+        entry["strain_at_peak"] = float(h.strain[j] if status[j] == STATUS_OK else eps_cell[j])
         # residual strain: where F reaches 0 on this cycle's unloading branch
         unload = rows[h.direction[rows] < 0]
         res, how = None, None
@@ -353,21 +363,45 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
     codes = h.label_codes()
     F = h.force_per_wale
     handles = []
+    stops = {"failed": [], "force_cap": [], "failed_at": [], "cut": []}
     for c in range(h.n_cells):
         n = _stopped_rows(h.status[:, c])
         eps = h.values["C"][:n, c] / h.params[c].C0 - 1.0
-        (line,) = ax.plot(eps, F[:n, c], lw=0.8, alpha=0.7)
+        f = F[:n, c]
+        lab = codes[:n, c]
+        if h.rest is not None:                     # the rest state (strain 0, its own force), the curve's start
+            eps = np.concatenate([[0.0], eps])
+            f = np.concatenate([[h.rest["F"][c]], f])
+            lab = np.concatenate([[LABEL_CODES[stage_label(int(h.rest["stage"][c]), bool(h.rest["jammed"][c]))]],
+                                  lab])
+        (line,) = ax.plot(eps, f, lw=0.8, alpha=0.7)
         if c < 8:
             line.set_label(labels[c])
             handles.append(line)
         for name, code in LABEL_CODES.items():
-            mask = codes[:n, c] == code
+            mask = lab == code
             if mask.any():
-                ax.scatter(eps[mask], F[:n, c][mask], s=6, color=_STAGE_COLOURS[name], zorder=3)
+                ax.scatter(eps[mask], f[mask], s=6, color=_STAGE_COLOURS[name], zorder=3)
+        final = int(h.status[-1, c])
+        if final != STATUS_OK and n:
+            kind = "force_cap" if final == STATUS_FORCE_CAP else "failed"
+            stops[kind].append(labels[c])
+            if kind == "failed":
+                stops["failed_at"].append(float(eps[-1]))
+            elif n < len(h.strain):
+                stops["cut"].append(labels[c])
+            ax.scatter([eps[-1]], [f[-1]], s=70, marker="X" if kind == "failed" else "v", zorder=4,
+                       color="#d62728" if kind == "failed" else "#ff7f0e", edgecolors="black", linewidths=0.5)
     if h.n_cells > 8:
         handles.append(Line2D([], [], color="none", label=f"... {h.n_cells - 8} more cells"))
     for name, col in _STAGE_COLOURS.items():
         handles.append(Line2D([], [], ls="", marker="o", color=col, label=name))
+    if stops["failed"]:
+        handles.append(Line2D([], [], ls="", marker="X", color="#d62728", markeredgecolor="black",
+                              label="FAILED here (no convergence): later rows not solved"))
+    if stops["force_cap"]:
+        handles.append(Line2D([], [], ls="", marker="v", color="#ff7f0e", markeredgecolor="black",
+                              label="stopped at the force cap"))
     rules = sorted({(p.friction, p.unloading_rule, p.reload_rule, p.jamming_criterion, p.force_cap_N)
                     for p in h.params})
     for fr, un, re_, jam, cap in rules[:3]:
@@ -376,7 +410,22 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
     ax.legend(handles=handles, fontsize=7, loc="upper left")
     ax.set_xlabel("strain of the course length, C/C0 - 1")
     ax.set_ylabel("force per wale [N]")
-    ax.set_title(title or "knitsim cell", fontsize=10)
+    title = title or "knitsim cell"
+    if stops["failed"]:
+        # where the user looks first: the run did not finish
+        failed = stops["failed"]
+        if len(failed) == 1:
+            what = f"{failed[0]} stopped without converging at strain {stops['failed_at'][0]:.4g} (X)"
+        else:
+            what = f"{len(failed)} of {h.n_cells} cells stopped without converging (X)"
+        title += f"\nFAILED: {what}; why: summary.json"
+        ax.set_title(title, fontsize=10, color="#d62728")
+    elif stops["cut"]:
+        what = stops["cut"][0] if len(stops["cut"]) == 1 else f"{len(stops['cut'])} cells"
+        ax.set_title(title + f"\n{what} stopped at the force cap (v) before the program's end: the rest not run",
+                     fontsize=10, color="#b35900")
+    else:
+        ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
     buf = io.BytesIO()
     fig.savefig(buf, format="png")

@@ -162,3 +162,55 @@ def test_output_dir_that_is_a_file_is_refused(tmp_path):
     f.write_text("")
     with pytest.raises(results.KnitsimInputError, match=r"^--out = .*: exists and is not a directory$"):
         results.check_output_dir(f)
+
+
+def _failed_inside_an_increment() -> BatchHistory:
+    """One cell loaded 0.1 .. 0.5; the increment to 0.4 fails after converging up to strain 0.37 (F = 4 N,
+    the state its flagged row holds), the next row repeats it."""
+    strain = np.array([0.1, 0.2, 0.3, 0.4, 0.5])
+    n = len(strain)
+    C = (C0 * (1 + strain))[:, None].copy()
+    C[3:, 0] = C0 * 1.37
+    F = np.array([[1.0], [2.0], [3.0], [4.0], [4.0]])
+    stage = np.full((n, 1), int(Stage.S_LOAD))
+    status = np.zeros((n, 1), np.int32)
+    status[3:, 0] = 1
+    values = {q: np.full((n, 1), 0.5) for q in HISTORY_QUANTITIES}
+    values["F"], values["C"] = F, C
+    events = [{"cell": 0, "increment": 3, "kind": "flag", "reason": "no convergence, y", "status": "no_convergence"}]
+    return BatchHistory(strain, np.ones(n, np.int32), np.ones(n, np.int32), stage, np.zeros((n, 1), np.int32),
+                        status, values, events, [P.replace(force_cap_N=100.0)])
+
+
+def test_a_failed_cell_reports_one_final_state_and_no_values_it_never_reached(monkeypatch):
+    # found by a blind probe: the summary's final force (the last finished increment) disagreed with the
+    # force of the state the cell stopped in, the peak left that state out, and curve.csv carried the held
+    # state at strains the cell never reached
+    h = _failed_inside_an_increment()
+    c = summarise(h, ["x"])["cells"][0]
+    assert c["final_force_per_wale_N"] == c["last_converged_force_per_wale_N"] == 4.0
+    assert c["cycles"][0]["peak_force_per_wale_N"] == 4.0
+    assert c["cycles"][0]["strain_at_peak"] == pytest.approx(0.37, abs=1e-15)   # the cell's own strain there
+    assert c["stopped_at_strain"] == 0.4 and c["last_converged_strain"] == pytest.approx(0.37, abs=1e-15)
+    rows = read(curve_csv(h))
+    assert float(rows[3]["force_per_wale_N"]) == 4.0 and float(rows[3]["C"]) == C0 * 1.37
+    assert rows[4]["status"] == "no_convergence" and float(rows[4]["strain"]) == 0.5
+    assert all(rows[4][k] == "nan" for k in CURVE_COLUMNS if k not in ("cell", "cycle", "direction", "stage",
+                                                                          "strain", "status"))
+    # the capped cell of history(): its cap row kept, the later rows empty
+    rows = read(curve_csv(history()))
+    assert float(rows[7]["force_per_wale_N"]) == 3.0 and rows[8]["force_per_wale_N"] == "nan"
+    # the plot says so in its title, and marks where
+    titles, markers = [], []
+    from matplotlib.axes import Axes
+    real_title, real_scatter = Axes.set_title, Axes.scatter
+    monkeypatch.setattr(Axes, "set_title", lambda self, t, **k: (titles.append((t, k.get("color"))),
+                                                                  real_title(self, t, **k))[1])
+    monkeypatch.setattr(Axes, "scatter", lambda self, *a, **k: (markers.append(k.get("marker")),
+                                                                 real_scatter(self, *a, **k))[1])
+    results.plot_png(h, ["x"], title="t")
+    assert "FAILED" in titles[-1][0] and "0.37" in titles[-1][0] and titles[-1][1] is not None
+    assert "X" in markers
+    titles.clear()
+    results.plot_png(history(), ["a", "b", "c", "d"], title="t")
+    assert "FAILED: d stopped" in titles[-1][0]
