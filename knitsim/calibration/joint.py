@@ -96,6 +96,25 @@ FAIL_RESIDUAL = 30.0
 #: the one-yarn check (:func:`one_yarn_check`) flags a p-value below this: the chance that one yarn's
 #: specimens, fitted as well as the model fits them, are flagged by noise alone
 ONE_YARN_P = 1e-3
+#: chi2 / (n - k) above which the fit is flagged as not within the curves' noise: the residuals' rms is then
+#: over twice the noise the rows are weighted by (stated noise_N, else estimated), beyond what a wrong noise
+#: estimate of a few tens of per cent or a few outlying rows give
+POOR_FIT_S2 = 4.0
+#: ... and the residuals run in long waves (a curve the model does not make), not row to row (noise larger than
+#: stated, which the covariance's factor s2 already answers): a specimen's lag-1 autocorrelation of its weighted
+#: residuals above this (white noise: 0 +- 1/sqrt(rows); a systematic misfit: near 1)
+POOR_FIT_AUTOCORRELATION = 0.5
+
+
+def residual_autocorrelation(r: np.ndarray | None) -> float:
+    """Lag-1 autocorrelation sum(r_i r_i+1) / sum(r_i^2) of residuals in row order (NaN: fewer than 3)."""
+    if r is None:
+        return math.nan
+    r = np.asarray(r, dtype=float)
+    r = r[np.isfinite(r)]
+    if len(r) < 3 or not np.any(r):
+        return math.nan
+    return float(np.dot(r[:-1], r[1:]) / np.dot(r, r))
 
 
 @dataclass(frozen=True)
@@ -396,6 +415,11 @@ class OneYarnCheck:
                  "unit": self.largest_pull[3]}}
 
 
+def _unit_text(unit: str) -> str:
+    """`` unit`` after a value, nothing for a dimensionless one (``-``, which read as a dash there)."""
+    return "" if unit in ("", "-") else f" {unit}"
+
+
 @dataclass(frozen=True)
 class JointResult:
     """A joint calibration.
@@ -474,17 +498,34 @@ class JointResult:
                        + (self.optimizer_message or self.message).rstrip("."))
         for e in self.estimates:
             if e.at_bound in ("low", "high"):
-                out.append(f"{e.label} = {e.value:.4g} {e.unit} is at its {e.at_bound} bound ({e.bound_note})")
+                out.append(f"{e.label} = {e.value:.4g}{_unit_text(e.unit)} is at its {e.at_bound} bound ({e.bound_note})")
         for e in self.estimates:
             if e.not_identified or (e.at_bound == "not identified"):
-                out.append(f"{e.label} = {e.value:.4g} +- {e.std_error:.4g} {e.unit} is not identified: "
+                out.append(f"{e.label} = {e.value:.4g} +- {e.std_error:.4g}{_unit_text(e.unit)} is not identified: "
                            + (e.not_identified or e.bound_note or "its standard error is not finite"))
         for f in self.fits:
             if f.status != "ok":
                 out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
                            "the fitted curve is not the model's")
+        waves = [(f.name, residual_autocorrelation(f.residuals)) for f in self.fits]
+        waves = [(name, a) for name, a in waves if a > POOR_FIT_AUTOCORRELATION]
+        if self.n > self.k and self.s2 > POOR_FIT_S2 and waves:
+            each = ", ".join(f"{f.name} {f.chi2 / max(len(f.strain), 1):.3g}" for f in self.fits)
+            runs = ", ".join(f"{name} {a:.2f}" for name, a in waves)
+            out.append(f"the model does not make the curves within their noise: chi2 / (n - k) = {self.s2:.3g} "
+                       f"(> {POOR_FIT_S2:g}; the residuals' rms {math.sqrt(self.s2):.2g} x the noise the rows are "
+                       f"weighted by; chi2 per row: {each}) and the residuals run in waves, not row to row (lag-1 "
+                       f"autocorrelation {runs}; > {POOR_FIT_AUTOCORRELATION:g}): the curves hold what the model "
+                       "lacks (`knitsim diagnose` names it); the residual panel of each fit plot shows where")
         if self.one_yarn is not None and self.one_yarn.flagged:
-            out.append(self.one_yarn.flag())
+            shared_at_bound = [e.label for e in self.estimates
+                               if e.specimen is None and e.at_bound in ("low", "high")]
+            line = self.one_yarn.flag()
+            if shared_at_bound:
+                # each specimen's own yarn then moves the parameter the bound holds: the test measures the bound
+                line += (f" -- not a verdict while {', '.join(shared_at_bound)} sits at its bound: the specimens' "
+                         "own yarns differ there because the bound holds the joint one; widen it and run again")
+            out.append(line)
         return out
 
     @property

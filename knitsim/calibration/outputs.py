@@ -147,7 +147,12 @@ def _flag_cell(e) -> str:
     return "; ".join(bits)
 
 
-def report_md(result: JointResult, title: str, source: str, files: list[str]) -> str:
+def zero_offsets(specimens) -> list[tuple[str, str, float]]:
+    """(specimen, file, zero offset [N]) of every file whose load cell zero below zero was tared."""
+    return [(s.name, src, z) for s in specimens for src, z in s.zero_offsets_N]
+
+
+def report_md(result: JointResult, title: str, source: str, files: list[str], zero_offsets: list | None = None) -> str:
     """A readable report of the calibration."""
     r = result
     flags = r.flags
@@ -205,6 +210,10 @@ def report_md(result: JointResult, title: str, source: str, files: list[str]) ->
               "envelopes; +- force accuracy: the band widened by the force reading's accuracy "
               "(calibration.force_accuracy, of the force) on either side: where the envelopes meet or cross the band "
               "has no width, though the specimens scatter and the machine reads no better."]
+    if zero_offsets:
+        lines += ["", "Load cell zeros below zero, read off the curves' lowest readings (a knit carries no compression) "
+                  "and tared (subtracted) before the fit: " + "; ".join(f"{name}: {src} {z:.4g} N"
+                                                                      for name, src, z in zero_offsets) + "."]
     lines += one_yarn_md(r)
     names = [e.label for e in r.estimates]
     strong = [(names[i], names[j], r.correlation[i, j]) for i in range(len(names)) for j in range(i + 1, len(names))
@@ -308,11 +317,13 @@ def write_calibration(out_dir: str | Path, result: JointResult, scene, source: s
                                                        device).encode()
         files[f"fit_{f.name}.png"] = plot_fit(f, flags=result.flags)
     names = sorted(files) + ["calibration.json", "report.md"]
-    files["report.md"] = report_md(result, scene.resolved.get("title", source), source, names).encode()
+    files["report.md"] = report_md(result, scene.resolved.get("title", source), source, names,
+                                   zero_offsets(scene.specimens)).encode()
     doc = {"scene": source, "title": scene.resolved.get("title", ""), "yarn": scene.yarn_name,
            "specimens_data": [{"name": s.name, "sources": list(s.sources), "width_mm": s.width_mm,
                                "gauge_length_mm": s.gauge_length_mm, "stated_knit": s.knit,
-                               "uncertainty": s.uncertainty, "total_force": s.total, "sd_rule": s.sigma_rule}
+                               "uncertainty": s.uncertainty, "total_force": s.total, "sd_rule": s.sigma_rule,
+                               "zero_offsets_tared_N": dict(s.zero_offsets_N)}
                               for s in scene.specimens]}
     doc.update(result.as_dict())
     files["calibration.json"] = (json.dumps(_finite(doc), indent=1, default=_json_default, allow_nan=False)

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
     PER_CENT_HINT, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
-    strain_tolerance,
+    strain_tolerance, zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise
 from ..io.table_input import read_csv_columns
@@ -62,6 +62,9 @@ class MeasuredTable:
     strain_column: str = "strain"
     #: the force's noise, from the curve (knitsim.diagnosis.noise)
     noise: CurveNoise | None = None
+    #: a load cell's zero below zero read off the force (knitsim.diagnosis.measured.zero_offset_below) and
+    #: subtracted from it [N] (0: none seen)
+    zero_offset_N: float = 0.0
 
 
 def read_table(path: str | Path) -> MeasuredTable:
@@ -109,10 +112,14 @@ def read_table(path: str | Path) -> MeasuredTable:
 
     def row(i):
         return int(rows[i])
-    refuse_negative_force(str(path), force, noise, row, column)
+    refuse_negative_force(str(path), force, noise, row, column, offset_use="tared (subtracted)")
     refuse_no_response(str(path), force, noise.sigma_N, row, column)
-    return MeasuredTable(np.asarray(clean, float), np.asarray(force, float), f_total is not None, str(path), rows,
-                         s_name, noise)
+    # a zero offset below zero is the load cell's (a knit carries no compression): tared, since the model's
+    # force has no offset term (kept, a -10 mN zero on a 55 N curve moved phi0 by 3 to 7 sd in a blind probe).
+    # A zero above zero is not told from the knit's own force at rest or a pretension, and is kept
+    zero = zero_offset_below(force, noise.sigma_N)
+    return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
+                         rows, s_name, noise, zero)
 
 
 def pretension_strain(grip_strain, pretension: float):
@@ -268,6 +275,8 @@ class SpecimenData:
         The files read.
     sigma_rule : str
         How the sds were obtained (for the report).
+    zero_offsets_N : tuple of (str, float)
+        The files whose load cell read below zero at rest, and the zero offset tared from each [N].
     pretension : float
         Strain of the knit at grip strain 0 (:func:`pretension_strain`): the start of a fitted
         pretension, else the value used (0: the knit is at rest at the strain origin).
@@ -294,6 +303,7 @@ class SpecimenData:
     pretension: float = 0.0
     pretension_sd: float = 0.0
     accuracy_rel: float = FORCE_ACCURACY_REL
+    zero_offsets_N: tuple = ()
 
     @property
     def has_band(self) -> bool:
@@ -443,7 +453,7 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     return SpecimenData(name, strain, np.asarray(target, float), sigma, low, high, totals.pop(), float(width_mm),
                         float(gauge_length_mm), {k: float(knit[k]) for k in GEOMETRY}, unc,
                         tuple(t.source for t in tables), rule, float(pretension), float(pretension_sd),
-                        float(accuracy_rel))
+                        float(accuracy_rel), tuple((t.source, t.zero_offset_N) for t in tables if t.zero_offset_N))
 
 
 __all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "check_reach",

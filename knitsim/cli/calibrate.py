@@ -63,8 +63,8 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     t0 = time.perf_counter()
-    from ..calibration.joint import calibrate_joint
-    from ..calibration.outputs import UNUSABLE, write_calibration
+    from ..calibration.joint import POOR_FIT_S2, calibrate_joint
+    from ..calibration.outputs import UNUSABLE, write_calibration, zero_offsets
     from ..calibration.scene import load_calibration_scene
 
     scene = load_calibration_scene(args.scene, args.overrides, device=args.device)
@@ -86,6 +86,9 @@ def _run(args) -> int:
         print(f"knitsim calibrate: {len(sp)} specimens ({', '.join(s.name for s in sp)}), "
               f"{sum(len(s.strain) for s in sp)} rows; shared {', '.join(scene.setup.shared)}; per specimen "
               f"{', '.join(scene.setup.per_specimen) or 'nothing'}; device {device}", file=sys.stderr, flush=True)
+        for name, src, z in zero_offsets(sp):
+            print(f"knitsim calibrate: {name}: {src}: the load cell reads {z:.3g} N at rest (below zero: a knit "
+                  "carries no compression): tared", file=sys.stderr, flush=True)
         bars = []
 
         def counter(what, total):
@@ -132,6 +135,9 @@ def _run(args) -> int:
         for f in result.fits:
             band = "" if f.in_band_fraction is None else f"; {100 * f.in_band_fraction:.0f} % of the strain range " \
                                                          "inside the band"
-            print(f"{f.name}: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}; cells {f.status}"
+            print(f"{f.name}: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}; chi2 per row "
+                  f"{f.chi2 / max(len(f.strain), 1):.3g}; cells {f.status}"
                   + ("" if f.status == "ok" else " (DID NOT SOLVE ON EVERY ROW)"))
+        print(f"fit: chi2 / (n - k) = {result.s2:.3g} ({result.n} rows and priors, {result.k} variables; about 1 "
+              f"where the model makes the curves within their noise, flagged above {POOR_FIT_S2:g})")
     return 0 if result.success and not flags else 1

@@ -197,10 +197,12 @@ def zero_offset_below(force, sigma_N: float) -> float:
     return z if (z < -2.0 * sigma_N and -z <= ZERO_OFFSET_SHARE * float(f[-1])) else 0.0
 
 
-def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: str = "force_per_wale_N") -> None:
+def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: str = "force_per_wale_N",
+                          offset_use: str = "fitted") -> None:
     """Refuse a force column below zero (or below a load cell's zero offset, :func:`zero_offset_below`) by
     more than NEGATIVE_SIGMAS noise sd, beyond a few spikes (outliers, only where the noise is known): a
-    wrong zero or sign.  ``row(i)`` is the spreadsheet row of entry i."""
+    wrong zero or sign.  ``row(i)`` is the spreadsheet row of entry i; ``offset_use`` says (in the message)
+    what the caller does with a zero offset it accepts (the diagnosis fits it, the calibration tares it)."""
     f = np.asarray(force, float)
     zero = zero_offset_below(f, noise.sigma_N)
     bad = np.nonzero(f < zero - NEGATIVE_SIGMAS * noise.sigma_N)[0]
@@ -214,7 +216,7 @@ def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: st
             f"{source}: row {row(i)}, column {column}: {float(f[i]):g} N is below zero by more than "
             f"{NEGATIVE_SIGMAS:g} noise sd ({noise.sigma_N:.3g} N, {how}): a knit carries no compression; "
             f"check the load cell's zero and the sign of the column (a zero offset below zero by up to "
-            f"{ZERO_OFFSET_SHARE:.0%} of the peak force is read as such, and fitted)")
+            f"{ZERO_OFFSET_SHARE:.0%} of the peak force is read as such, and {offset_use})")
 
 
 def strain_tolerance(strain) -> float:

@@ -138,3 +138,69 @@ def test_an_optimiser_failure_alone_is_a_flag():
                        "function evaluations is exceeded"]
     rep = report_md(r, "t", "s.toml", [])
     assert "The fit failed" in rep and "No parameter is at a bound" not in rep
+
+
+def _with_s2(s2, estimates=None, one_yarn=None, residuals=None):
+    from dataclasses import replace
+    r = _result(estimates or [Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)])
+    return replace(r, s2=s2, one_yarn=one_yarn, fits=[replace(f, residuals=residuals) for f in r.fits])
+
+
+# weighted residuals of 40 rows: a slow wave (a curve the model does not make: lag-1 autocorrelation
+# cos(2 pi / 40) ~ 0.99) and alternating signs (noise larger than stated: -1)
+WAVE = 6.0 * np.sin(2 * np.pi * np.arange(40) / 40)
+ROW_TO_ROW = 6.0 * (-1.0) ** np.arange(40)
+
+
+@pytest.mark.parametrize("s2, residuals, flagged", [(0.9, WAVE, False), (3.9, WAVE, False), (4.1, WAVE, True),
+                                                    (145.0, WAVE, True), (145.0, ROW_TO_ROW, False),
+                                                    (145.0, None, False)])
+def test_a_fit_far_beyond_the_noise_in_waves_is_a_flag(s2, residuals, flagged):
+    """A blind probe calibrated a curve the model cannot make (chi2 / (n - k) = 145, residuals swinging in
+    waves of +-20 sd) and was told "no flag, usable".  The rule: chi2 / (n - k) above POOR_FIT_S2 = 4 (rms
+    residual twice the noise the rows are weighted by) and a specimen's residuals running in waves (lag-1
+    autocorrelation above 0.5); residuals that change sign row to row are noise larger than stated, which
+    the covariance's factor answers (tests/calibration/test_one_yarn_check.py states sds 5 x too small)."""
+    r = _with_s2(s2, residuals=residuals)
+    poor = [f for f in r.flags if "does not make the curves within their noise" in f]
+    assert bool(poor) == flagged and r.usable is not flagged
+    if flagged:
+        assert f"{s2:.3g}" in poor[0] and "tight" in poor[0] and "0.99" in poor[0]
+
+
+def test_a_wavy_curve_is_flagged_on_the_console_and_in_every_file(tmp_path, capsys, e_glass_calibration):
+    """A hand-made curve that waves by +-0.5 N about a line (two periods over its 21 rows), stated noise
+    0.01 N: no cell makes it."""
+    from knitsim.cli import main
+    wavy = "strain,load_N\n" + "".join(f"{0.01 * k},{0.25 * k + 0.5 * math.sin(2 * math.pi * k / 10) + 0.6}\n"
+                                        for k in range(21))
+    (tmp_path / "a.csv").write_text(wavy)
+    scene = e_glass_calibration("wavy", max_nfev=3)
+    scene["specimens"][0]["noise_N"] = 0.01
+    (tmp_path / "cal.toml").write_text(dumps(scene))
+    rc = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(tmp_path / "o"), "--no-progress"])
+    cap = capsys.readouterr()
+    assert rc == 1
+    doc = json.loads((tmp_path / "o" / "calibration.json").read_text())
+    assert doc["usable"] is False and doc["s2"] > 4
+    assert any("within their noise" in f for f in doc["flags"])
+    assert "within their noise" in cap.out and "fit: chi2 / (n - k) = " in cap.out
+    assert "within their noise" in (tmp_path / "o" / "report.md").read_text().split("## The yarn")[0]
+
+
+def test_the_one_yarn_flag_is_qualified_while_a_shared_parameter_sits_at_its_bound():
+    """A blind probe bounded m below the truth: each specimen's own yarn then also sits at the bound, and the
+    one-yarn test (p = 8e-54) called one yarn "different yarns".  With a shared estimate at its bound the flag
+    says it is not a verdict; with the bound on a specimen's own variable it stays as it was."""
+    from knitsim.calibration.joint import OneYarnCheck
+    check = OneYarnCheck(True, specimens=("a", "b"), shared=("B", "m"), p=7.9e-54, F=300.0, dof=2, dof_resid=90,
+                         chi2_joint=900.0, chi2_own_each=(10.0, 12.0), own_yarns=({"B": 0.3, "m": 0.2},
+                                                                                    {"B": 0.31, "m": 0.2}))
+    at_bound = [Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3),
+                Estimate("m", None, 0.2, 0.001, "-", 0.05, 0.2, "high", "the high end of the stated range")]
+    line = next(f for f in _with_s2(1.0, at_bound, check).flags if "one yarn" in f)
+    assert "not a verdict while m sits at its bound" in line
+    own = [Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3),
+           Estimate("phi0", "a", 0.29, 0.01, "rad", -0.29, 0.29, "high", "phimax")]
+    line = next(f for f in _with_s2(1.0, own, check).flags if "one yarn" in f)
+    assert "not a verdict" not in line
