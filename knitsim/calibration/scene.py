@@ -193,7 +193,10 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             raise error("calibration.shared", cal["shared"], "log10_dahl_sigma is the Dahl stiffness: switch the "
                         "effect on (effects.on = [\"dahl_transition\"])")
         eff_table["on"] = [e for e in on if e != "dahl_transition"]
-        friction.pop("model", None)          # friction.dahl_sigma stays: the start of the fitted stiffness
+        friction.pop("model", None)
+        # the start of the fitted stiffness: given to the start cell after its scene is read (a Coulomb cell's
+        # scene refuses a Dahl stiffness it would not use)
+        dahl_start = friction.pop("dahl_sigma", None)
     cell_doc = {"device": doc["device"], "yarn": y, "knit": dict(first), "friction": friction,
                 "rules": dict(data.get("rules", {})), "load": {"type": "monotonic", "target_strain": 0.01}}
     if eff_table:
@@ -202,6 +205,8 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
         base = load_cell_scene(cell_doc).params[0]
     except KnitsimInputError as exc:
         raise KnitsimInputError(f"the start yarn on specimens[0]'s knit: {exc}") from None
+    if fit_dahl and dahl_start is not None:
+        base = base.replace(dahl_sigma=float(dahl_start))
     for n in cal["shared"]:
         if n in ("phi0",) + GEOMETRY:
             raise error("calibration.shared", cal["shared"], f"{n} is the knit's, not the yarn's: list it in "

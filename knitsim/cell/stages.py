@@ -225,6 +225,10 @@ FRICTION_MODELS = ("coulomb", "dahl")
 DAHL_SIGMA_MAX = 1.0e6
 DAHL_SIGMA_TOO_STIFF = (f"above {DAHL_SIGMA_MAX:g} 1/mm the Dahl law is Coulomb friction to 1e-6 N and its "
                         "solve does not converge: use friction.model = \"coulomb\"")
+#: a Dahl stiffness given to a cell of another friction law (a blind probe's --set friction.dahl_sigma=5 on a
+#: Coulomb scene ran Coulomb, silently)
+DAHL_SIGMA_UNUSED = ("not used by friction.model = \"coulomb\": set friction.model = \"dahl\" to use it, "
+                     "or leave dahl_sigma out")
 #: closures of a stick stage whose frozen beta asks for friction beyond the cone
 STICK_CLOSURES = ("release_beta", "table4")
 #: an event function within EVENT_TOL (rad, or times d for W, or N for F) of zero at the

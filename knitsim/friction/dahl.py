@@ -800,6 +800,23 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
                 f"set only a lower bound, sigma >= {lower_bounds['sigma']:.3g} (one-sided 95 %); its value "
                 f"{values['sigma']:.4g} and standard error mean nothing (record the loop with more rows after each "
                 "reversal)")
+    # Fc from above: a loop whose forces stay far below saturation is a straight spring, the Dahl limit
+    # Fc -> infinity (F = F0 + sigma (x - x_0)); where that line fits as well (chi^2 within the one-sided
+    # bound, or exactly as the fit does), the data bound Fc from below only (a blind probe's loop of
+    # F = 0.3 x read Fc = 1.9e5 N +- 1.1e3, "identified")
+    if status.get("Fc") == "identified":
+        cols = [xn - xn[0], np.ones_like(xn)] + ([xn] if elastic else [])
+        A = np.column_stack(cols)
+        line = Fn - A @ np.linalg.lstsq(A, Fn, rcond=None)[0]
+        ssr_line, ssr_fit = float(line @ line), 2.0 * float(res.cost)
+        tiny = 1e-20 * float(Fn @ Fn)
+        if ssr_line <= max(ssr_fit + SIGMA_BOUND_CHI2 * s2, tiny):
+            status["Fc"] = "not_identified"
+            warns.append(
+                f"Fc: the loop shows no saturation above the noise: a straight spring (Fc -> infinity) fits as well "
+                f"(residual sum {ssr_line * Fs * Fs:.3g} against the fit's {ssr_fit * Fs * Fs:.3g} {labels[1]}^2); "
+                f"the data bound Fc from below only, its value {values['Fc']:.4g} means nothing (a loop with "
+                "hysteresis, its forces reaching the saturation, identifies it)")
     rev = reversal_warning(n, len(turns), labels[0])
     if rev:
         warns.append(rev)

@@ -54,7 +54,7 @@ from typing import Any
 from .. import materials
 from ..cell.load_program import LoadProgram, cycles, monotonic, piecewise_linear
 from ..cell.material import CellParams
-from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
+from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
 from ..errors import KnitsimInputError
 from ..friction.coiling import m_eq10
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
@@ -374,6 +374,8 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
                     "friction.model = \"dahl\" needs a stiffness > 0 [1/mm]" + org.where())
     if model == "dahl" and sigma > DAHL_SIGMA_MAX:
         raise error(org.path("friction", "dahl_sigma"), sigma, DAHL_SIGMA_TOO_STIFF + org.where())
+    if model == "coulomb" and sigma != 0:
+        raise error(org.path("friction", "dahl_sigma"), sigma, DAHL_SIGMA_UNUSED + org.where())
 
     out = {
         "yarn": dict(({"material": y["material"]} if "material" in y else {}), d=d, B=B,

@@ -99,7 +99,7 @@ from typing import Any
 import numpy as np
 
 from ..cell.load_program import LoadProgram, pretensioned
-from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF
+from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
@@ -303,6 +303,9 @@ def _check_cells(fields: dict, origins: dict, friction) -> None:
         if bad.any():
             fail(name, bad, lambda i, j: "must be >= 0")
     dahl = np.asarray(friction == "dahl") if isinstance(friction, np.ndarray) else (friction == "dahl")
+    bad = np.asarray((friction == "coulomb") & (fields["dahl_sigma"] != 0))
+    if bad.any():
+        fail("dahl_sigma", bad, lambda i, j: DAHL_SIGMA_UNUSED)
     if np.any(dahl):
         bad = dahl & ~(fields["dahl_sigma"] > 0)
         if bad.any():

@@ -431,3 +431,22 @@ def test_a_sharp_loop_whose_sigma_column_vanishes_gives_a_lower_bound_and_identi
     assert 0.0 < fit.lower_bounds["sigma"] < 1000.0
     assert fit.param_status["Fc"] == "identified" and math.isfinite(fit.stderr["Fc"])
     assert abs(fit.Fc - 0.8) < 3 * fit.stderr["Fc"]
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-4])
+def test_a_loop_without_hysteresis_does_not_identify_fc(noise):
+    """The limit case Fc -> infinity: a straight spring F = 0.3 x over a KES-like path of 4 reversals has no
+    loop; a blind probe's fit read Fc = 1.9e5 N +- 1.1e3, "identified".  The data bound Fc from below only."""
+    x = kes_loop_path(1.0, cycles=2, points_per_quarter=30)
+    F = 0.3 * x + noise * np.random.default_rng(0).standard_normal(x.size)
+    fit = fit_dahl_loop(x, F, alpha=1.0)
+    assert fit.param_status["Fc"] == "not_identified"
+    assert fit.param_status["sigma"] == "identified" and fit.sigma == pytest.approx(0.3, rel=1e-3)
+    assert not fit.identified
+
+
+def test_a_dahl_loop_still_identifies_fc():
+    """The closed-form Dahl loop (sigma 2, Fc 0.5: forces reach the saturation) is no straight spring."""
+    x = kes_loop_path(1.0, cycles=2, points_per_quarter=30)
+    fit = fit_dahl_loop(x, dahl_response(x, 2.0, 0.5), alpha=1.0)
+    assert fit.param_status["Fc"] == "identified" and fit.Fc == pytest.approx(0.5, rel=1e-6)

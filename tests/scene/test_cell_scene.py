@@ -105,6 +105,8 @@ def test_phi0_forms():
     (dict(friction__mu_k=0.15), r"^friction\.mu_k = 0\.15: give either friction\.m or friction\.mu_k"),
     (dict(friction__model="dahl"), r'^friction\.dahl_sigma = 0\.0: friction\.model = "dahl" needs a stiffness > 0'),
     (dict(friction__model="dahl", friction__dahl_sigma=1e7), r'^friction\.dahl_sigma = 10000000\.0: above 1e\+06 1/mm'),
+    # a blind probe's --set friction.dahl_sigma=5 on a Coulomb scene ran Coulomb without a word
+    (dict(friction__dahl_sigma=5.0), r'^friction\.dahl_sigma = 5\.0: not used by friction\.model = "coulomb"'),
     (dict(rules__unloading_rule="hong"), r'^rules\.unloading_rule = "hong": expected one of dusserre, hong_constant_t$'),
     (dict(engine="gpu"), r'^engine = "gpu": expected one of warp, reference$'),
     (dict(device="tpu"), r'^device = "tpu": expected cpu, cuda, cuda:N or auto$'),

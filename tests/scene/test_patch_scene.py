@@ -128,3 +128,9 @@ def test_a_zone_of_a_dahl_stiffness_beyond_the_coulomb_limit_is_refused():
 def test_effects_need_the_warp_engine():
     with pytest.raises(KnitsimInputError, match="warp engine only"):
         load_patch_scene(base(engine="reference", effects={"on": ["yarn_extension"], "ext_c": 0.01}))
+
+
+def test_a_dahl_stiffness_on_a_coulomb_zone_is_refused():
+    doc = base(zones=[{"wales": [1, 3], "friction": {"dahl_sigma": 5.0}}])
+    with pytest.raises(KnitsimInputError, match=r'dahl_sigma = 5(\.0)?: not used by friction\.model = "coulomb".*zones\[0\]'):
+        load_patch_scene(doc)
