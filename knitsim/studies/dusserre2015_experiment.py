@@ -474,9 +474,14 @@ def figures(result: dict, out_dir, increment: float = 0.005, device: str = "cpu"
     tg = {x["name"]: x for x in result["targets"]}
     for ax, log in zip(axes, (False, True)):
         for j, f in enumerate(fits):
-            y = np.r_[0.0, h.force_per_wale[:, j]]
+            # strain 0: the cell's rest state as the batch recorded it (not 0 N); none recorded: the
+            # line starts at the first computed row
+            f0 = float(h.rest["F"][j]) if h.rest is not None else float("nan")
+            x, y = prog.strain, h.force_per_wale[:, j]
+            if np.isfinite(f0):
+                x, y = np.r_[0.0, x], np.r_[f0, y]
             lw = 2.4 if f["candidate"] == result["best"] else 1.0
-            ax.plot(np.r_[0.0, prog.strain], np.maximum(y, 1e-3) if log else y, lw=lw,
+            ax.plot(x, np.maximum(y, 1e-3) if log else y, lw=lw,
                     label=f"{f['candidate']}{' (best)' if f['candidate'] == result['best'] else ''}")
         up = float(t["cycle_upper_strain"])
         ax.errorbar([up, up], [tg["peak_cycle_1_N"]["value"], tg["peak_cycle_2_N"]["value"]],
