@@ -42,9 +42,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``knitsim`` console command."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
     try:
+        # (inside: a Ctrl-C while the parser's imports load, the first half second, is an interrupt too)
+        parser = build_parser()
+        args = parser.parse_args(argv)
         status = args.func(args)
     except KnitsimInputError as exc:
         print(f"knitsim: error: {exc}", file=sys.stderr)

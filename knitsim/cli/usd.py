@@ -133,6 +133,13 @@ def _run(args) -> int:
     why = unfinished_run(args.results)
     if why is not None:
         raise KnitsimInputError(why)
+    folder = Path(args.results)
+    if folder.is_dir() and (folder / "cells.nc").is_file() and not (folder / "summary.json").is_file():
+        # summary.json is written last: without it the set is incomplete (a run stopped while writing its
+        # results), and its warnings (a failed or capped run) would be missing from the file (a blind probe)
+        raise KnitsimInputError(f"RESULTS_DIR = {str(args.results)!r}: has cells.nc but no summary.json, which "
+                                "knitsim run writes last: the results are incomplete (a run stopped while writing "
+                                "them); run it again with --overwrite")
     prepare_output_file(args.out, args.overwrite)
     # writable before any work: the parent a folder, and a file can be created in it (pxr's own error came
     # as a traceback after the export)

@@ -478,9 +478,13 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
         cap = float(np.max(fc.caps)) if fc.caps is not None and len(fc.caps) else float("nan")
         # cut_by_force_cap decides whether unloadings were left (its wording is a cell's: rewritten for a patch)
         cut = cut_by_force_cap(h.grip_strain, h.direction, h.cycle, fc.first_stop, cap)
-        stopped_cols = fc.group_stopped[h.group_of_cell].any(axis=0)
-        n_stop, n_cols = int(stopped_cols.sum()), int(h.shape[1])
         k = fc.first_stop
+        from ..cell.history import STATUS_FORCE_CAP
+        # the columns stopped at that grip strain (a blind probe read "3 of 3 stopped at 0.33" where two went on
+        # to 0.71: the count was the run's end), and those that stop later
+        stopped_cols = (np.asarray(h.groups["status"])[k] == STATUS_FORCE_CAP)[h.group_of_cell].any(axis=0)
+        later_cols = fc.group_stopped[h.group_of_cell].any(axis=0) & ~stopped_cols
+        n_stop, n_cols = int(stopped_cols.sum()), int(h.shape[1])
         c_stop, c_last = int(h.cycle[k]), int(h.cycle.max())
         rest = (f"the rest of cycle {c_stop}" + (f" and cycles {c_stop + 1}-{c_last}" if c_last > c_stop + 1 else
                                                  f" and cycle {c_last}" if c_last > c_stop else ""))
@@ -488,6 +492,12 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
         # columns_held) while the grip moves on (and the other columns follow it), so the grip force there is
         # not the knit's, and the cycle figures stop at the stop (before, the message said "not run")
         others = (f"; the other {n_cols - n_stop} {column}(s) follow the grip" if n_stop < n_cols else "")
+        if later_cols.any():
+            grp_stop = np.asarray(h.groups["status"]) == STATUS_FORCE_CAP
+            col_first = [int(np.flatnonzero(grp_stop[:, np.unique(np.asarray(h.group_of_cell)[:, j])].any(axis=1))[0])
+                         for j in np.flatnonzero(later_cols)]
+            others += (f" ({int(later_cols.sum())} of them stop at the cap later, the first at grip strain "
+                       f"{float(h.grip_strain[min(col_first)]):.4g})")
         out += [ResultWarning(w.code, (
             f"{n_stop} of {n_cols} {column}(s) stopped at the force cap"
             + (f" ({cap:g} N per wale)" if np.isfinite(cap) else "")

@@ -174,6 +174,11 @@ def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0
             raise _err(f"{path}.profile", profile, f"expected one of {', '.join(PROFILES)}")
         steps = spec.get("steps", 2)
         n = courses if axis == "courses" else wales
+        if n < 2:
+            # start on the first cell and end on the last cannot both hold (a blind probe's end = -3 was dropped
+            # without a word, where 3 wales refused it)
+            raise _err(f"{path}.axis", axis, f"a gradient needs at least 2 {axis} (start on the first, end on the "
+                       f"last); the patch has 1: give the value as a uniform map")
         if profile == "step" and not (2 <= steps <= n):
             raise _err(f"{path}.steps", steps, f"a step gradient needs 2 <= steps <= {n} (the {axis} of the patch)")
         g = gradient(n, float(need("start")), float(need("end")), profile, int(steps))

@@ -438,3 +438,27 @@ def test_rows_after_a_held_column_are_not_reported_as_the_knits(tmp_path, capsys
     (w,) = [w for w in s["warnings"] if w["code"] == "cycle_figures_include_held_rows"]
     assert "cycle(s) 1 (9 row(s), grip strains 0.56 to 0.6), 2 (9 row(s)" in w["message"]
     assert [c.get("held_rows") for c in s["cycles"]] == [9, 9]
+
+
+def test_the_force_cap_cut_counts_the_columns_stopped_at_the_strain_it_names(tmp_path):
+    """A blind probe: wale 0 of a 3-wale E-glass patch has in-plane width 1.0 mm (its heads meet first) and
+    reaches the 0.5 N cap long before the others; the warning said "3 of 3 stopped at grip strain 0.33" where
+    columns.csv showed one.  The count must be columns.csv's at that row, and the later stops said."""
+    import csv
+    import json
+    from knitsim.cli import main
+    scene = tmp_path / "cap.toml"
+    scene.write_text('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[friction]\nm = 0.20\n'
+                     '[rules]\nforce_cap_N = 0.5\n[patch]\nwales = 3\ncourses = 2\n'
+                     '[[zones]]\nwales = [0, 1]\nyarn = { in_plane_width = 1.0 }\n'
+                     '[load]\ntype = "cycles"\nlower_strain = 0.10\nupper_strain = 0.9\ncycles = 2\n'
+                     'max_increment = 0.02\n')
+    out = tmp_path / "o"
+    main(["run", str(scene), "--out", str(out)])
+    cut = next(w for w in json.loads((out / "summary.json").read_text())["warnings"]
+               if w["code"] == "program_cut_by_force_cap")["message"]
+    rows = list(csv.DictReader((out / "columns.csv").open()))
+    first = min(int(r["increment"]) for r in rows if r["status"] != "ok")
+    stopped = {r["column"] for r in rows if int(r["increment"]) == first and r["status"] != "ok"}
+    assert cut.startswith(f"{len(stopped)} of 3 wale column(s) stopped at the force cap"), cut
+    assert len(stopped) < 3 and "stop at the cap later" in cut

@@ -11,6 +11,7 @@ time codes 0 .. n - 1 and says so (customLayerData knitsim.timeline).
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -90,7 +91,6 @@ def test_usd_of_a_run_that_warned_of_held_forces_says_so(run_dir, tmp_path, caps
     # the run's folder with a summary.json warning that its cells failed (hand-written): the USD file shows
     # those held states too, so knitsim usd repeats the warning (stderr, and --json run_warnings); an
     # unrelated warning (heads overlap) is not repeated
-    import shutil
     folder = tmp_path / "o"
     shutil.copytree(run_dir / "o", folder)
     doc = json.loads((folder / "summary.json").read_text())
@@ -108,6 +108,8 @@ def test_usd_of_a_run_that_warned_of_held_forces_says_so(run_dir, tmp_path, caps
 @pytest.mark.parametrize("argv,needle", [
     (["usd", "{tmp}/missing", "--out", "{tmp}/x.usda"], "not a directory"),
     (["usd", "{tmp}/nostate", "--out", "{tmp}/x.usda"], "no per-cell states"),
+    # a set without summary.json (written last): a run stopped while writing its results (a blind probe)
+    (["usd", "{tmp}/nosummary", "--out", "{tmp}/x.usda"], "no summary.json"),
     (["usd", "{run}/o", "--out", "{tmp}/x.usda", "--color-by", "colour"], "--color-by = 'colour'"),
     (["usd", "{run}/o", "--out", "{tmp}/x.usda", "--stride", "0"], "--stride = 0"),
     (["usd", "{run}/o", "--out", "{tmp}/x.obj"], "must end in .usda"),
@@ -119,6 +121,9 @@ def test_bad_input_exits_2(run_dir, tmp_path, capsys, argv, needle):
     with xr.open_dataset(run_dir / "o" / "cells.nc", engine="h5netcdf") as ds:
         ds.drop_vars([v for v in ds.data_vars if v.startswith("state_")]).to_netcdf(
             tmp_path / "nostate" / "cells.nc", engine="h5netcdf")
+    shutil.copy(run_dir / "o" / "summary.json", tmp_path / "nostate")
+    shutil.copytree(run_dir / "o", tmp_path / "nosummary")
+    (tmp_path / "nosummary" / "summary.json").unlink()
     argv = [a.format(tmp=tmp_path, run=run_dir) for a in argv]
     rc = main(argv)
     err = capsys.readouterr().err

@@ -71,3 +71,11 @@ def test_random_reproducible_and_bounded():
     assert not np.array_equal(c, a[:4, :3])
     with pytest.raises(KnitsimInputError, match=r"maps\.d\.scale = \"phimax\""):
         build_map(dict(spec), SHAPE, 0.0, "maps.d", phimax=phimax, name="d")
+
+
+@pytest.mark.parametrize("axis, shape", [("wales", (4, 1)), ("courses", (1, 3))])
+def test_a_gradient_along_one_cell_is_refused(axis, shape):
+    # start on the first cell and end on the last cannot both hold with one cell: a blind probe's end = -3 on
+    # a 1 x 1 patch ran with L = start, where the same map on 3 wales refused the negative L
+    with pytest.raises(KnitsimInputError, match=rf"maps\.L\.axis = .{axis}.: a gradient needs at least 2 {axis}"):
+        build_map({"type": "gradient", "axis": axis, "start": 14.0, "end": -3.0}, shape, 0.0, "maps.L")
