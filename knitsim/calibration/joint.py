@@ -70,6 +70,7 @@ from scipy.optimize import least_squares
 from scipy.stats import qmc
 
 from ..cell.batch import run_batch
+from ..cell.domain import rest_force_per_wale
 from ..cell.history import STATUS_NAMES, STATUS_OK
 from ..cell.load_program import LoadProgram, monotonic, pretensioned
 from ..cell.material import CellParams
@@ -259,7 +260,8 @@ class SpecimenFit:
         The knit's strain at grip strain 0 (0: at rest); the rows are knit strains
         ``(1 + pretension)(1 + grip strain) - 1``.
     pretension_N : float
-        The model's force at grip strain 0 [N] (total, or per wale): the pretension it implies.
+        The model's force at grip strain 0 [N] (total, or per wale): its rest state's, or with a pretension
+        the force the pretension implies.
     in_band_tolerant : float or None
         Share of the rows inside the band widened by the force reading's accuracy
         (:meth:`SpecimenData.in_band_tolerant`).
@@ -1287,7 +1289,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             raise RuntimeError(f"specimen {s.name}: the calibrated point is not an admissible cell")
         w = s.wales(c.W0) if s.total else 1.0
         e_p = float(own_x[k].get("pretension", s.pretension))
-        pre_N = 0.0
+        # the force at grip strain 0: the knit's rest state without a pretension (a blind probe read 0 N in the
+        # report where the calibrated cell carries 0.0136 N per wale at rest)
+        pre_N = w * rest_force_per_wale(c)
         if pb.pretension and e_p > 0:
             # the fit read its rows between increments; the reported curve is the specimen's own run,
             # as its written patch scene runs it: from rest through the pretension, then the rows

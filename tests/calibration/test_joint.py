@@ -62,6 +62,13 @@ def test_joint_fit_recovers_the_yarn_and_corrects_a_stated_geometry():
     # chi2 per degree of freedom near 1: the sds were the true noise
     assert 0.5 < r.s2 < 1.6
     assert r.correlation.shape == (len(r.estimates), len(r.estimates))
+    # the force at grip strain 0 without a pretension: the calibrated knit's rest state (as the Warp engine's
+    # run records it, row 0 of curve.csv), times the wales (a blind probe read 0 N in the report)
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import monotonic
+    for f in r.fits:
+        rest = run_batch([f.params], monotonic(0.01, 0.01)).rest["F"][0]
+        assert f.pretension == 0 and f.pretension_N == pytest.approx(f.wales * rest, rel=1e-9) and rest > 0
 
 
 def _write_curve(path, strain, force):
