@@ -806,6 +806,7 @@ class PatchSolver:
         self.branch_points = 8
         # the branch points and the column solve on the device (DeviceBranchPoints, DeviceColumnSolve), made once
         self._device_points = self._device_columns = None
+        self._col_order = None                   # the groups sorted by column, for _colmax
         self.jump_columns = np.zeros(self.n_cls, bool)
         self.cut_columns = np.zeros(self.n_cls, bool)
         #: sub-increments of a column that has not converged in one (1: none)
@@ -820,8 +821,17 @@ class PatchSolver:
         return np.bincount(self.col, weights=v, minlength=self.n_cls)
 
     def _colmax(self, v: np.ndarray, fill: float) -> np.ndarray:
-        out = np.full(self.n_cls, fill)
-        np.maximum.at(out, self.col, v)
+        """Each column's largest value of ``v`` [n_groups], at least ``fill`` (a segmented maximum over the
+        groups sorted by column: np.maximum.at took 0.6 s of a 10^6-group patch's 8 increments on the host)."""
+        if self._col_order is None:
+            order = np.argsort(self.col, kind="stable")
+            filled = np.flatnonzero(np.bincount(self.col, minlength=self.n_cls) > 0)
+            self._col_order = (order, np.searchsorted(self.col[order], filled), filled)
+        order, starts, filled = self._col_order
+        out = np.full(self.n_cls, fill, dtype=np.result_type(v, float))
+        if len(order):
+            # (the starts of the columns that have groups: strictly increasing, each segment its column's)
+            out[filled] = np.maximum(np.maximum.reduceat(np.asarray(v)[order], starts), fill)
         return out
 
     def probe_tangent(self, strain: float = 1e-3) -> None:
