@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
     PER_CENT_HINT, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
-    strain_tolerance, zero_offset_below,
+    strain_jitter, strain_tolerance, zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise
 from ..io.table_input import read_csv_columns
@@ -65,6 +65,8 @@ class MeasuredTable:
     #: a load cell's zero below zero read off the force (knitsim.diagnosis.measured.zero_offset_below) and
     #: subtracted from it [N] (0: none seen)
     zero_offset_N: float = 0.0
+    #: the sd of the strain column's own jitter (knitsim.diagnosis.measured.strain_jitter; 0: none seen)
+    strain_jitter: float = 0.0
 
 
 def read_table(path: str | Path) -> MeasuredTable:
@@ -119,7 +121,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     # A zero above zero is not told from the knit's own force at rest or a pretension, and is kept
     zero = zero_offset_below(force, noise.sigma_N)
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
-                         rows, s_name, noise, zero)
+                         rows, s_name, noise, zero, strain_jitter(strain))
 
 
 def pretension_strain(grip_strain, pretension: float):
@@ -446,6 +448,15 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         else:
             sigma = np.full(len(strain), max(float(noise_N), 1e-6 * scale))
             rule = f"noise of the curve, {noise_N:.3g} N (given)"
+        if cur.strain_jitter > 0:
+            # errors in the strain: a row read at a strain off by e carries the force of strain - e, so its sd
+            # adds slope x e (effective variance; the slope of the curve at the rows).  Without it a blind
+            # probe's extensometer jitter of 2e-4 (within what the reading keeps) made steep rows weigh 10 x
+            # too much: standard errors 4 to 5 times too small, and one yarn read as two in 3 seeds of 8
+            slope = np.gradient(np.asarray(target, float), strain)
+            sigma = np.sqrt(sigma ** 2 + (slope * cur.strain_jitter) ** 2)
+            rule += (f"; with the strain column's jitter ({cur.strain_jitter:.2g}, sd) times the curve's slope "
+                     "(errors in the strain)")
     unc = {k: float((uncertainty or {}).get(k, 0.0)) for k in GEOMETRY}
     for k, v in unc.items():
         if not (0.0 <= v < 1.0):

@@ -1,0 +1,43 @@
+"""Errors in the strain weigh a calibration's rows (effective variance): a row read at a strain off by e carries
+the force of strain - e, so its sd is sqrt(sd_F^2 + (dF/dstrain)^2 sd_strain^2).
+
+Hand-made file: a straight 100 N per unit strain (the slope known), strain steps of 0.002 with a +-2e-4
+alternating jitter (its sd as the reading estimates it from the column as typed: strain_jitter), the force's
+noise stated (noise_N = 0.01 N)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from knitsim.calibration.specimen import specimen_from_files
+from knitsim.diagnosis.measured import strain_jitter
+
+KNIT = {"L": 14.1, "W0": 4.4, "C0": 2.7}
+
+
+def _file(tmp_path, jitter: float):
+    k = np.arange(150)
+    strain = 0.002 * k + jitter * (-1.0) ** k
+    strain[0] = 0.0
+    force = 100.0 * 0.002 * k                     # read at the true strain
+    path = tmp_path / "a.csv"
+    path.write_text("strain,load_N\n" + "".join(f"{float(s)!r},{float(f)!r}\n" for s, f in zip(strain, force)))
+    return path, strain
+
+
+def test_jitter_in_the_strain_adds_slope_times_jitter_to_each_rows_sd(tmp_path):
+    path, strain = _file(tmp_path, 2e-4)
+    sp = specimen_from_files("a", width_mm=50.0, gauge_length_mm=100.0, knit=KNIT, curve=path, row_step=0.01,
+                             noise_N=0.01)
+    jit = strain_jitter(strain)
+    assert jit > 1e-4                                # the column's own jitter is seen
+    inner = slice(2, -2)                             # (the slope of a straight line, away from the ends)
+    np.testing.assert_allclose(sp.sigma_N[inner], np.hypot(0.01, 100.0 * jit), rtol=0.05)
+    assert "jitter" in sp.sigma_rule
+
+
+def test_no_jitter_no_change(tmp_path):
+    path, _ = _file(tmp_path, 0.0)
+    sp = specimen_from_files("a", width_mm=50.0, gauge_length_mm=100.0, knit=KNIT, curve=path, row_step=0.01,
+                             noise_N=0.01)
+    assert np.all(sp.sigma_N == pytest.approx(0.01)) and "jitter" not in sp.sigma_rule
