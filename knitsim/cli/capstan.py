@@ -4,7 +4,10 @@ Subcommands
 -----------
 fit FILE.csv
     Identify ``(b, p, n)`` of eq 5 from capstan records (columns ``F0_N``,
-    ``F1_N``, ``V_mm_s``, ``direction``).
+    ``F1_N``, ``V_mm_s``, ``direction``).  Exit status 0 for a usable law; 1 when
+    it is flagged (a parameter at a bound or not identified, residuals far above
+    the test's scatter, repeated rows that disagree; as ``knitsim calibrate``);
+    2 on bad input or records no law of the fit's box can make.
 table
     Table 2 beside the forward law (eqs 2-5) with Table 3 parameters.
 predict
@@ -13,6 +16,7 @@ predict
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 
@@ -58,10 +62,14 @@ def register(subparsers) -> None:
                                      "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent). "
                                      "A parameter that ends at a bound of the fit (b >= 1e-6, |p| <= 1, "
                                      "0.3 <= n <= 1) or whose standard error is not finite is flagged as not "
-                                     "identified; records with F1 = F0 on every row (no friction) are refused.")
+                                     "identified; so are residuals far above the capstan test's scatter "
+                                     "(the paper's sd of F1, 0.13 N growing with F1, or the file's repeated "
+                                     "rows). Records with F1 = F0 on every row (no friction) are refused. "
+                                     "Exit status 0: a usable law; 1: flagged (NOT A FRICTION LAW YOU CAN "
+                                     "USE, --json usable/flags); 2: bad input or data no law of the box fits.")
     fit.add_argument("file", metavar="FILE.csv", help="capstan records")
     fit.add_argument("--fix-p", type=float, default=None, metavar="P",
-                     help="hold the velocity exponent p at this value (the paper's basalt: 0)")
+                     help="hold the velocity exponent p at this value, |P| <= 1 (the paper's basalt: 0)")
     _add_discretisation(fit)
     add_json_flag(fit)
     fit.set_defaults(func=_run_fit)
@@ -101,19 +109,31 @@ def _resolution(path, rows) -> np.ndarray:
     return np.array([res.get(int(r), 0.0) for r in rows])
 
 
+#: what the summary says first when a fit is flagged (as ``knitsim calibrate`` does)
+UNUSABLE = "NOT A FRICTION LAW YOU CAN USE"
+
+
 def _run_fit(args) -> int:
-    if args.fix_p is not None and not np.isfinite(args.fix_p):
-        raise KnitsimInputError(f"--fix-p = {args.fix_p}: not a finite number")
+    if args.fix_p is not None:
+        lo, hi = capstan.FIT_LOWER[1], capstan.FIT_UPPER[1]
+        if not np.isfinite(args.fix_p):
+            raise KnitsimInputError(f"--fix-p = {args.fix_p}: not a finite number")
+        if not lo <= args.fix_p <= hi:
+            raise KnitsimInputError(f"--fix-p = {args.fix_p:g}: must be in [{lo:g}, {hi:g}] (|p| <= 1, the fit's "
+                                    "box for the velocity exponent)")
     disc = _discretisation(args)
     cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3])
     res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
                                    disc, fix_p=args.fix_p, source=str(args.file),
                                    resolution_N=_resolution(args.file, cols["_row"]), rows=cols["_row"])
+    status = 0 if res.usable else 1
     if args.json:
         out = res.as_dict()
         out["records"] = int(len(cols["F0_N"]))
+        for line in res.flags:
+            print(f"knitsim capstan fit: warning: {line}", file=sys.stderr, flush=True)
         print_json(out)
-        return 0
+        return status
     b, p, n = res.params
     sb, sp, sn = res.stderr
 
@@ -122,13 +142,20 @@ def _run_fit(args) -> int:
         return f"   <- {text}" if text else ""
 
     print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})")
+    if res.flags:
+        print(f"{UNUSABLE}: {len(res.flags)} flag{'s' if len(res.flags) > 1 else ''} (the warnings below)")
     print(f"  b = {b:.5g} +/- {sb:.2g}   [s^p mm^-p N^(1-n)]" + flag("b"))
     print(f"  p = {p:.5g} +/- {sp:.2g}" + ("   (fixed)" if args.fix_p is not None else "") + flag("p"))
     print(f"  n = {n:.5g} +/- {sn:.2g}" + flag("n"))
     print(f"  residual RMS of F1 = {res.rms_N:.3g} N, dof = {res.dof}, corr(b, n) = {res.corr[0, 2]:.3f}")
+    gof = res.goodness_of_fit
+    if gof.get("p_value") is not None:
+        scale = ("the scatter of repeated rows" if gof["scale"] == "repeats" else "the paper's sd of F1")
+        print(f"  against {scale} (sd {gof['scale_sd_N']:.3g} N{' at the median F1' if gof['scale'] == 'paper_sd' else ''}): {gof['test']} = {gof['statistic']:.3g}, "
+              f"P = {gof['p_value']:.2g} (flagged below {capstan.GOF_ALPHA:g})")
     for w in res.warnings:
         print(f"  warning: {w}")
-    return 0
+    return status
 
 
 def _run_table(args) -> int:

@@ -161,12 +161,15 @@ def test_fit_flags_parameter_at_bound(tmp_path, capsys):
     # mu_k rises from 0.15 to 0.20 when F0 doubles: eq 5, mu_k = b V^p Fn^(n-1),
     # then needs n > 1, outside the fit's box n <= 1, so n ends at the bound 1
     # and must be flagged in the table and in the JSON.
+    # A parameter at a bound makes the law not usable: exit status 1, as knitsim calibrate.
     path = _csv(tmp_path, _amontons_rows([(6.31, 0.15), (12.62, 0.20)]))
-    out = _json(capsys, ["capstan", "fit", path, "--json"])
+    assert main(["capstan", "fit", path, "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
     assert out["n"] == pytest.approx(1.0, abs=1e-3)
     assert out["n_status"] == "at_upper_bound"
     assert any(w.startswith("n = ") and "upper bound" in w for w in out["warnings"])
-    assert main(["capstan", "fit", path]) == 0
+    assert out["usable"] is False and any("upper bound" in f for f in out["flags"])
+    assert main(["capstan", "fit", path]) == 1
     text = capsys.readouterr().out
     n_line = next(ln for ln in text.splitlines() if ln.strip().startswith("n ="))
     assert "AT UPPER BOUND" in n_line and "not identified" in n_line
