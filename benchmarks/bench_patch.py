@@ -10,6 +10,8 @@ Not a test.
     python benchmarks/bench_patch.py                                  # CPU, all cases
     python benchmarks/bench_patch.py --cases uniform-nodedup --increments 60
     python benchmarks/bench_patch.py --device cuda --size 1000x1000 --cases random-phi0
+    python benchmarks/bench_patch.py --device cuda --size 1000x1000 --cases random-phi0 --increments 8 \
+        --coupling device numpy                   # the coupling on the device against its NumPy twin
 """
 from __future__ import annotations
 
@@ -18,10 +20,12 @@ import json
 import time
 
 import numpy as np
+import warp as wp
 
 from knitsim import warp_runtime
 from knitsim.cell.load_program import LoadProgram, cycles
 from knitsim.cell.material import CellParams
+from knitsim.patch.coupling import PatchSolver
 from knitsim.patch.model import PatchModel
 from knitsim.patch.runner import run_patch
 
@@ -46,6 +50,9 @@ def main(argv=None):
     ap.add_argument("--cases", nargs="+", default=["uniform", "uniform-nodedup", "random-phi0"])
     ap.add_argument("--increments", type=int, default=0, help="time only the first K increments (0: all 620)")
     ap.add_argument("--max-increment", type=float, default=0.005)
+    ap.add_argument("--coupling", nargs="+", choices=("device", "numpy"), default=["device"],
+                    help="where the coupling's branch model and column solve run (PatchSolver.device_branch_points): "
+                         "on the cells' device (the default) or in NumPy (their twin); both: a same-run A/B")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     warp_runtime.init()
@@ -59,13 +66,17 @@ def main(argv=None):
     run_patch(PatchModel.uniform(E_GLASS, 2, 1), LoadProgram(prog.strain[:2], prog.cycle[:2], prog.direction[:2],
                                                              prog.waypoints), device=device, dedup=False)
     rows = []
-    for case in a.cases:
+    for case, coupling in ((c, k) for c in a.cases for k in a.coupling):
         pm, dedup = model(case, wales, courses)
+        PatchSolver.device_branch_points = coupling == "device"
+        wp.synchronize()
         t0 = time.perf_counter()
         h = run_patch(pm, prog, device=device, dedup=dedup)
+        wp.synchronize()
         wall = time.perf_counter() - t0
         cells = pm.cell_count
-        rows.append({"case": case, "device": device, "wales": wales, "courses": courses, "cells": cells,
+        rows.append({"case": case, "coupling": coupling, "device": device, "wales": wales, "courses": courses,
+                     "cells": cells,
                      "increments": len(prog), "distinct_solves": h.info["n_groups"], "wall_s": wall,
                      "cell_increments_per_s": cells * len(prog) / wall,
                      "solve_increments_per_s": h.info["n_groups"] * len(prog) / wall,
@@ -73,7 +84,7 @@ def main(argv=None):
                      "non_converged_column_increments": int(np.sum(h.column_status == 1)),
                      "columns_stopped_at_end": int(np.sum(h.column_status[-1] == 2)),
                      "peak_force_per_wale_N": float(h.force_per_wale_N.max())})
-    head = ("case", "cells", "increments", "distinct_solves", "wall_s", "cell_increments_per_s",
+    head = ("case", "coupling", "cells", "increments", "distinct_solves", "wall_s", "cell_increments_per_s",
             "mean_trials_per_increment", "non_converged_column_increments", "columns_stopped_at_end")
     print(" | ".join(head))
     for r in rows:
