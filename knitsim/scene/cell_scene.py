@@ -462,8 +462,12 @@ def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram,
                                 f"reached: {limit_of[1]}")
     n = sum(math.ceil(abs(b - a) / inc - 1e-12) for a, b in zip(corners[:-1], corners[1:]) if b != a)
     if n > MAX_INCREMENTS:
-        raise error("load.max_increment", inc, f"gives {n} increments (more than {MAX_INCREMENTS}); use a larger "
-                    "increment")
+        # (the program's length is set by its corners and the increment: name both, a blind probe's
+        # --set load.cycles=100000 was told only to enlarge the increment)
+        span = ("load.cycles = " + fmt(load["cycles"]) + " between its strains" if kind == "cycles" else
+                f"{len(corners) - 1} segment(s) of load.waypoints" if kind == "piecewise" else f"{top_key} = {fmt(top)}")
+        raise error("load.max_increment", inc, f"with {span} gives {n} increments (more than {MAX_INCREMENTS}); use "
+                    f"a larger increment{' or fewer cycles' if kind == 'cycles' else ' or a shorter program'}")
     if kind == "monotonic":
         prog = monotonic(load["target_strain"], inc)
     elif kind == "cycles":

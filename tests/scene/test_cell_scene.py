@@ -119,6 +119,10 @@ def test_phi0_forms():
     (dict(load__max_increment=0.0), r"^load\.max_increment = 0\.0: must be > 0$"),
     # an increment past the whole program (1e9) records one row: a cycle's stages cannot show (at most 0.1)
     (dict(load__max_increment=1e9), r"^load\.max_increment = 1000000000\.0: must be <= 0\.1$"),
+    # too long a program names what set its length (a blind probe's load.cycles = 100000 was told only of the
+    # increment): the monotonic program's target and the increment
+    (dict(load__max_increment=1e-7),
+     r"^load\.max_increment = 1e-07: with load\.target_strain = 0\.3 gives 3000000 increments .*shorter program$"),
 ])
 def test_bad_scenes_refused_naming_key_and_value(changes, match):
     refused(scene(**changes), match)
