@@ -310,7 +310,8 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
             out.append(ResultWarning(
                 "zero_force_cycle",
                 f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
-                f"went slack and took (almost) no load again up to the upper strain (README, 'the reload "
+                f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
+                f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
                 f"pocket')"))
         if best is None or p1 > best[1]:
             best = (c1, p1)
