@@ -101,6 +101,18 @@ class LoadProgram:
         return len(self.strain)
 
 
+#: the most increments a load program may have (each is a row of every output)
+MAX_INCREMENTS = 1_000_000
+
+
+def _check_length(n: int, max_increment: float, field: str) -> None:
+    """Refuse a program of more than :data:`MAX_INCREMENTS` increments before it is built (through the Python
+    API a blind probe's ``monotonic(0.6, 1e-9)`` grew to 24 GB; the scene checks the same with its keys)."""
+    if n > MAX_INCREMENTS:
+        raise KnitsimInputError(f"load.max_increment = {max_increment:g}: {field} gives {n} increments (more than "
+                                f"{MAX_INCREMENTS}); use a larger increment or a shorter program")
+
+
 def piecewise_linear(waypoints, max_increment: float = 0.005, field: str = "load.waypoints") -> LoadProgram:
     """Sample a piecewise-linear strain history.
 
@@ -130,6 +142,8 @@ def piecewise_linear(waypoints, max_increment: float = 0.005, field: str = "load
         raise KnitsimInputError(f"load.max_increment = {max_increment}: must be a positive number")
     if pts[0] != 0.0:
         pts = [0.0] + pts
+    n_total = sum(max(1, math.ceil(abs(b - a) / max_increment - 1e-12)) for a, b in zip(pts[:-1], pts[1:]) if b != a)
+    _check_length(n_total, max_increment, field)
     strain, cycle, direction = [], [], []
     cyc, last_dir = 1, +1
     for a, b in zip(pts[:-1], pts[1:]):
@@ -186,6 +200,10 @@ def cycles(lower: float, upper: float, n_cycles: int, max_increment: float = 0.0
         raise KnitsimInputError(f"load.upper_strain = {upper}: must be a positive number")
     if not (math.isfinite(lower) and 0 <= lower < upper):
         raise KnitsimInputError(f"load.lower_strain = {lower}: must satisfy 0 <= lower_strain < upper_strain = {upper}")
+    if math.isfinite(max_increment) and max_increment > 0:
+        # (before the waypoints are listed: load.cycles = 10^9 would list 2 x 10^9 of them)
+        per_cycle = 2 * max(1, math.ceil((upper - lower) / max_increment - 1e-12))
+        _check_length(int(n_cycles) * per_cycle, max_increment, f"load.cycles = {n_cycles}")
     pts = [0.0]
     for _ in range(int(n_cycles)):
         pts += [upper, lower]

@@ -597,12 +597,17 @@ def program_for_curve(curve: MeasuredCurve, max_increment: float = 0.005) -> tup
 def force_at_rows(history: BatchHistory, rows: np.ndarray, cell: int = 0) -> tuple[np.ndarray, list[str]]:
     """Simulated force per wale [N] and stage label at the measured rows.
 
-    ``rows`` from :func:`program_for_curve`; a row at rest (-1) has force 0 and
-    the label ``adherence`` (the rest state sticks until the first move).
+    ``rows`` from :func:`program_for_curve`; a row at rest (-1) has the force of the
+    cell's rest state (Table 4's initial state, not zero; 0 where the history records
+    none) and the label ``adherence`` (the rest state sticks until the first move).
+    A blind probe found every real curve's row at strain 0 scored against 0 N: with a
+    fitted offset cancelling the rest force on the other rows, that one row was half the
+    best fit's chi^2.
     """
     F = history.force_per_wale[:, cell]
     rows = np.asarray(rows)
     at = np.maximum(rows, 0)
-    force = np.where(rows >= 0, F[at], 0.0)
+    rest = float(history.rest["F"][cell]) if history.rest is not None else 0.0
+    force = np.where(rows >= 0, F[at], rest)
     lab = np.where(rows >= 0, history.label_array(cell)[at], "adherence").tolist()
     return force, lab

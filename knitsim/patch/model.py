@@ -239,6 +239,10 @@ class PatchModel:
                 raise KnitsimInputError(f"column {j}: rest length {rest[j]:.9g} mm (sum of course count x C0) is not "
                                         f"{what}")
             object.__setattr__(self, "gauge_length", g)
+        unknown = sorted(set(self.rules) - set(RULE_NAMES))
+        if unknown:
+            # (a blind probe's rules={"unload_rule": ...} ran with the default rule without a word)
+            raise KnitsimInputError(f"rules.{unknown[0]}: unknown rule (expected one of {', '.join(RULE_NAMES)})")
         rules = {}
         for r in RULE_NAMES:
             v = self.rules.get(r, getattr(_DEFAULT, r))

@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import materials
-from ..cell.load_program import LoadProgram, cycles, monotonic, piecewise_linear
+from ..cell.load_program import MAX_INCREMENTS, LoadProgram, cycles, monotonic, piecewise_linear
 from ..cell.material import CellParams
 from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
 from ..errors import KnitsimInputError
@@ -405,8 +405,6 @@ def _resolve_effects(table: dict, model: str, org) -> tuple:
     return eff, model
 
 
-#: the most increments a load program may have (each is a row of every output)
-MAX_INCREMENTS = 1_000_000
 
 
 def _corners(load: dict) -> tuple[list, str]:

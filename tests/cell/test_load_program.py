@@ -89,3 +89,12 @@ def test_the_reference_engine_and_cycles_refuse_what_the_batch_refuses():
             run_cell(c, prog)
     with pytest.raises(KnitsimInputError, match="load.cycles = True: must be a whole number >= 1"):
         cycles(0.1, 0.6, True)
+
+
+@pytest.mark.parametrize("make", [lambda: monotonic(0.6, 1e-9), lambda: cycles(0.1, 0.6, 10**9, 0.01),
+                                  lambda: piecewise_linear([0.3, 0.0, 0.3], 1e-8)])
+def test_a_program_too_long_is_refused_before_it_is_built(make):
+    # through the Python API a blind probe's monotonic(0.6, 1e-9) grew to 24 GB before anything refused it;
+    # the limit is the scene's (MAX_INCREMENTS rows)
+    with pytest.raises(KnitsimInputError, match=r"increments \(more than 1000000\)"):
+        make()

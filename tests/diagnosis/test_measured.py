@@ -135,3 +135,18 @@ def test_columns_of_other_lengths_than_the_strain_are_refused():
         curve_from_arrays(s, f, direction=np.ones(10))
     with pytest.raises(KnitsimInputError, match="column rate_mm_s has 3 values, strain has 40 rows"):
         curve_from_arrays(s, f, rate_mm_s=[1.0, 1.0, 1.0])
+
+
+def test_a_row_at_rest_is_the_models_rest_force():
+    """A measured row at strain 0 (program row -1) is compared with the cell's rest state (Table 4's initial
+    state at C0, W0, L, phi0, whose force per wale is not zero: curve.csv's row 0), not with 0 N: a blind
+    probe found that one row half of the best fit's chi^2 on every real curve."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import monotonic
+    from knitsim.cell.material import CellParams
+    from knitsim.diagnosis.measured import force_at_rows
+    h = run_batch([CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2)], monotonic(0.03, 0.01))
+    f, lab = force_at_rows(h, np.array([-1, 0, 2]))
+    assert h.rest["F"][0] > 0.01
+    assert f[0] == h.rest["F"][0] and f[1] == h.force_per_wale[0, 0] and f[2] == h.force_per_wale[2, 0]
+    assert lab[0] == "adherence"

@@ -79,3 +79,12 @@ def test_a_gradient_along_one_cell_is_refused(axis, shape):
     # a 1 x 1 patch ran with L = start, where the same map on 3 wales refused the negative L
     with pytest.raises(KnitsimInputError, match=rf"maps\.L\.axis = .{axis}.: a gradient needs at least 2 {axis}"):
         build_map({"type": "gradient", "axis": axis, "start": 14.0, "end": -3.0}, shape, 0.0, "maps.L")
+
+
+def test_an_unknown_rule_of_a_patch_model_is_refused():
+    # a blind probe's PatchModel(rules={"unload_rule": ...}) ran with the default rule without a word
+    from knitsim.cell.material import CellParams
+    from knitsim.patch.model import PatchModel
+    base = PatchModel.uniform(CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2), 2, 2)
+    with pytest.raises(KnitsimInputError, match=r"^rules\.unload_rule: unknown rule \(expected one of .*unloading_rule"):
+        PatchModel(2, 2, base.fields, {"unload_rule": "hong_constant_t"})
