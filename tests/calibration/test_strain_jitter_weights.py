@@ -41,3 +41,24 @@ def test_no_jitter_no_change(tmp_path):
     sp = specimen_from_files("a", width_mm=50.0, gauge_length_mm=100.0, knit=KNIT, curve=path, row_step=0.01,
                              noise_N=0.01)
     assert np.all(sp.sigma_N == pytest.approx(0.01)) and "jitter" not in sp.sigma_rule
+
+
+def test_a_row_between_readings_across_a_knee_weighs_its_interpolation_error(tmp_path):
+    """A knee (slope 300 -> 5 N per unit strain at strain 0.0045) read every 0.003: the row at 0.005 lies
+    between the readings at 0.003 and 0.006, where the chord misses the curve by 0.1475 N (the exact curve
+    minus the chord, computed here); its sd must cover that miss, and a row on a reading gets none."""
+    from knitsim.calibration.specimen import _interp, _interpolation_sd, read_table
+    knee = 0.0045
+
+    def curve(e):
+        return np.where(e <= knee, 300.0 * e, 300.0 * knee + 5.0 * (e - knee))
+    s = 0.003 * np.arange(40)
+    path = tmp_path / "k.csv"
+    path.write_text("strain,load_N\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(s, curve(s))))
+    t = read_table(path)
+    rows = np.array([0.005, 0.006, 0.03])
+    miss = np.abs(_interp(t, rows) - curve(rows))
+    sd = _interpolation_sd(t, rows)
+    assert miss[0] == pytest.approx(0.1475, rel=1e-9) and sd[0] >= miss[0]   # the knee's row: its miss covered
+    assert sd[1] == 0.0 and miss[1] < 1e-12                 # on a reading
+    assert sd[2] == 0.0                                     # a straight stretch: no change of slope
