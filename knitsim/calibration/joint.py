@@ -509,16 +509,24 @@ class JointResult:
             if f.status != "ok":
                 out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
                            "the fitted curve is not the model's")
-        waves = [(f.name, residual_autocorrelation(f.residuals)) for f in self.fits]
-        waves = [(name, a) for name, a in waves if a > POOR_FIT_AUTOCORRELATION]
-        if self.n > self.k and self.s2 > POOR_FIT_S2 and waves:
-            each = ", ".join(f"{f.name} {f.chi2 / max(len(f.strain), 1):.3g}" for f in self.fits)
-            runs = ", ".join(f"{name} {a:.2f}" for name, a in waves)
-            out.append(f"the model does not make the curves within their noise: chi2 / (n - k) = {self.s2:.3g} "
-                       f"(> {POOR_FIT_S2:g}; the residuals' rms {math.sqrt(self.s2):.2g} x the noise the rows are "
-                       f"weighted by; chi2 per row: {each}) and the residuals run in waves, not row to row (lag-1 "
-                       f"autocorrelation {runs}; > {POOR_FIT_AUTOCORRELATION:g}): the curves hold what the model "
-                       "lacks (`knitsim diagnose` names it); the residual panel of each fit plot shows where")
+        # per specimen (a re-probe: a clean specimen's rows diluted another's misfit in the pooled s2): its own
+        # chi2 per row beyond POOR_FIT_S2 with residuals in waves; or the pooled s2 beyond it with waves
+        per_row = {f.name: f.chi2 / max(len(f.strain), 1) for f in self.fits}
+        waves = {f.name: residual_autocorrelation(f.residuals) for f in self.fits}
+        waves = {name: a for name, a in waves.items() if a > POOR_FIT_AUTOCORRELATION}
+        poor = [name for name in waves if per_row[name] > POOR_FIT_S2]
+        if self.n > self.k and waves and (poor or self.s2 > POOR_FIT_S2):
+            each = ", ".join(f"{name} {v:.3g}" for name, v in per_row.items())
+            runs = ", ".join(f"{name} {a:.2f}" for name, a in waves.items())
+            at_bound = [e.label for e in self.estimates if e.at_bound in ("low", "high")]
+            out.append(f"the model does not make the curves within their noise"
+                       + (f" ({', '.join(poor)})" if poor else "")
+                       + f": chi2 / (n - k) = {self.s2:.3g}, chi2 per row {each} (flagged above {POOR_FIT_S2:g}: "
+                       f"residuals over twice the noise the rows are weighted by), and the residuals run in waves, "
+                       f"not row to row (lag-1 autocorrelation {runs}; > {POOR_FIT_AUTOCORRELATION:g}): the curves "
+                       "hold what the model lacks (`knitsim diagnose` names it)"
+                       + (f", or what {', '.join(at_bound)} at its bound keeps it from fitting" if at_bound else "")
+                       + "; the residual panel of each fit plot shows where")
         if self.one_yarn is not None and self.one_yarn.flagged:
             shared_at_bound = [e.label for e in self.estimates
                                if e.specimen is None and e.at_bound in ("low", "high")]

@@ -119,7 +119,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     # a zero offset below zero is the load cell's (a knit carries no compression): tared, since the model's
     # force has no offset term (kept, a -10 mN zero on a 55 N curve moved phi0 by 3 to 7 sd in a blind probe).
     # A zero above zero is not told from the knit's own force at rest or a pretension, and is kept
-    zero = zero_offset_below(force, noise.sigma_N)
+    zero = _rest_level(force, noise.sigma_N, zero_offset_below(force, noise.sigma_N))
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
                          rows, s_name, noise, zero, strain_jitter(strain))
 
@@ -248,6 +248,19 @@ def _interp(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
     s, inv = np.unique(t.strain, return_inverse=True)
     f = np.bincount(inv, weights=t.force) / np.bincount(inv)
     return np.interp(x, s, f)
+
+
+def _rest_level(force, sigma_N: float, floor: float) -> float:
+    """The load cell's zero where :func:`~knitsim.diagnosis.measured.zero_offset_below` saw one below zero
+    (``floor`` < 0; else 0): the median of every reading within 3 noise sd above that floor (the readings at
+    rest, both sides of their noise).  The floor itself, the median of the lowest 5 % of all readings, lies
+    1 to 2 sd below the zero (the low tail of the noise at rest): a re-probe found it tared a -1 sd zero to
+    +1.1 .. +1.7 sd.  Never above 0 (a zero above zero is not told from the knit's force)."""
+    if floor >= 0.0:
+        return 0.0
+    f = np.asarray(force, float)
+    rest = f[f <= floor + 3.0 * sigma_N]
+    return min(float(np.median(rest)), 0.0) if len(rest) else floor
 
 
 def _interpolation_sd(t: MeasuredTable, x: np.ndarray) -> np.ndarray:

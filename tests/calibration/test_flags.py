@@ -204,3 +204,20 @@ def test_the_one_yarn_flag_is_qualified_while_a_shared_parameter_sits_at_its_bou
            Estimate("phi0", "a", 0.29, 0.01, "rad", -0.29, 0.29, "high", "phimax")]
     line = next(f for f in _with_s2(1.0, own, check).flags if "one yarn" in f)
     assert "not a verdict" not in line
+
+
+def test_one_specimens_misfit_is_not_diluted_by_another():
+    """A re-probe: specimen a with chi2 per row 6.2 and residuals in waves beside a clean specimen pooled to
+    s2 = 3.4, below the threshold: no poor-fit flag, only a one-yarn flag blaming "different yarns".  Each
+    specimen's own chi2 per row counts (hand values: 40 rows each, chi2 248 and 30)."""
+    from dataclasses import replace
+    r = _result([Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)])
+    f = r.fits[0]
+    rows = np.linspace(0.01, 0.4, 40)
+    a = replace(f, name="a", strain=rows, chi2=248.0, residuals=WAVE)
+    b = replace(f, name="b", strain=rows, chi2=30.0, residuals=ROW_TO_ROW / 6.0)
+    flags = replace(r, fits=[a, b], s2=3.4).flags
+    poor = [x for x in flags if "does not make the curves within their noise (a)" in x]
+    assert len(poor) == 1 and "a 6.2" in poor[0]
+    clean = replace(r, fits=[replace(a, chi2=30.0), b], s2=0.8).flags
+    assert not any("within their noise" in x for x in clean)
