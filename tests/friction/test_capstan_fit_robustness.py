@@ -176,3 +176,31 @@ def test_paper_table2_fit_is_usable(capsys):
     assert main(["capstan", "fit", str(path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["usable"] is True and out["flags"] == []
+
+
+def _law_rows(rng, b, p, n, F0s, Vs, repeats, rel_noise):
+    rows = []
+    for F0 in F0s:
+        for V in Vs:
+            for d in ("ascent", "descent"):
+                f1 = cap.predict_f1(F0, V, d, b, p, n)
+                rows += [f"{F0},{f1 * (1 + rel_noise * rng.standard_normal()):.9g},{V},{d}\n" for _ in range(repeats)]
+    return "".join(rows)
+
+
+def test_repeats_tighter_than_the_paper_still_judge_the_fit(tmp_path, capsys):
+    """A re-probe: two yarns (b = 0.22 at F0 = 2 and 4 N, b = 0.25 at F0 = 8 N, eq 5) in one file, 3 repeats
+    per condition at 0.2 % noise, so the repeats scatter far *less* than the paper's 0.13 N: the residuals
+    (11 x the repeats' sd) passed against the paper's sd, n 12 SE off, usable.  The lack-of-fit F test against
+    the file's own repeats flags it; one yarn's records with the same repeats do not."""
+    rng = np.random.default_rng(3)
+    Vs = (1.0, 10.0, 100.0)
+    mixed = _csv(tmp_path, _law_rows(rng, 0.22, 0.03, 0.88, (2.0, 4.0), Vs, 3, 0.002)
+                 + _law_rows(rng, 0.25, 0.03, 0.88, (8.0,), Vs, 3, 0.002), "mixed.csv")
+    assert main(["capstan", "fit", mixed, "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["usable"] is False and any("lack-of-fit F" in f for f in out["flags"])
+    one = _csv(tmp_path, _law_rows(rng, 0.22, 0.03, 0.88, (2.0, 4.0, 8.0), Vs, 3, 0.002), "one.csv")
+    assert main(["capstan", "fit", one, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["usable"] is True and out["goodness_of_fit"]["lack_of_fit_p"] > 1e-3
