@@ -150,3 +150,25 @@ def test_a_row_at_rest_is_the_models_rest_force():
     assert h.rest["F"][0] > 0.01
     assert f[0] == h.rest["F"][0] and f[1] == h.force_per_wale[0, 0] and f[2] == h.force_per_wale[2, 0]
     assert lab[0] == "adherence"
+
+
+def test_a_step_and_hold_pull_is_one_loading_not_cycles():
+    """A blind probe's step-and-hold pull (Singal 2024 stockinette: holds where the force relaxes at a held
+    strain that jitters) was read as 19 load cycles.  Hand-made: 10 steps of 0.02, each held 30 rows with a
+    +-1e-4 jitter, the force relaxing 10 % during each hold: one cycle, every row loading.  A real unloading
+    of 0.05 after it is still an unloading."""
+    from knitsim.diagnosis.measured import infer_branches
+    rng = np.random.default_rng(0)
+    s, f = [], []
+    for k in range(1, 11):
+        for r in range(30):
+            s.append(0.02 * k + 1e-4 * rng.standard_normal())
+            f.append(2.0 * k * (1.0 - 0.1 * r / 29))
+    s, f = np.array(s), np.array(f)
+    cycle, direction = infer_branches(s, f)
+    assert np.all(direction == 1) and np.all(cycle == 1)
+    s2 = np.concatenate([s, 0.2 - np.linspace(0.005, 0.05, 10)])
+    f2 = np.concatenate([f, np.linspace(17.0, 5.0, 10)])
+    cycle, direction = infer_branches(s2, f2)
+    # (the unloading starts at the last hold's largest strain, inside that hold)
+    assert np.all(direction[-10:] == -1) and np.all(direction[:270] == 1) and cycle[-1] == 1
