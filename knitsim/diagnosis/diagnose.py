@@ -1699,9 +1699,6 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += (f"; its fit is at a bound of its search and leaves a misfit larger than the noise (chi2/dof "
                            f"{named.chi2_per_dof:.3g} > {SHORT_CHI2_PER_DOF:g}): the effect may stand in for a cause the "
                            "model cannot reach (free a property held fixed, such as B, to see), so it is not confirmed")
-        verdict.reason += ("; the effect's fit is at a bound of its search and still beyond the noise: the effect may "
-                           "stand in for a cause the model cannot reach (free a property held fixed, such as B, to see), "
-                           "so it is not confirmed")
     # an unexplained gap may be two curves that one knit cannot meet (said, the verdict unchanged)
     disagree = curves_disagree(curves, base_fit, data.weights, noise) if verdict.kind == "unexplained" else ""
     if disagree:
