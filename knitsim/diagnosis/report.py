@@ -144,9 +144,11 @@ def _best_candidate(result: Mapping) -> Mapping | None:
 
 
 def _best_label(result: Mapping) -> str:
-    eff = (result.get("verdict") or {}).get("effect")
+    verdict = result.get("verdict") or {}
+    eff = verdict.get("effect")
     if eff is not None:
-        return f"best model: {eff}"
+        # on the plots too: a verdict that is not confident says so (a blind probe read only "best model")
+        return f"best model: {eff}" + ("" if verdict.get("confident", True) else " (not confident)")
     best = _best_candidate(result)
     if best is not None:
         return f"best candidate: {best.get('effect')} (not significant)"

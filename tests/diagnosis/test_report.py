@@ -256,3 +256,11 @@ def test_write_report_is_atomic(result, tmp_path, monkeypatch):
         report.write_report(result, out)
     assert out.read_bytes() == before  # an older report stays intact
     assert [p.name for p in tmp_path.iterdir()] == ["report.html"]
+
+
+def test_the_plots_say_a_verdict_is_not_confident():
+    # a blind probe's fit plot read "best model: yarn_compaction" for a verdict that was not confident
+    from knitsim.diagnosis.report import _best_label
+    assert _best_label({"verdict": {"effect": "yarn_compaction", "confident": False}}) == \
+        "best model: yarn_compaction (not confident)"
+    assert _best_label({"verdict": {"effect": "yarn_compaction", "confident": True}}) == "best model: yarn_compaction"
