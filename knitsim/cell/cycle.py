@@ -849,6 +849,9 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_H
     if not isinstance(program, LoadProgram) or len(program) == 0:
         # as run_batch: a list of strains raised AttributeError inside, an empty program gave an empty history
         raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram (knitsim.cell.load_program)")
+    if not isinstance(params, CellParams):
+        # (a dict raised AttributeError inside: a blind probe)
+        raise KnitsimInputError(f"params = {params!r}: expected a CellParams (knitsim.cell.material)")
     return CellCycle(params, max_halvings, stick_closure).run(program)
 
 

@@ -130,7 +130,11 @@ def piecewise_linear(waypoints, max_increment: float = 0.005, field: str = "load
     -------
     LoadProgram
     """
-    pts = [float(w) for w in waypoints]
+    try:
+        pts = [float(w) for w in waypoints]
+    except (TypeError, ValueError):
+        # (a bare number or text raised TypeError / ValueError without the field: a blind probe)
+        raise KnitsimInputError(f"{field} = {waypoints!r}: expected a sequence of strains (numbers)") from None
     if not pts:
         raise KnitsimInputError(f"{field}: empty strain history")
     for i, w in enumerate(pts):

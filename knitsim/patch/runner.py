@@ -219,6 +219,16 @@ def device_identity(engine: str, device) -> str:
     return "cpu"
 
 
+def _check_solver_options(options: dict) -> None:
+    """Refuse a keyword PatchSolver does not take, naming it (a blind probe's tol=1e-3 raised TypeError)."""
+    import inspect
+    known = set(inspect.signature(PatchSolver.__init__).parameters) - {"self", "grouping", "engine", "device"}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise KnitsimInputError(f"{unknown[0]} = {options[unknown[0]]!r}: not a solver option of run_patch "
+                                f"(expected one of {', '.join(sorted(known))})")
+
+
 def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", device: str = "cpu",
               dedup: bool = True, progress: Callable[[int, int], None] | None = None,
               checkpoint: str | Path | None = None, checkpoint_every: int = 50, resume: bool = False,
@@ -260,6 +270,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     if not isinstance(program, LoadProgram) or len(program) == 0:
         raise KnitsimInputError(f"program = {program!r}: expected a non-empty LoadProgram")
     grouping = model.grouping(dedup)
+    _check_solver_options(solver_options)
     solver = PatchSolver(grouping, engine, device, **solver_options)
     # the rest state (before any increment, and before a resume restores a later one)
     group_rest = {k: np.asarray(solver.cells[k], float).copy() for k in ("C", "F")}

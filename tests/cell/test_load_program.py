@@ -98,3 +98,17 @@ def test_a_program_too_long_is_refused_before_it_is_built(make):
     # the limit is the scene's (MAX_INCREMENTS rows)
     with pytest.raises(KnitsimInputError, match=r"increments \(more than 1000000\)"):
         make()
+
+
+@pytest.mark.parametrize("waypoints", [0.3, ["a", 0.3]])
+def test_waypoints_that_are_not_strains_are_refused_naming_the_field(waypoints):
+    # a blind probe's piecewise_linear(0.3) raised TypeError, ["a", 0.3] a ValueError without the field
+    with pytest.raises(KnitsimInputError, match=r"^load\.waypoints = .*: expected a sequence of strains"):
+        piecewise_linear(waypoints)
+
+
+def test_run_cell_of_a_dict_is_refused_naming_the_argument():
+    # a blind probe's run_cell(dict(...), program) raised AttributeError inside
+    from knitsim.cell.cycle import run_cell
+    with pytest.raises(KnitsimInputError, match=r"^params = \{.*\}: expected a CellParams"):
+        run_cell({"B": 0.31}, monotonic(0.02, 0.01))

@@ -179,3 +179,15 @@ def test_a_checkpoint_is_refused_on_another_device(tmp_path, monkeypatch):
     m = _model()
     assert (runner.fingerprint(m, prog, engine="warp", device="cpu")
             != runner.fingerprint(m, prog, engine="warp", device="cuda (NVIDIA H100 80GB HBM3, sm_90)"))
+
+
+def test_an_unknown_solver_option_is_refused_naming_it():
+    # a blind probe's run_patch(..., tol=1e-3) raised TypeError from PatchSolver.__init__
+    from knitsim.cell.load_program import monotonic
+    from knitsim.cell.material import CellParams
+    from knitsim.errors import KnitsimInputError
+    from knitsim.patch.model import PatchModel
+    from knitsim.patch.runner import run_patch
+    pm = PatchModel.uniform(CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2), 2, 1)
+    with pytest.raises(KnitsimInputError, match=r"^tol = 0\.001: not a solver option of run_patch .*force_tol"):
+        run_patch(pm, monotonic(0.02, 0.01), tol=1e-3)
