@@ -117,8 +117,8 @@ def read_table(path: str | Path) -> MeasuredTable:
     refuse_negative_force(str(path), force, noise, row, column, offset_use="tared (subtracted)")
     refuse_no_response(str(path), force, noise.sigma_N, row, column)
     # a zero offset below zero is the load cell's (a knit carries no compression): tared, since the model's
-    # force has no offset term (kept, a -10 mN zero on a 55 N curve moved phi0 by 3 to 7 sd in a blind probe).
-    # A zero above zero is not told from the knit's own force at rest or a pretension, and is kept
+    # force has no offset term (left in, a -10 mN zero on a 55 N curve moved phi0 by 3 to 7 sd in a blind
+    # probe).  A zero above zero is not told from the knit's own force at rest or a pretension: left in
     zero = _rest_level(force, noise.sigma_N, zero_offset_below(force, noise.sigma_N))
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
                          rows, s_name, noise, zero, strain_jitter(strain))
@@ -243,11 +243,15 @@ def cauchy_tail(r) -> np.ndarray:
     return np.sign(r) * np.sqrt(2.0 * np.log1p(0.5 * r * r))
 
 
-def _interp(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
-    # repeated strains (a logger writing a row twice) are averaged, so that the interpolation is defined
+def _readings(t: MeasuredTable) -> tuple[np.ndarray, np.ndarray]:
+    """The file's (strain, force) readings with repeated strains (a logger writing a row twice) averaged,
+    so that the interpolation between them is defined."""
     s, inv = np.unique(t.strain, return_inverse=True)
-    f = np.bincount(inv, weights=t.force) / np.bincount(inv)
-    return np.interp(x, s, f)
+    return s, np.bincount(inv, weights=t.force) / np.bincount(inv)
+
+
+def _interp(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
+    return np.interp(x, *_readings(t))
 
 
 def _rest_level(force, sigma_N: float, floor: float) -> float:
@@ -271,8 +275,7 @@ def _interpolation_sd(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
     left one yarn flagged as two on a curve read every 0.02).  0 at a reading.
     A blind probe's exact model curves read at steps of 0.003 and 0.01 with rows at 0.005 were 27 sd off at
     the row just past the stick-slip knee, and one yarn read as two (p = 1e-80)."""
-    s, inv = np.unique(t.strain, return_inverse=True)
-    f = np.bincount(inv, weights=t.force) / np.bincount(inv)
+    s, f = _readings(t)
     if len(s) < 3:
         return np.zeros(len(x))
     seg = np.diff(f) / np.diff(s)
