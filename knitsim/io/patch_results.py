@@ -876,6 +876,12 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                  "peak_is_force_cap": bool(fc.rows[j]),
                  # of how many columns: all (the peak per wale is the cap) or some (the peak mixes them)
                  "columns_at_force_cap_at_peak": int(fc.column_rows[j].sum()) if fc.column_rows is not None else 0}
+        if rows[0] == 0 and h.rest_force_N > F[j]:
+            # a first cycle that unloads from rest peaks at the rest state (a blind probe read 0 N at -0.005)
+            rest_e = float(h.info.get("rest_grip_strain", 0.0))
+            entry.update(peak_force_N=float(h.rest_force_N), peak_force_per_wale_N=float(h.rest_force_per_wale_N),
+                         grip_strain_at_peak=rest_e, grip_displacement_at_peak_mm=rest_e * ref_length,
+                         peak_is_force_cap=False, columns_at_force_cap_at_peak=0)
         n_held = int(np.count_nonzero(held[rows]))
         if n_held:
             entry["held_rows"] = n_held

@@ -240,6 +240,9 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         entry["peak_force_per_wale_N"] = float(F[j])
         # (the imposed strain; where the cell stopped inside an increment, its own strain there)
         entry["strain_at_peak"] = float(h.strain[j] if status[j] == STATUS_OK else eps_cell[j])
+        if rows[0] == 0 and h.rest is not None and h.rest["F"][cell] > F[j]:
+            # a first cycle that unloads from rest peaks at the rest state (a blind probe read 0 N at -0.005)
+            entry["peak_force_per_wale_N"], entry["strain_at_peak"] = float(h.rest["F"][cell]), 0.0
         # residual strain: where F reaches 0 on this cycle's unloading branch
         unload = rows[h.direction[rows] < 0]
         res, how = None, None

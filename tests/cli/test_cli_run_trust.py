@@ -462,3 +462,21 @@ def test_the_force_cap_cut_counts_the_columns_stopped_at_the_strain_it_names(tmp
     stopped = {r["column"] for r in rows if int(r["increment"]) == first and r["status"] != "ok"}
     assert cut.startswith(f"{len(stopped)} of 3 wale column(s) stopped at the force cap"), cut
     assert len(stopped) < 3 and "stop at the cap later" in cut
+
+
+def test_a_patch_unloading_from_rest_peaks_at_the_rest_state(tmp_path):
+    """The same for a patch (a blind probe: "peak 0 N per wale at grip strain -0.005"): the peak is the rest
+    state's force, curve.csv's row 0, at grip strain 0."""
+    import csv
+    import json
+    from knitsim.cli import main
+    scene = tmp_path / "u.toml"
+    scene.write_text('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[friction]\nm = 0.2\n'
+                     '[patch]\nwales = 2\ncourses = 2\n[load]\ntype = "piecewise"\nwaypoints = [-0.05]\n'
+                     'max_increment = 0.01\n')
+    main(["run", str(scene), "--out", str(tmp_path / "o")])
+    cyc = json.loads((tmp_path / "o" / "summary.json").read_text())["cycles"][0]
+    row0 = next(csv.DictReader((tmp_path / "o" / "curve.csv").open()))
+    assert float(row0["grip_strain"]) == 0.0 and cyc["grip_strain_at_peak"] == 0.0
+    assert cyc["peak_force_per_wale_N"] == pytest.approx(float(row0["force_per_wale_N"]), rel=1e-12)
+    assert cyc["peak_force_per_wale_N"] > 0.01

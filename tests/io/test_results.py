@@ -214,3 +214,13 @@ def test_a_failed_cell_reports_one_final_state_and_no_values_it_never_reached(mo
     titles.clear()
     results.plot_png(history(), ["a", "b", "c", "d"], title="t")
     assert "FAILED: d stopped" in titles[-1][0]
+
+
+def test_a_first_cycle_that_unloads_from_rest_peaks_at_the_rest_state():
+    # a blind probe's unloading-only program reported a peak of 0 N at strain -0.005: the cycle starts at the
+    # rest state, whose force per wale (Table 4's initial state) is its largest
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import piecewise_linear
+    h = run_batch([P], piecewise_linear([-0.05], 0.01))
+    c = summarise(h)["cells"][0]["cycles"][0]
+    assert c["peak_force_per_wale_N"] == h.rest["F"][0] > 0.01 and c["strain_at_peak"] == 0.0
