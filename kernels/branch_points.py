@@ -16,14 +16,19 @@ the kernels run over a list of groups (the prepared ones, those still iterating)
 """
 from __future__ import annotations
 
+import sys
+
 import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
 #: points kept per group (``PatchSolver.branch_points``, BranchPoints' ``size``)
 SIZE = 8
-K_MIN = wp.constant(wp.float64(1e-6))      # knitsim.patch.coupling.K_MIN / K_MAX: the slopes' clip [N/mm]
-K_MAX = wp.constant(wp.float64(1e6))
+#: the bounds of a cell's tangent dF/dC [N/mm] and the largest column force the search grows its bracket to
+#: [N]: the NumPy twin's too (knitsim.patch.coupling takes them from here)
+TANGENT_MIN, TANGENT_MAX, COLUMN_FORCE_MAX = 1e-6, 1e6, 1e12
+K_MIN = wp.constant(wp.float64(TANGENT_MIN))
+K_MAX = wp.constant(wp.float64(TANGENT_MAX))
 INF = wp.constant(wp.float64(wp.inf))
 
 
@@ -391,8 +396,8 @@ def jump_kernel(
 # thread per column over its groups in ascending group order (numpy.bincount's order: the same sums bit
 # for bit, and deterministic, where atomics would not be).
 
-FORCE_SEARCH_MAX = wp.constant(wp.float64(1e12))   # knitsim.patch.coupling.FORCE_SEARCH_MAX [N]
-EPS = wp.constant(wp.float64(2.220446049250313e-16))
+FORCE_SEARCH_MAX = wp.constant(wp.float64(COLUMN_FORCE_MAX))
+EPS = wp.constant(wp.float64(sys.float_info.epsilon))
 
 
 @wp.kernel

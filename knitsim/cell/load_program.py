@@ -172,6 +172,8 @@ def monotonic(target: float, max_increment: float = 0.005) -> LoadProgram:
     """Monotonic loading from rest to ``target`` strain (> 0)."""
     if not (math.isfinite(target) and target > 0):
         raise KnitsimInputError(f"load.target_strain = {target}: must be a positive number")
+    if math.isfinite(max_increment) and max_increment > 0:
+        _check_length(math.ceil(target / max_increment - 1e-12), max_increment, f"load.target_strain = {target:g}")
     return piecewise_linear([0.0, target], max_increment, field="load.target_strain")
 
 

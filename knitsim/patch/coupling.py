@@ -128,16 +128,17 @@ from ..cell.history import STATUS_OK
 from ..cell.quantities import CODE
 from ..cell.stages import MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
+from ..kernels.branch_points import COLUMN_FORCE_MAX, TANGENT_MAX, TANGENT_MIN
 from ..kernels.branch_points import SIZE as DEVICE_BRANCH_SIZE
 from .model import Grouping
 
-#: bounds of the tangent dF/dC of a cell [N/mm]
-K_MIN, K_MAX = 1e-6, 1e6
+#: bounds of the tangent dF/dC of a cell [N/mm] (those of the device's branch model, one place)
+K_MIN, K_MAX = TANGENT_MIN, TANGENT_MAX
 #: a column carrying force closes when its lengths add up to the grip displacement within this share of its rest
 #: length (rounding: the trial lengths are sent to add up to it exactly)
 LENGTH_RTOL = 1e-9
 #: largest column force [N] the scalar search of a column's force grows its bracket to
-FORCE_SEARCH_MAX = 1e12
+FORCE_SEARCH_MAX = COLUMN_FORCE_MAX
 #: column flags
 COL_OK, COL_NOT_CONVERGED, COL_STOPPED = 0, 1, 2
 COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STOPPED: "stopped"}
@@ -466,6 +467,12 @@ def make_backend(engine: str, grouping: Grouping, device: str = "cpu", max_halvi
 
 
 # ===================================================================== branch models
+def column_length_tolerance(scale: np.ndarray) -> np.ndarray:
+    """How close a column's model lengths must add up to the grip displacement [mm] (its rest length ``scale``
+    to 16 roundings): the column solve's stop, in NumPy and on the device."""
+    return 16.0 * np.finfo(float).eps * scale
+
+
 class BranchPoints:
     """The points (C, f, df/dC) of every group's branch met within one increment, and the monotone
     model C(f) through them (module docstring, "The column as a scalar problem in its force").
@@ -1113,7 +1120,7 @@ class PatchSolver:
         col, cnt, C0, p = self.col[rows], self.cnt[rows], self.C0[rows], self.p[rows]
         colsum = lambda v: np.bincount(col, weights=v, minlength=self.n_cls)   # noqa: E731
         scale = colsum(cnt * C0)
-        tol_len = 16.0 * np.finfo(float).eps * scale
+        tol_len = column_length_tolerance(scale)
 
         def phi(F):
             C, dC = pts.model(F[col] / p)

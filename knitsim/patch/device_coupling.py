@@ -13,7 +13,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels import branch_points as kbp
-from .coupling import BranchPoints
+from .coupling import BranchPoints, column_length_tolerance
 
 
 class DeviceBranchPoints(BranchPoints):
@@ -174,7 +174,7 @@ class DeviceColumnSolve:
         self.col_start = i32(np.r_[0, np.cumsum(counts)])
         self.col_groups = i32(np.argsort(col, kind="stable"))
         scale = np.bincount(col, weights=np.asarray(cnt) * np.asarray(C0), minlength=self.n_cls)
-        self.tol_len_host = 16.0 * np.finfo(float).eps * scale
+        self.tol_len_host = column_length_tolerance(scale)
         self.tol_len = f64(self.tol_len_host)
         g = lambda: wp.zeros(n, dtype=wp.float64, device=device)  # noqa: E731
         self.C, self.dC, self.C_zero, self.C_a, self.C_b = g(), g(), g(), g(), g()

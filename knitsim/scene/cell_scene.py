@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import materials
-from ..cell.load_program import MAX_INCREMENTS, LoadProgram, cycles, monotonic, piecewise_linear
+from ..cell.load_program import LoadProgram, cycles, monotonic, piecewise_linear
 from ..cell.material import CellParams
 from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
 from ..errors import KnitsimInputError
@@ -422,8 +422,8 @@ def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram,
 
     Every limit is checked on the table's numbers before anything is built (a strain of 1e308 or
     1e6 is refused, not an overflow or an out-of-memory): the strain the cells can reach (C < L/2,
-    a straight yarn) and the number of increments (:data:`MAX_INCREMENTS`).  ``limit_of``
-    overrides the reach: ``(largest strain, message suffix)`` (a patch's columns).
+    a straight yarn); the number of increments (:data:`knitsim.cell.load_program.MAX_INCREMENTS`) by the
+    program's constructor, before it allocates anything.  ``limit_of`` overrides the reach: ``(largest strain, message suffix)`` (a patch's columns).
     """
     kind = load["type"]
     for key in ("target_strain", "lower_strain", "upper_strain", "cycles", "waypoints"):
@@ -458,14 +458,7 @@ def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram,
     if limit_of is not None and top >= limit_of[0]:
         raise KnitsimInputError(f"{top_key} = {fmt(load[top_key.split('.')[1]])}: grip strain {top:g} cannot be "
                                 f"reached: {limit_of[1]}")
-    n = sum(math.ceil(abs(b - a) / inc - 1e-12) for a, b in zip(corners[:-1], corners[1:]) if b != a)
-    if n > MAX_INCREMENTS:
-        # (the program's length is set by its corners and the increment: name both, a blind probe's
-        # --set load.cycles=100000 was told only to enlarge the increment)
-        span = ("load.cycles = " + fmt(load["cycles"]) + " between its strains" if kind == "cycles" else
-                f"{len(corners) - 1} segment(s) of load.waypoints" if kind == "piecewise" else f"{top_key} = {fmt(top)}")
-        raise error("load.max_increment", inc, f"with {span} gives {n} increments (more than {MAX_INCREMENTS}); use "
-                    f"a larger increment{' or fewer cycles' if kind == 'cycles' else ' or a shorter program'}")
+    # (a program longer than MAX_INCREMENTS is refused by its constructor, naming what set its length)
     if kind == "monotonic":
         prog = monotonic(load["target_strain"], inc)
     elif kind == "cycles":

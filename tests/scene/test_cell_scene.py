@@ -122,7 +122,7 @@ def test_phi0_forms():
     # too long a program names what set its length (a blind probe's load.cycles = 100000 was told only of the
     # increment): the monotonic program's target and the increment
     (dict(load__max_increment=1e-7),
-     r"^load\.max_increment = 1e-07: with load\.target_strain = 0\.5 gives 5000000 increments .*shorter program$"),
+     r"^load\.max_increment = 1e-07: load\.target_strain = 0\.5 gives 5000000 increments .*shorter program$"),
 ])
 def test_bad_scenes_refused_naming_key_and_value(changes, match):
     refused(scene(**changes), match)
