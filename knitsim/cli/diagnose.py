@@ -123,8 +123,11 @@ def run(args) -> int:
             prob = "  n/a" if c["probability"] is None else f"{c['probability']:.3f}"
             fit = "" if c.get("chi2_per_dof") is None else (
                 f"  chi2/dof {c['chi2_per_dof']:.3g}{' within noise' if c.get('within_noise') else ''}")
+            # only the verdict's effect is named; others may pass the same tests (a closer rival, a pair)
+            mark = "  named" if v.get("effect") is not None and v.get("effect") == c["effect"] else (
+                "  passes the naming tests" if c["significant"] and c["practical"] else "")
             print(f"  {c['effect']:<24s} p {prob}  score {c['score']:10.4g}  share of gap {share:>6s}{fit}"
-                  f"  shrink {c['shrink']:6.1%}{'  named' if c['significant'] and c['practical'] else ''}"
+                  f"  shrink {c['shrink']:6.1%}{mark}"
                   f"{'  (evidence rests on assumed noise)' if c.get('rests_on_assumed_noise') else ''}")
     probs = ", ".join(f"{k} {p:.2f}" for k, p in sorted(v["probabilities"].items(), key=lambda kv: -kv[1])[:4])
     conf = "confident" if v["confident"] else "not confident"

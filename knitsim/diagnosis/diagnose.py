@@ -329,6 +329,10 @@ class CandidateResult:
     #: True when the evidence from the curves whose noise is known (measured or given) does not clear
     #: the threshold alone: the effect rests on a curve whose noise is assumed
     rests_on_assumed_noise: bool = False
+    #: each curve's fitted force offset [N] (the load cell's zero this fit reads; the baseline's are
+    #: ``baseline.offsets_N``): a candidate whose offsets differ much from the baseline's explains the
+    #: gap partly by moving the zero
+    offsets_N: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -824,6 +828,90 @@ def _outliers(data: _Data, fit: dict) -> list[Outlier]:
     return out
 
 
+#: the baseline's neighbourhood scan (:func:`scan_neighbourhood`): relative steps of m, absolute steps of phi0
+#: (a fraction of phimax), and relative steps of the other free variables (the lengths L and C0 set the
+#: jamming strain to a fraction of a per cent: finer steps)
+SCAN_M_STEPS = (0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.15, 0.25)
+SCAN_PHI0_STEPS = (0.05, 0.1, 0.2, 0.35, 0.6)
+SCAN_STEPS = (0.01, 0.02, 0.04, 0.08, 0.16)
+SCAN_LENGTH_STEPS = (0.0025, 0.005, 0.01, 0.02, 0.04)
+#: a scanned point better than the fit by more than this much chi^2 restarts the fit from it
+SCAN_MIN_DROP = 1.0
+#: scans (each followed by a fit from its best point) at most
+SCAN_ROUNDS = 3
+
+
+def _scan_points(data: _Data, x: dict) -> list[dict]:
+    """Points around the fitted variables ``x``: a grid in (m, phi0) where both are free (each alone
+    otherwise), and each other free variable alone, inside the calibration's bounds."""
+    setup = data.setup
+    free = tuple(setup.free)
+
+    def bounds(name):
+        return setup.bounds.get(name, default_bounds(setup.base, BASELINE_VARIABLES[name]))
+
+    def axis(name):
+        v = x[name]
+        if name == "phi0":
+            vals = [v + sg * t for t in SCAN_PHI0_STEPS for sg in (-1.0, 1.0)]
+        else:
+            steps = SCAN_M_STEPS if name == "m" else SCAN_LENGTH_STEPS if name in ("L", "C0") else SCAN_STEPS
+            vals = [v * (1.0 + sg * t) for t in steps for sg in (-1.0, 1.0)]
+        lo, hi = bounds(name)
+        return [v] + sorted({min(max(u, lo), hi) for u in vals} - {v})
+
+    points = []
+    friction = [n for n in ("m", "phi0") if n in free]
+    if friction:
+        for combo in itertools.product(*(axis(n) for n in friction)):
+            pt = dict(x, **dict(zip(friction, combo)))
+            if pt != x:
+                points.append(pt)
+    for name in free:
+        if name not in friction:
+            points += [dict(x, **{name: u}) for u in axis(name)[1:]]
+    return points
+
+
+def scan_neighbourhood(data: _Data, fit: dict, nfev: int, say) -> dict:
+    """The baseline fit, moved to a better basin next to it where one is found.
+
+    The model's chi^2 is not smooth in the friction: where a later cycle's reload just reaches the
+    strain at which the cell goes taut, a change of m by 0.5 % moves that reload's force from 0.3 mN to
+    14 mN, and the surface has a cliff beside a basin a few per cent wide.  A local fit stops on the
+    wrong side (a blind probe: curves made by the model itself, with 2 mN of noise, fitted at chi^2 832
+    where the truth gives 326, and read as a confident `unexplained`).  The points of
+    :func:`_scan_points` run in one batched launch per load program; from the best of them, where it
+    beats the fit by more than :data:`SCAN_MIN_DROP`, the fit is repeated (at most
+    :data:`SCAN_ROUNDS` times).  The fit returned records ``scan`` (each round's best scanned chi^2
+    against the fit's)."""
+    trail = []
+    for _ in range(SCAN_ROUNDS):
+        x = dict(fit["fit_variables"])
+        points, cells = [], []
+        for pt in _scan_points(data, x):
+            try:
+                cells.append(build_params(data.setup.base, (), pt, data.setup.fixed))
+            except KnitsimInputError:
+                continue
+            points.append(pt)
+        if not cells:
+            break
+        chi2 = data.chi2_of(cells)
+        j = int(np.argmin(chi2))
+        trail.append((float(chi2[j]), float(fit["chi2"])))
+        if not chi2[j] < fit["chi2"] - SCAN_MIN_DROP:
+            break
+        again = _fit(data, (), x0=points[j], nfev=nfev)
+        say(f"baseline: a point beside the fit has chi2 {chi2[j]:.5g} < {fit['chi2']:.5g}; refitted from it: "
+            f"chi2 {again['chi2']:.5g}")
+        if not again["chi2"] < fit["chi2"]:
+            break
+        fit = again
+    fit["scan"] = trail
+    return fit
+
+
 def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
     """Step 2: the baseline from the scene's start and the grid's best points; isolated outliers
     left out (their weights set to 0) and the fit repeated from where it was."""
@@ -840,6 +928,7 @@ def calibrate_step(data: _Data, say) -> tuple[dict, list[Outlier]]:
         again = _fit(data, (), x0=x, extra_starts=alt, nfev=nfev)
         if again["chi2"] < fit["chi2"]:
             fit = again
+    fit = scan_neighbourhood(data, fit, nfev, say)
     say(f"baseline: rms {fit['rms_N']:.4g} N, chi2 {fit['chi2']:.5g}")
     outliers = _outliers(data, fit)
     if outliers:
@@ -1320,7 +1409,8 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
         s = _summary(fit, loc, measured, keep, base, n)
         cand = CandidateResult(name, spec.doc, True, params=s["params"], std_errors=s["std_errors"], rms_N=s["rms_N"],
                                rss_N2=s["rss_N2"], chi2=s["chi2"], k=s["k"], stages=s["stages"], shrink=s["shrink"],
-                               score=s["score"], flagged_curves=s["flagged_curves"], nfev=s["nfev"])
+                               score=s["score"], flagged_curves=s["flagged_curves"], nfev=s["nfev"],
+                               offsets_N=dict(fit.get("offsets_N") or {}))
         if spec.nests_baseline and fit["chi2"] > base["chi2"]:
             # where the effect vanishes the model is the baseline bit for bit: a fit above it is a local
             # minimum, and the effect explains nothing

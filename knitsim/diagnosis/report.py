@@ -298,6 +298,20 @@ def _img(png: bytes, alt: str) -> str:
 
 
 # -------------------------------------------------------------------- page
+def _offsets_text(c: dict) -> str:
+    """``; zero offset FILE v N`` for each curve's fitted load-cell offset of a candidate's fit (escaped)."""
+    off = c.get("offsets_N") or {}
+    return "".join(f"; zero offset {_e(Path(str(k)).name)} {_e(_fmt(v))} N" for k, v in off.items())
+
+
+def _naming(c: dict, verdict: dict) -> str:
+    """"named" for the verdict's effect; "passes" for another candidate that passes the same tests (the
+    verdict names one: a closer rival, or a pair, may pass them too); "no" otherwise."""
+    if verdict.get("effect") is not None and verdict.get("effect") == c.get("effect"):
+        return "named"
+    return "passes" if c.get("significant") and c.get("practical") else "no"
+
+
 def verdict_sentence(result: dict) -> str:
     """The verdict in one plain-text sentence (not escaped)."""
     v = result.get("verdict") or {}
@@ -450,16 +464,16 @@ def render_report(result: dict) -> str:
     out.append("<h2>Which: candidate effects, best first</h2>\n")
     cands = result.get("candidates") or []
     if cands:
-        rows = [[_e(c.get("effect")), _params_text(c.get("params"), c.get("std_errors")),
+        rows = [[_e(c.get("effect")), _params_text(c.get("params"), c.get("std_errors")) + _offsets_text(c),
                  _e(_fmt(c.get("rms_N"))), _e(_pct(c.get("shrink"))), _e(_fmt(c.get("score"))),
                  _e(_pct(c.get("share_of_excess"))), _e(_fmt(c.get("probability"))),
                  _e(_fmt(c.get("chi2_per_dof")) + {True: " (within)", False: " (beyond)"}.get(c.get("within_noise"), "")),
-                 _e(_fmt(bool(c.get("significant")) and bool(c.get("practical")))),
+                 _e(_naming(c, verdict)),
                  _e(_fmt(bool(c.get("identifiable")))),
                  _e(("evidence rests on assumed noise. " if c.get("rests_on_assumed_noise") else "")
                     + (c.get("note") or ""))] for c in cands]
         out.append(_table(["effect", "parameters", "RMS [N]", "shrink", "score", "share of the gap", "probability",
-                           "chi2/dof (noise)", "named",
+                           "chi2/dof (noise)", "named / passes the naming tests",
                            "identifiable", "note"], rows, "candidates"))
     else:
         out.append("<p>No candidate effect was evaluated.</p>\n")

@@ -206,6 +206,35 @@ def test_verdict_sentence_names_effect_and_shrink(result):
     assert "not confident" in report.verdict_sentence(result)
 
 
+def _candidate_rows(text):
+    """{effect: [cell texts]} of the candidates table."""
+    table = text[text.index("Which: candidate effects"):]
+    table = table[:table.index("</table>")]
+    rows = {}
+    for tr in re.findall(r"<tr>(.*?)</tr>", table, re.S):
+        cells = [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<td[^>]*>(.*?)</td>", tr, re.S)]
+        if cells:
+            rows[cells[0]] = cells
+    return rows
+
+
+def test_only_the_verdicts_effect_is_named(result):
+    """A verdict names one effect; a rival that passes the same tests is marked as passing them, not as
+    named (a probe read three "named" candidates beside a verdict naming one).  The candidates' own
+    fitted zero offsets are shown with their parameters."""
+    result["candidates"][0]["practical"] = True
+    rival = copy.deepcopy(result["candidates"][0])
+    rival.update(effect="yarn_compaction", score=40.0, offsets_N={"data/a.csv": 0.0123})
+    result["candidates"].insert(1, rival)
+    rows = _candidate_rows(report.render_report(result))
+    assert "named" in rows["dahl_transition"] and "passes" in rows["yarn_compaction"]
+    assert "no" in rows["velocity_friction"]
+    assert "zero offset a.csv 0.0123 N" in rows["yarn_compaction"][1]
+    result["verdict"].update(kind="unexplained", effect=None)
+    rows = _candidate_rows(report.render_report(result))
+    assert "named" not in rows["dahl_transition"] and "passes" in rows["dahl_transition"]
+
+
 def test_indicators_rendered_when_present(result):
     ind = {"cycles": [{"cycle": 1, "peak_force_N": 0.314159, "strain_at_peak": 0.1, "residual_strain": None,
                        "energy_N_per_strain": 0.002718}], "strain_at_first_jamming": None}
