@@ -224,7 +224,8 @@ FRICTION_MODELS = ("coulomb", "dahl")
 #: 1e7, a cycle failed at strain 0.49, and on its first increment at increments of 0.001)
 DAHL_SIGMA_MAX = 1.0e6
 DAHL_SIGMA_TOO_STIFF = (f"above {DAHL_SIGMA_MAX:g} 1/mm the Dahl law is Coulomb friction to 1e-6 N and its "
-                        "solve does not converge: use friction.model = \"coulomb\"")
+                        "solve does not converge: use friction.model = \"coulomb\" with rules.unloading_rule = "
+                        "\"hong_constant_t\" (the Dahl law's limit: Hong's constant-T unloading)")
 #: a Dahl stiffness given to a cell of another friction law (a blind probe's --set friction.dahl_sigma=5 on a
 #: Coulomb scene ran Coulomb, silently)
 DAHL_SIGMA_UNUSED = ("not used by friction.model = \"coulomb\": set friction.model = \"dahl\" to use it, "

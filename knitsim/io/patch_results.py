@@ -50,7 +50,7 @@ from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work,
                      energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
-from .results import RULE_MEANINGS, _num, summary_json, write_result_set
+from .results import _num, rule_meaning, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
 PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
@@ -263,11 +263,12 @@ def rule_sets(model: PatchModel | None) -> list[dict] | None:
     out = []
     for key, count in seen.items():
         entry = {}
+        friction = str(dict(zip(names, key)).get("friction", ""))
         for n, v in zip(names, key):
             if n == "force_cap_N":
                 entry[n] = {"value": float(v), "meaning": "a cell stops when its force per wale reaches this value"}
             else:
-                entry[n] = {"value": str(v), "meaning": RULE_MEANINGS.get(n, {}).get(str(v), "")}
+                entry[n] = {"value": str(v), "meaning": rule_meaning(n, v, friction)}
         entry["cells"] = int(count)
         out.append(entry)
     return out

@@ -174,13 +174,27 @@ def _stopped_rows(status: np.ndarray) -> int:
     return int(bad[0]) + 1
 
 
+#: what the stage rules mean to a Dahl cell: nothing (its friction state follows the slip at B through every
+#: stage; a blind probe found the summaries of Dahl runs naming "SF- freezes beta, S- freezes T" while the
+#: rule changed no number)
+DAHL_UNUSED_RULE = ("not used by Dahl friction (its friction angle follows the slip at B in every stage; its "
+                    "large-sigma limit is Coulomb friction with unloading_rule = \"hong_constant_t\")")
+
+
+def rule_meaning(key: str, value, friction: str) -> str:
+    """What the rule ``key = value`` means for a cell of the ``friction`` law (summaries and plots)."""
+    if friction == "dahl" and key in ("unloading_rule", "reload_rule"):
+        return DAHL_UNUSED_RULE
+    return RULE_MEANINGS.get(key, {}).get(str(value), "")
+
+
 def rules_of(params) -> dict:
     """The rules a cell ran with, each with its meaning."""
     out = {}
     for key, attr in (("friction", "friction"), ("unloading_rule", "unloading_rule"),
                       ("reload_rule", "reload_rule"), ("jamming_criterion", "jamming_criterion")):
         v = getattr(params, attr)
-        out[key] = {"value": v, "meaning": RULE_MEANINGS[key].get(v, "")}
+        out[key] = {"value": v, "meaning": rule_meaning(key, v, params.friction)}
     out["force_cap_N"] = {"value": float(params.force_cap_N),
                           "meaning": "a cell stops when its force per wale reaches this value"}
     return out

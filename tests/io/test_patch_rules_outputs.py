@@ -33,3 +33,27 @@ def test_a_patch_of_two_rule_sets_names_both_with_their_cells():
     assert ds["friction"].values.tolist() == [[0, 1, 1]] * 4
     assert ds["unloading_rule"].values.tolist() == [[0, 1, 1]] * 4
     assert np.all(ds["force_cap_N"].values == float(m.rules["force_cap_N"][0, 0]))
+    # a Dahl cell runs no stage rule (its friction follows the slip at B): said, not the Coulomb meaning
+    assert "not used by Dahl" in rules[1]["unloading_rule"]["meaning"]
+    assert "not used by Dahl" in rules[1]["reload_rule"]["meaning"]
+    assert "not used" not in rules[0]["unloading_rule"]["meaning"]
+
+
+def test_a_dahl_cells_stage_rules_change_no_number_and_its_summary_says_they_are_unused():
+    """The stage rules belong to the Coulomb (Table 4) cycle: the Dahl law's friction angle follows the slip
+    at B in every stage (model.md, "Dahl at the crossing"), so its forces are the same under either
+    unloading and reload rule (identity), and the cell summary says the rules are not used (a blind probe
+    read "SF- freezes beta, S- freezes T" in a Dahl run's summary)."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import cycles
+    from knitsim.cell.material import CellParams
+    from knitsim.io.results import rules_of
+
+    base = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, friction="dahl", dahl_sigma=50.0,
+                      force_cap_N=10.0)
+    cells = [base, base.replace(unloading_rule="hong_constant_t"), base.replace(reload_rule="freeze_rn")]
+    F = run_batch(cells, cycles(0.1, 0.5, 2, 0.02)).values["F"]
+    assert np.array_equal(F[:, 0], F[:, 1]) and np.array_equal(F[:, 0], F[:, 2])
+    r = rules_of(base)
+    assert "not used by Dahl" in r["unloading_rule"]["meaning"] and "not used by Dahl" in r["reload_rule"]["meaning"]
+    assert "Table 4" in rules_of(base.replace(friction="coulomb", dahl_sigma=0.0))["unloading_rule"]["meaning"]
