@@ -18,6 +18,7 @@ and "unexplained" otherwise, with the stage where the gap lies.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -111,7 +112,13 @@ def run(args) -> int:
             f"{Path(o['source']).name} row {o['row']} ({o['z']:+.1f} sd)" for o in b["outliers"][:5]))
     within = {True: "within noise", False: "NOT within noise", None: "cannot be judged"}[nz["baseline_within_noise"]]
     print(f"fit: chi2/dof {nz['baseline_chi2_per_dof']:.4g} (1 +- {nz['expected_sd']:.2g} for noise alone): {within}")
-    print("gap by stage: " + ", ".join(f"{k} {b['stages'][k]['share']:.0%}" for k in result["where"]))
+    shares = {k: b["stages"][k]["share"] for k in result["where"]}
+    if all(v is None or not math.isfinite(v) for v in shares.values()):
+        # no stage's chi2 exceeds what its rows' noise gives: there is no gap to share out
+        print("gap by stage: none beyond the noise (no stage's chi2 exceeds its row count)")
+    else:
+        print("gap by stage: " + ", ".join(f"{k} {v:.0%}" if v is not None and math.isfinite(v) else f"{k} n/a"
+                                           for k, v in shares.items()))
     for c in result["candidates"]:
         if c["score"] is None:
             print(f"  {c['effect']:<24s} not identifiable: {c['note']}")

@@ -566,3 +566,19 @@ def test_a_curve_the_model_made_is_not_read_as_a_gap_beside_a_cliff_of_chi2():
     assert abs(r["baseline"]["params"]["phi0"] - 0.05) < 0.015
     assert r["noise"]["baseline_within_noise"]
 
+
+
+def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_path, capsys):
+    """The model's own single cycle (tests/diagnosis/data/README.md): no stage's chi2 exceeds its rows, so the
+    chi2 excess has no share to give out (gap.stage_gap: NaN).  The console printed "nan%" for every stage;
+    it says there is no gap beyond the noise."""
+    from pathlib import Path
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
+                     '[rules]\nunloading_rule = "dusserre"\nreload_rule = "mirror_unloading"\nforce_cap_N = 10.0\n'
+                     '[diagnosis]\nfree = ["m", "phi0"]\neffects = ["bending_hysteresis"]\n')
+    csv = Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv"
+    assert main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out.lower()
+    assert "gap by stage: none beyond the noise" in out and "verdict: none" in out
