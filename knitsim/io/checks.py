@@ -9,6 +9,15 @@ and printed by the commands:
     again up to the upper strain.  With
     Table 4 it has physical reasons (README, "the reload pocket"), but a user
     must see it rather than read ``all_converged: true``.
+``reload_below_earlier_loading``
+    A later cycle whose loading, where it passes the largest strain of the cycles before it, carries less
+    than :data:`RELOAD_SHARE_MIN` of the force the knit carried there before
+    (:func:`reloads_below_earlier_loading`).  Table 4's sliding stage S+ keeps the contact's normal force
+    Rn at its value where sliding began; a reload from slack, or from a low force, starts sliding at a low
+    Rn and its branch stays below the first loading at every strain, the earlier maximum and beyond (a
+    blind probe: cycles to 0.2, 0.3, 0.45 and 0.6 peaked at 0.048 N per wale at 0.6, where a single pull
+    carries 0.167 N).  A measured knit reloads to most of its earlier force there (Dusserre 2015
+    Fig. 10: 5 N, then 4 N).
 ``loop_creates_energy``
     A load-then-unload excursion that comes back to the strain it started from
     (:func:`closed_excursions`) with ``oint F dC < 0``: its unloading returned above
@@ -272,6 +281,16 @@ def compressive_rest_state(force_rest: float, what: str = "the cell") -> list[Re
 ZERO_CYCLE_FRACTION = 0.1
 
 
+#: a later loading carrying less than this share of the earlier force at the earlier maximum strain is
+#: flagged (reload_below_earlier_loading): half, well below a measured knit's 70-90 % (5 N -> 4 N in
+#: Dusserre 2015 Fig. 10), above the tenth that zero_force_cycle flags
+RELOAD_SHARE_MIN = 0.5
+#: a cycle that reaches a new maximum strain and peaks below this share of an earlier peak is flagged
+#: (reload_below_earlier_loading): the envelope of a knit's cycles rises with the strain; a tenth of slack
+#: for the noise of a peak read at a row
+ENVELOPE_SHARE_MIN = 0.9
+
+
 @dataclass(frozen=True)
 class ResultWarning:
     """A warning of a result: a stable ``code`` and a one-line ``message``."""
@@ -301,21 +320,31 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
         Share of the largest earlier peak below which a cycle carries no force.
     """
     out = []
+    for c1, p1, c0, p0 in _empty_cycles(peaks, fraction):
+        out.append(ResultWarning(
+            "zero_force_cycle",
+            f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
+            f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
+            f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
+            f"pocket')"))
+    return out
+
+
+def _empty_cycles(peaks, fraction: float = ZERO_CYCLE_FRACTION):
+    """(cycle, peak, earlier cycle, its peak) of each cycle peaking below ``fraction`` of the largest earlier peak."""
     best = None                                   # (cycle, peak) of the largest finite peak so far
     for c1, p1 in peaks:
         if p1 is None or not np.isfinite(p1):
             continue
         if best is not None and best[1] > 0 and p1 < fraction * best[1]:
-            c0, p0 = best
-            out.append(ResultWarning(
-                "zero_force_cycle",
-                f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
-                f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
-                f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
-                f"pocket')"))
+            yield c1, p1, best[0], best[1]
         if best is None or p1 > best[1]:
             best = (c1, p1)
-    return out
+
+
+def empty_cycle_numbers(peaks, fraction: float = ZERO_CYCLE_FRACTION) -> list[int]:
+    """The cycles :func:`zero_force_cycles` flags."""
+    return [int(c) for c, _, _, _ in _empty_cycles(peaks, fraction)]
 
 
 def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarray, stop_row: int,
@@ -508,3 +537,70 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
         f"of {flags.shape[0]} increments and {len(cols)} {what}(s), by up to {float(np.nanmax(depth)):.3g} mm: "
         f"the jamming criterion lets the heads pass through each other (jamming_criterion = \"head_gap\" "
         f"stops them at contact)")]
+
+
+def reloads_below_earlier_loading(strain, force, cycle, direction, unit: str = "N per wale",
+                                  strain_name: str = "strain", skip=(),
+                                  share: float = RELOAD_SHARE_MIN) -> list[ResultWarning]:
+    """Warnings for later cycles whose loading carries less than ``share`` of the earlier force at the largest
+    strain of the cycles before them (module docstring, ``reload_below_earlier_loading``).
+
+    Also where a cycle reaches a new maximum strain but peaks below :data:`ENVELOPE_SHARE_MIN` of an earlier
+    peak: the envelope falls as the knit is stretched further (cycles to 0.2, 0.3, 0.45, 0.6 peaking at
+    0.10, 0.085, 0.074, 0.048 N per wale).  One warning per cycle.
+
+    Parameters
+    ----------
+    strain, force, cycle, direction : array-like
+        The recorded rows (the imposed or grip strain, the force, the cycle number, +1 loading / -1
+        unloading); rows whose force is not finite (not run, or after a stop) are left out.
+    unit, strain_name : str
+        For the message.
+    skip : iterable of int
+        Cycles not judged (flagged already: zero_force_cycle).
+    share : float
+        Share of the earlier force below which a reload is flagged.
+    """
+    s = np.asarray(strain, float)
+    f = np.asarray(force, float)
+    cyc = np.asarray(cycle)
+    dirn = np.asarray(direction)
+    ok = np.isfinite(f) & np.isfinite(s)
+    skip = set(int(k) for k in skip)
+    out = []
+    for k in np.unique(cyc[ok]):
+        earlier = np.nonzero(ok & (cyc < k))[0]
+        if not len(earlier) or int(k) in skip:
+            continue
+        i = earlier[np.argmax(s[earlier])]          # where the strain first reached the earlier maximum
+        s0, f0 = s[i], f[i]
+        load = np.nonzero(ok & (cyc == k) & (dirn > 0))[0]
+        if not f0 > 0 or not len(load) or s[load].max() < s0 - 1e-12:
+            continue
+        j = load[np.nonzero(s[load] >= s0 - 1e-12)[0][0]]
+        fk = f[j]
+        if j > 0 and ok[j - 1] and s[j] > s[j - 1] and s[j - 1] < s0:
+            fk = f[j - 1] + (f[j] - f[j - 1]) * (s0 - s[j - 1]) / (s[j] - s[j - 1])
+        # a new maximum strain that peaks below an earlier peak: the envelope falls as the knit is stretched
+        # further (each reload starts sliding at a lower Rn), which the share at the earlier maximum may pass
+        rows_k = np.nonzero(ok & (cyc == k))[0]
+        jk = rows_k[np.argmax(f[rows_k])]
+        ip = earlier[np.argmax(f[earlier])]
+        if s[load].max() > s0 + 1e-9 and f[jk] < ENVELOPE_SHARE_MIN * f[ip] and not fk < share * f0:
+            out.append(ResultWarning(
+                "reload_below_earlier_loading",
+                f"cycle {int(k)} stretches the knit further than before ({strain_name} {s[load].max():.4g}) but peaks at "
+                f"{f[jk]:.3g} {unit}, {f[jk] / f[ip]:.0%} of the {f[ip]:.3g} {unit} of cycle {int(cyc[ip])} at "
+                f"{strain_name} {s[ip]:.4g}: the knit's envelope falls as it is stretched further (Table 4's sliding "
+                f"stage keeps the contact's normal force Rn at its value where sliding began, and each reload begins "
+                f"sliding at a lower one); a measured knit's envelope rises with the strain"))
+        elif fk < share * f0:
+            out.append(ResultWarning(
+                "reload_below_earlier_loading",
+                f"cycle {int(k)} carries {fk:.3g} {unit} at {strain_name} {s0:.4g}, {fk / f0:.0%} of the {f0:.3g} {unit} "
+                f"the knit carried there before: Table 4's sliding stage keeps the contact's normal force Rn at its "
+                f"value where sliding began, and this reload began sliding at a lower one, so its branch stays below "
+                f"the earlier loading there and beyond (a measured knit reloads to most of its earlier force: "
+                f"5 N, then 4 N in Dusserre 2015 Fig. 10)"))
+    return out
+

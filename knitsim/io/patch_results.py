@@ -49,7 +49,8 @@ from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work,
-                     energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration, zero_force_cycles)
+                     energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration,
+                     empty_cycle_numbers, reloads_below_earlier_loading, zero_force_cycles)
 from .results import _num, rule_meaning, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
@@ -923,7 +924,13 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     failed = np.argwhere((end_status != STATUS_OK) & (end_status != STATUS_FORCE_CAP)) if h.n_increments \
         else np.zeros((0, 2))
     nonfinite = np.nonzero(~np.isfinite(F))[0]
-    warnings = stop_warnings + zero_force_cycles([(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles])
+    peaks = [(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles]
+    empty = zero_force_cycles(peaks)
+    # a reload far below the earlier loading at the earlier maximum grip strain (the rows the figures use)
+    end = len(F) if stop is None else stop
+    below = reloads_below_earlier_loading(e[:end], h.force_per_wale_N[:end], h.cycle[:end], h.direction[:end],
+                                          strain_name="grip strain", skip=empty_cycle_numbers(peaks))
+    warnings = stop_warnings + empty + below
     if held_in:
         warnings.append(ResultWarning("cycle_figures_include_held_rows", (
             "the figures of cycle(s) " + ", ".join(

@@ -153,3 +153,54 @@ def test_crossing_excursions_start_where_the_loading_passes_the_unloadings_end()
     (k, t, j), = crossing_excursions(s)
     assert (k, j) == (1, 5) and t == pytest.approx(0.02 / 0.3, rel=1e-12)
     assert closed_excursions(s) == [(5, 8)]
+
+
+def _rows(branches):
+    """Rows (strain, force, cycle, direction) of hand-made branches [(cycle, direction, strains, forces)]."""
+    s, f, c, d = [], [], [], []
+    for cyc, dirn, ss, ff in branches:
+        s += list(ss); f += list(ff); c += [cyc] * len(ss); d += [dirn] * len(ss)
+    return np.array(s), np.array(f), np.array(c), np.array(d)
+
+
+def test_a_reload_far_below_the_earlier_loading_at_its_maximum_is_flagged_with_its_share():
+    """Hand-made: a first loading to 0.5 carrying 0.149 N there, unloaded, reloaded to 0.5.  Expected from the
+    definition: a reload carrying 0.061 N at 0.5 is 41 % < RELOAD_SHARE_MIN (half) -> one warning naming
+    cycle 2, the strain and the share; one carrying 0.12 N (81 %, a measured knit's shakedown, 5 N -> 4 N)
+    none; a cycle judged empty already (skip) is not judged again.  The force at the earlier maximum is
+    interpolated on the reload (rows at 0.45 and 0.55 around it: the mean of their forces)."""
+    from knitsim.io.checks import RELOAD_SHARE_MIN, reloads_below_earlier_loading
+    up = np.linspace(0.0, 0.5, 6)
+    first = [(1, 1, up, 0.298 * up), (1, -1, [0.3, 0.1], [0.02, 0.0])]
+    low = _rows(first + [(2, 1, [0.15, 0.35, 0.45, 0.55], [0.0, 0.02, 0.05, 0.072])])
+    w = reloads_below_earlier_loading(*low)
+    assert len(w) == 1 and w[0].code == "reload_below_earlier_loading"
+    assert "cycle 2" in w[0].message and "strain 0.5" in w[0].message and "41%" in w[0].message
+    assert 0.061 / 0.149 < RELOAD_SHARE_MIN
+    ok = _rows(first + [(2, 1, [0.15, 0.35, 0.5], [0.0, 0.05, 0.12])])
+    assert reloads_below_earlier_loading(*ok) == []
+    assert reloads_below_earlier_loading(*low, skip=[2]) == []
+
+
+def test_an_envelope_that_falls_as_the_knit_is_stretched_further_is_flagged():
+    """Cycles of growing amplitude (a blind probe's patch: peaks 0.1005, 0.0851, 0.0736, 0.0477 N per wale at
+    0.2, 0.3, 0.45, 0.6, each reload at 52-72 % of the earlier force at the earlier maximum): each new maximum
+    that peaks below ENVELOPE_SHARE_MIN (0.9) of an earlier peak is flagged (85 %, 73 %, 47 % of cycle 1's);
+    an envelope that rises (each peak above the last) is not.  Then a real cell through that program
+    (E-glass, m 0.2, Coulomb, Table 4): its summary carries the warning for cycle 2 (0.3, 85 %)."""
+    from knitsim.cell.load_program import piecewise_linear
+    from knitsim.io.checks import reloads_below_earlier_loading
+    peaks = [(0.2, 0.1005), (0.3, 0.0851), (0.45, 0.0736), (0.6, 0.0477)]
+    branches = []
+    for k, (sp, fp) in enumerate(peaks, start=1):
+        branches += [(k, 1, [0.1 + 0.5 * (sp - 0.1), sp], [0.6 * fp, fp]), (k, -1, [0.1], [0.0])]
+    w = reloads_below_earlier_loading(*_rows(branches))
+    assert [x.message.split()[1] for x in w] == ["2", "3", "4"]
+    assert "85%" in w[0].message and "envelope falls" in w[0].message
+    rising = []
+    for k, (sp, fp) in enumerate([(0.2, 0.1), (0.3, 0.12), (0.45, 0.14)], start=1):
+        rising += [(k, 1, [0.1 + 0.5 * (sp - 0.1), sp], [0.8 * fp, fp]), (k, -1, [0.1], [0.0])]
+    assert reloads_below_earlier_loading(*_rows(rising)) == []
+    h = run_batch([CellParams(**EGLASS, m=0.2, force_cap_N=10.0)], piecewise_linear([0.2, 0.1, 0.3, 0.1], 0.01))
+    codes = [(x["code"], x["message"].split()[1]) for x in summarise(h)["cells"][0]["warnings"]]
+    assert ("reload_below_earlier_loading", "2") in codes
