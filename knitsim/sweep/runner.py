@@ -450,6 +450,14 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
             what.append(f"{name} {was.get(key)} -> {inputs[key]}")
     for key, name in (("spec", "the [sweep] table"), ("samples", "the sample table"), ("scene", "the scene")):
         if was.get(key) != inputs[key]:
+            if key == "spec" and isinstance(old.get("spec"), dict):
+                # name its keys (a blind probe's --resume --curves read "the [sweep] table differs": the option
+                # --curves sets sweep.curves, which the run being resumed did not keep)
+                a, b = _flat(old["spec"], "sweep"), _flat(json.loads(json.dumps(plan.spec.table)), "sweep")
+                keys = [k for k in sorted(set(a) | set(b), key=str) if a.get(k) != b.get(k)]
+                if keys:
+                    name += " (" + ", ".join(f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in keys[:3]) + (
+                        ", ..." if len(keys) > 3 else "") + ("; --curves sets sweep.curves" if "sweep.curves" in keys else "") + ")"
             what.append(name)
     if was.get("cells") != inputs["cells"]:
         # name the values: the base scene's resolved cells are in the manifest

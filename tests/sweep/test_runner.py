@@ -100,6 +100,12 @@ def test_resume_of_a_different_sweep_is_refused(tmp_path):
         run_sweep(plan_sweep(SCENE, other), tmp_path / "out", resume=True, workers=0, progress=None)
     with pytest.raises(KnitsimInputError, match="--resume"):
         run_sweep(plan_sweep(SCENE, GRID), tmp_path / "out", workers=0, progress=None)   # no silent overwrite
+    # the refusal names the keys of the [sweep] table that differ (a blind probe's --resume --curves read only
+    # "the [sweep] table": --curves sets sweep.curves, which the run being resumed did not keep)
+    no_curves = dict(GRID, curves=False)
+    _run(tmp_path, no_curves, name="nc")
+    with pytest.raises(KnitsimInputError, match=r"sweep\.curves False -> True.*--curves sets sweep\.curves"):
+        run_sweep(plan_sweep(SCENE, GRID), tmp_path / "nc", resume=True, workers=0, progress=None)
 
 
 def test_unknown_key_path_is_named():
