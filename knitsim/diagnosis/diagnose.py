@@ -101,6 +101,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from pathlib import Path
 from dataclasses import asdict, dataclass, field, replace
 from typing import Callable, Sequence
 
@@ -1662,7 +1663,48 @@ def curves_disagree(curves, base_fit: dict, weights: list, noise: NoiseModel) ->
             "specimens of different yarns or stitches, or does a property held fixed scatter between them?")
 
 
-def _curves_out(curves, base_fit, best_fit, pair_fit) -> list:
+#: a slack start (:func:`slack_start`): the first loading's leading rows within this many noise sd of zero ...
+SLACK_FLAT_SD = 3.0
+#: ... over at least this much strain and SLACK_MIN_ROWS rows, where the fitted model (its offset removed)
+#: lies above them by more than SLACK_MODEL_ABOVE_SD noise sd on average
+SLACK_MIN_STRAIN = 0.005
+SLACK_MIN_ROWS = 3
+SLACK_MODEL_ABOVE_SD = 5.0
+
+
+def slack_start(curve: MeasuredCurve, noise: CurveNoise, simulated, offset_N: float = 0.0) -> dict | None:
+    """Where a curve starts slack: its first loading reads ~0 N (within :data:`SLACK_FLAT_SD` noise sd of zero)
+    over its leading rows, at least :data:`SLACK_MIN_STRAIN` of strain and
+    :data:`SLACK_MIN_ROWS` rows, where the fitted model (``simulated`` at the curve's rows, less its fitted
+    offset ``offset_N``) lies above them by more than :data:`SLACK_MODEL_ABOVE_SD` sd on average.  A
+    specimen mounted loose takes load only from the strain where it comes taut; the quarter-stitch cell
+    carries its rest force from strain 0 and takes load at once, and no effect of the diagnosis shifts the
+    strain origin (a blind probe's specimen mounted 2 % slack was read as a gap in the sliding stage, phi0
+    at its bound, the fit 22 sd above the toe's rows, nothing said of them).  Returns None, or
+    ``strain_from``, ``strain_to``, ``rows``, ``model_above_N`` (the mean) and ``message``."""
+    first = np.nonzero((curve.cycle == curve.cycle.min()) & (curve.direction > 0))[0]
+    if len(first) < SLACK_MIN_ROWS + 1:
+        return None
+    f = curve.force[first]
+    sim = np.asarray(simulated, float)[first] - float(offset_N)
+    sd = noise.sd_at(np.abs(f))
+    flat = np.abs(f) < SLACK_FLAT_SD * sd
+    if not flat[0] or flat.all():
+        return None                        # no toe, or nothing but a toe (no response: refused before)
+    t = int(np.argmin(flat)) - 1
+    s = curve.strain[first]
+    above = float(np.mean(sim[:t + 1] - f[:t + 1]))
+    if t + 1 < SLACK_MIN_ROWS or s[t] - s[0] < SLACK_MIN_STRAIN or not above > SLACK_MODEL_ABOVE_SD * float(np.mean(sd[:t + 1])):
+        return None
+    return {"strain_from": float(s[0]), "strain_to": float(s[t]), "rows": t + 1, "model_above_N": above,
+            "message": (f"{Path(curve.source).name} reads ~0 N (within {SLACK_FLAT_SD:g} noise sd) from strain "
+                        f"{s[0]:.4g} to {s[t]:.4g} ({t + 1} rows) where the fitted model carries {above:.3g} N more: a "
+                        f"specimen mounted slack, taut only from strain ~{s[t]:.3g}? The model has no slack start and "
+                        f"no effect here shifts the strain origin: move the origin there, strain' = (1 + strain) / "
+                        f"(1 + {s[t]:.3g}) - 1, dropping the rows before it, and diagnose again")}
+
+
+def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None) -> list:
     out = []
     for i, c in enumerate(curves):
         bc = base_fit["curves"][i]
@@ -1672,6 +1714,7 @@ def _curves_out(curves, base_fit, best_fit, pair_fit) -> list:
                  "pair": None if pair_fit is None else np.asarray(pair_fit["curves"][i]["simulated"]).tolist(),
                  "keys": list(bc["keys"]), "cycle": c.cycle.tolist(), "direction": c.direction.tolist(),
                  "offset_N": bc.get("offset_N", 0.0),
+                 "slack_start": None if slack is None else slack[i],
                  "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
                                 "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
                                                              bc["labels"])}}
@@ -1793,6 +1836,13 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     disagree = curves_disagree(curves, base_fit, data.weights, noise) if verdict.kind == "unexplained" else ""
     if disagree:
         verdict.reason += "; " + disagree
+    # a curve that starts slack: said (the verdict is about a knit the model cannot start as the specimen did)
+    slack = [slack_start(c, nz, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
+             for i, (c, nz) in enumerate(zip(curves, noise.curves))]
+    for sl in slack:
+        if sl is not None:
+            verdict.confident = False
+            verdict.reason += "; " + sl["message"]
     loaded = sum(int(np.sum(c.force > NEGATIVE_SIGMAS * nz.sd_at(c.force))) for c, nz in zip(curves, noise.curves))
     total = sum(len(c.force) for c in curves)
     if loaded < MIN_LOADED_ROWS:
@@ -1802,5 +1852,5 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
                            f"{NEGATIVE_SIGMAS:g} noise sd: the curves say little of the knit, so the verdict "
                            "rests on little")
     return Diagnosis(setup.title, [c.source for c in curves], noise, rates, n, base, outliers, adequacy, loc,
-                     candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit),
+                     candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit, slack),
                      time.perf_counter() - t0)

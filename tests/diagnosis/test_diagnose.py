@@ -565,6 +565,7 @@ def test_a_curve_the_model_made_is_not_read_as_a_gap_beside_a_cliff_of_chi2():
     assert abs(r["baseline"]["params"]["m"] - 0.20) < 0.005
     assert abs(r["baseline"]["params"]["phi0"] - 0.05) < 0.015
     assert r["noise"]["baseline_within_noise"]
+    assert r["curves"][0]["slack_start"] is None
 
 
 
@@ -582,3 +583,43 @@ def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_pa
     out = capsys.readouterr().out
     assert "nan" not in out.lower()
     assert "gap by stage: none beyond the noise" in out and "verdict: none" in out
+
+
+def test_a_curve_that_starts_slack_is_said_where_the_fitted_model_lies_above_its_toe():
+    """Hand-made first loading: 5 rows at 0 N +- noise (sd 2 mN) from strain 0 to 0.016, then the knit.
+    Expected from the definition (diagnose.slack_start): a fitted model 50 mN above those rows (25 sd) is a
+    slack start ending at 0.016 (5 rows, the mean excess 0.05 N); a model that follows the toe (within the
+    noise) is not; a toe of 2 rows (< SLACK_MIN_ROWS) is not; the fitted offset is removed first (a model
+    50 mN above everywhere with a 50 mN offset is not above the toe)."""
+    from knitsim.diagnosis.diagnose import slack_start
+    from knitsim.diagnosis.noise import CurveNoise
+    s = np.array([0.0, 0.004, 0.008, 0.012, 0.016, 0.02, 0.03, 0.04, 0.05])
+    f = np.array([0.001, -0.002, 0.003, -0.004, 0.0, 0.037, 0.071, 0.075, 0.08])
+    curve = curve_from_arrays(s, f, source="toe.csv", noise_N=0.002)
+    nz = CurveNoise("toe.csv", 0.002, "given", 0, True, "")
+    sim = np.r_[np.full(5, 0.05), f[5:]]
+    sl = slack_start(curve, nz, sim)
+    assert sl is not None and sl["strain_to"] == 0.016 and sl["rows"] == 5
+    assert sl["model_above_N"] == pytest.approx(0.05 - np.mean(f[:5]))
+    assert "toe.csv" in sl["message"] and "0.016" in sl["message"]
+    assert slack_start(curve, nz, np.r_[f[:5] + 0.001, f[5:]]) is None
+    assert slack_start(curve, nz, sim + 0.05, offset_N=0.1) is None
+    short = curve_from_arrays(s, np.r_[f[:2], 0.02, 0.03, 0.035, f[5:]], source="short.csv", noise_N=0.002)
+    assert slack_start(short, nz, sim) is None
+
+
+def test_a_blind_probes_specimen_mounted_slack_is_not_confident_and_says_so():
+    """A blind probe's file (tests/diagnosis/data/README.md): the model's curve shifted by a 2 % slack start
+    (5 rows of 0 N +- 2 mN to strain 0.016, then the knit at grip strain (1 + e) 1.02 - 1).  The diagnosis
+    cannot make a slack start: its verdict must not be confident and must name the toe (the JSON's curves'
+    slack_start, the verdict's reason).  The unshifted curve has none (the cliff test's file)."""
+    from pathlib import Path
+
+    from knitsim.diagnosis.measured import read_measured_curve
+    curve = read_measured_curve(Path(__file__).parent / "data" / "eglass_3cycles_slack2pc_noise2mN.csv")
+    base = NOMINAL.replace(m=0.25, phi0=0.0, unloading_rule="dusserre", reload_rule="mirror_unloading",
+                           force_cap_N=10.0)
+    r = diagnose([curve], DiagnosisSetup(base=base, effects=("bending_hysteresis",), pair=False)).as_dict()
+    sl = r["curves"][0]["slack_start"]
+    assert sl is not None and sl["strain_to"] == pytest.approx(0.016) and sl["rows"] == 5
+    assert not r["verdict"]["confident"] and "mounted slack" in r["verdict"]["reason"]
