@@ -289,6 +289,10 @@ def _run(args) -> int:
         if head is not None and head.get("done", 0) >= total:
             print(f"knitsim run: the checkpoint {ck} holds the finished solve ({total}/{total} increments): writing "
                   "the outputs without solving again", file=sys.stderr, flush=True)
+        elif head is not None:
+            # said where the user looks (a blind probe found it only in summary.json's resumed_from)
+            print(f"knitsim run: resuming from {ck}: {head.get('done', 0)} of {total} increments done",
+                  file=sys.stderr, flush=True)
         every = scene.output["checkpoint_every"]
         keep = every > 0 or args.resume
         try:

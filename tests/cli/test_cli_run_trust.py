@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import shlex
 import sys
 from pathlib import Path
@@ -235,6 +236,9 @@ def test_resume_never_replaces_a_usd_file_it_was_not_given(tmp_path, capsys, mon
     assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume",
                                     "--usd", str(fresh)])) == 0
     assert fresh.read_text().startswith("#usda")
+    # the console says where it resumed (a blind probe found it only in summary.json's resumed_from)
+    done = json.loads((out / "summary.json").read_text())["solver"]["resumed_from"]
+    assert re.search(rf"resuming from .*checkpoint\.pkl: {done} of \d+ increments done", capsys.readouterr().err)
 
     # consent given when the run started (--overwrite) holds for its resume, which cannot repeat --overwrite
     given = tmp_path / "given.usda"
