@@ -52,6 +52,38 @@ refitted alone with every shared variable its own, from the joint solution (its 
 before; checkpointed like the fit): the drop of chi2 against the variables added, read as an F test (Chow's
 test) against the residual variance of the fits with a yarn each, is flagged where p < :data:`ONE_YARN_P`.
 
+The files' zero (``JointSetup.zero``; the scene's ``calibration.zero``, ``"absolute"`` by default): the
+model's rest state (C = C0, W = W0, phi0) carries a force (0.0216 N per wale for Dusserre's E-glass at
+phi0 = 0: a knit held by its friction, a jammed knit's compacted crossings), but a real knit at rest in
+the grips carries about 0 N, and a lab usually zeroes its load cell with the specimen mounted: the file's
+0 N is then the model's rest state.  Three modes (:data:`ZERO_MODES`):
+
+- ``"absolute"``: the files' zero is the model's 0 N; each row is fitted as the model's force.  A check
+  (:data:`ZERO_CHECK_SD`, :data:`ZERO_CHECK_SHARE`) flags a specimen whose file reads, at rest (its first
+  readings, :func:`knitsim.calibration.specimen.rest_reading`), more than 5 noise sd and more than 5 % of
+  its peak below the fitted model's force at grip strain 0: a file tared with the knit mounted, fitted as
+  absolute, moves m by tens of standard errors (a probe: m 0.103 +- 0.002 against the true 0.20) and
+  reads one yarn as two.
+- ``"tared"``: the file's zero is the model's state at grip strain 0 (its rest state): each row is fitted
+  as the model's force less the model's rest force, from the same simulation (the batch's rest state).  No
+  parameter is added; the report gives the force subtracted (:attr:`SpecimenFit.tare_N`).  Refused with a
+  pretension: the pretensioned start would be read off the fit's first increment, too coarse where the
+  knit stiffens inside it.
+- ``"fitted"``: a force offset per specimen, projected out analytically (variable projection) by the
+  law of ``knitsim diagnose``, :func:`knitsim.diagnosis.calibrate.offset_of`: the weighted least-squares
+  offset of the specimen's rows (weights 1 / sd; rows after a failed increment left out of it), in the
+  units of its force column (total N, or N per wale).  Under the band objective the offset is the
+  mid-line's (the same weighted mean), applied to the force before the band likelihood.  Each offset
+  counts as a fitted parameter (k = variables + specimens) wherever degrees of freedom are counted; the
+  covariance of the other variables, from the Jacobian of the projected rows, is already the one marginal
+  over the offsets.  An offset larger than :data:`OFFSET_NOTE_SHARE` of a specimen's peak measured force
+  is noted (:attr:`JointResult.notes`), not flagged.  The price: a free offset takes away the rest level,
+  which is what identifies phi0 and m in a monotonic pull (a probe: B 0.29 +- 0.042, m 0.135 +- 0.094,
+  phi0 not identified, on files whose zero was right).
+
+The tare of a load-cell zero below zero (:mod:`knitsim.calibration.specimen`) is data cleaning before the
+fit, in every mode.
+
 Before any solve (:func:`check_setup`, which the calibration scene runs when it is
 read): the variables, bounds and priors, and every specimen's strains against the
 reach of its knit in the loosest case the fit allows (:func:`reachable_strain` at
@@ -62,7 +94,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -74,6 +106,7 @@ from ..cell.domain import rest_force_per_wale
 from ..cell.history import STATUS_NAMES, STATUS_OK
 from ..cell.load_program import LoadProgram, monotonic, pretensioned
 from ..cell.material import CellParams
+from ..diagnosis.calibrate import offset_of
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from ..diagnosis.measured import MeasuredCurve, program_for_curve, reachable_strain
 from ..errors import KnitsimInputError
@@ -105,6 +138,13 @@ POOR_FIT_S2 = 4.0
 #: stated, which the covariance's factor s2 already answers): a specimen's lag-1 autocorrelation of its weighted
 #: residuals above this (white noise: 0 +- 1/sqrt(rows); a systematic misfit: near 1)
 POOR_FIT_AUTOCORRELATION = 0.5
+#: a fitted force offset larger than this share of the specimen's peak measured force is noted (JointResult.notes)
+OFFSET_NOTE_SHARE = 0.05
+#: the zero check of zero = "absolute" (JointResult.flags): a specimen's file reading at rest more than this many
+#: noise sd, and more than ZERO_CHECK_SHARE of its peak measured force, below the fitted model's force at grip
+#: strain 0 is flagged (a load cell zeroed with the knit mounted)
+ZERO_CHECK_SD = 5.0
+ZERO_CHECK_SHARE = 0.05
 
 
 def residual_autocorrelation(r: np.ndarray | None) -> float:
@@ -160,6 +200,10 @@ class JointSetup:
         the model anywhere inside the band at no cost, just outside it a Gaussian of the force accuracy,
         far outside a Cauchy tail), refined from each mid-line solution (:func:`calibrate_joint`).  A
         specimen without a band is fitted to its curve (with the same tail under ``"band"``).
+    zero : str
+        What the files' 0 N is (module docstring, "The files' zero", :data:`ZERO_MODES`): ``"absolute"``
+        (the model's 0 N; the default, here and in the scene), ``"tared"`` (the model's force at grip strain
+        0: a load cell zeroed with the knit mounted) or ``"fitted"`` (a force offset per specimen, fitted).
     """
 
     base: CellParams
@@ -176,10 +220,23 @@ class JointSetup:
     device: str = "cpu"
     phi0_starts: tuple = ()
     objective: str = "midline"
+    zero: str = "absolute"
 
 
 #: objectives of a banded specimen's rows (JointSetup.objective)
 OBJECTIVES = ("midline", "band")
+#: what a file's 0 N is (JointSetup.zero; module docstring, "The files' zero")
+ZERO_MODES = ("absolute", "tared", "fitted")
+
+
+def check_zero(value, key: str = "calibration.zero") -> str:
+    """``value`` if it is one of :data:`ZERO_MODES`, else a KnitsimInputError naming ``key`` and the three."""
+    if not isinstance(value, str) or value not in ZERO_MODES:
+        raise KnitsimInputError(f"{key} = {value!r}: expected one of {', '.join(repr(m) for m in ZERO_MODES)} "
+                                "(absolute: the files' 0 N is the model's; tared: the files' 0 N is the model's force "
+                                "at grip strain 0, a load cell zeroed with the knit mounted; fitted: a force offset "
+                                "per specimen)")
+    return value
 
 
 @dataclass(frozen=True)
@@ -270,6 +327,23 @@ class SpecimenFit:
         sum of their squares.
     objective : str
         ``"midline"`` or ``"band"`` (:class:`JointSetup`).
+    offset_N : float or None
+        The fitted force offset (None: ``zero`` not ``"fitted"``): the model's force plus it is what the rows are fitted
+        to (``rms_N``, the band shares, ``chi2``, ``residuals``); ``simulated_N`` is the model's own force
+        (what the written scenes run).  In ``offset_unit``: the file's zero is the model's at ``-offset_N``.
+    offset_se_N : float
+        Its standard error (the noise of the weighted mean and the other variables' covariance).
+    offset_unit : str
+        ``"N (total)"`` or ``"N per wale"``: the specimen's force column.
+    zero : str
+        The setup's :attr:`JointSetup.zero`.
+    tare_N : float or None
+        With ``zero = "tared"``, the model's force at grip strain 0 [N, in ``offset_unit``] subtracted from
+        its force at every row (None otherwise): the model's force less it is what the rows are fitted to;
+        ``simulated_N`` is the model's own force.
+    rest_N, rest_sd_N : float
+        The specimen's files' force at rest and its sd (:attr:`SpecimenData.rest_N`; NaN: not known), for
+        the zero check of ``zero = "absolute"`` (:attr:`zero_check`).
     """
 
     name: str
@@ -291,9 +365,69 @@ class SpecimenFit:
     in_band_tolerant: float | None = None
     residuals: np.ndarray | None = None
     objective: str = "midline"
+    offset_N: float | None = None
+    offset_se_N: float = math.nan
+    offset_unit: str = ""
+    zero: str = "absolute"
+    tare_N: float | None = None
+    rest_N: float = math.nan
+    rest_sd_N: float = math.nan
+
+    @property
+    def shift_N(self) -> float:
+        """What is added to the model's force for the rows: the fitted offset, minus the tare, or 0."""
+        if self.offset_N is not None:
+            return float(self.offset_N)
+        if self.tare_N is not None:
+            return -float(self.tare_N)
+        return 0.0
+
+    @property
+    def zero_check(self) -> str | None:
+        """With ``zero = "absolute"``: the flag of a file that reads at rest more than ZERO_CHECK_SD noise sd
+        and more than ZERO_CHECK_SHARE of its peak below the fitted model's force at grip strain 0
+        (``pretension_N``), or None."""
+        if self.zero != "absolute" or not (math.isfinite(self.rest_N) and math.isfinite(self.pretension_N)):
+            return None
+        gap = self.pretension_N - self.rest_N
+        sd = self.rest_sd_N if math.isfinite(self.rest_sd_N) else 0.0
+        if not (gap > ZERO_CHECK_SD * sd and gap > ZERO_CHECK_SHARE * self.peak_N):
+            return None
+        unit = " per wale" if self.offset_unit == "N per wale" else ""
+        by = (f"{gap / sd:.3g} noise sd and " if sd > 0 else "") + f"{100 * gap / max(self.peak_N, 1e-300):.3g} % of its peak"
+        return (f"specimen {self.name} ({by} below the model at grip strain 0): the file reads {self.rest_N:.4g} N"
+                f"{unit} at rest where the fitted knit carries {self.pretension_N:.4g} N{unit}: a load cell zeroed "
+                'with the knit mounted? set [calibration] zero = "tared" (or "fitted")')
+
+    @property
+    def dof_rows(self) -> int:
+        """Its rows less its fitted offset (the degrees of freedom of its chi2 per row)."""
+        return len(self.strain) - (0 if self.offset_N is None else 1)
+
+    @property
+    def chi2_per_row(self) -> float:
+        """chi2 / (rows - 1 for a fitted offset)."""
+        return self.chi2 / max(self.dof_rows, 1)
+
+    @property
+    def peak_N(self) -> float:
+        """The largest measured force (target) of its rows."""
+        return float(np.max(np.abs(self.target_N))) if len(self.target_N) else 0.0
+
+    @property
+    def offset_share(self) -> float:
+        """|offset| / peak measured force (NaN without an offset)."""
+        if self.offset_N is None or not self.peak_N > 0:
+            return math.nan
+        return abs(self.offset_N) / self.peak_N
 
     def as_dict(self, curves: bool = True) -> dict:
         out = {"name": self.name, "wales": self.wales, "in_band_fraction": self.in_band_fraction,
+               "offset_N": self.offset_N, "offset_se_N": self.offset_se_N if self.offset_N is not None else None,
+               "offset_unit": self.offset_unit if self.offset_N is not None or self.tare_N is not None else None,
+               "zero": self.zero, "tare_N": self.tare_N,
+               "rest_N": self.rest_N if math.isfinite(self.rest_N) else None,
+               "rest_sd_N": self.rest_sd_N if math.isfinite(self.rest_sd_N) else None,
                "pretension": self.pretension, "pretension_N": self.pretension_N,
                "in_band_tolerant": self.in_band_tolerant, "objective": self.objective,
                "rms_N": self.rms_N, "rms_rel": self.rms_rel, "chi2": self.chi2, "rows": int(len(self.strain)),
@@ -301,6 +435,10 @@ class SpecimenFit:
         if curves:
             out["curve"] = {"strain": self.strain.tolist(), "target_N": self.target_N.tolist(),
                             "simulated_N": self.simulated_N.tolist(), "sigma_N": self.sigma_N.tolist()}
+            if self.offset_N is not None:       # what the rows were fitted to: the model plus its offset
+                out["curve"]["simulated_plus_offset_N"] = (self.simulated_N + self.offset_N).tolist()
+            if self.tare_N is not None:         # what the rows were fitted to: the model less its tare
+                out["curve"]["simulated_less_tare_N"] = (self.simulated_N - self.tare_N).tolist()
             if self.band_low_N is not None:
                 out["curve"].update(band_low_N=self.band_low_N.tolist(), band_high_N=self.band_high_N.tolist())
         return out
@@ -458,9 +596,13 @@ class JointResult:
     one_yarn : OneYarnCheck or None
         Whether the specimens look like one yarn (None: not recorded).
 
+    ``k`` counts the force offsets (one per specimen, ``setup.zero = "fitted"``) with the variables; ``notes``
+    (not flags) names each offset above :data:`OFFSET_NOTE_SHARE` of its specimen's peak measured force.
+
     ``flags`` (one line each): the optimiser's failure (with its message), every parameter at a bound,
     every parameter not identified (with the rule), every specimen whose cell did not solve on every row,
-    specimens that do not look like one yarn (``one_yarn``).
+    with ``zero = "absolute"`` every specimen whose file reads at rest well below the fitted knit's force at
+    grip strain 0 (:attr:`SpecimenFit.zero_check`), specimens that do not look like one yarn (``one_yarn``).
     A result with a flag is not a calibration to use as it is (``usable``).
     """
 
@@ -509,9 +651,10 @@ class JointResult:
             if f.status != "ok":
                 out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
                            "the fitted curve is not the model's")
+        out += [z for z in (f.zero_check for f in self.fits) if z]
         # per specimen (a re-probe: a clean specimen's rows diluted another's misfit in the pooled s2): its own
         # chi2 per row beyond POOR_FIT_S2 with residuals in waves; or the pooled s2 beyond it with waves
-        per_row = {f.name: f.chi2 / max(len(f.strain), 1) for f in self.fits}
+        per_row = {f.name: f.chi2_per_row for f in self.fits}      # rows less the specimen's offset
         waves = {f.name: residual_autocorrelation(f.residuals) for f in self.fits}
         waves = {name: a for name, a in waves.items() if a > POOR_FIT_AUTOCORRELATION}
         poor = [name for name in waves if per_row[name] > POOR_FIT_S2]
@@ -539,6 +682,42 @@ class JointResult:
         return out
 
     @property
+    def zero(self) -> str:
+        """The setup's :attr:`JointSetup.zero`."""
+        return getattr(self.setup, "zero", "absolute")
+
+    @property
+    def n_offsets(self) -> int:
+        """Force offsets fitted: one per specimen with ``zero = "fitted"``, else 0 (counted in ``k``)."""
+        return len(self.fits) if self.zero == "fitted" else 0
+
+    @property
+    def tares_N(self) -> dict:
+        """With ``zero = "tared"``, each specimen's model force at grip strain 0 subtracted from its rows:
+        ``name -> {value, unit}`` (empty otherwise)."""
+        return {f.name: {"value": f.tare_N, "unit": f.offset_unit} for f in self.fits if f.tare_N is not None}
+
+    @property
+    def offsets_N(self) -> dict:
+        """Each specimen's fitted force offset: ``name -> {value, std_error, unit, share_of_peak}`` (empty: off)."""
+        return {f.name: {"value": f.offset_N, "std_error": f.offset_se_N, "unit": f.offset_unit,
+                         "share_of_peak": f.offset_share} for f in self.fits if f.offset_N is not None}
+
+    @property
+    def notes(self) -> list[str]:
+        """Notes, not flags: each specimen whose fitted force offset exceeds OFFSET_NOTE_SHARE of its peak
+        measured force."""
+        out = []
+        for f in self.fits:
+            share = f.offset_share
+            if math.isfinite(share) and share > OFFSET_NOTE_SHARE:
+                out.append(f"specimen {f.name}: its fitted force offset {f.offset_N:+.4g} +- {f.offset_se_N:.2g} "
+                           f"{f.offset_unit} is {100 * share:.3g} % of its peak measured force ({f.peak_N:.4g} "
+                           f"{f.offset_unit}): a load cell zeroed with the knit mounted reads its rest force as zero; "
+                           "check the zero")
+        return out
+
+    @property
     def usable(self) -> bool:
         """No flag: converged, every cell solved, no parameter at a bound or not identified, one yarn."""
         return self.success and not self.flags
@@ -548,6 +727,8 @@ class JointResult:
                 "correlation": {"names": [e.label for e in self.estimates], "matrix": self.correlation.tolist()},
                 "specimens": [f.as_dict(curves) for f in self.fits], "chi2": self.chi2, "n": self.n, "k": self.k,
                 "s2": self.s2, "success": self.success, "message": self.message, "flags": self.flags,
+                "zero": self.zero, "n_offsets": self.n_offsets,
+                "offsets_N": self.offsets_N, "tares_N": self.tares_N, "notes": self.notes,
                 "usable": self.usable, "converged": self.success if self.converged is None else self.converged,
                 "optimizer_message": self.optimizer_message,
                 "one_yarn": None if self.one_yarn is None else self.one_yarn.as_dict(),
@@ -636,8 +817,14 @@ class _Problem:
             self._check_reach(s)
         self.n_rows = sum(len(s.strain) for s in self.sp)
         self.n_prior = sum(1 for v in self.vars if v.name in GEOMETRY or v.name == "pretension")
-        if self.n_rows <= self.k:
-            raise KnitsimInputError(f"specimens: {self.n_rows} rows cannot fit {self.k} variables")
+        self.zero = check_zero(setup.zero, "JointSetup.zero")
+        self.offsets = self.zero == "fitted"       # a fitted force offset per specimen
+        self.tared = self.zero == "tared"          # rows less the model's force at grip strain 0
+        # the fitted parameters: the variables and a force offset per specimen (projected out, not in x)
+        self.k_total = self.k + (len(self.sp) if self.offsets else 0)
+        if self.n_rows <= self.k_total:
+            raise KnitsimInputError(f"specimens: {self.n_rows} rows cannot fit {self.k} variables"
+                                    + (f" and {len(self.sp)} force offsets" if self.offsets else ""))
         # one program through every row: the longest specimen's (the others' rows are its first ones)
         longest = max(self.sp, key=lambda s: len(s.strain))
         curve = MeasuredCurve(longest.strain, longest.target_N, np.ones(len(longest.strain), int),
@@ -645,6 +832,13 @@ class _Problem:
         self.program, rows = program_for_curve(curve, setup.max_increment)
         self.rows = [rows[:len(s.strain)] for s in self.sp]
         self.pretension = "pretension" in self.own or any(s.pretension > 0 for s in self.sp)
+        if self.tared and self.pretension:
+            # the tare would be the model's force at the pretensioned start, read off the fit's first increment
+            # by interpolation from the rest state: too coarse where the knit stiffens inside it (a probe: 0.607
+            # against 0.792 N of the pretensioned run itself), so refused rather than fitted wrong
+            raise KnitsimInputError('calibration.zero = "tared" with a pretension is not supported (the tare at the '
+                                    'pretensioned start is not resolved by the fit\'s program): use "fitted", or '
+                                    '"absolute" with the files\' zero as read')
         if self.pretension:
             # a pretensioned knit runs from its rest state; its rows are knit strains
             # (1 + e_p)(1 + e_grip) - 1 between the increments (pretension_strain): one program from rest
@@ -813,28 +1007,30 @@ class _Problem:
 
     # ------------------------------------------------------------ simulation
     def simulate(self, cells: list) -> list:
-        """Per (specimen index, CellParams or None): force per wale at the specimen's rows and status codes."""
+        """Per (specimen index, CellParams or None): force per wale at the specimen's rows and status codes,
+        and the force per wale of its rest state (the batch's, before the first increment)."""
         valid = [(i, c) for i, (k, c) in enumerate(cells) if c is not None]
         out: list = [None] * len(cells)
         if valid:
             self.calls += 1
             hist = run_batch([c for _, c in valid], self.program, device=self.setup.device)
             F, st = hist.force_per_wale, hist.status
+            rest = hist.rest["F"] if hist.rest is not None else np.full(len(valid), np.nan)
             for j, (i, _) in enumerate(valid):
                 k = cells[i][0]
                 if self.pretension:
-                    out[i] = (F[:, j], st[:, j])       # the whole history: rows read in residuals()
+                    out[i] = (F[:, j], st[:, j], float(rest[j]))       # the whole history: rows read in residuals()
                     continue
                 r = self.rows[k]
                 out[i] = (np.where(r >= 0, F[np.maximum(r, 0), j], 0.0),
-                          np.where(r >= 0, st[np.maximum(r, 0), j], STATUS_OK))
+                          np.where(r >= 0, st[np.maximum(r, 0), j], STATUS_OK), float(rest[j]))
         return out
 
     def at_rows(self, k: int, sim: tuple, own: dict) -> tuple[np.ndarray, np.ndarray]:
         """Force per wale and status at specimen ``k``'s rows from its simulation (``simulate``)."""
         if not self.pretension:
-            return sim
-        F, st = sim
+            return sim[0], sim[1]
+        F, st = sim[0], sim[1]
         e = pretension_strain(self.sp[k].strain, own.get("pretension", self.sp[k].pretension))
         hist = np.concatenate(([0.0], self.program.strain))
         f = np.interp(e, hist, np.concatenate(([0.0], F)))
@@ -843,8 +1039,38 @@ class _Problem:
         idx = np.minimum(np.searchsorted(self.program.strain, e - 1e-12), len(st) - 1)
         return f, worst[idx]
 
-    def residuals(self, x: np.ndarray, sims: list) -> np.ndarray:
-        """Weighted rows of every specimen, then the geometry priors."""
+    def at_zero(self, k: int, sim: tuple, own: dict) -> float:
+        """Force per wale of specimen ``k``'s model at grip strain 0, from its simulation (``simulate``): its
+        rest state's; with a pretension, the history read at the pretension strain as :meth:`at_rows` reads
+        the rows (from the rest state at strain 0)."""
+        rest = sim[2]
+        e_p = own.get("pretension", self.sp[k].pretension)
+        if not self.pretension or e_p <= 0:
+            return float(rest)
+        hist = np.concatenate(([0.0], self.program.strain))
+        return float(np.interp(float(pretension_strain(0.0, e_p)), hist, np.concatenate(([rest], sim[0]))))
+
+    def offset(self, s: SpecimenData, force: np.ndarray, bad: np.ndarray) -> float:
+        """Specimen ``s``'s best force offset [its force column's units] for the model force ``force`` at its
+        rows: ``knitsim diagnose``'s law (:func:`knitsim.diagnosis.calibrate.offset_of`), the weighted mean
+        of ``target - force`` with weights 1 / sd^2, the rows after a failed increment (``bad``) left out;
+        0 unless ``zero = "fitted"``."""
+        if not self.offsets:
+            return 0.0
+        return offset_of(force - s.target_N, np.where(bad, 0.0, 1.0 / s.sigma_N))
+
+    def row_residuals(self, s: SpecimenData, force: np.ndarray, off: float) -> np.ndarray:
+        """The weighted rows of specimen ``s`` for the model force ``force`` plus the offset ``off``."""
+        if self.objective == "band":
+            return s.band_residuals(force + off if self.offsets else force)
+        if self.offsets:
+            return (force + off - s.target_N) / s.sigma_N
+        return (force - s.target_N) / s.sigma_N
+
+    def residuals(self, x: np.ndarray, sims: list, offsets_out: list | None = None) -> np.ndarray:
+        """Weighted rows of every specimen (less each one's best force offset, with offsets on), then the
+        geometry priors.  ``offsets_out``: a list the specimens' offsets are appended to (0 where a cell
+        is inadmissible)."""
         shared, own = self.model_values(x)
         parts = []
         for k, s in enumerate(self.sp):
@@ -852,13 +1078,18 @@ class _Problem:
             fail = FAIL_RESIDUAL * np.maximum(1.0, np.abs(s.target_N) / s.sigma_N)
             if sims[k] is None:
                 parts.append(fail)
+                if offsets_out is not None:
+                    offsets_out.append(0.0)
                 continue
             f, st = self.at_rows(k, sims[k], own[k])
-            if self.objective == "band":
-                r = s.band_residuals(w * f)
-            else:
-                r = (w * f - s.target_N) / s.sigma_N
+            if self.tared:                # the file's 0 N is the model's force at grip strain 0
+                f = f - self.at_zero(k, sims[k], own[k])
             bad = np.maximum.accumulate(st != STATUS_OK)
+            # variable projection: the offset that minimises this specimen's rows given x, in closed form
+            off = self.offset(s, w * f, bad)
+            if offsets_out is not None:
+                offsets_out.append(off)
+            r = self.row_residuals(s, w * f, off)
             parts.append(np.where(bad, fail, r))
         for v, xi in zip(self.vars, x):
             if v.name in GEOMETRY:
@@ -868,15 +1099,22 @@ class _Problem:
                 parts.append(np.array([xi / s.pretension_sd]))     # prior: the strain origin at face value
         return np.concatenate(parts)
 
-    def evaluate_points(self, X: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """Residual vectors of several points, all in one launch."""
+    def evaluate_points(self, X: Sequence[np.ndarray], offsets_out: list | None = None) -> list[np.ndarray]:
+        """Residual vectors of several points, all in one launch (``offsets_out``: a list that gets each
+        point's list of specimen offsets)."""
         jobs = []
         for x in X:
             for k, c in enumerate(self.cells_at(np.asarray(x))):
                 jobs.append((k, c))
         sims = self.simulate(jobs)
         S = len(self.sp)
-        return [self.residuals(np.asarray(x), sims[i * S:(i + 1) * S]) for i, x in enumerate(X)]
+        out = []
+        for i, x in enumerate(X):
+            offs = []
+            out.append(self.residuals(np.asarray(x), sims[i * S:(i + 1) * S], offs))
+            if offsets_out is not None:
+                offsets_out.append(offs)
+        return out
 
     def evaluate_with_jacobian(self, x: np.ndarray, rel_step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
         """Residuals at ``x`` and their forward-difference Jacobian, one launch (each specimen's cell
@@ -951,8 +1189,15 @@ def _reported(problem: _Problem, x: np.ndarray) -> tuple[list, np.ndarray, list,
     return names, np.array(vals), los, his
 
 
-def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6) -> np.ndarray:
-    """Covariance of the reported variables: FD Jacobian in those variables at the solution."""
+def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6,
+                offset_gradient: list | None = None) -> np.ndarray:
+    """Covariance of the reported variables: FD Jacobian in those variables at the solution.
+
+    With offsets on, the rows are those less each specimen's best offset (projected out in closed form):
+    the Jacobian of these projected rows gives, by variable projection (Golub and Pereyra), the covariance
+    of the variables marginal over the offsets, the same block as the full fit with the offsets as
+    variables.  ``offset_gradient``: a list that gets the array [specimens, k] of d offset / d variable (the
+    offsets' share of the variables' uncertainty, :func:`_offset_std_errors`)."""
     names, y, los, his = _reported(problem, x)
     k = len(y)
 
@@ -991,8 +1236,12 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     h = rel_step * np.maximum(np.abs(y), 1e-3)
     h = np.where(y + h > np.array(his), -h, h)
     pts = [fit_vars(y)] + [fit_vars(y + h[j] * np.eye(k)[j]) for j in range(k)]
-    res = problem.evaluate_points(pts)
+    offs: list = []
+    res = problem.evaluate_points(pts, offs)
     J = np.stack([(res[j + 1] - res[0]) / h[j] for j in range(k)], axis=1)
+    if offset_gradient is not None:
+        o = np.asarray(offs, float)                       # [points, specimens]
+        offset_gradient.append(((o[1:] - o[0]) / h[:, None]).T)
     cov = s2 * np.linalg.pinv(J.T @ J)
     # a variable the rows do not move (e.g. a jamming width never reached) is not identified: infinite sd
     norms = np.linalg.norm(J, axis=0)
@@ -1001,6 +1250,22 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     cov[:, dead] = 0.0
     cov[dead, dead] = np.inf
     return cov
+
+
+def _offset_std_errors(problem: _Problem, fits_bad: list, cov: np.ndarray, G: np.ndarray, s2: float) -> list:
+    """Standard error of each specimen's fitted offset: the weighted mean's own noise, s2 / sum(1 / sd^2) over
+    its rows that count, plus the variables' share through the offset's dependence on them, g^T cov g (the
+    offset's variance in the full fit with the offsets as variables, by block inversion).  A variable the
+    rows do not set (infinite variance) moves no offset either: left out."""
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    out = []
+    for k, (s, bad) in enumerate(zip(problem.sp, fits_bad)):
+        w2 = np.where(bad, 0.0, 1.0 / s.sigma_N ** 2)
+        tot = float(np.sum(w2))
+        g = np.nan_to_num(G[k]) if G is not None else np.zeros(len(c))
+        var = (s2 / tot if tot > 0 else math.inf) + float(g @ c @ g)
+        out.append(math.sqrt(max(var, 0.0)))
+    return out
 
 
 _BOUND_NOTES = {
@@ -1251,8 +1516,10 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     chi2, sol = best
     x = sol.x
     n = pb.n_rows + pb.n_prior
-    s2 = chi2 / max(n - pb.k, 1)
-    cov = _covariance(pb, x, s2)
+    # degrees of freedom: the rows and priors less the variables and, with offsets on, one offset a specimen
+    s2 = chi2 / max(n - pb.k_total, 1)
+    grads: list = []
+    cov = _covariance(pb, x, s2, offset_gradient=grads)
     names, y, los, his = _reported(pb, x)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -1290,6 +1557,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     sims = pb.simulate(list(enumerate(cells)))
     _, own_x = pb.model_values(x)
     fits = []
+    fits_bad = []
     all_ok = True
     for k, s in enumerate(pb.sp):
         c = cells[k]
@@ -1307,18 +1575,33 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             pre_N = w * pre_f             # the force at grip strain 0: the pretension the model implies
         else:
             f, st = pb.at_rows(k, sims[k], own_x[k])
+        # tared: what the fit subtracted (the batch's rest state; with a pretension, its program read at the
+        # pretension strain, linearly from the rest state below the first increment: coarse where the knit
+        # stiffens within it, so it may differ from pre_N, the specimen's own run)
+        tare = w * pb.at_zero(k, sims[k], own_x[k])
         sim = w * f
         worst = int(np.max(st))
         all_ok &= worst == STATUS_OK
-        e = sim - s.target_N
+        bad = np.maximum.accumulate(np.asarray(st) != STATUS_OK)
+        fits_bad.append(bad)
+        # the rows are fitted by the model plus its offset (0 with offsets off: the numbers of before)
+        off = pb.offset(s, sim, bad)
+        fitted = sim + off if pb.offsets else (sim - tare if pb.tared else sim)
+        e = fitted - s.target_N
         rms = float(np.sqrt(np.mean(e * e)))
-        frac = float(np.mean(s.in_band(sim))) if s.has_band else None
-        frac_tol = float(np.mean(s.in_band_tolerant(sim))) if s.has_band else None
-        res = s.band_residuals(sim) if setup.objective == "band" else e / s.sigma_N
+        frac = float(np.mean(s.in_band(fitted))) if s.has_band else None
+        frac_tol = float(np.mean(s.in_band_tolerant(fitted))) if s.has_band else None
+        res = s.band_residuals(fitted) if setup.objective == "band" else e / s.sigma_N
         fits.append(SpecimenFit(s.name, c, w, s.strain, s.target_N, sim, s.sigma_N, s.band_low_N, s.band_high_N,
                                 frac, rms, rms / float(np.sqrt(np.mean(s.target_N ** 2))),
                                 float(np.sum(res ** 2)), STATUS_NAMES[worst], e_p, pre_N, frac_tol, res,
-                                setup.objective))
+                                setup.objective, off if pb.offsets else None, math.nan,
+                                "N (total)" if s.total else "N per wale", pb.zero,
+                                float(tare) if pb.tared else None, float(getattr(s, "rest_N", math.nan)),
+                                float(getattr(s, "rest_sd_N", math.nan))))
+    if pb.offsets:
+        ses = _offset_std_errors(pb, fits_bad, cov, grads[0] if grads else None, s2)
+        fits = [replace(f, offset_se_N=float(se_k)) for f, se_k in zip(fits, ses)]
     # do the specimens look like one yarn? each refitted with its own yarn (checkpointed like the fit)
     own_done = state.setdefault("one_yarn", [])
 
@@ -1330,7 +1613,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         save()
         raise
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
-    return JointResult(estimates, corr, fits, chi2, n, pb.k, s2, bool(sol.success) and all_ok, msg, starts,
+    return JointResult(estimates, corr, fits, chi2, n, pb.k_total, s2, bool(sol.success) and all_ok, msg, starts,
                        int(sol.nfev), wall_before + time.perf_counter() - t0,
                        setup, cells[0], bool(sol.success), str(sol.message), check)
 
@@ -1372,10 +1655,11 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
     if not cells_ok:
         return skipped("a specimen's cell did not solve on every row")
     q = len(shared) * (len(pb.sp) - 1)
-    dof_resid = pb.n_rows + pb.n_prior - pb.k - q
+    # k_total: the variables and, with offsets on, each specimen's offset (in both models: not in q)
+    dof_resid = pb.n_rows + pb.n_prior - pb.k_total - q
     if dof_resid <= 0:
-        return skipped(f"too few rows: {pb.n_rows + pb.n_prior} rows and priors for {pb.k + q} variables of a "
-                       "yarn per specimen")
+        return skipped(f"too few rows: {pb.n_rows + pb.n_prior} rows and priors for {pb.k_total + q} parameters "
+                       "of a yarn per specimen" + (" (force offsets included)" if pb.offsets else ""))
     problems = []
     for s in pb.sp:
         try:
@@ -1420,5 +1704,5 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
                         base["largest_pull"])
 
 
-__all__ = ["CalibrationInterrupted", "check_setup", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+__all__ = ["CalibrationInterrupted", "check_setup", "check_zero", "ZERO_MODES", "ZERO_CHECK_SD", "ZERO_CHECK_SHARE", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
            "SPECIMEN_VARIABLES", "UNITS", "OBJECTIVES"]

@@ -87,7 +87,13 @@ def _header(result: JointResult, text: str) -> str:
 
 def _fit_line(f) -> str:
     band = "" if f.in_band_fraction is None else f", {100 * f.in_band_fraction:.0f} % of the strain range in the band"
-    return f"fit: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}"
+    off = getattr(f, "offset_N", None)
+    tare = getattr(f, "tare_N", None)
+    off = ("" if off is None else f"; of the model plus a fitted force offset of {off:+.4g} {f.offset_unit} (the lab's "
+           "zero: this scene runs the model itself)")
+    off += ("" if tare is None else f"; of the model less its force at grip strain 0, {tare:.4g} {f.offset_unit} (a "
+            "file tared with the knit mounted: this scene runs the model itself)")
+    return f"fit: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}{off}"
 
 
 def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu") -> str:
@@ -164,8 +170,11 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
                      "minimum. " if not r.success else "")
                   + "The files written (materials.toml, the scenes) carry these flags in their header.", "",
                   "## Flags", ""] + [f"- **{x}**" for x in flags] + [""]
+    n_off = r.n_offsets
     lines += [f"Scene: `{source}`. {len(r.fits)} specimens, one yarn; "
-             f"{r.k} variables fitted to {r.n} rows (priors included); chi2 = {r.chi2:.4g}, "
+             + (f"{r.k} parameters fitted ({r.k - n_off} variables and {n_off} force offsets, one per specimen) "
+                if n_off else f"{r.k} variables fitted (calibration.zero = \"{r.zero}\": no force offset) ")
+             + f"to {r.n} rows (priors included); chi2 = {r.chi2:.4g}, "
              f"chi2 / (n - k) = {r.s2:.3g} (the factor on the covariance). "
              + ("Objective: the band likelihood (anywhere inside the band at no cost, just outside a Gaussian of "
                 "the force accuracy, far outside a Cauchy tail), refined from each mid-line fit. "
@@ -210,6 +219,7 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
               "envelopes; +- force accuracy: the band widened by the force reading's accuracy "
               "(calibration.force_accuracy, of the force) on either side: where the envelopes meet or cross the band "
               "has no width, though the specimens scatter and the machine reads no better."]
+    lines += zero_md(r)
     if zero_offsets:
         lines += ["", "Load cell zeros below zero, read off the curves' lowest readings (a knit carries no compression) "
                   "and tared (subtracted) before the fit: " + "; ".join(f"{name}: {src} {z:.4g} N"
@@ -225,6 +235,41 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
               for s in r.starts]
     lines += ["", "## Files", ""] + [f"- `{f}`" for f in files] + [""]
     return "\n".join(lines)
+
+
+def zero_md(result: JointResult) -> list[str]:
+    """The report's section on the files' zero (:mod:`knitsim.calibration.joint`, "The files' zero"):
+    calibration.zero, and the fitted force offsets or the tares."""
+    r = result
+    if r.zero == "tared":
+        out = ["", "## The files' zero: tared (calibration.zero = \"tared\")", "",
+               "Each file's 0 N is taken as the model's state at grip strain 0 (a load cell zeroed with the knit "
+               "mounted): each row is fitted as the model's force less its force at grip strain 0 (its rest state, or "
+               "the pretensioned state the test starts from), from the same simulation; no parameter is added. The fit "
+               "plots and RMS are of the model less it; the scenes written run the model itself.", "",
+               "| specimen | tared at the model's force at grip strain 0 | unit |", "|---|---|---|"]
+        out += [f"| {f.name} | {_fmt(f.tare_N)} | {f.offset_unit} |" for f in r.fits]
+        return out
+    if not r.n_offsets:
+        return ["", "The files' zero: absolute (calibration.zero = \"absolute\"): each file's 0 N is taken as the "
+                "model's 0 N. A load cell zeroed with the knit mounted reads the model's force at grip strain 0 as "
+                "zero: such a file (it reads at rest well below the fitted knit's force there) is flagged; set "
+                "calibration.zero = \"tared\" (or \"fitted\") for it."]
+    out = ["", "## Force offsets (one per specimen; calibration.zero = \"fitted\")", "",
+           "Each specimen's rows are fitted by the model plus a constant: the weighted least-squares offset of its "
+           "rows (weights 1 / sd^2, the law of `knitsim diagnose`), projected out of the fit (the covariance above "
+           "is marginal over it) and counted as a parameter. A lab that zeroes its load cell with the knit mounted "
+           "reads the knit's rest force as zero: its offset is then minus the model's force at rest. The fit "
+           "plots and RMS are of the model plus its offset; the scenes written run the model itself.", "",
+           "| specimen | offset | std error | unit | peak measured force | share | model's force at grip strain 0 |",
+           "|---|---|---|---|---|---|---|"]
+    for f in r.fits:
+        out.append(f"| {f.name} | {f.offset_N:+.4g} | {_fmt(f.offset_se_N)} | {f.offset_unit} | {_fmt(f.peak_N)} | "
+                   f"{100 * f.offset_share:.3g} % | {_fmt(f.pretension_N)} |")
+    notes = r.notes
+    if notes:
+        out += [""] + [f"- Note: {x}." for x in notes]
+    return out
 
 
 def one_yarn_md(result: JointResult) -> list[str]:
@@ -269,13 +314,19 @@ def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
     ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     if fit.band_low_N is not None:
         ax.fill_between(fit.strain, fit.band_low_N, fit.band_high_N, color="0.75", label="experimental band")
-        inside = (fit.simulated_N >= fit.band_low_N) & (fit.simulated_N <= fit.band_high_N)
-        ax.scatter(fit.strain[~inside], fit.simulated_N[~inside], s=10, color="tab:red", zorder=3,
+        off0 = getattr(fit, "shift_N", 0.0)
+        inside = (fit.simulated_N + off0 >= fit.band_low_N) & (fit.simulated_N + off0 <= fit.band_high_N)
+        ax.scatter(fit.strain[~inside], fit.simulated_N[~inside] + off0, s=10, color="tab:red", zorder=3,
                    label="model outside the band")
     band_fit = getattr(fit, "objective", "midline") == "band"
     ax.plot(fit.strain, fit.target_N, "k--", lw=1, label=("band mid-line" if band_fit else "target (band mid-line)")
             if fit.band_low_N is not None else "measured")
-    ax.plot(fit.strain, fit.simulated_N, color="tab:blue", lw=1.6, label="calibrated model")
+    off = getattr(fit, "offset_N", None)
+    tare = getattr(fit, "tare_N", None)
+    shown_N = fit.simulated_N + getattr(fit, "shift_N", 0.0)
+    ax.plot(fit.strain, shown_N, color="tab:blue", lw=1.6,
+            label=f"calibrated model {off:+.3g} N (fitted offset)" if off is not None else
+            f"calibrated model - {tare:.3g} N (tared at grip strain 0)" if tare is not None else "calibrated model")
     ax.set_ylabel("force [N]")
     frac = "" if fit.in_band_fraction is None else f", {100 * fit.in_band_fraction:.0f} % in the band"
     bad = "" if fit.status == "ok" else f", CELL {fit.status.upper()}"
@@ -287,7 +338,7 @@ def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
         ax2.plot(fit.strain, fit.residuals, color="tab:blue", lw=1)
         ax2.set_ylabel("band likelihood\nresidual")
     else:
-        ax2.plot(fit.strain, (fit.simulated_N - fit.target_N) / fit.sigma_N, color="tab:blue", lw=1)
+        ax2.plot(fit.strain, (shown_N - fit.target_N) / fit.sigma_N, color="tab:blue", lw=1)
         ax2.set_ylabel("(model - target) / sd")
     ax2.set_xlabel("grip strain")
     ax2.grid(alpha=0.3)
@@ -352,4 +403,4 @@ def _json_default(v):
     raise TypeError(type(v).__name__)
 
 
-__all__ = ["UNUSABLE", "flag_lines", "one_yarn_md", "library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]
+__all__ = ["UNUSABLE", "flag_lines", "zero_md", "one_yarn_md", "library_of", "cell_scene_of", "patch_scene_of", "report_md", "plot_fit", "write_calibration"]

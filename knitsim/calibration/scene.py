@@ -40,6 +40,12 @@ Example (``scenes/calibration/do2020/calibrate.toml``)::
     knit = { L = 4.5, W0 = 1.154, C0 = 0.90 }
     uncertainty = { L = 0.02, W0 = 0.10, C0 = 0.10 }      # relative sd of each stated value
 
+``zero`` says what the files' 0 N is (:mod:`knitsim.calibration.joint`, "The files' zero"):
+``"absolute"`` (the default) the model's 0 N; ``"tared"`` the model's force at grip strain 0 (a load cell
+zeroed with the knit mounted: each row is fitted as the model's force less that); ``"fitted"`` a force
+offset per specimen, fitted (it costs the rest level that identifies phi0 and m).  With ``"absolute"``, a
+file that reads at rest well below the fitted knit's force at grip strain 0 is flagged.
+
 A specimen may give ``curve = "FILE"`` (a measured curve; with ``noise_N``,
 else its noise is estimated) instead of, or with, the band.  With
 ``"pretension"`` in ``per_specimen`` each specimen's strain at grip strain 0
@@ -59,7 +65,7 @@ from pathlib import Path
 from ..errors import KnitsimInputError
 from ..scene.cell_scene import _device_check, _effects_table, _friction_table, _rules_table, load_cell_scene
 from ..scene.schema import OPTIONAL, REQUIRED, Field, Table, TableArray, error, load_toml, set_value, validate
-from .joint import JointSetup, check_setup
+from .joint import ZERO_MODES, JointSetup, check_setup, check_zero
 from .specimen import GEOMETRY, SpecimenData, specimen_from_files
 
 _GEOMETRY_TABLE = Table({k: Field(("float",), REQUIRED, f"stated {k}", "mm", min=0.0, min_inclusive=False)
@@ -102,6 +108,10 @@ CALIBRATION_SCENE = Table({
                            "half-width (midline), or the band likelihood: anywhere inside at no cost, just outside a "
                            "Gaussian of the force accuracy, far outside a Cauchy tail (band; refined from the "
                            "mid-line fits)", choices=("midline", "band")),
+        "zero": Field(("str",), "absolute", "what the files' 0 N is: the model's 0 N (absolute), the model's force at "
+                      "grip strain 0 (tared: a load cell zeroed with the knit mounted), or a force offset per "
+                      "specimen, fitted (fitted)", choices=ZERO_MODES),
+        "offsets": Field(("bool",), OPTIONAL, "replaced by zero (refused)"),
         "starts": Field(("int",), 48, "Latin-hypercube starts screened", min=0, max=10_000),
         "refine": Field(("int",), 3, "best starts refined by least squares", min=1, max=100),
         "max_nfev": Field(("int",), 100, "least-squares evaluations per refined start", min=1),
@@ -246,11 +256,15 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             noise_N=s.get("noise_N"), end_strain=s.get("end_strain"), accuracy_rel=cal["force_accuracy"],
             where=where, pretension=s["pretension"], pretension_sd=s["pretension_sd"]))
     fixed = dict(cal.get("fixed", {}))
+    if "offsets" in cal:
+        raise error("calibration.offsets", cal["offsets"], 'replaced by calibration.zero = "absolute" | "tared" | '
+                    '"fitted" (offsets = true was zero = "fitted"; false was "absolute")')
     setup = JointSetup(base=base, shared=tuple(cal["shared"]), per_specimen=tuple(cal["per_specimen"]),
                        effects=tuple(effects) if fit_dahl else tuple(e for e in effects if e != "dahl_transition"),
                        bounds=bounds, fixed=fixed, max_increment=cal["max_increment"], starts=cal["starts"],
                        refine=cal["refine"], seed=cal["seed"], max_nfev=cal["max_nfev"], device=doc["device"],
-                       phi0_starts=tuple(s.get("phi0") for s in doc["specimens"]), objective=cal["objective"])
+                       phi0_starts=tuple(s.get("phi0") for s in doc["specimens"]), objective=cal["objective"],
+                       zero=check_zero(cal["zero"]))
     if cal["row_step"] < cal["max_increment"] * (1 - 1e-12):
         raise error("calibration.row_step", cal["row_step"], f"must be >= calibration.max_increment = "
                     f"{cal['max_increment']!r}")

@@ -35,11 +35,11 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
-    PER_CENT_HINT, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
+    PER_CENT_HINT, STRAIN_TOL_REL, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
     strain_jitter, strain_tolerance, zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise
-from ..io.table_input import read_csv_columns
+from ..io.table_input import notes_of, read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
 TOTAL_COLUMNS = ("load_N", "force_N")
@@ -67,6 +67,9 @@ class MeasuredTable:
     zero_offset_N: float = 0.0
     #: the sd of the strain column's own jitter (knitsim.diagnosis.measured.strain_jitter; 0: none seen)
     strain_jitter: float = 0.0
+    #: what the reader did that the user must be told (a strain column read in per cent, divided by 100:
+    #: knitsim.io.table_input.Columns.notes); () for most files
+    notes: tuple = ()
 
 
 def read_table(path: str | Path) -> MeasuredTable:
@@ -121,7 +124,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     # probe).  A zero above zero is not told from the knit's own force at rest or a pretension: left in
     zero = _rest_level(force, noise.sigma_N, zero_offset_below(force, noise.sigma_N))
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
-                         rows, s_name, noise, zero, strain_jitter(strain))
+                         rows, s_name, noise, zero, strain_jitter(strain), notes_of(cols))
 
 
 def pretension_strain(grip_strain, pretension: float):
@@ -267,6 +270,21 @@ def _rest_level(force, sigma_N: float, floor: float) -> float:
     return min(float(np.median(rest)), 0.0) if len(rest) else floor
 
 
+def rest_reading(t: MeasuredTable) -> tuple[float, float]:
+    """A file's force at rest and its sd [its force column's units]: the median of its first readings, those
+    at strain within 1e-3 of its strain range of its first (:data:`~knitsim.diagnosis.measured.STRAIN_TOL_REL`;
+    at least the first reading; not the jitter tolerance, which irregular steps inflate: a probe's steps of
+    0.005 +- 50 % read as a jitter of 0.001, and its tolerance took in a reading at strain 0.0049, 0.53 N up
+    the curve), after the tare of a zero below zero (:func:`_rest_level`); the sd of one reading there (its
+    noise, :class:`~knitsim.diagnosis.noise.CurveNoise`).  What the joint calibration's zero check
+    (:mod:`knitsim.calibration.joint`, "The files' zero") compares with the model's force at grip strain 0."""
+    s, f = np.asarray(t.strain, float), np.asarray(t.force, float)
+    at = f[s <= s[0] + STRAIN_TOL_REL * float(np.max(s) - min(float(np.min(s)), 0.0))]
+    level = float(np.median(at if len(at) else f[:1]))
+    sd = float(t.noise.sd_at(np.array([level]))[0]) if t.noise is not None else float("nan")
+    return level, sd
+
+
 def _interpolation_sd(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
     """An sd of :func:`_interp`'s error at the rows ``x``: where a row falls between two of the file's
     readings, the curve between them is not known to be straight (a knee, a stick-slip onset, may lie
@@ -352,6 +370,12 @@ class SpecimenData:
     pretension_sd: float = 0.0
     accuracy_rel: float = FORCE_ACCURACY_REL
     zero_offsets_N: tuple = ()
+    #: the files' force at rest (first readings, :func:`rest_reading`) and its sd [N, total or per wale];
+    #: NaN: not known (a specimen made by hand)
+    rest_N: float = float("nan")
+    rest_sd_N: float = float("nan")
+    #: (file, note) of what reading its files did that the user must be told (MeasuredTable.notes)
+    read_notes: tuple = ()
 
     @property
     def has_band(self) -> bool:
@@ -514,9 +538,19 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     return SpecimenData(name, strain, np.asarray(target, float), sigma, low, high, totals.pop(), float(width_mm),
                         float(gauge_length_mm), {k: float(knit[k]) for k in GEOMETRY}, unc,
                         tuple(t.source for t in tables), rule, float(pretension), float(pretension_sd),
-                        float(accuracy_rel), tuple((t.source, t.zero_offset_N) for t in tables if t.zero_offset_N))
+                        float(accuracy_rel), tuple((t.source, t.zero_offset_N) for t in tables if t.zero_offset_N),
+                        *_rest_of(cur, lo_t, hi_t), tuple((t.source, n) for t in tables for n in t.notes))
+
+
+def _rest_of(cur, lo_t, hi_t) -> tuple[float, float]:
+    """A specimen's force at rest and its sd (:func:`rest_reading`): its curve's; without one, the envelopes'
+    mean, with the larger of their noise and half their gap."""
+    if cur is not None:
+        return rest_reading(cur)
+    (a, sa), (b, sb) = rest_reading(lo_t), rest_reading(hi_t)
+    return 0.5 * (a + b), max(sa, sb, 0.5 * abs(a - b))
 
 
 __all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "check_reach",
-           "GEOMETRY",
+           "GEOMETRY", "rest_reading",
            "band_residuals", "cauchy_tail"]

@@ -89,6 +89,9 @@ def _run(args) -> int:
         for name, src, z in zero_offsets(sp):
             print(f"knitsim calibrate: {name}: {src}: the load cell reads {z:.3g} N at rest (below zero: a knit "
                   "carries no compression): tared", file=sys.stderr, flush=True)
+        for s in sp:
+            for src, note in s.read_notes:
+                print(f"knitsim calibrate: {s.name}: {src}: {note}", file=sys.stderr, flush=True)
         bars = []
 
         def counter(what, total):
@@ -117,6 +120,8 @@ def _run(args) -> int:
               "in the summary below)", file=sys.stderr, flush=True)
     for line in flags if args.json else ():
         print(f"knitsim calibrate: warning: {line}", file=sys.stderr, flush=True)
+    for line in result.notes if args.json else ():
+        print(f"knitsim calibrate: note: {line}", file=sys.stderr, flush=True)
     if not result.success and not any(x.startswith("the fit failed") for x in flags):
         print(f"knitsim calibrate: warning: {result.message}", file=sys.stderr, flush=True)
     if args.json:
@@ -136,8 +141,21 @@ def _run(args) -> int:
             band = "" if f.in_band_fraction is None else f"; {100 * f.in_band_fraction:.0f} % of the strain range " \
                                                          "inside the band"
             print(f"{f.name}: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}; chi2 per row "
-                  f"{f.chi2 / max(len(f.strain), 1):.3g}; cells {f.status}"
+                  f"{f.chi2_per_row:.3g}; cells {f.status}"
                   + ("" if f.status == "ok" else " (DID NOT SOLVE ON EVERY ROW)"))
-        print(f"fit: chi2 / (n - k) = {result.s2:.3g} ({result.n} rows and priors, {result.k} variables; about 1 "
-              f"where the model makes the curves within their noise, flagged above {POOR_FIT_S2:g})")
+        for f in result.fits:
+            if f.offset_N is not None:
+                print(f"{f.name}: force offset {f.offset_N:+.4g} +- {f.offset_se_N:.2g} {f.offset_unit} "
+                      f"({100 * f.offset_share:.3g} % of its peak measured force; the model's force at grip strain 0 "
+                      f"{f.pretension_N:.4g} N)")
+            if f.tare_N is not None:
+                print(f"{f.name}: tared at the model's force at grip strain 0: {f.tare_N:.4g} N"
+                      + ("" if f.offset_unit == "N (total)" else " per wale"))
+        n_off = result.n_offsets
+        print(f"fit: chi2 / (n - k) = {result.s2:.3g} ({result.n} rows and priors, {result.k} "
+              + (f"parameters: {result.k - n_off} variables and {n_off} force offsets" if n_off else
+                 f"variables, no force offset (calibration.zero = \"{result.zero}\")")
+              + f"; about 1 where the model makes the curves within their noise, flagged above {POOR_FIT_S2:g})")
+        for line in result.notes:
+            print(f"note: {line}")
     return 0 if result.success and not flags else 1

@@ -83,7 +83,8 @@ def run(args) -> int:
         # what was read, in the units it was read in: a column per specimen or in kN shows here, before the fits
         print(f"read {c.source}: {len(c)} rows, strain {float(c.strain.min()):.4g} to {float(c.strain.max()):.4g}, "
               f"force {float(c.force.min()):.4g} to {float(c.force.max()):.4g} N per wale, "
-              f"{int(c.cycle.max()) - int(c.cycle.min()) + 1} cycle(s)", flush=True)
+              f"{int(c.cycle.max()) - int(c.cycle.min()) + 1} cycle(s)"
+              + "".join(f"; {n}" for n in c.notes), flush=True)
     setup = replace(setup, noise_N=noise or None)
     t0 = time.perf_counter()
 

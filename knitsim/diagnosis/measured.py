@@ -59,7 +59,7 @@ import numpy as np
 from ..cell.history import BatchHistory
 from ..cell.load_program import LoadProgram, piecewise_linear
 from ..errors import KnitsimInputError
-from ..io.table_input import read_csv_columns
+from ..io.table_input import Columns, notes_of, read_csv_columns
 from .noise import CurveNoise, curve_noise
 
 REQUIRED = ("strain", "force_per_wale_N")
@@ -113,6 +113,9 @@ class MeasuredCurve:
         The strain as read, before the jitter was removed.
     noise : CurveNoise or None
         This curve's noise sd and how it was obtained.
+    notes : tuple of str
+        What the reader did that the user must be told (a strain column read in per cent:
+        :attr:`knitsim.io.table_input.Columns.notes`); empty for most files.
     """
 
     strain: np.ndarray
@@ -124,6 +127,7 @@ class MeasuredCurve:
     rows: np.ndarray | None = None
     strain_read: np.ndarray | None = None
     noise: CurveNoise | None = None
+    notes: tuple = ()
 
     def __len__(self) -> int:
         return len(self.strain)
@@ -536,13 +540,14 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The columns read from a file (:func:`~knitsim.io.table_input.read_csv_columns`, ``_row`` the line
     numbers) without a row that repeats the row above it in every column: a row copied (pasted twice, a
     logger writing one record twice) is not a second measurement, and counted twice it would weigh
-    twice and read as zero noise.  A row at the same strain with another force is kept: a second reading."""
+    twice and read as zero noise.  A row at the same strain with another force is kept: a second reading.
+    The notes of the columns (:class:`knitsim.io.table_input.Columns`) are kept."""
     names = [k for k in cols if k != "_row"]
     n = len(cols["_row"])
     copy = np.zeros(n, bool)
     if n > 1:
         copy[1:] = np.logical_and.reduce([cols[k][1:] == cols[k][:-1] for k in names])
-    return cols if not copy.any() else {k: v[~copy] for k, v in cols.items()}
+    return cols if not copy.any() else Columns({k: v[~copy] for k, v in cols.items()}, notes=notes_of(cols))
 
 
 def refuse_few_rows(source, rows) -> None:
@@ -569,6 +574,8 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
     refuse_few_rows(path, cols["_row"])
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
+    if notes_of(cols):
+        curve = replace(curve, notes=notes_of(cols))
     check_response(curve)
     return curve
 

@@ -20,7 +20,9 @@ shows it), the column and the value, and what to do:
 - a unit after a header name, in brackets (``strain [-]``, ``force_per_wale_N (N)``,
   ``V_mm_s [mm/s]``), when it is the unit the name implies (``_N``: N, ``_mm``: mm,
   ``_mm_s``: mm/s, ``_1_mm``: 1/mm; others dimensionless: ``-``, ``1``, ``mm/mm``);
-  another unit (``strain [%]``, ``F0_N [kN]``) is refused naming the header cell;
+  a dimensionless column (a strain) stated in per cent (``Strain [%]``, ``strain (%)``, ``strain %``,
+  ``percent``, ``pct``) is read divided by 100 and said so (:attr:`Columns.notes`); another unit
+  (``F0_N [kN]``, ``force_per_wale_N [%]``) is refused naming the header cell;
 - lines starting with ``#`` (comments), anywhere; but not a row whose first cell is a
   spreadsheet's error value (``#DIV/0!``, ``#N/A``, ``#VALUE!``): that is a data row, and
   it is refused as text in a number column, naming its row, not dropped as a comment;
@@ -29,8 +31,9 @@ shows it), the column and the value, and what to do:
   required, at least one of the optional ones); the lines above it are skipped;
 - a units row directly under the header (``-,N,-,-``, ``[mm],[N],(-),mm/s``):
   the first data row is skipped when none of its non-empty cells is a number; the unit
-  under each column read is checked as one in its header cell (``%`` under ``strain``,
-  ``kN`` under ``force_per_wale_N``: refused naming the row and the column).
+  under each column read is checked as one in its header cell (``%`` under ``strain``: read in
+  per cent; ``kN`` under ``force_per_wale_N``: refused naming the row and the column; a header cell and
+  a units row that disagree, ``strain [-]`` over ``%``, are refused).
   Text in a number column further down is refused as before;
 - refused: a value in a row beyond the header's columns (a shifted or merged row), and a
   column read that is named twice (which one is meant is not said).
@@ -41,6 +44,7 @@ import codecs
 import csv
 import math
 import re
+from decimal import Decimal
 from pathlib import Path
 from typing import Iterable
 
@@ -49,6 +53,22 @@ import numpy as np
 from ..errors import KnitsimInputError
 
 _DELIMITERS = (",", ";", "\t")
+
+
+class Columns(dict):
+    """The columns :func:`read_csv_columns` read: a ``dict`` of column name to array (and ``"_row"``), with
+    ``notes``, a tuple of what the reader did that the user must be told (a strain column read in per cent
+    and divided by 100: ``strain column 'Strain [%]' read in per cent (divided by 100)``).  Its keys are the
+    columns only, so code that iterates them is unchanged; :func:`notes_of` reads the notes of any dict."""
+
+    def __init__(self, *args, notes: Iterable[str] = (), **kwargs):
+        super().__init__(*args, **kwargs)
+        self.notes: tuple[str, ...] = tuple(notes)
+
+
+def notes_of(cols) -> tuple[str, ...]:
+    """The notes of columns read by :func:`read_csv_columns` (``()`` for a plain dict)."""
+    return tuple(getattr(cols, "notes", ()))
 _NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 
 
@@ -98,7 +118,9 @@ _GROUPED_POINT = re.compile(r"[+-]?\d{1,3}(?:,\d{3})+\.\d*")
 _GROUPED_COMMA = re.compile(r"[+-]?\d{1,3}(?:\.\d{3})+,\d+")
 
 
-def _number(cell: str, decimal_comma: bool) -> float:
+def _number(cell: str, decimal_comma: bool, per_cent: bool = False) -> float:
+    """A cell's number; ``per_cent``: divided by 100, exactly (the decimal number written, shifted by two
+    places, then rounded once: ``5.123`` in per cent reads as ``0.05123`` does)."""
     c = cell.strip().replace("\u2212", "-")       # a typographic minus sign
     if decimal_comma and "," in c and "." not in c:
         c = c.replace(",", ".")
@@ -106,7 +128,10 @@ def _number(cell: str, decimal_comma: bool) -> float:
         c = c.replace(".", "").replace(",", ".")
     elif not decimal_comma and _GROUPED_POINT.fullmatch(c):
         c = c.replace(",", "")
-    return float(c)
+    v = float(c)                          # raises ValueError on what is not a number
+    if per_cent and math.isfinite(v):
+        return float(Decimal(c.strip()).scaleb(-2))
+    return v
 
 
 def _ambiguous_comma(cell: str) -> bool:
@@ -162,11 +187,26 @@ _UNITS = (("_1_mm", ("1/mm", "mm^-1", "mm-1")), ("_n_mm_per_mm", ("nmm/mm", "n.m
 _DIMENSIONLESS = ("-", "1", "", "mm/mm", "m/m")
 
 
+_PER_CENT_SIGN = re.compile(r"^(.*?\S)\s*%$")
+#: a unit that says per cent (casefold, no spaces)
+_PER_CENT = ("%", "percent", "pct")
+
+
 def _name_and_unit(cell: str) -> tuple[str, str | None]:
-    """A header cell's name (its key) and the unit written after it in brackets, if any."""
+    """A header cell's name (its key) and the unit written after it in brackets (or a bare ``%``), if any."""
     text = _trim(cell)
-    m = _WITH_UNIT.match(text)
-    return (m.group(1).casefold(), m.group(2)) if m else (text.casefold(), None)
+    m = _WITH_UNIT.match(text) or _PER_CENT_SIGN.match(text)
+    return (m.group(1).casefold(), m.group(2) if m.re is _WITH_UNIT else "%") if m else (text.casefold(), None)
+
+
+def _is_per_cent(unit: str | None) -> bool:
+    return unit is not None and unit.casefold().replace(" ", "") in _PER_CENT
+
+
+def _dimensionless(name: str) -> bool:
+    """Whether the column asked for as ``name`` is dimensionless (a strain): the unit it states in brackets,
+    else the one its ending implies, else none."""
+    return any(_unit_fits(name, u) for u in _DIMENSIONLESS)
 
 
 def _unit_fits(name: str, unit: str) -> bool:
@@ -226,7 +266,7 @@ def has_columns(path: str | Path, names: Iterable[str]) -> bool:
 
 
 def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterable[str] = (),
-                     numeric: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+                     numeric: Iterable[str] | None = None) -> Columns:
     """Read named columns of a CSV file (see the module docstring).
 
     Parameters
@@ -245,10 +285,13 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
 
     Returns
     -------
-    dict of str to ndarray
-        Float arrays for numeric columns, arrays of str otherwise, keyed by the
-        names asked for; the key ``"_row"`` holds the file's line number (the
-        spreadsheet row) of each data row.
+    Columns
+        A ``dict``: float arrays for numeric columns, arrays of str otherwise, keyed
+        by the names asked for; the key ``"_row"`` holds the file's line number (the
+        spreadsheet row) of each data row.  Its ``notes`` (a tuple of str, empty for
+        most files) say what the user must be told: a dimensionless column stated in
+        per cent (its header cell or the units row) is read divided by 100, and
+        noted as ``strain column 'Strain [%]' read in per cent (divided by 100)``.
     """
     path = Path(path)
     if not path.is_file():
@@ -280,12 +323,24 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             raise KnitsimInputError(f"{path}: row {h + 1}: the columns {at[0] + 1} and {at[1] + 1} are both named "
                                     f"{header[at[1]]!r}: rename or delete one")
 
+    #: the columns read in per cent (a dimensionless column whose unit says so): name -> where it says so
+    per_cent: dict[str, str] = {}
+
     def refuse_unit(name: str, unit: str, line: int, cell: str) -> None:
-        if not _unit_fits(name, unit):
-            hint = " A strain of 5 % is 0.05." if unit.strip() == "%" else ""
+        """Check ``unit``, stated for column ``name`` in header cell ``cell`` (``line`` h + 1) or in the units
+        row (``line`` below it); a dimensionless column stated in per cent is noted in ``per_cent``."""
+        pct = not _unit_fits(name, unit) and _is_per_cent(unit) and _dimensionless(name)
+        if not pct and not _unit_fits(name, unit):
             raise KnitsimInputError(f"{path}: row {line}, column {cell!r}: the unit {unit!r} is not that of {name} "
                                     f"(its name says its unit); convert the column and write the unit its name "
-                                    f"implies, or none.{hint}")
+                                    f"implies, or none.")
+        stated = units[keys.index(_key(name))] if line != h + 1 else None     # the header cell's, under it
+        if stated is not None and stated.strip() and unit.strip() and pct != (name in per_cent):
+            # one says per cent, the other a fraction: which one is meant is not said
+            raise KnitsimInputError(f"{path}: row {line}, column {cell!r}: the units row says {unit!r} and the "
+                                    f"header cell {stated!r}: which one is meant is not said; keep one")
+        if pct and name not in per_cent:
+            per_cent[name] = f"{cell!r}" if line == h + 1 else f"{cell!r} (units row {line}: {unit!r})"
 
     for name in present:
         unit = units[keys.index(_key(name))]
@@ -329,7 +384,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         numeric_present = [c for c in present if c in numeric]
         decimal_comma = _comma_file_decimal_comma(path, rows, numbers, [keys.index(_key(c)) for c in numeric_present],
                                                   numeric_present)
-    out: dict[str, np.ndarray] = {}
+    out = Columns(notes=[f"{name} column {where} read in per cent (divided by 100)"
+                         for name, where in per_cent.items() if name in numeric])
     for name in present:
         j = keys.index(_key(name))
         cells = []
@@ -337,7 +393,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             cell = row[j].strip() if j < len(row) else ""
             if name in numeric:
                 try:
-                    v = _number(cell, decimal_comma)
+                    v = _number(cell, decimal_comma, name in per_cent)
                 except ValueError:
                     raise KnitsimInputError(f"{path}: row {line}, column {name}: {cell!r} is not a number "
                                             "(fix or delete the row)") from None

@@ -302,3 +302,63 @@ def test_a_load_cell_zero_below_zero_is_read_as_the_same_zero_above(tmp_path, of
     else:
         with pytest.raises(KnitsimInputError, match=r"row 2, column force_per_wale_N: -0.052 N is below zero"):
             read_measured_curve(p)
+
+
+def _per_cent_twin(src, dst):
+    """``src`` (a comma file whose first column is the strain as a fraction) written as Excel in a decimal-comma
+    locale writes a test machine's per-cent export: UTF-8 BOM, ';', decimal commas, CRLF, a units row with
+    '%'; each strain shifted by two decimal places as text (0.008043 -> 0.8043), so it is the same number."""
+    from decimal import Decimal
+    lines = src.read_text().splitlines()
+    out = ["Strain [%];" + ";".join(lines[0].split(",")[1:]), "%;N;-;-"]
+    for ln in lines[1:]:
+        cells = ln.split(",")
+        cells[0] = format(Decimal(cells[0]).scaleb(2), "f")
+        out.append(";".join(c.replace(".", ",") for c in cells))
+    dst.write_bytes(("\ufeff" + "\r\n".join(out) + "\r\n").encode("utf-8"))
+    return dst
+
+
+def test_knitsim_diagnose_reads_a_strain_in_per_cent_and_says_so_on_its_read_line(tmp_path, capsys):
+    """The model's own single cycle (tests/diagnosis/data/README.md) and its per-cent twin (_per_cent_twin):
+    ``knitsim diagnose`` reads the twin as the same numbers (the same read line, baseline and verdict) and
+    says on its "read" line that the strain column was read in per cent."""
+    from pathlib import Path
+
+    from knitsim.cli import main
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
+                     '[rules]\nunloading_rule = "dusserre"\nreload_rule = "mirror_unloading"\nforce_cap_N = 10.0\n'
+                     '[diagnosis]\nfree = ["m", "phi0"]\neffects = ["bending_hysteresis"]\n')
+    frac = Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv"
+    pct = _per_cent_twin(frac, tmp_path / "pct.csv")
+    c_frac, c_pct = read_measured_curve(frac), read_measured_curve(pct)
+    np.testing.assert_allclose(c_pct.strain_read, c_frac.strain_read, rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(c_pct.force, c_frac.force)
+    assert c_frac.notes == () and c_pct.notes == ("strain column 'Strain [%]' read in per cent (divided by 100)",)
+    outs = []
+    for csv in (frac, pct):
+        assert main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet"]) == 0
+        outs.append(capsys.readouterr().out.splitlines())
+    assert outs[1][0] == (outs[0][0].replace(str(frac), str(pct))
+                          + "; strain column 'Strain [%]' read in per cent (divided by 100)")
+    same = [[ln.replace(str(csv), "CSV") for ln in out[1:-1]] for csv, out in zip((frac, pct), outs)]
+    assert same[1] == same[0] and len(same[0]) > 5     # the fit, line by line (but the time, the last line)
+
+
+def test_knitsim_calibrate_reads_a_strain_in_per_cent_and_says_so(tmp_path, capsys, e_glass_calibration):
+    """A one-specimen calibration (tests/conftest.py) of a curve typed by hand in per cent (strains 0, 2.5, ...
+    30 %: the fractions 0, 0.025, ... 0.3; total force 0.5 N a row): the specimen's strains are the fractions,
+    and ``knitsim calibrate`` says, beside what it read (stderr), that the strain column was read in per cent."""
+    from knitsim.calibration.scene import load_calibration_scene
+    from knitsim.cli import main
+    from knitsim.scene.schema import dumps
+    (tmp_path / "a.csv").write_text("Strain [%],load_N\n" + "".join(f"{2.5 * k},{0.5 * k}\n" for k in range(13)))
+    (tmp_path / "cal.toml").write_text(dumps(e_glass_calibration("per cent")))
+    sp = load_calibration_scene(tmp_path / "cal.toml").specimens[0]
+    assert abs(sp.strain[-1] - 0.3) < 1e-12        # the rows (every row_step = 0.02) end at 30 % = 0.3, not 30
+    rc = main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(tmp_path / "out"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc in (0, 1), err                        # read and fitted (a fit of 2 evaluations may be flagged)
+    assert f"knitsim calibrate: tight: {tmp_path / 'a.csv'}: strain column 'Strain [%]' read in per cent " \
+           "(divided by 100)" in err.splitlines(), err

@@ -51,8 +51,10 @@ def test_the_curves_carry_no_label():
     case = S.make_case(3, "basalt", "cyclic", "dahl_transition", 0.7)
     names = {f.name for f in dataclasses.fields(MeasuredCurve)}
     # the measured-curve format: strain, force, cycle, direction, rate (+ a source name), and what a
-    # reader of a file derives from those (spreadsheet rows, the strain as read, the curve's own noise)
-    assert names == {"strain", "force", "cycle", "direction", "rate_mm_s", "source", "rows", "strain_read", "noise"}
+    # reader of a file derives from those (spreadsheet rows, the strain as read, the curve's own noise, what the
+    # reader did that the user is told: a strain read in per cent)
+    assert names == {"strain", "force", "cycle", "direction", "rate_mm_s", "source", "rows", "strain_read", "noise",
+                     "notes"}
     for c in case.curves:
         assert type(c) is MeasuredCurve
         assert "dahl" not in c.source and "effect" not in c.source
