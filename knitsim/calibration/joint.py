@@ -1041,14 +1041,9 @@ class _Problem:
 
     def at_zero(self, k: int, sim: tuple, own: dict) -> float:
         """Force per wale of specimen ``k``'s model at grip strain 0, from its simulation (``simulate``): its
-        rest state's; with a pretension, the history read at the pretension strain as :meth:`at_rows` reads
-        the rows (from the rest state at strain 0)."""
-        rest = sim[2]
-        e_p = own.get("pretension", self.sp[k].pretension)
-        if not self.pretension or e_p <= 0:
-            return float(rest)
-        hist = np.concatenate(([0.0], self.program.strain))
-        return float(np.interp(float(pretension_strain(0.0, e_p)), hist, np.concatenate(([rest], sim[0]))))
+        rest state's (what ``zero = "tared"`` subtracts; refused with a pretension, whose start the fit's
+        program does not resolve)."""
+        return float(sim[2])
 
     def offset(self, s: SpecimenData, force: np.ndarray, bad: np.ndarray) -> float:
         """Specimen ``s``'s best force offset [its force column's units] for the model force ``force`` at its
