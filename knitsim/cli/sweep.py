@@ -151,6 +151,9 @@ def _run(args) -> int:
                                                 "results.csv"),
                        ("zero_force_cycle", "a later cycle carries nearly no force (a few per cent of the largest "
                                             "earlier peak); variable zero_force_cycle in results.nc / results.csv"),
+                       ("reload_below_earlier_loading", "a later cycle reloads below half the earlier force at the "
+                                                        "earlier maximum, or its envelope falls; variable "
+                                                        "reload_below_earlier_loading in results.nc / results.csv"),
                        ("stopped_at_force_cap", "a stop, not a failure, but the rest of the program was not run: "
                                                 "that cycle's peak is the cap (peak_at_force_cap = 1), its energy "
                                                 "loading work if it never unloaded (energy_kind), later cycles NaN "

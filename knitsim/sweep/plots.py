@@ -42,8 +42,9 @@ colour scale (heat maps); its values that are missing (the residual strain of
 a cycle never unloaded, later cycles) are marked by a grey triangle at the
 foot of the axis (lines, scatter) or a grey ``--``-hatched cell (heat maps).
 A sample whose cell's rest state is compressive (``rest_state_compressive``),
-whose loops' heads overlap (``heads_interpenetrate``) or whose later cycle
-carries nearly no force (``zero_force_cycle``) is not marked on the axes; the
+whose loops' heads overlap (``heads_interpenetrate``), whose later cycle
+carries nearly no force (``zero_force_cycle``) or reloads far below the earlier
+loading (``reload_below_earlier_loading``) is not marked on the axes; the
 title counts it.  The title counts each kind.
 """
 from __future__ import annotations
@@ -295,11 +296,13 @@ class _Marks:
     compressive: np.ndarray
     heads: np.ndarray
     zero_force: np.ndarray
+    reload_below: np.ndarray
 
 
 def _marks(ds) -> _Marks:
     return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds), _compressive(ds),
-                  _flag(ds, "heads_interpenetrate"), _flag(ds, "zero_force_cycle"))
+                  _flag(ds, "heads_interpenetrate"), _flag(ds, "zero_force_cycle"),
+                  _flag(ds, "reload_below_earlier_loading"))
 
 
 #: the title's count of each kind of marked sample, in the order shown
@@ -313,11 +316,12 @@ _TITLE_PHRASES = (
     ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; not marked)"),
     ("heads", "with overlapping heads of neighbouring loops (heads_interpenetrate; not marked)"),
     ("zero_force", "with a later cycle carrying nearly no force (zero_force_cycle; not marked)"),
+    ("reload_below", "with a reload far below the earlier loading (reload_below_earlier_loading; not marked)"),
 )
 #: the same kinds, short (the flags of the cells not plotted)
 _SHORT = {"failed": "failed", "no_rest": "no rest state", "outside": "outside the box", "capped": "stopped at the "
           "force cap", "energy": "loop returns energy", "compressive": "compressive rest state",
-          "heads": "heads overlap", "zero_force": "zero-force cycle"}
+          "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading"}
 
 
 def _counts(marks: _Marks) -> list[str]:

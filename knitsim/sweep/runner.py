@@ -73,7 +73,7 @@ from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
 CHUNK_DIR = "chunks"
-FORMAT = "knitsim-sweep/1"
+FORMAT = "knitsim-sweep/2"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell and cycle, integer codes (-1 where the cycle has no results): what its energy is
@@ -86,11 +86,11 @@ ENERGY_KINDS = dict(enumerate(checks.ENERGY_KINDS))
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
-             "zero_force_cycle")
+             "zero_force_cycle", "reload_below_earlier_loading")
 #: warnings of the cell's summary (knitsim.io.results.cell_summary, as knitsim cell gives them) carried per
 #: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
 #: and zero_force_cycle in no sweep output)
-_WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle")
+_WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading")
 #: where a cell stopped (knitsim.io.results.cell_summary): a failed cell (all three), a cell stopped at its force
 #: cap (stopped_at_strain only); NaN for a cell that ran the whole program
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
@@ -1086,6 +1086,10 @@ def assemble(out_dir: str | Path):
         "zero_force_cycle": "1 if a later cycle peaks at a few per cent of the largest earlier peak (warning "
                             "zero_force_cycle of knitsim cell, knitsim.io.checks.zero_force_cycles), 0 if not, -1 not "
                             "solved or unknown",
+        "reload_below_earlier_loading": "1 if a later cycle carries less than half the earlier force at the earlier "
+                                        "maximum strain, or peaks at a new maximum strain below 90 % of an earlier peak "
+                                        "(warning reload_below_earlier_loading of knitsim cell, knitsim.io.checks."
+                                        "reloads_below_earlier_loading), 0 if not, -1 not solved or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
@@ -1335,6 +1339,9 @@ _WARNING_REASONS = {
                             "stops them at contact); knitsim cell on the sample says where",
     "zero_force_cycle": "a later cycle peaks at a few per cent of the largest earlier peak: it carries nearly no force "
                         "(README, 'Cycles that carry no force'); knitsim cell on the sample says which",
+    "reload_below_earlier_loading": "a later cycle reloads below half the earlier force at the earlier maximum, or its "
+                                    "envelope falls (Table 4's S+ keeps Rn where sliding began); knitsim cell on the "
+                                    "sample says which cycle",
 }
 
 

@@ -133,10 +133,10 @@ def test_the_cells_own_warnings_are_carried_per_sample(tmp_path):
     ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
     text = dataset_csv(ds)
     h = simulate([plan.base.params[0].replace(m=m) for m in (0.2, 0.5)], plan.programs[0], engine="warp", device="cpu")
-    for flag in ("heads_interpenetrate", "zero_force_cycle"):
+    for flag in ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading"):
         alone = [int(any(w["code"] == flag for w in cell_summary(h, c)["warnings"])) for c in range(2)]
         assert ds[flag].values.ravel().tolist() == alone, flag
         assert [r["sample"] for r in warning_samples(ds, flag)] == [i for i, a in enumerate(alone) if a]
     assert ds["zero_force_cycle"].values.ravel().tolist() == [1, 0]
     header = text.splitlines()[0].split(",")
-    assert header[-3:] == ["heads_interpenetrate", "zero_force_cycle", "domain"]
+    assert header[-4:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading", "domain"]
