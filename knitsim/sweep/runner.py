@@ -445,7 +445,7 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
     """What differs between a manifest's sweep and ``plan``, in words (for --resume's refusal)."""
     was = old.get("inputs")
     what = []
-    for key, name in (("knitsim", "knitsim version"), ("engine", "engine"), ("device", "device")):
+    for key, name in (("format", "sweep format"), ("knitsim", "knitsim version"), ("engine", "engine"), ("device", "device")):
         if was.get(key) != inputs[key]:
             what.append(f"{name} {was.get(key)} -> {inputs[key]}")
     for key, name in (("spec", "the [sweep] table"), ("samples", "the sample table"), ("scene", "the scene")):
