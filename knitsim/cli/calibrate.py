@@ -36,7 +36,7 @@ from pathlib import Path
 
 from ..io.results import add_output_flags, prepare_output_dir
 from ..errors import KnitsimInputError
-from .common import Progress, add_json_flag, print_json
+from .common import Progress, add_json_flag, naming_scene, print_json
 
 #: the calibration's checkpoint in --out (knitsim.calibration.joint.calibrate_joint)
 CHECKPOINT_NAME = "calibration_checkpoint.pkl"
@@ -67,7 +67,8 @@ def _run(args) -> int:
     from ..calibration.outputs import UNUSABLE, write_calibration, zero_offsets
     from ..calibration.scene import load_calibration_scene
 
-    scene = load_calibration_scene(args.scene, args.overrides, device=args.device)
+    with naming_scene(args.scene):
+        scene = load_calibration_scene(args.scene, args.overrides, device=args.device)
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the calibration in --out, or "
                                 "replace it)")

@@ -20,7 +20,7 @@ from pathlib import Path
 from ..cell.engine import ENGINES, check_engine, simulate
 from ..io.results import add_output_flags, prepare_output_dir, run_info, summarise, write_cell_results
 from ..scene.cell_scene import load_cell_scene
-from .common import Progress, add_json_flag, print_json
+from .common import Progress, add_json_flag, naming_scene, print_json
 
 
 def register(subparsers) -> None:
@@ -73,7 +73,8 @@ def check_cells_domain(params, labels, strains) -> list[dict]:
 
 def _run(args) -> int:
     t_command = time.perf_counter()
-    scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
+    with naming_scene(args.scene):
+        scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite)
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr

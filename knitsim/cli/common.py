@@ -1,12 +1,27 @@
 """Helpers shared by the subcommands: JSON output and CSV input."""
 from __future__ import annotations
 
+import contextlib
 import re
 import sys
-from typing import Any
+from typing import Any, Iterator
 
+from ..errors import KnitsimInputError
 from ..io.jsonable import json_text
 from ..io.table_input import read_csv_columns  # noqa: F401  (re-exported: capstan and dahl fits read CSV)
+
+
+@contextlib.contextmanager
+def naming_scene(path) -> Iterator[None]:
+    """Errors of reading the scene ``path`` name the file first (``FILE: key = value: why``) where they do not
+    already: a key alone does not say which of a user's scenes is wrong (a blind probe)."""
+    try:
+        yield
+    except KnitsimInputError as exc:
+        msg = str(exc)
+        if str(path) in msg:
+            raise
+        raise KnitsimInputError(f"{path}: {msg}") from None
 
 
 def add_json_flag(parser) -> None:

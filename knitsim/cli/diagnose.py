@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from ..errors import KnitsimInputError
+from .common import naming_scene
 
 
 def register(subparsers) -> None:
@@ -71,7 +72,8 @@ def run(args) -> int:
     # every input is checked before any solve
     json_out = _check_out(args.json_out, ".json", "--json", args.overwrite)
     report = _check_out(args.report, ".html", "--report", args.overwrite)
-    setup = load_diagnosis_scene(args.scene, device=args.device)
+    with naming_scene(args.scene):
+        setup = load_diagnosis_scene(args.scene, device=args.device)
     if args.effects:
         setup = replace(setup, effects=check_effects([e.strip() for e in args.effects.split(",") if e.strip()],
                                                      where="--effects"))

@@ -43,7 +43,7 @@ from pathlib import Path
 
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags
-from .common import Progress, add_json_flag, print_json
+from .common import Progress, add_json_flag, naming_scene, print_json
 
 
 def register(subparsers) -> None:
@@ -249,7 +249,8 @@ def _run(args) -> int:
             prepare_output_file(args.usd, args.overwrite, "--usd")
             # writable before the solve (a parent that is a file, /proc: pxr failed after the whole solve)
             check_usd_path(args.usd, "--usd")
-    scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
+    with naming_scene(args.scene):
+        scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     with contextlib.redirect_stdout(sys.stderr):
         device = "cpu"
         if scene.engine == "warp":

@@ -28,7 +28,7 @@ from pathlib import Path
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags, prepare_output_dir
-from .common import add_json_flag, print_json, resume_command
+from .common import add_json_flag, naming_scene, print_json, resume_command
 
 
 def register(subparsers) -> None:
@@ -98,7 +98,8 @@ def _run(args) -> int:
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (finish the sweep in --out, or replace it)")
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
-        plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
+        with naming_scene(args.scene):
+            plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
     # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
     # typo'd key or a bad sample was refused (a blind probe lost its results to it)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_sweep", overwrite=args.overwrite,

@@ -57,3 +57,20 @@ def test_bad_input_exits_2(capsys, tmp_path):
     assert rc == 2 and "patch.wales = -1: must be >= 1" in err and "Traceback" not in err
     rc = main(["run", str(REPO / "scenes" / "random_phi0.toml"), "--out", str(tmp_path / "o"), "--resume"])
     assert rc == 2 and "no checkpoint" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command, text, key", [
+    ("run", '[patch]\nwales = 2\ncourses = 2\n[yarn]\nmaterial = "e_glass"\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 0.0\n'
+            '[load]\ntype = "monotonic"\ntarget_strain = 0.1\n', "knit.C0 = 0.0"),
+    ("cell", '[yarn]\nmaterial = "e_glass"\n[knit]\nL = 14.1\nW0 = 2.0\nC0 = 2.7\n[friction]\nm = 0.2\n'
+             '[load]\ntype = "monotonic"\ntarget_strain = 0.1\n', "knit.W0 = 2.0"),
+])
+def test_a_bad_scene_names_its_file_then_its_key(tmp_path, capsys, command, text, key):
+    """A user with several scenes is told which one is wrong: the error names the file, then the key (a blind
+    probe: only TOML syntax errors named the file); exit 2, no output folder."""
+    scene = tmp_path / "mine.toml"
+    scene.write_text(text)
+    assert main([command, str(scene), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"knitsim: error: {scene}: {key}"), err
+    assert not (tmp_path / "o").exists()
