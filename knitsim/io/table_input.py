@@ -53,6 +53,8 @@ import numpy as np
 from ..errors import KnitsimInputError
 
 _DELIMITERS = (",", ";", "\t")
+#: bad cells a refusal lists (the count of the others follows)
+BAD_CELLS_LISTED = 10
 
 
 class Columns(dict):
@@ -386,6 +388,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                                                   numeric_present)
     out = Columns(notes=[f"{name} column {where} read in per cent (divided by 100)"
                          for name, where in per_cent.items() if name in numeric])
+    bad = []                              # (row, column, text) of every cell that is not a finite number
     for name in present:
         j = keys.index(_key(name))
         cells = []
@@ -395,14 +398,20 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                 try:
                     v = _number(cell, decimal_comma, name in per_cent)
                 except ValueError:
-                    raise KnitsimInputError(f"{path}: row {line}, column {name}: {cell!r} is not a number "
-                                            "(fix or delete the row)") from None
-                if not math.isfinite(v):
-                    raise KnitsimInputError(f"{path}: row {line}, column {name}: {cell!r} is not finite "
-                                            "(fix or delete the row)")
+                    bad.append((line, name, f"{cell!r} is not a number"))
+                    v = math.nan
+                else:
+                    if not math.isfinite(v):
+                        bad.append((line, name, f"{cell!r} is not finite"))
                 cells.append(v)
             else:
                 cells.append(cell)
         out[name] = np.asarray(cells, dtype=float if name in numeric else object)
+    if bad:
+        # every bad cell at once, in row order (a blind probe fixed one, ran again and met the next)
+        bad.sort(key=lambda b: b[0])
+        first = "; ".join(f"row {line}, column {name}: {what}" for line, name, what in bad[:BAD_CELLS_LISTED])
+        more = f"; and {len(bad) - BAD_CELLS_LISTED} more" if len(bad) > BAD_CELLS_LISTED else ""
+        raise KnitsimInputError(f"{path}: {first}{more} (fix or delete the row{'s' if len(bad) > 1 else ''})")
     out["_row"] = np.asarray(numbers, dtype=np.int64)
     return out

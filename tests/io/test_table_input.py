@@ -451,3 +451,25 @@ def test_a_force_in_per_cent_and_an_unknown_strain_unit_are_still_refused(tmp_pa
     p = _write(tmp_path, _table(header, PER_CENT_ROWS, units))
     with pytest.raises(KnitsimInputError, match=match):
         read_csv_columns(p, REQ)
+
+
+def test_every_bad_cell_is_named_at_once_in_row_order(tmp_path):
+    """Hand-made: an empty force cell (file row 4), a NaN (row 5) and an empty strain cell (row 8).  Expected:
+    one refusal naming all three, by row (a blind probe met them one run at a time, the strain column's
+    first); one bad cell keeps its single message; beyond BAD_CELLS_LISTED the rest are counted."""
+    from knitsim.io.table_input import BAD_CELLS_LISTED
+    rows = ["strain,force_per_wale_N", "0.0,0.0", "0.1,0.1", "0.2,", "0.3,NaN", "0.4,0.4", "0.5,0.5", ",0.6"]
+    p = _write(tmp_path, "\n".join(rows) + "\n")
+    with pytest.raises(KnitsimInputError) as e:
+        read_csv_columns(p, ["strain", "force_per_wale_N"])
+    msg = str(e.value)
+    assert msg.index("row 4, column force_per_wale_N: '' is not a number") < msg.index("row 5, column "
+                                                                                        "force_per_wale_N: 'NaN'")
+    assert msg.index("row 5,") < msg.index("row 8, column strain: '' is not a number") and "fix or delete the rows" in msg
+    many = ["strain,force_per_wale_N"] + [f"{0.01 * i},x" for i in range(BAD_CELLS_LISTED + 3)]
+    with pytest.raises(KnitsimInputError, match=r"and 3 more \(fix or delete the rows\)"):
+        read_csv_columns(_write(tmp_path, "\n".join(many) + "\n", name="many.csv"), ["strain", "force_per_wale_N"])
+    one = ["strain,force_per_wale_N", "0.0,0.0", "0.1,abc", "0.2,0.2"]
+    with pytest.raises(KnitsimInputError, match=r"row 3, column force_per_wale_N: 'abc' is not a number \(fix or "
+                                                r"delete the row\)$"):
+        read_csv_columns(_write(tmp_path, "\n".join(one) + "\n", name="one.csv"), ["strain", "force_per_wale_N"])
