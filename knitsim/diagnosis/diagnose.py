@@ -101,8 +101,8 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from pathlib import Path
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
