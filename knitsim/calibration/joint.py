@@ -140,6 +140,8 @@ POOR_FIT_S2 = 4.0
 POOR_FIT_AUTOCORRELATION = 0.5
 #: a fitted force offset larger than this share of the specimen's peak measured force is noted (JointResult.notes)
 OFFSET_NOTE_SHARE = 0.05
+#: ... and beyond this many of its standard errors
+OFFSET_NOTE_SE = 2.0
 #: the zero check of zero = "absolute" (JointResult.flags): a specimen's file reading at rest more than this many
 #: noise sd, and more than ZERO_CHECK_SHARE of its peak measured force, below the fitted model's force at grip
 #: strain 0 is flagged (a load cell zeroed with the knit mounted)
@@ -386,18 +388,27 @@ class SpecimenFit:
     def zero_check(self) -> str | None:
         """With ``zero = "absolute"``: the flag of a file that reads at rest more than ZERO_CHECK_SD noise sd
         and more than ZERO_CHECK_SHARE of its peak below the fitted model's force at grip strain 0
-        (``pretension_N``), or None."""
+        (``pretension_N``), or None: a load cell zeroed with the knit mounted.  The fit is shared: one
+        specimen's wrong zero pulls the yarn and can show in another's check (a re-probe's tared file left the
+        other, right one flagged), so the flag names the disagreement, not which file is wrong."""
         if self.zero != "absolute" or not (math.isfinite(self.rest_N) and math.isfinite(self.pretension_N)):
             return None
         gap = self.pretension_N - self.rest_N
         sd = self.rest_sd_N if math.isfinite(self.rest_sd_N) else 0.0
+        # below only: above, the first readings of a clean file (rows the fit does not include: they start at one
+        # row step) lay 20 sd above a fit within its noise in a probe's clean pair, which a flag would misread
         if not (gap > ZERO_CHECK_SD * sd and gap > ZERO_CHECK_SHARE * self.peak_N):
             return None
         unit = " per wale" if self.offset_unit == "N per wale" else ""
-        by = (f"{gap / sd:.3g} noise sd and " if sd > 0 else "") + f"{100 * gap / max(self.peak_N, 1e-300):.3g} % of its peak"
-        return (f"specimen {self.name} ({by} below the model at grip strain 0): the file reads {self.rest_N:.4g} N"
-                f"{unit} at rest where the fitted knit carries {self.pretension_N:.4g} N{unit}: a load cell zeroed "
-                'with the knit mounted? set [calibration] zero = "tared" (or "fitted")')
+        by = (f"{abs(gap) / sd:.3g} noise sd and " if sd > 0 else "") + \
+            f"{100 * abs(gap) / max(self.peak_N, 1e-300):.3g} % of its peak"
+        side = "below" if gap > 0 else "above"
+        cause = ('a load cell zeroed with the knit mounted? set [calibration] zero = "tared" (or "fitted")' if gap > 0
+                 else 'a load cell zero above zero, or a pretension? set [calibration] zero = "fitted", or give the '
+                      "specimen's pretension")
+        return (f"specimen {self.name} ({by} {side} the model at grip strain 0): the file reads {self.rest_N:.4g} N"
+                f"{unit} at rest where the fitted knit carries {self.pretension_N:.4g} N{unit}: {cause} (the fit is "
+                "shared: a wrong zero in any specimen's file can show here)")
 
     @property
     def dof_rows(self) -> int:
@@ -706,15 +717,20 @@ class JointResult:
     @property
     def notes(self) -> list[str]:
         """Notes, not flags: each specimen whose fitted force offset exceeds OFFSET_NOTE_SHARE of its peak
-        measured force."""
+        measured force and OFFSET_NOTE_SE standard errors (a re-probe: offsets within 1 SE of 0 got the note),
+        with the cause its sign suggests."""
         out = []
         for f in self.fits:
             share = f.offset_share
-            if math.isfinite(share) and share > OFFSET_NOTE_SHARE:
+            se = f.offset_se_N if math.isfinite(f.offset_se_N) and f.offset_se_N > 0 else 0.0
+            if math.isfinite(share) and share > OFFSET_NOTE_SHARE and abs(f.offset_N) > OFFSET_NOTE_SE * se:
+                # offset = file - model: below the model is a zero taken with the knit mounted
+                cause = ("the file reads below the model: a load cell zeroed with the knit mounted reads its rest "
+                         "force as zero" if f.offset_N < 0 else
+                         "the file reads above the model: a load cell zero above zero, or a pretension")
                 out.append(f"specimen {f.name}: its fitted force offset {f.offset_N:+.4g} +- {f.offset_se_N:.2g} "
                            f"{f.offset_unit} is {100 * share:.3g} % of its peak measured force ({f.peak_N:.4g} "
-                           f"{f.offset_unit}): a load cell zeroed with the knit mounted reads its rest force as zero; "
-                           "check the zero")
+                           f"{f.offset_unit}): {cause}; check the zero")
         return out
 
     @property

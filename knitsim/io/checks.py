@@ -598,7 +598,7 @@ def reloads_below_earlier_loading(strain, force, cycle, direction, unit: str = "
             out.append(ResultWarning(
                 "reload_below_earlier_loading",
                 f"cycle {int(k)} carries {fk:.3g} {unit} at {strain_name} {s0:.4g}, {fk / f0:.0%} of the {f0:.3g} {unit} "
-                f"the knit carried there before: Table 4's sliding stage keeps the contact's normal force Rn at its "
+                f"the knit carried there in cycle {int(cyc[i])} (where it first reached that strain): Table 4's sliding stage keeps the contact's normal force Rn at its "
                 f"value where sliding began, and this reload began sliding at a lower one, so its branch stays below "
                 f"the earlier loading there and beyond (a measured knit reloads to most of its earlier force: "
                 f"5 N, then 4 N in Dusserre 2015 Fig. 10)"))
