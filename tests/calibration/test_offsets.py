@@ -130,15 +130,16 @@ def test_zero_defaults_to_absolute_and_is_validated():
 
 # ---------------------------------------------------------------- absolute
 def test_absolute_is_the_code_before_and_flags_a_tared_zero(tmp_path, capsys):
-    """"absolute" on the tared pair (the probe's cal_tared): the numbers of the code before the offsets, bit for
-    bit with ``zero`` unset (m = 0.1034 +- 0.0022, one-yarn p = 1.4e-27, the probe's run), and each
-    specimen flagged: its file reads ~0 N at rest (the recipe: less the first reading) where the fitted knit
-    carries far more; on the console, in report.md and calibration.json, exit status 1."""
+    """"absolute" on the tared pair (the probe's cal_tared): the files lack the knit's rest force (the recipe:
+    less the first reading), so the fit is biased far beyond its standard error (the truth m = 0.20; the
+    probe's run: 0.103 +- 0.002) and reads the pair as two yarns; each specimen is flagged: its file reads
+    ~0 N at rest where the fitted knit carries far more; on the console, in report.md and calibration.json,
+    exit status 1; ``zero`` unset gives the same numbers bit for bit."""
     from knitsim.cli import main
     r = _fit("A_tared.csv", "B_tared.csv", "absolute")
     m = r.estimate("m")
-    assert m.value == pytest.approx(0.1034, abs=1e-3) and m.std_error == pytest.approx(0.0022, abs=3e-4)
-    assert r.one_yarn.flagged and 1e-29 < r.one_yarn.p < 1e-25
+    assert abs(m.value - 0.20) > 10 * m.std_error
+    assert r.one_yarn.flagged
     assert r.n_offsets == 0 and r.k == len(r.estimates) and not r.offsets_N and not r.tares_N and not r.notes
     assert all(f.offset_N is None and f.tare_N is None and f.shift_N == 0.0 for f in r.fits)
     zero_flags = [x for x in r.flags if "at rest where the fitted knit carries" in x]
@@ -181,13 +182,17 @@ def test_absolute_residuals_are_the_models_force(lab):
 
 def test_absolute_does_not_flag_files_whose_zero_is_right(lab):
     """The lab pair (the probe's cal_base: not tared, its zero right) fitted as "absolute": no zero flag, no flag
-    at all (B 0.3139 +- 0.0049, m 0.2003 +- 0.0019 in the probe's run); the files read their rest force."""
+    at all, B and m within 3 SE of the truth (0.31, 0.20); the files read the true knit's rest force (the
+    recipe: its rest force plus noise of sd 5 mN (A) and 2 mN (B, whose -3 mN zero is tared when read))."""
     r = _fit("A_lab.csv", "B_lab.csv", "absolute")
     assert not r.flags, r.flags
-    m = r.estimate("m")
-    assert m.value == pytest.approx(0.2003, abs=1e-3) and abs(m.value - 0.20) < 3 * m.std_error
+    for name, truth in (("m", 0.20), ("B", 0.31)):
+        e = r.estimate(name)
+        assert abs(e.value - truth) < 3 * e.std_error, (name, e.value, e.std_error)
     assert all(f.zero_check is None for f in r.fits)
-    assert {f.name: round(f.rest_N, 3) for f in r.fits} == {"knitA": 0.254, "knitB": 0.123}   # the files' first rows
+    noise = {"knitA": 0.005, "knitB": 0.002}
+    for f in r.fits:
+        assert abs(f.rest_N - _rest_N(f.name)) < 3 * noise[f.name] + 0.003, (f.name, f.rest_N, _rest_N(f.name))
 
 
 # ---------------------------------------------------------------- tared

@@ -315,8 +315,8 @@ def test_baseline_reaches_the_minimum_of_a_specimen_whose_lengths_are_off():
     phi0 0.159, d 0.576, C0 2.7304) to a basin of chi^2 114 (m 0.178, phi0 -0.136, d 0.564, C0 2.719,
     L 13.92), lower at every replay increment (0.01 to 0.0025) though not the truth's 0: on these
     noise-free curves both are within the noise (chi^2/dof 1.4 and 0.1), and the lengths and the
-    diameter are not identified beyond that.  Checked: the fit is within the noise and no worse than the
-    corners' fit, and C0 lies nearer the specimen's than the scene's (the corners' purpose)."""
+    diameter are not identified beyond that.  Checked: the fit is within the noise (the truth's chi^2 is 0)
+    and C0 lies nearer the specimen's than the scene's (the corners' purpose)."""
     from knitsim.diagnosis.diagnose import _Data, calibrate_step, noise_step
     from knitsim.diagnosis.effects import DEFAULT_STUDY_FREE
     from knitsim.diagnosis.synthetic import _lab_strains, material_params, pull_end_strain, simulate_rows
@@ -334,7 +334,6 @@ def test_baseline_reaches_the_minimum_of_a_specimen_whose_lengths_are_off():
     data = _Data(curves, setup, noise_step(curves, setup).weights(curves))
     fit, _ = calibrate_step(data, lambda msg: None)
     assert fit["chi2"] / (fit["n"] - fit["k"]) < 2.0
-    assert fit["chi2"] <= 1663.1
     assert abs(fit["values"]["C0"] - truth.C0) < abs(base.C0 - truth.C0)
 
 
