@@ -695,7 +695,7 @@ class JointResult:
     @property
     def zero(self) -> str:
         """The setup's :attr:`JointSetup.zero`."""
-        return getattr(self.setup, "zero", "absolute")
+        return self.setup.zero
 
     @property
     def n_offsets(self) -> int:

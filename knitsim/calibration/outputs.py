@@ -87,8 +87,7 @@ def _header(result: JointResult, text: str) -> str:
 
 def _fit_line(f) -> str:
     band = "" if f.in_band_fraction is None else f", {100 * f.in_band_fraction:.0f} % of the strain range in the band"
-    off = getattr(f, "offset_N", None)
-    tare = getattr(f, "tare_N", None)
+    off, tare = f.offset_N, f.tare_N
     off = ("" if off is None else f"; of the model plus a fitted force offset of {off:+.4g} {f.offset_unit} (the lab's "
            "zero: this scene runs the model itself)")
     off += ("" if tare is None else f"; of the model less its force at grip strain 0, {tare:.4g} {f.offset_unit} (a "
@@ -244,8 +243,8 @@ def zero_md(result: JointResult) -> list[str]:
     if r.zero == "tared":
         out = ["", "## The files' zero: tared (calibration.zero = \"tared\")", "",
                "Each file's 0 N is taken as the model's state at grip strain 0 (a load cell zeroed with the knit "
-               "mounted): each row is fitted as the model's force less its force at grip strain 0 (its rest state, or "
-               "the pretensioned state the test starts from), from the same simulation; no parameter is added. The fit "
+               "mounted): each row is fitted as the model's force less its force at grip strain 0 (its rest state), "
+               "from the same simulation; no parameter is added. The fit "
                "plots and RMS are of the model less it; the scenes written run the model itself.", "",
                "| specimen | tared at the model's force at grip strain 0 | unit |", "|---|---|---|"]
         out += [f"| {f.name} | {_fmt(f.tare_N)} | {f.offset_unit} |" for f in r.fits]
@@ -312,18 +311,17 @@ def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
     fig = Figure(figsize=(7.5, 6.2), dpi=110)
     FigureCanvasAgg(fig)
     ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    # what the rows were fitted to: the model plus its fitted offset, or less its tare (SpecimenFit.shift_N)
+    shown_N = fit.simulated_N + fit.shift_N
     if fit.band_low_N is not None:
         ax.fill_between(fit.strain, fit.band_low_N, fit.band_high_N, color="0.75", label="experimental band")
-        off0 = getattr(fit, "shift_N", 0.0)
-        inside = (fit.simulated_N + off0 >= fit.band_low_N) & (fit.simulated_N + off0 <= fit.band_high_N)
-        ax.scatter(fit.strain[~inside], fit.simulated_N[~inside] + off0, s=10, color="tab:red", zorder=3,
+        inside = (shown_N >= fit.band_low_N) & (shown_N <= fit.band_high_N)
+        ax.scatter(fit.strain[~inside], shown_N[~inside], s=10, color="tab:red", zorder=3,
                    label="model outside the band")
     band_fit = getattr(fit, "objective", "midline") == "band"
     ax.plot(fit.strain, fit.target_N, "k--", lw=1, label=("band mid-line" if band_fit else "target (band mid-line)")
             if fit.band_low_N is not None else "measured")
-    off = getattr(fit, "offset_N", None)
-    tare = getattr(fit, "tare_N", None)
-    shown_N = fit.simulated_N + getattr(fit, "shift_N", 0.0)
+    off, tare = fit.offset_N, fit.tare_N
     ax.plot(fit.strain, shown_N, color="tab:blue", lw=1.6,
             label=f"calibrated model {off:+.3g} N (fitted offset)" if off is not None else
             f"calibrated model - {tare:.3g} N (tared at grip strain 0)" if tare is not None else "calibrated model")
