@@ -26,8 +26,10 @@ solver = CellSolver(model); ctrl = model.control()
 names = {0: "SF+", 1: "S+", 2: "SF-", 3: "S-", 4: "slack"}
 cost, count = {}, {}
 no_count = wp.zeros(0, dtype=wp.int32)  # (step_kernel's count: every listed cell)
+no_slope = wp.zeros(0, dtype=wp.float64)  # (step_kernel's slope: not written)
 args = lambda cells, i: ([cells, no_count, no_count, no_count, model.arrays(), solver.max_halvings, 1, s0.arrays(),
-                          ctrl.strain, ctrl.direction, ctrl.rate, i, s1.arrays(), solver._ev_struct, ctrl.warm], [])
+                          ctrl.strain, ctrl.direction, ctrl.rate, i, s1.arrays(), solver._ev_struct, ctrl.warm,
+                          no_slope], [])
 prev_dir = 1
 for i in range(len(prog)):
     ctrl.set(prog.strain[i], prog.direction[i])

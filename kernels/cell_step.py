@@ -81,7 +81,8 @@ from .elastica import (
 from .head_gap import head_gap_dual, head_gap_value
 from .inverse import (
     _ARMIJO, _MAX_BACKTRACK, _MAX_DZ, STATUS_CONVERGED, STATUS_DOMAIN, STATUS_MAX_ITER,
-    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, evaluate_x, imposed_residual, mat55d, max_abs5, solve5, vec4d,
+    STATUS_NONFINITE, STATUS_SINGULAR, all_finite, evaluate_x, imposed_residual, mat55d, max_abs5, quantity_scale,
+    solve5, vec4d,
 )
 from .quarter_loop import N_QUANTITIES, CellEval, admissible, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
 from .specialise import INIT_KEY
@@ -181,10 +182,13 @@ NEWTON_TOL = wp.constant(wp.float64(1.0e-11))
 #: the moment at the apex ~ 1e-5 of its scale) the residuals' own rounding reaches 3e-11, above
 #: NEWTON_TOL, and a solve there stalled one ulp short and was halved down to failure.
 NEWTON_TOL_STALLED = wp.constant(wp.float64(1.0e-9))
-#: a warm-started solve (solve_coulomb_polished) iterates to this, or to the residuals' rounding floor, in at
+#: a warm-started solve (solve_coulomb_warm) iterates to this, or to the residuals' rounding floor, in at
 #: most POLISH_MAX_ITER steps
 POLISH_TOL = wp.constant(wp.float64(1.0e-13))
 POLISH_MAX_ITER = wp.constant(2)
+#: longest first Newton step (max norm, Newton variables) a later coupling trial takes without evaluating its
+#: end (:func:`newton_solve`'s ``max_unverified``): Newton's error after it, ~1e-12 |r''|, is below NEWTON_TOL
+WARM_STEP_MAX = wp.constant(wp.float64(1.0e-6))
 #: the Newton runs in the chart with ln G(0) in place of R/P when G(0) (theta'_C lambda)^2 / 2, of
 #: elastica BC, is below this (and below cos(alpha - gamma), where the chart is one to one) at its start
 #: (:func:`newton`).  1e-2 until the stick stages' crawl was traced: a reload SF+ with Rn frozen at
@@ -549,6 +553,34 @@ def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
 
 
 @wp.func
+def enter_chart(z0: vec5d):
+    """The chart :func:`newton_solve` iterates in from z0 (its docstring): (z0 in that chart, 1), ln G(0) in
+    place of R/P, near the edge G(0) = 0; else (z0, 0)."""
+    z = z0
+    chart = int(0)
+    g0 = apex_g0(z0)
+    if g0 < G0_CHART and g0 < wp.cos(wp.exp(z0[0])):
+        chart = int(1)
+        z[2] = wp.log(g0)
+    return z, chart
+
+
+@wp.func
+def branch_slope(dF: vec5d, J: mat55d, B: wp.float64, d: wp.float64) -> wp.float64:
+    """dF/dC of a converged state on its branch, from the Jacobian J of its Newton and the gradient dF of
+    its force (implicit function theorem; :mod:`knitsim.kernels.cell_tangent` derives it): the stage's
+    conditions with the driving condition (C(z) - C) / s_C in slot 1 (row 2), so dr/dC = -e_2 / s_C and
+    dz/dC = J^-1 e_2 / s_C.  J and dF in the same variables (either chart).  NaN where J is singular."""
+    e = vec5d()
+    e[2] = wp.float64(1.0) / quantity_scale(Q_C, B, d)
+    dz, singular = solve5(J, e)
+    k = wp.float64(wp.nan)
+    if not singular:
+        k = wp.dot(dF, dz)
+    return k
+
+
+@wp.func
 def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
     """:func:`newton_first` without a bound on its first step: returns (z, q, status)."""
     z, q, st, step0 = newton_first(z0, codes, targets, dp, B, d, wp.float64(0.0))
@@ -559,14 +591,15 @@ def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64
 def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
                  max_first: wp.float64):
     """:func:`newton_solve` with the cell step's tolerances: returns (z, q, status, step0)."""
-    z, q, st, step0, n = newton_solve(z0, codes, targets, dp, B, d, max_first, NEWTON_TOL, NEWTON_TOL_STALLED,
-                                      NEWTON_MAX_ITER)
+    z, q, st, step0, n, slope = newton_solve(z0, codes, targets, dp, B, d, max_first, NEWTON_TOL,
+                                             NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0))
     return z, q, st, step0
 
 
 @wp.func
 def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
-                 max_first: wp.float64, tol: wp.float64, tol_stalled: wp.float64, max_iter: int):
+                 max_first: wp.float64, tol: wp.float64, tol_stalled: wp.float64, max_iter: int,
+                 max_unverified: wp.float64):
     """The Newton solve of one cell: g = 0 (eq 6) and the four conditions ``codes`` = ``targets``
     (Table 4; :func:`residuals_ext`), in the variables z = (ln(alpha - gamma), beta, R/P, phi, ln P).
     The one Newton of the package: the cell step (:func:`newton_first`) and the inverse solve
@@ -593,30 +626,55 @@ def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
     Converged when every scaled residual is <= ``tol``; after ``max_iter`` steps, or where the line
     search finds no decrease, also when they are <= ``tol_stalled`` (creeping along the rounding floor).
 
-    Returns (z, q, status, step0, steps): the solution (or last admissible iterate) in the variables z,
-    all quantities at it, an inverse status code (0 converged), the first step (in the chart's
-    variables; z[3] = phi in both) where the solve stopped for it (else zero), and the Newton steps taken.
+    With ``max_unverified > 0``, a first step no longer than it (max norm of dz) is taken without
+    evaluating its end, and the solve stops there converged: from a state that converged on the same
+    conditions a little away (a patch's later coupling trial, whose C moved by the column's correction)
+    Newton's error after that step is of the order of |r''| |dz|^2, about 1e-12 |r''| at 1e-6, below
+    the cell step's tolerance (NEWTON_TOL): the step is the root to that tolerance, the end's
+    quantities are those of the start carried along the step to first order (q + dq/dz dz, their error
+    of the same order), and the evaluation that would only confirm it is saved.  Its slope dF/dC comes
+    from the start's Jacobian (:func:`branch_slope`; O(|dz|) from the end's, far below its use).
+
+    Returns (z, q, status, step0, steps, slope): the solution (or last admissible iterate) in the
+    variables z, all quantities at it, an inverse status code (0 converged), the first step (in the
+    chart's variables; z[3] = phi in both) where the solve stopped for it (else zero), the Newton
+    steps taken, and dF/dC where the unverified step was taken or, with ``max_unverified > 0``, the start
+    had converged already (else NaN).
     """
     st = int(STATUS_MAX_ITER)
     step0 = vec5d()
     z = z0
     q = vecQd()
     n = int(0)
+    slope = wp.float64(wp.nan)
     if not zr_admissible(z0):
         st = int(STATUS_DOMAIN)
     else:
-        chart = int(0)
-        g0 = apex_g0(z0)
-        if g0 < G0_CHART and g0 < wp.cos(wp.exp(z0[0])):
-            chart = int(1)
-            z[2] = wp.log(g0)
+        z, chart = enter_chart(z0)
         cell = evaluate_chart(z, chart, B, d)
         zr = chart_to_zr(z, chart)
         r, J = residuals_ext(cell, zr, codes, targets, dp, B, d)
         q = cell.q
+        short = bool(False)
+        if all_finite(r, J) and max_unverified > wp.float64(0.0):
+            # the short first step, its end not evaluated (docstring); before the loop, so that nothing of
+            # it stays live there.  A start already converged gives its slope too
+            if max_abs5(r) <= tol:
+                slope = branch_slope(quantity(cell, Q_F).g, J, B, d)
+            else:
+                dz0, singular0 = solve5(J, -r)
+                if not singular0 and max_abs5(dz0) <= max_unverified:
+                    z_end = chart_to_zr(z + dz0, chart)
+                    if zr_admissible(z_end):
+                        slope = branch_slope(quantity(cell, Q_F).g, J, B, d)
+                        q = cell.q + cell.dq * dz0
+                        zr = z_end
+                        n = 1
+                        st = int(STATUS_CONVERGED)
+                        short = True
         if not all_finite(r, J):
             st = int(STATUS_NONFINITE)
-        else:
+        elif not short:
             f = wp.dot(r, r)
             lam_prev = wp.float64(1.0)
             while True:
@@ -684,7 +742,7 @@ def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
                         st = int(STATUS_MAX_ITER)
                     break
         z = zr
-    return z, q, st, step0, n
+    return z, q, st, step0, n, slope
 
 
 @wp.func
@@ -1093,17 +1151,21 @@ def solve_coulomb_first(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.flo
 
 
 @wp.func
-def solve_coulomb_polished(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                           mat: Material, C: wp.float64):
-    """:func:`solve_coulomb` at C from a nearby converged state (a later coupling trial's warm start), iterated
-    past NEWTON_TOL to the residuals' rounding floor (POLISH_TOL, at most POLISH_MAX_ITER steps; converged
-    as the cell step's where the floor lies above it): a solve stopped at NEWTON_TOL from another start
-    differs from the trial's by up to 3e-10 N at a few mN, above a column's tolerance there (the paper
-    specimen: 8 unconverged column-increments against 1).  Returns (x, q, status)."""
+def solve_coulomb_warm(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
+                       mat: Material, C: wp.float64):
+    """:func:`solve_coulomb` at C from the state of a trial of the same increment, on the same branch at a C a
+    little away (a patch's later coupling trial).  A first Newton step shorter than WARM_STEP_MAX is taken
+    without evaluating its end (:func:`newton_solve`'s ``max_unverified``); otherwise the solve is iterated
+    past NEWTON_TOL to the residuals' rounding floor (POLISH_TOL, at most POLISH_MAX_ITER steps; converged as
+    the cell step's where the floor lies above it): a solve stopped at NEWTON_TOL from another start differs
+    from the trial's by up to 3e-10 N at a few mN, above a column's tolerance there (the paper specimen: 8
+    unconverged column-increments against 1).  Returns (x, q, converged, slope): ``slope`` dF/dC where the
+    short step was taken, else NaN."""
     codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C)
-    xn, qn, st, step0, n = newton_solve(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d,
-                                        wp.float64(0.0), POLISH_TOL, NEWTON_TOL, POLISH_MAX_ITER)
-    return xn, qn, st
+    xn, qn, st, step0, n, slope = newton_solve(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d,
+                                               wp.float64(0.0), POLISH_TOL, NEWTON_TOL, POLISH_MAX_ITER,
+                                               WARM_STEP_MAX)
+    return xn, qn, st == STATUS_CONVERGED, slope
 
 
 @wp.func
@@ -1614,8 +1676,8 @@ if _KEY is not None and _KEY == INIT_KEY:
         n = int(0)
         if admissible(x[0] - x[2], x[1], x[2], x[3], x[4]):
             # R/P of the guess from its quantities (z_of: no 0/0 where beta + phi = pi/2)
-            z, q, st, step0, n = newton_solve(z_of(x, evaluate_x(x, Bi, di).q), cds, tg, vec10p(), Bi, di,
-                                              wp.float64(0.0), tol, tol, max_iter)
+            z, q, st, step0, n, slope = newton_solve(z_of(x, evaluate_x(x, Bi, di).q), cds, tg, vec10p(), Bi, di,
+                                                     wp.float64(0.0), tol, tol, max_iter, wp.float64(0.0))
             x = x_of_z(z)
         for k in range(5):
             x_out[i, k] = x[k]
@@ -1822,6 +1884,9 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         # 1: ``s_out`` holds this cell's converged trial of this increment from ``s_in``, without an event
         # (a patch's later coupling trial, :class:`knitsim.cell.batch.CellControl`)
         warm_i: int,
+        # where the step writes each cell's slope dF/dC at its end where a warm trial knew it, NaN elsewhere
+        # (empty: not written; :func:`solve_coulomb_warm`)
+        slope_out: wp.array(dtype=wp.float64),
     ):
         """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
 
@@ -1830,12 +1895,14 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
 
         With ``warm_i`` the Newton of the increment's first sub-step starts from the state ``s_out``
         holds (the last trial's end, on the same branch: no event, the same stage) instead of the
-        state at the start: the same equilibrium, reached in a few iterations instead of three to five
-        and without the predicted sub-steps, and iterated past the cell step's tolerance
-        (:func:`solve_coulomb_polished`: a warm solve stopped at it is another point of the tolerance
-        band than the trial's, and at a few mN that left columns unconverged).  Everything else (the
-        checks at the start, the events judged between the start and the end) is the same; where that
-        solve fails, the sub-step is solved from the start as without ``warm_i``."""
+        state at the start: the same equilibrium, reached in one to three iterations instead of three to
+        five and without the predicted sub-steps (:func:`solve_coulomb_warm`: a first step shorter than
+        WARM_STEP_MAX taken without evaluating its end, else iterated past the cell step's tolerance, since
+        a warm solve stopped at it is another point of the tolerance band than the trial's, and at a few
+        mN that left columns unconverged).  Everything else (the checks at the start, the events judged
+        between the start and the end) is the same; where that solve fails, the sub-step is solved from
+        the start as without ``warm_i``.  ``slope_out`` gets the branch's slope dF/dC where the short step
+        was taken and no event followed (NaN elsewhere)."""
         mat = read_material(i, model)
         mat.closure = closure
         q = vecQd()
@@ -1918,6 +1985,9 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         go_dahl = wp.static(WITH_DAHL)
         if wp.static(WITH_DAHL):
             go_dahl = go and mat.dahl != 0
+        # the branch's slope dF/dC at the end: where the last sub-step was a warm solve that gave it and no event
+        # fired in the increment (NaN: not known)
+        slope = wp.float64(wp.nan)
         if go_coulomb:
             # ---------------------------------------------------- Coulomb (Table 4)
             # walked in sub-steps: a failed solve halves the sub-step (at most
@@ -1999,10 +2069,10 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                 ok = bool(False)
                 step0 = vec5d()
                 warmed = bool(False)
+                slope_w = wp.float64(wp.nan)
                 if warm_go and guard == 0:
                     # the whole increment from the last trial's end: no predicted sub-steps (that trial walked them)
-                    xt, qt, st_w = solve_coulomb_polished(x_warm, stage, jammed, soft, fs, fsbc, matg, C_goal)
-                    warmed = st_w == STATUS_CONVERGED
+                    xt, qt, warmed, slope_w = solve_coulomb_warm(x_warm, stage, jammed, soft, fs, fsbc, matg, C_goal)
                     ok = warmed
                 if not warmed:
                     xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
@@ -2144,6 +2214,7 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                         x = xt
                         q = qt
                         C = C_goal
+                        slope = slope_w   # of this sub-step's end (NaN unless its warm solve gave it)
                         step = step * wp.float64(2.0)
                         continue
                     if best_kind < 0:
@@ -2312,6 +2383,10 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
             if bends(mat):
                 z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
             s_out.eff[i, E_Z] = z_bend
+        if slope_out.shape[0] > 0:
+            if n_ev != 0 or status != ST_OK:
+                slope = wp.float64(wp.nan)
+            slope_out[i] = slope
         write_events(i, increment, n_written, n_ev, e_kind, e_C, e_F, e_from, e_to, ev)
         if wp.static(sliced):
             if resumed:
@@ -2365,6 +2440,8 @@ def _step_kernel_variant(first_pass: bool):
         ev: EventArrays,
         # 1 where s_out holds the cell's converged trial of this increment, without an event (CellControl.warm)
         warm: wp.array(dtype=wp.int32),
+        # out: the slope dF/dC at each advanced cell's end where a warm trial knew it, NaN elsewhere (empty: not written)
+        slope: wp.array(dtype=wp.float64),
     ):
         """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row); a first
         pass leaves the ``s_out`` rows of the cells it lists untouched."""
@@ -2373,7 +2450,7 @@ def _step_kernel_variant(first_pass: bool):
             return
         done = wp.static(advance)(i, model, max_halvings, closure, s_in, strain[i % strain.shape[0]],
                                   int(direction[i % direction.shape[0]]), rate[i % rate.shape[0]], increment,
-                                  s_out, ev, SuspendedArrays(), 0, int(warm[i % warm.shape[0]]))
+                                  s_out, ev, SuspendedArrays(), 0, int(warm[i % warm.shape[0]]), slope)
         if wp.static(first_pass):
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
@@ -2420,6 +2497,8 @@ def _program_kernel_variant(first_pass: bool):
         prog_rate: wp.array(dtype=wp.float64), k_start: int, k_stop: int, stride: int,
         ev: EventArrays,
         hist: HistoryArrays,
+        # not written (an empty array; advance_cell's slope_out)
+        slope: wp.array(dtype=wp.float64),
     ):
         """Advance each cell through increments ``k_start .. k_stop - 1`` of a load program in one launch,
         recording the rows of increments ``stride - 1, 2 stride - 1, ...`` (every row with stride 1) into
@@ -2431,7 +2510,7 @@ def _program_kernel_variant(first_pass: bool):
             return
         for k in range(k_start, k_stop):
             done = wp.static(advance)(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
-                                      prog_rate[k % prog_rate.shape[0]], k, state, ev, SuspendedArrays(), 0, 0)
+                                      prog_rate[k % prog_rate.shape[0]], k, state, ev, SuspendedArrays(), 0, 0, slope)
             if not done:
                 pending[wp.atomic_add(pending_count, 0, 1)] = i
                 return
@@ -2464,6 +2543,8 @@ if REGULAR_PASS:
         hist: HistoryArrays,
         sus: SuspendedArrays,
         budget: int,
+        # not written (an empty array; advance_cell's slope_out)
+        slope: wp.array(dtype=wp.float64),
     ):
         """Increment ``k`` of the listed cells, at most ``budget`` sub-steps of each (:func:`advance_sliced`):
         a cell whose increment is done is committed and its row recorded as :func:`program_kernel` does;
@@ -2472,7 +2553,7 @@ if REGULAR_PASS:
         if i < 0:
             return
         done = advance_sliced(i, model, max_halvings, closure, state, prog_strain[k], int(prog_direction[k]),
-                              prog_rate[k % prog_rate.shape[0]], k, state, ev, sus, budget, 0)
+                              prog_rate[k % prog_rate.shape[0]], k, state, ev, sus, budget, 0, slope)
         if not done:
             pending[wp.atomic_add(pending_count, 0, 1)] = i
             return

@@ -11,7 +11,8 @@ depends on the imposed course length), so
 with J and dF/dz the forward-mode duals of the cell's own Newton at that state (the
 same evaluation, :func:`evaluate_zr`).  This is the exact slope of the branch the cell
 is on, where a secant between two trial steps of the patch coupling only approximates
-it (and mixes branches across an event).  One evaluation and one 5x5 solve per cell.
+it (and mixes branches across an event).  One evaluation and one 5x5 solve per cell
+(:func:`~knitsim.kernels.cell_step.branch_slope`, which a patch's warm trial step also gives).
 
 NaN where it is not defined by the equations above: Dahl cells (the Dahl residual
 depends on the committed state of the increment), cells with effects (their parameters
@@ -22,14 +23,13 @@ from __future__ import annotations
 
 import warp as wp
 
-from knitsim.cell.quantities import Q_C, Q_F
+from knitsim.cell.quantities import Q_F
 
 from .cell_step import (
-    SLACK, ST_OK, evaluate_zr, read_material, residuals_ext, reverse, stage_conditions, vec10p, z_of,
+    SLACK, ST_OK, branch_slope, evaluate_zr, read_material, residuals_ext, reverse, stage_conditions, vec10p, z_of,
 )
 from .cell_arrays import ModelArrays, StateArrays
 from .elastica import vec5d
-from .inverse import quantity_scale, solve5
 from .quarter_loop import N_QUANTITIES, quantity, vecQd
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
@@ -63,9 +63,6 @@ def branch_tangent_kernel(
         codes, tg = stage_conditions(st, int(state.jammed[i]), sf, fs, fb, mat, state.C[i])
         cell = evaluate_zr(z, mat.B, mat.d)
         r, J = residuals_ext(cell, z, codes, tg, vec10p(), mat.B, mat.d)
-        e = vec5d()
-        e[2] = wp.float64(1.0) / quantity_scale(Q_C, mat.B, mat.d)   # slot 1 of the conditions: row 2
-        dz, singular = solve5(J, e)
-        if not singular:   # reverse() enters SF- / SF+, never SLACK: the guard above holds
-            kk = wp.dot(quantity(cell, Q_F).g, dz)
+        # (reverse() enters SF- / SF+, never SLACK: the guard above holds)
+        kk = branch_slope(quantity(cell, Q_F).g, J, mat.B, mat.d)
     k[i] = kk

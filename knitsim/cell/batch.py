@@ -594,13 +594,17 @@ class CellSolver:
                                 [self._ev_count] + self._ev)
 
     def step(self, state_in: CellBatchState, state_out: CellBatchState, control: CellControl,
-             increment: int = 0, cells: np.ndarray | None = None, compact: bool | None = None) -> None:
+             increment: int = 0, cells: np.ndarray | None = None, compact: bool | None = None,
+             slope_out: wp.array | None = None) -> None:
         """One increment for all cells; ``increment`` labels the events it records.
 
         ``cells`` (optional, increasing cell indices): advance only these; the other rows of
         ``state_out`` are left as they are (each cell's step reads only its own rows).
         ``compact``: in two passes (:meth:`run_program`), the same results; default: with at least
-        :data:`COMPACT_STEP_MIN_CELLS` cells."""
+        :data:`COMPACT_STEP_MIN_CELLS` cells.
+        ``slope_out`` (optional, float64 [N]): each advanced cell's slope dF/dC [N/mm] at its end where
+        the step knew it (a ``control.warm`` trial that took the short Newton step and fired no event,
+        :func:`knitsim.kernels.cell_step.solve_coulomb_warm`), NaN elsewhere."""
         n = self.model.cell_count
         if n == 0:
             return
@@ -609,6 +613,8 @@ class CellSolver:
             compact = n >= COMPACT_STEP_MIN_CELLS
         groups = self.groups if cells is None else self._subset(np.asarray(cells, dtype=np.int32))
         no_count = self.__dict__.setdefault("_no_count", wp.zeros(0, dtype=wp.int32, device=dev))
+        if slope_out is None:
+            slope_out = self.__dict__.setdefault("_no_slope", wp.zeros(0, dtype=wp.float64, device=dev))
         model_s, s_in, s_out = self.model.arrays(), state_in.arrays(), state_out.arrays()
         for g, (k, cells) in enumerate(groups):
             if cells is None:
@@ -616,7 +622,7 @@ class CellSolver:
             m = cells.shape[0] or n
             common = [model_s, self.max_halvings, int(self.stick_closure == "release_beta"), s_in,
                       control.strain, control.direction, control.rate, int(increment), s_out, self._ev_struct,
-                      control.warm]
+                      control.warm, slope_out]
             count = no_count
             if compact and getattr(k, "REGULAR_PASS", False):
                 # the first pass lists the cells it leaves; the full step takes the first count[0] of them
@@ -739,6 +745,7 @@ class CellSolver:
         sort = bool(sort_by_stage and per_increment)
         compact = bool(compact and per_increment)
         no_count = self.__dict__.setdefault("_no_count", wp.zeros(0, dtype=wp.int32, device=dev))
+        no_slope = self.__dict__.setdefault("_no_slope", wp.zeros(0, dtype=wp.float64, device=dev))
         if compact:
             pending = self._pending_buffers()
             if slices:
@@ -762,7 +769,7 @@ class CellSolver:
                         wp.utils.radix_sort_pairs(keys, order, m)
                         cells = order
                     common = [model_s, self.max_halvings, int(self.stick_closure == "release_beta"), state_s] + arrays
-                    rest = [k0, k1, int(stride), self._ev_struct, hist_s]
+                    rest = [k0, k1, int(stride), self._ev_struct, hist_s, no_slope]
                     count = no_count
                     if compact and getattr(k, "REGULAR_PASS", False):
                         # the first pass lists the cells it leaves; the full step takes the first count[0]
@@ -780,10 +787,10 @@ class CellSolver:
                                 nxt, nxt_count = lists[(r + 1) % 2]
                                 wp.launch(k.zero_count_kernel, dim=1, inputs=[nxt_count], device=dev)
                                 wp.launch(k.substep_kernel, dim=m, inputs=[cells, count, nxt, nxt_count] + common + tail
-                                          + [budget], device=dev)
+                                          + [budget, no_slope], device=dev)
                                 cells, count = nxt, nxt_count
                             wp.launch(k.substep_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common + tail
-                                      + [int(k.MAX_SUBSTEPS)], device=dev)
+                                      + [int(k.MAX_SUBSTEPS), no_slope], device=dev)
                             continue
                     wp.launch(k.program_kernel, dim=m, inputs=[cells, count, no_count, no_count] + common + rest,
                               device=dev)

@@ -6,6 +6,8 @@
 - a later trial of an increment, whose Newton starts from the last trial's state where that trial
   fired no event and kept its stage (``CellControl.warm``), meets the equilibrium of a trial from
   the committed state: the same stages, the same lengths, forces within the Newton tolerance;
+- a later trial a short Newton step away (taken without evaluating its end) is the root to the
+  cell step's tolerance, and its slope dF/dC, given by the step, is the tangent kernel's to O(|dz|);
 - the tangent of a subset (the other cells passed a status that is not ok) equals the full
   launch's on the subset and is NaN elsewhere;
 - the committed state's tangent reused from the accepted trial equals a fresh launch at that
@@ -79,6 +81,39 @@ def test_a_later_trial_starts_from_the_last_and_meets_the_trial_from_the_committ
     np.testing.assert_allclose(later["F"], cold["F"], rtol=1e-9, atol=0)
     np.testing.assert_allclose(later["phi"], cold["phi"], rtol=0, atol=1e-9)
     np.testing.assert_allclose(later["W"], cold["W"], rtol=1e-9, atol=0)
+
+
+def test_a_later_trial_a_short_newton_step_away_is_the_root_and_gives_its_slope():
+    """A correction so small that the warm Newton's first step is shorter than WARM_STEP_MAX: the step is
+    taken without evaluating its end (kernels.cell_step.newton_solve).  Its end is the root to Newton's
+    error |r''| |dz|^2 (~1e-14 here), so it meets the trial from the committed state within the cell
+    step's own tolerance (its residuals <= 1e-11: F within 1e-10 relative; 1e-15 measured); its
+    quantities are carried along the step to first order, and without that (the start's quantities kept)
+    F would be off by k dC, 2e-8 to 6e-8 of F, more than 100 times the tolerance checked.  Its slope is
+    the start's Jacobian's: O(|dz|) ~ 1e-7 from the tangent kernel's at the end (3e-9 measured)."""
+    be = _loaded(0.3)
+    first = 0.3 + np.linspace(0.002, 0.008, N)
+    corrected = first * (1.0 + np.array([-1.0, 1.5, -2.0, 1.0, 2.0, -1.2]) * 1e-7)
+    be.begin_increment()
+    t1 = be.trial(first, 1, 30)
+    later = be.trial(corrected, 1, 30)
+    # the short step was taken for every cell (the step gives the slope only there)
+    assert np.all(np.isfinite(be._k_step))
+    k_step = be.tangent(True)
+    np.testing.assert_array_equal(k_step, be._k_step)       # no tangent launch for them
+    fresh = be._tangent_launch(be.s1, 0, None)               # the tangent kernel at the end state
+    np.testing.assert_allclose(k_step, fresh, rtol=1e-7, atol=0)
+    be.begin_increment()
+    cold = be.trial(corrected, 1, 30)
+    assert np.all(np.isnan(be._k_step))                      # a first trial: the tangent kernel gives it
+    for name in ("stage", "jammed", "status", "C"):
+        np.testing.assert_array_equal(later[name], cold[name], err_msg=name)
+    # the correction moved F by far more than the tolerance checked below (the carried quantities matter)
+    assert np.all(np.abs(later["F"] - t1["F"]) > 100 * 1e-10 * cold["F"])
+    np.testing.assert_allclose(later["F"], cold["F"], rtol=1e-10, atol=0)
+    np.testing.assert_allclose(later["phi"], cold["phi"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(later["W"], cold["W"], rtol=1e-9, atol=0)
+    np.testing.assert_allclose(later["head_gap"], cold["head_gap"], rtol=0, atol=1e-9)
 
 
 def test_the_committed_tangent_reused_from_the_accepted_trial_equals_a_fresh_launch():
