@@ -495,8 +495,10 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
                                 "that strain")
     n = int(np.floor(end / row_step + 1e-9))
     if n < 4:
+        # a column read in per cent says so (its fractions, divided by 100, end a hundred times too early)
+        read = "".join(f" ({t.source}: {note})" for t in tables for note in t.notes)
         raise KnitsimInputError(f"{where}: the data end at strain {end:g}, fewer than 4 rows of "
-                                f"{row_step:g}")
+                                f"{row_step:g}{read}")
     strain = row_step * np.arange(1, n + 1)
     low = high = None
     if band is not None:

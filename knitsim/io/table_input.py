@@ -55,6 +55,9 @@ from ..errors import KnitsimInputError
 _DELIMITERS = (",", ";", "\t")
 #: bad cells a refusal lists (the count of the others follows)
 BAD_CELLS_LISTED = 10
+#: a column read in per cent whose values all lie within this (as fractions: 1 %) is said to look like fractions:
+#: a knit is tested to tens of per cent, and 0.6 under a ``%`` header is far likelier 60 % than 0.6 %
+PER_CENT_LOOKS_FRACTION = 0.01
 
 
 class Columns(dict):
@@ -386,8 +389,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         numeric_present = [c for c in present if c in numeric]
         decimal_comma = _comma_file_decimal_comma(path, rows, numbers, [keys.index(_key(c)) for c in numeric_present],
                                                   numeric_present)
-    out = Columns(notes=[f"{name} column {where} read in per cent (divided by 100)"
-                         for name, where in per_cent.items() if name in numeric])
+    out = Columns()
     bad = []                              # (row, column, text) of every cell that is not a finite number
     for name in present:
         j = keys.index(_key(name))
@@ -407,6 +409,18 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             else:
                 cells.append(cell)
         out[name] = np.asarray(cells, dtype=float if name in numeric else object)
+    notes = []
+    for name, where in per_cent.items():
+        if name in numeric:
+            note = f"{name} column {where} read in per cent (divided by 100)"
+            top = float(np.nanmax(np.abs(out[name]))) if len(out[name]) else math.nan
+            if top <= PER_CENT_LOOKS_FRACTION:
+                # (a blind probe's fractions under a % header were refused later as a test too short, the header
+                # never named)
+                note += (f"; its largest value is {100.0 * top:g} %: if the column holds fractions (0.6 for 60 %), "
+                         "state its unit as [-], or none")
+            notes.append(note)
+    out.notes = tuple(notes)
     if bad:
         # every bad cell at once, in row order (a blind probe fixed one, ran again and met the next)
         bad.sort(key=lambda b: b[0])

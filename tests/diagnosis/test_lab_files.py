@@ -362,3 +362,21 @@ def test_knitsim_calibrate_reads_a_strain_in_per_cent_and_says_so(tmp_path, caps
     assert rc in (0, 1), err                        # read and fitted (a fit of 2 evaluations may be flagged)
     assert f"knitsim calibrate: tight: {tmp_path / 'a.csv'}: strain column 'Strain [%]' read in per cent " \
            "(divided by 100)" in err.splitlines(), err
+
+
+def test_knitsim_calibrate_names_a_per_cent_header_over_fractions_when_the_data_end_too_early(tmp_path,
+                                                                                           e_glass_calibration):
+    """The same hand-typed curve with its strains as fractions (0, 0.025, ... 0.3) under a ``Strain [%]``
+    header: read in per cent it ends at strain 0.003, less than 4 rows of 0.02, and the refusal says that the
+    column was read in per cent, that its values look like fractions, and how to state them."""
+    from knitsim.calibration.scene import load_calibration_scene
+    from knitsim.errors import KnitsimInputError
+    from knitsim.scene.schema import dumps
+    (tmp_path / "a.csv").write_text("Strain [%],load_N\n" + "".join(f"{0.025 * k:g},{0.5 * k}\n" for k in range(13)))
+    (tmp_path / "cal.toml").write_text(dumps(e_glass_calibration("per cent")))
+    with pytest.raises(KnitsimInputError) as e:
+        load_calibration_scene(tmp_path / "cal.toml")
+    msg = str(e.value)
+    assert "the data end at strain 0.003, fewer than 4 rows of 0.02" in msg, msg
+    assert "strain column 'Strain [%]' read in per cent (divided by 100); its largest value is 0.3 %: if the " \
+           "column holds fractions (0.6 for 60 %), state its unit as [-], or none" in msg, msg

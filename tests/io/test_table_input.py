@@ -473,3 +473,15 @@ def test_every_bad_cell_is_named_at_once_in_row_order(tmp_path):
     with pytest.raises(KnitsimInputError, match=r"row 3, column force_per_wale_N: 'abc' is not a number \(fix or "
                                                 r"delete the row\)$"):
         read_csv_columns(_write(tmp_path, "\n".join(one) + "\n", name="one.csv"), ["strain", "force_per_wale_N"])
+
+
+def test_fractions_under_a_per_cent_header_are_read_in_per_cent_and_said_to_look_like_fractions(tmp_path):
+    # FRACTION_ROWS (strain to 0.2) under a "Strain [%]" header: the header is followed (divided by 100: the
+    # strain ends at 0.002, exactly), and the note adds that every value lies within 1 % (a knit is tested to
+    # tens of per cent) and how to state fractions.  PER_CENT_ROWS (to 20 %) under it get the plain note.
+    pct = read_csv_columns(_write(tmp_path, _table(["Strain [%]", "force_per_wale_N"], FRACTION_ROWS)), REQ)
+    assert pct["strain"].max() == 0.002
+    assert pct.notes == ("strain column 'Strain [%]' read in per cent (divided by 100); its largest value is "
+                         "0.2 %: if the column holds fractions (0.6 for 60 %), state its unit as [-], or none",)
+    plain = read_csv_columns(_write(tmp_path, _table(["Strain [%]", "force_per_wale_N"], PER_CENT_ROWS), "p.csv"), REQ)
+    assert plain.notes == ("strain column 'Strain [%]' read in per cent (divided by 100)",)
