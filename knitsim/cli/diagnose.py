@@ -105,7 +105,16 @@ def run(args) -> int:
     v = result["verdict"]
     b = result["baseline"]
     nz = result["noise"]
-    print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(f'{k} = {x:.4g}' for k, x in b['params'].items())})")
+    se = b.get("std_errors") or {}
+
+    def fitted(k: str, x: float) -> str:
+        # the fit's standard error beside its value, where it has one (a blind probe read m 0.337 on a basalt pull
+        # with no way to tell whether 0.25 was within it)
+        e = se.get(k)
+        return f"{k} = {x:.4g}" + (f" +- {e:.2g}" if e is not None and math.isfinite(e) else "")
+
+    print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(fitted(k, x) for k, x in b['params'].items())}; "
+          "+- one standard error)")
     for c in nz["curves"]:
         grows = f" + {100.0 * c['per_N']:.3g} % of the force" if c.get("per_N") else ""
         print(f"  noise of {c['source']}: {c['sigma_N']:.3g} N{grows} ({c['method']}"

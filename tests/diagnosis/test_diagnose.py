@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import json
 
+import re
+
 import numpy as np
 import pytest
 
@@ -582,6 +584,12 @@ def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_pa
     out = capsys.readouterr().out
     assert "nan" not in out.lower()
     assert "gap by stage: none beyond the noise" in out and "verdict: none" in out
+    # the baseline's fitted m and phi0 with their standard errors; the truth (m 0.20, phi0 0.05, the file's
+    # README) within 3 of them
+    line = next(ln for ln in out.splitlines() if ln.startswith("baseline:"))
+    for name, truth in (("m", 0.20), ("phi0", 0.05)):
+        value, se = re.search(rf"\b{name} = ([-0-9.e]+) \+- ([0-9.e-]+)", line).groups()
+        assert 0 < float(se) and abs(float(value) - truth) <= 3 * float(se), line
 
 
 def test_a_curve_that_starts_slack_is_said_where_the_fitted_model_lies_above_its_toe():
