@@ -84,7 +84,10 @@ from .inverse import (
     STATUS_NONFINITE, STATUS_SINGULAR, all_finite, evaluate_x, imposed_residual, mat55d, max_abs5, quantity_scale,
     solve5, vec4d,
 )
-from .quarter_loop import N_QUANTITIES, CellEval, admissible, quantity, quarter_loop_g0, quarter_loop_rho, vecQd
+from .quarter_loop import (
+    N_QUANTITIES, CellEval, admissible, force_per_wale, quantity, quarter_loop_g0, quarter_loop_rho, sin_gamma_of_rho,
+    vecQd,
+)
 from .specialise import INIT_KEY
 
 wp.set_module_options({"max_unroll": 1, "enable_backward": False})
@@ -535,6 +538,19 @@ def chart_to_zr(zc: vec5d, chart: int) -> vec5d:
 
 
 @wp.func
+def force_gradient(zc: vec5d, chart: int) -> vec5d:
+    """dF/dz of the force per wale at a point of the chart (the Newton variables, or with chart 1 ln G(0) in
+    place of R/P): F = 2 P sin(gamma), sin(gamma) = -(R/P) cos(beta + phi) (eq 7), the laws of the
+    assembly (:func:`~knitsim.kernels.quarter_loop.force_per_wale`), without the elastica integrals."""
+    beta = d_seed(zc[1], 1)
+    phi = d_seed(zc[3], 3)
+    rho = d_seed(zc[2], 2)
+    if chart != 0:
+        rho = rho_of_g0(d_exp(d_seed(zc[0], 0)), beta, d_seed(zc[2], 2), phi)
+    return force_per_wale(d_exp(d_seed(zc[4], 4)), sin_gamma_of_rho(rho, d_cos(d_add(beta, phi)))).g
+
+
+@wp.func
 def evaluate_chart(zc: vec5d, chart: int, B: wp.float64, d: wp.float64):
     """:func:`evaluate_zr` at a point of the chart, gradients with respect to the chart's variables."""
     cell = CellEval()
@@ -592,14 +608,14 @@ def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
                  max_first: wp.float64):
     """:func:`newton_solve` with the cell step's tolerances: returns (z, q, status, step0)."""
     z, q, st, step0, n, slope = newton_solve(z0, codes, targets, dp, B, d, max_first, NEWTON_TOL,
-                                             NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0))
+                                             NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0), False)
     return z, q, st, step0
 
 
 @wp.func
 def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
                  max_first: wp.float64, tol: wp.float64, tol_stalled: wp.float64, max_iter: int,
-                 max_unverified: wp.float64):
+                 max_unverified: wp.float64, want_slope: wp.bool):
     """The Newton solve of one cell: g = 0 (eq 6) and the four conditions ``codes`` = ``targets``
     (Table 4; :func:`residuals_ext`), in the variables z = (ln(alpha - gamma), beta, R/P, phi, ln P).
     The one Newton of the package: the cell step (:func:`newton_first`) and the inverse solve
@@ -635,11 +651,15 @@ def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
     of the same order), and the evaluation that would only confirm it is saved.  Its slope dF/dC comes
     from the start's Jacobian (:func:`branch_slope`; O(|dz|) from the end's, far below its use).
 
+    With ``want_slope``, a converged solve also gives the branch's slope dF/dC at its solution, from the
+    Jacobian of its last iterate (:func:`branch_slope`, :func:`force_gradient`): what the tangent kernel
+    computes there with one more evaluation.
+
     Returns (z, q, status, step0, steps, slope): the solution (or last admissible iterate) in the
     variables z, all quantities at it, an inverse status code (0 converged), the first step (in the
     chart's variables; z[3] = phi in both) where the solve stopped for it (else zero), the Newton
-    steps taken, and dF/dC where the unverified step was taken or, with ``max_unverified > 0``, the start
-    had converged already (else NaN).
+    steps taken, and dF/dC where the unverified step was taken, or, with ``max_unverified > 0`` or
+    ``want_slope``, the solve converged (else NaN).
     """
     st = int(STATUS_MAX_ITER)
     step0 = vec5d()
@@ -741,6 +761,8 @@ def newton_solve(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.f
                     else:
                         st = int(STATUS_MAX_ITER)
                     break
+            if want_slope and st == STATUS_CONVERGED:
+                slope = branch_slope(force_gradient(z, chart), J, B, d)
         z = zr
     return z, q, st, step0, n, slope
 
@@ -1130,29 +1152,34 @@ def bending_fixed_point(x: vec5d, q: vecQd, st: int, codes: wp.vec4i, tg: vec4d,
 def solve_coulomb(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
                   mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64):
     """Equilibrium of a Coulomb stage at C (or, with ev_code >= 0, at the event condition, C free)."""
-    xn, qn, st, step0 = solve_coulomb_first(x, stage, jammed, soft, fs, fsbc, mat, C, ev_code, ev_target,
-                                            wp.float64(0.0))
+    xn, qn, st, step0, slope = solve_coulomb_first(x, stage, jammed, soft, fs, fsbc, mat, C, ev_code, ev_target,
+                                                   wp.float64(0.0), False)
     return xn, qn, st == STATUS_CONVERGED
 
 
 @wp.func
 def solve_coulomb_first(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                        mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64, max_first: wp.float64):
-    """:func:`solve_coulomb` through :func:`newton_first`: returns (x, q, status, step0)."""
+                        mat: Material, C: wp.float64, ev_code: int, ev_target: wp.float64, max_first: wp.float64,
+                        want_slope: wp.bool):
+    """:func:`solve_coulomb` with :func:`newton_first`'s bound on the first step: returns (x, q, status, step0,
+    slope), ``slope`` the branch's dF/dC at the solution with ``want_slope`` (:func:`newton_solve`; NaN at an
+    event condition or unconverged)."""
     codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C)
     if ev_code >= 0:
         codes[1] = ev_code
         tg[1] = ev_target
     dp = effect_params(mat)
-    xn, qn, st, step0 = newton_first(x, codes, tg, dp, stiffness_at(mat, C), mat.d, max_first)
+    xn, qn, st, step0, n, slope = newton_solve(x, codes, tg, dp, stiffness_at(mat, C), mat.d, max_first, NEWTON_TOL,
+                                               NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0),
+                                               want_slope and ev_code < 0)
     if ev_code >= 0 and bends(mat):
         xn, qn, st = bending_fixed_point(xn, qn, st, codes, tg, dp, C, mat)
-    return xn, qn, st, step0
+    return xn, qn, st, step0, slope
 
 
 @wp.func
 def solve_coulomb_warm(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                       mat: Material, C: wp.float64):
+                       mat: Material, C: wp.float64, want_slope: wp.bool):
     """:func:`solve_coulomb` at C from the state of a trial of the same increment, on the same branch at a C a
     little away (a patch's later coupling trial).  A first Newton step shorter than WARM_STEP_MAX is taken
     without evaluating its end (:func:`newton_solve`'s ``max_unverified``); otherwise the solve is iterated
@@ -1160,11 +1187,11 @@ def solve_coulomb_warm(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
     the cell step's where the floor lies above it): a solve stopped at NEWTON_TOL from another start differs
     from the trial's by up to 3e-10 N at a few mN, above a column's tolerance there (the paper specimen: 8
     unconverged column-increments against 1).  Returns (x, q, converged, slope): ``slope`` dF/dC where the
-    short step was taken, else NaN."""
+    short step was taken or, with ``want_slope``, the solve converged; else NaN."""
     codes, tg = stage_conditions(stage, jammed, soft, fs, fsbc, mat, C)
     xn, qn, st, step0, n, slope = newton_solve(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d,
                                                wp.float64(0.0), POLISH_TOL, NEWTON_TOL, POLISH_MAX_ITER,
-                                               WARM_STEP_MAX)
+                                               WARM_STEP_MAX, want_slope)
     return xn, qn, st == STATUS_CONVERGED, slope
 
 
@@ -1173,20 +1200,24 @@ def solve_coulomb_cont(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.floa
                        mat: Material, C_from: wp.float64, C_goal: wp.float64):
     """solve_coulomb at C_goal; if Newton fails from x, walk there in 4 sub-steps (guesses only:
     the result is the same equilibrium at C_goal, events are still judged on the endpoints)."""
-    xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, mat, C_from, C_goal, wp.float64(0.0))
+    xt, qt, ok, step0, slope = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, mat, C_from, C_goal, wp.float64(0.0),
+                                                   False)
     return xt, qt, ok
 
 
 @wp.func
 def solve_coulomb_trial(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.float64, fsbc: wp.float64,
-                        mat: Material, C_from: wp.float64, C_goal: wp.float64, max_first: wp.float64):
+                        mat: Material, C_from: wp.float64, C_goal: wp.float64, max_first: wp.float64,
+                        want_slope: wp.bool):
     """:func:`solve_coulomb_cont` from the converged state x at C_from, not attempted when its first Newton step
-    is longer than ``max_first`` (> 0; :func:`newton_first`): returns (x_t, q_t, ok, step0), ``step0`` that
-    step where the solve was not attempted, else zero."""
-    xt, qt, st, step0 = solve_coulomb_first(x, stage, jammed, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0),
-                                            max_first)
+    is longer than ``max_first`` (> 0; :func:`newton_first`): returns (x_t, q_t, ok, step0, slope), ``step0``
+    that step where the solve was not attempted, else zero; ``slope`` the branch's dF/dC at x_t where
+    ``want_slope`` and the direct solve converged (NaN after the four sub-steps)."""
+    xt, qt, st, step0, slope = solve_coulomb_first(x, stage, jammed, soft, fs, fsbc, mat, C_goal, -1, wp.float64(0.0),
+                                                   max_first, want_slope)
     good = st == STATUS_CONVERGED
     if not good and st != STATUS_STEP_LONG:
+        slope = wp.float64(wp.nan)
         xx = x
         good = bool(True)
         for k in range(1, 5):
@@ -1195,7 +1226,7 @@ def solve_coulomb_trial(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.flo
                 xx, qt, okk = solve_coulomb(xx, stage, jammed, soft, fs, fsbc, mat, Ck, -1, wp.float64(0.0))
                 good = bool(okk)
         xt = xx
-    return xt, qt, good, step0
+    return xt, qt, good, step0, slope
 
 
 @wp.func
@@ -1677,7 +1708,7 @@ if _KEY is not None and _KEY == INIT_KEY:
         if admissible(x[0] - x[2], x[1], x[2], x[3], x[4]):
             # R/P of the guess from its quantities (z_of: no 0/0 where beta + phi = pi/2)
             z, q, st, step0, n, slope = newton_solve(z_of(x, evaluate_x(x, Bi, di).q), cds, tg, vec10p(), Bi, di,
-                                                     wp.float64(0.0), tol, tol, max_iter, wp.float64(0.0))
+                                                     wp.float64(0.0), tol, tol, max_iter, wp.float64(0.0), False)
             x = x_of_z(z)
         for k in range(5):
             x_out[i, k] = x[k]
@@ -1884,8 +1915,8 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         # 1: ``s_out`` holds this cell's converged trial of this increment from ``s_in``, without an event
         # (a patch's later coupling trial, :class:`knitsim.cell.batch.CellControl`)
         warm_i: int,
-        # where the step writes each cell's slope dF/dC at its end where a warm trial knew it, NaN elsewhere
-        # (empty: not written; :func:`solve_coulomb_warm`)
+        # where the step writes each cell's slope dF/dC at its end where its last solve gave it, NaN elsewhere
+        # (empty: not written, and not computed)
         slope_out: wp.array(dtype=wp.float64),
     ):
         """Advance cell ``i`` by one increment to ``C = C0 (1 + strain_i)`` (CellCycle.run, one row).
@@ -1901,8 +1932,10 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         a warm solve stopped at it is another point of the tolerance band than the trial's, and at a few
         mN that left columns unconverged).  Everything else (the checks at the start, the events judged
         between the start and the end) is the same; where that solve fails, the sub-step is solved from
-        the start as without ``warm_i``.  ``slope_out`` gets the branch's slope dF/dC where the short step
-        was taken and no event followed (NaN elsewhere)."""
+        the start as without ``warm_i``.  ``slope_out`` (where given: a patch's trials) gets the branch's
+        slope dF/dC at the end from the Jacobian of the last solve (:func:`newton_solve`'s ``want_slope``,
+        or the warm short step's), where no event fired and no effect is on (NaN elsewhere: the tangent
+        kernel's cases, and the solves that do not give it)."""
         mat = read_material(i, model)
         mat.closure = closure
         q = vecQd()
@@ -1985,8 +2018,8 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         go_dahl = wp.static(WITH_DAHL)
         if wp.static(WITH_DAHL):
             go_dahl = go and mat.dahl != 0
-        # the branch's slope dF/dC at the end: where the last sub-step was a warm solve that gave it and no event
-        # fired in the increment (NaN: not known)
+        # the branch's slope dF/dC at the end, from the Jacobian of the last sub-step's solve where slope_out is
+        # given and no event fired in the increment (NaN: not known)
         slope = wp.float64(wp.nan)
         if go_coulomb:
             # ---------------------------------------------------- Coulomb (Table 4)
@@ -2072,10 +2105,13 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                 slope_w = wp.float64(wp.nan)
                 if warm_go and guard == 0:
                     # the whole increment from the last trial's end: no predicted sub-steps (that trial walked them)
-                    xt, qt, warmed, slope_w = solve_coulomb_warm(x_warm, stage, jammed, soft, fs, fsbc, matg, C_goal)
+                    xt, qt, warmed, slope_w = solve_coulomb_warm(x_warm, stage, jammed, soft, fs, fsbc, matg, C_goal,
+                                                                 slope_out.shape[0] > 0)
                     ok = warmed
                 if not warmed:
-                    xt, qt, ok, step0 = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from, C_goal, pred)
+                    # (the slope of its end, for a patch's coupling: slope_out given)
+                    xt, qt, ok, step0, slope_w = solve_coulomb_trial(x, stage, jammed, soft, fs, fsbc, matg, C_from,
+                                                                     C_goal, pred, slope_out.shape[0] > 0)
                 first = max_abs5(step0)
                 # the nearest event of the sub-step, committed below
                 best_kind = int(-1)
@@ -2214,7 +2250,7 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                         x = xt
                         q = qt
                         C = C_goal
-                        slope = slope_w   # of this sub-step's end (NaN unless its warm solve gave it)
+                        slope = slope_w   # of this sub-step's end (NaN where its solve did not give it)
                         step = step * wp.float64(2.0)
                         continue
                     if best_kind < 0:
@@ -2384,7 +2420,8 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                 z_bend = bending_z(mat, C)  # where the increment ended (a slack or a failed one stops short of C_target)
             s_out.eff[i, E_Z] = z_bend
         if slope_out.shape[0] > 0:
-            if n_ev != 0 or status != ST_OK:
+            # (with effects the conditions move with the increment: no branch slope, as the tangent kernel)
+            if n_ev != 0 or status != ST_OK or with_effects:
                 slope = wp.float64(wp.nan)
             slope_out[i] = slope
         write_events(i, increment, n_written, n_ev, e_kind, e_C, e_F, e_from, e_to, ev)
@@ -2440,7 +2477,7 @@ def _step_kernel_variant(first_pass: bool):
         ev: EventArrays,
         # 1 where s_out holds the cell's converged trial of this increment, without an event (CellControl.warm)
         warm: wp.array(dtype=wp.int32),
-        # out: the slope dF/dC at each advanced cell's end where a warm trial knew it, NaN elsewhere (empty: not written)
+        # out: the slope dF/dC at each advanced cell's end where its last solve gave it, NaN elsewhere (empty: not written)
         slope: wp.array(dtype=wp.float64),
     ):
         """Advance each cell by one increment to ``C = C0 (1 + strain)`` (CellCycle.run, one row); a first

@@ -53,6 +53,18 @@ def _put(q: vecQd, dq: matQ5d, code: int, x: Dual):
 
 
 @wp.func
+def force_per_wale(P: Dual, sg: Dual) -> Dual:
+    """F = 2 P sin(gamma) (eq 7): the force per wale, carried by the two legs of a loop."""
+    return d_scale(d_mul(P, sg), wp.float64(2.0))
+
+
+@wp.func
+def sin_gamma_of_rho(rho: Dual, cbp: Dual) -> Dual:
+    """sin(gamma) = -(R/P) cos(beta + phi) (eq 7, R_Y = P sin gamma), from rho = R/P and cbp = cos(beta + phi)."""
+    return d_neg(d_mul(rho, cbp))
+
+
+@wp.func
 def _assemble(a: Dual, beta: Dual, gamma: Dual, sg: Dual, cg: Dual, phi: Dual, P: Dual, k1p: Dual, R: Dual,
               g0: Dual, g0_given: int, B: wp.float64, d: wp.float64):
     """Eqs 6-9 from the unknowns plus sin/cos(gamma), k1' and R (eq 7).
@@ -81,7 +93,7 @@ def _assemble(a: Dual, beta: Dual, gamma: Dual, sg: Dual, cg: Dual, phi: Dual, P
     T = d_neg(d_mul(P, k1p))
     Rn = d_mul(R, d_cos(phi))
     Rt = d_mul(R, d_sin(phi))
-    F = d_scale(d_mul(P, sg), wp.float64(2.0))  # two legs per wale
+    F = force_per_wale(P, sg)
 
     # elastica BC (eq 9); D = cos a - cos b = y0^2 / (2 lambda^2)
     D = d_scale(d_mul(d_sin(d_scale(d_add(b, a), half)), d_sin(d_scale(d_sub(b, a), half))), wp.float64(2.0))
@@ -160,7 +172,7 @@ def _assemble_rho(a: Dual, beta: Dual, rho: Dual, phi: Dual, P: Dual, g0: Dual, 
     bp = d_add(beta, phi)
     cbp = d_cos(bp)
     sbp = d_sin(bp)
-    sg = d_neg(d_mul(rho, cbp))
+    sg = sin_gamma_of_rho(rho, cbp)
     gamma = d_asin(sg)
     cg = d_cos(gamma)
     k1p = d_sub(cg, d_mul(rho, sbp))  # eq 7

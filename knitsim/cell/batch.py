@@ -602,9 +602,10 @@ class CellSolver:
         ``state_out`` are left as they are (each cell's step reads only its own rows).
         ``compact``: in two passes (:meth:`run_program`), the same results; default: with at least
         :data:`COMPACT_STEP_MIN_CELLS` cells.
-        ``slope_out`` (optional, float64 [N]): each advanced cell's slope dF/dC [N/mm] at its end where
-        the step knew it (a ``control.warm`` trial that took the short Newton step and fired no event,
-        :func:`knitsim.kernels.cell_step.solve_coulomb_warm`), NaN elsewhere."""
+        ``slope_out`` (optional, float64 [N]): each advanced cell's slope dF/dC [N/mm] on its branch at its
+        end, from the Jacobian of the step's last Newton solve (implicit function theorem, as
+        :mod:`knitsim.kernels.cell_tangent` computes it with one more evaluation), where the increment
+        fired no event and no effect is on; NaN elsewhere (Dahl, slack, stopped, an event)."""
         n = self.model.cell_count
         if n == 0:
             return

@@ -240,12 +240,13 @@ class WarpBackend:
         The tangents of the trial states are kept: a committed state that is an accepted trial has
         the tangent computed at that trial (the same kernel on the same state row; the direction only
         matters where it reverses the state's own), so only the others are launched.  At a trial, the
-        cells whose step gave its slope (a warm trial's short Newton step: the same formula, from the
-        Jacobian at its start, O(1e-6) in the Newton variables away) are not launched either."""
+        cells whose step gave its slope (``CellSolver.step``'s ``slope_out``: the same formula, from the
+        Jacobian of the step's last solve, or of a warm short step's start, O(1e-6) in the Newton
+        variables away) are not launched either."""
         if trial:
             have = np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)
-            # the trial step gave the slope of the cells whose warm Newton step it took (the same formula at
-            # a point O(1e-8) away): only the others are launched
+            # the trial step gave the slope of the cells whose last solve converged on their stage without an
+            # event (the same formula, from that solve's Jacobian): only the others are launched
             known = have & np.isfinite(self._k_step)
             k = self._k_step if np.all(known[have]) else np.where(
                 known, self._k_step, self._tangent_launch(self.s1, 0, have & ~known))
