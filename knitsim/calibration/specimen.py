@@ -39,7 +39,7 @@ from ..diagnosis.measured import (
     strain_jitter, strain_tolerance, zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise
-from ..io.table_input import notes_of, read_csv_columns
+from ..io.table_input import LAB_ALIASES, notes_of, read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
 TOTAL_COLUMNS = ("load_N", "force_N")
@@ -75,15 +75,18 @@ class MeasuredTable:
 def read_table(path: str | Path) -> MeasuredTable:
     """Read a strain-force file (module docstring); refuses what is wrong, naming file, row and column."""
     path = Path(path)
-    cols = drop_copied_rows(read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS))
+    cols = drop_copied_rows(read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS,
+                                             aliases=LAB_ALIASES))
     s_name = next((c for c in STRAIN_COLUMNS if c in cols), None)
     f_total = next((c for c in TOTAL_COLUMNS if c in cols), None)
     f_wale = next((c for c in PER_WALE_COLUMNS if c in cols), None)
     if s_name is None:
-        raise KnitsimInputError(f"{path}: no strain column (expected one of {', '.join(STRAIN_COLUMNS)})")
+        raise KnitsimInputError(f"{path}: no strain column (expected one of {', '.join(STRAIN_COLUMNS)}, or a "
+                                "machine's 'Tensile strain' with its unit: 'Tensile strain (%)')")
     if f_total is None and f_wale is None:
         raise KnitsimInputError(f"{path}: no force column (expected the total force {' or '.join(TOTAL_COLUMNS)}, "
-                                f"or {PER_WALE_COLUMNS[0]})")
+                                f"or {PER_WALE_COLUMNS[0]}, or a machine's 'Load', 'Force' or 'Standard force' with "
+                                "its unit: 'Load (N)')")
     if f_total is not None and f_wale is not None:
         raise KnitsimInputError(f"{path}: both a total force ({f_total}) and a force per wale ({f_wale}): "
                                 "keep one column")

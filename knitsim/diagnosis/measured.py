@@ -59,7 +59,7 @@ import numpy as np
 from ..cell.history import BatchHistory
 from ..cell.load_program import LoadProgram, piecewise_linear
 from ..errors import KnitsimInputError
-from ..io.table_input import Columns, notes_of, read_csv_columns
+from ..io.table_input import LAB_ALIASES, Columns, notes_of, read_csv_columns
 from .noise import CurveNoise, curve_noise
 
 REQUIRED = ("strain", "force_per_wale_N")
@@ -569,7 +569,8 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
         going back within a branch beyond the jitter tolerance, bad direction /
         cycle / rate; the message names the file, row and column.
     """
-    cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"))
+    cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"),
+                            aliases=LAB_ALIASES)
     cols = drop_copied_rows(cols)
     refuse_few_rows(path, cols["_row"])
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),

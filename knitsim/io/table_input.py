@@ -35,6 +35,11 @@ shows it), the column and the value, and what to do:
   per cent; ``kN`` under ``force_per_wale_N``: refused naming the row and the column; a header cell and
   a units row that disagree, ``strain [-]`` over ``%``, are refused).
   Text in a number column further down is refused as before;
+- a test machine's own names for a column, where the caller gives them (``aliases``: ``Tensile strain (%)``
+  for ``strain``, ``Load (N)`` for ``load_N``; :data:`LAB_ALIASES`): taken only with a unit in brackets that
+  is the column's (or per cent, for a strain), and only where the column's own name is absent; said so in
+  the notes (``column 'Load (N)' read as load_N``).  Without a unit it is not taken (``Load`` could be kN),
+  and a missing column's refusal says to state it;
 - refused: a value in a row beyond the header's columns (a shifted or merged row), and a
   column read that is named twice (which one is meant is not said).
 """
@@ -55,6 +60,11 @@ from ..errors import KnitsimInputError
 _DELIMITERS = (",", ";", "\t")
 #: bad cells a refusal lists (the count of the others follows)
 BAD_CELLS_LISTED = 10
+#: test machines' names of the columns the package reads (any case; with a unit in brackets that is the column's):
+#: Instron Bluehill's "Tensile strain (%)" and "Load (N)", Zwick testXpert's "Standard force (N)"
+LAB_ALIASES = {"strain": ("tensile strain", "engineering strain"),
+               "load_N": ("load", "tensile load"),
+               "force_N": ("force", "tensile force", "standard force")}
 #: a column read in per cent whose values all lie within this (as fractions: 1 %) is said to look like fractions:
 #: a knit is tested to tens of per cent, and 0.6 under a ``%`` header is far likelier 60 % than 0.6 %
 PER_CENT_LOOKS_FRACTION = 0.01
@@ -244,7 +254,26 @@ def _split(line: str, delim: str) -> list[str]:
     return next(csv.reader([line], delimiter=delim), [])
 
 
-def _find_header(lines: list[str], required: list[str], optional: list[str]) -> int | None:
+def _aliased(cells: list[str], names: list[str], aliases: dict) -> tuple[list[str], dict[int, str]]:
+    """The keys of a header line's ``cells``, where a cell that is an alias of a column asked for (``names``) stands
+    for it: its unit in brackets fits the column's (or says per cent, for a dimensionless column) and the column's
+    own name is absent.  Returns (keys, {index: the column it was read as})."""
+    keys = [_name_and_unit(c)[0] for c in cells]
+    taken = {}
+    for name in names:
+        if _key(name) in keys:
+            continue
+        for j, cell in enumerate(cells):
+            key, unit = _name_and_unit(cell)
+            if j not in taken and key in aliases.get(name, ()) and unit is not None and (
+                    _unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name))):
+                keys[j] = _key(name)
+                taken[j] = name
+                break
+    return keys, taken
+
+
+def _find_header(lines: list[str], required: list[str], optional: list[str], aliases: dict | None = None) -> int | None:
     """Index of the header line: the first line holding every required name (and one wanted name).
 
     ``#`` lines are looked at only when no other line qualifies (a first column named ``#``).
@@ -255,7 +284,7 @@ def _find_header(lines: list[str], required: list[str], optional: list[str]) -> 
         for i, ln in enumerate(lines):
             if not ln.strip() or _is_comment(ln) != comments:
                 continue
-            cells = {_name_and_unit(c)[0] for c in _split(ln, _delimiter(ln))}
+            cells = set(_aliased(_split(ln, _delimiter(ln)), required + optional, aliases or {})[0])
             if want_all <= cells and (not want_any or want_any & cells):
                 return i
     return None
@@ -271,7 +300,7 @@ def has_columns(path: str | Path, names: Iterable[str]) -> bool:
 
 
 def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterable[str] = (),
-                     numeric: Iterable[str] | None = None) -> Columns:
+                     numeric: Iterable[str] | None = None, aliases: dict | None = None) -> Columns:
     """Read named columns of a CSV file (see the module docstring).
 
     Parameters
@@ -287,6 +316,10 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         columns present).  A NaN, an empty cell or text there is an error naming
         the row and the column.  A units row directly under the header (none of
         its non-empty cells a number) is skipped.
+    aliases : dict of str to tuple of str, optional
+        Other names of the columns asked for (e.g. :data:`LAB_ALIASES`), taken only with a unit in brackets
+        that is the column's (or per cent, for a strain) and only where the column's own name is absent;
+        noted (``column 'Load (N)' read as load_N``).
 
     Returns
     -------
@@ -305,7 +338,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     if not any(ln.strip() for ln in lines):
         raise KnitsimInputError(f"{path}: the file is empty")
     required, optional = list(required), list(optional)
-    h = _find_header(lines, required, optional)
+    aliases = aliases or {}
+    h = _find_header(lines, required, optional, aliases)
     if h is None:      # no line names the columns: read the first non-comment line as the header
         h = next((i for i, ln in enumerate(lines) if ln.strip() and not _is_comment(ln)), None)
         if h is None:
@@ -313,12 +347,22 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     delim = _delimiter(lines[h])
     decimal_comma = delim != ","
     header = [_trim(c) for c in _split(lines[h], delim)]
-    keys, units = zip(*[_name_and_unit(c) for c in header]) if header else ((), ())
-    keys = list(keys)
+    units = [_name_and_unit(c)[1] for c in header]
+    keys, read_as = _aliased(header, required + optional, aliases)
     missing = [c for c in required if _key(c) not in keys]
     if missing:
+        # a machine's name without its unit, or with another, is not taken (Load could be kN): say why
+        hints = []
+        for name in missing:
+            for c in header:
+                key, unit = _name_and_unit(c)
+                if key in aliases.get(name, ()):
+                    bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(c))
+                    stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else ("N",)))
+                    hints.append(f"{c!r} is read as {name} with its unit stated ({stated})" if unit is None else
+                                 f"{c!r} is not read as {name}: {unit!r} is not its unit (convert the column: {stated})")
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
-                                f"read as {_NAMES[delim]}-separated)")
+                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(hints) if hints else ''}")
     present = required + [c for c in optional if _key(c) in keys]
     for name in present:
         at = [j for j, k in enumerate(keys) if k == _key(name)]
@@ -409,7 +453,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             else:
                 cells.append(cell)
         out[name] = np.asarray(cells, dtype=float if name in numeric else object)
-    notes = []
+    notes = [f"column {header[j]!r} read as {name}" for j, name in sorted(read_as.items())
+             if name in present]
     for name, where in per_cent.items():
         if name in numeric:
             note = f"{name} column {where} read in per cent (divided by 100)"

@@ -380,3 +380,35 @@ def test_knitsim_calibrate_names_a_per_cent_header_over_fractions_when_the_data_
     assert "the data end at strain 0.003, fewer than 4 rows of 0.02" in msg, msg
     assert "strain column 'Strain [%]' read in per cent (divided by 100); its largest value is 0.3 %: if the " \
            "column holds fractions (0.6 for 60 %), state its unit as [-], or none" in msg, msg
+
+
+def test_a_test_machines_column_names_with_units_are_read_by_diagnose_and_calibrate(tmp_path, e_glass_calibration):
+    """Hand-made exports with a machine's names (Instron Bluehill's ``Tensile strain (%)`` and ``Load (N)``,
+    Zwick's ``Standard force (N)``) beside columns that are not read: the same curve and the same fitted rows
+    as their twins with the package's names (the strains divided by 100 exactly), and the reading said."""
+    from knitsim.calibration.scene import load_calibration_scene
+    from knitsim.scene.schema import dumps
+    s_pct = [2.5 * k for k in range(13)]
+    # diagnose: the force per wale has no machine name, the strain has
+    (tmp_path / "m.csv").write_text("Time (s),Tensile strain (%),force_per_wale_N\n"
+                                    + "".join(f"{k},{s},{0.01 * k * k}\n" for k, s in enumerate(s_pct)))
+    (tmp_path / "twin.csv").write_text("strain,force_per_wale_N\n"
+                                       + "".join(f"{s / 100:g},{0.01 * k * k}\n" for k, s in enumerate(s_pct)))
+    lab, twin = read_measured_curve(tmp_path / "m.csv"), read_measured_curve(tmp_path / "twin.csv")
+    np.testing.assert_allclose(lab.strain, twin.strain, rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(lab.force, twin.force)
+    assert lab.notes[0] == "column 'Tensile strain (%)' read as strain", lab.notes
+    # calibrate: strain and total force under a machine's names (Bluehill; Zwick's standard force)
+    rows = {}
+    for name, header in (("bluehill", "Time (s),Load (N),Tensile strain (%)"),
+                         ("zwick", "Time (s),Standard force (N),Tensile strain (%)"),
+                         ("twin", "time,load_N,strain")):
+        scale = 100.0 if name != "twin" else 1.0
+        (tmp_path / "a.csv").write_text(header + "\n" + "".join(f"{k},{0.5 * k},{2.5 * k / 100 * scale:g}\n"
+                                                               for k in range(13)))
+        (tmp_path / "cal.toml").write_text(dumps(e_glass_calibration(name)))
+        sp = load_calibration_scene(tmp_path / "cal.toml").specimens[0]
+        rows[name] = (sp.strain, sp.target_N)
+    for name in ("bluehill", "zwick"):
+        np.testing.assert_allclose(rows[name][0], rows["twin"][0], rtol=1e-15, atol=0)
+        np.testing.assert_allclose(rows[name][1], rows["twin"][1], rtol=1e-15, atol=0)

@@ -485,3 +485,38 @@ def test_fractions_under_a_per_cent_header_are_read_in_per_cent_and_said_to_look
                          "0.2 %: if the column holds fractions (0.6 for 60 %), state its unit as [-], or none",)
     plain = read_csv_columns(_write(tmp_path, _table(["Strain [%]", "force_per_wale_N"], PER_CENT_ROWS), "p.csv"), REQ)
     assert plain.notes == ("strain column 'Strain [%]' read in per cent (divided by 100)",)
+
+
+def test_a_test_machines_names_with_their_units_read_as_the_columns_and_say_so(tmp_path):
+    # An Instron Bluehill-like export (hand-made): a preamble, "Load (N)" and "Tensile strain (%)" beside columns
+    # not read.  Expected: the twin file with the package's names (strain as fractions, load_N), exactly, and a
+    # note for each column read under another name; with LAB_ALIASES only (without them: no column found).
+    from knitsim.io.table_input import LAB_ALIASES
+    text = ("Sample: knit A3\n"
+            "Time (s),Extension (mm),Load (N),Tensile strain (%)\n"
+            "0.0,0.000,-0.004,0.00\n1.0,0.135,0.812,2.50\n2.0,0.270,1.634,5.00\n")
+    twin = "strain,load_N\n0.0,-0.004\n0.025,0.812\n0.05,1.634\n"
+    names = ("strain", "strain_mm_per_mm", "load_N", "force_N")
+    lab = read_csv_columns(_write(tmp_path, text, "lab.csv"), (), names, aliases=LAB_ALIASES)
+    ref = read_csv_columns(_write(tmp_path, twin, "ref.csv"), (), names)
+    np.testing.assert_allclose(lab["strain"], ref["strain"], rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(lab["load_N"], ref["load_N"])
+    assert set(lab) == {"strain", "load_N", "_row"}
+    assert lab.notes == ("column 'Load (N)' read as load_N", "column 'Tensile strain (%)' read as strain",
+                         "strain column 'Tensile strain (%)' read in per cent (divided by 100)")
+    with pytest.raises(KnitsimInputError, match="missing column"):
+        read_csv_columns(_write(tmp_path, text, "lab.csv"), ("strain",), names)     # no aliases given
+    # another unit, or none, is not taken; a required column's refusal says why and how to state it
+    for header, why in (("Load (kN),Tensile strain (%)", "'Load (kN)' is not read as load_N: 'kN' is not its unit "
+                                                         "(convert the column: 'Load (N)')"),
+                        ("Load,Tensile strain (%)", "'Load' is read as load_N with its unit stated ('Load (N)')")):
+        p = _write(tmp_path, header + "\n0,0\n1,2.5\n", "bad.csv")
+        assert "load_N" not in read_csv_columns(p, (), names, aliases=LAB_ALIASES)
+        with pytest.raises(KnitsimInputError) as e:
+            read_csv_columns(p, ("load_N",), names, aliases=LAB_ALIASES)
+        assert why in str(e.value), str(e.value)
+    # the package's own name wins over a machine's (no column is read twice)
+    both = read_csv_columns(_write(tmp_path, "strain,Tensile strain (%),load_N\n0.1,5,1\n0.2,10,2\n", "both.csv"),
+                            (), names, aliases=LAB_ALIASES)
+    np.testing.assert_array_equal(both["strain"], [0.1, 0.2])
+    assert both.notes == ()
