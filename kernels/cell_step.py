@@ -2019,8 +2019,10 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
         if wp.static(WITH_DAHL):
             go_dahl = go and mat.dahl != 0
         # the branch's slope dF/dC at the end, from the Jacobian of the last sub-step's solve where slope_out is
-        # given and no event fired in the increment (NaN: not known)
+        # given and no event fired in the increment past its start (a reversal or a reload at the start enters
+        # the branch the walk is on) (NaN: not known)
         slope = wp.float64(wp.nan)
+        n_start = n_ev
         if go_coulomb:
             # ---------------------------------------------------- Coulomb (Table 4)
             # walked in sub-steps: a failed solve halves the sub-step (at most
@@ -2421,7 +2423,7 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
             s_out.eff[i, E_Z] = z_bend
         if slope_out.shape[0] > 0:
             # (with effects the conditions move with the increment: no branch slope, as the tangent kernel)
-            if n_ev != 0 or status != ST_OK or with_effects:
+            if n_ev != n_start or status != ST_OK or with_effects:
                 slope = wp.float64(wp.nan)
             slope_out[i] = slope
         write_events(i, increment, n_written, n_ev, e_kind, e_C, e_F, e_from, e_to, ev)

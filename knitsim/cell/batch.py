@@ -525,8 +525,9 @@ class CellControl:
         only; 0 means not given (no velocity effect).
     warm : int32 [1 or N]
         Read by :meth:`CellSolver.step` only: 1 where ``state_out`` already holds the cell's
-        converged trial of this increment from the same ``state_in`` that fired no event and
-        kept its stage (a patch's later coupling trial, the column's lengths corrected a little):
+        converged trial of this increment from the same ``state_in`` that fired no event (but a
+        reversal or a reload at its start, which the step makes again) and so ended on the branch
+        it started on (a patch's later coupling trial, the column's lengths corrected a little):
         its Newton starts from that state and is iterated past the step's tolerance, the same
         equilibrium in fewer iterations (within ~1e-10 N of a start from ``state_in``, not bit for
         bit).  Default 0: every step starts from ``state_in``.

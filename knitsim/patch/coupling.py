@@ -160,9 +160,9 @@ class WarpBackend:
         import warp as wp
 
         from ..cell.batch import CellBatchState, CellModel, CellSolver
-        from ..kernels.cell_step import EV_SLIDE
+        from ..kernels.cell_step import EV_RELOAD, EV_REVERSAL, EV_SLIDE
         self.wp = wp
-        self._ev_slide = EV_SLIDE
+        self._ev_slide, self._ev_reversal, self._ev_reload = EV_SLIDE, EV_REVERSAL, EV_RELOAD
         if isinstance(grouping, (list, tuple)):   # a CellParams per trial cell
             self.model = CellModel.from_params(grouping, device)
             c = {"C0": [p.C0 for p in grouping]}
@@ -287,8 +287,14 @@ class WarpBackend:
         if self._committed_branch is None:
             self._committed_branch = (self.s0.stage.numpy().copy(), self.s0.jammed.numpy().copy())
         stage0, jammed0 = self._committed_branch
-        same_branch = (t["status"] == STATUS_OK) & (t["stage"] == stage0) & (t["jammed"] == jammed0)
-        same_branch[ev["cell"]] = False
+        # warm next time: converged on the committed branch without an event, or on the branch that a reversal or
+        # a reload at the increment's start enters (those events happen at the committed state, whatever the
+        # length asked: the next trial makes them again and starts its solve on that branch from this end)
+        at_start = (ev["kind"] == self._ev_reversal) | (ev["kind"] == self._ev_reload)
+        entered = np.zeros(self.n, bool)
+        entered[ev["cell"][at_start]] = True
+        same_branch = (t["status"] == STATUS_OK) & ((t["stage"] == stage0) | entered) & (t["jammed"] == jammed0)
+        same_branch[ev["cell"][~at_start]] = False
         self._warm = same_branch if mask is None else np.where(mask, same_branch, self._warm)
         return t
 

@@ -6,6 +6,8 @@
 - a later trial of an increment, whose Newton starts from the last trial's state where that trial
   fired no event and kept its stage (``CellControl.warm``), meets the equilibrium of a trial from
   the committed state: the same stages, the same lengths, forces within the Newton tolerance;
+- at a reversal, a later trial of a cell whose only event was the reversal starts from the last trial's
+  end, on the branch the reversal entered, and meets the trial from the committed state;
 - a later trial a short Newton step away (taken without evaluating its end) is the root to the
   cell step's tolerance, and its slope dF/dC, given by the step, is the tangent kernel's to O(|dz|);
 - the tangent of a subset (the other cells passed a status that is not ok) equals the full
@@ -115,6 +117,32 @@ def test_a_later_trial_a_short_newton_step_away_is_the_root_and_gives_its_slope(
     np.testing.assert_allclose(later["phi"], cold["phi"], rtol=0, atol=1e-9)
     np.testing.assert_allclose(later["W"], cold["W"], rtol=1e-9, atol=0)
     np.testing.assert_allclose(later["head_gap"], cold["head_gap"], rtol=0, atol=1e-9)
+
+
+def test_a_later_trial_of_a_reversal_starts_from_the_last_on_the_branch_the_reversal_entered():
+    """At the increment that reverses (loading -> unloading at 0.3), every cell makes the reversal event at its
+    committed state, whatever the length asked (Table 4: SF- entered from S+), and those that fire nothing else
+    end on SF-: their next trial starts its Newton from that end (``CellControl.warm``), on the branch the
+    reversal enters, and meets the trial from the committed state (same stages and lengths, F within the
+    Newton's tolerance).  Cells that fired another event (here four of six slide on, S-) start cold."""
+    from knitsim.kernels.cell_step import EV_REVERSAL
+    be = _loaded(0.3)
+    first = 0.3 - np.linspace(0.0005, 0.002, N)
+    corrected = first * (1.0 + np.array([-1.0, 1.5, -2.0, 1.0, 2.0, -1.2]) * 1e-5)
+    be.begin_increment()
+    t1 = be.trial(first, -1, 30)
+    ev = be.solver.event_arrays()
+    only_reversal = np.array([np.all(ev["kind"][ev["cell"] == i] == EV_REVERSAL) for i in range(N)])
+    assert np.all(np.isin(np.arange(N), ev["cell"][ev["kind"] == EV_REVERSAL]))    # every cell reversed
+    assert np.any(only_reversal) and np.all(t1["stage"][only_reversal] != be.s0.stage.numpy()[only_reversal])
+    np.testing.assert_array_equal(be._warm, only_reversal & (t1["status"] == 0))
+    later = be.trial(corrected, -1, 30)
+    be.begin_increment()
+    cold = be.trial(corrected, -1, 30)
+    for name in ("stage", "jammed", "status", "C"):
+        np.testing.assert_array_equal(later[name], cold[name], err_msg=name)
+    np.testing.assert_allclose(later["F"], cold["F"], rtol=1e-9, atol=0)
+    np.testing.assert_allclose(later["phi"], cold["phi"], rtol=0, atol=1e-9)
 
 
 def test_the_committed_tangent_reused_from_the_accepted_trial_equals_a_fresh_launch():
