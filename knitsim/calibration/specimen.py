@@ -77,16 +77,24 @@ def read_table(path: str | Path) -> MeasuredTable:
     path = Path(path)
     cols = drop_copied_rows(read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS,
                                              aliases=LAB_ALIASES))
+    for group in (STRAIN_COLUMNS, TOTAL_COLUMNS):
+        both = [c for c in group if c in cols]
+        if len(both) > 1:
+            # which one the fit is to follow is not said (a blind probe's Load (N) and Standard force (N) of
+            # different sizes: the first was read without a word)
+            raise KnitsimInputError(f"{path}: both {both[0]} and {both[1]} are present "
+                                    f"({'; '.join(notes_of(cols)) or 'the file names both'}): keep one column")
     s_name = next((c for c in STRAIN_COLUMNS if c in cols), None)
     f_total = next((c for c in TOTAL_COLUMNS if c in cols), None)
     f_wale = next((c for c in PER_WALE_COLUMNS if c in cols), None)
+    why = "".join(f"; {w}" for w in getattr(cols, "not_read", ()))
     if s_name is None:
         raise KnitsimInputError(f"{path}: no strain column (expected one of {', '.join(STRAIN_COLUMNS)}, or a "
-                                "machine's 'Tensile strain' with its unit: 'Tensile strain (%)')")
+                                f"machine's 'Tensile strain' with its unit: 'Tensile strain (%)'){why}")
     if f_total is None and f_wale is None:
         raise KnitsimInputError(f"{path}: no force column (expected the total force {' or '.join(TOTAL_COLUMNS)}, "
                                 f"or {PER_WALE_COLUMNS[0]}, or a machine's 'Load', 'Force' or 'Standard force' with "
-                                "its unit: 'Load (N)')")
+                                f"its unit: 'Load (N)'){why}")
     if f_total is not None and f_wale is not None:
         raise KnitsimInputError(f"{path}: both a total force ({f_total}) and a force per wale ({f_wale}): "
                                 "keep one column")

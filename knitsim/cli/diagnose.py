@@ -106,12 +106,21 @@ def run(args) -> int:
     b = result["baseline"]
     nz = result["noise"]
     se = b.get("std_errors") or {}
+    at = b.get("at_bounds") or {}
 
     def fitted(k: str, x: float) -> str:
         # the fit's standard error beside its value, where it has one (a blind probe read m 0.337 on a basalt pull
-        # with no way to tell whether 0.25 was within it)
+        # with no way to tell whether 0.25 was within it); a zero one is a direction the data do not constrain
+        # (the covariance's pseudo-inverse), not a perfect estimate; a value at a bound is no estimate either
         e = se.get(k)
-        return f"{k} = {x:.4g}" + (f" +- {e:.2g}" if e is not None and math.isfinite(e) else "")
+        text = f"{k} = {x:.4g}"
+        if k in at:
+            text += f" (at its {at[k]} bound)"
+        elif e is not None and math.isfinite(e) and e > 0:
+            text += f" +- {e:.2g}"
+        elif e is not None:
+            text += " (not determined by the data)"
+        return text
 
     print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(fitted(k, x) for k, x in b['params'].items())}; "
           "+- one standard error)")

@@ -547,7 +547,11 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     copy = np.zeros(n, bool)
     if n > 1:
         copy[1:] = np.logical_and.reduce([cols[k][1:] == cols[k][:-1] for k in names])
-    return cols if not copy.any() else Columns({k: v[~copy] for k, v in cols.items()}, notes=notes_of(cols))
+    if not copy.any():
+        return cols
+    out = Columns({k: v[~copy] for k, v in cols.items()}, notes=notes_of(cols))
+    out.not_read = tuple(getattr(cols, "not_read", ()))
+    return out
 
 
 def refuse_few_rows(source, rows) -> None:

@@ -79,6 +79,9 @@ class Columns(dict):
     def __init__(self, *args, notes: Iterable[str] = (), **kwargs):
         super().__init__(*args, **kwargs)
         self.notes: tuple[str, ...] = tuple(notes)
+        #: why a test machine's name for a column was not read (no unit stated, or another unit), for a caller's
+        #: refusal when it then lacks that column
+        self.not_read: tuple[str, ...] = ()
 
 
 def notes_of(cols) -> tuple[str, ...]:
@@ -254,27 +257,56 @@ def _split(line: str, delim: str) -> list[str]:
     return next(csv.reader([line], delimiter=delim), [])
 
 
-def _aliased(cells: list[str], names: list[str], aliases: dict) -> tuple[list[str], dict[int, str]]:
+def _units_row(line: str | None, delim: str) -> list[str] | None:
+    """The cells of a units row (none of its non-empty cells a number: ``s;N;%``, ``(s),(N),(%)``), else None."""
+    if line is None or not line.strip() or _is_comment(line):
+        return None
+    cells = [_trim(c) for c in _split(line, delim)]
+    if any(_is_number(c, delim != ",") or _is_number(c, True) for c in cells if c):
+        return None
+    return [m.group(1) if (m := re.fullmatch(r"[\[(]\s*(.*?)\s*[\])]", c)) else c for c in cells]
+
+
+def _alias_unit(cells: list[str], unit_cells: list[str] | None, j: int) -> str | None:
+    """The unit of header cell j: in brackets after its name, else in the units row under it (if any)."""
+    unit = _name_and_unit(cells[j])[1]
+    if unit is None and unit_cells is not None and j < len(unit_cells) and unit_cells[j]:
+        unit = unit_cells[j]
+    return unit
+
+
+def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list[str] | None = None,
+             strict: bool = True) -> tuple[list[str], dict[int, str], list[str]]:
     """The keys of a header line's ``cells``, where a cell that is an alias of a column asked for (``names``) stands
-    for it: its unit in brackets fits the column's (or says per cent, for a dimensionless column) and the column's
-    own name is absent.  Returns (keys, {index: the column it was read as})."""
+    for it: its unit (in brackets, or in the units row ``unit_cells`` under it) fits the column's (or says per
+    cent, for a dimensionless column), and the column's own name is absent.  Every such cell takes the column's
+    key (two of them are then refused as a column named twice).  ``strict=False`` takes an alias whatever its unit
+    (to find the header line, whose refusal then says why).  Returns (keys, {index: the column it was read as},
+    the reasons the aliases present were not taken)."""
     keys = [_name_and_unit(c)[0] for c in cells]
-    taken = {}
+    taken, why_not = {}, []
     for name in names:
         if _key(name) in keys:
             continue
         for j, cell in enumerate(cells):
-            key, unit = _name_and_unit(cell)
-            if j not in taken and key in aliases.get(name, ()) and unit is not None and (
-                    _unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name))):
+            if j in taken or _name_and_unit(cell)[0] not in aliases.get(name, ()):
+                continue
+            unit = _alias_unit(cells, unit_cells, j)
+            fits = unit is not None and (_unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name)))
+            if fits or not strict:
                 keys[j] = _key(name)
                 taken[j] = name
-                break
-    return keys, taken
+            else:
+                bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
+                stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else ("N",)))
+                why_not.append(f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
+                               f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: {stated})")
+    return keys, taken, why_not
 
 
 def _find_header(lines: list[str], required: list[str], optional: list[str], aliases: dict | None = None) -> int | None:
-    """Index of the header line: the first line holding every required name (and one wanted name).
+    """Index of the header line: the first line holding every required name (and one wanted name), a machine's
+    name for one standing for it whatever its unit (the reading then takes it or says why not).
 
     ``#`` lines are looked at only when no other line qualifies (a first column named ``#``).
     """
@@ -284,7 +316,7 @@ def _find_header(lines: list[str], required: list[str], optional: list[str], ali
         for i, ln in enumerate(lines):
             if not ln.strip() or _is_comment(ln) != comments:
                 continue
-            cells = set(_aliased(_split(ln, _delimiter(ln)), required + optional, aliases or {})[0])
+            cells = set(_aliased(_split(ln, _delimiter(ln)), required + optional, aliases or {}, strict=False)[0])
             if want_all <= cells and (not want_any or want_any & cells):
                 return i
     return None
@@ -348,27 +380,25 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     decimal_comma = delim != ","
     header = [_trim(c) for c in _split(lines[h], delim)]
     units = [_name_and_unit(c)[1] for c in header]
-    keys, read_as = _aliased(header, required + optional, aliases)
+    # a machine's name is taken with its unit in brackets or in a units row under the header (Bluehill's raw data)
+    keys, read_as, not_taken = _aliased(header, required + optional, aliases,
+                                        _units_row(lines[h + 1] if h + 1 < len(lines) else None, delim))
     missing = [c for c in required if _key(c) not in keys]
     if missing:
         # a machine's name without its unit, or with another, is not taken (Load could be kN): say why
-        hints = []
-        for name in missing:
-            for c in header:
-                key, unit = _name_and_unit(c)
-                if key in aliases.get(name, ()):
-                    bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(c))
-                    stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else ("N",)))
-                    hints.append(f"{c!r} is read as {name} with its unit stated ({stated})" if unit is None else
-                                 f"{c!r} is not read as {name}: {unit!r} is not its unit (convert the column: {stated})")
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
-                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(hints) if hints else ''}")
+                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(not_taken) if not_taken else ''}")
     present = required + [c for c in optional if _key(c) in keys]
     for name in present:
         at = [j for j, k in enumerate(keys) if k == _key(name)]
         if len(at) > 1:
             # which one is meant is not said by the file (a blind probe's second force column, twice the
             # first, was read as the first without a word)
+            if any(j in read_as for j in at):
+                # a machine's names (Load (N) twice, or Load (N) and Tensile load (N)): both would be this column
+                raise KnitsimInputError(f"{path}: row {h + 1}: the columns {at[0] + 1} and {at[1] + 1} "
+                                        f"({header[at[0]]!r}, {header[at[1]]!r}) would both be read as {name}: "
+                                        "rename or delete one")
             raise KnitsimInputError(f"{path}: row {h + 1}: the columns {at[0] + 1} and {at[1] + 1} are both named "
                                     f"{header[at[1]]!r}: rename or delete one")
 
@@ -455,6 +485,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         out[name] = np.asarray(cells, dtype=float if name in numeric else object)
     notes = [f"column {header[j]!r} read as {name}" for j, name in sorted(read_as.items())
              if name in present]
+    out.not_read = tuple(not_taken)
     for name, where in per_cent.items():
         if name in numeric:
             note = f"{name} column {where} read in per cent (divided by 100)"
@@ -462,8 +493,9 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             if top <= PER_CENT_LOOKS_FRACTION:
                 # (a blind probe's fractions under a % header were refused later as a test too short, the header
                 # never named)
+                where_unit = "in its units row as -" if "units row" in where else "as [-], or none"
                 note += (f"; its largest value is {100.0 * top:g} %: if the column holds fractions (0.6 for 60 %), "
-                         "state its unit as [-], or none")
+                         f"state its unit {where_unit}")
             notes.append(note)
     out.notes = tuple(notes)
     if bad:

@@ -592,6 +592,24 @@ def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_pa
         assert 0 < float(se) and abs(float(value) - truth) <= 3 * float(se), line
 
 
+def test_the_console_says_a_parameter_at_its_bound_instead_of_an_error(tmp_path, capsys):
+    """The same file (truth m 0.20), m bounded to [0.15, 0.19] and in_plane_width free (a single cycle that never
+    jams: the data do not constrain it, and it rests on its lower bound 0.58 = d): the baseline line says both
+    are at their bounds, never "+- 0" (a blind probe: the covariance's pseudo-inverse gives zero variance to a
+    direction the data do not constrain), and gives phi0 its error."""
+    from pathlib import Path
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
+                     '[rules]\nunloading_rule = "dusserre"\nreload_rule = "mirror_unloading"\nforce_cap_N = 10.0\n'
+                     '[diagnosis]\nfree = ["m", "phi0", "in_plane_width"]\nbounds = { m = [0.15, 0.19] }\n'
+                     'effects = ["bending_hysteresis"]\n')
+    csv = Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv"
+    main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet"])
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("baseline:"))
+    assert "m = 0.19 (at its upper bound)" in line and "in_plane_width = 0.58 (at its lower bound)" in line, line
+    assert "+- 0," not in line and "+- 0)" not in line and re.search(r"phi0 = [0-9.]+ \+- [0-9.]+", line), line
+
+
 def test_a_curve_that_starts_slack_is_said_where_the_fitted_model_lies_above_its_toe():
     """Hand-made first loading: 5 rows at 0 N +- noise (sd 2 mN) from strain 0 to 0.016, then the knit.
     Expected from the definition (diagnose.slack_start): a fitted model 50 mN above those rows (25 sd) is a

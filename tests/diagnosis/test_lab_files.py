@@ -412,3 +412,25 @@ def test_a_test_machines_column_names_with_units_are_read_by_diagnose_and_calibr
     for name in ("bluehill", "zwick"):
         np.testing.assert_allclose(rows[name][0], rows["twin"][0], rtol=1e-15, atol=0)
         np.testing.assert_allclose(rows[name][1], rows["twin"][1], rtol=1e-15, atol=0)
+
+
+def test_calibrate_refuses_two_strain_or_two_force_columns_and_says_why_a_machine_column_was_not_read(tmp_path):
+    """A blind probe's hand-made files: a total force under two names of different size (Load (N) and Standard
+    force (N)), a strain under two (Tensile strain (%) and strain_mm_per_mm): which one to fit is not said, so
+    the file is refused naming both; a force in kN under a machine's name is not read as N, and the refusal
+    says why."""
+    from knitsim.calibration.specimen import read_table
+    from knitsim.errors import KnitsimInputError
+    rows = "".join(f"{k},{0.5 * k},{0.05 * k},{2.5 * k}\n" for k in range(6))
+    (tmp_path / "f.csv").write_text("Time (s),Load (N),Standard force (N),Tensile strain (%)\n" + rows)
+    with pytest.raises(KnitsimInputError, match="both load_N and force_N are present .*keep one column"):
+        read_table(tmp_path / "f.csv")
+    (tmp_path / "s.csv").write_text("Tensile strain (%),strain_mm_per_mm,load_N\n"
+                                    + "".join(f"{2.5 * k},{0.025 * k},{0.5 * k}\n" for k in range(6)))
+    with pytest.raises(KnitsimInputError, match="both strain and strain_mm_per_mm are present"):
+        read_table(tmp_path / "s.csv")
+    (tmp_path / "k.csv").write_text("Time (s),Load (kN),Tensile strain (%)\n"
+                                    + "".join(f"{k},{0.0005 * k},{2.5 * k}\n" for k in range(6)))
+    with pytest.raises(KnitsimInputError, match=r"no force column .*'Load \(kN\)' is not read as load_N: 'kN' is "
+                                                r"not its unit"):
+        read_table(tmp_path / "k.csv")

@@ -520,3 +520,33 @@ def test_a_test_machines_names_with_their_units_read_as_the_columns_and_say_so(t
                             (), names, aliases=LAB_ALIASES)
     np.testing.assert_array_equal(both["strain"], [0.1, 0.2])
     assert both.notes == ()
+
+
+def test_a_machines_names_twice_a_units_row_and_a_preamble(tmp_path):
+    # Found by a blind probe (hand-made files).  Expected, from the reading rules (module docstring): a column
+    # named twice is refused, also when two of a machine's names would both be it; a machine's unit in a units row
+    # under its header (Bluehill's raw data) is its stated unit; a preamble above a header whose machine name lacks
+    # its unit still finds that header, and the refusal says what to state.
+    from knitsim.io.table_input import LAB_ALIASES
+    names = ("strain", "load_N", "force_N")
+    for header in ("Load (N),Load (N),Tensile strain (%)", "Load (N),Tensile load (N),Tensile strain (%)"):
+        p = _write(tmp_path, header + "\n0,0,0\n0.5,1,2.5\n", "dup.csv")
+        with pytest.raises(KnitsimInputError, match=r"columns 1 and 2 \(.*\) would both be read as load_N"):
+            read_csv_columns(p, (), names, aliases=LAB_ALIASES)
+    raw = _write(tmp_path, '"Time","Load","Tensile strain"\n"(s)","(N)","(%)"\n0,0,0\n1,0.5,2.5\n2,1.0,5.0\n', "raw.csv")
+    c = read_csv_columns(raw, (), names, aliases=LAB_ALIASES)
+    np.testing.assert_allclose(c["strain"], [0.0, 0.025, 0.05], rtol=1e-15)
+    np.testing.assert_array_equal(c["load_N"], [0.0, 0.5, 1.0])
+    assert "column 'Load' read as load_N" in c.notes and "column 'Tensile strain' read as strain" in c.notes
+    kn = _write(tmp_path, "Time;Load;Tensile strain\ns;kN;%\n0;0;0\n1;0,5;2,5\n", "kn.csv")
+    c = read_csv_columns(kn, (), names, aliases=LAB_ALIASES)
+    assert "load_N" not in c and c.not_read == ("'Load' is not read as load_N: 'kN' is not its unit (convert the "
+                                                "column: 'Load (N)')",)
+    pre = _write(tmp_path, "Machine: Instron 5965\nTensile strain,force_per_wale_N\n0,0\n1,2\n", "pre.csv")
+    with pytest.raises(KnitsimInputError) as e:
+        read_csv_columns(pre, ("strain", "force_per_wale_N"), aliases=LAB_ALIASES)
+    assert "(found: Tensile strain, force_per_wale_N;" in str(e.value)
+    assert "'Tensile strain' is read as strain with its unit stated ('Tensile strain (%)' or " in str(e.value)
+    # fractions under a % stated in a units row: the advice is to change the units row
+    fr = read_csv_columns(_write(tmp_path, "strain,force_per_wale_N\n%,N\n0,0\n0.3,1\n", "fr.csv"), REQ)
+    assert fr.notes[0].endswith("state its unit in its units row as -"), fr.notes
