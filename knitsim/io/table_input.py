@@ -36,10 +36,12 @@ shows it), the column and the value, and what to do:
   a units row that disagree, ``strain [-]`` over ``%``, are refused).
   Text in a number column further down is refused as before;
 - a test machine's own names for a column, where the caller gives them (``aliases``: ``Tensile strain (%)``
-  for ``strain``, ``Load (N)`` for ``load_N``; :data:`LAB_ALIASES`): taken only with a unit in brackets that
-  is the column's (or per cent, for a strain), and only where the column's own name is absent; said so in
-  the notes (``column 'Load (N)' read as load_N``).  Without a unit it is not taken (``Load`` could be kN),
-  and a missing column's refusal says to state it;
+  for ``strain``, ``Load (N)`` for ``load_N``; :data:`LAB_ALIASES`): taken only with a unit that is the
+  column's (or per cent, for a strain), in brackets or in a units row under the header (``"Load"`` over
+  ``"(N)"``), and only where the column's own name is absent; said so in the notes (``column 'Load (N)'
+  read as load_N``).  Without a unit, or with another, it is not taken (``Load`` could be kN): a missing
+  column's refusal says why (:attr:`Columns.not_read` for a caller's own refusal); two cells that would
+  both be one column are refused as a column named twice;
 - refused: a value in a row beyond the header's columns (a shifted or merged row), and a
   column read that is named twice (which one is meant is not said).
 """
@@ -60,7 +62,7 @@ from ..errors import KnitsimInputError
 _DELIMITERS = (",", ";", "\t")
 #: bad cells a refusal lists (the count of the others follows)
 BAD_CELLS_LISTED = 10
-#: test machines' names of the columns the package reads (any case; with a unit in brackets that is the column's):
+#: test machines' names of the columns the package reads (any case; with the column's unit, in brackets or a units row):
 #: Instron Bluehill's "Tensile strain (%)" and "Load (N)", Zwick testXpert's "Standard force (N)"
 LAB_ALIASES = {"strain": ("tensile strain", "engineering strain"),
                "load_N": ("load", "tensile load"),
@@ -349,9 +351,10 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         the row and the column.  A units row directly under the header (none of
         its non-empty cells a number) is skipped.
     aliases : dict of str to tuple of str, optional
-        Other names of the columns asked for (e.g. :data:`LAB_ALIASES`), taken only with a unit in brackets
-        that is the column's (or per cent, for a strain) and only where the column's own name is absent;
-        noted (``column 'Load (N)' read as load_N``).
+        Other names of the columns asked for (e.g. :data:`LAB_ALIASES`), taken only with a unit that is the
+        column's (or per cent, for a strain), in brackets or in a units row, and only where the column's own
+        name is absent; noted (``column 'Load (N)' read as load_N``); why one was not taken is in the
+        result's ``not_read``.
 
     Returns
     -------
