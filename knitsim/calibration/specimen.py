@@ -87,7 +87,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     s_name = next((c for c in STRAIN_COLUMNS if c in cols), None)
     f_total = next((c for c in TOTAL_COLUMNS if c in cols), None)
     f_wale = next((c for c in PER_WALE_COLUMNS if c in cols), None)
-    why = "".join(f"; {w}" for w in getattr(cols, "not_read", ()))
+    why = "".join(f"; {w}" for w in cols.not_read)
     if s_name is None:
         raise KnitsimInputError(f"{path}: no strain column (expected one of {', '.join(STRAIN_COLUMNS)}, or a "
                                 f"machine's 'Tensile strain' with its unit: 'Tensile strain (%)'){why}")

@@ -550,7 +550,7 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     if not copy.any():
         return cols
     out = Columns({k: v[~copy] for k, v in cols.items()}, notes=notes_of(cols))
-    out.not_read = tuple(getattr(cols, "not_read", ()))
+    out.not_read = cols.not_read
     return out
 
 

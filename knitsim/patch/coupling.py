@@ -192,7 +192,7 @@ class WarpBackend:
         self._mask = wp.zeros(self.n, dtype=wp.int32, device=self.device)
         self._all = wp.ones(self.n, dtype=wp.int32, device=self.device)
         self._k = wp.zeros(self.n, dtype=wp.float64, device=self.device)
-        # the trial step's own slopes dF/dC (a warm trial's short Newton step: CellSolver.step's slope_out)
+        # the trial step's own slopes dF/dC (from its last Newton's Jacobian: CellSolver.step's slope_out)
         self._slope = wp.zeros(self.n, dtype=wp.float64, device=self.device)
         self._k_step = np.full(self.n, np.nan)
         self._status = wp.zeros(self.n, dtype=wp.int32, device=self.device)
