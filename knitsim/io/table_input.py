@@ -67,9 +67,10 @@ BAD_CELLS_LISTED = 10
 LAB_ALIASES = {"strain": ("tensile strain", "engineering strain"),
                "load_N": ("load", "tensile load"),
                "force_N": ("force", "tensile force", "standard force")}
-#: a column read in per cent whose values all lie within this (as fractions: 1 %) is said to look like fractions:
-#: a knit is tested to tens of per cent, and 0.6 under a ``%`` header is far likelier 60 % than 0.6 %
-PER_CENT_LOOKS_FRACTION = 0.01
+#: a column read in per cent whose values all lie within this (as fractions: 2 %) is said to look like fractions:
+#: a knit is tested to tens of per cent, and 0.6 or 1.2 under a ``%`` header is far likelier 60 % or 120 % than
+#: 0.6 % or 1.2 % (a note, not a refusal: a test that small is told, and read as written)
+PER_CENT_LOOKS_FRACTION = 0.02
 
 
 class Columns(dict):

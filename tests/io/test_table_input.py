@@ -477,7 +477,7 @@ def test_every_bad_cell_is_named_at_once_in_row_order(tmp_path):
 
 def test_fractions_under_a_per_cent_header_are_read_in_per_cent_and_said_to_look_like_fractions(tmp_path):
     # FRACTION_ROWS (strain to 0.2) under a "Strain [%]" header: the header is followed (divided by 100: the
-    # strain ends at 0.002, exactly), and the note adds that every value lies within 1 % (a knit is tested to
+    # strain ends at 0.002, exactly), and the note adds that every value lies within 2 % (a knit is tested to
     # tens of per cent) and how to state fractions.  PER_CENT_ROWS (to 20 %) under it get the plain note.
     pct = read_csv_columns(_write(tmp_path, _table(["Strain [%]", "force_per_wale_N"], FRACTION_ROWS)), REQ)
     assert pct["strain"].max() == 0.002
@@ -550,3 +550,12 @@ def test_a_machines_names_twice_a_units_row_and_a_preamble(tmp_path):
     # fractions under a % stated in a units row: the advice is to change the units row
     fr = read_csv_columns(_write(tmp_path, "strain,force_per_wale_N\n%,N\n0,0\n0.3,1\n", "fr.csv"), REQ)
     assert fr.notes[0].endswith("state its unit in its units row as -"), fr.notes
+
+
+def test_the_fractions_note_reaches_values_to_two_per_cent_and_not_beyond(tmp_path):
+    # PER_CENT_LOOKS_FRACTION = 0.02 (a blind probe: 0..1.2 under "%", fractions of a knit at 120 %, got no note):
+    # a largest value of 1.2 (read as 1.2 %) is said to look like fractions; 2.5 (2.5 %) is not.
+    for top, said in ((1.2, True), (2.5, False)):
+        p = _write(tmp_path, f"Strain [%],force_per_wale_N\n0,0\n{top / 2},1\n{top},2\n", f"t{top}.csv")
+        note = read_csv_columns(p, REQ).notes[0]
+        assert ("its largest value is" in note) == said, note
