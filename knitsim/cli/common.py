@@ -4,6 +4,7 @@ from __future__ import annotations
 import contextlib
 import re
 import sys
+from pathlib import Path
 from typing import Any, Iterator
 
 from ..errors import KnitsimInputError
@@ -19,7 +20,8 @@ def naming_scene(path) -> Iterator[None]:
         yield
     except KnitsimInputError as exc:
         msg = str(exc)
-        if str(path) in msg:
+        # (the loaders write the path as Path() spells it: ./x.toml as x.toml)
+        if str(path) in msg or str(Path(path)) in msg:
             raise
         raise KnitsimInputError(f"{path}: {msg}") from None
 

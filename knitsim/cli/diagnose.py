@@ -64,7 +64,7 @@ def run(args) -> int:
     from ..diagnosis.diagnose import diagnose
     from ..diagnosis.effects import check_effects
     from ..diagnosis.measured import read_measured_curve
-    from ..diagnosis.report import write_report
+    from ..diagnosis.report import fit_uncertainty, write_report
     from ..io.jsonable import json_text
     from ..io.results import atomic_write_bytes
     from ..scene.diagnosis_scene import load_diagnosis_scene
@@ -105,22 +105,14 @@ def run(args) -> int:
     v = result["verdict"]
     b = result["baseline"]
     nz = result["noise"]
-    se = b.get("std_errors") or {}
-    at = b.get("at_bounds") or {}
-
     def fitted(k: str, x: float) -> str:
         # the fit's standard error beside its value, where it has one (a blind probe read m 0.337 on a basalt pull
-        # with no way to tell whether 0.25 was within it); a zero one is a direction the data do not constrain
-        # (the covariance's pseudo-inverse), not a perfect estimate; a value at a bound is no estimate either
-        e = se.get(k)
-        text = f"{k} = {x:.4g}"
-        if k in at:
-            text += f" (at its {at[k]} bound)"
-        elif e is not None and math.isfinite(e) and e > 0:
-            text += f" +- {e:.2g}"
-        elif e is not None:
-            text += " (not determined by the data)"
-        return text
+        # with no way to tell whether 0.25 was within it), else why not (the report's words: fit_uncertainty)
+        kind, v = fit_uncertainty(k, b["std_errors"], b["at_bounds"])
+        if kind == "se":
+            return f"{k} = {x:.4g} +- {v:.2g}"
+        return f"{k} = {x:.4g}" + {"bound": f" (at its {v} bound)", "undetermined": " (not determined by the data)",
+                                   None: ""}[kind]
 
     print(f"baseline: rms {b['rms_N']:.4g} N per wale ({', '.join(fitted(k, x) for k, x in b['params'].items())}; "
           "+- one standard error)")

@@ -107,16 +107,36 @@ def _e(v: Any) -> str:
     return html.escape(str(v), quote=True)
 
 
-def _params_text(params: Mapping | None, errors: Mapping | None = None) -> str:
-    """``name = value ± se`` joined by commas (escaped)."""
+def fit_uncertainty(name: str, errors: Mapping | None, at_bounds: Mapping | None) -> tuple[str | None, Any]:
+    """How a fitted parameter's uncertainty reads, for the console and the report alike: ("bound", side) where the
+    fit rests on a bound (no estimate), ("se", value) for a positive standard error, ("undetermined", None) for
+    a zero or non-finite one (a direction the data do not constrain: the covariance's pseudo-inverse gives it
+    no variance), (None, None) where there is none."""
+    if name in (at_bounds or {}):
+        return "bound", at_bounds[name]
+    e = (errors or {}).get(name)
+    if e is None:
+        return None, None
+    return ("se", e) if math.isfinite(e) and e > 0 else ("undetermined", None)
+
+
+def _uncertainty_text(name: str, errors: Mapping | None, at_bounds: Mapping | None) -> str:
+    kind, v = fit_uncertainty(name, errors, at_bounds)
+    if kind == "se":
+        return f"± {_fmt(v, 2)}"
+    return {"bound": f"at its {v} bound", "undetermined": "not determined by the data", None: ""}[kind]
+
+
+def _params_text(params: Mapping | None, errors: Mapping | None = None, at_bounds: Mapping | None = None) -> str:
+    """``name = value ± se`` (or why there is none) joined by commas (escaped)."""
     if not params:
         return "none"
-    errors = errors or {}
     parts = []
     for name, val in params.items():
         txt = f"{name} = {_fmt(val)}"
-        if name in errors and errors[name] is not None:
-            txt += f" ± {_fmt(errors[name], 2)}"
+        unc = _uncertainty_text(name, errors, at_bounds)
+        if unc:
+            txt += f" ({unc})" if not unc.startswith("±") else f" {unc}"
         unit = parameter_unit(name)
         if unit and unit != "-":
             txt += f" {unit}"
@@ -428,8 +448,8 @@ def render_report(result: dict) -> str:
 
     # baseline
     out.append("<h2>Baseline</h2>\n")
-    errs = base.get("std_errors") or {}
-    rows = [[_e(k), _e(_fmt(v)), _e(parameter_unit(k) or "-"), _e(_fmt(errs.get(k)))]
+    rows = [[_e(k), _e(_fmt(v)), _e(parameter_unit(k) or "-"),
+             _e(_uncertainty_text(k, base.get("std_errors"), base.get("at_bounds")).lstrip("± ") or "n/a")]
             for k, v in (base.get("params") or {}).items()]
     out.append(_table(["parameter", "value", "unit", "standard error"], rows))
     offsets = base.get("offsets_N") or {}
@@ -464,7 +484,7 @@ def render_report(result: dict) -> str:
     out.append("<h2>Which: candidate effects, best first</h2>\n")
     cands = result.get("candidates") or []
     if cands:
-        rows = [[_e(c.get("effect")), _params_text(c.get("params"), c.get("std_errors")) + _offsets_text(c),
+        rows = [[_e(c.get("effect")), _params_text(c.get("params"), c.get("std_errors"), c.get("at_bounds")) + _offsets_text(c),
                  _e(_fmt(c.get("rms_N"))), _e(_pct(c.get("shrink"))), _e(_fmt(c.get("score"))),
                  _e(_pct(c.get("share_of_excess"))), _e(_fmt(c.get("probability"))),
                  _e(_fmt(c.get("chi2_per_dof")) + {True: " (within)", False: " (beyond)"}.get(c.get("within_noise"), "")),

@@ -586,15 +586,7 @@ def reloads_below_earlier_loading(strain, force, cycle, direction, unit: str = "
         rows_k = np.nonzero(ok & (cyc == k))[0]
         jk = rows_k[np.argmax(f[rows_k])]
         ip = earlier[np.argmax(f[earlier])]
-        if s[load].max() > s0 + 1e-9 and f[jk] < ENVELOPE_SHARE_MIN * f[ip] and not fk < share * f0:
-            out.append(ResultWarning(
-                "reload_below_earlier_loading",
-                f"cycle {int(k)} stretches the knit further than before ({strain_name} {s[load].max():.4g}) but peaks at "
-                f"{f[jk]:.3g} {unit}, {f[jk] / f[ip]:.0%} of the {f[ip]:.3g} {unit} of cycle {int(cyc[ip])} at "
-                f"{strain_name} {s[ip]:.4g}: the knit's envelope falls as it is stretched further (Table 4's sliding "
-                f"stage keeps the contact's normal force Rn at its value where sliding began, and each reload begins "
-                f"sliding at a lower one); a measured knit's envelope rises with the strain"))
-        elif fk < share * f0:
+        if fk < share * f0:
             out.append(ResultWarning(
                 "reload_below_earlier_loading",
                 f"cycle {int(k)} carries {fk:.3g} {unit} at {strain_name} {s0:.4g}, {fk / f0:.0%} of the {f0:.3g} {unit} "
@@ -602,5 +594,13 @@ def reloads_below_earlier_loading(strain, force, cycle, direction, unit: str = "
                 f"value where sliding began, and this reload began sliding at a lower one, so its branch stays below "
                 f"the earlier loading there and beyond (a measured knit reloads to most of its earlier force: "
                 f"5 N, then 4 N in Dusserre 2015 Fig. 10)"))
+        elif s[load].max() > s0 + 1e-9 and f[jk] < ENVELOPE_SHARE_MIN * f[ip]:
+            out.append(ResultWarning(
+                "reload_below_earlier_loading",
+                f"cycle {int(k)} stretches the knit further than before ({strain_name} {s[load].max():.4g}) but peaks at "
+                f"{f[jk]:.3g} {unit}, {f[jk] / f[ip]:.0%} of the {f[ip]:.3g} {unit} of cycle {int(cyc[ip])} at "
+                f"{strain_name} {s[ip]:.4g}: the knit's envelope falls as it is stretched further (Table 4's sliding "
+                f"stage keeps the contact's normal force Rn at its value where sliding began, and each reload begins "
+                f"sliding at a lower one); a measured knit's envelope rises with the strain"))
     return out
 

@@ -260,14 +260,20 @@ def _split(line: str, delim: str) -> list[str]:
     return next(csv.reader([line], delimiter=delim), [])
 
 
-def _units_row(line: str | None, delim: str) -> list[str] | None:
-    """The cells of a units row (none of its non-empty cells a number: ``s;N;%``, ``(s),(N),(%)``), else None."""
-    if line is None or not line.strip() or _is_comment(line):
-        return None
-    cells = [_trim(c) for c in _split(line, delim)]
-    if any(_is_number(c, delim != ",") or _is_number(c, True) for c in cells if c):
+def _unit_cells(cells: list[str], decimal_comma: bool) -> list[str] | None:
+    """A units row's units (``s;N;%``, ``(s),(N),(%)``: none of its non-empty cells a number), brackets removed;
+    None where a cell is a number (a data row)."""
+    cells = [_trim(c) for c in cells]
+    if any(_is_number(c, decimal_comma) or _is_number(c, True) for c in cells if c):
         return None
     return [m.group(1) if (m := re.fullmatch(r"[\[(]\s*(.*?)\s*[\])]", c)) else c for c in cells]
+
+
+def _units_row(lines: list[str], h: int, delim: str) -> list[str] | None:
+    """The units of the units row under header line h (the first record after it that is not blank or a comment,
+    as the data rows are read), else None."""
+    nxt = next((ln for ln in lines[h + 1:] if ln.strip() and not _is_comment(ln)), None)
+    return None if nxt is None else _unit_cells(_split(nxt, delim), delim != ",")
 
 
 def _alias_unit(cells: list[str], unit_cells: list[str] | None, j: int) -> str | None:
@@ -288,11 +294,13 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
     the reasons the aliases present were not taken)."""
     keys = [_name_and_unit(c)[0] for c in cells]
     taken, why_not = {}, []
+    if not aliases:
+        return keys, taken, why_not
     for name in names:
-        if _key(name) in keys:
+        if _key(name) in keys or name not in aliases:
             continue
         for j, cell in enumerate(cells):
-            if j in taken or _name_and_unit(cell)[0] not in aliases.get(name, ()):
+            if j in taken or keys[j] not in aliases[name]:
                 continue
             unit = _alias_unit(cells, unit_cells, j)
             fits = unit is not None and (_unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name)))
@@ -385,8 +393,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     header = [_trim(c) for c in _split(lines[h], delim)]
     units = [_name_and_unit(c)[1] for c in header]
     # a machine's name is taken with its unit in brackets or in a units row under the header (Bluehill's raw data)
-    keys, read_as, not_taken = _aliased(header, required + optional, aliases,
-                                        _units_row(lines[h + 1] if h + 1 < len(lines) else None, delim))
+    keys, read_as, not_taken = _aliased(header, required + optional, aliases, _units_row(lines, h, delim))
     missing = [c for c in required if _key(c) not in keys]
     if missing:
         # a machine's name without its unit, or with another, is not taken (Load could be kN): say why
@@ -442,15 +449,14 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             continue
         if first_data:
             first_data = False
-            if not any(_is_number(c, decimal_comma) or _is_number(c, True) for c in r if c.strip()):
+            row_units = _unit_cells(r, decimal_comma)
+            if row_units is not None:
                 # units under the header (-, N, [mm], mm/s): no cell is a number.  Each read column's unit is
                 # checked as one in its header cell is (a blind probe's "%" and "kN" rows were skipped unread,
                 # the numbers taken as a fraction and as N)
                 for name in present:
                     j = keys.index(_key(name))
-                    unit = _trim(r[j]) if j < len(r) else ""
-                    m = re.fullmatch(r"[\[(]\s*(.*?)\s*[\])]", unit)
-                    refuse_unit(name, m.group(1) if m else unit, line, header[j])
+                    refuse_unit(name, row_units[j] if j < len(row_units) else "", line, header[j])
                 continue
         extra = [j for j in range(len(header), len(r)) if r[j].strip()]
         if extra:

@@ -559,3 +559,13 @@ def test_the_fractions_note_reaches_values_to_two_per_cent_and_not_beyond(tmp_pa
         p = _write(tmp_path, f"Strain [%],force_per_wale_N\n0,0\n{top / 2},1\n{top},2\n", f"t{top}.csv")
         note = read_csv_columns(p, REQ).notes[0]
         assert ("its largest value is" in note) == said, note
+
+
+def test_a_machines_units_row_after_a_blank_line_is_its_stated_unit(tmp_path):
+    # A review's case: the data rows skip blank lines before the units row, so the machine's unit is found there
+    # too (before, only the line right under the header was looked at, and "state its unit" was asked).
+    from knitsim.io.table_input import LAB_ALIASES
+    p = _write(tmp_path, "Time,Load,Tensile strain\n\n(s),(N),(%)\n0,0,0\n1,0.5,2.5\n", "blank.csv")
+    c = read_csv_columns(p, ("strain", "load_N"), aliases=LAB_ALIASES)
+    np.testing.assert_allclose(c["strain"], [0.0, 0.025], rtol=1e-15)
+    np.testing.assert_array_equal(c["load_N"], [0.0, 0.5])
