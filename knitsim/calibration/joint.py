@@ -400,15 +400,12 @@ class SpecimenFit:
         if not (gap > ZERO_CHECK_SD * sd and gap > ZERO_CHECK_SHARE * self.peak_N):
             return None
         unit = " per wale" if self.offset_unit == "N per wale" else ""
-        by = (f"{abs(gap) / sd:.3g} noise sd and " if sd > 0 else "") + \
-            f"{100 * abs(gap) / max(self.peak_N, 1e-300):.3g} % of its peak"
-        side = "below" if gap > 0 else "above"
-        cause = ('a load cell zeroed with the knit mounted? set [calibration] zero = "tared" (or "fitted")' if gap > 0
-                 else 'a load cell zero above zero, or a pretension? set [calibration] zero = "fitted", or give the '
-                      "specimen's pretension")
-        return (f"specimen {self.name} ({by} {side} the model at grip strain 0): the file reads {self.rest_N:.4g} N"
-                f"{unit} at rest where the fitted knit carries {self.pretension_N:.4g} N{unit}: {cause} (the fit is "
-                "shared: a wrong zero in any specimen's file can show here)")
+        # (gap > 0 here: only a reading below the model is flagged)
+        by = (f"{gap / sd:.3g} noise sd and " if sd > 0 else "") + f"{100 * gap / max(self.peak_N, 1e-300):.3g} % of its peak"
+        return (f"specimen {self.name} ({by} below the model at grip strain 0): the file reads {self.rest_N:.4g} N"
+                f"{unit} at rest where the fitted knit carries {self.pretension_N:.4g} N{unit}: a load cell zeroed "
+                'with the knit mounted? set [calibration] zero = "tared" (or "fitted") (the fit is shared: a wrong zero '
+                "in any specimen's file can show here)")
 
     @property
     def dof_rows(self) -> int:
