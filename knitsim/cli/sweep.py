@@ -155,6 +155,9 @@ def _run(args) -> int:
                        ("reload_below_earlier_loading", "a later cycle reloads below half the earlier force at the "
                                                         "earlier maximum, or its envelope falls; variable "
                                                         "reload_below_earlier_loading in results.nc / results.csv"),
+                       ("reload_above_first_loading", "a later cycle reloads above the first loading at the same "
+                                                      "strain; variable reload_above_first_loading in results.nc / "
+                                                      "results.csv"),
                        ("stopped_at_force_cap", "a stop, not a failure, but the rest of the program was not run: "
                                                 "that cycle's peak is the cap (peak_at_force_cap = 1), its energy "
                                                 "loading work if it never unloaded (energy_kind), later cycles NaN "

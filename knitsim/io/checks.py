@@ -18,6 +18,17 @@ and printed by the commands:
     blind probe: cycles to 0.2, 0.3, 0.45 and 0.6 peaked at 0.048 N per wale at 0.6, where a single pull
     carries 0.167 N).  A measured knit reloads to most of its earlier force there (Dusserre 2015
     Fig. 10: 5 N, then 4 N).
+``reload_above_first_loading``
+    A later cycle whose loading, below the largest strain reached before it, carries more than
+    :data:`RELOAD_ABOVE_FACTOR` times the force of the first loading at the same strain
+    (:func:`reloads_above_first_loading`).  Friction at the crossing only resists the slip, so a knit
+    reloaded after an unloading rejoins its first loading from below at the earlier maximum strain
+    (Masing's rule of frictional assemblies; a measured knit's reload lies below its first loading).
+    Table 4's loading stages hold a force (Rn, or T after a mirror reload) at its value where the stage
+    began: a reload that begins from a state of higher contact force than the first loading (left by a
+    jam) slides on a higher plateau, with Coulomb or Dahl friction and every reload and unloading rule
+    (the calibrated specimen: 0.53 N per wale at grip strain 0.3 in cycles 2 and 3, 0.17 N on the first
+    loading; README, "Reloads above the first loading").
 ``loop_creates_energy``
     A load-then-unload excursion that comes back to the strain it started from
     (:func:`closed_excursions`) with ``oint F dC < 0``: its unloading returned above
@@ -290,6 +301,14 @@ RELOAD_SHARE_MIN = 0.5
 #: for the noise of a peak read at a row
 ENVELOPE_SHARE_MIN = 0.9
 
+#: a later loading carrying more than this multiple of the first loading's force at the same strain (below the
+#: earlier maximum strain) is flagged (reload_above_first_loading): a frictional knit reloads at or below its
+#: first loading; a quarter of slack for the noise of a curve read at rows and interpolated between them
+RELOAD_ABOVE_FACTOR = 1.25
+#: ... and only where the excess is more than this share of the largest earlier peak (a reload near zero force,
+#: e.g. from a slack start, is not judged by its ratio alone)
+RELOAD_ABOVE_FLOOR = 0.02
+
 
 @dataclass(frozen=True)
 class ResultWarning:
@@ -319,15 +338,17 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
     fraction : float
         Share of the largest earlier peak below which a cycle carries no force.
     """
-    out = []
-    for c1, p1, c0, p0 in _empty_cycles(peaks, fraction):
-        out.append(ResultWarning(
-            "zero_force_cycle",
-            f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
-            f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
-            f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
-            f"pocket')"))
-    return out
+    return [_zero_force_warning(found, unit) for found in _empty_cycles(peaks, fraction)]
+
+
+def _zero_force_warning(found, unit: str) -> ResultWarning:
+    c1, p1, c0, p0 = found
+    return ResultWarning(
+        "zero_force_cycle",
+        f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
+        f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
+        f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
+        f"pocket')")
 
 
 def _empty_cycles(peaks, fraction: float = ZERO_CYCLE_FRACTION):
@@ -342,9 +363,26 @@ def _empty_cycles(peaks, fraction: float = ZERO_CYCLE_FRACTION):
             best = (c1, p1)
 
 
-def empty_cycle_numbers(peaks, fraction: float = ZERO_CYCLE_FRACTION) -> list[int]:
-    """The cycles :func:`zero_force_cycles` flags."""
-    return [int(c) for c, _, _, _ in _empty_cycles(peaks, fraction)]
+def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wale",
+                   strain_name: str = "strain") -> list[ResultWarning]:
+    """The warnings on a program's cycles: :func:`zero_force_cycles`, then, for the cycles that carry load,
+    :func:`reloads_below_earlier_loading` and :func:`reloads_above_first_loading`.
+
+    Parameters
+    ----------
+    peaks : sequence of (cycle, peak)
+        Cycle numbers and peak forces, in order.
+    strain, force, cycle, direction : array-like
+        The recorded rows (the checks' own parameters).
+    unit, strain_name : str
+        For the messages.
+    """
+    empty = list(_empty_cycles(peaks))
+    skip = [int(c) for c, _, _, _ in empty]
+    rows = (strain, force, cycle, direction)
+    return ([_zero_force_warning(found, unit) for found in empty]
+            + reloads_below_earlier_loading(*rows, unit=unit, strain_name=strain_name, skip=skip)
+            + reloads_above_first_loading(*rows, unit=unit, strain_name=strain_name, skip=skip))
 
 
 def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarray, stop_row: int,
@@ -602,5 +640,70 @@ def reloads_below_earlier_loading(strain, force, cycle, direction, unit: str = "
                 f"{strain_name} {s[ip]:.4g}: the knit's envelope falls as it is stretched further (Table 4's sliding "
                 f"stage keeps the contact's normal force Rn at its value where sliding began, and each reload begins "
                 f"sliding at a lower one); a measured knit's envelope rises with the strain"))
+    return out
+
+
+def reloads_above_first_loading(strain, force, cycle, direction, unit: str = "N per wale",
+                                strain_name: str = "strain", skip=(), factor: float = RELOAD_ABOVE_FACTOR,
+                                floor: float = RELOAD_ABOVE_FLOOR) -> list[ResultWarning]:
+    """Warnings for later cycles whose loading carries more than ``factor`` times the first loading's force at
+    the same strain, below the largest strain reached before them (module docstring,
+    ``reload_above_first_loading``).  One warning per cycle, at its largest excess.
+
+    The first loading is the rows that first reached their strain (each beyond every strain before it, on
+    loading); a later loading is compared with it by linear interpolation in the strain, where both exist.
+
+    Parameters
+    ----------
+    strain, force, cycle, direction : array-like
+        The recorded rows (the imposed or grip strain, the force, the cycle number, +1 loading / -1
+        unloading); rows whose force is not finite (not run, or after a stop) are left out.
+    unit, strain_name : str
+        For the message.
+    skip : iterable of int
+        Cycles not judged (flagged already: zero_force_cycle).
+    factor : float
+        Multiple of the first loading's force above which a reload is flagged.
+    floor : float
+        Share of the largest earlier peak by which the reload must exceed the first loading too.
+    """
+    s = np.asarray(strain, float)
+    f = np.asarray(force, float)
+    cyc = np.asarray(cycle)
+    dirn = np.asarray(direction)
+    ok = np.flatnonzero(np.isfinite(f) & np.isfinite(s))
+    s, f, cyc, dirn = s[ok], f[ok], cyc[ok], dirn[ok]
+    # the first loading: loading rows beyond every strain before them (strictly increasing in the strain)
+    reached = np.maximum.accumulate(s)
+    first = (dirn > 0) & (s > np.concatenate([[-np.inf], reached[:-1]]))
+    skip = set(int(k) for k in skip)
+    out = []
+    for k in np.unique(cyc):
+        before = cyc < k
+        virgin = np.flatnonzero(first & before)
+        if int(k) in skip or len(virgin) < 2 or not before.any():
+            continue
+        peak = float(np.max(f[before]))
+        load = np.flatnonzero((cyc == k) & (dirn > 0) & (s >= s[virgin[0]]) & (s <= s[virgin[-1]]))
+        if not peak > 0 or not len(load):
+            continue
+        f_first = np.interp(s[load], s[virgin], f[virgin])
+        above = (f[load] > factor * f_first) & (f[load] - f_first > floor * peak)
+        if not above.any():
+            continue
+        at = np.flatnonzero(above)
+        j = at[np.argmax(f[load][at] - f_first[at])]
+        r = load[j]
+        c_first = int(cyc[virgin[min(np.searchsorted(s[virgin], s[r]), len(virgin) - 1)]])
+        lo, hi = float(s[load][at].min()), float(s[load][at].max())
+        span = f"{strain_name} {lo:.4g}" if hi == lo else f"{strain_name}s {lo:.4g} to {hi:.4g}"
+        out.append(ResultWarning(
+            "reload_above_first_loading",
+            f"cycle {int(k)} reloads above the first loading: {f[r]:.3g} {unit} at {strain_name} {s[r]:.4g}, "
+            f"{f[r] / f_first[j]:.1f} times the {f_first[j]:.3g} {unit} the knit carried there when first loaded "
+            f"(cycle {c_first}), over {span}: friction at the crossing only resists the slip, so a knit reloads "
+            f"at or below its first loading; the cause is the model's: Table 4's loading stages hold a force (Rn, or "
+            f"T after a mirror reload) at its value where the stage began, and this reload began from a state of "
+            f"higher contact force than the first loading did (README, 'Reloads above the first loading')"))
     return out
 

@@ -48,9 +48,8 @@ from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_work,
-                     energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration,
-                     empty_cycle_numbers, reloads_below_earlier_loading, zero_force_cycles)
+from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_warnings,
+                     cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration)
 from .results import _num, rule_meaning, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
@@ -925,12 +924,10 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         else np.zeros((0, 2))
     nonfinite = np.nonzero(~np.isfinite(F))[0]
     peaks = [(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles]
-    empty = zero_force_cycles(peaks)
-    # a reload far below the earlier loading at the earlier maximum grip strain (the rows the figures use)
+    # the rows the figures use: the grip strains up to a stop
     end = len(F) if stop is None else stop
-    below = reloads_below_earlier_loading(e[:end], h.force_per_wale_N[:end], h.cycle[:end], h.direction[:end],
-                                          strain_name="grip strain", skip=empty_cycle_numbers(peaks))
-    warnings = stop_warnings + empty + below
+    warnings = stop_warnings + cycle_warnings(peaks, e[:end], h.force_per_wale_N[:end], h.cycle[:end],
+                                              h.direction[:end], strain_name="grip strain")
     if held_in:
         warnings.append(ResultWarning("cycle_figures_include_held_rows", (
             "the figures of cycle(s) " + ", ".join(

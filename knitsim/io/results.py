@@ -42,8 +42,8 @@ import numpy as np
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
-from .checks import (compressive_rest_state, cut_by_force_cap, cycle_work, energy_creating_loops, interpenetration,
-                     empty_cycle_numbers, reloads_below_earlier_loading, zero_force_cycles)
+from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
+                     interpenetration)
 from .jsonable import json_text
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
@@ -309,11 +309,7 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         reason = flag.get("reason", "") if flag else ""
         end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
     peaks = [(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out]
-    empty = zero_force_cycles(peaks)
-    # a reload far below the earlier loading at the earlier maximum strain (cycles judged empty are not judged again)
-    below = reloads_below_earlier_loading(h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok],
-                                          skip=empty_cycle_numbers(peaks))
-    warnings = cut + empty + below
+    warnings = cut + cycle_warnings(peaks, h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok])
     if h.rest is not None:
         warnings += compressive_rest_state(h.rest["F"][cell])
     if h.rest is not None and n_ok:

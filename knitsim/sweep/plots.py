@@ -43,8 +43,9 @@ a cycle never unloaded, later cycles) are marked by a grey triangle at the
 foot of the axis (lines, scatter) or a grey ``--``-hatched cell (heat maps).
 A sample whose cell's rest state is compressive (``rest_state_compressive``),
 whose loops' heads overlap (``heads_interpenetrate``), whose later cycle
-carries nearly no force (``zero_force_cycle``) or reloads far below the earlier
-loading (``reload_below_earlier_loading``) is not marked on the axes; the
+carries nearly no force (``zero_force_cycle``), reloads far below the earlier
+loading (``reload_below_earlier_loading``) or above the first loading
+(``reload_above_first_loading``) is not marked on the axes; the
 title counts it.  The title counts each kind.
 """
 from __future__ import annotations
@@ -297,12 +298,13 @@ class _Marks:
     heads: np.ndarray
     zero_force: np.ndarray
     reload_below: np.ndarray
+    reload_above: np.ndarray
 
 
 def _marks(ds) -> _Marks:
     return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds), _compressive(ds),
                   _flag(ds, "heads_interpenetrate"), _flag(ds, "zero_force_cycle"),
-                  _flag(ds, "reload_below_earlier_loading"))
+                  _flag(ds, "reload_below_earlier_loading"), _flag(ds, "reload_above_first_loading"))
 
 
 #: the title's count of each kind of marked sample, in the order shown
@@ -317,11 +319,13 @@ _TITLE_PHRASES = (
     ("heads", "with overlapping heads of neighbouring loops (heads_interpenetrate; not marked)"),
     ("zero_force", "with a later cycle carrying nearly no force (zero_force_cycle; not marked)"),
     ("reload_below", "with a reload far below the earlier loading (reload_below_earlier_loading; not marked)"),
+    ("reload_above", "with a reload above the first loading (reload_above_first_loading; not marked)"),
 )
 #: the same kinds, short (the flags of the cells not plotted)
 _SHORT = {"failed": "failed", "no_rest": "no rest state", "outside": "outside the box", "capped": "stopped at the "
           "force cap", "energy": "loop returns energy", "compressive": "compressive rest state",
-          "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading"}
+          "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading",
+          "reload_above": "reload above first loading"}
 
 
 def _counts(marks: _Marks) -> list[str]:

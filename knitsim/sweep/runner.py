@@ -86,11 +86,12 @@ ENERGY_KINDS = dict(enumerate(checks.ENERGY_KINDS))
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
-             "zero_force_cycle", "reload_below_earlier_loading")
+             "zero_force_cycle", "reload_below_earlier_loading", "reload_above_first_loading")
 #: warnings of the cell's summary (knitsim.io.results.cell_summary, as knitsim cell gives them) carried per
 #: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
 #: and zero_force_cycle in no sweep output)
-_WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading")
+_WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
+                  "reload_above_first_loading")
 #: where a cell stopped (knitsim.io.results.cell_summary): a failed cell (all three), a cell stopped at its force
 #: cap (stopped_at_strain only); NaN for a cell that ran the whole program
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
@@ -1090,6 +1091,10 @@ def assemble(out_dir: str | Path):
                                         "maximum strain, or peaks at a new maximum strain below 90 % of an earlier peak "
                                         "(warning reload_below_earlier_loading of knitsim cell, knitsim.io.checks."
                                         "reloads_below_earlier_loading), 0 if not, -1 not solved or unknown",
+        "reload_above_first_loading": "1 if a later cycle reloads above 1.25 times the first loading's force at the "
+                                      "same strain, below the earlier maximum strain (warning "
+                                      "reload_above_first_loading of knitsim cell, knitsim.io.checks."
+                                      "reloads_above_first_loading), 0 if not, -1 not solved or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
@@ -1342,6 +1347,9 @@ _WARNING_REASONS = {
     "reload_below_earlier_loading": "a later cycle reloads below half the earlier force at the earlier maximum, or its "
                                     "envelope falls (Table 4's S+ keeps Rn where sliding began); knitsim cell on the "
                                     "sample says which cycle",
+    "reload_above_first_loading": "a later cycle reloads above the first loading at the same strain (Table 4's S+ "
+                                  "freezes Rn, or T, where sliding began); knitsim cell on the sample says which "
+                                  "cycle and where",
 }
 
 

@@ -60,7 +60,8 @@ def test_summaries_flag_the_paper_cell_and_the_contact_criterions_first_loop():
     through the jam at 0.6 back to 0.1, comes back at 1.66 N per wale against 0.084 N on the way up:
     the work over that loop is -1.79 N mm per wale (trapezoids) while the stitch's stored bending energy
     rose by 0.46 N mm, the same at increments of 0.02 and 0.005 (energy created by the frozen T after a
-    jammed reversal, README 'Loops that return energy'; before, a loop from the loading was not judged)."""
+    jammed reversal, README 'Loops that return energy'; before, a loop from the loading was not judged), and
+    its cycle 2 reloads above its first loading."""
     prog = cycles(0.10, 0.60, 2, 0.02)
     paper = CellParams(**EGLASS, m=0.2, phi0=0.0, force_cap_N=10.0)
     contact = CellParams(**EGLASS, m=0.2, phi0=0.0, jamming_criterion="head_gap", in_plane_width=0.88,
@@ -69,8 +70,9 @@ def test_summaries_flag_the_paper_cell_and_the_contact_criterions_first_loop():
     codes = {(w["cell"], w["code"]) for w in s["warnings"]}
     assert ("paper", "zero_force_cycle") in codes and ("paper", "heads_interpenetrate") in codes
     assert ("paper", "loop_creates_energy") not in codes
-    assert {code for c, code in codes if c == "contact"} == {"loop_creates_energy"}
-    (w,) = [w for w in s["warnings"] if w["cell"] == "contact"]
+    # the same frozen T reloads cycle 2 above the first loading (README, 'Reloads above the first loading')
+    assert {code for c, code in codes if c == "contact"} == {"loop_creates_energy", "reload_above_first_loading"}
+    (w,) = [w for w in s["warnings"] if w["cell"] == "contact" and w["code"] == "loop_creates_energy"]
     assert "the loop 0.1 -> 0.6 -> 0.1 (from the loading at strain 0.1)" in w["message"]
 
 
@@ -203,3 +205,70 @@ def test_an_envelope_that_falls_as_the_knit_is_stretched_further_is_flagged():
     h = run_batch([CellParams(**EGLASS, m=0.2, force_cap_N=10.0)], piecewise_linear([0.2, 0.1, 0.3, 0.1], 0.01))
     codes = [(x["code"], x["message"].split()[1]) for x in summarise(h)["cells"][0]["warnings"]]
     assert ("reload_below_earlier_loading", "2") in codes
+
+
+def _jenkins_rows(program, k_stick=2.0, k_slide=0.1, f_slip=0.15):
+    """A frictional assembly by an independent method: a spring (k_stick) in series with a Coulomb slider
+    (strength f_slip), in parallel with a spring (k_slide), driven through ``program`` (strains, one row each),
+    by the exact return map of the slider.  Rows as :func:`_rows` gives them (cycle: counted at each turn
+    from unloading to loading)."""
+    s_prev, slip, cyc, dirn = 0.0, 0.0, 1, 1
+    rows = []
+    for s in program:
+        d = 1 if s >= s_prev else -1
+        if d > 0 and dirn < 0:
+            cyc += 1
+        dirn = d
+        trial = k_stick * (s - slip)
+        if abs(trial) > f_slip:                      # the slider slips until its force is back on the cone
+            slip = s - np.sign(trial) * f_slip / k_stick
+            trial = np.sign(trial) * f_slip
+        rows.append((s, trial + k_slide * s, cyc, dirn))
+        s_prev = s
+    s, f, c, d = (np.array(x) for x in zip(*rows))
+    return s, f, c, d
+
+
+def test_a_reload_above_the_first_loading_is_flagged_and_a_frictional_assemblys_is_not():
+    """Expected from Masing's rule: a spring-slider assembly (Jenkins element, exact return map; three cycles
+    0 -> 0.5 -> 0.1 and partial unloadings) reloads at or below its first loading everywhere (equal on the
+    slide before the earlier maximum): no warning.  A reload whose plateau sits at 3x the first loading's
+    (the calibrated specimen's cycles 2-3: 0.53 against 0.17 N per wale at 0.3) is flagged once per cycle,
+    at its largest excess, naming the cycle, the strain, the ratio and the span; a reload only a few
+    thousandths of a newton above a near-zero first loading is under the floor (2 % of the earlier peak);
+    a cycle flagged empty (skip) is not judged."""
+    from knitsim.io.checks import reloads_above_first_loading
+    up, down = np.linspace(0.0, 0.5, 51), np.linspace(0.49, 0.1, 40)
+    program = np.concatenate([up, down, up[11:], down, up[11:], np.linspace(0.49, 0.3, 20), up[31:]])
+    s, f, c, d = _jenkins_rows(program)
+    assert c.max() == 4 and np.all(np.diff(s[:51]) > 0)
+    assert reloads_above_first_loading(s, f, c, d) == []
+    # the frozen closure's plateau: 3x the first loading's force from strain 0.2 to 0.45 in cycle 2
+    f_hi = f.copy()
+    plateau = (c == 2) & (d > 0) & (s >= 0.2) & (s <= 0.45)
+    f_hi[plateau] = 3.0 * np.interp(s[plateau], s[:51], f[:51])
+    (w,) = reloads_above_first_loading(s, f_hi, c, d, strain_name="grip strain")
+    assert w.code == "reload_above_first_loading"
+    assert w.message.startswith("cycle 2 reloads above the first loading: ")
+    assert "at grip strain 0.45, 3.0 times the" in w.message and "when first loaded (cycle 1)" in w.message
+    assert "over grip strains 0.2 to 0.45" in w.message
+    assert reloads_above_first_loading(s, f_hi, c, d, skip=[2]) == []
+    # near zero: a first loading of 1 mN reloaded at 4 mN, the earlier peak 1 N: not judged by its ratio
+    s0 = np.array([0.1, 0.2, 0.3, 0.4, 0.3, 0.2, 0.25, 0.3])
+    f0 = np.array([0.001, 0.001, 0.001, 1.0, 0.5, 0.0, 0.004, 0.004])
+    c0, d0 = np.array([1, 1, 1, 1, 1, 1, 2, 2]), np.array([1, 1, 1, 1, -1, -1, 1, 1])
+    assert reloads_above_first_loading(s0, f0, c0, d0) == []
+    f0[-1] = 0.03                                   # 29 mN above: 3 % of the peak
+    assert len(reloads_above_first_loading(s0, f0, c0, d0)) == 1
+
+
+def test_the_calibrated_specimens_cell_warns_that_its_reload_is_above_its_first_loading():
+    """The calibrated specimen's cell (in-plane width 0.79 mm, m = 0.45; scenes/specimen_e_glass_cyclic.toml)
+    slides on its first loading at the rest state's contact force (0.17-0.19 N per wale over 0.2-0.45) and,
+    reloaded from slack at 0.155, sticks up to 0.50 N before it slides with T frozen (README, 'Reloads above
+    the first loading'): its summary says so for cycle 2 (three times the first loading)."""
+    p = CellParams(**EGLASS, m=0.45, phi0=0.0, in_plane_width=0.79, force_cap_N=50.0)
+    s = summarise(run_batch([p], cycles(0.10, 0.60, 2, 0.02)))
+    (w,) = [w for w in s["cells"][0]["warnings"] if w["code"] == "reload_above_first_loading"]
+    ratio = float(w["message"].split(" times the ")[0].split()[-1])
+    assert w["message"].startswith("cycle 2 ") and 2.5 < ratio < 3.5

@@ -133,10 +133,28 @@ def test_the_cells_own_warnings_are_carried_per_sample(tmp_path):
     ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
     text = dataset_csv(ds)
     h = simulate([plan.base.params[0].replace(m=m) for m in (0.2, 0.5)], plan.programs[0], engine="warp", device="cpu")
-    for flag in ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading"):
+    for flag in ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
+                 "reload_above_first_loading"):
         alone = [int(any(w["code"] == flag for w in cell_summary(h, c)["warnings"])) for c in range(2)]
         assert ds[flag].values.ravel().tolist() == alone, flag
         assert [r["sample"] for r in warning_samples(ds, flag)] == [i for i, a in enumerate(alone) if a]
     assert ds["zero_force_cycle"].values.ravel().tolist() == [1, 0]
     header = text.splitlines()[0].split(",")
-    assert header[-4:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading", "domain"]
+    assert header[-5:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
+                           "reload_above_first_loading", "domain"]
+
+
+def test_a_reload_above_the_first_loading_is_carried_per_sample(tmp_path):
+    # the calibrated specimen's cell (m 0.45, in-plane width 0.79 mm) reloads cycle 2 at three times its first
+    # loading; with the roving's compact width (0.58 mm = d) it does not.  Expected: the warning of the cell's own
+    # summary, sample by sample, in results.nc, results.csv and the sweep's summary
+    from knitsim.sweep.runner import warning_samples
+    scene = dict(SCENE, friction={"m": 0.45, "phi0": 0.0}, rules={"force_cap_N": 50.0},
+                 load=dict(SCENE["load"], cycles=2))
+    plan = plan_sweep(scene, {"parameters": {"yarn.in_plane_width": {"values": [0.79, 0.58]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    assert ds["reload_above_first_loading"].values.ravel().tolist() == [1, 0]
+    assert [r["sample"] for r in warning_samples(ds, "reload_above_first_loading")] == [0]
+    rows = list(csv.DictReader(io.StringIO(dataset_csv(ds))))
+    assert {(r["yarn.in_plane_width"], r["reload_above_first_loading"]) for r in rows} == {("0.79", "1"),
+                                                                                          ("0.58", "0")}
