@@ -442,6 +442,12 @@ def _flat(d: Any, prefix: str = "") -> dict:
     return {prefix: d}
 
 
+def _key_diff(a: dict, b: dict) -> list[str]:
+    """``"key old -> new"`` for each key of two flat tables whose values differ (``(none)`` where absent)."""
+    return [f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in sorted(set(a) | set(b), key=str)
+            if a.get(k) != b.get(k)]
+
+
 def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
     """What differs between a manifest's sweep and ``plan``, in words (for --resume's refusal)."""
     was = old.get("inputs")
@@ -454,11 +460,10 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
             if key == "spec" and isinstance(old.get("spec"), dict):
                 # name its keys (a blind probe's --resume --curves read "the [sweep] table differs": the option
                 # --curves sets sweep.curves, which the run being resumed did not keep)
-                a, b = _flat(old["spec"], "sweep"), _flat(json.loads(json.dumps(plan.spec.table)), "sweep")
-                keys = [k for k in sorted(set(a) | set(b), key=str) if a.get(k) != b.get(k)]
-                if keys:
-                    name += " (" + ", ".join(f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in keys[:3]) + (
-                        ", ..." if len(keys) > 3 else "") + ("; --curves sets sweep.curves" if "sweep.curves" in keys else "") + ")"
+                diff = _key_diff(_flat(old["spec"], "sweep"), _flat(json.loads(json.dumps(plan.spec.table)), "sweep"))
+                if diff:
+                    name += " (" + ", ".join(diff[:3]) + (", ..." if len(diff) > 3 else "") + (
+                        "; --curves sets sweep.curves" if any(d.startswith("sweep.curves ") for d in diff) else "") + ")"
             what.append(name)
     if was.get("cells") != inputs["cells"]:
         # name the values: the base scene's resolved cells are in the manifest
@@ -466,10 +471,8 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
         a_cells = old.get("base_resolved", {}).get("cells", [])
         b_cells = json.loads(json.dumps(plan.base.resolved.get("cells", [])))
         one = len(a_cells) == len(b_cells) == 1
-        a = _flat(a_cells[0] if one else a_cells, "" if one else "cells")
-        b = _flat(b_cells[0] if one else b_cells, "" if one else "cells")
-        diff = [f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in sorted(set(a) | set(b), key=str)
-                if a.get(k) != b.get(k)]
+        diff = _key_diff(_flat(a_cells[0] if one else a_cells, "" if one else "cells"),
+                         _flat(b_cells[0] if one else b_cells, "" if one else "cells"))
         # a changed scene, sample table or knitsim explains changed cells; else what the scene names did
         upstream = any(was.get(k) != inputs[k] for k in ("knitsim", "spec", "samples", "scene"))
         olds = was.get("samples_cells")
