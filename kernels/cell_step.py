@@ -599,17 +599,17 @@ def branch_slope(dF: vec5d, J: mat55d, B: wp.float64, d: wp.float64) -> wp.float
 @wp.func
 def newton(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64):
     """:func:`newton_first` without a bound on its first step: returns (z, q, status)."""
-    z, q, st, step0 = newton_first(z0, codes, targets, dp, B, d, wp.float64(0.0))
+    z, q, st, step0, slope = newton_first(z0, codes, targets, dp, B, d, wp.float64(0.0), False)
     return z, q, st
 
 
 @wp.func
 def newton_first(z0: vec5d, codes: wp.vec4i, targets: vec4d, dp: vec10p, B: wp.float64, d: wp.float64,
-                 max_first: wp.float64):
-    """:func:`newton_solve` with the cell step's tolerances: returns (z, q, status, step0)."""
+                 max_first: wp.float64, want_slope: wp.bool):
+    """:func:`newton_solve` with the cell step's tolerances: returns (z, q, status, step0, slope)."""
     z, q, st, step0, n, slope = newton_solve(z0, codes, targets, dp, B, d, max_first, NEWTON_TOL,
-                                             NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0), False)
-    return z, q, st, step0
+                                             NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0), want_slope)
+    return z, q, st, step0, slope
 
 
 @wp.func
@@ -1169,9 +1169,8 @@ def solve_coulomb_first(x: vec5d, stage: int, jammed: int, soft: int, fs: wp.flo
         codes[1] = ev_code
         tg[1] = ev_target
     dp = effect_params(mat)
-    xn, qn, st, step0, n, slope = newton_solve(x, codes, tg, dp, stiffness_at(mat, C), mat.d, max_first, NEWTON_TOL,
-                                               NEWTON_TOL_STALLED, NEWTON_MAX_ITER, wp.float64(0.0),
-                                               want_slope and ev_code < 0)
+    xn, qn, st, step0, slope = newton_first(x, codes, tg, dp, stiffness_at(mat, C), mat.d, max_first,
+                                            want_slope and ev_code < 0)
     if ev_code >= 0 and bends(mat):
         xn, qn, st = bending_fixed_point(xn, qn, st, codes, tg, dp, C, mat)
     return xn, qn, st, step0, slope
@@ -1409,7 +1408,8 @@ def dahl_sign(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64, ma
     bound = wp.float64(0.0)
     if predict:
         bound = PREDICTED_STEP_MAX
-    xs, qs, st, step0 = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d, bound)
+    xs, qs, st, step0, slope = newton_first(x, codes, tg, effect_params(mat), stiffness_at(mat, C), mat.d, bound,
+                                            False)
     if st == STATUS_STEP_LONG:
         if wp.abs(step0[3]) > DAHL_SIGN_DPHI:
             s = wp.float64(1.0)
