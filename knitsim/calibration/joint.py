@@ -1068,12 +1068,12 @@ class _Problem:
         return offset_of(force - s.target_N, np.where(bad, 0.0, 1.0 / s.sigma_N))
 
     def row_residuals(self, s: SpecimenData, force: np.ndarray, off: float) -> np.ndarray:
-        """The weighted rows of specimen ``s`` for the model force ``force`` plus the offset ``off``."""
+        """The weighted rows of specimen ``s`` for the model force ``force`` plus the offset ``off`` (0 unless
+        ``zero = "fitted"``: :meth:`offset`)."""
+        fitted_to = force + off
         if self.objective == "band":
-            return s.band_residuals(force + off if self.offsets else force)
-        if self.offsets:
-            return (force + off - s.target_N) / s.sigma_N
-        return (force - s.target_N) / s.sigma_N
+            return s.band_residuals(fitted_to)
+        return (fitted_to - s.target_N) / s.sigma_N
 
     def residuals(self, x: np.ndarray, sims: list, offsets_out: list | None = None) -> np.ndarray:
         """Weighted rows of every specimen (less each one's best force offset, with offsets on), then the
