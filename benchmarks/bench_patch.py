@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 
 import numpy as np
@@ -62,29 +63,40 @@ def main(argv=None):
     if a.increments:
         prog = LoadProgram(prog.strain[:a.increments], prog.cycle[:a.increments], prog.direction[:a.increments],
                            prog.waypoints)
-    # compile once (not timed)
-    run_patch(PatchModel.uniform(E_GLASS, 2, 1), LoadProgram(prog.strain[:2], prog.cycle[:2], prog.direction[:2],
-                                                             prog.waypoints), device=device, dedup=False)
+    head2 = LoadProgram(prog.strain[:2], prog.cycle[:2], prog.direction[:2], prog.waypoints)
     rows = []
     for case, coupling in ((c, k) for c in a.cases for k in a.coupling):
-        pm, dedup = model(case, wales, courses)
         PatchSolver.device_branch_points = coupling == "device"
+        # compile (not timed): the same case on a 16 x 16 patch, so that every kernel key and module the run
+        # launches is built here (a 2 x 1 uniform patch left the large patch's keys to be compiled in the timed
+        # run: minutes on CUDA)
+        t0 = time.perf_counter()
+        run_patch(model(case, 16, 16)[0], head2, device=device, dedup=model(case, 16, 16)[1])
+        wp.synchronize()
+        warmup = time.perf_counter() - t0
+        pm, dedup = model(case, wales, courses)
+        stamps = []
         wp.synchronize()
         t0 = time.perf_counter()
-        h = run_patch(pm, prog, device=device, dedup=dedup)
+        h = run_patch(pm, prog, device=device, dedup=dedup, progress=lambda done, total: stamps.append(time.perf_counter()))
         wp.synchronize()
         wall = time.perf_counter() - t0
+        # the increments after the first (the first builds the patch's arrays, and compiles what the warm-up did not)
+        later = stamps[-1] - stamps[0] if len(stamps) > 1 else math.nan
         cells = pm.cell_count
         rows.append({"case": case, "coupling": coupling, "device": device, "wales": wales, "courses": courses,
                      "cells": cells,
-                     "increments": len(prog), "distinct_solves": h.info["n_groups"], "wall_s": wall,
+                     "increments": len(prog), "distinct_solves": h.info["n_groups"], "warmup_s": warmup, "wall_s": wall,
                      "cell_increments_per_s": cells * len(prog) / wall,
+                     "first_increment_s": stamps[0] - t0 if stamps else math.nan,
+                     "later_cell_increments_per_s": cells * (len(stamps) - 1) / later if later > 0 else math.nan,
                      "solve_increments_per_s": h.info["n_groups"] * len(prog) / wall,
                      "mean_trials_per_increment": float(h.column_iterations.max(axis=1).mean()),
                      "non_converged_column_increments": int(np.sum(h.column_status == 1)),
                      "columns_stopped_at_end": int(np.sum(h.column_status[-1] == 2)),
                      "peak_force_per_wale_N": float(h.force_per_wale_N.max())})
-    head = ("case", "coupling", "cells", "increments", "distinct_solves", "wall_s", "cell_increments_per_s",
+    head = ("case", "coupling", "cells", "increments", "distinct_solves", "warmup_s", "wall_s", "cell_increments_per_s",
+            "first_increment_s", "later_cell_increments_per_s",
             "mean_trials_per_increment", "non_converged_column_increments", "columns_stopped_at_end")
     print(" | ".join(head))
     for r in rows:
