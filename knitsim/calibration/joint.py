@@ -402,10 +402,19 @@ class SpecimenFit:
         unit = " per wale" if self.offset_unit == "N per wale" else ""
         # (gap > 0 here: only a reading below the model is flagged)
         by = (f"{gap / sd:.3g} noise sd and " if sd > 0 else "") + f"{100 * gap / max(self.peak_N, 1e-300):.3g} % of its peak"
+        if gap > self.peak_N:
+            # the knit at rest carries more than the file's largest reading: no zero explains that, a scale does
+            # (a blind probe's kN read as N, 493 % of the peak, was sent to zero = "tared")
+            return (f"specimen {self.name} ({by} below the model at grip strain 0): the fitted knit carries "
+                    f"{self.pretension_N:.4g} N{unit} at rest, more than the file's largest reading "
+                    f"({self.peak_N:.4g} N{unit}): a force in another unit (kN or mN read as N), or the specimen's "
+                    "wales or width not the tested one's? (the fit is shared: a wrong scale in any specimen's file "
+                    "can show here)")
         return (f"specimen {self.name} ({by} below the model at grip strain 0): the file reads {self.rest_N:.4g} N"
                 f"{unit} at rest where the fitted knit carries {self.pretension_N:.4g} N{unit}: a load cell zeroed "
-                'with the knit mounted? set [calibration] zero = "tared" (or "fitted") (the fit is shared: a wrong zero '
-                "in any specimen's file can show here)")
+                'with the knit mounted? set [calibration] zero = "tared" (or "fitted"); or its force scale (unit, '
+                "wales, width) is not the model's (the fit is shared: a wrong zero or scale in any specimen's file can "
+                "show here)")
 
     @property
     def dof_rows(self) -> int:

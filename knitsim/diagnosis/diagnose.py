@@ -334,6 +334,8 @@ class CandidateResult:
     #: ``baseline.offsets_N``): a candidate whose offsets differ much from the baseline's explains the
     #: gap partly by moving the zero
     offsets_N: dict = field(default_factory=dict)
+    #: its fitted variables the data pushed against a bound of their search (calibrate.at_bounds)
+    at_bounds: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -1411,7 +1413,7 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
         cand = CandidateResult(name, spec.doc, True, params=s["params"], std_errors=s["std_errors"], rms_N=s["rms_N"],
                                rss_N2=s["rss_N2"], chi2=s["chi2"], k=s["k"], stages=s["stages"], shrink=s["shrink"],
                                score=s["score"], flagged_curves=s["flagged_curves"], nfev=s["nfev"],
-                               offsets_N=dict(fit.get("offsets_N") or {}))
+                               offsets_N=dict(fit.get("offsets_N") or {}), at_bounds=s["at_bounds"])
         if spec.nests_baseline and fit["chi2"] > base["chi2"]:
             # where the effect vanishes the model is the baseline bit for bit: a fit above it is a local
             # minimum, and the effect explains nothing
@@ -1548,6 +1550,29 @@ def pressed_and_short(named: CandidateResult, fit: dict | None) -> bool:
         named.chi2_per_dof is not None and named.chi2_per_dof > SHORT_CHI2_PER_DOF)
 
 
+def capped_candidates(candidates: list, named: str | None, base: CellParams) -> str:
+    """Said where another candidate's fit stopped at the end of its effect's search (a strength variable at a
+    bound other than where the effect vanishes, :func:`knitsim.diagnosis.calibrate.at_bounds`): the data may
+    ask for more of that effect than was searched, so its low probability does not rule it out, and the verdict
+    is not confident ("" where none did).  A blind probe's yarn extension of 0.5 1/N, ten times the end of
+    ext_c's search, was given p 0.000 beside a confident ``yarn_compaction``."""
+    parts = []
+    for c in candidates:
+        if c.effect == named or not c.at_bounds or c.effect not in EFFECT_SPECS:
+            continue
+        for v in EFFECT_SPECS[c.effect].variables:
+            side, end = c.at_bounds.get(v.name), c.params.get(v.name)
+            # (the end where the effect vanishes, its start, is the baseline: no more of it was asked for)
+            if side is None or end is None or math.isclose(end, v.start(base), rel_tol=1e-6, abs_tol=1e-9):
+                continue
+            unit = "" if v.unit in ("", "-") else " " + v.unit
+            parts.append(f"{c.effect}'s fit stopped at the {side} end of its search ({v.name} = {end:.4g}{unit})")
+    if not parts:
+        return ""
+    return ("; ".join(parts) + ": the data may ask for more of " + ("that effect" if len(parts) == 1 else "those effects")
+            + " than was searched, so a low probability does not rule it out")
+
+
 def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: dict, noise: NoiseModel,
                  indist: list) -> Verdict:
     """Step 8 (module docstring)."""
@@ -1670,6 +1695,27 @@ SLACK_FLAT_SD = 3.0
 SLACK_MIN_STRAIN = 0.005
 SLACK_MIN_ROWS = 3
 SLACK_MODEL_ABOVE_SD = 5.0
+
+
+#: a curve whose largest reading is below this share of the model's force at its first row (the knit at rest,
+#: or at its first strain) is on another force scale (:func:`force_scale_mismatch`)
+SCALE_SHARE = 0.5
+
+
+def force_scale_mismatch(curve: MeasuredCurve, simulated, offset_N: float = 0.0) -> str:
+    """Said where every reading of a curve lies below :data:`SCALE_SHARE` of the force the fitted model carries
+    at the curve's first row (less its fitted offset: the knit at rest, or at its first strain): forces in
+    another unit (kN or mN read as N) or not divided per wale.  A blind probe's curve in kN under a header in N
+    (every reading 100 times below the knit's force at rest) got a confident ``unexplained`` with a stage named,
+    nothing said of the scale.  "" where the scales agree (or the model carries nothing there)."""
+    rest = float(np.asarray(simulated, float)[0]) - float(offset_N)
+    top = float(np.max(curve.force))
+    if not rest > 0 or top >= SCALE_SHARE * rest:
+        return ""
+    return (f"{Path(curve.source).name}: every reading (the largest {top:.3g} N per wale) is below the force the "
+            f"fitted knit carries at its first row ({rest:.3g} N per wale, {rest / max(top, 1e-300):.3g} times "
+            "more): a force in another unit (kN or mN read as N), or not divided per wale? Check the column's unit "
+            "and the wale count before reading the verdict")
 
 
 def slack_start(curve: MeasuredCurve, noise: CurveNoise, simulated, offset_N: float = 0.0) -> dict | None:
@@ -1832,6 +1878,10 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += (f"; its fit is at a bound of its search and leaves a misfit larger than the noise (chi2/dof "
                            f"{named.chi2_per_dof:.3g} > {SHORT_CHI2_PER_DOF:g}): the effect may stand in for a cause the "
                            "model cannot reach (free a property held fixed, such as B, to see), so it is not confirmed")
+    capped = capped_candidates(candidates, verdict.effect, setup.base)
+    if capped:
+        verdict.confident = False
+        verdict.reason += "; " + capped
     # an unexplained gap may be two curves that one knit cannot meet (said, the verdict unchanged)
     disagree = curves_disagree(curves, base_fit, data.weights, noise) if verdict.kind == "unexplained" else ""
     if disagree:
@@ -1843,6 +1893,11 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         if sl is not None:
             verdict.confident = False
             verdict.reason += "; " + sl["message"]
+    for i, c in enumerate(curves):
+        scale = force_scale_mismatch(c, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
+        if scale:
+            verdict.confident = False
+            verdict.reason += "; " + scale
     loaded = sum(int(np.sum(c.force > NEGATIVE_SIGMAS * nz.sd_at(c.force))) for c, nz in zip(curves, noise.curves))
     total = sum(len(c.force) for c in curves)
     if loaded < MIN_LOADED_ROWS:

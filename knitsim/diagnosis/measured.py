@@ -452,42 +452,59 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
 
 
-#: a row whose strain leaves its neighbours and returns by more than this many times the neighbouring
-#: steps, while its force stays in line with theirs, is a typo (:func:`refuse_strain_spikes`)
+#: a row (or a block of rows) whose strain leaves its neighbours and returns by more than this many times the
+#: neighbouring steps, while its force stays in line with theirs, is a typo (:func:`refuse_strain_spikes`)
 SPIKE_STEPS = 10.0
+#: the longest block of rows displaced in strain that :func:`refuse_strain_spikes` looks for
+SPIKE_BLOCK_ROWS = 8
 
 
 def refuse_strain_spikes(source: str, strain, force, tol: float, row) -> None:
-    """Refuse a row whose strain jumps away from both neighbours and back while its force does not move.
+    """Refuse a row, or a block of up to :data:`SPIKE_BLOCK_ROWS` rows, whose strain jumps away from its
+    neighbours and back while the force runs on in line.
 
-    A mistyped strain (0.843 for 0.343, 0.154 for 0.254; rows with two neighbours on each side) is read without cycle / direction columns as a
-    reversal and back: a made-up cycle (a blind probe: one such row gave an effect-free specimen a
-    confident ``yarn_extension``).  A real turn of the test changes the force with the strain; a real
-    excursion recorded by one row is as sparse as its neighbouring steps.  Refused where the strain
-    leaves and returns by more than :data:`SPIKE_STEPS` times the neighbouring steps (and the jitter
-    tolerance ``tol``), the neighbours agreeing within half the jump, and the force lies within the
-    noise of its neighbours' chord."""
+    A mistyped strain (0.843 for 0.343, 0.154 for 0.254; rows with two neighbours on each side) is read without
+    cycle / direction columns as a reversal and back: a made-up cycle (a blind probe: one such row gave an
+    effect-free specimen a confident ``yarn_extension``).  So is a block of rows shifted in strain (an
+    extensometer that slipped and caught again, rows pasted at another strain): a second probe's four rows
+    0.046 back, the force rising on through them, were read as an unloading and a second cycle, and the fit
+    collapsed to a confident ``unexplained``.  A real turn of the test changes the force with the strain; a
+    real excursion recorded by a few rows is as sparse as its neighbouring steps.  Refused where the strain
+    jumps by more than :data:`SPIKE_STEPS` times the neighbouring steps (and the jitter tolerance ``tol``) at
+    the block's start and back at its end, the block's own steps no larger than the neighbours' scale, the
+    strain after the block within half the jump of where it was before, and the block's forces within the
+    noise of the chord from the row before it to the row after it."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     n = len(s)
     if n < 3:
         return
     noise = 3.0 * _force_scale(f)
-    # (rows with two neighbours on each side: the steps around a row say what a jump is)
+    ds = np.diff(s)
+    # (a block with two neighbours on each side: the steps around it say what a jump is)
     for i in range(2, n - 2):
-        a, b = s[i] - s[i - 1], s[i + 1] - s[i]
-        jump = min(abs(a), abs(b))
-        if a * b >= 0 or abs(s[i + 1] - s[i - 1]) > 0.5 * jump:
-            continue
-        local = max(abs(s[i - 1] - s[i - 2]), abs(s[i + 2] - s[i + 1]), tol)
-        if jump <= SPIKE_STEPS * local:
-            continue
-        if abs(f[i] - 0.5 * (f[i - 1] + f[i + 1])) > noise + abs(f[i + 1] - f[i - 1]):
-            continue   # the force follows the strain: a turn of the test recorded by one row
-        raise KnitsimInputError(
-            f"{source}: row {row(i)}, column strain: {float(s[i]):g} jumps from {float(s[i - 1]):g} (row {row(i - 1)}) "
-            f"and back to {float(s[i + 1]):g} (row {row(i + 1)}), {jump / local:.0f} times the neighbouring steps, while "
-            f"the force stays in line ({float(f[i - 1]):g}, {float(f[i]):g}, {float(f[i + 1]):g} N): a typo or a logger "
-            "glitch, not a turn of the test.  Correct or delete the row")
+        a = ds[i - 1]                                   # the jump into the block (s[i] - s[i - 1])
+        for j in range(i + 1, min(i + SPIKE_BLOCK_ROWS, n - 2) + 1):
+            b = ds[j - 1]                               # the jump out of it (s[j] - s[j - 1])
+            jump = min(abs(a), abs(b))
+            if a * b >= 0 or abs(s[j] - s[i - 1]) > 0.5 * jump:
+                continue
+            inside = np.abs(ds[i:j - 1]).max() if j - 1 > i else 0.0
+            local = max(abs(ds[i - 2]), abs(ds[j]), inside, tol)
+            if jump <= SPIKE_STEPS * local:
+                continue
+            # the force of the block against the chord from the row before it to the row after it
+            chord = f[i - 1] + (f[j] - f[i - 1]) * (np.arange(i, j) - (i - 1)) / (j - (i - 1))
+            if np.max(np.abs(f[i:j] - chord)) > noise + abs(f[j] - f[i - 1]):
+                continue   # the force follows the strain: a turn of the test recorded by these rows
+            what = (f"row {row(i)}, column strain: {float(s[i]):g} jumps from {float(s[i - 1]):g} (row {row(i - 1)}) "
+                    f"and back to {float(s[j]):g} (row {row(j)})" if j == i + 1 else
+                    f"rows {row(i)}-{row(j - 1)}, column strain: {float(s[i]):g} .. {float(s[j - 1]):g} jump from "
+                    f"{float(s[i - 1]):g} (row {row(i - 1)}) and back to {float(s[j]):g} (row {row(j)})")
+            forces = ", ".join(f"{float(v):g}" for v in f[i - 1:j + 1])
+            raise KnitsimInputError(
+                f"{source}: {what}, {jump / local:.0f} times the neighbouring steps, while the force runs on in line "
+                f"({forces} N): a typo, a logger glitch or a slipped extensometer, not a turn of the test (a knit's "
+                f"force follows its strain back).  Correct or delete the row{'s' if j > i + 1 else ''}")
 
 
 #: rows at one strain that differ by more than this many times the curve's scatter between strains are

@@ -509,7 +509,7 @@ def render_report(result: dict) -> str:
     if pair:
         effects = " + ".join(str(x) for x in pair.get("effects") or [])
         out.append(_table(["effects", "parameters", "RMS [N]", "shrink", "score"],
-                          [[_e(effects), _params_text(pair.get("params"), pair.get("std_errors")),
+                          [[_e(effects), _params_text(pair.get("params"), pair.get("std_errors"), pair.get("at_bounds")),
                             _e(_fmt(pair.get("rms_N"))), _e(_pct(pair.get("shrink"))),
                             _e(_fmt(pair.get("score")))]], "pair"))
     else:

@@ -361,3 +361,24 @@ def test_the_fitted_offsets_of_a_lab_and_a_tared_pair_differ_by_the_tare(lab, ta
     ot = {f.name: f.offset_N for f in tared_fitted.fits}
     assert oa["knitA"] - ot["knitA"] == pytest.approx(0.2453, abs=2e-3)
     assert oa["knitB"] - ot["knitB"] == pytest.approx(0.1293 - 0.003, abs=2e-3)
+
+
+def test_the_zero_check_says_a_force_scale_where_the_knit_at_rest_outweighs_the_whole_file():
+    """A blind probe's file in kN under a header in N: the fitted knit carries 0.049 N at rest, 126 times the file's
+    largest reading (0.00039 N), and the zero check sent the user to zero = "tared".  Expected from the definition
+    (SpecimenFit.zero_check): where the gap at rest exceeds the file's peak no zero explains it, and the flag names
+    a scale (unit, wales, width); where it does not, a load cell zeroed with the knit mounted, the scale beside it."""
+    from knitsim.calibration.joint import SpecimenFit
+    from knitsim.cell.material import CellParams
+
+    def fit(peak, pretension, rest):
+        s = np.linspace(0.0, 0.5, 6)
+        return SpecimenFit("B", CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7), 1.0, s, peak * s / 0.5,
+                           peak * s / 0.5, np.full(6, 1e-5), None, None, None, 0.0, 0.0, 0.0, "ok",
+                           pretension_N=pretension, rest_N=rest, rest_sd_N=1e-6)
+    scale = fit(0.0003876, 0.04875, 0.0).zero_check
+    assert "more than the file's largest reading (0.0003876 N)" in scale and "kN or mN read as N" in scale
+    assert "tared" not in scale
+    zero = fit(2.0, 0.3, 0.0).zero_check
+    assert 'a load cell zeroed with the knit mounted? set [calibration] zero = "tared"' in zero
+    assert "force scale (unit, wales, width)" in zero

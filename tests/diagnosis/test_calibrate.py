@@ -127,6 +127,29 @@ def test_a_variable_pushed_to_its_bound_is_reported_at_it(curve):
     assert free["at_bounds"] == {} and _at_bounds_text(free, None, None) == ""
 
 
+def test_at_bounds_asks_whether_the_data_push_beyond_the_bound_not_only_how_near_it_ends():
+    """Hand-made linear least squares r = J x - y (the Gauss-Newton step is exact there).  Expected from the
+    definition: a variable near its bound whose unconstrained minimum lies beyond it is at it; one whose minimum
+    lies inside, 0.029 from a lower bound 0 of a range of 200 (a blind probe's compaction_k, 81 % of a real
+    knit's gap: the 0.1 % share alone called it "at its lower bound"), is an estimate; one the data do not
+    constrain (a zero column) is neither."""
+    from knitsim.diagnosis.calibrate import at_bounds
+    J = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [1.0, 1.0, 0.0]])
+    lo, hi = np.array([0.0, 0.0, 0.58]), np.array([200.0, 1.0, 1.1])
+
+    def fit_at(x, truth):                  # the residuals and Jacobian of the fit at x, the data made at truth
+        return J @ x - J @ truth, J
+    # variable 0: the minimum at -0.5 (below 0), held at 1e-9; variable 1 inside; variable 2 not constrained
+    assert at_bounds(["k", "m", "w"], np.array([1e-9, 0.5, 0.58]), lo, hi, *fit_at(np.array([1e-9, 0.5, 0.58]),
+                                                                                  np.array([-0.5, 0.5, 0.7]))) == {"k": "lower"}
+    # the minimum inside, at 0.029: an estimate, though within 0.1 % of the range from the bound
+    x = np.array([0.029, 0.5, 0.58])
+    assert at_bounds(["k", "m", "w"], x, lo, hi, *fit_at(x, x)) == {}
+    # the upper side: m's minimum at 1.3, held at its upper bound 1
+    x = np.array([50.0, 1.0 - 1e-12, 0.9])
+    assert at_bounds(["k", "m", "w"], x, lo, hi, *fit_at(x, np.array([50.0, 1.3, 0.9]))) == {"m": "upper"}
+
+
 @pytest.mark.parametrize("free", [("m", "d"), ("m", "d", "W0")])
 def test_default_bounds_of_d_keep_every_corner_a_knit(curve, monkeypatch, free):
     """The paper's E-glass knit has W0 = 4.4 mm < 8 d = 4.64 mm: the default range of d (up to 2 d) reached

@@ -594,9 +594,10 @@ def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_pa
 
 def test_the_console_says_a_parameter_at_its_bound_instead_of_an_error(tmp_path, capsys):
     """The same file (truth m 0.20), m bounded to [0.15, 0.19] and in_plane_width free (a single cycle that never
-    jams: the data do not constrain it, and it rests on its lower bound 0.58 = d): the baseline line says both
-    are at their bounds, never "+- 0" (a blind probe: the covariance's pseudo-inverse gives zero variance to a
-    direction the data do not constrain), and gives phi0 its error."""
+    jams: the data do not constrain it, and it rests on its lower bound 0.58 = d): the baseline line says m is at
+    its bound (the data push it beyond: calibrate.at_bounds) and in_plane_width not determined by the data (they
+    do not push it anywhere), never "+- 0" (a blind probe: the covariance's pseudo-inverse gives zero variance to
+    a direction the data do not constrain), and gives phi0 its error."""
     from pathlib import Path
     scene = tmp_path / "s.toml"
     scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
@@ -606,7 +607,7 @@ def test_the_console_says_a_parameter_at_its_bound_instead_of_an_error(tmp_path,
     csv = Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv"
     main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet"])
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("baseline:"))
-    assert "m = 0.19 (at its upper bound)" in line and "in_plane_width = 0.58 (at its lower bound)" in line, line
+    assert "m = 0.19 (at its upper bound)" in line and "in_plane_width = 0.58 (not determined by the data)" in line, line
     assert "+- 0," not in line and "+- 0)" not in line and re.search(r"phi0 = [0-9.]+ \+- [0-9.]+", line), line
 
 
@@ -648,3 +649,36 @@ def test_a_blind_probes_specimen_mounted_slack_is_not_confident_and_says_so():
     sl = r["curves"][0]["slack_start"]
     assert sl is not None and sl["strain_to"] == pytest.approx(0.016) and sl["rows"] == 5
     assert not r["verdict"]["confident"] and "mounted slack" in r["verdict"]["reason"]
+
+
+def test_a_rival_stopped_at_the_end_of_its_search_makes_the_verdict_not_confident():
+    """A blind probe's yarn extension of 0.5 1/N (ten times the end of ext_c's search, 0.05) was given p 0.000
+    beside a confident yarn_compaction.  Expected from the definition (capped_candidates): a candidate other than
+    the named one whose effect variable rests at the end of its search, away from where the effect vanishes, is
+    said; one resting where its effect vanishes (compaction_k = 0, the baseline) is not, nor is the named effect."""
+    from knitsim.cell.material import CellParams
+    from knitsim.diagnosis.diagnose import CandidateResult, capped_candidates
+    base = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2)
+    ext = CandidateResult("yarn_extension", "", True, params={"m": 0.99, "ext_c": 0.05}, at_bounds={"ext_c": "upper"})
+    comp = CandidateResult("yarn_compaction", "", True, params={"compaction_k": 0.0}, at_bounds={"compaction_k": "lower"})
+    text = capped_candidates([ext, comp], "bending_hysteresis", base)
+    assert text.startswith("yarn_extension's fit stopped at the upper end of its search (ext_c = 0.05 1/N)")
+    assert "compaction" not in text and "does not rule it out" in text
+    assert capped_candidates([ext, comp], "yarn_extension", base) == ""
+    assert capped_candidates([comp], None, base) == ""
+
+
+def test_a_curve_below_the_knits_force_at_rest_is_said_to_be_on_another_scale():
+    """A blind probe's curve in kN under a header in N got a confident "unexplained".  Expected from the definition
+    (force_scale_mismatch): every reading below half the fitted model's force at the first row (less its offset)
+    is said, naming the largest reading, the model's force and their ratio; a curve that rises above it is not."""
+    from types import SimpleNamespace
+
+    from knitsim.diagnosis.diagnose import force_scale_mismatch
+    kn = SimpleNamespace(force=np.array([2.2e-5, 9e-5, 1.83e-4]), source="/lab/E_kN_as_N.csv")
+    text = force_scale_mismatch(kn, np.array([0.0216, 0.03, 0.05]))
+    assert text.startswith("E_kN_as_N.csv: every reading (the largest 0.000183 N per wale) is below the force")
+    assert "(0.0216 N per wale, 118 times more)" in text and "kN or mN read as N" in text
+    assert force_scale_mismatch(kn, np.array([0.0216, 0.03, 0.05]), offset_N=0.0215) == ""
+    ok = SimpleNamespace(force=np.array([0.02, 0.5, 2.0]), source="ok.csv")
+    assert force_scale_mismatch(ok, np.array([0.0216, 0.6, 2.1])) == ""

@@ -279,6 +279,29 @@ def test_a_mistyped_strain_is_refused_not_read_as_a_cycle(tmp_path, typo):
     assert "typo" in msg and "Correct or delete the row" in msg
 
 
+def test_a_block_of_rows_shifted_back_in_strain_is_refused_not_read_as_a_cycle(tmp_path):
+    # a blind probe: four rows of an effect-free pull moved 0.046 back in strain (a slipped extensometer), the
+    # force rising on through them, no direction column: read as an unloading and a second cycle, and the fit
+    # collapsed (m 0.016 for 0.2) to a confident "unexplained".  Expected from the definition: the strain jumps
+    # back by 15 steps at row k and forward again after four rows, the block's steps the neighbours', its force
+    # within the noise of the chord -> refused naming the rows, the strains and the forces
+    rows = _dense_pull()
+    k = 30
+    for j in range(k, k + 4):
+        rows[j] = (round(rows[j][0] - 0.08, 3), rows[j][1])
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(_write(tmp_path, _csv(rows)))
+    msg = str(e.value)
+    assert f"rows {k + 2}-{k + 5}, column strain: {rows[k][0]:g} .. {rows[k + 3][0]:g} jump from {rows[k - 1][0]:g}" in msg
+    assert "slipped extensometer" in msg and "Correct or delete the rows" in msg
+    # the same rows where the force follows the strain back (down to 0.02 N and up again): a turn of the test
+    # recorded sparsely, read as the unloading and the reloading of a second cycle
+    for j in range(k, k + 4):
+        rows[j] = (rows[j][0], 0.02 + 0.001 * (j - k))
+    c = read_measured_curve(_write(tmp_path, _csv(rows), "follows.csv"))
+    assert list(np.unique(c.cycle)) == [1, 2]
+
+
 def test_a_turn_recorded_by_one_row_whose_force_follows_is_a_cycle(tmp_path):
     # a logger that wrote one row at the bottom of an unloading (the force fell to zero there): a real
     # excursion, read as the unloading and the reloading of a second cycle
