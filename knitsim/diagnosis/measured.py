@@ -590,8 +590,11 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
         going back within a branch beyond the jitter tolerance, bad direction /
         cycle / rate; the message names the file, row and column.
     """
-    cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"),
-                            aliases=LAB_ALIASES)
+    try:
+        cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"),
+                                aliases=LAB_ALIASES)
+    except KnitsimInputError as exc:
+        raise KnitsimInputError(str(exc) + _total_force_hint(path, str(exc))) from None
     cols = drop_copied_rows(cols)
     refuse_few_rows(path, cols["_row"])
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
@@ -600,6 +603,24 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
         curve = replace(curve, notes=notes_of(cols))
     check_response(curve)
     return curve
+
+
+def _total_force_hint(path, message: str) -> str:
+    """Where a file lacks force_per_wale_N but holds a total force (``load_N`` / ``force_N``, or a machine's
+    name for one with its unit): what to do with it ("" otherwise).  A blind probe's Bluehill export (``Load``
+    over ``(N)``) was refused without a word on the force it had."""
+    if "missing column" not in message or "force_per_wale_N" not in message:
+        return ""
+    try:
+        cols = read_csv_columns(path, [], ("load_N", "force_N"), numeric=(), aliases=LAB_ALIASES)
+    except KnitsimInputError:
+        return ""
+    total = next((k for k in ("load_N", "force_N") if k in cols), None)
+    if total is None:
+        return ""
+    return (f"; the file holds a total force (read as {total}): diagnose compares the force per wale, so divide it "
+            "by the specimen's wale count into a column force_per_wale_N, or run knitsim calibrate, which reads "
+            "total forces with the specimen's wales or width")
 
 
 def program_for_curve(curve: MeasuredCurve, max_increment: float = 0.005) -> tuple[LoadProgram, np.ndarray]:

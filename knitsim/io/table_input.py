@@ -333,6 +333,24 @@ def _find_header(lines: list[str], required: list[str], optional: list[str], ali
     return None
 
 
+def _likeliest_header(lines: list[str], names: list[str], aliases: dict) -> int | None:
+    """Where no line names every required column: the first non-comment line naming most of ``names`` or of the
+    machines' names (``aliases``, whatever their units), else the first non-comment line, so that the refusal
+    shows the header the file has (a blind probe's Bluehill export was refused as having found its preamble's
+    ``Results Table 1``), or None for a file of blank lines and comments."""
+    known = {_key(c) for c in names} | {a for alts in aliases.values() for a in alts}
+    best, best_n = None, 0
+    for i, ln in enumerate(lines):
+        if not ln.strip() or _is_comment(ln):
+            continue
+        if best is None:
+            best = i
+        n = sum(_name_and_unit(c)[0] in known for c in _split(ln, _delimiter(ln)))
+        if n > best_n:
+            best, best_n = i, n
+    return best
+
+
 def has_columns(path: str | Path, names: Iterable[str]) -> bool:
     """Whether a line of the file names every column of ``names``, as :func:`read_csv_columns` finds its
     header (any case, after a preamble or ``#`` comments, in any of the encodings it reads)."""
@@ -384,8 +402,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     required, optional = list(required), list(optional)
     aliases = aliases or {}
     h = _find_header(lines, required, optional, aliases)
-    if h is None:      # no line names the columns: read the first non-comment line as the header
-        h = next((i for i, ln in enumerate(lines) if ln.strip() and not _is_comment(ln)), None)
+    if h is None:      # no line names the columns: the line naming most of them (or any machine's) is the header
+        h = _likeliest_header(lines, required + optional, aliases)
         if h is None:
             raise KnitsimInputError(f"{path}: no header line (only blank lines and # comments)")
     delim = _delimiter(lines[h])

@@ -457,3 +457,16 @@ def test_calibrate_refuses_two_strain_or_two_force_columns_and_says_why_a_machin
     with pytest.raises(KnitsimInputError, match=r"no force column .*'Load \(kN\)' is not read as load_N: 'kN' is "
                                                 r"not its unit"):
         read_table(tmp_path / "k.csv")
+
+
+def test_a_machine_export_with_a_total_force_is_refused_showing_its_header_and_what_to_do(tmp_path):
+    # a blind probe's Bluehill export (a preamble, then Time / Extension / Load / Tensile strain over a units row)
+    # was refused as "found: Results Table 1" (the preamble's first line), nothing said of the total force it had
+    text = ('"Results Table 1"\n"Specimen label","EG-05"\n\n"Time","Extension","Load","Tensile strain"\n'
+            '"(s)","(mm)","(N)","(%)"\n' + "".join(f"{0.5 * k:.2f},{0.19 * k:.4f},{0.5 + 0.3 * k:.5f},{0.38 * k:.4f}\n"
+                                                 for k in range(12)))
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(_write(tmp_path, text, "bluehill.csv"))
+    msg = str(e.value)
+    assert "missing column(s) force_per_wale_N (found: Time, Extension, Load, Tensile strain;" in msg
+    assert "the file holds a total force (read as load_N)" in msg and "knitsim calibrate" in msg

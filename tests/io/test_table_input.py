@@ -230,12 +230,16 @@ def test_a_file_without_the_columns_is_refused_listing_what_was_found(tmp_path):
                             "read as semicolon-separated)")
 
 
-def test_a_preamble_without_the_columns_lists_the_first_line(tmp_path):
-    # No line holds both names: the first (non-comment) line is read as the header and listed.
+def test_a_preamble_without_the_columns_lists_the_line_naming_most_of_them(tmp_path):
+    # No line holds both names: the line naming most of them is read as the header and listed (a blind probe's
+    # Bluehill export was refused as having found its preamble's first line); with none named, the first line
     text = "Specimen: A3\nstrain,force\n0,0.1\n"
     p = _write(tmp_path, text)
-    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) strain, force_per_wale_N \(found: Specimen: A3; "
+    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) force_per_wale_N \(found: strain, force; "
                                                 r"read as comma-separated\)"):
+        read_csv_columns(p, REQ)
+    p = _write(tmp_path, "Specimen: A3\neps,F\n0,0.1\n", "none.csv")
+    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) strain, force_per_wale_N \(found: Specimen: A3; "):
         read_csv_columns(p, REQ)
 
 
