@@ -1550,20 +1550,21 @@ def pressed_and_short(named: CandidateResult, fit: dict | None) -> bool:
         named.chi2_per_dof is not None and named.chi2_per_dof > SHORT_CHI2_PER_DOF)
 
 
-def capped_candidates(candidates: list, named: str | None, base: CellParams) -> str:
-    """Said where another candidate's fit stopped at the end of its effect's search (a strength variable at a
-    bound other than where the effect vanishes, :func:`knitsim.diagnosis.calibrate.at_bounds`): the data may
-    ask for more of that effect than was searched, so its low probability does not rule it out, and the verdict
-    is not confident ("" where none did).  A blind probe's yarn extension of 0.5 1/N, ten times the end of
-    ext_c's search, was given p 0.000 beside a confident ``yarn_compaction``."""
+def capped_candidates(candidates: list, named: str | None) -> str:
+    """Said where another candidate's fit stopped at the end of its effect's search beyond which lies more of
+    the effect (``Variable.more``; :func:`knitsim.diagnosis.calibrate.at_bounds`): the data may ask for more of
+    that effect than was searched, so its low probability does not rule it out, and the verdict is not
+    confident ("" where none did).  A blind probe's yarn extension of 0.5 1/N, ten times the end of ext_c's
+    search, was given p 0.000 beside a confident ``yarn_compaction``.  The other ends (where the effect
+    vanishes: ext_c = 0, the Coulomb end of the Dahl stiffness) say nothing: effect-free specimens of the
+    blind study rest there."""
     parts = []
     for c in candidates:
         if c.effect == named or not c.at_bounds or c.effect not in EFFECT_SPECS:
             continue
         for v in EFFECT_SPECS[c.effect].variables:
             side, end = c.at_bounds.get(v.name), c.params.get(v.name)
-            # (the end where the effect vanishes, its start, is the baseline: no more of it was asked for)
-            if side is None or end is None or math.isclose(end, v.start(base), rel_tol=1e-6, abs_tol=1e-9):
+            if side not in v.more or end is None:
                 continue
             unit = "" if v.unit in ("", "-") else " " + v.unit
             parts.append(f"{c.effect}'s fit stopped at the {side} end of its search ({v.name} = {end:.4g}{unit})")
@@ -1878,7 +1879,7 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += (f"; its fit is at a bound of its search and leaves a misfit larger than the noise (chi2/dof "
                            f"{named.chi2_per_dof:.3g} > {SHORT_CHI2_PER_DOF:g}): the effect may stand in for a cause the "
                            "model cannot reach (free a property held fixed, such as B, to see), so it is not confirmed")
-    capped = capped_candidates(candidates, verdict.effect, setup.base)
+    capped = capped_candidates(candidates, verdict.effect)
     if capped:
         verdict.confident = False
         verdict.reason += "; " + capped

@@ -44,6 +44,11 @@ class Variable:
     start: Callable[[CellParams], float]
     unit: str
     doc: str
+    #: the ends of its search beyond which lies more of the effect ("lower", "upper"): a fit stopped there may
+    #: be short of the data (:func:`knitsim.diagnosis.diagnose.capped_candidates`); the other end is where the
+    #: effect vanishes (0 of a compliance; Coulomb switching, the sharp end of the Dahl stiffness) or, for m's
+    #: replacement mu_k, not the effect's strength
+    more: tuple[str, ...] = ()
 
 
 def _mu_for_m(m: float, theta: float) -> float:
@@ -142,7 +147,7 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
     "dahl_transition": EffectSpec(
         "dahl_transition",
         (Variable("log10_dahl_sigma", (-0.5, 3.0), lambda p: 2.5, "log10(1/mm)",
-                  "Dahl stiffness of tan(phi) per unit slip (Dahl 1976)"),),
+                  "Dahl stiffness of tan(phi) per unit slip (Dahl 1976)", more=("lower",)),),
         doc="Dahl friction state instead of Coulomb switching (smooth stick-slip)",
         extra_starts=({"log10_dahl_sigma": 1.0}, {"log10_dahl_sigma": 0.4}), nests_baseline=False),
     "coiling_angle_friction": EffectSpec(
@@ -156,29 +161,31 @@ EFFECT_SPECS: dict[str, EffectSpec] = {
         profile=(0.7, 0.85, 1.0, 1.15, 1.3)),
     "normal_load_friction": EffectSpec(
         "normal_load_friction",
-        (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5"),),
+        (Variable("load_n", (0.4, 1.6), lambda p: 1.0, "-", "normal-load exponent n of eq 5", more=("lower", "upper")),),
         doc="mu_k = b Fn^(n-1) at the crossing (eq 5)",
         # Table 3: n < 1 (0.948 E-glass, 0.909 basalt); from n = 1 the fit has to cross a valley of d and L
         extra_starts=({"load_n": 0.8}, {"load_n": 0.65})),
     "velocity_friction": EffectSpec(
         "velocity_friction",
-        (Variable("rate_p", (-0.4, 0.4), lambda p: 0.0, "-", "velocity exponent p of eq 5"),),
+        (Variable("rate_p", (-0.4, 0.4), lambda p: 0.0, "-", "velocity exponent p of eq 5", more=("lower", "upper")),),
         min_rates=2, doc="mu_k = b V^p with V from the test rate (eq 5)",
         extra_starts=({"rate_p": 0.1},)),  # Table 3: p > 0 (0.025 E-glass)
     "yarn_compaction": EffectSpec(
         "yarn_compaction",
-        (Variable("compaction_k", (0.0, 200.0), lambda p: 0.0, "1/N", "transverse compliance at the crossing"),),
+        (Variable("compaction_k", (0.0, 200.0), lambda p: 0.0, "1/N", "transverse compliance at the crossing",
+                  more=("upper",)),),
         doc="yarn diameter at the crossing shrinks with the contact load; jamming at W = 4 d_eff",
         # a baseline may have absorbed compaction by a thinner yarn: from k = 0 the fit must raise d and k together
         extra_starts=({"compaction_k": 20.0},)),
     "bending_hysteresis": EffectSpec(
         "bending_hysteresis",
-        (Variable("bend_h", (0.0, 0.6), lambda p: 0.0, "-", "saturated friction moment / elastic moment"),),
+        (Variable("bend_h", (0.0, 0.6), lambda p: 0.0, "-", "saturated friction moment / elastic moment",
+                  more=("upper",)),),
         doc="friction inside the yarn, a Dahl element on the bending moment",
         extra_starts=({"bend_h": 0.2}, {"bend_h": 0.45})),
     "yarn_extension": EffectSpec(
         "yarn_extension",
-        (Variable("ext_c", (0.0, 0.05), lambda p: 0.0, "1/N", "tensile compliance 1/(EA)"),),
+        (Variable("ext_c", (0.0, 0.05), lambda p: 0.0, "1/N", "tensile compliance 1/(EA)", more=("upper",)),),
         doc="finite tensile stiffness: L grows with the yarn tension",
         extra_starts=({"ext_c": 0.01},)),
 }

@@ -655,17 +655,23 @@ def test_a_rival_stopped_at_the_end_of_its_search_makes_the_verdict_not_confiden
     """A blind probe's yarn extension of 0.5 1/N (ten times the end of ext_c's search, 0.05) was given p 0.000
     beside a confident yarn_compaction.  Expected from the definition (capped_candidates): a candidate other than
     the named one whose effect variable rests at the end of its search, away from where the effect vanishes, is
-    said; one resting where its effect vanishes (compaction_k = 0, the baseline) is not, nor is the named effect."""
-    from knitsim.cell.material import CellParams
+    said; one resting where its effect vanishes (compaction_k near 0, the Coulomb end of the Dahl stiffness:
+    effect-free specimens of the blind study, cases 0-2 and 13 of seed 0, rest there) is not, nor is the named
+    effect."""
     from knitsim.diagnosis.diagnose import CandidateResult, capped_candidates
-    base = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2)
     ext = CandidateResult("yarn_extension", "", True, params={"m": 0.99, "ext_c": 0.05}, at_bounds={"ext_c": "upper"})
-    comp = CandidateResult("yarn_compaction", "", True, params={"compaction_k": 0.0}, at_bounds={"compaction_k": "lower"})
-    text = capped_candidates([ext, comp], "bending_hysteresis", base)
+    comp = CandidateResult("yarn_compaction", "", True, params={"compaction_k": 1.3e-5},
+                           at_bounds={"compaction_k": "lower"})
+    dahl = CandidateResult("dahl_transition", "", True, params={"log10_dahl_sigma": 3.0},
+                           at_bounds={"log10_dahl_sigma": "upper"})
+    text = capped_candidates([ext, comp, dahl], "bending_hysteresis")
     assert text.startswith("yarn_extension's fit stopped at the upper end of its search (ext_c = 0.05 1/N)")
-    assert "compaction" not in text and "does not rule it out" in text
-    assert capped_candidates([ext, comp], "yarn_extension", base) == ""
-    assert capped_candidates([comp], None, base) == ""
+    assert "compaction" not in text and "dahl" not in text and "does not rule it out" in text
+    assert capped_candidates([ext, comp], "yarn_extension") == ""
+    assert capped_candidates([comp, dahl], None) == ""
+    soft = CandidateResult("dahl_transition", "", True, params={"log10_dahl_sigma": -0.5},
+                           at_bounds={"log10_dahl_sigma": "lower"})
+    assert "dahl_transition's fit stopped at the lower end" in capped_candidates([soft], "none")
 
 
 def test_a_curve_below_the_knits_force_at_rest_is_said_to_be_on_another_scale():
