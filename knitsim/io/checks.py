@@ -420,7 +420,8 @@ def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarra
 
 #: a cell's force per wale within this fraction of its force_cap_N is at the cap: a column whose cells would
 #: cross the cap does not converge and keeps its last committed state, one trial step below the cap (0.25 %
-#: below it in a 3 x 4 E-glass patch pulled to grip strain 1.2 with force_cap_N = 10: 9.975 N per wale)
+#: below it in a 3 x 4 E-glass patch pulled to grip strain 1.2 with force_cap_N = 10: 9.975 N per wale); the
+#: coupling stops such a column there, its cells status force_cap (knitsim.patch.coupling.PatchSolver.step)
 FORCE_CAP_RTOL = 0.01
 
 

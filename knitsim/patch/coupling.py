@@ -124,10 +124,11 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..cell.history import STATUS_OK
+from ..cell.history import STATUS_FORCE_CAP, STATUS_OK
 from ..cell.quantities import CODE
 from ..cell.stages import MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
+from ..io.checks import FORCE_CAP_RTOL
 from ..kernels.branch_points import COLUMN_FORCE_MAX, TANGENT_MAX, TANGENT_MIN
 from ..kernels.branch_points import SIZE as DEVICE_BRANCH_SIZE
 from .model import Grouping
@@ -298,6 +299,13 @@ class WarpBackend:
         self._warm = same_branch if mask is None else np.where(mask, same_branch, self._warm)
         return t
 
+    def stop_at_force_cap(self, mask: np.ndarray) -> None:
+        """Stop the groups in ``mask`` at their committed state, at their force cap: status force_cap, as a
+        cell the step stopped there (:meth:`PatchSolver.step`: a column of unlike cells that cannot pass it)."""
+        status = self.s0.status.numpy().copy()
+        status[np.asarray(mask, bool)] = STATUS_FORCE_CAP
+        self.s0.status.assign(status)
+
     def _select(self, mask, src, dst):
         self.wp.launch(self._select_kernel, dim=self.n, inputs=[mask, src.arrays(), dst.arrays()], device=self.device)
 
@@ -435,6 +443,13 @@ class ReferenceBackend:
             len(out), cells, np.array([e["kind"] == "slide" for e in ends], bool),
             np.array([e["C"] for e in ends], float), np.array([e.get("F", np.nan) for e in ends], float), t)
         return t
+
+    def stop_at_force_cap(self, mask: np.ndarray) -> None:
+        """Stop the groups in ``mask`` at their committed state, at their force cap (as :class:`WarpBackend`)."""
+        for g in np.flatnonzero(mask):
+            st = self.s0[g].copy()
+            st.status, st.reason = STATUS_FORCE_CAP, "force per wale reached force_cap_N"
+            self.s0[g] = st
 
     def begin_increment(self) -> None:
         """Start an increment: every group's result starts as its committed state."""
@@ -812,6 +827,9 @@ class PatchSolver:
         self.backend = make_backend(engine, grouping, device, max_halvings)
         self.force_tol, self.force_rtol, self.max_iterations = force_tol, force_rtol, int(max_iterations)
         self.C0 = np.asarray(grouping.cells["C0"], dtype=np.float64)
+        #: each group's force cap per wale [N]
+        self.force_cap = np.broadcast_to(np.asarray(grouping.cells["force_cap_N"], dtype=np.float64),
+                                         self.C0.shape).copy()
         self.col = grouping.group_column
         self.n_cls = grouping.n_classes
         self.cnt = grouping.group_count.astype(np.float64)
@@ -901,8 +919,8 @@ class PatchSolver:
         u_single = np.where(self.rest[col] == self.ref_length, float(grip_strain), u / (cnt * C0))
         be.begin_increment()
         u_cls = np.full(self.n_cls, u)
-        done_cls, iters, jump_cls, last_failed = self._solve(u_cls, u_single, direction, increment, active_cls,
-                                                             give_up=self.sub_increments > 1)
+        done_cls, iters, jump_cls, last_failed, last_capped = self._solve(u_cls, u_single, direction, increment,
+                                                                          active_cls, give_up=self.sub_increments > 1)
         retry = active_cls & ~done_cls & ~single_cls
         self.cut_columns = retry.copy()
         if np.any(retry) and self.sub_increments > 1:
@@ -914,10 +932,11 @@ class PatchSolver:
             for k in range(1, self.sub_increments + 1):
                 be.begin_increment()
                 u_k = u0 + (u - u0) * k / self.sub_increments
-                d_k, it_k, j_k, lf_k = self._solve(u_k, u_single, direction, increment, retry, history=False)
+                d_k, it_k, j_k, lf_k, lc_k = self._solve(u_k, u_single, direction, increment, retry, history=False)
                 iters += it_k
                 jump_cls = np.where(retry, j_k, jump_cls)
                 last_failed = np.where(retry, lf_k, last_failed)
+                last_capped = np.where(retry, lc_k, last_capped)
                 ok = retry & d_k
                 if k < self.sub_increments:
                     self.cells = be.end_increment()
@@ -935,6 +954,15 @@ class PatchSolver:
         status = np.where(stopped_cls, COL_STOPPED, COL_OK)
         status = np.where(not_conv, COL_NOT_CONVERGED, status)
         self.cells = c = be.end_increment()
+        # a column of unlike cells that cannot pass a cell's force cap (its last trial stopped a cell there) and
+        # holds within FORCE_CAP_RTOL of it stops there, as a uniform column's cell stops at its cap: before, it
+        # held the cap while the grip moved on and resumed on the way back, reporting later cycles the knit never
+        # ran (a blind probe's E-glass / basalt column; exit 0, no program_cut_by_force_cap)
+        at_cap = (c["F"] >= (1.0 - FORCE_CAP_RTOL) * self.force_cap) & (not_conv & last_capped)[col]
+        if np.any(at_cap):
+            be.stop_at_force_cap(at_cap)
+            self.cells = c = be.committed()
+            status = np.where(self._colmax(at_cap.astype(float), 0.0) > 0, COL_STOPPED, status)
         self.u_prev = np.where(active_cls, u, self.u_prev)
         stopped_now = self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0
         status = np.where(stopped_now & (status == COL_OK), COL_STOPPED, status)
@@ -1013,6 +1041,7 @@ class PatchSolver:
         C_last, F_last = c["C"].copy(), c["F"].copy()     # each cell's last good trial
         last = None
         prev_failed = np.zeros(self.n_cls, bool)
+        prev_capped = np.zeros(self.n_cls, bool)
         for it in range(self.max_iterations):
             # a column whose last trial failed in a cell after 8 trials gives up early when it can still
             # be cut into sub-increments (step)
@@ -1046,6 +1075,8 @@ class PatchSolver:
             slack = t["stage"] == int(Stage.SLACK)
             failed = t["status"] != STATUS_OK
             prev_failed = np.where(live, self._colmax((failed & g_live).astype(float), 0.0) > 0, prev_failed)
+            capped = (t["status"] == STATUS_FORCE_CAP) & g_live
+            prev_capped = np.where(live, self._colmax(capped.astype(float), 0.0) > 0, prev_capped)
             iters[live] += 1
             use = g_live & ~failed
             # each good trial's own tangent (before the converged columns are accepted: the backend
@@ -1117,9 +1148,9 @@ class PatchSolver:
             fail_lo = np.where(good_lo <= fail_lo, -np.inf, fail_lo)
             pts.C_max = np.minimum(dir_max, np.where(np.isfinite(fail_hi), 0.5 * (good_hi + fail_hi), np.inf))
             pts.C_min = np.maximum(dir_min, np.where(np.isfinite(fail_lo), 0.5 * (good_lo + fail_lo), -np.inf))
-        # whether a cell of the column failed in the column's last trial
+        # whether a cell of the column failed in the column's last trial (and whether one stopped at its cap)
         last_failed = prev_failed if last is not None else np.zeros(self.n_cls, bool)
-        return done_cls & active_cls, iters, jump_cls, last_failed
+        return done_cls & active_cls, iters, jump_cls, last_failed, prev_capped
 
     def _solve_columns(self, pts: BranchPoints, u: float, F_guess: np.ndarray,
                        live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

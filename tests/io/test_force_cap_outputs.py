@@ -267,3 +267,26 @@ def test_a_series_column_of_unequal_rest_forces_is_said_to_be_unbalanced_at_rest
     hu = run_patch(PatchModel.uniform(P, 2, 2), monotonic(0.1, 0.05))
     su = patch_summary(hu, hu.info["ref_length_mm"], model=PatchModel.uniform(P, 2, 2))
     assert not [w for w in su["warnings"] if w["code"] == "rest_state_unbalanced"]
+
+
+def test_a_column_of_unlike_cells_stops_at_the_cap_as_a_uniform_one_does():
+    """A blind probe's E-glass / basalt column (and a phi0 gradient) at a small cap: the column could not pass the
+    cap, held it not converged while the grip went on to the upper strain and back, then resumed, and the run
+    reported a cycle 2 (peak, residual strain, hysteresis) the knit never ran, with exit 0 and no
+    program_cut_by_force_cap.  Expected from the uniform column's behaviour (the test above): the column stops at
+    the cap, its cells status force_cap, the program cut there with the same warning, cycle 2 not given."""
+    uniform = PatchModel.uniform(P, 2, 1)
+    fields = dict(uniform.fields, phi0=np.array([[0.0], [0.15]]))   # two unlike cells in series (1 wale x 2 courses)
+    model = PatchModel(2, 1, fields, uniform.rules)
+    h = run_patch(model, cycles(0.1, 0.3, 2, 0.02))
+    status = np.asarray(h.groups["status"])
+    k = int(np.flatnonzero((status == STATUS_FORCE_CAP).any(axis=1))[0])
+    assert (status[k:] == STATUS_FORCE_CAP).all() and (status[:k] == STATUS_OK).all()
+    # stopped within FORCE_CAP_RTOL of the cap, on cycle 1's loading, and held there to the end
+    F = np.asarray(h.groups["F"])
+    assert np.all(F[k] >= (1.0 - FORCE_CAP_RTOL) * 0.1) and np.all(F[k:] == F[k])
+    assert int(h.cycle[k]) == 1 and int(h.direction[k]) == 1
+    s = patch_summary(h, h.info["ref_length_mm"], model=model)
+    (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
+    assert cut["message"].startswith("1 of 1 wale column(s) stopped at the force cap (0.1 N per wale)")
+    assert [c["cycle"] for c in s["cycles"]] == [1] and s["cycles"][0]["peak_is_force_cap"]
