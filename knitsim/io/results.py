@@ -188,6 +188,17 @@ def rule_meaning(key: str, value, friction: str) -> str:
     return RULE_MEANINGS.get(key, {}).get(str(value), "")
 
 
+#: rule sets listed in a cell plot's legend (the others counted)
+RULE_SETS_SHOWN = 6
+
+
+def _rules_label(p) -> str:
+    """A cell's rules in a few words, as the plot's legend gives them (Dahl: no unloading or reload rule, which
+    it does not use: :func:`rule_meaning`)."""
+    rules = f"unload {p.unloading_rule}, reload {p.reload_rule}, " if p.friction != "dahl" else ""
+    return f"{p.friction}, {rules}{p.jamming_criterion}, cap {p.force_cap_N:g} N"
+
+
 def rules_of(params) -> dict:
     """The rules a cell ran with, each with its meaning."""
     out = {}
@@ -420,11 +431,17 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
     if stops["force_cap"]:
         handles.append(Line2D([], [], ls="", marker="v", color="#ff7f0e", markeredgecolor="black",
                               label="stopped at the force cap"))
-    rules = sorted({(p.friction, p.unloading_rule, p.reload_rule, p.jamming_criterion, p.force_cap_N)
-                    for p in h.params})
-    for fr, un, re_, jam, cap in rules[:3]:
-        handles.append(Line2D([], [], color="none",
-                              label=f"{fr}, unload {un}, reload {re_}, {jam}, cap {cap:g} N"))
+    # the rule sets, each with its cells (a blind probe: three of five shown, none tied to a curve, and Dahl cells
+    # labelled with the unloading and reload rules they do not use)
+    sets: dict[str, list[str]] = {}
+    for c, p in enumerate(h.params):
+        sets.setdefault(_rules_label(p), []).append(labels[c])
+    for text, cells in list(sets.items())[:RULE_SETS_SHOWN]:
+        who = ", ".join(cells[:3]) + (f" and {len(cells) - 3} more" if len(cells) > 3 else "")
+        handles.append(Line2D([], [], color="none", label=(f"{who}: {text}" if len(sets) > 1 else text)))
+    if len(sets) > RULE_SETS_SHOWN:
+        handles.append(Line2D([], [], color="none", label=f"... {len(sets) - RULE_SETS_SHOWN} more rule sets "
+                                                           "(summary.json: each cell's rules)"))
     ax.legend(handles=handles, fontsize=7, loc="upper left")
     ax.set_xlabel("strain of the course length, C/C0 - 1")
     ax.set_ylabel("force per wale [N]")

@@ -224,3 +224,29 @@ def test_a_first_cycle_that_unloads_from_rest_peaks_at_the_rest_state():
     h = run_batch([P], piecewise_linear([-0.05], 0.01))
     c = summarise(h)["cells"][0]["cycles"][0]
     assert c["peak_force_per_wale_N"] == h.rest["F"][0] > 0.01 and c["strain_at_peak"] == 0.0
+
+
+def test_the_cell_plot_legend_ties_every_rule_set_to_its_cells_and_gives_dahl_only_the_rules_it_uses(monkeypatch):
+    """A blind probe's five rule sets: the legend showed three, tied to no curve, and labelled the Dahl cell with an
+    unloading and a reload rule that Dahl does not use (rule_meaning says so in the summary).  Expected: one line
+    per rule set naming its cells; the Dahl line without them."""
+    import matplotlib.axes
+
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import cycles
+    from knitsim.io.results import plot_png
+    base = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.3, force_cap_N=20.0)
+    cells = [base, base.replace(unloading_rule="hong_constant_t"), base.replace(reload_rule="freeze_rn"),
+             base.replace(jamming_criterion="head_gap", in_plane_width=0.7), base.replace(friction="dahl", dahl_sigma=50.0)]
+    seen = []
+    real = matplotlib.axes.Axes.legend
+
+    def legend(self, *args, handles=None, **kw):
+        seen.extend(h.get_label() for h in handles or [])
+        return real(self, *args, handles=handles, **kw)
+    monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
+    plot_png(run_batch(cells, cycles(0.1, 0.3, 1, 0.05)), labels=["a", "b", "c", "d", "e"])
+    rules = [s for s in seen if ", cap 20 N" in s]
+    assert len(rules) == 5 and [r.split(":")[0] for r in rules] == ["a", "b", "c", "d", "e"]
+    assert rules[4] == "e: dahl, w_4d, cap 20 N"
+    assert rules[1] == "b: coulomb, unload hong_constant_t, reload mirror_unloading, w_4d, cap 20 N"
