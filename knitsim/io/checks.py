@@ -701,7 +701,8 @@ def reloads_above_first_loading(strain, force, cycle, direction, unit: str = "N 
         out.append(ResultWarning(
             "reload_above_first_loading",
             f"cycle {int(k)} reloads above the first loading: {f[r]:.3g} {unit} at {strain_name} {s[r]:.4g}, "
-            f"{f[r] / f_first[j]:.1f} times the {f_first[j]:.3g} {unit} the knit carried there when first loaded "
+            + (f"{f[r] / f_first[j]:.1f} times the " if f_first[j] > 0 else "against the ")
+            + f"{f_first[j]:.3g} {unit} the knit carried there when first loaded "
             f"(cycle {c_first}), over {span}: friction at the crossing only resists the slip, so a knit reloads "
             f"at or below its first loading; the cause is the model's: Table 4's loading stages hold a force (Rn, or "
             f"T after a mirror reload) at its value where the stage began, and this reload began from a state of "

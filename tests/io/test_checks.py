@@ -260,6 +260,10 @@ def test_a_reload_above_the_first_loading_is_flagged_and_a_frictional_assemblys_
     assert reloads_above_first_loading(s0, f0, c0, d0) == []
     f0[-1] = 0.03                                   # 29 mN above: 3 % of the peak
     assert len(reloads_above_first_loading(s0, f0, c0, d0)) == 1
+    # a first loading slack there (0 N): no ratio, the force it carried
+    f0[:3] = 0.0
+    (w,) = reloads_above_first_loading(s0, f0, c0, d0)
+    assert "0.03 N per wale at strain 0.3, against the 0 N per wale the knit carried there" in w.message
 
 
 def test_the_calibrated_specimens_cell_warns_that_its_reload_is_above_its_first_loading():
