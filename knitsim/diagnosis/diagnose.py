@@ -1890,10 +1890,12 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     # a curve that starts slack: said (the verdict is about a knit the model cannot start as the specimen did)
     slack = [slack_start(c, nz, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
              for i, (c, nz) in enumerate(zip(curves, noise.curves))]
-    for sl in slack:
-        if sl is not None:
-            verdict.confident = False
-            verdict.reason += "; " + sl["message"]
+    loose = [sl["message"] for sl in slack if sl is not None]
+    if loose:
+        # said first: the verdict is about a knit the model cannot start as the specimen did, and a blind
+        # probe's effect-free slack start read "yarn_extension ... probability 1" before the slack was said
+        verdict.confident = False
+        verdict.reason = "; ".join(loose) + "; until then: " + verdict.reason
     for i, c in enumerate(curves):
         scale = force_scale_mismatch(c, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
         if scale:

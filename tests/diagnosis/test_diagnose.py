@@ -649,6 +649,8 @@ def test_a_blind_probes_specimen_mounted_slack_is_not_confident_and_says_so():
     sl = r["curves"][0]["slack_start"]
     assert sl is not None and sl["strain_to"] == pytest.approx(0.016) and sl["rows"] == 5
     assert not r["verdict"]["confident"] and "mounted slack" in r["verdict"]["reason"]
+    # said first (a second probe's slack start read "yarn_extension ... probability 1" before the toe was said)
+    assert r["verdict"]["reason"].startswith(sl["message"] + "; until then: ")
 
 
 def test_a_rival_stopped_at_the_end_of_its_search_makes_the_verdict_not_confident():
