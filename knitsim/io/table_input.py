@@ -333,6 +333,10 @@ def _find_header(lines: list[str], required: list[str], optional: list[str], ali
     return None
 
 
+#: lines a refusal's header search looks at (:func:`_likeliest_header`)
+HEADER_SCAN_LINES = 200
+
+
 def _likeliest_header(lines: list[str], names: list[str], aliases: dict) -> int | None:
     """Where no line names every required column: the first non-comment line naming most of ``names`` or of the
     machines' names (``aliases``, whatever their units), else the first non-comment line, so that the refusal
@@ -340,7 +344,8 @@ def _likeliest_header(lines: list[str], names: list[str], aliases: dict) -> int 
     ``Results Table 1``), or None for a file of blank lines and comments."""
     known = {_key(c) for c in names} | {a for alts in aliases.values() for a in alts}
     best, best_n = None, 0
-    for i, ln in enumerate(lines):
+    # (a header is near the top: the first HEADER_SCAN_LINES lines, not a 200,000-row file's every row)
+    for i, ln in enumerate(lines[:HEADER_SCAN_LINES]):
         if not ln.strip() or _is_comment(ln):
             continue
         if best is None:
