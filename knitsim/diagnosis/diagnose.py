@@ -1560,7 +1560,7 @@ def capped_candidates(candidates: list, named: str | None) -> str:
     blind study rest there."""
     parts = []
     for c in candidates:
-        if c.effect == named or not c.at_bounds or c.effect not in EFFECT_SPECS:
+        if c.effect == named or not c.at_bounds:
             continue
         for v in EFFECT_SPECS[c.effect].variables:
             side, end = c.at_bounds.get(v.name), c.params.get(v.name)
