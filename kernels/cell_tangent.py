@@ -12,7 +12,8 @@ with J and dF/dz the forward-mode duals of the cell's own Newton at that state (
 same evaluation, :func:`evaluate_zr`).  This is the exact slope of the branch the cell
 is on, where a secant between two trial steps of the patch coupling only approximates
 it (and mixes branches across an event).  One evaluation and one 5x5 solve per cell
-(:func:`~knitsim.kernels.cell_step.branch_slope`, which a patch's warm trial step also gives).
+(:func:`~knitsim.kernels.cell_step.branch_slope`, which a patch's trial step also gives from its own last
+Newton, where its increment fired no event past the start: this kernel serves the other cells).
 
 NaN where it is not defined by the equations above: Dahl cells (the Dahl residual
 depends on the committed state of the increment), cells with effects (their parameters

@@ -606,7 +606,8 @@ class CellSolver:
         ``slope_out`` (optional, float64 [N]): each advanced cell's slope dF/dC [N/mm] on its branch at its
         end, from the Jacobian of the step's last Newton solve (implicit function theorem, as
         :mod:`knitsim.kernels.cell_tangent` computes it with one more evaluation), where the increment
-        fired no event and no effect is on; NaN elsewhere (Dahl, slack, stopped, an event)."""
+        fired no event past its start (a reversal or reload there enters the branch it ends on) and no effect is on;
+        NaN elsewhere (Dahl, slack, stopped, an event inside the increment)."""
         n = self.model.cell_count
         if n == 0:
             return

@@ -289,12 +289,15 @@ class WarpBackend:
             self._committed_branch = (self.s0.stage.numpy().copy(), self.s0.jammed.numpy().copy())
         stage0, jammed0 = self._committed_branch
         # warm next time: converged on the committed branch without an event, or on the branch that a reversal or
-        # a reload at the increment's start enters (those events happen at the committed state, whatever the
-        # length asked: the next trial makes them again and starts its solve on that branch from this end)
+        # a reload at the increment's start enters (those events happen at the committed state: the next trial
+        # makes them again and starts its solve on that branch from this end).  Not a trial that ended slack: a
+        # slack end is no start for a solve (the reload seeds the contact first), and whether the next trial
+        # reloads depends on the length it asks
         at_start = (ev["kind"] == self._ev_reversal) | (ev["kind"] == self._ev_reload)
         entered = np.zeros(self.n, bool)
         entered[ev["cell"][at_start]] = True
-        same_branch = (t["status"] == STATUS_OK) & ((t["stage"] == stage0) | entered) & (t["jammed"] == jammed0)
+        same_branch = ((t["status"] == STATUS_OK) & ((t["stage"] == stage0) | entered) & (t["jammed"] == jammed0)
+                       & (t["stage"] != int(Stage.SLACK)))
         same_branch[ev["cell"][~at_start]] = False
         self._warm = same_branch if mask is None else np.where(mask, same_branch, self._warm)
         return t
@@ -979,10 +982,12 @@ class PatchSolver:
         return IncrementResult(F_col, status.astype(np.int32), slack_len, iters, spread, c)
 
     def _solve(self, u_cls: np.ndarray, u_single: np.ndarray, direction: int, increment: int,
-               active_cls: np.ndarray, give_up: bool = False, history: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+               active_cls: np.ndarray, give_up: bool = False,
+               history: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Iterate the columns in ``active_cls`` to the grip displacements ``u_cls`` [n_classes] from the
         committed state; converged columns are accepted.  Returns (converged, trials, columns stopped on
-        a jump of a cell's force, columns whose last trial failed), each of shape [n_classes]."""
+        a jump of a cell's force, columns whose last trial failed, columns whose last trial stopped a cell at
+        its force cap), each of shape [n_classes]."""
         be, c = self.backend, self.cells
         col, cnt, C0, p = self.col, self.cnt, self.C0, self.p
         u = u_cls

@@ -269,7 +269,8 @@ def test_a_series_column_of_unequal_rest_forces_is_said_to_be_unbalanced_at_rest
     assert not [w for w in su["warnings"] if w["code"] == "rest_state_unbalanced"]
 
 
-def test_a_column_of_unlike_cells_stops_at_the_cap_as_a_uniform_one_does():
+@pytest.mark.parametrize("engine", ["warp", "reference"])
+def test_a_column_of_unlike_cells_stops_at_the_cap_as_a_uniform_one_does(engine):
     """A blind probe's E-glass / basalt column (and a phi0 gradient) at a small cap: the column could not pass the
     cap, held it not converged while the grip went on to the upper strain and back, then resumed, and the run
     reported a cycle 2 (peak, residual strain, hysteresis) the knit never ran, with exit 0 and no
@@ -278,7 +279,7 @@ def test_a_column_of_unlike_cells_stops_at_the_cap_as_a_uniform_one_does():
     uniform = PatchModel.uniform(P, 2, 1)
     fields = dict(uniform.fields, phi0=np.array([[0.0], [0.15]]))   # two unlike cells in series (1 wale x 2 courses)
     model = PatchModel(2, 1, fields, uniform.rules)
-    h = run_patch(model, cycles(0.1, 0.3, 2, 0.02))
+    h = run_patch(model, cycles(0.1, 0.3, 2, 0.02), engine=engine)
     status = np.asarray(h.groups["status"])
     k = int(np.flatnonzero((status == STATUS_FORCE_CAP).any(axis=1))[0])
     assert (status[k:] == STATUS_FORCE_CAP).all() and (status[:k] == STATUS_OK).all()
