@@ -44,6 +44,29 @@ def model(case: str, wales: int, courses: int) -> tuple[PatchModel, bool]:
     return pm, case != "uniform-nodedup"
 
 
+def print_device_time(pm: PatchModel, prog: LoadProgram, device: str, dedup: bool, top: int = 15) -> None:
+    """Run ``prog`` on ``pm`` again under Warp's activity timing (CUDA events around each launch and
+    copy: the run is slower than untimed) and print the device time per kernel and copy kind, their
+    sum, and the run's wall time: the part of the wall the device is busy, and with what."""
+    wp.synchronize()
+    t0 = time.perf_counter()
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMCPY | wp.TIMING_MEMSET)
+    try:
+        run_patch(pm, prog, device=device, dedup=dedup)
+    finally:
+        results = wp.timing_end()
+    wall = time.perf_counter() - t0
+    per: dict[str, list[float]] = {}
+    for r in results:
+        name = r.name.split("(")[0]
+        per.setdefault(name, []).append(r.elapsed)
+    busy = sum(sum(v) for v in per.values()) / 1e3
+    print(f"device activity under timing: {len(results)} launches/copies, {busy:.2f} s busy of {wall:.2f} s wall "
+          f"({busy / wall:.0%})")
+    for name, v in sorted(per.items(), key=lambda kv: -sum(kv[1]))[:top]:
+        print(f"  {sum(v) / 1e3:9.3f} s  {len(v):7d} x  {name}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--device", default="cpu")
@@ -54,6 +77,11 @@ def main(argv=None):
     ap.add_argument("--coupling", nargs="+", choices=("device", "numpy"), default=["device"],
                     help="where the coupling's branch model and column solve run (PatchSolver.device_branch_points): "
                          "on the cells' device (the default) or in NumPy (their twin); both: a same-run A/B")
+    ap.add_argument("--progress", action="store_true", help="print each increment's wall time as it ends")
+    ap.add_argument("--kernel-timing", action="store_true",
+                    help="CUDA: after the timed run, run the same increments again under Warp's activity timing "
+                         "(CUDA events around every launch and copy) and print where the device time went, "
+                         "against that run's wall time")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     warp_runtime.init()
@@ -79,9 +107,16 @@ def main(argv=None):
         stamps = []
         wp.synchronize()
         t0 = time.perf_counter()
-        h = run_patch(pm, prog, device=device, dedup=dedup, progress=lambda done, total: stamps.append(time.perf_counter()))
+        def tick(done, total):
+            stamps.append(time.perf_counter())
+            if a.progress:
+                print(f"  {case}: increment {done}/{total} at {stamps[-1] - t0:.2f} s", flush=True)
+
+        h = run_patch(pm, prog, device=device, dedup=dedup, progress=tick)
         wp.synchronize()
         wall = time.perf_counter() - t0
+        if a.kernel_timing:
+            print_device_time(pm, prog, device, dedup)
         # the increments after the first (the first builds the patch's arrays, and compiles what the warm-up did not)
         later = stamps[-1] - stamps[0] if len(stamps) > 1 else math.nan
         cells = pm.cell_count
