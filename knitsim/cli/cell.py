@@ -111,7 +111,10 @@ def _run(args) -> int:
         print_json(summary)
         return 1 if failed else 0
     for c in summary["cells"]:
-        peaks = ", ".join(f"{cy['peak_force_per_wale_N']:.3g}" for cy in c["cycles"])
+        # a cycle that only unloads has no loaded peak: its figure is its start (warning cycle_without_loading)
+        peaks = ", ".join(f"{cy['peak_force_per_wale_N']:.3g}"
+                          + (" (unloading only: its start)" if cy.get("energy_kind") == "unloading_work" else "")
+                          for cy in c["cycles"])
         jam = c["strain_at_first_jamming"]
         print(f"{c['label']}: {c['end']}; peak force per wale per cycle [N]: {peaks}; "
               f"first jamming at strain {'-' if jam is None else f'{jam:.4g}'}")

@@ -57,23 +57,26 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 #: what a cycle's ``oint F d(strain)`` is (:func:`cycle_work`): a closed path's dissipated energy, an open
-#: path's work (elastic energy included), a path that only loads
-ENERGY_KINDS = ("hysteresis", "work", "loading_work")
+#: path's work (elastic energy included), a path that only loads, a path that only unloads (a program that
+#: starts by unloading from rest: its first "cycle" is no loop, and its peak is where it starts)
+ENERGY_KINDS = ("hysteresis", "work", "loading_work", "unloading_work")
 
 
-def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
+def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool = True) -> dict:
     """The work of one cycle's path, named for what it is.
 
     ``oint F d(strain)`` by trapezoids (:func:`~knitsim.cell.cycle.dissipated_energy`) is the
     energy dissipated (the *hysteresis*) only when the path is closed: it ends at the strain it
     started from (within 1e-9 of the strain range).  An open path (the paper's first cycle goes
     0 -> 0.6 -> 0.1) holds elastic energy too: its ``work``; a path that only loads, its
-    ``loading work``.
+    ``loading work``; one that only unloads (``loads`` false: a program that starts by unloading from
+    rest), its ``unloading work`` (the energy the knit gives back, negative where it carries force).
 
     Returns
     -------
     dict
-        ``{"kind": "hysteresis" | "work" | "loading_work", "closed": bool, "value": float}`` (per unit strain).
+        ``{"kind": "hysteresis" | "work" | "loading_work" | "unloading_work", "closed": bool, "value": float}``
+        (per unit strain).
     """
     from ..cell.cycle import dissipated_energy
 
@@ -81,8 +84,8 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool) -> dict:
     w = dissipated_energy(s, f) if len(s) > 1 else 0.0
     span = float(np.ptp(s)) if len(s) else 0.0
     closed = bool(unloads and len(s) > 1 and abs(s[-1] - s[0]) <= 1e-9 * max(span, 1e-12))
-    hysteresis, work, loading_work = ENERGY_KINDS
-    kind = hysteresis if closed else (work if unloads else loading_work)
+    hysteresis, work, loading_work, unloading_work = ENERGY_KINDS
+    kind = hysteresis if closed else (loading_work if not unloads else work if loads else unloading_work)
     return {"kind": kind, "closed": closed, "value": float(w)}
 
 
@@ -365,8 +368,8 @@ def _empty_cycles(peaks, fraction: float = ZERO_CYCLE_FRACTION):
 
 def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wale",
                    strain_name: str = "strain") -> list[ResultWarning]:
-    """The warnings on a program's cycles: :func:`zero_force_cycles`, then, for the cycles that carry load,
-    :func:`reloads_below_earlier_loading` and :func:`reloads_above_first_loading`.
+    """The warnings on a program's cycles: :func:`unloading_only_cycles`, :func:`zero_force_cycles`, then, for
+    the cycles that carry load, :func:`reloads_below_earlier_loading` and :func:`reloads_above_first_loading`.
 
     Parameters
     ----------
@@ -380,9 +383,36 @@ def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wa
     empty = list(_empty_cycles(peaks))
     skip = [int(c) for c, _, _, _ in empty]
     rows = (strain, force, cycle, direction)
-    return ([_zero_force_warning(found, unit) for found in empty]
+    return (unloading_only_cycles(strain, cycle, direction, strain_name=strain_name)
+            + [_zero_force_warning(found, unit) for found in empty]
             + reloads_below_earlier_loading(*rows, unit=unit, strain_name=strain_name, skip=skip)
             + reloads_above_first_loading(*rows, unit=unit, strain_name=strain_name, skip=skip))
+
+
+def unloading_only_cycles(strain, cycle, direction, strain_name: str = "strain") -> list[ResultWarning]:
+    """A warning for each cycle of the recorded rows that never loads (a program that starts by unloading
+    from rest: its first "cycle" only unloads).  Its figures are not a loop's: its peak is where it starts
+    (the rest state), its energy the unloading's work (:func:`cycle_work`'s ``unloading_work``), no
+    hysteresis.  A blind probe found such a cycle reported with the rest force as its peak and a negative
+    energy, and no remark.
+
+    Parameters
+    ----------
+    strain, cycle, direction : array-like, shape [n]
+        The recorded rows' imposed strain, cycle and direction (+1 loading, -1 unloading).
+    strain_name : str
+        For the message.
+    """
+    s, c, d = np.asarray(strain, float), np.asarray(cycle), np.asarray(direction)
+    out = []
+    for k in np.unique(c):
+        rows = np.nonzero(c == k)[0]
+        if len(rows) and np.all(d[rows] < 0):
+            out.append(ResultWarning("cycle_without_loading", (
+                f"cycle {int(k)} only unloads ({strain_name} down to {float(s[rows[-1]]):.4g}; the program starts "
+                "by unloading): its peak is its start, not a loaded state, and its energy the unloading's work "
+                "(energy_kind unloading_work), not a hysteresis")))
+    return out
 
 
 def cut_by_force_cap(strain: np.ndarray, direction: np.ndarray, cycle: np.ndarray, stop_row: int,

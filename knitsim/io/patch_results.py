@@ -823,7 +823,8 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     over the cycle's rows [N mm] (u = grip strain x
     rest length, from the last row of the previous cycle; the first from rest),
     named by :func:`knitsim.io.checks.cycle_work`: ``hysteresis_energy_N_mm`` of a
-    closed cycle, ``work_N_mm`` of an open one, ``loading_work_N_mm`` of a loading.  Also the grip
+    closed cycle, ``work_N_mm`` of an open one, ``loading_work_N_mm`` of a loading, ``unloading_work_N_mm`` of an
+    unloading (a program that starts by unloading: warning ``cycle_without_loading``).  Also the grip
     strain at the first jamming of any cell, located between rows where the cells' states allow it
     (:func:`_first_jamming`; ``grip_strain_at_first_jamming_from`` says how), non-converged column
     increments (and of them those held at their cells' force cap), cells whose status is not ok (by
@@ -909,7 +910,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
             # at grip strain 0, or below it for a pretensioned specimen (its rest state, curve.csv's row 0)
             s_path = np.concatenate([[float(h.info.get("rest_grip_strain", 0.0))], s_path])
             f_path = np.concatenate([[h.rest_force_N], f_path])
-        work = cycle_work(s_path, f_path, bool(len(unload)))
+        work = cycle_work(s_path, f_path, bool(len(unload)), loads=bool(np.any(h.direction[rows] > 0)))
         entry["closed"] = work["closed"]
         entry[f"{'hysteresis_energy' if work['kind'] == 'hysteresis' else work['kind']}_N_mm"] = \
             work["value"] * ref_length

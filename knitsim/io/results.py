@@ -233,7 +233,8 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     the rest state), as ``energy_N_per_strain`` and times C0 as
     ``energy_N_mm``, with ``energy_kind`` (:func:`knitsim.io.checks.cycle_work`):
     the ``hysteresis`` of a closed cycle, the ``work`` of an open one, the
-    ``loading_work`` of a loading only.
+    ``loading_work`` of a loading only, the ``unloading_work`` of an unloading only
+    (warning ``cycle_without_loading``).
 
     Also: strain at the first jamming (located ``jam`` event, else the first
     jammed row), rows per status, the final status and whether it is the
@@ -289,10 +290,11 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         if rows[0] == 0 and h.rest is not None:     # the first cycle starts from the rest state
             s_path = np.concatenate([[0.0], s_path])
             f_path = np.concatenate([[h.rest["F"][cell]], f_path])
-        work = cycle_work(s_path, f_path, bool(len(unload)))
+        work = cycle_work(s_path, f_path, bool(len(unload)), loads=bool(np.any(h.direction[rows] > 0)))
         entry["energy_N_per_strain"] = work["value"]
         entry["energy_N_mm"] = work["value"] * p.C0
-        entry["energy_kind"] = work["kind"]       # hysteresis (closed cycle), work (open), loading_work
+        # hysteresis (closed cycle), work (open), loading_work, unloading_work (a cycle that never loads)
+        entry["energy_kind"] = work["kind"]
         entry["closed"] = work["closed"]
         cycles_out.append(entry)
 

@@ -36,7 +36,9 @@ red diamond around each point (lines, scatter) or a red ``\\``-hatched cell
 (heat maps).  A sample whose cell stopped at its force cap (a stop, not a
 failure) did not run the rest of its program: the peak of the cycle it stopped
 in is the cap (``peak_at_force_cap``) and that cycle's energy, if it never
-unloaded, loading work (``energy_kind``): both are drawn apart from the lines
+unloaded, loading work (``energy_kind``); a program that starts by unloading
+has a first cycle that never loads, whose peak is its start and whose energy
+the unloading's work (``unloading_work``): all drawn apart from the lines
 as grey stars (lines, scatter) or grey ``++``-hatched cells kept out of the
 colour scale (heat maps); its values that are missing (the residual strain of
 a cycle never unloaded, later cycles) are marked by a grey triangle at the
@@ -259,17 +261,22 @@ def _failed(ds) -> np.ndarray:
 
 def _not_the_knits(ds, q: str, cycle) -> np.ndarray:
     """Where quantity ``q`` of ``cycle`` is not the knit's own value: a peak that is the force cap, the loading
-    work of a cycle that never unloaded (knitsim cell's energy_kind loading_work).  Drawn apart from the lines
-    (a blind probe's 10 N cap was drawn as a peak, its loading work as a hysteresis 10x the others)."""
+    work of a cycle that never unloaded, the unloading work of one that never loaded (knitsim cell's
+    energy_kind loading_work, unloading_work).  Drawn apart from the lines (a blind probe's 10 N cap was drawn
+    as a peak, its loading work as a hysteresis 10x the others)."""
     from .runner import ENERGY_KINDS
 
-    var, code = {"peak_force_per_wale_N": ("peak_at_force_cap", 1),
-                 "energy_N_mm": ("energy_kind", next(k for k, v in ENERGY_KINDS.items() if v == "loading_work"))
-                 }.get(q, (None, None))
-    shape = ds[q].sel(cycle=cycle).shape
-    if var is None or var not in ds.data_vars:
-        return np.zeros(shape, dtype=bool)
-    return np.asarray(ds[var].sel(cycle=cycle).values) == code
+    def codes(*names):
+        return [k for k, v in ENERGY_KINDS.items() if v in names]
+
+    # the peak of a cycle that never loads is its start (warning cycle_without_loading), not a loaded peak
+    marks = {"peak_force_per_wale_N": [("peak_at_force_cap", [1]), ("energy_kind", codes("unloading_work"))],
+             "energy_N_mm": [("energy_kind", codes("loading_work", "unloading_work"))]}.get(q, [])
+    off = np.zeros(ds[q].sel(cycle=cycle).shape, dtype=bool)
+    for var, values in marks:
+        if var in ds.data_vars:
+            off |= np.isin(np.asarray(ds[var].sel(cycle=cycle).values), values)
+    return off
 
 
 def _energy_label(ds, cycle) -> str:
@@ -281,7 +288,7 @@ def _energy_label(ds, cycle) -> str:
         return f"cycle {int(cycle)}"
     kinds = np.unique(np.asarray(ds["energy_kind"].sel(cycle=cycle).values))
     names = [{"hysteresis": "hysteresis (closed)", "work": "work (open cycle)"}[ENERGY_KINDS[int(k)]]
-             for k in kinds if int(k) >= 0 and ENERGY_KINDS[int(k)] != "loading_work"]
+             for k in kinds if int(k) >= 0 and ENERGY_KINDS[int(k)] not in ("loading_work", "unloading_work")]
     return f"cycle {int(cycle)}" + (f": {' or '.join(names)}" if names else "")
 
 

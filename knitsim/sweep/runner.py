@@ -1065,7 +1065,8 @@ def assemble(out_dir: str | Path):
         "energy_kind": "what energy_N_mm is (knitsim.io.checks.cycle_work, energy_kind of knitsim cell): "
                        + ", ".join(f"{k} {v}" for k, v in ENERGY_KINDS.items())
                        + " (hysteresis: a closed cycle's dissipated energy; work: an open cycle's, elastic energy "
-                       "included; loading_work: a cycle that never unloaded, e.g. cut by the force cap), -1 no value",
+                       "included; loading_work: a cycle that never unloaded, e.g. cut by the force cap; "
+                       "unloading_work: one that never loaded, a program starting by unloading), -1 no value",
         "closed": "1 if the cycle's path ends at the strain it started from (its energy is a hysteresis), 0 if "
                   "not, -1 no value",
         "peak_at_force_cap": "1 for the cycle in which the cell stopped at its force cap: its peak is the cap "

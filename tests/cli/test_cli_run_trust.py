@@ -484,3 +484,7 @@ def test_a_patch_unloading_from_rest_peaks_at_the_rest_state(tmp_path):
     assert float(row0["grip_strain"]) == 0.0 and cyc["grip_strain_at_peak"] == 0.0
     assert cyc["peak_force_per_wale_N"] == pytest.approx(float(row0["force_per_wale_N"]), rel=1e-12)
     assert cyc["peak_force_per_wale_N"] > 0.01
+    # no loop: the unloading's work, and a warning where the user looks
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert "unloading_work_N_mm" in cyc and "work_N_mm" not in cyc and "hysteresis_energy_N_mm" not in cyc
+    assert [w["code"] for w in summary["warnings"]].count("cycle_without_loading") == 1

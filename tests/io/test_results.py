@@ -222,8 +222,32 @@ def test_a_first_cycle_that_unloads_from_rest_peaks_at_the_rest_state():
     from knitsim.cell.batch import run_batch
     from knitsim.cell.load_program import piecewise_linear
     h = run_batch([P], piecewise_linear([-0.05], 0.01))
-    c = summarise(h)["cells"][0]["cycles"][0]
+    cell = summarise(h)["cells"][0]
+    c = cell["cycles"][0]
     assert c["peak_force_per_wale_N"] == h.rest["F"][0] > 0.01 and c["strain_at_peak"] == 0.0
+    # and it says that this cycle never loads (a later probe: the rest force read as a peak, and a negative
+    # energy, with no remark): no loop, its energy the unloading's work, by trapezoids from the rest state
+    assert c["energy_kind"] == "unloading_work" and not c["closed"]
+    F, s = np.r_[h.rest["F"][0], h.force_per_wale[:, 0]], np.r_[0.0, h.values["C"][:, 0] / P.C0 - 1]
+    assert c["energy_N_per_strain"] == pytest.approx(float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(s))), rel=1e-12)
+    assert c["energy_N_per_strain"] < 0
+    warned = [w for w in cell["warnings"] if w["code"] == "cycle_without_loading"]
+    assert len(warned) == 1 and warned[0]["message"].startswith("cycle 1 only unloads (strain down to -0.05")
+
+
+def test_a_cycle_that_loads_after_an_unloading_from_rest_is_no_unloading_work():
+    # the identity of cycle_work's kinds on hand-made paths: the rest state, down, then up and down again
+    from knitsim.io.checks import cycle_work, unloading_only_cycles
+    s, f = np.array([0.0, -0.1, -0.2]), np.array([0.02, 0.0, 0.0])
+    assert cycle_work(s, f, unloads=True, loads=False)["kind"] == "unloading_work"
+    assert cycle_work(s, f, unloads=True, loads=True)["kind"] == "work"
+    assert cycle_work(s[::-1], f[::-1], unloads=False)["kind"] == "loading_work"
+    loop = np.array([0.1, 0.3, 0.1])
+    assert cycle_work(loop, np.array([0.0, 1.0, 0.0]), unloads=True)["kind"] == "hysteresis"
+    # rows: cycle 1 only unloads, cycle 2 loads and unloads: one warning, for cycle 1
+    w = unloading_only_cycles([-0.05, -0.1, 0.2, 0.1], [1, 1, 2, 2], [-1, -1, 1, -1])
+    assert [x.code for x in w] == ["cycle_without_loading"] and "cycle 1 only unloads" in w[0].message
+    assert unloading_only_cycles([0.1, 0.2, 0.1], [1, 1, 1], [1, 1, -1]) == []
 
 
 def test_the_cell_plot_legend_ties_every_rule_set_to_its_cells_and_gives_dahl_only_the_rules_it_uses(monkeypatch):
