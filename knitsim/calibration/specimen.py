@@ -38,7 +38,7 @@ from ..diagnosis.measured import (
     PER_CENT_HINT, STRAIN_TOL_REL, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
     strain_jitter, strain_tolerance, zero_offset_below,
 )
-from ..diagnosis.noise import CurveNoise, curve_noise
+from ..diagnosis.noise import CurveNoise, curve_noise, steeper_slopes
 from ..io.table_input import LAB_ALIASES, notes_of, read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
@@ -65,7 +65,7 @@ class MeasuredTable:
     #: a load cell's zero below zero read off the force (knitsim.diagnosis.measured.zero_offset_below) and
     #: subtracted from it [N] (0: none seen)
     zero_offset_N: float = 0.0
-    #: the sd of the strain column's own jitter (knitsim.diagnosis.measured.strain_jitter; 0: none seen)
+    #: the sd of the strain column's own jitter (knitsim.diagnosis.noise.strain_jitter; 0: none seen)
     strain_jitter: float = 0.0
     #: what the reader did that the user must be told (a strain column read in per cent, divided by 100:
     #: knitsim.io.table_input.Columns.notes); () for most files
@@ -320,9 +320,7 @@ def _row_slopes(t: MeasuredTable, x: np.ndarray) -> np.ndarray:
     """|dF/dstrain| at the rows ``x`` of a curve: the larger of the two slopes to the neighbouring rows (to the
     curve at strain 0 for the first), so that a row at a knee takes the steep side."""
     ext = np.concatenate([[0.0], x])
-    fx = _interp(t, ext)
-    seg = np.abs(np.diff(fx) / np.diff(ext))
-    return np.maximum(seg, np.concatenate([seg[1:], seg[-1:]]))
+    return steeper_slopes(ext, _interp(t, ext))[1:]
 
 
 @dataclass(frozen=True)

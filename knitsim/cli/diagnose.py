@@ -118,6 +118,8 @@ def run(args) -> int:
           "+- one standard error)")
     for c in nz["curves"]:
         grows = f" + {100.0 * c['per_N']:.3g} % of the force" if c.get("per_N") else ""
+        if c.get("strain_sd"):
+            grows += f", strain jitter {c['strain_sd']:.2g} (times the curve's slope)"
         print(f"  noise of {c['source']}: {c['sigma_N']:.3g} N{grows} ({c['method']}"
               f"{'' if c['estimable'] else ': ' + c['note']})")
     if b["outliers"]:

@@ -114,7 +114,7 @@ from .calibrate import calibrate_baseline, default_bounds, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
 from .measured import NEGATIVE_SIGMAS, MeasuredCurve, check_reachable, check_response, reachable_strain
-from .noise import CurveNoise, curve_noise
+from .noise import CurveNoise, curve_noise, row_slopes
 
 #: BIC difference counted as very strong evidence (Kass and Raftery 1995, 2 ln B > 10)
 STRONG = 10.0
@@ -243,14 +243,16 @@ class NoiseModel:
         return all(c.known for c in self.curves)
 
     def weights(self, curves) -> list[np.ndarray]:
-        """1 / sd of every row: its curve's sd, at the row's force where the noise grows with it."""
-        return [1.0 / n.sd_at(c.force) for c, n in zip(curves, self.curves)]
+        """1 / sd of every row: its curve's sd, at the row's force where the noise grows with it, at the
+        curve's slope there where the strain jitters (:meth:`~knitsim.diagnosis.noise.CurveNoise.sd_at`)."""
+        return [1.0 / n.sd_at(c.force, row_slopes(c.strain, c.force, c.cycle, c.direction) if n.strain_sd > 0 else None)
+                for c, n in zip(curves, self.curves)]
 
     def as_dict(self) -> dict:
         """The ``noise`` entry of the diagnosis JSON: each curve's noise, the common sd [N] (None unless
         every curve has the same constant one), how they were obtained and ``all_known``."""
         sig = [c.sigma_N for c in self.curves]
-        one = len(set(sig)) == 1 and not any(c.per_N > 0 for c in self.curves)
+        one = len(set(sig)) == 1 and not any(c.per_N > 0 or c.strain_sd > 0 for c in self.curves)
         return {"curves": [c.as_dict() for c in self.curves],
                 "sigma_N": float(min(sig)) if one else None,
                 "method": "per curve: " + "; ".join(f"{c.source}: {c.describe()} ({c.method})" for c in self.curves),

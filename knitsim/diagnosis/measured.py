@@ -60,7 +60,7 @@ from ..cell.history import BatchHistory
 from ..cell.load_program import LoadProgram, piecewise_linear
 from ..errors import KnitsimInputError
 from ..io.table_input import LAB_ALIASES, Columns, notes_of, read_csv_columns
-from .noise import CurveNoise, curve_noise
+from .noise import STRAIN_JITTER_MIN_ROWS, CurveNoise, curve_noise, strain_jitter  # noqa: F401 (re-exported)
 
 REQUIRED = ("strain", "force_per_wale_N")
 OPTIONAL = ("cycle", "direction", "rate_mm_s")
@@ -78,9 +78,9 @@ NEGATIVE_SPIKE_SHARE = 0.005
 #: strain jitter tolerated inside a branch, as a fraction of the curve's strain range
 STRAIN_TOL_REL = 1.0e-3
 #: or as this many sd of the strain's own jitter (an extensometer noisier than 1e-3 of the range: a step
-#: back of 3 sd is then common, and read as a reversal it cut a pull into cycles), from this many rows
+#: back of 3 sd is then common, and read as a reversal it cut a pull into cycles; the jitter estimated from
+#: STRAIN_JITTER_MIN_ROWS rows, knitsim.diagnosis.noise.strain_jitter)
 STRAIN_JITTER_SIGMAS = 5.0
-STRAIN_JITTER_MIN_ROWS = 50
 #: an unloading branch whose strain goes back no more than this many jitter tolerances is a hold
 #: (:func:`infer_branches`)
 HOLD_TRAVEL_TOLS = 10.0
@@ -235,17 +235,6 @@ def strain_tolerance(strain) -> float:
     return max(1e-9, STRAIN_TOL_REL * span, STRAIN_JITTER_SIGMAS * strain_jitter(s))
 
 
-def strain_jitter(strain) -> float:
-    """The sd of a strain column's own jitter (an extensometer's noise): 1.4826 x the median of
-    ``|s[i-1] - 2 s[i] + s[i+1]|`` / sqrt(6), which a steady ramp cancels and whose median keeps the few
-    turning points out; 0 below :data:`STRAIN_JITTER_MIN_ROWS` rows (a few hand-typed rows are mostly
-    corners)."""
-    s = np.asarray(strain, float)
-    if len(s) < STRAIN_JITTER_MIN_ROWS:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(np.diff(s, 2))) / np.sqrt(6.0))
-
-
 def _force_scale(force) -> float:
     """A rough noise sd of a force column from its second differences, before branches exist
     (f[i-1] - 2 f[i] + f[i+1] cancels a straight trend and has variance 6 sigma^2 for white noise;
@@ -331,6 +320,48 @@ def _monotone(s: np.ndarray, d: np.ndarray) -> np.ndarray:
         ext = max(ext, s[i]) if d[i] > 0 else min(ext, s[i])
         out[i] = ext
     return out
+
+
+#: rows of a branch (the turning row with those before it) whose line in the row number gives the turning
+#: row's strain where the strain jitters (:func:`settle_turns`)
+TURN_FIT_ROWS = 21
+#: ... used only where it moves the read strain by at most this many jitter sd (else the ramp is not steady)
+TURN_FIT_SIGMAS = 4.0
+
+
+def settle_turns(strain: np.ndarray, direction: np.ndarray, jitter: float) -> np.ndarray:
+    """The strain of each branch's last row (a turning point of the test) from the line through it and the
+    rows before it on its branch (up to :data:`TURN_FIT_ROWS`, in the row number: a steady ramp logged at a
+    steady rate), where the strain column jitters by ``jitter`` (sd; 0: the strain is returned as is).
+
+    Why: the knit's response depends on where each turn happened (Table 4's frozen quantities are taken
+    there: T on S-, beta on SF-), so a turn read off by the jitter shifts the whole branch after it, not a
+    row.  A blind probe's model-made cycles with 2e-4 of strain jitter (rows 0.005 apart, 1 mN of force
+    noise) were fitted at chi^2/dof 1.72 and read as a confident ``unexplained``; the same rows with their
+    five turning strains exact: 1.06, ``none``.  The line's value at its last row has the sd
+    ``jitter sqrt(1/n + ((n - 1)/2)^2 / S_xx)`` = 0.42 jitter with n = 21 rows.  Kept within the
+    neighbours' strains (a turn stays a turn), and used only where it moves the read strain by at most
+    :data:`TURN_FIT_SIGMAS` jitter sd (a ramp that changes speed at the turn keeps its reading)."""
+    s = np.array(strain, float)
+    d = np.asarray(direction)
+    if not jitter > 0 or len(s) < 3:
+        return s
+    ends = np.nonzero(np.diff(d) != 0)[0]          # each branch's last row, followed by the next branch
+    starts = np.concatenate([[0], ends + 1])
+    for i in ends:
+        a = max(int(starts[starts <= i][-1]), i - TURN_FIT_ROWS + 1)
+        n = i - a + 1
+        if n < 5:
+            continue
+        k = np.arange(n, dtype=float)
+        slope, icpt = np.polyfit(k, s[a:i + 1], 1)
+        at = icpt + slope * (n - 1)
+        if abs(at - s[i]) > TURN_FIT_SIGMAS * jitter:
+            continue
+        lo = max(s[i - 1], s[i + 1]) if d[i] > 0 else -np.inf   # a maximum stays above both neighbours
+        hi = min(s[i - 1], s[i + 1]) if d[i] < 0 else np.inf    # a minimum below them
+        s[i] = min(max(at, lo), hi)
+    return s
 
 
 def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None, source: str = "curve",
@@ -445,9 +476,12 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         bad = np.nonzero(~(np.isfinite(r) & (r > 0)))[0]
         if len(bad):
             raise KnitsimInputError(f"{source}: row {row(bad[0])}, column rate_mm_s: {float(r[bad[0]]):g} must be > 0")
-    clean = _monotone(s, d)
+    # the strain column's jitter from the strain as read (its steps; `clean` has its back-steps levelled), and
+    # the turning points where it jitters from their branches (settle_turns)
+    jitter = strain_jitter(s)
+    clean = settle_turns(_monotone(s, d), d, jitter)
     refuse_merged_branches(source, clean, f, c, d, row)
-    noise = curve_noise(clean, f, c, d, source, noise_N)
+    noise = curve_noise(clean, f, c, d, source, noise_N, strain_sd=jitter)
     refuse_negative_force(source, f, noise, row)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
 

@@ -426,7 +426,9 @@ def render_report(result: dict) -> str:
                    + (f"; at the bounds of its search (values not estimated): {_e(pair['at_bounds_note'])}"
                       if pair.get("at_bounds_note") else "") + ".</p>\n")
     rows = [[_e(c.get("source")), _e(_fmt(c.get("sigma_N")) + (f" + {100.0 * c['per_N']:.3g} % of the force"
-                                                                 if c.get("per_N") else "")),
+                                                                 if c.get("per_N") else "")
+                                     + (f", strain jitter {c['strain_sd']:.2g} (times the curve's slope)"
+                                        if c.get("strain_sd") else "")),
              _e(c.get("method")), _e(c.get("note"))]
             for c in noise.get("curves") or []]
     if not rows:

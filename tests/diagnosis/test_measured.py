@@ -172,3 +172,29 @@ def test_a_step_and_hold_pull_is_one_loading_not_cycles():
     cycle, direction = infer_branches(s2, f2)
     # (the unloading starts at the last hold's largest strain, inside that hold)
     assert np.all(direction[-10:] == -1) and np.all(direction[:270] == 1) and cycle[-1] == 1
+
+
+def test_a_turn_read_with_jitter_is_settled_on_its_branch_to_the_lines_sd():
+    """settle_turns: a ramp 0 -> 0.3 -> 0.1 at steps of 0.005 read with a jitter of sd 2e-4 (numpy, 400
+    seeds).  The line through the turning row and the 20 rows before it gives the turn with the sd of a
+    straight line's fit at its end (least squares: sd^2 (1/n + ((n - 1)/2)^2 / S_xx), n = 21, S_xx =
+    n (n^2 - 1) / 12: 0.42 sd), against the reading's sd; a ramp whose turn is not on its line (the speed
+    halves over the last rows, 10 sd off) keeps its reading; no jitter, no change."""
+    from knitsim.diagnosis.measured import settle_turns
+    up, down = np.arange(0.0, 0.3 + 1e-12, 0.005), np.arange(0.295, 0.1 - 1e-12, -0.005)
+    true = np.r_[up, down]
+    d = np.r_[np.ones(len(up), int), -np.ones(len(down), int)]
+    turn = len(up) - 1
+    sd, n = 2e-4, 21
+    rng = np.random.default_rng(3)
+    err = []
+    for _ in range(400):
+        read = true + rng.normal(0.0, sd, len(true))
+        err.append(settle_turns(read, d, sd)[turn] - true[turn])
+    expect = sd * np.sqrt(1 / n + ((n - 1) / 2) ** 2 / (n * (n * n - 1) / 12))
+    assert np.sqrt(np.mean(np.square(err))) == pytest.approx(expect, rel=0.12)
+    assert np.sqrt(np.mean(np.square(err))) < 0.5 * sd
+    bent = true.copy()
+    bent[turn - 3:turn + 1] = true[turn - 4] + np.array([1, 2, 3, 4]) * 0.0025 * (1 - 0.5)   # the last rows slower
+    assert settle_turns(bent, d, 1e-5)[turn] == bent[turn]
+    assert np.array_equal(settle_turns(true, d, 0.0), true)

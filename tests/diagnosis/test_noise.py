@@ -98,3 +98,19 @@ def test_constant_noise_on_a_stiffening_curve_keeps_one_sd():
             if c.per_N == 0:
                 assert c.sigma_N == pytest.approx(sd, rel=4.0 / np.sqrt(n))
         assert grown <= 1, (n, grown)
+
+
+def test_a_rows_sd_adds_the_strain_jitter_times_the_curves_steeper_slope():
+    """Effective variance (errors in the strain): sd^2 = sd_F^2 + (e f')^2, f' the steeper of the two
+    segments beside a row, on each branch apart.  Hand-made: a V, up at slope 2 then down at slope 10, a
+    knee inside the first branch (slope 1 then 3)."""
+    from knitsim.diagnosis.noise import CurveNoise, row_slopes
+    s = np.array([0.0, 0.1, 0.2, 0.3, 0.2, 0.1])
+    f = np.array([0.0, 0.1, 0.4, 0.7, -0.3, -1.3])          # up: slopes 1, 3, 3; down: 10, 10
+    cyc, d = np.ones(6, int), np.array([1, 1, 1, 1, -1, -1])
+    k = row_slopes(s, f, cyc, d)
+    assert k == pytest.approx([1.0, 3.0, 3.0, 3.0, 10.0, 10.0])
+    n = CurveNoise("x", 0.003, "estimated", 100, True, "", strain_sd=4e-4)
+    assert n.sd_at(f, k) == pytest.approx(np.sqrt(0.003 ** 2 + (4e-4 * k) ** 2))
+    assert n.sd_at(f) == pytest.approx(np.full(6, 0.003))       # without slopes: the force's sd
+    assert "strain jitter 0.0004" in n.describe()
