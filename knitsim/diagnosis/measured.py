@@ -594,7 +594,8 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     numbers) without a row that repeats the row above it in every column: a row copied (pasted twice, a
     logger writing one record twice) is not a second measurement, and counted twice it would weigh
     twice and read as zero noise.  A row at the same strain with another force is kept: a second reading.
-    The notes of the columns (:class:`knitsim.io.table_input.Columns`) are kept."""
+    The notes of the columns (:class:`knitsim.io.table_input.Columns`) are kept, with one more naming the rows
+    dropped (a blind probe's file read "711 rows" and said nothing of the copies it had left out)."""
     names = [k for k in cols if k != "_row"]
     n = len(cols["_row"])
     copy = np.zeros(n, bool)
@@ -602,7 +603,10 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         copy[1:] = np.logical_and.reduce([cols[k][1:] == cols[k][:-1] for k in names])
     if not copy.any():
         return cols
-    out = Columns({k: v[~copy] for k, v in cols.items()}, notes=notes_of(cols))
+    rows = [int(r) for r in np.asarray(cols["_row"])[copy]]
+    note = (f"{len(rows)} row(s) that repeat the row above in every column left out as copies (row(s) "
+            + ", ".join(map(str, rows[:8])) + (", ..." if len(rows) > 8 else "") + ")")
+    out = Columns({k: v[~copy] for k, v in cols.items()}, notes=tuple(notes_of(cols)) + (note,))
     out.not_read = cols.not_read
     return out
 

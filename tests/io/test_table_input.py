@@ -427,7 +427,9 @@ def test_the_note_survives_drop_copied_rows_and_reaches_the_curve_and_the_table(
     p = _write(tmp_path, _table(["strain [%]", "force_per_wale_N"], rows))
     cols = drop_copied_rows(read_csv_columns(p, REQ))
     assert list(cols["_row"]) == [2, 3, 4, 6]
-    assert cols.notes == ("strain column 'strain [%]' read in per cent (divided by 100)",)
+    # and a note names the copy left out (line 5 of the file)
+    assert cols.notes == ("strain column 'strain [%]' read in per cent (divided by 100)",
+                          "1 row(s) that repeat the row above in every column left out as copies (row(s) 5)")
     total = _write(tmp_path, _table(["Strain [%]", "load_N"], PER_CENT_ROWS[:4]), "total.csv")
     t = read_table(total)
     np.testing.assert_allclose(t.strain, [0.0, 0.0512, 0.1234, 0.2], rtol=1e-15, atol=0)
