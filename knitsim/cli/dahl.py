@@ -55,7 +55,10 @@ def register(subparsers) -> None:
         "fit", help="fit Dahl parameters (sigma, Fc[, alpha][, B], F0) to a loop in a CSV file",
         description="Fit F = B x + F_dahl(x history) by nonlinear least squares; print parameters with "
                     "standard errors and write a PNG of data vs fit. Default columns kappa_1_mm, "
-                    "M_N_mm_per_mm (KES bending: curvature 1/mm, moment per width N.mm/mm), else x_mm, F_N.")
+                    "M_N_mm_per_mm (KES bending: curvature 1/mm, moment per width N.mm/mm), else x_mm, F_N. "
+                    "Exit status 0: a usable law; 1: flagged (a parameter not identified, a loop that gains "
+                    "energy, rows out of order, no convergence: NOT A DAHL LAW YOU CAN USE, --json usable/flags); "
+                    "2: bad input.")
     fit.add_argument("file", metavar="FILE.csv", help="the loop, samples in order of acquisition")
     fit.add_argument("--columns", metavar="X,F", help="names of the input and output columns "
                      "(default kappa_1_mm,M_N_mm_per_mm, else x_mm,F_N)")
@@ -176,8 +179,25 @@ def _plot(path: Path, x, F, fit, xcol: str, fcol: str, source: Path | None = Non
         raise KnitsimInputError(f"--png = {str(path)!r}: cannot write ({exc.strerror})") from None
 
 
+#: what the summary says first when a fit is flagged (as ``knitsim capstan fit`` and ``calibrate`` do)
+UNUSABLE = "NOT A DAHL LAW YOU CAN USE"
+
+
+def fit_flags(fit) -> list[str]:
+    """Why a Dahl fit is not a law to use (empty: usable): each fitted parameter not identified (its
+    status, FLAG_TEXT), a loop that gains energy, rows out of order, an optimiser that did not converge.
+    A blind probe's sign-flipped loop printed sigma and Fc NOT IDENTIFIED and a warning, and exited 0 with
+    "success": true: a script could not tell."""
+    out = [f"{n} {FLAG_TEXT[fit.param_status[n]]}" for n in _flagged(fit)]
+    for key, short in (("gains energy", "the loop gains energy (reversed rows or a flipped sign?)"),
+                       ("out of order", "rows out of order"), ("did not converge", "the optimiser did not converge")):
+        if any(key in w for w in fit.warnings):
+            out.append(short)
+    return out
+
+
 def run_fit(args) -> int:
-    """``knitsim dahl fit``."""
+    """``knitsim dahl fit`` (exit status: 0 usable, 1 flagged; :func:`fit_flags`)."""
     path = Path(args.file)
     alpha = _parse_alpha(args.alpha)
     xcol, fcol = _choose_columns(path, args.columns)
@@ -194,6 +214,7 @@ def run_fit(args) -> int:
         raise KnitsimInputError(f"{path}: {exc}") from None
     if png is not None:
         _plot(png, x, F, fit, xcol, fcol, source=path)
+    flags = fit_flags(fit)
     units = _units(xcol, fcol)
     values = {n: getattr(fit, n) for n in ("sigma", "Fc", "alpha", "B", "F0")}
     kes = None
@@ -207,9 +228,11 @@ def run_fit(args) -> int:
             "reversals": fit.reversals, "parameters": values, "stderr": fit.stderr, "fixed": fit.fixed,
             "units": units, "kes_units": kes, "rms": fit.rms, "success": fit.success, "message": fit.message,
             "png": str(png) if png else None, "param_status": fit.param_status, "lower_bounds": fit.lower_bounds,
-            "warnings": fit.warnings,
+            "warnings": fit.warnings, "usable": not flags, "flags": flags,
         })
-        return 0
+        return 1 if flags else 0
+    if flags:
+        print(f"{UNUSABLE}: " + "; ".join(flags) + " (the warnings below say why)")
     print(f"Dahl fit of {path} ({fit.n_points} points, {fit.reversals} reversals; x = {xcol}, F = {fcol})")
     for n in ("sigma", "Fc", "alpha", "B", "F0"):
         if n in fit.stderr:
@@ -230,7 +253,7 @@ def run_fit(args) -> int:
         print(f"  warning: {w}")
     if png:
         print(f"  plot: {png}")
-    return 0
+    return 1 if flags else 0
 
 
 def run_simulate(args) -> int:
