@@ -36,9 +36,9 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
     PER_CENT_HINT, STRAIN_TOL_REL, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
-    strain_jitter, strain_tolerance, zero_offset_below,
+    strain_tolerance, zero_offset_below,
 )
-from ..diagnosis.noise import CurveNoise, curve_noise, steeper_slopes
+from ..diagnosis.noise import CurveNoise, curve_noise, reading_jitter, steeper_slopes
 from ..io.table_input import LAB_ALIASES, notes_of, read_csv_columns
 
 STRAIN_COLUMNS = ("strain", "strain_mm_per_mm")
@@ -65,7 +65,8 @@ class MeasuredTable:
     #: a load cell's zero below zero read off the force (knitsim.diagnosis.measured.zero_offset_below) and
     #: subtracted from it [N] (0: none seen)
     zero_offset_N: float = 0.0
-    #: the sd of the strain column's own jitter (knitsim.diagnosis.noise.strain_jitter; 0: none seen)
+    #: the sd of the strain column's own jitter (knitsim.diagnosis.noise.reading_jitter; 0: none seen, or steps
+    #: that vary while read exactly)
     strain_jitter: float = 0.0
     #: what the reader did that the user must be told (a strain column read in per cent, divided by 100:
     #: knitsim.io.table_input.Columns.notes); () for most files
@@ -135,7 +136,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     # probe).  A zero above zero is not told from the knit's own force at rest or a pretension: left in
     zero = _rest_level(force, noise.sigma_N, zero_offset_below(force, noise.sigma_N))
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
-                         rows, s_name, noise, zero, strain_jitter(strain), notes_of(cols))
+                         rows, s_name, noise, zero, reading_jitter(strain, one), notes_of(cols))
 
 
 def pretension_strain(grip_strain, pretension: float):

@@ -60,7 +60,7 @@ from ..cell.history import BatchHistory
 from ..cell.load_program import LoadProgram, piecewise_linear
 from ..errors import KnitsimInputError
 from ..io.table_input import LAB_ALIASES, Columns, notes_of, read_csv_columns
-from .noise import STRAIN_JITTER_MIN_ROWS, CurveNoise, curve_noise, strain_jitter  # noqa: F401 (re-exported)
+from .noise import STRAIN_JITTER_MIN_ROWS, CurveNoise, curve_noise, reading_jitter, strain_jitter  # noqa: F401
 
 REQUIRED = ("strain", "force_per_wale_N")
 OPTIONAL = ("cycle", "direction", "rate_mm_s")
@@ -337,8 +337,8 @@ def settle_turns(strain: np.ndarray, direction: np.ndarray, jitter: float) -> np
     Why: the knit's response depends on where each turn happened (Table 4's frozen quantities are taken
     there: T on S-, beta on SF-), so a turn read off by the jitter shifts the whole branch after it, not a
     row.  A blind probe's model-made cycles with 2e-4 of strain jitter (rows 0.005 apart, 1 mN of force
-    noise) were fitted at chi^2/dof 1.72 and read as a confident ``unexplained``; the same rows with their
-    five turning strains exact: 1.06, ``none``.  The line's value at its last row has the sd
+    noise) were fitted at chi^2/dof 2.08 (1.72 with the rows weighted for the jitter) and read as a confident
+    ``unexplained``; the same rows with their five turning strains exact: 1.06, ``none``.  The line's value at its last row has the sd
     ``jitter sqrt(1/n + ((n - 1)/2)^2 / S_xx)`` = 0.42 jitter with n = 21 rows.  Kept within the
     neighbours' strains (a turn stays a turn), and used only where it moves the read strain by at most
     :data:`TURN_FIT_SIGMAS` jitter sd (a ramp that changes speed at the turn keeps its reading)."""
@@ -476,9 +476,10 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         bad = np.nonzero(~(np.isfinite(r) & (r > 0)))[0]
         if len(bad):
             raise KnitsimInputError(f"{source}: row {row(bad[0])}, column rate_mm_s: {float(r[bad[0]]):g} must be > 0")
-    # the strain column's jitter from the strain as read (its steps; `clean` has its back-steps levelled), and
-    # the turning points where it jitters from their branches (settle_turns)
-    jitter = strain_jitter(s)
+    # the strain column's jitter from the strain as read (its steps; `clean` has its back-steps levelled), where
+    # its steps scatter as a jitter does (reading_jitter), and the turning points where it jitters from their
+    # branches (settle_turns)
+    jitter = reading_jitter(s, d)
     clean = settle_turns(_monotone(s, d), d, jitter)
     refuse_merged_branches(source, clean, f, c, d, row)
     noise = curve_noise(clean, f, c, d, source, noise_N, strain_sd=jitter)

@@ -190,6 +190,39 @@ def strain_jitter(strain) -> float:
     return float(1.4826 * np.median(np.abs(np.diff(s, 2))) / np.sqrt(6.0))
 
 
+#: the lag-one correlation of a branch's strain steps below which their scatter is read as the reading's jitter
+#: (white jitter e on steady steps: steps h + e_{i+1} - e_i, correlation -1/2); above it, as steps that vary
+#: while each strain is read as it was (irregular logging, rows picked by hand: correlation ~0)
+JITTER_STEP_RHO_MAX = -0.25
+
+
+def reading_jitter(strain, direction) -> float:
+    """The strain column's jitter that enters the fit (:attr:`CurveNoise.strain_sd`): :func:`strain_jitter`
+    where the branches' steps scatter as a jittering reading's do (lag-one correlation of the steps, each
+    less its branch's median, below :data:`JITTER_STEP_RHO_MAX`), else 0.  Second differences cannot tell
+    a jitter from irregular steps read exactly (a file logged at irregular strains, or rows picked by
+    hand, read ~1.2e-3 of "jitter" at steps of 0.01 +- 30 %, and would have had its steep rows weighted
+    down 10-fold and its turns moved); the steps' correlation can: -0.43 to -0.49 on a blind probe's four
+    jittered files, -0.05 and +0.14 on the two irregular ones of tests/diagnosis/data."""
+    s, d = np.asarray(strain, float), np.asarray(direction)
+    e = strain_jitter(s)
+    if not e > 0:
+        return 0.0
+    br = np.concatenate([[0], np.nonzero(np.diff(d) != 0)[0] + 1, [len(s)]])
+    a_, b_ = [], []
+    for a, b in zip(br[:-1], br[1:]):
+        h = np.diff(s[a:b])
+        if len(h) >= 4:
+            h = h - np.median(h)
+            a_.append(h[:-1])
+            b_.append(h[1:])
+    if not a_:
+        return 0.0
+    u, v = np.concatenate(a_), np.concatenate(b_)
+    den = math.sqrt(float(u @ u) * float(v @ v))
+    return e if den > 0 and float(u @ v) / den < JITTER_STEP_RHO_MAX else 0.0
+
+
 def steeper_slopes(x, f) -> np.ndarray:
     """|df/dx| at each point of a path: the steeper of its two segments (one at the ends), so that a point
     at a knee takes its steep side (what a strain error there moves the force by, per unit)."""

@@ -114,3 +114,20 @@ def test_a_rows_sd_adds_the_strain_jitter_times_the_curves_steeper_slope():
     assert n.sd_at(f, k) == pytest.approx(np.sqrt(0.003 ** 2 + (4e-4 * k) ** 2))
     assert n.sd_at(f) == pytest.approx(np.full(6, 0.003))       # without slopes: the force's sd
     assert "strain jitter 0.0004" in n.describe()
+
+
+def test_the_jitter_of_a_reading_is_told_from_steps_that_vary_while_read_exactly():
+    """reading_jitter: white jitter e on steady steps makes the steps h + e_{i+1} - e_i, their lag-one
+    correlation -1/2: the jitter counts (strain_jitter's estimate, within 15 % at 600 rows); steps that vary
+    (0.01 +- 30 %, iid: correlation 0) while each strain is exact are no jitter, whatever their second
+    differences say.  Hand-made: a ramp 0 -> 0.6 -> 0.1 (numpy)."""
+    from knitsim.diagnosis.noise import reading_jitter, strain_jitter
+    rng = np.random.default_rng(4)
+    s = np.r_[np.arange(0.0, 0.6, 0.002), np.arange(0.6, 0.1, -0.002)]
+    d = np.r_[np.ones(300, int), -np.ones(250, int)]
+    jittered = s + rng.normal(0.0, 1e-4, len(s))
+    assert reading_jitter(jittered, d) == pytest.approx(1e-4, rel=0.15)
+    steps = 0.01 * (1 + rng.uniform(-0.3, 0.3, 120))
+    irregular = np.r_[np.cumsum(steps[:60]), np.cumsum(steps[:60])[-1] - np.cumsum(steps[60:])]
+    d2 = np.r_[np.ones(60, int), -np.ones(60, int)]
+    assert strain_jitter(irregular) > 5e-4 and reading_jitter(irregular, d2) == 0.0
