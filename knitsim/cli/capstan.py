@@ -139,6 +139,8 @@ def _run_fit(args) -> int:
 
     def flag(name: str) -> str:
         text = FLAG_TEXT.get(res.param_status.get(name, ""), "")
+        if res.param_status.get(name) == "amontons_limit":
+            text = "AT THE AMONTONS LIMIT n = 1 (usable; the warning below)"
         return f"   <- {text}" if text else ""
 
     print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})")

@@ -74,6 +74,7 @@ F1 is 1.6 %, at 24 steps 0.3 %, at 40 steps 0.2 %.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -467,7 +468,8 @@ class FitResult:
     discretisation: str
     residuals_N: np.ndarray
     #: per parameter: ``"identified"``, ``"fixed"``, ``"at_lower_bound"``,
-    #: ``"at_upper_bound"`` or ``"not_identified"`` (see :func:`parameter_status`)
+    #: ``"at_upper_bound"`` or ``"not_identified"`` (see :func:`parameter_status`); n may be
+    #: ``"amontons_limit"``: at n = 1, the law's physical limit, usable (not a flag)
     param_status: dict = field(default_factory=dict)
     #: sentences for the user: why a parameter is not identified, optimiser failure
     warnings: list = field(default_factory=list)
@@ -506,6 +508,9 @@ PARAM_NAMES = ("b", "p", "n")
 #: Search box of :func:`fit_friction_law` for ``(b, p, n)``: ``b > 0`` (a
 #: friction coefficient), ``|p| <= 1`` (a weak velocity dependence), ``n`` in
 #: ``[0.3, 1]`` (Howell's exponent for fibres; ``n = 1`` is Amontons' law).
+#: n at its upper bound 1 (the Amontons limit) is a usable law when the data pull beyond it by at most this many
+#: standard errors of n (fit_capstan)
+AMONTONS_PULL_SE = 2.0
 FIT_LOWER = (1e-6, -1.0, 0.3)
 FIT_UPPER = (10.0, 1.0, 1.0)
 
@@ -715,6 +720,20 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     # beyond the test's scatter (the zero-residual note is a caveat on the standard errors, not a flag)
     # (parameter_status gives one sentence per parameter not identified, in order, before the note)
     flags = list(warns[:sum(status.get(nm) not in ("identified", "fixed") for nm in PARAM_NAMES)])
+    # n = 1 is not an arbitrary end of the box but the law's physical limit (eq 5 with n = 1: friction
+    # proportional to the normal load, Amontons; n <= 1): data that sit there, not pulling beyond it by more
+    # than AMONTONS_PULL_SE standard errors (the Gauss-Newton step from the bound), are an Amontons yarn, a
+    # usable law bounded from one side (a blind probe's exact n = 1 yarn was called "NOT A FRICTION LAW YOU
+    # CAN USE"); data that need n > 1 (friction growing faster than the load) stay flagged at the bound
+    pull = float(-(np.linalg.pinv(J) @ res.fun)[-1]) if free[-1] == 2 else math.inf
+    if (status.get("n") == "at_upper_bound" and res.success and np.isfinite(se[2]) and se[2] > 0
+            and pull <= AMONTONS_PULL_SE * float(se[2])):
+        text = next(w for w in warns if w.startswith("n = "))
+        flags.remove(text)
+        status["n"] = "amontons_limit"
+        warns[warns.index(text)] = (
+            f"n = 1, the Amontons limit (friction proportional to the normal load; the law's n <= 1): the data sit "
+            f"at it, n >= {1.0 - 1.645 * float(se[2]):.4g} (one-sided 95 %, from its standard error {float(se[2]):.2g})")
     if not res.success:
         warns.append(f"the optimiser did not converge: {res.message}")
         flags.append(warns[-1])

@@ -204,3 +204,22 @@ def test_repeats_tighter_than_the_paper_still_judge_the_fit(tmp_path, capsys):
     assert main(["capstan", "fit", one, "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["usable"] is True and out["goodness_of_fit"]["lack_of_fit_p"] > 1e-3
+
+
+def test_an_amontons_yarn_at_n_1_is_a_law_to_use(tmp_path, capsys):
+    """A blind probe: records of an Amontons yarn (eq 5 with n = 1, b 0.16, p 0.02; F0 6.31 and 12.62 N, three
+    speeds, both directions, 3 repeats, the paper's 1.2 % scatter) fitted n = 1 +- 0.01 "AT UPPER BOUND: not
+    identified", NOT A FRICTION LAW YOU CAN USE, exit 1.  n = 1 is the law's physical limit (friction
+    proportional to the normal load; n <= 1), not an arbitrary end of the box: the data sitting there make a
+    usable law, n bounded from one side.  The same records from n = 0.9: n fitted, identified, no limit said.
+    (eq 5 at n = 1 is the closed form of test_descent_crossing_below_the_stop_limit_is_the_closed_form.)"""
+    rng = np.random.default_rng(0)
+    rows = _law_rows(rng, 0.16, 0.02, 1.0, (6.31, 12.62), (0.2, 1.0, 10.0), 3, 0.13 / 10.7)
+    assert main(["capstan", "fit", _csv(tmp_path, rows, "amontons.csv"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["usable"] is True and out["n_status"] == "amontons_limit"
+    assert any(w.startswith("n = 1, the Amontons limit") and "one-sided 95 %" in w for w in out["warnings"])
+    rows = _law_rows(rng, 0.16, 0.02, 0.9, (6.31, 12.62), (0.2, 1.0, 10.0), 3, 0.13 / 10.7)
+    assert main(["capstan", "fit", _csv(tmp_path, rows, "howell.csv"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_status"] == "identified" and abs(out["n"] - 0.9) < 0.05
