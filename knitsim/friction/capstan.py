@@ -508,11 +508,11 @@ PARAM_NAMES = ("b", "p", "n")
 #: Search box of :func:`fit_friction_law` for ``(b, p, n)``: ``b > 0`` (a
 #: friction coefficient), ``|p| <= 1`` (a weak velocity dependence), ``n`` in
 #: ``[0.3, 1]`` (Howell's exponent for fibres; ``n = 1`` is Amontons' law).
-#: n at its upper bound 1 (the Amontons limit) is a usable law when the data pull beyond it by at most this many
-#: standard errors of n (fit_capstan)
-AMONTONS_PULL_SE = 2.0
 FIT_LOWER = (1e-6, -1.0, 0.3)
 FIT_UPPER = (10.0, 1.0, 1.0)
+#: n at its upper bound 1 (the Amontons limit) is a usable law when the data pull beyond it by at most this many
+#: standard errors of n (:func:`fit_friction_law`)
+AMONTONS_PULL_SE = 2.0
 
 
 def decimal_resolution(cell: str) -> float:
