@@ -57,7 +57,8 @@ def register(subparsers) -> None:
                     "standard errors and write a PNG of data vs fit. Default columns kappa_1_mm, "
                     "M_N_mm_per_mm (KES bending: curvature 1/mm, moment per width N.mm/mm), else x_mm, F_N. "
                     "Exit status 0: a usable law; 1: flagged (a parameter not identified, a loop that gains "
-                    "energy, rows out of order, no convergence: NOT A DAHL LAW YOU CAN USE, --json usable/flags); "
+                    "energy, rows out of order, no convergence, residuals beyond the loop's own noise, an offset, a loop "
+                    "that does not close: NOT A DAHL LAW YOU CAN USE, --json usable/flags); "
                     "2: bad input.")
     fit.add_argument("file", metavar="FILE.csv", help="the loop, samples in order of acquisition")
     fit.add_argument("--columns", metavar="X,F", help="names of the input and output columns "
@@ -167,7 +168,7 @@ def _plot(path: Path, x, F, fit, xcol: str, fcol: str, source: Path | None = Non
     notes = ([f"NOT IDENTIFIED: {', '.join(bad)}"] if bad else []) \
         + (["rows may be out of order"] if any("out of order" in w for w in fit.warnings) else []) \
         + (["the loop gains energy: reversed rows or a flipped sign?"] if any("gains energy" in w for w in fit.warnings)
-           else [])
+           else []) + list(fit.loop_flags)
     if notes:
         ax.set_title(title + "\n" + "; ".join(notes), fontsize=9, color="C3")
     else:
@@ -185,7 +186,8 @@ UNUSABLE = "NOT A DAHL LAW YOU CAN USE"
 
 def fit_flags(fit) -> list[str]:
     """Why a Dahl fit is not a law to use (empty: usable): each fitted parameter not identified (its
-    status, FLAG_TEXT), a loop that gains energy, rows out of order, an optimiser that did not converge.
+    status, FLAG_TEXT), a loop that gains energy, rows out of order, an optimiser that did not converge,
+    residuals beyond the loop's noise, an offset, a loop that does not close (``fit.loop_flags``).
     A blind probe's sign-flipped loop printed sigma and Fc NOT IDENTIFIED and a warning, and exited 0 with
     "success": true: a script could not tell."""
     out = [f"{n} {FLAG_TEXT[fit.param_status[n]]}" for n in _flagged(fit)]
@@ -193,7 +195,9 @@ def fit_flags(fit) -> list[str]:
                        ("out of order", "rows out of order"), ("did not converge", "the optimiser did not converge")):
         if any(key in w for w in fit.warnings):
             out.append(short)
-    return out
+    # residuals beyond the loop's own noise, an offset, a loop that does not close (fit_dahl_loop): a blind
+    # probe's offset loop and drifting loop exited 0 with nothing said
+    return out + list(fit.loop_flags)
 
 
 def run_fit(args) -> int:
@@ -229,6 +233,8 @@ def run_fit(args) -> int:
             "units": units, "kes_units": kes, "rms": fit.rms, "success": fit.success, "message": fit.message,
             "png": str(png) if png else None, "param_status": fit.param_status, "lower_bounds": fit.lower_bounds,
             "warnings": fit.warnings, "usable": not flags, "flags": flags,
+            "noise": {"sd": fit.noise_sd, "estimated": fit.noise_estimated, "rms_over_sd": fit.rms / fit.noise_sd},
+            "closure": fit.closure,
         })
         return 1 if flags else 0
     if flags:
@@ -248,7 +254,10 @@ def run_fit(args) -> int:
         if n in fit.lower_bounds:
             line += f" ({n} >= {fit.lower_bounds[n]:.3g} {units[n]}, one-sided 95 %)".replace(" ,", ",")
         print(line)
-    print(f"  rms residual = {fit.rms:.3g} {units['F0']}" + ("" if fit.success else f"  (optimizer: {fit.message})"))
+    print(f"  rms residual = {fit.rms:.3g} {units['F0']}, {fit.rms / fit.noise_sd:.3g} times the loop's noise "
+          f"(sd {fit.noise_sd:.3g}, " + ("read off its rows)" if fit.noise_estimated else
+                                        "assumed: the rows are smoother than a measurement's)")
+          + ("" if fit.success else f"  (optimizer: {fit.message})"))
     for w in fit.warnings:
         print(f"  warning: {w}")
     if png:

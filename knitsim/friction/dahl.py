@@ -428,6 +428,15 @@ class DahlFit:
     #: one-sided 95 % lower bounds of the parameters the data bound from one side only (status
     #: ``"lower_bound_only"``: sigma where the transitions are shorter than the row spacing)
     lower_bounds: dict = field(default_factory=dict)
+    #: the loop's noise sd read off its rows without the fit (:func:`loop_noise`), and whether it was read
+    #: (False: assumed, the rows being smoother than a measurement's)
+    noise_sd: float = float("nan")
+    noise_estimated: bool = False
+    #: the loop's offset and drift against the fit (:func:`loop_closure`)
+    closure: dict = field(default_factory=dict)
+    #: why the fit is not a law to use beyond its parameters' status (short; the warnings say more): residuals
+    #: beyond the noise, an offset, a loop that does not close
+    loop_flags: list = field(default_factory=list)
 
     @property
     def identified(self) -> bool:
@@ -650,6 +659,131 @@ def _sigma_lower_bound(residual, theta, names, lower, upper, s2, xn, branches):
     return hi, max(d_sharp, 0.0), shown
 
 
+#: a fit whose rms residual exceeds this many times the loop's own noise (:func:`loop_noise`) misses the loop:
+#: its residuals are systematic.  (rms / sd)^2 = 4 is chi^2 / dof = 4, which the estimate's scatter does not
+#: reach by chance: its relative sd is about 1 / sqrt(rows), 0.2 at the fewest rows a fit accepts
+RESIDUAL_NOISE_MAX = 2.0
+#: an offset or a drift of the loop (:func:`loop_closure`) is flagged beyond this many standard errors ...
+CLOSURE_Z = 5.0
+#: ... larger than the noise sd of a row, and where it makes at least this share of the residuals' mean square (a misfit of the law's shape leaves
+#: small offsets and trends in the branch means; an offset or a drift that is the misfit makes most of it)
+CLOSURE_SHARE = 0.1
+
+
+def loop_noise(x, F, turns=None) -> tuple[float, int, bool]:
+    """The loop's noise sd read off its rows, independent of any fit.
+
+    Each row is compared with the cubic through its two neighbours on each side along one branch (x strictly
+    monotone over the five rows, :func:`knitsim.diagnosis.noise.cubic_deviations`): white noise of sd s gives
+    deviations of sd s whatever the loop's slope, and the smooth loop leaves only ``O(h^4)`` of its fourth
+    derivative; the few rows by a reversal where a transition curves sharply are clipped
+    (:func:`knitsim.diagnosis.noise.clipped_sd`: the RMS within 3.5 robust sd).  The estimate
+    ``knitsim diagnose`` makes of a curve's noise.
+
+    Parameters
+    ----------
+    x, F : array_like, shape (n,)
+        The loop, rows in order of acquisition.
+    turns : list of int, optional
+        Its reversals (:func:`turning_points`).
+
+    Returns
+    -------
+    sd : float
+        The noise sd, in the units of F.  Where it cannot be read (fewer than
+        :data:`knitsim.diagnosis.noise.MIN_SAMPLES` stencils, or below
+        :data:`knitsim.diagnosis.noise.SMOOTH_REL` of the force range: a loop made by a program, or smoothed)
+        :data:`knitsim.diagnosis.noise.ASSUMED_REL` of the force range, as ``diagnose`` assumes for a curve
+        read off a figure.
+    samples : int
+        Rows the estimate rests on.
+    estimated : bool
+        False where ``sd`` is assumed.
+    """
+    from ..diagnosis.noise import ASSUMED_REL, MIN_SAMPLES, SMOOTH_REL, clipped_sd, cubic_deviations
+
+    x, F = np.asarray(x, float), np.asarray(F, float)
+    if turns is None:
+        turns = turning_points(x)
+    branch = np.zeros(x.size, int)
+    for t in turns:
+        branch[t + 1:] += 1
+    z, _ = cubic_deviations(x, F, branch, np.zeros(x.size))
+    span = float(np.ptp(F))
+    sd = clipped_sd(z) if len(z) >= MIN_SAMPLES else 0.0
+    if sd > SMOOTH_REL * span:
+        return sd, len(z), True
+    return ASSUMED_REL * span, len(z), False
+
+
+#: x jittering by more than this share of its step between rows is named as a cause of a misfit
+X_JITTER_SHARE = 0.05
+
+
+def _x_jitter(x, turns) -> tuple[float, float] | None:
+    """``(sd, share of the median step)`` of x's own scatter between rows where it exceeds
+    :data:`X_JITTER_SHARE` of a step (:func:`knitsim.diagnosis.noise.strain_jitter`: second differences,
+    which a steady ramp cancels), else None.  The fit integrates the law along x as read: a jittering reading
+    reverses x by a little, again and again, and moves the Dahl state where the specimen's did not move."""
+    from ..diagnosis.noise import strain_jitter
+
+    step = float(np.median(np.abs(np.diff(np.asarray(x, float)))))
+    j = strain_jitter(x)
+    return (j, j / step) if step > 0 and j > X_JITTER_SHARE * step else None
+
+
+def loop_closure(x, residual, turns, sd) -> dict:
+    """The offset and the drift of a loop against its fit, from the mean residual of each full branch.
+
+    A Dahl loop, with or without an elastic part, is odd in (x, F), and it repeats itself cycle after cycle
+    once its start is forgotten (the fit carries that transient).  The mean residuals ``r_b`` of its full
+    branches (the rows strictly between two reversals) are fitted by ``c + e s_b + d t_b``: ``s_b`` the
+    branch's direction (+-1: what a misfit of the law's shape leaves, opposite on the two directions),
+    ``t_b`` its middle row over the rows, less 1/2.  ``c`` is the loop's offset (its centre off zero: a force
+    column not tared), ``d`` the change of F at one x from the first row to the last (a loop that does not
+    close: a load cell drifting, a specimen creeping or wearing).  Each branch is weighted by its rows, the
+    standard errors from ``max(sd, rms of the residuals)`` a row (the residuals of a misfit are not white).
+
+    Parameters
+    ----------
+    x, residual : array_like, shape (n,)
+        The loop's input and the data less the fit, rows in order.
+    turns : list of int
+        The reversals (:func:`turning_points`).
+    sd : float
+        The noise sd of a row (:func:`loop_noise`).
+
+    Returns
+    -------
+    dict
+        ``offset``, ``offset_se``, ``drift``, ``drift_se`` (None where the branches do not tell: fewer than
+        2 full branches of both directions for the offset, 3 for the drift) and ``branches``.
+    """
+    x, r = np.asarray(x, float), np.asarray(residual, float)
+    bounds = [0] + list(turns) + [x.size - 1]
+    rows, means, t, s = [], [], [], []
+    for a, b in zip(bounds[1:-2], bounds[2:-1]):   # between two reversals: not the first run, not the last
+        if b - a < 2:
+            continue
+        rows.append(b - a - 1)
+        means.append(float(np.mean(r[a + 1:b])))
+        t.append(0.5 * (a + b) / x.size - 0.5)
+        s.append(1.0 if x[b] > x[a] else -1.0)
+    out = {"offset": None, "offset_se": None, "drift": None, "drift_se": None, "branches": len(rows)}
+    if len(rows) < 2 or len(set(s)) < 2:
+        return out
+    per_row = max(float(sd), float(np.sqrt(np.mean(r * r))))
+    w = np.asarray(rows, float) / per_row ** 2
+    with_drift = len(rows) >= 3
+    A = np.column_stack([np.ones(len(rows)), np.asarray(s)] + ([np.asarray(t)] if with_drift else []))
+    cov = np.linalg.pinv(A.T @ (A * w[:, None]))
+    coef = cov @ (A.T @ (w * np.asarray(means)))
+    out["offset"], out["offset_se"] = float(coef[0]), float(math.sqrt(max(cov[0, 0], 0.0)))
+    if with_drift:
+        out["drift"], out["drift_se"] = float(coef[2]), float(math.sqrt(max(cov[2, 2], 0.0)))
+    return out
+
+
 #: a fitted Fc more than this many times the largest |force| the Dahl part reaches over the loop is not
 #: identified: the state never nears its saturation (fit_dahl_loop)
 FC_BEYOND = 3.0
@@ -844,6 +978,61 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
             f"F0: the Dahl state at the first row, {values['F0']:.4g}, exceeds Fc = {values['Fc']:.4g}, which no Dahl "
             f"state does: {labels[1]} carries an offset (a zero not tared) or the loop is not centred on zero; tare "
             "the column and fit again")
+    # Does the law describe the loop?  The rms residual against the loop's own noise, read off its rows
+    # without the fit (loop_noise); then what the misfit is made of (loop_closure).  A blind probe: a Dahl yarn
+    # with an elastic part fitted without --elastic left an rms 6 times its noise, "identified", exit 0; the
+    # bundled loop with an offset of 22 % of Fc, rms 21 times its noise, and with a drift of 30 noise sd over
+    # the file (sigma moved 5 %), rms 17 times, were said nothing of
+    pred = values["B"] * x + dahl_response(x, values["sigma"], values["Fc"], values["alpha"], values["F0"])
+    resid = F - pred
+    rms = float(math.sqrt(2.0 * res.cost / n)) * Fs
+    sd, sd_rows, sd_estimated = loop_noise(x, F, turns)
+    closure = loop_closure(x, resid, turns, sd)
+    noise_words = (f"the loop's noise, sd {sd:.3g} (each row against the cubic through its neighbours, {sd_rows} rows; "
+                   "no fit)" if sd_estimated else
+                   f"{100 * sd / max(float(np.ptp(F)), 1e-300):.2g} % of the force range, the noise assumed of a loop "
+                   "whose rows are smoother than a measurement's (made by a program, or smoothed)")
+    loop_flags: list[str] = []
+    mean_square = rms * rms
+    causes = []
+    for key, se_key, share, what in (("offset", "offset_se", 1.0, "offset"), ("drift", "drift_se", 1.0 / 12.0, "drift")):
+        v, se = closure[key], closure[se_key]
+        # a linear drift d over the rows makes d^2/12 of the mean square, an offset c makes c^2
+        if (v is not None and se and abs(v) > CLOSURE_Z * se and abs(v) > sd
+                and share * v * v >= CLOSURE_SHARE * mean_square):
+            causes.append(what)
+            if what == "offset":
+                loop_flags.append(f"the loop is off centre by {v:.3g} (an offset in {labels[1]}?)")
+                warns.append(
+                    f"the loop is not centred on zero: its full branches sit {v:.4g} {labels[1]} off the fit on average "
+                    f"(+- {se:.2g}; a Dahl loop, with or without an elastic part, is odd, and over an up and a down "
+                    f"branch its fit's misfit cancels): {labels[1]} carries an offset (a zero not tared; or, with a "
+                    "drift, the drift's mean at mid-file); tare the column and fit again")
+            else:
+                loop_flags.append(f"the loop does not close: {labels[1]} drifts by {v:.3g} over the file")
+                warns.append(
+                    f"the loop does not close: at one {labels[0]}, {labels[1]} moves by {v:.4g} (+- {se:.2g}) from the "
+                    f"first row to the last, against the fit, which repeats each cycle (compared on the full branches, "
+                    f"{closure['branches']}): a load cell drifting, a specimen creeping or wearing; the law fitted to "
+                    "it is an average, not the specimen's")
+    ratio = rms / sd
+    if ratio > RESIDUAL_NOISE_MAX:
+        jitter = _x_jitter(x, turns)
+        gains = energy_gain_warning(x, F, labels) is not None
+        hint = "; ".join(
+            (["the offset or drift above"] if causes else [])
+            + (["rows reversed or a sign flipped (the warning below)"] if gains else [])
+            + ([f"{labels[0]} itself scatters between rows (sd {jitter[0]:.2g}, {100 * jitter[1]:.0f} % of a step), and "
+                f"the Dahl state the fit integrates follows every wiggle of {labels[0]} as read"] if jitter else [])
+            + ([] if causes or gains else
+               (["an elastic part in parallel? try --elastic"] if not elastic else [])
+               + ([f"a shape exponent other than {values['alpha']:g}? try --alpha free"] if alpha is not None else []))
+        ) or "a loop the Dahl law does not describe"
+        loop_flags.append(f"residuals {ratio:.3g} times the noise")
+        warns.append(
+            f"the fit misses the loop: its rms residual, {rms:.3g}, is {ratio:.3g} times {noise_words} (more than "
+            f"{RESIDUAL_NOISE_MAX:g}): the residuals are systematic, the parameters those of the nearest Dahl loop, "
+            f"not the specimen's; {hint}")
     rev = reversal_warning(n, len(turns), labels[0])
     if rev:
         warns.append(rev)
@@ -854,7 +1043,8 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
         warns.append(f"the optimiser did not converge: {res.message}")
     return DahlFit(sigma=float(values["sigma"]), Fc=float(values["Fc"]), alpha=float(values["alpha"]),
                    B=float(values["B"]), F0=float(values["F0"]), stderr=stderr, names=tuple(names), cov=cov,
-                   rms=float(math.sqrt(2.0 * res.cost / n)) * Fs, n_points=n, reversals=len(turns),
+                   rms=rms, n_points=n, reversals=len(turns),
                    success=bool(res.success), status=int(res.status), message=str(res.message),
                    nfev=int(res.nfev), fixed=fixed, param_status=status, warnings=warns,
-                   lower_bounds=lower_bounds)
+                   lower_bounds=lower_bounds, noise_sd=float(sd), noise_estimated=bool(sd_estimated),
+                   closure=closure, loop_flags=loop_flags)

@@ -270,8 +270,9 @@ def test_a_loop_with_an_elastic_part_fitted_without_it_is_not_a_law_to_use(tmp_p
     hand-integrated loop in the probe's regime, the elastic part most of the force (sigma 2, Fc 0.05, B 1.5
     over x in [-1, 1], 3 cycles, noise 2e-3): without --elastic Fc is flagged (fitted 18: the Dahl part never
     nears its saturation, Fc more than 3 times the largest force it reaches) and the fit is not usable (exit
-    1); with --elastic the truth comes back and it is (exit 0).  Not caught: a milder elastic part (Fc 0.5)
-    fitted without it reads Fc 3.4, 1.7 times the largest force, with systematic residuals no check reads."""
+    1); with --elastic the truth comes back and it is (exit 0).  (A milder elastic part, Fc 0.5, fitted without
+    it reads Fc 3.4, 1.7 times the largest force: its residuals beyond the noise flag it,
+    tests/friction/test_dahl.py::test_a_loop_with_a_mild_elastic_part_fitted_without_it_is_said_to_miss.)"""
     xs = np.concatenate([np.linspace(0, 1, 41)] + [np.linspace(1, -1, 81)[1:], np.linspace(-1, 1, 81)[1:]] * 3)
     F = _numpy_dahl(xs, 2.0, 0.05) + 1.5 * xs + np.random.default_rng(5).normal(0.0, 0.002, len(xs))
     path = _write_xf(tmp_path / "elastic.csv", list(xs), list(F))
@@ -294,3 +295,32 @@ def test_an_offset_beyond_fc_is_flagged(tmp_path, capsys):
                              "--json"], rc=1)
     assert out["param_status"]["F0"] == "not_identified"
     assert any(w.startswith("F0:") and "offset" in w for w in out["warnings"])
+
+
+@pytest.mark.parametrize("kind", ["offset", "drift"])
+def test_an_offset_or_a_drift_is_a_verdict_where_the_user_looks(kind, tmp_path, capsys, monkeypatch):
+    """A blind probe: the bundled loop + an offset of 22 % of Fc (below Fc, so F0 stays inside it), or + a drift
+    to 30 % of Fc over the file, exited 0 with no word.  Here the hand-made loop (sigma 2, Fc 0.5, noise
+    5e-3 added) with 0.11 added, or a ramp 0 -> 0.15: the console opens with NOT A DAHL LAW YOU CAN USE and
+    names the cause, the rms is printed against the loop's own noise (the 5e-3 added, within 15 %), the
+    JSON gives usable false with the flag, the plot's title says it, and the exit status is 1."""
+    xs, F = _hand_loop(per_branch=50, cycles=3)
+    F = np.asarray(F) + np.random.default_rng(3).normal(0.0, 5e-3, len(F))
+    F = F + (0.11 if kind == "offset" else np.linspace(0.0, 0.15, len(F)))
+    path = _write_xf(tmp_path / f"{kind}.csv", xs, list(F))
+    word = "off centre" if kind == "offset" else "does not close"
+    out = _run_json(capsys, ["dahl", "fit", path, "--no-png", "--json"], rc=1)
+    assert out["usable"] is False and any(word in f for f in out["flags"])
+    assert out["noise"]["estimated"] and out["noise"]["sd"] == pytest.approx(5e-3, rel=0.15)
+    assert out["noise"]["rms_over_sd"] > 2.0
+    from matplotlib.figure import Figure
+
+    titles, real_savefig = [], Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (titles.append(self.axes[0].get_title()),
+                                                                   real_savefig(self, *a, **k))[1])
+    assert main(["dahl", "fit", path, "--png", str(tmp_path / "p.png")]) == 1
+    text = capsys.readouterr().out
+    assert text.startswith("NOT A DAHL LAW YOU CAN USE: ") and word in text.splitlines()[0]
+    assert "times the loop's noise" in text and word in titles[0]
+    clean = _write_xf(tmp_path / "clean.csv", xs, list(F - (0.11 if kind == "offset" else np.linspace(0.0, 0.15, len(F)))))
+    assert _run_json(capsys, ["dahl", "fit", clean, "--no-png", "--json"])["usable"] is True

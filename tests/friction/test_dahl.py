@@ -450,3 +450,109 @@ def test_a_dahl_loop_still_identifies_fc():
     x = kes_loop_path(1.0, cycles=2, points_per_quarter=30)
     fit = fit_dahl_loop(x, dahl_response(x, 2.0, 0.5), alpha=1.0)
     assert fit.param_status["Fc"] == "identified" and fit.Fc == pytest.approx(0.5, rel=1e-6)
+
+
+# ---------------------------------------------------------------- does the law describe the loop?
+def _hand_made_loop(sigma, Fc, A=1.0, per_quarter=50, cycles=3, alpha=1.0):
+    """A KES-like path 0 -> A -> -A -> ... -> 0 and the Dahl force along it, written here (not by knitsim) from
+    the closed forms of eq 1 along a run of direction s, u = 1 - s F / Fc: u = u0 exp(-sigma p / Fc) for
+    alpha 1, u = u0 (1 + (alpha - 1) (sigma / Fc) p u0^(alpha - 1))^(-1 / (alpha - 1)) for alpha > 1."""
+    legs = [np.linspace(0.0, A, per_quarter + 1)]
+    for _ in range(cycles):
+        legs += [np.linspace(A, -A, 2 * per_quarter + 1)[1:], np.linspace(-A, A, 2 * per_quarter + 1)[1:]]
+    legs.append(np.linspace(A, 0.0, per_quarter + 1)[1:])
+    x = np.concatenate(legs)
+    F = np.zeros_like(x)
+    for i in range(1, x.size):
+        s, p = np.sign(x[i] - x[i - 1]), abs(x[i] - x[i - 1])
+        u0 = 1.0 - s * F[i - 1] / Fc
+        if alpha == 1.0:
+            u = u0 * math.exp(-sigma * p / Fc)
+        else:
+            u = u0 * (1.0 + (alpha - 1.0) * sigma / Fc * p * u0 ** (alpha - 1.0)) ** (-1.0 / (alpha - 1.0))
+        F[i] = s * Fc * (1.0 - u)
+    return x, F
+
+
+@pytest.mark.parametrize("sd", [1e-3, 1e-2])
+def test_loop_noise_reads_the_noise_added_without_a_fit(sd):
+    """The noise the test adds is the truth: white noise of sd 1e-3 and 1e-2 on a closed-form loop (sigma 2,
+    Fc 0.5, 701 rows) is read back from the rows alone within 10 % (the estimate's relative sd is about
+    1/sqrt(rows), 4 %); the noise-free loop (the limit case) is smoother than any measurement: its sd is
+    assumed, 0.5 % of the force range, as diagnose assumes for a curve read off a figure."""
+    from knitsim.friction.dahl import loop_noise
+
+    x, F = _hand_made_loop(2.0, 0.5)
+    got, rows, estimated = loop_noise(x, F + np.random.default_rng(11).normal(0.0, sd, x.size))
+    assert estimated and rows > 600 and got == pytest.approx(sd, rel=0.10)
+    got, _, estimated = loop_noise(x, F)
+    assert not estimated and got == pytest.approx(0.005 * np.ptp(F), rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("row", ROWS, ids=[r["sample"] for r in ROWS])
+def test_the_law_that_made_a_loop_is_not_flagged_as_missing_it(row, seed):
+    """The limit case of the loop checks: data made by the law fitted, plus white noise (1 % of Fc, the
+    bundled loop's), over three cycles of the paper's KES range.  The residuals are the noise, so the rms is
+    about the noise read off the rows (within 20 %), and no offset or drift shows."""
+    x, F = _hand_made_loop(row["sigma"], row["Fc"], A=KES_K, per_quarter=100)
+    F = F + np.random.default_rng(seed).normal(0.0, 0.01 * row["Fc"], x.size)
+    fit = fit_dahl_loop(x, F)
+    assert fit.loop_flags == [] and fit.rms / fit.noise_sd == pytest.approx(1.0, abs=0.2)
+    assert abs(fit.closure["offset"]) < 5 * fit.closure["offset_se"]
+
+
+def test_a_loop_with_a_mild_elastic_part_fitted_without_it_is_said_to_miss():
+    """Dahl (sigma 2, Fc 0.5) with an elastic part 1.5 x, noise 2e-3, fitted without --elastic: Fc comes out
+    near 3.4, under 3 times the largest force (so the Fc-beyond-the-loop check is silent), but the residuals
+    are the missing 1.5 x's, tens of times the noise (2e-3, added here).  Flagged, with the hint; fitted
+    with the elastic part, the truth (B 1.5, Fc 0.5) within 2 % and nothing flagged."""
+    x, F = _hand_made_loop(2.0, 0.5, per_quarter=40)
+    F = F + 1.5 * x + np.random.default_rng(5).normal(0.0, 2e-3, x.size)
+    fit = fit_dahl_loop(x, F)
+    assert fit.param_status["Fc"] == "identified"          # not the Fc check: the residual one
+    (flag,) = [f for f in fit.loop_flags if f.startswith("residuals")]
+    assert fit.rms > 10 * 2e-3 and fit.noise_sd == pytest.approx(2e-3, rel=0.15)
+    assert any(w.startswith("the fit misses the loop") and "try --elastic" in w for w in fit.warnings)
+    ok = fit_dahl_loop(x, F, elastic=True)
+    assert ok.loop_flags == [] and ok.B == pytest.approx(1.5, rel=0.02) and ok.Fc == pytest.approx(0.5, rel=0.02)
+
+
+def test_a_fixed_alpha_the_loop_does_not_have_is_said_to_miss():
+    """A loop of alpha 1.6 (closed form, noise 5e-3) fitted at the paper's alpha 1: residuals beyond the noise
+    added, the hint --alpha free; fitted with alpha free, alpha 1.6 within 5 % and nothing flagged."""
+    x, F = _hand_made_loop(2.0, 0.5, per_quarter=100, alpha=1.6)
+    F = F + np.random.default_rng(2).normal(0.0, 5e-3, x.size)
+    fit = fit_dahl_loop(x, F, alpha=1.0)
+    assert any(f.startswith("residuals") for f in fit.loop_flags)
+    assert any("try --alpha free" in w for w in fit.warnings)
+    free = fit_dahl_loop(x, F, alpha=None)
+    assert free.loop_flags == [] and free.alpha == pytest.approx(1.6, rel=0.05)
+
+
+def test_an_offset_below_fc_is_read_and_flagged():
+    """An offset of 22 % of Fc (a blind probe's 3e-5 on the bundled loop's Fc 1.37e-4; below Fc, so |F0| > Fc
+    does not catch it) added to a closed-form loop with noise 1 % of Fc: the offset read is the one added,
+    within 5 standard errors, and flagged; the loop as made is not."""
+    sigma, Fc, c = 0.06, 1.37e-3, 0.22 * 1.37e-3
+    x, F = _hand_made_loop(sigma, Fc, A=0.25, per_quarter=100)
+    F = F + np.random.default_rng(1).normal(0.0, 0.01 * Fc, x.size)
+    fit = fit_dahl_loop(x, F + c)
+    off, se = fit.closure["offset"], fit.closure["offset_se"]
+    assert abs(off - c) < 5 * se and abs(off - c) < 0.05 * c
+    assert any(f.startswith("the loop is off centre") for f in fit.loop_flags)
+    assert fit_dahl_loop(x, F).loop_flags == []
+
+
+def test_a_drifting_loop_is_said_not_to_close():
+    """A linear drift added to a closed-form loop (noise 1 % of Fc), 0 at the first row to 30 noise sd at the
+    last (a blind probe's drift of the bundled loop moved sigma 5 %, nothing said): the loop does not close,
+    the drift read is the one added within 10 %; a drift of half a noise sd over the file is no flag."""
+    sigma, Fc = 0.06, 1.37e-3
+    x, F = _hand_made_loop(sigma, Fc, A=0.25, per_quarter=100)
+    F = F + np.random.default_rng(4).normal(0.0, 0.01 * Fc, x.size)
+    ramp = np.linspace(0.0, 1.0, x.size)
+    fit = fit_dahl_loop(x, F + 0.3 * Fc * ramp)
+    assert fit.closure["drift"] == pytest.approx(0.3 * Fc, rel=0.10)
+    assert any(f.startswith("the loop does not close") for f in fit.loop_flags)
+    assert fit_dahl_loop(x, F + 0.005 * Fc * ramp).loop_flags == []
