@@ -129,6 +129,37 @@ def discretisation_note(disc: capstan.Discretisation) -> str | None:
             "compare a b with Table 3's under that march")
 
 
+#: a row repeating the row above in every column is a copy (dropped) when its F1 is written finer than this
+#: share of the test's scatter: two tests then agree to the last digit by chance about once in a thousand
+#: (a chance of about resolution / (sqrt(pi) sd)); written coarser, it may be a replicate, and is kept
+COPY_RESOLUTION_SHARE = 1e-3
+
+
+def _drop_copies(cols, resolution) -> tuple[dict, str | None]:
+    """The records without a row that repeats the row above in every column where it is written finely
+    enough to be a copy (:data:`COPY_RESOLUTION_SHARE`), and a note naming the rows dropped or kept (None
+    without such rows).  A blind probe's file with one record pasted twice fitted 9 records, dof 6: a copy
+    is no second test, and counted as one it weighs twice and makes a repeat that agrees exactly."""
+    n = len(cols["_row"])
+    same = np.zeros(n, bool)
+    if n > 1:
+        same[1:] = np.logical_and.reduce([np.asarray(cols[k])[1:] == np.asarray(cols[k])[:-1] for k in _COLUMNS])
+    if not same.any():
+        return cols, None
+    fine = same & (np.asarray(resolution) < COPY_RESOLUTION_SHARE * capstan.paper_scatter_N(cols["F1_N"]))
+    rows = np.asarray(cols["_row"])
+    parts = []
+    if fine.any():
+        parts.append(f"row(s) {', '.join(str(int(r)) for r in rows[fine])} repeat the row above in every column to the "
+                     "last of their digits: left out as copies (a second test does not agree so)")
+    if (same & ~fine).any():
+        parts.append(f"row(s) {', '.join(str(int(r)) for r in rows[same & ~fine])} repeat the row above in every column: "
+                     "kept as replicates (F1 written too coarsely for a copy to be told from a second test; delete "
+                     "them if they are copies)")
+    out = {k: (v[~fine] if isinstance(v, np.ndarray) else [x for x, f in zip(v, fine) if not f]) for k, v in cols.items()}
+    return out, "; ".join(parts)
+
+
 def _run_fit(args) -> int:
     if args.fix_p is not None:
         lo, hi = capstan.FIT_LOWER[1], capstan.FIT_UPPER[1]
@@ -139,6 +170,10 @@ def _run_fit(args) -> int:
                                     "box for the velocity exponent)")
     disc = _discretisation(args)
     cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3])
+    # F1's own last digit (F0 repeats between replicates: the same dead weight)
+    raw = read_csv_columns(args.file, ("F1_N",), numeric=())
+    f1_res = {int(r): capstan.decimal_resolution(c) for r, c in zip(raw["_row"], raw["F1_N"])}
+    cols, copies = _drop_copies(cols, np.array([f1_res.get(int(r), 0.0) for r in cols["_row"]]))
     res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
                                    disc, fix_p=args.fix_p, source=str(args.file),
                                    resolution_N=_resolution(args.file, cols["_row"]), rows=cols["_row"])
@@ -147,6 +182,7 @@ def _run_fit(args) -> int:
         out = res.as_dict()
         out["records"] = int(len(cols["F0_N"]))
         out["discretisation_note"] = discretisation_note(disc)
+        out["copies_note"] = copies
         for line in res.flags:
             print(f"knitsim capstan fit: warning: {line}", file=sys.stderr, flush=True)
         print_json(out)
@@ -160,7 +196,8 @@ def _run_fit(args) -> int:
             text = "AT THE AMONTONS LIMIT n = 1 (usable; the warning below)"
         return f"   <- {text}" if text else ""
 
-    print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})")
+    print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})"
+          + (f"; {copies}" if copies else ""))
     if res.flags:
         print(f"{UNUSABLE}: {len(res.flags)} flag{'s' if len(res.flags) > 1 else ''} (the warnings below)")
     print(f"  b = {b:.5g} +/- {sb:.2g}   [s^p mm^-p N^(1-n)]" + flag("b"))

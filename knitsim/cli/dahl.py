@@ -83,7 +83,8 @@ def register(subparsers) -> None:
                     "row of the paper's table (--row, converted from gf.cm^2/cm and gf.cm/cm).")
     sim.add_argument("--sigma", type=float, help="Dahl stiffness sigma (dF/dx at F = 0)")
     sim.add_argument("--Fc", type=float, help="Coulomb force Fc")
-    sim.add_argument("--alpha", type=float, default=1.0, help="Dahl shape exponent (default 1)")
+    sim.add_argument("--alpha", type=float, default=None,
+                     help="Dahl shape exponent (default 1, or the --row's; with --row it replaces the row's)")
     sim.add_argument("--row", metavar="SAMPLE",
                      help="take sigma, Fc, alpha from this row of dahl_kes.toml ("
                           + ", ".join(repr(r["sample"]) for r in dahl_kes()["dahl"]) + ")")
@@ -275,12 +276,22 @@ def run_simulate(args) -> int:
         if args.row not in rows:
             raise KnitsimInputError(f"--row = {args.row!r}: expected one of {', '.join(map(repr, rows))}")
         r = rows[args.row]
-        # paper units gf.cm^2/cm and gf.cm/cm -> N.mm^2/mm and N.mm/mm
-        params = DahlParams(r["sigma"] * GF_N * CM_MM, r["Fc"] * GF_N, float(r["alpha"]))
+        # paper units gf.cm^2/cm and gf.cm/cm -> N.mm^2/mm and N.mm/mm; an --alpha given replaces the row's
+        # (a blind probe's --row yarn --alpha 3 wrote the row's alpha 1 and said alpha=1, the 3 dropped)
+        alpha = float(r["alpha"]) if args.alpha is None else args.alpha
+        source = f"; from row {args.row!r}" + ("" if args.alpha is None else
+                                              f", alpha {alpha:g} given in place of the row's {float(r['alpha']):g}")
     else:
         if args.sigma is None or args.Fc is None:
             raise KnitsimInputError("--sigma/--Fc: both are required (or use --row SAMPLE)")
-        params = DahlParams(args.sigma, args.Fc, args.alpha)
+        alpha, source = (1.0 if args.alpha is None else args.alpha), ""
+    if not (math.isfinite(alpha) and ALPHA_MIN <= alpha <= ALPHA_MAX):
+        raise KnitsimInputError(f"--alpha = {alpha!r}: must be in [{ALPHA_MIN:g}, {ALPHA_MAX:g}] (the range "
+                                "`dahl fit` identifies)")
+    if args.row is not None:
+        params = DahlParams(r["sigma"] * GF_N * CM_MM, r["Fc"] * GF_N, alpha)
+    else:
+        params = DahlParams(args.sigma, args.Fc, alpha)
     if not (math.isfinite(args.noise) and args.noise >= 0):
         raise KnitsimInputError(f"--noise = {args.noise!r}: must be >= 0")
     if not math.isfinite(args.B):
@@ -297,5 +308,5 @@ def run_simulate(args) -> int:
     except OSError as exc:
         raise KnitsimInputError(f"--out = {str(out)!r}: cannot write ({exc.strerror})") from None
     print(f"wrote {x.size} samples to {out} (sigma={params.sigma:.6g}, Fc={params.Fc:.6g}, "
-          f"alpha={params.alpha:g}, B={args.B:g})")
+          f"alpha={params.alpha:g}, B={args.B:g}{source})")
     return 0

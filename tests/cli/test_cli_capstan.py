@@ -211,3 +211,27 @@ def test_a_b_off_table_3_by_its_discretisation_says_so_where_the_user_looks(caps
     assert abs(out["b"] - b3) < 0.001 and out["discretisation_note"] is None
     assert main(["capstan", "table"]) == 0
     assert "N^(1-n)" in capsys.readouterr().out
+
+
+def test_a_copied_record_is_not_a_second_test(tmp_path, capsys):
+    """A blind probe pasted one record of Table 2's e-glass file twice: the fit read 9 records, dof 6, a repeat
+    agreeing exactly.  A record written to the micronewton repeating the row above in every column is a copy
+    (two tests of 0.13 N scatter agree so by chance about once in 10^5): left out, said on the first line and
+    in --json copies_note, the fit that of the 8 records (dof 5).  Written to 0.01 N, two tests agree so
+    about once in 50 (resolution / (sqrt(pi) sd)): the row is kept as a replicate, and said so."""
+    src = (REPO / "scenes/capstan/e_glass_table2.csv").read_text().splitlines()
+    one = "\n".join(src[:4] + [src[3]] + src[4:]) + "\n"
+    path = tmp_path / "copied.csv"
+    path.write_text(one)
+    out = _json(capsys, ["capstan", "fit", str(path), "--json"])
+    ref = _json(capsys, ["capstan", "fit", str(REPO / "scenes/capstan/e_glass_table2.csv"), "--json"])
+    assert out["records"] == 8 and out["dof"] == ref["dof"] == 5 and out["b"] == ref["b"]
+    assert "row(s) 5 repeat the row above" in out["copies_note"] and "left out as copies" in out["copies_note"]
+    assert main(["capstan", "fit", str(path)]) == 0
+    assert "left out as copies" in capsys.readouterr().out.splitlines()[0]
+    coarse = tmp_path / "coarse.csv"
+    rows = [r.split(",") for r in one.strip().splitlines()]
+    coarse.write_text("\n".join([",".join(rows[0])] + [",".join([a, f"{float(b):.2f}", c, d]) for a, b, c, d in rows[1:]])
+                      + "\n")
+    out = _json(capsys, ["capstan", "fit", str(coarse), "--json"])
+    assert out["records"] == 9 and "kept as replicates" in out["copies_note"]

@@ -324,3 +324,21 @@ def test_an_offset_or_a_drift_is_a_verdict_where_the_user_looks(kind, tmp_path, 
     assert "times the loop's noise" in text and word in titles[0]
     clean = _write_xf(tmp_path / "clean.csv", xs, list(F - (0.11 if kind == "offset" else np.linspace(0.0, 0.15, len(F)))))
     assert _run_json(capsys, ["dahl", "fit", clean, "--no-png", "--json"])["usable"] is True
+
+
+def test_simulate_honours_an_alpha_given_with_a_row(tmp_path, capsys):
+    """A blind probe: `dahl simulate --row yarn --alpha 3` wrote the row's alpha 1 and said alpha=1.  The
+    alpha given replaces the row's and the line says so; the loop written has it: its first branch from rest
+    follows the closed form of eq 1 at alpha 3, u = (1 + 2 (sigma/Fc) x)^(-1/2) (u = 1 - F/Fc), computed here
+    from the row's sigma and Fc converted from the paper's units (gf.cm^2/cm, gf.cm/cm).  An alpha outside
+    what `dahl fit` identifies, [0.02, 50], is refused."""
+    path = tmp_path / "a3.csv"
+    assert main(["dahl", "simulate", "--row", "yarn", "--alpha", "3", "--points", "40", "--out", str(path)]) == 0
+    line = capsys.readouterr().out
+    assert "alpha=3" in line and "alpha 3 given in place of the row's 1" in line
+    k, M = np.loadtxt(path, delimiter=",", skiprows=1, unpack=True)
+    sigma, Fc = YARN["sigma"] * 9.80665e-3 * 10.0, YARN["Fc"] * 9.80665e-3
+    first = slice(0, 41)                                  # 0 -> +amplitude, from rest
+    assert M[first] == pytest.approx(Fc * (1.0 - (1.0 + 2.0 * sigma / Fc * k[first]) ** -0.5), rel=1e-9, abs=1e-15)
+    assert main(["dahl", "simulate", "--row", "yarn", "--alpha", "0", "--out", str(tmp_path / "a0.csv")]) == 2
+    assert "--alpha" in capsys.readouterr().err
