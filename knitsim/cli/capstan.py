@@ -153,10 +153,12 @@ def _drop_copies(cols, resolution) -> tuple[dict, str | None]:
         parts.append(f"row(s) {', '.join(str(int(r)) for r in rows[fine])} repeat the row above in every column to the "
                      "last of their digits: left out as copies (a second test does not agree so)")
     if (same & ~fine).any():
-        parts.append(f"row(s) {', '.join(str(int(r)) for r in rows[same & ~fine])} repeat the row above in every column: "
+        kept = ", ".join(str(int(r)) for r in rows[same & ~fine])
+        parts.append(f"row(s) {kept} repeat the row above in every column: "
                      "kept as replicates (F1 written too coarsely for a copy to be told from a second test; delete "
                      "them if they are copies)")
-    out = {k: (v[~fine] if isinstance(v, np.ndarray) else [x for x, f in zip(v, fine) if not f]) for k, v in cols.items()}
+    out = {k: (v[~fine] if isinstance(v, np.ndarray) else [x for x, f in zip(v, fine) if not f])
+           for k, v in cols.items()}
     return out, "; ".join(parts)
 
 

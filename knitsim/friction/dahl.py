@@ -665,8 +665,10 @@ def _sigma_lower_bound(residual, theta, names, lower, upper, s2, xn, branches):
 RESIDUAL_NOISE_MAX = 2.0
 #: an offset or a drift of the loop (:func:`loop_closure`) is flagged beyond this many standard errors ...
 CLOSURE_Z = 5.0
-#: ... larger than the noise sd of a row, and where it makes at least this share of the residuals' mean square (a misfit of the law's shape leaves
-#: small offsets and trends in the branch means; an offset or a drift that is the misfit makes most of it)
+#: ... larger than the noise sd of a row, and where it makes at least this share of the residuals' mean square
+#: (an offset c makes c^2 of it, a linear drift d over the rows d^2 / 12): a misfit of the law's shape leaves
+#: small offsets and trends in the branch means (an elastic part fitted without --elastic: a drift of 0.85
+#: times the rms, 0.06 of the mean square); an offset or a drift that is the misfit makes most of it
 CLOSURE_SHARE = 0.1
 
 
