@@ -191,14 +191,9 @@ def fit_flags(fit) -> list[str]:
     residuals beyond the loop's noise, an offset, a loop that does not close (``fit.loop_flags``).
     A blind probe's sign-flipped loop printed sigma and Fc NOT IDENTIFIED and a warning, and exited 0 with
     "success": true: a script could not tell."""
-    out = [f"{n} {FLAG_TEXT[fit.param_status[n]]}" for n in _flagged(fit)]
-    for key, short in (("gains energy", "the loop gains energy (reversed rows or a flipped sign?)"),
-                       ("out of order", "rows out of order"), ("did not converge", "the optimiser did not converge")):
-        if any(key in w for w in fit.warnings):
-            out.append(short)
-    # residuals beyond the loop's own noise, an offset, a loop that does not close (fit_dahl_loop): a blind
-    # probe's offset loop and drifting loop exited 0 with nothing said
-    return out + list(fit.loop_flags)
+    # the loop's own flags are set by fit_dahl_loop where it writes their warnings (a blind probe's offset and
+    # drifting loops exited 0 with nothing said)
+    return [f"{n} {FLAG_TEXT[fit.param_status[n]]}" for n in _flagged(fit)] + list(fit.loop_flags)
 
 
 def run_fit(args) -> int:

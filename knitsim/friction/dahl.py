@@ -435,7 +435,8 @@ class DahlFit:
     #: the loop's offset and drift against the fit (:func:`loop_closure`)
     closure: dict = field(default_factory=dict)
     #: why the fit is not a law to use beyond its parameters' status (short; the warnings say more): residuals
-    #: beyond the noise, an offset, a loop that does not close
+    #: beyond the noise, an offset, a loop that does not close, rows out of order, a loop that gains energy, an
+    #: optimiser that did not converge
     loop_flags: list = field(default_factory=list)
 
     @property
@@ -1038,11 +1039,14 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
     rev = reversal_warning(n, len(turns), labels[0])
     if rev:
         warns.append(rev)
+        loop_flags.append("rows out of order")
     gain = energy_gain_warning(x, F, labels)
     if gain:
         warns.append(gain)
+        loop_flags.append("the loop gains energy (reversed rows or a flipped sign?)")
     if not res.success:
         warns.append(f"the optimiser did not converge: {res.message}")
+        loop_flags.append("the optimiser did not converge")
     return DahlFit(sigma=float(values["sigma"]), Fc=float(values["Fc"]), alpha=float(values["alpha"]),
                    B=float(values["B"]), F0=float(values["F0"]), stderr=stderr, names=tuple(names), cov=cov,
                    rms=rms, n_points=n, reversals=len(turns),
