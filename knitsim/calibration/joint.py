@@ -1448,9 +1448,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
 
     def save():
         if ck is not None:
-            from ..io.results import atomic_write_bytes
+            from ..io.results import atomic_write_bytes, record_outputs
             state["wall_s"] = wall_before + time.perf_counter() - t0
-            ck.parent.mkdir(parents=True, exist_ok=True)
+            record_outputs(ck.parent, [ck.name])     # knitsim's to replace with --overwrite (io.output_dir)
             atomic_write_bytes(ck, pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
             last_save[0] = time.perf_counter()
 

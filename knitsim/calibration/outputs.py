@@ -352,6 +352,13 @@ def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
     return buf.getvalue()
 
 
+def calibration_outputs(scene) -> tuple[str, ...]:
+    """Every name :func:`write_calibration` writes for ``scene``'s specimens (the --out policy's list)."""
+    per = [f"{s.name}{suffix}" for s in scene.specimens for suffix in (".cell.toml", ".patch.toml")]
+    return ("materials.toml", *per, *(f"fit_{s.name}.png" for s in scene.specimens), "calibration.json",
+            "report.md")
+
+
 def write_calibration(out_dir: str | Path, result: JointResult, scene, source: str) -> dict[str, Path]:
     """Write every output into ``out_dir`` (atomically, ``calibration.json`` last); returns the files."""
     from ..io.results import write_result_set

@@ -34,7 +34,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..io.results import add_output_flags, prepare_output_dir
+from ..io.results import add_output_flags, prepare_output_dir, scene_inputs
 from ..errors import KnitsimInputError
 from .common import Progress, add_json_flag, naming_scene, print_json
 
@@ -64,7 +64,7 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     t0 = time.perf_counter()
     from ..calibration.joint import POOR_FIT_S2, calibrate_joint
-    from ..calibration.outputs import UNUSABLE, write_calibration, zero_offsets
+    from ..calibration.outputs import UNUSABLE, calibration_outputs, write_calibration, zero_offsets
     from ..calibration.scene import load_calibration_scene
 
     with naming_scene(args.scene):
@@ -73,7 +73,8 @@ def _run(args) -> int:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the calibration in --out, or "
                                 "replace it)")
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_calibrated", overwrite=args.overwrite,
-                             resume=args.resume, resumable=True)
+                             resume=args.resume, resumable=True, writes=calibration_outputs(scene) + (CHECKPOINT_NAME,),
+                             inputs=scene_inputs(args.scene))
     ck = out / CHECKPOINT_NAME
     if args.resume and not ck.is_file():
         raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")

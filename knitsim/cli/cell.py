@@ -18,7 +18,8 @@ import time
 from pathlib import Path
 
 from ..cell.engine import ENGINES, check_engine, simulate
-from ..io.results import add_output_flags, prepare_output_dir, run_info, summarise, write_cell_results
+from ..io.results import (OUTPUT_FILES, add_output_flags, prepare_output_dir, run_info, scene_inputs, summarise,
+                          write_cell_results)
 from ..scene.cell_scene import load_cell_scene
 from .common import Progress, add_json_flag, naming_scene, print_json
 
@@ -76,7 +77,8 @@ def _run(args) -> int:
     with naming_scene(args.scene):
         scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain)
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite)
+    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
+                             writes=OUTPUT_FILES, inputs=scene_inputs(args.scene))
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
     with contextlib.redirect_stdout(sys.stderr):
         check_engine(scene.engine)

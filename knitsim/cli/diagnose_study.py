@@ -70,7 +70,7 @@ def register(subparsers) -> None:
 
 def _run(args) -> int:
     from ..cell.effects import EFFECT_NAMES
-    from ..diagnosis.study import run_study, summary_markdown, verdict_class
+    from ..diagnosis.study import STUDY_OUTPUTS, run_study, summary_markdown, verdict_class
 
     if args.cases < 1:
         raise KnitsimInputError(f"--cases = {args.cases}: expected a whole number >= 1")
@@ -121,7 +121,8 @@ def _run(args) -> int:
                                     "(the plan of --cases)")
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the study in --out, or replace it)")
-    prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume or args.summary_only, resumable=True)
+    prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume or args.summary_only, resumable=True,
+                       writes=STUDY_OUTPUTS)
 
     def progress(done, total, eta, rec):
         what = verdict_class(rec.get("verdict")) if rec.get("verdict") else rec.get("error", "?")

@@ -211,6 +211,10 @@ def _write_usd(h, m, args, scene, device, summary=None):
     except OSError as exc:                 # checked before the solve; a folder changed since: still one line
         raise KnitsimInputError(f"--usd = {args.usd!r}: cannot create its folder ({exc.strerror or exc})") from None
     tmp = target.with_name(f".{target.stem}.partial-{os.getpid()}{target.suffix}")
+    from ..io.output_dir import RECORD_NAME, record_outputs
+    if (target.parent / RECORD_NAME).is_file():
+        # into a folder of knitsim's outputs (the run's --out): one of them, replaced by a later --overwrite
+        record_outputs(target.parent, [target.name])
     try:
         res = export_history(h, m.fields, str(tmp), scene_text=scene.to_toml(), color_by=args.color_by,
                              course_count=m.course_count, wale_count=m.wale_count, summary=summary,
@@ -224,8 +228,8 @@ def _write_usd(h, m, args, scene, device, summary=None):
 
 def _run(args) -> int:
     t_command = time.perf_counter()
-    from ..io.patch_results import patch_summary, specimen_layout, write_patch_results
-    from ..io.results import prepare_output_dir
+    from ..io.patch_results import PATCH_OUTPUT_FILES, patch_summary, specimen_layout, write_patch_results
+    from ..io.results import prepare_output_dir, scene_inputs
     from ..patch.runner import CHECKPOINT_NAME, read_checkpoint_header, run_patch
     from ..scene.patch_scene import load_patch_scene
 
@@ -263,7 +267,8 @@ def _run(args) -> int:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
         domain_warnings += overlaps
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
-                             resume=args.resume, resumable=True)
+                             resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME,),
+                             inputs=scene_inputs(args.scene))
     ck = out / CHECKPOINT_NAME
     total = len(scene.program)
     head = None

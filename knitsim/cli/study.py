@@ -14,8 +14,14 @@ from pathlib import Path
 
 from ..studies import STUDIES
 from ..io.jsonable import json_text
-from ..io.results import add_output_flags, prepare_output_dir
+from ..io.results import add_output_flags, prepare_output_dir, record_outputs
 from .common import add_json_flag, plain_help, print_json
+
+#: what each study writes into --out (recorded there: --overwrite removes these and nothing else)
+STUDY_OUTPUTS = {"dusserre2015": ("dusserre2015_claims.txt", "dusserre2015_claims.json", "dusserre2015_fig7.png",
+                                  "dusserre2015_fig8.png", "dusserre2015_fig11.png"),
+                 "dusserre2015-experiment": ("dusserre2015_experiment.txt", "dusserre2015_experiment.json",
+                                             "dusserre2015_experiment.png")}
 
 
 def register(subparsers) -> None:
@@ -38,7 +44,7 @@ def run(args) -> int:
     """``knitsim study``: run the named study, print its table (or JSON) and write the table and
     figures to ``--out`` if given."""
     if args.out:
-        prepare_output_dir(args.out, overwrite=args.overwrite)
+        prepare_output_dir(args.out, overwrite=args.overwrite, writes=STUDY_OUTPUTS[args.name])
     if args.name == "dusserre2015-experiment":
         return _run_experiment(args)
     from ..studies import dusserre2015 as study
@@ -47,7 +53,7 @@ def run(args) -> int:
     out = {"variant": res["variant"], "rows": res["rows"]}
     if args.out:
         d = Path(args.out)
-        d.mkdir(parents=True, exist_ok=True)
+        record_outputs(d, STUDY_OUTPUTS[args.name])
         (d / "dusserre2015_claims.txt").write_text(study.table_text(res) + "\n")
         (d / "dusserre2015_claims.json").write_text(json_text(out))
         out["figures"] = [str(p) for p in study.figures(res, d)]
@@ -68,7 +74,7 @@ def _run_experiment(args) -> int:
     res = study.run(increment=args.increment, progress=lambda n: print(f"calibrating {n} ...", file=sys.stderr))
     if args.out:
         d = Path(args.out)
-        d.mkdir(parents=True, exist_ok=True)
+        record_outputs(d, STUDY_OUTPUTS[args.name])
         (d / "dusserre2015_experiment.txt").write_text(study.table_text(res) + "\n")
         (d / "dusserre2015_experiment.json").write_text(json_text(res))
         res["figures"] = [str(p) for p in study.figures(res, d)]

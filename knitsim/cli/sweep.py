@@ -27,7 +27,7 @@ from pathlib import Path
 
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
-from ..io.results import add_output_flags, prepare_output_dir
+from ..io.results import add_output_flags, prepare_output_dir, scene_inputs
 from .common import add_json_flag, naming_scene, print_json, resume_command
 
 
@@ -78,7 +78,7 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import SweepChunkError, plan_sweep, run_sweep
+    from ..sweep.runner import SWEEP_OUTPUTS, SweepChunkError, plan_sweep, run_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -103,7 +103,8 @@ def _run(args) -> int:
     # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
     # typo'd key or a bad sample was refused (a blind probe lost its results to it)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_sweep", overwrite=args.overwrite,
-                             resume=args.resume, resumable=True)
+                             resume=args.resume, resumable=True, writes=SWEEP_OUTPUTS,
+                             inputs=scene_inputs(args.scene) + scene_inputs(args.sweep))
     _announce_domain(plan)
     workers = args.workers
     if workers is None and plan.device != "cpu" and not args.scheduler:
@@ -155,6 +156,9 @@ def _run(args) -> int:
                        ("reload_below_earlier_loading", "a later cycle reloads below half the earlier force at the "
                                                         "earlier maximum, or its envelope falls; variable "
                                                         "reload_below_earlier_loading in results.nc / results.csv"),
+                       ("reload_loss_continues", "cycles to the same strain go on losing peak force after their "
+                                                 "first reload (no shakedown); variable reload_loss_continues in "
+                                                 "results.nc / results.csv"),
                        ("reload_above_first_loading", "a later cycle reloads above the first loading at the same "
                                                       "strain; variable reload_above_first_loading in results.nc / "
                                                       "results.csv"),

@@ -43,12 +43,14 @@ import numpy as np
 from ..cell.effects import EFFECT_NAMES
 from ..errors import KnitsimInputError
 from ..io.jsonable import json_text
-from ..io.results import atomic_write_bytes
+from ..io.results import atomic_write_bytes, record_outputs
 from . import synthetic
 from .effects import DEFAULT_STUDY_FREE
 
 NONE = "none"
 UNDECIDED = "undecided"
+#: every name a study writes into its --out (recorded there: --overwrite removes these and nothing else)
+STUDY_OUTPUTS = ("cases/", "summary.json", "summary.md", "cases.csv")
 ERROR = "error"
 
 #: test rates of every case [mm/s]: two rates two decades apart, so that velocity_friction is identifiable
@@ -539,6 +541,7 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         raise KnitsimInputError(f"scatter_rel = {scatter_rel!r}: expected a number in [0, 0.2)")
     out = Path(out_dir)
     cases_dir = out / "cases"
+    record_outputs(out, STUDY_OUTPUTS)
     cases_dir.mkdir(parents=True, exist_ok=True)
     plan = draw_plan(n_cases, seed, effects, include_none_fraction, specimen, materials)
     if only is not None:

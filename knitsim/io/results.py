@@ -45,6 +45,8 @@ from ..errors import KnitsimInputError
 from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
                      interpenetration)
 from .jsonable import json_text
+from .output_dir import (RECORD_NAME, add_output_flags, check_output_dir,  # noqa: F401 - the CLIs' import
+                         prepare_output_dir, prepare_output_file, record_outputs, recorded_outputs, scene_inputs)
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
                  "gamma", "phi", "P", "W", "C", "s_BC", "status")
@@ -470,78 +472,6 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
 
 
 # --------------------------------------------------------------- whole set
-def check_output_dir(out_dir: str | Path) -> Path:
-    """Refuse an output path that cannot hold the results (before any work)."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise KnitsimInputError(f"--out = {str(out)!r}: exists and is not a directory")
-    parent = out.resolve().parent
-    probe = parent
-    while not probe.exists():
-        probe = probe.parent
-    if not probe.is_dir() or not os.access(probe, os.W_OK):
-        raise KnitsimInputError(f"--out = {str(out)!r}: cannot write under {probe}")
-    return out
-
-
-#: an --out folder's own outputs: files of these kinds and these sub-folders (the commands' checkpoints,
-#: cases and chunks); --overwrite removes them and leaves anything else alone
-OUTPUT_SUFFIXES = (".csv", ".json", ".nc", ".png", ".toml", ".md", ".txt", ".html", ".pkl", ".usd", ".usda",
-                   ".usdc")
-OUTPUT_DIRS = ("cases", "chunks")
-
-
-def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: bool = False,
-                       resumable: bool = False) -> Path:
-    """The one policy of every command that writes into ``--out``, applied before any work.
-
-    An absent or empty folder is used as it is.  A folder that holds results is refused unless
-    ``resume`` (the caller then checks that there is something to resume) or ``overwrite``, which
-    first removes the folder's outputs (:data:`OUTPUT_SUFFIXES`, :data:`OUTPUT_DIRS`), so that no
-    stale file (an old ``yarn.usda``, a checkpoint of another run) is left beside the new ones.
-    """
-    out = check_output_dir(out_dir)
-    if not out.is_dir() or not any(out.iterdir()):
-        return out
-    if resume:
-        return out
-    if overwrite:
-        for p in out.iterdir():
-            if p.is_file() and p.suffix.lower() in OUTPUT_SUFFIXES:
-                p.unlink()
-            elif p.is_dir() and p.name in OUTPUT_DIRS:
-                shutil.rmtree(p)
-        return out
-    hint = " or --resume to continue it" if resumable else ""
-    raise KnitsimInputError(f"--out = {str(out)!r}: already holds results; add --overwrite to replace them{hint}, "
-                            "or choose another --out")
-
-
-def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: str = "--out") -> Path | None:
-    """The same policy for a command's single output file: an existing one is refused unless ``overwrite``."""
-    if path is None:
-        return None
-    p = Path(path)
-    if p.is_dir():
-        raise KnitsimInputError(f"{flag} = {str(p)!r}: is a folder")
-    if p.exists() and not overwrite:
-        raise KnitsimInputError(f"{flag} = {str(p)!r}: exists; add --overwrite to replace it")
-    probe = p.resolve().parent
-    while not probe.exists():
-        probe = probe.parent
-    if not os.access(probe, os.W_OK):
-        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot write under {probe}")
-    return p
-
-
-def add_output_flags(parser, resumable: bool = False, what: str = "results") -> None:
-    """``--overwrite`` (and ``--resume``) with the policy of :func:`prepare_output_dir` in their help."""
-    parser.add_argument("--overwrite", action="store_true",
-                        help=f"replace the {what} of an existing --out (its earlier outputs are removed first); "
-                             "without it an --out that holds results is refused"
-                             + (", unless --resume" if resumable else ""))
-
-
 def write_cell_results(out_dir: str | Path, history: BatchHistory, summary: dict, resolved_toml: str,
                        labels: list[str] | None = None, plot: bool = True, title: str = "") -> dict[str, Path]:
     """Write the whole result set into ``out_dir``.
@@ -582,9 +512,11 @@ def write_result_set(out_dir: str | Path, files: dict[str, bytes], known_outputs
     try:
         for name, data in files.items():
             (tmp / name).write_bytes(data)
-        out.mkdir(exist_ok=True)
+        ours = set(recorded_outputs(out))         # an earlier run's outputs; a user's file of that name stays
+        record_outputs(out, list(known_outputs) + [n for n in files if n not in known_outputs])
         for name in reversed(tuple(known_outputs)):
-            (out / name).unlink(missing_ok=True)
+            if name in ours:
+                (out / name).unlink(missing_ok=True)
         for name in files:
             os.replace(tmp / name, out / name)
     finally:

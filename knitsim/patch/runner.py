@@ -166,7 +166,8 @@ def _committed_geometry(backend) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _atomic_pickle(path: Path, *objs) -> None:
     """``objs`` pickled one after the other into one file, written atomically."""
-    from ..io.results import atomic_write_bytes
+    from ..io.results import atomic_write_bytes, record_outputs
+    record_outputs(path.parent, [path.name])         # knitsim's to replace with --overwrite (io.output_dir)
     atomic_write_bytes(path, b"".join(pickle.dumps(o, protocol=pickle.HIGHEST_PROTOCOL) for o in objs))
 
 

@@ -46,9 +46,14 @@ foot of the axis (lines, scatter) or a grey ``--``-hatched cell (heat maps).
 A sample whose cell's rest state is compressive (``rest_state_compressive``),
 whose loops' heads overlap (``heads_interpenetrate``), whose later cycle
 carries nearly no force (``zero_force_cycle``), reloads far below the earlier
-loading (``reload_below_earlier_loading``) or above the first loading
-(``reload_above_first_loading``) is not marked on the axes; the
-title counts it.  The title counts each kind.
+loading (``reload_below_earlier_loading``), goes on losing force from cycle to
+cycle (``reload_loss_continues``) or reloads above the first loading
+(``reload_above_first_loading``) keeps its values, ringed by an orange hexagon
+(lines, scatter) or ``oo``-hatched in orange (heat maps): a value the model
+gives but a reader should not take as the knit's without reading why (a blind
+probe read a title's "not marked" next to a smooth line through such samples).
+The title counts each kind.  A parameter whose values are names (a rule, a
+material) is drawn as points, not joined by lines: its order is not a scale.
 """
 from __future__ import annotations
 
@@ -197,6 +202,8 @@ NO_REST_STYLE = {"marker": "s", "facecolors": "none", "edgecolors": "0.45", "s":
 OUTSIDE_STYLE = {"marker": "o", "facecolors": "none", "edgecolors": "k", "s": 46, "lw": 0.9, "zorder": 4}
 CAPPED_STYLE = {"marker": "^", "facecolors": "none", "edgecolors": "0.45", "s": 30, "lw": 1.2, "zorder": 5}
 ENERGY_STYLE = {"marker": "D", "facecolors": "none", "edgecolors": "tab:red", "s": 60, "lw": 1.1, "zorder": 4}
+#: a value the model gives with a warning on its cycles, rest state or heads (kept, ringed)
+WARNED_STYLE = {"marker": "H", "facecolors": "none", "edgecolors": "tab:orange", "s": 95, "lw": 1.1, "zorder": 4}
 #: a value that is not the knit's: a peak that is the force cap, the loading work of a cycle cut by the cap
 AT_CAP_STYLE = {"marker": "*", "facecolors": "none", "edgecolors": "0.3", "s": 90, "lw": 1.0, "zorder": 5}
 #: one look per cycle, so that a later cycle's line does not hide an earlier one's
@@ -305,13 +312,21 @@ class _Marks:
     heads: np.ndarray
     zero_force: np.ndarray
     reload_below: np.ndarray
+    reload_loss: np.ndarray
     reload_above: np.ndarray
+
+    @property
+    def warned(self) -> np.ndarray:
+        """Samples whose values stand but carry a model warning (ringed in orange)."""
+        return (self.compressive | self.heads | self.zero_force | self.reload_below | self.reload_loss
+                | self.reload_above)
 
 
 def _marks(ds) -> _Marks:
     return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds), _compressive(ds),
                   _flag(ds, "heads_interpenetrate"), _flag(ds, "zero_force_cycle"),
-                  _flag(ds, "reload_below_earlier_loading"), _flag(ds, "reload_above_first_loading"))
+                  _flag(ds, "reload_below_earlier_loading"), _flag(ds, "reload_loss_continues"),
+                  _flag(ds, "reload_above_first_loading"))
 
 
 #: the title's count of each kind of marked sample, in the order shown
@@ -322,17 +337,18 @@ _TITLE_PHRASES = (
     ("capped", "stopped at the force cap: peak = the cap and energy = loading work (grey star, off the lines / "
                "++-hatched), the rest not run (grey triangle / --hatched)"),
     ("energy", "with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)"),
-    ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; not marked)"),
-    ("heads", "with overlapping heads of neighbouring loops (heads_interpenetrate; not marked)"),
-    ("zero_force", "with a later cycle carrying nearly no force (zero_force_cycle; not marked)"),
-    ("reload_below", "with a reload far below the earlier loading (reload_below_earlier_loading; not marked)"),
-    ("reload_above", "with a reload above the first loading (reload_above_first_loading; not marked)"),
+    ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; orange)"),
+    ("heads", "with overlapping heads of neighbouring loops (heads_interpenetrate; orange)"),
+    ("zero_force", "with a later cycle carrying nearly no force (zero_force_cycle; orange)"),
+    ("reload_below", "with a reload far below the earlier loading (reload_below_earlier_loading; orange)"),
+    ("reload_loss", "losing force cycle after cycle (reload_loss_continues; orange)"),
+    ("reload_above", "with a reload above the first loading (reload_above_first_loading; orange)"),
 )
 #: the same kinds, short (the flags of the cells not plotted)
 _SHORT = {"failed": "failed", "no_rest": "no rest state", "outside": "outside the box", "capped": "stopped at the "
           "force cap", "energy": "loop returns energy", "compressive": "compressive rest state",
           "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading",
-          "reload_above": "reload above first loading"}
+          "reload_loss": "reload loss continues", "reload_above": "reload above first loading"}
 
 
 def _counts(marks: _Marks) -> list[str]:
@@ -376,7 +392,10 @@ def _lines(ds, key: str, title: str, others: str = "") -> bytes:
             y = np.asarray(ds[q].sel(cycle=c).values, dtype=float)
             off = _not_the_knits(ds, q, c)
             label = _energy_label(ds, c) if q == "energy_N_mm" else f"cycle {int(c)}"
-            ax.plot(xs, np.where(off, np.nan, y), label=label, **_cycle_style(n))
+            style = _cycle_style(n)
+            if names is not None:                # names have an order, not a scale: points, not a trend line
+                style["ls"] = "none"
+            ax.plot(xs, np.where(off, np.nan, y), label=label, **style)
             if off.any():
                 ax.scatter(xs[off], y[off], label=None if labelled else _AT_CAP_LABEL[q], **AT_CAP_STYLE)
                 labelled = True
@@ -412,6 +431,7 @@ def _heatmaps(ds, keys: list[str], title: str, others: str = "") -> bytes:
             _hatch(ax, xe, ye, mk.no_rest, "//", "0.85")
             _hatch(ax, xe, ye, mk.outside, "..", None)
             _hatch(ax, xe, ye, mk.energy, "\\\\", None, edge="tab:red")
+            _hatch(ax, xe, ye, mk.warned & ~mk.energy, "oo", None, edge="tab:orange")
             _hatch(ax, xe, ye, mk.capped & np.isnan(z), "--", "0.85")
             _hatch(ax, xe, ye, off, "++", "0.85")
             cb = fig.colorbar(im, ax=ax, shrink=0.85)
@@ -436,10 +456,12 @@ def _hatch(ax, xe: np.ndarray, ye: np.ndarray, mask: np.ndarray, hatch: str, fac
 
 
 def _ring(ax, xs: np.ndarray, y: np.ndarray, marks: _Marks, first: bool) -> None:
-    """Ring the points of samples outside the domain's box (black circle) or whose loop returns energy
-    (red diamond); their values are kept."""
+    """Ring the points of samples outside the domain's box (black circle), whose loop returns energy
+    (red diamond) or that carry a model warning (orange hexagon: the title says which); their values are
+    kept."""
     for mask, style, label in ((marks.outside, OUTSIDE_STYLE, "outside domain"),
-                               (marks.energy, ENERGY_STYLE, "loop returns energy")):
+                               (marks.energy, ENERGY_STYLE, "loop returns energy"),
+                               (marks.warned, WARNED_STYLE, "model warning (title)")):
         if mask.any():
             ax.scatter(xs[mask], y[mask], label=label if first else None, **style)
 

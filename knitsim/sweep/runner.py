@@ -66,13 +66,16 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..io import checks
 from ..io.jsonable import json_text
-from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir
+from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir, record_outputs
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
 from ..scene.schema import fmt, load_toml, set_value
 from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
 CHUNK_DIR = "chunks"
+#: every name a sweep writes into its --out (recorded there: --overwrite removes these and nothing else)
+SWEEP_OUTPUTS = (MANIFEST, f"{CHUNK_DIR}/", "results.nc", ".results.nc.tmp", "results.csv", "plot_sweep.png",
+                 "summary.json")
 FORMAT = "knitsim-sweep/2"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
@@ -86,12 +89,12 @@ ENERGY_KINDS = dict(enumerate(checks.ENERGY_KINDS))
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
-             "zero_force_cycle", "reload_below_earlier_loading", "reload_above_first_loading")
+             "zero_force_cycle", "reload_below_earlier_loading", "reload_loss_continues", "reload_above_first_loading")
 #: warnings of the cell's summary (knitsim.io.results.cell_summary, as knitsim cell gives them) carried per
 #: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
 #: and zero_force_cycle in no sweep output)
 _WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
-                  "reload_above_first_loading")
+                  "reload_loss_continues", "reload_above_first_loading")
 #: where a cell stopped (knitsim.io.results.cell_summary): a failed cell (all three), a cell stopped at its force
 #: cap (stopped_at_strain only); NaN for a cell that ran the whole program
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
@@ -674,6 +677,7 @@ def _prepare_out(plan: SweepPlan, out: Path, resume: bool) -> None:
     if mpath.exists() or (out / CHUNK_DIR).exists():
         raise KnitsimInputError(f"--out = {str(out)!r}: already holds a sweep; add --resume to finish it, "
                                 "or choose another --out")
+    record_outputs(out, SWEEP_OUTPUTS)
     (out / CHUNK_DIR).mkdir(parents=True, exist_ok=True)
     atomic_write_text(mpath, json.dumps(manifest(plan), indent=1) + "\n")
 
@@ -1095,6 +1099,10 @@ def assemble(out_dir: str | Path):
                                         "maximum strain, or peaks at a new maximum strain below 90 % of an earlier peak "
                                         "(warning reload_below_earlier_loading of knitsim cell, knitsim.io.checks."
                                         "reloads_below_earlier_loading), 0 if not, -1 not solved or unknown",
+        "reload_loss_continues": "1 if cycles loading to the same strain go on losing peak force after their first "
+                                 "reload (a second or later reload below 90 % of the cycle before it: warning "
+                                 "reload_loss_continues of knitsim cell, knitsim.io.checks.reloads_without_shakedown), "
+                                 "0 if not, -1 not solved or unknown",
         "reload_above_first_loading": "1 if a later cycle reloads above 1.25 times the first loading's force at the "
                                       "same strain, below the earlier maximum strain (warning "
                                       "reload_above_first_loading of knitsim cell, knitsim.io.checks."
@@ -1351,6 +1359,9 @@ _WARNING_REASONS = {
     "reload_below_earlier_loading": "a later cycle reloads below half the earlier force at the earlier maximum, or its "
                                     "envelope falls (Table 4's S+ keeps Rn where sliding began); knitsim cell on the "
                                     "sample says which cycle",
+    "reload_loss_continues": "cycles to the same strain go on losing peak force after their first reload, where a "
+                             "measured knit settles (Table 4's S+ starts each reload's sliding at a lower Rn); "
+                             "knitsim cell on the sample says which cycles",
     "reload_above_first_loading": "a later cycle reloads above the first loading at the same strain (Table 4's S+ "
                                   "freezes Rn, or T, where sliding began); knitsim cell on the sample says which "
                                   "cycle and where",

@@ -113,7 +113,7 @@ def test_progress_and_the_out_policy(tmp_path, capsys, e_glass_calibration):
     assert "knitsim calibrate: start 1/1: evaluations: 2/2 (100%)" in err
     assert (out / "calibration.json").is_file() and not (out / "calibration_checkpoint.pkl").exists()
     assert main(argv) == 2
-    assert "already holds results; add --overwrite to replace them or --resume to continue it" in \
+    assert "); add --overwrite to replace them or --resume to continue it" in \
         capsys.readouterr().err
     assert main(argv + ["--resume"]) == 2
     assert "--resume: no checkpoint" in capsys.readouterr().err

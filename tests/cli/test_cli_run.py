@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from knitsim.cli import main
+from knitsim.io.output_dir import RECORD_NAME
 from knitsim.io.patch_results import CURVE_COLUMNS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -26,7 +27,7 @@ def test_scene_runs_small(capsys, tmp_path, name):
     cap = capsys.readouterr()
     summary = json.loads(cap.out)
     assert rc == (0 if summary["all_expected_end"] else 1)       # a stop at the force cap is an expected end
-    assert {p.name for p in (tmp_path / "o").iterdir()} == FILES      # checkpoint removed when done
+    assert {p.name for p in (tmp_path / "o").iterdir()} == FILES | {RECORD_NAME}   # checkpoint removed when done
     with open(tmp_path / "o" / "curve.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert tuple(rows[0].keys()) == CURVE_COLUMNS

@@ -28,6 +28,7 @@ import pytest
 
 from knitsim.cell.load_program import cycles, monotonic
 from knitsim.cli import main
+from knitsim.io.output_dir import RECORD_NAME
 
 PATCH = """
 title = "tiny"
@@ -279,7 +280,7 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_wri
     cmd = err.split("without solving again, with: ")[1].strip().splitlines()[0]
     assert cmd.endswith(" --resume")
     # nothing that looks complete: the checkpoint alone (summary.json, written last, marks a complete set)
-    assert sorted(p.name for p in out.iterdir()) == ["checkpoint.pkl"]
+    assert sorted(p.name for p in out.iterdir()) == [RECORD_NAME, "checkpoint.pkl"]
     monkeypatch.setattr(pr, "write_patch_results", real_write)
 
     def no_solving(*a, **kw):

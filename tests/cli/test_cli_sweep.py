@@ -109,7 +109,7 @@ def test_resume_without_a_sweep_and_rerun_over_one_exit_2(tmp_path, capsys, monk
     assert "nothing to resume" in capsys.readouterr().err
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--no-plot"]) == 0
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0"]) == 2
-    assert "already holds results; add --overwrite" in capsys.readouterr().err
+    assert "already holds results (sweep.json, chunks, results.nc" in capsys.readouterr().err
     (tmp_path / "s.toml").write_text(SCENE + SWEEP.replace("0.3]", "0.25]"))
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--resume"]) == 2
     assert "different sweep" in capsys.readouterr().err

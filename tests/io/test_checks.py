@@ -286,3 +286,41 @@ def test_the_calibrated_specimens_cell_warns_that_its_reload_is_above_its_first_
     f_first, f_reload = float(np.interp(at, e[first], F[first])), float(F[reload][0])
     assert f"{f_reload:.3g} N per wale at strain {at:.4g}" in w["message"] and f"the {f_first:.3g} N per wale" in w["message"]
     assert f_reload > RELOAD_ABOVE_FACTOR * f_first
+
+
+def test_reloads_that_keep_losing_force_are_flagged_and_a_knit_that_settles_is_not():
+    """Cycles to one upper strain.  Expected from Dusserre 2015 Fig. 10 (data/dusserre2015.toml: 5 N, then 4 N,
+    "cycle 3 close to cycle 2"): a knit settles after its first reload.  Hand-made peaks 1.0, 0.8, 0.78
+    (cycle 3 at 97.5 % of cycle 2): nothing; 1.0, 0.8, 0.64 (cycle 3 at 80 %, below SHAKEDOWN_RATIO 0.9, every
+    peak above the half that reload_below_earlier_loading flags): one warning naming cycle 3 and its 20 %;
+    two cycles only (one reload, the first loss is a knit's too): nothing; cycle 3 to a larger strain: not one
+    run, nothing.  An independent frictional assembly (_jenkins_rows, Masing) repeats its loop exactly:
+    nothing.  Then a real cell, the probe's program (E-glass, m 0.1, 0.3 <-> 0.27, 3 cycles: peaks 0.095,
+    0.076, 0.062 N per wale, no warning before): flagged."""
+    from knitsim.io.checks import cycle_warnings, reloads_without_shakedown
+
+    def three(p3, top3=0.3):
+        branches = []
+        for k, (top, p) in enumerate([(0.3, 1.0), (0.3, 0.8), (top3, p3)], start=1):
+            branches += [(k, 1, [0.27, top], [0.5 * p, p]), (k, -1, [0.27], [0.1 * p])]
+        s, f, c, d = _rows(branches)
+        return [(1, 1.0), (2, 0.8), (3, p3)], s, c, d
+
+    assert reloads_without_shakedown(*three(0.78)) == []
+    w = reloads_without_shakedown(*three(0.64))
+    assert len(w) == 1 and w[0].code == "reload_loss_continues" and w[0].cycle == 3
+    assert "cycle 3 still loses 20%" in w[0].message and "1, 0.8, 0.64" in w[0].message
+    peaks, s, c, d = three(0.64)
+    assert reloads_without_shakedown(peaks[:2], s[c < 3], c[c < 3], d[c < 3]) == []
+    assert reloads_without_shakedown(*three(0.64, top3=0.35)) == []
+    assert reloads_without_shakedown(*three(0.64), flagged=[2, 3]) == []
+    program = np.concatenate([np.linspace(0, 0.3, 31)] + [np.r_[np.linspace(0.3, 0.1, 21)[1:],
+                                                               np.linspace(0.1, 0.3, 21)[1:]]] * 3)
+    s, f, c, d = _jenkins_rows(program)
+    peaks = [(k, f[c == k].max()) for k in np.unique(c)]
+    assert len(peaks) == 4 and cycle_warnings(peaks, s, f, c, d) == []
+    from knitsim.cell.load_program import piecewise_linear
+    h = run_batch([CellParams(**EGLASS, m=0.1, force_cap_N=10.0)],
+                  piecewise_linear([0.3, 0.27, 0.3, 0.27, 0.3, 0.27], 0.005))
+    codes = [x["code"] for x in summarise(h)["cells"][0]["warnings"]]
+    assert "reload_loss_continues" in codes and "reload_below_earlier_loading" not in codes

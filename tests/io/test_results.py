@@ -123,14 +123,21 @@ def test_write_set_is_complete_and_replaces_stale_files(tmp_path):
     out = tmp_path / "run"
     out.mkdir()
     (out / "plot.png").write_text("stale")
+    results.record_outputs(out, ["plot.png"])            # an earlier run's plot: replaced by no plot
     h = history()
     files = write_cell_results(out, h, summarise(h), 'title = "x"\n', plot=False)
-    assert sorted(p.name for p in out.iterdir()) == ["curve.csv", "events.csv", "scene.resolved.toml",
-                                                     "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == [results.RECORD_NAME, "curve.csv", "events.csv",
+                                                     "scene.resolved.toml", "summary.json"]
     assert set(files) == {"curve.csv", "events.csv", "scene.resolved.toml", "summary.json"}
     assert json.loads((out / "summary.json").read_text())["n_cells"] == 4
     assert tomllib.loads((out / "scene.resolved.toml").read_text()) == {"title": "x"}
     assert list(tmp_path.iterdir()) == [out]              # no temporary sibling left
+    # a plot.png knitsim did not write (no record of it) is the user's: left alone
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "plot.png").write_text("my figure")
+    write_cell_results(mine, h, summarise(h), 'title = "x"\n', plot=False)
+    assert (mine / "plot.png").read_text() == "my figure"
 
 
 def test_plot_is_a_png(tmp_path):

@@ -1,0 +1,220 @@
+"""The ``--out`` folder policy shared by every command that writes one.
+
+A folder is knitsim's only as far as knitsim wrote into it: every writer records the names it
+writes in a hidden record, ``.knitsim-outputs.json``, in the folder (:func:`record_outputs`), before
+it writes them.  Then
+
+* an absent or empty folder, or one with only other files (the scene, its map CSVs, a README), is
+  used as it is, provided none of those files has a name the command writes;
+* a folder where recorded outputs exist "holds results": refused unless ``--resume`` or
+  ``--overwrite``; ``--overwrite`` removes the recorded outputs, and only them (never a file the
+  command reads: the scene and the files it names);
+* a file that knitsim did not write and would write over is refused, ``--overwrite`` or not.
+
+Before, ``--overwrite`` removed every file of a results-like suffix (.csv, .toml, .md, ...) in the
+folder, whoever wrote it: a blind probe's ``knitsim run scene.toml --out . --overwrite`` deleted the
+scene, its map CSV and its README.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..errors import KnitsimInputError
+
+#: the hidden record of what knitsim wrote into an --out folder (names relative to the folder; a name
+#: ending in "/" is a sub-folder)
+RECORD_NAME = ".knitsim-outputs.json"
+
+
+def check_output_dir(out_dir: str | Path) -> Path:
+    """Refuse an output path that cannot hold the results (before any work).
+
+    The path must be a folder or not exist, and a folder must be creatable there (tried, then
+    undone) or, when it exists, writable (a temporary file created and removed): ``os.access`` on
+    the parent said yes to ``/proc/nope``, whose folder then failed after the whole solve.
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise KnitsimInputError(f"--out = {str(out)!r}: exists and is not a directory")
+    try:
+        if out.is_dir():
+            fd, probe = tempfile.mkstemp(prefix=".knitsim-probe-", dir=out)
+            os.close(fd)
+            os.unlink(probe)
+        else:
+            made = []
+            p = out.absolute()
+            while not p.exists():
+                made.append(p)
+                p = p.parent
+            if not p.is_dir():
+                raise KnitsimInputError(f"--out = {str(out)!r}: {p} is not a directory")
+            for d in reversed(made):
+                d.mkdir()
+            for d in made:
+                d.rmdir()
+    except OSError as exc:
+        raise KnitsimInputError(f"--out = {str(out)!r}: cannot write there ({exc.strerror or exc})") from None
+    return out
+
+
+def recorded_outputs(out_dir: str | Path) -> list[str]:
+    """The names knitsim recorded as written into ``out_dir`` (empty without a record)."""
+    path = Path(out_dir) / RECORD_NAME
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return []
+    names = doc.get("outputs") if isinstance(doc, dict) else None
+    return [n for n in names if isinstance(n, str) and _plain_name(n)] if isinstance(names, list) else []
+
+
+def _plain_name(name: str) -> bool:
+    """A name inside the folder (a record edited to name ``../x`` or ``/etc`` must not be removed)."""
+    n = name.rstrip("/")
+    return bool(n) and n not in (".", "..") and "/" not in n and "\\" not in n
+
+
+def record_outputs(out_dir: str | Path, names: Iterable[str]) -> Path:
+    """Add ``names`` (files, or sub-folders written with a trailing ``/``) to ``out_dir``'s record.
+
+    Called by every writer before it writes, so that an interrupted write is still knitsim's to
+    replace.  Creates the folder.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    have = recorded_outputs(out)
+    new = [n for n in names if n not in have]
+    if not new and (out / RECORD_NAME).is_file():
+        return out / RECORD_NAME
+    from .. import __version__
+    doc = {"written_by": f"knitsim {__version__}",
+           "note": "the files knitsim wrote here; --overwrite removes these and nothing else",
+           "outputs": have + new}
+    fd, tmp = tempfile.mkstemp(prefix=".knitsim-outputs-", dir=out)
+    with os.fdopen(fd, "w") as fh:
+        fh.write(json.dumps(doc, indent=1) + "\n")
+    os.replace(tmp, out / RECORD_NAME)
+    return out / RECORD_NAME
+
+
+def scene_inputs(scene_path: str | Path | None) -> list[Path]:
+    """The files a scene reads: the scene itself and every existing file one of its strings names
+    (relative to the scene's folder, as the loaders resolve them: material libraries, maps, data)."""
+    if scene_path is None:
+        return []
+    scene = Path(scene_path)
+    found = [scene]
+    try:
+        from ..scene.schema import load_toml
+        doc = load_toml(scene)
+    except (KnitsimInputError, OSError):
+        return found
+
+    def walk(v):
+        if isinstance(v, dict):
+            for x in v.values():
+                yield from walk(x)
+        elif isinstance(v, list):
+            for x in v:
+                yield from walk(x)
+        elif isinstance(v, str) and 0 < len(v) < 4096:
+            yield v
+
+    for s in walk(doc):
+        for base in (scene.parent, Path.cwd()):
+            try:
+                p = (base / s) if not Path(s).is_absolute() else Path(s)
+                if p.is_file():
+                    found.append(p)
+            except (OSError, ValueError):
+                pass
+    return found
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: bool = False,
+                       resumable: bool = False, writes: Iterable[str] = (),
+                       inputs: Iterable[str | Path] = ()) -> Path:
+    """The one policy of every command that writes into ``--out``, applied before any work.
+
+    Parameters
+    ----------
+    out_dir : path
+        The folder.
+    overwrite, resume : bool
+        The command's flags.  ``resume``: the caller then checks that there is something to resume.
+    resumable : bool
+        The command can resume (said in the refusal).
+    writes : iterable of str
+        The names the command writes (sub-folders with a trailing ``/``): one of them present but
+        not recorded as knitsim's is a user's file, refused, ``--overwrite`` or not.
+    inputs : iterable of path
+        Files the command reads (:func:`scene_inputs`): ``--overwrite`` never removes them, even
+        where an earlier command wrote them (a calibration's ``materials.toml`` read by a run).
+    """
+    out = check_output_dir(out_dir)
+    if not out.is_dir():
+        return out
+    recorded = [n for n in recorded_outputs(out) if (out / n.rstrip("/")).exists()]
+    if recorded and not resume:
+        if not overwrite:
+            shown = ", ".join(n.rstrip("/") for n in recorded[:4]) + (", ..." if len(recorded) > 4 else "")
+            hint = " or --resume to continue it" if resumable else ""
+            raise KnitsimInputError(f"--out = {str(out)!r}: already holds results ({shown}); add --overwrite to "
+                                    f"replace them{hint}, or choose another --out (--overwrite removes only the "
+                                    "files knitsim wrote there)")
+        keep = [Path(p) for p in inputs]
+        for name in recorded:
+            p = out / name.rstrip("/")
+            if any(_same_file(p, k) for k in keep):
+                continue
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            else:
+                p.unlink(missing_ok=True)
+    mine = set(recorded_outputs(out))
+    foreign = [n.rstrip("/") for n in writes if n not in mine and (out / n.rstrip("/")).exists()]
+    if foreign and not resume:
+        raise KnitsimInputError(
+            f"--out = {str(out)!r}: holds {', '.join(foreign)}, which knitsim did not write there (no record of it "
+            f"in {RECORD_NAME}) and would write over: move {'it' if len(foreign) == 1 else 'them'} or choose "
+            "another --out")
+    return out
+
+
+def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: str = "--out") -> Path | None:
+    """The same policy for a command's single output file: an existing one is refused unless ``overwrite``."""
+    if path is None:
+        return None
+    p = Path(path)
+    if p.is_dir():
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: is a folder")
+    if p.exists() and not overwrite:
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: exists; add --overwrite to replace it")
+    probe = p.resolve().parent
+    while not probe.exists():
+        probe = probe.parent
+    if not os.access(probe, os.W_OK):
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot write under {probe}")
+    return p
+
+
+def add_output_flags(parser, resumable: bool = False, what: str = "results") -> None:
+    """``--overwrite`` (and ``--resume``) with the policy of :func:`prepare_output_dir` in their help."""
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace the {what} of an existing --out: the files an earlier knitsim command "
+                             f"wrote there (recorded in {RECORD_NAME}) are removed first, nothing else; without "
+                             "it an --out that holds results is refused"
+                             + (", unless --resume" if resumable else ""))

@@ -1,0 +1,186 @@
+"""The --out folder policy (knitsim.io.output_dir): a folder is knitsim's only as far as knitsim
+recorded writing into it; --overwrite removes those outputs and nothing else.
+
+A blind probe's ``knitsim run scene.toml --out . --overwrite`` deleted the scene, its map CSV and its
+README (the policy then removed every .csv/.toml/.md file of the folder); a sweep into a folder of 101
+scene files removed them all.  The expectations here are the policy's statement, not the code's output:
+a user's file survives every command; knitsim's own outputs are replaced.
+"""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from knitsim.cli import main
+from knitsim.errors import KnitsimInputError
+from knitsim.io.output_dir import (RECORD_NAME, check_output_dir, prepare_output_dir, record_outputs,
+                                   recorded_outputs, scene_inputs)
+
+CELL_SCENE = """
+engine = "warp"
+device = "cpu"
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.2
+phi0 = 0.0
+[load]
+type = "monotonic"
+target_strain = 0.2
+max_increment = 0.05
+"""
+
+PATCH_SCENE = """
+engine = "warp"
+device = "cpu"
+[patch]
+wales = 2
+courses = 2
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.2
+[maps.phi0]
+type = "file"
+path = "phi0_map.csv"
+[load]
+type = "monotonic"
+target_strain = 0.2
+max_increment = 0.05
+"""
+
+USER_FILES = {"README.md": "my notes\n", "measured.csv": "strain,force_N\n0,0\n0.1,0.5\n",
+              "other_scene.toml": "title = 'mine'\n"}
+
+
+def _user_folder(tmp_path, scene_text, name="scene.toml"):
+    d = tmp_path / "work"
+    d.mkdir()
+    (d / name).write_text(scene_text)
+    for k, v in USER_FILES.items():
+        (d / k).write_text(v)
+    return d
+
+
+def _user_files_intact(d, scene_name, scene_text, extra=()):
+    assert (d / scene_name).read_text() == scene_text
+    for k, v in USER_FILES.items():
+        assert (d / k).read_text() == v, k
+    for k, v in extra:
+        assert (d / k).read_text() == v, k
+
+
+# ------------------------------------------------------------------ the policy itself
+def test_a_folder_of_user_files_is_used_and_nothing_in_it_is_removed(tmp_path):
+    d = _user_folder(tmp_path, CELL_SCENE)
+    before = sorted(p.name for p in d.iterdir())
+    for overwrite in (False, True):
+        assert prepare_output_dir(d, overwrite=overwrite, writes=("curve.csv", "summary.json")) == d
+        assert sorted(p.name for p in d.iterdir()) == before
+
+
+def test_overwrite_removes_only_the_recorded_names_and_never_an_input(tmp_path):
+    d = _user_folder(tmp_path, CELL_SCENE)
+    record_outputs(d, ["curve.csv", "materials.toml", "chunks/"])
+    (d / "curve.csv").write_text("old\n")
+    (d / "materials.toml").write_text("[yarns]\n")          # an earlier calibration's, read by this run
+    (d / "chunks").mkdir()
+    (d / "chunks" / "chunk_0.npz").write_bytes(b"x")
+    with pytest.raises(KnitsimInputError, match=r"already holds results \(curve\.csv, materials\.toml, chunks\)"):
+        prepare_output_dir(d, writes=("curve.csv",))
+    prepare_output_dir(d, overwrite=True, writes=("curve.csv",), inputs=[d / "materials.toml"])
+    assert not (d / "curve.csv").exists() and not (d / "chunks").exists()
+    assert (d / "materials.toml").read_text() == "[yarns]\n"
+    _user_files_intact(d, "scene.toml", CELL_SCENE)
+
+
+def test_a_user_file_with_an_output_name_is_refused_even_with_overwrite(tmp_path):
+    d = _user_folder(tmp_path, CELL_SCENE)
+    (d / "curve.csv").write_text("my own measured curve\n")
+    for overwrite in (False, True):
+        with pytest.raises(KnitsimInputError, match=r"holds curve\.csv, which knitsim did not write there"):
+            prepare_output_dir(d, overwrite=overwrite, writes=("curve.csv", "summary.json"))
+    assert (d / "curve.csv").read_text() == "my own measured curve\n"
+
+
+def test_a_record_naming_paths_outside_the_folder_removes_nothing_there(tmp_path):
+    d = tmp_path / "o"
+    d.mkdir()
+    outside = tmp_path / "precious.txt"
+    outside.write_text("keep")
+    (d / "curve.csv").write_text("x")
+    (d / RECORD_NAME).write_text(json.dumps({"outputs": ["../precious.txt", str(outside), "curve.csv"]}))
+    assert recorded_outputs(d) == ["curve.csv"]
+    prepare_output_dir(d, overwrite=True)
+    assert outside.read_text() == "keep" and not (d / "curve.csv").exists()
+
+
+def test_an_unwritable_out_is_refused_before_any_work(tmp_path):
+    f = tmp_path / "a_file"
+    f.write_text("")
+    with pytest.raises(KnitsimInputError, match="is not a directory"):
+        check_output_dir(f / "sub")
+    # /proc refuses new folders whatever the permissions say (os.access said yes to root: the run failed
+    # after its whole solve)
+    with pytest.raises(KnitsimInputError, match="cannot write there"):
+        check_output_dir("/proc/knitsim_nope")
+    # the probe leaves nothing behind
+    check_output_dir(tmp_path / "x" / "y")
+    assert not (tmp_path / "x").exists()
+
+
+def test_scene_inputs_are_the_scene_and_the_files_its_strings_name(tmp_path):
+    d = _user_folder(tmp_path, PATCH_SCENE)
+    (d / "phi0_map.csv").write_text("0,0\n0,0\n")
+    found = {p.resolve() for p in scene_inputs(d / "scene.toml")}
+    assert found == {(d / "scene.toml").resolve(), (d / "phi0_map.csv").resolve()}
+
+
+# ------------------------------------------------------------------ the commands
+def test_cell_into_the_scene_folder_twice_with_overwrite_keeps_the_users_files(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    d = _user_folder(tmp_path, CELL_SCENE)
+    monkeypatch.chdir(d)
+    assert main(["cell", "scene.toml", "--out", "."]) == 0
+    assert (d / "summary.json").is_file()
+    assert main(["cell", "scene.toml", "--out", "."]) == 2
+    assert "already holds results" in capsys.readouterr().err
+    assert main(["cell", "scene.toml", "--out", ".", "--overwrite"]) == 0
+    _user_files_intact(d, "scene.toml", CELL_SCENE)
+    assert (d / "curve.csv").is_file() and (d / "plot.png").is_file()
+
+
+def test_run_into_the_scene_folder_with_overwrite_keeps_the_scene_and_its_map(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    d = _user_folder(tmp_path, PATCH_SCENE)
+    (d / "phi0_map.csv").write_text("0.1,-0.1\n0.05,0\n")
+    monkeypatch.chdir(d)
+    for extra in ([], ["--overwrite"], ["--overwrite"]):
+        assert main(["run", "scene.toml", "--out", ".", "--no-progress"] + extra) == 0, \
+            capsys.readouterr().err
+    _user_files_intact(d, "scene.toml", PATCH_SCENE, extra=[("phi0_map.csv", "0.1,-0.1\n0.05,0\n")])
+    assert json.loads((d / "summary.json").read_text())
+
+
+def test_sweep_into_a_folder_of_scene_files_keeps_them(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    d = tmp_path / "scenes"
+    d.mkdir()
+    sweep = '\n[sweep]\n[sweep.parameters]\n"friction.m" = { values = [0.1, 0.2] }\n'
+    (d / "s.toml").write_text(CELL_SCENE + sweep)
+    others = {f"case_{k:03d}.toml": f"title = 'case {k}'\n" for k in range(12)}
+    for k, v in others.items():
+        (d / k).write_text(v)
+    for extra in ([], ["--overwrite"]):
+        assert main(["sweep", str(d / "s.toml"), "--out", str(d), "--workers", "0", "--no-plot"] + extra) == 0, \
+            capsys.readouterr().err
+    assert (d / "s.toml").read_text() == CELL_SCENE + sweep
+    assert all((d / k).read_text() == v for k, v in others.items())
+    assert json.loads((d / "summary.json").read_text())["failed"] == []
+    rows = (d / "results.csv").read_text().splitlines()
+    assert len([r for r in rows if r and not r.startswith("#")]) == 3          # header + the two samples
