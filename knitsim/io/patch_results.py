@@ -45,7 +45,7 @@ import numpy as np
 
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
 from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD_RULES, UNLOADING_RULES
-from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES
+from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_warnings,
@@ -613,7 +613,8 @@ def _run_stop(h: PatchHistory, model: PatchModel | None, layout: SpecimenLayout,
             f"from grip strain {h.grip_strain[held]:.4g} (increment {held + 1}), {len(cols)} of {h.shape[1]} "
             f"{column}(s) no longer converge: the coupling finds no balance of their {what}s' forces, and they hold "
             f"their last converged state to the end of the run, so the grip force there is not the knit's: the "
-            f"cycle figures stop there" + not_run(held) + f"; the first, {col_key} {j}, held at {F:.4g} N per "
+            f"cycle figures stop there (a column that failed in {HELD_RETRIES} loading increments in a row is not "
+            f"tried again until the grip turns: its iterations read 0)" + not_run(held) + f"; the first, {col_key} {j}, held at {F:.4g} N per "
             f"wale{' (jamming)' if jammed else ''}" + advice))))
     if fc.first_stop is not None and np.any(h.direction[fc.first_stop:] < 0):
         out.append((fc.first_stop + 1, float(h.grip_strain[fc.first_stop]), None))

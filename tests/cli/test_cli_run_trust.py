@@ -489,3 +489,48 @@ def test_a_patch_unloading_from_rest_peaks_at_the_rest_state(tmp_path):
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert "unloading_work_N_mm" in cyc and "work_N_mm" not in cyc and "hysteresis_energy_N_mm" not in cyc
     assert [w["code"] for w in summary["warnings"]].count("cycle_without_loading") == 1
+
+
+P2Z = """
+title = "two zones beyond reach"
+[patch]
+wales = 2
+courses = 4
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.2
+[rules]
+force_cap_N = 1e6
+[[zones]]
+courses = [2, 4]
+yarn = { material = "basalt" }
+knit = { material = "basalt_plain" }
+[load]
+type = "monotonic"
+target_strain = 1.2
+max_increment = 0.01
+"""
+
+
+def test_columns_that_keep_failing_while_loading_hold_without_being_tried_again(tmp_path, capsys):
+    """A blind probe's patch (E-glass over basalt, pulled to grip strain 1.2 under a 1e6 N cap): from 0.78 its
+    two columns find no balance (jammed, the force diverges) and held to the end, but each of the last 42
+    increments tried them again (~50 trials, 2.4 s each).  Expected (coupling.HELD_RETRIES): tried in 3 loading
+    increments in a row, then held without trying (iterations 0) at the same force to the end, and the warning
+    says so; the rows before, where the columns converged, are untouched (their iterations > 0)."""
+    from knitsim.patch.coupling import HELD_RETRIES
+    out = tmp_path / "o"
+    assert main(["run", str(_scene(tmp_path, P2Z)), "--out", str(out), "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert f"a column that failed in {HELD_RETRIES} loading increments in a row is not tried again" in err
+    with open(out / "columns.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["column"] == "0"]
+    first = next(i for i, r in enumerate(rows) if r["status"] != "ok")
+    tried, held = rows[first:first + HELD_RETRIES], rows[first + HELD_RETRIES:]
+    assert len(held) > 30 and all(r["status"] == "not_converged" for r in rows[first:])
+    assert all(int(r["iterations"]) > 0 for r in rows[:first] + tried)
+    assert all(int(r["iterations"]) == 0 for r in held)
+    assert len({r["force_N"] for r in held}) == 1
