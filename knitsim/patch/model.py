@@ -51,6 +51,32 @@ def _number(v) -> float:
 _DEFAULT = CellParams(B=1.0, d=1.0, L=10.0, W0=4.0, C0=2.0)
 
 
+def _value_codes(values: np.ndarray) -> np.ndarray:
+    """An integer per value, equal for equal values; all zeros at once where every value is the first (a
+    patch's rules are mostly one: sorting 10^6 objects took 0.3 s a rule)."""
+    if len(values) == 0 or bool(np.all(values == values[0])):
+        return np.zeros(len(values), np.int64)
+    return np.unique(values, return_inverse=True)[1].ravel()
+
+
+def _row_ids(flat: np.ndarray) -> np.ndarray:
+    """An id per row of ``flat`` [n, k], equal for equal rows (the inverse of ``np.unique(flat, axis=0)``).
+
+    Each column is factorised on its own and the codes combined into one integer where their product fits
+    in 63 bits: ``np.unique(axis=0)`` sorted 10^6 rows of 15 values in 4.6 s, the combined key in 0.1 s."""
+    codes, radix = [], 1
+    for c in flat.T:
+        u, inv = np.unique(c, return_inverse=True)
+        codes.append((inv.ravel().astype(np.int64), len(u)))
+        radix *= max(len(u), 1)
+    if radix >= 2**62:
+        return np.unique(flat, axis=0, return_inverse=True)[1].ravel()
+    key = np.zeros(len(flat), np.int64)
+    for inv, n in codes:
+        key = key * n + inv
+    return np.unique(key, return_inverse=True)[1].ravel()
+
+
 @dataclass(frozen=True)
 class Grouping:
     """Cells grouped into independent solves.
@@ -336,9 +362,9 @@ class PatchModel:
 
     def material_codes(self) -> np.ndarray:
         """An integer per cell naming its rules and effects (equal codes: equal rules and effects)."""
-        parts = [np.unique(np.asarray(self.rules[r]).ravel(), return_inverse=True)[1] for r in RULE_NAMES]
+        parts = [_value_codes(np.asarray(self.rules[r]).ravel()) for r in RULE_NAMES]
         parts.append(self.effect_codes()[0].ravel())
-        _, first, inverse = np.unique(np.stack(parts, axis=1), axis=0, return_index=True, return_inverse=True)
+        _, first, inverse = np.unique(_row_ids(np.stack(parts, axis=1)), return_index=True, return_inverse=True)
         # numbered in the order the cells first hold them (row-major), as the groups always were
         rank = np.empty(len(first), np.int64)
         rank[np.argsort(first, kind="stable")] = np.arange(len(first))
@@ -370,35 +396,41 @@ class PatchModel:
         if dedup:
             stack = np.stack([np.nan_to_num(self.fields[n], nan=-1.0) for n in PARAM_NAMES]
                              + [self.material_codes().astype(float), self.wale_count], axis=-1)
-            flat = stack.reshape(-1, stack.shape[-1])
-            _, mat_id = np.unique(flat, axis=0, return_inverse=True)
-            mat_id = mat_id.reshape(courses, wales)
+            mat_id = _row_ids(stack.reshape(-1, stack.shape[-1])).reshape(courses, wales)
             # a column class is the multiset of its materials, with their stitch counts (order along the
             # column is irrelevant in series)
             col_keys = []
             for j in range(wales):
-                ids = np.unique(mat_id[:, j])
-                col_keys.append(tuple(ids.tolist()) + tuple(float(counts[mat_id[:, j] == g, j].sum()) for g in ids))
+                ids, inv = np.unique(mat_id[:, j], return_inverse=True)
+                sums = np.bincount(inv, weights=counts[:, j], minlength=len(ids))
+                col_keys.append(tuple(ids.tolist()) + tuple(float(x) for x in sums))
             classes: dict = {}
             column_class = np.array([classes.setdefault(k, len(classes)) for k in col_keys], dtype=np.int64)
-            groups: dict = {}
-            group_of_cell = np.empty((courses, wales), dtype=np.int64)
-            for j in range(wales):
-                for i in range(courses):
-                    key = (int(column_class[j]), int(mat_id[i, j]))
-                    group_of_cell[i, j] = groups.setdefault(key, len(groups))
-            n_groups = len(groups)
+            # a group is a (column class, material): numbered in the order the cells first hold them, wale
+            # column by column, course by course (vectorised: the loops over the cells and over the groups
+            # took 72 s of a 600 x 600 patch's first increment, O(groups x courses))
+            key = (column_class[None, :] * (int(mat_id.max()) + 1) + mat_id).T.ravel()   # (j, i) order
+            _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+            rank = np.empty(len(first), np.int64)
+            rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+            order_g = rank[inverse.ravel()]                            # each cell's group, (j, i) order
+            group_of_cell = order_g.reshape(wales, courses).T.copy()
+            n_groups = len(first)
             group_column = np.empty(n_groups, np.int64)
-            rep = np.empty((n_groups, 2), np.int64)
-            for (c, _), g in groups.items():
-                group_column[g] = c
-            first_col = {int(c): int(np.argmax(column_class == c)) for c in range(len(classes))}
-            group_count = np.zeros(n_groups, np.float64)
-            for g in range(n_groups):
-                j = first_col[int(group_column[g])]
-                cells = np.nonzero(group_of_cell[:, j] == g)[0]
-                group_count[g] = float(counts[cells, j].sum()) if not np.all(counts == 1.0) else float(len(cells))
-                rep[g] = (cells[0], j)
+            group_column[order_g] = np.repeat(column_class, courses)
+            # each group's count and representative from the first column of its class
+            _, first_col = np.unique(column_class, return_index=True)
+            in_first = np.zeros(wales, bool)
+            in_first[first_col] = True
+            cells_j = np.repeat(np.arange(wales), courses)
+            cells_i = np.tile(np.arange(courses), wales)
+            sel = in_first[cells_j]
+            g_sel, i_sel, j_sel = order_g[sel], cells_i[sel], cells_j[sel]
+            unit = bool(np.all(counts == 1.0))
+            group_count = np.bincount(g_sel, weights=None if unit else counts[i_sel, j_sel],
+                                      minlength=n_groups).astype(np.float64)
+            _, at = np.unique(g_sel, return_index=True)                # first course of each group (sorted g)
+            rep = np.stack([i_sel[at], j_sel[at]], axis=1).astype(np.int64)
         else:
             column_class = np.arange(wales, dtype=np.int64)
             group_of_cell = np.arange(courses * wales, dtype=np.int64).reshape(courses, wales)
