@@ -206,18 +206,38 @@ class WarpBackend:
         from ..kernels.cell_tangent import branch_tangent_kernel
         self._tangent_kernel = branch_tangent_kernel
         self._select_kernel = select_state_kernel
+        from ..kernels import state_read
+        self._state_read = state_read
+        self._read_dev = self._read_host = None     # the packed read's buffers, made on the first read
         # tangents known at the trial (1), committed (0) and result (r) states, and where they are known
         self._k1, self._k0, self._kr = (np.full(self.n, np.nan) for _ in range(3))
         self._k1_ok, self._k0_ok, self._kr_ok = (np.zeros(self.n, bool) for _ in range(3))
 
-    @staticmethod
-    def _read(st) -> dict:
-        q = st.q.numpy()
-        stage = st.stage.numpy().copy()
-        F = np.where(stage == int(Stage.SLACK), 0.0, q[:, CODE["F"]])
-        return {"C": st.C.numpy().copy(), "F": F, "phi": q[:, CODE["phi"]].copy(), "W": q[:, CODE["W"]].copy(),
-                "stage": stage, "jammed": st.jammed.numpy().copy(), "status": st.status.numpy().copy(),
-                "head_gap": st.head_gap.numpy().copy()}
+    def _read(self, st) -> dict:
+        """C, F (0 while slack), phi, W, stage, jammed, status and head gap of every group of state ``st``:
+        packed on the device and copied through pinned host buffers (:mod:`knitsim.kernels.state_read`)."""
+        wp, sr = self.wp, self._state_read
+        if self._read_dev is None:
+            n, dev = self.n, self.device
+            self._read_dev = (wp.empty((n, sr.N_READ_REALS), dtype=wp.float64, device=dev),
+                              wp.empty((n, sr.N_READ_INTS), dtype=wp.int32, device=dev))
+            on_host = wp.get_device(dev).is_cpu
+            self._read_host = self._read_dev if on_host else (
+                wp.empty((n, sr.N_READ_REALS), dtype=wp.float64, device="cpu", pinned=True),
+                wp.empty((n, sr.N_READ_INTS), dtype=wp.int32, device="cpu", pinned=True))
+        reals, ints = self._read_dev
+        wp.launch(sr.pack_state_read_kernel, dim=self.n,
+                  inputs=[st.arrays(), CODE["F"], CODE["phi"], CODE["W"], int(Stage.SLACK)],
+                  outputs=[reals, ints], device=self.device)
+        if self._read_host is not self._read_dev:
+            wp.copy(self._read_host[0], reals)
+            wp.copy(self._read_host[1], ints)
+            wp.synchronize_device(self.device)
+        r, k = self._read_host[0].numpy(), self._read_host[1].numpy()
+        return {"C": r[:, sr.READ_C].copy(), "F": r[:, sr.READ_F].copy(), "phi": r[:, sr.READ_PHI].copy(),
+                "W": r[:, sr.READ_W].copy(), "stage": k[:, sr.READ_STAGE].copy(),
+                "jammed": k[:, sr.READ_JAMMED].copy(), "status": k[:, sr.READ_STATUS].copy(),
+                "head_gap": r[:, sr.READ_GAP].copy()}
 
     def committed(self) -> dict:
         """Each group's committed state, arrays of shape [n]: ``C`` [mm], ``F`` [N] (0 while slack),
