@@ -67,7 +67,8 @@ import numpy as np
 ENERGY_KINDS = ("hysteresis", "work", "loading_work", "unloading_work")
 
 
-def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool = True) -> dict:
+def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool = True,
+               imposed: np.ndarray | None = None) -> dict:
     """The work of one cycle's path, named for what it is.
 
     ``oint F d(strain)`` by trapezoids (:func:`~knitsim.cell.cycle.dissipated_energy`) is the
@@ -76,6 +77,12 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool
     0 -> 0.6 -> 0.1) holds elastic energy too: its ``work``; a path that only loads, its
     ``loading work``; one that only unloads (``loads`` false: a program that starts by unloading from
     rest), its ``unloading work`` (the energy the knit gives back, negative where it carries force).
+
+    ``imposed``: the program's strain along the same rows, where closure is judged (as a test judges it, by
+    the grip's return): a cell slack at a cycle's end stays at the length where its force reached 0, its own
+    strain short of the program's, and a returning cycle was called open ("work") by ``knitsim cell`` and
+    closed ("hysteresis") by ``knitsim run`` on the same knit (a blind probe).  The slack rows carry no
+    force, so the value is the same either way.
 
     Returns
     -------
@@ -87,8 +94,9 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool
 
     s, f = np.asarray(strain, float), np.asarray(force, float)
     w = dissipated_energy(s, f) if len(s) > 1 else 0.0
-    span = float(np.ptp(s)) if len(s) else 0.0
-    closed = bool(unloads and len(s) > 1 and abs(s[-1] - s[0]) <= 1e-9 * max(span, 1e-12))
+    c = s if imposed is None else np.asarray(imposed, float)
+    span = float(np.ptp(c)) if len(c) else 0.0
+    closed = bool(unloads and len(c) > 1 and abs(c[-1] - c[0]) <= 1e-9 * max(span, 1e-12))
     hysteresis, work, loading_work, unloading_work = ENERGY_KINDS
     kind = hysteresis if closed else (loading_work if not unloads else work if loads else unloading_work)
     return {"kind": kind, "closed": closed, "value": float(w)}

@@ -289,10 +289,14 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         entry["residual_strain_from"] = how
         path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
         s_path, f_path = eps_cell[path], F[path]
+        # closure judged on the program's strain (a slack cell's own stays where its force reached 0)
+        i_path = np.where(status[path] == STATUS_OK, np.asarray(h.strain, float)[path], eps_cell[path])
         if rows[0] == 0 and h.rest is not None:     # the first cycle starts from the rest state
             s_path = np.concatenate([[0.0], s_path])
             f_path = np.concatenate([[h.rest["F"][cell]], f_path])
-        work = cycle_work(s_path, f_path, bool(len(unload)), loads=bool(np.any(h.direction[rows] > 0)))
+            i_path = np.concatenate([[0.0], i_path])
+        work = cycle_work(s_path, f_path, bool(len(unload)), loads=bool(np.any(h.direction[rows] > 0)),
+                          imposed=i_path)
         entry["energy_N_per_strain"] = work["value"]
         entry["energy_N_mm"] = work["value"] * p.C0
         # hysteresis (closed cycle), work (open), loading_work, unloading_work (a cycle that never loads)
