@@ -67,7 +67,7 @@ def _run(args) -> int:
     from ..calibration.outputs import UNUSABLE, calibration_outputs, write_calibration, zero_offsets
     from ..calibration.scene import load_calibration_scene
 
-    with naming_scene(args.scene):
+    with naming_scene(args.scene, "calibrate"):
         scene = load_calibration_scene(args.scene, args.overrides, device=args.device)
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the calibration in --out, or "

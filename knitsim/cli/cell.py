@@ -74,7 +74,7 @@ def check_cells_domain(params, labels, strains) -> list[dict]:
 
 def _run(args) -> int:
     t_command = time.perf_counter()
-    with naming_scene(args.scene):
+    with naming_scene(args.scene, "cell"):
         scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain)
     out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,

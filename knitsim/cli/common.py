@@ -13,17 +13,45 @@ from ..io.table_input import read_csv_columns  # noqa: F401  (re-exported: capst
 
 
 @contextlib.contextmanager
-def naming_scene(path) -> Iterator[None]:
+def naming_scene(path, command: str | None = None) -> Iterator[None]:
     """Errors of reading the scene ``path`` name the file first (``FILE: key = value: why``) where they do not
-    already: a key alone does not say which of a user's scenes is wrong (a blind probe)."""
+    already: a key alone does not say which of a user's scenes is wrong (a blind probe).  With ``command``,
+    a scene that has the top-level tables of another command's scenes is said to be one (a probe's
+    ``knitsim cell`` on a patch scene read only "seed = 2015: unknown key")."""
     try:
         yield
     except KnitsimInputError as exc:
         msg = str(exc)
+        hint = _other_command_hint(path, command)
         # (the loaders write the path as Path() spells it: ./x.toml as x.toml)
         if str(path) in msg or str(Path(path)) in msg:
-            raise
-        raise KnitsimInputError(f"{path}: {msg}") from None
+            if not hint:
+                raise
+            raise KnitsimInputError(msg + hint) from None
+        raise KnitsimInputError(f"{path}: {msg}{hint}") from None
+
+
+#: top-level tables or keys that only one command's scenes have
+_SCENE_KEYS = {"cell": ("cells",), "run": ("patch", "specimen", "zones", "maps", "seed", "grades", "solver"),
+               "sweep": ("sweep",), "calibrate": ("calibration", "specimens")}
+
+
+def _other_command_hint(path, command: str | None) -> str:
+    """`` (it is a scene for knitsim X: it has [k])`` where the scene has another command's keys only."""
+    if command is None:
+        return ""
+    try:
+        from ..scene.schema import load_toml
+        doc = load_toml(path)
+    except (KnitsimInputError, OSError):
+        return ""
+    if any(k in doc for k in _SCENE_KEYS.get(command, ())):
+        return ""
+    for other, keys in _SCENE_KEYS.items():
+        have = [k for k in keys if k in doc]
+        if other != command and have:
+            return f" (this is a scene for `knitsim {other}`: it has {', '.join(have)})"
+    return ""
 
 
 def add_json_flag(parser) -> None:

@@ -253,7 +253,7 @@ def _run(args) -> int:
             prepare_output_file(args.usd, args.overwrite, "--usd")
             # writable before the solve (a parent that is a file, /proc: pxr failed after the whole solve)
             check_usd_path(args.usd, "--usd")
-    with naming_scene(args.scene):
+    with naming_scene(args.scene, "run"):
         scene = load_patch_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     with contextlib.redirect_stdout(sys.stderr):
         device = "cpu"

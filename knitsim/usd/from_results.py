@@ -284,6 +284,11 @@ def record_from_results(results_dir) -> PatchRecord:
         raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: not a directory")
     nc = d / "cells.nc"
     if not nc.is_file():
+        if (d / "events.csv").is_file() and not (d / "columns.csv").is_file():
+            # a `knitsim cell` folder (curve.csv, events.csv): cells without a patch to lay out
+            raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: holds the results of `knitsim cell` (single cells, "
+                                    "no patch to lay out); `knitsim usd` draws a `knitsim run` folder: run the "
+                                    "scene as a patch (`knitsim run` with [patch] wales = 1, courses = 1 for one cell)")
         raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: no cells.nc (was the run made with output.cell_fields "
                                 "= false?)")
     import xarray as xr

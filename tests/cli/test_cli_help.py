@@ -34,3 +34,31 @@ def test_help_has_no_rst_markup(path):
     text = PARSERS[path].format_help()
     found = RST.search(text)
     assert found is None, f"{path} --help shows {found.group(0)!r}: ...{text[max(0, found.start() - 40):found.end() + 40]}..."
+
+
+def test_a_scene_for_another_command_is_named_so(tmp_path, capsys):
+    """A blind probe gave `knitsim cell` the bundled patch scene and a sweep scene, and read only "seed = 2015:
+    unknown key"; `knitsim usd` on a cell's folder read "no cells.nc (... cell_fields = false?)".  Expected:
+    the command that reads such a scene (its distinctive tables: [patch], [maps] and seed for run, [sweep] for
+    sweep, [calibration] and [[specimens]] for calibrate), and what usd draws."""
+    from pathlib import Path
+    from knitsim.cli import main
+    scenes = Path(__file__).resolve().parents[2] / "scenes"
+    cases = [("cell", scenes / "random_phi0.toml", "`knitsim run`: it has patch, maps, seed"),
+             ("cell", scenes / "sweeps" / "e_glass_friction_sweep.toml", "`knitsim sweep`: it has sweep"),
+             ("run", scenes / "calibration" / "do2020" / "calibrate.toml", "`knitsim calibrate`"),
+             ("calibrate", scenes / "random_phi0.toml", "`knitsim run`")]
+    for cmd, scene, hint in cases:
+        assert main([cmd, str(scene), "--out", str(tmp_path / cmd)]) == 2
+        assert f"(this is a scene for {hint}" in capsys.readouterr().err
+        assert not (tmp_path / cmd).exists()
+    # its own scene with a typo: no hint (the error is the typo)
+    bad = tmp_path / "typo.toml"
+    bad.write_text((scenes / "paper" / "e_glass_monotonic.toml").read_text() + "\nfriction_typo = 1\n")
+    assert main(["cell", str(bad), "--out", str(tmp_path / "t")]) == 2
+    assert "this is a scene for" not in capsys.readouterr().err
+    # usd on a cell's results
+    assert main(["cell", str(scenes / "paper" / "e_glass_monotonic.toml"), "--out", str(tmp_path / "c")]) == 0
+    capsys.readouterr()
+    assert main(["usd", str(tmp_path / "c"), "--out", str(tmp_path / "c.usda")]) == 2
+    assert "holds the results of `knitsim cell`" in capsys.readouterr().err
