@@ -21,11 +21,13 @@ with one seed are independent, and a seed reproduces the field on every
 platform NumPy supports); ``scale = "phimax"`` multiplies by each cell's
 phimax = atan(m) (phi0 uniform in ``[-phimax, phimax]``: ``low = -1, high = 1``).
 
-Every error names the key path and the value.
+A ``.csv`` map is read as a spreadsheet writes it (:func:`_read_map_csv`): ``,``, ``;`` or tab between
+the cells (decimal commas with ``;`` and tab), a byte-order mark or UTF-16, one row of labels at the top.
+
+Every error names the key path and the value (a map file's, the row and column).
 """
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +72,45 @@ def gradient(n: int, start: float, end: float, profile: str = "linear", steps: i
     return start + (end - start) * t
 
 
+def _read_map_csv(f: Path, path: str) -> np.ndarray:
+    """A map CSV as a lab's spreadsheet writes it: a byte-order mark, UTF-16, Windows line ends, ``;`` or tab
+    between the cells with decimal commas (Excel in a decimal-comma locale), one row of labels at the top
+    (skipped where no cell of it is a number), blank lines.  An empty or non-numeric cell below is refused,
+    named by row and column (a probe's Excel map was refused as "row 1 is not a list of numbers")."""
+    from ..io.table_input import _number, _text
+    lines = _text(f).splitlines()
+    first = next((ln for ln in lines if ln.strip()), "")
+    # a ';' or a tab is the separator wherever one is written: their cells may hold decimal commas, which
+    # outnumber them (0,1;0,0;-0,1)
+    delim = max(("\t", ";"), key=first.count) if ("\t" in first or ";" in first) else ","
+    decimal_comma = delim != ","
+    rows, shown = [], 0
+    for r, line in enumerate(lines, start=1):
+        cells = [c.strip() for c in line.split(delim)]
+        if not any(cells):
+            continue
+        while len(cells) > 1 and cells[-1] == "":          # a spreadsheet's trailing separators
+            cells.pop()
+        shown += 1
+        vals = []
+        for k, c in enumerate(cells, start=1):
+            try:
+                vals.append(_number(c, decimal_comma) if c else None)
+            except ValueError:
+                vals.append("text")
+        if shown == 1 and all(v == "text" for v in vals):
+            continue                                        # a row of labels
+        for k, (c, v) in enumerate(zip(cells, vals), start=1):
+            if v is None or v == "text":
+                what = "empty" if v is None else f"{c!r} is not a number"
+                raise _err(path, str(f), f"row {r}, column {k}: {what} (a map holds one number per cell, one row "
+                                         f"per course, separated by {'a tab' if delim == chr(9) else repr(delim)})")
+        rows.append(vals)
+    if not rows or len({len(r) for r in rows}) != 1:
+        raise _err(path, str(f), "expected a rectangular table of numbers, one row per course")
+    return np.asarray(rows, dtype=np.float64)
+
+
 def read_array_file(file: str | Path, shape: tuple[int, int], path: str) -> np.ndarray:
     """A ``.npy`` or ``.csv`` array of shape ``(courses, wales)``, finite float64."""
     f = Path(file)
@@ -80,19 +121,8 @@ def read_array_file(file: str | Path, shape: tuple[int, int], path: str) -> np.n
             a = np.load(f, allow_pickle=False)
         except ValueError as exc:
             raise _err(path, str(file), f"not a readable .npy array ({exc})") from None
-    elif f.suffix == ".csv":
-        rows = []
-        with f.open(newline="", encoding="utf-8") as fh:
-            for r, row in enumerate(csv.reader(fh), start=1):
-                if not any(c.strip() for c in row):
-                    continue
-                try:
-                    rows.append([float(c) for c in row])
-                except ValueError:
-                    raise _err(path, str(file), f"row {r} is not a list of numbers (no header row expected)") from None
-        if not rows or len({len(r) for r in rows}) != 1:
-            raise _err(path, str(file), "expected a rectangular table of numbers, one row per course")
-        a = np.asarray(rows)
+    elif f.suffix.lower() == ".csv":
+        a = _read_map_csv(f, path)
     else:
         raise _err(path, str(file), "expected a .npy or .csv file")
     if a.ndim != 2 or a.shape != tuple(shape):

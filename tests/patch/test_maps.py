@@ -88,3 +88,26 @@ def test_an_unknown_rule_of_a_patch_model_is_refused():
     base = PatchModel.uniform(CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2), 2, 2)
     with pytest.raises(KnitsimInputError, match=r"^rules\.unload_rule: unknown rule \(expected one of .*unloading_rule"):
         PatchModel(2, 2, base.fields, {"unload_rule": "hong_constant_t"})
+
+
+def test_map_csv_files_as_spreadsheets_write_them(tmp_path):
+    """Hand-written files (not knitsim's): the 4 x 3 array 0.1 k - 0.05 j as Excel saves it in a decimal-comma
+    locale (BOM, ';', decimal commas, CRLF, a row of labels, a trailing ';', a blank line), as "Unicode Text"
+    (UTF-16, tabs), and plainly; all read as that array.  An empty cell and a word are refused by row and
+    column (a blind probe's Excel map was refused as "row 1 is not a list of numbers")."""
+    arr = np.array([[0.1 * k - 0.05 * j for j in range(3)] for k in range(4)])
+    excel = "\ufeffwale 0;wale 1;wale 2;\r\n" + "".join(
+        ";".join(f"{v:.2f}".replace(".", ",") for v in row) + ";\r\n" for row in arr) + "\r\n"
+    (tmp_path / "excel.csv").write_bytes(excel.encode("utf-8"))
+    utf16 = "\r\n".join("\t".join(f"{v:g}" for v in row) for row in arr) + "\r\n"
+    (tmp_path / "unicode.csv").write_bytes(utf16.encode("utf-16"))
+    (tmp_path / "plain.csv").write_text("\n".join(",".join(f"{v:g}" for v in row) for row in arr) + "\n")
+    for name in ("excel.csv", "unicode.csv", "plain.csv"):
+        got = build_map({"type": "file", "path": name}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+        assert np.allclose(got, arr, atol=1e-12), name
+    (tmp_path / "hole.csv").write_text("0.1,,0.2\n0,0,0\n0,0,0\n0,0,0\n")
+    with pytest.raises(KnitsimInputError, match=r"hole\.csv.*row 1, column 2: empty"):
+        build_map({"type": "file", "path": "hole.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+    (tmp_path / "word.csv").write_text("0,0,0\n0,abc,0\n0,0,0\n0,0,0\n")
+    with pytest.raises(KnitsimInputError, match=r"word\.csv.*row 2, column 2: 'abc' is not a number"):
+        build_map({"type": "file", "path": "word.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
