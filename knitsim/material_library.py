@@ -132,8 +132,8 @@ def _check_yarn_law(path: str, where: str, y: dict) -> None:
     dahl_sigma and the force cap (a blind probe's ``model = "coloumb"`` in a library yarn was reported as the
     scene's ``zones[0].friction.model``, in no file the user wrote it in).  What combines with the scene
     (a missing m the scene may give, the knit's phi0 within atan m) stays the scene's check."""
-    from .cell.stages import (DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES,
-                              UNLOADING_RULES)
+    from .cell.stages import (DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, M_MAX,
+                              M_TOO_LARGE, RELOAD_RULES, UNLOADING_RULES)
     f, r = y.get("friction", {}), y.get("rules", {})
     for table, key, choices in (("friction", "model", FRICTION_MODELS), ("rules", "unloading_rule", UNLOADING_RULES),
                                 ("rules", "reload_rule", RELOAD_RULES), ("rules", "jamming_criterion", JAMMING_CRITERIA)):
@@ -142,6 +142,8 @@ def _check_yarn_law(path: str, where: str, y: dict) -> None:
             raise KnitsimInputError(f"{path}: {where}.{table}.{key} = {v!r}: expected one of {', '.join(choices)}")
     if "m" in f and _number(path, f"{where}.friction.m", f["m"], positive=False) < 0:
         raise KnitsimInputError(f"{path}: {where}.friction.m = {f['m']!r}: the friction ratio must be >= 0")
+    if "m" in f and f["m"] > M_MAX:
+        raise KnitsimInputError(f"{path}: {where}.friction.m = {f['m']!r}: {M_TOO_LARGE}")
     if f.get("model") == "dahl":
         sigma = _number(path, f"{where}.friction.dahl_sigma", f.get("dahl_sigma", 0.0), positive=False)
         if not sigma > 0:

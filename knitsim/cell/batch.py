@@ -55,7 +55,7 @@ from .material import CellParams
 from .quantities import CODE, QUANTITY_NAMES
 from .stages import (
     DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, MAX_HALVINGS, RELOAD_RULES,
-    STICK_CLOSURES, UNLOADING_RULES,
+    M_MAX, M_TOO_LARGE, STICK_CLOSURES, UNLOADING_RULES,
     stage_labels,
 )
 
@@ -315,6 +315,8 @@ class CellModel:
                 bad(k, f[k] <= 0, f[k], "must be > 0")
         if np.any(f["m"] < 0):
             bad("m", f["m"] < 0, f["m"], "the friction ratio must be >= 0")
+        if np.any(f["m"] > M_MAX):
+            bad("m", f["m"] > M_MAX, f["m"], M_TOO_LARGE)
         codes = {}
         for k, (v, allowed) in names.items():
             a = np.broadcast_to(np.asarray(v), (n,))

@@ -14,7 +14,8 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from .effects import NO_EFFECTS, EffectSet
-from .stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
+from .stages import (DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, M_MAX, M_TOO_LARGE,
+                     RELOAD_RULES, UNLOADING_RULES)
 
 
 @dataclass(frozen=True)
@@ -116,6 +117,8 @@ class CellParams:
                 bad(name, "must be > 0")
         if self.m < 0:
             bad("m", "the friction ratio must be >= 0")
+        if self.m > M_MAX:
+            bad("m", M_TOO_LARGE)
         if self.in_plane_width is not None:
             v = self.in_plane_width
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):

@@ -226,6 +226,12 @@ DAHL_SIGMA_MAX = 1.0e6
 DAHL_SIGMA_TOO_STIFF = (f"above {DAHL_SIGMA_MAX:g} 1/mm the Dahl law is Coulomb friction to 1e-6 N and its "
                         "solve does not converge: use friction.model = \"coulomb\" with rules.unloading_rule = "
                         "\"hong_constant_t\" (the Dahl law's limit: Hong's constant-T unloading)")
+#: the largest friction ratio m = Rt/Rn = tan(phimax) a cell takes: yarn on yarn measures 0.1-0.6 (Dusserre 2015,
+#: Tables 2-3, eq 10); m = 5 is already a friction cone of 79 deg.  A blind probe's m = 50 ran with only the
+#: domain's extrapolation warning (the domain's box is 0.05-0.5)
+M_MAX = 5.0
+M_TOO_LARGE = (f"a friction ratio Rt/Rn above {M_MAX:g} (phimax = atan m above 79 deg) is no yarn's: yarn on "
+               "yarn measures 0.1-0.6 (Dusserre 2015, Tables 2-3; eq 10)")
 #: a Dahl stiffness given to a cell of another friction law (a blind probe's --set friction.dahl_sigma=5 on a
 #: Coulomb scene ran Coulomb, silently)
 DAHL_SIGMA_UNUSED = ("not used by friction.model = \"coulomb\": set friction.model = \"dahl\" to use it, "

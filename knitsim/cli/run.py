@@ -338,7 +338,9 @@ def _run(args) -> int:
             print(f"knitsim run: USD {line}", file=sys.stderr, flush=True)
     what = (f"{m.cell_count} blocks standing for {layout.stitches:,.0f} stitches" if layout.blocks
             else f"{m.cell_count} represented")
-    print(f"knitsim run: done in {time.perf_counter() - t_command:.2f} s (solving {h.wall_s:.2f} s: "
+    # (a resumed run's solving time includes the runs it resumed: said, beside this command's own time)
+    earlier = " over this and the resumed runs" if h.info.get("resumed_from") else ""
+    print(f"knitsim run: done in {time.perf_counter() - t_command:.2f} s (solving {h.wall_s:.2f} s{earlier}: "
           f"{h.info['n_groups']} distinct cells solved for {what}); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     for w in summary["warnings"]:

@@ -384,9 +384,18 @@ def summary_json(summary: dict) -> str:
 _STAGE_COLOURS = {"adherence": "#1f77b4", "sliding": "#2ca02c", "jamming": "#d62728", "slack": "#7f7f7f"}
 
 
-def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str = "") -> bytes:
-    """PNG of force per wale vs strain: one line per cell, points coloured by stage, rules in the legend."""
+#: warnings printed under a cell plot (the rest counted: summary.json has them all)
+PLOT_WARNINGS_SHOWN = 6
+
+
+def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str = "",
+             warnings: list | None = None) -> bytes:
+    """PNG of force per wale vs strain: one line per cell, points coloured by stage, rules in the legend;
+    ``warnings`` (the summary's, dicts with a ``message`` and the ``cell``) printed under the axes, as the
+    patch plot does, so that the figure never looks cleaner than the run (a cell whose later cycles carry 8 %
+    of the first was drawn without a word)."""
     import io
+    import textwrap
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -394,9 +403,22 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
 
     h = history
     labels = labels or [f"cell {i}" for i in range(h.n_cells)]
-    fig = Figure(figsize=(8, 5.5), dpi=110)
+    warnings = list(warnings or [])
+    several = h.n_cells > 1
+    lines = [ln for w in warnings[:PLOT_WARNINGS_SHOWN]
+             for ln in textwrap.wrap("warning: " + (f"{w['cell']}: " if several and w.get("cell") else "")
+                                     + w["message"], 170)]
+    if len(warnings) > PLOT_WARNINGS_SHOWN:
+        lines.append(f"... and {len(warnings) - PLOT_WARNINGS_SHOWN} more warnings (summary.json)")
+    extra = 0.15 * len(lines)
+    fig = Figure(figsize=(11, 5.5 + extra), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
+    # the legend beside the axes, not on them (a blind probe's legend covered the loading branch)
+    fig.subplots_adjust(left=0.07, right=0.62, top=1.0 - 0.77 / (5.5 + extra),
+                        bottom=(0.6 + extra) / (5.5 + extra))
+    if lines:
+        fig.text(0.01, 0.01, "\n".join(lines), fontsize=6.5, color="#b22222", va="bottom", ha="left")
     codes = h.label_codes()
     F = h.force_per_wale
     handles = []
@@ -450,7 +472,9 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
     if len(sets) > RULE_SETS_SHOWN:
         handles.append(Line2D([], [], color="none", label=f"... {len(sets) - RULE_SETS_SHOWN} more rule sets "
                                                            "(summary.json: each cell's rules)"))
-    ax.legend(handles=handles, fontsize=7, loc="upper left")
+    for hd in handles:
+        hd.set_label("\n".join(textwrap.wrap(hd.get_label(), 60)) or hd.get_label())
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.set_xlabel("strain of the course length, C/C0 - 1")
     ax.set_ylabel("force per wale [N]")
     title = title or "knitsim cell"
@@ -492,7 +516,7 @@ def write_cell_results(out_dir: str | Path, history: BatchHistory, summary: dict
     files = {"curve.csv": curve_csv(history).encode(), "events.csv": events_csv(history).encode(),
              "scene.resolved.toml": resolved_toml.encode()}
     if plot:
-        files["plot.png"] = plot_png(history, labels, title)
+        files["plot.png"] = plot_png(history, labels, title, summary.get("warnings"))
     files["summary.json"] = summary_json(summary).encode()
     return write_result_set(out_dir, files, OUTPUT_FILES)
 

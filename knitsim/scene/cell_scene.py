@@ -92,6 +92,15 @@ def _knit_table() -> Table:
     }, "the knit geometry at rest: a library knit and/or explicit L, W0, C0")
 
 
+def _coiling_in_degrees(v) -> str | None:
+    """A coiling angle up to 2 pi reads as radians given in degrees (a blind probe's 1.9 ran as 1.9 deg, m
+    0.002); a knit's crossing coils 90-180 deg (110 deg in Dusserre 2015, section 3.4)."""
+    if isinstance(v, (int, float)) and 0 < v <= 2 * math.pi:
+        return (f"a coiling angle of {v:g} deg is no knit crossing's (90-180 deg; 110 deg in section 3.4): the "
+                f"field is in degrees ({v:g} rad = {math.degrees(v):.4g} deg)")
+    return None
+
+
 def _friction_table(defaults: bool) -> Table:
     d = (lambda v: v) if defaults else (lambda v: OPTIONAL)
     return Table({
@@ -100,7 +109,8 @@ def _friction_table(defaults: bool) -> Table:
         "mu_k": Field(("float",), OPTIONAL, "kinetic friction coefficient, with coiling_angle_deg gives m by eq 10",
                       min=0.0),
         "coiling_angle_deg": Field(("float",), OPTIONAL, "coiling angle at the crossing for eq 10", "deg",
-                                   min=0.0, max=180.0, min_inclusive=False, max_inclusive=False),
+                                   min=0.0, max=180.0, min_inclusive=False, max_inclusive=False,
+                                   check=_coiling_in_degrees),
         "phi0": Field(("float", "str"), OPTIONAL, 'initial friction angle [rad], or "phimax" / "-phimax"', "rad",
                       check=lambda v: None if not isinstance(v, str) or v in ("phimax", "-phimax")
                       else 'expected a number [rad], "phimax" or "-phimax"'),

@@ -99,7 +99,7 @@ from typing import Any
 import numpy as np
 
 from ..cell.load_program import LoadProgram, pretensioned
-from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED
+from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, M_MAX, M_TOO_LARGE
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
@@ -302,6 +302,9 @@ def _check_cells(fields: dict, origins: dict, friction) -> None:
         bad = ~(fields[name] >= 0)
         if bad.any():
             fail(name, bad, lambda i, j: "must be >= 0")
+    bad = fields["m"] > M_MAX
+    if bad.any():
+        fail("m", bad, lambda i, j: M_TOO_LARGE)
     dahl = np.asarray(friction == "dahl") if isinstance(friction, np.ndarray) else (friction == "dahl")
     bad = np.asarray((friction == "coulomb") & (fields["dahl_sigma"] != 0))
     if bad.any():
@@ -510,6 +513,11 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     # zones: the base tables overridden per rectangle (library materials resolved as for a cell)
     for z, zone in enumerate(doc.get("zones", [])):
         zone_names = ("yarn", "knit", "friction", "rules", "effects")
+        if not any(data["zones"][z].get(t) for t in zone_names):
+            # a zone that changes nothing is a mistake (a table name mistyped or left out), not a zone
+            # (a blind probe's [[zones]] with courses only ran as the base knit, silently)
+            raise KnitsimInputError(f"zones[{z}]: changes nothing: give it a yarn, knit, friction, rules or "
+                                    "effects table (zones[k].knit = { W0 = ... }), or leave it out")
         raw_over = {t: validate(PATCH_SCENE.fields["zones"].item.fields[t], data["zones"][z].get(t, {}),
                                 f"zones[{z}].{t}", fill_defaults=False) for t in zone_names}
         ztables = zone_tables(raw_over, f"zones[{z}]", _ZoneOrigins(z, raw_over))

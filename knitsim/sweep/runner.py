@@ -1026,6 +1026,10 @@ def assemble(out_dir: str | Path):
         data[k][failed] = np.nan
     for k in CYCLE_FLAGS:
         data[k][failed] = -1
+    # and no judgement of its cycles: -1, as the variables' descriptions say (a blind probe read 0 / 1 flags on
+    # failed samples, judged on the rows before the failure); its rest state is judged (before any solve)
+    for k in _WARNING_FLAGS + ("loop_creates_energy",):
+        data[k][failed] = -1
     data["strain_at_first_jamming"][failed] = np.nan
     # where each cell stands with the model's domain, found by the planner before any solve (older
     # manifests without it: unknown, -1)
@@ -1084,29 +1088,31 @@ def assemble(out_dir: str | Path):
                                "an unload-reload loop from a peak does while the stitch's stored bending energy "
                                "did not fall (warning loop_creates_energy, knitsim.io.checks.energy_creating_loops; "
                                "Table 4's frozen force closures, README 'Loops that return energy'), 0 if none "
-                               "does, -1 not solved or unknown",
+                               "does, -1 not solved, failed (no judgement of its cycles) or unknown",
         "rest_state_compressive": "1 if the cell's rest state carries a compressive force (F < 0 at C0, W0: the knit "
                                   "is not free at rest; warning rest_state_compressive, knitsim.io.checks."
                                   "compressive_rest_state; its loops from rest are not judged for energy), 0 if not, "
                                   "-1 not solved or unknown",
         "heads_interpenetrate": "1 if the heads of neighbouring loops overlap somewhere in the program (centreline gap "
                                 "below the in-plane width: warning heads_interpenetrate of knitsim cell), 0 if not, "
-                                "-1 not solved or unknown",
+                                "-1 not solved, failed (no judgement of its cycles) or unknown",
         "zero_force_cycle": "1 if a later cycle peaks at a few per cent of the largest earlier peak (warning "
                             "zero_force_cycle of knitsim cell, knitsim.io.checks.zero_force_cycles), 0 if not, -1 not "
-                            "solved or unknown",
+                            "solved, failed (no judgement of its cycles) or unknown",
         "reload_below_earlier_loading": "1 if a later cycle carries less than half the earlier force at the earlier "
                                         "maximum strain, or peaks at a new maximum strain below 90 % of an earlier peak "
                                         "(warning reload_below_earlier_loading of knitsim cell, knitsim.io.checks."
-                                        "reloads_below_earlier_loading), 0 if not, -1 not solved or unknown",
+                                        "reloads_below_earlier_loading), 0 if not, "
+                                        "-1 not solved, failed (no judgement of its cycles) or unknown",
         "reload_loss_continues": "1 if cycles loading to the same strain go on losing peak force after their first "
                                  "reload (a second or later reload below 90 % of the cycle before it: warning "
                                  "reload_loss_continues of knitsim cell, knitsim.io.checks.reloads_without_shakedown), "
-                                 "0 if not, -1 not solved or unknown",
+                                 "0 if not, -1 not solved, failed (no judgement of its cycles) or unknown",
         "reload_above_first_loading": "1 if a later cycle reloads above 1.25 times the first loading's force at the "
                                       "same strain, below the earlier maximum strain (warning "
                                       "reload_above_first_loading of knitsim cell, knitsim.io.checks."
-                                      "reloads_above_first_loading), 0 if not, -1 not solved or unknown",
+                                      "reloads_above_first_loading), 0 if not, "
+                                      "-1 not solved, failed (no judgement of its cycles) or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "

@@ -138,6 +138,15 @@ def test_a_sweep_whose_samples_fail_exits_1_and_lists_them(tmp_path, capsys):
     assert (f"no converged solution on the increment to strain {one['stopped_at_strain']:.4g}; stopped at strain "
             f"{one['last_converged_strain']:.4g} (force per wale {one['last_converged_force_per_wale_N']:.4g} N)"
             in s["failed"][1]["reason"])
+    # no judgement of a failed sample's cycles: its flags are -1 (empty in results.csv), as the variables'
+    # descriptions say (a blind probe read 0 / 1 judged on the rows before the failure); its rest state is
+    # judged (before any solve)
+    import csv
+    rows = list(csv.DictReader((tmp_path / "o" / "results.csv").open()))
+    for k in ("loop_creates_energy", "heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
+              "reload_loss_continues", "reload_above_first_loading"):
+        assert [r[k] for r in rows] == ["", "", ""], k
+    assert [r["rest_state_compressive"] for r in rows] == ["0", "0", "0"]
 
 
 def test_no_plot_writes_no_plot(tmp_path, capsys, monkeypatch):

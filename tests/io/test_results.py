@@ -273,7 +273,7 @@ def test_the_cell_plot_legend_ties_every_rule_set_to_its_cells_and_gives_dahl_on
     real = matplotlib.axes.Axes.legend
 
     def legend(self, *args, handles=None, **kw):
-        seen.extend(h.get_label() for h in handles or [])
+        seen.extend(h.get_label().replace("\n", " ") for h in handles or [])   # (long labels wrapped)
         return real(self, *args, handles=handles, **kw)
     monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
     plot_png(run_batch(cells, cycles(0.1, 0.3, 1, 0.05)), labels=["a", "b", "c", "d", "e"])
@@ -281,3 +281,29 @@ def test_the_cell_plot_legend_ties_every_rule_set_to_its_cells_and_gives_dahl_on
     assert len(rules) == 5 and [r.split(":")[0] for r in rules] == ["a", "b", "c", "d", "e"]
     assert rules[4] == "e: dahl, w_4d, cap 20 N"
     assert rules[1] == "b: coulomb, unload hong_constant_t, reload mirror_unloading, w_4d, cap 20 N"
+
+
+def test_the_cell_plot_prints_the_summarys_warnings_under_it(tmp_path, monkeypatch):
+    """The paper's E-glass cell cycled 0.1-0.6 (Table 1, section 2.3; README 'the reload pocket'): its cycles 2
+    and 3 peak at 8 % of cycle 1, and summary.json warns zero_force_cycle; the cell plot showed the curve
+    without a word (the patch plot prints its warnings).  Expected: each warning of the summary under the
+    axes, as the patch plot does."""
+    import matplotlib.figure
+
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import cycles
+    texts = []
+    real = matplotlib.figure.Figure.text
+
+    def text(self, x, y, s, *a, **k):
+        texts.append(s)
+        return real(self, x, y, s, *a, **k)
+    monkeypatch.setattr(matplotlib.figure.Figure, "text", text)
+    h = run_batch([CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, force_cap_N=10.0)],
+                  cycles(0.1, 0.6, 3, 0.01))
+    s = summarise(h)
+    codes = [w["code"] for w in s["warnings"]]
+    assert codes.count("zero_force_cycle") == 2
+    write_cell_results(tmp_path / "o", h, s, "", plot=True)
+    shown = " ".join(t.replace("\n", " ") for t in texts)
+    assert shown.count("warning: cycle") == 2 and "8.0% of cycle 1" in shown

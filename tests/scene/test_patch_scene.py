@@ -134,3 +134,24 @@ def test_a_dahl_stiffness_on_a_coulomb_zone_is_refused():
     doc = base(zones=[{"wales": [1, 3], "friction": {"dahl_sigma": 5.0}}])
     with pytest.raises(KnitsimInputError, match=r'dahl_sigma = 5(\.0)?: not used by friction\.model = "coulomb".*zones\[0\]'):
         load_patch_scene(doc)
+
+
+def test_absurd_friction_and_a_zone_that_changes_nothing_are_refused():
+    """Blind probe: m = 50, a coiling angle of 1.9 "deg" (radians given in degrees: eq 10 then gives m 0.002)
+    and a [[zones]] entry with courses only all ran, with at most an extrapolation warning.  Expected: m above
+    M_MAX (5: a 79 deg friction cone; yarn on yarn measures 0.1-0.6, Tables 2-3) refused in a scene, a zone's
+    table and a map alike; a coiling angle up to 2 pi refused with its value in degrees; a zone without a
+    table refused; m = 4 (extrapolated) and 110 deg (section 3.4) accepted."""
+    from knitsim.cell.stages import M_MAX
+    with pytest.raises(KnitsimInputError, match=r"m = 50.0: a friction ratio Rt/Rn above 5 .*no yarn's"):
+        load_patch_scene(base(friction={"m": 50.0}))
+    with pytest.raises(KnitsimInputError, match=r"m = .*no yarn's"):
+        load_patch_scene(base(zones=[{"courses": [0, 2], "friction": {"m": 9.0}}]))
+    with pytest.raises(KnitsimInputError, match=r"no yarn's"):
+        load_patch_scene(base(maps={"m": {"type": "uniform", "value": 2 * M_MAX}}))
+    with pytest.raises(KnitsimInputError, match=r"coiling_angle_deg = 1\.9: .*1\.9 rad = 108\.9 deg"):
+        load_patch_scene(base(friction={"mu_k": 0.2, "coiling_angle_deg": 1.9}))
+    with pytest.raises(KnitsimInputError, match=r"^zones\[0\]: changes nothing"):
+        load_patch_scene(base(zones=[{"courses": [0, 2]}]))
+    assert load_patch_scene(base(friction={"m": 4.0})).model.fields["m"].max() == 4.0
+    assert load_patch_scene(base(friction={"mu_k": 0.2, "coiling_angle_deg": 110.0})).model.fields["m"].max() > 0.1
