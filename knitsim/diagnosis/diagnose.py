@@ -1885,6 +1885,13 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     if capped:
         verdict.confident = False
         verdict.reason += "; " + capped
+    # a strain that jumps alone (measured.strain_slips): a slip would be fitted as the knit's stretch
+    slipped = [c for c in curves if getattr(c, "slips", ())]
+    if slipped:
+        verdict.confident = False
+        verdict.reason += "; " + "; ".join(
+            f"{Path(c.source).name}: the strain jumps alone at row {c.slips[0]} (a grip or extensometer slip, or "
+            "rows missing from the log), which the model reads as the knit's stretch" for c in slipped)
     # an unexplained gap may be two curves that one knit cannot meet (said, the verdict unchanged)
     disagree = curves_disagree(curves, base_fit, data.weights, noise) if verdict.kind == "unexplained" else ""
     if disagree:

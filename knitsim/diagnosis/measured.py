@@ -128,6 +128,8 @@ class MeasuredCurve:
     strain_read: np.ndarray | None = None
     noise: CurveNoise | None = None
     notes: tuple = ()
+    #: rows (spreadsheet numbers) where the strain jumps and the force does not follow (:func:`strain_slips`)
+    slips: tuple = ()
 
     def __len__(self) -> int:
         return len(self.strain)
@@ -484,7 +486,68 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     refuse_merged_branches(source, clean, f, c, d, row)
     noise = curve_noise(clean, f, c, d, source, noise_N, strain_sd=jitter)
     refuse_negative_force(source, f, noise, row)
-    return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise)
+    found = strain_slips(clean, f, d, noise)
+    notes, slips = (), ()
+    if found:
+        slips = tuple(row(k) for k, *_ in found)
+        k, jump, times, tells = found[0]
+        what = ("while the force moves as over one step: a grip or extensometer slip?" if tells else
+                "where the force is too flat to tell rows missing from the log from a grip or extensometer slip")
+        more = (f" (and at {len(found) - 1} more row(s): {', '.join(map(str, slips[1:4]))}"
+                + (", ..." if len(found) > 4 else "") + ")") if len(found) > 1 else ""
+        notes = (f"the strain jumps by {jump:.3g} ({times:.1f} times its steps around) between rows {row(k)} and "
+                 f"{row(k + 1)}, {what}{more}; a slip would be read as the knit's stretch, so no verdict on this "
+                 "curve is confident",)
+    return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise, notes, slips)
+
+
+#: a step of the strain this many times the median step of its branch is a jump (:func:`strain_slips`)
+SLIP_STEPS = 3.0
+#: the force change a jump should carry (the local slope times the jump, beyond one step's) must exceed this
+#: many noise sd for a missing one to be seen
+SLIP_SIGMAS = 6.0
+
+
+def strain_slips(strain, force, direction, noise) -> list[tuple[int, float, float, bool]]:
+    """Rows where the strain jumps alone: ``(index, jump, jump / the steps around, force_can_tell)``.
+
+    A grip that slips (or an extensometer knife that slides) adds a step to the recorded strain that the knit
+    did not take: the strain jumps by several steps between two rows, its steps regular on both sides (a blind
+    probe's slip of 0.015 at strain 0.4, steps of 0.005, was fitted as yarn_compaction, confident, chi2/dof
+    6.2 left).  Within each branch (rows of one direction, at least 8), a step above :data:`SLIP_STEPS` times
+    the three steps on each side (each within 1.5 times their median) is a jump.  Where the local slope (their
+    secant) says the jump should change the force by more than :data:`SLIP_SIGMAS` noise sd beyond one step's,
+    the force tells, and a jump where it changes only as over one step is a slip (``force_can_tell`` true).
+    On a plateau the force cannot tell rows missing from a slip: reported with ``force_can_tell`` false.  Not
+    reported: a jump where the force changes beyond one step's by more than that many sd (the knit moved with
+    it: rows missing from the log, a stick-slip of the knit; the measured acrylic stockinette has two), and a
+    change of rate (every later step larger: no isolated jump)."""
+    s, f, d = np.asarray(strain, float), np.asarray(force, float), np.asarray(direction)
+    out = []
+    cuts = np.flatnonzero(np.diff(d) != 0) + 1
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(s)]):
+        if b - a < 8:
+            continue
+        ds, dF = np.diff(s[a:b]), np.diff(f[a:b])
+        typ = float(np.median(np.abs(ds)))
+        if not typ > 0:
+            continue
+        for k in np.flatnonzero(np.abs(ds) > SLIP_STEPS * typ):
+            near = np.r_[np.arange(k - 3, k), np.arange(k + 1, k + 4)]
+            if near[0] < 0 or near[-1] >= len(ds):
+                continue
+            steps = np.abs(ds[near])
+            local = float(np.median(steps))
+            if not (local > 0 and np.all(steps <= 1.5 * local) and abs(ds[k]) > SLIP_STEPS * local):
+                continue
+            slope = float(np.sum(dF[near]) / np.sum(ds[near]))
+            one, full = slope * np.sign(ds[k]) * local, slope * ds[k]
+            sd = float(noise.sd_at(np.array([max(f[a + k], f[a + k + 1])]))[0]) if noise is not None else 0.0
+            if abs(dF[k] - one) > SLIP_SIGMAS * max(sd, 1e-12):
+                continue          # the force moved with the jump beyond one step's and the noise: the knit's
+            tells = bool(abs(full - one) > SLIP_SIGMAS * max(sd, 1e-12))
+            out.append((int(a + k), float(ds[k]), float(abs(ds[k]) / local), tells))
+    return out
 
 
 #: a row (or a block of rows) whose strain leaves its neighbours and returns by more than this many times the
@@ -641,7 +704,7 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     if notes_of(cols):
-        curve = replace(curve, notes=notes_of(cols))
+        curve = replace(curve, notes=tuple(notes_of(cols)) + tuple(curve.notes))
     check_response(curve)
     return curve
 

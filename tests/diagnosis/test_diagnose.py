@@ -721,3 +721,46 @@ def test_an_extensometer_that_jitters_leaves_an_effect_free_curve_effect_free():
         p = r["baseline"]["params"]
         assert abs(p["phi0"] - 0.05) < 0.025 and abs(p["m"] - 0.2) < 0.005, (seed, p)
         assert r["noise"]["baseline_within_noise"] and "strain jitter" in r["noise"]["method"]
+
+
+def test_a_strain_that_jumps_alone_is_said_and_takes_the_verdicts_confidence(tmp_path, capsys):
+    """A blind probe's grip slip (the recorded strain 0.015 ahead from 0.4 on, the force running on) was fitted
+    as yarn_compaction, confident, chi2/dof 6.2 left.  Hand-made from the bundled effect-free curve (E-glass,
+    m 0.20, phi0 0.05, 2 mN; its README): every strain from its row 40 on moved by +0.05 (a slip of four of
+    its ~0.0125 steps).  Expected (measured.strain_slips' definition): the read line names the jump between
+    rows 40 and 41 (spreadsheet numbers, header = 1), the verdict is not confident and says why; the unchanged
+    file has no such jump.  On the sliding plateau (0.3 N per unit strain) the force cannot tell a slip from
+    rows missing: said so.  Where it can (a hand-made line of 2 N per unit strain, steps 0.005, 2 mN of noise):
+    a strain jump of 0.02 with the force running on as over one step is a slip; four rows left out of the log
+    (strain and force jumping together) are not."""
+    from pathlib import Path
+    from knitsim.diagnosis.measured import read_measured_curve, strain_slips
+    src = Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv"
+    lines = src.read_text().splitlines()
+    slip = [lines[0]] + [ln if k < 39 else ",".join([f"{float(ln.split(',')[0]) + 0.05:.6f}"] + ln.split(",")[1:])
+                         for k, ln in enumerate(lines[1:])]
+    (tmp_path / "slip.csv").write_text("\n".join(slip) + "\n")
+    assert read_measured_curve(src).slips == ()
+    rng = np.random.default_rng(5)
+    e = np.arange(60) * 0.005
+    f = 0.02 + 2.0 * e + rng.normal(0, 0.002, 60)
+    steep = curve_from_arrays(e, f, source="steep.csv", noise_N=0.002)
+    assert strain_slips(steep.strain, steep.force, steep.direction, steep.noise) == []
+    shifted = curve_from_arrays(np.where(np.arange(60) >= 30, e + 0.02, e), f, source="s.csv", noise_N=0.002)
+    found = strain_slips(shifted.strain, shifted.force, shifted.direction, shifted.noise)
+    assert [(k, t) for k, _, _, t in found] == [(29, True)] and shifted.slips == (31,)   # (header = row 1)
+    keep = np.r_[0:30, 34:60]
+    gap = curve_from_arrays(e[keep], f[keep], source="g.csv", noise_N=0.002)
+    assert strain_slips(gap.strain, gap.force, gap.direction, gap.noise) == [] and gap.slips == ()
+    c = read_measured_curve(tmp_path / "slip.csv")
+    assert "too flat to tell" in c.notes[-1]
+    assert c.slips == (40,) and "between rows 40 and 41" in c.notes[-1]
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
+                     '[rules]\nunloading_rule = "dusserre"\nreload_rule = "mirror_unloading"\nforce_cap_N = 10.0\n'
+                     '[diagnosis]\nfree = ["m", "phi0"]\neffects = ["yarn_compaction", "yarn_extension"]\n')
+    main(["diagnose", str(tmp_path / "slip.csv"), "--scene", str(scene), "--no-pair", "--quiet"])
+    out = capsys.readouterr().out
+    verdict = next(ln for ln in out.splitlines() if ln.startswith("verdict:"))
+    assert "not confident" in verdict and "the strain jumps alone at row 40" in verdict, verdict
+    assert "between rows 40 and 41" in out
