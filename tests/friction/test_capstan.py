@@ -281,12 +281,16 @@ def test_at_bound(value, lo, hi, side):
 
 def test_fit_status_of_a_clean_fit():
     # Noise-free records made with (b, p, n) = (0.2, 0.05, 0.9), inside the box:
-    # all three identified and no warning.
+    # all three identified, no flag; the one warning says the residuals (1e-4 of F1, ~1e-3 N) lie far below
+    # the capstan test's scatter (0.13 N): records like these are no raw measurements
     F0, F1, V, d = _records((0.2, 0.05, 0.9))
     F1 = F1 * (1 + 1e-4 * np.array([1, -1, 1, 1, -1, 1]))   # a little measurement error
     res = cap.fit_friction_law(F0, F1, V, d)
     assert res.param_status == {"b": "identified", "p": "identified", "n": "identified"} and res.identified
-    assert res.warnings == []
+    assert res.flags == [] and len(res.warnings) == 1 and "far below the capstan test's scatter" in res.warnings[0]
+    # the same records in kN under the _N headers: said (a blind probe's kN file fitted silently)
+    res = cap.fit_friction_law(F0 / 1000, F1 / 1000, V, d)
+    assert any("the tensions are below the capstan test's scatter" in w and "kN" in w for w in res.warnings)
 
 
 def test_standard_errors_hold_when_the_noise_grows_with_the_tension():
