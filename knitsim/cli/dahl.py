@@ -41,6 +41,8 @@ GF_N = 9.80665e-3
 CM_MM = 10.0
 #: KES-FB2 pure-bending range, +-2.5 1/cm, in 1/mm
 KES_AMPLITUDE_1_MM = 2.5 / CM_MM
+#: a kappa_1_mm column beyond this many times the KES range is warned of as a curvature in 1/cm
+KES_UNIT_CHECK = 4.0
 
 
 def register(subparsers) -> None:
@@ -212,6 +214,13 @@ def run_fit(args) -> int:
         fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha, labels=(xcol, fcol))
     except KnitsimInputError as exc:
         raise KnitsimInputError(f"{path}: {exc}") from None
+    if xcol == KES_COLUMNS[0] and float(np.max(np.abs(x))) > KES_UNIT_CHECK * KES_AMPLITUDE_1_MM:
+        # a KES loop's curvature in 1/cm under kappa_1_mm reads 10 times too large (a blind probe's file, fitted
+        # without a word: sigma and B then 10 and 100 times off)
+        fit.warnings.append(
+            f"the curvature reaches {float(np.max(np.abs(x))):.3g} 1/mm, {float(np.max(np.abs(x))) / KES_AMPLITUDE_1_MM:.0f} "
+            f"times the KES-FB2 range (+-{KES_AMPLITUDE_1_MM:g} 1/mm = +-2.5 1/cm): if the column holds 1/cm, divide "
+            "it by 10 (kappa_1_mm is per mm)")
     if png is not None:
         _plot(png, x, F, fit, xcol, fcol, source=path)
     flags = fit_flags(fit)

@@ -342,3 +342,19 @@ def test_simulate_honours_an_alpha_given_with_a_row(tmp_path, capsys):
     assert M[first] == pytest.approx(Fc * (1.0 - (1.0 + 2.0 * sigma / Fc * k[first]) ** -0.5), rel=1e-9, abs=1e-15)
     assert main(["dahl", "simulate", "--row", "yarn", "--alpha", "0", "--out", str(tmp_path / "a0.csv")]) == 2
     assert "--alpha" in capsys.readouterr().err
+
+
+def test_a_curvature_in_per_cm_under_kappa_1_mm_is_said(tmp_path, capsys):
+    """A blind probe's KES loop with its curvature in 1/cm (KES's own unit, +-2.5) under kappa_1_mm was fitted
+    without a word (sigma and B then 10 and 100 times off).  Hand-made from the bundled loop (the paper's yarn
+    row, +-0.25 1/mm): the curvature column times 10.  Expected: a warning naming 2.5 1/mm, 10 times the
+    KES-FB2 range, and the fix; the bundled loop has none."""
+    src = ROOT / "scenes" / "dahl" / "kes_yarn_loop.csv"
+    lines = src.read_text().splitlines()
+    per_cm = [lines[0]] + [f"{float(a) * 10:.6g},{b}" for a, b in (ln.split(",") for ln in lines[1:])]
+    (tmp_path / "cm.csv").write_text("\n".join(per_cm) + "\n")
+    main(["dahl", "fit", str(tmp_path / "cm.csv"), "--no-png", "--json"])
+    w = json.loads(capsys.readouterr().out)["warnings"]
+    assert any("reaches 2.5 1/mm, 10 times the KES-FB2 range" in x and "divide it by 10" in x for x in w), w
+    main(["dahl", "fit", str(src), "--no-png", "--json"])
+    assert not any("KES-FB2 range" in x for x in json.loads(capsys.readouterr().out)["warnings"])
