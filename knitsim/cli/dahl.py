@@ -168,10 +168,8 @@ def _plot(path: Path, x, F, fit, xcol: str, fcol: str, source: Path | None = Non
     ax.legend(loc="center", fontsize=8)  # a Dahl loop is empty inside
     title = f"Dahl fit of {(source or path).name}"
     bad = _flagged(fit)
-    notes = ([f"NOT IDENTIFIED: {', '.join(bad)}"] if bad else []) \
-        + (["rows may be out of order"] if any("out of order" in w for w in fit.warnings) else []) \
-        + (["the loop gains energy: reversed rows or a flipped sign?"] if any("gains energy" in w for w in fit.warnings)
-           else []) + list(fit.loop_flags)
+    # the loop's flags as fit_dahl_loop sets them (out of order, energy gained, ...): not found again in the text
+    notes = ([f"NOT IDENTIFIED: {', '.join(bad)}"] if bad else []) + list(fit.loop_flags)
     if notes:
         ax.set_title(title + "\n" + "; ".join(notes), fontsize=9, color="C3")
     else:
