@@ -1606,9 +1606,13 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
         return Verdict("none", None, None, 0.0, True,
                        f"the model explains these curves within their noise: {fit_txt}{aside}", [], probs)
     if not named:
-        best = fitted[0] if fitted else None
+        # the best of the judged candidates: one whose fit did not converge everywhere is no candidate (a blind
+        # probe's verdict called such a one "the best", removing 92 %, where its line said "not judged")
+        judged = [c for c in fitted if not c.flagged_curves]
+        best = judged[0] if judged else None
         if best is None:
-            why = "no effect could be fitted"
+            why = ("no candidate's fit converged on every increment (none judged)" if fitted
+                   else "no effect could be fitted")
         else:
             share = best.share_of_excess
             why = (f"the best, {best.effect}, removes {share:.0%} of the baseline's excess over noise"

@@ -91,6 +91,10 @@ SMOOTH_REL = 1.0e-5
 ASSUMED_REL = 5.0e-3
 #: largest lag-one correlation of neighbouring chord deviations still read as white noise (-2/3 expected)
 WHITE_RHO_MAX = -1.0 / 3.0
+#: largest lag-one correlation of neighbouring cubic deviations read as white noise (-0.8 expected: halfway to 0)
+CUBIC_WHITE_RHO_MAX = -0.4
+#: a scatter about the cubics below this many times the last digit written is the rounding, not the noise
+ROUNDING_STEPS = 1.0
 #: MAD to sd for Gaussian noise
 MAD_TO_SD = 1.4826
 #: clip of the scaled chord differences, in robust sd
@@ -293,30 +297,72 @@ def noise_samples(strain, force, cycle, direction) -> np.ndarray:
                            repeat_differences(strain, force, cycle, direction)])
 
 
+def _cubic_signed(strain, force, cycle, direction):
+    """Signed scaled deviations of each row from the cubic through its two neighbours on each side, their rows'
+    forces, and the pairs of neighbours (the rows of :func:`cubic_deviations`)."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    cycle, direction = np.asarray(cycle), np.asarray(direction)
+    br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
+    z, levels, pairs = [], [], []
+    for a, b in zip(br[:-1], br[1:]):
+        prev = None
+        for i in range(a + 2, b - 2):
+            xs = s[i - 2:i + 3]
+            h = np.diff(xs)
+            if not (np.all(h > 0) or np.all(h < 0)) or np.count_nonzero(f[i - 2:i + 3] == 0.0) >= 2:
+                prev = None       # (two rows at 0: clipped at zero, a slack knit read by an instrument >= 0)
+                continue
+            nb = np.array([xs[0], xs[1], xs[3], xs[4]])
+            w = np.array([np.prod([(xs[2] - nb[m]) / (nb[k] - nb[m]) for m in range(4) if m != k]) for k in range(4)])
+            r = f[i] - float(w @ np.array([f[i - 2], f[i - 1], f[i + 1], f[i + 2]]))
+            z.append(r / math.sqrt(1.0 + float(w @ w)))
+            levels.append(f[i])
+            if prev is not None:
+                pairs.append((prev, len(z) - 1))
+            prev = len(z) - 1
+    return np.asarray(z, float), np.asarray(levels, float), pairs
+
+
+def cubic_correlation(strain, force, cycle, direction) -> tuple[float | None, int]:
+    """Lag-one correlation of neighbouring rows' signed cubic deviations (:func:`cubic_deviations`) over the
+    pairs inside the clip, and the number of pairs; None with fewer than 3 pairs or no scatter.
+
+    White noise gives -0.8 at even steps (the deviation is the filter (1/6, -2/3, 1, -2/3, 1/6) of the
+    forces: lag-one sum of products -14/9 over the sum of squares 35/9, an identity); a smooth curve gives
+    a positive one.  Unlike the chords' (-2/3), it is not moved by the curve's bending, which the cubic
+    follows: a model curve with 3 mN of white noise through the jamming (forces to 8.5 N at steps of 0.005)
+    read -0.14 on its chords, "not white", and its noise was assumed 14 times too large (a blind probe;
+    -0.82 on its cubics)."""
+    z, _, pairs = _cubic_signed(strain, force, cycle, direction)
+    if len(z):
+        robust = MAD_TO_SD * float(np.median(np.abs(z)))
+        pairs = [p for p in pairs if max(abs(z[p[0]]), abs(z[p[1]])) < CLIP * robust] if robust > 0 else pairs
+    if len(pairs) < 3:
+        return None, len(pairs)
+    a, b = z[[p[0] for p in pairs]], z[[p[1] for p in pairs]]
+    den = math.sqrt(float(a @ a) * float(b @ b))
+    return (float(a @ b) / den if den > 0 else None), len(pairs)
+
+
+def written_resolution(values) -> float:
+    """The last decimal place the values are written to (``1e-4`` for 0.1234, 0.2; 0 where none up to 1e-12)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    for k in range(0, 13):
+        scaled = v * 10.0 ** k
+        if np.all(np.abs(scaled - np.round(scaled)) <= 1e-6 * np.maximum(1.0, np.abs(scaled))):
+            return 10.0 ** -k
+    return 0.0
+
+
 def cubic_deviations(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
     """Scaled deviations ``|f_i - p(s_i)| / sqrt(1 + sum w_k^2)`` of each row from the cubic ``p`` through its
     two neighbours on each side (one branch, strain strictly monotone; ``w`` the Lagrange weights), and
     the row's force.  White noise of sd sigma gives sd sigma, as the chord deviations do, but a smooth
     curve leaves ``O(h^4 f'''')`` instead of ``f'' h^2 / 4``: the stiffening where the knit jams, where the
     force is high, does not pass for noise that grows with the force (:func:`level_model`)."""
-    s, f = np.asarray(strain, float), np.asarray(force, float)
-    cycle, direction = np.asarray(cycle), np.asarray(direction)
-    br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
-    z, levels = [], []
-    for a, b in zip(br[:-1], br[1:]):
-        for i in range(a + 2, b - 2):
-            xs = s[i - 2:i + 3]
-            h = np.diff(xs)
-            if not (np.all(h > 0) or np.all(h < 0)):
-                continue
-            if np.count_nonzero(f[i - 2:i + 3] == 0.0) >= 2:
-                continue  # clipped at zero (a slack knit read by an instrument that cannot go below 0)
-            nb = np.array([xs[0], xs[1], xs[3], xs[4]])
-            w = np.array([np.prod([(xs[2] - nb[m]) / (nb[k] - nb[m]) for m in range(4) if m != k]) for k in range(4)])
-            r = f[i] - float(w @ np.array([f[i - 2], f[i - 1], f[i + 1], f[i + 2]]))
-            z.append(abs(r) / math.sqrt(1.0 + float(w @ w)))
-            levels.append(f[i])
-    return np.asarray(z, float), np.asarray(levels, float)
+    z, levels, _ = _cubic_signed(strain, force, cycle, direction)
+    return np.abs(z), levels
 
 
 def chord_residuals(strain, force, cycle, direction) -> np.ndarray:
@@ -405,33 +451,44 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
         return CurveNoise(source, float(given), "given", 0, True, "given by the user")
     rep, rep_levels = _repeats(strain, force, cycle, direction)
     z = np.concatenate([chord_residuals(strain, force, cycle, direction), rep])
-    rho, _ = chord_correlation(strain, force, cycle, direction)
+    rho, _ = cubic_correlation(strain, force, cycle, direction)
+    zc_all, lc_all = cubic_deviations(strain, force, cycle, direction)
+    step = written_resolution(f)
     if len(z) < MIN_SAMPLES:
         why = (f"only {len(z)} rows on monotone branches or repeated at one strain (an estimate needs "
                f"{MIN_SAMPLES})")
-    elif rho is not None and rho > WHITE_RHO_MAX:
-        why = (f"its rows deviate from their neighbours' chord in step (lag-one correlation {rho:+.2f}; white "
-               f"noise gives -0.67): a digitised, smoothed or filtered curve, whose scatter is not its "
-               "measurement noise")
+    elif rho is not None and rho > CUBIC_WHITE_RHO_MAX:
+        why = (f"its rows deviate from the cubic through their neighbours in step (lag-one correlation "
+               f"{rho:+.2f}; white noise gives -0.8): a digitised, smoothed or filtered curve, whose scatter is "
+               "not its measurement noise")
+    elif step > 0 and len(zc_all) >= MIN_SAMPLES and clipped_sd(zc_all) < ROUNDING_STEPS * step:
+        why = (f"its rows scatter by {clipped_sd(zc_all):.2g} N about the cubic through their neighbours, within "
+               f"the last digit its forces are written to ({step:g} N): the rounding of a curve read off a "
+               "figure or a smooth law, not measurement noise")
     else:
-        sigma = clipped_sd(z)
+        # from the cubics through the neighbours where there are enough: the chords' deviations carry the
+        # bending (f'' h^2 / 4), which lifted a jamming pull's 3 mN to 3.9 (a blind probe), the cubics' O(h^4)
+        zc, lc = np.concatenate([zc_all, rep]), np.concatenate([lc_all, rep_levels])
+        cubic = len(zc_all) >= MIN_SAMPLES
+        sigma = clipped_sd(zc if cubic else z)
+        n_used = len(zc) if cubic else len(z)
         if span > 0 and sigma > SMOOTH_REL * span:
-            how = (f"deviation of each row from its neighbours' chord (or from its twin at one strain): "
-                   f"RMS within {CLIP:g} robust sd of {len(z)} rows")
+            how = ((f"deviation of each row from the cubic through its two neighbours on each side (or from its "
+                    f"twin at one strain): RMS within {CLIP:g} robust sd of {len(zc)} rows") if cubic else
+                   (f"deviation of each row from its neighbours' chord (or from its twin at one strain): "
+                    f"RMS within {CLIP:g} robust sd of {len(z)} rows"))
             # the level model on samples that curvature does not bias: cubic deviations and repeat differences
-            zc, lc = cubic_deviations(strain, force, cycle, direction)
-            zc, lc = np.concatenate([zc, rep]), np.concatenate([lc, rep_levels])
             grows = level_model(zc, lc)
             if grows is not None:
                 a, b, lr = grows
                 lo, hi = np.percentile(np.maximum(lc, 0.0), [5.0, 95.0])
                 growth = (a + b * hi) / (a + b * lo)
                 if lr > LEVEL_LR_MIN and growth > LEVEL_GROWTH_MIN and b <= LEVEL_SHARE_MAX:
-                    return CurveNoise(source, a, "estimated", len(z), True,
+                    return CurveNoise(source, a, "estimated", n_used, True,
                                       how + f"; the sd grows with the force, {a:.3g} N + {100.0 * b:.3g} % of it "
                                       f"(x{growth:.3g} over the curve's forces; likelihood ratio {lr:.3g} against one sd)",
-                                      2.0 * KAPPA / len(z), b)
-            return CurveNoise(source, sigma, "estimated", len(z), True, how, KAPPA / len(z))
+                                      2.0 * KAPPA / n_used, b)
+            return CurveNoise(source, sigma, "estimated", n_used, True, how, KAPPA / n_used)
         why = (f"its rows scatter by {sigma:.2g} N, below {SMOOTH_REL:g} of its force range: a digitised or "
                "smoothed curve, whose scatter is not measurement noise")
     assumed = ASSUMED_REL * span if span > 0 else 1e-6

@@ -80,6 +80,32 @@ def _plain_name(name: str) -> bool:
     return bool(n) and n not in (".", "..") and "/" not in n and "\\" not in n
 
 
+def _stamps(out: Path) -> dict:
+    try:
+        doc = json.loads((out / RECORD_NAME).read_text())
+    except (OSError, ValueError):
+        return {}
+    st = doc.get("stamps") if isinstance(doc, dict) else None
+    return {k: v for k, v in st.items() if isinstance(v, list) and len(v) == 2} if isinstance(st, dict) else {}
+
+
+def _stamp_of(p: Path) -> list:
+    st = p.stat()
+    return [int(st.st_size), int(st.st_mtime_ns)]
+
+
+def _write_record(out: Path, names: list, stamps: dict) -> Path:
+    from .. import __version__
+    doc = {"written_by": f"knitsim {__version__}",
+           "note": "the files knitsim wrote here; --overwrite removes these and nothing else",
+           "outputs": names, "stamps": stamps}
+    fd, tmp = tempfile.mkstemp(prefix=".knitsim-outputs-", dir=out)
+    with os.fdopen(fd, "w") as fh:
+        fh.write(json.dumps(doc, indent=1) + "\n")
+    os.replace(tmp, out / RECORD_NAME)
+    return out / RECORD_NAME
+
+
 def record_outputs(out_dir: str | Path, names: Iterable[str]) -> Path:
     """Add ``names`` (files, or sub-folders written with a trailing ``/``) to ``out_dir``'s record.
 
@@ -92,15 +118,30 @@ def record_outputs(out_dir: str | Path, names: Iterable[str]) -> Path:
     new = [n for n in names if n not in have]
     if not new and (out / RECORD_NAME).is_file():
         return out / RECORD_NAME
-    from .. import __version__
-    doc = {"written_by": f"knitsim {__version__}",
-           "note": "the files knitsim wrote here; --overwrite removes these and nothing else",
-           "outputs": have + new}
-    fd, tmp = tempfile.mkstemp(prefix=".knitsim-outputs-", dir=out)
-    with os.fdopen(fd, "w") as fh:
-        fh.write(json.dumps(doc, indent=1) + "\n")
-    os.replace(tmp, out / RECORD_NAME)
-    return out / RECORD_NAME
+    return _write_record(out, have + new, _stamps(out))
+
+
+def stamp_outputs(out_dir: str | Path, names: Iterable[str]) -> None:
+    """Note the size and modification time of files just written (recorded): ``--overwrite`` then refuses
+    to delete one changed since (a blind probe's hand-edited ``materials.toml`` was deleted without a word)."""
+    out = Path(out_dir)
+    stamps = _stamps(out)
+    for n in names:
+        p = out / n
+        if p.is_file():
+            stamps[n] = _stamp_of(p)
+    _write_record(out, recorded_outputs(out), stamps)
+
+
+def edited_outputs(out_dir: str | Path) -> list[str]:
+    """Recorded outputs whose size or modification time differ from the stamp taken when written."""
+    out = Path(out_dir)
+    edited = []
+    for n, stamp in _stamps(out).items():
+        p = out / n
+        if _plain_name(n) and p.is_file() and _stamp_of(p) != list(stamp):
+            edited.append(n)
+    return edited
 
 
 def scene_inputs(scene_path: str | Path | None) -> list[Path]:
@@ -175,6 +216,13 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: boo
             raise KnitsimInputError(f"--out = {str(out)!r}: already holds results ({shown}); add --overwrite to "
                                     f"replace them{hint}, or choose another --out (--overwrite removes only the "
                                     "files knitsim wrote there)")
+        edited = edited_outputs(out)
+        if edited:
+            raise KnitsimInputError(
+                f"--out = {str(out)!r}: {', '.join(edited)} changed since knitsim wrote "
+                f"{'it' if len(edited) == 1 else 'them'} (edited by hand?): --overwrite would delete "
+                f"{'it' if len(edited) == 1 else 'them'}; move {'it' if len(edited) == 1 else 'them'} elsewhere "
+                "first, or choose another --out")
         keep = [Path(p) for p in inputs]
         for name in recorded:
             p = out / name.rstrip("/")
@@ -186,7 +234,9 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: boo
                 p.unlink(missing_ok=True)
     mine = set(recorded_outputs(out))
     foreign = [n.rstrip("/") for n in writes if n not in mine and (out / n.rstrip("/")).exists()]
-    if foreign and not resume:
+    # --resume too: it writes the same names at its end (a blind probe's calibrate --resume replaced its own
+    # materials.toml, put beside the interrupted run's checkpoint)
+    if foreign:
         raise KnitsimInputError(
             f"--out = {str(out)!r}: holds {', '.join(foreign)}, which knitsim did not write there (no record of it "
             f"in {RECORD_NAME}) and would write over: move {'it' if len(foreign) == 1 else 'them'} or choose "

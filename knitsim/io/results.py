@@ -46,7 +46,8 @@ from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, c
                      interpenetration)
 from .jsonable import json_text
 from .output_dir import (RECORD_NAME, add_output_flags, check_output_dir,  # noqa: F401 - the CLIs' import
-                         prepare_output_dir, prepare_output_file, record_outputs, recorded_outputs, scene_inputs)
+                         prepare_output_dir, prepare_output_file, record_outputs, recorded_outputs, scene_inputs,
+                         stamp_outputs)
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
                  "gamma", "phi", "P", "W", "C", "s_BC", "status")
@@ -547,6 +548,7 @@ def write_result_set(out_dir: str | Path, files: dict[str, bytes], known_outputs
                 (out / name).unlink(missing_ok=True)
         for name in files:
             os.replace(tmp / name, out / name)
+        stamp_outputs(out, files)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return {name: out / name for name in files}

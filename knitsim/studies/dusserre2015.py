@@ -126,7 +126,7 @@ def slope_verdict(slopes: dict, slid: dict, first_strain: float, rel: float = 0.
             return None
         if slid[k] <= 0.0:
             return f"phi0 = {k} slides from rest, with no stick stage"
-        return (f"phi0 = {k} starts sliding at {slid[k]:.3g}, within the first increment "
+        return (f"phi0 = {k} starts sliding at {slid[k]:.3g}, within the strain its slope is read over "
                 f"(to {first_strain:.3g}): its slope is not a stick slope")
 
     if not np.all(np.isfinite(vals)):
@@ -229,6 +229,10 @@ def cyclic_rows(run: CyclicRun, f1: float, f2: float, residual_obs: float, lower
     add("strain at jamming (first loading)", None, run.jam, CONTEXT, "context for the other rows")
     add("force per wale at 0.6, cycle 1 [N]", f1, p1, v1, w1 + ("" if v1 == REPRODUCED else "; " + low))
     return rows
+
+
+#: the strain over which the initial slope of Fig. 8 is read (a short run of its own, at any --increment)
+SLOPE_STRAIN = 1e-4
 
 
 def _mono(params, target, inc):
@@ -344,16 +348,20 @@ def run(increment: float = 0.01, jamming_criterion: str = "w_4d", force_cut: str
     for name, hd in d_runs.items():
         F = _force(hd, force_cut)
         p0 = hd.params[0]
-        slopes[name] = (F[0] - _rest_force(hd, force_cut)) / hd.strain[0]
+        # the slope at rest, over the first SLOPE_STRAIN of its own short run: not the secant over the run's
+        # first increment, which crosses the sliding onset where that comes early (a blind probe's verdict
+        # changed with --increment)
+        hs = _mono(p0, SLOPE_STRAIN, SLOPE_STRAIN)
+        slopes[name] = (_force(hs, force_cut)[0] - _rest_force(hs, force_cut)) / hs.strain[0]
         ev = [e for e in hd.events if e["kind"] == "slide"]
         rest_slides = hd.rest is not None and int(hd.rest["stage"][0]) == 1      # S_LOAD at rest
         onsets[name] = 0.0 if rest_slides else (ev[0]["C"] - p0.C0) / p0.C0 if ev else math.nan
         # slid by the first computed row: its "initial slope" is not (only) a stick slope
-        slid[name] = onsets[name] if math.isfinite(onsets[name]) and onsets[name] <= hd.strain[0] else None
+        slid[name] = onsets[name] if math.isfinite(onsets[name]) and onsets[name] <= SLOPE_STRAIN else None
         jams[name] = _jam(hd)[0]
         ends[name] = F[-1]
-    first = float(min(hd.strain[0] for hd in d_runs.values()))
-    row("d", "initial slope (first increment) [N]", "same for all phi0",
+    first = SLOPE_STRAIN
+    row("d", f"initial slope (over the first {SLOPE_STRAIN:g} of strain) [N]", "same for all phi0",
         ", ".join(f"{k}: {v:.4g}" for k, v in slopes.items()),
         verdict=slope_verdict(slopes, slid, first))
     on = [onsets[k] for k in ("-phimax", "0", "+phimax")]

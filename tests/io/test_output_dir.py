@@ -184,3 +184,29 @@ def test_sweep_into_a_folder_of_scene_files_keeps_them(tmp_path, capsys, monkeyp
     assert json.loads((d / "summary.json").read_text())["failed"] == []
     rows = (d / "results.csv").read_text().splitlines()
     assert len([r for r in rows if r and not r.startswith("#")]) == 3          # header + the two samples
+
+
+def test_resume_refuses_a_users_file_and_overwrite_an_edited_output(tmp_path, capsys, monkeypatch):
+    """A blind probe: `calibrate --resume` replaced the user's own materials.toml put beside an interrupted run's
+    checkpoint (only --resume skipped the check), and `--overwrite` deleted a materials.toml the user had edited
+    since knitsim wrote it.  Expected: --resume refuses a file of an output name knitsim did not write, as a
+    plain run does; --overwrite refuses to delete an output changed since it was written (size or time), and
+    replaces an unchanged one."""
+    d = tmp_path / "o"
+    record_outputs(d, ["checkpoint.pkl"])
+    (d / "checkpoint.pkl").write_bytes(b"x")
+    (d / "materials.toml").write_text("[yarns]  # mine\n")
+    with pytest.raises(KnitsimInputError, match=r"holds materials\.toml, which knitsim did not write"):
+        prepare_output_dir(d, resume=True, writes=("materials.toml", "checkpoint.pkl"))
+    assert (d / "materials.toml").read_text() == "[yarns]  # mine\n"
+    # a cell run's outputs, then one of them edited by hand
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scene.toml").write_text(CELL_SCENE)
+    assert main(["cell", "scene.toml", "--out", "c"]) == 0
+    assert main(["cell", "scene.toml", "--out", "c", "--overwrite"]) == 0          # unchanged: replaced
+    with open(tmp_path / "c" / "curve.csv", "a") as fh:
+        fh.write("# my note\n")
+    capsys.readouterr()
+    assert main(["cell", "scene.toml", "--out", "c", "--overwrite"]) == 2
+    assert "curve.csv changed since knitsim wrote it (edited by hand?)" in capsys.readouterr().err
+    assert (tmp_path / "c" / "curve.csv").read_text().endswith("# my note\n")
