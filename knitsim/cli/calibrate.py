@@ -72,7 +72,8 @@ def _run(args) -> int:
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the calibration in --out, or "
                                 "replace it)")
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_calibrated", overwrite=args.overwrite,
+    out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_calibrated",
+                             overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=calibration_outputs(scene) + (CHECKPOINT_NAME,),
                              inputs=scene_inputs(args.scene))
     ck = out / CHECKPOINT_NAME

@@ -77,7 +77,8 @@ def _run(args) -> int:
     with naming_scene(args.scene, "cell"):
         scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
     domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain)
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
+    out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
+                             overwrite=args.overwrite,
                              writes=OUTPUT_FILES, inputs=scene_inputs(args.scene))
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
     with contextlib.redirect_stdout(sys.stderr):

@@ -266,7 +266,8 @@ def _run(args) -> int:
         for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
         domain_warnings += overlaps
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_out", overwrite=args.overwrite,
+    out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
+                             overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME,),
                              inputs=scene_inputs(args.scene))
     ck = out / CHECKPOINT_NAME

@@ -102,7 +102,8 @@ def _run(args) -> int:
             plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
     # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
     # typo'd key or a bad sample was refused (a blind probe lost its results to it)
-    out = prepare_output_dir(args.out or f"{Path(args.scene).stem}_sweep", overwrite=args.overwrite,
+    out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_sweep",
+                             overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=SWEEP_OUTPUTS,
                              inputs=scene_inputs(args.scene) + scene_inputs(args.sweep))
     _announce_domain(plan)

@@ -29,6 +29,10 @@ from ..errors import KnitsimInputError
 #: the hidden record of what knitsim wrote into an --out folder (names relative to the folder; a name
 #: ending in "/" is a sub-folder)
 RECORD_NAME = ".knitsim-outputs.json"
+#: what knitsim writes inside the sub-folders it records (a sweep's chunks, a study's cases; their atomic
+#: writes' temporary files start with a dot): anything else there is the user's (a blind probe's note saved
+#: in chunks/ went with the folder)
+FOLDER_FILES = {"chunks": ("chunk_*.npz", ".chunk_*"), "cases": ("case_*.json", ".case_*")}
 
 
 def check_output_dir(out_dir: str | Path) -> Path:
@@ -38,6 +42,9 @@ def check_output_dir(out_dir: str | Path) -> Path:
     undone) or, when it exists, writable (a temporary file created and removed): ``os.access`` on
     the parent said yes to ``/proc/nope``, whose folder then failed after the whole solve.
     """
+    if not str(out_dir).strip():
+        # (an empty --out fell back to the default folder without a word: a blind probe)
+        raise KnitsimInputError("--out = '': empty; give a folder (or leave --out out for the default)")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise KnitsimInputError(f"--out = {str(out)!r}: exists and is not a directory")
@@ -178,6 +185,20 @@ def scene_inputs(scene_path: str | Path | None) -> list[Path]:
     return found
 
 
+def _foreign_in_folders(out: Path, recorded: list[str]) -> list[str]:
+    """Entries of the recorded sub-folders that knitsim does not write there (:data:`FOLDER_FILES`)."""
+    import fnmatch
+    found = []
+    for name in recorded:
+        d = out / name.rstrip("/")
+        pats = FOLDER_FILES.get(name.rstrip("/"))
+        if pats is None or not d.is_dir() or d.is_symlink():
+            continue
+        found += [f"{d.name}/{p.name}" for p in sorted(d.iterdir())
+                  if not (p.is_file() and any(fnmatch.fnmatch(p.name, pat) for pat in pats))]
+    return found
+
+
 def _same_file(a: Path, b: Path) -> bool:
     try:
         return os.path.samefile(a, b)
@@ -216,11 +237,11 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: boo
             raise KnitsimInputError(f"--out = {str(out)!r}: already holds results ({shown}); add --overwrite to "
                                     f"replace them{hint}, or choose another --out (--overwrite removes only the "
                                     "files knitsim wrote there)")
-        edited = edited_outputs(out)
+        edited = edited_outputs(out) + _foreign_in_folders(out, recorded)
         if edited:
             raise KnitsimInputError(
                 f"--out = {str(out)!r}: {', '.join(edited)} changed since knitsim wrote "
-                f"{'it' if len(edited) == 1 else 'them'} (edited by hand?): --overwrite would delete "
+                f"{'it' if len(edited) == 1 else 'them'} (edited or added by hand?): --overwrite would delete "
                 f"{'it' if len(edited) == 1 else 'them'}; move {'it' if len(edited) == 1 else 'them'} elsewhere "
                 "first, or choose another --out")
         keep = [Path(p) for p in inputs]
@@ -267,4 +288,5 @@ def add_output_flags(parser, resumable: bool = False, what: str = "results") -> 
                         help=f"replace the {what} of an existing --out: the files an earlier knitsim command "
                              f"wrote there (recorded in {RECORD_NAME}) are removed first, nothing else; without "
                              "it an --out that holds results is refused"
-                             + (", unless --resume" if resumable else ""))
+                             + (", unless --resume" if resumable else "")
+                             + "; a file named by an option (--usd FILE) is replaced where it exists")

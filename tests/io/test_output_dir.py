@@ -208,5 +208,22 @@ def test_resume_refuses_a_users_file_and_overwrite_an_edited_output(tmp_path, ca
         fh.write("# my note\n")
     capsys.readouterr()
     assert main(["cell", "scene.toml", "--out", "c", "--overwrite"]) == 2
-    assert "curve.csv changed since knitsim wrote it (edited by hand?)" in capsys.readouterr().err
+    assert "curve.csv changed since knitsim wrote it (edited or added by hand?)" in capsys.readouterr().err
     assert (tmp_path / "c" / "curve.csv").read_text().endswith("# my note\n")
+
+
+def test_overwrite_keeps_a_users_file_inside_a_recorded_folder(tmp_path):
+    """A blind probe's note saved in a sweep's chunks/ went with the folder under --overwrite.  Expected: the
+    folder's own files (chunk_*.npz) are knitsim's; another file there is the user's, and --overwrite refuses."""
+    d = tmp_path / "o"
+    record_outputs(d, ["chunks/", "sweep.json"])
+    (d / "chunks").mkdir()
+    (d / "chunks" / "chunk_00000.npz").write_bytes(b"x")
+    (d / "sweep.json").write_text("{}")
+    (d / "chunks" / "my_note.md").write_text("keep")
+    with pytest.raises(KnitsimInputError, match=r"chunks/my_note\.md changed since knitsim wrote"):
+        prepare_output_dir(d, overwrite=True)
+    assert (d / "chunks" / "my_note.md").read_text() == "keep"
+    (d / "chunks" / "my_note.md").unlink()
+    prepare_output_dir(d, overwrite=True)
+    assert not (d / "chunks").exists() and not (d / "sweep.json").exists()
