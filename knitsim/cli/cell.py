@@ -18,8 +18,8 @@ import time
 from pathlib import Path
 
 from ..cell.engine import ENGINES, check_engine, simulate
-from ..io.results import (OUTPUT_FILES, add_output_flags, prepare_output_dir, run_info, scene_inputs, summarise,
-                          write_cell_results)
+from ..io.results import (OUTPUT_FILES, add_output_flags, first_loading, prepare_output_dir, run_info, scene_inputs,
+                          summarise, write_cell_results)
 from ..scene.cell_scene import load_cell_scene
 from .common import Progress, add_json_flag, naming_scene, print_json
 
@@ -97,8 +97,10 @@ def _run(args) -> int:
             ("knitsim cell: cells", len(scene.params))
         history = simulate(scene.params, scene.program, engine=scene.engine, device=device,
                            progress=Progress(what[1], what[0]))
+        # the first loading's continuation, where the program reloads past an earlier maximum (its check)
+        reference = first_loading(scene.params, scene.program, engine=scene.engine, device=device)
     wall = time.perf_counter() - t0
-    summary = summarise(history, scene.labels, scene.notes, **run_info(scene, device, wall))
+    summary = summarise(history, scene.labels, scene.notes, reference=reference, **run_info(scene, device, wall))
     summary["warnings"] = list(domain_warnings) + list(summary.get("warnings", []))
     files = write_cell_results(out, history, summary, scene.to_toml(), scene.labels, plot=scene.plot,
                                title=scene.resolved.get("title", ""))

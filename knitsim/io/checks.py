@@ -485,6 +485,73 @@ def reloads_without_shakedown(peaks, strain, cycle, direction, unit: str = "N pe
     return out
 
 
+#: a loading beyond the largest strain reached before it that carries less than this share of a monotonic pull
+#: of the same knit at the same strain is flagged (reload_below_first_loading): a frictional assembly's reload
+#: rejoins its first loading past the earlier maximum (Masing); a tenth for a measured knit's scatter
+VIRGIN_SHARE_MIN = 0.9
+
+
+def needs_first_loading_reference(strain, direction) -> bool:
+    """Whether a program loads beyond its earlier maximum after an unloading (where
+    :func:`reloads_below_first_loading` needs a monotonic pull of the same knit to compare with)."""
+    s, d = np.asarray(strain, float), np.asarray(direction)
+    top, unloaded = 0.0, False
+    for v, k in zip(s, d):
+        if k < 0:
+            unloaded = True
+        elif unloaded and v > top + 1e-12:
+            return True
+        top = max(top, float(v))
+    return False
+
+
+def reloads_below_first_loading(strain, force, cycle, direction, ref_strain, ref_force, unit: str = "N per wale",
+                                strain_name: str = "strain", flagged=(),
+                                share: float = VIRGIN_SHARE_MIN) -> list[ResultWarning]:
+    """A warning where, after an unloading, the loading beyond the largest strain reached before it stays below
+    ``share`` of a monotonic pull of the same knit at the same strain (``ref_strain``, ``ref_force``: its
+    rows; the first loading's continuation).
+
+    Friction at the crossing only resists the slip: a frictional assembly reloaded past its earlier maximum
+    strain rejoins its first loading (Masing's rule; a measured knit's reload does).  Table 4's sliding stage
+    keeps the contact's normal force (or T) at its value where sliding began, and a reload from a small
+    unloading starts sliding lower, parallel to the first loading, for good: a blind probe's waypoints 0.3,
+    0.29, 0.5 (Hong's constant-T unloading) ended at 0.122 N per wale at 0.5, a monotonic pull at 0.149 N,
+    with no warning; ten reversals of 0.001 left 0.084 N against 0.141 N.  One warning, at the largest
+    shortfall, naming the unloading before it; cycles in ``flagged`` (warned already) are left out."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    c, d = np.asarray(cycle), np.asarray(direction)
+    rs, rf = np.asarray(ref_strain, float), np.asarray(ref_force, float)
+    ok = np.isfinite(rs) & np.isfinite(rf)
+    rs, rf = rs[ok], rf[ok]
+    if len(rs) < 2:
+        return []
+    flagged = set(int(k) for k in flagged)
+    worst, top, unloaded, turn = None, 0.0, False, None
+    for i in range(len(s)):
+        if d[i] < 0:
+            if not unloaded or (i > 0 and d[i - 1] > 0):
+                turn = (float(s[i - 1]) if i > 0 else 0.0, float(s[i]))
+            unloaded = True
+        elif (unloaded and s[i] > top + 1e-12 and s[i] <= rs[-1] and np.isfinite(f[i])
+              and int(c[i]) not in flagged):
+            ref = float(np.interp(s[i], rs, rf))
+            if ref > 0 and f[i] < share * ref and (worst is None or f[i] / ref < worst[0]):
+                worst = (f[i] / ref, i, ref, turn, top)
+        if np.isfinite(s[i]):
+            top = max(top, float(s[i]))
+    if worst is None:
+        return []
+    r, i, ref, (peak, low), before = worst
+    return [ResultWarning("reload_below_first_loading", cycle=int(c[i]), message=(
+        f"past the earlier maximum ({strain_name} {before:.4g}), the loading after the unloading from {peak:.4g} "
+        f"to {low:.4g} carries {f[i]:.3g} {unit} at {strain_name} {s[i]:.4g}, {r:.0%} of the {ref:.3g} {unit} of a "
+        f"monotonic pull of the same knit there: a frictional assembly's reload rejoins its first loading past "
+        f"the earlier maximum (Masing's rule; a measured knit's does); Table 4's sliding stage keeps the "
+        f"contact's normal force (or T) at its value where sliding began, and this reload began lower, so every "
+        f"later force stays low (README, 'Reloads below the first loading')"))]
+
+
 def unloading_only_cycles(strain, cycle, direction, strain_name: str = "strain") -> list[ResultWarning]:
     """A warning for each cycle of the recorded rows that never loads (a program that starts by unloading
     from rest: its first "cycle" only unloads).  Its figures are not a loop's: its peak is where it starts

@@ -43,7 +43,7 @@ from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHisto
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
 from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
-                     interpenetration)
+                     interpenetration, reloads_below_first_loading)
 from .jsonable import json_text
 from .output_dir import (RECORD_NAME, add_output_flags, check_output_dir,  # noqa: F401 - the CLIs' import
                          prepare_output_dir, prepare_output_file, record_outputs, recorded_outputs, scene_inputs,
@@ -224,7 +224,8 @@ def _stitch_energy(h, cell: int, B: float):
                                np.stack([np.asarray(h.values[n])[:, cell] for n in names], axis=1), B)
 
 
-def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None) -> dict:
+def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None,
+                 reference=None) -> dict:
     """Summary numbers of one cell.
 
     Per cycle: peak force per wale and the imposed strain where it occurs;
@@ -330,6 +331,14 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
     peaks = [(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out]
     warnings = cut + cycle_warnings(peaks, h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok])
+    if reference is not None:
+        # the same knit pulled monotonically (summarise's reference): a reload past the earlier maximum that
+        # stays below it
+        ref_s, ref_F = reference
+        below = {int(w.cycle) for w in warnings if w.code in ("reload_below_earlier_loading", "zero_force_cycle")
+                 and w.cycle is not None}
+        warnings += reloads_below_first_loading(h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok],
+                                                ref_s, ref_F, flagged=below)
     if h.rest is not None:
         warnings += compressive_rest_state(h.rest["F"][cell])
     if h.rest is not None and n_ok:
@@ -364,16 +373,38 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
 
 
 def summarise(history: BatchHistory, labels: list[str] | None = None, notes: list[dict] | None = None,
-              **info) -> dict:
-    """The ``summary.json`` document: run information plus :func:`cell_summary` of each cell."""
+              reference: BatchHistory | None = None, **info) -> dict:
+    """The ``summary.json`` document: run information plus :func:`cell_summary` of each cell.
+
+    ``reference``: the same cells pulled monotonically to the program's largest strain (:func:`first_loading`),
+    for the check of a reload past the earlier maximum against the first loading's continuation."""
     labels = labels or [f"cell {i}" for i in range(history.n_cells)]
     notes = notes or [{} for _ in range(history.n_cells)]
-    cells = [cell_summary(history, i, labels[i], notes[i]) for i in range(history.n_cells)]
+
+    def ref(i):
+        if reference is None:
+            return None
+        n = _stopped_rows(np.asarray(reference.status[:, i]))
+        return np.asarray(reference.strain[:n], float), np.asarray(reference.force_per_wale[:n, i], float)
+    cells = [cell_summary(history, i, labels[i], notes[i], reference=ref(i)) for i in range(history.n_cells)]
     out = dict(info)
     out.update(n_cells=history.n_cells, n_increments=int(len(history.strain)),
                all_expected_end=all(c["expected_end"] for c in cells),
                warnings=[dict(w, cell=c["label"]) for c in cells for w in c["warnings"]], cells=cells)
     return out
+
+
+def first_loading(params, program, engine: str = "warp", device: str = "cpu") -> BatchHistory | None:
+    """The cells pulled monotonically to ``program``'s largest strain at its largest step (the reference of
+    :func:`summarise`), where the program loads past an earlier maximum after an unloading; else None."""
+    from ..io.checks import needs_first_loading_reference
+    if not needs_first_loading_reference(program.strain, program.direction):
+        return None
+    from ..cell.engine import simulate
+    from ..cell.load_program import monotonic
+    s = np.concatenate([[0.0], np.asarray(program.strain, float)])
+    return simulate(params, monotonic(float(np.max(s)), float(np.max(np.abs(np.diff(s))))), engine=engine,
+                    device=device)
 
 
 def summary_json(summary: dict) -> str:

@@ -350,3 +350,30 @@ def test_a_cycle_is_closed_when_the_program_returns_as_knitsim_run_judges_it():
         # the same loop; the row where the cell goes slack is integrated on its own length (cell) or on
         # the grip's (patch): ~1 % apart at increments of 0.01
         assert b["hysteresis_energy_N_mm"] == pytest.approx(a["energy_N_mm"], rel=2e-2)
+
+
+def test_a_reload_past_the_earlier_maximum_below_the_first_loading_is_flagged_and_masings_is_not():
+    """After an unloading, the loading past the earlier maximum is compared with a monotonic pull of the same
+    knit.  An independent frictional assembly (_jenkins_rows, solved exactly): reloaded past its earlier
+    maximum it rejoins its monotonic pull (Masing): nothing.  Hand-made: the same rows with the loading past
+    0.3 lowered by 20 %: flagged at 80 %.  Then the probe's cell (E-glass Table 1, m 0.2, Hong's constant-T
+    unloading, waypoints 0.3, 0.29, 0.5): its summary with first_loading's reference carries the warning (the
+    reload at 80 % of the pull at 0.31), and a monotonic program needs no reference."""
+    from knitsim.cell.load_program import piecewise_linear
+    from knitsim.io.checks import needs_first_loading_reference, reloads_below_first_loading
+    from knitsim.io.results import first_loading
+    prog = np.concatenate([np.linspace(0, 0.3, 31), np.linspace(0.3, 0.2, 11)[1:], np.linspace(0.2, 0.6, 41)[1:]])
+    s, f, c, d = _jenkins_rows(prog)
+    ref = np.linspace(0, 0.6, 61)
+    rs, rf, _, _ = _jenkins_rows(ref)
+    assert needs_first_loading_reference(s, d) and not needs_first_loading_reference(rs, np.ones(len(rs)))
+    assert reloads_below_first_loading(s, f, c, d, rs, rf) == []
+    low = np.where((s > 0.3) & (np.arange(len(s)) > 40), 0.8 * f, f)
+    (w,) = reloads_below_first_loading(s, low, c, d, rs, rf)
+    assert w.code == "reload_below_first_loading" and "80% of the" in w.message and "from 0.3 to 0.2" in w.message
+    p = CellParams(**EGLASS, m=0.2, unloading_rule="hong_constant_t", force_cap_N=10.0)
+    program = piecewise_linear([0.3, 0.29, 0.5], 0.005)
+    h = run_batch([p], program)
+    codes = [x["code"] for x in summarise(h, reference=first_loading([p], program))["cells"][0]["warnings"]]
+    assert "reload_below_first_loading" in codes
+    assert first_loading([p], piecewise_linear([0.5], 0.01)) is None
