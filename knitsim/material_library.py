@@ -44,10 +44,10 @@ from pathlib import Path
 from .errors import KnitsimInputError
 
 #: keys of a yarn entry and of a knit entry (besides its sub-tables)
-YARN_KEYS = ("d", "B", "in_plane_width", "source")
+YARN_KEYS = ("d", "B", "in_plane_width", "source", "flags")
 YARN_TABLES = ("friction", "rules", "effects", "std_errors")
-KNIT_KEYS = ("yarn", "L", "W0", "C0", "phi0", "source")
-KNIT_OPTIONAL = ("phi0", "source")
+KNIT_KEYS = ("yarn", "L", "W0", "C0", "phi0", "source", "flags")
+KNIT_OPTIONAL = ("phi0", "source", "flags")
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,8 @@ class LibraryYarn:
     effects: dict = field(default_factory=dict)
     std_errors: dict = field(default_factory=dict)
     source: str = ""
+    #: why the calibration that wrote it is not one to use (empty: usable, or not a calibration)
+    flags: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -94,6 +96,8 @@ class LibraryKnit:
     C0: float
     phi0: float | None = None
     source: str = ""
+    #: why the calibration that wrote it is not one to use (empty: usable, or not a calibration)
+    flags: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -155,6 +159,43 @@ def _check_yarn_law(path: str, where: str, y: dict) -> None:
         _number(path, f"{where}.rules.force_cap_N", r["force_cap_N"])
 
 
+def _flags(path: str, key: str, v) -> tuple:
+    if not (isinstance(v, list) and all(isinstance(x, str) for x in v)):
+        raise KnitsimInputError(f"{path}: {key} = {v!r}: expected a list of strings (a calibration's flags)")
+    return tuple(v)
+
+
+def flagged_materials(doc: dict, lib: "MaterialLibrary | None") -> list[tuple[str, tuple]]:
+    """``(what, flags)`` of every library material a scene document names (``yarn.material`` /
+    ``knit.material`` at the top, in ``[[cells]]`` and in ``[[zones]]``) that a flagged calibration wrote, and
+    of the scene's own ``provenance.flags`` (a scene ``knitsim calibrate`` wrote): a result built on them is
+    not believable as the yarn's (a blind probe ran the bundled calibration's scenes, NOT A CALIBRATION YOU
+    CAN USE, and read "completed the load program", with nothing in the summary)."""
+    out = []
+    prov = doc.get("provenance")
+    if isinstance(prov, dict) and prov.get("flags"):
+        out.append((f"this scene (written by {prov.get('source', 'a calibration')})", tuple(prov["flags"])))
+    if lib is None:
+        return out
+    tables = [doc] + [t for k in ("cells", "zones") for t in (doc.get(k) or []) if isinstance(t, dict)]
+    seen = set()
+    for t in tables:
+        for kind, pool in (("yarn", lib.yarns), ("knit", lib.knits)):
+            name = (t.get(kind) or {}).get("material") if isinstance(t.get(kind), dict) else None
+            entry = pool.get(name) if isinstance(name, str) else None
+            if entry is None and kind == "yarn":
+                k = (t.get("knit") or {}).get("material") if isinstance(t.get("knit"), dict) else None
+                entry = lib.yarns.get(lib.knits[k].yarn) if k in lib.knits else None
+            if entry is not None and entry.flags and (kind, entry.name) not in seen:
+                seen.add((kind, entry.name))
+                out.append((f"{kind} {entry.name!r} of {lib.path}", entry.flags))
+    # one calibration's materials (the same flags) said once
+    merged: dict = {}
+    for what, flags in out:
+        merged.setdefault(flags, []).append(what)
+    return [(" and ".join(whats), flags) for flags, whats in merged.items()]
+
+
 def parse_library(doc: dict, path: str) -> MaterialLibrary:
     """Check a parsed library document (the scene-level checks of friction, rules and effects that combine
     with a scene are the scene's, when a scene uses the material; the law's own values here,
@@ -182,7 +223,8 @@ def parse_library(doc: dict, path: str) -> MaterialLibrary:
         yarns[name] = LibraryYarn(name, _number(path, f"{where}.d", y["d"]), _number(path, f"{where}.B", y["B"]),
                                   None if w is None else _number(path, f"{where}.in_plane_width", w),
                                   dict(y.get("friction", {})), dict(y.get("rules", {})), dict(y.get("effects", {})),
-                                  dict(y.get("std_errors", {})), str(y.get("source", "")))
+                                  dict(y.get("std_errors", {})), str(y.get("source", "")),
+                                  _flags(path, f"{where}.flags", y.get("flags", [])))
     for name, k in (doc.get("knits") or {}).items():
         where = f"knits.{name}"
         if not isinstance(k, dict):
@@ -200,7 +242,7 @@ def parse_library(doc: dict, path: str) -> MaterialLibrary:
         knits[name] = LibraryKnit(name, str(k["yarn"]), _number(path, f"{where}.L", k["L"]),
                                   _number(path, f"{where}.W0", k["W0"]), _number(path, f"{where}.C0", k["C0"]),
                                   None if phi0 is None else _number(path, f"{where}.phi0", phi0, positive=False),
-                                  str(k.get("source", "")))
+                                  str(k.get("source", "")), _flags(path, f"{where}.flags", k.get("flags", [])))
     return MaterialLibrary(path, yarns, knits)
 
 
@@ -222,6 +264,8 @@ def library_document(yarns: list[LibraryYarn], knits: list[LibraryKnit], title: 
             e["in_plane_width"] = y.in_plane_width
         if y.source:
             e["source"] = y.source
+        if y.flags:
+            e["flags"] = list(y.flags)
         for t in YARN_TABLES:
             v = getattr(y, t)
             if v:
@@ -234,6 +278,8 @@ def library_document(yarns: list[LibraryYarn], knits: list[LibraryKnit], title: 
             e["phi0"] = k.phi0
         if k.source:
             e["source"] = k.source
+        if k.flags:
+            e["flags"] = list(k.flags)
         doc["knits"][k.name] = e
     return doc
 

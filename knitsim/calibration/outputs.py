@@ -51,9 +51,10 @@ def library_of(result: JointResult, yarn_name: str, source: str = "") -> dict:
     yarn = LibraryYarn(yarn_name, d=p.d, B=p.B, in_plane_width=p.in_plane_width,
                        friction={"model": p.friction, "m": p.m, "dahl_sigma": p.dahl_sigma}, rules=_rules(p),
                        effects=p.effects.as_dict() if p.effects.on else {}, std_errors=std,
-                       source=f"knitsim calibrate {source}".strip())
+                       source=f"knitsim calibrate {source}".strip(), flags=tuple(result.flags))
     knits = [LibraryKnit(f.name, yarn_name, L=f.params.L, W0=f.params.W0, C0=f.params.C0, phi0=f.params.phi0,
-                         source=f"knitsim calibrate {source}: specimen {f.name}".strip()) for f in result.fits]
+                         source=f"knitsim calibrate {source}: specimen {f.name}".strip(), flags=tuple(result.flags))
+             for f in result.fits]
     return library_document([yarn], knits, title=f"calibrated by knitsim calibrate {source}".strip())
 
 
@@ -95,10 +96,17 @@ def _fit_line(f) -> str:
     return f"fit: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}{off}"
 
 
+def _provenance(result: JointResult, source: str) -> dict:
+    """A flagged calibration's scenes carry its flags (the runs on them say so: material_library.flagged_materials)."""
+    return ({"provenance": {"source": f"knitsim calibrate {source}".strip(), "flags": list(result.flags)}}
+            if result.flags else {})
+
+
 def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu") -> str:
     """The TOML of specimen ``k``'s calibrated cell scene (monotonic to the end of its rows)."""
     f = result.fits[k]
     doc = {"title": f"{f.name}: calibrated cell (knitsim calibrate)", "engine": "warp", "device": device}
+    doc.update(_provenance(result, source))
     doc.update(_cell_tables(f.params))
     pre = float(f.pretension)
     end = float(f.strain[-1]) if pre == 0 else float(pretension_strain(float(f.strain[-1]), pre))
@@ -121,6 +129,7 @@ def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, ga
     f = result.fits[k]
     doc = {"title": f"{f.name}: calibrated specimen (knitsim calibrate)", "engine": "warp", "device": device,
            "specimen": {"width": width_mm, "gauge_length": gauge_length_mm}}
+    doc.update(_provenance(result, source))
     pre = float(f.pretension)
     if pre:
         doc["specimen"]["pretension"] = pre

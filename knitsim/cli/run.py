@@ -42,6 +42,7 @@ import time
 from pathlib import Path
 
 from ..errors import KnitsimInputError
+from ..io.checks import calibration_warnings
 from ..io.results import add_output_flags
 from .common import Progress, add_json_flag, naming_scene, print_json
 
@@ -266,6 +267,9 @@ def _run(args) -> int:
         for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
         domain_warnings += overlaps
+        # (printed with the summary's warnings at the end)
+        domain_warnings += [{k: v for k, v in w.items() if k != "cell"}
+                            for w in calibration_warnings(scene.calibration_flags)]
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
                              overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME,),

@@ -713,6 +713,20 @@ def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells:
         f"largest grip strain below {e0:.4g} (load.target_strain / load.upper_strain){remedy}")]
 
 
+def calibration_warnings(flagged) -> list[dict]:
+    """The warning a result carries where its scene's values come from a calibration flagged as not one to use
+    (``flagged``: :func:`knitsim.material_library.flagged_materials`'s ``(what, flags)``): a blind probe ran
+    the bundled calibration's scenes and library, NOT A CALIBRATION YOU CAN USE, and read "completed the load
+    program" with nothing about it in the console or summary.json."""
+    out = []
+    for what, flags in flagged:
+        shown = "; ".join(flags[:2]) + (f"; and {len(flags) - 2} more" if len(flags) > 2 else "")
+        out.append({"code": "from_unusable_calibration", "cell": "all", "message": (
+            f"{what} {'come' if ' and ' in what else 'comes'} from a calibration that is NOT ONE YOU CAN USE ({len(flags)} flag(s): {shown}): these "
+            "results are that calibration's, not a yarn's you can rely on")})
+    return out
+
+
 #: overlaps of the heads below this share of the in-plane width are not warned of (a micrometre on a 0.6 mm yarn)
 HEAD_OVERLAP_RTOL = 1e-3
 

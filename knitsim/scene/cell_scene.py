@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -170,6 +170,13 @@ def _cell_table(defaults: bool) -> Table:
     })
 
 
+def _provenance_table() -> Table:
+    return Table({
+        "source": Field(("str",), OPTIONAL, "what wrote the scene (knitsim calibrate FILE)"),
+        "flags": Field(("str_list",), OPTIONAL, "why that calibration is not one to use: every result says so"),
+    }, "where the scene's values come from (knitsim calibrate writes it)")
+
+
 def _materials_field() -> Field:
     return Field(("str",), OPTIONAL, "material library file (knitsim calibrate writes one), relative to the scene; "
                  "its yarns and knits can be named by yarn.material / knit.material")
@@ -194,6 +201,7 @@ def library_of(data: dict, base_dir: Path):
 #: the schema of a cell scene file
 CELL_SCENE = Table({
     "title": Field(("str",), OPTIONAL, "free text"),
+    "provenance": _provenance_table(),
     "materials": _materials_field(),
     "engine": Field(("str",), "warp", "warp (batched kernels) or reference (NumPy)", choices=ENGINES),
     "device": Field(("str",), "cpu", "Warp device", check=_device_check),
@@ -236,6 +244,9 @@ class CellScene:
         Per cell, where ``m`` and ``phi0`` came from (for summaries).
     source : str
         The scene file, or ``"<dict>"``.
+    calibration_flags : list of (str, tuple)
+        What the scene's values come from that a flagged calibration wrote, and its flags
+        (:func:`knitsim.material_library.flagged_materials`): said with every result.
     """
 
     params: list
@@ -246,6 +257,7 @@ class CellScene:
     resolved: dict
     notes: list
     source: str = "<dict>"
+    calibration_flags: list = field(default_factory=list)
 
     @property
     def plot(self) -> bool:
@@ -553,4 +565,6 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
         resolved["title"] = base["title"]
     resolved.update(engine=base["engine"], device=base["device"], output=base["output"], load=load_resolved,
                     cells=resolved_cells)
-    return CellScene(params, labels, program, base["engine"], base["device"], resolved, notes, name)
+    from ..material_library import flagged_materials
+    return CellScene(params, labels, program, base["engine"], base["device"], resolved, notes, name,
+                     flagged_materials(data, lib))

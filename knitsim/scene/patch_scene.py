@@ -92,7 +92,7 @@ cell, e.g. ``zones[0].knit.W0 = 2.0: must be >= 4 d = 2.32 mm at cell
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -105,7 +105,7 @@ from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_ran
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
 from .cell_scene import (ENGINES, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
                          _knit_table, _load_table, _materials_field, _merge, _Origins, _program, _resolve_cell,
-                         _rules_table, _yarn_table, library_of)
+                         _provenance_table, _rules_table, _yarn_table, library_of)
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
 
 
@@ -145,6 +145,7 @@ _UNITS = {"d": "mm", "B": "N mm^2", "m": "-", "dahl_sigma": "1/mm", "L": "mm", "
 #: the schema of a patch scene file
 PATCH_SCENE = Table({
     "title": Field(("str",), OPTIONAL, "free text"),
+    "provenance": _provenance_table(),
     "materials": _materials_field(),
     "engine": Field(("str",), "warp", "warp (batched kernels) or reference (NumPy)", choices=ENGINES),
     "device": Field(("str",), "cpu", "Warp device", check=_device_check),
@@ -263,6 +264,8 @@ class PatchScene:
     resolved: dict
     origins: dict
     source: str = "<dict>"
+    #: what the scene's values come from that a flagged calibration wrote, and its flags (as CellScene's)
+    calibration_flags: list = field(default_factory=list)
 
     @property
     def output(self) -> dict:
@@ -631,5 +634,6 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         resolved["maps"] = maps_out
     if zones_out:
         resolved["zones"] = zones_out
+    from ..material_library import flagged_materials
     return PatchScene(model, program, doc["engine"], doc["device"], bool(doc["patch"]["dedup"]), resolved,
-                      origins, name)
+                      origins, name, flagged_materials(data, lib))

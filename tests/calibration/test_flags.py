@@ -63,6 +63,12 @@ def test_a_failed_optimiser_is_flagged_in_every_file(tmp_path, monkeypatch, caps
         assert STOPPED in comments, name
         tomllib.loads(text)
     assert UNUSABLE in tomllib.loads((out / "materials.toml").read_text())["title"]
+    # and machine-readable: the library's yarn and knits carry the flags, the scenes a [provenance] with them,
+    # so that a run on them says so (tests/cli/test_cli_cell.py: from_unusable_calibration)
+    lib = tomllib.loads((out / "materials.toml").read_text())
+    assert all(STOPPED in " ".join(e["flags"]) for e in list(lib["yarns"].values()) + list(lib["knits"].values()))
+    for name in ("tight.cell.toml", "tight.patch.toml"):
+        assert STOPPED in " ".join(tomllib.loads((out / name).read_text())["provenance"]["flags"]), name
     # the console summary (stdout) lists the flags; stderr warns once
     assert cap.out.startswith(UNUSABLE) and STOPPED in cap.out
     assert f"warning: {UNUSABLE}" in cap.err

@@ -229,3 +229,30 @@ def test_warp_and_reference_agree_on_basalt_monotonic(capsys, tmp_path):
     assert rc_r == rc_w == 0 and r["final_status"] == w["final_status"] == "force_cap"
     assert w["strain_at_first_jamming"] == pytest.approx(r["strain_at_first_jamming"], abs=1e-8)
     assert w["cycles"][0]["energy_N_per_strain"] == pytest.approx(r["cycles"][0]["energy_N_per_strain"], rel=1e-6)
+
+
+def test_a_scene_from_a_flagged_calibration_says_so_in_every_result(tmp_path, capsys):
+    """A blind probe ran the bundled calibration's cell scene and a scene naming its library's materials (the
+    calibration: NOT A CALIBRATION YOU CAN USE, 5 flags) and read "completed the load program", nothing in
+    the console or summary.json.  Expected: the warning from_unusable_calibration, naming where the values come
+    from and the first flag, in summary.json and on the console; a library without flags gives none."""
+    cal = REPO / "scenes" / "calibration" / "do2020" / "calibrated"
+    main(["cell", str(cal / "jersey_4p5.cell.toml"), "--out", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    w = [x for x in json.loads((tmp_path / "a" / "summary.json").read_text())["warnings"]
+         if x["code"] == "from_unusable_calibration"]
+    assert len(w) == 1 and "NOT ONE YOU CAN USE (5 flag(s): d = 0.29 mm is at its high bound" in w[0]["message"]
+    assert "NOT ONE YOU CAN USE" in err
+    lib = (cal / "materials.toml").read_text()
+    (tmp_path / "lib.toml").write_text(lib)
+    scene = ('materials = "lib.toml"\n[knit]\nmaterial = "jersey_4p5"\n[load]\ntype = "monotonic"\n'
+             'target_strain = 0.1\nmax_increment = 0.02\n')
+    (tmp_path / "s.toml").write_text(scene)
+    main(["cell", str(tmp_path / "s.toml"), "--out", str(tmp_path / "b")])
+    w = [x["message"] for x in json.loads((tmp_path / "b" / "summary.json").read_text())["warnings"]
+         if x["code"] == "from_unusable_calibration"]
+    assert len(w) == 1 and "yarn 'do2020_yarn'" in w[0] and "knit 'jersey_4p5'" in w[0]
+    (tmp_path / "lib.toml").write_text("\n".join(ln for ln in lib.splitlines() if not ln.startswith("flags = ")))
+    main(["cell", str(tmp_path / "s.toml"), "--out", str(tmp_path / "c")])
+    assert not any(x["code"] == "from_unusable_calibration"
+                   for x in json.loads((tmp_path / "c" / "summary.json").read_text())["warnings"])
