@@ -107,6 +107,10 @@ def _run(args) -> int:
                              resume=args.resume, resumable=True, writes=SWEEP_OUTPUTS,
                              inputs=scene_inputs(args.scene) + scene_inputs(args.sweep))
     _announce_domain(plan)
+    from ..io.checks import calibration_warnings
+    for w in calibration_warnings(getattr(plan.base, "calibration_flags", [])):
+        # the sweep's base scene (or the library it names) is a flagged calibration's: every sample is
+        print(f"knitsim sweep: warning: {w['message']}", file=sys.stderr, flush=True)
     workers = args.workers
     if workers is None and plan.device != "cpu" and not args.scheduler:
         workers = 1                                   # one GPU: one worker process feeds it
