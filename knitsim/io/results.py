@@ -51,7 +51,8 @@ from .output_dir import (RECORD_NAME, add_output_flags, check_output_dir,  # noq
 
 CURVE_COLUMNS = ("cell", "cycle", "direction", "stage", "strain", "force_per_wale_N", "alpha", "beta",
                  "gamma", "phi", "P", "W", "C", "s_BC", "status")
-EVENT_COLUMNS = ("cell", "increment", "strain", "kind", "C", "event_strain", "from", "to", "status", "reason")
+EVENT_COLUMNS = ("cell", "increment", "strain", "kind", "C", "event_strain", "force_per_wale_N", "from", "to", "status",
+                 "reason")
 OUTPUT_FILES = ("curve.csv", "events.csv", "scene.resolved.toml", "plot.png", "summary.json")
 _LABELS = {v: k for k, v in LABEL_CODES.items()}
 _QUANTITIES = ("alpha", "beta", "gamma", "phi", "P", "W", "C", "s_BC")
@@ -144,7 +145,8 @@ def events_csv(history: BatchHistory) -> str:
     """The text of ``events.csv``: one row per located event, in order of cell and increment.
 
     ``strain`` is the imposed strain of the increment, ``event_strain`` the
-    strain of the cell at the event, ``C / C0 - 1``.
+    strain of the cell at the event, ``C / C0 - 1``, ``force_per_wale_N`` its force there (a cycle's energy
+    integrates the rows and these points between them: :func:`cell_summary`).
     """
     h = history
     lines = [",".join(EVENT_COLUMNS)]
@@ -157,6 +159,7 @@ def events_csv(history: BatchHistory) -> str:
         row = {"cell": c, "increment": inc, "strain": float(h.strain[inc]) if 0 <= inc < len(h.strain) else None,
                "kind": e.get("kind"), "C": None if C is None else float(C),
                "event_strain": None if (C is None or C0 is None) else float(C) / C0 - 1.0,
+               "force_per_wale_N": None if e.get("F") is None else float(e["F"]),
                "from": e.get("from"), "to": e.get("to"), "status": e.get("status"), "reason": e.get("reason")}
         lines.append(",".join(_csv_cell(row[k]) for k in EVENT_COLUMNS))
     return "\n".join(lines) + "\n"
@@ -222,6 +225,29 @@ def _stitch_energy(h, cell: int, B: float):
     names = ("alpha", "beta", "gamma", "phi", "P")
     return stitch_energy_along([h.rest[n][cell] for n in names],
                                np.stack([np.asarray(h.values[n])[:, cell] for n in names], axis=1), B)
+
+
+def _with_events(s_path, f_path, i_path, path, events, C0):
+    """A cycle's path with each located event (its C and F) put between the rows of its increment; ``path``:
+    the rows of ``s_path`` (after a rest-state row where ``s_path`` is one longer).  ``i_path`` (the program's
+    strain, for closure) takes the event's own strain: it is judged at the ends only."""
+    lead = len(s_path) - len(path)
+    at = {int(r): lead + k for k, r in enumerate(path)}
+    extra = [(at[int(e["increment"])], float(e["C"]) / C0 - 1.0, float(e["F"])) for e in events
+             if int(e.get("increment", -1)) in at and at[int(e["increment"])] > 0 and "C" in e and "F" in e
+             and np.isfinite(e["C"]) and np.isfinite(e["F"])]
+    if not extra:
+        return s_path, f_path, i_path
+    s, f, i = list(s_path), list(f_path), list(i_path)
+    order: dict = {}
+    for pos, e_s, e_f in extra:                     # events of one increment in the order they happened
+        order.setdefault(pos, []).append((e_s, e_f))
+    for pos in sorted(order, reverse=True):         # from the last: earlier positions stay valid
+        pts = order[pos]
+        s[pos:pos] = [x for x, _ in pts]
+        f[pos:pos] = [y for _, y in pts]
+        i[pos:pos] = [x for x, _ in pts]
+    return np.asarray(s), np.asarray(f), np.asarray(i)
 
 
 def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None,
@@ -297,6 +323,10 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
             s_path = np.concatenate([[0.0], s_path])
             f_path = np.concatenate([[h.rest["F"][cell]], f_path])
             i_path = np.concatenate([[0.0], i_path])
+        # the located events inside the cycle's increments (a slide onset, a slack), between their rows: the
+        # kinks there are the trapezoids' error, O(increment) without them (a blind probe: a cycle's energy
+        # 32 % low at max_increment 0.1, 4 % at 0.02; with them within 0.1 % at 0.1)
+        s_path, f_path, i_path = _with_events(s_path, f_path, i_path, path, events, p.C0)
         work = cycle_work(s_path, f_path, bool(len(unload)), loads=bool(np.any(h.direction[rows] > 0)),
                           imposed=i_path)
         entry["energy_N_per_strain"] = work["value"]

@@ -62,6 +62,8 @@ def test_paper_scene_runs_small(capsys, tmp_path, name):
     cell = summary["cells"][0]
     assert rc == (0 if cell["expected_end"] else 1)
     F, C, strain = col(rows, "force_per_wale_N"), col(rows, "C"), col(rows, "strain")
+    with open(tmp_path / "o" / "events.csv", newline="") as fh:
+        events = list(csv.DictReader(fh))
     C0 = cell["params"]["C0"]
     cyc = col(rows, "cycle")
     unloading = np.array([r["direction"] == "unload" for r in rows])
@@ -79,10 +81,19 @@ def test_paper_scene_runs_small(capsys, tmp_path, name):
             assert entry["residual_strain"] == pytest.approx(C[slack[0]] / C0 - 1, abs=1e-12)
         else:
             assert not slack
-        # energy: trapezoids of F over the cell's strain C/C0 - 1 (numpy's trapezoid, from the
-        # last row of the previous cycle; the first cycle from the rest state, row 0)
+        # energy: trapezoids of F over the cell's strain C/C0 - 1 (numpy's trapezoid, from the last row of
+        # the previous cycle; the first cycle from the rest state, row 0), through the located events of
+        # events.csv between the rows of their increments (curve.csv row r + 1 is increment r)
         path = np.concatenate([[idx[0] - 1], idx])
-        e = np.trapezoid(F[path], C[path] / C0 - 1) if hasattr(np, "trapezoid") else np.trapz(F[path], C[path] / C0 - 1)
+        xs, ys = [], []
+        for r in path:
+            for ev in events:
+                if int(ev["increment"]) + 1 == r and r != path[0] and ev["force_per_wale_N"]:
+                    xs.append(float(ev["event_strain"]))
+                    ys.append(float(ev["force_per_wale_N"]))
+            xs.append(C[r] / C0 - 1)
+            ys.append(F[r])
+        e = np.trapezoid(ys, xs) if hasattr(np, "trapezoid") else np.trapz(ys, xs)
         assert entry["energy_N_per_strain"] == pytest.approx(e, rel=1e-12, abs=1e-15)
     if "monotonic" in name:
         # from rest through jamming to the 10 N cap: the cap is the expected end (section 4.1 runs)

@@ -347,9 +347,9 @@ def test_a_cycle_is_closed_when_the_program_returns_as_knitsim_run_judges_it():
     res = [c["residual_strain"] for c in cell]
     assert res[0] < res[1] < res[2]                          # slack at a different length each time
     for a, b in zip(cell[1:], patch[1:]):
-        # the same loop; the row where the cell goes slack is integrated on its own length (cell) or on
-        # the grip's (patch): ~1 % apart at increments of 0.01
-        assert b["hysteresis_energy_N_mm"] == pytest.approx(a["energy_N_mm"], rel=2e-2)
+        # the same loop; the cell's integrates its located events too (slide onsets, slack), the patch's its
+        # rows only, whose error is of the order of the increment: 4 and 6 % apart at increments of 0.01
+        assert b["hysteresis_energy_N_mm"] == pytest.approx(a["energy_N_mm"], rel=0.1)
 
 
 def test_a_reload_past_the_earlier_maximum_below_the_first_loading_is_flagged_and_masings_is_not():
@@ -377,3 +377,14 @@ def test_a_reload_past_the_earlier_maximum_below_the_first_loading_is_flagged_an
     codes = [x["code"] for x in summarise(h, reference=first_loading([p], program))["cells"][0]["warnings"]]
     assert "reload_below_first_loading" in codes
     assert first_loading([p], piecewise_linear([0.5], 0.01)) is None
+
+
+def test_a_cycles_energy_integrates_its_located_events_and_converges_with_the_increment():
+    """A blind probe: the E-glass cell's (Table 1, m 0.2) cycle energy over 0 <-> 0.5 was 32 % low at
+    max_increment 0.1, 14 % at 0.05, 4 % at 0.02 (the trapezoids cut the kinks of the slide onsets and the
+    slack between rows).  With the located events (their C and F) in the path, the energy at 0.1 is within
+    0.5 % of the one at 0.002 (an independent limit: the trapezoids converge as the increment goes to 0)."""
+    p = CellParams(**EGLASS, m=0.2, force_cap_N=10.0)
+    e = {inc: [c["energy_N_mm"] for c in summarise(run_batch([p], cycles(0.0, 0.5, 2, inc)))["cells"][0]["cycles"]]
+         for inc in (0.1, 0.002)}
+    assert e[0.1] == pytest.approx(e[0.002], rel=5e-3)
