@@ -329,12 +329,17 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
     keys = spec.keys
     params, group, programs, loads, group_of = [], [], [], [], {}
     n_cells = len(base.params)
+    invalid: dict = {}
     for i, row in enumerate(table):
         try:
             s = _load_sample(scene_doc, keys, row, base_dir, engine, device)
         except KnitsimInputError as exc:
+            # refused before any work (bad input: W0 < 4 d, a program the knit cannot reach), but with every
+            # such sample counted, not the first alone (a blind probe's Latin hypercube was refused for its
+            # sample 217, with no word of how many more)
             vals = ", ".join(f"{k} = {fmt(v)}" for k, v in zip(keys, row))
-            raise KnitsimInputError(f"sweep sample {i} ({vals}): {exc}") from None
+            invalid[i] = f"sweep sample {i} ({vals}): {exc}"
+            s = base
         if len(s.params) != n_cells:  # pragma: no cover - a scalar key cannot change the cell count
             raise KnitsimInputError(f"sweep sample {i}: {len(s.params)} cells, the base scene has {n_cells}")
         gkey = canonical_json(s.resolved["load"])
@@ -345,6 +350,12 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         group.append(group_of[gkey])
         params.append(s.params)
     group = np.asarray(group, dtype=np.int64)
+    if invalid:
+        first = next(iter(invalid.values()))
+        more = (f" ({len(invalid) - 1} more of the {len(table)} samples are refused too: samples "
+                f"{', '.join(map(str, list(invalid)[1:6]))}{', ...' if len(invalid) > 6 else ''}; narrow the "
+                "ranges or leave those values out)") if len(invalid) > 1 else ""
+        raise KnitsimInputError(first + more)
     domain, reasons = _domain_of(params, programs, group, base.engine, dev)
     chunks = []
     for g in range(len(programs)):
