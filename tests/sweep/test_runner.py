@@ -121,7 +121,7 @@ def test_a_sample_violating_w0_ge_4d_is_refused_before_solving(monkeypatch):
     msg = str(exc.value)
     assert "sample 1" in msg and "knit.W0 = 2.0" in msg and ">= 4 d" in msg
     # every such sample counted, not the first alone (a blind probe's hypercube named its sample 217 only)
-    with pytest.raises(KnitsimInputError, match=r"sample 0 .*: 2 more of the 4 samples are refused too: samples 1, 3"):
+    with pytest.raises(KnitsimInputError, match=r"sample 0 .*\(2 more of the 4 samples are refused too: samples 1, 3;"):
         plan_sweep(SCENE, {"parameters": {"knit.W0": {"values": [2.0, 2.1, 4.4, 2.2]}}})
 
 
