@@ -1707,6 +1707,8 @@ SLACK_MODEL_ABOVE_SD = 5.0
 #: a curve whose largest reading is below this share of the model's force at its first row (the knit at rest,
 #: or at its first strain) is on another force scale (:func:`force_scale_mismatch`)
 SCALE_SHARE = 0.5
+#: ... or whose median reading is above this many times the most the fitted model carries over the curve
+SCALE_ABOVE = 10.0
 
 
 def force_scale_mismatch(curve: MeasuredCurve, simulated, offset_N: float = 0.0) -> str:
@@ -1715,8 +1717,18 @@ def force_scale_mismatch(curve: MeasuredCurve, simulated, offset_N: float = 0.0)
     another unit (kN or mN read as N) or not divided per wale.  A blind probe's curve in kN under a header in N
     (every reading 100 times below the knit's force at rest) got a confident ``unexplained`` with a stage named,
     nothing said of the scale.  "" where the scales agree (or the model carries nothing there)."""
-    rest = float(np.asarray(simulated, float)[0]) - float(offset_N)
+    sim = np.asarray(simulated, float) - float(offset_N)
+    rest = float(sim[0])
     top = float(np.max(curve.force))
+    most = float(np.nanmax(sim)) if len(sim) else 0.0
+    mid = float(np.median(curve.force))
+    if most > 0 and mid > SCALE_ABOVE * most:
+        # the other way: readings far beyond anything the fitted knit carries (a blind probe's file in mN under
+        # an N header, 34 to 8547 N per wale on a knit capped at 10 N, got no word of the scale)
+        return (f"{Path(curve.source).name}: half the readings exceed {mid:.3g} N per wale, {mid / most:.3g} times "
+                f"the most the fitted knit carries over the curve ({most:.3g} N per wale): a force in another unit "
+                "(mN read as N), or a total force not divided per wale? Check the column's unit and the wale count "
+                "before reading the verdict")
     if not rest > 0 or top >= SCALE_SHARE * rest:
         return ""
     return (f"{Path(curve.source).name}: every reading (the largest {top:.3g} N per wale) is below the force the "

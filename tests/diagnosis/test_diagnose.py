@@ -764,3 +764,17 @@ def test_a_strain_that_jumps_alone_is_said_and_takes_the_verdicts_confidence(tmp
     verdict = next(ln for ln in out.splitlines() if ln.startswith("verdict:"))
     assert "not confident" in verdict and "the strain jumps alone at row 40" in verdict, verdict
     assert "between rows 40 and 41" in out
+
+
+def test_readings_far_above_what_the_knit_carries_are_said_as_another_unit():
+    """A blind probe's curve in mN under an N header (34 to 8547 "N" per wale on a knit capped at 10 N) got no
+    word of the scale (the kN case, every reading below the knit's rest force, did).  Hand-made: a model curve
+    rising to 10 N and readings 1000 times it: said, naming mN; the readings themselves: nothing."""
+    from knitsim.diagnosis.diagnose import force_scale_mismatch
+    s = np.linspace(0.0, 0.8, 41)
+    sim = 0.04 + 0.3 * s + 0.003 * (np.exp(s / 0.1) - 1.0)
+    same = curve_from_arrays(s, sim, source="n.csv", noise_N=0.002)
+    milli = curve_from_arrays(s, 1000 * sim, source="mn.csv", noise_N=2.0)
+    assert force_scale_mismatch(same, sim) == ""
+    msg = force_scale_mismatch(milli, sim)
+    assert "mn.csv" in msg and "mN read as N" in msg
