@@ -186,8 +186,13 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
              f"chi2 / (n - k) = {r.s2:.3g} (the factor on the covariance). "
              + ("Objective: the band likelihood (anywhere inside the band at no cost, just outside a Gaussian of "
                 "the force accuracy, far outside a Cauchy tail), refined from each mid-line fit. "
-                if r.setup.objective == "band" else "Objective: the band mid-line, sd = half-width (at least "
-                "the force accuracy). ")
+                if r.setup.objective == "band" else (
+                    "Objective: the band mid-line, sd = half-width (at least the force accuracy). "
+                    if all(f.band_low_N is not None for f in r.fits) else
+                    # (a blind probe's single curves were said to be weighted by a band's half-width)
+                    "Objective: each row of a band at its mid-line, sd = half-width (at least the force "
+                    "accuracy); each row of a single curve at the curve, sd = the curve's own noise "
+                    "(calibration.json: sd_rule). "))
              + f"{'Converged' if r.success else 'NOT CONVERGED'}: {r.message.rstrip('.')}. Wall time {r.wall_s:.0f} s.", ""]
     if not flags:
         oy = r.one_yarn

@@ -420,8 +420,17 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     missing = [c for c in required if _key(c) not in keys]
     if missing:
         # a machine's name without its unit, or with another, is not taken (Load could be kN): say why
+        hint = ""
+        if "strain" in missing:
+            # an extension in mm where a strain is wanted (a blind probe's Extension [mm] was refused as "no
+            # strain column", the gauge length it needed unnamed)
+            ext = [c for c in header if re.search(r"exten|elong|displac|travel|position", c, re.I)]
+            if ext:
+                hint = (f"; {ext[0]!r} is a length, not a strain: write strain = extension / gauge length (both in "
+                        "mm) in a column named strain")
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
-                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(not_taken) if not_taken else ''}")
+                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(not_taken) if not_taken else ''}"
+                                f"{hint}")
     present = required + [c for c in optional if _key(c) in keys]
     for name in present:
         at = [j for j, k in enumerate(keys) if k == _key(name)]
@@ -530,6 +539,25 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                 note += (f"; its largest value is {100.0 * top:g} %: if the column holds fractions (0.6 for 60 %), "
                          f"state its unit {where_unit}")
             notes.append(note)
+    # a spreadsheet's footer (Max force;;8,55;;): rows after the data that fail to read and start with a label,
+    # not a number, are no measurement: skipped and said (a blind probe's export was refused at its footer
+    # as "'' is not a number")
+    bad_rows = {b[0] for b in bad}
+    footer = []
+    for line, row in reversed(list(zip(numbers, rows))):
+        first = next((c.strip() for c in row if c.strip()), "")
+        if line not in bad_rows or _is_number(first, decimal_comma):
+            break
+        footer.append(line)
+    if footer and len(footer) < len(rows):
+        keep = np.asarray([line not in footer for line in numbers])
+        for name in present:
+            out[name] = out[name][keep]
+        numbers = [line for line in numbers if line not in footer]
+        bad = [b for b in bad if b[0] not in footer]
+        notes.append(f"row{'s' if len(footer) > 1 else ''} {', '.join(map(str, sorted(footer)))} after the data "
+                     f"read as a footer (starting with a label, not a number: "
+                     f"{next(c.strip() for c in rows[len(numbers)] if c.strip())!r}): skipped")
     out.notes = tuple(notes)
     if bad:
         # every bad cell at once, in row order (a blind probe fixed one, ran again and met the next)

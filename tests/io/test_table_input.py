@@ -575,3 +575,31 @@ def test_a_machines_units_row_after_a_blank_line_is_its_stated_unit(tmp_path):
     c = read_csv_columns(p, ("strain", "load_N"), aliases=LAB_ALIASES)
     np.testing.assert_allclose(c["strain"], [0.0, 0.025], rtol=1e-15)
     np.testing.assert_array_equal(c["load_N"], [0.0, 0.5])
+
+
+def test_a_spreadsheet_footer_is_skipped_and_said_and_a_label_mid_file_is_not(tmp_path):
+    """A blind probe's Excel export ended with a footer line (Max force;;8,55;;) and was refused as "row 166,
+    column strain: '' is not a number".  Hand-made: a ';' file with decimal commas, 5 data rows and a footer
+    starting with a label (Max force;0,55): the rows read, the footer skipped and said with its row.  The same line
+    between data rows is no footer: refused, naming it."""
+    body = "strain;force_per_wale_N\n" + "".join(f"0,{k}0;0,{k}5\n" for k in range(1, 6))
+    p = tmp_path / "f.csv"
+    p.write_text(body + "Max force;0,55\n")
+    cols = read_csv_columns(p, ["strain", "force_per_wale_N"])
+    assert len(cols["strain"]) == 5 and cols["force_per_wale_N"][-1] == pytest.approx(0.55)
+    assert any("row 7 after the data read as a footer" in n and "'Max force'" in n for n in cols.notes)
+    q = tmp_path / "g.csv"
+    lines = body.splitlines()
+    q.write_text("\n".join(lines[:3] + ["Max force;0,55"] + lines[3:]) + "\n")
+    with pytest.raises(KnitsimInputError, match=r"row 4, column strain: 'Max force' is not a number"):
+        read_csv_columns(q, ["strain", "force_per_wale_N"])
+
+
+def test_an_extension_in_mm_is_named_as_a_length_not_a_strain(tmp_path):
+    """A probe's file with Extension [mm] in place of a strain was refused as missing a strain, with no word of
+    what to do.  Expected: the refusal names the column and the conversion (strain = extension / gauge length)."""
+    p = tmp_path / "e.csv"
+    p.write_text("Extension [mm],force_per_wale_N\n0,0.1\n1,0.2\n2,0.3\n3,0.4\n")
+    with pytest.raises(KnitsimInputError, match=r"'Extension \[mm\]' is a length, not a strain: write strain = "
+                                                r"extension / gauge length"):
+        read_csv_columns(p, ["strain", "force_per_wale_N"])
