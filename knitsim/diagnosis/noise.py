@@ -299,27 +299,36 @@ def noise_samples(strain, force, cycle, direction) -> np.ndarray:
 
 def _cubic_signed(strain, force, cycle, direction):
     """Signed scaled deviations of each row from the cubic through its two neighbours on each side, their rows'
-    forces, and the pairs of neighbours (the rows of :func:`cubic_deviations`)."""
+    forces, and the pairs of neighbours (the rows of :func:`cubic_deviations`; vectorised per branch)."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     cycle, direction = np.asarray(cycle), np.asarray(direction)
     br = np.concatenate([[0], np.nonzero((np.diff(cycle) != 0) | (np.diff(direction) != 0))[0] + 1, [len(s)]])
     z, levels, pairs = [], [], []
     for a, b in zip(br[:-1], br[1:]):
-        prev = None
-        for i in range(a + 2, b - 2):
-            xs = s[i - 2:i + 3]
-            h = np.diff(xs)
-            if not (np.all(h > 0) or np.all(h < 0)) or np.count_nonzero(f[i - 2:i + 3] == 0.0) >= 2:
-                prev = None       # (two rows at 0: clipped at zero, a slack knit read by an instrument >= 0)
-                continue
-            nb = np.array([xs[0], xs[1], xs[3], xs[4]])
-            w = np.array([np.prod([(xs[2] - nb[m]) / (nb[k] - nb[m]) for m in range(4) if m != k]) for k in range(4)])
-            r = f[i] - float(w @ np.array([f[i - 2], f[i - 1], f[i + 1], f[i + 2]]))
-            z.append(r / math.sqrt(1.0 + float(w @ w)))
-            levels.append(f[i])
-            if prev is not None:
-                pairs.append((prev, len(z) - 1))
-            prev = len(z) - 1
+        i = np.arange(a + 2, b - 2)
+        if not len(i):
+            continue
+        X = np.stack([s[i - 2], s[i - 1], s[i], s[i + 1], s[i + 2]], axis=1)
+        Fw = np.stack([f[i - 2], f[i - 1], f[i], f[i + 1], f[i + 2]], axis=1)
+        h = np.diff(X, axis=1)
+        ok = (np.all(h > 0, axis=1) | np.all(h < 0, axis=1)) & (np.count_nonzero(Fw == 0.0, axis=1) < 2)
+        if not np.any(ok):
+            continue   # (two rows at 0: clipped at zero, a slack knit read by an instrument >= 0)
+        X, Fw, i = X[ok], Fw[ok], i[ok]
+        nb = X[:, [0, 1, 3, 4]]
+        x2 = X[:, 2:3]
+        w = np.ones_like(nb)
+        for k in range(4):
+            for m in range(4):
+                if m != k:
+                    w[:, k] *= (x2[:, 0] - nb[:, m]) / (nb[:, k] - nb[:, m])
+        r = Fw[:, 2] - np.sum(w * Fw[:, [0, 1, 3, 4]], axis=1)
+        zz = r / np.sqrt(1.0 + np.sum(w * w, axis=1))
+        start = len(z)
+        z.extend(zz.tolist())
+        levels.extend(Fw[:, 2].tolist())
+        # neighbours: rows next to each other in the file, both kept
+        pairs.extend((start + k, start + k + 1) for k in np.flatnonzero(np.diff(i) == 1))
     return np.asarray(z, float), np.asarray(levels, float), pairs
 
 
@@ -328,12 +337,16 @@ def cubic_correlation(strain, force, cycle, direction) -> tuple[float | None, in
     pairs inside the clip, and the number of pairs; None with fewer than 3 pairs or no scatter.
 
     White noise gives -0.8 at even steps (the deviation is the filter (1/6, -2/3, 1, -2/3, 1/6) of the
-    forces: lag-one sum of products -14/9 over the sum of squares 35/9, an identity); a smooth curve gives
+    forces: lag-one sum of products -14/9 over the sum of squares 35/18, an identity); a smooth curve gives
     a positive one.  Unlike the chords' (-2/3), it is not moved by the curve's bending, which the cubic
     follows: a model curve with 3 mN of white noise through the jamming (forces to 8.5 N at steps of 0.005)
     read -0.14 on its chords, "not white", and its noise was assumed 14 times too large (a blind probe;
     -0.82 on its cubics)."""
-    z, _, pairs = _cubic_signed(strain, force, cycle, direction)
+    return _lag_one(*_cubic_signed(strain, force, cycle, direction)[::2])
+
+
+def _lag_one(z: np.ndarray, pairs: list) -> tuple[float | None, int]:
+    """Lag-one correlation of signed deviations ``z`` over ``pairs`` inside the clip (:func:`cubic_correlation`)."""
     if len(z):
         robust = MAD_TO_SD * float(np.median(np.abs(z)))
         pairs = [p for p in pairs if max(abs(z[p[0]]), abs(z[p[1]])) < CLIP * robust] if robust > 0 else pairs
@@ -451,8 +464,9 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
         return CurveNoise(source, float(given), "given", 0, True, "given by the user")
     rep, rep_levels = _repeats(strain, force, cycle, direction)
     z = np.concatenate([chord_residuals(strain, force, cycle, direction), rep])
-    rho, _ = cubic_correlation(strain, force, cycle, direction)
-    zc_all, lc_all = cubic_deviations(strain, force, cycle, direction)
+    zs, lc_all, cpairs = _cubic_signed(strain, force, cycle, direction)      # once: a Python loop over the rows
+    rho, _ = _lag_one(zs, cpairs)
+    zc_all = np.abs(zs)
     step = written_resolution(f)
     if len(z) < MIN_SAMPLES:
         why = (f"only {len(z)} rows on monotone branches or repeated at one strain (an estimate needs "
