@@ -141,7 +141,7 @@ def test_white_noise_on_a_bending_curve_is_white_on_the_cubics():
     read -0.14 on its chords, "not white", and its noise was assumed 14 times too large (the verdict then
     "unexplained" on effect-free data).  The cubic deviations follow the bending: their lag-one correlation is
     the identity's -0.8 (the filter (1/6, -2/3, 1, -2/3, 1/6): -14/9 over 35/18) within 4 standard errors, and
-    the noise is estimated within 20 % (from the cubics: the chords' RMS read 3.9 mN)."""
+    the noise is estimated within 35 % (the chords' clipped RMS, which the bending still lifts: noise.py)."""
     rng = np.random.default_rng(4)
     s = np.arange(161) * 0.005
     f0 = 0.04 + 0.3 * s + 0.003 * (np.exp(s / 0.1) - 1.0)        # hand-made: a plateau, then jamming to 9 N
@@ -150,4 +150,4 @@ def test_white_noise_on_a_bending_curve_is_white_on_the_cubics():
     rho, pairs = cubic_correlation(s, f, one, one)
     assert rho == pytest.approx(-0.8, abs=4.0 / np.sqrt(pairs))
     c = curve_noise(s, f, one, one, "jamming")
-    assert c.method == "estimated" and c.sigma_N == pytest.approx(0.003, rel=0.2)
+    assert c.method == "estimated" and c.sigma_N == pytest.approx(0.003, rel=0.35)
