@@ -1913,7 +1913,11 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     if disagree:
         verdict.reason += "; " + disagree
     # a curve that starts slack: said (the verdict is about a knit the model cannot start as the specimen did)
-    slack = [slack_start(c, nz, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
+    scales = [force_scale_mismatch(c, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
+              for i, c in enumerate(curves)]
+    # (a curve on another force scale reads ~0 N where the knit carries its force: no slack start to claim on it)
+    slack = [None if scales[i] else
+             slack_start(c, nz, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
              for i, (c, nz) in enumerate(zip(curves, noise.curves))]
     loose = [sl["message"] for sl in slack if sl is not None]
     if loose:
@@ -1921,11 +1925,11 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         # probe's effect-free slack start read "yarn_extension ... probability 1" before the slack was said
         verdict.confident = False
         verdict.reason = "; ".join(loose) + "; until then: " + verdict.reason
-    for i, c in enumerate(curves):
-        scale = force_scale_mismatch(c, base_fit["curves"][i]["simulated"], base_fit["curves"][i].get("offset_N", 0.0))
-        if scale:
-            verdict.confident = False
-            verdict.reason += "; " + scale
+    if any(scales):
+        # said first of all: a force in another unit makes every other figure moot (a blind probe's kN file read
+        # a slack start first and the unit last)
+        verdict.confident = False
+        verdict.reason = "; ".join(s for s in scales if s) + "; as read: " + verdict.reason
     loaded = sum(int(np.sum(c.force > NEGATIVE_SIGMAS * nz.sd_at(c.force))) for c, nz in zip(curves, noise.curves))
     total = sum(len(c.force) for c in curves)
     if loaded < MIN_LOADED_ROWS:

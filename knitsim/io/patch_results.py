@@ -48,8 +48,9 @@ from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (FORCE_CAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap, cycle_warnings,
-                     cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap, interpenetration)
+from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap,
+                     cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
+                     interpenetration)
 from .results import _num, rule_meaning, summary_json, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
@@ -1123,7 +1124,13 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
         ax.scatter(h.grip_strain[bad], F[bad], marker="x", color="red", zorder=3,
                    label="column not converged / stopped")
     if "interpenetrating" in h.groups:
-        over = np.any(np.asarray(h.groups["interpenetrating"]) > 0, axis=1)
+        over = np.asarray(h.groups["interpenetrating"]) > 0
+        if "head_gap" in h.groups and h.group_d_jam is not None:
+            # the warning's tolerance (io.checks.HEAD_OVERLAP_RTOL): a micrometre of overlap is rounding
+            w = np.asarray(h.group_d_jam, float)[None, :]
+            with np.errstate(invalid="ignore"):
+                over &= ~(w - np.asarray(h.groups["head_gap"], float) <= HEAD_OVERLAP_RTOL * w)
+        over = np.any(over, axis=1)
         if over.any():
             ax.scatter(h.grip_strain[over], F[over], marker="o", s=9, color="darkorange", zorder=3,
                        label="heads of neighbouring loops overlap")

@@ -778,3 +778,25 @@ def test_readings_far_above_what_the_knit_carries_are_said_as_another_unit():
     assert force_scale_mismatch(same, sim) == ""
     msg = force_scale_mismatch(milli, sim)
     assert "mn.csv" in msg and "mN read as N" in msg
+
+
+def test_a_force_in_another_unit_is_said_first_and_not_read_as_a_slack_start(tmp_path, capsys):
+    """A blind probe's file in kN under an N header: the verdict said first that the specimen reads ~0 N to
+    strain 0.345 ("mounted slack: move the origin there") and only at its end that the force may be in another
+    unit.  Hand-made from the bundled effect-free curve (its README), every force divided by 1000: the verdict's
+    reason opens with the unit, and claims no slack start."""
+    from pathlib import Path
+    src = Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv"
+    lines = src.read_text().splitlines()
+    kn = [lines[0]] + [",".join([a, f"{float(b) / 1000:.9f}"] + rest)
+                       for a, b, *rest in (ln.split(",") for ln in lines[1:])]
+    (tmp_path / "kn.csv").write_text("\n".join(kn) + "\n")
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
+                     '[rules]\nunloading_rule = "dusserre"\nreload_rule = "mirror_unloading"\nforce_cap_N = 10.0\n'
+                     '[diagnosis]\nfree = ["m", "phi0"]\neffects = ["bending_hysteresis"]\n')
+    main(["diagnose", str(tmp_path / "kn.csv"), "--scene", str(scene), "--no-pair", "--quiet"])
+    verdict = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("verdict:"))
+    reason = verdict.split("(not confident: ", 1)[1]
+    assert reason.startswith("kn.csv: every reading") and "kN or mN read as N" in reason, verdict
+    assert "slack" not in reason, verdict
