@@ -921,6 +921,10 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
         # the cell's own warnings (knitsim cell's): overlapping heads, a cycle that lost nearly all its force
         **{key: v for k, rows in warned.items() for key, v in ((f"{k}_count", len(rows)), (k, rows))},
         "files": {k: str(v) for k, v in run.files.items()},
+        # the base scene's values (or the library materials it names) come from a flagged calibration: every
+        # sample's do (knitsim.io.checks.calibration_warnings)
+        "warnings": [{k: v for k, v in w.items() if k != "cell"}
+                     for w in checks.calibration_warnings(getattr(plan.base, "calibration_flags", []))],
         # the plot could not be drawn (the results are complete without it): why
         **({"plot_error": run.plot_error} if run.plot_error else {}),
     }

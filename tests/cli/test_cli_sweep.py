@@ -170,3 +170,20 @@ def test_overwrite_keeps_the_earlier_results_when_the_new_sweep_is_refused(tmp_p
     (tmp_path / "bad.toml").write_text(SCENE + "\n[sweep]\n[sweep.parameters]\n" + bad + "\n")
     assert main(["sweep", str(tmp_path / "bad.toml"), "--out", str(out), "--workers", "0", "--overwrite"]) == 2
     assert sorted(p.name for p in out.iterdir()) == before and "results.csv" in before
+
+
+def test_a_sweep_on_a_flagged_calibrations_materials_says_so_in_its_summary(tmp_path, capsys):
+    """As knitsim cell does (tests/cli/test_cli_cell.py): a sweep whose base scene names the bundled flagged
+    calibration's materials (NOT A CALIBRATION YOU CAN USE) carries from_unusable_calibration in summary.json
+    and on the console; before, the console only."""
+    from pathlib import Path
+    lib = Path(__file__).resolve().parents[2] / "scenes" / "calibration" / "do2020" / "calibrated" / "materials.toml"
+    (tmp_path / "lib.toml").write_text(lib.read_text())
+    scene = tmp_path / "s.toml"
+    scene.write_text('materials = "lib.toml"\n[knit]\nmaterial = "jersey_4p5"\n[load]\ntype = "monotonic"\n'
+                     'target_strain = 0.1\nmax_increment = 0.02\n[sweep]\n[sweep.parameters]\n'
+                     '"friction.phi0" = { values = [0.0, 0.1] }\n')
+    main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--no-plot"])
+    assert "NOT ONE YOU CAN USE" in capsys.readouterr().err
+    codes = [w["code"] for w in json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"]]
+    assert codes == ["from_unusable_calibration"]
