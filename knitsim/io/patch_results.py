@@ -51,7 +51,7 @@ from ..patch.runner import PatchHistory
 from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap,
                      cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
                      interpenetration)
-from .results import _num, rule_meaning, summary_json, write_result_set
+from .results import _num, rule_meaning, summary_json, warning_lines, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
 PATCH_OUTPUT_FILES = ("curve.csv", "columns.csv", "cells.nc", "scene.resolved.toml", "force_strain.png",
@@ -1093,13 +1093,11 @@ def plot_force_strain(h: PatchHistory, title: str = "", layout: SpecimenLayout |
     single stitches, the total force on a specimen (what a tester reports).  ``warnings`` (the
     summary's, dicts with a ``message``) are printed under the axes, so that the figure never looks
     cleaner than the run."""
-    import textwrap
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     layout = layout or _layout_of(h, None)
     F = h.force_N if layout.blocks else h.force_per_wale_N
-    lines = [ln for w in (warnings or []) for ln in textwrap.wrap("warning: " + w["message"], 120)]
+    lines = warning_lines(warnings, 120)
     fig = Figure(figsize=(7.5, 5 + 0.16 * len(lines)), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)

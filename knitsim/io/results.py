@@ -450,6 +450,20 @@ _STAGE_COLOURS = {"adherence": "#1f77b4", "sliding": "#2ca02c", "jamming": "#d62
 PLOT_WARNINGS_SHOWN = 6
 
 
+def warning_lines(warnings, width: int, shown: int | None = None, cell: bool = False) -> list[str]:
+    """The lines a plot prints under its axes for a summary's ``warnings`` (dicts with a ``message``; with
+    ``cell``, prefixed by their cell), wrapped at ``width``; past ``shown`` of them, a count (the cell and
+    patch plots' one form: the figure never looks cleaner than the run)."""
+    import textwrap
+    warnings = list(warnings or [])
+    lines = [ln for w in warnings[:shown]
+             for ln in textwrap.wrap("warning: " + (f"{w['cell']}: " if cell and w.get("cell") else "")
+                                     + w["message"], width)]
+    if shown is not None and len(warnings) > shown:
+        lines.append(f"... and {len(warnings) - shown} more warnings (summary.json)")
+    return lines
+
+
 def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str = "",
              warnings: list | None = None) -> bytes:
     """PNG of force per wale vs strain: one line per cell, points coloured by stage, rules in the legend;
@@ -465,13 +479,7 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
 
     h = history
     labels = labels or [f"cell {i}" for i in range(h.n_cells)]
-    warnings = list(warnings or [])
-    several = h.n_cells > 1
-    lines = [ln for w in warnings[:PLOT_WARNINGS_SHOWN]
-             for ln in textwrap.wrap("warning: " + (f"{w['cell']}: " if several and w.get("cell") else "")
-                                     + w["message"], 170)]
-    if len(warnings) > PLOT_WARNINGS_SHOWN:
-        lines.append(f"... and {len(warnings) - PLOT_WARNINGS_SHOWN} more warnings (summary.json)")
+    lines = warning_lines(warnings, 170, PLOT_WARNINGS_SHOWN, cell=h.n_cells > 1)
     extra = 0.15 * len(lines)
     fig = Figure(figsize=(11, 5.5 + extra), dpi=110)
     FigureCanvasAgg(fig)
@@ -535,7 +543,7 @@ def plot_png(history: BatchHistory, labels: list[str] | None = None, title: str 
         handles.append(Line2D([], [], color="none", label=f"... {len(sets) - RULE_SETS_SHOWN} more rule sets "
                                                            "(summary.json: each cell's rules)"))
     for hd in handles:
-        hd.set_label("\n".join(textwrap.wrap(hd.get_label(), 60)) or hd.get_label())
+        hd.set_label("\n".join(textwrap.wrap(hd.get_label(), 60)))
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.set_xlabel("strain of the course length, C/C0 - 1")
     ax.set_ylabel("force per wale [N]")
