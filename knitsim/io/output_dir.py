@@ -109,6 +109,8 @@ def _write_record(out: Path, names: list, stamps: dict) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=".knitsim-outputs-", dir=out)
     with os.fdopen(fd, "w") as fh:
         fh.write(json.dumps(doc, indent=1) + "\n")
+    from .results import umask_mode
+    os.chmod(tmp, umask_mode())           # as the outputs beside it (mkstemp's 0600 hid it from the group)
     os.replace(tmp, out / RECORD_NAME)
     return out / RECORD_NAME
 

@@ -227,3 +227,14 @@ def test_overwrite_keeps_a_users_file_inside_a_recorded_folder(tmp_path):
     (d / "chunks" / "my_note.md").unlink()
     prepare_output_dir(d, overwrite=True)
     assert not (d / "chunks").exists() and not (d / "sweep.json").exists()
+
+
+def test_the_record_is_readable_as_the_outputs_beside_it(tmp_path):
+    """The record was written by mkstemp with mode 0600 while the outputs beside it follow the umask
+    (results.umask_mode): another user of the group could read the results but not what knitsim wrote."""
+    import os
+    import stat
+
+    from knitsim.io.results import umask_mode
+    record_outputs(tmp_path / "o", ["curve.csv"])
+    assert stat.S_IMODE(os.stat(tmp_path / "o" / RECORD_NAME).st_mode) == umask_mode()
