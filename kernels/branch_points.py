@@ -5,7 +5,7 @@ Twin and test oracle: :class:`knitsim.patch.coupling.BranchPoints` (the module d
 :mod:`knitsim.patch.coupling`, "The column as a scalar problem in its force", says what the model is and why).
 Every kernel here is one row of the twin's vectorised NumPy, written in the same order of operations:
 
-- :func:`add_points_kernel`     -- ``BranchPoints.add``: a new point, dropping the points it contradicts;
+- :func:`add_point`, :func:`add_points_kernel` -- ``BranchPoints.add``: a new point, dropping the points it contradicts;
 - :func:`prepare_model_kernel`  -- ``BranchPoints.prepare``: the points sorted by force, each interval's
   envelope of its end tangents (or chord), the end slopes and curvatures of the extrapolations;
 - :func:`model_kernel`          -- ``BranchPoints.model``: C(f) and dC/df;
@@ -88,20 +88,9 @@ def inverse_slope(k: wp.float64):
     return wp.float64(wp.nan)
 
 
-@wp.kernel
-def add_points_kernel(
-    b: BranchArrays,
-    rows: wp.array(dtype=wp.int32),
-    C: wp.array(dtype=wp.float64),
-    F: wp.array(dtype=wp.float64),
-    K: wp.array(dtype=wp.float64),
-    f_target: wp.array(dtype=wp.float64),
-):
-    """BranchPoints.add of group rows[i], its point (C, F, K)[i] (indexed by i), its column's force f_target[i]."""
-    i = wp.tid()
-    g = rows[i]
-    c = C[i]
-    f = F[i]
+@wp.func
+def add_point(b: BranchArrays, g: int, c: wp.float64, f: wp.float64, k: wp.float64, ft: wp.float64):
+    """BranchPoints.add of group g's point (c, f, k) [mm, N, N/mm], its column's force per wale ft [N]."""
     # the kept points that the new one contradicts (a monotone branch), a shorter zero-force point, itself
     for s in range(SIZE):
         Ck = b.C[g, s]
@@ -121,7 +110,6 @@ def add_points_kernel(
             full = False
     if dominated:
         return
-    ft = f_target[i]
     if full:
         # drop the point farthest (in force) from the column's force, on a side that keeps another
         n_hi = int(0)
@@ -149,8 +137,22 @@ def add_points_kernel(
             slot = s
     b.C[g, slot] = c
     b.F[g, slot] = f
-    b.K[g, slot] = K[i]
+    b.K[g, slot] = k
     b.valid[g, slot] = 1
+
+
+@wp.kernel
+def add_points_kernel(
+    b: BranchArrays,
+    rows: wp.array(dtype=wp.int32),
+    C: wp.array(dtype=wp.float64),
+    F: wp.array(dtype=wp.float64),
+    K: wp.array(dtype=wp.float64),
+    f_target: wp.array(dtype=wp.float64),
+):
+    """BranchPoints.add of group rows[i], its point (C, F, K)[i] (indexed by i), its column's force f_target[i]."""
+    i = wp.tid()
+    add_point(b, rows[i], C[i], F[i], K[i], f_target[i])
 
 
 @wp.func
@@ -369,6 +371,19 @@ def model_kernel(
     dC[i] = d
 
 
+@wp.func
+def jumps(b: BranchArrays, g: int, f: wp.float64, f_tol: wp.float64):
+    """1 where group g's points bracket f within ~1e-11 C0 and differ by more than f_tol in force, else 0."""
+    j = count_at_most(b, g, f)
+    r = 0
+    if j >= 1 and j < b.m[g]:
+        dCj = b.Cs[g, j] - b.Cs[g, j - 1]
+        dFj = b.Fs[g, j] - b.Fs[g, j - 1]
+        if dCj <= wp.float64(1e-11) * b.C_ref[g] and dFj > f_tol:
+            r = 1
+    return r
+
+
 @wp.kernel
 def jump_kernel(
     b: BranchArrays,
@@ -379,15 +394,7 @@ def jump_kernel(
 ):
     """out[i] = 1 where group rows[i]'s points bracket f[i] within ~1e-11 C0 and differ by more than f_tol[i]."""
     i = wp.tid()
-    g = rows[i]
-    j = count_at_most(b, g, f[i])
-    r = 0
-    if j >= 1 and j < b.m[g]:
-        dCj = b.Cs[g, j] - b.Cs[g, j - 1]
-        dFj = b.Fs[g, j] - b.Fs[g, j - 1]
-        if dCj <= wp.float64(1e-11) * b.C_ref[g] and dFj > f_tol[i]:
-            r = 1
-    out[i] = r
+    out[i] = jumps(b, rows[i], f[i], f_tol[i])
 
 
 # ===================================================================== the column's scalar solve

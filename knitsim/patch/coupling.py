@@ -239,6 +239,12 @@ class WarpBackend:
                 "jammed": k[:, sr.READ_JAMMED].copy(), "status": k[:, sr.READ_STATUS].copy(),
                 "head_gap": r[:, sr.READ_GAP].copy()}
 
+    @property
+    def last_read(self) -> tuple:
+        """The device arrays (reals, integers) of the last state read (:mod:`knitsim.kernels.state_read`): a
+        trial's, until the committed states are read."""
+        return self._read_dev
+
     def committed(self) -> dict:
         """Each group's committed state, arrays of shape [n]: ``C`` [mm], ``F`` [N] (0 while slack),
         ``phi`` [rad], ``W`` [mm], ``stage``, ``jammed``, ``status`` and ``head_gap`` [mm]."""
@@ -291,10 +297,12 @@ class WarpBackend:
         return out
 
     def trial(self, strain: np.ndarray, direction: int, increment: int, mask: np.ndarray | None = None) -> dict:
-        """Step every group (with ``mask``: those in it) from its committed state to ``C = C0 (1 + strain)``;
+        """Step every group (with ``mask``: those in it) from its committed state to ``C = C0 (1 + strain)``
+        (``strain`` [n]: host values, or the device array ``control.strain`` written in place);
         the committed state is kept.  The trial rows of groups outside ``mask`` are those of their
         last trial (not read by the coupling)."""
-        self.control.strain.assign(np.ascontiguousarray(strain, dtype=np.float64))
+        if strain is not self.control.strain:        # (DeviceTrials.set_strain writes it in place)
+            self.control.strain.assign(np.ascontiguousarray(strain, dtype=np.float64))
         self.control.direction.fill_(int(direction))
         self.control.warm.assign(self._warm.astype(np.int32))
         # the trial steps' events are not used (stage and status are read from the states): the
@@ -875,7 +883,7 @@ class PatchSolver:
         #: points of each cell's branch kept per increment (BranchPoints)
         self.branch_points = 8
         # the branch points and the column solve on the device (DeviceBranchPoints, DeviceColumnSolve), made once
-        self._device_points = self._device_columns = None
+        self._device_points = self._device_columns = self._device_trials = None
         self._col_order = None                   # the groups sorted by column, for _colmax
         self.jump_columns = np.zeros(self.n_cls, bool)
         self.cut_columns = np.zeros(self.n_cls, bool)
@@ -1029,6 +1037,7 @@ class PatchSolver:
         jump_cls = np.zeros(self.n_cls, bool)
         iters = np.zeros(self.n_cls, np.int64)
         single_cls = np.bincount(col, minlength=self.n_cls) == 1
+        col_length = self._colsum(cnt * C0)              # each column's rest length [mm]
         committed_strain = c["C"] / C0 - 1.0
         # a backend that steps (and gives tangents of) a subset of the groups: only the live columns' cells
         partial = getattr(be, "partial_trials", False)
@@ -1073,11 +1082,22 @@ class PatchSolver:
         dir_min = np.where(monotone & (direction > 0), c["C"], -np.inf)
         dir_max = np.where(monotone & (direction < 0), c["C"], np.inf)
         pts.C_min, pts.C_max = dir_min, dir_max
-        # lengths at which a cell's trial failed, and its good trials' extreme lengths: the model is kept
-        # halfway between them (bisection towards the failure), never beyond
-        fail_hi, fail_lo = np.full(be.n, np.inf), np.full(be.n, -np.inf)
-        good_hi, good_lo = c["C"].copy(), c["C"].copy()
-        C_last, F_last = c["C"].copy(), c["F"].copy()     # each cell's last good trial
+        # a committed stick state: a slide onset its trials cross is a point of its branch (below)
+        stick = (c["stage"] == int(Stage.SF_LOAD)) | (c["stage"] == int(Stage.SF_UNLOAD))
+        # the trials' bookkeeping on the device (DeviceTrials) with the device's points, else the NumPy below
+        # (its twin): lengths at which a cell's trial failed, and its good trials' extreme lengths: the model
+        # is kept halfway between them (bisection towards the failure), never beyond
+        on_dev = pts.on_device
+        if on_dev:
+            if self._device_trials is None:
+                from .device_coupling import DeviceTrials
+                self._device_trials = DeviceTrials(self._device_columns, self.single_group)
+            trials = self._device_trials
+            trials.begin(pts, c, self.k, dir_min, dir_max, committed_strain, u_single, stick)
+        else:
+            fail_hi, fail_lo = np.full(be.n, np.inf), np.full(be.n, -np.inf)
+            good_hi, good_lo = c["C"].copy(), c["C"].copy()
+            C_last, F_last = c["C"].copy(), c["F"].copy()     # each cell's last good trial
         last = None
         prev_failed = np.zeros(self.n_cls, bool)
         prev_capped = np.zeros(self.n_cls, bool)
@@ -1090,14 +1110,18 @@ class PatchSolver:
             g_live = live[col]
             # the models of the live columns' groups only (a converged column's are not read again)
             pts.prepare(np.flatnonzero(g_live))
-            Fstar, C_try = self._solve_columns(pts, u, Fcol, live)
+            # (on the device the trial lengths stay there: C_try None)
+            Fstar, C_try = self._solve_columns(pts, u, Fcol, live, host_lengths=not on_dev)
             Fcol = np.where(live, Fstar, Fcol)
             if it > 0:
                 # a cell whose force jumps across the column's force (cause 1 of the README): flagged
-                f_tol = (self.force_tol + self.force_rtol * Fstar[col]) / p
-                g_jump = np.zeros(be.n, bool)
-                g_jump[pts.rows] = pts.jump(Fstar[col[pts.rows]] / p[pts.rows], f_tol[pts.rows])
-                jumped = live & (self._colmax(g_jump.astype(float), 0.0) > 0)
+                if on_dev:
+                    jumped = live & trials.jumped_columns(pts, self.force_tol, self.force_rtol)
+                else:
+                    f_tol = (self.force_tol + self.force_rtol * Fstar[col]) / p
+                    g_jump = np.zeros(be.n, bool)
+                    g_jump[pts.rows] = pts.jump(Fstar[col[pts.rows]] / p[pts.rows], f_tol[pts.rows])
+                    jumped = live & (self._colmax(g_jump.astype(float), 0.0) > 0)
                 if np.any(jumped):
                     # committed as its last trial stands (unless a cell failed in it), flagged
                     be.accept((jumped & ~prev_failed)[col])
@@ -1106,16 +1130,24 @@ class PatchSolver:
                 g_live = live[col]
                 if not np.any(live):
                     break
-            strain = np.where(self.single_group, u_single, C_try / C0 - 1.0)
-            strain = np.where(g_live, strain, committed_strain)
+            if on_dev:
+                strain = be.control.strain
+                trials.set_strain(live, strain)
+            else:
+                strain = np.where(self.single_group, u_single, C_try / C0 - 1.0)
+                strain = np.where(g_live, strain, committed_strain)
             # only the cells of the live columns are stepped (the others' trial rows are stale, never read)
             t = be.trial(strain, direction, increment, g_live) if partial else be.trial(strain, direction, increment)
             last = t
-            slack = t["stage"] == int(Stage.SLACK)
             failed = t["status"] != STATUS_OK
-            prev_failed = np.where(live, self._colmax((failed & g_live).astype(float), 0.0) > 0, prev_failed)
-            capped = (t["status"] == STATUS_FORCE_CAP) & g_live
-            prev_capped = np.where(live, self._colmax(capped.astype(float), 0.0) > 0, prev_capped)
+            if on_dev:
+                judged = trials.judge(be.last_read, live, STATUS_OK, STATUS_FORCE_CAP)
+                any_failed, any_capped = judged["failed"], judged["capped"]
+            else:
+                any_failed = self._colmax((failed & g_live).astype(float), 0.0) > 0
+                any_capped = self._colmax(((t["status"] == STATUS_FORCE_CAP) & g_live).astype(float), 0.0) > 0
+            prev_failed = np.where(live, any_failed, prev_failed)
+            prev_capped = np.where(live, any_capped, prev_capped)
             iters[live] += 1
             use = g_live & ~failed
             # each good trial's own tangent (before the converged columns are accepted: the backend
@@ -1124,22 +1156,25 @@ class PatchSolver:
             # convergence: equal forces at a positive column force (the lengths then add up to u by
             # construction), or every cell slack where the column was asked for zero force; a cell that
             # failed in the trial never converges its column
-            Ftot = p * t["F"]                      # the total force each cell's block carries
-            Fmax = self._colmax(np.where(g_live, Ftot, -np.inf), -np.inf)
-            Fmin = -self._colmax(np.where(g_live, -Ftot, -np.inf), -np.inf)
+            if on_dev:
+                Fmax, Fmin, gap = judged["F_max"], judged["F_min"], judged["length_gap"]
+            else:
+                Ftot = p * t["F"]                      # the total force each cell's block carries
+                Fmax = self._colmax(np.where(g_live, Ftot, -np.inf), -np.inf)
+                Fmin = -self._colmax(np.where(g_live, -Ftot, -np.inf), -np.inf)
+                # a column carrying force must also close: its lengths add up to u.  By construction where
+                # every cell reaches the length it was sent to; not where the direction kept them from it
+                # (unloading from a column held short of the grip, which had not converged: the cells keep the
+                # held lengths, their forces agree, and the grip is elsewhere; a blind probe found such rows
+                # reported ok)
+                gap = np.abs(self._colsum(np.where(g_live, cnt * (t["C"] - C0), 0.0)) - u)
             tol = self.force_tol + self.force_rtol * np.abs(Fmax)
             # a column asked for zero force: converged when no cell carries force (slack, or a cell
             # that has just left slack at F = 0 to rounding)
             all_slack = Fmax <= tol
-            any_failed = self._colmax(np.where(g_live, failed.astype(float), 0.0), 0.0) > 0
             # a single-group column is the cell itself at the grip strain: its trial is final, failed
             # or not (a failed cell stops its column, flagged, exactly as the single cell stops)
-            # a column carrying force must also close: its lengths add up to u.  By construction where every
-            # cell reaches the length it was sent to; not where the direction kept them from it (unloading
-            # from a column held short of the grip, which had not converged: the cells keep the held lengths,
-            # their forces agree, and the grip is elsewhere; a blind probe found such rows reported ok)
-            gap = np.abs(self._colsum(np.where(g_live, cnt * (t["C"] - C0), 0.0)) - u)
-            closes = gap <= LENGTH_RTOL * self._colsum(cnt * C0)
+            closes = gap <= LENGTH_RTOL * col_length
             conv = live & (single_cls | (~any_failed & ((((Fmax - Fmin) <= tol) & (Fstar > 0) & closes)
                                                          | (all_slack & (Fstar == 0)))))
             if np.any(conv):
@@ -1148,10 +1183,17 @@ class PatchSolver:
             if kt is None:
                 continue
             spread = np.where(live, Fmax - Fmin, np.inf)
-            col_stalled = (spread > 0.25 * spread_last)[col]
+            cls_stalled = spread > 0.25 * spread_last
             spread_last = np.where(live, spread, spread_last)
+            if on_dev:
+                # the NumPy lines below, one thread per group
+                trials.book_trial(pts, be.last_read, live, kt, t["slide_C"], t["slide_F"], Fcol, cls_stalled,
+                                  self.force_tol, self.force_rtol, direction, STATUS_OK, int(Stage.SLACK))
+                continue
+            col_stalled = cls_stalled[col]
             pts.record(use, t["F"], Fstar[col] / p, (self.force_tol + self.force_rtol * Fstar[col]) / p,
                        col_stalled)
+            slack = t["stage"] == int(Stage.SLACK)
             kt = np.where(np.isfinite(kt) & (kt > 0) & ~slack, kt, np.nan)
             pts.add(use, t["C"], t["F"], kt, Fcol[col] / p)
             # the slide onset a trial crossed (its last event; it ends sliding) is a point of the cell's branch
@@ -1163,7 +1205,6 @@ class PatchSolver:
             # solver's tolerance) left the trials' spread stalled at 8x the column's tolerance
             sC, sF = t.get("slide_C"), t.get("slide_F")
             if sC is not None:
-                stick = (c["stage"] == int(Stage.SF_LOAD)) | (c["stage"] == int(Stage.SF_UNLOAD))
                 kink = use & stick & np.isfinite(sC) & (sF > 0) & ((sC - t["C"]) * direction < 0)
                 if np.any(kink):
                     pts.add(kink, sC, sF, np.full(be.n, np.nan), Fcol[col] / p)
@@ -1187,23 +1228,26 @@ class PatchSolver:
             fail_lo = np.where(good_lo <= fail_lo, -np.inf, fail_lo)
             pts.C_max = np.minimum(dir_max, np.where(np.isfinite(fail_hi), 0.5 * (good_hi + fail_hi), np.inf))
             pts.C_min = np.maximum(dir_min, np.where(np.isfinite(fail_lo), 0.5 * (good_lo + fail_lo), -np.inf))
+        if on_dev:
+            self.k = trials.fallback_tangents()
         # whether a cell of the column failed in the column's last trial (and whether one stopped at its cap)
         last_failed = prev_failed if last is not None else np.zeros(self.n_cls, bool)
         return done_cls & active_cls, iters, jump_cls, last_failed, prev_capped
 
     def _solve_columns(self, pts: BranchPoints, u: float, F_guess: np.ndarray,
-                       live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                       live: np.ndarray, host_lengths: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """The forces F [n_classes] of the columns in ``live`` at which the model lengths add up to u, and
         those lengths C [n_groups] (a slack column: F = 0, every cell a little short of its zero-force
         length); ``pts`` prepared for the live columns' groups.  Elsewhere F is ``F_guess`` and C the
-        committed length (not read).
+        committed length (not read).  Without ``host_lengths`` (device points) C stays on the device
+        (``DeviceColumnSolve.C``) and None is returned for it.
 
         Phi(F) = sum n_g (C_g(F / p_g) - C0_g) - u is monotone non-decreasing in F: safeguarded Newton
         on it, bisection (or doubling while no upper bound is known) where the Newton step leaves the
         bracket or the slope vanishes.  Each column's iteration is its own: the columns that are not
         live are left out of the sums (their groups are not prepared), not iterated."""
         if pts.on_device:
-            return self._device_columns.solve(pts, u, F_guess, live, self.cells["C"])
+            return self._device_columns.solve(pts, u, F_guess, live, self.cells["C"] if host_lengths else None)
         rows = pts.rows
         col, cnt, C0, p = self.col[rows], self.cnt[rows], self.C0[rows], self.p[rows]
         colsum = lambda v: np.bincount(col, weights=v, minlength=self.n_cls)   # noqa: E731

@@ -78,6 +78,9 @@ class DeviceBranchPoints(BranchPoints):
         self.column_gap = None
         self.curvature = None
         self._curvature_sent = self._NOT_SENT
+        #: the bounds C_min, C_max and the stall state are the host's attributes, sent by prepare (else kept on
+        #: the device by DeviceTrials)
+        self.host_state = True
         for a in (b.C, b.F, b.K):
             a.fill_(np.nan)
         b.valid.zero_()
@@ -108,11 +111,12 @@ class DeviceBranchPoints(BranchPoints):
         self.rows = self._rows if rows is None or len(rows) == self.n else np.asarray(rows)
         self._rows_dev = self._row_list(self.rows)
         b = self.b
-        # the bounds and stall state the solver keeps on the host (set between trials) go with the model
-        b.C_min.assign(np.ascontiguousarray(self.C_min, dtype=np.float64))
-        b.C_max.assign(np.ascontiguousarray(self.C_max, dtype=np.float64))
-        b.stall.assign(self.stall.astype(np.int32))
-        b.side.assign(self.side.astype(np.int32))
+        if self.host_state:
+            # the bounds and stall state the solver keeps on the host (set between trials) go with the model
+            b.C_min.assign(np.ascontiguousarray(self.C_min, dtype=np.float64))
+            b.C_max.assign(np.ascontiguousarray(self.C_max, dtype=np.float64))
+            b.stall.assign(self.stall.astype(np.int32))
+            b.side.assign(self.side.astype(np.int32))
         if self._curvature_sent is not self.curvature:
             curv = np.full(self.n, np.nan) if self.curvature is None else self.curvature
             b.curvature.assign(np.ascontiguousarray(curv, dtype=np.float64))
@@ -194,8 +198,10 @@ class DeviceColumnSolve:
                   outputs=[r, dr])
 
     def solve(self, pts: DeviceBranchPoints, u, F_guess: np.ndarray, live: np.ndarray,
-              C_committed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The columns' forces [n_columns] and the groups' lengths [n_groups]: ``PatchSolver._solve_columns``."""
+              C_committed: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """The columns' forces [n_columns] and the groups' lengths [n_groups]: ``PatchSolver._solve_columns``.
+        With ``C_committed`` None the lengths are left on the device (``self.C``, of the prepared groups), not
+        copied back (None is returned for them)."""
         live = np.asarray(live, bool)
         self.live.assign(live.astype(np.int32))
         self.u.assign(np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64), (self.n_cls,))))
@@ -233,6 +239,121 @@ class DeviceColumnSolve:
             self.slack.assign(slack.astype(np.int32))
             wp.launch(kbp.column_slack_lengths_kernel, dim=rows.size, device=self.device,
                       inputs=[pts.b, pts._rows_dev, self.col, self.slack, self.C_zero, self.C0, self.C])
+        if C_committed is None:
+            return F, None
         C_all = np.array(C_committed, dtype=np.float64, copy=True)
         C_all[rows] = self.C.numpy()[rows]
         return F, C_all
+
+
+class DeviceTrials:
+    """The per-trial bookkeeping of ``PatchSolver._solve`` on the device (:mod:`knitsim.kernels.column_trials`).
+
+    Between two trials of a patch's cells the coupling judges each column (its forces agree, its lengths add
+    up, a cell failed) and updates each group's branch model (stall count, new points, fallback tangent, the
+    bounds from its good and failed trials).  In NumPy over 10^6 groups that was ~0.2 s of host time a trial;
+    here the groups' work runs one thread per group and the columns' one thread per column, and the host reads
+    only per-column values.  The NumPy lines of ``_solve`` are the twin (``tests/patch/test_device_coupling.py``
+    runs patches both ways: the same results bit for bit on the CPU).
+
+    Parameters
+    ----------
+    columns : DeviceColumnSolve
+        The column solve (its group and column arrays, its forces and lengths are read).
+    single_group : ndarray of bool, shape [n_groups]
+        Groups that are their column's only group (driven at the grip strain).
+    """
+
+    def __init__(self, columns: DeviceColumnSolve, single_group: np.ndarray):
+        from ..kernels import column_trials as kct
+        self.k = kct
+        self.columns = columns
+        dev = self.device = columns.device
+        n, n_cls = len(single_group), columns.n_cls
+        self.n = n
+        g = lambda dtype=wp.float64: wp.zeros(n, dtype=dtype, device=dev)  # noqa: E731
+        k = lambda dtype=wp.float64: wp.zeros(n_cls, dtype=dtype, device=dev)  # noqa: E731
+        self.single = wp.array(np.asarray(single_group, dtype=np.int32), dtype=wp.int32, device=dev)
+        book = kct.TrialBookArrays()
+        book.C_last, book.F_last, book.good_hi, book.good_lo, book.fail_hi, book.fail_lo = (g() for _ in range(6))
+        book.dir_min, book.dir_max, book.k = g(), g(), g()
+        self.book = book
+        self.stick, self.committed_strain, self.u_single = g(wp.int32), g(), g()
+        self.kt, self.slide_C, self.slide_F = g(), g(), g()
+        self.live, self.col_stalled, self.jumped = k(wp.int32), k(wp.int32), k(wp.int32)
+        self.F_col = k()
+        self.F_max, self.F_min, self.length_gap, self.force_gap = k(), k(), k(), k()
+        self.failed, self.capped, self.n_good = k(wp.int32), k(wp.int32), k(wp.int32)
+
+    def _put(self, dst: wp.array, a) -> None:
+        dst.assign(np.ascontiguousarray(a, dtype=np.int32 if dst.dtype == wp.int32 else np.float64))
+
+    def begin(self, pts: DeviceBranchPoints, c: dict, k: np.ndarray, dir_min: np.ndarray, dir_max: np.ndarray,
+              committed_strain: np.ndarray, u_single: np.ndarray, stick: np.ndarray) -> None:
+        """Start the trials of an increment from the committed state ``c``: the last good trial and the good
+        lengths are the committed ones, no failure yet, the fallback tangents ``k``, the direction's bounds;
+        the model's bounds and stall state are kept here from now on (``pts.host_state`` off)."""
+        bk, b = self.book, pts.b
+        for dst, a in ((bk.C_last, c["C"]), (bk.F_last, c["F"]), (bk.good_hi, c["C"]), (bk.good_lo, c["C"]),
+                       (bk.dir_min, dir_min), (bk.dir_max, dir_max), (bk.k, k), (b.C_min, dir_min),
+                       (b.C_max, dir_max), (self.committed_strain, committed_strain), (self.u_single, u_single),
+                       (self.stick, stick)):
+            self._put(dst, a)
+        bk.fail_hi.fill_(np.inf)
+        bk.fail_lo.fill_(-np.inf)
+        b.stall.zero_()
+        b.side.zero_()
+        pts.host_state = False
+
+    def set_strain(self, live: np.ndarray, strain: wp.array) -> None:
+        """Each group's trial strain (``trial_strain_kernel``) into ``strain``, from the lengths of the last
+        column solve."""
+        self._put(self.live, live)
+        c = self.columns
+        wp.launch(self.k.trial_strain_kernel, dim=self.n, device=self.device,
+                  inputs=[c.col, self.live, self.single, self.u_single, c.C, c.C0, self.committed_strain],
+                  outputs=[strain])
+
+    def jumped_columns(self, pts: DeviceBranchPoints, force_tol: float, force_rtol: float) -> np.ndarray:
+        """Columns with a prepared group whose force jumps across its column's (``BranchPoints.jump``)."""
+        self.jumped.zero_()
+        c = self.columns
+        if pts.rows.size:
+            wp.launch(self.k.column_jump_kernel, dim=pts.rows.size, device=self.device,
+                      inputs=[pts.b, pts._rows_dev, c.col, c.p, c.F, float(force_tol), float(force_rtol)],
+                      outputs=[self.jumped])
+        return self.jumped.numpy().astype(bool)
+
+    def judge(self, reads: tuple, live: np.ndarray, status_ok: int, status_cap: int) -> dict:
+        """Each live column's trial: F_max, F_min [N], failed, capped, n_good, length_gap [mm], force_gap
+        [N] (``column_trial_kernel``; host arrays of shape [n_columns], meaningful where ``live``)."""
+        self._put(self.live, live)
+        c = self.columns
+        wp.launch(self.k.column_trial_kernel, dim=c.n_cls, device=self.device,
+                  inputs=[c.col_start, c.col_groups, self.live, c.cnt, c.C0, c.p, reads[0], reads[1],
+                          int(status_ok), int(status_cap), c.u, c.F],
+                  outputs=[self.F_max, self.F_min, self.failed, self.capped, self.n_good, self.length_gap,
+                           self.force_gap])
+        return {"F_max": self.F_max.numpy(), "F_min": self.F_min.numpy(), "failed": self.failed.numpy() != 0,
+                "capped": self.capped.numpy() != 0, "n_good": self.n_good.numpy(),
+                "length_gap": self.length_gap.numpy()}
+
+    def book_trial(self, pts: DeviceBranchPoints, reads: tuple, live: np.ndarray, kt: np.ndarray,
+                   slide_C: np.ndarray, slide_F: np.ndarray, F_col: np.ndarray, col_stalled: np.ndarray,
+                   force_tol: float, force_rtol: float, direction: int, status_ok: int, stage_slack: int) -> None:
+        """One trial's bookkeeping of every group (``trial_book_kernel``), after :meth:`judge`."""
+        self._put(self.live, live)
+        self._put(self.kt, kt)
+        self._put(self.slide_C, slide_C)
+        self._put(self.slide_F, slide_F)
+        self._put(self.F_col, F_col)
+        self._put(self.col_stalled, col_stalled)
+        c = self.columns
+        wp.launch(self.k.trial_book_kernel, dim=self.n, device=self.device,
+                  inputs=[pts.b, self.book, c.col, self.live, self.single, self.stick, c.p, c.C0, reads[0], reads[1],
+                          int(status_ok), int(stage_slack), self.kt, self.slide_C, self.slide_F, c.C, c.F, self.F_col,
+                          self.col_stalled, self.force_gap, float(force_tol), float(force_rtol), int(direction)])
+
+    def fallback_tangents(self) -> np.ndarray:
+        """Each group's fallback tangent dF/dC [N/mm] after the trials (host copy)."""
+        return self.book.k.numpy().copy()
