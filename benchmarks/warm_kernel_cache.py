@@ -7,7 +7,7 @@ number of cores), so that a benchmark or a first run that follows finds them cac
 
     python benchmarks/warm_kernel_cache.py --device cuda
     python benchmarks/warm_kernel_cache.py --device cuda --only branch_points cell_arrays cell_tangent \
-        cell_step__coulomb_plain_w4d column_trials state_read   # what a random-phi0 E-glass patch launches (bench_patch.py)
+        cell_step__coulomb_plain_w4d column_trials backend_trials state_read   # what a random-phi0 E-glass patch launches (bench_patch.py)
 """
 from __future__ import annotations
 

@@ -212,10 +212,34 @@ class WarpBackend:
         # tangents known at the trial (1), committed (0) and result (r) states, and where they are known
         self._k1, self._k0, self._kr = (np.full(self.n, np.nan) for _ in range(3))
         self._k1_ok, self._k0_ok, self._kr_ok = (np.zeros(self.n, bool) for _ in range(3))
+        #: the trials' slide onsets, warm starts and tangents kept on the device (:mod:`knitsim.kernels.
+        #: backend_trials`; set once, before the first trial, by a coupling whose bookkeeping runs there):
+        #: ``trial`` then reads only each cell's stage, jammed flag and status to the host and
+        #: ``tangent(True)`` gives a device array
+        self.device_trials = False
+        self._dev = None
 
-    def _read(self, st) -> dict:
+    def _device_arrays(self):
+        """The device mode's arrays (made on first use): the trial tangents k1 and the results' kr (with
+        their flags), the slide onsets, each cell's last event, the masks and the launched tangents."""
+        if self._dev is None:
+            from types import SimpleNamespace
+
+            from ..kernels import backend_trials
+            wp, n, dev = self.wp, self.n, self.device
+            f = lambda: wp.zeros(n, dtype=wp.float64, device=dev)  # noqa: E731
+            i = lambda: wp.zeros(n, dtype=wp.int32, device=dev)  # noqa: E731
+            self._dev = SimpleNamespace(
+                k=backend_trials, k1=wp.array(self._k1, dtype=wp.float64, device=dev),
+                k1_ok=wp.array(self._k1_ok.astype(np.int32), dtype=wp.int32, device=dev), kr=f(), kr_ok=i(),
+                kt=f(), slide_C=f(), slide_F=f(), last=i(), entered=i(), other=i(), stepped=i(), use=i(),
+                masked_status=i(), count=wp.zeros(1, dtype=wp.int32, device=dev))
+        return self._dev
+
+    def _read(self, st, ints_only: bool = False) -> dict:
         """C, F (0 while slack), phi, W, stage, jammed, status and head gap of every group of state ``st``:
-        packed on the device and copied through pinned host buffers (:mod:`knitsim.kernels.state_read`)."""
+        packed on the device and copied through pinned host buffers (:mod:`knitsim.kernels.state_read`);
+        ``ints_only``: stage, jammed and status only (the reals are packed on the device, not copied)."""
         wp, sr = self.wp, self._state_read
         if self._read_dev is None:
             n, dev = self.n, self.device
@@ -230,10 +254,15 @@ class WarpBackend:
                   inputs=[st.arrays(), CODE["F"], CODE["phi"], CODE["W"], int(Stage.SLACK)],
                   outputs=[reals, ints], device=self.device)
         if self._read_host is not self._read_dev:
-            wp.copy(self._read_host[0], reals)
+            if not ints_only:
+                wp.copy(self._read_host[0], reals)
             wp.copy(self._read_host[1], ints)
             wp.synchronize_device(self.device)
-        r, k = self._read_host[0].numpy(), self._read_host[1].numpy()
+        k = self._read_host[1].numpy()
+        if ints_only:
+            return {"stage": k[:, sr.READ_STAGE].copy(), "jammed": k[:, sr.READ_JAMMED].copy(),
+                    "status": k[:, sr.READ_STATUS].copy()}
+        r = self._read_host[0].numpy()
         return {"C": r[:, sr.READ_C].copy(), "F": r[:, sr.READ_F].copy(), "phi": r[:, sr.READ_PHI].copy(),
                 "W": r[:, sr.READ_W].copy(), "stage": k[:, sr.READ_STAGE].copy(),
                 "jammed": k[:, sr.READ_JAMMED].copy(), "status": k[:, sr.READ_STATUS].copy(),
@@ -274,6 +303,8 @@ class WarpBackend:
         cells whose step gave its slope (``CellSolver.step``'s ``slope_out``: the same formula, from the
         Jacobian of the step's last solve, or of a warm short step's start, O(1e-6) in the Newton
         variables away) are not launched either."""
+        if trial and self.device_trials:
+            return self._trial_tangent_on_device(mask)
         if trial:
             have = np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)
             # the trial step gave the slope of the cells whose last solve converged on their stage without an
@@ -296,6 +327,55 @@ class WarpBackend:
             out = np.where(mask, out, np.nan)
         return out
 
+    def _trial_tangent_on_device(self, mask: np.ndarray | None) -> "wp.array":
+        """``tangent(True, mask=mask)`` in the device mode: the device array of the trial tangents (NaN
+        outside ``mask``), kept as :meth:`tangent`'s NumPy lines keep them."""
+        wp, d = self.wp, self._device_arrays()
+        d.use.assign((np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)).astype(np.int32))
+        d.count.zero_()
+        wp.launch(d.k.tangent_need_kernel, dim=self.n, device=self.device,
+                  inputs=[d.use, self._slope, self.s1.status, STATUS_OK + 1], outputs=[d.masked_status, d.count])
+        launched = int(d.count.numpy()[0]) > 0
+        if launched:
+            state = self.s1.arrays()
+            state.status = d.masked_status
+            wp.launch(self._tangent_kernel, dim=self.n, inputs=[self.model.arrays(), state, 0], outputs=[self._k],
+                      device=self.device)
+        wp.launch(d.k.trial_tangent_kernel, dim=self.n, device=self.device,
+                  inputs=[d.use, self._slope, self._k, int(launched)], outputs=[d.kt, d.k1, d.k1_ok])
+        return d.kt
+
+    def trial_state(self) -> dict:
+        """The last trial's states as :meth:`committed` gives the committed ones (in the device mode
+        :meth:`trial` returns stage, jammed and status only)."""
+        return self._read(self.s1)
+
+    @property
+    def slide_onsets(self) -> tuple:
+        """The device mode's slide onsets (C, F) of the last trial (device arrays; NaN: none)."""
+        d = self._device_arrays()
+        return d.slide_C, d.slide_F
+
+    def _trial_reads_on_device(self, mask: np.ndarray | None) -> None:
+        """The device mode's slide onsets, warm starts and forgotten trial tangents of a trial (the NumPy
+        lines of :meth:`trial`, one thread per cell)."""
+        wp, d = self.wp, self._device_arrays()
+        d.stepped.assign((np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)).astype(np.int32))
+        d.last.fill_(-1)
+        d.entered.zero_()
+        d.other.zero_()
+        n_ev, cap = self.solver.event_counts()
+        if n_ev > cap:
+            raise RuntimeError(f"event buffer overflow: {n_ev} events, capacity {cap}")
+        ev = self.solver._ev
+        if n_ev:
+            wp.launch(d.k.last_events_kernel, dim=n_ev, device=self.device,
+                      inputs=[ev[0], ev[2], self._ev_reversal, self._ev_reload], outputs=[d.last, d.entered, d.other])
+        wp.launch(d.k.trial_reads_kernel, dim=self.n, device=self.device,
+                  inputs=[self.s1.arrays(), self.s0.arrays(), d.stepped, d.last, d.entered, d.other, ev[2], ev[3],
+                          ev[4], self._ev_slide, int(Stage.SLACK), int(Stage.S_LOAD), int(Stage.S_UNLOAD), STATUS_OK],
+                  outputs=[d.slide_C, d.slide_F, self.control.warm, d.k1_ok])
+
     def trial(self, strain: np.ndarray, direction: int, increment: int, mask: np.ndarray | None = None) -> dict:
         """Step every group (with ``mask``: those in it) from its committed state to ``C = C0 (1 + strain)``
         (``strain`` [n]: host values, or the device array ``control.strain`` written in place);
@@ -304,12 +384,16 @@ class WarpBackend:
         if strain is not self.control.strain:        # (DeviceTrials.set_strain writes it in place)
             self.control.strain.assign(np.ascontiguousarray(strain, dtype=np.float64))
         self.control.direction.fill_(int(direction))
-        self.control.warm.assign(self._warm.astype(np.int32))
+        if not self.device_trials:               # (the device mode keeps control.warm there)
+            self.control.warm.assign(self._warm.astype(np.int32))
         # the trial steps' events are not used (stage and status are read from the states): the
         # append buffer is reset so that repeated trials never overflow it (CellSolver keeps no API for this)
         self.solver._ev_count.zero_()
         cells = None if mask is None or np.all(mask) else np.flatnonzero(mask).astype(np.int32)
         self.solver.step(self.s0, self.s1, self.control, increment, cells=cells, slope_out=self._slope)
+        if self.device_trials:
+            self._trial_reads_on_device(mask)
+            return self._read(self.s1, ints_only=True)
         self._k_step = self._slope.numpy().copy() if mask is None else np.where(mask, self._slope.numpy(), np.nan)
         self._k1_ok &= False if mask is None else ~np.asarray(mask, bool)
         t = self._read(self.s1)
@@ -350,6 +434,11 @@ class WarpBackend:
         self._kr, self._kr_ok = self._k0.copy(), self._k0_ok.copy()
         self._warm[:] = False                    # no trial of this increment yet
         self._committed_branch = None
+        if self.device_trials:
+            d = self._device_arrays()
+            d.kr.assign(self._kr)
+            d.kr_ok.assign(self._kr_ok.astype(np.int32))
+            self.control.warm.zero_()
 
     def accept(self, mask: np.ndarray) -> None:
         """Keep the last trial of the groups in ``mask`` as their result of this increment."""
@@ -357,13 +446,21 @@ class WarpBackend:
             mask = np.asarray(mask, bool)
             self._mask.assign(mask.astype(np.int32))
             self._select(self._mask, self.s1, self.res)
-            self._kr = np.where(mask, self._k1, self._kr)
-            self._kr_ok = np.where(mask, self._k1_ok, self._kr_ok)
+            if self.device_trials:
+                d = self._device_arrays()
+                self.wp.launch(d.k.accept_tangents_kernel, dim=self.n, device=self.device,
+                               inputs=[self._mask, d.k1, d.k1_ok, d.kr, d.kr_ok])
+            else:
+                self._kr = np.where(mask, self._k1, self._kr)
+                self._kr_ok = np.where(mask, self._k1_ok, self._kr_ok)
 
     def end_increment(self) -> dict:
         """Commit the increment's results (accepted trials, else the committed states); they are returned
         as :meth:`committed`."""
         self.s0, self.res = self.res, self.s0
+        if self.device_trials:
+            d = self._device_arrays()
+            self._kr, self._kr_ok = d.kr.numpy().copy(), d.kr_ok.numpy() != 0
         self._k0, self._k0_ok = self._kr, self._kr_ok
         return self.committed()
 
@@ -881,7 +978,12 @@ class PatchSolver:
         self.k = np.full(self.backend.n, np.nan)
         self.direction = 1
         #: points of each cell's branch kept per increment (BranchPoints)
-        self.branch_points = 8
+        self.branch_points = DEVICE_BRANCH_SIZE
+        #: the coupling's branch points, column solve and trial bookkeeping on the cells' Warp device, and the
+        #: backend's trial reads with them (device_branch_points with the warp engine): fixed here
+        self.on_device = bool(self.device_branch_points) and isinstance(self.backend, WarpBackend)
+        if self.on_device:
+            self.backend.device_trials = True
         # the branch points and the column solve on the device (DeviceBranchPoints, DeviceColumnSolve), made once
         self._device_points = self._device_columns = self._device_trials = None
         self._col_order = None                   # the groups sorted by column, for _colmax
@@ -918,6 +1020,8 @@ class PatchSolver:
         """Initial tangents dF/dC from a trial step of every cell to ``strain`` (loading)."""
         c = self.cells
         t = self.backend.trial(np.full(self.backend.n, strain), 1, -1)
+        if "C" not in t:                      # (a backend in device mode reads the trial's lengths on demand)
+            t = self.backend.trial_state()
         dC = t["C"] - c["C"]
         with np.errstate(divide="ignore", invalid="ignore"):
             k = (t["F"] - c["F"]) / dC
@@ -1045,7 +1149,7 @@ class PatchSolver:
         # reversal enters; the fallback tangents are the last increment's
         k_c = be.tangent(False, direction)
         k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
-        if self.device_branch_points and self.branch_points == DEVICE_BRANCH_SIZE and isinstance(be, WarpBackend):
+        if self.on_device:
             if self._device_columns is None:
                 # made once (10^6 groups: ~0.5 GB of points on the device), reset each increment
                 from .device_coupling import DeviceBranchPoints, DeviceColumnSolve
@@ -1187,7 +1291,7 @@ class PatchSolver:
             spread_last = np.where(live, spread, spread_last)
             if on_dev:
                 # the NumPy lines below, one thread per group
-                trials.book_trial(pts, be.last_read, live, kt, t["slide_C"], t["slide_F"], Fcol, cls_stalled,
+                trials.book_trial(pts, be.last_read, live, kt, *be.slide_onsets, Fcol, cls_stalled,
                                   self.force_tol, self.force_rtol, direction, STATUS_OK, int(Stage.SLACK))
                 continue
             col_stalled = cls_stalled[col]

@@ -285,8 +285,12 @@ class DeviceTrials:
         self.F_max, self.F_min, self.length_gap, self.force_gap = k(), k(), k(), k()
         self.failed, self.capped, self.n_good = k(wp.int32), k(wp.int32), k(wp.int32)
 
-    def _put(self, dst: wp.array, a) -> None:
+    def _put(self, dst: wp.array, a) -> wp.array:
+        """``a`` itself where it is a device array, else its values copied into ``dst``."""
+        if isinstance(a, wp.array):
+            return a
         dst.assign(np.ascontiguousarray(a, dtype=np.int32 if dst.dtype == wp.int32 else np.float64))
+        return dst
 
     def begin(self, pts: DeviceBranchPoints, c: dict, k: np.ndarray, dir_min: np.ndarray, dir_max: np.ndarray,
               committed_strain: np.ndarray, u_single: np.ndarray, stick: np.ndarray) -> None:
@@ -338,21 +342,20 @@ class DeviceTrials:
                 "capped": self.capped.numpy() != 0, "n_good": self.n_good.numpy(),
                 "length_gap": self.length_gap.numpy()}
 
-    def book_trial(self, pts: DeviceBranchPoints, reads: tuple, live: np.ndarray, kt: np.ndarray,
-                   slide_C: np.ndarray, slide_F: np.ndarray, F_col: np.ndarray, col_stalled: np.ndarray,
-                   force_tol: float, force_rtol: float, direction: int, status_ok: int, stage_slack: int) -> None:
-        """One trial's bookkeeping of every group (``trial_book_kernel``), after :meth:`judge`."""
-        self._put(self.live, live)
-        self._put(self.kt, kt)
-        self._put(self.slide_C, slide_C)
-        self._put(self.slide_F, slide_F)
-        self._put(self.F_col, F_col)
-        self._put(self.col_stalled, col_stalled)
+    def book_trial(self, pts: DeviceBranchPoints, reads: tuple, live: np.ndarray, kt, slide_C, slide_F,
+                   F_col: np.ndarray, col_stalled: np.ndarray, force_tol: float, force_rtol: float, direction: int,
+                   status_ok: int, stage_slack: int) -> None:
+        """One trial's bookkeeping of every group (``trial_book_kernel``), after :meth:`judge`; ``kt`` (the
+        trial tangents) and the slide onsets ``slide_C``, ``slide_F`` as host or device arrays [n_groups]."""
+        live_d, F_col_d, stalled_d = (self._put(d, a) for d, a in ((self.live, live), (self.F_col, F_col),
+                                                                  (self.col_stalled, col_stalled)))
+        kt_d, sC_d, sF_d = (self._put(d, a) for d, a in ((self.kt, kt), (self.slide_C, slide_C),
+                                                         (self.slide_F, slide_F)))
         c = self.columns
         wp.launch(self.k.trial_book_kernel, dim=self.n, device=self.device,
-                  inputs=[pts.b, self.book, c.col, self.live, self.single, self.stick, c.p, c.C0, reads[0], reads[1],
-                          int(status_ok), int(stage_slack), self.kt, self.slide_C, self.slide_F, c.C, c.F, self.F_col,
-                          self.col_stalled, self.force_gap, float(force_tol), float(force_rtol), int(direction)])
+                  inputs=[pts.b, self.book, c.col, live_d, self.single, self.stick, c.p, c.C0, reads[0], reads[1],
+                          int(status_ok), int(stage_slack), kt_d, sC_d, sF_d, c.C, c.F, F_col_d, stalled_d,
+                          self.force_gap, float(force_tol), float(force_rtol), int(direction)])
 
     def fallback_tangents(self) -> np.ndarray:
         """Each group's fallback tangent dF/dC [N/mm] after the trials (host copy)."""
