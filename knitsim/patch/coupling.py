@@ -251,7 +251,7 @@ class WarpBackend:
                 wp.empty((n, sr.N_READ_INTS), dtype=wp.int32, device="cpu", pinned=True))
         reals, ints = self._read_dev
         wp.launch(sr.pack_state_read_kernel, dim=self.n,
-                  inputs=[st.arrays(), CODE["F"], CODE["phi"], CODE["W"], int(Stage.SLACK)],
+                  inputs=[st.arrays(), CODE["F"], CODE["phi"], CODE["W"], CODE["s_AB"], int(Stage.SLACK)],
                   outputs=[reals, ints], device=self.device)
         if self._read_host is not self._read_dev:
             if not ints_only:
@@ -266,7 +266,8 @@ class WarpBackend:
         return {"C": r[:, sr.READ_C].copy(), "F": r[:, sr.READ_F].copy(), "phi": r[:, sr.READ_PHI].copy(),
                 "W": r[:, sr.READ_W].copy(), "stage": k[:, sr.READ_STAGE].copy(),
                 "jammed": k[:, sr.READ_JAMMED].copy(), "status": k[:, sr.READ_STATUS].copy(),
-                "head_gap": r[:, sr.READ_GAP].copy()}
+                "head_gap": r[:, sr.READ_GAP].copy(), "x": r[:, sr.READ_X:sr.READ_X + 5].copy(),
+                "s_AB": r[:, sr.READ_S_AB].copy()}
 
     @property
     def last_read(self) -> tuple:
@@ -276,7 +277,8 @@ class WarpBackend:
 
     def committed(self) -> dict:
         """Each group's committed state, arrays of shape [n]: ``C`` [mm], ``F`` [N] (0 while slack),
-        ``phi`` [rad], ``W`` [mm], ``stage``, ``jammed``, ``status`` and ``head_gap`` [mm]."""
+        ``phi`` [rad], ``W`` [mm], ``stage``, ``jammed``, ``status`` and ``head_gap`` [mm], and its state
+        vector ``x`` [n, 5] and ``s_AB`` [mm]."""
         return self._read(self.s0)
 
     def _tangent_launch(self, st, dir_new: int, mask: np.ndarray | None) -> np.ndarray:

@@ -298,11 +298,14 @@ class DeviceTrials:
         lengths are the committed ones, no failure yet, the fallback tangents ``k``, the direction's bounds;
         the model's bounds and stall state are kept here from now on (``pts.host_state`` off)."""
         bk, b = self.book, pts.b
-        for dst, a in ((bk.C_last, c["C"]), (bk.F_last, c["F"]), (bk.good_hi, c["C"]), (bk.good_lo, c["C"]),
-                       (bk.dir_min, dir_min), (bk.dir_max, dir_max), (bk.k, k), (b.C_min, dir_min),
-                       (b.C_max, dir_max), (self.committed_strain, committed_strain), (self.u_single, u_single),
+        for dst, a in ((bk.C_last, c["C"]), (bk.F_last, c["F"]), (bk.dir_min, dir_min), (bk.dir_max, dir_max),
+                       (bk.k, k), (self.committed_strain, committed_strain), (self.u_single, u_single),
                        (self.stick, stick)):
             self._put(dst, a)
+        # (each sent once: copies on the device)
+        for dst, src in ((bk.good_hi, bk.C_last), (bk.good_lo, bk.C_last), (b.C_min, bk.dir_min),
+                         (b.C_max, bk.dir_max)):
+            wp.copy(dst, src)
         bk.fail_hi.fill_(np.inf)
         bk.fail_lo.fill_(-np.inf)
         b.stall.zero_()

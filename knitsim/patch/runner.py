@@ -153,8 +153,11 @@ def fingerprint(model: PatchModel, program: LoadProgram, **options) -> str:
     return h.hexdigest()
 
 
-def _committed_geometry(backend) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Committed per-group state x [n_groups, 5], W and s_AB [n_groups] of either backend."""
+def _committed_geometry(backend, committed: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Committed per-group state x [n_groups, 5], W and s_AB [n_groups] of either backend (from its
+    ``committed`` read where that holds them: WarpBackend's packed read)."""
+    if committed is not None and "x" in committed:
+        return committed["x"], committed["W"], committed["s_AB"]
     from ..cell.quantities import CODE
     s0 = backend.s0
     if hasattr(s0, "x"):                        # WarpBackend: a CellBatchState of device arrays
@@ -363,7 +366,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
             rows["g_phi"].append(c["phi"])
             rows["g_label"].append(stage_label_codes(c["stage"], c["jammed"]).astype(np.int8))
             rows["g_status"].append(c["status"].astype(np.int8))
-            gx, gW, gs = _committed_geometry(solver.backend)
+            gx, gW, gs = _committed_geometry(solver.backend, c)
             rows["g_x"].append(gx)
             rows["g_W"].append(gW)
             rows["g_s_AB"].append(gs)
