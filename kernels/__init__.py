@@ -33,4 +33,9 @@ specialise
 centreline
     Quarter-loop centreline points of N cells (USD export).
     Twin: :func:`knitsim.cell.quarter_loop.centreline`.
+branch_points, column_trials, backend_trials, state_read
+    The patch coupling on the device: each group's branch model and each column's scalar solve, each
+    trial's bookkeeping (columns judged, points, bounds, fallback tangents), the backend's slide onsets,
+    warm starts and trial tangents, and the packed reads of the states.  Twin: the NumPy lines of
+    :mod:`knitsim.patch.coupling`.
 """
