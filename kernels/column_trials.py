@@ -254,3 +254,103 @@ def trial_book_kernel(
         c_min = wp.float64(0.5) * (good_lo + fail_lo)
     b.C_max[g] = wp.min(book.dir_max[g], c_max)
     b.C_min[g] = wp.max(book.dir_min[g], c_min)
+
+
+# ===================================================================== the committed state, per column and group
+@wp.kernel
+def committed_columns_kernel(
+    col_start: wp.array(dtype=wp.int32),
+    col_groups: wp.array(dtype=wp.int32),
+    cnt: wp.array(dtype=wp.float64),
+    C0: wp.array(dtype=wp.float64),
+    p: wp.array(dtype=wp.float64),
+    reals: wp.array2d(dtype=wp.float64),
+    ints: wp.array2d(dtype=wp.int32),
+    status_ok: int,
+    F_max: wp.array(dtype=wp.float64),
+    F_min: wp.array(dtype=wp.float64),
+    sum_n_pF: wp.array(dtype=wp.float64),
+    sum_np_F: wp.array(dtype=wp.float64),
+    sum_n_dC: wp.array(dtype=wp.float64),
+    stopped: wp.array(dtype=wp.int32),
+):
+    """Of each column's committed state: the largest and smallest total force p F of its groups [N], the sums
+    n (p F) and (n p) F [N] (the two orders of ``PatchSolver``'s NumPy), n (C - C0) [mm], in ascending group
+    order, and whether a cell has stopped (status not ok)."""
+    k = wp.tid()
+    fmax = -INF
+    fmin = INF
+    s1 = wp.float64(0.0)
+    s2 = wp.float64(0.0)
+    s3 = wp.float64(0.0)
+    stop = int(0)
+    for j in range(col_start[k], col_start[k + 1]):
+        g = col_groups[j]
+        F = reals[g, READ_F]
+        ftot = p[g] * F
+        fmax = wp.max(fmax, ftot)
+        fmin = wp.min(fmin, ftot)
+        s1 += cnt[g] * ftot
+        s2 += cnt[g] * p[g] * F
+        s3 += cnt[g] * (reals[g, READ_C] - C0[g])
+        if ints[g, READ_STATUS] != status_ok:
+            stop = 1
+    F_max[k] = fmax
+    F_min[k] = fmin
+    sum_n_pF[k] = s1
+    sum_np_F[k] = s2
+    sum_n_dC[k] = s3
+    stopped[k] = stop
+
+
+@wp.kernel
+def begin_trials_kernel(
+    b: BranchArrays,
+    book: TrialBookArrays,
+    col: wp.array(dtype=wp.int32),
+    p: wp.array(dtype=wp.float64),
+    C0: wp.array(dtype=wp.float64),
+    reals: wp.array2d(dtype=wp.float64),
+    ints: wp.array2d(dtype=wp.int32),
+    k_c: wp.array(dtype=wp.float64),
+    F_col: wp.array(dtype=wp.float64),
+    monotone: wp.array(dtype=wp.int32),
+    direction: int,
+    stage_sf_load: int,
+    stage_sf_unload: int,
+    committed_strain: wp.array(dtype=wp.float64),
+    stick: wp.array(dtype=wp.int32),
+):
+    """An increment's start of group g (``PatchSolver._solve``'s set-up): the committed state as a point of its
+    branch (with its tangent k_c where finite and positive), the direction's bounds where its column is in
+    equilibrium (``monotone``), its last good trial and good lengths the committed ones, no failure yet."""
+    g = wp.tid()
+    k = col[g]
+    C = reals[g, READ_C]
+    F = reals[g, READ_F]
+    kc = k_c[g]
+    if not (wp.isfinite(kc) and kc > wp.float64(0.0)):
+        kc = wp.float64(wp.nan)
+    add_point(b, g, C, F, kc, F_col[k] / p[g])
+    d_min = -INF
+    d_max = INF
+    if monotone[k] != 0 and direction > 0:
+        d_min = C
+    if monotone[k] != 0 and direction < 0:
+        d_max = C
+    book.dir_min[g] = d_min
+    book.dir_max[g] = d_max
+    b.C_min[g] = d_min
+    b.C_max[g] = d_max
+    book.C_last[g] = C
+    book.F_last[g] = F
+    book.good_hi[g] = C
+    book.good_lo[g] = C
+    book.fail_hi[g] = INF
+    book.fail_lo[g] = -INF
+    committed_strain[g] = C / C0[g] - wp.float64(1.0)
+    st = ints[g, READ_STAGE]
+    if st == stage_sf_load or st == stage_sf_unload:
+        stick[g] = 1
+    else:
+        stick[g] = 0

@@ -236,10 +236,9 @@ class WarpBackend:
                 masked_status=i(), count=wp.zeros(1, dtype=wp.int32, device=dev))
         return self._dev
 
-    def _read(self, st, ints_only: bool = False) -> dict:
-        """C, F (0 while slack), phi, W, stage, jammed, status and head gap of every group of state ``st``:
-        packed on the device and copied through pinned host buffers (:mod:`knitsim.kernels.state_read`);
-        ``ints_only``: stage, jammed and status only (the reals are packed on the device, not copied)."""
+    def _pack(self, st) -> tuple:
+        """State ``st`` packed on the device (:mod:`knitsim.kernels.state_read`): the device arrays (reals,
+        integers), also :attr:`last_read`."""
         wp, sr = self.wp, self._state_read
         if self._read_dev is None:
             n, dev = self.n, self.device
@@ -249,10 +248,22 @@ class WarpBackend:
             self._read_host = self._read_dev if on_host else (
                 wp.empty((n, sr.N_READ_REALS), dtype=wp.float64, device="cpu", pinned=True),
                 wp.empty((n, sr.N_READ_INTS), dtype=wp.int32, device="cpu", pinned=True))
-        reals, ints = self._read_dev
         wp.launch(sr.pack_state_read_kernel, dim=self.n,
                   inputs=[st.arrays(), CODE["F"], CODE["phi"], CODE["W"], CODE["s_AB"], int(Stage.SLACK)],
-                  outputs=[reals, ints], device=self.device)
+                  outputs=list(self._read_dev), device=self.device)
+        return self._read_dev
+
+    def packed_committed(self) -> tuple:
+        """The committed states packed on the device (reals, integers; :mod:`knitsim.kernels.state_read`),
+        not copied to the host."""
+        return self._pack(self.s0)
+
+    def _read(self, st, ints_only: bool = False) -> dict:
+        """C, F (0 while slack), phi, W, stage, jammed, status and head gap of every group of state ``st``:
+        packed on the device and copied through pinned host buffers (:mod:`knitsim.kernels.state_read`);
+        ``ints_only``: stage, jammed and status only (the reals are packed on the device, not copied)."""
+        wp, sr = self.wp, self._state_read
+        reals, ints = self._pack(st)
         if self._read_host is not self._read_dev:
             if not ints_only:
                 wp.copy(self._read_host[0], reals)
@@ -1018,6 +1029,30 @@ class PatchSolver:
             out[filled] = np.maximum(np.maximum.reduceat(np.asarray(v)[order], starts), fill)
         return out
 
+    def _device_objects(self):
+        """The device coupling's points, column solve and trial bookkeeping (made once: 10^6 groups hold
+        ~0.5 GB of points on the device)."""
+        if self._device_trials is None:
+            from .device_coupling import DeviceBranchPoints, DeviceColumnSolve, DeviceTrials
+            be = self.backend
+            self._device_points = DeviceBranchPoints(self.C0, self.k, self.branch_points, be.device)
+            self._device_columns = DeviceColumnSolve(self.col, self.cnt, self.C0, self.p, self.n_cls, be.device)
+            self._device_trials = DeviceTrials(self._device_columns, self.single_group)
+        return self._device_points, self._device_columns, self._device_trials
+
+    def _committed_columns(self, c: dict) -> dict:
+        """Of each column's committed state ``c``: ``F_max``, ``F_min`` of its groups' p F [N], the sums
+        ``n_pF`` of n (p F) and ``np_F`` of (n p) F [N], ``n_dC`` of n (C - C0) [mm], and ``stopped`` (a cell's
+        status not ok): on the device with the device coupling (``committed_columns_kernel``), else NumPy
+        (its twin; the same sums in the same order)."""
+        if self.on_device:
+            return self._device_objects()[2].committed_columns(self.backend.packed_committed(), STATUS_OK)
+        Ftot = self.p * c["F"]
+        return {"F_max": self._colmax(Ftot, -np.inf), "F_min": -self._colmax(-Ftot, -np.inf),
+                "n_pF": self._colsum(self.cnt * Ftot), "np_F": self._colsum(self.cnt * self.p * c["F"]),
+                "n_dC": self._colsum(self.cnt * (c["C"] - self.C0)),
+                "stopped": self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0}
+
     def probe_tangent(self, strain: float = 1e-3) -> None:
         """Initial tangents dF/dC from a trial step of every cell to ``strain`` (loading)."""
         c = self.cells
@@ -1056,7 +1091,7 @@ class PatchSolver:
         col, cnt, C0, p = self.col, self.cnt, self.C0, self.p
         u = float(grip_strain) * self.ref_length
         # columns with a stopped cell keep their state (flagged)
-        stopped_cls = self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0
+        stopped_cls = self._committed_columns(c)["stopped"]
         # columns that did not converge in HELD_RETRIES loading increments in a row hold until the grip turns:
         # loading further takes them further from the balance they could not reach.  Not while unloading: a
         # column held short of the grip converges again once the grip comes back to its cells' lengths
@@ -1115,17 +1150,16 @@ class PatchSolver:
             self.cells = c = be.committed()
             status = np.where(self._colmax(at_cap.astype(float), 0.0) > 0, COL_STOPPED, status)
         self.u_prev = np.where(active_cls, u, self.u_prev)
-        stopped_now = self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0
-        status = np.where(stopped_now & (status == COL_OK), COL_STOPPED, status)
+        cc = self._committed_columns(c)
+        status = np.where(cc["stopped"] & (status == COL_OK), COL_STOPPED, status)
         self.direction = int(direction)
         n_cells = self._colsum(cnt)
         # a single-group column carries its cell's force exactly (no rounding of n F / n)
         F_one = np.zeros(self.n_cls)
         F_one[col[self.single_group]] = p[self.single_group] * c["F"][self.single_group]
-        F_col = np.where(single_cls, F_one, self._colsum(cnt * p * c["F"]) / n_cells)
-        Ftot = p * c["F"]
-        spread = self._colmax(Ftot, -np.inf) + self._colmax(-Ftot, -np.inf)
-        slack_len = np.maximum(0.0, self._colsum(cnt * (c["C"] - C0)) - u)
+        F_col = np.where(single_cls, F_one, cc["np_F"] / n_cells)
+        spread = cc["F_max"] + (-cc["F_min"])
+        slack_len = np.maximum(0.0, cc["n_dC"] - u)
         slack_len = np.where(F_col == 0.0, slack_len, 0.0)
         return IncrementResult(F_col, status.astype(np.int32), slack_len, iters, spread, c)
 
@@ -1144,22 +1178,16 @@ class PatchSolver:
         iters = np.zeros(self.n_cls, np.int64)
         single_cls = np.bincount(col, minlength=self.n_cls) == 1
         col_length = self._colsum(cnt * C0)              # each column's rest length [mm]
-        committed_strain = c["C"] / C0 - 1.0
         # a backend that steps (and gives tangents of) a subset of the groups: only the live columns' cells
         partial = getattr(be, "partial_trials", False)
         # the committed state is a point of every cell's branch, with the tangent of the stage that a
         # reversal enters; the fallback tangents are the last increment's
         k_c = be.tangent(False, direction)
         k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
-        if self.on_device:
-            if self._device_columns is None:
-                # made once (10^6 groups: ~0.5 GB of points on the device), reset each increment
-                from .device_coupling import DeviceBranchPoints, DeviceColumnSolve
-                self._device_points = DeviceBranchPoints(C0, self.k, self.branch_points, be.device)
-                self._device_columns = DeviceColumnSolve(col, cnt, C0, p, self.n_cls, be.device)
-            else:
-                self._device_points.reset(self.k)
-            pts = self._device_points
+        on_dev = self.on_device
+        if on_dev:
+            pts, _, trials = self._device_objects()
+            pts.reset(self.k)
         else:
             pts = BranchPoints(C0, self.k, self.branch_points)
         # the curvature of each cell's branch from its last two committed points (their tangents), where
@@ -1178,29 +1206,28 @@ class PatchSolver:
             self._branch_history = (c["F"].copy(), kinv_c, c["stage"].copy(), c["jammed"].copy(), int(direction))
         pts.column_gap = lambda gap, mask: self._colmax(np.where(mask, gap * p, 0.0), 0.0)[col] / p
         spread_last = np.full(self.n_cls, np.inf)
-        Fc = p * c["F"]
-        Fc_max, Fc_min = self._colmax(Fc, -np.inf), -self._colmax(-Fc, -np.inf)
-        Fcol = np.maximum(self._colsum(cnt * Fc) / self._colsum(cnt), 0.0)
-        pts.add(np.ones(be.n, bool), c["C"], c["F"], k_c, Fcol[col] / p)
+        cc = self._committed_columns(c)
+        Fc_max, Fc_min = cc["F_max"], cc["F_min"]
+        Fcol = np.maximum(cc["n_pF"] / self._colsum(cnt), 0.0)
         # the committed state is an equilibrium of the column (not so at the rest state, whose cells'
         # rest forces differ, nor after a flagged increment): only then do its cells move one way
-        monotone = ((Fc_max - Fc_min) <= 1e3 * (self.force_tol + self.force_rtol * np.abs(Fc_max)))[col]
-        dir_min = np.where(monotone & (direction > 0), c["C"], -np.inf)
-        dir_max = np.where(monotone & (direction < 0), c["C"], np.inf)
-        pts.C_min, pts.C_max = dir_min, dir_max
-        # a committed stick state: a slide onset its trials cross is a point of its branch (below)
-        stick = (c["stage"] == int(Stage.SF_LOAD)) | (c["stage"] == int(Stage.SF_UNLOAD))
-        # the trials' bookkeeping on the device (DeviceTrials) with the device's points, else the NumPy below
-        # (its twin): lengths at which a cell's trial failed, and its good trials' extreme lengths: the model
-        # is kept halfway between them (bisection towards the failure), never beyond
-        on_dev = pts.on_device
+        monotone_cls = (Fc_max - Fc_min) <= 1e3 * (self.force_tol + self.force_rtol * np.abs(Fc_max))
         if on_dev:
-            if self._device_trials is None:
-                from .device_coupling import DeviceTrials
-                self._device_trials = DeviceTrials(self._device_columns, self.single_group)
-            trials = self._device_trials
-            trials.begin(pts, c, self.k, dir_min, dir_max, committed_strain, u_single, stick)
+            # the committed point, the direction's bounds and the trials' bookkeeping (DeviceTrials) on the
+            # device: the NumPy below is its twin
+            trials.begin(pts, be.packed_committed(), k_c, self.k, Fcol, monotone_cls, direction, u_single,
+                         (int(Stage.SF_LOAD), int(Stage.SF_UNLOAD)))
         else:
+            pts.add(np.ones(be.n, bool), c["C"], c["F"], k_c, Fcol[col] / p)
+            monotone = monotone_cls[col]
+            dir_min = np.where(monotone & (direction > 0), c["C"], -np.inf)
+            dir_max = np.where(monotone & (direction < 0), c["C"], np.inf)
+            pts.C_min, pts.C_max = dir_min, dir_max
+            # a committed stick state: a slide onset its trials cross is a point of its branch (below)
+            stick = (c["stage"] == int(Stage.SF_LOAD)) | (c["stage"] == int(Stage.SF_UNLOAD))
+            committed_strain = c["C"] / C0 - 1.0
+            # lengths at which a cell's trial failed, and its good trials' extreme lengths: the model is kept
+            # halfway between them (bisection towards the failure), never beyond
             fail_hi, fail_lo = np.full(be.n, np.inf), np.full(be.n, -np.inf)
             good_hi, good_lo = c["C"].copy(), c["C"].copy()
             C_last, F_last = c["C"].copy(), c["F"].copy()     # each cell's last good trial

@@ -284,6 +284,8 @@ class DeviceTrials:
         self.F_col = k()
         self.F_max, self.F_min, self.length_gap, self.force_gap = k(), k(), k(), k()
         self.failed, self.capped, self.n_good = k(wp.int32), k(wp.int32), k(wp.int32)
+        self.sum_n_pF, self.sum_np_F, self.sum_n_dC = k(), k(), k()
+        self.stopped, self.monotone = k(wp.int32), k(wp.int32)
 
     def _put(self, dst: wp.array, a) -> wp.array:
         """``a`` itself where it is a device array, else its values copied into ``dst``."""
@@ -292,22 +294,35 @@ class DeviceTrials:
         dst.assign(np.ascontiguousarray(a, dtype=np.int32 if dst.dtype == wp.int32 else np.float64))
         return dst
 
-    def begin(self, pts: DeviceBranchPoints, c: dict, k: np.ndarray, dir_min: np.ndarray, dir_max: np.ndarray,
-              committed_strain: np.ndarray, u_single: np.ndarray, stick: np.ndarray) -> None:
-        """Start the trials of an increment from the committed state ``c``: the last good trial and the good
-        lengths are the committed ones, no failure yet, the fallback tangents ``k``, the direction's bounds;
-        the model's bounds and stall state are kept here from now on (``pts.host_state`` off)."""
-        bk, b = self.book, pts.b
-        for dst, a in ((bk.C_last, c["C"]), (bk.F_last, c["F"]), (bk.dir_min, dir_min), (bk.dir_max, dir_max),
-                       (bk.k, k), (self.committed_strain, committed_strain), (self.u_single, u_single),
-                       (self.stick, stick)):
-            self._put(dst, a)
-        # (each sent once: copies on the device)
-        for dst, src in ((bk.good_hi, bk.C_last), (bk.good_lo, bk.C_last), (b.C_min, bk.dir_min),
-                         (b.C_max, bk.dir_max)):
-            wp.copy(dst, src)
-        bk.fail_hi.fill_(np.inf)
-        bk.fail_lo.fill_(-np.inf)
+    def committed_columns(self, reads: tuple, status_ok: int) -> dict:
+        """Of each column's committed state (``reads``: its packed read on the device): ``F_max``, ``F_min`` of
+        p F [N], the sums ``n_pF`` of n (p F) and ``np_F`` of (n p) F [N], ``n_dC`` of n (C - C0) [mm] and
+        ``stopped`` (a cell's status not ok): host arrays [n_columns] (``committed_columns_kernel``)."""
+        c = self.columns
+        wp.launch(self.k.committed_columns_kernel, dim=c.n_cls, device=self.device,
+                  inputs=[c.col_start, c.col_groups, c.cnt, c.C0, c.p, reads[0], reads[1], int(status_ok)],
+                  outputs=[self.F_max, self.F_min, self.sum_n_pF, self.sum_np_F, self.sum_n_dC, self.stopped])
+        return {"F_max": self.F_max.numpy().copy(), "F_min": self.F_min.numpy().copy(),
+                "n_pF": self.sum_n_pF.numpy().copy(), "np_F": self.sum_np_F.numpy().copy(),
+                "n_dC": self.sum_n_dC.numpy().copy(), "stopped": self.stopped.numpy() != 0}
+
+    def begin(self, pts: DeviceBranchPoints, reads: tuple, k_c: np.ndarray, k: np.ndarray, F_col: np.ndarray,
+              monotone: np.ndarray, direction: int, u_single: np.ndarray, sf_stages: tuple) -> None:
+        """Start the trials of an increment from the committed state (``reads``: its packed read on the
+        device; ``begin_trials_kernel``): its point with the tangent ``k_c`` at the column force per wale
+        ``F_col / p``, the direction's bounds where the column is ``monotone``, the last good trial and the
+        good lengths the committed ones, no failure yet; the fallback tangents ``k``.  The model's bounds and
+        stall state are kept here from now on (``pts.host_state`` off)."""
+        bk, b, c = self.book, pts.b, self.columns
+        self._put(self.kt, k_c)
+        self._put(self.F_col, F_col)
+        self._put(self.monotone, monotone)
+        self._put(bk.k, k)
+        self._put(self.u_single, u_single)
+        wp.launch(self.k.begin_trials_kernel, dim=self.n, device=self.device,
+                  inputs=[b, bk, c.col, c.p, c.C0, reads[0], reads[1], self.kt, self.F_col, self.monotone,
+                          int(direction), int(sf_stages[0]), int(sf_stages[1])],
+                  outputs=[self.committed_strain, self.stick])
         b.stall.zero_()
         b.side.zero_()
         pts.host_state = False
