@@ -1769,7 +1769,79 @@ def slack_start(curve: MeasuredCurve, noise: CurveNoise, simulated, offset_N: fl
                         f"(1 + {s[t]:.3g}) - 1, dropping the rows before it, and diagnose again")}
 
 
-def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None) -> list:
+#: a drift of a load cell's zero (:func:`force_drift`): the residuals of rows at one state of the knit in different
+#: cycles trend with the time between them beyond DRIFT_Z standard errors ...
+DRIFT_Z = 5.0
+#: ... by more than DRIFT_MIN_SD noise sd (the median of those rows') over the test
+DRIFT_MIN_SD = 1.0
+#: one state of the knit: one stage key of the fit and one of this many bins of the curve's strain range
+DRIFT_BINS = 50
+
+
+def force_drift(curve: MeasuredCurve, fit_curve: dict, weights) -> dict | None:
+    """A load cell's zero drifting over the test, where the curve shows it: None, or ``drift_N`` (over the test),
+    ``z`` (in standard errors), ``rows`` (those that tell) and ``message``.
+
+    A fitted offset per curve takes a constant zero; a zero that drifts with time (a load cell warming up, a
+    creeping amplifier) shifts the later rows against the earlier ones, which the fit reads as the knit (a blind
+    probe: 3 % of the peak over three cycles read as a confident ``unexplained``, chi2/dof 1.5 on the bundled
+    effect-free cycles, 108 where they jam).  A pull cannot tell a drift from the knit's stiffness (each strain
+    is read once).  Cycles can: the knit comes back to one state (one stage key of the fit ``fit_curve``, one
+    of :data:`DRIFT_BINS` bins of the strain) in different cycles, and whatever the model misses there it misses
+    alike each time, while a drift has moved the zero by the time between.  The residuals (measured less the
+    fit, weighted by ``weights`` = 1 / sd, 0 for rows left out) are regressed on the time, less their mean in
+    each state seen in two cycles or more (a common slope, an intercept per state); the time is the strain
+    travelled (a steady crosshead), divided by the rate where the curve gives one.  Said where the slope is
+    beyond :data:`DRIFT_Z` standard errors and the drift over the test beyond :data:`DRIFT_MIN_SD` noise sd."""
+    w = np.asarray(weights, float)
+    s = np.asarray(curve.strain_read if curve.strain_read is not None else curve.strain, float)
+    step = np.abs(np.diff(s))
+    if curve.rate_mm_s is not None:
+        step = step / np.asarray(curve.rate_mm_s, float)[1:]
+    t = np.r_[0.0, np.cumsum(step)]
+    if not t[-1] > 0:
+        return None
+    t = t / t[-1]
+    r = curve.force - np.asarray(fit_curve["simulated"], float)
+    lo, span = float(np.min(curve.strain)), float(np.ptp(curve.strain))
+    if not span > 0:
+        return None
+    bins = np.minimum((DRIFT_BINS * (curve.strain - lo) / span).astype(int), DRIFT_BINS - 1)
+    keys = np.asarray(fit_curve["keys"])
+    groups: dict = {}
+    for i in np.flatnonzero(w > 0):
+        groups.setdefault((keys[i], int(bins[i])), []).append(int(i))
+    tt, rr, ww = [], [], []
+    for idx in groups.values():
+        idx = np.asarray(idx)
+        if len(np.unique(curve.cycle[idx])) < 2:
+            continue
+        w2 = w[idx] ** 2
+        tt.append(t[idx] - np.sum(w2 * t[idx]) / np.sum(w2))
+        rr.append(r[idx] - np.sum(w2 * r[idx]) / np.sum(w2))
+        ww.append(w2)
+    if not tt:
+        return None
+    tt, rr, ww = np.concatenate(tt), np.concatenate(rr), np.concatenate(ww)
+    sxx = float(np.sum(ww * tt * tt))
+    if not sxx > 0:
+        return None
+    slope, se = float(np.sum(ww * tt * rr)) / sxx, 1.0 / math.sqrt(sxx)
+    sd = float(np.median(1.0 / np.sqrt(ww)))
+    if not (abs(slope) > DRIFT_Z * se and abs(slope) > DRIFT_MIN_SD * sd):
+        return None
+    peak = float(np.max(curve.force))
+    share = f", {abs(slope) / peak:.1%} of the peak force" if peak > 0 else ""
+    return {"drift_N": slope, "z": slope / se, "rows": int(len(tt)),
+            "message": (f"{Path(curve.source).name}: where the knit comes back to one state in another cycle (one stage "
+                        f"and strain, {len(tt)} rows) the force has moved by {slope:+.3g} N over the test{share} "
+                        f"({abs(slope) / se:.0f} standard errors, {abs(slope) / sd:.1f} noise sd), as a load cell's "
+                        "zero drifting with time would: the fit takes a constant zero and reads a drift as the knit; "
+                        "check the load cell's zero before and after the test (or correct the drift) before reading "
+                        "the verdict")}
+
+
+def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None, drift=None) -> list:
     out = []
     for i, c in enumerate(curves):
         bc = base_fit["curves"][i]
@@ -1780,6 +1852,8 @@ def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None) -> list:
                  "keys": list(bc["keys"]), "cycle": c.cycle.tolist(), "direction": c.direction.tolist(),
                  "offset_N": bc.get("offset_N", 0.0),
                  "slack_start": None if slack is None else slack[i],
+                 "drift": None if drift is None else drift[i],
+                 "glitch_rows": list(getattr(c, "glitches", ())), "stall_rows": list(getattr(c, "stalls", ())),
                  "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
                                 "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
                                                              bc["labels"])}}
@@ -1850,7 +1924,18 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     noise = noise_step(curves, setup)
     setup = capped_setup(setup, curves)
     data = _Data(curves, setup, noise.weights(curves))
+    # rows of a force glitch (measured.force_glitches: a block that leaves the curve and comes back) are left out
+    # from the start: a block of them moves the fit before any outlier can be judged against it
+    for c, w in zip(curves, data.weights):
+        if getattr(c, "glitches", ()):
+            w[np.isin(c.rows if c.rows is not None else np.arange(len(c)) + 2, c.glitches)] = 0.0
     base_fit, outliers = calibrate_step(data, say)
+    for c, fc, nz in zip(curves, base_fit["curves"], noise.curves):
+        for row in getattr(c, "glitches", ()):
+            i = int(np.nonzero((c.rows if c.rows is not None else np.arange(len(c)) + 2) == row)[0][0])
+            sd = float(nz.sd_at(c.force[i:i + 1])[0])
+            outliers.append(Outlier(c.source, int(row), float(c.strain[i]), float(c.force[i]),
+                                    float((np.asarray(fc["simulated"])[i] - c.force[i]) / sd)))
     fits = candidates_step(data, base_fit["fit_variables"], setup.effects, rates, say, base_chi2=base_fit["chi2"])
     fits, _ = basins_step(data, base_fit, fits, say)
     base_fit, fits, basin_note = basin_step(data, base_fit, fits, rates, say)
@@ -1908,6 +1993,23 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += "; " + "; ".join(
             f"{Path(c.source).name}: the strain jumps alone at row {c.slips[0]} (a grip or extensometer slip, or "
             "rows missing from the log), which the model reads as the knit's stretch" for c in slipped)
+    # the force stalls while the strain runs on (measured.force_stalls): a grip slip seen in the force
+    stalled = [c for c in curves if getattr(c, "stalls", ())]
+    if stalled:
+        verdict.confident = False
+        verdict.reason += "; " + "; ".join(
+            f"{Path(c.source).name}: the force stalls at row {c.stalls[0]} while the strain runs on (a grip slip, or "
+            "the knit's own stick-slip), and the rows after it are read at a strain the knit did not take" for c in stalled)
+    glitched = [c for c in curves if getattr(c, "glitches", ())]
+    if glitched:
+        verdict.reason += "; " + "; ".join(
+            f"{Path(c.source).name}: {len(c.glitches)} row(s) of a force glitch left out (rows {c.glitches[0]}-"
+            f"{c.glitches[-1]}: the force leaves the curve and comes back)" for c in glitched)
+    # a load cell's zero that drifts, where cycles return to one state (said, and not confident)
+    drift = [force_drift(c, (best_fit or base_fit)["curves"][i], data.weights[i]) for i, c in enumerate(curves)]
+    if any(drift):
+        verdict.confident = False
+        verdict.reason += "; " + "; ".join(d["message"] for d in drift if d)
     # an unexplained gap may be two curves that one knit cannot meet (said, the verdict unchanged)
     disagree = curves_disagree(curves, base_fit, data.weights, noise) if verdict.kind == "unexplained" else ""
     if disagree:
@@ -1939,5 +2041,5 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
                            f"{NEGATIVE_SIGMAS:g} noise sd: the curves say little of the knit, so the verdict "
                            "rests on little")
     return Diagnosis(setup.title, [c.source for c in curves], noise, rates, n, base, outliers, adequacy, loc,
-                     candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit, slack),
+                     candidates, pair, indist, verdict, _curves_out(curves, base_fit, best_fit, pair_fit, slack, drift),
                      time.perf_counter() - t0)

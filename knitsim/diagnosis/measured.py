@@ -130,6 +130,12 @@ class MeasuredCurve:
     notes: tuple = ()
     #: rows (spreadsheet numbers) where the strain jumps and the force does not follow (:func:`strain_slips`)
     slips: tuple = ()
+    #: rows (spreadsheet numbers) of short blocks whose force leaves the curve and comes back (:func:`force_glitches`):
+    #: left out of the fit
+    glitches: tuple = ()
+    #: rows (spreadsheet numbers) where the force stalls on a steep loading while the strain runs on
+    #: (:func:`force_stalls`: a grip slip seen in the force)
+    stalls: tuple = ()
 
     def __len__(self) -> int:
         return len(self.strain)
@@ -498,7 +504,28 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         notes = (f"the strain jumps by {jump:.3g} ({times:.1f} times its steps around) between rows {row(k)} and "
                  f"{row(k + 1)}, {what}{more}; a slip would be read as the knit's stretch, so no verdict on this "
                  "curve is confident",)
-    return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise, notes, slips)
+    glitches, stalls = (), ()
+    if noise.known:
+        # (in noise sd: a curve whose noise is assumed, read off a figure or an envelope, cannot tell)
+        blocks = force_glitches(clean, f, c, d, noise)
+        if blocks:
+            glitches = tuple(row(k) for i, j, _ in blocks for k in range(i, j))
+            notes += (f"{len(blocks)} short block(s) of rows whose force leaves the curve and comes back: "
+                      + ", ".join(f"rows {row(i)}-{row(j - 1)} ({z:+.0f} sd)" for i, j, z in blocks[:4])
+                      + (", ..." if len(blocks) > 4 else "")
+                      + " (a load-cell glitch, a yarn snapping and re-seating?); left out of the fit",)
+        found = force_stalls(clean, f, d, noise, skip=[k for i, j, _ in blocks for k in range(i, j)])
+        if found:
+            stalls = tuple(row(k) for k, *_ in found)
+            k, m, short = found[0]
+            more = (f" (and at {len(found) - 1} more: row(s) {', '.join(map(str, stalls[1:4]))}"
+                    + (", ..." if len(found) > 4 else "") + ")") if len(found) > 1 else ""
+            notes += (f"the force stalls from row {row(k)} to row {row(k + m)} ({short:.3g} N short of the rise of the "
+                      f"steps around) while the strain runs on, and rises again as steeply as before: a grip slip (or "
+                      f"the knit's own stick-slip, which the model lacks)?{more}; the rows after it are read at a strain "
+                      "the knit did not take, so no verdict on this curve is confident",)
+    return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise, notes, slips, glitches,
+                         stalls)
 
 
 #: a step of the strain this many times the median step of its branch is a jump (:func:`strain_slips`)
@@ -547,6 +574,204 @@ def strain_slips(strain, force, direction, noise) -> list[tuple[int, float, floa
                 continue          # the force moved with the jump beyond one step's and the noise: the knit's
             tells = bool(abs(full - one) > SLIP_SIGMAS * max(sd, 1e-12))
             out.append((int(a + k), float(ds[k]), float(abs(ds[k]) / local), tells))
+    return out
+
+
+#: a block of at most this many rows (and at least 2: one row alone is the diagnosis' outlier) whose force leaves
+#: the curve and comes back is a glitch (:func:`force_glitches`)
+GLITCH_MAX_ROWS = 6
+#: the rows on each side of a block that say where the curve runs (a quadratic in the strain through them)
+GLITCH_NEIGHBOURS = 3
+#: every row of a glitch lies beyond GLITCH_ROW_SIGMAS noise sd of that quadratic, on one side, one of them beyond
+#: GLITCH_SIGMAS (the diagnosis' outlier limit), while the neighbours lie within GLITCH_ROW_SIGMAS of it
+GLITCH_SIGMAS = 6.0
+GLITCH_ROW_SIGMAS = 3.0
+#: ... and the slopes on its two sides within this factor of each other (:func:`force_glitches`)
+GLITCH_BEND = 4.0
+
+
+def _row_sd(strain, force, cycle, direction, noise) -> np.ndarray:
+    """Each row's noise sd as the diagnosis weighs it (:meth:`~knitsim.diagnosis.noise.CurveNoise.sd_at`)."""
+    from .noise import row_slopes
+    slope = row_slopes(strain, force, cycle, direction) if noise.strain_sd > 0 else None
+    return np.maximum(noise.sd_at(force, slope), 1e-300)
+
+
+def _branches(*keys) -> list[tuple[int, int]]:
+    """(start, end) of the runs of rows where every key stays the same (a branch: one cycle and direction)."""
+    cut = np.zeros(len(keys[0]) - 1, bool) if len(keys[0]) > 1 else np.zeros(0, bool)
+    for k in keys:
+        cut |= np.diff(np.asarray(k)) != 0
+    br = np.r_[0, np.flatnonzero(cut) + 1, len(keys[0])]
+    return list(zip(br[:-1].tolist(), br[1:].tolist()))
+
+
+def _poly_through(x, f, w, at, degree: int):
+    """The weighted least-squares polynomial of ``degree`` through points ``x``, ``f`` (weights ``w`` = 1 / sd;
+    one window per row of the arrays): its values at the points, at ``at``, the variance of those at ``at``,
+    and whether the fit was determined."""
+    x0 = x[:, :1]
+    span = np.maximum(np.ptp(x, axis=1, keepdims=True), 1e-300)
+    u, v = (x - x0) / span, (at - x0) / span
+    U = np.stack([u ** p for p in range(degree + 1)], axis=2)
+    V = np.stack([v ** p for p in range(degree + 1)], axis=2)
+    A = U * w[:, :, None]
+    M = np.einsum("nij,nik->njk", A, A)
+    ok = np.abs(np.linalg.det(M)) > 1e-12 * (np.einsum("nii->n", M) / (degree + 1)) ** (degree + 1)
+    M[~ok] = np.eye(degree + 1)
+    cov = np.linalg.inv(M)
+    coef = np.einsum("njk,nk->nj", cov, np.einsum("nij,ni->nj", A, f * w))
+    return (np.einsum("nij,nj->ni", U, coef), np.einsum("nij,nj->ni", V, coef),
+            np.einsum("nij,njk,nik->ni", V, cov, V), ok)
+
+
+def _slopes(x, f, w):
+    """The weighted least-squares slope of each window of points ``x``, ``f`` (weights ``w`` = 1 / sd) and its
+    standard error."""
+    ww = w * w
+    xm = np.sum(ww * x, axis=1, keepdims=True) / np.sum(ww, axis=1, keepdims=True)
+    sxx = np.maximum(np.sum(ww * (x - xm) ** 2, axis=1), 1e-300)
+    return np.sum(ww * (x - xm) * f, axis=1) / sxx, 1.0 / np.sqrt(sxx)
+
+
+def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, int, float]]:
+    """Short blocks of rows whose force leaves the curve and comes back: ``(start, end, z)``, rows
+    ``start..end-1``, z the largest deviation of the block's rows in noise sd (signed).
+
+    A load cell that glitches for a moment, or a yarn that snaps and re-seats, drops the force for a few rows;
+    the force then goes on where the curve was.  One row alone is left to the diagnosis (its outliers, judged
+    against the fit); a block of rows was not: a blind probe's four rows 15 % low in the jammed part of an
+    effect-free pull (a neighbour off too, so none isolated) moved the whole fit and read as a confident
+    ``unexplained``.  Within a branch, a block of 2 to :data:`GLITCH_MAX_ROWS` rows is a glitch where the
+    quadratic in the strain through the :data:`GLITCH_NEIGHBOURS` rows on each side (weighted by the rows' noise
+    sd, ``noise.sd_at``) passes within :data:`GLITCH_ROW_SIGMAS` sd of each of them, every row of the block lies
+    beyond it on one side by more than :data:`GLITCH_ROW_SIGMAS` sd (its own with the quadratic's at the row),
+    one beyond :data:`GLITCH_SIGMAS` and beyond the force the curve gains over one strain step there (its slope,
+    the side lines' interpolated, times the median step: a row off by less may be read at a strain, or a time,
+    off by less than a step: a 2-row stall of the interpolated Do 2020 6.5 mm curve, 0.5-0.8 of a step, is not
+    taken), and the two sides are one smooth stretch of the curve: their slopes (the line through each side's
+    rows) either both resolved (beyond :data:`GLITCH_ROW_SIGMAS` standard errors), of one sign and within a
+    factor :data:`GLITCH_BEND` of each other (a jamming knit stiffens by about 2 over such a window), or both
+    flat within their errors and at one level.  A knee (the end of a stick, jamming setting in, the slack toe
+    of a specimen mounted loose: a flat side and a steep one) is no glitch: a quadratic bridges it smoothly and
+    the corner's rows lie off it."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    sd = _row_sd(s, f, cycle, direction, noise)
+    P = GLITCH_NEIGHBOURS
+    out = []
+    for a, b in _branches(cycle, direction):
+        taken, found = np.zeros(b - a, bool), []
+        for k in range(2, GLITCH_MAX_ROWS + 1):
+            starts = np.arange(a + P, b - P - k + 1)
+            if not len(starts):
+                break
+            before = starts[:, None] + np.arange(-P, 0)
+            after = starts[:, None] + k + np.arange(P)
+            nb = np.concatenate([before, after], axis=1)
+            blk = starts[:, None] + np.arange(k)
+            at_nb, pred, var, ok = _poly_through(s[nb], f[nb], 1.0 / sd[nb], s[blk], 2)
+            z = (f[blk] - pred) / np.sqrt(sd[blk] ** 2 + var)
+            (g1, e1), (g2, e2) = _slopes(s[before], f[before], 1.0 / sd[before]), _slopes(s[after], f[after], 1.0 / sd[after])
+            r1, r2 = np.abs(g1) > GLITCH_ROW_SIGMAS * e1, np.abs(g2) > GLITCH_ROW_SIGMAS * e2
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(g1 * g2 > 0, np.maximum(g1 / g2, g2 / g1), np.inf)
+            # flat sides: at one level (their lines meet in the block's middle within their errors)
+            mid = 0.5 * (s[starts - 1] + s[starts + k])
+            (m1, v1), (m2, v2) = (_poly_through(s[x], f[x], 1.0 / sd[x], mid[:, None], 1)[1:3] for x in (before, after))
+            level = np.abs(m1 - m2)[:, 0] <= GLITCH_ROW_SIGMAS * np.sqrt(v1 + v2)[:, 0]
+            smooth = (r1 & r2 & (ratio <= GLITCH_BEND)) | (~r1 & ~r2 & level)
+            hit = ok & smooth & np.all(np.abs(f[nb] - at_nb) <= GLITCH_ROW_SIGMAS * sd[nb], axis=1)
+            hit &= np.all(z > GLITCH_ROW_SIGMAS, axis=1) | np.all(z < -GLITCH_ROW_SIGMAS, axis=1)
+            # one row beyond GLITCH_SIGMAS sd and beyond what the curve's force changes over one strain step there:
+            # a row off by less could be read at a strain (a time) off by less than a step
+            h = np.median(np.abs(np.diff(s[nb], axis=1)), axis=1)[:, None]
+            g = np.abs(g1[:, None] + (g2 - g1)[:, None] * (s[blk] - s[starts - 1][:, None])
+                       / np.maximum(s[starts + k] - s[starts - 1], 1e-300)[:, None])
+            big = (np.abs(z) > GLITCH_SIGMAS) & (np.abs(f[blk] - pred) > g * h)
+            hit &= np.any(big, axis=1)
+            for n in np.flatnonzero(hit):
+                found.append((float(np.max(np.abs(z[n]))), int(starts[n]), k, float(z[n][np.argmax(np.abs(z[n]))])))
+        # the block that stands out most first: rows beside a glitch, with the glitch among their neighbours, can
+        # pass for a block of their own
+        for _, i, k, zmax in sorted(found, reverse=True):
+            if taken[i - a - 1:i - a + k + 1].any():
+                continue                # (overlaps, or touches, a block taken)
+            taken[i - a:i - a + k] = True
+            out.append((i, i + k, zmax))
+    return sorted(out)
+
+
+#: a stall of the force on a loading branch (:func:`force_stalls`): at most this many steps ...
+STALL_MAX_STEPS = 6
+#: ... between STALL_NEIGHBOURS steps on each side that each raise the force by more than STALL_RISE_SIGMAS noise
+#: sd (the force resolves the slope) and by slopes within a factor STALL_STEADY of their median (a steady rise)
+STALL_NEIGHBOURS = 3
+STALL_RISE_SIGMAS = 3.0
+STALL_STEADY = 2.0
+#: ... where the force rises by less than STALL_SHARE of what those slopes give, short of it by more than
+#: SLIP_SIGMAS noise sd
+STALL_SHARE = 0.25
+
+
+def force_stalls(strain, force, direction, noise, skip=()) -> list[tuple[int, int, float]]:
+    """Where the force stalls on a steep loading while the strain runs on: ``(start, steps, shortfall_N)``, the
+    force flat (or falling) from row ``start`` to row ``start + steps``.
+
+    A specimen that slips in its grip while the crosshead moves on (the strain read off the crosshead, or an
+    extensometer on the grips) keeps its force, or drops it, for a few rows, and then rises again as before from
+    where it stalled: every later row is read at a strain the knit did not take (as :func:`strain_slips`, a slip
+    seen in the strain).  Not seen on a plateau (the force cannot tell); a knee of the curve (the end of a stick,
+    the force rising steeply and then slowly ever after) is not a stall: the force must rise as steeply after it
+    as before.  On a loading branch, a run of 1 to :data:`STALL_MAX_STEPS` steps is a stall where the
+    :data:`STALL_NEIGHBOURS` steps on each side each raise the force by more than :data:`STALL_RISE_SIGMAS` noise
+    sd, at slopes within a factor :data:`STALL_STEADY` of their median, and the run raises it by less than
+    :data:`STALL_SHARE` of what that median slope gives over its strain, short by more than :data:`SLIP_SIGMAS`
+    noise sd and by more than that slope gives over :data:`SLIP_STEPS` - 1 of the neighbouring strain steps (the
+    strain the knit did not take, as much as a jump of SLIP_STEPS steps that :func:`strain_slips` reports adds:
+    a one-step flat of the interpolated Do 2020 6.5 mm curve is not taken); the run's first and last steps
+    stall themselves.  A force that drops and comes back to the curve is a glitch (:func:`force_glitches`; its rows are
+    ``skip``ped): the step back up is no steady step.  The knit's own stick-slip (a yarn that slides at a
+    crossing) reads the same; the model has none either."""
+    s, f, d = np.asarray(strain, float), np.asarray(force, float), np.asarray(direction)
+    sd = _row_sd(s, f, np.zeros(len(s)), d, noise)
+    skip = set(int(k) for k in skip)
+    P = STALL_NEIGHBOURS
+    out = []
+    for a, b in _branches(d):
+        if d[a] <= 0 or b - a < 2 * P + 2:
+            continue
+        ds, dF = np.diff(s[a:b]), np.diff(f[a:b])
+        step_sd = np.sqrt(sd[a:b - 1] ** 2 + sd[a + 1:b] ** 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = np.where(ds > 0, dF / ds, np.nan)
+        k = P
+        while k < len(ds) - P:
+            hit = None
+            for m in range(1, STALL_MAX_STEPS + 1):
+                if k + m + P > len(ds):
+                    break
+                near = np.r_[k - P:k, k + m:k + m + P]
+                g = slope[near]
+                if not np.all(np.isfinite(g)) or not np.all(dF[near] > STALL_RISE_SIGMAS * step_sd[near]):
+                    continue
+                med = float(np.median(g))
+                if not (med > 0 and np.all(g <= STALL_STEADY * med) and np.all(g >= med / STALL_STEADY)):
+                    continue
+                want = med * float(s[a + k + m] - s[a + k])
+                rise = float(f[a + k + m] - f[a + k])
+                sd_run = float(np.hypot(sd[a + k], sd[a + k + m]))
+                lost = (want - rise) / med          # the strain the knit did not take, as strain_slips' jump
+                ends = all(dF[q] < STALL_SHARE * med * ds[q] for q in (k, k + m - 1))   # (the run's own ends stall)
+                if (ends and rise < STALL_SHARE * want and want - rise > SLIP_SIGMAS * sd_run
+                        and lost > (SLIP_STEPS - 1.0) * float(np.median(ds[near]))):
+                    if not skip.intersection(range(a + k - P, a + k + m + P + 1)):
+                        hit = (a + k, m, want - rise)
+                    break
+            if hit is not None:
+                out.append(hit)
+                k += hit[1] + P
+            else:
+                k += 1
     return out
 
 

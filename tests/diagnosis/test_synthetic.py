@@ -54,7 +54,7 @@ def test_the_curves_carry_no_label():
     # reader of a file derives from those (spreadsheet rows, the strain as read, the curve's own noise, what the
     # reader did that the user is told: a strain read in per cent; the rows where the strain jumps alone)
     assert names == {"strain", "force", "cycle", "direction", "rate_mm_s", "source", "rows", "strain_read", "noise",
-                     "notes", "slips"}
+                     "notes", "slips", "glitches", "stalls"}
     for c in case.curves:
         assert type(c) is MeasuredCurve
         assert "dahl" not in c.source and "effect" not in c.source
