@@ -38,7 +38,9 @@ _RULES = ("unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
 
 
 def _rules(p) -> dict:
-    return {r: getattr(p, r) for r in _RULES}
+    """The rules of a calibrated cell; a default force cap (None: 50 B / d^2) is left out, so that a scene
+    of the calibrated yarn takes its own default too."""
+    return {r: getattr(p, r) for r in _RULES if getattr(p, r) is not None}
 
 
 def library_of(result: JointResult, yarn_name: str, source: str = "") -> dict:

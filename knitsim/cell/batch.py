@@ -51,7 +51,7 @@ from .history import (HISTORY_QUANTITIES, STATUS_EVENT_NOT_LOCATED, STATUS_FORCE
                       rest_at_cap_reason, solver_stop_reason)
 from .inverse import DEFAULT_STARTS
 from .load_program import LoadProgram
-from .material import CellParams
+from .material import CellParams, default_force_cap_N
 from .quantities import CODE, QUANTITY_NAMES
 from .stages import (
     DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, MAX_HALVINGS, RELOAD_RULES,
@@ -247,7 +247,7 @@ class CellModel:
             "B": [p.B for p in checked], "d": [p.d for p in checked], "L": [p.L for p in checked],
             "W0": [p.W0 for p in checked], "C0": [p.C0 for p in checked], "m": [p.m for p in checked],
             "phi0": [p.phi0 for p in checked], "sigma": [p.dahl_sigma for p in checked],
-            "cap": [p.force_cap_N for p in checked],
+            "cap": [p.cap_N for p in checked],
             "djam": [p.d_jam for p in checked],
             "friction": [int(p.friction == "dahl") for p in checked],
             "unloading": [int(p.unloading_rule == "hong_constant_t") for p in checked],
@@ -262,7 +262,7 @@ class CellModel:
     @classmethod
     def from_arrays(cls, B, d, L, W0, C0, m=0.0, phi0=0.0, *, friction="coulomb", dahl_sigma=0.0,
                     unloading_rule="dusserre", reload_rule="mirror_unloading", jamming_criterion="w_4d",
-                    force_cap_N=50.0, in_plane_width=None, effects=None, device: str = "cpu",
+                    force_cap_N=None, in_plane_width=None, effects=None, device: str = "cpu",
                     where=None) -> "CellModel":
         """Build the model of N cells from per-cell arrays, without a Python loop over the cells.
 
@@ -273,12 +273,14 @@ class CellModel:
         them, shape [N] (a few distinct sets: they are told apart once, not per cell).  Every field is
         validated as :meth:`CellParams.validated` does, vectorised; the error names the first bad
         cell and field (``cells[i].m = -0.1: ...``; ``where(i)`` names cell i instead of
-        ``cells[i]``).  ``params`` is built only when asked for.
+        ``cells[i]``).  ``params`` is built only when asked for.  ``force_cap_N`` None (the default):
+        each cell's default cap, 50 B / d^2 (:func:`~knitsim.cell.material.default_force_cap_N`).
         """
         warp_runtime.init()
         device = warp_runtime.resolve_device(device)
-        fl = {"B": B, "d": d, "L": L, "W0": W0, "C0": C0, "m": m, "phi0": phi0, "dahl_sigma": dahl_sigma,
-              "force_cap_N": force_cap_N}
+        fl = {"B": B, "d": d, "L": L, "W0": W0, "C0": C0, "m": m, "phi0": phi0, "dahl_sigma": dahl_sigma}
+        if force_cap_N is not None:
+            fl["force_cap_N"] = force_cap_N
         shapes = {k: np.shape(v) for k, v in fl.items()}
         names = {"friction": (friction, FRICTION_MODELS), "unloading_rule": (unloading_rule, UNLOADING_RULES),
                  "reload_rule": (reload_rule, RELOAD_RULES), "jamming_criterion": (jamming_criterion, JAMMING_CRITERIA)}
@@ -310,6 +312,9 @@ class CellModel:
             if not np.all(np.isfinite(a)):
                 bad(k, ~np.isfinite(a), a, "must be a finite number")
             f[k] = a
+        if force_cap_N is None:   # each cell's default cap (B and d checked below, so guard the division)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f["force_cap_N"] = default_force_cap_N(f["B"], np.where(f["d"] > 0, f["d"], 1.0))
         for k in ("B", "d", "L", "W0", "C0", "force_cap_N"):
             if np.any(f[k] <= 0):
                 bad(k, f[k] <= 0, f[k], "must be > 0")

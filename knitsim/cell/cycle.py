@@ -306,7 +306,7 @@ class CellCycle:
             # Hong's W = 4 d_jam, or the heads touch (module head_gap)
             ev["jam"] = lambda q: -self._clearance(q)
         if loading:
-            ev["force_cap"] = lambda q: q["F"] - p.force_cap_N
+            ev["force_cap"] = lambda q: q["F"] - p.cap_N
         else:
             # the load vanishes (F -> 0) or the contact opens (Rn -> 0): eq 7, R_Y = -R cos(beta + phi) =
             # P sin(gamma), gives F = -2 R cos(beta + phi), so R = 0 is F = 0 and the cell goes slack
@@ -681,8 +681,8 @@ class CellCycle:
             why = str(exc)
         if why is not None:
             return self._no_rest_state(program, why)
-        if st.q["F"] >= p.force_cap_N:
-            st.status, st.reason = STATUS_FORCE_CAP, rest_at_cap_reason(st.q["F"], p.force_cap_N)
+        if st.q["F"] >= p.cap_N:
+            st.status, st.reason = STATUS_FORCE_CAP, rest_at_cap_reason(st.q["F"], p.cap_N)
         rest = {k: np.array([st.q[k]]) for k in HISTORY_QUANTITIES}
         rest.update(stage=np.array([int(st.stage)], np.int32), jammed=np.array([int(st.jammed)], np.int32))
         n = len(program)
@@ -708,7 +708,7 @@ class CellCycle:
                 # st is the last converged state (a failed solve leaves it)
                 st.status = STATUS_NO_CONVERGENCE
                 st.reason = solver_stop_reason(STATUS_NO_CONVERGENCE, st.C / p.C0 - 1.0, float(program.strain[i]),
-                                               stage_label(st.stage, st.jammed), float(st.q["F"]), p.force_cap_N,
+                                               stage_label(st.stage, st.jammed), float(st.q["F"]), p.cap_N,
                                                d_i > 0) + f" ({exc})"
             if p.friction == "dahl":
                 self._label_dahl(st)

@@ -14,6 +14,29 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from .effects import NO_EFFECTS, EffectSet
+#: the default force cap per wale, in units of the yarn's own force scale B / d^2 (the elastica's forces
+#: scale so, eqs 6-9).  Measured over 2,000 random cells of the domain (knitsim.cell.domain) pulled
+#: monotonically to strain 1.2 with no cap, at increments 0.02, 0.005 and 0.001: the rest states carry
+#: at most 29.7 B / d^2 (README: up to ~32 for the tightest loops), and the solver follows every
+#: jammed branch to at least 79 B / d^2 (median 145-235) before alpha - gamma underflows.  50 B / d^2
+#: lies between them: any cell of the domain loads from rest and stops at the cap, an expected end,
+#: not a failure.  (The earlier default, 50 N, is 54 B / d^2 for the paper's E-glass but 540 B / d^2
+#: for a yarn of a tenth of its B: such a cell failed up the jammed branch at ~164 B / d^2, exit 1.)
+FORCE_CAP_PER_FORCE_SCALE = 50.0
+
+
+def default_force_cap_N(B: float, d: float) -> float:
+    """The default force cap per wale [N]: :data:`FORCE_CAP_PER_FORCE_SCALE` x B / d^2 (B [N mm^2], d [mm];
+    scalars, or arrays of shape [N])."""
+    if np.ndim(B) == 0 and np.ndim(d) == 0:
+        return FORCE_CAP_PER_FORCE_SCALE * float(B) / float(d) ** 2
+    return FORCE_CAP_PER_FORCE_SCALE * np.asarray(B, float) / np.asarray(d, float) ** 2
+
+
+#: how a default cap is described in outputs
+DEFAULT_FORCE_CAP_TEXT = f"default: {FORCE_CAP_PER_FORCE_SCALE:g} B / d^2, the yarn's own force scale"
+
+
 from .stages import (DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, FRICTION_MODELS, JAMMING_CRITERIA, M_MAX, M_TOO_LARGE,
                      RELOAD_RULES, UNLOADING_RULES)
 
@@ -42,8 +65,10 @@ class CellParams:
         Dahl stiffness of tan(phi) per unit slip [1/mm] (``friction = "dahl"``).
     unloading_rule, reload_rule, jamming_criterion : str
         See :mod:`knitsim.cell.stages`.
-    force_cap_N : float
-        Force per wale at which a jammed cell stops (the jammed branch diverges).
+    force_cap_N : float or None
+        Force per wale at which a jammed cell stops (the jammed branch diverges) [N]; None (the
+        default) is :func:`default_force_cap_N`, 50 B / d^2, resolved with the cell's own B and d
+        (:attr:`cap_N`), so that a copy with another B or d keeps a default cap of its own.
     in_plane_width : float or None
         In-plane yarn width used for jamming [mm] (W = 4 in_plane_width, or head
         gap = in_plane_width); None means d.  The paper's d is the compact hexagonal
@@ -66,7 +91,7 @@ class CellParams:
     unloading_rule: str = "dusserre"
     reload_rule: str = "mirror_unloading"
     jamming_criterion: str = "w_4d"
-    force_cap_N: float = 50.0
+    force_cap_N: float | None = None
     in_plane_width: float | None = None
     effects: EffectSet = NO_EFFECTS
 
@@ -74,6 +99,16 @@ class CellParams:
     def d_jam(self) -> float:
         """Yarn width that jams neighbouring loops [mm]: ``in_plane_width`` or d."""
         return self.d if self.in_plane_width is None else float(self.in_plane_width)
+
+    @property
+    def cap_N(self) -> float:
+        """The force cap per wale in force [N]: ``force_cap_N``, or the default 50 B / d^2 where it is None."""
+        return default_force_cap_N(self.B, self.d) if self.force_cap_N is None else float(self.force_cap_N)
+
+    @property
+    def cap_is_default(self) -> bool:
+        """True where the cap is the default (``force_cap_N`` None)."""
+        return self.force_cap_N is None
 
     @property
     def phimax(self) -> float:
@@ -85,8 +120,10 @@ class CellParams:
         return replace(self, **changes).validated()
 
     def as_dict(self) -> dict:
-        """Fields by name; ``effects`` only when some are on."""
+        """Fields by name (a default force cap as its value in N); ``effects`` only when some are on."""
         d = asdict(self)
+        if self.force_cap_N is None:
+            d["force_cap_N"] = self.cap_N
         d.pop("effects")
         if self.effects.on:
             d["effects"] = self.effects.as_dict()
@@ -110,10 +147,12 @@ class CellParams:
             return replace(self, **conv).validated(where)
         for name in ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma", "force_cap_N"):
             v = getattr(self, name)
+            if name == "force_cap_N" and v is None:
+                continue
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
                 bad(name, "must be a finite number")
         for name in ("B", "d", "L", "W0", "C0", "force_cap_N"):
-            if getattr(self, name) <= 0:
+            if getattr(self, name) is not None and getattr(self, name) <= 0:
                 bad(name, "must be > 0")
         if self.m < 0:
             bad("m", "the friction ratio must be >= 0")

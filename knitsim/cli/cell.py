@@ -61,7 +61,7 @@ def check_cells_domain(params, labels, strains) -> list[dict]:
         name = str(label) if str(label).startswith("cell") else f"cell {label}"
         if why is not None:
             raise KnitsimInputError(f"{name}: {why} (knitsim.cell.domain)")
-        why = rest_at_cap_problem(F_rest, p.force_cap_N)
+        why = rest_at_cap_problem(F_rest, p.cap_N)
         if why is not None:
             raise KnitsimInputError(f"{name}: {why}")
         why = DOMAIN.why_outside(p)

@@ -90,7 +90,7 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=len(grouping.params))
     n_cells = int(grouping.group_of_cell.size)
     for whys, what, source in ((check.no_rest, "have no admissible rest state", " (knitsim.cell.domain)"),
-                               (check.at_cap([p.force_cap_N for p in grouping.params]), "cannot be loaded", "")):
+                               (check.at_cap([p.cap_N for p in grouping.params]), "cannot be loaded", "")):
         bad = [g for g, why in enumerate(whys) if why is not None]
         if bad:
             n = int(cells_of[bad].sum())

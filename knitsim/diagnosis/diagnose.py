@@ -411,7 +411,7 @@ def capped_setup(setup: DiagnosisSetup, curves: Sequence[MeasuredCurve]) -> Diag
     """The setup with the cells' force cap at :data:`FORCE_CAP_FACTOR` times the largest measured force.
 
     A parameter set whose jammed branch runs far above every measured force is a hopeless misfit
-    whatever the force it reaches; simulating it to the scene's cap (50 N by default) costs the
+    whatever the force it reaches; simulating it to the scene's cap (50 B / d^2 by default) costs the
     increments that do not converge on the steep branch (12.9 s against 0.02 s for six cells of a
     pull to 5 N), the cap stops them at once (``force_cap``, an ordinary end).  A fit never comes
     near the cap: at three times the peak its residual is twice the peak on every row beyond.
@@ -420,7 +420,7 @@ def capped_setup(setup: DiagnosisSetup, curves: Sequence[MeasuredCurve]) -> Diag
     if not (peak > 0 and math.isfinite(peak)):
         return setup
     cap = FORCE_CAP_FACTOR * peak
-    if cap >= setup.base.force_cap_N:
+    if cap >= setup.base.cap_N:
         return setup
     return replace(setup, base=setup.base.replace(force_cap_N=cap))
 

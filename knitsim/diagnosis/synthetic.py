@@ -328,7 +328,7 @@ def oracle_evidence(clean_curves, noise_sd, material: str, truth: CellParams, ef
     # not converge and would leave a meaningless residual)
     weights = [np.full(len(c.strain), 1.0 / s) for c, s in zip(clean_curves, noise_sd)]
     peak = max(float(np.max(c.force)) for c in clean_curves)
-    if 0 < 3.0 * peak < nominal.force_cap_N:
+    if 0 < 3.0 * peak < nominal.cap_N:
         nominal = nominal.replace(force_cap_N=3.0 * peak)
     starts = [x0]
     # and from the nominal material (the scene a diagnosis starts from) and other initial friction

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
+from ..cell.material import DEFAULT_FORCE_CAP_TEXT
 from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD_RULES, UNLOADING_RULES
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
@@ -258,16 +259,21 @@ def rule_sets(model: PatchModel | None) -> list[dict] | None:
              if n in model.rules]
     shape = (model.courses, model.wales)
     cols = [np.broadcast_to(np.asarray(model.rules[n], dtype=object), shape).ravel() for n in names]
+    # whether each cell's cap is the default, 50 B / d^2 of its yarn (PatchModel.cap_is_default)
+    default = np.broadcast_to(np.asarray(getattr(model, "cap_is_default", False), dtype=bool), shape).ravel()
     seen: dict[tuple, int] = {}
-    for key in zip(*cols):
+    for key in zip(*cols, default):
         seen[key] = seen.get(key, 0) + 1
     out = []
     for key, count in seen.items():
         entry = {}
+        key, is_default = key[:-1], bool(key[-1])
         friction = str(dict(zip(names, key)).get("friction", ""))
         for n, v in zip(names, key):
             if n == "force_cap_N":
-                entry[n] = {"value": float(v), "meaning": "a cell stops when its force per wale reaches this value"}
+                entry[n] = {"value": float(v), "meaning": "a cell stops when its force per wale reaches this value"
+                            + (f" ({DEFAULT_FORCE_CAP_TEXT} of its yarn; rules.force_cap_N sets another)"
+                               if is_default else "")}
             else:
                 entry[n] = {"value": str(v), "meaning": rule_meaning(n, v, friction)}
         entry["cells"] = int(count)

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
+from ..cell.material import DEFAULT_FORCE_CAP_TEXT
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
 from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
@@ -202,7 +203,7 @@ def _rules_label(p) -> str:
     """A cell's rules in a few words, as the plot's legend gives them (Dahl: no unloading or reload rule, which
     it does not use: :func:`rule_meaning`)."""
     rules = f"unload {p.unloading_rule}, reload {p.reload_rule}, " if p.friction != "dahl" else ""
-    return f"{p.friction}, {rules}{p.jamming_criterion}, cap {p.force_cap_N:g} N"
+    return f"{p.friction}, {rules}{p.jamming_criterion}, cap {p.cap_N:.4g} N" + (" (default)" if p.cap_is_default else "")
 
 
 def rules_of(params) -> dict:
@@ -212,8 +213,10 @@ def rules_of(params) -> dict:
                       ("reload_rule", "reload_rule"), ("jamming_criterion", "jamming_criterion")):
         v = getattr(params, attr)
         out[key] = {"value": v, "meaning": rule_meaning(key, v, params.friction)}
-    out["force_cap_N"] = {"value": float(params.force_cap_N),
-                          "meaning": "a cell stops when its force per wale reaches this value"}
+    out["force_cap_N"] = {"value": float(params.cap_N),
+                          "meaning": "a cell stops when its force per wale reaches this value"
+                          + (f" ({DEFAULT_FORCE_CAP_TEXT}; rules.force_cap_N sets another)"
+                             if params.cap_is_default else "")}
     return out
 
 
@@ -352,8 +355,8 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     if final == STATUS_OK:
         end, expected = "completed the load program", True
     elif final == STATUS_FORCE_CAP:
-        cut = cut_by_force_cap(h.strain, h.direction, h.cycle, stop_row, p.force_cap_N)
-        end, expected = (f"stopped at the force cap (force per wale = {p.force_cap_N:g} N), "
+        cut = cut_by_force_cap(h.strain, h.direction, h.cycle, stop_row, p.cap_N)
+        end, expected = (f"stopped at the force cap (force per wale = {p.cap_N:g} N), "
                          + ("before the program's unloadings: later cycles not run (warning "
                             "program_cut_by_force_cap)" if cut else "the expected end of a run to the cap")), True
     else:

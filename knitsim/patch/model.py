@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..cell.effects import NO_EFFECTS, effect_set_codes
-from ..cell.material import CellParams
+from ..cell.material import CellParams, default_force_cap_N
 from ..errors import KnitsimInputError
 
 #: per-cell parameters that maps may set (CellParams names), units mm, N mm^2, -, 1/mm, rad;
@@ -278,7 +278,19 @@ class PatchModel:
                 a = np.empty(shape, dtype=object)
                 a[...] = v
                 rules[r] = a
+        # a default force cap (None) is each cell's own, 50 B / d^2 (knitsim.cell.material.default_force_cap_N):
+        # the rules hold numbers, which the couplings read as such
+        cap = rules["force_cap_N"]
+        unset = np.frompyfunc(lambda x: x is None, 1, 1)(cap).astype(bool)
+        if unset.any():
+            cap = cap.copy()
+            with np.errstate(divide="ignore", invalid="ignore"):
+                own = default_force_cap_N(np.asarray(self.fields["B"], float), np.asarray(self.fields["d"], float))
+            cap[unset] = np.broadcast_to(own, shape)[unset]
+            rules["force_cap_N"] = cap
         object.__setattr__(self, "rules", rules)
+        #: per cell, True where its force cap is the default (rules.force_cap_N not given), for the summary
+        object.__setattr__(self, "cap_is_default", unset)
         eff = self.effects
         if not (isinstance(eff, np.ndarray) and eff.shape == shape):
             a = np.empty(shape, dtype=object)

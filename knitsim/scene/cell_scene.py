@@ -21,7 +21,7 @@ A cell scene is a TOML file (see ``scenes/paper/``)::
 
     [rules]
     unloading_rule = "dusserre"  # or "hong_constant_t"
-    force_cap_N = 10.0
+    force_cap_N = 10.0           # absent: 50 B / d^2 (the yarn's force scale)
 
     [load]
     type = "monotonic"           # or "cycles" / "piecewise"
@@ -129,7 +129,9 @@ def _rules_table(defaults: bool) -> Table:
                              choices=RELOAD_RULES),
         "jamming_criterion": Field(("str",), d("w_4d"), "W = 4 d (Hong) or head-to-head distance d",
                                    choices=JAMMING_CRITERIA),
-        "force_cap_N": Field(("float",), d(50.0), "force per wale at which a cell stops (jammed branch)", "N",
+        # absent: the cell's own default, 50 B / d^2 (knitsim.cell.material.default_force_cap_N)
+        "force_cap_N": Field(("float",), OPTIONAL, "force per wale at which a cell stops (jammed branch); "
+                             "default 50 B / d^2, the yarn's own force scale", "N",
                              min=0.0, min_inclusive=False),
     }, "rules where Table 4 is silent (knitsim.cell.stages)")
 

@@ -423,7 +423,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     rules = dict(base_tables["rules"])
     rules["friction"] = base_tables["friction"]["model"]
     # rules and effects per cell (a patch mixes materials: Coulomb and Dahl regions, rule sets, effects)
-    rule_arr = {r: np.full(shape, rules[r], dtype=object) for r in RULE_NAMES}
+    rule_arr = {r: np.full(shape, rules.get(r), dtype=object) for r in RULE_NAMES}   # cap None: the default
     effects_arr = np.empty(shape, dtype=object)
     for idx in np.ndindex(shape):
         effects_arr[idx] = base_tables["_effects"]
@@ -443,7 +443,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         """Set the cells [ci, wi] from resolved tables; returns the zone as the resolved scene spells it."""
         zrules = dict(ztables["rules"], friction=ztables["friction"]["model"])
         for r in RULE_NAMES:
-            rule_arr[r][ci, wi] = zrules[r]
+            rule_arr[r][ci, wi] = zrules.get(r)
         for idx in np.ndindex(effects_arr[ci, wi].shape):
             effects_arr[ci, wi][idx] = ztables["_effects"]
         vals = _cell_values(ztables)
