@@ -167,6 +167,9 @@ def _run(args) -> int:
                        ("reload_above_first_loading", "a later cycle reloads above the first loading at the same "
                                                       "strain; variable reload_above_first_loading in results.nc / "
                                                       "results.csv"),
+                       ("wale_spacing_below_jamming", "OUTSIDE THE MODEL: W below 4 x the in-plane width, the "
+                                                      "model's jamming limit (head_gap criterion); variable "
+                                                      "wale_spacing_below_jamming in results.nc / results.csv"),
                        ("stopped_at_force_cap", "a stop, not a failure, but the rest of the program was not run: "
                                                 "that cycle's peak is the cap (peak_at_force_cap = 1), its energy "
                                                 "loading work if it never unloaded (energy_kind), later cycles NaN "

@@ -731,6 +731,63 @@ def calibration_warnings(flagged) -> list[dict]:
 HEAD_OVERLAP_RTOL = 1e-3
 
 
+#: a state whose wale spacing W is below 4 w by more than this fraction of 4 w is past Table 4's jamming limit
+#: (rounding of a state held at W = 4 w, the w_4d criterion's contact, is not)
+WALE_SPACING_RTOL = 1e-3
+
+
+def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: str = "cell",
+                               direction: np.ndarray | None = None, strain_is: str = "strain",
+                               note: str = "") -> list[ResultWarning]:
+    """A warning when any state's wale spacing W falls below 4 w, w the in-plane width.
+
+    W = 4 d is the model's jamming limit (Hong et al. 2002; Dusserre 2015, Table 4: J+ holds W = 4 d): across a
+    wale four yarn widths lie side by side, and a narrower W makes the legs of neighbouring loops cross each
+    other.  ``jamming_criterion = "w_4d"`` holds W >= 4 w; ``"head_gap"`` jams where the heads touch and then
+    lets W fall on below 4 w on its jammed branch (a blind probe: the calibrated specimen's cell to W = 0.956 x
+    4 w at strain 0.6, silently).  Such states are outside the model's box: warned (code
+    ``wale_spacing_below_jamming``).
+
+    Parameters
+    ----------
+    strain : ndarray, shape [n]
+        Imposed strain of each row.
+    W : ndarray, shape [n, k] (or [n])
+        Wale spacing of each row's state [mm] (NaN: no state; not judged).
+    d_jam : float or ndarray, shape [k]
+        The cells' in-plane widths w [mm].
+    what, direction, strain_is, note
+        As :func:`interpenetration`.
+    """
+    W = np.asarray(W, float)
+    if W.ndim == 1:
+        W = W[:, None]
+    lim = 4.0 * np.broadcast_to(np.asarray(d_jam, float), W.shape)
+    with np.errstate(invalid="ignore"):
+        flags = W < lim * (1.0 - WALE_SPACING_RTOL)
+    if not flags.any():
+        return []
+    rows = np.nonzero(flags.any(axis=1))[0]
+    cols = np.nonzero(flags.any(axis=0))[0]
+    ratio = float(np.nanmin(np.where(flags, W / lim, np.inf)))
+    e = np.asarray(strain, float)[rows]
+    branch = ""
+    if direction is not None:
+        dirs = set(np.sign(np.asarray(direction)[rows]).astype(int).tolist())
+        branch = {frozenset({1}): " while loading", frozenset({-1}): " while unloading"}.get(
+            frozenset(dirs), " while loading and unloading")
+    lo, hi = float(e.min()), float(e.max())
+    where = (f"at {strain_is} {lo:.4g}" if lo == hi else f"from {strain_is} {float(e[0]):.4g} ({strain_is}s "
+             f"{lo:.4g} to {hi:.4g})") + note
+    return [ResultWarning(
+        "wale_spacing_below_jamming",
+        f"OUTSIDE THE MODEL: the wale spacing W falls below 4 w (w the in-plane width; W = 4 w is the model's "
+        f"jamming limit, Dusserre 2015 Table 4) {where}{branch}, in {len(rows)} of {W.shape[0]} increments and "
+        f"{len(cols)} {what}(s), down to W = {ratio:.3g} x 4 w: the legs of neighbouring loops would pass through "
+        f"each other across the wale, so these forces are not the knit's (jamming_criterion = \"head_gap\" does "
+        f"not hold W >= 4 w after the heads touch; \"w_4d\" does)")]
+
+
 def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,
                      what: str = "cell", direction: np.ndarray | None = None, strain_is: str = "strain",
                      note: str = "") -> list[ResultWarning]:

@@ -49,7 +49,7 @@ from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, compressive_rest_state, cut_by_force_cap,
+from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
                      cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
                      interpenetration)
 from .results import _num, rule_meaning, summary_json, warning_lines, write_result_set
@@ -950,6 +950,10 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         warnings += interpenetration(e, h.groups["interpenetrating"], h.groups["head_gap"], h.group_d_jam,
                                      what="distinct cell", direction=h.direction, strain_is="grip strain",
                                      note=_overlap_cell_strains(h))
+    if "W" in h.groups and h.group_d_jam is not None:
+        # W below 4 w, past the model's jamming limit (the head-gap criterion allows it once the heads touch)
+        warnings += wale_spacing_below_jamming(e, h.groups["W"], h.group_d_jam, what="distinct cell",
+                                               direction=h.direction, strain_is="grip strain")
     # a peak per wale is the cap where every column is at it (else it mixes capped and free columns)
     capped_peaks = [c["peak_force_per_wale_N"] for c in cycles
                     if c["peak_is_force_cap"] and c["columns_at_force_cap_at_peak"] >= h.shape[1]]

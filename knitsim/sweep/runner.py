@@ -76,7 +76,7 @@ CHUNK_DIR = "chunks"
 #: every name a sweep writes into its --out (recorded there: --overwrite removes these and nothing else)
 SWEEP_OUTPUTS = (MANIFEST, f"{CHUNK_DIR}/", "results.nc", ".results.nc.tmp", "results.csv", "plot_sweep.png",
                  "summary.json")
-FORMAT = "knitsim-sweep/2"
+FORMAT = "knitsim-sweep/3"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell and cycle, integer codes (-1 where the cycle has no results): what its energy is
@@ -89,12 +89,13 @@ ENERGY_KINDS = dict(enumerate(checks.ENERGY_KINDS))
 #: per cell
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
-             "zero_force_cycle", "reload_below_earlier_loading", "reload_loss_continues", "reload_above_first_loading")
+             "zero_force_cycle", "reload_below_earlier_loading", "reload_loss_continues", "reload_above_first_loading",
+             "wale_spacing_below_jamming")
 #: warnings of the cell's summary (knitsim.io.results.cell_summary, as knitsim cell gives them) carried per
 #: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
 #: and zero_force_cycle in no sweep output)
 _WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
-                  "reload_loss_continues", "reload_above_first_loading")
+                  "reload_loss_continues", "reload_above_first_loading", "wale_spacing_below_jamming")
 #: where a cell stopped (knitsim.io.results.cell_summary): a failed cell (all three), a cell stopped at its force
 #: cap (stopped_at_strain only); NaN for a cell that ran the whole program
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
@@ -1128,6 +1129,10 @@ def assemble(out_dir: str | Path):
                                       "reload_above_first_loading of knitsim cell, knitsim.io.checks."
                                       "reloads_above_first_loading), 0 if not, "
                                       "-1 not solved, failed (no judgement of its cycles) or unknown",
+        "wale_spacing_below_jamming": "1 if the wale spacing W falls below 4 w somewhere in the program (w the "
+                                      "in-plane width; outside the model: warning wale_spacing_below_jamming of "
+                                      "knitsim cell, knitsim.io.checks.wale_spacing_below_jamming; the head-gap "
+                                      "criterion allows it), 0 if not, -1 not solved, failed or unknown",
         "domain": "where the cell stands with the model's domain (knitsim.cell.domain), found before any "
                   "solve: " + ", ".join(f"{k} {v}" for k, v in DOMAIN_NAMES.items())
                   + " (outside_domain: solved, an extrapolation beyond the box where convergence is "
@@ -1383,6 +1388,9 @@ _WARNING_REASONS = {
     "reload_loss_continues": "cycles to the same strain go on losing peak force after their first reload, where a "
                              "measured knit settles (Table 4's S+ starts each reload's sliding at a lower Rn); "
                              "knitsim cell on the sample says which cycles",
+    "wale_spacing_below_jamming": "OUTSIDE THE MODEL: the wale spacing falls below 4 x the in-plane width, the "
+                                  "model's jamming limit (the head-gap criterion lets it after the heads touch); "
+                                  "knitsim cell on the sample says where",
     "reload_above_first_loading": "a later cycle reloads above the first loading at the same strain (Table 4's S+ "
                                   "freezes Rn, or T, where sliding began); knitsim cell on the sample says which "
                                   "cycle and where",

@@ -71,7 +71,9 @@ def test_summaries_flag_the_paper_cell_and_the_contact_criterions_first_loop():
     assert ("paper", "zero_force_cycle") in codes and ("paper", "heads_interpenetrate") in codes
     assert ("paper", "loop_creates_energy") not in codes
     # the same frozen T reloads cycle 2 above the first loading (README, 'Reloads above the first loading')
-    assert {code for c, code in codes if c == "contact"} == {"loop_creates_energy", "reload_above_first_loading"}
+    # and its head-gap jam lets W fall below 4 w, the model's jamming limit (Table 4: W = 4 d)
+    assert {code for c, code in codes if c == "contact"} == {"loop_creates_energy", "reload_above_first_loading",
+                                                             "wale_spacing_below_jamming"}
     (w,) = [w for w in s["warnings"] if w["cell"] == "contact" and w["code"] == "loop_creates_energy"]
     assert "the loop 0.1 -> 0.6 -> 0.1 (from the loading at strain 0.1)" in w["message"]
 

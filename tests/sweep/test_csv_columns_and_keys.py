@@ -134,14 +134,15 @@ def test_the_cells_own_warnings_are_carried_per_sample(tmp_path):
     text = dataset_csv(ds)
     h = simulate([plan.base.params[0].replace(m=m) for m in (0.2, 0.5)], plan.programs[0], engine="warp", device="cpu")
     for flag in ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
-                 "reload_loss_continues", "reload_above_first_loading"):
+                 "reload_loss_continues", "reload_above_first_loading", "wale_spacing_below_jamming"):
         alone = [int(any(w["code"] == flag for w in cell_summary(h, c)["warnings"])) for c in range(2)]
         assert ds[flag].values.ravel().tolist() == alone, flag
         assert [r["sample"] for r in warning_samples(ds, flag)] == [i for i, a in enumerate(alone) if a]
     assert ds["zero_force_cycle"].values.ravel().tolist() == [1, 0]
     header = text.splitlines()[0].split(",")
-    assert header[-6:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
-                           "reload_loss_continues", "reload_above_first_loading", "domain"]
+    assert header[-7:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
+                           "reload_loss_continues", "reload_above_first_loading", "wale_spacing_below_jamming",
+                           "domain"]
 
 
 def test_a_reload_above_the_first_loading_is_carried_per_sample(tmp_path):
