@@ -41,6 +41,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import KnitsimInputError
 from ..io.checks import calibration_warnings
 from ..io.results import add_output_flags
@@ -227,6 +229,30 @@ def _write_usd(h, m, args, scene, device, summary=None):
     return res
 
 
+def first_loading_of_patch(model, scene, device: str):
+    """The patch pulled monotonically from rest to its program's largest grip strain at the program's largest
+    step (its first loading, continued), where the program loads past an earlier maximum after an unloading
+    (:func:`knitsim.io.checks.needs_first_loading_reference`); else None.  Returns (history or None, what the
+    summary says of it: ``ran``, ``why``, ``solve_s``).  The reference of ``reload_below_first_loading``: a
+    second solve, of the distinct cells only (dedup as the run), over the first loading's increments only."""
+    from ..cell.load_program import monotonic
+    from ..io.checks import needs_first_loading_reference
+    from ..patch.runner import run_patch
+
+    prog = scene.program
+    if not needs_first_loading_reference(prog.strain, prog.direction):
+        return None, {"ran": False, "why": "the program does not load past an earlier maximum after an unloading: "
+                                          "nothing to compare with a monotonic pull"}
+    s = np.concatenate([[0.0], np.asarray(prog.strain, float)])
+    t0 = time.perf_counter()
+    ref = run_patch(model, monotonic(float(np.max(s)), float(np.max(np.abs(np.diff(s))))), engine=scene.engine,
+                    device=device, dedup=scene.dedup, **scene.solver_options)
+    return ref, {"ran": True, "why": "the program loads past an earlier maximum after an unloading: the patch "
+                                     "pulled monotonically to its largest grip strain is the reference of "
+                                     "reload_below_first_loading", "solve_s": time.perf_counter() - t0,
+                 "increments": len(ref.grip_strain)}
+
+
 def _run(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import PATCH_OUTPUT_FILES, patch_summary, specimen_layout, write_patch_results
@@ -318,7 +344,12 @@ def _run(args) -> int:
     # and says so. The USD first, then the result set, summary.json last: a folder without summary.json is
     # incomplete, and a USD file is renamed in only when whole.
     try:
+        # the patch's first loading continued monotonically, where the program reloads past an earlier maximum
+        # (the check reload_below_first_loading, as knitsim cell runs it); none otherwise, at no cost
+        with contextlib.redirect_stdout(sys.stderr):
+            reference, ref_info = first_loading_of_patch(m, scene, device)
         summary = patch_summary(h, h.info["ref_length_mm"], model=m, zones=scene.resolved.get("zones"),
+                                reference=reference, first_loading_reference=ref_info,
                                 scene=scene.source, title=scene.resolved.get("title", ""),
                                 engine=scene.engine, device=device, load=scene.resolved["load"])
         summary["warnings"] = domain_warnings + list(summary.get("warnings", []))

@@ -51,7 +51,7 @@ from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
                      cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
-                     interpenetration)
+                     interpenetration, reloads_below_first_loading)
 from .results import _num, rule_meaning, summary_json, warning_lines, write_result_set
 
 CURVE_COLUMNS = ("increment", "cycle", "direction", "grip_strain", "force_N", "force_per_wale_N", "columns_held")
@@ -812,7 +812,7 @@ def _overlap_cell_strains(h: PatchHistory) -> str:
 
 
 def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None,
-                  zones: list | None = None, **info) -> dict:
+                  zones: list | None = None, reference: PatchHistory | None = None, **info) -> dict:
     """The ``summary.json`` document (``model``: the run's, needed for a specimen; ``info`` is copied in).
 
     What a cell is: ``cell_is`` (``stitch`` or ``block of stitches``), ``cells`` (grid cells),
@@ -937,6 +937,17 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     end = len(F) if stop is None else stop
     warnings = stop_warnings + cycle_warnings(peaks, e[:end], h.force_per_wale_N[:end], h.cycle[:end],
                                               h.direction[:end], strain_name="grip strain")
+    if reference is not None and reference.n_increments:
+        # the same patch pulled monotonically (knitsim run's first-loading reference, where the program reloads
+        # past an earlier maximum): a reload past the earlier maximum that stays below it; the reference's rows
+        # up to its first held row (a column at its cap or not converged is not the knit's)
+        ref_held = columns_held(reference) > 0
+        n_ref = int(np.argmax(ref_held)) if ref_held.any() else reference.n_increments
+        below = {int(w.cycle) for w in warnings if w.code in ("reload_below_earlier_loading", "zero_force_cycle")
+                 and w.cycle is not None}
+        warnings += reloads_below_first_loading(e[:end], h.force_per_wale_N[:end], h.cycle[:end], h.direction[:end],
+                                                reference.grip_strain[:n_ref], reference.force_per_wale_N[:n_ref],
+                                                strain_name="grip strain", flagged=below)
     if held_in:
         warnings.append(ResultWarning("cycle_figures_include_held_rows", (
             "the figures of cycle(s) " + ", ".join(
