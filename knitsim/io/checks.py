@@ -736,6 +736,15 @@ HEAD_OVERLAP_RTOL = 1e-3
 WALE_SPACING_RTOL = 1e-3
 
 
+def jam_width_floor(d_jam, effects) -> np.ndarray:
+    """The smallest width at which a cell can jam [mm]: its in-plane width ``d_jam``, times ``compaction_min``
+    where its effect set (:class:`~knitsim.cell.effects.EffectSet`, one per cell) has yarn_compaction on."""
+    eff = np.broadcast_to(np.asarray(effects, dtype=object), np.shape(d_jam))
+    floor = np.array([e.compaction_min if e is not None and "yarn_compaction" in e.on else 1.0
+                      for e in np.ravel(eff)], float).reshape(np.shape(d_jam))
+    return np.asarray(d_jam, float) * floor
+
+
 def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: str = "cell",
                                direction: np.ndarray | None = None, strain_is: str = "strain",
                                note: str = "") -> list[ResultWarning]:
@@ -755,7 +764,8 @@ def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: s
     W : ndarray, shape [n, k] (or [n])
         Wale spacing of each row's state [mm] (NaN: no state; not judged).
     d_jam : float or ndarray, shape [k]
-        The cells' in-plane widths w [mm].
+        The cells' in-plane widths w [mm]; with yarn_compaction on, the smallest the compacted width can be
+        (w x compaction_min: the effect jams at W = 4 d_eff, d_eff down to that floor; :func:`jam_width_floor`).
     what, direction, strain_is, note
         As :func:`interpenetration`.
     """
@@ -781,7 +791,8 @@ def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: s
              f"{lo:.4g} to {hi:.4g})") + note
     return [ResultWarning(
         "wale_spacing_below_jamming",
-        f"OUTSIDE THE MODEL: the wale spacing W falls below 4 w (w the in-plane width; W = 4 w is the model's "
+        f"OUTSIDE THE MODEL: the wale spacing W falls below 4 w (w the in-plane width, compacted where "
+        f"yarn_compaction is on; W = 4 w is the model's "
         f"jamming limit, Dusserre 2015 Table 4) {where}{branch}, in {len(rows)} of {W.shape[0]} increments and "
         f"{len(cols)} {what}(s), down to W = {ratio:.3g} x 4 w: the legs of neighbouring loops would pass through "
         f"each other across the wale, so these forces are not the knit's (jamming_criterion = \"head_gap\" does "

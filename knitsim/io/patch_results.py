@@ -49,7 +49,7 @@ from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
+from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, jam_width_floor, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
                      cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
                      interpenetration, reloads_below_first_loading)
 from .results import _num, rule_meaning, summary_json, warning_lines, write_result_set
@@ -963,7 +963,15 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                                      note=_overlap_cell_strains(h))
     if "W" in h.groups and h.group_d_jam is not None:
         # W below 4 w, past the model's jamming limit (the head-gap criterion allows it once the heads touch)
-        warnings += wale_spacing_below_jamming(e, h.groups["W"], h.group_d_jam, what="distinct cell",
+        width = np.asarray(h.group_d_jam, float)
+        if model is not None and len(np.ravel(h.group_of_cell)) == model.cell_count:
+            # with yarn_compaction on, a cell jams at its compacted width, down to compaction_min of it
+            codes, sets = model.effect_codes()
+            floor_of_set = jam_width_floor(np.ones(len(sets)), np.array(sets + [None], dtype=object)[:-1])
+            floor = np.ones(len(width))
+            np.minimum.at(floor, np.ravel(h.group_of_cell), floor_of_set[np.ravel(codes)])
+            width = width * floor
+        warnings += wale_spacing_below_jamming(e, h.groups["W"], width, what="distinct cell",
                                                direction=h.direction, strain_is="grip strain")
     # a peak per wale is the cap where every column is at it (else it mixes capped and free columns)
     capped_peaks = [c["peak_force_per_wale_N"] for c in cycles

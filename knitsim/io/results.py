@@ -44,7 +44,8 @@ from ..cell.material import DEFAULT_FORCE_CAP_TEXT
 from ..cell.stages import LABEL_CODES, stage_label
 from ..errors import KnitsimInputError
 from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
-                     interpenetration, reloads_below_first_loading, wale_spacing_below_jamming)
+                     interpenetration, jam_width_floor, reloads_below_first_loading,
+                     wale_spacing_below_jamming)
 from .jsonable import json_text
 from .output_dir import (RECORD_NAME, add_output_flags, check_output_dir,  # noqa: F401 - the CLIs' import
                          prepare_output_dir, prepare_output_file, record_outputs, recorded_outputs, scene_inputs,
@@ -382,8 +383,8 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         warnings += interpenetration(h.strain[:n_ok], h.values["interpenetrating"][:n_ok, cell],
                                      h.values["head_gap"][:n_ok, cell], p.d_jam, direction=h.direction[:n_ok])
     # W below 4 w: past the model's jamming limit (the head-gap criterion lets it happen after the heads touch)
-    warnings += wale_spacing_below_jamming(h.strain[:n_ok], h.values["W"][:n_ok, cell], p.d_jam,
-                                           direction=h.direction[:n_ok])
+    warnings += wale_spacing_below_jamming(h.strain[:n_ok], h.values["W"][:n_ok, cell],
+                                           float(jam_width_floor(p.d_jam, p.effects)), direction=h.direction[:n_ok])
     return {
         "cell": cell, "label": label,
         "params": {k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v)

@@ -71,3 +71,19 @@ def test_a_sweep_carries_it_per_sample(tmp_path):
     ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
     assert ds["wale_spacing_below_jamming"].values.ravel().tolist() == [1, 0]
     assert [r["sample"] for r in warning_samples(ds, "wale_spacing_below_jamming")] == [0]
+
+
+def test_yarn_compaction_jams_at_its_compacted_width_and_is_not_warned():
+    # yarn_compaction jams at W = 4 d_eff, d_eff down to compaction_min x w (knitsim.cell.effects): a w_4d cell
+    # with it holds W >= 4 d_eff, below 4 w by design; the limit is the compacted floor (the do2020 predictions'
+    # calibrated yarn went to 0.59 x 4 w, and was warned before the floor was taken)
+    from knitsim.cell.effects import EffectSet
+    from knitsim.io.checks import jam_width_floor
+    eff = EffectSet(on=("yarn_compaction",), compaction_k=20.0, compaction_min=0.5)
+    assert jam_width_floor(np.array([0.79, 0.79]), np.array([eff, None], dtype=object)).tolist() == [0.395, 0.79]
+    p = SPECIMEN.replace(effects=eff)
+    h = run_batch([p], monotonic(0.6, 0.005))
+    assert np.nanmin(h.values["W"][:, 0]) < 4 * 0.79 * (1 - 1e-3)           # below 4 w ...
+    assert np.nanmin(h.values["W"][:, 0]) >= 4 * 0.79 * 0.5 * (1 - 1e-3)     # ... not below 4 x the floor
+    s = summarise(h, ["compacting"])
+    assert "wale_spacing_below_jamming" not in [w["code"] for w in s["warnings"]]
