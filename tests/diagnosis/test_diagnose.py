@@ -832,6 +832,13 @@ def test_a_load_cells_zero_drifting_over_cycles_is_read_off_the_states_the_knit_
     pull = SimpleNamespace(strain=up, strain_read=up, force=0.1 + 0.2 * up + 0.006 * (up - 0.1) / 0.5,
                            cycle=np.ones(26, int), rate_mm_s=None, source="p.csv")
     assert force_drift(pull, {"simulated": 0.1 + 0.2 * up, "keys": ["loading_sliding"] * 26}, w[:26]) is None
+    # a misfit that grows from cycle to cycle by state (what a knit that shakes down does, and a fit that lacks
+    # it misses: 0.02 N x (strain - 0.35) more each cycle, of either sign by state), with the same mean trend over
+    # the test as a drift would have: the states' own slopes disagree (chi^2 / dof ~10^5 >> DRIFT_UNIFORMITY):
+    # nothing
+    force = sim + 0.02 * (cyc - 1) * (s - 0.35) + 0.002 * t / t[-1]
+    curve = SimpleNamespace(strain=s, strain_read=s, force=force, cycle=cyc, rate_mm_s=None, source="c.csv")
+    assert force_drift(curve, {"simulated": sim, "keys": keys}, w) is None
 
 
 def test_a_drifting_zero_a_glitch_and_a_grip_slip_in_the_force_are_said_by_the_diagnosis(tmp_path):
