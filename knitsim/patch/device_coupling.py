@@ -1,11 +1,14 @@
-"""The patch coupling's per-group work on the Warp device of the cells (:mod:`knitsim.kernels.branch_points`).
+"""The patch coupling's per-group work on the Warp device of the cells (:mod:`knitsim.kernels.branch_points`,
+:mod:`knitsim.kernels.column_trials`).
 
 :class:`DeviceBranchPoints` is :class:`~knitsim.patch.coupling.BranchPoints` with its points and model kept on
 the device: ``add``, ``prepare``, ``model`` and ``jump`` run one thread per group instead of NumPy over
 [groups, points] arrays (on a 10^6-group patch those took ~1 s of host time per trial, several times the
 cells' own trial on a GPU).  The NumPy class is its twin and test oracle
-(``tests/patch/test_device_coupling.py``); ``record`` (stall counts) and the bounds the solver sets stay on the
-host and are sent with ``prepare``.
+(``tests/patch/test_device_coupling.py``).  Used alone, ``record`` (stall counts) and the bounds the solver sets
+stay on the host and are sent with ``prepare``; :class:`DeviceColumnSolve` is ``PatchSolver._solve_columns`` on
+the device; :class:`DeviceTrials` keeps the bounds, the stall counts and the rest of each trial's bookkeeping
+on the device (``PatchSolver._solve`` with the device coupling: the host reads per-column values only).
 """
 from __future__ import annotations
 
@@ -279,7 +282,7 @@ class DeviceTrials:
         book.dir_min, book.dir_max, book.k = g(), g(), g()
         self.book = book
         self.stick, self.committed_strain, self.u_single = g(wp.int32), g(), g()
-        self.kt, self.slide_C, self.slide_F = g(), g(), g()
+        self.kt, self.slide_C, self.slide_F, self.k_c = g(), g(), g(), g()
         self.live, self.col_stalled, self.jumped = k(wp.int32), k(wp.int32), k(wp.int32)
         self.F_col = k()
         self.F_max, self.F_min, self.length_gap, self.force_gap = k(), k(), k(), k()
@@ -314,13 +317,13 @@ class DeviceTrials:
         good lengths the committed ones, no failure yet; the fallback tangents ``k``.  The model's bounds and
         stall state are kept here from now on (``pts.host_state`` off)."""
         bk, b, c = self.book, pts.b, self.columns
-        self._put(self.kt, k_c)
+        self._put(self.k_c, k_c)
         self._put(self.F_col, F_col)
         self._put(self.monotone, monotone)
         self._put(bk.k, k)
         self._put(self.u_single, u_single)
         wp.launch(self.k.begin_trials_kernel, dim=self.n, device=self.device,
-                  inputs=[b, bk, c.col, c.p, c.C0, reads[0], reads[1], self.kt, self.F_col, self.monotone,
+                  inputs=[b, bk, c.col, c.p, c.C0, reads[0], reads[1], self.k_c, self.F_col, self.monotone,
                           int(direction), int(sf_stages[0]), int(sf_stages[1])],
                   outputs=[self.committed_strain, self.stick])
         b.stall.zero_()
