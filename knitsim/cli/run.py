@@ -72,8 +72,9 @@ def register(subparsers) -> None:
     p.set_defaults(func=_run)
 
 
-def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[dict]:
-    """Before any solve: every distinct cell of the patch against the model's domain (knitsim.cell.domain).
+def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: bool = True) -> list[dict]:
+    """Before any solve: every distinct cell of the patch against the model's domain (knitsim.cell.domain), and
+    the run's records against the machine's memory (:func:`check_record_memory`).
 
     A cell without an admissible rest state is an error (one line: how many cells, the first one's
     course and wale, the reason): the model cannot run it, and a column holding it has no rest state
@@ -88,9 +89,11 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     from ..cell.domain import DOMAIN, check_cells
 
     grouping = model.grouping(dedup=True)
+    n_cells = int(grouping.group_of_cell.size)
+    # (dedup off: every cell is a group of its own)
+    check_record_memory(grouping.n_groups if dedup else n_cells, len(grip_strains), dedup)
     check = check_cells(grouping.params, engine=engine, device=device)
     cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=len(grouping.params))
-    n_cells = int(grouping.group_of_cell.size)
     for whys, what, source in ((check.no_rest, "have no admissible rest state", " (knitsim.cell.domain)"),
                                (check.at_cap([p.cap_N for p in grouping.params]), "cannot be loaded", "")):
         bad = [g for g, why in enumerate(whys) if why is not None]
@@ -117,6 +120,25 @@ def check_patch_domain(model, grip_strains, engine: str, device: str) -> list[di
     if why is not None:
         warnings.append({"code": "outside_domain", "message": f"extrapolation: grip {why}"})
     return warnings
+
+
+def check_record_memory(n_groups: int, n_increments: int, dedup: bool, available: int | None = None) -> None:
+    """Refuse, before any work, a run whose per-cell records would not fit in the machine's free memory
+    (:func:`knitsim.patch.runner.record_memory_bytes` against ``available``, by default
+    :func:`~knitsim.patch.runner.available_memory_bytes`): it would be killed part-way, its finished increments
+    lost since its last checkpoint (a 1000 x 1000 random patch through 620 increments keeps 167 GB)."""
+    from ..patch.runner import RECORD_BYTES_PER_GROUP, RECORD_COPIES, available_memory_bytes, record_memory_bytes
+    need = record_memory_bytes(n_groups, n_increments)
+    free = available_memory_bytes() if available is None else available
+    if free is None or need <= free:
+        return
+    gib = 2.0 ** 30
+    raise KnitsimInputError(
+        f"the run would keep {need / gib:.3g} GiB of per-cell records ({n_groups:,} distinct cell(s) x {n_increments:,} "
+        f"increments x {RECORD_BYTES_PER_GROUP} bytes, {RECORD_COPIES} copies at its peak: the rows, their arrays, a "
+        f"checkpoint), more than the {free / gib:.3g} GiB free on this machine: it would be killed part-way. Take "
+        f"fewer increments (a larger load.max_increment), " + ("" if dedup else "turn dedup on (identical cells "
+        "solved once), ") + "or run a smaller patch")
 
 
 def zone_overlaps(resolved: dict) -> list[dict]:
@@ -288,7 +310,7 @@ def _run(args) -> int:
             from .. import warp_runtime
             device = warp_runtime.resolve_device(scene.device)
         # the model's domain, before any output is touched (a cell without a rest state: error)
-        domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device)
+        domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device, scene.dedup)
         overlaps = zone_overlaps(scene.resolved)
         for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)

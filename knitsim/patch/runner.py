@@ -44,6 +44,36 @@ _ROW_KEYS = ("force_N", "force_per_wale_N", "column_force_N", "column_status", "
              "g_C", "g_F", "g_phi", "g_label", "g_status", "g_x", "g_W", "g_s_AB", "g_head_gap")
 #: per-group geometry rows (checkpoints written before they existed lack them)
 _GEOMETRY_KEYS = ("g_x", "g_W", "g_s_AB", "g_head_gap")
+#: bytes a run keeps per group and increment: the g_ rows (C, F, phi, W, s_AB, head gap and the state x's five
+#: values in float64; the stage label and status in int8)
+RECORD_BYTES_PER_GROUP = 11 * 8 + 2 * 1
+#: copies of those records a run holds at its peak: the rows, the arrays stacked from them at the end, and a
+#: checkpoint's pickle of the rows
+RECORD_COPIES = 3
+
+
+def record_memory_bytes(n_groups: int, n_increments: int) -> int:
+    """The memory a run of ``n_groups`` groups through ``n_increments`` increments needs at its peak for its
+    per-group records [bytes] (:data:`RECORD_BYTES_PER_GROUP`, :data:`RECORD_COPIES`): a 1000 x 1000 random patch
+    through the paper's 620 increments, 167 GB; the paper's specimen with random phi0, 0.42 GB."""
+    return RECORD_COPIES * RECORD_BYTES_PER_GROUP * int(n_groups) * int(n_increments)
+
+
+def available_memory_bytes() -> int | None:
+    """The memory this machine can give a process now [bytes]: /proc/meminfo's MemAvailable (Linux), else the free
+    physical pages; None where neither is known."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    import os
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 class PatchInterrupted(Exception):

@@ -1,0 +1,82 @@
+"""``knitsim run`` refuses, before any work, a run whose per-cell records would not fit in memory.
+
+Where the expected values come from: the bytes a run keeps per group and increment are counted from a real
+checkpoint's rows (the run's own records, each array's ``nbytes``), independently of the constant that the
+estimate uses; the refusal is driven by a stated free memory (``available``) below the estimate, the estimate's
+arithmetic being the product of its factors (an identity).
+"""
+from __future__ import annotations
+
+import pickle
+
+import pytest
+
+from knitsim.cell.load_program import cycles
+from knitsim.cli import main
+from knitsim.patch import runner
+from knitsim.patch.runner import RECORD_BYTES_PER_GROUP, RECORD_COPIES, record_memory_bytes
+
+PATCH = """
+title = "memory"
+[patch]
+wales = 3
+courses = 4
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[friction]
+m = 0.2
+phi0 = 0.0
+[load]
+type = "cycles"
+lower_strain = 0.1
+upper_strain = 0.3
+cycles = 1
+max_increment = 0.05
+[output]
+checkpoint_every = 1
+"""
+
+
+def test_the_records_per_group_and_increment_are_those_a_run_keeps(tmp_path):
+    from knitsim.cell.material import CellParams
+    from knitsim.patch.model import PatchModel
+    cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.20, force_cap_N=10.0)   # Table 1, section 2.2
+    prog = cycles(0.1, 0.3, 1, 0.05)
+    ck = tmp_path / "checkpoint.pkl"
+    runner.run_patch(PatchModel.uniform(cell, 4, 3), prog, dedup=False, checkpoint=ck, checkpoint_every=4)
+    with open(ck, "rb") as fh:
+        pickle.load(fh)
+        rows = pickle.load(fh)["rows"]
+    n = len(rows["force_N"])
+    assert n == len(prog) == 10
+    kept = sum(a.nbytes for k, v in rows.items() if k.startswith("g_") for a in v)
+    n_groups = rows["g_C"][0].shape[0]
+    assert n_groups == 12
+    assert kept == RECORD_BYTES_PER_GROUP * n_groups * n
+    assert record_memory_bytes(n_groups, n) == RECORD_COPIES * kept
+
+
+def test_a_run_that_would_not_fit_in_memory_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(PATCH)
+    # 12 cells, dedup off (every cell its own group): 12 x 10 increments x 90 bytes x 3 = 32,400 bytes
+    need = record_memory_bytes(12, len(cycles(0.1, 0.3, 1, 0.05)))
+    assert need == 3 * 90 * 12 * 10
+    monkeypatch.setattr(runner, "available_memory_bytes", lambda: need - 1)
+    out = tmp_path / "out"
+    rc = main(["run", str(scene), "--out", str(out), "--no-progress", "--set", "patch.dedup=false"])
+    err = capsys.readouterr().err
+    assert rc != 0 and "per-cell records" in err and "turn dedup on" in err, err
+    assert "Traceback" not in err
+    assert not out.exists()                     # refused before any output was touched
+    monkeypatch.setattr(runner, "available_memory_bytes", lambda: need)
+    assert main(["run", str(scene), "--out", str(out), "--no-progress", "--set", "patch.dedup=false"]) == 0
+
+
+@pytest.mark.parametrize("n_groups, n_inc, gb", [(10 ** 6, 620, 167.4), (2530, 620, 0.4235)])
+def test_the_estimate_of_the_docstring(n_groups, n_inc, gb):
+    # record_memory_bytes' docstring: a 1000 x 1000 random patch through the paper's 620 increments, and the
+    # paper's specimen (23 x 110) with random phi0
+    assert record_memory_bytes(n_groups, n_inc) / 1e9 == pytest.approx(gb, rel=1e-3)
