@@ -167,6 +167,9 @@ def _run(args) -> int:
                        ("reload_above_first_loading", "a later cycle reloads above the first loading at the same "
                                                       "strain; variable reload_above_first_loading in results.nc / "
                                                       "results.csv"),
+                       ("reload_below_first_loading", "a reload past an earlier maximum carries below 90 % of "
+                                                      "the same cell's monotonic pull; variable "
+                                                      "reload_below_first_loading in results.nc / results.csv"),
                        ("wale_spacing_below_jamming", "OUTSIDE THE MODEL: W below 4 x the in-plane width, the "
                                                       "model's jamming limit (head_gap criterion); variable "
                                                       "wale_spacing_below_jamming in results.nc / results.csv"),

@@ -417,18 +417,22 @@ def summarise(history: BatchHistory, labels: list[str] | None = None, notes: lis
     for the check of a reload past the earlier maximum against the first loading's continuation."""
     labels = labels or [f"cell {i}" for i in range(history.n_cells)]
     notes = notes or [{} for _ in range(history.n_cells)]
-
-    def ref(i):
-        if reference is None:
-            return None
-        n = _stopped_rows(np.asarray(reference.status[:, i]))
-        return np.asarray(reference.strain[:n], float), np.asarray(reference.force_per_wale[:n, i], float)
-    cells = [cell_summary(history, i, labels[i], notes[i], reference=ref(i)) for i in range(history.n_cells)]
+    cells = [cell_summary(history, i, labels[i], notes[i], reference=first_loading_curve(reference, i))
+             for i in range(history.n_cells)]
     out = dict(info)
     out.update(n_cells=history.n_cells, n_increments=int(len(history.strain)),
                all_expected_end=all(c["expected_end"] for c in cells),
                warnings=[dict(w, cell=c["label"]) for c in cells for w in c["warnings"]], cells=cells)
     return out
+
+
+def first_loading_curve(reference: BatchHistory | None, cell: int) -> tuple | None:
+    """(strain, force per wale) of ``cell``'s monotonic pull in ``reference`` (:func:`first_loading`) up to where it
+    stopped, the ``reference`` :func:`cell_summary` takes; None without one."""
+    if reference is None:
+        return None
+    n = _stopped_rows(np.asarray(reference.status[:, cell]))
+    return np.asarray(reference.strain[:n], float), np.asarray(reference.force_per_wale[:n, cell], float)
 
 
 def first_loading(params, program, engine: str = "warp", device: str = "cpu") -> BatchHistory | None:

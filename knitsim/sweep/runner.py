@@ -76,7 +76,7 @@ CHUNK_DIR = "chunks"
 #: every name a sweep writes into its --out (recorded there: --overwrite removes these and nothing else)
 SWEEP_OUTPUTS = (MANIFEST, f"{CHUNK_DIR}/", "results.nc", ".results.nc.tmp", "results.csv", "plot_sweep.png",
                  "summary.json")
-FORMAT = "knitsim-sweep/3"
+FORMAT = "knitsim-sweep/4"
 #: per cell and cycle
 CYCLE_VARS = ("peak_force_per_wale_N", "strain_at_peak", "residual_strain", "energy_N_mm", "energy_N_per_strain")
 #: per cell and cycle, integer codes (-1 where the cycle has no results): what its energy is
@@ -90,12 +90,13 @@ ENERGY_KINDS = dict(enumerate(checks.ENERGY_KINDS))
 CELL_VARS = ("strain_at_first_jamming", "final_status", "expected_end", "loop_creates_energy", "rest_state_compressive",
              "stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N", "heads_interpenetrate",
              "zero_force_cycle", "reload_below_earlier_loading", "reload_loss_continues", "reload_above_first_loading",
-             "wale_spacing_below_jamming")
+             "reload_below_first_loading", "wale_spacing_below_jamming")
 #: warnings of the cell's summary (knitsim.io.results.cell_summary, as knitsim cell gives them) carried per
 #: sample and cell as flags: 1 warned, 0 not, -1 not solved or unknown (a blind probe found heads_interpenetrate
 #: and zero_force_cycle in no sweep output)
 _WARNING_FLAGS = ("heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
-                  "reload_loss_continues", "reload_above_first_loading", "wale_spacing_below_jamming")
+                  "reload_loss_continues", "reload_above_first_loading", "reload_below_first_loading",
+                  "wale_spacing_below_jamming")
 #: where a cell stopped (knitsim.io.results.cell_summary): a failed cell (all three), a cell stopped at its force
 #: cap (stopped_at_strain only); NaN for a cell that ran the whole program
 _STOP_VARS = ("stopped_at_strain", "last_converged_strain", "last_converged_force_per_wale_N")
@@ -510,8 +511,10 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
 
 
 # ----------------------------------------------------------------- reduction
-def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np.ndarray]:
-    """Scalar results of every cell of a history (see :func:`knitsim.io.results.cell_summary`).
+def reduce_history(history, n_cycles: int, curves: bool = False, reference=None) -> dict[str, np.ndarray]:
+    """Scalar results of every cell of a history (see :func:`knitsim.io.results.cell_summary`); ``reference``: the
+    cells pulled monotonically (:func:`knitsim.io.results.first_loading`; None where the program does not reload
+    past an earlier maximum), the check ``reload_below_first_loading``'s, as ``knitsim cell`` runs it.
 
     Returns
     -------
@@ -538,8 +541,9 @@ def reduce_history(history, n_cycles: int, curves: bool = False) -> dict[str, np
         out[k] = np.zeros(n, dtype=np.int8)
     for k in _STOP_VARS:
         out[k] = np.full(n, np.nan)
+    from ..io.results import first_loading_curve
     for c in range(n):
-        s = cell_summary(history, c)
+        s = cell_summary(history, c, reference=first_loading_curve(reference, c))
         for cy in s["cycles"]:
             j = cy["cycle"] - 1
             for k in CYCLE_VARS:
@@ -605,10 +609,13 @@ def run_chunk(task: dict) -> dict:
         red["force_per_wale_N"] = np.full((n_all, len(task["program"])), np.nan)
     if solve.any():
         # Warp's messages must not reach stdout (kept for --json)
+        from ..io.results import first_loading
+        solved = [p for p, s in zip(task["params"], solve) if s]
         with contextlib.redirect_stdout(sys.stderr):
-            history = simulate([p for p, s in zip(task["params"], solve) if s], task["program"],
-                               engine=task["engine"], device=task["device"])
-        for k, v in reduce_history(history, task["n_cycles"], task["curves"]).items():
+            history = simulate(solved, task["program"], engine=task["engine"], device=task["device"])
+            # the cells pulled monotonically, where the program reloads past an earlier maximum (else None)
+            reference = first_loading(solved, task["program"], engine=task["engine"], device=task["device"])
+        for k, v in reduce_history(history, task["n_cycles"], task["curves"], reference).items():
             red[k][solve] = v
     ns, nc = len(task["samples"]), task["n_cells"]
     arrays = {"samples": np.asarray(task["samples"], dtype=np.int64)}
@@ -1129,6 +1136,11 @@ def assemble(out_dir: str | Path):
                                       "reload_above_first_loading of knitsim cell, knitsim.io.checks."
                                       "reloads_above_first_loading), 0 if not, "
                                       "-1 not solved, failed (no judgement of its cycles) or unknown",
+        "reload_below_first_loading": "1 if a reload past an earlier maximum carries less than 90 % of what the "
+                                      "same cell pulled monotonically carries there (warning "
+                                      "reload_below_first_loading of knitsim cell, knitsim.io.checks."
+                                      "reloads_below_first_loading; judged only where the program reloads past an "
+                                      "earlier maximum), 0 if not, -1 not solved, failed or unknown",
         "wale_spacing_below_jamming": "1 if the wale spacing W falls below 4 w somewhere in the program (w the "
                                       "in-plane width; outside the model: warning wale_spacing_below_jamming of "
                                       "knitsim cell, knitsim.io.checks.wale_spacing_below_jamming; the head-gap "
@@ -1388,6 +1400,9 @@ _WARNING_REASONS = {
     "reload_loss_continues": "cycles to the same strain go on losing peak force after their first reload, where a "
                              "measured knit settles (Table 4's S+ starts each reload's sliding at a lower Rn); "
                              "knitsim cell on the sample says which cycles",
+    "reload_below_first_loading": "a reload past an earlier maximum carries well below the same cell's monotonic "
+                                  "pull (Table 4's S+ restarts sliding at a lower Rn); knitsim cell on the sample "
+                                  "says where",
     "wale_spacing_below_jamming": "OUTSIDE THE MODEL: the wale spacing falls below 4 x the in-plane width, the "
                                   "model's jamming limit (the head-gap criterion lets it after the heads touch); "
                                   "knitsim cell on the sample says where",

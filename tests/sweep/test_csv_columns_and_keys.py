@@ -140,9 +140,33 @@ def test_the_cells_own_warnings_are_carried_per_sample(tmp_path):
         assert [r["sample"] for r in warning_samples(ds, flag)] == [i for i, a in enumerate(alone) if a]
     assert ds["zero_force_cycle"].values.ravel().tolist() == [1, 0]
     header = text.splitlines()[0].split(",")
-    assert header[-7:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
-                           "reload_loss_continues", "reload_above_first_loading", "wale_spacing_below_jamming",
-                           "domain"]
+    assert header[-8:] == ["heads_interpenetrate", "zero_force_cycle", "reload_below_earlier_loading",
+                           "reload_loss_continues", "reload_above_first_loading", "reload_below_first_loading",
+                           "wale_spacing_below_jamming", "domain"]
+    # the paper's cycles never load past an earlier maximum: nothing to compare with a monotonic pull
+    assert ds["reload_below_first_loading"].values.ravel().tolist() == [0, 0]
+
+
+def test_a_reload_below_the_first_loading_is_carried_per_sample(tmp_path):
+    # a blind probe: waypoints 0.3, 0.29, 0.5 with Hong's unloading rule end 18 % below the monotonic pull at 0.5
+    # (knitsim cell warns reload_below_first_loading); sweeps did not check it.  Expected: the warning of the cell's
+    # own summary against its own monotonic pull (knitsim.io.results.first_loading, as knitsim cell runs it), sample
+    # by sample, over both unloading rules
+    from knitsim.cell.engine import simulate
+    from knitsim.io.results import cell_summary, first_loading, first_loading_curve
+    from knitsim.sweep.runner import warning_samples
+    scene = dict(SCENE, load={"type": "piecewise", "waypoints": [0.3, 0.29, 0.5], "max_increment": 0.01})
+    plan = plan_sweep(scene, {"parameters": {"rules.unloading_rule": {"values": ["hong_constant_t", "dusserre"]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    params = [plan.base.params[0].replace(unloading_rule=r) for r in ("hong_constant_t", "dusserre")]
+    h = simulate(params, plan.programs[0], engine="warp", device="cpu")
+    ref = first_loading(params, plan.programs[0])
+    alone = [int(any(w["code"] == "reload_below_first_loading"
+                     for w in cell_summary(h, c, reference=first_loading_curve(ref, c))["warnings"])) for c in range(2)]
+    assert alone[0] == 1                          # the probe's case is warned
+    assert ds["reload_below_first_loading"].values.ravel().tolist() == alone
+    assert [r["sample"] for r in warning_samples(ds, "reload_below_first_loading")] == [i for i, a in enumerate(alone)
+                                                                                        if a]
 
 
 def test_a_reload_above_the_first_loading_is_carried_per_sample(tmp_path):
