@@ -685,9 +685,12 @@ def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, in
             # one row beyond GLITCH_SIGMAS sd and beyond what the curve's force changes over one strain step there:
             # a row off by less could be read at a strain (a time) off by less than a step
             h = np.median(np.abs(np.diff(s[nb], axis=1)), axis=1)[:, None]
-            g = np.abs(g1[:, None] + (g2 - g1)[:, None] * (s[blk] - s[starts - 1][:, None])
-                       / np.maximum(s[starts + k] - s[starts - 1], 1e-300)[:, None])
-            big = (np.abs(z) > GLITCH_SIGMAS) & (np.abs(f[blk] - pred) > g * h)
+            # (a block whose sides share one strain, a jittering extensometer's: its slope is unbounded there, so no
+            # row of it counts as beyond one step's change; the inf and NaN this makes are that, not a fault)
+            with np.errstate(over="ignore", invalid="ignore"):
+                g = np.abs(g1[:, None] + (g2 - g1)[:, None] * (s[blk] - s[starts - 1][:, None])
+                           / np.maximum(s[starts + k] - s[starts - 1], 1e-300)[:, None])
+                big = (np.abs(z) > GLITCH_SIGMAS) & (np.abs(f[blk] - pred) > g * h)
             hit &= np.any(big, axis=1)
             for n in np.flatnonzero(hit):
                 found.append((float(np.max(np.abs(z[n]))), int(starts[n]), k, float(z[n][np.argmax(np.abs(z[n]))])))
