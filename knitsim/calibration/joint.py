@@ -40,7 +40,9 @@ variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
 ``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits);
 correlations from it.  A variable within 0.1 % of its range of a bound is
 flagged, with what that bound means; one whose standard error is not finite or
-larger than half its range is flagged not identified (:func:`identification_rule`).
+larger than half its range is flagged not identified (:func:`identification_rule`), and so is one that
+another refined start reaches, beyond 3 of its standard errors, at a chi2 within 3.84 s^2 of the best
+(:func:`rival_rule`: the standard error describes one minimum of several that fit as well).
 :attr:`JointResult.flags` lists these, the optimiser's failure (its message),
 cells that did not solve, and specimens that do not look like one yarn: a result with a flag is not a
 calibration to use.
@@ -125,6 +127,12 @@ UNITS = {"B": "N mm^2", "d": "mm", "in_plane_width": "mm", "m": "-", "phi0": "ra
 BOUND_TOL = 1e-3
 #: a parameter whose standard error exceeds this share of its range (high - low) is not identified
 NOT_IDENTIFIED_SHARE = 0.5
+#: a refined start whose chi2 lies within this many s^2 of the best fits as well (chi^2 with 1 dof, 95 %): the
+#: profile of each variable reaches its values (:func:`rival_rule`)
+RIVAL_DCHI2 = 3.84
+#: ... and a value of such a start further than this many standard errors from the best shows the standard error
+#: (the curvature at the best) understates what the rows leave open
+RIVAL_SE = 3.0
 #: residual of a row whose cell failed (not ok), times max(1, |target| / sd)
 FAIL_RESIDUAL = 30.0
 #: the one-yarn check (:func:`one_yarn_check`) flags a p-value below this: the chance that one yarn's
@@ -1317,6 +1325,29 @@ def identification_rule(std_error: float, low: float, high: float, unit: str = "
     return ""
 
 
+def rival_rule(value: float, std_error: float, rivals: Sequence[tuple[float, float]], unit: str = "") -> str:
+    """Why an estimate is not identified though its standard error is finite, or ``""``: another refined start
+    (``rivals``: each its chi2 above the best's, in units of s^2, and its value of the estimate) fits as well
+    (within :data:`RIVAL_DCHI2`) at a value more than :data:`RIVAL_SE` standard errors away.  The standard error
+    is the curvature at the best point; with a quadratic chi2 a point k standard errors away costs k^2 s^2 more,
+    so an equal fit far away means a flat or many-valleyed direction: the rows leave the value open.  (A blind
+    probe's knit that never jams: in_plane_width 0.823 +- 0.0036 mm, starts at 0.709 .. 0.823 within 0.2 of its
+    chi2 43.1, the truth 0.79.)"""
+    if not (math.isfinite(std_error) and math.isfinite(value)):
+        return ""
+    near = [v for d, v in rivals if d <= RIVAL_DCHI2 and math.isfinite(v)]
+    far = [v for v in near if abs(v - value) > RIVAL_SE * std_error]
+    if not far:
+        return ""
+    u = f" {unit}" if unit else ""
+    worst = max(far, key=lambda v: abs(v - value))
+    lo, hi = min(near + [value]), max(near + [value])
+    k = abs(worst - value) / std_error if std_error > 0 else math.inf
+    return (f"another refined start fits as well (chi2 within {RIVAL_DCHI2:g} s^2 of the best) at {worst:.4g}{u}, "
+            f"{k:.3g} standard errors away: {lo:.4g} .. {hi:.4g}{u} fit alike, the standard error {std_error:.4g}{u} "
+            "holds only near the best point")
+
+
 def check_setup(specimens: Sequence[SpecimenData], setup: JointSetup) -> None:
     """Every check :func:`calibrate_joint` makes before its first solve (the variables, bounds, priors, the
     rows' grid, strains the knits cannot reach), without solving: a scene is refused before any work.
@@ -1510,11 +1541,13 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             mids.append((cost, rank, sol))
             if best is None or cost < best[0]:
                 best = (cost, sol)
+        finals = [(c, s_) for c, _, s_ in mids]     # the last stage's solutions (rivals of the best: rival_rule)
         if setup.objective == "band":
             # stage 2: the band likelihood from each mid-line solution (best first); its steep walls
             # (the force accuracy) make it a poor landscape to start from anywhere else
             pb.objective = "band"
             best = None
+            finals = []
             for j, (_, rank, msol) in enumerate(sorted(mids, key=lambda t: (t[0], t[1]))):
                 at = len(order) + j
                 sol = (state["refined"][at] if at < len(state["refined"])
@@ -1525,6 +1558,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                 starts.append({"start": int(order[rank]), "objective": "band", "chi2_start": c0, "chi2": cost,
                                "nfev": int(sol.nfev), "success": bool(sol.success), "message": str(sol.message)})
                 say(f"band likelihood from start {rank + 1}: chi2 {c0:.4g} -> {cost:.4g} in {sol.nfev} evaluations")
+                finals.append((cost, sol))
                 if best is None or cost < best[0]:
                     best = (cost, sol)
     except KeyboardInterrupt:
@@ -1545,6 +1579,8 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     np.fill_diagonal(corr, 1.0)
     estimates = []
     lo_f, hi_f = pb.lo, pb.hi
+    # the other refined starts: each one's chi2 above the best's (in s^2) and its reported values
+    rivals = [((c - chi2) / s2 if s2 > 0 else math.inf, _reported(pb, r.x)[1]) for c, r in finals if r is not sol]
     for j, ((nme, spi), val) in enumerate(zip(names, y)):
         span = hi_f[j] - lo_f[j]
         side = "low" if x[j] - lo_f[j] <= BOUND_TOL * span else ("high" if hi_f[j] - x[j] <= BOUND_TOL * span else None)
@@ -1562,11 +1598,14 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                 and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
             note = "the high end of the stated range (below W0/4 of the narrowest knit)"
         unid = identification_rule(float(se[j]), float(los[j]), float(his[j]), unit)
-        if unid:
+        rival = "" if unid else rival_rule(float(val), float(se[j]), [(d, float(v[j])) for d, v in rivals], unit)
+        if unid or rival:
             side = side or "not identified"
             note = (note + "; " if note else "") + ("the rows do not depend on it (not identified)"
                                                     if not np.isfinite(se[j]) else
-                                                    "standard error above half its range (not identified)")
+                                                    "another start fits as well far away (not identified)" if rival
+                                                    else "standard error above half its range (not identified)")
+        unid = unid or rival
         estimates.append(Estimate(nme, spname, float(val), float(se[j]), unit, float(los[j]), float(his[j]), side,
                                   note, stated, dev, unid))
     # each specimen's fit
@@ -1721,5 +1760,5 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
                         base["largest_pull"])
 
 
-__all__ = ["CalibrationInterrupted", "check_setup", "check_zero", "ZERO_MODES", "ZERO_CHECK_SD", "ZERO_CHECK_SHARE", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+__all__ = ["rival_rule", "CalibrationInterrupted", "check_setup", "check_zero", "ZERO_MODES", "ZERO_CHECK_SD", "ZERO_CHECK_SHARE", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
            "SPECIMEN_VARIABLES", "UNITS", "OBJECTIVES"]
