@@ -40,9 +40,10 @@ variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
 ``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits);
 correlations from it.  A variable within 0.1 % of its range of a bound is
 flagged, with what that bound means; one whose standard error is not finite or
-larger than half its range is flagged not identified (:func:`identification_rule`), and so is one that
-another refined start reaches, beyond 3 of its standard errors, at a chi2 within 3.84 s^2 of the best
-(:func:`rival_rule`: the standard error describes one minimum of several that fit as well).
+larger than half its range is flagged not identified (:func:`identification_rule`).  Where another refined start
+fits as well (chi2 within 3.84 s^2 of the best) at a value beyond 3 of its standard errors, the curvature at the
+best describes one minimum of several: the standard error is widened to that distance / 1.96, and the estimate is
+flagged not identified unless the distance is within a knit's stated sd (:func:`rival_rule`).
 :attr:`JointResult.flags` lists these, the optimiser's failure (its message),
 cells that did not solve, and specimens that do not look like one yarn: a result with a flag is not a
 calibration to use.
@@ -1325,27 +1326,36 @@ def identification_rule(std_error: float, low: float, high: float, unit: str = "
     return ""
 
 
-def rival_rule(value: float, std_error: float, rivals: Sequence[tuple[float, float]], unit: str = "") -> str:
-    """Why an estimate is not identified though its standard error is finite, or ``""``: another refined start
-    (``rivals``: each its chi2 above the best's, in units of s^2, and its value of the estimate) fits as well
-    (within :data:`RIVAL_DCHI2`) at a value more than :data:`RIVAL_SE` standard errors away.  The standard error
-    is the curvature at the best point; with a quadratic chi2 a point k standard errors away costs k^2 s^2 more,
-    so an equal fit far away means a flat or many-valleyed direction: the rows leave the value open.  (A blind
-    probe's knit that never jams: in_plane_width 0.823 +- 0.0036 mm, starts at 0.709 .. 0.823 within 0.2 of its
-    chi2 43.1, the truth 0.79.)"""
+def rival_spread(value: float, std_error: float, rivals: Sequence[tuple[float, float]]) -> float:
+    """How far from ``value`` another refined start fits as well (``rivals``: each its chi2 above the best's, in
+    units of s^2, and its value): the largest distance of a rival within :data:`RIVAL_DCHI2` that lies beyond
+    :data:`RIVAL_SE` standard errors; 0 where none does.  The standard error is the curvature at the best point;
+    with a quadratic chi2 a point k standard errors away costs k^2 s^2 more, so an equal fit further away means a
+    flat or many-valleyed direction."""
     if not (math.isfinite(std_error) and math.isfinite(value)):
-        return ""
-    near = [v for d, v in rivals if d <= RIVAL_DCHI2 and math.isfinite(v)]
-    far = [v for v in near if abs(v - value) > RIVAL_SE * std_error]
-    if not far:
+        return 0.0
+    far = [abs(v - value) for d, v in rivals
+           if d <= RIVAL_DCHI2 and math.isfinite(v) and abs(v - value) > RIVAL_SE * std_error]
+    return max(far, default=0.0)
+
+
+def rival_rule(value: float, std_error: float, rivals: Sequence[tuple[float, float]], unit: str = "",
+               tolerance: float = 0.0) -> str:
+    """Why an estimate is not identified though its standard error is finite, or ``""``: another refined start
+    fits as well at a value further than :data:`RIVAL_SE` standard errors (:func:`rival_spread`) and further than
+    ``tolerance`` (a knit's stated sd, its prior: a geometry the rows leave open within what the lab measured is
+    known as well as the lab knows it).  (A blind probe's knit that never jams: in_plane_width 0.823 +- 0.0036
+    mm, no flag, while starts ended at 0.709 .. 0.803 within 0.2 of its chi2 43.1, the truth 0.79.)"""
+    spread = rival_spread(value, std_error, rivals)
+    if not spread > tolerance:
         return ""
     u = f" {unit}" if unit else ""
-    worst = max(far, key=lambda v: abs(v - value))
+    near = [v for d, v in rivals if d <= RIVAL_DCHI2 and math.isfinite(v)]
     lo, hi = min(near + [value]), max(near + [value])
-    k = abs(worst - value) / std_error if std_error > 0 else math.inf
-    return (f"another refined start fits as well (chi2 within {RIVAL_DCHI2:g} s^2 of the best) at {worst:.4g}{u}, "
-            f"{k:.3g} standard errors away: {lo:.4g} .. {hi:.4g}{u} fit alike, the standard error {std_error:.4g}{u} "
-            "holds only near the best point")
+    k = spread / std_error if std_error > 0 else math.inf
+    return (f"another refined start fits as well (chi2 within {RIVAL_DCHI2:g} s^2 of the best) {spread:.4g}{u} "
+            f"away, {k:.3g} of the best point's standard errors ({std_error:.4g}{u}): {lo:.4g} .. {hi:.4g}{u} fit "
+            "alike")
 
 
 def check_setup(specimens: Sequence[SpecimenData], setup: JointSetup) -> None:
@@ -1597,8 +1607,13 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
                 and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
             note = "the high end of the stated range (below W0/4 of the narrowest knit)"
-        unid = identification_rule(float(se[j]), float(los[j]), float(his[j]), unit)
-        rival = "" if unid else rival_rule(float(val), float(se[j]), [(d, float(v[j])) for d, v in rivals], unit)
+        # values another refined start reaches as well widen the standard error to theirs (1.96 sd: 95 %)
+        mine = [(d, float(v[j])) for d, v in rivals]
+        se_j = max(float(se[j]), rival_spread(float(val), float(se[j]), mine) / 1.96)
+        unid = identification_rule(se_j, float(los[j]), float(his[j]), unit)
+        prior = (float(stated * pb.sp[spi].uncertainty[nme]) if nme in GEOMETRY else
+                 float(pb.sp[spi].pretension_sd) if nme == "pretension" else 0.0)
+        rival = "" if unid else rival_rule(float(val), float(se[j]), mine, unit, tolerance=prior)
         if unid or rival:
             side = side or "not identified"
             note = (note + "; " if note else "") + ("the rows do not depend on it (not identified)"
@@ -1606,7 +1621,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                                                     "another start fits as well far away (not identified)" if rival
                                                     else "standard error above half its range (not identified)")
         unid = unid or rival
-        estimates.append(Estimate(nme, spname, float(val), float(se[j]), unit, float(los[j]), float(his[j]), side,
+        estimates.append(Estimate(nme, spname, float(val), se_j, unit, float(los[j]), float(his[j]), side,
                                   note, stated, dev, unid))
     # each specimen's fit
     cells = pb.cells_at(x)
@@ -1760,5 +1775,5 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
                         base["largest_pull"])
 
 
-__all__ = ["rival_rule", "CalibrationInterrupted", "check_setup", "check_zero", "ZERO_MODES", "ZERO_CHECK_SD", "ZERO_CHECK_SHARE", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
+__all__ = ["rival_rule", "rival_spread", "CalibrationInterrupted", "check_setup", "check_zero", "ZERO_MODES", "ZERO_CHECK_SD", "ZERO_CHECK_SHARE", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",
            "SPECIMEN_VARIABLES", "UNITS", "OBJECTIVES"]
