@@ -113,7 +113,7 @@ from ..diagnosis.calibrate import offset_of
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from ..diagnosis.measured import MeasuredCurve, program_for_curve, reachable_strain
 from ..errors import KnitsimInputError
-from .specimen import GEOMETRY, SpecimenData, check_reach, pretension_strain
+from .specimen import GEOMETRY, SpecimenData, check_reach, pretension_strain, refuse_repeated_tests
 
 #: yarn variables that may be shared (besides the effects' own)
 YARN_VARIABLES = ("B", "d", "in_plane_width", "m")
@@ -823,6 +823,7 @@ class _Problem:
         names = [s.name for s in self.sp]
         if len(set(names)) != len(names):
             raise KnitsimInputError(f"specimens: two specimens named alike ({names})")
+        refuse_repeated_tests(self.sp)
         steps = {round(float(s.strain[1] - s.strain[0]), 12) for s in self.sp}
         if len(steps) != 1 or any(not np.allclose(s.strain, s.strain[0] * np.arange(1, len(s.strain) + 1),
                                                   rtol=1e-9, atol=1e-12) for s in self.sp):

@@ -386,6 +386,9 @@ class SpecimenData:
     rest_sd_N: float = float("nan")
     #: (file, note) of what reading its files did that the user must be told (MeasuredTable.notes)
     read_notes: tuple = ()
+    #: (key path, file, digest of its rows) of each file read: the same test given to two specimens, or a copy of
+    #: it, is refused (:func:`refuse_repeated_tests`); () for a specimen made by hand
+    file_rows: tuple = ()
 
     @property
     def has_band(self) -> bool:
@@ -551,7 +554,40 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
                         float(gauge_length_mm), {k: float(knit[k]) for k in GEOMETRY}, unc,
                         tuple(t.source for t in tables), rule, float(pretension), float(pretension_sd),
                         float(accuracy_rel), tuple((t.source, t.zero_offset_N) for t in tables if t.zero_offset_N),
-                        *_rest_of(cur, lo_t, hi_t), tuple((t.source, n) for t in tables for n in t.notes))
+                        *_rest_of(cur, lo_t, hi_t), tuple((t.source, n) for t in tables for n in t.notes),
+                        tuple((key, t.source, _rows_digest(t)) for key, t in
+                              (("band[0]", lo_t), ("band[1]", hi_t), ("curve", cur)) if t is not None))
+
+
+def _rows_digest(t: MeasuredTable) -> str:
+    """A digest of a file's rows as read (strain, force): equal for the same file under another path or name,
+    or a copy of it, whatever its format."""
+    import hashlib
+    rows = np.ascontiguousarray(np.column_stack([np.asarray(t.strain, float), np.asarray(t.force, float)]))
+    return hashlib.sha1(rows.tobytes()).hexdigest()
+
+
+def refuse_repeated_tests(specimens) -> None:
+    """Refuse two specimens that read the same rows (one test given twice, under another name or path, or a copy
+    of it): its rows would count twice, the standard errors shrink by sqrt(2) and the one-yarn check would
+    compare a test with itself (a blind probe's copy as a second specimen was fitted without a word; `knitsim
+    diagnose` refuses it).  Specimens made by hand (no ``file_rows``) are not checked.
+
+    Raises
+    ------
+    KnitsimInputError
+        Naming both specimens' keys and files.
+    """
+    seen: dict[str, tuple[str, str, str]] = {}
+    for s in specimens:
+        for key, source, digest in getattr(s, "file_rows", ()):
+            if digest in seen and seen[digest][0] != s.name:
+                name0, key0, source0 = seen[digest]
+                raise KnitsimInputError(
+                    f"specimens.{s.name}.{key}: {source} holds the same rows as specimens.{name0}.{key0} ({source0}): "
+                    "the same test given twice, or a copy of it; its rows would count twice (standard errors "
+                    "too small, one yarn checked against itself). Give each test once")
+            seen.setdefault(digest, (s.name, key, source))
 
 
 def _rest_of(cur, lo_t, hi_t) -> tuple[float, float]:
@@ -563,6 +599,6 @@ def _rest_of(cur, lo_t, hi_t) -> tuple[float, float]:
     return 0.5 * (a + b), max(sa, sb, 0.5 * abs(a - b))
 
 
-__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "pretension_strain", "check_reach",
+__all__ = ["MeasuredTable", "SpecimenData", "read_table", "specimen_from_files", "refuse_repeated_tests", "pretension_strain", "check_reach",
            "GEOMETRY", "rest_reading",
            "band_residuals", "cauchy_tail"]

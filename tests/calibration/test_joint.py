@@ -202,6 +202,41 @@ def test_the_calibration_refuses_the_forces_the_diagnosis_refuses(tmp_path):
                             curve=late, row_step=0.02)
 
 
+def test_one_test_given_to_two_specimens_is_refused_before_any_work(tmp_path):
+    """A lab's copy of one test, re-exported from Excel (BOM, ';', decimal commas, CRLF, a unit in the header),
+    given as a second specimen: its rows would count twice.  Before, it was fitted without a word (a blind probe:
+    B 0.31198 +- 0.00214 against 0.31207 +- 0.00306 from the one file, the sd / sqrt(2)); refused now, naming both
+    specimens and files, before any solve.  Two different tests of one knit are read."""
+    from knitsim.cli import main
+    s = [0.0, 0.02, 0.04, 0.06, 0.08, 0.10]
+    f = [0.0, 0.11, 0.19, 0.32, 0.41, 0.48]
+    (tmp_path / "a.csv").write_text("strain,force_per_wale_N\n" + "".join(f"{x},{y}\n" for x, y in zip(s, f)))
+    (tmp_path / "a_excel.csv").write_bytes(("\ufeffStrain [-];force_per_wale_N\r\n" + "".join(
+        f"{x};{y}\r\n".replace(".", ",") for x, y in zip(s, f))).encode("utf-8"))
+    (tmp_path / "b.csv").write_text("strain,force_per_wale_N\n" + "".join(
+        f"{x},{y + 0.01}\n" for x, y in zip(s, f)))
+    knit = {"L": 14.1, "W0": 4.4, "C0": 2.7}
+    base = CellParams(B=0.31, d=0.58, m=0.45, in_plane_width=0.79, force_cap_N=200.0, **knit)
+    setup = JointSetup(base=base, shared=("B",), per_specimen=(), max_increment=0.02, starts=1, refine=1, max_nfev=2)
+
+    def specimens(second):
+        return [specimen_from_files(n, width_mm=100, gauge_length_mm=200, knit=knit, curve=tmp_path / c,
+                                    row_step=0.02) for n, c in (("first", "a.csv"), ("second", second))]
+    from knitsim.calibration.joint import check_setup
+    for copy in ("a.csv", "a_excel.csv"):
+        with pytest.raises(KnitsimInputError, match=rf"specimens\.second\.curve: .*{copy.replace('.', r'[.]')} holds the "
+                                                     r"same rows as specimens\.first\.curve \(.*a\.csv\)"):
+            check_setup(specimens(copy), setup)
+    check_setup(specimens("b.csv"), setup)                  # another test: read
+    # the command: refused with exit status 2, nothing written
+    scene = tmp_path / "cal.toml"
+    scene.write_text("""[yarn]\nd = 0.58\nB = 0.31\n[friction]\nm = 0.45\n[calibration]\nshared = ["B"]\nper_specimen = []
+max_increment = 0.02\nrow_step = 0.02\n""" + "".join(f"""[[specimens]]\nname = "{n}"\nwidth = 100.0\ngauge_length = 200.0
+curve = "{c}"\nknit = {{ L = 14.1, W0 = 4.4, C0 = 2.7 }}\n""" for n, c in (("first", "a.csv"), ("second", "a_excel.csv"))))
+    assert main(["calibrate", str(scene), "--out", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("objective", ["midline", "band"])
 def test_an_interrupted_calibration_resumes_to_the_same_fit_without_redoing_work(tmp_path, monkeypatch, objective):
     """Stopped twice (during the screening's aftermath and inside a refinement: under the band objective,
