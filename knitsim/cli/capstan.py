@@ -26,6 +26,11 @@ from ..friction.identification import FLAG_TEXT
 from .common import add_json_flag, print_json, read_csv_columns
 
 _COLUMNS = ("F0_N", "F1_N", "V_mm_s", "direction")
+#: a lab's names for the record columns (any case), read only with the column's unit in brackets or in a units row
+#: under the header (``F0 (N)``, ``T1 [N]``, ``V [mm/s]``; ``F0 [kN]`` is refused saying why), as ``calibrate``
+#: reads a tester's ``Load (N)`` (knitsim.io.table_input.LAB_ALIASES)
+CAPSTAN_ALIASES = {"F0_N": ("f0", "t0", "input tension"), "F1_N": ("f1", "t1", "output tension"),
+                   "V_mm_s": ("v", "velocity", "speed")}
 
 
 def _add_discretisation(parser: argparse.ArgumentParser) -> None:
@@ -59,7 +64,8 @@ def register(subparsers) -> None:
 
     fit = sub.add_parser("fit", help="fit b, p, n to capstan records",
                          description="Fit eq 5's (b, p, n) to capstan records by least squares on F1. "
-                                     "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent). "
+                                     "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent); a lab's F0, F1 (or T0, T1), V "
+                                     "with their unit in brackets or a units row (F0 (N), V [mm/s]). "
                                      "A parameter that ends at a bound of the fit (b >= 1e-6, |p| <= 1, "
                                      "0.3 <= n <= 1) or whose standard error is not finite is flagged as not "
                                      "identified; so are residuals far above the capstan test's scatter "
@@ -103,7 +109,7 @@ def _resolution(path, rows) -> np.ndarray:
 
     ``rows`` are the spreadsheet rows of the records read as numbers; the cells are read again as text.
     """
-    raw = read_csv_columns(path, ("F0_N", "F1_N"), numeric=())
+    raw = read_csv_columns(path, ("F0_N", "F1_N"), numeric=(), aliases=CAPSTAN_ALIASES)
     res = {int(r): capstan.decimal_resolution(a) + capstan.decimal_resolution(b)
            for r, a, b in zip(raw["_row"], raw["F0_N"], raw["F1_N"])}
     return np.array([res.get(int(r), 0.0) for r in rows])
@@ -171,9 +177,10 @@ def _run_fit(args) -> int:
             raise KnitsimInputError(f"--fix-p = {args.fix_p:g}: must be in [{lo:g}, {hi:g}] (|p| <= 1, the fit's "
                                     "box for the velocity exponent)")
     disc = _discretisation(args)
-    cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3])
+    cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3], aliases=CAPSTAN_ALIASES)
+    read_notes = list(getattr(cols, "notes", ()))         # a lab's column names read as ours: said
     # F1's own last digit (F0 repeats between replicates: the same dead weight)
-    raw = read_csv_columns(args.file, ("F1_N",), numeric=())
+    raw = read_csv_columns(args.file, ("F1_N",), numeric=(), aliases=CAPSTAN_ALIASES)
     f1_res = {int(r): capstan.decimal_resolution(c) for r, c in zip(raw["_row"], raw["F1_N"])}
     cols, copies = _drop_copies(cols, np.array([f1_res.get(int(r), 0.0) for r in cols["_row"]]))
     res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
@@ -185,6 +192,7 @@ def _run_fit(args) -> int:
         out["records"] = int(len(cols["F0_N"]))
         out["discretisation_note"] = discretisation_note(disc)
         out["copies_note"] = copies
+        out["read_notes"] = read_notes
         for line in res.flags:
             print(f"knitsim capstan fit: warning: {line}", file=sys.stderr, flush=True)
         print_json(out)
@@ -200,6 +208,8 @@ def _run_fit(args) -> int:
 
     print(f"capstan fit of {args.file} ({len(cols['F0_N'])} records; {res.discretisation})"
           + (f"; {copies}" if copies else ""))
+    for note in read_notes:
+        print(f"  read: {note}")
     if res.flags:
         print(f"{UNUSABLE}: {len(res.flags)} flag{'s' if len(res.flags) > 1 else ''} (the warnings below)")
     print(f"  b = {b:.5g} +/- {sb:.2g}   [s^p mm^-p N^(1-n)]" + flag("b"))

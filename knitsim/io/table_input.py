@@ -244,6 +244,18 @@ def _unit_fits(name: str, unit: str) -> bool:
     return u in _DIMENSIONLESS
 
 
+def _implied_unit(name: str) -> str:
+    """The unit of the column asked for as ``name``, as a header would write it: the one it states in brackets,
+    else the first its ending implies (``V_mm_s``: mm/s; ``F0_N``: N), else N (a force, the columns read)."""
+    key, asked = _name_and_unit(name)
+    if asked is not None:
+        return asked
+    for end, units in _UNITS:
+        if key.endswith(end):
+            return {"_n": "N", "_n_mm_per_mm": "N.mm/mm"}.get(end, units[0])
+    return "N"
+
+
 #: a spreadsheet's error value in a cell (Excel: #DIV/0!, #N/A, #VALUE!, #REF!, #NAME?, #NUM!, #NULL!, ...)
 _SHEET_ERROR = re.compile(r"#(N/A|[A-Z][A-Z0-9/_]*[!?])")
 
@@ -309,7 +321,8 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                 taken[j] = name
             else:
                 bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
-                stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else ("N",)))
+                stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else
+                                                                     (_implied_unit(name),)))
                 why_not.append(f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
                                f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: {stated})")
     return keys, taken, why_not

@@ -235,3 +235,33 @@ def test_a_copied_record_is_not_a_second_test(tmp_path, capsys):
                       + "\n")
     out = _json(capsys, ["capstan", "fit", str(coarse), "--json"])
     assert out["records"] == 9 and "kept as replicates" in out["copies_note"]
+
+
+def test_a_labs_headers_with_units_are_read_and_a_wrong_unit_refused(tmp_path, capsys):
+    """Table 2's e-glass records (scenes/capstan/e_glass_table2.csv) as a lab writes them: an Excel export (BOM,
+    ';', decimal commas, CRLF, a preamble), the columns named T0, T1, V with a units row (N, N, mm/s), and an
+    operator column.  Before: refused as "missing column(s) F0_N, F1_N, V_mm_s".  Now the same fit as the
+    bundled file (the same numbers, so the same b, p, n exactly), the names read said on the console; a column
+    in kN or m/min is refused naming the unit and the header to write."""
+    src = (REPO / "scenes/capstan/e_glass_table2.csv").read_text().splitlines()[1:]
+    rows = [r.split(",") for r in src]
+    text = "\ufeffSpecimen;E-glass A\r\nT0;T1;V;direction;operator\r\n(N);(N);(mm/s);;\r\n" + "".join(
+        ";".join(c.replace(".", ",") for c in r) + ";JB\r\n" for r in rows)
+    lab = tmp_path / "lab.csv"
+    lab.write_bytes(text.encode("utf-8"))
+    ref = _json(capsys, ["capstan", "fit", str(REPO / "scenes/capstan/e_glass_table2.csv"), "--json"])
+    got = _json(capsys, ["capstan", "fit", str(lab), "--json"])
+    assert [got[k] for k in "bpn"] == [ref[k] for k in "bpn"] and got["records"] == 8
+    assert got["read_notes"] == ["column 'T0' read as F0_N", "column 'T1' read as F1_N", "column 'V' read as V_mm_s"]
+    assert main(["capstan", "fit", str(lab)]) == 0
+    assert "  read: column 'T0' read as F0_N" in capsys.readouterr().out
+    # brackets in the header cell: F0 [N], F1 (N), V [mm/s]
+    (tmp_path / "br.csv").write_text("F0 [N],F1 (N),V [mm/s],direction\n" + "\n".join(src) + "\n")
+    br = _json(capsys, ["capstan", "fit", str(tmp_path / "br.csv"), "--json"])
+    assert [br[k] for k in "bpn"] == [ref[k] for k in "bpn"]
+    # another unit: refused, saying which and how to write it (before: a bare "missing column")
+    (tmp_path / "kn.csv").write_text("F0 [kN],F1 [kN],V [m/min],direction\n" + "\n".join(src) + "\n")
+    assert main(["capstan", "fit", str(tmp_path / "kn.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "'F0 [kN]' is not read as F0_N: 'kN' is not its unit (convert the column: 'F0 (N)')" in err
+    assert "'V [m/min]' is not read as V_mm_s: 'm/min' is not its unit (convert the column: 'V (mm/s)')" in err
