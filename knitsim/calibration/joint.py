@@ -835,6 +835,13 @@ class _Problem:
         for n in user:
             if n not in known_shared and n not in SPECIMEN_VARIABLES:
                 raise KnitsimInputError(f"calibration.bounds: {n!r} is not a fitted variable")
+            if n not in shared and n not in setup.per_specimen:
+                # a bound on a variable held at its start value binds nothing (a blind probe's d = [0.01, 50]
+                # without d in shared ran to the end without a word, d held at its start)
+                where = "calibration.per_specimen" if n in SPECIMEN_VARIABLES else "calibration.shared"
+                raise KnitsimInputError(f"calibration.bounds.{n} = {list(user[n])}: {n} is not fitted (not in "
+                                        f"{where}), so its bounds would bind nothing: add {n} to {where}, or "
+                                        "remove its bounds")
         self.user_bounds = user
         self.vars: list[_Var] = []
         for n in shared:

@@ -92,6 +92,18 @@ def test_an_unknown_shared_variable_is_refused_before_anything_is_printed(tmp_pa
     assert "calibration.shared: 'bogus' is not a yarn variable" in line
 
 
+@pytest.mark.parametrize("name, bounds, where", [("d", [0.01, 50.0], "calibration.shared"),
+                                                  ("W0", [0.9, 1.1], "calibration.per_specimen")])
+def test_bounds_of_a_variable_not_fitted_are_refused(tmp_path, capsys, e_glass_calibration, name, bounds, where):
+    """A bound on d while d is not in calibration.shared (the user believes d fitted within it): before, the fit
+    ran to the end with d held at its start, the bound binding nothing, and nothing said."""
+    doc = e_glass_calibration("refusals")
+    doc["calibration"].setdefault("bounds", {})[name] = bounds
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert f"calibration.bounds.{name} = {bounds}: {name} is not fitted (not in {where})" in line
+
+
 def test_a_tail_cut_off_with_end_strain_is_not_refused(tmp_path, e_glass_calibration):
     # a test run on to strain 1.8, past what the knit reaches (1.611 for L = 14.1, C0 = 2.7), with the fit
     # stopped at 0.2 by end_strain: the tail is not fitted, so the file is read (a lab keeps its whole record)
