@@ -417,6 +417,9 @@ def _run(args) -> int:
             work = next((f"{name.replace('_N_mm', '').replace('_', ' ')} {c[name]:.4g} N mm" for name in
                          ("hysteresis_energy_N_mm", "work_N_mm", "loading_work_N_mm", "unloading_work_N_mm")
                          if name in c), "")
+            if work and any(w.get("code") == "energy_under_resolved" and f"cycle {c['cycle']}'s " in w.get("message", "")
+                            for w in summary.get("warnings", [])):
+                work += f" (+/-{c['energy_error_estimate_N_mm']:.2g}: under-resolved, warning above)"
             if "cut_at_grip_strain" in c:
                 work = f"cut at grip strain {c['cut_at_grip_strain']:.4g}, where the force stops being the knit's (warning above)"
             peak = (f"{c['peak_force_N']:.4g} N ({c['peak_force_per_wale_N']:.4g} N per wale of the "

@@ -49,7 +49,7 @@ from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
-from .checks import (FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, jam_width_floor, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
+from .checks import (ENERGY_ERROR_SHARE, FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, jam_width_floor, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
                      cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
                      interpenetration, reloads_below_first_loading)
 from .results import _num, rule_meaning, summary_json, warning_lines, write_result_set
@@ -873,6 +873,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     held = (columns_held(h) > 0) if h.n_increments else np.zeros(0, bool)
     held_in = []
     cycles = []
+    under_resolved = []
     for k in np.unique(h.cycle):
         rows = cycle_rows = np.nonzero(h.cycle == k)[0]
         if stop is not None:
@@ -922,6 +923,17 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         entry["closed"] = work["closed"]
         entry[f"{'hysteresis_energy' if work['kind'] == 'hysteresis' else work['kind']}_N_mm"] = \
             work["value"] * ref_length
+        # the rows' trapezoids cut the kinks between rows (slide onsets, a reversal's steep drop): the estimated
+        # error of this energy, every row against every other row (dissipated_energy_error)
+        from ..cell.cycle import dissipated_energy_error
+        err = dissipated_energy_error(s_path, f_path) * ref_length
+        entry["energy_error_estimate_N_mm"] = err
+        value = abs(work["value"]) * ref_length
+        # a cycle of next to no work (a cycle that carries no force, warned of itself) is not judged by its share
+        scale = max(value, 0.01 * float(np.max(np.abs(f_path))) * float(np.ptp(s_path)) * ref_length)
+        if err > ENERGY_ERROR_SHARE * scale:
+            under_resolved.append((int(k), "hysteresis energy" if work["kind"] == "hysteresis" else work["kind"].replace("_", " "),
+                                   work["value"] * ref_length, err))
         cycles.append(entry)
     first_jam, first_jam_from = _first_jamming(h)
     nc = np.argwhere(h.column_status == COL_NOT_CONVERGED)
@@ -948,6 +960,14 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         warnings += reloads_below_first_loading(e[:end], h.force_per_wale_N[:end], h.cycle[:end], h.direction[:end],
                                                 reference.grip_strain[:n_ref], reference.force_per_wale_N[:n_ref],
                                                 strain_name="grip strain", flagged=below)
+    if under_resolved:
+        warnings.append(ResultWarning("energy_under_resolved", (
+            "; ".join(f"cycle {k}'s {kind} {v:.4g} N mm is resolved to about +/-{err:.2g} N mm ({100 * err / abs(v):.0f} %)"
+                      if v else f"cycle {k}'s {kind} {v:.4g} N mm is resolved to about +/-{err:.2g} N mm"
+                      for k, kind, v, err in under_resolved)
+            + f" (energy_error_estimate_N_mm: the trapezoids over every row against every other row): the rows cut the "
+            "kinks between them (slide onsets, the steep drop after a reversal); a smaller load.max_increment resolves "
+            "it (the error goes with the increment)")))
     if held_in:
         warnings.append(ResultWarning("cycle_figures_include_held_rows", (
             "the figures of cycle(s) " + ", ".join(
