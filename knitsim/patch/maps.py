@@ -22,7 +22,8 @@ platform NumPy supports); ``scale = "phimax"`` multiplies by each cell's
 phimax = atan(m) (phi0 uniform in ``[-phimax, phimax]``: ``low = -1, high = 1``).
 
 A ``.csv`` map is read as a spreadsheet writes it (:func:`_read_map_csv`): ``,``, ``;`` or tab between
-the cells (decimal commas with ``;`` and tab), a byte-order mark or UTF-16, one row of labels at the top.
+the cells (decimal commas with ``;`` and tab, and in quoted cells), a byte-order mark or UTF-16, one row of
+labels at the top.
 
 Every error names the key path and the value (a map file's, the row and column).
 """
@@ -74,26 +75,37 @@ def gradient(n: int, start: float, end: float, profile: str = "linear", steps: i
 
 def _read_map_csv(f: Path, path: str) -> np.ndarray:
     """A map CSV as a lab's spreadsheet writes it: a byte-order mark, UTF-16, Windows line ends, ``;`` or tab
-    between the cells with decimal commas (Excel in a decimal-comma locale), one row of labels at the top
-    (skipped where no cell of it is a number), blank lines.  An empty or non-numeric cell below is refused,
-    named by row and column (a probe's Excel map was refused as "row 1 is not a list of numbers")."""
-    from ..io.table_input import _number, _text
+    between the cells with decimal commas (Excel in a decimal-comma locale), quoted cells (``"0,05"``: a
+    script's QUOTE_ALL, LibreOffice's or Google Sheets' decimal-comma export with ``,`` between the cells, read
+    as the measured-curve reader reads them), one row of labels at the top (skipped where no cell of it is a
+    number), blank lines.  An empty or non-numeric cell below is refused, named by row and column (a probe's
+    Excel map was refused as "row 1 is not a list of numbers"), and so is a row of another length than the first,
+    named with both (a probe's quoted first row was skipped as labels, and a ragged row was "not rectangular",
+    no row named)."""
+    from ..io.table_input import _comma_file_decimal_comma, _number, _split, _text
     lines = _text(f).splitlines()
     first = next((ln for ln in lines if ln.strip()), "")
     # a ';' or a tab is the separator wherever one is written: their cells may hold decimal commas, which
     # outnumber them (0,1;0,0;-0,1)
     delim = max(("\t", ";"), key=first.count) if ("\t" in first or ";" in first) else ","
-    decimal_comma = delim != ","
-    rows, shown = [], 0
+    table = []
     for r, line in enumerate(lines, start=1):
-        cells = [c.strip() for c in line.split(delim)]
+        cells = [c.strip() for c in _split(line, delim)]
         if not any(cells):
             continue
         while len(cells) > 1 and cells[-1] == "":          # a spreadsheet's trailing separators
             cells.pop()
+        table.append((r, cells))
+    width = max((len(c) for _, c in table), default=0)
+    # a ',' file's quoted cells may hold decimal commas (refused where every one reads as a thousands separator too)
+    decimal_comma = delim != "," or _comma_file_decimal_comma(
+        f, [c for _, c in table], [r for r, _ in table], list(range(width)), [str(k + 1) for k in range(width)])
+    rows, rows_at, shown = [], [], 0
+    sep = "a tab" if delim == "\t" else repr(delim)
+    for r, cells in table:
         shown += 1
         vals = []
-        for k, c in enumerate(cells, start=1):
+        for c in cells:
             try:
                 vals.append(_number(c, decimal_comma) if c else None)
             except ValueError:
@@ -104,15 +116,22 @@ def _read_map_csv(f: Path, path: str) -> np.ndarray:
             if v is None or v == "text":
                 what = "empty" if v is None else f"{c!r} is not a number"
                 raise _err(path, str(f), f"row {r}, column {k}: {what} (a map holds one number per cell, one row "
-                                         f"per course, separated by {'a tab' if delim == chr(9) else repr(delim)})")
+                                         f"per course, separated by {sep})")
+        if rows and len(vals) != len(rows[0]):
+            raise _err(path, str(f), f"row {r} holds {len(vals)} number(s), row {rows_at[0]} {len(rows[0])}: expected a "
+                                     f"rectangular table of numbers, one row per course, separated by {sep}")
         rows.append(vals)
-    if not rows or len({len(r) for r in rows}) != 1:
+        rows_at.append(r)
+    if not rows:
         raise _err(path, str(f), "expected a rectangular table of numbers, one row per course")
     return np.asarray(rows, dtype=np.float64)
 
 
-def read_array_file(file: str | Path, shape: tuple[int, int], path: str) -> np.ndarray:
-    """A ``.npy`` or ``.csv`` array of shape ``(courses, wales)``, finite float64."""
+def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
+                    counted: tuple[str, str] | None = None) -> np.ndarray:
+    """A ``.npy`` or ``.csv`` array of shape ``(courses, wales)``, finite float64; ``counted``: what a specimen's
+    axes count (``("bands", "strips")``), named in the message (a probe's 3 bands x 2 strips was told
+    "expected (courses, wales) = (3, 2)")."""
     f = Path(file)
     if not f.is_file():
         raise _err(path, str(file), "no such file")
@@ -126,14 +145,18 @@ def read_array_file(file: str | Path, shape: tuple[int, int], path: str) -> np.n
     else:
         raise _err(path, str(file), "expected a .npy or .csv file")
     if a.ndim != 2 or a.shape != tuple(shape):
-        raise _err(path, str(file), f"array of shape {tuple(a.shape)}, expected (courses, wales) = {tuple(shape)}")
+        axes = "(bands, strips)" if counted else "(courses, wales)"
+        hint = (f" (the file may hold the map transposed: one row per {'band' if counted else 'course'} is expected)"
+                if a.ndim == 2 and a.shape == tuple(shape)[::-1] else "")
+        raise _err(path, str(file), f"array of shape {tuple(a.shape)}, expected {axes} = {tuple(shape)}{hint}")
     if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
         raise _err(path, str(file), "the array must hold finite numbers only")
     return a.astype(np.float64)
 
 
 def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0,
-              base_dir: str | Path = ".", phimax: np.ndarray | None = None, name: str = "") -> np.ndarray:
+              base_dir: str | Path = ".", phimax: np.ndarray | None = None, name: str = "",
+              counted: tuple[str, str] | None = None) -> np.ndarray:
     """Evaluate one map.
 
     Parameters
@@ -154,6 +177,8 @@ def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0
         Per-cell atan(m), for ``scale = "phimax"``.
     name : str
         The parameter (one of :data:`~knitsim.patch.model.PARAM_NAMES`).
+    counted : (str, str), optional
+        What a specimen's axes count, ``("bands", "strips")``, named in the messages.
 
     Returns
     -------
@@ -192,8 +217,9 @@ def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0
                     raise _err(f"{rp}.{key}", reg[key], "unknown key (expected one of courses, wales, value)")
             if "value" not in reg:
                 raise KnitsimInputError(f"{rp}.value: missing")
-            ci = index_range(reg.get("courses", [0, courses]), courses, f"{rp}.courses", "courses")
-            wi = index_range(reg.get("wales", [0, wales]), wales, f"{rp}.wales", "wales")
+            ci = index_range(reg.get("courses", [0, courses]), courses, f"{rp}.courses", "courses",
+                             counted[0] if counted else None)
+            wi = index_range(reg.get("wales", [0, wales]), wales, f"{rp}.wales", "wales", counted[1] if counted else None)
             out[ci, wi] = float(reg["value"])
     elif kind == "gradient":
         axis = need("axis")
@@ -217,7 +243,7 @@ def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0
         f = Path(need("path"))
         if not f.is_absolute():
             f = Path(base_dir) / f
-        out[:] = read_array_file(f, shape, f"{path}.path")
+        out[:] = read_array_file(f, shape, f"{path}.path", counted)
     else:
         low, high = float(need("low")), float(need("high"))
         if not low < high:

@@ -464,6 +464,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     zones_out = []
     # a specimen's zones index its bands (courses) and strips (wales): said so in a range error
     counted_courses, counted_wales = ("bands", "strips") if specimen else (None, None)
+    counted = ("bands", "strips") if specimen else None
     # grades: blends of two knits of one yarn along an axis (each element a zone of the resolved scene)
     for g, grade in enumerate(doc.get("grades", [])):
         gp = f"grades[{g}]"
@@ -551,7 +552,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         if "regions" in spec:
             spec["regions"] = [{k: v for k, v in r.items()} for r in spec["regions"]]
         fields[n] = build_map(spec, shape, fields[n], f"maps.{n}", doc["seed"], base_dir,
-                              phimax=np.arctan(fields["m"]), name=n)
+                              phimax=np.arctan(fields["m"]), name=n, counted=counted)
         origins[n][:] = f"maps.{n}"
         maps_out[n] = spec
     # maps of effect parameters: each cell's EffectSet with the mapped value (where its effect is on)
@@ -565,7 +566,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
             raise error(f"maps.{n}.type", spec.get("type"), f"no cell has the effect {_EFFECT_OF[n]} on "
                         "(switch it on in [effects] or a zone's effects)")
         current = np.array([[float(getattr(effects_arr[i, j], n)) for j in range(wales)] for i in range(courses)])
-        values = build_map(spec, shape, current, f"maps.{n}", doc["seed"], base_dir, name=n)
+        values = build_map(spec, shape, current, f"maps.{n}", doc["seed"], base_dir, name=n, counted=counted)
         for i, j in zip(*np.nonzero(on)):
             effects_arr[i, j] = _replace(effects_arr[i, j], **{n: float(values[i, j])}).validated(
                 where=f"maps.{n} at cell [course {i}, wale {j}]")

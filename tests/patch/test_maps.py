@@ -111,3 +111,27 @@ def test_map_csv_files_as_spreadsheets_write_them(tmp_path):
     (tmp_path / "word.csv").write_text("0,0,0\n0,abc,0\n0,0,0\n0,0,0\n")
     with pytest.raises(KnitsimInputError, match=r"word\.csv.*row 2, column 2: 'abc' is not a number"):
         build_map({"type": "file", "path": "word.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+
+
+def test_map_csv_quoted_cells_ragged_rows_and_a_specimens_axes(tmp_path):
+    """Hand-written files: the 4 x 3 array 0.1 k - 0.05 j with every cell quoted (a script's QUOTE_ALL with ';';
+    LibreOffice's decimal-comma export with ',' between quoted cells) reads as that array: before, the quoted
+    first row was skipped as a row of labels and the map refused as "shape (3, 3)".  A row one number short is
+    refused naming it and the first row's length (before: "expected a rectangular table", no row named).  A
+    specimen's map of the wrong shape names bands and strips, and a transposed one says it may be."""
+    arr = np.array([[0.1 * k - 0.05 * j for j in range(3)] for k in range(4)])
+    semi = "".join(";".join(f'"{v:.2f}"'.replace(".", ",") for v in row) + "\r\n" for row in arr)
+    (tmp_path / "semi.csv").write_text(semi)
+    comma = "".join(",".join(f'"{v:.2f}"'.replace(".", ",") for v in row) + "\n" for row in arr)
+    (tmp_path / "comma.csv").write_text(comma)
+    for name in ("semi.csv", "comma.csv"):
+        got = build_map({"type": "file", "path": name}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+        assert np.allclose(got, arr, atol=1e-12), name
+    (tmp_path / "ragged.csv").write_text("0;0;0\n0;0;0\n0;0\n0;0;0\n")
+    with pytest.raises(KnitsimInputError, match=r"ragged\.csv.*row 3 holds 2 number\(s\), row 1 3"):
+        build_map({"type": "file", "path": "ragged.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+    (tmp_path / "t.csv").write_text("\n".join(",".join(f"{v:g}" for v in row) for row in arr.T) + "\n")
+    with pytest.raises(KnitsimInputError, match=r"shape \(3, 4\), expected \(bands, strips\) = \(4, 3\) "
+                                                r"\(the file may hold the map transposed"):
+        build_map({"type": "file", "path": "t.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path,
+                  counted=("bands", "strips"))
