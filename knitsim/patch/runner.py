@@ -465,7 +465,10 @@ def _resume_mismatch(ck: Path, head: dict, engine: str, dev_id: str) -> str:
         return (f"--resume: {ck} was written by an older knitsim that did not record its device (or belongs to "
                 "another scene, program or engine): it cannot be resumed safely; run again without --resume "
                 "(--overwrite)")
-    return f"--resume: {ck} belongs to another scene, program or engine; remove it or run without --resume"
+    # (before: "remove it or run without --resume", and a plain run into that --out is refused: it holds results)
+    return (f"--resume: {ck} belongs to another scene, program or engine (the scene, or a file it names: a map, a "
+            "material library, changed since it was written); resume with the scene it was written with, or start "
+            "again with --overwrite (or another --out)")
 
 
 def all_ok(history: PatchHistory) -> bool:
