@@ -109,6 +109,7 @@ from ..cell.domain import rest_force_per_wale
 from ..cell.history import STATUS_NAMES, STATUS_OK
 from ..cell.load_program import LoadProgram, monotonic, pretensioned
 from ..cell.material import CellParams
+from ..cell.stages import M_MAX, M_TOO_LARGE
 from ..diagnosis.calibrate import offset_of
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from ..diagnosis.measured import MeasuredCurve, program_for_curve, reachable_strain
@@ -852,6 +853,7 @@ class _Problem:
         self.k = len(self.vars)
         if self.k == 0:
             raise KnitsimInputError("calibration: nothing to fit (shared and per_specimen are empty)")
+        self._check_starts()
         for s in self.sp:
             self._check_reach(s)
         self.n_rows = sum(len(s.strain) for s in self.sp)
@@ -933,6 +935,9 @@ class _Problem:
             return 0.0, 1.0                     # a fraction of [max(d, low), min(high, W0/4))
         elif name == "m":
             lo, hi = self.user_bounds.get("m", BASELINE_VARIABLES["m"].bounds)
+            if not 0.0 <= lo < hi <= M_MAX:
+                raise KnitsimInputError(f"calibration.bounds.m = [{lo}, {hi}]: expected 0 <= low < high <= {M_MAX:g} "
+                                        f"({M_TOO_LARGE})")
         elif name == "phi0":
             lo, hi = self.user_bounds.get("phi0", (-1.0, 1.0))
             if lo < -1 or hi > 1:
@@ -962,6 +967,33 @@ class _Problem:
     @property
     def hi(self) -> np.ndarray:
         return np.array([v.hi for v in self.vars])
+
+    def _check_starts(self) -> None:
+        """Refuse a start (the scene's value) outside its variable's bounds: the fit would start from the nearest
+        bound without a word (a blind probe's B = 5 with bounds [0.05, 2])."""
+        b, W0s = self.base, [s.knit["W0"] for s in self.sp]
+        for v in self.vars:
+            if v.specimen is not None:
+                continue
+            if v.name == "B":
+                value, (lo, hi) = b.B, (math.exp(v.lo), math.exp(v.hi))
+            elif v.name == "d":
+                value, (lo, hi) = b.d, self.d_range(W0s)
+            elif v.name == "in_plane_width" and b.in_plane_width is not None:
+                # (none given: it starts from d, its range's own low end by construction)
+                value, (lo, hi) = b.d_jam, self.w_range(b.d, W0s)
+            elif v.name == "m":
+                value, lo, hi = b.m, v.lo, v.hi
+            else:
+                continue
+            if not lo * (1 - 1e-12) <= value <= hi * (1 + 1e-12):
+                why = {"d": " (below W0/4 of the narrowest knit)", "in_plane_width": " (from d to W0/4 of the "
+                       "narrowest knit)"}.get(v.name, "")
+                unit = "" if UNITS.get(v.name, "-") == "-" else " " + UNITS[v.name]
+                raise KnitsimInputError(
+                    f"calibration: {v.name}'s start, the scene's {value:.6g}{unit}, lies outside its "
+                    f"bounds [{lo:.6g}, {hi:.6g}]{why}: the fit would start from the nearest bound; change the scene's "
+                    f"{v.name} or calibration.bounds.{v.name}")
 
     def w_range(self, d: float, W0s: Sequence[float]) -> tuple[float, float]:
         """Range of the in-plane width: from d (and its low bound) to W0/4 of the narrowest knit."""

@@ -126,3 +126,34 @@ def test_a_band_with_one_file_in_per_cent_is_refused(tmp_path, e_glass_calibrati
     (tmp_path / "cal.toml").write_text(dumps(doc))
     with pytest.raises(KnitsimInputError, match=r"ten times apart or more\. Is the column in per cent"):
         load_calibration_scene(tmp_path / "cal.toml")
+
+
+@pytest.mark.parametrize("shared, bounds, expect", [
+    # a blind probe's start B = 5 (the scene's) with bounds [0.05, 2]: before, started from 2 without a word
+    (["B", "m"], {"B": [0.05, 2.0]}, "B's start, the scene's 5 N mm^2, lies outside its bounds [0.05, 2]"),
+    # the scene's m 0.3 above bounds [0.4, 0.9]
+    (["B", "m"], {"m": [0.4, 0.9]}, "m's start, the scene's 0.3, lies outside its bounds [0.4, 0.9]"),
+    # m bounds beyond the cell's domain (M_MAX = 5: phimax above 79 deg)
+    (["B", "m"], {"m": [0.0, 100.0]}, "calibration.bounds.m = [0.0, 100.0]: expected 0 <= low < high <= 5"),
+])
+def test_a_start_outside_its_bounds_and_an_absurd_range_are_refused(tmp_path, capsys, e_glass_calibration, shared,
+                                                                   bounds, expect):
+    doc = e_glass_calibration("refusals")
+    if "B" in bounds:
+        doc["yarn"]["B"] = 5.0
+    doc["calibration"]["shared"] = shared
+    doc["calibration"]["bounds"] = bounds
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert expect in line, line
+
+
+def test_a_start_inside_its_bounds_is_not_refused(tmp_path, e_glass_calibration):
+    # the fixture's B 0.31 and m 0.3 inside [0.05, 2] and [0.1, 0.9]: the scene loads and its setup is accepted
+    from knitsim.calibration.joint import check_setup
+    doc = e_glass_calibration("inside")
+    doc["calibration"]["bounds"] = {"B": [0.05, 2.0], "m": [0.1, 0.9]}
+    (tmp_path / "a.csv").write_text(_curve(0.2))
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    scene = load_calibration_scene(tmp_path / "cal.toml")
+    check_setup(scene.specimens, scene.setup)
