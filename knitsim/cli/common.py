@@ -45,11 +45,13 @@ def _other_command_hint(path, command: str | None) -> str:
         doc = load_toml(path)
     except (KnitsimInputError, OSError):
         return ""
-    if any(k in doc for k in _SCENE_KEYS.get(command, ())):
+    # (a sweep's scene is a cell scene, its cells included, with or without its [sweep] table)
+    own = {command} | ({"cell"} if command == "sweep" else set())
+    if any(k in doc for c in own for k in _SCENE_KEYS.get(c, ())):
         return ""
     for other, keys in _SCENE_KEYS.items():
         have = [k for k in keys if k in doc]
-        if other != command and have:
+        if other not in own and have:
             return f" (this is a scene for `knitsim {other}`: it has {', '.join(have)})"
     return ""
 

@@ -86,19 +86,21 @@ def _run(args) -> int:
         raise KnitsimInputError(f"--workers = {args.workers}: expected 0 (no Dask) or a positive number")
     if args.chunk_size is not None and args.chunk_size < 1:
         raise KnitsimInputError(f"--chunk-size = {args.chunk_size}: expected a whole number >= 1")
-    doc = load_toml(args.scene)
-    _, table, _ = split_scene(doc, args.sweep)
-    if isinstance(table, dict):
-        table = dict(table)
-        if args.curves:
-            table["curves"] = True
-        if args.chunk_size is not None:
-            table["chunk_size"] = args.chunk_size
-    spec = parse_sweep(table)
+    # (errors of a --sweep file name that file, not the scene)
+    with naming_scene(args.scene, "sweep") if args.sweep is None else contextlib.nullcontext():
+        doc = load_toml(args.scene)
+        _, table, _ = split_scene(doc, args.sweep)
+        if isinstance(table, dict):
+            table = dict(table)
+            if args.curves:
+                table["curves"] = True
+            if args.chunk_size is not None:
+                table["chunk_size"] = args.chunk_size
+        spec = parse_sweep(table)
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (finish the sweep in --out, or replace it)")
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
-        with naming_scene(args.scene):
+        with naming_scene(args.scene, "sweep"):
             plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
     # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
     # typo'd key or a bad sample was refused (a blind probe lost its results to it)

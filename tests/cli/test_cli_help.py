@@ -47,7 +47,9 @@ def test_a_scene_for_another_command_is_named_so(tmp_path, capsys):
     cases = [("cell", scenes / "random_phi0.toml", "`knitsim run`: it has patch, maps, seed"),
              ("cell", scenes / "sweeps" / "e_glass_friction_sweep.toml", "`knitsim sweep`: it has sweep"),
              ("run", scenes / "calibration" / "do2020" / "calibrate.toml", "`knitsim calibrate`"),
-             ("calibrate", scenes / "random_phi0.toml", "`knitsim run`")]
+             ("calibrate", scenes / "random_phi0.toml", "`knitsim run`"),
+             # a blind probe's sweep of a patch scene read only "seed = 3: unknown key"
+             ("sweep", scenes / "random_phi0.toml", "`knitsim run`: it has patch, maps, seed")]
     for cmd, scene, hint in cases:
         assert main([cmd, str(scene), "--out", str(tmp_path / cmd)]) == 2
         assert f"(this is a scene for {hint}" in capsys.readouterr().err
@@ -56,6 +58,9 @@ def test_a_scene_for_another_command_is_named_so(tmp_path, capsys):
     bad = tmp_path / "typo.toml"
     bad.write_text((scenes / "paper" / "e_glass_monotonic.toml").read_text() + "\nfriction_typo = 1\n")
     assert main(["cell", str(bad), "--out", str(tmp_path / "t")]) == 2
+    assert "this is a scene for" not in capsys.readouterr().err
+    # a sweep's scene is a cell scene (its cells included): a typo in one gets no hint either
+    assert main(["sweep", str(bad), "--out", str(tmp_path / "t")]) == 2
     assert "this is a scene for" not in capsys.readouterr().err
     # usd on a cell's results
     assert main(["cell", str(scenes / "paper" / "e_glass_monotonic.toml"), "--out", str(tmp_path / "c")]) == 0
