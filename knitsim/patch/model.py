@@ -363,8 +363,10 @@ class PatchModel:
         vals = {n: float(self.fields[n][i, j]) for n in PARAM_NAMES}
         if not np.isfinite(vals["in_plane_width"]):
             vals["in_plane_width"] = None
-        return CellParams(**vals, **{r: self.rules[r][i, j] for r in RULE_NAMES},
-                          effects=self.effects[i, j]).validated(where=f"cell[{i}, {j}]")
+        rules = {r: self.rules[r][i, j] for r in RULE_NAMES}
+        if self.cap_is_default[i, j]:
+            rules["force_cap_N"] = None          # the default, as the cell scene gives it (its value: cap_N)
+        return CellParams(**vals, **rules, effects=self.effects[i, j]).validated(where=f"cell[{i}, {j}]")
 
     def effect_codes(self) -> tuple[np.ndarray, list]:
         """An integer per cell naming its effect set, and the distinct sets in the order of the codes
