@@ -749,6 +749,16 @@ def jam_width_floor(d_jam, effects) -> np.ndarray:
     return np.asarray(d_jam, float) * floor
 
 
+def _branch_text(direction: np.ndarray | None, rows: np.ndarray) -> str:
+    """`` while loading``, `` while unloading`` or `` while loading and unloading``: the directions of ``rows``
+    (``""`` without ``direction``)."""
+    if direction is None:
+        return ""
+    dirs = frozenset(np.sign(np.asarray(direction)[rows]).astype(int).tolist())
+    return {frozenset({1}): " while loading", frozenset({-1}): " while unloading"}.get(
+        dirs, " while loading and unloading")
+
+
 def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: str = "cell",
                                direction: np.ndarray | None = None, strain_is: str = "strain",
                                note: str = "") -> list[ResultWarning]:
@@ -785,11 +795,7 @@ def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: s
     cols = np.nonzero(flags.any(axis=0))[0]
     ratio = float(np.nanmin(np.where(flags, W / lim, np.inf)))
     e = np.asarray(strain, float)[rows]
-    branch = ""
-    if direction is not None:
-        dirs = set(np.sign(np.asarray(direction)[rows]).astype(int).tolist())
-        branch = {frozenset({1}): " while loading", frozenset({-1}): " while unloading"}.get(
-            frozenset(dirs), " while loading and unloading")
+    branch = _branch_text(direction, rows)
     lo, hi = float(e.min()), float(e.max())
     where = (f"at {strain_is} {lo:.4g}" if lo == hi else f"from {strain_is} {float(e[0]):.4g} ({strain_is}s "
              f"{lo:.4g} to {hi:.4g})") + note
@@ -844,11 +850,7 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
     with np.errstate(invalid="ignore"):
         depth = np.where(flags, np.broadcast_to(np.asarray(d_jam, float), flags.shape) - np.asarray(gap, float), 0.0)
     e = np.asarray(strain, float)[rows]
-    branch = ""
-    if direction is not None:
-        dirs = set(np.sign(np.asarray(direction)[rows]).astype(int).tolist())
-        branch = {frozenset({1}): " while loading", frozenset({-1}): " while unloading"}.get(
-            frozenset(dirs), " while loading and unloading")
+    branch = _branch_text(direction, rows)
     lo, hi, first = float(e.min()), float(e.max()), float(e[0])
     if lo == hi:
         where = f"at {strain_is} {lo:.4g}"
