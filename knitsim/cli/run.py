@@ -279,7 +279,7 @@ def _run(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import PATCH_OUTPUT_FILES, patch_summary, specimen_layout, write_patch_results
     from ..io.results import prepare_output_dir, scene_inputs
-    from ..patch.runner import CHECKPOINT_NAME, read_checkpoint_header, run_patch
+    from ..patch.runner import CHECKPOINT_NAME, read_checkpoint_header, resume_refusal, run_patch
     from ..scene.patch_scene import load_patch_scene
 
     if args.resume and args.overwrite:
@@ -332,6 +332,11 @@ def _run(args) -> int:
             head = read_checkpoint_header(ck)
         except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
             raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
+        # another scene (or map, library, device...): refused here, before "resuming from ..." is said
+        why = resume_refusal(ck, head, scene.model, scene.program, engine=scene.engine, device=device,
+                             dedup=scene.dedup, **scene.solver_options)
+        if why:
+            raise KnitsimInputError(why)
         if args.usd is not None:
             _usd_on_resume(args.usd, head, ck)
     resume_cmd = resume_command(args, out)

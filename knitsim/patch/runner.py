@@ -326,9 +326,7 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     single_stitches = bool(np.all(col_wales == 1.0))
     n = len(program)
     dev_id = device_identity(engine, getattr(solver.backend, "device", device))
-    # the device is part of what determines the results (rounding); the reference engine runs on none
-    fp = fingerprint(model, program, engine=engine, dedup=bool(dedup),
-                     **({"device": dev_id} if engine == "warp" else {}), **solver_options)
+    fp = _run_fingerprint(model, program, engine, dev_id, dedup, solver_options)
     ck = Path(checkpoint) if checkpoint is not None else None
     rows: dict = {k: [] for k in _ROW_KEYS}
     start, wall_before = 0, 0.0
@@ -448,6 +446,25 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
                         grouping.d_jam, float(np.sum(col_rest)),
                         float(np.mean(col_rest)) if single_stitches else float(np.sum(col_rest) / np.sum(col_wales)),
                         group_rest)
+
+
+def _run_fingerprint(model, program, engine: str, dev_id: str, dedup: bool, solver_options: dict) -> str:
+    """The fingerprint a run's checkpoint carries: the device is part of what determines the results
+    (rounding); the reference engine runs on none."""
+    return fingerprint(model, program, engine=engine, dedup=bool(dedup),
+                       **({"device": dev_id} if engine == "warp" else {}), **solver_options)
+
+
+def resume_refusal(ck: str | Path, head: dict, model: PatchModel, program: LoadProgram, engine: str = "warp",
+                   device: str = "cpu", dedup: bool = True, **solver_options) -> str:
+    """Why the checkpoint ``ck`` (its header ``head``, :func:`read_checkpoint_header`) cannot be resumed by a run
+    of ``model`` and ``program`` (another scene, map, library, program, engine, device or solver option), or
+    ``""`` where it can: what :func:`run_patch` refuses, asked before any work (a blind probe's ``knitsim run
+    --resume`` said "resuming from ..." and then refused)."""
+    dev_id = device_identity(engine, device)
+    if head.get("fingerprint") == _run_fingerprint(model, program, engine, dev_id, dedup, solver_options):
+        return ""
+    return _resume_mismatch(Path(ck), head, engine, dev_id)
 
 
 def _resume_mismatch(ck: Path, head: dict, engine: str, dev_id: str) -> str:

@@ -534,3 +534,23 @@ def test_columns_that_keep_failing_while_loading_hold_without_being_tried_again(
     assert all(int(r["iterations"]) > 0 for r in rows[:first] + tried)
     assert all(int(r["iterations"]) == 0 for r in held)
     assert len({r["force_N"] for r in held}) == 1
+
+
+def test_a_resume_of_a_changed_scene_is_refused_before_it_says_it_resumes(tmp_path, capsys, monkeypatch):
+    # a blind probe: `knitsim run --resume` after editing the scene printed "resuming from ... 601 of 1700
+    # increments done" and only then refused.  Expected: refused (exit 2) naming the way out, nothing said of
+    # resuming, the checkpoint kept; the unchanged scene resumes
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    restore = _interrupt_after(monkeypatch, 2)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])) == 130
+    restore()
+    capsys.readouterr()
+    rc = main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume",
+                                  "--set", "friction.m=0.25"]))
+    err = capsys.readouterr().err
+    assert rc == 2 and "belongs to another scene" in err and "--overwrite" in err, err
+    assert "resuming from" not in err and "Traceback" not in err
+    assert (out / "checkpoint.pkl").is_file() and not (out / "summary.json").exists()
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume"])) == 0
+    assert "resuming from" in capsys.readouterr().err
