@@ -1345,11 +1345,25 @@ _BOUND_NOTES = {
 }
 
 
-def _note(name: str, side: str, specimen: str | None) -> str:
+def _note(name: str, side: str, specimen: str | None, effect_var=None, stated: bool = True) -> str:
+    """What the bound ``side`` of variable ``name`` means.  An effect's variable (``effect_var``,
+    :class:`knitsim.diagnosis.effects.Variable`) whose range the scene did not state (``stated`` False) ends at
+    its search's own ends: one where the effect vanishes (a blind probe's compaction_k at 0 on curves without
+    compaction read "the low end of the stated range", though none was stated), the others beyond which lies
+    more of it (``Variable.more``)."""
     if (name, side) in _BOUND_NOTES:
         return _BOUND_NOTES[(name, side)]
     if name in GEOMETRY:
         return f"4 sd of its stated value ({'below' if side == 'low' else 'above'}): the measurement does not allow more"
+    if effect_var is not None and not stated:
+        end = "lower" if side == "low" else "upper"
+        if end in effect_var.more:
+            return (f"the {side} end of its search, beyond which lies more of the effect: state a wider "
+                    f"calibration.bounds.{name}")
+        if effect_var.more:       # (the other end of a one-sided effect: where it vanishes)
+            return (f"the {side} end of its search, where the effect vanishes: the rows show none of it (calibrate "
+                    "without the effect)")
+        return f"the {side} end of its search"
     return f"the {side} end of the stated range"
 
 
@@ -1643,7 +1657,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             stated = 0.0
             dev = float(x[j] / pb.sp[spi].pretension_sd)
         unit = UNITS.get(nme, pb.effect_vars[nme].unit if nme in pb.effect_vars else "")
-        note = _note(nme, side, spname) if side else ""
+        note = _note(nme, side, spname, pb.effect_vars.get(nme), nme in pb.user_bounds) if side else ""
         if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
                 and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
             note = "the high end of the stated range (below W0/4 of the narrowest knit)"

@@ -227,3 +227,18 @@ def test_one_specimens_misfit_is_not_diluted_by_another():
     assert len(poor) == 1 and "a 6.2" in poor[0]
     clean = replace(r, fits=[replace(a, chi2=30.0), b], s2=0.8).flags
     assert not any("within their noise" in x for x in clean)
+
+
+def test_an_effect_at_the_end_of_its_search_is_said_for_what_that_end_means():
+    # a blind probe: compaction_k ending at 0 (its curves had no compaction) was flagged "the low end of the
+    # stated range", though no range was stated.  Expected (knitsim.diagnosis.effects: compaction_k's search
+    # [0, 200], more compaction upwards; the Dahl stiffness's more friction-like downwards, Coulomb at its top)
+    from knitsim.calibration.joint import _note
+    from knitsim.diagnosis.effects import EFFECT_SPECS
+    var = {v.name: v for spec in EFFECT_SPECS.values() for v in spec.variables}
+    assert "where the effect vanishes" in _note("compaction_k", "low", None, var["compaction_k"], stated=False)
+    assert "beyond which lies more" in _note("compaction_k", "high", None, var["compaction_k"], stated=False)
+    assert "where the effect vanishes" in _note("log10_dahl_sigma", "high", None, var["log10_dahl_sigma"], False)
+    assert "beyond which lies more" in _note("log10_dahl_sigma", "low", None, var["log10_dahl_sigma"], False)
+    # a range the scene stated is said so
+    assert _note("compaction_k", "low", None, var["compaction_k"], stated=True) == "the low end of the stated range"
