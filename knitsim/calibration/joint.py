@@ -662,7 +662,8 @@ class JointResult:
         """One line per reason not to use this calibration: the optimiser did not converge (its message),
         an estimate at a bound, an estimate not identified (which rule), a specimen whose cell did not solve,
         specimens that do not look like one yarn (:attr:`one_yarn`, what was measured and the largest knit move)."""
-        out = []
+        # a force in another unit first: every other flag of such a fit follows from it
+        out = [m for m in (_force_scale_flag(f) for f in self.fits) if m]
         converged = self.success if self.converged is None else self.converged
         if not converged:
             out.append("the fit failed: the optimiser (least squares) did not converge: "
@@ -1343,6 +1344,31 @@ _BOUND_NOTES = {
     ("m", "low"): "no friction at the crossing",
     ("pretension", "low"): "0: the knit at rest at the strain origin (no pretension)",
 }
+
+
+def _force_scale_flag(fit: "SpecimenFit") -> str:
+    """A specimen whose readings are on another force scale than its fitted knit (the thresholds of
+    :func:`knitsim.diagnosis.diagnose.force_scale_mismatch`): every reading below half the force the knit carries
+    at rest (kN read as N), or half of them beyond ten times the most it carries (mN read as N); "" otherwise.  A
+    blind probe's specimen in kN under a `load_N` header was flagged for its misfit and W0 at its bound, nothing
+    said of the unit."""
+    from ..diagnosis.diagnose import SCALE_ABOVE, SCALE_SHARE
+    target = np.asarray(fit.target_N, float)
+    sim = np.asarray(fit.simulated_N, float)
+    if not (len(target) and np.all(np.isfinite(target)) and len(sim)):
+        return ""
+    top, mid = float(np.max(target)), float(np.median(target))
+    rest, most = float(fit.pretension_N), float(np.nanmax(sim))
+    what = "per wale" if fit.wales == 1 else "on the specimen"
+    if most > 0 and mid > SCALE_ABOVE * most:
+        return (f"specimen {fit.name}: half its readings exceed {mid:.3g} N {what}, {mid / most:.3g} times the most "
+                f"the fitted knit carries ({most:.3g} N): a force in another unit (mN read as N)? Check the column's "
+                "unit (and the specimen's width) before anything else")
+    if rest > 0 and top < SCALE_SHARE * rest:
+        return (f"specimen {fit.name}: every reading (the largest {top:.3g} N {what}) is below the force the fitted "
+                f"knit carries at rest ({rest:.3g} N, {rest / max(top, 1e-300):.3g} times more): a force in another "
+                "unit (kN read as N)? Check the column's unit (and the specimen's width) before anything else")
+    return ""
 
 
 def _note(name: str, side: str, specimen: str | None, effect_var=None, stated: bool = True) -> str:

@@ -242,3 +242,22 @@ def test_an_effect_at_the_end_of_its_search_is_said_for_what_that_end_means():
     assert "beyond which lies more" in _note("log10_dahl_sigma", "low", None, var["log10_dahl_sigma"], False)
     # a range the scene stated is said so
     assert _note("compaction_k", "low", None, var["compaction_k"], stated=True) == "the low end of the stated range"
+
+
+def test_a_specimen_on_another_force_scale_is_flagged_first():
+    """A blind probe: a specimen in kN under a `load_N` header was flagged for its misfit and a bound, nothing said
+    of the unit.  Hand-made fits: the model carries 0.6 N at rest and up to 2 N; readings a thousand times smaller
+    (kN read as N: every one below half the rest force) or larger (mN: half beyond ten times the most) are flagged,
+    first; the same readings in N are not (diagnosis.diagnose's SCALE_SHARE and SCALE_ABOVE)."""
+    from dataclasses import replace
+    fit = replace(_fit(), pretension_N=0.6)
+    kn = replace(fit, target_N=fit.target_N / 1000.0)
+    mn = replace(fit, target_N=fit.target_N * 1000.0)
+    es = [Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)]
+    for f, unit in ((kn, "kN read as N"), (mn, "mN read as N")):
+        r = _result(es)
+        r.fits[0] = f
+        assert unit in r.flags[0] and r.flags[0].startswith("specimen tight"), r.flags
+    r = _result(es)
+    r.fits[0] = fit
+    assert r.flags == []
