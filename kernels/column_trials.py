@@ -5,15 +5,15 @@ trial (its packed read, :mod:`knitsim.kernels.state_read`) and
 
 - per column: its cells' largest and smallest force, whether a cell failed or stopped at its cap, how far its
   lengths are from adding up to the grip displacement, and the largest gap of a good cell's force to the
-  column's (:func:`column_trial_kernel`: one thread per column over its groups in ascending order, the sums of
+  column's (:func:`column_reads_kernel`: one thread per column over its groups in ascending order, the sums of
   ``numpy.bincount``, bit for bit);
 - per group: the stall count of its branch model, its new branch points (the trial's, and the slide onset it
   crossed), its fallback tangent, its last good trial, and the length bounds of its model from its good and
   failed trials (:func:`trial_book_kernel`).
 
 On a 10^6-group patch that was ~0.2 s of host NumPy a trial, against ~0.05 s of cell kernels on one H200.
-Twin and test oracle: the NumPy lines of ``PatchSolver._solve`` they replace (:class:`knitsim.patch.coupling.
-TrialBook`), the same operations in the same order (``tests/patch/test_device_coupling.py``).
+Twin and test oracle: the NumPy lines of ``PatchSolver._solve`` and ``PatchSolver._committed_columns`` they
+replace, the same operations in the same order (``tests/patch/test_device_coupling.py``).
 """
 from __future__ import annotations
 
@@ -27,7 +27,8 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.struct
 class TrialBookArrays:
-    """Each group's record of its trials within one increment (:class:`knitsim.patch.coupling.TrialBook`)."""
+    """Each group's record of its trials within one increment (the NumPy twin: the locals of the same names in
+    ``PatchSolver._solve``)."""
     C_last: wp.array(dtype=wp.float64)      # its last good trial [mm, N]
     F_last: wp.array(dtype=wp.float64)
     good_hi: wp.array(dtype=wp.float64)     # the extreme lengths of its good trials [mm]
@@ -37,14 +38,6 @@ class TrialBookArrays:
     dir_min: wp.array(dtype=wp.float64)     # the increment's direction's bounds [mm]
     dir_max: wp.array(dtype=wp.float64)
     k: wp.array(dtype=wp.float64)           # the fallback tangent dF/dC [N/mm]
-
-
-@wp.kernel
-def groups_of_columns_kernel(col: wp.array(dtype=wp.int32), col_flag: wp.array(dtype=wp.int32),
-                             out: wp.array(dtype=wp.int32)):
-    """out[g] = col_flag[col[g]]: a per-column flag on each group."""
-    g = wp.tid()
-    out[g] = col_flag[col[g]]
 
 
 @wp.kernel
@@ -84,7 +77,7 @@ def trial_strain_kernel(
 
 
 @wp.kernel
-def column_trial_kernel(
+def column_reads_kernel(
     col_start: wp.array(dtype=wp.int32),
     col_groups: wp.array(dtype=wp.int32),
     live: wp.array(dtype=wp.int32),
@@ -95,19 +88,20 @@ def column_trial_kernel(
     ints: wp.array2d(dtype=wp.int32),
     status_ok: int,
     status_cap: int,
-    u: wp.array(dtype=wp.float64),
     F_star: wp.array(dtype=wp.float64),
     F_max: wp.array(dtype=wp.float64),
     F_min: wp.array(dtype=wp.float64),
     failed: wp.array(dtype=wp.int32),
     capped: wp.array(dtype=wp.int32),
-    n_good: wp.array(dtype=wp.int32),
-    length_gap: wp.array(dtype=wp.float64),
+    sum_n_pF: wp.array(dtype=wp.float64),
+    sum_np_F: wp.array(dtype=wp.float64),
+    sum_n_dC: wp.array(dtype=wp.float64),
     force_gap: wp.array(dtype=wp.float64),
 ):
-    """Of each live column's trial: the largest and smallest total force p F of its groups [N], whether one
-    failed or stopped at its cap, how many did not fail, |sum n (C - C0) - u| [mm], and the largest
-    |F - F_star / p| p of the good ones [N] (0: none)."""
+    """Of each live column's packed states (a trial's, or the committed ones with every column live): the
+    largest and smallest total force p F of its groups [N], whether one failed (status not ok) or stopped at its
+    cap, the sums n (p F) and (n p) F [N] (the two orders of ``PatchSolver``'s NumPy) and n (C - C0) [mm], and
+    the largest |F - F_star / p| p of its good groups [N] (0: none)."""
     k = wp.tid()
     if live[k] == 0:
         return
@@ -115,8 +109,9 @@ def column_trial_kernel(
     fmin = INF
     any_failed = int(0)
     any_capped = int(0)
-    good = int(0)
-    s = wp.float64(0.0)
+    s1 = wp.float64(0.0)
+    s2 = wp.float64(0.0)
+    s3 = wp.float64(0.0)
     gmax = wp.float64(0.0)
     for j in range(col_start[k], col_start[k + 1]):
         g = col_groups[j]
@@ -131,17 +126,19 @@ def column_trial_kernel(
         if st != status_ok:
             any_failed = 1
         else:
-            good += 1
             gap = wp.abs(F - F_star[k] / pg) * pg
             if gap > gmax or gap != gap:
                 gmax = gap
-        s += cnt[g] * (reals[g, READ_C] - C0[g])
+        s1 += cnt[g] * ftot
+        s2 += cnt[g] * pg * F
+        s3 += cnt[g] * (reals[g, READ_C] - C0[g])
     F_max[k] = fmax
     F_min[k] = fmin
     failed[k] = any_failed
     capped[k] = any_capped
-    n_good[k] = good
-    length_gap[k] = wp.abs(s - u[k])
+    sum_n_pF[k] = s1
+    sum_np_F[k] = s2
+    sum_n_dC[k] = s3
     force_gap[k] = gmax
 
 
@@ -256,53 +253,7 @@ def trial_book_kernel(
     b.C_min[g] = wp.max(book.dir_min[g], c_min)
 
 
-# ===================================================================== the committed state, per column and group
-@wp.kernel
-def committed_columns_kernel(
-    col_start: wp.array(dtype=wp.int32),
-    col_groups: wp.array(dtype=wp.int32),
-    cnt: wp.array(dtype=wp.float64),
-    C0: wp.array(dtype=wp.float64),
-    p: wp.array(dtype=wp.float64),
-    reals: wp.array2d(dtype=wp.float64),
-    ints: wp.array2d(dtype=wp.int32),
-    status_ok: int,
-    F_max: wp.array(dtype=wp.float64),
-    F_min: wp.array(dtype=wp.float64),
-    sum_n_pF: wp.array(dtype=wp.float64),
-    sum_np_F: wp.array(dtype=wp.float64),
-    sum_n_dC: wp.array(dtype=wp.float64),
-    stopped: wp.array(dtype=wp.int32),
-):
-    """Of each column's committed state: the largest and smallest total force p F of its groups [N], the sums
-    n (p F) and (n p) F [N] (the two orders of ``PatchSolver``'s NumPy), n (C - C0) [mm], in ascending group
-    order, and whether a cell has stopped (status not ok)."""
-    k = wp.tid()
-    fmax = -INF
-    fmin = INF
-    s1 = wp.float64(0.0)
-    s2 = wp.float64(0.0)
-    s3 = wp.float64(0.0)
-    stop = int(0)
-    for j in range(col_start[k], col_start[k + 1]):
-        g = col_groups[j]
-        F = reals[g, READ_F]
-        ftot = p[g] * F
-        fmax = wp.max(fmax, ftot)
-        fmin = wp.min(fmin, ftot)
-        s1 += cnt[g] * ftot
-        s2 += cnt[g] * p[g] * F
-        s3 += cnt[g] * (reals[g, READ_C] - C0[g])
-        if ints[g, READ_STATUS] != status_ok:
-            stop = 1
-    F_max[k] = fmax
-    F_min[k] = fmin
-    sum_n_pF[k] = s1
-    sum_np_F[k] = s2
-    sum_n_dC[k] = s3
-    stopped[k] = stop
-
-
+# ===================================================================== an increment's start, per group
 @wp.kernel
 def begin_trials_kernel(
     b: BranchArrays,

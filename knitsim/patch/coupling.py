@@ -1043,15 +1043,18 @@ class PatchSolver:
     def _committed_columns(self, c: dict) -> dict:
         """Of each column's committed state ``c``: ``F_max``, ``F_min`` of its groups' p F [N], the sums
         ``n_pF`` of n (p F) and ``np_F`` of (n p) F [N], ``n_dC`` of n (C - C0) [mm], and ``stopped`` (a cell's
-        status not ok): on the device with the device coupling (``committed_columns_kernel``), else NumPy
+        status not ok): on the device with the device coupling (``column_reads_kernel``), else NumPy
         (its twin; the same sums in the same order)."""
         if self.on_device:
-            return self._device_objects()[2].committed_columns(self.backend.packed_committed(), STATUS_OK)
-        Ftot = self.p * c["F"]
-        return {"F_max": self._colmax(Ftot, -np.inf), "F_min": -self._colmax(-Ftot, -np.inf),
-                "n_pF": self._colsum(self.cnt * Ftot), "np_F": self._colsum(self.cnt * self.p * c["F"]),
-                "n_dC": self._colsum(self.cnt * (c["C"] - self.C0)),
-                "stopped": self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0}
+            out = self._device_objects()[2].committed_columns(self.backend.packed_committed(), STATUS_OK,
+                                                              STATUS_FORCE_CAP)
+        else:
+            Ftot = self.p * c["F"]
+            out = {"F_max": self._colmax(Ftot, -np.inf), "F_min": -self._colmax(-Ftot, -np.inf),
+                   "n_pF": self._colsum(self.cnt * Ftot), "np_F": self._colsum(self.cnt * self.p * c["F"]),
+                   "n_dC": self._colsum(self.cnt * (c["C"] - self.C0)),
+                   "stopped": self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0}
+        return out
 
     def probe_tangent(self, strain: float = 1e-3) -> None:
         """Initial tangents dF/dC from a trial step of every cell to ``strain`` (loading)."""
@@ -1290,7 +1293,7 @@ class PatchSolver:
             # construction), or every cell slack where the column was asked for zero force; a cell that
             # failed in the trial never converges its column
             if on_dev:
-                Fmax, Fmin, gap = judged["F_max"], judged["F_min"], judged["length_gap"]
+                Fmax, Fmin, gap = judged["F_max"], judged["F_min"], np.abs(judged["n_dC"] - u)
             else:
                 Ftot = p * t["F"]                      # the total force each cell's block carries
                 Fmax = self._colmax(np.where(g_live, Ftot, -np.inf), -np.inf)

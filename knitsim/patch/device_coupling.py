@@ -285,10 +285,11 @@ class DeviceTrials:
         self.kt, self.slide_C, self.slide_F, self.k_c = g(), g(), g(), g()
         self.live, self.col_stalled, self.jumped = k(wp.int32), k(wp.int32), k(wp.int32)
         self.F_col = k()
-        self.F_max, self.F_min, self.length_gap, self.force_gap = k(), k(), k(), k()
-        self.failed, self.capped, self.n_good = k(wp.int32), k(wp.int32), k(wp.int32)
+        self.F_max, self.F_min, self.force_gap = k(), k(), k()
+        self.failed, self.capped = k(wp.int32), k(wp.int32)
         self.sum_n_pF, self.sum_np_F, self.sum_n_dC = k(), k(), k()
-        self.stopped, self.monotone = k(wp.int32), k(wp.int32)
+        self.all_live, self.monotone = k(wp.int32), k(wp.int32)
+        self.all_live.fill_(1)
 
     def _put(self, dst: wp.array, a) -> wp.array:
         """``a`` itself where it is a device array, else its values copied into ``dst``."""
@@ -297,17 +298,27 @@ class DeviceTrials:
         dst.assign(np.ascontiguousarray(a, dtype=np.int32 if dst.dtype == wp.int32 else np.float64))
         return dst
 
-    def committed_columns(self, reads: tuple, status_ok: int) -> dict:
-        """Of each column's committed state (``reads``: its packed read on the device): ``F_max``, ``F_min`` of
-        p F [N], the sums ``n_pF`` of n (p F) and ``np_F`` of (n p) F [N], ``n_dC`` of n (C - C0) [mm] and
-        ``stopped`` (a cell's status not ok): host arrays [n_columns] (``committed_columns_kernel``)."""
+    def _columns(self, reads: tuple, live: wp.array, status_ok: int, status_cap: int) -> dict:
+        """``column_reads_kernel`` on the packed states ``reads`` of the columns in ``live``: host arrays
+        [n_columns] ``F_max``, ``F_min`` of p F [N], ``failed`` (a status not ok), ``capped``, the sums ``n_pF``
+        of n (p F), ``np_F`` of (n p) F [N] and ``n_dC`` of n (C - C0) [mm]."""
         c = self.columns
-        wp.launch(self.k.committed_columns_kernel, dim=c.n_cls, device=self.device,
-                  inputs=[c.col_start, c.col_groups, c.cnt, c.C0, c.p, reads[0], reads[1], int(status_ok)],
-                  outputs=[self.F_max, self.F_min, self.sum_n_pF, self.sum_np_F, self.sum_n_dC, self.stopped])
+        wp.launch(self.k.column_reads_kernel, dim=c.n_cls, device=self.device,
+                  inputs=[c.col_start, c.col_groups, live, c.cnt, c.C0, c.p, reads[0], reads[1], int(status_ok),
+                          int(status_cap), c.F],
+                  outputs=[self.F_max, self.F_min, self.failed, self.capped, self.sum_n_pF, self.sum_np_F,
+                           self.sum_n_dC, self.force_gap])
         return {"F_max": self.F_max.numpy().copy(), "F_min": self.F_min.numpy().copy(),
+                "failed": self.failed.numpy() != 0, "capped": self.capped.numpy() != 0,
                 "n_pF": self.sum_n_pF.numpy().copy(), "np_F": self.sum_np_F.numpy().copy(),
-                "n_dC": self.sum_n_dC.numpy().copy(), "stopped": self.stopped.numpy() != 0}
+                "n_dC": self.sum_n_dC.numpy().copy()}
+
+    def committed_columns(self, reads: tuple, status_ok: int, status_cap: int) -> dict:
+        """Of each column's committed state (``reads``: its packed read on the device): :meth:`_columns` of every
+        column, ``failed`` named ``stopped`` (``PatchSolver._committed_columns``)."""
+        out = self._columns(reads, self.all_live, status_ok, status_cap)
+        out["stopped"] = out.pop("failed")
+        return out
 
     def begin(self, pts: DeviceBranchPoints, reads: tuple, k_c: np.ndarray, k: np.ndarray, F_col: np.ndarray,
               monotone: np.ndarray, direction: int, u_single: np.ndarray, sf_stages: tuple) -> None:
@@ -350,18 +361,9 @@ class DeviceTrials:
         return self.jumped.numpy().astype(bool)
 
     def judge(self, reads: tuple, live: np.ndarray, status_ok: int, status_cap: int) -> dict:
-        """Each live column's trial: F_max, F_min [N], failed, capped, n_good, length_gap [mm], force_gap
-        [N] (``column_trial_kernel``; host arrays of shape [n_columns], meaningful where ``live``)."""
-        self._put(self.live, live)
-        c = self.columns
-        wp.launch(self.k.column_trial_kernel, dim=c.n_cls, device=self.device,
-                  inputs=[c.col_start, c.col_groups, self.live, c.cnt, c.C0, c.p, reads[0], reads[1],
-                          int(status_ok), int(status_cap), c.u, c.F],
-                  outputs=[self.F_max, self.F_min, self.failed, self.capped, self.n_good, self.length_gap,
-                           self.force_gap])
-        return {"F_max": self.F_max.numpy(), "F_min": self.F_min.numpy(), "failed": self.failed.numpy() != 0,
-                "capped": self.capped.numpy() != 0, "n_good": self.n_good.numpy(),
-                "length_gap": self.length_gap.numpy()}
+        """Each live column's trial (``reads``: its packed read): :meth:`_columns` of the columns in ``live``
+        (meaningful there), and each one's largest force gap of a good cell kept for :meth:`book_trial`."""
+        return self._columns(reads, self._put(self.live, live), status_ok, status_cap)
 
     def book_trial(self, pts: DeviceBranchPoints, reads: tuple, live: np.ndarray, kt, slide_C, slide_F,
                    F_col: np.ndarray, col_stalled: np.ndarray, force_tol: float, force_rtol: float, direction: int,
