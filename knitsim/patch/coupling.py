@@ -999,6 +999,7 @@ class PatchSolver:
             self.backend.device_trials = True
         # the branch points and the column solve on the device (DeviceBranchPoints, DeviceColumnSolve), made once
         self._device_points = self._device_columns = self._device_trials = None
+        self._committed_cols = None              # (the committed state read, _committed_columns of it)
         self._col_order = None                   # the groups sorted by column, for _colmax
         self.jump_columns = np.zeros(self.n_cls, bool)
         self.cut_columns = np.zeros(self.n_cls, bool)
@@ -1045,6 +1046,9 @@ class PatchSolver:
         ``n_pF`` of n (p F) and ``np_F`` of (n p) F [N], ``n_dC`` of n (C - C0) [mm], and ``stopped`` (a cell's
         status not ok): on the device with the device coupling (``column_reads_kernel``), else NumPy
         (its twin; the same sums in the same order)."""
+        # (one committed state serves an increment's end, the next one's start and its set-up: computed once)
+        if self._committed_cols is not None and self._committed_cols[0] is c:
+            return self._committed_cols[1]
         if self.on_device:
             out = self._device_objects()[2].committed_columns(self.backend.packed_committed(), STATUS_OK,
                                                               STATUS_FORCE_CAP)
@@ -1054,6 +1058,7 @@ class PatchSolver:
                    "n_pF": self._colsum(self.cnt * Ftot), "np_F": self._colsum(self.cnt * self.p * c["F"]),
                    "n_dC": self._colsum(self.cnt * (c["C"] - self.C0)),
                    "stopped": self._colmax((c["status"] != STATUS_OK).astype(float), 0.0) > 0}
+        self._committed_cols = (c, out)
         return out
 
     def probe_tangent(self, strain: float = 1e-3) -> None:
