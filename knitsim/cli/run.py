@@ -257,18 +257,15 @@ def first_loading_of_patch(model, scene, device: str):
     (:func:`knitsim.io.checks.needs_first_loading_reference`); else None.  Returns (history or None, what the
     summary says of it: ``ran``, ``why``, ``solve_s``).  The reference of ``reload_below_first_loading``: a
     second solve, of the distinct cells only (dedup as the run), over the first loading's increments only."""
-    from ..cell.load_program import monotonic
-    from ..io.checks import needs_first_loading_reference
+    from ..io.results import first_loading_program
     from ..patch.runner import run_patch
 
-    prog = scene.program
-    if not needs_first_loading_reference(prog.strain, prog.direction):
+    pull = first_loading_program(scene.program)
+    if pull is None:
         return None, {"ran": False, "why": "the program does not load past an earlier maximum after an unloading: "
                                           "nothing to compare with a monotonic pull"}
-    s = np.concatenate([[0.0], np.asarray(prog.strain, float)])
     t0 = time.perf_counter()
-    ref = run_patch(model, monotonic(float(np.max(s)), float(np.max(np.abs(np.diff(s))))), engine=scene.engine,
-                    device=device, dedup=scene.dedup, **scene.solver_options)
+    ref = run_patch(model, pull, engine=scene.engine, device=device, dedup=scene.dedup, **scene.solver_options)
     return ref, {"ran": True, "why": "the program loads past an earlier maximum after an unloading: the patch "
                                      "pulled monotonically to its largest grip strain is the reference of "
                                      "reload_below_first_loading", "solve_s": time.perf_counter() - t0,

@@ -435,17 +435,26 @@ def first_loading_curve(reference: BatchHistory | None, cell: int) -> tuple | No
     return np.asarray(reference.strain[:n], float), np.asarray(reference.force_per_wale[:n, cell], float)
 
 
-def first_loading(params, program, engine: str = "warp", device: str = "cpu") -> BatchHistory | None:
-    """The cells pulled monotonically to ``program``'s largest strain at its largest step (the reference of
-    :func:`summarise`), where the program loads past an earlier maximum after an unloading; else None."""
+def first_loading_program(program):
+    """The monotonic pull that is the reference of ``reload_below_first_loading`` (:func:`summarise`, ``knitsim
+    run``): ``program``'s largest strain at its largest step, where the program loads past an earlier maximum
+    after an unloading (:func:`knitsim.io.checks.needs_first_loading_reference`); else None."""
     from ..io.checks import needs_first_loading_reference
     if not needs_first_loading_reference(program.strain, program.direction):
         return None
-    from ..cell.engine import simulate
     from ..cell.load_program import monotonic
     s = np.concatenate([[0.0], np.asarray(program.strain, float)])
-    return simulate(params, monotonic(float(np.max(s)), float(np.max(np.abs(np.diff(s))))), engine=engine,
-                    device=device)
+    return monotonic(float(np.max(s)), float(np.max(np.abs(np.diff(s)))))
+
+
+def first_loading(params, program, engine: str = "warp", device: str = "cpu") -> BatchHistory | None:
+    """The cells pulled monotonically (:func:`first_loading_program`: the reference of :func:`summarise`), where
+    the program loads past an earlier maximum after an unloading; else None."""
+    pull = first_loading_program(program)
+    if pull is None:
+        return None
+    from ..cell.engine import simulate
+    return simulate(params, pull, engine=engine, device=device)
 
 
 def summary_json(summary: dict) -> str:
