@@ -7,6 +7,8 @@ After each trial step of a patch's cells :class:`knitsim.patch.coupling.WarpBack
   :func:`trial_reads_kernel`);
 - whether its next trial may start its Newton from this one (CellControl.warm: converged on the committed
   branch, or on the branch a reversal or reload at the increment's start enters, no other event, not slack);
+- which of the trial's cells it left ok (:func:`good_trials_kernel`: the coupling keeps their points and
+  tangents; the host no longer reads every cell's status after each trial);
 - the trial's tangent dF/dC (the step's own slope, else the branch tangent kernel's) and which trial
   tangents an accepted trial makes the committed state's (:func:`trial_tangent_kernel`,
   :func:`accept_tangents_kernel`).
@@ -88,6 +90,24 @@ def trial_reads_kernel(
         else:
             warm[i] = 0
         k1_ok[i] = 0
+
+
+@wp.kernel
+def good_trials_kernel(
+    stepped: wp.array(dtype=wp.int32),
+    status: wp.array(dtype=wp.int32),
+    status_ok: int,
+    use: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
+):
+    """The cells of the trial (``stepped``) that it left ok: ``use``, the good trials whose tangents and points the
+    coupling keeps; count[0] counts them (zeroed before)."""
+    i = wp.tid()
+    if stepped[i] != 0 and status[i] == status_ok:
+        use[i] = 1
+        wp.atomic_add(count, 0, 1)
+    else:
+        use[i] = 0
 
 
 @wp.kernel

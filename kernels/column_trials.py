@@ -116,11 +116,11 @@ def column_reads_kernel(
     for j in range(col_start[k], col_start[k + 1]):
         g = col_groups[j]
         pg = p[g]
-        F = reals[g, READ_F]
+        F = reals[READ_F, g]
         ftot = pg * F
         fmax = wp.max(fmax, ftot)
         fmin = wp.min(fmin, ftot)
-        st = ints[g, READ_STATUS]
+        st = ints[READ_STATUS, g]
         if st == status_cap:
             any_capped = 1
         if st != status_ok:
@@ -131,7 +131,7 @@ def column_reads_kernel(
                 gmax = gap
         s1 += cnt[g] * ftot
         s2 += cnt[g] * pg * F
-        s3 += cnt[g] * (reals[g, READ_C] - C0[g])
+        s3 += cnt[g] * (reals[READ_C, g] - C0[g])
     F_max[k] = fmax
     F_min[k] = fmin
     failed[k] = any_failed
@@ -175,9 +175,9 @@ def trial_book_kernel(
     k = col[g]
     g_live = live[k] != 0
     pg = p[g]
-    tC = reals[g, READ_C]
-    tF = reals[g, READ_F]
-    failed = ints[g, READ_STATUS] != status_ok
+    tC = reals[READ_C, g]
+    tF = reals[READ_F, g]
+    failed = ints[READ_STATUS, g] != status_ok
     use = g_live and not failed
     if use:
         # BranchPoints.record: a cell among those that set its column's spread, landing on the same side again
@@ -200,7 +200,7 @@ def trial_book_kernel(
         b.side[g] = side
         # the trial's own tangent where it is one (finite, positive, not slack)
         kg = kt[g]
-        if not (wp.isfinite(kg) and kg > wp.float64(0.0) and ints[g, READ_STAGE] != stage_slack):
+        if not (wp.isfinite(kg) and kg > wp.float64(0.0) and ints[READ_STAGE, g] != stage_slack):
             kg = wp.float64(wp.nan)
         ft = F_col[k] / pg
         add_point(b, g, tC, tF, kg, ft)
@@ -277,8 +277,8 @@ def begin_trials_kernel(
     equilibrium (``monotone``), its last good trial and good lengths the committed ones, no failure yet."""
     g = wp.tid()
     k = col[g]
-    C = reals[g, READ_C]
-    F = reals[g, READ_F]
+    C = reals[READ_C, g]
+    F = reals[READ_F, g]
     kc = k_c[g]
     if not (wp.isfinite(kc) and kc > wp.float64(0.0)):
         kc = wp.float64(wp.nan)
@@ -300,7 +300,7 @@ def begin_trials_kernel(
     book.fail_hi[g] = INF
     book.fail_lo[g] = -INF
     committed_strain[g] = C / C0[g] - wp.float64(1.0)
-    st = ints[g, READ_STAGE]
+    st = ints[READ_STAGE, g]
     if st == stage_sf_load or st == stage_sf_unload:
         stick[g] = 1
     else:

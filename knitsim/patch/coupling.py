@@ -242,12 +242,13 @@ class WarpBackend:
         wp, sr = self.wp, self._state_read
         if self._read_dev is None:
             n, dev = self.n, self.device
-            self._read_dev = (wp.empty((n, sr.N_READ_REALS), dtype=wp.float64, device=dev),
-                              wp.empty((n, sr.N_READ_INTS), dtype=wp.int32, device=dev))
+            self._read_dev = (wp.empty((sr.N_READ_REALS, n), dtype=wp.float64, device=dev),
+                              wp.empty((sr.N_READ_INTS, n), dtype=wp.int32, device=dev))
             on_host = wp.get_device(dev).is_cpu
             self._read_host = self._read_dev if on_host else (
-                wp.empty((n, sr.N_READ_REALS), dtype=wp.float64, device="cpu", pinned=True),
-                wp.empty((n, sr.N_READ_INTS), dtype=wp.int32, device="cpu", pinned=True))
+                wp.empty((sr.N_READ_REALS, n), dtype=wp.float64, device="cpu", pinned=True),
+                wp.empty((sr.N_READ_INTS, n), dtype=wp.int32, device="cpu", pinned=True),
+                wp.empty((n, 5), dtype=wp.float64, device="cpu", pinned=True))
         wp.launch(sr.pack_state_read_kernel, dim=self.n,
                   inputs=[st.arrays(), CODE["F"], CODE["phi"], CODE["W"], CODE["s_AB"], int(Stage.SLACK)],
                   outputs=list(self._read_dev), device=self.device)
@@ -258,27 +259,24 @@ class WarpBackend:
         not copied to the host."""
         return self._pack(self.s0)
 
-    def _read(self, st, ints_only: bool = False) -> dict:
-        """C, F (0 while slack), phi, W, stage, jammed, status and head gap of every group of state ``st``:
-        packed on the device and copied through pinned host buffers (:mod:`knitsim.kernels.state_read`);
-        ``ints_only``: stage, jammed and status only (the reals are packed on the device, not copied)."""
+    def _read(self, st) -> dict:
+        """C, F (0 while slack), phi, W, stage, jammed, status and head gap of every group of state ``st``, and
+        its state vector x [n, 5] and s_AB: packed on the device and copied through pinned host buffers
+        (:mod:`knitsim.kernels.state_read`)."""
         wp, sr = self.wp, self._state_read
         reals, ints = self._pack(st)
-        if self._read_host is not self._read_dev:
-            if not ints_only:
-                wp.copy(self._read_host[0], reals)
+        on_host = self._read_host is self._read_dev
+        if not on_host:
+            wp.copy(self._read_host[0], reals)
             wp.copy(self._read_host[1], ints)
+            wp.copy(self._read_host[2], st.x)
             wp.synchronize_device(self.device)
-        k = self._read_host[1].numpy()
-        if ints_only:
-            return {"stage": k[:, sr.READ_STAGE].copy(), "jammed": k[:, sr.READ_JAMMED].copy(),
-                    "status": k[:, sr.READ_STATUS].copy()}
-        r = self._read_host[0].numpy()
-        return {"C": r[:, sr.READ_C].copy(), "F": r[:, sr.READ_F].copy(), "phi": r[:, sr.READ_PHI].copy(),
-                "W": r[:, sr.READ_W].copy(), "stage": k[:, sr.READ_STAGE].copy(),
-                "jammed": k[:, sr.READ_JAMMED].copy(), "status": k[:, sr.READ_STATUS].copy(),
-                "head_gap": r[:, sr.READ_GAP].copy(), "x": r[:, sr.READ_X:sr.READ_X + 5].copy(),
-                "s_AB": r[:, sr.READ_S_AB].copy()}
+        # field-major: each quantity's copy out of the (reused) buffers is one contiguous block
+        r, k = self._read_host[0].numpy(), self._read_host[1].numpy()
+        return {"C": r[sr.READ_C].copy(), "F": r[sr.READ_F].copy(), "phi": r[sr.READ_PHI].copy(),
+                "W": r[sr.READ_W].copy(), "stage": k[sr.READ_STAGE].copy(), "jammed": k[sr.READ_JAMMED].copy(),
+                "status": k[sr.READ_STATUS].copy(), "head_gap": r[sr.READ_GAP].copy(),
+                "x": (st.x if on_host else self._read_host[2]).numpy().copy(), "s_AB": r[sr.READ_S_AB].copy()}
 
     @property
     def last_read(self) -> tuple:
@@ -340,11 +338,27 @@ class WarpBackend:
             out = np.where(mask, out, np.nan)
         return out
 
-    def _trial_tangent_on_device(self, mask: np.ndarray | None) -> "wp.array":
-        """``tangent(True, mask=mask)`` in the device mode: the device array of the trial tangents (NaN
-        outside ``mask``), kept as :meth:`tangent`'s NumPy lines keep them."""
+    def good_trials(self) -> int:
+        """The device mode's count of the last trial's stepped cells that it left ok (status ok), marked on the
+        device as those whose tangents :meth:`good_trial_tangents` gives: the coupling's ``mask & (status ==
+        ok)`` without reading the statuses to the host."""
         wp, d = self.wp, self._device_arrays()
-        d.use.assign((np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)).astype(np.int32))
+        d.count.zero_()
+        wp.launch(d.k.good_trials_kernel, dim=self.n, device=self.device,
+                  inputs=[d.stepped, self.s1.status, STATUS_OK], outputs=[d.use, d.count])
+        return int(d.count.numpy()[0])
+
+    def good_trial_tangents(self) -> "wp.array":
+        """``tangent(True, mask=good)`` in the device mode, for the cells :meth:`good_trials` marked."""
+        return self._trial_tangent_on_device(None, marked=True)
+
+    def _trial_tangent_on_device(self, mask: np.ndarray | None, marked: bool = False) -> "wp.array":
+        """``tangent(True, mask=mask)`` in the device mode: the device array of the trial tangents (NaN
+        outside ``mask``; ``marked``: outside the cells :meth:`good_trials` marked), kept as :meth:`tangent`'s
+        NumPy lines keep them."""
+        wp, d = self.wp, self._device_arrays()
+        if not marked:
+            d.use.assign((np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)).astype(np.int32))
         d.count.zero_()
         wp.launch(d.k.tangent_need_kernel, dim=self.n, device=self.device,
                   inputs=[d.use, self._slope, self.s1.status, STATUS_OK + 1], outputs=[d.masked_status, d.count])
@@ -393,7 +407,10 @@ class WarpBackend:
         """Step every group (with ``mask``: those in it) from its committed state to ``C = C0 (1 + strain)``
         (``strain`` [n]: host values, or the device array ``control.strain`` written in place);
         the committed state is kept.  The trial rows of groups outside ``mask`` are those of their
-        last trial (not read by the coupling)."""
+        last trial (not read by the coupling).  Returns the trial's states as :meth:`committed` gives them,
+        with the slide onsets it crossed (``slide_C``, ``slide_F``); in the device mode nothing (an empty
+        dict): the coupling reads the trial on the device (:attr:`last_read`, :attr:`slide_onsets`,
+        :meth:`good_trials`), and :meth:`trial_state` copies it."""
         if strain is not self.control.strain:        # (DeviceTrials.set_strain writes it in place)
             self.control.strain.assign(np.ascontiguousarray(strain, dtype=np.float64))
         self.control.direction.fill_(int(direction))
@@ -405,8 +422,10 @@ class WarpBackend:
         cells = None if mask is None or np.all(mask) else np.flatnonzero(mask).astype(np.int32)
         self.solver.step(self.s0, self.s1, self.control, increment, cells=cells, slope_out=self._slope)
         if self.device_trials:
+            # the coupling judges and books the trial on the device (last_read, good_trials): nothing is copied
             self._trial_reads_on_device(mask)
-            return self._read(self.s1, ints_only=True)
+            self._pack(self.s1)
+            return {}
         self._k_step = self._slope.numpy().copy() if mask is None else np.where(mask, self._slope.numpy(), np.nan)
         self._k1_ok &= False if mask is None else ~np.asarray(mask, bool)
         t = self._read(self.s1)
@@ -987,6 +1006,11 @@ class PatchSolver:
         self.rest = rest
         single = np.bincount(self.col, minlength=self.n_cls) == 1
         self.single_group = single[self.col]
+        # per column, fixed by the grouping (each an O(groups) reduction, once per increment before): whether
+        # it is a single group, its stitch count and its rest length [mm]
+        self._single_cls = single
+        self._col_count = self._colsum(self.cnt)
+        self._col_length = self._colsum(self.cnt * self.C0)
         self.cells = self.backend.committed()
         self.k = np.full(self.backend.n, np.nan)
         self.direction = 1
@@ -1107,7 +1131,7 @@ class PatchSolver:
             self.held[:] = 0
         skip_cls = ~stopped_cls & (self.held >= HELD_RETRIES) & (int(direction) > 0)
         active_cls = ~stopped_cls & ~skip_cls
-        single_cls = np.bincount(col, minlength=self.n_cls) == 1
+        single_cls = self._single_cls
         # exact strain of a single-group (uniform) column: the cell itself at the grip strain
         u_single = np.where(self.rest[col] == self.ref_length, float(grip_strain), u / (cnt * C0))
         be.begin_increment()
@@ -1161,7 +1185,7 @@ class PatchSolver:
         cc = self._committed_columns(c)
         status = np.where(cc["stopped"] & (status == COL_OK), COL_STOPPED, status)
         self.direction = int(direction)
-        n_cells = self._colsum(cnt)
+        n_cells = self._col_count
         # a single-group column carries its cell's force exactly (no rounding of n F / n)
         F_one = np.zeros(self.n_cls)
         F_one[col[self.single_group]] = p[self.single_group] * c["F"][self.single_group]
@@ -1184,8 +1208,8 @@ class PatchSolver:
         done_cls = ~active_cls
         jump_cls = np.zeros(self.n_cls, bool)
         iters = np.zeros(self.n_cls, np.int64)
-        single_cls = np.bincount(col, minlength=self.n_cls) == 1
-        col_length = self._colsum(cnt * C0)              # each column's rest length [mm]
+        single_cls = self._single_cls
+        col_length = self._col_length              # each column's rest length [mm]
         # a backend that steps (and gives tangents of) a subset of the groups: only the live columns' cells
         partial = getattr(be, "partial_trials", False)
         # the committed state is a point of every cell's branch, with the tangent of the stage that a
@@ -1216,7 +1240,7 @@ class PatchSolver:
         spread_last = np.full(self.n_cls, np.inf)
         cc = self._committed_columns(c)
         Fc_max, Fc_min = cc["F_max"], cc["F_min"]
-        Fcol = np.maximum(cc["n_pF"] / self._colsum(cnt), 0.0)
+        Fcol = np.maximum(cc["n_pF"] / self._col_count, 0.0)
         # the committed state is an equilibrium of the column (not so at the rest state, whose cells'
         # rest forces differ, nor after a flagged increment): only then do its cells move one way
         monotone_cls = (Fc_max - Fc_min) <= 1e3 * (self.force_tol + self.force_rtol * np.abs(Fc_max))
@@ -1280,20 +1304,23 @@ class PatchSolver:
             # only the cells of the live columns are stepped (the others' trial rows are stale, never read)
             t = be.trial(strain, direction, increment, g_live) if partial else be.trial(strain, direction, increment)
             last = t
-            failed = t["status"] != STATUS_OK
             if on_dev:
                 judged = trials.judge(be.last_read, live, STATUS_OK, STATUS_FORCE_CAP)
                 any_failed, any_capped = judged["failed"], judged["capped"]
             else:
+                failed = t["status"] != STATUS_OK
                 any_failed = self._colmax((failed & g_live).astype(float), 0.0) > 0
                 any_capped = self._colmax(((t["status"] == STATUS_FORCE_CAP) & g_live).astype(float), 0.0) > 0
             prev_failed = np.where(live, any_failed, prev_failed)
             prev_capped = np.where(live, any_capped, prev_capped)
             iters[live] += 1
-            use = g_live & ~failed
             # each good trial's own tangent (before the converged columns are accepted: the backend
-            # keeps it as the committed state's)
-            kt = (be.tangent(True, mask=use) if partial else be.tangent(True)) if np.any(use) else None
+            # keeps it as the committed state's); on the device the good trials are marked there
+            if on_dev:
+                kt = be.good_trial_tangents() if be.good_trials() else None
+            else:
+                use = g_live & ~failed
+                kt = (be.tangent(True, mask=use) if partial else be.tangent(True)) if np.any(use) else None
             # convergence: equal forces at a positive column force (the lengths then add up to u by
             # construction), or every cell slack where the column was asked for zero force; a cell that
             # failed in the trial never converges its column

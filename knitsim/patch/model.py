@@ -413,11 +413,16 @@ class PatchModel:
             mat_id = _row_ids(stack.reshape(-1, stack.shape[-1])).reshape(courses, wales)
             # a column class is the multiset of its materials, with their stitch counts (order along the
             # column is irrelevant in series)
-            col_keys = []
-            for j in range(wales):
-                ids, inv = np.unique(mat_id[:, j], return_inverse=True)
-                sums = np.bincount(inv, weights=counts[:, j], minlength=len(ids))
-                col_keys.append(tuple(ids.tolist()) + tuple(float(x) for x in sums))
+            # (each column's distinct materials in ascending id and their count sums, over every column at once:
+            # the (column, material) pairs sorted, the sums added in course order as a column's own bincount
+            # does; a column's key is the bytes of both, equal exactly where ids and sums are: the sums are
+            # positive and finite. A loop of np.unique per column took 0.5 s of a 10^6-cell patch's set-up)
+            pair = (np.arange(wales, dtype=np.int64)[:, None] * (int(mat_id.max()) + 1) + mat_id.T).ravel()
+            pairs, pair_inv = np.unique(pair, return_inverse=True)
+            pair_sums = np.bincount(pair_inv.ravel(), weights=counts.T.ravel(), minlength=len(pairs))
+            pair_ids = pairs % (int(mat_id.max()) + 1)
+            bounds = np.searchsorted(pairs // (int(mat_id.max()) + 1), np.arange(wales + 1))
+            col_keys = [pair_ids[a:b].tobytes() + pair_sums[a:b].tobytes() for a, b in zip(bounds[:-1], bounds[1:])]
             classes: dict = {}
             column_class = np.array([classes.setdefault(k, len(classes)) for k in col_keys], dtype=np.int64)
             # a group is a (column class, material): numbered in the order the cells first hold them, wale
@@ -452,9 +457,11 @@ class PatchModel:
             group_count = counts.ravel().astype(np.float64)
             rep = np.stack(np.unravel_index(np.arange(courses * wales), (courses, wales)), axis=1)
         ri, rj = rep[:, 0], rep[:, 1]
-        cells = {n: np.asarray(self.fields[n], dtype=np.float64)[ri, rj] for n in PARAM_NAMES}
-        cells.update({r: self.rules[r][ri, rj] for r in RULE_NAMES})
-        cells["effects"] = self.effects[ri, rj]
+        # (the representatives' flat indices once: indexing each field with (ri, rj) computed them per field)
+        flat = ri * wales + rj
+        cells = {n: np.asarray(self.fields[n], dtype=np.float64).ravel()[flat] for n in PARAM_NAMES}
+        cells.update({r: self.rules[r].ravel()[flat] for r in RULE_NAMES})
+        cells["effects"] = self.effects.ravel()[flat]
         n_cls = int(column_class.max()) + 1
         # (bincount adds in group order, as the loop over the groups did)
         rest = np.bincount(group_column, weights=group_count * cells["C0"], minlength=n_cls).astype(np.float64)

@@ -326,8 +326,9 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
     single_stitches = bool(np.all(col_wales == 1.0))
     n = len(program)
     dev_id = device_identity(engine, getattr(solver.backend, "device", device))
-    fp = _run_fingerprint(model, program, engine, dev_id, dedup, solver_options)
     ck = Path(checkpoint) if checkpoint is not None else None
+    # (only a checkpoint needs it: hashing a 10^6-cell patch's fields and rules took 0.3 s)
+    fp = _run_fingerprint(model, program, engine, dev_id, dedup, solver_options) if ck is not None else None
     rows: dict = {k: [] for k in _ROW_KEYS}
     start, wall_before = 0, 0.0
     if resume:
