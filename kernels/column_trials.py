@@ -20,7 +20,7 @@ from __future__ import annotations
 import warp as wp
 
 from .branch_points import INF, K_MAX, K_MIN, BranchArrays, add_point, jumps, np_clip
-from .state_read import READ_C, READ_F, READ_STATUS, READ_STAGE
+from .state_read import READ_C, READ_F, READ_JAMMED, READ_STAGE, READ_STATUS
 
 wp.set_module_options({"enable_backward": False})
 
@@ -305,3 +305,46 @@ def begin_trials_kernel(
         stick[g] = 1
     else:
         stick[g] = 0
+
+
+@wp.kernel
+def branch_curvature_kernel(
+    k_c: wp.array(dtype=wp.float64),
+    reals: wp.array2d(dtype=wp.float64),
+    ints: wp.array2d(dtype=wp.int32),
+    use_history: int,
+    keep_history: int,
+    hist_F: wp.array(dtype=wp.float64),
+    hist_kinv: wp.array(dtype=wp.float64),
+    hist_stage: wp.array(dtype=wp.int32),
+    hist_jammed: wp.array(dtype=wp.int32),
+    curvature: wp.array(dtype=wp.float64),
+):
+    """The curvature d(1/k)/dF of group g's branch from its last two committed points (``PatchSolver._solve``'s
+    set-up; ``reads``: the committed state packed): from the tangent ``k_c`` now and the kept one where both
+    points are on one branch (the same stage and jammed flag, positive forces that differ, tangents within a
+    factor 1.5), NaN elsewhere or without ``use_history``; ``keep_history``: the committed point is kept as the
+    next increment's last one."""
+    g = wp.tid()
+    kc = k_c[g]
+    kinv = wp.float64(wp.nan)
+    if wp.isfinite(kc) and kc > wp.float64(0.0):
+        kinv = wp.float64(1.0) / np_clip(kc, K_MIN, K_MAX)
+    F = reals[READ_F, g]
+    st = ints[READ_STAGE, g]
+    jam = ints[READ_JAMMED, g]
+    curv = wp.float64(wp.nan)
+    if use_history != 0:
+        Fh = hist_F[g]
+        kh = hist_kinv[g]
+        same = st == hist_stage[g] and jam == hist_jammed[g] and F > wp.float64(0.0) and Fh > wp.float64(0.0)
+        same = same and F != Fh and kinv <= wp.float64(1.5) * kh and kh <= wp.float64(1.5) * kinv
+        c = (kinv - kh) / (F - Fh)
+        if same and wp.isfinite(c):
+            curv = c
+    curvature[g] = curv
+    if keep_history != 0:
+        hist_F[g] = F
+        hist_kinv[g] = kinv
+        hist_stage[g] = st
+        hist_jammed[g] = jam

@@ -212,6 +212,8 @@ class WarpBackend:
         # tangents known at the trial (1), committed (0) and result (r) states, and where they are known
         self._k1, self._k0, self._kr = (np.full(self.n, np.nan) for _ in range(3))
         self._k1_ok, self._k0_ok, self._kr_ok = (np.zeros(self.n, bool) for _ in range(3))
+        #: the device mode's result tangents (kr) hold the committed ones (_k0): begin_increment sends none
+        self._kr_on_device = False
         #: the trials' slide onsets, warm starts and tangents kept on the device (:mod:`knitsim.kernels.
         #: backend_trials`; set once, before the first trial, by a coupling whose bookkeeping runs there):
         #: ``trial`` then reads only each cell's stage, jammed flag and status to the host and
@@ -463,14 +465,17 @@ class WarpBackend:
     def begin_increment(self) -> None:
         """Start an increment: every group's result starts as its committed state."""
         self._select(self._all, self.s0, self.res)
-        self._kr, self._kr_ok = self._k0.copy(), self._k0_ok.copy()
         self._warm[:] = False                    # no trial of this increment yet
         self._committed_branch = None
         if self.device_trials:
             d = self._device_arrays()
-            d.kr.assign(self._kr)
-            d.kr_ok.assign(self._kr_ok.astype(np.int32))
+            # (the device's result tangents are the committed ones where the last increment ended: not sent)
+            if not self._kr_on_device:
+                d.kr.assign(self._k0)
+                d.kr_ok.assign(self._k0_ok.astype(np.int32))
             self.control.warm.zero_()
+        else:
+            self._kr, self._kr_ok = self._k0.copy(), self._k0_ok.copy()
 
     def accept(self, mask: np.ndarray) -> None:
         """Keep the last trial of the groups in ``mask`` as their result of this increment."""
@@ -493,6 +498,7 @@ class WarpBackend:
         if self.device_trials:
             d = self._device_arrays()
             self._kr, self._kr_ok = d.kr.numpy().copy(), d.kr_ok.numpy() != 0
+            self._kr_on_device = True
         self._k0, self._k0_ok = self._kr, self._kr_ok
         return self.committed()
 
@@ -510,6 +516,7 @@ class WarpBackend:
             a.assign(saved[f])
         self._k0 = np.array(saved.get("tangent", np.full(self.n, np.nan)), dtype=float)
         self._k0_ok = np.array(saved.get("tangent_ok", np.zeros(self.n, bool)), dtype=bool)
+        self._kr_on_device = False
 
 
 _STATE_FIELDS = ("x", "q", "C", "stage", "jammed", "soft", "frozen_soft", "frozen_sbc", "status", "direction",
@@ -1011,6 +1018,9 @@ class PatchSolver:
         self._single_cls = single
         self._col_count = self._colsum(self.cnt)
         self._col_length = self._colsum(self.cnt * self.C0)
+        # per group: its column mounted at the reference length, and its rest length n C0 [mm] (u_single)
+        self._at_ref_length = self.rest[self.col] == self.ref_length
+        self._group_length = self.cnt * self.C0
         self.cells = self.backend.committed()
         self.k = np.full(self.backend.n, np.nan)
         self.direction = 1
@@ -1034,6 +1044,7 @@ class PatchSolver:
         #: increments in a row of the current direction in which each column did not converge (HELD_RETRIES)
         self.held = np.zeros(self.n_cls, dtype=np.int64)
         #: each group's force, dC/df, stage, jammed flag at the start of the last increment and its direction
+        #: (with the device coupling kept on the device: DeviceTrials.branch_history)
         self._branch_history = None
 
     # ------------------------------------------------------------- helpers
@@ -1102,7 +1113,8 @@ class PatchSolver:
         displacements, branch history), for a checkpoint."""
         return {"backend": self.backend.get_state(), "k": self.k.copy(), "direction": self.direction,
                 "cells": copy.deepcopy(self.cells), "u_prev": self.u_prev.copy(), "held": self.held.copy(),
-                "branch_history": copy.deepcopy(self._branch_history)}
+                "branch_history": (self._device_objects()[2].branch_history() if self.on_device
+                                   else copy.deepcopy(self._branch_history))}
 
     def set_state(self, s: dict) -> None:
         """Restore a state saved by :meth:`get_state`."""
@@ -1111,7 +1123,10 @@ class PatchSolver:
         self.direction = int(s["direction"])
         self.u_prev = np.array(s.get("u_prev", np.zeros(self.n_cls)), dtype=float)
         self.held = np.array(s.get("held", np.zeros(self.n_cls)), dtype=np.int64)
-        self._branch_history = s.get("branch_history")
+        if self.on_device:
+            self._device_objects()[2].set_branch_history(s.get("branch_history"))
+        else:
+            self._branch_history = s.get("branch_history")
         self.cells = self.backend.committed()
 
     # ---------------------------------------------------------------- step
@@ -1133,7 +1148,7 @@ class PatchSolver:
         active_cls = ~stopped_cls & ~skip_cls
         single_cls = self._single_cls
         # exact strain of a single-group (uniform) column: the cell itself at the grip strain
-        u_single = np.where(self.rest[col] == self.ref_length, float(grip_strain), u / (cnt * C0))
+        u_single = np.where(self._at_ref_length, float(grip_strain), u / self._group_length)
         be.begin_increment()
         u_cls = np.full(self.n_cls, u)
         done_cls, iters, jump_cls, last_failed, last_capped = self._solve(u_cls, u_single, direction, increment,
@@ -1215,27 +1230,30 @@ class PatchSolver:
         # the committed state is a point of every cell's branch, with the tangent of the stage that a
         # reversal enters; the fallback tangents are the last increment's
         k_c = be.tangent(False, direction)
-        k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
         on_dev = self.on_device
         if on_dev:
             pts, _, trials = self._device_objects()
-            pts.reset(self.k)
+            pts.reset(self.k, host_state=False)
+            # the curvature of each branch and the kept committed point (the NumPy lines below, one thread per
+            # group: ~30 passes over 10^6 groups were ~25 ms of an increment's host time)
+            trials.branch_curvature(pts, be.packed_committed(), k_c, direction, history)
         else:
             pts = BranchPoints(C0, self.k, self.branch_points)
-        # the curvature of each cell's branch from its last two committed points (their tangents), where
-        # both are on one branch: the same stage, the same direction, a force that moved
-        kinv_c = np.where(np.isfinite(k_c), 1.0 / np.clip(k_c, K_MIN, K_MAX), np.nan)
-        hist = self._branch_history if history else None
-        if hist is not None and hist[4] == direction:
-            F_h, kinv_h, stage_h, jam_h = hist[:4]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                curv = (kinv_c - kinv_h) / (c["F"] - F_h)
-            same = (c["stage"] == stage_h) & (c["jammed"] == jam_h) & (c["F"] > 0) & (F_h > 0) & (c["F"] != F_h)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                same &= (kinv_c <= 1.5 * kinv_h) & (kinv_h <= 1.5 * kinv_c)
-            pts.curvature = np.where(same & np.isfinite(curv), curv, np.nan)
-        if history:
-            self._branch_history = (c["F"].copy(), kinv_c, c["stage"].copy(), c["jammed"].copy(), int(direction))
+            k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
+            # the curvature of each cell's branch from its last two committed points (their tangents), where
+            # both are on one branch: the same stage, the same direction, a force that moved
+            kinv_c = np.where(np.isfinite(k_c), 1.0 / np.clip(k_c, K_MIN, K_MAX), np.nan)
+            hist = self._branch_history if history else None
+            if hist is not None and hist[4] == direction:
+                F_h, kinv_h, stage_h, jam_h = hist[:4]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    curv = (kinv_c - kinv_h) / (c["F"] - F_h)
+                same = (c["stage"] == stage_h) & (c["jammed"] == jam_h) & (c["F"] > 0) & (F_h > 0) & (c["F"] != F_h)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    same &= (kinv_c <= 1.5 * kinv_h) & (kinv_h <= 1.5 * kinv_c)
+                pts.curvature = np.where(same & np.isfinite(curv), curv, np.nan)
+            if history:
+                self._branch_history = (c["F"].copy(), kinv_c, c["stage"].copy(), c["jammed"].copy(), int(direction))
         pts.column_gap = lambda gap, mask: self._colmax(np.where(mask, gap * p, 0.0), 0.0)[col] / p
         spread_last = np.full(self.n_cls, np.inf)
         cc = self._committed_columns(c)
@@ -1247,7 +1265,7 @@ class PatchSolver:
         if on_dev:
             # the committed point, the direction's bounds and the trials' bookkeeping (DeviceTrials) on the
             # device: the NumPy below is its twin
-            trials.begin(pts, be.packed_committed(), k_c, self.k, Fcol, monotone_cls, direction, u_single,
+            trials.begin(pts, be.packed_committed(), trials.k_c, self.k, Fcol, monotone_cls, direction, u_single,
                          (int(Stage.SF_LOAD), int(Stage.SF_UNLOAD)))
         else:
             pts.add(np.ones(be.n, bool), c["C"], c["F"], k_c, Fcol[col] / p)

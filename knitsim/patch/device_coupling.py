@@ -67,23 +67,27 @@ class DeviceBranchPoints(BranchPoints):
         self._all_rows = wp.array(self._rows.astype(np.int32), dtype=wp.int32, device=device)
         self.reset(k_fallback)
 
-    def reset(self, k_fallback: np.ndarray) -> None:
+    def reset(self, k_fallback: np.ndarray, host_state: bool = True) -> None:
         """Forget every point (a new increment), with the fallback tangents ``k_fallback`` [N/mm]: the state of
-        a new instance, without allocating its arrays again."""
+        a new instance, without allocating its arrays again.  Without ``host_state`` the bounds and stall state
+        are left to the device (``DeviceTrials.begin`` sets them there): no host arrays are made for them."""
         n, b = self.n, self.b
         self.k_fallback = k_fallback
-        self.C_min = np.full(n, -np.inf)
-        self.C_max = np.full(n, np.inf)
         self.rows = self._rows
         self._rows_dev = self._all_rows
-        self.stall = np.zeros(n, np.int64)
-        self.side = np.zeros(n, np.int64)
+        if host_state:
+            self.C_min = np.full(n, -np.inf)
+            self.C_max = np.full(n, np.inf)
+            self.stall = np.zeros(n, np.int64)
+            self.side = np.zeros(n, np.int64)
+        else:
+            self.C_min = self.C_max = self.stall = self.side = None
         self.column_gap = None
         self.curvature = None
         self._curvature_sent = self._NOT_SENT
         #: the bounds C_min, C_max and the stall state are the host's attributes, sent by prepare (else kept on
         #: the device by DeviceTrials)
-        self.host_state = True
+        self.host_state = bool(host_state)
         for a in (b.C, b.F, b.K):
             a.fill_(np.nan)
         b.valid.zero_()
@@ -109,6 +113,11 @@ class DeviceBranchPoints(BranchPoints):
         wp.launch(kbp.add_points_kernel, dim=rows.size, device=self.device,
                   inputs=[self.b, rows_dev, self._send(pick(C)), self._send(pick(F)), self._send(pick(K)),
                           self._send(pick(f_target))])
+
+    def curvature_on_device(self) -> None:
+        """The curvature of every group was written on the device (``DeviceTrials.branch_curvature``):
+        :meth:`prepare` sends none."""
+        self._curvature_sent = self.curvature
 
     def prepare(self, rows: np.ndarray | None = None) -> None:
         self.rows = self._rows if rows is None or len(rows) == self.n else np.asarray(rows)
@@ -290,6 +299,9 @@ class DeviceTrials:
         self.sum_n_pF, self.sum_np_F, self.sum_n_dC = k(), k(), k()
         self.all_live, self.monotone = k(wp.int32), k(wp.int32)
         self.all_live.fill_(1)
+        # the last committed point of each branch (force, 1 / tangent, stage, jammed) and its direction (None: none)
+        self.hist_F, self.hist_kinv, self.hist_stage, self.hist_jammed = g(), g(), g(wp.int32), g(wp.int32)
+        self.hist_direction = None
 
     def _put(self, dst: wp.array, a) -> wp.array:
         """``a`` itself where it is a device array, else its values copied into ``dst``."""
@@ -319,6 +331,42 @@ class DeviceTrials:
         out = self._columns(reads, self.all_live, status_ok, status_cap)
         out["stopped"] = out.pop("failed")
         return out
+
+    def branch_curvature(self, pts: DeviceBranchPoints, reads: tuple, k_c: np.ndarray, direction: int,
+                         history: bool) -> None:
+        """Each group's branch curvature (``branch_curvature_kernel``) written into the model ``pts`` (its
+        ``curvature``), from the committed state ``reads`` (its packed read), the tangents ``k_c`` (kept in
+        :attr:`k_c` for :meth:`begin`) and the point kept at the last increment's start in the same direction;
+        without ``history`` (a sub-increment) none (NaN), and that point is kept, else this one is."""
+        use = history and self.hist_direction is not None and self.hist_direction == int(direction)
+        self._put(self.k_c, k_c)
+        wp.launch(self.k.branch_curvature_kernel, dim=self.n, device=self.device,
+                  inputs=[self.k_c, reads[0], reads[1], int(use), int(bool(history)), self.hist_F, self.hist_kinv,
+                          self.hist_stage, self.hist_jammed],
+                  outputs=[pts.b.curvature])
+        pts.curvature_on_device()
+        if history:
+            self.hist_direction = int(direction)
+
+    def branch_history(self) -> tuple | None:
+        """The kept points as ``PatchSolver``'s NumPy twin keeps them (F, 1 / k, stage, jammed, direction; host
+        copies), for a checkpoint; None where none is kept."""
+        if self.hist_direction is None:
+            return None
+        return (self.hist_F.numpy().copy(), self.hist_kinv.numpy().copy(), self.hist_stage.numpy().copy(),
+                self.hist_jammed.numpy().copy(), self.hist_direction)
+
+    def set_branch_history(self, hist: tuple | None) -> None:
+        """Restore :meth:`branch_history` (or the NumPy twin's) from a checkpoint."""
+        if hist is None:
+            self.hist_direction = None
+            return
+        F, kinv, stage, jammed, direction = hist
+        self.hist_F.assign(np.ascontiguousarray(F, dtype=np.float64))
+        self.hist_kinv.assign(np.ascontiguousarray(kinv, dtype=np.float64))
+        self.hist_stage.assign(np.ascontiguousarray(stage, dtype=np.int32))
+        self.hist_jammed.assign(np.ascontiguousarray(jammed, dtype=np.int32))
+        self.hist_direction = int(direction)
 
     def begin(self, pts: DeviceBranchPoints, reads: tuple, k_c: np.ndarray, k: np.ndarray, F_col: np.ndarray,
               monotone: np.ndarray, direction: int, u_single: np.ndarray, sf_stages: tuple) -> None:
