@@ -51,6 +51,16 @@ def _number(v) -> float:
 _DEFAULT = CellParams(B=1.0, d=1.0, L=10.0, W0=4.0, C0=2.0)
 
 
+class _DefaultCap(float):
+    """A cell's default force cap [N] (50 B / d^2 of its own yarn) as the resolved rules hold it: a number to
+    the couplings, and marked as the default in the value itself, so that a copy of the model
+    (``dataclasses.replace``, which passes the resolved rules back in) keeps the label, and a copy with another
+    B or d gets a default cap of its own, as :class:`~knitsim.cell.material.CellParams` does (a blind probe's
+    copy lost the label; a separate flag is not passed on by ``replace``)."""
+
+    __slots__ = ()
+
+
 def _value_codes(values: np.ndarray) -> np.ndarray:
     """An integer per value, equal for equal values; all zeros at once where every value is the first (a
     patch's rules are mostly one: sorting 10^6 objects took 0.3 s a rule)."""
@@ -279,14 +289,15 @@ class PatchModel:
                 a[...] = v
                 rules[r] = a
         # a default force cap (None) is each cell's own, 50 B / d^2 (knitsim.cell.material.default_force_cap_N):
-        # the rules hold numbers, which the couplings read as such
+        # the rules hold numbers, which the couplings read as such; a default resolved earlier (_DefaultCap, the
+        # rules of a model copied with dataclasses.replace) is resolved again from this model's B and d
         cap = rules["force_cap_N"]
-        unset = np.frompyfunc(lambda x: x is None, 1, 1)(cap).astype(bool)
+        unset = np.frompyfunc(lambda x: x is None or isinstance(x, _DefaultCap), 1, 1)(cap).astype(bool)
         if unset.any():
-            cap = cap.copy()
+            cap = np.array(cap, dtype=object)
             with np.errstate(divide="ignore", invalid="ignore"):
                 own = default_force_cap_N(np.asarray(self.fields["B"], float), np.asarray(self.fields["d"], float))
-            cap[unset] = np.broadcast_to(own, shape)[unset]
+            cap[unset] = np.frompyfunc(_DefaultCap, 1, 1)(np.broadcast_to(own, shape)[unset])
             rules["force_cap_N"] = cap
         object.__setattr__(self, "rules", rules)
         #: per cell, True where its force cap is the default (rules.force_cap_N not given), for the summary

@@ -9,9 +9,14 @@ Where the expected outcomes come from:
   (far into jamming, W = 4 d at 0.685), failed to converge at 15.08 N per wale (status no_convergence, exit 1),
   164 B / d^2; the solver's reach over 2,000 random cells of the domain was at least 79 B / d^2
   (knitsim.cell.material.FORCE_CAP_PER_FORCE_SCALE), so the default cap is met, an expected end;
-- an explicit force_cap_N is kept as given (hand-made values).
+- an explicit force_cap_N is kept as given (hand-made values);
+- a copy of a patch model (``dataclasses.replace``) is the same patch: its default caps stay labelled default,
+  and a copy with another B takes 50 B / d^2 of that B (hand-computed: 50 x 0.62 / 0.58^2 = 92.15 N), as
+  ``CellParams.replace`` does, while a cap the copy is given is kept as given.
 """
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -82,3 +87,23 @@ def test_a_scene_without_force_cap_N_labels_the_default_in_its_rules():
     assert "force_cap_N" not in scene.to_toml()            # a re-run of the resolved scene takes the default too
     given = load_cell_scene(doc, ["rules.force_cap_N=5"]).params[0]
     assert given.cap_N == 5.0 and "50 B / d^2" not in rules_of(given)["force_cap_N"]["meaning"]
+
+
+def test_a_copied_patch_model_keeps_its_default_caps_labelled_and_its_own():
+    from knitsim.io.patch_results import rule_sets
+    cells = [[CellParams(**E_GLASS), CellParams(**E_GLASS, force_cap_N=7.0)]]
+    patch = PatchModel.from_cells(cells)
+    same = dataclasses.replace(patch, pretension=0.0)
+    assert same.cap_is_default.tolist() == [[True, False]]                 # before: [[False, False]]
+    assert np.asarray(same.rules["force_cap_N"], float).ravel() == pytest.approx([46.0761, 7.0], rel=1e-5)
+    (default_set,) = [r for r in rule_sets(same) if r["force_cap_N"]["value"] != 7.0]
+    assert "50 B / d^2" in default_set["force_cap_N"]["meaning"]
+    assert same.cell(0, 0).force_cap_N is None and same.cell(0, 1).force_cap_N == 7.0
+    # another B: the default is that yarn's own (before: the first model's 46.08 N, labelled not default)
+    fields = dict(patch.fields, B=np.full((1, 2), 0.62))
+    stiffer = dataclasses.replace(patch, fields=fields)
+    assert stiffer.cap_is_default.tolist() == [[True, False]]
+    assert np.asarray(stiffer.rules["force_cap_N"], float).ravel() == pytest.approx([92.1522, 7.0], rel=1e-5)
+    # a cap given to the copy is the user's, not a default
+    given = dataclasses.replace(patch, rules=dict(patch.rules, force_cap_N=5.0))
+    assert not given.cap_is_default.any() and np.asarray(given.rules["force_cap_N"], float).tolist() == [[5.0, 5.0]]
