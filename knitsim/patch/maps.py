@@ -73,7 +73,7 @@ def gradient(n: int, start: float, end: float, profile: str = "linear", steps: i
     return start + (end - start) * t
 
 
-def _read_map_csv(f: Path, path: str) -> np.ndarray:
+def _read_map_csv(f: Path, path: str) -> tuple[np.ndarray, tuple[int, list[str]] | None]:
     """A map CSV as a lab's spreadsheet writes it: a byte-order mark, UTF-16, Windows line ends, ``;`` or tab
     between the cells with decimal commas (Excel in a decimal-comma locale), quoted cells (``"0,05"``: a
     script's QUOTE_ALL, LibreOffice's or Google Sheets' decimal-comma export with ``,`` between the cells, read
@@ -81,7 +81,11 @@ def _read_map_csv(f: Path, path: str) -> np.ndarray:
     number), blank lines.  An empty or non-numeric cell below is refused, named by row and column (a probe's
     Excel map was refused as "row 1 is not a list of numbers"), and so is a row of another length than the first,
     named with both (a probe's quoted first row was skipped as labels, and a ragged row was "not rectangular",
-    no row named)."""
+    no row named).
+
+    Returns the array and the row of labels skipped, as (its row number, its cells), or None: a map of the
+    wrong shape then says that row was not read as numbers (a blind probe's first row, skipped silently, left
+    a map one course short and an error that did not say why)."""
     from ..io.table_input import _comma_file_decimal_comma, _number, _split, _text
     lines = _text(f).splitlines()
     first = next((ln for ln in lines if ln.strip()), "")
@@ -100,7 +104,7 @@ def _read_map_csv(f: Path, path: str) -> np.ndarray:
     # a ',' file's quoted cells may hold decimal commas (refused where every one reads as a thousands separator too)
     decimal_comma = delim != "," or _comma_file_decimal_comma(
         f, [c for _, c in table], [r for r, _ in table], list(range(width)), [str(k + 1) for k in range(width)])
-    rows, rows_at, shown = [], [], 0
+    rows, rows_at, shown, labels = [], [], 0, None
     sep = "a tab" if delim == "\t" else repr(delim)
     for r, cells in table:
         shown += 1
@@ -111,6 +115,7 @@ def _read_map_csv(f: Path, path: str) -> np.ndarray:
             except ValueError:
                 vals.append("text")
         if shown == 1 and all(v == "text" for v in vals):
+            labels = (r, cells)
             continue                                        # a row of labels
         for k, (c, v) in enumerate(zip(cells, vals), start=1):
             if v is None or v == "text":
@@ -124,7 +129,7 @@ def _read_map_csv(f: Path, path: str) -> np.ndarray:
         rows_at.append(r)
     if not rows:
         raise _err(path, str(f), "expected a rectangular table of numbers, one row per course")
-    return np.asarray(rows, dtype=np.float64)
+    return np.asarray(rows, dtype=np.float64), labels
 
 
 def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
@@ -133,6 +138,7 @@ def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
     axes count (``("bands", "strips")``), named in the message (a probe's 3 bands x 2 strips was told
     "expected (courses, wales) = (3, 2)")."""
     f = Path(file)
+    labels = None
     if not f.is_file():
         raise _err(path, str(file), "no such file")
     if f.suffix == ".npy":
@@ -141,14 +147,21 @@ def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
         except ValueError as exc:
             raise _err(path, str(file), f"not a readable .npy array ({exc})") from None
     elif f.suffix.lower() == ".csv":
-        a = _read_map_csv(f, path)
+        a, labels = _read_map_csv(f, path)
     else:
         raise _err(path, str(file), "expected a .npy or .csv file")
     if a.ndim != 2 or a.shape != tuple(shape):
         axes = "(bands, strips)" if counted else "(courses, wales)"
         hint = (f" (the file may hold the map transposed: one row per {'band' if counted else 'course'} is expected)"
                 if a.ndim == 2 and a.shape == tuple(shape)[::-1] else "")
-        raise _err(path, str(file), f"array of shape {tuple(a.shape)}, expected {axes} = {tuple(shape)}{hint}")
+        skipped = ""
+        if labels is not None:
+            r, cells = labels
+            shown = ", ".join(repr(c) for c in cells[:4]) + (", ..." if len(cells) > 4 else "")
+            skipped = (f"; row {r} ({shown}) was read as a row of labels and skipped (no cell of it is a number): "
+                       "if it is a row of the map, write its cells as numbers")
+        raise _err(path, str(file), f"array of shape {tuple(a.shape)}, expected {axes} = {tuple(shape)}{hint}"
+                                    f"{skipped}")
     if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
         raise _err(path, str(file), "the array must hold finite numbers only")
     return a.astype(np.float64)

@@ -135,3 +135,21 @@ def test_map_csv_quoted_cells_ragged_rows_and_a_specimens_axes(tmp_path):
                                                 r"\(the file may hold the map transposed"):
         build_map({"type": "file", "path": "t.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path,
                   counted=("bands", "strips"))
+
+
+def test_a_map_csv_of_the_wrong_shape_names_the_row_it_skipped_as_labels(tmp_path):
+    # hand-made: 4 rows of 3 cells for a 4 x 3 patch, the first a row of words (a spreadsheet's column names):
+    # skipped as labels, the map holds 3 rows, and the error says which row was not read as numbers
+    (tmp_path / "named.csv").write_text("w0,w1,w2\n0.1,0.0,-0.1\n0.05,0.0,-0.05\n0.0,0.0,0.0\n")
+    with pytest.raises(KnitsimInputError, match=r"named\.csv.*shape \(3, 3\), expected \(courses, wales\) = "
+                                                r"\(4, 3\); row 1 \('w0', 'w1', 'w2'\) was read as a row of "
+                                                r"labels and skipped"):
+        build_map({"type": "file", "path": "named.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+    # the same labels over 4 rows of numbers: the map, the labels skipped without a word (as before)
+    (tmp_path / "ok.csv").write_text("w0,w1,w2\n1,2,3\n4,5,6\n7,8,9\n10,11,12\n")
+    a = build_map({"type": "file", "path": "ok.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+    assert a.tolist() == [[1, 2, 3], [4, 5, 6], [7, 8, 9], [10, 11, 12]]
+    # a wrong shape without a row of labels says nothing of one
+    (tmp_path / "short.csv").write_text("1,2,3\n4,5,6\n")
+    with pytest.raises(KnitsimInputError, match=r"shape \(2, 3\), expected \(courses, wales\) = \(4, 3\)$"):
+        build_map({"type": "file", "path": "short.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
