@@ -142,30 +142,57 @@ def check_record_memory(n_groups: int, n_increments: int, dedup: bool, available
 
 
 def zone_overlaps(resolved: dict) -> list[dict]:
-    """``zones_overlap`` warnings: zones (and grade elements) of the resolved scene that share cells.
+    """``zones_overlap`` warnings: zones (and grades) of the resolved scene that share cells, one per pair.
 
     Zones do not stack: a cell in two of them is the base scene with the later one's own keys, not the
     earlier zone's (a zone giving only ``knit.L`` over a basalt zone makes E-glass cells of that L).  Allowed
     (later ones on top, as the scene schema says), but rarely what a user means, so said before the run.
+    A grade is one zone per element in the resolved scene: its elements are taken together
+    (:func:`knitsim.scene.patch_scene.grade_of_zone`), so that a zone over a grade of 20 bands is one warning,
+    not 20 (a blind probe's).
     """
+    from ..scene.patch_scene import grade_of_zone
+
     zones = resolved.get("zones") or []
-    out = []
+
+    def source(z: dict) -> tuple[str, str]:
+        # (key, name): a grade by its name, else a zone by label, else by rectangle (grade elements come first in
+        # the resolved list: an index would not be the scene's [[zones]] index)
+        grade = grade_of_zone(z)
+        if grade is not None:
+            return "grade:" + grade, (f"grade {grade!r}" if not grade.startswith("grades[") else grade)
+        name = (f"zone {z['label']!r}" if z.get("label") else
+                f"the zone on courses [{z['courses'][0]}, {z['courses'][1]}) x wales [{z['wales'][0]}, "
+                f"{z['wales'][1]})")
+        return f"zone:{name}", name
+
+    sources = [source(z) for z in zones]
+    pairs: dict[tuple[str, str], list[tuple[int, int, int, int]]] = {}
+    names: dict[str, str] = dict(sources)
     for b in range(len(zones)):
         for a in range(b):
             za, zb = zones[a], zones[b]
+            if sources[a][0] == sources[b][0]:
+                continue                   # elements of one grade tile its rectangle
             c0, c1 = max(za["courses"][0], zb["courses"][0]), min(za["courses"][1], zb["courses"][1])
             w0, w1 = max(za["wales"][0], zb["wales"][0]), min(za["wales"][1], zb["wales"][1])
             if c1 > c0 and w1 > w0:
-                # by label, else by rectangle (grade elements come first in the resolved list: an index would
-                # not be the scene's [[zones]] index)
-                name_a, name_b = (f"zone {z['label']!r}" if z.get("label") else
-                                  f"the zone on courses [{z['courses'][0]}, {z['courses'][1]}) x wales "
-                                  f"[{z['wales'][0]}, {z['wales'][1]})" for z in (za, zb))
-                out.append({"code": "zones_overlap", "message": (
-                    f"{name_a} and {name_b} overlap on courses [{c0}, {c1}) x wales [{w0}, {w1}) "
-                    f"({(c1 - c0) * (w1 - w0)} cells): there the cells are the base scene with {name_b}'s own keys, "
-                    f"not {name_a}'s (zones do not stack; the later one is on top); give the overlap its own zone "
-                    "with every key it needs")})
+                pairs.setdefault((sources[a][0], sources[b][0]), []).append((c0, c1, w0, w1))
+    out = []
+    for (ka, kb), rects in pairs.items():
+        name_a, name_b = names[ka], names[kb]
+        # the cells of both, counted once (a grade's elements meet the other zone in adjacent rectangles)
+        c0, c1 = min(r[0] for r in rects), max(r[1] for r in rects)
+        w0, w1 = min(r[2] for r in rects), max(r[3] for r in rects)
+        covered = np.zeros((c1 - c0, w1 - w0), bool)
+        for r in rects:
+            covered[r[0] - c0:r[1] - c0, r[2] - w0:r[3] - w0] = True
+        n = int(covered.sum())
+        where = "on" if n == covered.size else "within"
+        out.append({"code": "zones_overlap", "message": (
+            f"{name_a} and {name_b} overlap {where} courses [{c0}, {c1}) x wales [{w0}, {w1}) ({n} cells): there "
+            f"the cells are the base scene with {name_b}'s own keys, not {name_a}'s (zones do not stack; the later "
+            "one is on top); give the overlap its own zone with every key it needs")})
     return out
 
 
@@ -404,6 +431,8 @@ def _run(args) -> int:
           f"{h.info['n_groups']} distinct cells solved for {what}); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
+        if w.get("code") == "zones_overlap":
+            continue                       # said before the run (summary.json keeps them)
         print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
     if not summary["all_expected_end"]:
         nc, at_cap = summary["non_converged_column_increments"], summary["non_converged_column_increments_at_force_cap"]

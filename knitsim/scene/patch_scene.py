@@ -92,6 +92,7 @@ cell, e.g. ``zones[0].knit.W0 = 2.0: must be >= 4 d = 2.32 mm at cell
 from __future__ import annotations
 
 import copy
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -371,6 +372,24 @@ def _blend_fractions(n: int, profile: str, steps: int) -> np.ndarray:
     return band / (steps - 1)
 
 
+def grade_element_label(grade: str, t: float, a: str, b: str) -> str:
+    """The label of a grade's element in the resolved scene (a zone there): the grade's name (its label, or
+    ``grades[k]``) and its blend, ``(1 - t)`` of knit ``a`` and ``t`` of knit ``b``."""
+    return f"{grade}: {1 - t:.4g} {a} + {t:.4g} {b}"
+
+
+#: a label of :func:`grade_element_label` (library names hold no space; fractions as ``:.4g`` writes them)
+_GRADE_ELEMENT = re.compile(r"^(?P<grade>.+): [0-9.e+-]+ \S+ \+ [0-9.e+-]+ \S+$")
+
+
+def grade_of_zone(zone: dict) -> str | None:
+    """The grade (its label, or ``grades[k]``) that a zone of the resolved scene is an element of, or None for
+    a zone of the scene's own ``[[zones]]``.  Read from the element's label, so that the resolved scene (a
+    valid scene itself, rerun as it is written) says it too."""
+    m = _GRADE_ELEMENT.match(str(zone.get("label", "")))
+    return m.group("grade") if m else None
+
+
 def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engine: str | None = None,
                      device: str | None = None) -> PatchScene:
     """Read, override (``--set``), validate and resolve a patch scene; nothing is solved.
@@ -511,7 +530,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
             sl = slice(along.start + k, along.start + k + 1)
             eci, ewi = (sl, wi) if grade["axis"] == "courses" else (ci, sl)
             zres = put(gt, eci, ewi, lambda n_: gp)
-            zres["label"] = f"{grade.get('label', gp)}: {1 - t:.4g} {grade['from']} + {t:.4g} {grade['to']}"
+            zres["label"] = grade_element_label(grade.get("label", gp), t, grade["from"], grade["to"])
             zones_out.append(zres)
 
     # zones: the base tables overridden per rectangle (library materials resolved as for a cell)

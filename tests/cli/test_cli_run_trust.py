@@ -205,12 +205,53 @@ max_increment = 0.05
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     (w,) = [w for w in s["warnings"] if w["code"] == "zones_overlap"]
     assert "zone 'a' and zone 'b' overlap on courses [2, 3) x wales [0, 2) (2 cells)" in w["message"]
-    assert "knitsim run: warning: " + w["message"] in err
+    assert err.count("knitsim run: warning: " + w["message"]) == 1          # before the run only (it was twice)
     (tmp_path / "p").mkdir()
     assert main(["run", str(_scene(tmp_path / "p", body % 3)), "--out", str(tmp_path / "o2"), "--no-progress"]) == 0
     capsys.readouterr()
     s = json.loads((tmp_path / "o2" / "summary.json").read_text())
     assert not [w for w in s["warnings"] if w["code"] == "zones_overlap"]
+
+
+def test_a_zone_over_a_grade_is_one_warning_said_once(tmp_path, capsys):
+    # A grade along the courses of a 4-course patch is 4 elements (one per course) in the resolved scene; a zone
+    # on courses [1, 3) of both wales overlaps 2 of them, 4 cells in all (hand-counted).  One warning names the
+    # grade and the zone (before: one per element, each printed before the run and again after it).
+    body = """
+[patch]
+wales = 2
+courses = 4
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[[grades]]
+label = "g"
+from = "e_glass_plain"
+to = "e_glass_plain"
+axis = "courses"
+[[zones]]
+label = "z"
+courses = [1, 3]
+knit = { L = 13.8 }
+[load]
+type = "monotonic"
+target_strain = 0.1
+max_increment = 0.05
+"""
+    assert main(["run", str(_scene(tmp_path, body)), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    (w,) = [w for w in s["warnings"] if w["code"] == "zones_overlap"]
+    assert w["message"].startswith("grade 'g' and zone 'z' overlap on courses [1, 3) x wales [0, 2) (4 cells): "
+                                   "there the cells are the base scene with zone 'z''s own keys, not grade 'g''s")
+    assert err.count("overlap on courses") == 1 and err.count("knitsim run: warning: " + w["message"]) == 1
+    # the resolved scene (grade elements written as zones) run as it is: the same one warning
+    out2 = tmp_path / "o2"
+    assert main(["run", str(tmp_path / "o" / "scene.resolved.toml"), "--out", str(out2), "--no-progress"]) == 0
+    capsys.readouterr()
+    s2 = json.loads((out2 / "summary.json").read_text())
+    assert [x["message"] for x in s2["warnings"] if x["code"] == "zones_overlap"] == [w["message"]]
 
 
 # ----------------------------------------------------------------------------------- 2: --usd on --resume
