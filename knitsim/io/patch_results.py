@@ -1212,11 +1212,23 @@ def map_rows(h: PatchHistory) -> list[int]:
 
 
 def plot_map(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayout | None = None) -> bytes:
-    """PNG of the per-cell ``strain`` or ``stage`` map at the last cycle's peak grip strain and at the end
-    (:func:`map_rows`; courses upward, wales across; a specimen's blocks drawn at their rest size in mm)."""
+    """PNG of :func:`map_figure`."""
+    return _png(map_figure(h, which, title, layout))
+
+
+def map_figure(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayout | None = None):
+    """The matplotlib figure of the per-cell ``strain`` or ``stage`` map at the last cycle's peak grip strain and
+    at the end (:func:`map_rows`; courses upward, wales across; a specimen's blocks drawn at their rest size in mm).
+
+    On the strain map, cells whose strain lies past the model's domain (above
+    :data:`knitsim.cell.domain.DOMAIN`'s strain range, as the summary's ``cells_outside_domain`` judges them)
+    are hatched, with a legend entry, and the domain's end is marked on the colour bar."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize
     from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    from ..cell.domain import DOMAIN
     layout = layout or _layout_of(h, None)
     rows = map_rows(h)
     field = h.cell_field(which if which == "strain" else "label")
@@ -1234,6 +1246,8 @@ def plot_map(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayou
         style = {"cmap": ListedColormap(["#1f77b4", "#2ca02c", "#d62728", "#7f7f7f"]),
                  "norm": BoundaryNorm(np.arange(-0.5, 4.5), 4)}
     im = None
+    beyond_at = float(DOMAIN.strain[1])
+    panels_beyond = 0
     for ax, r in zip(axes, rows):
         data = field[r]
         if layout.blocks:
@@ -1248,17 +1262,38 @@ def plot_map(h: PatchHistory, which: str, title: str = "", layout: SpecimenLayou
             ax.set_xlabel("wale")
             if ax is axes[0]:
                 ax.set_ylabel("course")
+            xe, ye = np.arange(h.shape[1] + 1) - 0.5, np.arange(h.shape[0] + 1) - 0.5
+        if which == "strain":
+            # the cells past the domain's strain (an extrapolation, which the summary warns of): hatched over their
+            # colour, judged as the summary judges them (cells_outside_domain)
+            with np.errstate(invalid="ignore"):
+                beyond = np.isfinite(data) & (data > beyond_at * (1.0 + 1e-9))
+            if beyond.any():
+                panels_beyond += 1
+                ax.pcolor(xe, ye, np.ma.masked_array(np.zeros(data.shape), ~beyond), hatch="///",
+                          facecolor="none", edgecolor="black", linewidth=0.0)
         when = "end" if r == h.n_increments - 1 else f"cycle {int(h.cycle[r])} peak"
         ax.set_title(f"{which} at the {when} (grip strain {h.grip_strain[r]:.3g})", fontsize=10)
     if im is not None:
         if which == "strain":
-            fig.colorbar(im, ax=list(axes), label="strain of the course length (C - C0)/C0")
+            on_bar = style["norm"].vmin < beyond_at < style["norm"].vmax
+            if panels_beyond:
+                fig.subplots_adjust(bottom=0.17)          # room for the legend below the axes (before the bar)
+            cb = fig.colorbar(im, ax=list(axes), label="strain of the course length (C - C0)/C0")
+            if on_bar:
+                cb.ax.axhline(beyond_at, color="black", linewidth=1.5)
+            if panels_beyond:
+                fig.legend(handles=[Patch(facecolor="none", edgecolor="black", hatch="///",
+                                          label=f"past the model's domain: strain above {beyond_at:g}"
+                                                + (" (line on the colour bar)" if on_bar else "")
+                                                + "\nan extrapolation (summary.json: cells_outside_domain)")],
+                           loc="lower center", fontsize=8, frameon=False)
         else:
             cb = fig.colorbar(im, ax=list(axes), ticks=range(4))
             cb.ax.set_yticklabels([_LABELS[k] for k in sorted(_LABELS)])
     if title:
         fig.suptitle(title, fontsize=10)
-    return _png(fig)
+    return fig
 
 
 def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, resolved_toml: str,
@@ -1286,4 +1321,4 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
 
 __all__ = ["CURVE_COLUMNS", "COLUMNS_COLUMNS", "PATCH_OUTPUT_FILES", "SpecimenLayout", "specimen_layout",
            "column_forces", "curve_csv", "columns_csv", "cells_dataset", "cells_nc", "ForceCapRows", "force_cap_rows",
-           "patch_summary", "plot_force_strain", "plot_map", "write_patch_results", "PARAM_NAMES"]
+           "patch_summary", "plot_force_strain", "plot_map", "map_figure", "write_patch_results", "PARAM_NAMES"]

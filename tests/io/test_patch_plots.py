@@ -4,6 +4,11 @@ end, and the summary's warnings under the force-strain curve.
 Expected values come from the load program's definition (cycles 0.10 -> 0.40: the last cycle's largest
 grip strain is 0.40; a monotonic pull peaks at its end) and from the figure's layout (each wrapped
 warning line adds 0.16 in at 110 dpi).
+
+Cells past the domain on the strain map: two wale columns of identical cells, C0 = 2.7 and 2.9 mm, take the
+same grip displacement u = g x (their mean rest length, 5.6 mm): a column of identical cells in series stretches
+each cell by u / 2, so at grip strain 0.6 the cells of wale 0 are at 0.6 x 5.6 / 5.4 = 0.622 (past the domain's
+0.6, knitsim.cell.domain) and those of wale 1 at 0.6 x 5.6 / 5.8 = 0.579 (inside): hand-computed.
 """
 from __future__ import annotations
 
@@ -14,7 +19,7 @@ import pytest
 
 from knitsim.cell.load_program import cycles, monotonic
 from knitsim.cell.material import CellParams
-from knitsim.io.patch_results import map_rows, plot_force_strain, plot_map
+from knitsim.io.patch_results import map_figure, map_rows, plot_force_strain, plot_map
 from knitsim.patch.model import PatchModel
 from knitsim.patch.runner import run_patch
 
@@ -49,3 +54,23 @@ def test_warnings_stand_under_the_force_curve(cyclic):
     assert _height_px(plain) == round(5 * 110)
     assert abs(_height_px(warned) - (5 + 3 * 0.16) * 110) <= 1
     assert not np.array_equal(np.frombuffer(plain, np.uint8)[:64], np.frombuffer(warned, np.uint8)[:64])
+
+
+def test_the_strain_map_hatches_the_cells_past_the_domain_with_a_legend():
+    short, long_ = P, P.replace(C0=2.9)
+    h = run_patch(PatchModel.from_cells([[short, long_], [short, long_]]), monotonic(0.6, 0.05), engine="warp")
+    assert h.cell_field("strain")[-1] == pytest.approx(np.array([[0.6222, 0.5793]] * 2), abs=1e-4)
+    fig = map_figure(h, "strain")
+    (ax,) = [a for a in fig.axes if a.get_xlabel() == "wale"]
+    (hatched,) = [c for c in ax.collections if c.get_hatch() == "///"]
+    # one square per cell past the domain, drawn over wale 0 (x from -0.5 to 0.5), courses 0 and 1
+    squares = [p.vertices for p in hatched.get_paths()]
+    assert len(squares) == 2
+    assert sorted((v[:, 0].min(), v[:, 0].max(), v[:, 1].min()) for v in squares) == [(-0.5, 0.5, -0.5),
+                                                                                       (-0.5, 0.5, 0.5)]
+    (legend,) = fig.legends
+    assert [t.get_text() for t in legend.get_texts()][0].startswith("past the model's domain: strain above 0.6")
+    # a pull that stays inside: no hatch, no legend
+    inside = run_patch(PatchModel.from_cells([[short, long_]]), monotonic(0.3, 0.1), engine="warp")
+    fig = map_figure(inside, "strain")
+    assert not fig.legends and not [c for a in fig.axes for c in a.collections if c.get_hatch()]
