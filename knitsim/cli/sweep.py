@@ -17,7 +17,9 @@ cell`` and ``run`` do for a failed cell, or when the plot could not be drawn
 (``plot_error`` in ``summary.json``; the results are written).  Chunks run on a local Dask
 cluster with one worker process per core unless ``--workers 0`` (in this
 process) or ``--scheduler tcp://host:port`` (an existing cluster).  Killing a
-run keeps the finished chunks; ``--resume`` finishes it.
+run keeps the finished chunks; ``--resume`` finishes it.  One sweep at a time
+writes into a folder (:func:`knitsim.io.output_dir.output_lock`): a second one
+is refused with exit status 2, and the lock of a killed one is taken over.
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ from pathlib import Path
 
 from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
+from ..io.output_dir import output_lock
 from ..io.results import add_output_flags, prepare_output_dir, scene_inputs
 from .common import add_json_flag, naming_scene, print_json, resume_command
 
@@ -78,7 +81,7 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import SWEEP_OUTPUTS, SweepChunkError, plan_sweep, run_sweep
+    from ..sweep.runner import plan_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -102,9 +105,20 @@ def _run(args) -> int:
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
         with naming_scene(args.scene, "sweep"):
             plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
+    out_dir = args.out if args.out is not None else f"{Path(args.scene).stem}_sweep"
+    # one sweep at a time in a folder (two --resume at once both ran the missing chunks and wrote the results),
+    # held before --overwrite empties it
+    with output_lock(out_dir, "sweep"):
+        return _run_locked(args, plan, out_dir)
+
+
+def _run_locked(args, plan, out_dir) -> int:
+    """The sweep into ``out_dir``, whose lock this command holds."""
+    from ..sweep.runner import SWEEP_OUTPUTS, SweepChunkError, run_sweep
+
     # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
     # typo'd key or a bad sample was refused (a blind probe lost its results to it)
-    out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_sweep",
+    out = prepare_output_dir(out_dir,
                              overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=SWEEP_OUTPUTS,
                              inputs=scene_inputs(args.scene) + scene_inputs(args.sweep))

@@ -17,11 +17,14 @@ scene, its map CSV and its README.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
+import socket
+import sys
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from ..errors import KnitsimInputError
@@ -68,6 +71,81 @@ def check_output_dir(out_dir: str | Path) -> Path:
     except OSError as exc:
         raise KnitsimInputError(f"--out = {str(out)!r}: cannot write there ({exc.strerror or exc})") from None
     return out
+
+
+#: the lock of an --out folder a command is writing into (:func:`output_lock`)
+LOCK_NAME = ".knitsim.lock"
+
+
+def _pid_runs(pid: int) -> bool:
+    """Whether process ``pid`` runs on this machine (signal 0 checks, sends nothing)."""
+    if pid <= 0 or os.name == "nt":            # (Windows' os.kill would end the process: assume it runs)
+        return pid > 0
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:                            # another user's process (EPERM): it runs
+        return True
+    return True
+
+
+def _lock_holder(path: Path) -> tuple[int, str, str] | None:
+    """(pid, host, command) of a lock file, or None where it cannot be read as one."""
+    try:
+        pid, host, command = path.read_text().split("\n")[:3]
+        return int(pid), host, command
+    except (OSError, ValueError):
+        return None
+
+
+@contextlib.contextmanager
+def output_lock(out_dir: str | Path, command: str) -> Iterator[Path]:
+    """Hold ``out_dir``'s lock (:data:`LOCK_NAME`) while ``knitsim COMMAND`` writes there; yields the folder.
+
+    Two commands writing into one folder at once write over each other's files (a blind probe's two
+    ``knitsim sweep --resume`` on one folder both ran every missing chunk and both wrote the results), so a
+    second one is refused, naming the first.  The lock is created with ``O_CREAT | O_EXCL`` (only one process
+    can) and holds the holder's pid, host and command; it is removed when the command ends, however it ends,
+    except when its process is killed outright (SIGKILL, a crash): a lock of a pid that no longer runs on this
+    host is stale, and taken over with a note on stderr.  The folder is created if needed (and removed again
+    if the command leaves it empty).
+    """
+    out = check_output_dir(out_dir)
+    created = not out.is_dir()
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / LOCK_NAME
+    host = socket.gethostname()
+    mine = f"{os.getpid()}\n{host}\nknitsim {command}\n"
+    for attempt in range(2):
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            holder = _lock_holder(path)
+            if holder is not None and holder[1] == host and not _pid_runs(holder[0]) and attempt == 0:
+                print(f"knitsim {command}: note: {path} is the lock of {holder[2]} (pid {holder[0]}), which no "
+                      "longer runs (killed or crashed): taking it over", file=sys.stderr, flush=True)
+                if _lock_holder(path) == holder:      # not meanwhile taken over by another command
+                    path.unlink(missing_ok=True)
+                continue
+            who = ("another knitsim command (the lock file cannot be read)" if holder is None else
+                   f"{holder[2]} (pid {holder[0]}{'' if holder[1] == host else f' on {holder[1]}'})")
+            raise KnitsimInputError(
+                f"--out = {str(out_dir)!r}: {who} is writing into this folder (lock {path}); two commands at once "
+                "would write over each other's files: wait for it to finish, or choose another --out (if no such "
+                f"command runs, remove {path})") from None
+        with os.fdopen(fd, "w") as f:
+            f.write(mine)
+        break
+    try:
+        yield out
+    finally:
+        with contextlib.suppress(OSError):
+            if path.read_text() == mine:         # (still this command's: never another's)
+                path.unlink()
+        if created:
+            with contextlib.suppress(OSError):  # (not empty: it holds the command's outputs)
+                out.rmdir()
 
 
 def recorded_outputs(out_dir: str | Path) -> list[str]:

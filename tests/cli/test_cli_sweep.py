@@ -102,6 +102,46 @@ def test_interrupt_keeps_finished_chunks_and_tells_how_to_resume(tmp_path, capsy
     assert rc == 0 and doc["computed_chunks"] == 1 and doc["skipped_chunks"] == 1
 
 
+def test_a_second_sweep_into_a_folder_in_use_is_refused_and_a_dead_ones_lock_taken_over(tmp_path, capsys,
+                                                                                          monkeypatch):
+    # an interrupted sweep (chunk 1 of 2 not run), then its folder's lock held by another process that runs
+    # (a child sleeping: hand-made), then by one that has ended (the child, killed: a stale lock)
+    import socket
+    import subprocess
+
+    from knitsim.io.output_dir import LOCK_NAME
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    out = tmp_path / "o"
+    real = runner.run_chunk
+    monkeypatch.setattr(runner, "run_chunk",
+                        lambda task: (_ for _ in ()).throw(KeyboardInterrupt) if task["chunk"] == 1 else real(task))
+    assert main(["sweep", str(scene), "--out", str(out), "--workers", "0"]) == 130
+    monkeypatch.setattr(runner, "run_chunk", real)
+    assert not (out / LOCK_NAME).exists()                  # the interrupted command let its lock go
+    capsys.readouterr()
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    try:
+        held = f"{other.pid}\n{socket.gethostname()}\nknitsim sweep\n"
+        (out / LOCK_NAME).write_text(held)
+        rc = main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--resume"])
+        err = capsys.readouterr().err
+        assert rc == 2 and "Traceback" not in err
+        (line,) = err.strip().splitlines()
+        assert line.startswith(f"knitsim: error: --out = {str(out)!r}: knitsim sweep (pid {other.pid}) is writing "
+                               "into this folder")
+        assert (out / LOCK_NAME).read_text() == held                        # the other's lock, untouched
+        assert [p.name for p in (out / "chunks").iterdir()] == ["chunk_00000.npz"]   # and its folder
+    finally:
+        other.kill()
+        other.wait()
+    rc = main(["sweep", str(scene), "--out", str(out), "--workers", "0", "--resume", "--json"])
+    cap = capsys.readouterr()
+    assert rc == 0 and json.loads(cap.out)["computed_chunks"] == 1
+    assert f"(pid {other.pid}), which no longer runs (killed or crashed): taking it over" in cap.err
+    assert not (out / LOCK_NAME).exists()
+
+
 def test_resume_without_a_sweep_and_rerun_over_one_exit_2(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")
     scene = _files(tmp_path)

@@ -238,3 +238,23 @@ def test_the_record_is_readable_as_the_outputs_beside_it(tmp_path):
     from knitsim.io.results import umask_mode
     record_outputs(tmp_path / "o", ["curve.csv"])
     assert stat.S_IMODE(os.stat(tmp_path / "o" / RECORD_NAME).st_mode) == umask_mode()
+
+
+def test_an_output_lock_refuses_a_second_holder_and_goes_with_its_command(tmp_path):
+    import os
+
+    from knitsim.io.output_dir import LOCK_NAME, output_lock
+    out = tmp_path / "new"
+    with output_lock(out, "sweep") as d:
+        assert d == out and (out / LOCK_NAME).read_text().startswith(f"{os.getpid()}\n")
+        with pytest.raises(KnitsimInputError, match=rf"knitsim sweep \(pid {os.getpid()}\) is writing into this "
+                                                    "folder"):
+            with output_lock(out, "sweep"):
+                pass
+        assert (out / LOCK_NAME).is_file()                 # the refused one took nothing away
+    assert not out.exists()                                # created for the lock, left empty: removed
+    with pytest.raises(RuntimeError):
+        with output_lock(out, "sweep"):
+            (out / "kept.txt").write_text("x")
+            raise RuntimeError("a command that fails")
+    assert sorted(p.name for p in out.iterdir()) == ["kept.txt"]           # lock released, outputs kept
