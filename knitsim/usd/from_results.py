@@ -18,7 +18,8 @@ rebuilds the frames that :func:`knitsim.usd.write_patch_usd` takes:
   cells.nc's variable of that name), ``strain`` ((C - C0)/C0), ``status`` (codes of
   :data:`knitsim.cell.history.STATUS_NAMES`; the legend is in
   ``customLayerData["knitsim"]["field_legends"]``); ``material_id`` (static) numbers the
-  distinct parameter sets (``d, B, m, dahl_sigma, L, W0, C0, phi0``) in sorted order;
+  distinct parameter sets (``d, B, m, dahl_sigma, L, W0, C0, phi0``) in sorted order
+  (``customLayerData["knitsim"]["materials"]`` says what each is: :func:`material_labels`);
 - per frame, ``grip_strain``, ``cycle``, ``direction`` and ``columns_held`` as
   time-sampled attributes of ``/Patch``; per wale column (strip) and frame,
   ``knitsim:column_slack_mm`` (a slack column is drawn compressed between the grips,
@@ -240,6 +241,68 @@ def material_ids(params: dict) -> np.ndarray:
                       for n in _MATERIAL_PARAMS if n in params], axis=-1)
     _, inv = np.unique(stack.reshape(-1, stack.shape[-1]), axis=0, return_inverse=True)
     return inv.reshape(stack.shape[:2]).astype(np.int32)
+
+
+#: units of the material parameters, as a legend writes them
+_MATERIAL_UNITS = {"d": "mm", "B": "N mm^2", "m": "", "dahl_sigma": "1/mm", "L": "mm", "W0": "mm", "C0": "mm",
+                   "phi0": "rad", "in_plane_width": "mm"}
+
+
+def material_labels(params: dict, material_id: np.ndarray, scene_text: str = "", blocks: bool = False) -> list[str]:
+    """What each material id is, in words, in the order of the ids (``customLayerData["knitsim"]["materials"]``):
+    where its cells are (the resolved scene's zones, grade elements included, or the base knit), its yarn and
+    knit by name where the scene names them, the parameters by which the materials differ, with units, and
+    how many cells (``blocks``: a specimen's blocks) it holds.
+
+    A bare id (``0``, ``1``) told an engineer nothing (a blind probe's quicklook of a basalt zone on E-glass
+    read ``material_id 0, 1``, and its first was the basalt: ids follow the sorted parameters)."""
+    import tomllib
+    try:
+        doc = tomllib.loads(scene_text) if scene_text else {}
+    except tomllib.TOMLDecodeError:
+        doc = {}
+    zones = [z for z in doc.get("zones", []) if isinstance(z, dict)]
+    shape = material_id.shape
+    zone_of = np.full(shape, -1)                        # later zones win, as the scene applies them
+    for k, z in enumerate(zones):
+        ci, wi = z.get("courses", [0, shape[0]]), z.get("wales", [0, shape[1]])
+        zone_of[ci[0]:ci[1], wi[0]:wi[1]] = k
+
+    def zone_name(k: int) -> str:
+        if k < 0:
+            return "base knit"
+        z = zones[k]
+        return (f"zone {z['label']!r}" if z.get("label") else
+                f"zone on courses {z['courses'][0]}-{z['courses'][1] - 1}, wales {z['wales'][0]}-{z['wales'][1] - 1}")
+
+    def names(k: int) -> str:
+        t = doc if k < 0 else zones[k]
+        got = [str(t.get(tbl, {}).get("material")) for tbl in ("yarn", "knit")
+               if isinstance(t.get(tbl), dict) and t[tbl].get("material")]
+        return f" ({' / '.join(got)})" if got else ""
+
+    ids = np.unique(material_id)
+    # a parameter is named where it tells the materials apart (where every material has it alike, it says nothing)
+    values = {n: np.asarray(params[n], float) for n in _MATERIAL_PARAMS if n in params}
+    first = {int(i): tuple(int(v) for v in np.argwhere(material_id == i)[0]) for i in ids}
+    differ = [n for n, a in values.items()
+              if len({(float(a[first[int(i)]]) if np.isfinite(a[first[int(i)]]) else None) for i in ids}) > 1]
+    what = "block" if blocks else "cell"
+    out = []
+    for i in ids:
+        at = material_id == i
+        where = list(dict.fromkeys(int(k) for k in zone_of[at]))
+        place = zone_name(where[0]) + names(where[0]) + (f" and {len(where) - 1} more zone(s)" if len(where) > 1
+                                                         else "")
+        cell = first[int(i)]
+        diffs = []
+        for n in differ:
+            v = float(values[n][cell])
+            unit = _MATERIAL_UNITS.get(n, "")
+            diffs.append(f"{n} {v:.4g}{' ' + unit if unit else ''}" if np.isfinite(v) else f"{n} as d")
+        n_at = int(at.sum())
+        out.append(f"{place}{': ' + ', '.join(diffs) if diffs else ''}; {n_at} {what}{'s' if n_at != 1 else ''}")
+    return out
 
 
 def record_from_history(h, params: dict, scene_text: str = "", course_count=None, wale_count=None,
@@ -692,6 +755,9 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
     if len(np.unique(pf.material_id)) > 1:
         drawing["non_uniform"] = yg.NON_UNIFORM_NOTE
     layer_info = {"timeline": tl_info, "field_legends": field_legends(), "field_docs": dict(FIELD_DOCS),
+                  # what each material id is (the quick-look's legend of --color-by material)
+                  "materials": {"codes": [int(i) for i in np.unique(pf.material_id)],
+                                "labels": material_labels(rec.params, pf.material_id, rec.scene_text, rec.blocks)},
                   **({"run": run_flags(rec.run_summary)} if rec.run_summary else {}),
                   **({"drawing": drawing} if drawing else {})}
     common = dict(color_by=COLOR_FIELDS[color_by], scene_text=rec.scene_text, metadata=md, field_units=FIELD_UNITS,

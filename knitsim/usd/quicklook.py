@@ -9,10 +9,17 @@ legend comes from ``customLayerData["knitsim"]["legend"]``.  What is drawn is
 the control polygon; with the default pinned Catmull-Rom basis the curve
 passes through every vertex, so at the usual 8+ points per quarter the two
 agree to the eye.  A check needs no GUI.
+
+The title says what is drawn: the scene's title (from the file's ``scene``), the
+patch (courses x wales of single stitches) or specimen (bands x strips of blocks)
+and what the colours are; the legend names each colour (a material by where it
+lies and how it differs, ``customLayerData["knitsim"]["materials"]``) and the
+colour bar its quantity with units (``field_docs``).
 """
 from __future__ import annotations
 
 import os
+import textwrap
 
 import numpy as np
 
@@ -76,6 +83,46 @@ def _instanced_curves(stage, t):
     return out
 
 
+#: at most this many entries in a categorical legend (a random field has a material per cell)
+MAX_LEGEND_ENTRIES = 12
+
+
+def _field_label(info: dict, legend: dict) -> str:
+    """What the coloured quantity is, with its units: the file's ``field_docs`` entry up to its units
+    (``force per wale of the cell [N]``), else the field's name and the legend's units."""
+    field = str(legend.get("field", ""))
+    doc = str(dict(info.get("field_docs", {})).get(field, ""))
+    if "]" in doc:
+        return doc[:doc.index("]") + 1]
+    units = legend.get("units", "")
+    return field + (f" [{units}]" if units else "")
+
+
+def _what_is_drawn(info: dict, lay: dict) -> str:
+    """The patch or specimen the file holds, in words."""
+    if lay.get("kind") == "instanced specimen":
+        cc, wc = (np.asarray(lay.get(k, []), float) for k in ("course_count", "wale_count"))
+        if cc.size and wc.size and np.all(cc == 1.0) and np.all(wc == 1.0):
+            # a [patch] of single stitches, drawn instanced (few distinct cells): not a specimen of blocks
+            return (f"patch of {lay.get('bands')} courses x {lay.get('strips')} wales (single stitches, drawn "
+                    "instanced)")
+        return (f"specimen of {lay.get('bands')} x {lay.get('strips')} blocks (bands x strips), "
+                f"{int(lay.get('stitches_drawn', 0)):,} whole stitches drawn for "
+                f"{float(lay.get('stitches_represented', 0.0)):,.1f}")
+    if lay.get("courses") is not None:
+        return f"patch of {lay.get('courses')} courses x {lay.get('wales')} wales"
+    return ""
+
+
+def _scene_title(info: dict) -> str:
+    """The ``title`` of the scene the file carries, or ''."""
+    import tomllib
+    try:
+        return str(tomllib.loads(str(info.get("scene", "") or "")).get("title", ""))
+    except tomllib.TOMLDecodeError:
+        return ""
+
+
 def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = None,
                      max_vertices: int = 500_000) -> str:
     """Draw the first and last time code of a USD patch into a PNG.
@@ -89,7 +136,8 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
         Output image.
     dpi : int
     title : str, optional
-        Figure title; default the file name.
+        Figure title; default the scene's title, what is drawn (patch or specimen, its size), the file
+        name and what the colours are.
     max_vertices : int
         Above this many vertices per frame, every k-th vertex is drawn (a
         10^5-cell patch has millions; at screen resolution they merge anyway).
@@ -128,7 +176,10 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
     all_xy = np.concatenate([f[0].reshape(-1, 2) for _, f in frames if f is not None])
     lo, hi = all_xy.min(axis=0), all_xy.max(axis=0)
     pad = 0.03 * max(hi - lo) + 1e-9
-    fig, axes = plt.subplots(1, 2, figsize=(12, 6.5), sharex=True, sharey=True, constrained_layout=True)
+    # room beside the panels for a categorical legend (a material's entry is two lines of 56 characters)
+    extra = (0.0 if legend.get("kind") != "categorical" else
+             4.0 if legend.get("field") == "material_id" else 1.5)
+    fig, axes = plt.subplots(1, 2, figsize=(12 + extra, 6.5), sharex=True, sharey=True, constrained_layout=True)
     for ax, (t, fr) in zip(axes, frames):
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
@@ -150,23 +201,45 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
                                          capstyle="round"))
     axes[0].set_ylabel("y (wale) [mm]")
     kind = legend.get("kind")
+    colour = ""
     if kind == "categorical":
-        handles = [Patch(color=c, label=str(lab)) for lab, c in zip(legend["labels"], legend["colors_hex"])]
-        axes[1].legend(handles=handles, title=str(legend.get("field", "")), loc="upper right", fontsize=8)
+        labels = [str(lab) for lab in legend["labels"]]
+        field = str(legend.get("field", ""))
+        if field == "material_id":
+            # each material by where it lies and how it differs (a bare id says nothing)
+            mats = dict(info.get("materials", {}))
+            said = dict(zip((int(c) for c in mats.get("codes", [])), (str(t) for t in mats.get("labels", []))))
+            labels = [f"{lab}: {said[int(lab)]}" if lab.lstrip("-").isdigit() and int(lab) in said else lab
+                      for lab in labels]
+            colour, heading = "material", "material (material_id)"
+        else:
+            colour = heading = field
+        # (wrapped: a material's label runs to a hundred characters)
+        handles = [Patch(color=c, label=textwrap.fill(lab, 56, subsequent_indent="    "))
+                   for lab, c in zip(labels, legend["colors_hex"])]
+        if len(handles) > MAX_LEGEND_ENTRIES:
+            # a legend taller than the figure collapsed the panels (60 materials of a random phi0 field)
+            rest = len(handles) - MAX_LEGEND_ENTRIES + 1
+            handles = handles[:MAX_LEGEND_ENTRIES - 1] + [Patch(color="none", label=(
+                f"... and {rest} more (customLayerData knitsim.materials)" if field == "material_id" else
+                f"... and {rest} more"))]
+        # beside the panels, not over the drawing nor the title ("outside": the constrained layout makes room)
+        fig.legend(handles=handles, title=heading, loc="outside right center", fontsize=8, title_fontsize=8)
     elif kind == "continuous":
         sm = plt.cm.ScalarMappable(cmap=legend.get("colormap", "viridis"),
                                    norm=matplotlib.colors.Normalize(legend["vmin"], legend["vmax"]))
-        units = legend.get("units", "")
-        fig.colorbar(sm, ax=list(axes), shrink=0.7,
-                     label=f"{legend.get('field', '')}" + (f" [{units}]" if units else ""))
+        colour = _field_label(info, legend)
+        fig.colorbar(sm, ax=list(axes), shrink=0.7, label=colour)
     note = f" (every {step}th vertex)" if step > 1 else ""
     lay = dict(info.get("layout", {}))
-    if title is None and lay.get("kind") == "instanced specimen":
-        # a specimen: its blocks stand for a real number of stitches, the whole ones are drawn
-        title = (f"{os.path.basename(usd_path)}: specimen of {lay.get('bands')} x {lay.get('strips')} blocks (bands x "
-                 f"strips), {int(lay.get('stitches_drawn', 0)):,} whole stitches drawn for "
-                 f"{float(lay.get('stitches_represented', 0.0)):,.1f}")
-    fig.suptitle((title if title is not None else os.path.basename(usd_path)) + note)
+    if title is None:
+        # what an engineer reads first: the scene, what is drawn, the file, what the colours are
+        what = _what_is_drawn(info, lay)
+        scene_title = _scene_title(info)
+        second = "; ".join(p for p in (what, os.path.basename(usd_path),
+                                       f"colour: {colour}" if colour else "") if p)
+        title = f"{scene_title}\n{second}" if scene_title else second
+    fig.suptitle(title + note, fontsize=11)
     fig.savefig(png_path, dpi=dpi)
     plt.close(fig)
     return png_path

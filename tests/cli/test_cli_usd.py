@@ -130,3 +130,62 @@ def test_bad_input_exits_2(run_dir, tmp_path, capsys, argv, needle):
     assert rc == 2
     lines = [ln for ln in err.strip().splitlines() if "CUDA" not in ln]
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in err
+
+
+ZONED = """
+title = "E-glass below basalt"
+[patch]
+wales = 2
+courses = 4
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[[zones]]
+label = "basalt"
+courses = [2, 4]
+yarn = { material = "basalt" }
+knit = { material = "basalt_plain" }
+[load]
+type = "monotonic"
+target_strain = 0.1
+max_increment = 0.05
+"""
+
+
+def test_quicklook_of_a_zoned_patch_names_the_scene_the_patch_and_each_colour(tmp_path, capsys, monkeypatch):
+    # Hand-made: E-glass (Table 1: d 0.58 mm, B 0.31 N mm^2, m 0.20; L 14.1 mm, section 2.2) on courses 0-1,
+    # a zone of basalt (d 0.56, B 0.20, m 0.17; L 13.1) on courses 2-3, 4 cells each.  Material ids follow the
+    # sorted parameters, d first: basalt is 0.  Before, the title was "specimen of 4 x 2 blocks (bands x
+    # strips)" for this patch of single stitches, and the legend read "material_id: 0, 1".
+    from matplotlib.figure import Figure
+    drawn = []
+    real = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig), real(fig, *a, **k))[1])
+    (tmp_path / "z.toml").write_text(ZONED)
+    assert main(["run", str(tmp_path / "z.toml"), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    drawn.clear()
+    assert main(["usd", str(tmp_path / "o"), "--out", str(tmp_path / "m.usda"), "--color-by", "material",
+                 "--quicklook", str(tmp_path / "m.png")]) == 0
+    capsys.readouterr()
+    (fig,) = drawn
+    assert fig._suptitle.get_text().splitlines() == [
+        "E-glass below basalt", "patch of 4 courses x 2 wales (single stitches, drawn instanced); m.usda; colour: "
+        "material"]
+    (legend,) = fig.legends
+    assert legend.get_title().get_text() == "material (material_id)"
+    assert [t.get_text().replace("\n    ", " ") for t in legend.get_texts()] == [
+        "0: zone 'basalt' (basalt / basalt_plain): d 0.56 mm, B 0.2 N mm^2, m 0.17, L 13.1 mm; 4 cells",
+        "1: base knit (e_glass / e_glass_plain): d 0.58 mm, B 0.31 N mm^2, m 0.2, L 14.1 mm; 4 cells"]
+    # the file says it too, beside the material_id primvar
+    stage = Usd.Stage.Open(str(tmp_path / "m.usda"))
+    info = stage.GetRootLayer().customLayerData["knitsim"]
+    assert list(info["materials"]["codes"]) == [0, 1] and list(info["materials"]["labels"])[0].startswith(
+        "zone 'basalt'")
+    # a continuous colour: its quantity with units on the colour bar and in the title
+    drawn.clear()
+    assert main(["usd", str(tmp_path / "o"), "--out", str(tmp_path / "f.usda"), "--color-by", "force",
+                 "--quicklook", str(tmp_path / "f.png")]) == 0
+    (fig,) = drawn
+    assert fig._suptitle.get_text().endswith("colour: force per wale of the cell [N]")
+    assert "force per wale of the cell [N]" in [a.get_ylabel() for a in fig.axes]
