@@ -12,7 +12,15 @@ CSV columns (first row names them, units in the name):
   (sigma, B: gf.cm^2/cm; Fc: gf.cm/cm) are printed too.
 * ``x_mm`` and ``F_N``: a displacement [mm] / force [N] loop (sigma, B in N/mm;
   Fc, F0 in N); used when the defaults are absent.
-* any pair given by ``--columns X,F``: parameters in the units of the columns.
+* a lab's own names with their units, in brackets after the name or in a units row
+  (``K [1/cm]``, ``M [gf cm/cm]``, ``K (cm^-1)``: KES-FB2's units; ``x [cm]``, ``F [gf]``),
+  found by their units (one curvature and one bending moment per width, or one
+  displacement and one force) or named by ``--columns``: converted to the units
+  above (1/mm and N.mm/mm, or mm and N), said on a ``read:`` line and in --json
+  (``read_notes``, ``conversion``).  A unit it does not know is refused naming the
+  header and what to write.
+* any other pair given by ``--columns X,F`` (no unit stated): parameters in the
+  units of the columns.
 
 The bundled ``scenes/dahl/kes_yarn_loop.csv`` was written by::
 
@@ -22,6 +30,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +40,7 @@ from ..errors import KnitsimInputError
 from ..friction.dahl import ALPHA_MAX, ALPHA_MIN, DahlParams, fit_dahl_loop, kes_loop
 from ..friction.identification import FLAG_TEXT
 from ..io.results import add_output_flags, prepare_output_file
-from ..io.table_input import has_columns
+from ..io.table_input import has_columns, header_candidates, stated_units
 from .common import add_json_flag, plain_help, print_json, read_csv_columns
 
 KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
@@ -43,6 +52,61 @@ CM_MM = 10.0
 KES_AMPLITUDE_1_MM = 2.5 / CM_MM
 #: a kappa_1_mm column beyond this many times the KES range is warned of as a curvature in 1/cm
 KES_UNIT_CHECK = 4.0
+
+#: lengths a column's unit may be written in, in mm (casefold): 1 cm = 10 mm, 1 m = 1000 mm, 1 um = 1e-3 mm
+_LENGTH_MM = {"mm": 1.0, "cm": CM_MM, "m": 1000.0, "um": 1e-3, "\u00b5m": 1e-3, "\u03bcm": 1e-3}
+#: forces, in N (casefold): 1 gf = 1 g x 9.80665 m/s^2 (standard gravity) = 9.80665e-3 N; 1 mN = 1e-3 N,
+#: 1 cN = 1e-2 N, 1 kN = 1e3 N
+_FORCE_N = {"n": 1.0, "mn": 1e-3, "cn": 1e-2, "kn": 1e3, "gf": GF_N}
+_L = "(" + "|".join(sorted(_LENGTH_MM, key=len, reverse=True)) + ")"
+_F = "(" + "|".join(sorted(_FORCE_N, key=len, reverse=True)) + ")"
+#: the quantities a column may hold, with the unit it is read in inside (KES: curvature, moment per width)
+INTERNAL_UNIT = {"curvature": "1/mm", "moment per width": "N.mm/mm", "displacement": "mm", "force": "N"}
+#: dimensionless units (a column stated so is read as it is, in the columns' own units)
+_NO_UNIT = ("-", "1", "", "mm/mm", "m/m")
+#: what to write, for a refusal
+_WHAT_TO_WRITE = ("write a KES loop as a curvature in 1/cm or 1/mm ('K [1/cm]') and a bending moment per width "
+                  "in gf cm/cm or N mm/mm ('M [gf cm/cm]'), or a loop of a displacement in mm, cm or m and a force "
+                  "in N, mN, cN or gf ('x [mm]', 'F [N]')")
+
+
+def parse_unit(unit: str) -> tuple[str, float] | None:
+    """The quantity a column's unit says and the factor that converts it to the internal unit.
+
+    Parameters
+    ----------
+    unit : str
+        As a header writes it: ``1/cm``, ``cm^-1``, ``gf cm/cm``, ``gf.cm/cm``, ``N mm/mm``, ``mm``, ``gf``.
+
+    Returns
+    -------
+    (str, float) or None
+        A key of :data:`INTERNAL_UNIT` and the factor (value in the internal unit = factor x value as
+        written), ``("moment", factor to N.mm)`` for a moment not per unit width (refused by the caller: it
+        needs the specimen's width), or None for a unit not known.
+
+    Notes
+    -----
+    The factors follow from 1 gf = 9.80665e-3 N and 1 cm = 10 mm: a curvature in 1/cm is 1/(10 mm), so
+    x 0.1 to 1/mm; a moment per width in gf.cm/cm is 9.80665e-3 N x 10 mm / 10 mm, so x 9.80665e-3 to
+    N.mm/mm (the widths' cm cancel the lever arm's; the same number as gf -> N).
+    """
+    u = unit.casefold().strip()
+    for sep in ("\u00b7", "\u22c5", "*", "\u00d7", " "):    # a middle dot, a star, a space: one product, gf.cm
+        u = u.replace(sep, ".")
+    u = re.sub(r"\.+", ".", u).strip(".").replace("./", "/").replace("/.", "/")
+    u = u.replace("\u207b\u00b9", "^-1").replace("**-1", "^-1")
+    if m := re.fullmatch(rf"1/{_L}|{_L}\^?-1", u):
+        return "curvature", 1.0 / _LENGTH_MM[m.group(1) or m.group(2)]
+    if m := re.fullmatch(_L, u):
+        return "displacement", _LENGTH_MM[m.group(1)]
+    if m := re.fullmatch(_F, u):
+        return "force", _FORCE_N[m.group(1)]
+    if m := re.fullmatch(rf"{_F}\.?{_L}/{_L}", u):
+        return "moment per width", _FORCE_N[m.group(1)] * _LENGTH_MM[m.group(2)] / _LENGTH_MM[m.group(3)]
+    if m := re.fullmatch(rf"{_F}\.?{_L}", u):
+        return "moment", _FORCE_N[m.group(1)] * _LENGTH_MM[m.group(2)]
+    return None
 
 
 def register(subparsers) -> None:
@@ -57,14 +121,18 @@ def register(subparsers) -> None:
         "fit", help="fit Dahl parameters (sigma, Fc[, alpha][, B], F0) to a loop in a CSV file",
         description="Fit F = B x + F_dahl(x history) by nonlinear least squares; print parameters with "
                     "standard errors and write a PNG of data vs fit. Default columns kappa_1_mm, "
-                    "M_N_mm_per_mm (KES bending: curvature 1/mm, moment per width N.mm/mm), else x_mm, F_N. "
+                    "M_N_mm_per_mm (KES bending: curvature 1/mm, moment per width N.mm/mm), else x_mm, F_N, else "
+                    "a lab's two columns found by the units stated in the header (KES-FB2's K [1/cm], M [gf cm/cm]; "
+                    "x [cm], F [gf]): converted to 1/mm and N.mm/mm (or mm and N), said on 'read:' lines. "
                     "Exit status 0: a usable law; 1: flagged (a parameter not identified, a loop that gains "
                     "energy, rows out of order, no convergence, residuals beyond the loop's own noise, an offset, a loop "
                     "that does not close: NOT A DAHL LAW YOU CAN USE, --json usable/flags); "
                     "2: bad input.")
     fit.add_argument("file", metavar="FILE.csv", help="the loop, samples in order of acquisition")
     fit.add_argument("--columns", metavar="X,F", help="names of the input and output columns "
-                     "(default kappa_1_mm,M_N_mm_per_mm, else x_mm,F_N)")
+                     "(default kappa_1_mm,M_N_mm_per_mm, else x_mm,F_N, else found by their units); a unit "
+                     "stated in the header or after the name ('K [1/cm],M [gf cm/cm]') is converted, else the "
+                     "parameters are in the columns' own units")
     fit.add_argument("--elastic", action="store_true", help="fit an elastic part B x in parallel")
     fit.add_argument("--alpha", default="1", metavar="free|VALUE",
                      help="exponent alpha of the Dahl law dF/dx = sigma (1 - F/Fc sign(dx))^alpha (shape of the "
@@ -115,17 +183,135 @@ def _parse_columns(text: str) -> tuple[str, str]:
 def _choose_columns(path: Path, columns: str | None) -> tuple[str, str]:
     if columns:
         return _parse_columns(columns)
-    # the header as the reader finds it (a preamble, # comments, any case, UTF-16): KES columns unless
-    # only the x_mm, F_N pair is there
-    if has_columns(path, KES_COLUMNS) or not has_columns(path, XF_COLUMNS):
-        return KES_COLUMNS
-    return XF_COLUMNS
+    # the header as the reader finds it (a preamble, # comments, any case, UTF-16): our own names first, then a
+    # lab's found by their units (KES-FB2 writes K [1/cm], M [gf cm/cm]: a blind probe's such file was refused as
+    # missing kappa_1_mm), else the KES names (the refusal names them)
+    for names in (KES_COLUMNS, XF_COLUMNS):
+        if has_columns(path, names):
+            return names
+    return _columns_by_unit(path) or KES_COLUMNS
 
 
-def _units(xcol: str, fcol: str) -> dict[str, str]:
-    if (xcol, fcol) == KES_COLUMNS:
+def _bare(cell: str) -> str:
+    """A header cell's name without its unit in brackets (``K [1/cm]`` -> ``K``)."""
+    return re.sub(r"\s*[\[(][^\])]*[\])]\s*$", "", cell).strip() or cell
+
+
+def _unread(cell: str, unit: str, parsed) -> str:
+    """Why the unit of header cell ``cell`` is not read (a refusal's clause)."""
+    if parsed is not None and parsed[0] == "moment":
+        return (f"{cell!r} states a moment ({unit}), not a moment per unit width: divide the column by the "
+                "specimen's width and write its unit per width (gf cm/cm)")
+    return f"{cell!r}: the unit {unit!r} is not one knitsim dahl fit reads"
+
+
+#: the pairs of quantities a loop's columns may be (input, output): KES bending, or a displacement and a force
+_PAIRS = (("curvature", "moment per width"), ("displacement", "force"))
+
+
+def _columns_by_unit(path: Path) -> tuple[str, str] | None:
+    """The loop's columns found by their units, where they lack our names: on the first line stating two units
+    or more of which one is a curvature, a length, a moment or a force, one curvature and one moment per width
+    (or one displacement and one force), asked for as ``name [unit]``; None if no line states such units."""
+    for line, cells, units in header_candidates(path):
+        stated = {j: u for j, u in enumerate(units) if u is not None and u.strip().casefold() not in _NO_UNIT}
+        if len(stated) < 2:
+            continue
+        parsed = {j: parse_unit(u) for j, u in stated.items()}
+        by_quantity: dict[str, list[int]] = {}
+        for j, p in parsed.items():
+            if p is not None:
+                by_quantity.setdefault(p[0], []).append(j)
+        if not by_quantity:
+            continue                     # a preamble's units (time [s], angle [deg]), not the loop's header
+        for pair in _PAIRS:
+            if all(len(by_quantity.get(q, ())) == 1 for q in pair):
+                return tuple(f"{_bare(cells[j])} [{units[j]}]" for j in (by_quantity[q][0] for q in pair))
+        why = [_unread(cells[j], stated[j], p) for j, p in parsed.items() if p is None or p[0] == "moment"]
+        if "curvature" in by_quantity and "force" in by_quantity:
+            # gf.cm/cm is dimensionally gf, but a force column beside a curvature is more likely a moment not
+            # per width, or a unit shortened: which one is not said
+            why += [f"{cells[j]!r} states a force: write a bending moment per width as gf cm/cm or N mm/mm"
+                    for j in by_quantity["force"]]
+        raise KnitsimInputError(
+            f"{path}: row {line}: the columns {', '.join(repr(cells[j]) for j in stated)} state their units, but not "
+            f"one curvature and one bending moment per width, nor one displacement and one force"
+            + (f" ({'; '.join(why)})" if why else "") + f": {_WHAT_TO_WRITE}; or name the two columns with --columns X,F")
+    return None
+
+
+#: our own column names (casefold) and the quantity each holds, in the internal unit
+_OWN = {"kappa_1_mm": "curvature", "m_n_mm_per_mm": "moment per width", "x_mm": "displacement", "f_n": "force"}
+
+
+def _resolve_columns(path: Path, names: tuple[str, str]) -> tuple[list[dict], tuple[str, str] | None]:
+    """How each of the two columns asked for is read: the name to ask the reader, its header cell, its unit, the
+    quantity it holds and the factor to the internal unit (1 for our own names, and for a column whose unit is
+    not stated: the columns' own units).  Returns the two and the pair of quantities, None when the units are
+    the columns' own.
+
+    Raises
+    ------
+    KnitsimInputError
+        A unit not known (naming the header and what to write), a moment not per unit width, two quantities
+        that are no loop (a curvature and a force), or one column converted while the other's unit is not stated.
+    """
+    found = stated_units(path, names)
+    cols = []
+    for name in names:
+        cell, unit = found.get(name, (name, None))
+        key = _bare(name).casefold()
+        if key in _OWN:
+            # our names say their unit; one stated beside it is checked by the reader
+            cols.append({"name": name, "header": cell, "unit": INTERNAL_UNIT[_OWN[key]], "quantity": _OWN[key],
+                         "factor": 1.0, "stated": False})
+            continue
+        if unit is None or unit.strip().casefold() in _NO_UNIT:
+            cols.append({"name": name, "header": cell, "unit": None, "quantity": None, "factor": 1.0,
+                         "stated": False})
+            continue
+        parsed = parse_unit(unit)
+        if parsed is None or parsed[0] == "moment":
+            raise KnitsimInputError(f"{path}: {_unread(cell, unit, parsed)}: {_WHAT_TO_WRITE}")
+        asked = re.fullmatch(r".*?\S\s*[\[(]\s*([^\])]*?)\s*[\])]", name.strip())
+        if asked and parse_unit(asked.group(1)) != parsed:
+            # --columns 'M [N mm/mm]' over a file's 'M [gf cm/cm]': which one holds is not said
+            raise KnitsimInputError(f"{path}: --columns names {name!r}, but the file states {unit!r} for "
+                                    f"{cell!r}: give the column's name as the file has it, or correct its unit")
+        cols.append({"name": f"{_bare(cell)} [{unit}]", "header": cell, "unit": unit, "quantity": parsed[0],
+                     "factor": parsed[1], "stated": True})
+    pair = (cols[0]["quantity"], cols[1]["quantity"])
+    if None not in pair:
+        if pair not in _PAIRS:
+            raise KnitsimInputError(
+                f"{path}: the columns {cols[0]['header']!r} ({pair[0]}) and {cols[1]['header']!r} ({pair[1]}) are no "
+                f"loop knitsim dahl fit reads (input, then output): {_WHAT_TO_WRITE}")
+        return cols, pair
+    known = [c for c in cols if c["quantity"] is not None and c["factor"] != 1.0]
+    if known:
+        # converting one column and not the other would give parameters in a mixture of units
+        other = next(c for c in cols if c["quantity"] is None)
+        raise KnitsimInputError(
+            f"{path}: the column {known[0]['header']!r} states its unit ({known[0]['unit']}) and {other['header']!r} "
+            f"does not: state it ({_WHAT_TO_WRITE})")
+    return cols, None
+
+
+def _read_note(col: dict) -> str:
+    """The ``read:`` line of a column read in a unit it states (the conversion, and why its factor)."""
+    internal = INTERNAL_UNIT[col["quantity"]]
+    if col["factor"] == 1.0:
+        return f"column {col['header']!r} read as the {col['quantity']} in {internal}"
+    why = {"curvature": "1 cm = 10 mm", "displacement": "1 cm = 10 mm",
+           "force": "1 gf = 9.80665e-3 N", "moment per width": "1 gf = 9.80665e-3 N; cm/cm = mm/mm"}[col["quantity"]]
+    return (f"column {col['header']!r} read as the {col['quantity']} in {col['unit']}: x {col['factor']:.6g} to "
+            f"{internal} ({why})")
+
+
+def _units(pair: tuple[str, str] | None, xcol: str, fcol: str) -> dict[str, str]:
+    if pair == _PAIRS[0]:
         f_unit, s_unit = "N.mm/mm", "N.mm^2/mm"
-    elif (xcol, fcol) == XF_COLUMNS:
+    elif pair == _PAIRS[1]:
         f_unit, s_unit = "N", "N/mm"
     else:
         f_unit, s_unit = f"[{fcol}]", f"[{fcol}]/[{xcol}]"
@@ -200,38 +386,59 @@ def run_fit(args) -> int:
     """``knitsim dahl fit`` (exit status: 0 usable, 1 flagged; :func:`fit_flags`)."""
     path = Path(args.file)
     alpha = _parse_alpha(args.alpha)
-    xcol, fcol = _choose_columns(path, args.columns)
+    names = _choose_columns(path, args.columns)
+    # each column's unit, from its header (KES-FB2's K [1/cm] and M [gf cm/cm]): read in the internal units (a
+    # blind probe's such file was refused, and with --columns fitted unconverted: sigma, Fc in gf units)
+    cols, pair = _resolve_columns(path, names)
     png = None
     if not args.no_png:
         png = prepare_output_file(args.png or path.with_name(path.stem + "_dahl_fit.png"), args.overwrite, "--png")
     from ..diagnosis.measured import drop_copied_rows
+    try:
+        raw = read_csv_columns(path, [c["name"] for c in cols])
+    except KnitsimInputError as exc:
+        if args.columns or names != KES_COLUMNS:
+            raise
+        raise KnitsimInputError(f"{exc}; a lab's columns are read with their units stated ('K [1/cm]', "
+                                "'M [gf cm/cm]'), or name them with --columns X,F") from None
     # a row copied (pasted twice) is no second measurement: counted twice it would shrink the standard errors
-    data = drop_copied_rows(read_csv_columns(path, [xcol, fcol]))
-    x, F = data[xcol], data[fcol]
+    data = drop_copied_rows(raw)
+    x, F = (data[c["name"]] * c["factor"] for c in cols)
+    read_notes = [_read_note(c) for c in cols if c["stated"]]
+    if pair is None:
+        read_notes.append(f"the columns {cols[0]['header']!r}, {cols[1]['header']!r} state no unit: the parameters "
+                          "are in the columns' own units (state them, 'K [1/cm]', to have them converted)")
+    # the columns as the fit and the plot name them: in the units they are fitted in
+    xcol, fcol = (f"{_bare(c['header'])} [{INTERNAL_UNIT[c['quantity']]}]" if c["stated"] else c["header"]
+                  for c in cols)
     try:
         fit = fit_dahl_loop(x, F, elastic=args.elastic, alpha=alpha, labels=(xcol, fcol))
     except KnitsimInputError as exc:
         raise KnitsimInputError(f"{path}: {exc}") from None
-    if xcol == KES_COLUMNS[0] and float(np.max(np.abs(x))) > KES_UNIT_CHECK * KES_AMPLITUDE_1_MM:
-        # a KES loop's curvature in 1/cm under kappa_1_mm reads 10 times too large (a blind probe's file, fitted
-        # without a word: sigma and B then 10 and 100 times off)
+    if cols[0]["quantity"] == "curvature" and float(np.max(np.abs(x))) > KES_UNIT_CHECK * KES_AMPLITUDE_1_MM:
+        # a KES loop's curvature in 1/cm under kappa_1_mm (or 1/mm) reads 10 times too large (a blind probe's
+        # file, fitted without a word: sigma and B then 10 and 100 times off)
+        fix = (f"check the unit stated in {cols[0]['header']!r}" if cols[0]["stated"] else
+               "if the column holds 1/cm, divide it by 10 (kappa_1_mm is per mm)")
         fit.warnings.append(
             f"the curvature reaches {float(np.max(np.abs(x))):.3g} 1/mm, {float(np.max(np.abs(x))) / KES_AMPLITUDE_1_MM:.0f} "
-            f"times the KES-FB2 range (+-{KES_AMPLITUDE_1_MM:g} 1/mm = +-2.5 1/cm): if the column holds 1/cm, divide "
-            "it by 10 (kappa_1_mm is per mm)")
+            f"times the KES-FB2 range (+-{KES_AMPLITUDE_1_MM:g} 1/mm = +-2.5 1/cm): {fix}")
     if png is not None:
         _plot(png, x, F, fit, xcol, fcol, source=path)
     flags = fit_flags(fit)
-    units = _units(xcol, fcol)
+    units = _units(pair, xcol, fcol)
     values = {n: getattr(fit, n) for n in ("sigma", "Fc", "alpha", "B", "F0")}
+    conversion = {axis: {"column": c["header"], "unit": c["unit"], "to": INTERNAL_UNIT[c["quantity"]],
+                         "factor": c["factor"]} for axis, c in zip(("x", "F"), cols) if c["stated"]} or None
     kes = None
-    if (xcol, fcol) == KES_COLUMNS:
+    if pair == _PAIRS[0]:
         # N.mm^2/mm -> gf.cm^2/cm and N.mm/mm -> gf.cm/cm (the paper's table)
         to_kes = {"sigma": 1.0 / (GF_N * CM_MM), "B": 1.0 / (GF_N * CM_MM), "Fc": 1.0 / GF_N, "F0": 1.0 / GF_N}
         kes = {n: {"value": values[n] * f, "stderr": fit.stderr.get(n, 0.0) * f} for n, f in to_kes.items()}
     if args.json:
         print_json({
-            "file": str(path), "columns": {"x": xcol, "F": fcol}, "n_points": fit.n_points,
+            "file": str(path), "columns": {"x": cols[0]["header"], "F": cols[1]["header"]},
+            "read_notes": read_notes, "conversion": conversion, "n_points": fit.n_points,
             "reversals": fit.reversals, "parameters": values, "stderr": fit.stderr, "fixed": fit.fixed,
             "units": units, "kes_units": kes, "rms": fit.rms, "success": fit.success, "message": fit.message,
             "png": str(png) if png else None, "param_status": fit.param_status, "lower_bounds": fit.lower_bounds,
@@ -242,7 +449,10 @@ def run_fit(args) -> int:
         return 1 if flags else 0
     if flags:
         print(f"{UNUSABLE}: " + "; ".join(flags) + " (the warnings below say why)")
-    print(f"Dahl fit of {path} ({fit.n_points} points, {fit.reversals} reversals; x = {xcol}, F = {fcol})")
+    print(f"Dahl fit of {path} ({fit.n_points} points, {fit.reversals} reversals; x = {cols[0]['header']}, "
+          f"F = {cols[1]['header']})")
+    for note in read_notes:
+        print(f"  read: {note}")
     for n in ("sigma", "Fc", "alpha", "B", "F0"):
         if n in fit.stderr:
             line = f"  {n:<6} = {values[n]:.6g} +- {fit.stderr[n]:.2g} {units[n]}".rstrip()

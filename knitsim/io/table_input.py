@@ -378,6 +378,64 @@ def has_columns(path: str | Path, names: Iterable[str]) -> bool:
     return _find_header(_text(path).splitlines(), list(names), []) is not None
 
 
+def stated_units(path: str | Path, names: Iterable[str]) -> dict[str, tuple[str, str | None]]:
+    """The unit each column of ``names`` states, where :func:`read_csv_columns` finds the header.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+    names : iterable of str
+        Columns asked for (any case; a unit in brackets after a name, ``K [1/cm]``, is ignored in finding it).
+
+    Returns
+    -------
+    dict of str to (str, str or None)
+        For each column found: its header cell and the unit stated for it, in brackets after its name
+        (``K [1/cm]``), else in a units row under the header, else in brackets after the name asked for,
+        else None.  Columns not found are left out (reading them then refuses them as missing).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise KnitsimInputError(f"{path}: no such file")
+    lines = _text(path).splitlines()
+    names = list(names)
+    h = _find_header(lines, names, [])
+    if h is None:
+        return {}
+    delim = _delimiter(lines[h])
+    cells = [_trim(c) for c in _split(lines[h], delim)]
+    keys = [_key(c) for c in cells]
+    unit_cells = _units_row(lines, h, delim)
+    out = {}
+    for n in names:
+        if _key(n) in keys:
+            j = keys.index(_key(n))
+            unit = _alias_unit(cells, unit_cells, j)
+            out[n] = (cells[j], unit if unit is not None else _name_and_unit(n)[1])
+    return out
+
+
+def header_candidates(path: str | Path) -> list[tuple[int, list[str], list[str | None]]]:
+    """The lines near the top of a file that may be its header, for a caller that finds its columns by their
+    units rather than their names: each line (of the first :data:`HEADER_SCAN_LINES`, not blank nor a comment)
+    as its 1-based line number, its cells and the unit each states (in brackets after its name, or in a units
+    row under it; None where none is stated)."""
+    path = Path(path)
+    if not path.is_file():
+        raise KnitsimInputError(f"{path}: no such file")
+    lines = _text(path).splitlines()
+    out = []
+    for i, ln in enumerate(lines[:HEADER_SCAN_LINES]):
+        if not ln.strip() or _is_comment(ln):
+            continue
+        delim = _delimiter(ln)
+        cells = [_trim(c) for c in _split(ln, delim)]
+        unit_cells = _units_row(lines, i, delim)
+        out.append((i + 1, cells, [_alias_unit(cells, unit_cells, j) for j in range(len(cells))]))
+    return out
+
+
 def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterable[str] = (),
                      numeric: Iterable[str] | None = None, aliases: dict | None = None) -> Columns:
     """Read named columns of a CSV file (see the module docstring).

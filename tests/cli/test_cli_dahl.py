@@ -358,3 +358,83 @@ def test_a_curvature_in_per_cm_under_kappa_1_mm_is_said(tmp_path, capsys):
     assert any("reaches 2.5 1/mm, 10 times the KES-FB2 range" in x and "divide it by 10" in x for x in w), w
     main(["dahl", "fit", str(src), "--no-png", "--json"])
     assert not any("KES-FB2 range" in x for x in json.loads(capsys.readouterr().out)["warnings"])
+
+
+# ------------------------------------------------- a KES file in KES's own units
+def _kes_native_loop(sigma=YARN["sigma"], Fc=YARN["Fc"], A=2.5, per_branch=60, cycles=2):
+    """A KES-FB2 bending loop as the instrument writes it, by hand from the alpha = 1 closed form (not by
+    knitsim): curvature K in 1/cm (+-2.5), moment per width M in gf.cm/cm, the paper's yarn row (sigma in
+    gf.cm^2/cm, Fc in gf.cm/cm), with a deterministic +-1 % of Fc of noise."""
+    import math as m
+
+    ks = [0.0] + [A * i / per_branch for i in range(1, per_branch + 1)]
+    for _ in range(cycles):
+        ks += [A - 2 * A * i / (2 * per_branch) for i in range(1, 2 * per_branch + 1)]
+        ks += [-A + 2 * A * i / (2 * per_branch) for i in range(1, 2 * per_branch + 1)]
+    M = [0.0]
+    for a, b in zip(ks[:-1], ks[1:]):
+        s = 1.0 if b > a else -1.0
+        M.append(s * Fc + (M[-1] - s * Fc) * m.exp(-sigma * abs(b - a) / Fc))
+    return ks, [f + 0.01 * Fc * (((7 * k) % 11 - 5) / 5) for k, f in enumerate(M)]
+
+
+@pytest.mark.parametrize("header, argv", [
+    ("K [1/cm],M [gf cm/cm]", []),
+    ("K (cm^-1),M (gf.cm/cm)", []),
+    ("Specimen: yarn A\nK;M\n1/cm;gf cm/cm", []),                 # a preamble and a units row
+    ("K [1/cm],M [gf cm/cm]", ["--columns", "K [1/cm],M [gf cm/cm]"]),
+    ("K,M", ["--columns", "K [1/cm],M [gf·cm/cm]"]),               # units given where the file states none
+])
+def test_a_kes_loop_in_kes_units_is_read_in_n_and_mm(header, argv, tmp_path, capsys):
+    """A blind probe's KES-FB2 file (K [1/cm], M [gf cm/cm]) was refused as missing kappa_1_mm, and with
+    --columns fitted unconverted.  Expected from the hand-made loop and the unit identities (1 gf =
+    9.80665e-3 N, 1 cm = 10 mm): sigma = 0.061 gf.cm^2/cm = 0.061 x 9.80665e-3 x 10 N.mm^2/mm, Fc = 0.014
+    gf.cm/cm = 0.014 x 9.80665e-3 N.mm/mm, and the conversion said."""
+    ks, M = _kes_native_loop()
+    delim = ";" if ";" in header else ","
+    rows = [f"{k:.9g}{delim}{f:.9g}".replace(".", ",") if delim == ";" else f"{k:.9g},{f:.9g}" for k, f in zip(ks, M)]
+    path = _write(tmp_path / "kes.csv", header, rows)
+    out = _run_json(capsys, ["dahl", "fit", path, "--no-png", "--json"] + argv)
+    gf_N, cm_mm = 9.80665e-3, 10.0
+    assert out["units"]["sigma"] == "N.mm^2/mm" and out["units"]["Fc"] == "N.mm/mm"
+    assert out["parameters"]["sigma"] == pytest.approx(YARN["sigma"] * gf_N * cm_mm, rel=0.01)
+    assert out["parameters"]["Fc"] == pytest.approx(YARN["Fc"] * gf_N, rel=0.01)
+    assert out["kes_units"]["sigma"]["value"] == pytest.approx(YARN["sigma"], rel=0.01)
+    assert out["conversion"]["x"]["factor"] == pytest.approx(1 / cm_mm) and out["conversion"]["x"]["to"] == "1/mm"
+    assert out["conversion"]["F"]["factor"] == pytest.approx(gf_N) and out["conversion"]["F"]["to"] == "N.mm/mm"
+    assert len(out["read_notes"]) == 2 and "x 0.1 to 1/mm" in out["read_notes"][0]
+    assert "x 0.00980665 to N.mm/mm" in out["read_notes"][1]
+    main(["dahl", "fit", path, "--no-png"] + argv)
+    assert "  read: column " in capsys.readouterr().out
+
+
+def test_a_kes_loop_in_kes_units_fits_as_the_same_loop_in_ours(tmp_path, capsys):
+    # the same numbers converted by hand (K / 10 per mm, M x 9.80665e-3 N.mm/mm): the same law
+    ks, M = _kes_native_loop()
+    a = _write(tmp_path / "a.csv", "K [1/cm],M [gf cm/cm]", [f"{k:.12g},{f:.12g}" for k, f in zip(ks, M)])
+    b = _write(tmp_path / "b.csv", "kappa_1_mm,M_N_mm_per_mm",
+               [f"{k / 10:.12g},{f * 9.80665e-3:.12g}" for k, f in zip(ks, M)])
+    one = _run_json(capsys, ["dahl", "fit", a, "--no-png", "--json"])
+    two = _run_json(capsys, ["dahl", "fit", b, "--no-png", "--json"])
+    assert two["read_notes"] == [] and two["conversion"] is None
+    for name in ("sigma", "Fc", "F0"):
+        assert one["parameters"][name] == pytest.approx(two["parameters"][name], rel=1e-6, abs=1e-12)
+
+
+@pytest.mark.parametrize("header, argv, expected", [
+    ("K [1/cm],M [lbf in/in]", [], ["'M [lbf in/in]'", "'lbf in/in' is not one", "'M [gf cm/cm]'"]),
+    ("K [1/cm],M [gf cm]", [], ["'M [gf cm]' states a moment", "not a moment per unit width", "gf cm/cm"]),
+    ("K [1/cm],M [gf]", [], ["'M [gf]' states a force", "gf cm/cm"]),
+    ("K [1/cm],M [gf cm/cm]", ["--columns", "M,K"], ["'M [gf cm/cm]' (moment per width)", "input, then output"]),
+    ("K [1/cm],M [gf cm/cm]", ["--columns", "K,M [N mm/mm]"], ["'M [N mm/mm]'", "the file states 'gf cm/cm'"]),
+    ("K [1/cm],M", ["--columns", "K,M"], ["'K [1/cm]' states its unit (1/cm) and 'M' does not"]),
+    ("K [1/cm],M", [], ["missing column(s) kappa_1_mm", "'M [gf cm/cm]'"]),
+])
+def test_a_unit_not_read_is_refused_naming_the_header(header, argv, expected, tmp_path, capsys):
+    ks, M = _kes_native_loop()
+    path = _write(tmp_path / "kes.csv", header, [f"{k:.9g},{f:.9g}" for k, f in zip(ks, M)])
+    assert main(["dahl", "fit", path, "--no-png"] + argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("knitsim: error:")
+    for text in expected:
+        assert text in err[0], err[0]
