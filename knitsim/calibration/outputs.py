@@ -168,7 +168,8 @@ def zero_offsets(specimens) -> list[tuple[str, str, float]]:
     return [(s.name, src, z) for s in specimens for src, z in s.zero_offsets_N]
 
 
-def report_md(result: JointResult, title: str, source: str, files: list[str], zero_offsets: list | None = None) -> str:
+def report_md(result: JointResult, title: str, source: str, files: list[str], zero_offsets: list | None = None,
+              read_notes: list | None = None) -> str:
     """A readable report of the calibration."""
     r = result
     flags = r.flags
@@ -239,6 +240,10 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
         lines += ["", "Load cell zeros below zero, read off the curves' lowest readings (a knit carries no compression) "
                   "and tared (subtracted) before the fit: " + "; ".join(f"{name}: {src} {z:.4g} N"
                                                                       for name, src, z in zero_offsets) + "."]
+    if read_notes:
+        # what reading the files did (a strain in per cent, a band given upper envelope first): said where the
+        # results go, not only on the console
+        lines += ["", "Files read: " + "; ".join(f"{name}: {src}: {note}" for name, src, note in read_notes) + "."]
     lines += one_yarn_md(r)
     names = [e.label for e in r.estimates]
     strong = [(names[i], names[j], r.correlation[i, j]) for i in range(len(names)) for j in range(i + 1, len(names))
@@ -390,12 +395,14 @@ def write_calibration(out_dir: str | Path, result: JointResult, scene, source: s
         files[f"fit_{f.name}.png"] = plot_fit(f, flags=result.flags)
     names = sorted(files) + ["calibration.json", "report.md"]
     files["report.md"] = report_md(result, scene.resolved.get("title", source), source, names,
-                                   zero_offsets(scene.specimens)).encode()
+                                   zero_offsets(scene.specimens),
+                                   [(s.name, src, note) for s in scene.specimens for src, note in s.read_notes]).encode()
     doc = {"scene": source, "title": scene.resolved.get("title", ""), "yarn": scene.yarn_name,
            "specimens_data": [{"name": s.name, "sources": list(s.sources), "width_mm": s.width_mm,
                                "gauge_length_mm": s.gauge_length_mm, "stated_knit": s.knit,
                                "uncertainty": s.uncertainty, "total_force": s.total, "sd_rule": s.sigma_rule,
-                               "zero_offsets_tared_N": dict(s.zero_offsets_N)}
+                               "zero_offsets_tared_N": dict(s.zero_offsets_N),
+                               "read_notes": [f"{src}: {note}" for src, note in s.read_notes]}
                               for s in scene.specimens]}
     doc.update(result.as_dict())
     files["calibration.json"] = (json.dumps(_finite(doc), indent=1, default=_json_default, allow_nan=False)

@@ -447,7 +447,8 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     curve : path, optional
         A measured curve.
     band : (path, path), optional
-        The lower and upper envelopes of the experimental scatter (either order).
+        The lower and upper envelopes of the experimental scatter (either order: each row's band is their
+        min and max; a pair given upper first on most rows is said in ``read_notes``).
     row_step : float
         Strain step of the rows.
     noise_N : float, optional
@@ -514,10 +515,12 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
                                 f"{row_step:g}{read}")
     strain = row_step * np.arange(1, n + 1)
     low = high = None
+    swap_notes: tuple = ()
     if band is not None:
         a, b = _interp(lo_t, strain), _interp(hi_t, strain)
         low, high = np.minimum(a, b), np.maximum(a, b)
         mid = 0.5 * (low + high)
+        swap_notes = _swapped_band(lo_t, hi_t, strain, a, b, accuracy_rel)
     target = _interp(cur, strain) if cur is not None else mid
     scale = max(float(np.max(np.abs(target))), 1e-300)
     if band is not None:
@@ -554,7 +557,7 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
                         float(gauge_length_mm), {k: float(knit[k]) for k in GEOMETRY}, unc,
                         tuple(t.source for t in tables), rule, float(pretension), float(pretension_sd),
                         float(accuracy_rel), tuple((t.source, t.zero_offset_N) for t in tables if t.zero_offset_N),
-                        *_rest_of(cur, lo_t, hi_t), tuple((t.source, n) for t in tables for n in t.notes),
+                        *_rest_of(cur, lo_t, hi_t), tuple((t.source, n) for t in tables for n in t.notes) + swap_notes,
                         tuple((key, t.source, _rows_digest(t)) for key, t in
                               (("band[0]", lo_t), ("band[1]", hi_t), ("curve", cur)) if t is not None))
 
@@ -588,6 +591,33 @@ def refuse_repeated_tests(specimens) -> None:
                     "the same test given twice, or a copy of it; its rows would count twice (standard errors "
                     "too small, one yarn checked against itself). Give each test once")
             seen.setdefault(digest, (s.name, key, source))
+
+
+def _swapped_band(lo_t: MeasuredTable, hi_t: MeasuredTable, strain: np.ndarray, a: np.ndarray, b: np.ndarray,
+                  accuracy_rel: float) -> tuple:
+    """A band given upper envelope first, said: ``((file, note),)`` where ``band[0]`` (``a`` at the rows
+    ``strain``) lies above ``band[1]`` (``b``) by more than the force accuracy on most rows, else ``()``.
+
+    Accepted, not refused: each row's band is the min and max of the two files (envelopes that cross are
+    read so), so the fit does not depend on their order (a hand-made pair given high first fitted to the
+    same calibration.json); but a lab's low file that holds the higher forces is a mislabelled file, and
+    the report's sources would list it as the lower envelope.  Rows where the files cross only locally (two
+    tests' curves: Do 2020's 6.5 mm pair, 20 of 62 rows at its start) are not most rows, and say nothing.
+    """
+    tol = accuracy_rel * 0.5 * np.abs(a + b)
+    above = a > b + tol
+    if np.count_nonzero(above) * 2 <= len(strain) or np.count_nonzero(above) <= np.count_nonzero(b > a + tol):
+        return ()
+    # the runs of rows where it lies above, as grip strain ranges (the rows of the fit)
+    edges = np.flatnonzero(np.diff(np.r_[0, above.astype(int), 0]))
+    runs = [f"{strain[i]:g}" if i == j - 1 else f"{strain[i]:g} .. {strain[j - 1]:g}"
+            for i, j in zip(edges[::2], edges[1::2])]
+    listed = ", ".join(runs[:4]) + (f" and {len(runs) - 4} more" if len(runs) > 4 else "")
+    return ((lo_t.source, f"band[0] lies above band[1] ({hi_t.source}) on {np.count_nonzero(above)} "
+                          f"of {len(strain)} rows (grip strain {listed}; by more than the force accuracy, "
+                          f"{100 * accuracy_rel:.3g} %): read as the upper envelope, the band being each row's "
+                          "lower and higher file (the fit does not depend on their order); if the files are "
+                          "named low and high, they are named the wrong way round"),)
 
 
 def _rest_of(cur, lo_t, hi_t) -> tuple[float, float]:
