@@ -43,7 +43,9 @@ flagged, with what that bound means; one whose standard error is not finite or
 larger than half its range is flagged not identified (:func:`identification_rule`).  Where another refined start
 fits as well (chi2 within 3.84 s^2 of the best) at a value beyond 3 of its standard errors, the curvature at the
 best describes one minimum of several: the standard error is widened to that distance / 1.96, and the estimate is
-flagged not identified unless the distance is within a knit's stated sd (:func:`rival_rule`).
+flagged not identified unless the distance is within a knit's stated sd (:func:`rival_rule`).  So is the best point
+with one variable moved 4 standard errors, the others held, where it fits as well (:func:`_profile_probes`: the
+refined starts may all fall into one valley).
 :attr:`JointResult.flags` lists these, the optimiser's failure (its message),
 cells that did not solve, and specimens that do not look like one yarn: a result with a flag is not a
 calibration to use.
@@ -135,6 +137,9 @@ RIVAL_DCHI2 = 3.84
 #: ... and a value of such a start further than this many standard errors from the best shows the standard error
 #: (the curvature at the best) understates what the rows leave open
 RIVAL_SE = 3.0
+#: the best point is probed this many standard errors out on either side of each variable, the others held
+#: (:func:`_profile_probes`): beyond RIVAL_SE, where the curvature says it costs 16 s^2 or more
+PROBE_SE = 4.0
 #: residual of a row whose cell failed (not ok), times max(1, |target| / sd)
 FAIL_RESIDUAL = 30.0
 #: the one-yarn check (:func:`one_yarn_check`) flags a p-value below this: the chance that one yarn's
@@ -1256,6 +1261,77 @@ def _reported(problem: _Problem, x: np.ndarray) -> tuple[list, np.ndarray, list,
     return names, np.array(vals), los, his
 
 
+def _fit_variables(problem: _Problem, x: np.ndarray, names: list, yv: np.ndarray) -> np.ndarray:
+    """The fit variables of the reported values ``yv`` (inverse of model_values / :func:`_reported`; ``x`` gives
+    the variables that are not reported, and ``names`` the reported ones' (name, specimen index))."""
+    out = np.array(x, float)
+    shared_d = problem.base.d
+    W0s = [problem.sp[i].knit["W0"] for i in range(len(problem.sp))]
+    for j, (n, spi) in enumerate(names):
+        if n == "d" and spi is None:
+            shared_d = yv[j]
+        if n == "W0" and spi is not None:
+            W0s[spi] = yv[j]
+    for j, (n, spi) in enumerate(names):
+        if spi is None:
+            if n == "B":
+                out[j] = math.log(yv[j])
+            elif n == "d":
+                lo, hi = problem.d_range(W0s)
+                out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
+            elif n == "in_plane_width":
+                lo, hi = problem.w_range(shared_d, W0s)
+                out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
+            else:
+                out[j] = yv[j]
+        elif n == "phi0":
+            m = problem.model_values(out)[0].get("m", problem.base.m)
+            pm = math.atan(m)
+            out[j] = yv[j] / pm if pm > 0 else 0.0
+        elif n == "pretension":
+            out[j] = yv[j]
+        else:
+            out[j] = math.log(yv[j] / problem.sp[spi].knit[n])
+    return out
+
+
+def _profile_probes(problem: _Problem, x: np.ndarray, cov: np.ndarray, chi2: float,
+                    s2: float) -> list[tuple[float, np.ndarray]]:
+    """Points :data:`PROBE_SE` standard errors out from the best on either side of each variable, the others
+    held, as rivals (:func:`rival_rule`): each one's chi2 above the best's (in s^2) and its reported values.
+
+    Under the best point's curvature such a point costs at least ``PROBE_SE^2`` = 16 s^2 (the others held
+    cost no less than the profile, which re-fits them).  One within :data:`RIVAL_DCHI2` is a point that fits
+    as well beyond :data:`RIVAL_SE` standard errors, as a rival start's would be: a flat or many-valleyed
+    direction that the curvature hides, which the refined starts miss when they all fall into one valley (a
+    blind probe's loose knit with the default refine = 3, from 12 or 32 starts: in_plane_width = 0.8233 +-
+    0.0051 mm and no flag, where w = 0.62 .. 0.818 fit within 0.25 s^2 with the others held, the truth 0.79
+    too).  Held, not moved along the profile: the profile's direction, from the same curvature, moved B and
+    W0 of that knit by 4 of their own standard errors, through zero or into cells that fail.  One batched
+    evaluation of 2 x k points (the covariance's own is k + 1); a point beyond a bound is clipped to it."""
+    names, y, los, his = _reported(problem, x)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    pts = []
+    for j in range(len(y)):
+        if not (np.isfinite(se[j]) and se[j] > 0):
+            continue
+        for sign in (-1.0, 1.0):
+            yv = np.array(y, float)
+            yv[j] = min(max(y[j] + sign * PROBE_SE * se[j], los[j]), his[j])
+            if yv[j] == y[j]:
+                continue
+            try:
+                xp = _fit_variables(problem, x, names, yv)
+            except (ValueError, ZeroDivisionError):          # a log of a value at zero
+                continue
+            if np.all(np.isfinite(xp)):
+                pts.append(np.clip(xp, problem.lo, problem.hi))
+    if not pts or not (s2 > 0):
+        return []
+    res = problem.evaluate_points(pts)
+    return [((float(r @ r) - chi2) / s2, _reported(problem, p)[1]) for r, p in zip(res, pts)]
+
+
 def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6,
                 offset_gradient: list | None = None) -> np.ndarray:
     """Covariance of the reported variables: FD Jacobian in those variables at the solution.
@@ -1269,36 +1345,7 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     k = len(y)
 
     def fit_vars(yv: np.ndarray) -> np.ndarray:
-        # reported -> fit variables (inverse of model_values / _reported)
-        out = np.array(x, float)
-        shared_d = problem.base.d
-        W0s = [problem.sp[i].knit["W0"] for i in range(len(problem.sp))]
-        for j, (n, spi) in enumerate(names):
-            if n == "d" and spi is None:
-                shared_d = yv[j]
-            if n == "W0" and spi is not None:
-                W0s[spi] = yv[j]
-        for j, (n, spi) in enumerate(names):
-            if spi is None:
-                if n == "B":
-                    out[j] = math.log(yv[j])
-                elif n == "d":
-                    lo, hi = problem.d_range(W0s)
-                    out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
-                elif n == "in_plane_width":
-                    lo, hi = problem.w_range(shared_d, W0s)
-                    out[j] = (yv[j] - lo) / (hi - lo) if hi > lo else 0.0
-                else:
-                    out[j] = yv[j]
-            elif n == "phi0":
-                m = problem.model_values(out)[0].get("m", problem.base.m)
-                pm = math.atan(m)
-                out[j] = yv[j] / pm if pm > 0 else 0.0
-            elif n == "pretension":
-                out[j] = yv[j]
-            else:
-                out[j] = math.log(yv[j] / problem.sp[spi].knit[n])
-        return out
+        return _fit_variables(problem, x, names, yv)
 
     h = rel_step * np.maximum(np.abs(y), 1e-3)
     h = np.where(y + h > np.array(his), -h, h)
@@ -1419,13 +1466,18 @@ def rival_spread(value: float, std_error: float, rivals: Sequence[tuple[float, f
     return max(far, default=0.0)
 
 
+#: what a profile probe is, in :func:`rival_rule`'s text
+PROBE_WHAT = f"the best point with this variable {PROBE_SE:g} standard errors out, the others held,"
+
+
 def rival_rule(value: float, std_error: float, rivals: Sequence[tuple[float, float]], unit: str = "",
-               tolerance: float = 0.0) -> str:
+               tolerance: float = 0.0, what: str = "another refined start") -> str:
     """Why an estimate is not identified though its standard error is finite, or ``""``: another refined start
     fits as well at a value further than :data:`RIVAL_SE` standard errors (:func:`rival_spread`) and further than
     ``tolerance`` (a knit's stated sd, its prior: a geometry the rows leave open within what the lab measured is
     known as well as the lab knows it).  (A blind probe's knit that never jams: in_plane_width 0.823 +- 0.0036
-    mm, no flag, while starts ended at 0.709 .. 0.803 within 0.2 of its chi2 43.1, the truth 0.79.)"""
+    mm, no flag, while starts ended at 0.709 .. 0.803 within 0.2 of its chi2 43.1, the truth 0.79.)  ``what``
+    names the rivals in the text (the profile's probes: :data:`PROBE_WHAT`)."""
     spread = rival_spread(value, std_error, rivals)
     if not spread > tolerance:
         return ""
@@ -1433,7 +1485,7 @@ def rival_rule(value: float, std_error: float, rivals: Sequence[tuple[float, flo
     near = [v for d, v in rivals if d <= RIVAL_DCHI2 and math.isfinite(v)]
     lo, hi = min(near + [value]), max(near + [value])
     k = spread / std_error if std_error > 0 else math.inf
-    return (f"another refined start fits as well (chi2 within {RIVAL_DCHI2:g} s^2 of the best) {spread:.4g}{u} "
+    return (f"{what} fits as well (chi2 within {RIVAL_DCHI2:g} s^2 of the best) {spread:.4g}{u} "
             f"away, {k:.3g} of the best point's standard errors ({std_error:.4g}{u}): {lo:.4g} .. {hi:.4g}{u} fit "
             "alike")
 
@@ -1671,6 +1723,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     lo_f, hi_f = pb.lo, pb.hi
     # the other refined starts: each one's chi2 above the best's (in s^2) and its reported values
     rivals = [((c - chi2) / s2 if s2 > 0 else math.inf, _reported(pb, r.x)[1]) for c, r in finals if r is not sol]
+    # and the best point with each variable moved 4 standard errors: starts that fall into one valley see no rival (a
+    # blind probe's loose knit with the default refine = 3: w 6.5 standard errors off the truth and no flag)
+    probes = _profile_probes(pb, x, cov, chi2, s2)
     for j, ((nme, spi), val) in enumerate(zip(names, y)):
         span = hi_f[j] - lo_f[j]
         side = "low" if x[j] - lo_f[j] <= BOUND_TOL * span else ("high" if hi_f[j] - x[j] <= BOUND_TOL * span else None)
@@ -1689,11 +1744,14 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             note = "the high end of the stated range (below W0/4 of the narrowest knit)"
         # values another refined start reaches as well widen the standard error to theirs (1.96 sd: 95 %)
         mine = [(d, float(v[j])) for d, v in rivals]
-        se_j = max(float(se[j]), rival_spread(float(val), float(se[j]), mine) / 1.96)
+        probed = [(d, float(v[j])) for d, v in probes]
+        se_j = max(float(se[j]), rival_spread(float(val), float(se[j]), mine + probed) / 1.96)
         unid = identification_rule(se_j, float(los[j]), float(his[j]), unit)
         prior = (float(stated * pb.sp[spi].uncertainty[nme]) if nme in GEOMETRY else
                  float(pb.sp[spi].pretension_sd) if nme == "pretension" else 0.0)
-        rival = "" if unid else rival_rule(float(val), float(se[j]), mine, unit, tolerance=prior)
+        rival = "" if unid else (rival_rule(float(val), float(se[j]), mine, unit, tolerance=prior)
+                                 or rival_rule(float(val), float(se[j]), probed, unit, tolerance=prior,
+                                               what=PROBE_WHAT))
         if unid or rival:
             side = side or "not identified"
             note = (note + "; " if note else "") + ("the rows do not depend on it (not identified)"
