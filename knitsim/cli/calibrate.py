@@ -36,6 +36,7 @@ from pathlib import Path
 
 from ..io.results import add_output_flags, prepare_output_dir, scene_inputs
 from ..errors import KnitsimInputError
+from ..io.output_dir import output_lock
 from .common import Progress, add_json_flag, naming_scene, print_json
 
 #: the calibration's checkpoint in --out (knitsim.calibration.joint.calibrate_joint)
@@ -62,6 +63,13 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
+    # one command at a time in a folder: two at once (a second --resume while the first runs) write over each
+    # other's checkpoint and results (knitsim.io.output_dir.output_lock; held before --overwrite empties it)
+    with output_lock(args.out if args.out is not None else f"{Path(args.scene).stem}_calibrated", "calibrate"):
+        return _run_locked(args)
+
+
+def _run_locked(args) -> int:
     t0 = time.perf_counter()
     from ..calibration.joint import POOR_FIT_S2, calibrate_joint
     from ..calibration.outputs import UNUSABLE, calibration_outputs, write_calibration, zero_offsets

@@ -27,6 +27,7 @@ import sys
 
 from ..diagnosis.effects import BASELINE_VARIABLES, DEFAULT_STUDY_FREE
 from ..errors import KnitsimInputError
+from ..io.output_dir import output_lock
 from ..io.results import add_output_flags, prepare_output_dir
 from .common import add_json_flag, print_json
 
@@ -69,6 +70,13 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
+    # one command at a time in a folder: two at once (a second --resume while the first runs) write over each
+    # other's checkpoint and results (knitsim.io.output_dir.output_lock; held before --overwrite empties it)
+    with output_lock(args.out, "diagnose-study"):
+        return _run_locked(args)
+
+
+def _run_locked(args) -> int:
     from ..cell.effects import EFFECT_NAMES
     from ..diagnosis.study import STUDY_OUTPUTS, run_study, summary_markdown, verdict_class
 

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import KnitsimInputError
+from ..io.output_dir import output_lock
 from ..io.checks import calibration_warnings
 from ..io.results import add_output_flags
 from .common import Progress, add_json_flag, naming_scene, print_json
@@ -300,6 +301,13 @@ def first_loading_of_patch(model, scene, device: str):
 
 
 def _run(args) -> int:
+    # one command at a time in a folder: two at once (a second --resume while the first runs) write over each
+    # other's checkpoint and results (knitsim.io.output_dir.output_lock; held before --overwrite empties it)
+    with output_lock(args.out if args.out is not None else f"{Path(args.scene).stem}_out", "run"):
+        return _run_locked(args)
+
+
+def _run_locked(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import PATCH_OUTPUT_FILES, patch_summary, specimen_layout, write_patch_results
     from ..io.results import prepare_output_dir, scene_inputs

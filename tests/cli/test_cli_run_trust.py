@@ -595,3 +595,46 @@ def test_a_resume_of_a_changed_scene_is_refused_before_it_says_it_resumes(tmp_pa
     assert (out / "checkpoint.pkl").is_file() and not (out / "summary.json").exists()
     assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume"])) == 0
     assert "resuming from" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------ one command at a time in a folder
+
+
+@pytest.mark.parametrize("command", ["run", "calibrate", "diagnose-study"])
+def test_a_second_command_into_a_folder_in_use_is_refused_before_any_work(tmp_path, capsys, monkeypatch, command):
+    # an interrupted run in o/, then its folder's lock held by a process that runs (a child sleeping: hand-made,
+    # as a first `knitsim run --resume` would hold it); a second command into o/ is refused, naming the holder,
+    # the folder and its checkpoint untouched; with the holder gone, the resume takes the stale lock over
+    import socket
+    import subprocess
+
+    from knitsim.io.output_dir import LOCK_NAME
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    restore = _interrupt_after(monkeypatch, 2)
+    assert main(["run", str(scene), "--out", str(out), "--no-progress"]) == 130
+    restore()
+    assert not (out / LOCK_NAME).exists()                   # the interrupted run let its lock go
+    before = sorted(p.name for p in out.iterdir())
+    capsys.readouterr()
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    try:
+        held = f"{other.pid}\n{socket.gethostname()}\nknitsim run\n"
+        (out / LOCK_NAME).write_text(held)
+        argv = {"run": ["run", str(scene), "--out", str(out), "--no-progress", "--resume"],
+                "calibrate": ["calibrate", str(scene), "--out", str(out)],
+                "diagnose-study": ["diagnose-study", "--cases", "1", "--out", str(out)]}[command]
+        rc = main(argv)
+        err = capsys.readouterr().err
+        assert rc == 2 and "Traceback" not in err
+        assert f"--out = {str(out)!r}: knitsim run (pid {other.pid}) is writing into this folder" in err
+        assert (out / LOCK_NAME).read_text() == held                        # the other's lock, untouched
+        assert sorted(p.name for p in out.iterdir()) == sorted(before + [LOCK_NAME])
+    finally:
+        other.kill()
+        other.wait()
+    if command == "run":
+        assert main(["run", str(scene), "--out", str(out), "--no-progress", "--resume"]) == 0
+        assert "which no longer runs (killed or crashed): taking it over" in capsys.readouterr().err
+        assert not (out / LOCK_NAME).exists()
