@@ -987,10 +987,13 @@ def event_value(kind: int, z: vec5d, q: vecQd, stage: int, mat: Material) -> wp.
 
 @wp.func
 def event_tol(kind: int, mat: Material) -> wp.float64:
-    """Zero of an event function at the start of a sub-step (stages.EVENT_TOL; times d for W)."""
+    """Zero of an event function at the start of a sub-step (stages.EVENT_TOL; times d for W, times the yarn's
+    force scale B / d^2 for F and Rn: CellCycle._event_tol)."""
     t = _EVENT_TOL
     if kind == _EV_JAM or kind == _EV_UNJAM:
         t = _EVENT_TOL * mat.d
+    elif kind == _EV_SLACK or kind == _EV_CAP:
+        t = _EVENT_TOL * mat.B / (mat.d * mat.d)
     return t
 
 

@@ -441,8 +441,10 @@ class CellCycle:
         return failures <= self.max_halvings and 0.5 * abs(step) >= SUBSTEP_FLOOR * self.p.C0
 
     def _event_tol(self, kind: str) -> float:
-        """Tolerance below which an event function counts as zero (stages.EVENT_TOL)."""
-        unit = {"slide": 1.0, "cone": 1.0, "jam": self.p.d, "unjam": self.p.d, "slack": 1.0, "force_cap": 1.0}[kind]
+        """Tolerance below which an event function counts as zero (stages.EVENT_TOL, in the cell's units: rad,
+        d for W, B / d^2 for F and Rn)."""
+        force = self.p.B / self.p.d ** 2
+        unit = {"slide": 1.0, "cone": 1.0, "jam": self.p.d, "unjam": self.p.d, "slack": force, "force_cap": force}[kind]
         return EVENT_TOL * unit
 
     def _locate(self, st: CellState, C_a: float, C_b: float, name: str, fun, unjam=False):

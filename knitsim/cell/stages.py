@@ -78,9 +78,12 @@ Rules where Table 4 is silent (switchable; labelled in every output):
     stick dips into the cone and leaves it further on: located by bisection on
     the sign of phimax - phi (not placed at the start).
 ``EVENT_TOL``
-    An event function within EVENT_TOL of zero (rad; times d for W; N for F)
-    at the start of a sub-step counts as satisfied there: the event happens at
-    the start, without a root search whose bracket rounding could miss it.
+    An event function within EVENT_TOL of zero (rad; times d for W; times the
+    yarn's force scale B / d^2 for F and Rn) at the start of a sub-step counts
+    as satisfied there: the event happens at the start, without a root search
+    whose bracket rounding could miss it.  (In newtons, as it was, a cell of
+    B / d^2 = 9e-8 N went slack an increment early, at F = 5.7e-10 N:
+    tests/cell/test_invariances.py.)
     This is how unloading from a jammed state unjams at the reversal point
     (the unjammed branch passes through the jammed state itself there).
     A trial end that fires an event its own branch cannot reach (the solve
@@ -239,8 +242,9 @@ DAHL_SIGMA_UNUSED = ("not used by friction.model = \"coulomb\": set friction.mod
                      "or leave dahl_sigma out")
 #: closures of a stick stage whose frozen beta asks for friction beyond the cone
 STICK_CLOSURES = ("release_beta", "table4")
-#: an event function within EVENT_TOL (rad, or times d for W, or N for F) of zero at the
-#: start of a sub-step counts as satisfied there: the event happens at the start
+#: an event function within EVENT_TOL (rad, or times d for W, or times B / d^2 for F and Rn: the cell's
+#: own units, so that a scaled cell decides alike) of zero at the start of a sub-step counts as satisfied
+#: there: the event happens at the start
 EVENT_TOL = 1.0e-9
 #: an imposed course length within this fraction of the cell's own C is reached (rounding): the
 #: sub-steps stop there, and a slack cell asked for no more than its slack length stays slack
