@@ -93,19 +93,97 @@ def notes_of(cols) -> tuple[str, ...]:
 _NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 
 
+#: the first bytes of a workbook: Office Open XML (.xlsx, .xlsm: a zip archive; so is an OpenDocument .ods) and
+#: the legacy binary Excel format (.xls: an OLE2 compound file)
+_ZIP_MAGIC, _OLE2_MAGIC = b"PK\x03\x04", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"
+
+
 def _text(path: Path) -> str:
+    return _text_and_note(path)[0]
+
+
+def _text_and_note(path: Path) -> tuple[str, str | None]:
+    """The file's text, and what its reading must tell the user (a workbook's sheet read; else None)."""
     raw = path.read_bytes()
+    if raw.startswith((_ZIP_MAGIC, _OLE2_MAGIC)):
+        return _workbook_text(path, raw)
     if raw.startswith((codecs.BOM_UTF32_LE, codecs.BOM_UTF32_BE)):
-        return raw.decode("utf-32", errors="replace")
+        return raw.decode("utf-32", errors="replace"), None
     if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
-        return raw.decode("utf-16", errors="replace")   # Excel's "Unicode Text"; the BOM is dropped
+        return raw.decode("utf-16", errors="replace"), None   # Excel's "Unicode Text"; the BOM is dropped
     utf16 = _utf16_without_bom(raw)
     if utf16:
-        return raw.decode(utf16, errors="replace")
+        return raw.decode(utf16, errors="replace"), None
     try:
-        return raw.decode("utf-8-sig")       # strips Excel's byte-order mark
+        return raw.decode("utf-8-sig"), None       # strips Excel's byte-order mark
     except UnicodeDecodeError:
-        return raw.decode("cp1252", errors="replace")
+        return raw.decode("cp1252", errors="replace"), None
+
+
+def _numeric_row(cells: tuple) -> bool:
+    return sum(isinstance(c, (int, float)) and not isinstance(c, bool) for c in cells) >= 2
+
+
+def _workbook_text(path: Path, raw: bytes) -> tuple[str, str]:
+    """An Excel workbook (.xlsx, .xlsm) as tab-separated text, one line per row of its sheet, so that a line
+    number is the spreadsheet's row number and the rest of the reading (preamble, header, units row, aliases)
+    is the CSV's.
+
+    The sheet read is the active one (the sheet Excel's "Save as CSV" writes), or, where that holds no row of
+    two numbers and another does, the first such (a workbook whose active sheet is a chart or a summary); which
+    one, of how many, is said in :attr:`Columns.notes`.  Cells hold the values Excel last computed
+    (a formula's cached result; a file written by a program that never computed its formulas has none: those
+    cells read empty and are refused as such, naming the row).  Numbers keep every digit (no rounding to the
+    cells' display format).  Legacy .xls and OpenDocument sheets are refused, saying how to save them."""
+    if raw.startswith(_OLE2_MAGIC):
+        raise KnitsimInputError(f"{path}: an Excel 97-2003 workbook (.xls), which knitsim does not read: open it and "
+                                "save it as an Excel workbook (.xlsx) or as CSV")
+    import zipfile
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = set(z.namelist())
+    except zipfile.BadZipFile:
+        raise KnitsimInputError(f"{path}: starts as a zip archive (an .xlsx workbook?) but is not a readable one "
+                                "(truncated or damaged): save the sheet again, or as CSV") from None
+    if "xl/workbook.xml" not in names:
+        what = ("an OpenDocument spreadsheet (.ods)" if "mimetype" in names and "content.xml" in names
+                else "a zip archive, not an Excel workbook")
+        raise KnitsimInputError(f"{path}: {what}, which knitsim does not read: save the sheet as an Excel workbook "
+                                "(.xlsx) or as CSV")
+    import openpyxl
+    try:
+        book = openpyxl.load_workbook(path, read_only=True, data_only=True)
+    except Exception as exc:  # noqa: BLE001 - a damaged workbook is the user's file, said as such
+        raise KnitsimInputError(f"{path}: not a readable Excel workbook ({type(exc).__name__}: {exc}): save the "
+                                "sheet again, or as CSV") from None
+    try:
+        sheets = [ws for ws in book.worksheets if hasattr(ws, "iter_rows")]
+        if not sheets:
+            raise KnitsimInputError(f"{path}: the workbook holds no worksheet (only charts?)")
+        rows_of = {}
+
+        def rows(ws):
+            if ws.title not in rows_of:
+                rows_of[ws.title] = list(ws.iter_rows(min_row=1, values_only=True))
+            return rows_of[ws.title]
+
+        active = book.active if book.active in sheets else sheets[0]
+        ws = active
+        if not any(_numeric_row(r) for r in rows(active)):
+            ws = next((w for w in sheets if w is not active and any(_numeric_row(r) for r in rows(w))), active)
+        import io
+        buf = io.StringIO()
+        out = csv.writer(buf, delimiter="\t", lineterminator="\n")
+        for r in rows(ws):
+            out.writerow(["" if c is None else repr(float(c)) if isinstance(c, float)
+                          else c.isoformat(" ") if hasattr(c, "isoformat") else str(c) for c in r])
+        listed = ", ".join(repr(w.title) for w in sheets)
+        why = ("the active one" if ws is active else
+               f"the first with rows of numbers; the active one, {active.title!r}, has none")
+        return buf.getvalue(), (f"an Excel workbook: read its sheet {ws.title!r} ({why}"
+                                + (f"; sheets: {listed}" if len(sheets) > 1 else "") + ")")
+    finally:
+        book.close()
 
 
 def _utf16_without_bom(raw: bytes) -> str | None:
@@ -472,7 +550,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     path = Path(path)
     if not path.is_file():
         raise KnitsimInputError(f"{path}: no such file")
-    lines = _text(path).splitlines()
+    text, book_note = _text_and_note(path)
+    lines = text.splitlines()
     if not any(ln.strip() for ln in lines):
         raise KnitsimInputError(f"{path}: the file is empty")
     required, optional = list(required), list(optional)
@@ -629,7 +708,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         notes.append(f"row{'s' if len(footer) > 1 else ''} {', '.join(map(str, sorted(footer)))} after the data "
                      f"read as a footer (starting with a label, not a number: "
                      f"{next(c.strip() for c in rows[len(numbers)] if c.strip())!r}): skipped")
-    out.notes = tuple(notes)
+    out.notes = tuple(([book_note] if book_note else []) + notes)
     if bad:
         # every bad cell at once, in row order (a blind probe fixed one, ran again and met the next)
         bad.sort(key=lambda b: b[0])

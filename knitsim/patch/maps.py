@@ -105,7 +105,8 @@ def _read_map_csv(f: Path, path: str) -> tuple[np.ndarray, tuple[int, list[str]]
     decimal_comma = delim != "," or _comma_file_decimal_comma(
         f, [c for _, c in table], [r for r, _ in table], list(range(width)), [str(k + 1) for k in range(width)])
     rows, rows_at, shown, labels = [], [], 0, None
-    sep = "a tab" if delim == "\t" else repr(delim)
+    sep = ("the sheet's columns" if f.suffix.lower() in (".xlsx", ".xlsm") else "a tab" if delim == "\t"
+           else repr(delim))
     for r, cells in table:
         shown += 1
         vals = []
@@ -134,7 +135,7 @@ def _read_map_csv(f: Path, path: str) -> tuple[np.ndarray, tuple[int, list[str]]
 
 def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
                     counted: tuple[str, str] | None = None) -> np.ndarray:
-    """A ``.npy`` or ``.csv`` array of shape ``(courses, wales)``, finite float64; ``counted``: what a specimen's
+    """A ``.npy``, ``.csv`` or ``.xlsx`` (its sheet, as a CSV) array of shape ``(courses, wales)``, finite float64; ``counted``: what a specimen's
     axes count (``("bands", "strips")``), named in the message (a probe's 3 bands x 2 strips was told
     "expected (courses, wales) = (3, 2)")."""
     f = Path(file)
@@ -146,10 +147,11 @@ def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
             a = np.load(f, allow_pickle=False)
         except ValueError as exc:
             raise _err(path, str(file), f"not a readable .npy array ({exc})") from None
-    elif f.suffix.lower() == ".csv":
+    elif f.suffix.lower() in (".csv", ".xlsx", ".xlsm"):
+        # (a workbook's sheet is read as its CSV: knitsim.io.table_input)
         a, labels = _read_map_csv(f, path)
     else:
-        raise _err(path, str(file), "expected a .npy or .csv file")
+        raise _err(path, str(file), "expected a .npy, .csv or .xlsx file")
     if a.ndim != 2 or a.shape != tuple(shape):
         axes = "(bands, strips)" if counted else "(courses, wales)"
         hint = (f" (the file may hold the map transposed: one row per {'band' if counted else 'course'} is expected)"

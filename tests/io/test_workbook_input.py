@@ -1,0 +1,141 @@
+"""Excel workbooks (.xlsx) read as their sheet's table, typed cell by cell here.
+
+A lab saves a test machine's export as a workbook as often as a CSV.  Each workbook below is typed cell by cell
+(openpyxl writes the file, as Excel would, with the sheet's own row numbers); the expected values are the numbers
+typed: the sheet reads as its CSV twin, rows are named by the spreadsheet's row numbers, and what cannot be read
+(a legacy .xls, an OpenDocument sheet, a damaged file) is refused saying what to save it as.
+"""
+from __future__ import annotations
+
+import json
+import zipfile
+
+import numpy as np
+import pytest
+
+from knitsim.errors import KnitsimInputError
+from knitsim.io.table_input import read_csv_columns
+
+openpyxl = pytest.importorskip("openpyxl")
+
+REQ = ("strain", "force_per_wale_N")
+NUM = ("strain", "force_per_wale_N", "cycle")
+ROWS = [(0.0, -0.002, "load", 1), (0.1, 0.053, "load", 1), (0.2, 0.098, "load", 1), (0.1, 0.018, "unload", 1)]
+
+
+def _book(path, sheets):
+    """A workbook of ``sheets``: (title, {cell: value}) pairs, the first one active."""
+    wb = openpyxl.Workbook()
+    wb.remove(wb.active)
+    for title, cells in sheets:
+        ws = wb.create_sheet(title)
+        for ref, v in cells.items():
+            ws[ref] = v
+    wb.active = 0
+    wb.save(path)
+    return path
+
+
+def _data_sheet(first_row=1, preamble=True):
+    cells = {"A1": "Specimen: A3", "A2": "Operator: JD"} if preamble else {}
+    h = first_row
+    cells.update({f"A{h}": "Strain", f"B{h}": "force_per_wale_N [N]", f"C{h}": "direction", f"D{h}": "cycle"})
+    for k, (e, f, d, c) in enumerate(ROWS):
+        r = h + 2 + k if k >= 2 else h + 1 + k          # a blank row inside the data, as a sheet often has
+        cells.update({f"A{r}": e, f"B{r}": f, f"C{r}": d, f"D{r}": c})
+    return cells
+
+
+def test_a_sheet_with_a_preamble_reads_as_its_csv_twin_with_the_spreadsheet_row_numbers(tmp_path):
+    p = _book(tmp_path / "m.xlsx", [("Test 1", _data_sheet(first_row=4))])
+    got = read_csv_columns(p, REQ, ("direction", "cycle"), numeric=NUM)
+    np.testing.assert_array_equal(got["strain"], [r[0] for r in ROWS])
+    np.testing.assert_array_equal(got["force_per_wale_N"], [r[1] for r in ROWS])     # -0.002 N kept as typed
+    assert list(got["direction"]) == [r[2] for r in ROWS]
+    np.testing.assert_array_equal(got["_row"], [5, 6, 8, 9])        # the header in row 4, a blank row 7
+    assert got.notes[0] == "an Excel workbook: read its sheet 'Test 1' (the active one)"
+
+
+def test_the_data_sheet_is_found_behind_a_summary_sheet_and_said(tmp_path):
+    summary = {"A1": "Summary", "A2": "Max load", "B2": "see sheet Raw"}
+    p = _book(tmp_path / "m.xlsx", [("Summary", summary), ("Raw", _data_sheet(preamble=False))])
+    got = read_csv_columns(p, REQ, numeric=REQ)
+    np.testing.assert_array_equal(got["strain"], [r[0] for r in ROWS])
+    assert got.notes[0] == ("an Excel workbook: read its sheet 'Raw' (the first with rows of numbers; the active "
+                            "one, 'Summary', has none; sheets: 'Summary', 'Raw')")
+
+
+def test_a_formula_keeps_the_value_excel_computed_and_one_never_computed_is_refused_by_its_row(tmp_path):
+    cells = _data_sheet(preamble=False)
+    cells["B2"] = "=B3/2"                       # a formula (row 2 of the data)
+    p = _book(tmp_path / "m.xlsx", [("Data", cells)])
+    # as written by a program that never computed it: no cached value, refused naming the row and column
+    with pytest.raises(KnitsimInputError, match=r"m\.xlsx.*row 2.*force_per_wale_N"):
+        read_csv_columns(p, REQ, numeric=REQ)
+    # as Excel saves it: the formula with its last computed value (<v>), which is read
+    with zipfile.ZipFile(p) as z:
+        parts = {n: z.read(n) for n in z.namelist()}
+    sheet = parts["xl/worksheets/sheet1.xml"].decode()
+    assert "<f>B3/2</f><v />" in sheet
+    parts["xl/worksheets/sheet1.xml"] = sheet.replace("<f>B3/2</f><v />", "<f>B3/2</f><v>0.0265</v>").encode()
+    q = tmp_path / "excel.xlsx"
+    with zipfile.ZipFile(q, "w") as z:
+        for n, b in parts.items():
+            z.writestr(n, b)
+    got = read_csv_columns(q, REQ, numeric=REQ)
+    assert got["force_per_wale_N"][0] == 0.0265
+
+
+@pytest.mark.parametrize("what, content, says", [
+    ("xls", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + bytes(504), "an Excel 97-2003 workbook (.xls)"),
+    ("ods", None, "an OpenDocument spreadsheet (.ods)"),
+    ("damaged", b"PK\x03\x04" + bytes(40), "not a readable one"),
+])
+def test_what_is_not_an_xlsx_is_refused_saying_what_to_save_it_as(tmp_path, what, content, says):
+    p = tmp_path / f"m.{what}"
+    if content is None:
+        with zipfile.ZipFile(p, "w") as z:           # an OpenDocument file's first entries
+            z.writestr("mimetype", "application/vnd.oasis.opendocument.spreadsheet")
+            z.writestr("content.xml", "<office:document-content/>")
+    else:
+        p.write_bytes(content)
+    with pytest.raises(KnitsimInputError) as e:
+        read_csv_columns(p, REQ, numeric=REQ)
+    assert str(e.value).startswith(f"{p}: ") and says in str(e.value) and "CSV" in str(e.value)
+
+
+def test_capstan_fit_of_a_workbook_is_the_fit_of_its_csv(tmp_path, capsys):
+    # Table 2's e-glass records (scenes/capstan/e_glass_table2.csv) typed into a sheet: the same fit
+    import csv
+    from pathlib import Path
+
+    from knitsim.cli import main
+    src = Path(__file__).resolve().parents[2] / "scenes" / "capstan" / "e_glass_table2.csv"
+    rows = [r for r in csv.reader(src.read_text().splitlines()) if r and not r[0].startswith("#")]
+    cells = {}
+    for i, r in enumerate(rows, start=1):
+        for j, v in enumerate(r):
+            try:
+                val = float(v)
+            except ValueError:
+                val = v
+            cells[f"{'ABCDEFGH'[j]}{i}"] = val
+    p = _book(tmp_path / "t2.xlsx", [("records", cells)])
+    fits = []
+    for f in (src, p):
+        assert main(["capstan", "fit", str(f), "--json"]) in (0, 1)
+        fits.append(json.loads(capsys.readouterr().out))
+    for k in ("b", "p", "n"):
+        assert fits[1][k] == fits[0][k]
+
+
+def test_a_patch_map_in_a_workbook_reads_as_its_csv_and_a_gap_is_named_by_its_row(tmp_path):
+    # a phi0 map typed into a sheet: a row of wale labels, two courses of three wales
+    from knitsim.patch.maps import read_array_file
+    cells = {"A1": "w0", "B1": "w1", "C1": "w2", "A2": 0.1, "B2": 0.0, "C2": -0.1, "A3": 0.2, "B3": 0.1, "C3": 0.0}
+    p = _book(tmp_path / "phi0.xlsx", [("map", cells)])
+    np.testing.assert_array_equal(read_array_file(p, (2, 3), "fields.phi0"), [[0.1, 0.0, -0.1], [0.2, 0.1, 0.0]])
+    del cells["B3"]
+    q = _book(tmp_path / "gap.xlsx", [("map", cells)])
+    with pytest.raises(KnitsimInputError, match=r"row 3, column 2: empty"):
+        read_array_file(q, (2, 3), "fields.phi0")
