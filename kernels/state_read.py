@@ -1,15 +1,17 @@
-"""What the patch coupling reads of a state after each trial, packed on the device (issue 15).
+"""What the patch coupling reads of a state, packed on the device (issue 15).
 
 The coupling reads C, F (0 while slack), phi, W and the head gap, and stage, jammed and status, of every
-group after each trial (and the runner the state vector x and s_AB of each committed state).  Read as the state's own arrays, that was the whole quantity table q (20 values a
-cell) and five more arrays: ~190 MB a trial for a 10^6-cell patch, 5.5 s of its 8 increments' 19 s on one
-H200 in 874 copies to pageable host memory, against 1.4 s of kernels.  Packed here into two small
-field-major arrays (6 reals, 3 integers a cell: one row per quantity, so that each quantity is contiguous
-on the host and its threads' reads on the device coalesce; the state vector x is the state's own [n, 5]
-array), then copied once each into pinned host buffers (:class:`knitsim.patch.coupling.WarpCellBackend`).
-Cell-major, the host's copies of the committed quantities out of the pinned buffer (one cache line per
-value) took ~60 ms of each increment of a 10^6-cell patch on the H200 host.  A pure copy: the values read are the state's, bit for
-bit (F where the cell is slack: 0, as the coupling's law of a slack cell)."""
+group of a state (and the runner the state vector x and s_AB of each committed state).  Read as the state's
+own arrays, that was the whole quantity table q (20 values a cell) and five more arrays: ~190 MB a trial for
+a 10^6-cell patch, 5.5 s of its 8 increments' 19 s on one H200 in 874 copies to pageable host memory, against
+1.4 s of kernels.  Packed here into two small field-major arrays (6 reals, 3 integers a cell: one row per
+quantity, so that each quantity is contiguous on the host and its threads' reads on the device coalesce; the
+state vector x is the state's own [n, 5] array).  A committed state's packed read is copied into pinned host
+buffers (:class:`knitsim.patch.coupling.WarpBackend`); a trial's stays on the device, where the coupling's
+kernels judge and book it (:mod:`knitsim.kernels.column_trials`).  Cell-major, the host's copies of the
+committed quantities out of the pinned buffer (one cache line per value) took ~60 ms of each increment of a
+10^6-cell patch on the H200 host.  A pure copy: the values read are the state's, bit for bit (F where the
+cell is slack: 0, as the coupling's law of a slack cell)."""
 from __future__ import annotations
 
 import warp as wp
