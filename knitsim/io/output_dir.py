@@ -108,11 +108,16 @@ def output_lock(out_dir: str | Path, command: str) -> Iterator[Path]:
     second one is refused, naming the first.  The lock is created with ``O_CREAT | O_EXCL`` (only one process
     can) and holds the holder's pid, host and command; it is removed when the command ends, however it ends,
     except when its process is killed outright (SIGKILL, a crash): a lock of a pid that no longer runs on this
-    host is stale, and taken over with a note on stderr.  The folder is created if needed (and removed again
-    if the command leaves it empty).
+    host is stale, and taken over with a note on stderr.  The folder is created if needed, with its missing
+    parents (and they are removed again where the command leaves them empty: a refused scene leaves no folders).
     """
     out = check_output_dir(out_dir)
-    created = not out.is_dir()
+    # the folders this call creates, deepest first (removed again where left empty)
+    created = []
+    for d in (out, *out.absolute().parents):
+        if d.is_dir():
+            break
+        created.append(d)
     out.mkdir(parents=True, exist_ok=True)
     path = out / LOCK_NAME
     host = socket.gethostname()
@@ -143,9 +148,11 @@ def output_lock(out_dir: str | Path, command: str) -> Iterator[Path]:
         with contextlib.suppress(OSError):
             if path.read_text() == mine:         # (still this command's: never another's)
                 path.unlink()
-        if created:
-            with contextlib.suppress(OSError):  # (not empty: it holds the command's outputs)
-                out.rmdir()
+        for d in created:
+            try:
+                d.rmdir()
+            except OSError:                     # (not empty: it holds the command's outputs)
+                break
 
 
 def recorded_outputs(out_dir: str | Path) -> list[str]:

@@ -258,3 +258,21 @@ def test_an_output_lock_refuses_a_second_holder_and_goes_with_its_command(tmp_pa
             (out / "kept.txt").write_text("x")
             raise RuntimeError("a command that fails")
     assert sorted(p.name for p in out.iterdir()) == ["kept.txt"]           # lock released, outputs kept
+
+
+def test_an_output_lock_removes_the_parents_it_made_where_they_are_left_empty(tmp_path):
+    # --out a/b/c where none of them exists: a command refused before writing leaves no folder behind; one that
+    # wrote into c keeps all three
+    from knitsim.io.output_dir import output_lock
+    out = tmp_path / "a" / "b" / "c"
+    with pytest.raises(KnitsimInputError):
+        with output_lock(out, "run"):
+            raise KnitsimInputError("a scene refused before any work")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    (tmp_path / "a").mkdir()
+    with output_lock(out, "run"):
+        (out / "curve.csv").write_text("x")
+    assert (out / "curve.csv").is_file()
+    with output_lock(tmp_path / "a" / "d" / "e", "run"):
+        pass
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["b"]      # a existed: kept; d made, removed
