@@ -1862,8 +1862,8 @@ def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None, drift=None) ->
     out = []
     for i, c in enumerate(curves):
         bc = base_fit["curves"][i]
-        entry = {"source": c.source, "strain": c.strain.tolist(), "measured": c.force.tolist(),
-                 "baseline": np.asarray(bc["simulated"]).tolist(),
+        entry = {"source": c.source, "read_notes": list(getattr(c, "notes", ())), "strain": c.strain.tolist(),
+                 "measured": c.force.tolist(), "baseline": np.asarray(bc["simulated"]).tolist(),
                  "best": None if best_fit is None else np.asarray(best_fit["curves"][i]["simulated"]).tolist(),
                  "pair": None if pair_fit is None else np.asarray(pair_fit["curves"][i]["simulated"]).tolist(),
                  "keys": list(bc["keys"]), "cycle": c.cycle.tolist(), "direction": c.direction.tolist(),

@@ -139,3 +139,22 @@ def test_a_patch_map_in_a_workbook_reads_as_its_csv_and_a_gap_is_named_by_its_ro
     q = _book(tmp_path / "gap.xlsx", [("map", cells)])
     with pytest.raises(KnitsimInputError, match=r"row 3, column 2: empty"):
         read_array_file(q, (2, 3), "fields.phi0")
+
+
+def test_diagnose_json_says_which_sheet_of_a_workbook_was_read(tmp_path):
+    # a loading typed into a workbook's second sheet, behind a summary: the curve's read notes say which sheet,
+    # and they reach the diagnosis JSON (curves[i].read_notes), as the console's read line says them
+    from knitsim.diagnosis.diagnose import _curves_out
+    from knitsim.diagnosis.measured import read_measured_curve
+    strain = np.round(np.linspace(0.0, 0.3, 16), 4)
+    force = np.round(0.02 + 0.5 * strain + 4.0 * strain ** 3, 5)          # a knit's loading, typed as numbers
+    cells = {"A1": "strain", "B1": "force_per_wale_N"}
+    for k, (e, f) in enumerate(zip(strain, force), start=2):
+        cells.update({f"A{k}": float(e), f"B{k}": float(f)})
+    p = _book(tmp_path / "m.xlsx", [("Summary", {"A1": "see Raw"}), ("Raw", cells)])
+    curve = read_measured_curve(p)
+    np.testing.assert_array_equal(curve.force, force)
+    assert curve.notes[0].startswith("an Excel workbook: read its sheet 'Raw'")
+    fit = {"curves": [{"simulated": curve.force, "keys": [], "labels": np.array(["sliding"] * len(force))}]}
+    (entry,) = _curves_out([curve], fit, None, None)
+    assert entry["read_notes"] == list(curve.notes)
