@@ -150,9 +150,15 @@ def _workbook_text(path: Path, raw: bytes) -> tuple[str, str]:
                 else "a zip archive, not an Excel workbook")
         raise KnitsimInputError(f"{path}: {what}, which knitsim does not read: save the sheet as an Excel workbook "
                                 "(.xlsx) or as CSV")
+    import warnings
+
     import openpyxl
     try:
-        book = openpyxl.load_workbook(path, read_only=True, data_only=True)
+        with warnings.catch_warnings():
+            # (openpyxl warns of the parts it drops, data validation or conditional formats of Excel's own
+            # extensions, and of a workbook without a default style: nothing a sheet's numbers depend on)
+            warnings.simplefilter("ignore", UserWarning)
+            book = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except Exception as exc:  # noqa: BLE001 - a damaged workbook is the user's file, said as such
         raise KnitsimInputError(f"{path}: not a readable Excel workbook ({type(exc).__name__}: {exc}): save the "
                                 "sheet again, or as CSV") from None
