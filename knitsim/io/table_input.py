@@ -120,6 +120,14 @@ def _text_and_note(path: Path) -> tuple[str, str | None]:
         return raw.decode("cp1252", errors="replace"), None
 
 
+class _PerCent(float):
+    """A workbook cell formatted as a percentage: its text is the per cent it shows, every digit kept
+    (``0.125`` -> ``12.5%``: the decimal point of its shortest repr shifted by two places, exactly)."""
+
+    def __str__(self) -> str:
+        return f"{Decimal(repr(float(self))).scaleb(2).normalize():f}%"
+
+
 def _numeric_row(cells: tuple) -> bool:
     return sum(isinstance(c, (int, float)) and not isinstance(c, bool) for c in cells) >= 2
 
@@ -168,9 +176,18 @@ def _workbook_text(path: Path, raw: bytes) -> tuple[str, str]:
             raise KnitsimInputError(f"{path}: the workbook holds no worksheet (only charts?)")
         rows_of = {}
 
+        def value(c):
+            v = getattr(c, "value", None)
+            if (isinstance(v, (int, float)) and not isinstance(v, bool)
+                    and "%" in str(getattr(c, "number_format", "") or "")):
+                # a cell formatted as a percentage holds the fraction (0.125 shown as 12.5%): written as the per
+                # cent it shows, the decimal point shifted exactly, as Excel's CSV writes it (read as that per cent)
+                return _PerCent(float(v))          # (1 shown as 100% is stored as the integer 1)
+            return v
+
         def rows(ws):
             if ws.title not in rows_of:
-                rows_of[ws.title] = list(ws.iter_rows(min_row=1, values_only=True))
+                rows_of[ws.title] = [tuple(value(c) for c in r) for r in ws.iter_rows(min_row=1)]
             return rows_of[ws.title]
 
         active = book.active if book.active in sheets else sheets[0]
@@ -181,8 +198,9 @@ def _workbook_text(path: Path, raw: bytes) -> tuple[str, str]:
         buf = io.StringIO()
         out = csv.writer(buf, delimiter="\t", lineterminator="\n")
         for r in rows(ws):
-            out.writerow(["" if c is None else repr(float(c)) if isinstance(c, float)
-                          else c.isoformat(" ") if hasattr(c, "isoformat") else str(c) for c in r])
+            out.writerow(["" if c is None else str(c) if isinstance(c, _PerCent) else repr(float(c))
+                          if isinstance(c, float) else c.isoformat(" ") if hasattr(c, "isoformat") else str(c)
+                          for c in r])
         listed = ", ".join(repr(w.title) for w in sheets)
         why = ("the active one" if ws is active else
                f"the first with rows of numbers; the active one, {active.title!r}, has none")
@@ -663,14 +681,20 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                                                   numeric_present)
     out = Columns()
     bad = []                              # (row, column, text) of every cell that is not a finite number
+    signed: dict[str, int] = {}          # dimensionless columns' cells written with a % sign, counted
     for name in present:
         j = keys.index(_key(name))
         cells = []
         for line, row in zip(numbers, rows):
             cell = row[j].strip() if j < len(row) else ""
             if name in numeric:
+                # a per-cent cell (Excel writes a cell formatted as a percentage so in its CSV: 12.5%) of a
+                # dimensionless column is that per cent, under any header: divided by 100 once
+                signed_cell = cell.endswith("%") and _dimensionless(name)
                 try:
-                    v = _number(cell, decimal_comma, name in per_cent)
+                    v = _number(cell[:-1] if signed_cell else cell, decimal_comma, signed_cell or name in per_cent)
+                    if signed_cell:
+                        signed[name] = signed.get(name, 0) + 1
                 except ValueError:
                     bad.append((line, name, f"{cell!r} is not a number"))
                     v = math.nan
@@ -684,6 +708,9 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     notes = [f"column {header[j]!r} read as {name}" for j, name in sorted(read_as.items())
              if name in present]
     out.not_read = tuple(not_taken)
+    for name, n in signed.items():
+        notes.append(f"{name}: {n} cell(s) written with a % sign read in per cent (divided by 100)"
+                     + (", the header's per cent not applied to them again" if name in per_cent else ""))
     for name, where in per_cent.items():
         if name in numeric:
             note = f"{name} column {where} read in per cent (divided by 100)"

@@ -603,3 +603,20 @@ def test_an_extension_in_mm_is_named_as_a_length_not_a_strain(tmp_path):
     with pytest.raises(KnitsimInputError, match=r"'Extension \[mm\]' is a length, not a strain: write strain = "
                                                 r"extension / gauge length"):
         read_csv_columns(p, ["strain", "force_per_wale_N"])
+
+
+@pytest.mark.parametrize("header", ["strain", "Strain [%]"])
+def test_cells_written_with_a_per_cent_sign_read_as_that_per_cent_once(tmp_path, plain, header):
+    # Excel's CSV of a strain column formatted as a percentage writes 10% for 0.1: read as 0.1 under a plain
+    # header and under a per-cent one alike (the sign is the cell's own unit: not divided twice)
+    text = PLAIN.replace("strain,", f"{header},").replace("0.0,-0.002", "0%,-0.002").replace(
+        "0.1,0.053", "10%,0.053").replace("0.2,0.098", "20%,0.098").replace("0.1,0.018", "10%,0.018")
+    got = _read(_write(tmp_path, text))
+    _same_values(got, plain)
+    assert "strain: 4 cell(s) written with a % sign read in per cent (divided by 100)" in got.notes[0]
+
+
+def test_a_per_cent_sign_in_a_force_column_is_refused_naming_its_row(tmp_path):
+    text = PLAIN.replace("0.1,0.053", "0.1,5%")
+    with pytest.raises(KnitsimInputError, match=r"row 3.*force_per_wale_N.*'5%' is not a number"):
+        _read(_write(tmp_path, text))

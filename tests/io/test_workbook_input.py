@@ -158,3 +158,19 @@ def test_diagnose_json_says_which_sheet_of_a_workbook_was_read(tmp_path):
     fit = {"curves": [{"simulated": curve.force, "keys": [], "labels": np.array(["sliding"] * len(force))}]}
     (entry,) = _curves_out([curve], fit, None, None)
     assert entry["read_notes"] == list(curve.notes)
+
+
+def test_a_strain_column_formatted_as_a_percentage_reads_as_the_fractions_it_holds(tmp_path):
+    # a sheet whose strain cells hold 0.1 shown as 10% (a percentage format) under 'Strain [%]': read as 0.1,
+    # not 0.001 (the cell's fraction is the per cent it shows)
+    cells = {"A1": "Strain [%]", "B1": "force_per_wale_N"}
+    fractions = [0.0, 0.125, 0.25, 0.123456789012, 1.0]          # (1.0, 100 %, is stored as the integer 1)
+    for k, e in enumerate(fractions, start=2):
+        cells.update({f"A{k}": e, f"B{k}": 0.01 * k})
+    p = _book(tmp_path / "m.xlsx", [("Data", cells)])
+    wb = openpyxl.load_workbook(p)
+    for k in range(2, 2 + len(fractions)):
+        wb["Data"][f"A{k}"].number_format = "0.00%"
+    wb.save(p)
+    got = read_csv_columns(p, REQ, numeric=REQ)
+    np.testing.assert_array_equal(got["strain"], fractions)
