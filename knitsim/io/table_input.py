@@ -272,7 +272,8 @@ def _comma_file_decimal_comma(path: Path, rows: list[list[str]], numbers: list[i
     either that or a thousands separator; the file is read with decimal commas when every such cell is a
     plain decimal-comma number and at least one of them reads only that way (:func:`_ambiguous_comma`);
     when every one reads both ways the file is refused, naming the first."""
-    cells = [(line, name, row[j].strip()) for line, row in zip(numbers, rows)
+    # (a per-cent cell's sign is not part of its number: "12,5%")
+    cells = [(line, name, row[j].strip().removesuffix("%").rstrip()) for line, row in zip(numbers, rows)
              for j, name in zip(columns, names) if j < len(row) and "," in row[j]]
     if not cells or not all(_DECIMAL_COMMA.fullmatch(c) for _, _, c in cells):
         return False
@@ -712,7 +713,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         notes.append(f"{name}: {n} cell(s) written with a % sign read in per cent (divided by 100)"
                      + (", the header's per cent not applied to them again" if name in per_cent else ""))
     for name, where in per_cent.items():
-        if name in numeric:
+        # (a column whose every cell carries its % sign was read by the cells' signs alone, said above)
+        if name in numeric and signed.get(name, 0) < int(np.sum(np.isfinite(out[name]))):
             note = f"{name} column {where} read in per cent (divided by 100)"
             top = float(np.nanmax(np.abs(out[name]))) if len(out[name]) else math.nan
             if top <= PER_CENT_LOOKS_FRACTION:

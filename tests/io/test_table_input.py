@@ -620,3 +620,14 @@ def test_a_per_cent_sign_in_a_force_column_is_refused_naming_its_row(tmp_path):
     text = PLAIN.replace("0.1,0.053", "0.1,5%")
     with pytest.raises(KnitsimInputError, match=r"row 3.*force_per_wale_N.*'5%' is not a number"):
         _read(_write(tmp_path, text))
+
+
+@pytest.mark.parametrize("text", [
+    "Strain [%];force_per_wale_N\r\n0%;0,01\r\n12,5%;0,05\r\n25%;0,1\r\n",        # ';' and decimal commas
+    'strain,force_per_wale_N\n"0%","0,01"\n"12,5%","0,05"\n"25%","0,1"\n',       # quoted decimal commas
+])
+def test_per_cent_cells_with_decimal_commas(tmp_path, text):
+    got = read_csv_columns(_write(tmp_path, text), REQ, numeric=REQ)
+    np.testing.assert_array_equal(got["strain"], [0.0, 0.125, 0.25])
+    np.testing.assert_array_equal(got["force_per_wale_N"], [0.01, 0.05, 0.1])
+    assert len(got.notes) == 1 and got.notes[0].startswith("strain: 3 cell(s) written with a % sign")
