@@ -40,7 +40,7 @@ from ..errors import KnitsimInputError
 from ..friction.dahl import ALPHA_MAX, ALPHA_MIN, DahlParams, fit_dahl_loop, kes_loop
 from ..friction.identification import FLAG_TEXT
 from ..io.results import add_output_flags, prepare_output_file
-from ..io.table_input import has_columns, header_candidates, stated_units
+from ..io.table_input import has_columns, header_candidates, split_unit, stated_units
 from .common import add_json_flag, plain_help, print_json, read_csv_columns
 
 KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
@@ -193,8 +193,8 @@ def _choose_columns(path: Path, columns: str | None) -> tuple[str, str]:
 
 
 def _bare(cell: str) -> str:
-    """A header cell's name without its unit in brackets (``K [1/cm]`` -> ``K``)."""
-    return re.sub(r"\s*[\[(][^\])]*[\])]\s*$", "", cell).strip() or cell
+    """A header cell's name without its unit (``K [1/cm]`` -> ``K``: the reader's split_unit)."""
+    return split_unit(cell)[0] or cell
 
 
 def _unread(cell: str, unit: str, parsed) -> str:
@@ -273,8 +273,8 @@ def _resolve_columns(path: Path, names: tuple[str, str]) -> tuple[list[dict], tu
         parsed = parse_unit(unit)
         if parsed is None or parsed[0] == "moment":
             raise KnitsimInputError(f"{path}: {_unread(cell, unit, parsed)}: {_WHAT_TO_WRITE}")
-        asked = re.fullmatch(r".*?\S\s*[\[(]\s*([^\])]*?)\s*[\])]", name.strip())
-        if asked and parse_unit(asked.group(1)) != parsed:
+        asked = split_unit(name)[1]
+        if asked is not None and parse_unit(asked) != parsed:
             # --columns 'M [N mm/mm]' over a file's 'M [gf cm/cm]': which one holds is not said
             raise KnitsimInputError(f"{path}: --columns names {name!r}, but the file states {unit!r} for "
                                     f"{cell!r}: give the column's name as the file has it, or correct its unit")

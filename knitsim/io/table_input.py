@@ -49,6 +49,8 @@ from __future__ import annotations
 
 import codecs
 import csv
+import functools
+import hashlib
 import math
 import re
 from decimal import Decimal
@@ -104,9 +106,12 @@ def _text(path: Path) -> str:
 
 def _text_and_note(path: Path) -> tuple[str, str | None]:
     """The file's text, and what its reading must tell the user (a workbook's sheet read; else None)."""
+    path = Path(path)
     raw = path.read_bytes()
     if raw.startswith((_ZIP_MAGIC, _OLE2_MAGIC)):
-        return _workbook_text(path, raw)
+        # one command reads a file's header several times (dahl fit: its columns, their units, the table): a
+        # workbook is parsed once for the same bytes
+        return _workbook_text(str(path), hashlib.sha256(raw).digest())
     if raw.startswith((codecs.BOM_UTF32_LE, codecs.BOM_UTF32_BE)):
         return raw.decode("utf-32", errors="replace"), None
     if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
@@ -132,7 +137,8 @@ def _numeric_row(cells: tuple) -> bool:
     return sum(isinstance(c, (int, float)) and not isinstance(c, bool) for c in cells) >= 2
 
 
-def _workbook_text(path: Path, raw: bytes) -> tuple[str, str]:
+@functools.lru_cache(maxsize=8)
+def _workbook_text(path: str, digest: bytes) -> tuple[str, str]:
     """An Excel workbook (.xlsx, .xlsm) as tab-separated text, one line per row of its sheet, so that a line
     number is the spreadsheet's row number and the rest of the reading (preamble, header, units row, aliases)
     is the CSV's.
@@ -143,7 +149,10 @@ def _workbook_text(path: Path, raw: bytes) -> tuple[str, str]:
     (a formula's cached result; a file written by a program that never computed its formulas has none: those
     cells read empty and are refused as such, naming the row).  Numbers keep every digit (no rounding to the
     cells' display format).  Legacy .xls and OpenDocument sheets are refused, saying how to save them."""
-    if raw.startswith(_OLE2_MAGIC):
+    path = Path(path)
+    with open(path, "rb") as f:
+        legacy = f.read(len(_OLE2_MAGIC)) == _OLE2_MAGIC
+    if legacy:
         raise KnitsimInputError(f"{path}: an Excel 97-2003 workbook (.xls), which knitsim does not read: open it and "
                                 "save it as an Excel workbook (.xlsx) or as CSV")
     import zipfile
@@ -316,11 +325,18 @@ _PER_CENT_SIGN = re.compile(r"^(.*?\S)\s*%$")
 _PER_CENT = ("%", "percent", "pct")
 
 
-def _name_and_unit(cell: str) -> tuple[str, str | None]:
-    """A header cell's name (its key) and the unit written after it in brackets (or a bare ``%``), if any."""
+def split_unit(cell: str) -> tuple[str, str | None]:
+    """A header cell's name, as written, and the unit written after it in brackets (or a bare ``%``), if any:
+    ``'K [1/cm]'`` -> ``('K', '1/cm')``, ``'Strain %'`` -> ``('Strain', '%')``, ``'x_mm'`` -> ``('x_mm', None)``."""
     text = _trim(cell)
     m = _WITH_UNIT.match(text) or _PER_CENT_SIGN.match(text)
-    return (m.group(1).casefold(), m.group(2) if m.re is _WITH_UNIT else "%") if m else (text.casefold(), None)
+    return (m.group(1), m.group(2) if m.re is _WITH_UNIT else "%") if m else (text, None)
+
+
+def _name_and_unit(cell: str) -> tuple[str, str | None]:
+    """A header cell's name (its key: case folded) and its unit (:func:`split_unit`)."""
+    name, unit = split_unit(cell)
+    return name.casefold(), unit
 
 
 def _is_per_cent(unit: str | None) -> bool:
