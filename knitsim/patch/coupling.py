@@ -1236,7 +1236,9 @@ class PatchSolver:
             pts.reset(self.k, host_state=False)
             # the curvature of each branch and the kept committed point (the NumPy lines below, one thread per
             # group: ~30 passes over 10^6 groups were ~25 ms of an increment's host time)
-            trials.branch_curvature(pts, be.packed_committed(), k_c, direction, history)
+            # (the committed states packed once for the set-up: the curvature and the trials' start read them)
+            committed_reads = be.packed_committed()
+            trials.branch_curvature(pts, committed_reads, k_c, direction, history)
         else:
             pts = BranchPoints(C0, self.k, self.branch_points)
             k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
@@ -1265,7 +1267,7 @@ class PatchSolver:
         if on_dev:
             # the committed point, the direction's bounds and the trials' bookkeeping (DeviceTrials) on the
             # device: the NumPy below is its twin
-            trials.begin(pts, be.packed_committed(), trials.k_c, self.k, Fcol, monotone_cls, direction, u_single,
+            trials.begin(pts, committed_reads, trials.k_c, self.k, Fcol, monotone_cls, direction, u_single,
                          (int(Stage.SF_LOAD), int(Stage.SF_UNLOAD)))
         else:
             pts.add(np.ones(be.n, bool), c["C"], c["F"], k_c, Fcol[col] / p)
