@@ -24,11 +24,11 @@ wp.set_module_options({"enable_backward": False})
 
 #: points kept per group (``PatchSolver.branch_points``, BranchPoints' ``size``)
 SIZE = 8
-#: the bounds of a cell's tangent dF/dC [N/mm] and the largest column force the search grows its bracket to
-#: [N]: the NumPy twin's too (knitsim.patch.coupling takes them from here)
-TANGENT_MIN, TANGENT_MAX, COLUMN_FORCE_MAX = 1e-6, 1e6, 1e12
-K_MIN = wp.constant(wp.float64(TANGENT_MIN))
-K_MAX = wp.constant(wp.float64(TANGENT_MAX))
+#: the bounds of a cell's tangent dF/dC [N/mm], the largest column force the search grows its bracket to and
+#: its first guess where it has no lower bound [N]: the NumPy twin's too (knitsim.patch.coupling takes them from
+#: here).  The kernels take them as arguments (BranchArrays.k_min, k_max; column_newton_kernel's force_start,
+#: force_max), not as constants, so that a patch can state them in its own scale
+TANGENT_MIN, TANGENT_MAX, COLUMN_FORCE_MAX, COLUMN_FORCE_START = 1e-6, 1e6, 1e12, 1e-6
 INF = wp.constant(wp.float64(wp.inf))
 
 
@@ -65,6 +65,9 @@ class BranchArrays:
     curvature: wp.array(dtype=wp.float64)
     k_fallback: wp.array(dtype=wp.float64)
     C_ref: wp.array(dtype=wp.float64)
+    # the bounds of a tangent dF/dC [N/mm] (PatchSolver.k_bounds)
+    k_min: wp.float64
+    k_max: wp.float64
 
 
 @wp.func
@@ -81,10 +84,10 @@ def np_clip(x: wp.float64, lo: wp.float64, hi: wp.float64):
 
 
 @wp.func
-def inverse_slope(k: wp.float64):
-    """dC/df = 1 / clip(k, K_MIN, K_MAX) of a known positive tangent k, else NaN."""
+def inverse_slope(b: BranchArrays, k: wp.float64):
+    """dC/df = 1 / clip(k, b.k_min, b.k_max) of a known positive tangent k, else NaN."""
     if wp.isfinite(k) and k > wp.float64(0.0):
-        return wp.float64(1.0) / np_clip(k, K_MIN, K_MAX)
+        return wp.float64(1.0) / np_clip(k, b.k_min, b.k_max)
     return wp.float64(wp.nan)
 
 
@@ -158,14 +161,14 @@ def add_points_kernel(
 @wp.func
 def end_slope(b: BranchArrays, g: int, i: int, j: int, fb: wp.float64):
     """The slope dC/df of an extrapolation from sorted point i: its tangent, else the secant to point j,
-    else the fallback ``fb``; within [1/K_MAX, 1/K_MIN]."""
-    s = inverse_slope(b.Ks[g, i])
+    else the fallback ``fb``; within [1/k_max, 1/k_min]."""
+    s = inverse_slope(b, b.Ks[g, i])
     sec = (b.Cs[g, j] - b.Cs[g, i]) / (b.Fs[g, j] - b.Fs[g, i])
     if not (b.m[g] >= 2 and wp.isfinite(sec) and sec > wp.float64(0.0)):
         sec = fb
     if not wp.isfinite(s):
         s = sec
-    return np_clip(s, wp.float64(1.0) / K_MAX, wp.float64(1.0) / K_MIN)
+    return np_clip(s, wp.float64(1.0) / b.k_max, wp.float64(1.0) / b.k_min)
 
 
 @wp.func
@@ -174,8 +177,8 @@ def end_curvature(b: BranchArrays, g: int, j: int, smooth: bool):
     else the last increment's; 0 where neither is known."""
     c = b.curvature[g]
     if b.m[g] >= 2:
-        kj = inverse_slope(b.Ks[g, j])
-        kj1 = inverse_slope(b.Ks[g, j + 1])
+        kj = inverse_slope(b, b.Ks[g, j])
+        kj1 = inverse_slope(b, b.Ks[g, j + 1])
         cj = (kj1 - kj) / (b.Fs[g, j + 1] - b.Fs[g, j])
         ratio = kj1 / kj
         c = wp.float64(wp.nan)
@@ -220,8 +223,8 @@ def prepare_model_kernel(b: BranchArrays, rows: wp.array(dtype=wp.int32)):
             delta = (b.Cs[g, s + 1] - b.Cs[g, s]) / h
         if not (delta >= wp.float64(0.0)) and not wp.isnan(delta):
             delta = wp.float64(0.0)
-        ka = inverse_slope(b.Ks[g, s])
-        kb = inverse_slope(b.Ks[g, s + 1])
+        ka = inverse_slope(b, b.Ks[g, s])
+        kb = inverse_slope(b, b.Ks[g, s + 1])
         da = delta
         if wp.isfinite(ka):
             da = ka
@@ -242,7 +245,7 @@ def prepare_model_kernel(b: BranchArrays, rows: wp.array(dtype=wp.int32)):
         b.convex[g, s] = wp.where(convex, 1, 0)
         b.concave[g, s] = wp.where(concave, 1, 0)
     top = wp.max(m - 1, 0)
-    fb = wp.float64(1.0) / np_clip(b.k_fallback[g], K_MIN, K_MAX)
+    fb = wp.float64(1.0) / np_clip(b.k_fallback[g], b.k_min, b.k_max)
     b.s_lo[g] = end_slope(b, g, 0, wp.min(1, top), fb)
     b.s_hi[g] = end_slope(b, g, top, wp.max(top - 1, 0), fb)
     b.c_lo[g] = end_curvature(b, g, 0, b.convex[g, 0] != 0 or b.concave[g, 0] != 0)
@@ -343,7 +346,7 @@ def model_at(b: BranchArrays, g: int, f: wp.float64):
             k = wp.max(m - 1, 0)
             s_end = b.s_hi[g]
             c_end = b.c_hi[g]
-        s_e = wp.min(s_end * wp.pow(wp.float64(2.0), wp.float64(stall)), wp.float64(1.0) / K_MIN)
+        s_e = wp.min(s_end * wp.pow(wp.float64(2.0), wp.float64(stall)), wp.float64(1.0) / b.k_min)
         if stall > 0:
             c_end = wp.float64(0.0)
         d_e, sl_e = bent_line(f - b.Fs[g, k], s_e, c_end)
@@ -403,7 +406,6 @@ def jump_kernel(
 # thread per column over its groups in ascending group order (numpy.bincount's order: the same sums bit
 # for bit, and deterministic, where atomics would not be).
 
-FORCE_SEARCH_MAX = wp.constant(wp.float64(COLUMN_FORCE_MAX))
 EPS = wp.constant(wp.float64(sys.float_info.epsilon))
 
 
@@ -461,11 +463,13 @@ def column_newton_kernel(
     lo: wp.array(dtype=wp.float64),
     hi: wp.array(dtype=wp.float64),
     done: wp.array(dtype=wp.int32),
+    force_start: wp.float64,
+    force_max: wp.float64,
     still_open: wp.array(dtype=wp.int32),
 ):
-    """One safeguarded Newton step of each open column: bisection (or doubling while no upper bound is known)
-    where the step leaves the bracket; closed at |Phi| <= tol_len, a bracket at rounding, or no root below
-    FORCE_SEARCH_MAX.  Counts the columns still open in still_open[0]."""
+    """One safeguarded Newton step of each open column: bisection (or doubling from force_start while no
+    upper bound is known) where the step leaves the bracket; closed at |Phi| <= tol_len, a bracket at rounding,
+    or no root below force_max [N].  Counts the columns still open in still_open[0]."""
     k = wp.tid()
     if done[k] != 0:
         return
@@ -487,8 +491,8 @@ def column_newton_kernel(
         elif a > wp.float64(0.0):
             fn = wp.float64(2.0) * a
         else:
-            fn = wp.float64(1e-6)
-    closed = (wp.isfinite(h) and h - a <= wp.float64(4.0) * EPS * h) or (not wp.isfinite(h) and a >= FORCE_SEARCH_MAX)
+            fn = force_start
+    closed = (wp.isfinite(h) and h - a <= wp.float64(4.0) * EPS * h) or (not wp.isfinite(h) and a >= force_max)
     if closed:
         done[k] = 1
     else:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .branch_points import INF, K_MAX, K_MIN, BranchArrays, add_point, jumps, np_clip
+from .branch_points import INF, BranchArrays, add_point, jumps, np_clip
 from .state_read import READ_C, READ_F, READ_JAMMED, READ_STAGE, READ_STATUS
 
 wp.set_module_options({"enable_backward": False})
@@ -218,7 +218,7 @@ def trial_book_kernel(
         if wp.isfinite(kg):
             knew = kg
         if wp.isfinite(knew):
-            book.k[g] = np_clip(knew, K_MIN, K_MAX)
+            book.k[g] = np_clip(knew, b.k_min, b.k_max)
         book.F_last[g] = tF
         book.C_last[g] = tC
     # a failed trial: no longer than halfway to it from the cell's last good length (or no shorter)
@@ -318,18 +318,20 @@ def branch_curvature_kernel(
     hist_kinv: wp.array(dtype=wp.float64),
     hist_stage: wp.array(dtype=wp.int32),
     hist_jammed: wp.array(dtype=wp.int32),
+    k_min: wp.float64,
+    k_max: wp.float64,
     curvature: wp.array(dtype=wp.float64),
 ):
     """The curvature d(1/k)/dF of group g's branch from its last two committed points (``PatchSolver._solve``'s
     set-up; ``reads``: the committed state packed): from the tangent ``k_c`` now and the kept one where both
     points are on one branch (the same stage and jammed flag, positive forces that differ, tangents within a
     factor 1.5), NaN elsewhere or without ``use_history``; ``keep_history``: the committed point is kept as the
-    next increment's last one."""
+    next increment's last one.  The tangents are clipped to [k_min, k_max] (the branch model's bounds)."""
     g = wp.tid()
     kc = k_c[g]
     kinv = wp.float64(wp.nan)
     if wp.isfinite(kc) and kc > wp.float64(0.0):
-        kinv = wp.float64(1.0) / np_clip(kc, K_MIN, K_MAX)
+        kinv = wp.float64(1.0) / np_clip(kc, k_min, k_max)
     F = reals[READ_F, g]
     st = ints[READ_STAGE, g]
     jam = ints[READ_JAMMED, g]

@@ -129,7 +129,7 @@ from ..cell.quantities import CODE
 from ..cell.stages import MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
 from ..io.checks import FORCE_CAP_RTOL
-from ..kernels.branch_points import COLUMN_FORCE_MAX, TANGENT_MAX, TANGENT_MIN
+from ..kernels.branch_points import COLUMN_FORCE_MAX, COLUMN_FORCE_START, TANGENT_MAX, TANGENT_MIN
 from ..kernels.branch_points import SIZE as DEVICE_BRANCH_SIZE
 from .model import Grouping
 
@@ -138,8 +138,11 @@ K_MIN, K_MAX = TANGENT_MIN, TANGENT_MAX
 #: a column carrying force closes when its lengths add up to the grip displacement within this share of its rest
 #: length (rounding: the trial lengths are sent to add up to it exactly)
 LENGTH_RTOL = 1e-9
-#: largest column force [N] the scalar search of a column's force grows its bracket to
-FORCE_SEARCH_MAX = COLUMN_FORCE_MAX
+#: largest column force [N] the scalar search of a column's force grows its bracket to, and its first guess where
+#: it has no lower bound yet
+FORCE_SEARCH_MAX, FORCE_SEARCH_START = COLUMN_FORCE_MAX, COLUMN_FORCE_START
+#: the tangent dF/dC [N/mm] a cell starts from where its first probe gives none
+PROBE_TANGENT_FALLBACK = 1.0
 #: column flags
 COL_OK, COL_NOT_CONVERGED, COL_STOPPED = 0, 1, 2
 COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STOPPED: "stopped"}
@@ -689,14 +692,19 @@ class BranchPoints:
         dF/dC used to extrapolate where no slope of the group is known [N/mm].
     size : int
         Points kept per group (the farthest from the column's force is dropped when full).
+    k_bounds : (float, float)
+        The bounds a tangent dF/dC is clipped to [N/mm] (``PatchSolver.k_bounds``; default :data:`K_MIN`,
+        :data:`K_MAX`).
     """
 
     #: whether the points live on a Warp device (:class:`~knitsim.patch.device_coupling.DeviceBranchPoints`)
     on_device = False
 
-    def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = 8):
+    def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = 8,
+                 k_bounds: tuple[float, float] = (K_MIN, K_MAX)):
         n = len(C_ref)
         self.C_ref, self.k_fallback = C_ref, k_fallback
+        self.k_min, self.k_max = float(k_bounds[0]), float(k_bounds[1])
         self.C, self.F, self.K = (np.full((n, size), np.nan) for _ in range(3))
         self.valid = np.zeros((n, size), bool)
         self.C_min = np.full(n, -np.inf)          # the model's lengths are kept in [C_min, C_max]
@@ -788,7 +796,8 @@ class BranchPoints:
         with np.errstate(divide="ignore", invalid="ignore"):
             delta = np.where(good_h, (self.Cs[:, 1:] - self.Cs[:, :-1]) / np.where(good_h, h, 1.0), 0.0)
             delta = np.maximum(delta, 0.0)
-            inv_k = np.where(np.isfinite(self.Ks) & (self.Ks > 0), 1.0 / np.clip(self.Ks, K_MIN, K_MAX), np.nan)
+            inv_k = np.where(np.isfinite(self.Ks) & (self.Ks > 0), 1.0 / np.clip(self.Ks, self.k_min, self.k_max),
+                             np.nan)
             da = np.where(np.isfinite(inv_k[:, :-1]), inv_k[:, :-1], delta)
             db = np.where(np.isfinite(inv_k[:, 1:]), inv_k[:, 1:], delta)
         # (to 1 % of the chord: a tangent that nearly passes through the other end still counts)
@@ -801,14 +810,14 @@ class BranchPoints:
         self.db = np.where(chord, delta, db)
         # slopes dC/df beyond the lowest and the highest point: the cell's tangent there, else the
         # secant of its two end points, else the fallback tangent
-        fb = 1.0 / np.clip(self._prepared(self.k_fallback), K_MIN, K_MAX)
+        fb = 1.0 / np.clip(self._prepared(self.k_fallback), self.k_min, self.k_max)
 
         def end_slope(i, j):
             s = inv_k[r, i]
             with np.errstate(divide="ignore", invalid="ignore"):
                 sec = (self.Cs[r, j] - self.Cs[r, i]) / (self.Fs[r, j] - self.Fs[r, i])
             sec = np.where((self.m >= 2) & np.isfinite(sec) & (sec > 0), sec, fb)
-            return np.clip(np.where(np.isfinite(s), s, sec), 1.0 / K_MAX, 1.0 / K_MIN)
+            return np.clip(np.where(np.isfinite(s), s, sec), 1.0 / self.k_max, 1.0 / self.k_min)
 
         self.s_lo = end_slope(np.zeros_like(top), np.minimum(1, top))
         self.s_hi = end_slope(top, np.maximum(top - 1, 0))
@@ -883,7 +892,7 @@ class BranchPoints:
             if rows.size:
                 k = self.top[rows] if k is None else k
                 st = stall[rows]
-                s_e = np.minimum(s_end[rows] * 2.0 ** st, 1.0 / K_MIN)
+                s_e = np.minimum(s_end[rows] * 2.0 ** st, 1.0 / self.k_min)
                 d_e, sl_e = _bent_line(f[rows] - self.Fs[rows, k], s_e, np.where(st > 0, 0.0, c_end[rows]))
                 C[rows] = self.Cs[rows, k] + d_e
                 dC[rows] = sl_e
@@ -974,6 +983,11 @@ class PatchSolver:
 
     Attributes
     ----------
+    k_bounds : (float, float)
+        The bounds of a cell's tangent dF/dC [N/mm]: :data:`K_MIN`, :data:`K_MAX`.
+    force_search : (float, float)
+        The column force search's first guess where it has no lower bound and its ceiling [N]:
+        :data:`FORCE_SEARCH_START`, :data:`FORCE_SEARCH_MAX`.
     branch_points : int
         Points of each cell's branch kept per increment (:class:`BranchPoints`).
     sub_increments : int
@@ -997,6 +1011,9 @@ class PatchSolver:
         self.g = grouping
         self.backend = make_backend(engine, grouping, device, max_halvings)
         self.force_tol, self.force_rtol, self.max_iterations = force_tol, force_rtol, int(max_iterations)
+        # the absolute bounds the branch model and the column search take as arguments (device and NumPy alike)
+        self.k_bounds = (K_MIN, K_MAX)
+        self.force_search = (FORCE_SEARCH_START, FORCE_SEARCH_MAX)
         self.C0 = np.asarray(grouping.cells["C0"], dtype=np.float64)
         #: each group's force cap per wale [N]
         self.force_cap = np.broadcast_to(np.asarray(grouping.cells["force_cap_N"], dtype=np.float64),
@@ -1071,8 +1088,9 @@ class PatchSolver:
         if self._device_trials is None:
             from .device_coupling import DeviceBranchPoints, DeviceColumnSolve, DeviceTrials
             be = self.backend
-            self._device_points = DeviceBranchPoints(self.C0, self.k, self.branch_points, be.device)
-            self._device_columns = DeviceColumnSolve(self.col, self.cnt, self.C0, self.p, self.n_cls, be.device)
+            self._device_points = DeviceBranchPoints(self.C0, self.k, self.branch_points, be.device, self.k_bounds)
+            self._device_columns = DeviceColumnSolve(self.col, self.cnt, self.C0, self.p, self.n_cls, be.device,
+                                                     self.force_search)
             self._device_trials = DeviceTrials(self._device_columns, self.single_group)
         return self._device_points, self._device_columns, self._device_trials
 
@@ -1106,7 +1124,8 @@ class PatchSolver:
         with np.errstate(divide="ignore", invalid="ignore"):
             k = (t["F"] - c["F"]) / dC
         ok = np.isfinite(k) & (k > 0) & (t["status"] == STATUS_OK)
-        self.k = np.clip(np.where(ok, k, 1.0), K_MIN, K_MAX)
+        k_min, k_max = self.k_bounds
+        self.k = np.clip(np.where(ok, k, PROBE_TANGENT_FALLBACK), k_min, k_max)
 
     def get_state(self) -> dict:
         """The solver's state between increments (backend state, tangents, direction, cells, last grip
@@ -1240,11 +1259,11 @@ class PatchSolver:
             committed_reads = be.packed_committed()
             trials.branch_curvature(pts, committed_reads, k_c, direction, history)
         else:
-            pts = BranchPoints(C0, self.k, self.branch_points)
+            pts = BranchPoints(C0, self.k, self.branch_points, self.k_bounds)
             k_c = np.where(np.isfinite(k_c) & (k_c > 0), k_c, np.nan)
             # the curvature of each cell's branch from its last two committed points (their tangents), where
             # both are on one branch: the same stage, the same direction, a force that moved
-            kinv_c = np.where(np.isfinite(k_c), 1.0 / np.clip(k_c, K_MIN, K_MAX), np.nan)
+            kinv_c = np.where(np.isfinite(k_c), 1.0 / np.clip(k_c, *self.k_bounds), np.nan)
             hist = self._branch_history if history else None
             if hist is not None and hist[4] == direction:
                 F_h, kinv_h, stage_h, jam_h = hist[:4]
@@ -1402,7 +1421,8 @@ class PatchSolver:
                 ks = (t["F"] - F_last) / dC
             ks = np.where(np.isfinite(ks) & (ks > 0) & (np.abs(dC) > 1e-12 * C0), ks, np.nan)
             knew = np.where(np.isfinite(kt), kt, ks)
-            self.k = np.where(use & np.isfinite(knew), np.clip(np.nan_to_num(knew, nan=1.0), K_MIN, K_MAX), self.k)
+            self.k = np.where(use & np.isfinite(knew), np.clip(np.nan_to_num(knew, nan=1.0), *self.k_bounds),
+                              self.k)
             F_last = np.where(use, t["F"], F_last)
             C_last = np.where(use, t["C"], C_last)
             # a failed trial: no longer than halfway to it from the cell's last good length (or no shorter)
@@ -1464,13 +1484,13 @@ class PatchSolver:
             with np.errstate(divide="ignore", invalid="ignore"):
                 Fn = F - r / dr
             bad = ~np.isfinite(Fn) | (Fn <= lo) | (Fn >= hi)
-            grow = np.where(lo > 0, 2.0 * lo, 1e-6)
+            grow = np.where(lo > 0, 2.0 * lo, self.force_search[0])
             Fn = np.where(bad, np.where(np.isfinite(hi), 0.5 * (lo + hi), grow), Fn)
             done |= np.isfinite(hi) & (hi - lo <= 4.0 * np.finfo(float).eps * hi)
-            # no root below FORCE_SEARCH_MAX (a column held short of the grips, whose cells cannot lengthen
+            # no root below the ceiling (a column held short of the grips, whose cells cannot lengthen
             # on unloading: its lengths never add up to u): the search stops there instead of doubling to
             # overflow; the column does not converge and is flagged, as before
-            done |= ~np.isfinite(hi) & (lo >= FORCE_SEARCH_MAX)
+            done |= ~np.isfinite(hi) & (lo >= self.force_search[1])
             F = np.where(done, F, Fn)
         C, r, _ = phi(F)
         # a model with a step (a cell's force jumps, or a stalled cell's clipped tangent) may have no exact

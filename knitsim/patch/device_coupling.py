@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels import branch_points as kbp
-from .coupling import BranchPoints, column_length_tolerance
+from .coupling import FORCE_SEARCH_MAX, FORCE_SEARCH_START, K_MAX, K_MIN, BranchPoints, column_length_tolerance
 
 
 class DeviceBranchPoints(BranchPoints):
@@ -30,16 +30,21 @@ class DeviceBranchPoints(BranchPoints):
         Points kept per group: :data:`knitsim.kernels.branch_points.SIZE` (the only size compiled).
     device : str
         Warp device.
+    k_bounds : (float, float)
+        As :class:`~knitsim.patch.coupling.BranchPoints` (sent with the model's arrays: ``BranchArrays.k_min``,
+        ``k_max``).
     """
 
     on_device = True
     _NOT_SENT = object()
 
-    def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = kbp.SIZE, device: str = "cpu"):
+    def __init__(self, C_ref: np.ndarray, k_fallback: np.ndarray, size: int = kbp.SIZE, device: str = "cpu",
+                 k_bounds: tuple[float, float] = (K_MIN, K_MAX)):
         if size != kbp.SIZE:
             raise ValueError(f"DeviceBranchPoints keeps {kbp.SIZE} points per group, not {size}")
         n = len(C_ref)
         self.C_ref = C_ref
+        self.k_min, self.k_max = float(k_bounds[0]), float(k_bounds[1])
         self.device = device
         self.n = n
         self._rows = np.arange(n)
@@ -63,6 +68,7 @@ class DeviceBranchPoints(BranchPoints):
         b.stall, b.side = arr(n, wp.int32), arr(n, wp.int32)
         b.k_fallback = arr(n)
         b.C_ref = wp.array(np.asarray(C_ref, dtype=np.float64), dtype=wp.float64, device=device)
+        b.k_min, b.k_max = wp.float64(self.k_min), wp.float64(self.k_max)
         self.b = b
         self._all_rows = wp.array(self._rows.astype(np.int32), dtype=wp.int32, device=device)
         self.reset(k_fallback)
@@ -175,13 +181,18 @@ class DeviceColumnSolve:
         Courses in series, rest length [mm] and wales in parallel of each group.
     n_columns : int
     device : str
+    force_search : (float, float)
+        The search's first guess where a column has no lower bound and its ceiling [N]
+        (``PatchSolver.force_search``; default :data:`~knitsim.patch.coupling.FORCE_SEARCH_START`,
+        :data:`~knitsim.patch.coupling.FORCE_SEARCH_MAX`: a patch at the usual knits' scale).
     """
 
     MAX_ITERATIONS = 200            # the twin's
 
     def __init__(self, col: np.ndarray, cnt: np.ndarray, C0: np.ndarray, p: np.ndarray, n_columns: int,
-                 device: str):
+                 device: str, force_search: tuple[float, float] = (FORCE_SEARCH_START, FORCE_SEARCH_MAX)):
         self.device, self.n_cls = device, int(n_columns)
+        self.force_search = (float(force_search[0]), float(force_search[1]))
         n = len(col)
         f64 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.float64, device=device)  # noqa: E731
         i32 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=device)  # noqa: E731
@@ -230,7 +241,8 @@ class DeviceColumnSolve:
             self._phi(pts, self.F, self.C, self.r, self.dr)
             self.still_open.zero_()
             wp.launch(kbp.column_newton_kernel, dim=self.n_cls, device=self.device,
-                      inputs=[self.r, self.dr, self.tol_len, self.F, self.lo, self.hi, self.done, self.still_open])
+                      inputs=[self.r, self.dr, self.tol_len, self.F, self.lo, self.hi, self.done,
+                              self.force_search[0], self.force_search[1], self.still_open])
             if int(self.still_open.numpy()[0]) == 0:
                 break
         self._phi(pts, self.F, self.C, self.r, self.dr)
@@ -342,7 +354,7 @@ class DeviceTrials:
         self._put(self.k_c, k_c)
         wp.launch(self.k.branch_curvature_kernel, dim=self.n, device=self.device,
                   inputs=[self.k_c, reads[0], reads[1], int(use), int(bool(history)), self.hist_F, self.hist_kinv,
-                          self.hist_stage, self.hist_jammed],
+                          self.hist_stage, self.hist_jammed, pts.k_min, pts.k_max],
                   outputs=[pts.b.curvature])
         pts.curvature_on_device()
         if history:

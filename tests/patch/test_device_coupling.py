@@ -9,7 +9,9 @@ code must give the same numbers bit for bit (the same operations in the same ord
   between and beyond the points, with stalled groups, length bounds and curvatures;
 - the column solve on hand-made models with slack columns, columns of one and of several groups, and a
   model whose length jumps across u (the bracket's bridge);
-- a random patch run through three cycles with either, every recorded figure compared.
+- a random patch run through three cycles with either, every recorded figure compared;
+- the model and the column solve also with the tangent bounds or the force search's bounds moved by a power of
+  two (the kernels take them as arguments).
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import pytest
 
 from knitsim.cell.load_program import cycles
 from knitsim.cell.material import CellParams
-from knitsim.patch.coupling import BranchPoints, PatchSolver
+from knitsim.patch.coupling import FORCE_SEARCH_MAX, FORCE_SEARCH_START, K_MAX, K_MIN, BranchPoints, PatchSolver
 from knitsim.patch.device_coupling import DeviceBranchPoints, DeviceColumnSolve
 from knitsim.patch.model import PatchModel
 
@@ -49,11 +51,15 @@ def _host_state(rng, n, C0, with_curvature):
                 curvature=np.where(rng.random(n) < 0.5, rng.normal(0, 1, n), np.nan) if with_curvature else None)
 
 
-def test_device_branch_points_are_the_numpy_twin(device):
+@pytest.mark.parametrize("tangent_scale", [1.0, 2.0 ** -20], ids=["usual", "tiny"])
+def test_device_branch_points_are_the_numpy_twin(device, tangent_scale):
+    """With the tangent bounds K_MIN, K_MAX, and 2^-20 times them (the tangents up to 5 N/mm are then clipped at
+    0.95 N/mm: the bounds the kernels take as arguments)."""
     rng = np.random.default_rng(1)
     n = 300
     C0, kf = rng.uniform(1, 2, n), rng.uniform(0.01, 10, n)
-    twin, dev = BranchPoints(C0, kf, 8), DeviceBranchPoints(C0, kf, 8, device)
+    bounds = (K_MIN * tangent_scale, K_MAX * tangent_scale)
+    twin, dev = BranchPoints(C0, kf, 8, bounds), DeviceBranchPoints(C0, kf, 8, device, bounds)
     kinds = set()
     for rnd in range(30):
         args = _random_round(rng, n, C0, rnd == 0)
@@ -92,20 +98,23 @@ def _columns(rng, n_cls):
     return col, rng.integers(1, 4, n).astype(float), rng.uniform(2.0, 3.0, n), rng.integers(1, 3, n).astype(float)
 
 
-def _solver_like(col, cnt, C0, p, n_cls, device):
-    """The attributes ``PatchSolver._solve_columns`` reads."""
-    dev_cols = DeviceColumnSolve(col, cnt, C0, p, n_cls, device)
+def _solver_like(col, cnt, C0, p, n_cls, device, force_scale=1.0):
+    """The attributes ``PatchSolver._solve_columns`` reads (the force search's bounds times ``force_scale``)."""
+    search = (FORCE_SEARCH_START * force_scale, FORCE_SEARCH_MAX * force_scale)
+    dev_cols = DeviceColumnSolve(col, cnt, C0, p, n_cls, device, search)
     return types.SimpleNamespace(col=col, cnt=cnt, C0=C0, p=p, n_cls=n_cls, cells={"C": C0 + 0.01},
-                                 _device_columns=dev_cols)
+                                 force_search=search, _device_columns=dev_cols)
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_device_column_solve_is_the_numpy_column_solve(device, seed):
+@pytest.mark.parametrize("seed,force_scale", [(0, 1.0), (1, 1.0), (2, 1.0), (0, 2.0 ** 20)])
+def test_device_column_solve_is_the_numpy_column_solve(device, seed, force_scale):
+    """Also with the force search's start and ceiling 2^20 times FORCE_SEARCH_START, FORCE_SEARCH_MAX (the search
+    starts at 1.05 N, above the random models' forces, and bisects down: the bounds the kernel takes as arguments)."""
     rng = np.random.default_rng(10 + seed)
     n_cls = 40
     col, cnt, C0, p = _columns(rng, n_cls)
     n = len(col)
-    solver = _solver_like(col, cnt, C0, p, n_cls, device)
+    solver = _solver_like(col, cnt, C0, p, n_cls, device, force_scale)
     kf = rng.uniform(0.05, 5.0, n)
     twin, dev = BranchPoints(C0, kf, 8), DeviceBranchPoints(C0, kf, 8, device)
     # one column's only group: a step of its length across the column's u (two points 1e-13 mm apart with
