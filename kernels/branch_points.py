@@ -25,9 +25,10 @@ wp.set_module_options({"enable_backward": False})
 #: points kept per group (``PatchSolver.branch_points``, BranchPoints' ``size``)
 SIZE = 8
 #: the bounds of a cell's tangent dF/dC [N/mm], the largest column force the search grows its bracket to and
-#: its first guess where it has no lower bound [N]: the NumPy twin's too (knitsim.patch.coupling takes them from
-#: here).  The kernels take them as arguments (BranchArrays.k_min, k_max; column_newton_kernel's force_start,
-#: force_max), not as constants, so that a patch can state them in its own scale
+#: its first guess where it has no lower bound [N], at a patch of the usual knits' scales: the NumPy twin's
+#: too (knitsim.patch.coupling takes them from here).  A patch far from those scales has them times its scale
+#: factors (knitsim.patch.coupling.CouplingScale): the kernels take them as arguments (BranchArrays.k_min,
+#: k_max; column_newton_kernel's force_start, force_max), not as constants
 TANGENT_MIN, TANGENT_MAX, COLUMN_FORCE_MAX, COLUMN_FORCE_START = 1e-6, 1e6, 1e12, 1e-6
 INF = wp.constant(wp.float64(wp.inf))
 
@@ -65,7 +66,7 @@ class BranchArrays:
     curvature: wp.array(dtype=wp.float64)
     k_fallback: wp.array(dtype=wp.float64)
     C_ref: wp.array(dtype=wp.float64)
-    # the bounds of a tangent dF/dC [N/mm] (PatchSolver.k_bounds)
+    # the bounds of a tangent dF/dC [N/mm]: TANGENT_MIN, TANGENT_MAX times the patch's tangent scale factor
     k_min: wp.float64
     k_max: wp.float64
 

@@ -104,6 +104,12 @@ of it failed in the last) is taken back to its committed state and brought to u 
 A cell whose force jumps across the column's force within 1e-11 C0 (a
 discontinuity no column force meets) stops its column early.
 
+*Scales.*  The coupling's absolute tolerances and bounds (``force_tol``, the
+tangent bounds, the force search's start and ceiling) are stated for the usual
+knits and taken to a patch's own force scale B / d^2 and course length C0 by
+powers of two (:class:`CouplingScale`: 1 for the usual knits), so that a patch
+of B times k solves as the patch itself, its forces times k.
+
 A column converges when its cells' forces agree to ``force_tol + force_rtol
 |F|``; converged columns are committed, the others iterate up to
 ``max_iterations`` trials and are then committed as they stand and flagged
@@ -133,16 +139,27 @@ from ..kernels.branch_points import COLUMN_FORCE_MAX, COLUMN_FORCE_START, TANGEN
 from ..kernels.branch_points import SIZE as DEVICE_BRANCH_SIZE
 from .model import Grouping
 
-#: bounds of the tangent dF/dC of a cell [N/mm] (those of the device's branch model, one place)
+#: bounds of the tangent dF/dC of a cell [N/mm] (those of the device's branch model, one place), at the usual
+#: knits' scales (a patch far from them: times its CouplingScale.tangent)
 K_MIN, K_MAX = TANGENT_MIN, TANGENT_MAX
 #: a column carrying force closes when its lengths add up to the grip displacement within this share of its rest
 #: length (rounding: the trial lengths are sent to add up to it exactly)
 LENGTH_RTOL = 1e-9
 #: largest column force [N] the scalar search of a column's force grows its bracket to, and its first guess where
-#: it has no lower bound yet
+#: it has no lower bound yet, at the usual knits' scale (a patch far from it: times its CouplingScale.force)
 FORCE_SEARCH_MAX, FORCE_SEARCH_START = COLUMN_FORCE_MAX, COLUMN_FORCE_START
-#: the tangent dF/dC [N/mm] a cell starts from where its first probe gives none
+#: the tangent dF/dC [N/mm] a cell starts from where its first probe gives none, at the usual knits' scales
+#: (times CouplingScale.tangent)
 PROBE_TANGENT_FALLBACK = 1.0
+#: the force scale B / d^2 [N] and the course length C0 [mm] about which the coupling's absolute tolerances and
+#: bounds (force_tol, K_MIN .. K_MAX, the force search's start and ceiling) are stated, and the powers of two
+#: either side of them over which a patch keeps them as they are (CouplingScale): B / d^2 from 0.011 to 5.7 N,
+#: C0 from 0.35 to 11 mm.  The force band's low end keeps the default force_tol (1e-10 N) at most force_rtol
+#: (1e-8) of the force scale (0.01 N); it holds every bundled scene and material (B / d^2 0.048 N, a do2020
+#: specimen's own yarn, to 0.92 N, Dusserre's E-glass), 4x inside its ends.  The length band holds the cell
+#: domain's course lengths (C0 / d 4 .. 5.2 at d 0.1 .. 2 mm: knitsim.cell.domain) and the bundled 0.88 .. 2.7 mm
+FORCE_SCALE_REF, FORCE_SCALE_BAND = 0.25, 4
+LENGTH_SCALE_REF, LENGTH_SCALE_BAND = 2.0, 2
 #: column flags
 COL_OK, COL_NOT_CONVERGED, COL_STOPPED = 0, 1, 2
 COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STOPPED: "stopped"}
@@ -150,6 +167,90 @@ COLUMN_STATUS_NAMES = {COL_OK: "ok", COL_NOT_CONVERGED: "not_converged", COL_STO
 #: turns: it holds its state, flagged (a blind probe's 2 x 4 patch pulled past its jammed branch's reach spent
 #: 2.4 s on each of its last 42 increments retrying two columns that never converged again)
 HELD_RETRIES = 3
+
+
+# ===================================================================== the patch's scales
+def power_of_two_scale(value: float, ref: float, band: int) -> float:
+    """2^n, n = round(log2(value / ref)) brought ``band`` towards 0 (0 while |n| <= band): 1 for a value within
+    2^(band + 1/2) of ``ref``, else the power of two nearest to value / edge, the edge ``ref`` 2^+-band on the
+    value's side (1 for a value that is not finite and positive)."""
+    if not (np.isfinite(value) and value > 0.0):
+        return 1.0
+    n = int(round(float(np.log2(value / ref))))
+    n = (1 if n > 0 else -1) * max(abs(n) - int(band), 0)
+    return float(np.ldexp(1.0, n))
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The lower weighted median: the least value whose weights with the smaller ones' reach half the total."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(np.asarray(weights, dtype=np.float64)[order])
+    return float(np.asarray(values)[order][min(int(np.searchsorted(cum, 0.5 * cum[-1])), len(order) - 1)])
+
+
+@dataclass(frozen=True)
+class CouplingScale:
+    """The factors that take the coupling's absolute tolerances and bounds to a patch's own scales.
+
+    A patch of B times k and every length times s is the same patch, its forces times k / s^2
+    (``tests/patch/test_patch_invariances.py``, module docstring); the coupling's relative tolerances follow,
+    its absolute ones do not: ``force_tol`` (a column at zero force, the agreement of its forces near it), the
+    tangent bounds K_MIN .. K_MAX [N/mm] and the force search's start and ceiling [N].  At B / d^2 = 9e-7 N the
+    force_tol of 1e-10 N was 1e-4 of the force scale, and the grip force near the slack 7.7 % off the patch
+    scaled.  Those are stated for the usual knits and taken to a patch's own scale by
+
+    - sigma_F (``force``): :func:`power_of_two_scale` of the median B / d^2 of the patch's stitches [N]
+      about :data:`FORCE_SCALE_REF` (times force_tol and the force search's start and ceiling);
+    - sigma_L (``length``): that of their median C0 [mm] about :data:`LENGTH_SCALE_REF`;
+    - sigma_F / sigma_L (``tangent``): times the tangent bounds (a tangent is a force over a length).
+
+    Powers of two: a quantity times one only moves its exponent (exact), so a factor 1 leaves the constants'
+    bits as they were, and two patches beyond a band on the same side, one with 2^n times the other's B, get
+    tolerances exactly 2^n apart.  Within the bands (:data:`FORCE_SCALE_BAND`, :data:`LENGTH_SCALE_BAND` powers
+    of two either side of the references) both factors are 1: every bundled scene and material is inside and
+    solves bit for bit as before the scales were introduced (rounding to the nearest power of two alone could
+    not do that: their B / d^2 span a factor 19, their C0 a factor 3).  Beyond the bands the absolute tolerances
+    keep the weight, relative to the patch's forces, that they have at the band's nearer end (within sqrt 2): at
+    most ~9e-9 of B / d^2 for force_tol (1.1e-10 for E-glass).
+
+    One scale per patch, not per cell or column: the kernels take one set of scalars, and a column's tolerance
+    meets the forces of all of its cells.  The usual mixed patches (E-glass beside basalt, B / d^2 0.92 and
+    0.64 N) lie well inside one band; a patch whose columns differ in force scale by more than the band's width
+    (2^9) solves all of them with its median stitch's tolerances, off the scale of a column far from that median
+    as the constants in newtons were off a patch's.
+
+    Attributes
+    ----------
+    force, length : float
+        sigma_F and sigma_L (powers of two; 1 for the usual knits).
+    force_scale, length_scale : float
+        The medians they were taken from: B / d^2 [N] and C0 [mm] of the patch's stitches (NaN: none given).
+    """
+
+    force: float = 1.0
+    length: float = 1.0
+    force_scale: float = float("nan")
+    length_scale: float = float("nan")
+
+    @property
+    def tangent(self) -> float:
+        """sigma_F / sigma_L: the factor of a tangent dF/dC (a power of two)."""
+        return self.force / self.length
+
+    @classmethod
+    def of(cls, grouping: "Grouping") -> "CouplingScale":
+        """The scales of a patch's groups: the medians over its stitches (each group weighted by the stitches it
+        stands for: its courses in series, its wales in parallel and the columns of its class, so that a patch
+        gives the same scale grouped or cell by cell)."""
+        c = grouping.cells
+        B, d, C0 = (np.asarray(c[n], dtype=np.float64) for n in ("B", "d", "C0"))
+        if B.size == 0:
+            return cls()
+        columns = np.bincount(grouping.column_class, minlength=grouping.n_classes)[grouping.group_column]
+        w = np.asarray(grouping.group_count, np.float64) * np.asarray(grouping.group_wales, np.float64) * columns
+        F_s, L_s = _weighted_median(B / (d * d), w), _weighted_median(C0, w)
+        return cls(power_of_two_scale(F_s, FORCE_SCALE_REF, FORCE_SCALE_BAND),
+                   power_of_two_scale(L_s, LENGTH_SCALE_REF, LENGTH_SCALE_BAND), F_s, L_s)
 
 
 # ===================================================================== backends
@@ -693,8 +794,8 @@ class BranchPoints:
     size : int
         Points kept per group (the farthest from the column's force is dropped when full).
     k_bounds : (float, float)
-        The bounds a tangent dF/dC is clipped to [N/mm] (``PatchSolver.k_bounds``; default :data:`K_MIN`,
-        :data:`K_MAX`).
+        The bounds a tangent dF/dC is clipped to [N/mm] (``PatchSolver.k_bounds``: :data:`K_MIN`, :data:`K_MAX`
+        times the patch's :attr:`CouplingScale.tangent`).
     """
 
     #: whether the points live on a Warp device (:class:`~knitsim.patch.device_coupling.DeviceBranchPoints`)
@@ -972,8 +1073,9 @@ class PatchSolver:
     device : str
         Warp device (warp engine).
     force_tol, force_rtol : float
-        A column converges when its cells' forces agree within
-        ``force_tol + force_rtol * |F|`` [N].
+        A column converges when its cells' forces agree within ``force_tol sigma_F + force_rtol * |F|`` [N]
+        (``force_tol`` stated at the usual knits' force scale, sigma_F the patch's :attr:`CouplingScale.force`:
+        1 for them; the attribute ``force_tol`` is the product).
     max_iterations : int
         Trial steps per increment before a column is committed as it stands and flagged.
     max_halvings : int
@@ -983,11 +1085,15 @@ class PatchSolver:
 
     Attributes
     ----------
+    scale : CouplingScale
+        The patch's scale factors (1 for the usual knits).
+    force_tol : float
+        The absolute force tolerance [N]: the ``force_tol`` given times ``scale.force``.
     k_bounds : (float, float)
-        The bounds of a cell's tangent dF/dC [N/mm]: :data:`K_MIN`, :data:`K_MAX`.
+        The bounds of a cell's tangent dF/dC [N/mm]: :data:`K_MIN`, :data:`K_MAX` times ``scale.tangent``.
     force_search : (float, float)
         The column force search's first guess where it has no lower bound and its ceiling [N]:
-        :data:`FORCE_SEARCH_START`, :data:`FORCE_SEARCH_MAX`.
+        :data:`FORCE_SEARCH_START`, :data:`FORCE_SEARCH_MAX` times ``scale.force``.
     branch_points : int
         Points of each cell's branch kept per increment (:class:`BranchPoints`).
     sub_increments : int
@@ -1010,10 +1116,13 @@ class PatchSolver:
                  max_halvings: int = MAX_HALVINGS):
         self.g = grouping
         self.backend = make_backend(engine, grouping, device, max_halvings)
-        self.force_tol, self.force_rtol, self.max_iterations = force_tol, force_rtol, int(max_iterations)
-        # the absolute bounds the branch model and the column search take as arguments (device and NumPy alike)
-        self.k_bounds = (K_MIN, K_MAX)
-        self.force_search = (FORCE_SEARCH_START, FORCE_SEARCH_MAX)
+        # the absolute tolerances and bounds in the patch's own force and length scales (CouplingScale: powers of
+        # two, 1 for the usual knits, whose solves are bit for bit those of the constants themselves)
+        self.scale = sc = CouplingScale.of(grouping)
+        self.force_tol = force_tol * sc.force
+        self.force_rtol, self.max_iterations = force_rtol, int(max_iterations)
+        self.k_bounds = (K_MIN * sc.tangent, K_MAX * sc.tangent)
+        self.force_search = (FORCE_SEARCH_START * sc.force, FORCE_SEARCH_MAX * sc.force)
         self.C0 = np.asarray(grouping.cells["C0"], dtype=np.float64)
         #: each group's force cap per wale [N]
         self.force_cap = np.broadcast_to(np.asarray(grouping.cells["force_cap_N"], dtype=np.float64),
@@ -1125,7 +1234,7 @@ class PatchSolver:
             k = (t["F"] - c["F"]) / dC
         ok = np.isfinite(k) & (k > 0) & (t["status"] == STATUS_OK)
         k_min, k_max = self.k_bounds
-        self.k = np.clip(np.where(ok, k, PROBE_TANGENT_FALLBACK), k_min, k_max)
+        self.k = np.clip(np.where(ok, k, PROBE_TANGENT_FALLBACK * self.scale.tangent), k_min, k_max)
 
     def get_state(self) -> dict:
         """The solver's state between increments (backend state, tangents, direction, cells, last grip

@@ -10,8 +10,8 @@ code must give the same numbers bit for bit (the same operations in the same ord
 - the column solve on hand-made models with slack columns, columns of one and of several groups, and a
   model whose length jumps across u (the bracket's bridge);
 - a random patch run through three cycles with either, every recorded figure compared;
-- the model and the column solve also with the tangent bounds or the force search's bounds moved by a power of
-  two (the kernels take them as arguments).
+- each of those also with the tangent bounds, the force search's bounds or the whole patch's force scale moved
+  by a power of two (knitsim.patch.coupling.CouplingScale: the kernels take them as arguments).
 """
 from __future__ import annotations
 
@@ -53,8 +53,8 @@ def _host_state(rng, n, C0, with_curvature):
 
 @pytest.mark.parametrize("tangent_scale", [1.0, 2.0 ** -20], ids=["usual", "tiny"])
 def test_device_branch_points_are_the_numpy_twin(device, tangent_scale):
-    """With the tangent bounds K_MIN, K_MAX, and 2^-20 times them (the tangents up to 5 N/mm are then clipped at
-    0.95 N/mm: the bounds the kernels take as arguments)."""
+    """With the tangent bounds of the usual knits, and 2^-20 times them (a patch of tiny force scale,
+    CouplingScale: the tangents up to 5 N/mm are then clipped at 0.95 N/mm, the bounds the kernels take)."""
     rng = np.random.default_rng(1)
     n = 300
     C0, kf = rng.uniform(1, 2, n), rng.uniform(0.01, 10, n)
@@ -108,8 +108,8 @@ def _solver_like(col, cnt, C0, p, n_cls, device, force_scale=1.0):
 
 @pytest.mark.parametrize("seed,force_scale", [(0, 1.0), (1, 1.0), (2, 1.0), (0, 2.0 ** 20)])
 def test_device_column_solve_is_the_numpy_column_solve(device, seed, force_scale):
-    """Also with the force search's start and ceiling 2^20 times FORCE_SEARCH_START, FORCE_SEARCH_MAX (the search
-    starts at 1.05 N, above the random models' forces, and bisects down: the bounds the kernel takes as arguments)."""
+    """Also with the force search's start and ceiling 2^20 times the usual knits' (a patch of large force scale,
+    CouplingScale: the search starts at 1.05 N, above the random models' forces, and bisects down)."""
     rng = np.random.default_rng(10 + seed)
     n_cls = 40
     col, cnt, C0, p = _columns(rng, n_cls)
@@ -165,10 +165,13 @@ def test_a_step_of_the_model_is_bridged_as_the_twin_bridges_it(device):
     assert C0[0] + 0.1 <= C_d[0] <= C0[0] + 0.1 + 1e-13
 
 
-def test_a_patch_runs_the_same_with_the_coupling_on_the_device(device, monkeypatch):
-    # the paper's E-glass knit (Table 1, section 2.2, section 3.4), phi0 uniform in [-phi_max, phi_max]
+@pytest.mark.parametrize("k", [1.0, 2.0 ** -20], ids=["e_glass", "e_glass_B_x_2^-20"])
+def test_a_patch_runs_the_same_with_the_coupling_on_the_device(device, monkeypatch, k):
+    # the paper's E-glass knit (Table 1, section 2.2, section 3.4), phi0 uniform in [-phi_max, phi_max]; and with
+    # B (and the force cap) times 2^-20: B / d^2 = 8.8e-7 N, the coupling's tolerances and bounds times its
+    # CouplingScale (2^-14), passed to the kernels as arguments
     from knitsim.patch.runner import run_patch
-    cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.20, force_cap_N=10.0)
+    cell = CellParams(B=0.31 * k, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.20, force_cap_N=10.0 * k)
     courses, wales = 10, 4
     pm = PatchModel.uniform(cell, courses, wales)
     fields = dict(pm.fields)
