@@ -109,7 +109,10 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool
 def _turns(s: np.ndarray) -> list[int]:
     """Rows where the strain path turns (its steps before and after change sign, neither a hold)."""
     ds = np.sign(np.diff(s))
-    return [k for k in range(1, len(s) - 1) if ds[k - 1] != 0 and ds[k] != 0 and ds[k] != ds[k - 1]]
+    # (vectorised: a patch judges every distinct cell's path, 90,000 of them on a 300 x 300 random patch, where
+    # the loop over rows took 33 s)
+    turn = (ds[:-1] != 0) & (ds[1:] != 0) & (ds[1:] != ds[:-1])
+    return (np.flatnonzero(turn) + 1).tolist()
 
 
 def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, int]]:
@@ -136,9 +139,9 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     for n, t in enumerate(turns):
         i = turns[n - 1] if n > 0 else 0                # where the excursion starts
         end = turns[n + 1] if n + 1 < len(turns) else len(s) - 1
-        back = [k for k in range(t + 1, end + 1) if abs(s[k] - s[i]) < atol]
-        if back and s[t] > s[i]:                        # loaded first, then unloaded back
-            out.append((i, back[0]))
+        back = np.flatnonzero(np.abs(s[t + 1:end + 1] - s[i]) < atol)
+        if len(back) and s[t] > s[i]:                   # loaded first, then unloaded back
+            out.append((i, t + 1 + int(back[0])))
     return out
 
 
@@ -153,9 +156,9 @@ def reload_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
         if s[t] <= s[t - 1]:
             continue                                    # a minimum
         end = turns[n + 2] if n + 2 < len(turns) else len(s) - 1
-        back = [k for k in range(turns[n + 1] + 1, end + 1) if abs(s[k] - s[t]) < atol]
-        if back:
-            out.append((t, back[0]))
+        back = np.flatnonzero(np.abs(s[turns[n + 1] + 1:end + 1] - s[t]) < atol)
+        if len(back):
+            out.append((t, turns[n + 1] + 1 + int(back[0])))
     return out
 
 

@@ -453,10 +453,11 @@ def force_cap_rows(h: PatchHistory, model: PatchModel | None = None) -> ForceCap
         cap_cell = np.asarray(model.rules["force_cap_N"], dtype=float)
         caps = np.zeros(n_groups)
         caps[goc.ravel()] = np.broadcast_to(cap_cell, goc.shape).ravel()   # identical cells share their rules
-    # the columns holding each group: a group is held where one of them did not converge or stopped
-    member = np.zeros((h.shape[1], n_groups), bool)
-    member[np.broadcast_to(np.arange(h.shape[1]), goc.shape).ravel(), goc.ravel()] = True
-    col_bad = (np.asarray(h.column_status) != COL_OK).astype(np.int32) @ member.astype(np.int32) > 0
+    # the columns holding each group: a group is held where one of them did not converge or stopped.  By the
+    # distinct (group, column) pairs of the cells, not a columns x groups matrix: that matrix's products took
+    # 24 s on a 300 x 300 random patch through 310 increments (90,000 groups, 300 columns)
+    pair_g, pair_c = _group_column_pairs(goc)
+    col_bad = _any_by(np.asarray(h.column_status)[:, pair_c] != COL_OK, pair_g, n_groups)
     status = np.asarray(h.groups["status"])
     at = held_at_force_cap(h.groups["F"], status, caps, col_bad)
     stopped = status == STATUS_FORCE_CAP
@@ -464,7 +465,28 @@ def force_cap_rows(h: PatchHistory, model: PatchModel | None = None) -> ForceCap
     return ForceCapRows(at.any(axis=1), at.any(axis=0), stopped.any(axis=0),
                         int(first[0]) if len(first) else None,
                         None if caps is None else caps[at.any(axis=0)],
-                        (at.astype(np.int32) @ member.T.astype(np.int32)) > 0)
+                        _any_by(at[:, pair_g], pair_c, h.shape[1]))
+
+
+def _group_column_pairs(goc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct (group, column) pairs of a patch's cells (``goc``: group of each cell, [courses, wales]),
+    as two arrays sorted by group then column."""
+    wales = goc.shape[1]
+    key = np.unique(goc.astype(np.int64) * wales + np.arange(wales)[None, :])
+    return key // wales, key % wales
+
+
+def _any_by(flags: np.ndarray, owner: np.ndarray, n_owners: int) -> np.ndarray:
+    """``out[:, o]`` = any of ``flags[:, k]`` over the k with ``owner[k] == o`` (False where o owns none);
+    ``flags`` shape [n, k]."""
+    out = np.zeros((flags.shape[0], n_owners), bool)
+    if flags.shape[1] == 0:
+        return out
+    order = np.argsort(owner, kind="stable")
+    o = owner[order]
+    starts = np.flatnonzero(np.r_[True, o[1:] != o[:-1]])
+    out[:, o[starts]] = np.logical_or.reduceat(flags[:, order], starts, axis=1)
+    return out
 
 
 def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayout, peak: float) -> list[ResultWarning]:

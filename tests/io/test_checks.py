@@ -390,3 +390,45 @@ def test_a_cycles_energy_integrates_its_located_events_and_converges_with_the_in
     e = {inc: [c["energy_N_mm"] for c in summarise(run_batch([p], cycles(0.0, 0.5, 2, inc)))["cells"][0]["cycles"]]
          for inc in (0.1, 0.002)}
     assert e[0.1] == pytest.approx(e[0.002], rel=5e-3)
+
+
+# ---- the excursion finders, vectorised for patches of 10^5 distinct cells: against brute force from their
+# definitions (every pair of rows, every turning point), not against the code they replaced
+
+def _turns_by_definition(s):
+    """Rows k where the path turns: the steps on both sides are non-zero and of opposite sign."""
+    return [k for k in range(1, len(s) - 1)
+            if (s[k] - s[k - 1]) * (s[k + 1] - s[k]) < 0]
+
+
+def test_excursion_finders_against_their_definitions():
+    from knitsim.io import checks
+
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(3000):
+        n = int(rng.integers(0, 25))
+        s = np.round(np.cumsum(rng.normal(size=n)), 1)          # rounded: holds and exact returns occur
+        atol = float(rng.choice([1e-12, 0.06]))
+        turns = _turns_by_definition(s)
+        assert checks._turns(s) == turns
+        closed = []
+        for m, t in enumerate(turns):
+            i = turns[m - 1] if m > 0 else 0
+            end = turns[m + 1] if m + 1 < len(turns) else len(s) - 1
+            back = [k for k in range(t + 1, end + 1) if abs(s[k] - s[i]) < atol]
+            if back and s[t] > s[i]:
+                closed.append((i, back[0]))
+        assert checks.closed_excursions(s, atol) == closed
+        reload = []
+        for m in range(len(turns) - 1):
+            t = turns[m]
+            if s[t] < s[t - 1]:
+                continue
+            end = turns[m + 2] if m + 2 < len(turns) else len(s) - 1
+            back = [k for k in range(turns[m + 1] + 1, end + 1) if abs(s[k] - s[t]) < atol]
+            if back:
+                reload.append((t, back[0]))
+        assert checks.reload_excursions(s, atol) == reload
+        found += len(closed) + len(reload)
+    assert found > 500                                           # the paths do hold excursions
