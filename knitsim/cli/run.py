@@ -279,12 +279,13 @@ def _write_usd(h, m, args, scene, device, summary=None):
     return res
 
 
-def first_loading_of_patch(model, scene, device: str):
+def first_loading_of_patch(model, scene, device: str, progress=None):
     """The patch pulled monotonically from rest to its program's largest grip strain at the program's largest
     step (its first loading, continued), where the program loads past an earlier maximum after an unloading
     (:func:`knitsim.io.checks.needs_first_loading_reference`); else None.  Returns (history or None, what the
     summary says of it: ``ran``, ``why``, ``solve_s``).  The reference of ``reload_below_first_loading``: a
-    second solve, of the distinct cells only (dedup as the run), over the first loading's increments only."""
+    second solve, of the distinct cells only (dedup as the run), over the first loading's increments only.
+    ``progress``: ``progress(n)`` gives the progress callback of that solve of n increments (None: none)."""
     from ..io.results import first_loading_program
     from ..patch.runner import run_patch
 
@@ -293,7 +294,8 @@ def first_loading_of_patch(model, scene, device: str):
         return None, {"ran": False, "why": "the program does not load past an earlier maximum after an unloading: "
                                           "nothing to compare with a monotonic pull"}
     t0 = time.perf_counter()
-    ref = run_patch(model, pull, engine=scene.engine, device=device, dedup=scene.dedup, **scene.solver_options)
+    ref = run_patch(model, pull, engine=scene.engine, device=device, dedup=scene.dedup,
+                    progress=None if progress is None else progress(len(pull)), **scene.solver_options)
     return ref, {"ran": True, "why": "the program loads past an earlier maximum after an unloading: the patch "
                                      "pulled monotonically to its largest grip strain is the reference of "
                                      "reload_below_first_loading", "solve_s": time.perf_counter() - t0,
@@ -405,8 +407,16 @@ def _run_locked(args) -> int:
     try:
         # the patch's first loading continued monotonically, where the program reloads past an earlier maximum
         # (the check reload_below_first_loading, as knitsim cell runs it); none otherwise, at no cost
+        # (a large patch's second solve and checks take a while: said, so that the silence after the progress
+        # bar does not read as a hang; a 300 x 300 random patch spent over 100 s here before its outputs)
         with contextlib.redirect_stdout(sys.stderr):
-            reference, ref_info = first_loading_of_patch(m, scene, device)
+            reference, ref_info = first_loading_of_patch(m, scene, device, progress=lambda n: Progress(
+                n, "knitsim run: the first loading continued to the program's largest grip strain (the reference "
+                   "of the reload check): increments", not args.no_progress))
+        if not args.no_progress:
+            ng = int(h.info["n_groups"])
+            print(f"knitsim run: checking the results and writing the outputs ({ng:,} distinct "
+                  f"cell{'' if ng == 1 else 's'} x {h.n_increments:,} increments)", file=sys.stderr, flush=True)
         summary = patch_summary(h, h.info["ref_length_mm"], model=m, zones=scene.resolved.get("zones"),
                                 reference=reference, first_loading_reference=ref_info,
                                 scene=scene.source, title=scene.resolved.get("title", ""),

@@ -60,6 +60,11 @@ def test_run_warns_a_reload_below_the_first_loading_as_cell_does(tmp_path, capsy
     assert "carries 0.0943 N per wale" in wc["message"] and "carries 0.0943 N per wale" in wp["message"]
     assert "a monotonic pull of the same knit" in err                      # on the console too
     assert p["first_loading_reference"]["ran"] is True
+    # the second solve and the checks after the run's progress bar are said (a large patch spent minutes there
+    # in silence): the reference's own progress, then the checks, before "done"
+    ref_line = err.index("knitsim run: the first loading continued to the program's largest grip strain")
+    check_line = err.index("knitsim run: checking the results and writing the outputs (1 distinct cell x ")
+    assert ref_line < check_line < err.index("knitsim run: done in")
 
 
 def test_run_solves_no_reference_where_the_program_never_passes_its_earlier_maximum(tmp_path):
