@@ -100,6 +100,29 @@ def _lock_holder(path: Path) -> tuple[int, str, str] | None:
 
 
 @contextlib.contextmanager
+def _folder_flock(folder: Path) -> Iterator[None]:
+    """An exclusive ``flock`` on the folder itself while the lock file is made or taken over: two commands that
+    find the same dead holder's lock at the same instant would otherwise both remove it, the later removing the
+    earlier's new lock, and both go on.  The kernel releases a flock with its process (no file left behind by a
+    crash); where the platform has none (Windows) or the file system refuses it (some network mounts), nothing
+    is held and the O_EXCL lock file alone decides, as before."""
+    try:
+        import fcntl
+        fd = os.open(folder, os.O_RDONLY)
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
+    finally:
+        os.close(fd)                                # (closing releases the flock)
+
+
+@contextlib.contextmanager
 def output_lock(out_dir: str | Path, command: str) -> Iterator[Path]:
     """Hold ``out_dir``'s lock (:data:`LOCK_NAME`) while ``knitsim COMMAND`` writes there; yields the folder.
 
@@ -108,7 +131,8 @@ def output_lock(out_dir: str | Path, command: str) -> Iterator[Path]:
     second one is refused, naming the first.  The lock is created with ``O_CREAT | O_EXCL`` (only one process
     can) and holds the holder's pid, host and command; it is removed when the command ends, however it ends,
     except when its process is killed outright (SIGKILL, a crash): a lock of a pid that no longer runs on this
-    host is stale, and taken over with a note on stderr.  The folder is created if needed, with its missing
+    host is stale, and taken over with a note on stderr (under a ``flock`` of the folder, so that two commands
+    taking over one stale lock at once cannot both proceed).  The folder is created if needed, with its missing
     parents (and they are removed again where the command leaves them empty: a refused scene leaves no folders).
     """
     out = check_output_dir(out_dir)
@@ -122,26 +146,27 @@ def output_lock(out_dir: str | Path, command: str) -> Iterator[Path]:
     path = out / LOCK_NAME
     host = socket.gethostname()
     mine = f"{os.getpid()}\n{host}\nknitsim {command}\n"
-    for attempt in range(2):
-        try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            holder = _lock_holder(path)
-            if holder is not None and holder[1] == host and not _pid_runs(holder[0]) and attempt == 0:
-                print(f"knitsim {command}: note: {path} is the lock of {holder[2]} (pid {holder[0]}), which no "
-                      "longer runs (killed or crashed): taking it over", file=sys.stderr, flush=True)
-                if _lock_holder(path) == holder:      # not meanwhile taken over by another command
-                    path.unlink(missing_ok=True)
-                continue
-            who = ("another knitsim command (the lock file cannot be read)" if holder is None else
-                   f"{holder[2]} (pid {holder[0]}{'' if holder[1] == host else f' on {holder[1]}'})")
-            raise KnitsimInputError(
-                f"--out = {str(out_dir)!r}: {who} is writing into this folder (lock {path}); two commands at once "
-                "would write over each other's files: wait for it to finish, or choose another --out (if no such "
-                f"command runs, remove {path})") from None
-        with os.fdopen(fd, "w") as f:
-            f.write(mine)
-        break
+    with _folder_flock(out):
+        for attempt in range(2):
+            try:
+                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                holder = _lock_holder(path)
+                if holder is not None and holder[1] == host and not _pid_runs(holder[0]) and attempt == 0:
+                    print(f"knitsim {command}: note: {path} is the lock of {holder[2]} (pid {holder[0]}), which no "
+                          "longer runs (killed or crashed): taking it over", file=sys.stderr, flush=True)
+                    if _lock_holder(path) == holder:      # not meanwhile taken over by another command
+                        path.unlink(missing_ok=True)
+                    continue
+                who = ("another knitsim command (the lock file cannot be read)" if holder is None else
+                       f"{holder[2]} (pid {holder[0]}{'' if holder[1] == host else f' on {holder[1]}'})")
+                raise KnitsimInputError(
+                    f"--out = {str(out_dir)!r}: {who} is writing into this folder (lock {path}); two commands at "
+                    "once would write over each other's files: wait for it to finish, or choose another --out (if "
+                    f"no such command runs, remove {path})") from None
+            with os.fdopen(fd, "w") as f:
+                f.write(mine)
+            break
     try:
         yield out
     finally:

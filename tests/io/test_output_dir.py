@@ -9,6 +9,7 @@ a user's file survives every command; knitsim's own outputs are replaced.
 from __future__ import annotations
 
 import json
+import sys
 
 import pytest
 
@@ -276,3 +277,54 @@ def test_an_output_lock_removes_the_parents_it_made_where_they_are_left_empty(tm
     with output_lock(tmp_path / "a" / "d" / "e", "run"):
         pass
     assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["b"]      # a existed: kept; d made, removed
+
+
+def test_two_commands_taking_over_one_stale_lock_at_once_do_not_both_proceed(tmp_path, monkeypatch):
+    """A dead holder's lock found by several commands at the same instant: exactly one takes it over at a time.
+    The window (between a command's check that the lock is still the dead holder's and its removal, where
+    another command may already have replaced it with its own) is widened here by a slow lock read; without
+    the folder's flock two of the four threads held the folder at once."""
+    import socket
+    import subprocess
+    import threading
+    import time
+
+    from knitsim.io import output_dir
+    from knitsim.errors import KnitsimInputError
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()                                             # a pid that no longer runs: its lock is stale
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / output_dir.LOCK_NAME).write_text(f"{dead.pid}\n{socket.gethostname()}\nknitsim run\n")
+    read = output_dir._lock_holder
+
+    def slow_read(path):
+        holder = read(path)
+        time.sleep(0.05)
+        return holder
+
+    monkeypatch.setattr(output_dir, "_lock_holder", slow_read)
+    spans, refused, lock = [], [], threading.Lock()
+
+    def command(k):
+        time.sleep(0.01 * k)
+        try:
+            with output_dir.output_lock(out, "run"):
+                t0 = time.perf_counter()
+                time.sleep(0.3)
+                with lock:
+                    spans.append((t0, time.perf_counter()))
+        except KnitsimInputError:
+            with lock:
+                refused.append(k)
+
+    threads = [threading.Thread(target=command, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert spans, "no command got the folder"
+    spans.sort()
+    assert all(a[1] <= b[0] for a, b in zip(spans, spans[1:])), spans     # never two holders at once
+    assert len(spans) + len(refused) == 4
