@@ -5,7 +5,8 @@
 
 The scene (:mod:`knitsim.scene.patch_scene`) is validated in full before any
 work.  A progress bar goes to stderr; the patch state is checkpointed into
-``DIR/checkpoint.pkl`` every ``output.checkpoint_every`` increments, on
+``DIR/checkpoint.pkl`` (its rows in chunks in ``DIR/checkpoint_rows/``, each written once: see
+:mod:`knitsim.patch.records`) every ``output.checkpoint_every`` increments, on
 Ctrl-C and when the solve is finished, before any output is written; ``--resume``
 continues from it (same results as an uninterrupted run; from a finished solve
 it writes the outputs without solving again, on the device that solved: another
@@ -13,8 +14,8 @@ is refused).  On Ctrl-C, during the solve or while the outputs are written, the
 command says what the checkpoint holds and prints the command that continues
 the run (exit status 130).  Results (:mod:`knitsim.io.patch_results`) go to
 ``DIR`` (default ``<scene stem>_out``), the USD file first, then the result set
-(``summary.json`` last: its presence marks a complete set); the checkpoint is
-removed once they are written.
+(``summary.json`` last: its presence marks a complete set); the checkpoint and its
+rows are removed once they are written.
 With ``--usd FILE`` the patch is also written as USD (``.usda`` text for small
 patches, ``.usdc`` / ``.usd`` binary crate for large ones; see
 :mod:`knitsim.usd.from_results`), the same file ``knitsim usd DIR --out FILE``
@@ -313,7 +314,8 @@ def _run_locked(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import PATCH_OUTPUT_FILES, patch_summary, specimen_layout, write_patch_results
     from ..io.results import prepare_output_dir, scene_inputs
-    from ..patch.runner import CHECKPOINT_NAME, read_checkpoint_header, resume_refusal, run_patch
+    from ..patch.runner import (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME, read_checkpoint_header, remove_checkpoint,
+                                resume_refusal, run_patch)
     from ..scene.patch_scene import load_patch_scene
 
     if args.resume and args.overwrite:
@@ -354,7 +356,7 @@ def _run_locked(args) -> int:
                             for w in calibration_warnings(scene.calibration_flags)]
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
                              overwrite=args.overwrite,
-                             resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME,),
+                             resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME + "/"),
                              inputs=scene_inputs(args.scene))
     ck = out / CHECKPOINT_NAME
     total = len(scene.program)
@@ -431,7 +433,7 @@ def _run_locked(args) -> int:
         print(interrupted_message(ck if keep else None, total, resume_cmd, writing=True), file=sys.stderr,
               flush=True)
         return 130
-    ck.unlink(missing_ok=True)
+    remove_checkpoint(ck)
     if res is not None:
         drawn = (f", {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch "
                  f"shape{'' if res.prototypes == 1 else 's'}"

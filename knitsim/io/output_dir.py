@@ -32,10 +32,11 @@ from ..errors import KnitsimInputError
 #: the hidden record of what knitsim wrote into an --out folder (names relative to the folder; a name
 #: ending in "/" is a sub-folder)
 RECORD_NAME = ".knitsim-outputs.json"
-#: what knitsim writes inside the sub-folders it records (a sweep's chunks, a study's cases; their atomic
-#: writes' temporary files start with a dot): anything else there is the user's (a blind probe's note saved
-#: in chunks/ went with the folder)
-FOLDER_FILES = {"chunks": ("chunk_*.npz", ".chunk_*"), "cases": ("case_*.json", ".case_*")}
+#: what knitsim writes inside the sub-folders it records (a sweep's chunks, a study's cases, a patch run's
+#: checkpoint rows (knitsim.patch.records); their atomic writes' temporary files start with a dot): anything
+#: else there is the user's (a blind probe's note saved in chunks/ went with the folder)
+FOLDER_FILES = {"chunks": ("chunk_*.npz", ".chunk_*"), "cases": ("case_*.json", ".case_*"),
+                "checkpoint_rows": ("[0-9]*-[0-9]*.npz", ".[0-9]*-[0-9]*.npz.*.tmp")}
 
 
 def check_output_dir(out_dir: str | Path) -> Path:

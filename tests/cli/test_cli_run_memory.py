@@ -1,19 +1,18 @@
 """``knitsim run`` refuses, before any work, a run whose per-cell records would not fit in memory.
 
 Where the expected values come from: the bytes a run keeps per group and increment are counted from a real
-checkpoint's rows (the run's own records, each array's ``nbytes``), independently of the constant that the
-estimate uses; the refusal is driven by a stated free memory (``available``) below the estimate, the estimate's
+checkpoint's rows (the run's own records, read back from its chunk files, each array's ``nbytes``),
+independently of the constant that the estimate uses; the refusal is driven by a stated free memory (``available``) below the estimate, the estimate's
 arithmetic being the product of its factors (an identity).
 """
 from __future__ import annotations
-
-import pickle
 
 import pytest
 
 from knitsim.cell.load_program import cycles
 from knitsim.cli import main
 from knitsim.patch import runner
+from knitsim.patch.records import RunRecords, read_chunks
 from knitsim.patch.runner import RECORD_BYTES_PER_GROUP, RECORD_COPIES, record_memory_bytes
 
 PATCH = """
@@ -46,13 +45,14 @@ def test_the_records_per_group_and_increment_are_those_a_run_keeps(tmp_path):
     prog = cycles(0.1, 0.3, 1, 0.05)
     ck = tmp_path / "checkpoint.pkl"
     runner.run_patch(PatchModel.uniform(cell, 4, 3), prog, dedup=False, checkpoint=ck, checkpoint_every=4)
-    with open(ck, "rb") as fh:
-        pickle.load(fh)
-        rows = pickle.load(fh)["rows"]
-    n = len(rows["force_N"])
+    # the rows as the checkpoint keeps them (in chunk files beside it) and a resume reads them back
+    head = runner.read_checkpoint_header(ck)
+    rows = RunRecords(head["done"])
+    read_chunks(ck, head["chunks"], head["done"], head["fingerprint"], rows)
+    n = len(rows.arrays["force_N"])
     assert n == len(prog) == 10
-    kept = sum(a.nbytes for k, v in rows.items() if k.startswith("g_") for a in v)
-    n_groups = rows["g_C"][0].shape[0]
+    kept = sum(a.nbytes for k, a in rows.arrays.items() if k.startswith("g_"))
+    n_groups = rows.arrays["g_C"].shape[1]
     assert n_groups == 12
     assert kept == RECORD_BYTES_PER_GROUP * n_groups * n
     assert record_memory_bytes(n_groups, n) == RECORD_COPIES * kept

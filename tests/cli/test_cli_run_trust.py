@@ -320,8 +320,9 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_wri
     assert f"the solve is finished and kept: {N_PATCH}/{N_PATCH} increment(s) in the checkpoint" in err, err
     cmd = err.split("without solving again, with: ")[1].strip().splitlines()[0]
     assert cmd.endswith(" --resume")
-    # nothing that looks complete: the checkpoint alone (summary.json, written last, marks a complete set)
-    assert sorted(p.name for p in out.iterdir()) == [RECORD_NAME, "checkpoint.pkl"]
+    # nothing that looks complete: the checkpoint alone, its pickle and the chunks of its rows (summary.json,
+    # written last, marks a complete set)
+    assert sorted(p.name for p in out.iterdir()) == [RECORD_NAME, "checkpoint.pkl", "checkpoint_rows"]
     monkeypatch.setattr(pr, "write_patch_results", real_write)
 
     def no_solving(*a, **kw):
@@ -330,7 +331,7 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_wri
     monkeypatch.setattr(coupling.PatchSolver, "step", no_solving)
     assert main(_argv(monkeypatch, shlex.split(cmd)[1:])) == 0
     assert "holds the finished solve" in capsys.readouterr().err
-    assert not (out / "checkpoint.pkl").exists()
+    assert not (out / "checkpoint.pkl").exists() and not (out / "checkpoint_rows").exists()
     for name in ("curve.csv", "columns.csv"):                # the uninterrupted run's, bit for bit
         assert (out / name).read_bytes() == (full / name).read_bytes(), name
 
@@ -638,3 +639,60 @@ def test_a_second_command_into_a_folder_in_use_is_refused_before_any_work(tmp_pa
         assert main(["run", str(scene), "--out", str(out), "--no-progress", "--resume"]) == 0
         assert "which no longer runs (killed or crashed): taking it over" in capsys.readouterr().err
         assert not (out / LOCK_NAME).exists()
+
+
+# --------------------------------------------------------- the checkpoint's rows in chunk files (checkpoint_rows/)
+
+
+def test_overwrite_replaces_an_interrupted_run_with_its_chunks_and_keeps_a_users_file(tmp_path, capsys, monkeypatch):
+    """An interrupted run leaves checkpoint.pkl and checkpoint_rows/ (one chunk per checkpoint: every increment
+    here); both are knitsim's (recorded), so --overwrite removes them, and the finished run leaves neither. A
+    user's file inside checkpoint_rows/ is refused by --overwrite, as one in a sweep's chunks/; a folder of that
+    name that knitsim did not write is refused, --overwrite or not."""
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    restore = _interrupt_after(monkeypatch, 3)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])) == 130
+    restore()
+    assert sorted(p.name for p in (out / "checkpoint_rows").iterdir()) == [
+        "000000-000001.npz", "000001-000002.npz", "000002-000003.npz"]
+    (out / "checkpoint_rows" / "my_note.md").write_text("keep")
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--no-progress", "--overwrite"]) == 2
+    assert "checkpoint_rows/my_note.md changed since knitsim wrote" in capsys.readouterr().err
+    assert (out / "checkpoint_rows" / "my_note.md").read_text() == "keep" and (out / "checkpoint.pkl").is_file()
+    (out / "checkpoint_rows" / "my_note.md").unlink()
+    assert main(["run", str(scene), "--out", str(out), "--no-progress", "--overwrite"]) == 0
+    assert not (out / "checkpoint.pkl").exists() and not (out / "checkpoint_rows").exists()
+    assert (out / "summary.json").is_file()
+    # a folder named checkpoint_rows that knitsim did not write there
+    mine = tmp_path / "mine"
+    (mine / "checkpoint_rows").mkdir(parents=True)
+    capsys.readouterr()
+    for extra in ([], ["--overwrite"]):
+        assert main(["run", str(scene), "--out", str(mine), "--no-progress", *extra]) == 2
+        assert "holds checkpoint_rows, which knitsim did not write there" in capsys.readouterr().err
+    assert (mine / "checkpoint_rows").is_dir() and not (mine / "summary.json").exists()
+
+
+def test_a_resume_with_a_chunk_missing_is_refused_naming_it_before_it_says_it_resumes(tmp_path, capsys,
+                                                                                      monkeypatch):
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    restore = _interrupt_after(monkeypatch, 4)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])) == 130
+    restore()
+    capsys.readouterr()
+    chunk = out / "checkpoint_rows" / "000001-000002.npz"
+    kept = chunk.read_bytes()
+    chunk.unlink()
+    rc = main(["run", str(scene), "--out", str(out), "--no-progress", "--resume"])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"--resume: {chunk} is missing: it holds increment 2 of the checkpoint" in err, err
+    assert "resuming from" not in err and "Traceback" not in err
+    chunk.write_bytes(kept[:-10])
+    assert main(["run", str(scene), "--out", str(out), "--no-progress", "--resume"]) == 2
+    assert f"--resume: {chunk} holds {len(kept) - 10} bytes" in capsys.readouterr().err
+    chunk.write_bytes(kept)
+    assert main(["run", str(scene), "--out", str(out), "--no-progress", "--resume"]) == 0
+    assert not (out / "checkpoint_rows").exists()
