@@ -74,9 +74,11 @@ def register(subparsers) -> None:
     p.set_defaults(func=_run)
 
 
-def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: bool = True) -> list[dict]:
+def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: bool = True,
+                       cell_fields: bool = True) -> list[dict]:
     """Before any solve: every distinct cell of the patch against the model's domain (knitsim.cell.domain), and
-    the run's records against the machine's memory (:func:`check_record_memory`).
+    the run's records against the machine's memory (:func:`check_record_memory`; ``cell_fields``: cells.nc is
+    written).
 
     A cell without an admissible rest state is an error (one line: how many cells, the first one's
     course and wale, the reason): the model cannot run it, and a column holding it has no rest state
@@ -93,7 +95,7 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     grouping = model.grouping(dedup=True)
     n_cells = int(grouping.group_of_cell.size)
     # (dedup off: every cell is a group of its own)
-    check_record_memory(grouping.n_groups if dedup else n_cells, len(grip_strains), dedup)
+    check_record_memory(grouping.n_groups if dedup else n_cells, len(grip_strains), dedup, cell_fields=cell_fields)
     check = check_cells(grouping.params, engine=engine, device=device)
     cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=len(grouping.params))
     for whys, what, source in ((check.no_rest, "have no admissible rest state", " (knitsim.cell.domain)"),
@@ -124,23 +126,31 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     return warnings
 
 
-def check_record_memory(n_groups: int, n_increments: int, dedup: bool, available: int | None = None) -> None:
+def check_record_memory(n_groups: int, n_increments: int, dedup: bool, available: int | None = None,
+                        cell_fields: bool = True) -> None:
     """Refuse, before any work, a run whose per-cell records would not fit in the machine's free memory
     (:func:`knitsim.patch.runner.record_memory_bytes` against ``available``, by default
-    :func:`~knitsim.patch.runner.available_memory_bytes`): it would be killed part-way, its finished increments
-    lost since its last checkpoint (a 1000 x 1000 random patch through 620 increments keeps 167 GB)."""
-    from ..patch.runner import RECORD_BYTES_PER_GROUP, RECORD_COPIES, available_memory_bytes, record_memory_bytes
-    need = record_memory_bytes(n_groups, n_increments)
+    :func:`~knitsim.patch.runner.available_memory_bytes`; ``cell_fields``: cells.nc is written, the run's peak):
+    it would be killed part-way (a 1000 x 1000 random patch through 620 increments keeps 167 GB, 112 GB without
+    cells.nc)."""
+    from ..patch.runner import (CELL_FIELDS_COPIES, RECORD_BYTES_PER_GROUP, RECORD_COPIES, available_memory_bytes,
+                                record_memory_bytes)
+    need = record_memory_bytes(n_groups, n_increments, cell_fields)
     free = available_memory_bytes() if available is None else available
     if free is None or need <= free:
         return
     gib = 2.0 ** 30
+    copies = RECORD_COPIES + (CELL_FIELDS_COPIES if cell_fields else 0)
+    what = "the rows and what the outputs derive from them" + (", cells.nc's per-cell fields" if cell_fields else "")
+    without = record_memory_bytes(n_groups, n_increments, False)
+    lighter = (f"write no cells.nc (output.cell_fields = false: {without / gib:.3g} GiB), " if cell_fields
+               and without <= free else "")
     raise KnitsimInputError(
         f"the run would keep {need / gib:.3g} GiB of per-cell records ({n_groups:,} distinct cell(s) x {n_increments:,} "
-        f"increments x {RECORD_BYTES_PER_GROUP} bytes, {RECORD_COPIES} copies at its peak: the rows, their arrays, a "
-        f"checkpoint), more than the {free / gib:.3g} GiB free on this machine: it would be killed part-way. Take "
-        f"fewer increments (a larger load.max_increment), " + ("" if dedup else "turn dedup on (identical cells "
-        "solved once), ") + "or run a smaller patch")
+        f"increments x {RECORD_BYTES_PER_GROUP} bytes, {copies} copies at its peak: {what}), more than the "
+        f"{free / gib:.3g} GiB free on this machine: it would be killed part-way. Take fewer increments (a larger "
+        f"load.max_increment), " + lighter + ("" if dedup else "turn dedup on (identical cells solved once), ")
+        + "or run a smaller patch")
 
 
 def zone_overlaps(resolved: dict) -> list[dict]:
@@ -346,7 +356,8 @@ def _run_locked(args) -> int:
             from .. import warp_runtime
             device = warp_runtime.resolve_device(scene.device)
         # the model's domain, before any output is touched (a cell without a rest state: error)
-        domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device, scene.dedup)
+        domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device, scene.dedup,
+                                             cell_fields=scene.output["cell_fields"])
         overlaps = zone_overlaps(scene.resolved)
         for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)

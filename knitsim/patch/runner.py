@@ -55,16 +55,25 @@ _GEOMETRY_KEYS = ("g_x", "g_W", "g_s_AB", "g_head_gap")
 #: bytes a run keeps per group and increment: the g_ rows (C, F, phi, W, s_AB, head gap and the state x's five
 #: values in float64; the stage label and status in int8)
 RECORD_BYTES_PER_GROUP = 11 * 8 + 2 * 1
-#: copies of those records a run holds at its peak: the rows, the arrays stacked from them at the end, and a
-#: checkpoint's pickle of the rows
-RECORD_COPIES = 3
+#: copies of those records a run holds at its peak, cells.nc aside: the rows (written in place, one array per
+#: key; a checkpoint writes them into its chunk files, no copy) and what the summary and the plots derive from
+#: them after the solve.  Measured (tracemalloc, a 60 x 60 random patch through 3 cycles: 3600 groups x 310
+#: increments, 100 MB of records): 1.2 copies in the solve, 1.6 in the plots.  (It was 3 while the solve held
+#: 3.2: the rows' lists, the arrays stacked from them at the end and a checkpoint's pickle of the rows.)
+RECORD_COPIES = 2
+#: more copies where cells.nc is written (``output.cell_fields``): its per-cell fields and their netCDF
+#: encoding, held in memory, are the peak of the run: 3.0 copies in all measured on a 100 x 100 random patch
+#: (3.3 on the 60 x 60 one, whose fixed costs weigh more)
+CELL_FIELDS_COPIES = 1
 
 
-def record_memory_bytes(n_groups: int, n_increments: int) -> int:
+def record_memory_bytes(n_groups: int, n_increments: int, cell_fields: bool = True) -> int:
     """The memory a run of ``n_groups`` groups through ``n_increments`` increments needs at its peak for its
-    per-group records [bytes] (:data:`RECORD_BYTES_PER_GROUP`, :data:`RECORD_COPIES`): a 1000 x 1000 random patch
-    through the paper's 620 increments, 167 GB; the paper's specimen with random phi0, 0.42 GB."""
-    return RECORD_COPIES * RECORD_BYTES_PER_GROUP * int(n_groups) * int(n_increments)
+    per-group records [bytes] (:data:`RECORD_BYTES_PER_GROUP`, :data:`RECORD_COPIES` and, with ``cell_fields``
+    (cells.nc written), :data:`CELL_FIELDS_COPIES` more): a 1000 x 1000 random patch through the paper's 620
+    increments, 167 GB (112 GB without cells.nc); the paper's specimen with random phi0, 0.42 GB."""
+    copies = RECORD_COPIES + (CELL_FIELDS_COPIES if cell_fields else 0)
+    return copies * RECORD_BYTES_PER_GROUP * int(n_groups) * int(n_increments)
 
 
 def available_memory_bytes() -> int | None:

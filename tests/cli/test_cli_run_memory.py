@@ -13,7 +13,7 @@ from knitsim.cell.load_program import cycles
 from knitsim.cli import main
 from knitsim.patch import runner
 from knitsim.patch.records import RunRecords, read_chunks
-from knitsim.patch.runner import RECORD_BYTES_PER_GROUP, RECORD_COPIES, record_memory_bytes
+from knitsim.patch.runner import CELL_FIELDS_COPIES, RECORD_BYTES_PER_GROUP, RECORD_COPIES, record_memory_bytes
 
 PATCH = """
 title = "memory"
@@ -55,28 +55,38 @@ def test_the_records_per_group_and_increment_are_those_a_run_keeps(tmp_path):
     n_groups = rows.arrays["g_C"].shape[1]
     assert n_groups == 12
     assert kept == RECORD_BYTES_PER_GROUP * n_groups * n
-    assert record_memory_bytes(n_groups, n) == RECORD_COPIES * kept
+    assert record_memory_bytes(n_groups, n) == (RECORD_COPIES + CELL_FIELDS_COPIES) * kept
+    assert record_memory_bytes(n_groups, n, cell_fields=False) == RECORD_COPIES * kept
 
 
 def test_a_run_that_would_not_fit_in_memory_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
     scene = tmp_path / "s.toml"
     scene.write_text(PATCH)
-    # 12 cells, dedup off (every cell its own group): 12 x 10 increments x 90 bytes x 3 = 32,400 bytes
+    # 12 cells, dedup off (every cell its own group): 12 x 10 increments x 90 bytes x 3 = 32,400 bytes (the rows,
+    # what the summary and plots derive, and cells.nc's per-cell fields); 2 copies without cells.nc
     need = record_memory_bytes(12, len(cycles(0.1, 0.3, 1, 0.05)))
     assert need == 3 * 90 * 12 * 10
+    assert record_memory_bytes(12, len(cycles(0.1, 0.3, 1, 0.05)), cell_fields=False) == 2 * 90 * 12 * 10
     monkeypatch.setattr(runner, "available_memory_bytes", lambda: need - 1)
     out = tmp_path / "out"
     rc = main(["run", str(scene), "--out", str(out), "--no-progress", "--set", "patch.dedup=false"])
     err = capsys.readouterr().err
     assert rc != 0 and "per-cell records" in err and "turn dedup on" in err, err
+    assert "3 copies at its peak" in err and "write no cells.nc (output.cell_fields = false" in err, err
     assert "Traceback" not in err
     assert not out.exists()                     # refused before any output was touched
+    # without cells.nc the same memory holds the run
+    assert main(["run", str(scene), "--out", str(out), "--no-progress", "--set", "patch.dedup=false",
+                 "--set", "output.cell_fields=false"]) == 0
+    assert not (out / "cells.nc").exists()
+    out = tmp_path / "out2"
     monkeypatch.setattr(runner, "available_memory_bytes", lambda: need)
     assert main(["run", str(scene), "--out", str(out), "--no-progress", "--set", "patch.dedup=false"]) == 0
 
 
-@pytest.mark.parametrize("n_groups, n_inc, gb", [(10 ** 6, 620, 167.4), (2530, 620, 0.4235)])
-def test_the_estimate_of_the_docstring(n_groups, n_inc, gb):
-    # record_memory_bytes' docstring: a 1000 x 1000 random patch through the paper's 620 increments, and the
-    # paper's specimen (23 x 110) with random phi0
-    assert record_memory_bytes(n_groups, n_inc) / 1e9 == pytest.approx(gb, rel=1e-3)
+@pytest.mark.parametrize("n_groups, n_inc, gb, cell_fields", [(10 ** 6, 620, 167.4, True), (10 ** 6, 620, 111.6, False),
+                                                             (2530, 620, 0.4235, True)])
+def test_the_estimate_of_the_docstring(n_groups, n_inc, gb, cell_fields):
+    # record_memory_bytes' docstring: a 1000 x 1000 random patch through the paper's 620 increments (with and
+    # without cells.nc), and the paper's specimen (23 x 110) with random phi0
+    assert record_memory_bytes(n_groups, n_inc, cell_fields) / 1e9 == pytest.approx(gb, rel=1e-3)
