@@ -166,10 +166,17 @@ def read_chunks(ck: Path, chunks: list, done: int, fingerprint: str | None, reco
     if why:
         raise KnitsimInputError(why)
     folder = rows_dir_of(ck)
+    keys = None
     for c in chunks:
         path = folder / c["name"]
         try:
             with np.load(path, allow_pickle=False) as z:
+                if keys is None:
+                    keys = set(z.files)
+                elif set(z.files) != keys:
+                    # (every chunk of a run holds the same keys: a row left unwritten would be garbage)
+                    raise KnitsimInputError(f"--resume: {path} holds other rows than the chunks before it "
+                                            f"({', '.join(sorted(set(z.files) ^ keys))}); {_way_out(ck)}")
                 crc = {i.filename: i.CRC for i in z.zip.infolist()}
                 meta = json.loads(str(z["_meta"]))
                 if meta.get("kind") != CHUNK_KIND or meta.get("fingerprint") != fingerprint:

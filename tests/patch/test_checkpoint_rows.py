@@ -191,3 +191,17 @@ def test_the_rows_are_the_history_arrays_without_a_stacking_copy():
     rec.put(1, "b", np.array([300, 2], np.int16))            # a wider row promotes, as np.asarray of the rows
     assert rec.arrays["a"].dtype == np.float64 and rec.arrays["b"].dtype == np.int16
     assert rec.arrays["b"][1].tolist() == [300, 2] and rec.arrays["b"][0].tolist() == [1, 2]
+
+
+def test_a_chunk_without_a_key_the_others_hold_is_refused(tmp_path):
+    """Every chunk of a run holds the same keys: one without the geometry rows among chunks with them (rows of
+    another knitsim, or put there by hand, its CRC-32s rewritten into the header) would leave rows unwritten."""
+    ck = tmp_path / "checkpoint.pkl"
+    head = _stop(ck, 5)
+    rows = records.RunRecords(5)
+    records.read_chunks(ck, head["chunks"], 5, head["fingerprint"], rows)
+    rows.drop(["g_x"])
+    head["chunks"][1] = records.write_chunk(tmp_path / "checkpoint_rows", rows, 2, 4, head["fingerprint"])
+    with pytest.raises(KnitsimInputError, match=r"000002-000004\.npz holds other rows than the chunks before it "
+                                                r"\(g_x\)"):
+        records.read_chunks(ck, head["chunks"], 5, head["fingerprint"], records.RunRecords(5))
