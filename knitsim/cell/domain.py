@@ -489,7 +489,8 @@ def check_cell_arrays(cells: dict, engine: str = "warp", device: str = "cpu",
          for k in ("B", "d", "L", "W0", "C0", "m", "phi0", "dahl_sigma", "in_plane_width")}
     n = len(f["d"])
     f = {k: np.broadcast_to(v, (n,)) for k, v in f.items()}
-    w = f["in_plane_width"]
+    # a non-finite width is no width (NaN), as Grouping.cell_params reads it for CellParams
+    w = np.where(np.isfinite(f["in_plane_width"]), f["in_plane_width"], np.nan)
     phimax = phimax_of(f["m"])
     code, value = domain.outside_arrays(f["d"], f["B"], f["L"], f["W0"], f["C0"], f["m"], f["phi0"],
                                         np.where(np.isnan(w), f["d"], w), phimax)

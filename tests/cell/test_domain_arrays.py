@@ -411,3 +411,13 @@ def test_the_warning_names_the_quantities_in_the_order_the_groups_first_hold_the
     new = check_patch_domain(model, STRAINS, "warp", "cpu", True)
     assert new == _old_check_patch_domain(model, STRAINS, "warp", "cpu")
     assert "by quantity: m (4), d (4), B (4); e.g. m = 0.6" in new[0]["message"], new
+
+
+def test_an_infinite_in_plane_width_of_a_patch_is_no_width_as_before():
+    # Grouping.params reads a non-finite width as none (the cell jams at d); the check did, and does
+    fields_cell = replace(EGLASS, in_plane_width=float("inf"))
+    model = PatchModel.from_cells([[EGLASS, fields_cell, replace(EGLASS, m=0.6)]])
+    new = _outcome(check_patch_domain, model, STRAINS, "warp", "cpu", True)
+    assert new == _outcome(_old_check_patch_domain, model, STRAINS, "warp", "cpu") and new[0] == "ok"
+    g = model.grouping()
+    _same_check(g.cells, g.params)
