@@ -115,7 +115,7 @@ def _turns(s: np.ndarray) -> list[int]:
     return (np.flatnonzero(turn) + 1).tolist()
 
 
-def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, int]]:
+def closed_excursions(strain: np.ndarray, atol: float = 1e-12, turns: list[int] | None = None) -> list[tuple[int, int]]:
     """Load-then-unload excursions that come back to where they started.
 
     Parameters
@@ -125,6 +125,8 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     atol : float
         How close the strain must come back (1e-12: an imposed strain; a cell of a patch, whose strain
         the column coupling solves, comes back only to within its solution).
+    turns : list of int, optional
+        The path's turning points, where already found (:func:`_turns`; the three excursion finders share them).
 
     Returns
     -------
@@ -134,7 +136,7 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
         with less stored bending energy, so its work alone does not tell.
     """
     s = np.asarray(strain, float)
-    turns = _turns(s)
+    turns = _turns(s) if turns is None else turns
     out = []
     for n, t in enumerate(turns):
         i = turns[n - 1] if n > 0 else 0                # where the excursion starts
@@ -145,12 +147,12 @@ def closed_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     return out
 
 
-def reload_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, int]]:
+def reload_excursions(strain: np.ndarray, atol: float = 1e-12, turns: list[int] | None = None) -> list[tuple[int, int]]:
     """Unload-then-reload excursions from a peak that come back to its strain: ``(i, j)`` with ``i`` a
     maximum turning point, ``strain[j] == strain[i]`` (within ``atol``) and one turning point, a minimum,
-    strictly between (:func:`closed_excursions` gives the load-then-unload ones)."""
+    strictly between (:func:`closed_excursions` gives the load-then-unload ones; ``turns`` as there)."""
     s = np.asarray(strain, float)
-    turns = _turns(s)
+    turns = _turns(s) if turns is None else turns
     out = []
     for n, t in enumerate(turns[:-1]):
         if s[t] <= s[t - 1]:
@@ -162,14 +164,16 @@ def reload_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int
     return out
 
 
-def crossing_excursions(strain: np.ndarray, atol: float = 1e-12) -> list[tuple[int, float, int]]:
+def crossing_excursions(strain: np.ndarray, atol: float = 1e-12,
+                        turns: list[int] | None = None) -> list[tuple[int, float, int]]:
     """Load-then-unload excursions that start on a loading branch, not at its turning point: ``(k, t, j)``
     with ``j`` the end of an unloading branch (the next turning point, or the path's end) above the start of
     the loading branch before it (by more than ``atol``: else :func:`closed_excursions` has it), and the
     loading passing ``strain[j]`` at ``strain[k] + t (strain[k + 1] - strain[k])``, ``0 <= t < 1``.  The
-    first cycle of a program whose lower strain is above 0 (0 -> 0.8 -> 0.32) is one."""
+    first cycle of a program whose lower strain is above 0 (0 -> 0.8 -> 0.32) is one.  ``turns``: as
+    :func:`closed_excursions`."""
     s = np.asarray(strain, float)
-    turns = _turns(s)
+    turns = _turns(s) if turns is None else turns
     out = []
     for n, top in enumerate(turns):
         if s[top] <= s[top - 1]:
@@ -238,7 +242,8 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
 
     s, f = np.asarray(strain, float), np.asarray(force, float)
     out = []
-    for i, j in closed_excursions(s, atol):
+    turns = _turns(s)          # (once for the three finders: a patch calls this for each of its distinct cells)
+    for i, j in closed_excursions(s, atol, turns):
         if i == 0 and f[0] < 0.0:
             continue
         w = dissipated_energy(s[i:j + 1], f[i:j + 1])
@@ -253,7 +258,7 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"frozen on unloading from a jammed state) (README, 'Loops that return energy')"))
     if stored_at is None:
         return out
-    for k, t, j in crossing_excursions(s, atol):
+    for k, t, j in crossing_excursions(s, atol, turns):
         # from where the loading passed strain[j] (interpolated between rows k and k + 1) to j
         fx = f[k] + t * (f[k + 1] - f[k])
         ss = np.concatenate([[s[j]], s[k + 1:j + 1]])
@@ -272,7 +277,7 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"against {fx:.3g} N on the way up) while the bending energy stored in the stitch rose by "
                 f"{dU:.3g} N mm: no stored energy was released; it comes from Table 4's closures (README, 'Loops "
                 f"that return energy')"))
-    for i, j in reload_excursions(s, atol):
+    for i, j in reload_excursions(s, atol, turns):
         w = dissipated_energy(s[i:j + 1], f[i:j + 1])
         gap = abs(s[j] - s[i]) * float(np.max(np.abs(f[i:j + 1])))
         tol = loop_work_tolerance(s[i:j + 1], f[i:j + 1]) + gap + _between_rows(s[i:j + 1], f[i:j + 1])
