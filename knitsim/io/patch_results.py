@@ -393,13 +393,18 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenL
 
 
 def _encoding(ds) -> dict:
-    """gzip level 4, chunked along the increment (a frame is read without the whole file)."""
+    """gzip level 1 after HDF5's byte shuffle, chunked along the increment (a frame is read without the whole
+    file).  The write is most of a large patch's output time (a 300 x 300 random patch through 3 cycles: 83 s of
+    171 s on a GPU host, 1.5 GB at level 4 without the shuffle); on a 100 x 100 one (10,000 cells x 310
+    increments) level 4 took 5.0 s for 171.5 MB, level 1 after the shuffle 3.4 s for 151.8 MB (the shuffle
+    groups the doubles' like bytes, which compress better at the faster level).  The values are the same
+    (read back identical); a small uniform patch's file grows a little (the bundled specimen: 336 to 517 kB)."""
     enc = {}
     for name, var in ds.data_vars.items():
         if var.dtype.kind in "fiu" and var.ndim:
             chunks = tuple(min(64, s) if d == "increment" else s for d, s in zip(var.dims, var.shape))
             if all(c > 0 for c in chunks):
-                enc[name] = {"zlib": True, "complevel": 4, "chunksizes": chunks}
+                enc[name] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": chunks}
     return enc
 
 
