@@ -135,7 +135,7 @@ from ..cell.quantities import CODE
 from ..cell.stages import MAX_HALVINGS, Stage
 from ..errors import KnitsimInputError
 from ..io.checks import FORCE_CAP_RTOL
-from ..kernels.branch_points import COLUMN_FORCE_MAX, COLUMN_FORCE_START, TANGENT_MAX, TANGENT_MIN
+from ..kernels.branch_points import COLUMN_FORCE_MAX, COLUMN_FORCE_START, JUMP_RTOL, TANGENT_MAX, TANGENT_MIN
 from ..kernels.branch_points import SIZE as DEVICE_BRANCH_SIZE
 from .model import Grouping
 
@@ -1003,7 +1003,8 @@ class BranchPoints:
 
     def jump(self, f: np.ndarray, f_tol: np.ndarray) -> np.ndarray:
         """Of the prepared groups, those whose points bracket ``f`` within a length ~1e-11 C0 while their
-        forces differ by more than ``f_tol``: a discontinuity of the cell's force, which no column force
+        forces differ by more than ``f_tol`` and than ``JUMP_RTOL f`` (below it: the cell solves' own
+        resolution, kernels/branch_points.py): a discontinuity of the cell's force, which no column force
         between them meets."""
         r, M = np.arange(self.rows.size), self.Fs.shape[1]
         if M < 2:
@@ -1014,7 +1015,7 @@ class BranchPoints:
         dC = self.Cs[r, ia + 1] - self.Cs[r, ia]
         dF = self.Fs[r, ia + 1] - self.Fs[r, ia]
         with np.errstate(invalid="ignore"):
-            return inside & (dC <= 1e-11 * self._prepared(self.C_ref)) & (dF > f_tol)
+            return inside & (dC <= 1e-11 * self._prepared(self.C_ref)) & (dF > np.maximum(f_tol, JUMP_RTOL * f))
 
 
 def _bent_line(x: np.ndarray, s: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
