@@ -190,10 +190,12 @@ def rest_state_problem(p: CellParams) -> str | None:
     not describe).  Both ends were found by continuation in L from a known rest
     state (L / (2 C0 + W0 - 4 d) = 1.9) over the domain's box:
 
-    - tight loops (small L ratio): the rest branch ends where alpha - gamma -> 0,
-      the inflection point A reaching the contact point B (the A-B arc of
-      Hong's quarter loop vanishes), with R ~ 10-17 B / d^2; below that L the
-      cell's shape does not exist, whatever the start;
+    - tight loops (small L ratio): the rest branch runs towards alpha - gamma -> 0,
+      the inflection point A approaching the contact point B, with R ~ 10-17 B / d^2
+      and more; this float64 continuation stops near there (a blind probe's shooting
+      solver and the Warp engine, whose Newton runs in ln(alpha - gamma), follow it
+      further: L ratio 1.775 at d = 0.1, B = 10, W0 = 5.5 d, C0 = 4 d, where this one
+      stops at 1.78), so ``knitsim cell`` with the Warp engine asks that engine too;
     - loose loops (large L ratio, large C0 / d): the branch goes on but R
       changes sign; loading such a cell drove the stick (Rn frozen < 0)
       to phi -> -pi/2.
@@ -221,10 +223,13 @@ def rest_state_problem(p: CellParams) -> str | None:
                 res = path[-1]
             elif good:
                 last = good[-1]
-                return (f"no rest state: the quarter loop at C0 = {p.C0:g}, W0 = {p.W0:g} mm exists only down to "
-                        f"L / (2 C0 + W0 - 4 d) = {last.state.L / closing:.4g} (there alpha - gamma = "
-                        f"{last.x[0] - last.x[2]:.2g} rad: the inflection A meets the contact B), "
-                        f"L = {p.L:g} mm asks for {p.L / closing:.4g}")
+                # (not "the loop exists only down to": a blind probe's shooting solver, and the Warp engine, found
+                # a rest state at 1.775 where this branch had stopped at 1.78, alpha - gamma 4.4e-4 there)
+                return (f"no rest state found: the quarter loop at C0 = {p.C0:g}, W0 = {p.W0:g} mm, continued in L "
+                        f"from L / (2 C0 + W0 - 4 d) = 1.9, was followed down to {last.state.L / closing:.4g} (there "
+                        f"alpha - gamma = {last.x[0] - last.x[2]:.2g} rad: the inflection A close to the contact B), "
+                        f"L = {p.L:g} mm asks for {p.L / closing:.4g}; the Warp engine's rest-state solve "
+                        "(engine = \"warp\") may reach tighter loops")
         except (RuntimeError, KnitsimInputError):
             pass
     if res is None:

@@ -43,12 +43,19 @@ def register(subparsers) -> None:
     parser.set_defaults(func=_run)
 
 
-def check_cells_domain(params, labels, strains) -> list[dict]:
+def check_cells_domain(params, labels, strains, engine: str = "reference", device: str = "cpu") -> list[dict]:
     """Before any solve: a cell without an admissible rest state is an error (one line, naming the
     cell: it is outside the model, knitsim.cell.domain.rest_state_problem), and so is one whose rest
     state already carries its force cap (rest_at_cap_problem); a cell or a program
-    outside the documented domain's box is an extrapolation: returned as warnings for the summary."""
-    from ..cell.domain import DOMAIN, rest_at_cap_problem, rest_force_per_wale, rest_state_problem
+    outside the documented domain's box is an extrapolation: returned as warnings for the summary.
+
+    The rest state is judged by the engine that will run the cells: where the float64 reference finds none
+    but the Warp engine (``engine = "warp"``) does, admissible (R >= 0, :func:`knitsim.cell.domain.check_cells`),
+    the cell runs.  A blind probe's tight corner cell (d = 0.1, B = 10, W0 = 5.5 d, C0 = 4 d, L ratio 1.775) has
+    a rest state at alpha - gamma = 4.4e-4 (its force 23.7 B / d^2, an independent shooting solver's to 10
+    digits) that the reference's continuation in L stops short of; the Warp engine, whose Newton runs in
+    ln(alpha - gamma), solves it, and was refused it."""
+    from ..cell.domain import DOMAIN, check_cells, rest_at_cap_problem, rest_force_per_wale, rest_state_problem
     from ..errors import KnitsimInputError
 
     warnings, seen = [], {}
@@ -56,7 +63,12 @@ def check_cells_domain(params, labels, strains) -> list[dict]:
         key = (p.B, p.d, p.L, p.W0, p.C0, p.phi0)
         if key not in seen:
             why = rest_state_problem(p)
-            seen[key] = (why, rest_force_per_wale(p) if why is None else float("nan"))
+            F_rest = rest_force_per_wale(p) if why is None else float("nan")
+            if why is not None and engine == "warp":
+                warp = check_cells([p], engine="warp", device=device)
+                if not warp.no_rest_mask[0]:
+                    why, F_rest = None, float(warp.rest_F_array[0])
+            seen[key] = (why, F_rest)
         why, F_rest = seen[key]
         name = str(label) if str(label).startswith("cell") else f"cell {label}"
         if why is not None:
@@ -77,7 +89,8 @@ def _run(args) -> int:
     t_command = time.perf_counter()
     with naming_scene(args.scene, "cell"):
         scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
-    domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain)
+    # (the Warp rest state of a cell the reference refuses: one small CPU launch, before the run's device is up)
+    domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain, engine=scene.engine)
     domain_warnings += calibration_warnings(scene.calibration_flags)
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
                              overwrite=args.overwrite,

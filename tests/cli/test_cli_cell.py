@@ -267,3 +267,48 @@ def test_a_scene_from_a_flagged_calibration_says_so_in_every_result(tmp_path, ca
     main(["cell", str(tmp_path / "s.toml"), "--out", str(tmp_path / "c")])
     assert not any(x["code"] == "from_unusable_calibration"
                    for x in json.loads((tmp_path / "c" / "summary.json").read_text())["warnings"])
+
+
+TIGHT_CELL = """title = "tight corner cell"
+engine = "{engine}"
+device = "cpu"
+[yarn]
+B = 10.0
+d = 0.1
+[knit]
+W0 = 0.55
+C0 = 0.4
+L = 1.68625
+[friction]
+model = "coulomb"
+m = 0.05
+[load]
+type = "monotonic"
+target_strain = 0.05
+max_increment = 0.01
+[output]
+plot = false
+"""
+
+
+def test_a_tight_cell_the_warp_engine_solves_is_not_refused_for_the_reference_s_rest_state(tmp_path, capsys):
+    """A blind probe's corner cell (d = 0.1, B = 10, W0 = 5.5 d, C0 = 4 d, L ratio 1.775, inside the domain's
+    box): its rest state exists (alpha - gamma = 4.4e-4, a pushing contact; rest force 23681.63909 N per wale by
+    an independent shooting solver of the elastica ODE, scipy's solve_ivp + root, to 10 digits), but the float64
+    reference's continuation in L stops at ratio 1.78.  With the Warp engine the cell runs, from that rest force;
+    with the reference engine it is refused, saying where its continuation stopped (not that the loop cannot
+    exist)."""
+    import json
+
+    path = tmp_path / "tight.toml"
+    path.write_text(TIGHT_CELL.format(engine="warp"))
+    assert main(["cell", str(path), "--out", str(tmp_path / "w")]) == 0
+    rows = (tmp_path / "w" / "curve.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    rest = dict(zip(head, rows[1].split(",")))
+    assert float(rest["force_per_wale_N"]) == pytest.approx(23681.63909, rel=1e-9)
+    assert json.loads((tmp_path / "w" / "summary.json").read_text())["all_expected_end"] is True
+    path.write_text(TIGHT_CELL.format(engine="reference"))
+    assert main(["cell", str(path), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "no rest state found" in err and "was followed down to 1.78" in err and 'engine = "warp"' in err
