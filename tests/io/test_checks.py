@@ -392,8 +392,10 @@ def test_a_cycles_energy_integrates_its_located_events_and_converges_with_the_in
     assert e[0.1] == pytest.approx(e[0.002], rel=5e-3)
 
 
-# ---- the excursion finders, vectorised for patches of 10^5 distinct cells: against brute force from their
-# definitions (every pair of rows, every turning point), not against the code they replaced
+# ---- the excursion finders, vectorised for patches of 10^5 distinct cells.  The turning points against their
+# definition (the steps on both sides non-zero and of opposite sign: an independent form); the excursions against
+# the loop form of their docstrings (between consecutive turning points, the first row back within atol), which is
+# the code the vectorised form replaced: an equivalence test, not an independent method
 
 def _turns_by_definition(s):
     """Rows k where the path turns: the steps on both sides are non-zero and of opposite sign."""
