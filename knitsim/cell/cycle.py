@@ -57,7 +57,7 @@ from scipy.optimize import brentq
 
 from ..friction.dahl import dahl_increment
 from .head_gap import head_gap
-from .inverse import initial_state, solve_state
+from .inverse import TOL_STALLED, initial_state, solve_state
 from .load_program import LoadProgram
 from .material import CellParams
 from .quantities import UNKNOWN_NAMES
@@ -230,7 +230,7 @@ class CellCycle:
         return q["W"] - 4.0 * p.d_jam
 
     def _solve(self, cond: dict, guess) -> tuple[np.ndarray, dict]:
-        res = solve_state(cond, guess, self.p.B, self.p.d)
+        res = solve_state(cond, guess, self.p.B, self.p.d, tol_stalled=TOL_STALLED)
         if not res.success:
             raise _SolveFailed(res.message)
         phi = float(res.x[3])

@@ -49,34 +49,30 @@ def check_cells_domain(params, labels, strains, engine: str = "reference", devic
     state already carries its force cap (rest_at_cap_problem); a cell or a program
     outside the documented domain's box is an extrapolation: returned as warnings for the summary.
 
-    The rest state is judged by the engine that will run the cells: where the float64 reference finds none
-    but the Warp engine (``engine = "warp"``) does, admissible (R >= 0, :func:`knitsim.cell.domain.check_cells`),
-    the cell runs.  A blind probe's tight corner cell (d = 0.1, B = 10, W0 = 5.5 d, C0 = 4 d, L ratio 1.775) has
-    a rest state at alpha - gamma = 4.4e-4 (its force 23.7 B / d^2, an independent shooting solver's to 10
-    digits) that the reference's continuation in L stops short of; the Warp engine, whose Newton runs in
-    ln(alpha - gamma), solves it, and was refused it."""
-    from ..cell.domain import DOMAIN, check_cells, rest_at_cap_problem, rest_force_per_wale, rest_state_problem
+    The rest state is judged by the engine that will run the cells (:func:`knitsim.cell.domain.check_cells`,
+    as ``knitsim run`` and ``knitsim sweep`` judge theirs): a cell is refused exactly where that engine would
+    flag it ``no_rest_state`` at rest, and the cap is checked against that engine's rest force.  The
+    reference's continuation in L (:func:`~knitsim.cell.domain.rest_state_problem`) only words a refusal:
+    where its branch ended.  (A blind probe's tight corner cell, d = 0.1, B = 10, W0 = 5.5 d, C0 = 4 d, L
+    ratio 1.765, has a rest state that the Warp engine, whose Newton runs in ln(alpha - gamma), solves and
+    the reference's continuation stops short of: it runs with the Warp engine.)"""
+    from ..cell.domain import DOMAIN, check_cells, rest_at_cap_problem, rest_state_problem
     from ..errors import KnitsimInputError
 
-    warnings, seen = [], {}
-    for p, label in zip(params, labels):
-        key = (p.B, p.d, p.L, p.W0, p.C0, p.phi0)
-        if key not in seen:
-            why = rest_state_problem(p)
-            F_rest = rest_force_per_wale(p) if why is None else float("nan")
-            if why is not None and engine == "warp":
-                warp = check_cells([p], engine="warp", device=device)
-                if not warp.no_rest_mask[0]:
-                    why, F_rest = None, float(warp.rest_F_array[0])
-            seen[key] = (why, F_rest)
-        why, F_rest = seen[key]
+    check = check_cells(params, engine=engine, device=device)
+    rest_F = check.rest_F_array
+    warnings = []
+    for i, (p, label) in enumerate(zip(params, labels)):
         name = str(label) if str(label).startswith("cell") else f"cell {label}"
-        if why is not None:
+        if check.no_rest_mask[i]:
+            # the engine's verdict, worded by the reference's continuation (where its branch ended, or the
+            # pulling contact's force); a cell the reference reaches and the engine does not: the engine's words
+            why = rest_state_problem(p) or f"{check.no_rest_reason(i)} (engine = \"{engine}\")"
             raise KnitsimInputError(f"{name}: {why} (knitsim.cell.domain)")
-        why = rest_at_cap_problem(F_rest, p.cap_N)
+        why = rest_at_cap_problem(float(rest_F[i]), p.cap_N)
         if why is not None:
             raise KnitsimInputError(f"{name}: {why}")
-        why = DOMAIN.why_outside(p)
+        why = check.outside_reason(i)
         if why is not None:
             warnings.append({"code": "outside_domain", "message": f"extrapolation: {why}", "cell": label})
     why = DOMAIN.why_program_outside(strains)
@@ -89,7 +85,8 @@ def _run(args) -> int:
     t_command = time.perf_counter()
     with naming_scene(args.scene, "cell"):
         scene = load_cell_scene(args.scene, args.overrides, engine=args.engine, device=args.device)
-    # (the Warp rest state of a cell the reference refuses: one small CPU launch, before the run's device is up)
+    check_engine(scene.engine)   # (before the domain check, which asks the engine for the rest states)
+    # (the Warp engine's rest states: one small CPU launch, before the run's device is up)
     domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain, engine=scene.engine)
     domain_warnings += calibration_warnings(scene.calibration_flags)
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
@@ -97,7 +94,6 @@ def _run(args) -> int:
                              writes=OUTPUT_FILES, inputs=scene_inputs(args.scene))
     # stdout carries only the results (--json): Warp's start-up banner and module messages go to stderr
     with contextlib.redirect_stdout(sys.stderr):
-        check_engine(scene.engine)
         device = scene.device
         if scene.engine == "warp":
             from .. import warp_runtime

@@ -266,3 +266,26 @@ def test_a_cell_without_a_rest_state_is_flagged_by_the_reference_as_by_the_batch
     # and the README example's integral refuses a strain and a force of other lengths (numpy broadcast them)
     with pytest.raises(KnitsimInputError, match="must be 1-D arrays of one length"):
         dissipated_energy([0.0, 0.1, 0.2], [0.0, 1.0])
+
+
+def test_the_reference_follows_a_jammed_branch_to_the_default_cap_past_its_residuals_rounding_floor():
+    """A blind probe's random domain cell: on its jammed branch (W = 4 d) the force per wale rises from 5 to 45 N
+    within 0.05 of strain, alpha - gamma falls to 1.4e-6 rad and the reference's scaled residuals cannot be
+    rounded below 2.3e-12 (its Newton asks for 1e-12): the reference stopped at 30.68 N (strain 0.205),
+    flagged no_convergence, below the default cap 50 B / d^2.  A Newton stalled at its rounding floor below
+    TOL_STALLED (1e-10) has converged: the cell reaches the cap.  Expected: the
+    default cap itself (50 B / d^2, definition) at the located event, and the Warp engine's rows (an independent
+    method: forward-mode Jacobian, the Newton in ln(alpha - gamma)) within 1e-6."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.history import STATUS_FORCE_CAP
+
+    cell = CellParams(B=0.0300708, d=0.1823876, L=3.519506, W0=1.0055157, C0=0.911219, m=0.10704, phi0=0.081112)
+    prog = monotonic(0.3, max_increment=0.005)
+    ref = run_cell(cell, prog)
+    warp = run_batch([cell], prog)
+    assert ref.status[-1, 0] == STATUS_FORCE_CAP == warp.status[-1, 0]
+    cap = [e for e in ref.events if e["kind"] == "force_cap"]
+    assert len(cap) == 1 and cap[0]["F"] == pytest.approx(50.0 * cell.B / cell.d ** 2, rel=1e-9)
+    np.testing.assert_array_equal(ref.status, warp.status)
+    np.testing.assert_allclose(ref.values["F"], warp.values["F"], rtol=1e-6)
+    assert [(e["increment"], e["kind"]) for e in ref.events] == [(e["increment"], e["kind"]) for e in warp.events]
