@@ -322,7 +322,8 @@ def _run(args) -> int:
 
 def _run_locked(args) -> int:
     t_command = time.perf_counter()
-    from ..io.patch_results import PATCH_OUTPUT_FILES, patch_summary, specimen_layout, write_patch_results
+    from ..io.patch_results import (PATCH_OUTPUT_FILES, cells_written, patch_summary, specimen_layout,
+                                    write_patch_results)
     from ..io.results import prepare_output_dir, scene_inputs
     from ..patch.runner import (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME, read_checkpoint_header, remove_checkpoint,
                                 resume_refusal, run_patch)
@@ -435,11 +436,17 @@ def _run_locked(args) -> int:
                                 scene=scene.source, title=scene.resolved.get("title", ""),
                                 engine=scene.engine, device=device, load=scene.resolved["load"])
         summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
+        stride = scene.output["cells_stride"]
+        if scene.output["cell_fields"] and stride != 1:
+            # what cells.nc holds, beside the outputs that hold every increment
+            summary["cells_nc"] = cells_written(h, stride)
         res = None
         if args.usd is not None:
+            # from the run's whole history: the USD's own --usd-stride, not cells.nc's
             res = _write_usd(h, m, args, scene, device, summary)
         files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
-                                    cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""))
+                                    cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""),
+                                    cells_stride=stride)
     except KeyboardInterrupt:
         print(interrupted_message(ck if keep else None, total, resume_cmd, writing=True), file=sys.stderr,
               flush=True)
@@ -461,6 +468,10 @@ def _run_locked(args) -> int:
     print(f"knitsim run: done in {time.perf_counter() - t_command:.2f} s (solving {h.wall_s:.2f} s{earlier}: "
           f"{h.info['n_groups']} distinct cells solved for {what}); wrote "
           f"{', '.join(sorted(files))} to {out}", file=sys.stderr, flush=True)
+    if "cells_nc" in summary:
+        cn = summary["cells_nc"]
+        print(f"knitsim run: cells.nc holds {cn['increments_in_file']} of the {cn['increments_in_run']} increments "
+              f"(output.cells_stride = {cn['cells_stride']}: {cn['increments_written']})", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
         if w.get("code") == "zones_overlap":
             continue                       # said before the run (summary.json keeps them)

@@ -28,7 +28,11 @@ Every file says which (:class:`SpecimenLayout`):
   ``stitches`` and, for a specimen, ``width_mm`` and ``gauge_length_mm``; and, for the yarn
   geometry (:mod:`knitsim.usd.from_results`), per group of identical cells (dimension
   ``group``, ``group_of_cell [course, wale]``): ``state_x [increment, group, unknown]``
-  (alpha, beta, gamma, phi [rad], P [N]), ``state_W``, ``state_C``, ``state_s_AB`` [mm];
+  (alpha, beta, gamma, phi [rad], P [N]), ``state_W``, ``state_C``, ``state_s_AB`` [mm].
+  Every increment by default; with ``output.cells_stride`` s > 1 only those of
+  :func:`cells_increments` (the multiples of s, the program's turning points and the last), the
+  ``increment`` coordinate holding their numbers, the attributes ``cells_stride`` and
+  ``increments_written`` saying so;
 - ``summary.json``: see :func:`patch_summary`;
 - ``force_strain.png``, ``strain_map.png``, ``stage_map.png``; ``scene.resolved.toml``.
 
@@ -43,9 +47,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arrays import stride_select, turning_rows
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
 from ..cell.material import DEFAULT_FORCE_CAP_TEXT
 from ..cell.stages import FRICTION_MODELS, JAMMING_CRITERIA, LABEL_CODES, RELOAD_RULES, UNLOADING_RULES
+from ..errors import KnitsimInputError
 from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HELD_RETRIES
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
@@ -281,13 +287,82 @@ def rule_sets(model: PatchModel | None) -> list[dict] | None:
     return out
 
 
+def _check_stride(stride) -> int:
+    """``stride`` as an int, or a one-line error (the scene's ``output.cells_stride`` is checked when the scene
+    is read; this is for a caller of the Python API)."""
+    if isinstance(stride, (bool, np.bool_)) or not isinstance(stride, (int, np.integer)) or stride < 1:
+        raise KnitsimInputError(f"cells_stride = {stride!r}: must be an integer >= 1")
+    return int(stride)
+
+
+def cells_increments(h: PatchHistory, stride: int = 1) -> np.ndarray:
+    """The increment numbers (as in curve.csv, 1 .. n) that ``cells.nc`` holds at ``output.cells_stride``
+    ``stride``: the multiples of ``stride``, every turning point of the grip program (the last increment
+    before the direction changes: the peaks and valleys of the cycles) and the last increment.
+
+    Parameters
+    ----------
+    h : PatchHistory
+        The run (its ``direction`` per increment is the program's).
+    stride : int, >= 1
+        1: every increment.
+
+    Returns
+    -------
+    ndarray of int64
+        Increasing increment numbers; empty for a run of no increments.
+
+    The turning points are kept so that a strided file still holds each cycle's peak and valley (the states
+    a reader looks at first), the last so that it ends where the run ends."""
+    stride = _check_stride(stride)
+    n = h.n_increments
+    # turning_rows are 0-based rows; increment k is row k - 1
+    return stride_select(np.arange(1, n + 1), stride, keep=turning_rows(h.direction) + 1)
+
+
+def cells_written(h: PatchHistory, stride: int = 1) -> dict:
+    """What ``cells.nc`` holds at ``stride`` (summary.json's ``cells_nc`` where the stride is not 1):
+    ``cells_stride``, ``increments_written`` (in words) and how many of the run's increments it holds (their
+    numbers are cells.nc's ``increment`` coordinate)."""
+    inc = cells_increments(h, stride)
+    return {"cells_stride": int(stride), "increments_written": _written_sentence(stride),
+            "increments_in_file": int(len(inc)), "increments_in_run": int(h.n_increments)}
+
+
+def _written_sentence(stride: int) -> str:
+    return (f"increments at multiples of {int(stride)}, the program's turning points (the last increment before "
+            "the grip turns) and the last; curve.csv and columns.csv hold every increment")
+
+
+def _history_rows(h: PatchHistory, rows: np.ndarray) -> PatchHistory:
+    """A copy of ``h`` holding the rows ``rows`` (0-based) of every per-increment record only: what a strided
+    cells.nc is built from (the run's own history, which the checks read, is left whole)."""
+    from dataclasses import replace
+    rows = np.asarray(rows, dtype=np.int64)
+    per_row = ("grip_strain", "cycle", "direction", "force_N", "force_per_wale_N", "column_force_N",
+               "column_status", "column_iterations", "column_slack_mm")
+    return replace(h, groups={k: np.asarray(v)[rows] for k, v in h.groups.items()},
+                   **{k: np.asarray(getattr(h, k))[rows] for k in per_row})
+
+
 def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None,
-                  rules: dict | None = None):
+                  rules: dict | None = None, stride: int = 1):
     """The per-cell fields as an :class:`xarray.Dataset` (see the module docstring); ``rules``: the model's
     rules of every cell (``PatchModel.rules``), written as flag variables (``friction``: which cells are
-    Coulomb, which Dahl) and ``force_cap_N``."""
+    Coulomb, which Dahl) and ``force_cap_N``.
+
+    ``stride`` (``output.cells_stride``): every variable with an ``increment`` dimension holds the
+    increments of :func:`cells_increments` only, numbered as in curve.csv (``ds.sel(increment=k)`` reads
+    increment k), and the attributes ``cells_stride`` and ``increments_written`` say so; 1 (the default)
+    writes every increment, as before the option existed (no such attributes)."""
     import xarray as xr
     layout = layout or _layout_of(h, None)
+    increments = cells_increments(h, stride)
+    n_run = h.n_increments
+    strided = int(stride) != 1
+    if strided:
+        # only the written rows are expanded to cells (a 300 x 300 patch's per-cell fields are 0.2 GB a field)
+        h = _history_rows(h, increments - 1)
     dims = ("increment", "course", "wale")
     meanings = " ".join(_LABELS[k] for k in sorted(_LABELS))
     n, (courses, wales) = h.n_increments, h.shape
@@ -322,9 +397,10 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenL
              "units": "1", "long_name": "courses in series that the cell stands for (band length / C0)"}),
          "wale_count": (("course", "wale"), np.asarray(layout.wale_count, float), {
              "units": "1", "long_name": "wales in parallel that the cell stands for (strip width / W0)"})},
-        # increment numbers as in curve.csv (0 is the rest state, not stored here), so ds.sel(increment=k,
-        # course=i, wale=j) reads one cell at one row; direction as in the CSV files
-        coords={"increment": np.arange(1, n + 1, dtype=np.int32), "course": np.arange(courses, dtype=np.int32),
+        # increment numbers as in curve.csv (0 is the rest state, not stored here; at a stride only those
+        # written), so ds.sel(increment=k, course=i, wale=j) reads one cell at one row; direction as in the CSV
+        # files
+        coords={"increment": increments.astype(np.int32), "course": np.arange(courses, dtype=np.int32),
                 "wale": np.arange(wales, dtype=np.int32),
                 "grip_strain": (("increment",), h.grip_strain), "cycle": (("increment",), h.cycle.astype(np.int32)),
                 "direction": (("increment",), np.where(h.direction > 0, "load", "unload"))},
@@ -333,6 +409,10 @@ def cells_dataset(h: PatchHistory, fields: dict | None = None, layout: SpecimenL
                           if block else "cell [course, wale]; course 0 at the lower grip"),
                "cell_is": "block of stitches" if block else "stitch",
                "stitches": layout.stitches, "conventions": "units N, mm, rad"})
+    if strided:
+        # what the file holds (a stride-1 file carries neither: every increment, as files always did)
+        ds.attrs["cells_stride"] = np.int32(stride)
+        ds.attrs["increments_written"] = f"{_written_sentence(stride)}: {n} of the run's {n_run} increments"
     if block:
         ds.attrs["width_mm"] = float(layout.width_mm)
     if layout.gauge_length_mm is not None:
@@ -409,9 +489,10 @@ def _encoding(ds) -> dict:
 
 
 def cells_nc(h: PatchHistory, fields: dict | None = None, layout: SpecimenLayout | None = None,
-             rules: dict | None = None) -> bytes:
-    """``cells.nc`` as bytes: netCDF-4 (HDF5) through h5netcdf, compressed and chunked by increment."""
-    ds = cells_dataset(h, fields, layout, rules)
+             rules: dict | None = None, stride: int = 1) -> bytes:
+    """``cells.nc`` as bytes: netCDF-4 (HDF5) through h5netcdf, compressed and chunked by increment; ``stride``:
+    ``output.cells_stride`` (:func:`cells_dataset`)."""
+    ds = cells_dataset(h, fields, layout, rules, stride)
     return bytes(ds.to_netcdf(engine="h5netcdf", encoding=_encoding(ds)))
 
 
@@ -1340,18 +1421,24 @@ def map_figure(h: PatchHistory, which: str, title: str = "", layout: SpecimenLay
 
 def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, resolved_toml: str,
                         fields: dict | None = None, plot: bool = True, cell_fields: bool = True,
-                        title: str = "", model: PatchModel | None = None) -> dict[str, Path]:
+                        title: str = "", model: PatchModel | None = None, cells_stride: int = 1) -> dict[str, Path]:
     """Write the result set into ``out_dir`` atomically (``summary.json`` last); returns the files by name.
 
     ``model``: the run's (its parameters go into cells.nc unless ``fields`` is given; a specimen's
-    history needs it for the stitches each block stands for)."""
+    history needs it for the stitches each block stands for).  ``cells_stride``: ``output.cells_stride``,
+    the increments cells.nc holds (:func:`cells_increments`; curve.csv, columns.csv and the plots keep every
+    increment); where it is not 1, summary.json gets a ``cells_nc`` entry saying so (:func:`cells_written`)
+    unless ``summary`` has one."""
+    cells_stride = _check_stride(cells_stride)
     layout = _layout_of(h, model)
     if fields is None and model is not None:
         fields = model.fields
     files = {"curve.csv": curve_csv(h).encode(), "columns.csv": columns_csv(h, layout).encode(),
              "scene.resolved.toml": resolved_toml.encode()}
     if cell_fields:
-        files["cells.nc"] = cells_nc(h, fields, layout, model.rules if model is not None else None)
+        files["cells.nc"] = cells_nc(h, fields, layout, model.rules if model is not None else None, cells_stride)
+        if cells_stride != 1 and "cells_nc" not in summary:
+            summary = {**summary, "cells_nc": cells_written(h, cells_stride)}
     if plot:
         files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"),
                                                       force_cap_rows(h, model).rows)
@@ -1362,5 +1449,6 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
 
 
 __all__ = ["CURVE_COLUMNS", "COLUMNS_COLUMNS", "PATCH_OUTPUT_FILES", "SpecimenLayout", "specimen_layout",
-           "column_forces", "curve_csv", "columns_csv", "cells_dataset", "cells_nc", "ForceCapRows", "force_cap_rows",
+           "column_forces", "curve_csv", "columns_csv", "cells_dataset", "cells_nc", "cells_increments",
+           "cells_written", "ForceCapRows", "force_cap_rows",
            "patch_summary", "plot_force_strain", "plot_map", "map_figure", "write_patch_results", "PARAM_NAMES"]

@@ -46,6 +46,7 @@ Example (``scenes/two_zone_basalt_e_glass.toml``)::
     [output]
     plot = true
     checkpoint_every = 50
+    cells_stride = 1                # cells.nc at increments k s, the turning points and the last
 
 **A specimen as a tester describes it** (instead of ``[patch]``)::
 
@@ -205,6 +206,9 @@ PATCH_SCENE = Table({
     "output": Table({
         "plot": Field(("bool",), True, "write PNG plots"),
         "cell_fields": Field(("bool",), True, "write per-cell fields over time (cells.nc)"),
+        "cells_stride": Field(("int",), 1, "cells.nc holds the increments at multiples of this, the program's "
+                              "turning points and the last (1: every increment; curve.csv and columns.csv always "
+                              "hold every increment)", min=1),
         "checkpoint_every": Field(("int",), 50, "increments between checkpoints (0: none)", min=0),
     }, "what to write"),
     "solver": Table({
