@@ -11,8 +11,10 @@ crate (use it for large patches).  A specimen (cells that stand for blocks of
 stitches) is drawn stitch by stitch, each stitch an instance of its block's
 shape (:mod:`knitsim.usd.instanced`).  Time code k is increment k (0 the rest
 state) where cells.nc holds the rest state, else increment k + 1 (the file says
-which); increments after the knit stopped (every column held: the force cap,
-failed cells) are not written, and the file says so with the run's warnings.
+which); a folder whose cells.nc was written at ``output.cells_stride`` draws the
+increments it holds, at their own time codes (the file lists them); increments
+after the knit stopped (every column held: the force cap, failed cells) are not
+written, and the file says so with the run's warnings.
 The output path is checked writable before any work.  Exit status 0, or 2 on
 bad input.
 """
@@ -159,7 +161,9 @@ def _run(args) -> int:
            "quicklook": args.quicklook, "run_warnings": run_warnings,
            "time_code_0_is_increment": tl["time_code_0_is_increment"],
            "last_increment_written": tl["last_increment_written"], "increments_in_run": tl["increments_in_run"],
-           "increments_not_written": tl.get("increments_not_written")}
+           "increments_not_written": tl.get("increments_not_written"),
+           # a results folder written at output.cells_stride: the increments it holds (None: every one)
+           "saved_increments": tl.get("saved_increments")}
     if args.json:
         print_json(doc)
     else:
@@ -182,6 +186,12 @@ def timeline_lines(tl: dict) -> list[str]:
     """What a user is told of an exported timeline (``UsdExportResult.timeline``): the increments left out,
     and a time code 0 that is not the rest state."""
     out = []
+    if tl.get("saved_increments_are"):
+        # a results folder written at output.cells_stride: the file's time codes have gaps
+        n = len(tl.get("saved_increments", []))
+        out.append(f"note: the results hold {n} of the run's {tl['increments_in_run']} increments (cells.nc written "
+                   "at output.cells_stride): time codes are their increment numbers, the others are not drawn "
+                   "(customLayerData knitsim.timeline.saved_increments)")
     if tl.get("increments_not_written"):
         out.append(f"note: increments {tl['increments_not_written']} of {tl['increments_in_run']} not written: "
                    f"{tl['why_not_written']}")

@@ -198,10 +198,9 @@ def _check_frame(k: int, fr: Mapping, shape: tuple | None):
 def _selected(n_frames: int, stride) -> list[int]:
     if isinstance(stride, bool) or not isinstance(stride, (int, np.integer)) or stride < 1:
         raise KnitsimInputError(f"stride must be an integer >= 1, got {stride!r}")
-    idx = list(range(0, n_frames, int(stride)))
-    if idx[-1] != n_frames - 1:
-        idx.append(n_frames - 1)
-    return idx
+    from ..arrays import stride_select
+    # frames 0, stride, 2 stride, ... and the last: the rule of every strided output (knitsim.arrays)
+    return [int(i) for i in stride_select(np.arange(n_frames), stride)]
 
 
 # --------------------------------------------------------------------------- colours
@@ -293,6 +292,8 @@ def _layer_value(v):
         return out
     if v is None:
         return None
+    if isinstance(v, (Vt.IntArray, Vt.DoubleArray, Vt.StringArray)):
+        return v                          # converted already (the timeline passes through here twice)
     if isinstance(v, (bool, np.bool_)):
         return bool(v)
     if isinstance(v, (int, np.integer)):

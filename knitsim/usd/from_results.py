@@ -36,6 +36,15 @@ state (written by a knitsim that did not save it) is exported as before: time
 code k is increment k + 1, and ``customLayerData["knitsim"]["timeline"]`` says so
 (``time_code_0_is_increment``).
 
+A results folder whose cells.nc was written at a stride (``output.cells_stride``)
+holds some increments only (the multiples of its stride, the program's turning
+points and the last: :func:`knitsim.io.patch_results.cells_increments`); the
+record keeps the increment number of each saved row (:attr:`PatchRecord.increments`,
+cells.nc's ``increment`` coordinate), the time codes are still those increment
+numbers, ``stride`` s writes those of them that are multiples of s (and the
+last), and the file lists the saved increments (``timeline``:
+``saved_increments``, ``saved_increments_are``).
+
 Increments the knit did not reach.  Where, from some increment to the end of the
 run, every column is held (stopped at its cells' force cap, failed cells, columns
 that no longer converge: the run goes on moving the grip while the knit keeps its
@@ -61,6 +70,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arrays import stride_select
 from ..errors import KnitsimInputError
 from . import yarn_geometry as yg
 
@@ -199,6 +209,11 @@ class PatchRecord:
         (:data:`knitsim.patch.coupling.COLUMN_STATUS_NAMES`).
     run_summary : dict or None
         The run's summary (``summary.json``): its warnings and flags go into the file.
+    increments : (T,) int or None
+        The increment number (curve.csv's) of each saved row; None: 1 .. T (every increment, a history or
+        an unstrided results folder).  A results folder written at ``output.cells_stride`` holds some only.
+    increments_written : str
+        What the results say of the increments they hold (cells.nc's ``increments_written``), or "".
     """
 
     group_of_cell: np.ndarray
@@ -217,6 +232,19 @@ class PatchRecord:
     column_slack_mm: np.ndarray | None = None
     column_status: np.ndarray | None = None
     run_summary: dict | None = None
+    increments: np.ndarray | None = None
+    increments_written: str = ""
+
+    @property
+    def saved_increments(self) -> np.ndarray:
+        """The increment number of each saved row, (T,) int64: :attr:`increments`, or 1 .. T."""
+        if self.increments is None:
+            return np.arange(1, self.n_frames + 1, dtype=np.int64)
+        inc = np.asarray(self.increments, dtype=np.int64).ravel()
+        if inc.shape != (self.n_frames,) or np.any(inc < 1) or np.any(np.diff(inc) <= 0):
+            raise KnitsimInputError(f"{self.source or 'record'}: increments must be {self.n_frames} increasing "
+                                    "increment numbers >= 1 (one per saved row)")
+        return inc
 
     @property
     def blocks(self) -> bool:
@@ -377,10 +405,27 @@ def record_from_results(results_dir) -> PatchRecord:
     counts = [np.asarray(ds[k].values, float) if k in ds else None for k in ("course_count", "wale_count")]
     T, wales = ds["state_x"].shape[0], ds["group_of_cell"].shape[1]
     status = ds["column_status"].values.astype(np.int64) if "column_status" in ds else None
+    increments = _increments_of_results(d, ds, T)
     return PatchRecord(ds["group_of_cell"].values.astype(np.int64), ds["state_x"].values, ds["state_W"].values,
                        ds["state_C"].values, ds["state_s_AB"].values, cf, params, fs,
                        scene.read_text() if scene.is_file() else "", str(d), *counts,
-                       _rest_of_results(d, ds), _column_slack_of_results(d, T, wales), status, _summary_of(d))
+                       _rest_of_results(d, ds), _column_slack_of_results(d, increments, wales), status,
+                       _summary_of(d), increments, str(ds.attrs.get("increments_written", "")))
+
+
+def _increments_of_results(d: Path, ds, T: int) -> np.ndarray:
+    """The increment number of each of cells.nc's T saved rows: its ``increment`` coordinate (curve.csv's
+    numbers: every increment, or those of ``output.cells_stride``), or 1 .. T where the file has no such
+    coordinate (cells.nc of a knitsim before it was numbered)."""
+    if "increment" in ds.coords:
+        inc = np.asarray(ds["increment"].values)
+        if inc.dtype.kind in "iu" and inc.shape == (T,) and (T == 0 or (inc[0] >= 1 and np.all(np.diff(inc) > 0))):
+            return inc.astype(np.int64)
+        if "cells_stride" in ds.attrs:
+            # a strided file must say which increments it holds: without them its rows cannot be placed
+            raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: cells.nc's increment coordinate is not {T} "
+                                    "increasing increment numbers >= 1; the file is damaged: rerun the scene")
+    return np.arange(1, T + 1, dtype=np.int64)
 
 
 def _csv_rows(path: Path) -> list[dict] | None:
@@ -409,17 +454,23 @@ def _rest_of_results(d: Path, ds) -> dict | None:
     return rest
 
 
-def _column_slack_of_results(d: Path, n: int, columns: int) -> np.ndarray | None:
-    """Each column's slack length per increment, (n, columns) [mm], from columns.csv ``slack_mm``; None where
-    the file or the column is missing or does not cover every increment and column."""
+def _column_slack_of_results(d: Path, increments: np.ndarray, columns: int) -> np.ndarray | None:
+    """Each column's slack length at each saved increment, (len(increments), columns) [mm], from columns.csv
+    ``slack_mm``; None where the file or the column is missing or does not cover every saved increment and
+    column.
+
+    ``increments``: the increment numbers (curve.csv's) of cells.nc's rows; columns.csv holds every
+    increment, so a strided cells.nc's rows are picked from it."""
+    inc = np.asarray(increments, dtype=np.int64).ravel()
+    row_of = {int(k): i for i, k in enumerate(inc)}
     rows = _csv_rows(d / "columns.csv")
     if not rows or "slack_mm" not in rows[0]:
         return None
-    out = np.full((n, columns), np.nan)
+    out = np.full((len(inc), columns), np.nan)
     try:
         for r in rows:
-            i, j = int(r["increment"]) - 1, int(r["column"])
-            if 0 <= i < n and 0 <= j < columns:
+            i, j = row_of.get(int(r["increment"]), -1), int(r["column"])
+            if i >= 0 and 0 <= j < columns:
                 out[i, j] = float(r["slack_mm"])
     except (KeyError, TypeError, ValueError):
         return None
@@ -502,61 +553,109 @@ class Timeline:
     ----------
     rest : bool
         The rest state is known: time code k is increment k (0 the rest state); else time code k is
-        increment k + 1 (saved row k).
+        increment k + 1 (a results folder of an older knitsim).
     last_row : int
-        The last saved row written (0-based; increment ``last_row + 1``): the run's last, or the first
-        row of a tail in which every column is held (:func:`column_held`).
+        The last saved row written (0-based): the run's last, or the first row of a tail in which every
+        column is held (:func:`column_held`).
     n_rows : int
-        Saved rows of the run (its program's increments).
+        Saved rows of the run.
+    increments : tuple of int
+        The increment number (curve.csv's) of each saved row; empty: 1 .. ``n_rows`` (every increment).
+        A results folder written at ``output.cells_stride`` holds some increments only: its time codes
+        are still increment numbers, with gaps between them.
+    increments_written : str
+        What the results say of the increments they hold (cells.nc's ``increments_written``), or "".
     """
 
     rest: bool
     last_row: int
     n_rows: int
+    increments: tuple = ()
+    increments_written: str = ""
+
+    def increment(self, row: int) -> int:
+        """The increment number of saved row ``row`` (0-based)."""
+        return int(self.increments[row]) if self.increments else int(row) + 1
+
+    @property
+    def n_increments(self) -> int:
+        """Increments of the run: the last saved row's number (a strided record always keeps the last)."""
+        return self.increment(self.n_rows - 1) if self.n_rows else 0
+
+    @property
+    def sparse(self) -> bool:
+        """The saved rows are not every increment 1 .. n (a results folder written at a stride)."""
+        return bool(self.increments) and tuple(self.increments) != tuple(range(1, self.n_rows + 1))
+
+    @property
+    def time_codes(self) -> list[int]:
+        """The time codes available, increasing: 0 for the rest state where known, then each saved increment
+        up to :attr:`last_row` (increment k at time code k, or k - 1 without the rest state)."""
+        off = 0 if self.rest else 1
+        return ([0] if self.rest else []) + [self.increment(r) - off for r in range(self.last_row + 1)]
 
     @property
     def length(self) -> int:
-        """Time codes available: 0 .. length - 1."""
-        return self.last_row + 1 + (1 if self.rest else 0)
+        """One past the last time code (time codes 0 .. length - 1; with gaps where :attr:`sparse`)."""
+        return self.time_codes[-1] + 1
 
     def row(self, tc: int) -> int:
         """The saved row of time code ``tc`` (-1: the rest state)."""
-        return tc - 1 if self.rest else tc
+        if self.rest and tc == 0:
+            return -1
+        inc = int(tc) + (0 if self.rest else 1)
+        if not self.increments:
+            return inc - 1
+        i = int(np.searchsorted(np.asarray(self.increments), inc))
+        if i >= len(self.increments) or int(self.increments[i]) != inc:
+            raise KnitsimInputError(f"time code {tc}: increment {inc} is not among the saved increments")
+        return i
 
     def select(self, stride: int) -> list[int]:
-        """Time codes 0, stride, 2 stride, ... and the last one."""
-        sel = list(range(0, self.length, int(stride)))
-        if sel[-1] != self.length - 1:
-            sel.append(self.length - 1)
-        return sel
+        """Of the time codes, those that are multiples of ``stride`` and the last one
+        (:func:`knitsim.arrays.stride_select`: 0, stride, 2 stride, ... where every increment is saved)."""
+        return [int(t) for t in stride_select(self.time_codes, stride)]
 
     def info(self, stride: int, written: int) -> dict:
         """The file's ``customLayerData["knitsim"]["timeline"]``."""
+        n_run, last = self.n_increments, self.increment(self.last_row)
         out = {"time_code_is": ("the increment number of the run (curve.csv's increment; 0 is the rest state)"
                                 if self.rest else
-                                "the saved increment's index: time code k is increment k + 1 (curve.csv's numbering); "
-                                "this results folder holds no rest state (cells.nc has no "
+                                "the saved increment's number less 1: time code k is increment k + 1 (curve.csv's "
+                                "numbering); this results folder holds no rest state (cells.nc has no "
                                 f"{REST_VARIABLES['x']}), so increment 0 is not drawn"),
                "time_code_0_is_increment": 0 if self.rest else 1, "rest_state": self.rest,
-               "increments_in_run": self.n_rows, "last_increment_written": self.last_row + 1,
+               "increments_in_run": n_run, "last_increment_written": last,
                "stride": int(stride), "time_samples": int(written)}
+        if self.sparse:
+            # a results folder written at output.cells_stride: the increments between these are not in it
+            saved = [self.increment(r) for r in range(self.n_rows)]
+            out["saved_increments"] = saved
+            out["saved_increments_are"] = (
+                f"sparse: the results hold {len(saved)} of the run's {n_run} increments"
+                + (f" (cells.nc's increments_written: {self.increments_written})" if self.increments_written else "")
+                + "; the time codes are their increment numbers, and the increments between them are not drawn"
+                + (f"; of them, those at multiples of the stride {int(stride)} and the last are written"
+                   if int(stride) != 1 else ""))
         if self.last_row + 1 < self.n_rows:
-            out["increments_not_written"] = f"{self.last_row + 2}-{self.n_rows}"
+            out["increments_not_written"] = f"{last + 1}-{n_run}"
             out["why_not_written"] = (
-                f"from increment {self.last_row + 2} on every column is held (stopped at its cells' force cap, "
-                f"failed cells, or not converging: see run.warning_codes): the run moves the grip on while the knit "
-                f"keeps the state of increment {self.last_row + 1}, which is the last written")
+                f"from increment {last + 1} on every column is held (stopped at its cells' "
+                f"force cap, failed cells, or not converging: see run.warning_codes): the run moves the grip on while "
+                f"the knit keeps the state of increment {last}, which is the last written")
         return out
 
 
 def timeline(rec: PatchRecord) -> Timeline:
     """The :class:`Timeline` of a record: its rest state if recorded, and the rows the knit reached (every row,
-    up to the first of a tail of rows in which every column is held: there the knit no longer moves)."""
+    up to the first of a tail of rows in which every column is held: there the knit no longer moves), with the
+    increment number of each row (:attr:`PatchRecord.saved_increments`)."""
     T = rec.n_frames
     held = column_held(rec).all(axis=1)
     free = np.nonzero(~held)[0]
     last = T - 1 if not held[-1] else (min(int(free[-1]) + 1, T - 1) if len(free) else 0)
-    return Timeline(rec.rest is not None, last, T)
+    inc = () if rec.increments is None else tuple(int(k) for k in rec.saved_increments)
+    return Timeline(rec.rest is not None, last, T, inc, rec.increments_written)
 
 
 def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POINTS, device: str = "cpu",
@@ -564,8 +663,10 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
     """The frames of a record at time codes 0, stride, 2 stride, ... and the last (or the time codes ``frames``).
 
     The time codes are those of :func:`timeline`: increment numbers, 0 the rest state where the record has
-    it, up to the last increment the knit reached.  The unselected frames are not built (the exporter is then
-    called with ``stride=1``).  ``per_group``: one entry per distinct cell (the instanced layout) instead of
+    it, up to the last increment the knit reached; of a record saved at a stride (``output.cells_stride``),
+    its saved increments only, of which ``stride`` takes those that are multiples of it
+    (:meth:`Timeline.select`).  The unselected frames are not built (the exporter is then called with
+    ``stride=1``).  ``per_group``: one entry per distinct cell (the instanced layout) instead of
     one per cell; default: a specimen's record.
     """
     per_group = rec.blocks if per_group is None else bool(per_group)
@@ -580,8 +681,11 @@ def build_frames(rec: PatchRecord, stride: int = 1, n_points: int = DEFAULT_POIN
         sel = tl.select(stride)
     else:
         sel = [int(k) for k in frames]
-        if not sel or min(sel) < 0 or max(sel) >= tl.length or np.any(np.diff(sel) <= 0):
-            raise KnitsimInputError(f"frames = {frames!r}: must be increasing time codes in 0..{tl.length - 1}")
+        codes = tl.time_codes
+        if not sel or np.any(np.diff(sel) <= 0) or not set(sel) <= set(codes):
+            have = (f"in 0..{tl.length - 1}" if not tl.sparse else
+                    f"among the saved ones ({', '.join(map(str, codes[:12]))}{' ...' if len(codes) > 12 else ''})")
+            raise KnitsimInputError(f"frames = {frames!r}: must be increasing time codes {have}")
     rows = [tl.row(tc) for tc in sel]                   # -1: the rest state
     goc = rec.group_of_cell
     G = rec.x.shape[1]
@@ -704,7 +808,8 @@ def export_record(rec: PatchRecord, out_path, *, color_by: str = "stage", stride
         ``force`` colours by the force per wale of each cell [N] (field ``force_per_wale_N``).
     stride : int, >= 1
         Increments 0, stride, 2 stride, ... and the last one written; time code = increment number
-        (module docstring, "Time codes").
+        (module docstring, "Time codes"; of a record saved at a stride, its saved increments that are
+        multiples of ``stride``).
     n_points : int, >= 6
         Points per quarter centreline.
     device : str

@@ -162,3 +162,25 @@ def test_non_uniform_patch_says_its_joins_are_a_display_artefact(tmp_path, unifo
     hh = run_patch(mm, cycles(0.10, 0.20, 1, 0.1), engine="warp")
     b = read_patch_usd(export_history(hh, mm.fields, tmp_path / "n.usda").path)
     assert b.info["drawing"]["non_uniform"] == yg.NON_UNIFORM_NOTE
+
+
+def test_a_strided_folder_of_a_run_cut_by_the_force_cap_ends_at_its_first_saved_held_increment(tmp_path, capped):
+    """cells.nc at output.cells_stride 4 of the capped run: PROG loads 0 -> 0.30 in 6 steps of 0.05 and unloads
+    to 0.10 in 4, so it turns after increment 6 and ends at 10; the file holds 4, 8 (multiples of 4), 6 and 10.
+    curve.csv says every column is held from increment 3: of the saved increments the first held one, 4, is the
+    last the knit reached, and it is the last written."""
+    m, h, summary, _ = capped
+    out = tmp_path / "res4"
+    write_patch_results(out, h, summary, "# uniform\n", model=m, plot=False, cells_stride=4)
+    held = [int(r["increment"]) for r in _csv(out / "curve.csv") if int(r["columns_held"]) == WALES]
+    assert held[0] == 3 and held[-1] == h.n_increments == 10
+    u = read_specimen_usd(export_results(out, tmp_path / "r4.usda").path)
+    assert list(u.time_codes) == [0, 4]
+    tl = u.info["timeline"]
+    assert list(tl["saved_increments"]) == [4, 6, 8, 10] and tl["increments_in_run"] == 10
+    assert tl["last_increment_written"] == 4 and tl["increments_not_written"] == "5-10"
+    # the increment drawn at time code 4 is cells.nc's increment 4 (its strain)
+    import xarray as xr
+    with xr.open_dataset(out / "cells.nc", engine="h5netcdf") as ds:
+        np.testing.assert_allclose(np.ravel(u.fields["strain"][1]), np.unique(ds["strain"].sel(increment=4).values),
+                                   atol=1e-7)              # a uniform patch: one distinct cell, one strain
