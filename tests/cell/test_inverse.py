@@ -131,3 +131,27 @@ def test_bad_conditions_raise():
                     0.31, 0.58)
     with pytest.raises(KnitsimInputError, match="three|four"):
         solve_state({"L": 14.1, "W": 4.4, "C": 2.7}, [1.2, 1.7, 0.1, 0.0, 0.1], 0.31, 0.58)
+
+
+def test_a_newton_stalled_at_its_rounding_floor_converges_only_where_asked_and_agrees_with_the_warp_solve():
+    """A jammed state at high load (a blind probe's random domain cell at strain 0.205, 30.7 N per wale, alpha -
+    gamma = 1.4e-6): the reference's scaled residuals round at ~1e-12, above its tolerance 1e-12.  Asked for
+    the tolerance (tol_stalled = 0, the default) the solve fails, without the 2,000-evaluation least-squares
+    fallback (a stall that near the root is its floor); with TOL_STALLED (the reference's load steps) it has
+    converged (status 2).  Expected: the Warp engine's Newton of the same conditions (an independent method:
+    forward-mode Jacobian, another chart), F within 1e-6 (6e-8 measured)."""
+    from knitsim.cell.inverse import TOL_STALLED
+    from knitsim.cell.warp_solve import solve_batch
+
+    names = ("L", "C", "phi", "W")
+    cond = {"L": 3.519506, "C": 1.098018943699888, "phi": 0.10663398175590569, "W": 0.7295504}
+    B, d = 0.0300708, 0.1823876
+    guess = [1.3935326, 2.2292931, 1.3935312, 0.106634, 15.58209]
+    strict = solve_state(cond, guess, B, d)
+    assert not strict.success and strict.method == "newton" and strict.residual_norm < 1e-10
+    floor = solve_state(cond, guess, B, d, tol_stalled=TOL_STALLED)
+    assert floor.success and floor.status == 2 and 1e-12 < floor.residual_norm <= TOL_STALLED
+    x, status, _ = solve_batch(names, [cond[k] for k in names], B, d, guess)
+    assert status[0] == 0
+    F_warp = float(quarter_loop(*x[0], B, d).F)
+    assert float(floor.state.F) == pytest.approx(F_warp, rel=1e-6)
