@@ -182,8 +182,8 @@ def solve_state(conditions: Mapping[str, float], guess, B: float, d: float, *,
     max_iter : int
         Newton iterations before the fallback.
     fallback : bool
-        Try ``scipy.optimize.least_squares`` when Newton fails (not when it stalled within
-        :data:`STALL_NEAR_ROOT` of the root: its rounding floor).
+        Try ``scipy.optimize.least_squares`` when Newton fails (with ``tol_stalled`` > 0, not when it stalled
+        within :data:`STALL_NEAR_ROOT` of the root: its rounding floor).
     fd_step : float
         Central-difference step in z.
     tol_stalled : float
@@ -244,10 +244,11 @@ def solve_state(conditions: Mapping[str, float], guess, B: float, d: float, *,
     method = "newton"
     status = 0
     at_floor = not norm <= tol and norm <= tol_stalled and (stalled or nit >= max_iter)
-    # a Newton stalled within STALL_NEAR_ROOT of the root is at its residuals' rounding floor, which the
-    # trust region cannot go below either: the fallback is not tried (on a jammed branch at alpha - gamma
-    # ~ 1e-7, floor 4e-9, each of its 2,000 evaluations failed: 360 s to flag a cell the Newton flags in 8 s)
-    near_root = (stalled or nit >= max_iter) and norm <= STALL_NEAR_ROOT
+    # where a floor is accepted (the load steps), a Newton stalled within STALL_NEAR_ROOT of the root is at
+    # its residuals' rounding floor, which the trust region cannot go below either: the fallback is not tried
+    # (on a jammed branch at alpha - gamma ~ 1e-7, floor 4e-9, each of its 2,000 evaluations failed, 1.5 s
+    # a sub-step); the other callers (rest states, continuations) keep it
+    near_root = tol_stalled > 0.0 and (stalled or nit >= max_iter) and norm <= STALL_NEAR_ROOT
     if at_floor:
         method = "newton (rounding floor)"
         status = 2
