@@ -75,10 +75,10 @@ def register(subparsers) -> None:
 
 
 def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: bool = True,
-                       cell_fields: bool = True) -> list[dict]:
+                       cell_fields: bool = True, cells_increments: int | None = None) -> list[dict]:
     """Before any solve: every distinct cell of the patch against the model's domain (knitsim.cell.domain), and
     the run's records against the machine's memory (:func:`check_record_memory`; ``cell_fields``: cells.nc is
-    written).
+    written, holding ``cells_increments`` increments, default all).
 
     A cell without an admissible rest state is an error (one line: how many cells, the first one's
     course and wale, the reason): the model cannot run it, and a column holding it has no rest state
@@ -95,7 +95,8 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     grouping = model.grouping(dedup=True)
     n_cells = int(grouping.group_of_cell.size)
     # (dedup off: every cell is a group of its own)
-    check_record_memory(grouping.n_groups if dedup else n_cells, len(grip_strains), dedup, cell_fields=cell_fields)
+    check_record_memory(grouping.n_groups if dedup else n_cells, len(grip_strains), dedup, cell_fields=cell_fields,
+                        cells_increments=cells_increments)
     # every group's cell validated (CellParams.validated's message, naming the patch cell), then judged from
     # the groups' arrays: a CellParams per group, validated, and a per-object check made the 300 x 300 random
     # patch's check 4.6-5.0 s on a 2-core box (27 s on a GPU host); from the arrays 2.1-2.4 s, of which the
@@ -127,27 +128,31 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
 
 
 def check_record_memory(n_groups: int, n_increments: int, dedup: bool, available: int | None = None,
-                        cell_fields: bool = True) -> None:
+                        cell_fields: bool = True, cells_increments: int | None = None) -> None:
     """Refuse, before any work, a run whose per-cell records would not fit in the machine's free memory
     (:func:`knitsim.patch.runner.record_memory_bytes` against ``available``, by default
-    :func:`~knitsim.patch.runner.available_memory_bytes`; ``cell_fields``: cells.nc is written, the run's peak):
+    :func:`~knitsim.patch.runner.available_memory_bytes`; ``cell_fields``: cells.nc is written, the run's peak,
+    holding ``cells_increments`` increments, default all: ``output.cells_stride``):
     it would be killed part-way (a 1000 x 1000 random patch through 620 increments keeps 167 GB, 112 GB without
     cells.nc)."""
     from ..patch.runner import (CELL_FIELDS_COPIES, RECORD_BYTES_PER_GROUP, RECORD_COPIES, available_memory_bytes,
                                 record_memory_bytes)
-    need = record_memory_bytes(n_groups, n_increments, cell_fields)
+    need = record_memory_bytes(n_groups, n_increments, cell_fields, cells_increments)
     free = available_memory_bytes() if available is None else available
     if free is None or need <= free:
         return
     gib = 2.0 ** 30
-    copies = RECORD_COPIES + (CELL_FIELDS_COPIES if cell_fields else 0)
-    what = "the rows and what the outputs derive from them" + (", cells.nc's per-cell fields" if cell_fields else "")
+    cells = n_increments if cells_increments is None else cells_increments
+    copies = RECORD_COPIES + (CELL_FIELDS_COPIES * cells / max(n_increments, 1) if cell_fields else 0)
+    what = "the rows and what the outputs derive from them" + (
+        (", cells.nc's per-cell fields" + (f" ({cells:,} of the increments)" if cells != n_increments else ""))
+        if cell_fields else "")
     without = record_memory_bytes(n_groups, n_increments, False)
     lighter = (f"write no cells.nc (output.cell_fields = false: {without / gib:.3g} GiB), " if cell_fields
                and without <= free else "")
     raise KnitsimInputError(
         f"the run would keep {need / gib:.3g} GiB of per-cell records ({n_groups:,} distinct cell(s) x {n_increments:,} "
-        f"increments x {RECORD_BYTES_PER_GROUP} bytes, {copies} copies at its peak: {what}), more than the "
+        f"increments x {RECORD_BYTES_PER_GROUP} bytes, {copies:.3g} copies at its peak: {what}), more than the "
         f"{free / gib:.3g} GiB free on this machine: it would be killed part-way. Take fewer increments (a larger "
         f"load.max_increment), " + lighter + ("" if dedup else "turn dedup on (identical cells solved once), ")
         + "or run a smaller patch")
@@ -323,7 +328,7 @@ def _run(args) -> int:
 def _run_locked(args) -> int:
     t_command = time.perf_counter()
     from ..io.patch_results import (PATCH_OUTPUT_FILES, cells_written, patch_summary, specimen_layout,
-                                    write_patch_results)
+                                    strided_increments, write_patch_results)
     from ..io.results import prepare_output_dir, scene_inputs
     from ..patch.runner import (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME, read_checkpoint_header, remove_checkpoint,
                                 resume_refusal, run_patch)
@@ -357,8 +362,10 @@ def _run_locked(args) -> int:
             from .. import warp_runtime
             device = warp_runtime.resolve_device(scene.device)
         # the model's domain, before any output is touched (a cell without a rest state: error)
-        domain_warnings = check_patch_domain(scene.model, scene.program.strain, scene.engine, device, scene.dedup,
-                                             cell_fields=scene.output["cell_fields"])
+        domain_warnings = check_patch_domain(
+            scene.model, scene.program.strain, scene.engine, device, scene.dedup,
+            cell_fields=scene.output["cell_fields"],
+            cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])))
         overlaps = zone_overlaps(scene.resolved)
         for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)

@@ -314,10 +314,16 @@ def cells_increments(h: PatchHistory, stride: int = 1) -> np.ndarray:
 
     The turning points are kept so that a strided file still holds each cycle's peak and valley (the states
     a reader looks at first), the last so that it ends where the run ends."""
+    return strided_increments(h.direction, stride)
+
+
+def strided_increments(direction, stride: int = 1) -> np.ndarray:
+    """:func:`cells_increments` of a program whose increments go in ``direction`` (+1 / -1 each, the
+    :class:`~knitsim.cell.load_program.LoadProgram`'s or the run's): known before the run (its memory check)."""
     stride = _check_stride(stride)
-    n = h.n_increments
+    n = len(np.asarray(direction).ravel())
     # turning_rows are 0-based rows; increment k is row k - 1
-    return stride_select(np.arange(1, n + 1), stride, keep=turning_rows(h.direction) + 1)
+    return stride_select(np.arange(1, n + 1), stride, keep=turning_rows(direction) + 1)
 
 
 def cells_written(h: PatchHistory, stride: int = 1) -> dict:

@@ -67,13 +67,16 @@ RECORD_COPIES = 2
 CELL_FIELDS_COPIES = 1
 
 
-def record_memory_bytes(n_groups: int, n_increments: int, cell_fields: bool = True) -> int:
+def record_memory_bytes(n_groups: int, n_increments: int, cell_fields: bool = True,
+                        cells_increments: int | None = None) -> int:
     """The memory a run of ``n_groups`` groups through ``n_increments`` increments needs at its peak for its
     per-group records [bytes] (:data:`RECORD_BYTES_PER_GROUP`, :data:`RECORD_COPIES` and, with ``cell_fields``
-    (cells.nc written), :data:`CELL_FIELDS_COPIES` more): a 1000 x 1000 random patch through the paper's 620
+    (cells.nc written), :data:`CELL_FIELDS_COPIES` more of the ``cells_increments`` increments cells.nc holds,
+    default all: ``output.cells_stride`` writes fewer): a 1000 x 1000 random patch through the paper's 620
     increments, 167 GB (112 GB without cells.nc); the paper's specimen with random phi0, 0.42 GB."""
-    copies = RECORD_COPIES + (CELL_FIELDS_COPIES if cell_fields else 0)
-    return copies * RECORD_BYTES_PER_GROUP * int(n_groups) * int(n_increments)
+    cells = int(n_increments) if cells_increments is None else int(cells_increments)
+    rows = RECORD_COPIES * int(n_increments) + (CELL_FIELDS_COPIES * cells if cell_fields else 0)
+    return rows * RECORD_BYTES_PER_GROUP * int(n_groups)
 
 
 def available_memory_bytes() -> int | None:

@@ -90,3 +90,23 @@ def test_the_estimate_of_the_docstring(n_groups, n_inc, gb, cell_fields):
     # record_memory_bytes' docstring: a 1000 x 1000 random patch through the paper's 620 increments (with and
     # without cells.nc), and the paper's specimen (23 x 110) with random phi0
     assert record_memory_bytes(n_groups, n_inc, cell_fields) / 1e9 == pytest.approx(gb, rel=1e-3)
+
+
+def test_cells_nc_at_a_stride_is_counted_at_its_increments(tmp_path, monkeypatch, capsys):
+    """output.cells_stride = 5 on the 10 increments of cycles(0.1, 0.3, 1, 0.05) (up 0.05 .. 0.3 in 6, down to
+    0.1 in 4): cells.nc holds increments 5 and 10 (multiples) and 6 (the peak), 3 of 10, so the run keeps
+    (2 x 10 + 1 x 3) rows x 90 bytes x 12 groups = 24,840 bytes at its peak, not the 32,400 of every increment:
+    the memory one byte short of the full estimate holds it; one byte short of its own is refused, saying so."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(PATCH)
+    n = len(cycles(0.1, 0.3, 1, 0.05))
+    assert record_memory_bytes(12, n, cells_increments=3) == (2 * 10 + 3) * 90 * 12 == 24840
+    monkeypatch.setattr(runner, "available_memory_bytes", lambda: record_memory_bytes(12, n) - 1)
+    sets = ["--no-progress", "--set", "patch.dedup=false", "--set", "output.cells_stride=5"]
+    assert main(["run", str(scene), "--out", str(tmp_path / "a"), *sets]) == 0
+    monkeypatch.setattr(runner, "available_memory_bytes", lambda: 24840 - 1)
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(tmp_path / "b"), *sets]) == 2
+    err = capsys.readouterr().err
+    assert "per-cell records" in err and "(3 of the increments)" in err and "2.3 copies" in err, err
+    assert not (tmp_path / "b").exists()
