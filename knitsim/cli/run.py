@@ -327,8 +327,8 @@ def _run(args) -> int:
 
 def _run_locked(args) -> int:
     t_command = time.perf_counter()
-    from ..io.patch_results import (PATCH_OUTPUT_FILES, cells_written, patch_summary, specimen_layout,
-                                    strided_increments, write_patch_results)
+    from ..io.patch_results import (PATCH_OUTPUT_FILES, cells_written, force_cap_rows, patch_summary,
+                                    specimen_layout, strided_increments, write_patch_results)
     from ..io.results import prepare_output_dir, scene_inputs
     from ..patch.runner import (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME, read_checkpoint_header, remove_checkpoint,
                                 resume_refusal, run_patch)
@@ -438,8 +438,9 @@ def _run_locked(args) -> int:
             ng = int(h.info["n_groups"])
             print(f"knitsim run: checking the results and writing the outputs ({ng:,} distinct "
                   f"cell{'' if ng == 1 else 's'} x {h.n_increments:,} increments)", file=sys.stderr, flush=True)
+        fc = force_cap_rows(h, m)              # (once for the summary and the force plot)
         summary = patch_summary(h, h.info["ref_length_mm"], model=m, zones=scene.resolved.get("zones"),
-                                reference=reference, first_loading_reference=ref_info,
+                                reference=reference, force_cap=fc, first_loading_reference=ref_info,
                                 scene=scene.source, title=scene.resolved.get("title", ""),
                                 engine=scene.engine, device=device, load=scene.resolved["load"])
         summary["warnings"] = domain_warnings + list(summary.get("warnings", []))
@@ -453,7 +454,7 @@ def _run_locked(args) -> int:
             res = _write_usd(h, m, args, scene, device, summary)
         files = write_patch_results(out, h, summary, scene.to_toml(), model=m, plot=scene.output["plot"],
                                     cell_fields=scene.output["cell_fields"], title=scene.resolved.get("title", ""),
-                                    cells_stride=stride)
+                                    cells_stride=stride, force_cap=fc)
     except KeyboardInterrupt:
         print(interrupted_message(ck if keep else None, total, resume_cmd, writing=True), file=sys.stderr,
               flush=True)

@@ -926,7 +926,8 @@ def _overlap_cell_strains(h: PatchHistory) -> str:
 
 
 def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None = None,
-                  zones: list | None = None, reference: PatchHistory | None = None, **info) -> dict:
+                  zones: list | None = None, reference: PatchHistory | None = None,
+                  force_cap: ForceCapRows | None = None, **info) -> dict:
     """The ``summary.json`` document (``model``: the run's, needed for a specimen; ``info`` is copied in).
 
     What a cell is: ``cell_is`` (``stitch`` or ``block of stitches``), ``cells`` (grid cells),
@@ -973,7 +974,9 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     of the program were left (``program_cut_by_force_cap``): the figures stop at the row reaching the cap.
     """
     F, e = h.force_N, h.grip_strain
-    fc = force_cap_rows(h, model)
+    # (force_cap: the run's force_cap_rows(h, model), found once for the summary and the force plot: 0.7 s
+    # each on a 300 x 300 patch)
+    fc = force_cap_rows(h, model) if force_cap is None else force_cap
     layout = _layout_of(h, model)
     row_key, col_key = ("band", "strip") if layout.blocks else ("course", "wale")
     # from the first row with a failed cell on (its column holds the cell's last converged state), from
@@ -1427,14 +1430,16 @@ def map_figure(h: PatchHistory, which: str, title: str = "", layout: SpecimenLay
 
 def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, resolved_toml: str,
                         fields: dict | None = None, plot: bool = True, cell_fields: bool = True,
-                        title: str = "", model: PatchModel | None = None, cells_stride: int = 1) -> dict[str, Path]:
+                        title: str = "", model: PatchModel | None = None, cells_stride: int = 1,
+                        force_cap: ForceCapRows | None = None) -> dict[str, Path]:
     """Write the result set into ``out_dir`` atomically (``summary.json`` last); returns the files by name.
 
     ``model``: the run's (its parameters go into cells.nc unless ``fields`` is given; a specimen's
     history needs it for the stitches each block stands for).  ``cells_stride``: ``output.cells_stride``,
     the increments cells.nc holds (:func:`cells_increments`; curve.csv, columns.csv and the plots keep every
     increment); where it is not 1, summary.json gets a ``cells_nc`` entry saying so (:func:`cells_written`)
-    unless ``summary`` has one."""
+    unless ``summary`` has one.  ``force_cap``: :func:`force_cap_rows` of the run where already found (the
+    summary's), else found here."""
     cells_stride = _check_stride(cells_stride)
     layout = _layout_of(h, model)
     if fields is None and model is not None:
@@ -1446,8 +1451,8 @@ def write_patch_results(out_dir: str | Path, h: PatchHistory, summary: dict, res
         if cells_stride != 1 and "cells_nc" not in summary:
             summary = {**summary, "cells_nc": cells_written(h, cells_stride)}
     if plot:
-        files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"),
-                                                      force_cap_rows(h, model).rows)
+        fc = force_cap_rows(h, model) if force_cap is None else force_cap
+        files["force_strain.png"] = plot_force_strain(h, title, layout, summary.get("warnings"), fc.rows)
         files["strain_map.png"] = plot_map(h, "strain", layout=layout)
         files["stage_map.png"] = plot_map(h, "stage", layout=layout)
     files["summary.json"] = summary_json(summary).encode()
