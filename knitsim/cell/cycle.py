@@ -179,7 +179,7 @@ class CellCycle:
         self.stick_closure = stick_closure
         self.max_halvings = max_halvings
         self.phimax = self.p.phimax
-        self.floor_steps_left = MAX_FLOOR_STEPS
+        self.floor_steps_left = MAX_FLOOR_STEPS          # (reset by each increment: advance, _advance_dahl)
 
     # ----------------------------------------------------------------- set-up
     def initial(self) -> CellState:
@@ -567,6 +567,9 @@ class CellCycle:
         """
         if st.status != STATUS_OK:
             return st
+        # the increment's budget of floor-accepted solves (MAX_FLOOR_STEPS), here so that every caller (run, the
+        # patch coupling's reference backend, a trial of it) has it per increment
+        self.floor_steps_left = MAX_FLOOR_STEPS
         if st.stage is Stage.SLACK:
             if C_target - st.C <= REACHED_RTOL * C_target:
                 return st
@@ -705,7 +708,6 @@ class CellCycle:
                 events.append({"increment": i, "kind": "reversal", "C": st.C})
             direction = d_i
             C_target = p.C0 * (1.0 + float(program.strain[i]))
-            self.floor_steps_left = MAX_FLOOR_STEPS
             try:
                 if p.friction == "dahl" and st.stage is not Stage.SLACK:
                     st = self._advance_dahl(st, C_target, events, i)
@@ -770,6 +772,7 @@ class CellCycle:
         """
         if st.status != STATUS_OK:
             return st
+        self.floor_steps_left = MAX_FLOOR_STEPS         # per increment, as in advance
         C_from = st.C
         n = 1
         for _ in range(min(self.max_halvings, MAX_DAHL_HALVINGS) + 1):

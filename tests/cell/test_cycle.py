@@ -289,3 +289,21 @@ def test_the_reference_follows_a_jammed_branch_to_the_default_cap_past_its_resid
     np.testing.assert_array_equal(ref.status, warp.status)
     np.testing.assert_allclose(ref.values["F"], warp.values["F"], rtol=1e-6)
     assert [(e["increment"], e["kind"]) for e in ref.events] == [(e["increment"], e["kind"]) for e in warp.events]
+
+
+def test_the_floor_budget_is_per_increment_for_the_patch_coupling_s_reference_backend_too(monkeypatch):
+    """The same cell as one-cell patch (the patch coupling's reference backend calls CellCycle.advance itself,
+    not run): its increments to the cap end 1, 4 and 29 solves at the rounding floor (34 in all, counted on
+    run_cell).  With MAX_FLOOR_STEPS = 30 each increment stays within it, so the patch reaches the cap as
+    run_cell does (the test above); a budget spent over the run (34 > 30) lost the branch (status
+    no_convergence).  Expected: the default cap 50 B / d^2 (definition)."""
+    from knitsim.cell.history import STATUS_FORCE_CAP
+    from knitsim.patch.model import PatchModel
+    from knitsim.patch.runner import run_patch
+
+    monkeypatch.setattr(cycle_mod, "MAX_FLOOR_STEPS", 30)
+    cell = CellParams(B=0.0300708, d=0.1823876, L=3.519506, W0=1.0055157, C0=0.911219, m=0.10704, phi0=0.081112)
+    prog = monotonic(0.3, max_increment=0.005)
+    h = run_patch(PatchModel.uniform(cell, 1, 1), prog, engine="reference", dedup=False)
+    assert h.groups["status"][-1, 0] == STATUS_FORCE_CAP
+    assert h.groups["F"][-1, 0] == pytest.approx(50.0 * cell.B / cell.d ** 2, rel=1e-9)
