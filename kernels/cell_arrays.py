@@ -67,16 +67,19 @@ class EventArrays:
 
 @wp.struct
 class HistoryArrays:
-    """Recorded rows (ProgramHistory): ``q[k, row, i] = state q[i, codes[k]]``; ``eff`` of shape
-    ``[0, ...]`` records no effect state."""
+    """Recorded rows (ProgramHistory): ``q[k rows + row, i] = state q[i, codes[k]]`` (``rows`` =
+    ``stage.shape[0]``), the effects' state in ``eff`` likewise; ``eff`` of shape ``[0, N]`` records none.
+    Two-dimensional, quantity-major: a Warp array's strides are 32-bit byte counts, and a
+    [quantities, rows, N] float64 array's first stride, 8 rows N bytes, passes 2^31 at 310 rows of
+    10^6 cells (the strides wrap and the kernel writes out of bounds); here it is 8 N bytes."""
 
     codes: wp.array(dtype=wp.int32)
-    q: wp.array3d(dtype=wp.float64)
+    q: wp.array2d(dtype=wp.float64)
     stage: wp.array2d(dtype=wp.int32)
     jammed: wp.array2d(dtype=wp.int32)
     status: wp.array2d(dtype=wp.int32)
     gap: wp.array2d(dtype=wp.float64)
-    eff: wp.array3d(dtype=wp.float64)
+    eff: wp.array2d(dtype=wp.float64)
 
 
 @wp.struct

@@ -2502,21 +2502,22 @@ def _step_kernel_variant(first_pass: bool):
 
 @wp.func
 def write_history_row(i: int, row: int, state: StateArrays, hist: HistoryArrays):
-    """History row ``row`` of cell i: hist.q[k, row, i] = q[i, codes[k]] (F = 0 while slack), stage, jam
-    flag, status, head gap and (where recorded) the effects' state."""
+    """History row ``row`` of cell i: hist.q[k rows + row, i] = q[i, codes[k]] (F = 0 while slack), stage,
+    jam flag, status, head gap and (where recorded) the effects' state (HistoryArrays' layout)."""
     st = state.stage[i]
+    rows = hist.stage.shape[0]
     for k in range(hist.codes.shape[0]):
         c = hist.codes[k]
         v = state.q[i, c]
         if c == Q_F and st == SLACK:
             v = wp.float64(0.0)
-        hist.q[k, row, i] = v
+        hist.q[k * rows + row, i] = v
     hist.stage[row, i] = st
     hist.jammed[row, i] = state.jammed[i]
     hist.status[row, i] = state.status[i]
     hist.gap[row, i] = state.gap[i]
-    for j in range(hist.eff.shape[0]):
-        hist.eff[j, row, i] = state.eff[i, j]
+    for j in range(hist.eff.shape[0] // rows):
+        hist.eff[j * rows + row, i] = state.eff[i, j]
 
 
 def _program_kernel_variant(first_pass: bool):

@@ -860,12 +860,14 @@ class ProgramHistory:
         Row r holds increment ``(r + 1) stride - 1``.
     codes : int32 [n_quantities]
         Quantity codes of ``q`` (:data:`~knitsim.cell.history.HISTORY_QUANTITIES`).
-    q : float64 [n_quantities, rows, N]
-        Those quantities (F = 0 while slack).
+    q : float64 [n_quantities rows, N]
+        Those quantities (F = 0 while slack), quantity-major: row r of quantity k is ``q[k rows + r]``
+        (:meth:`quantities` reshapes it).  Not [n_quantities, rows, N]: a Warp array's strides are
+        32-bit byte counts, and that array's first stride passes 2^31 bytes at 310 rows of 10^6 cells.
     stage, jammed, status : int32 [rows, N]
     head_gap : float64 [rows, N]
-    eff : float64 [len(EFFECT_STATE) or 0, rows, N]
-        The effects' state (none recorded when no cell has an effect on).
+    eff : float64 [len(EFFECT_STATE) rows or 0, N]
+        The effects' state, laid out as ``q`` (none recorded when no cell has an effect on).
     """
 
     stride: int
@@ -899,10 +901,24 @@ class ProgramHistory:
         dev, nc = model.device, model.cell_count
         rows = n_increments // stride
         codes = wp.array(np.asarray([CODE[k] for k in HISTORY_QUANTITIES], np.int32), dtype=wp.int32, device=dev)
-        return cls(int(stride), codes, wp.zeros((len(HISTORY_QUANTITIES), rows, nc), dtype=wp.float64, device=dev),
-                   *(wp.zeros((rows, nc), dtype=wp.int32, device=dev) for _ in range(3)),
-                   wp.zeros((rows, nc), dtype=wp.float64, device=dev),
-                   wp.zeros((len(EFFECT_STATE) if with_effects else 0, rows, nc), dtype=wp.float64, device=dev))
+        shapes = cls.shapes(rows, nc, with_effects)
+        return cls(int(stride), codes, wp.zeros(shapes["q"], dtype=wp.float64, device=dev),
+                   *(wp.zeros(shapes[name], dtype=wp.int32, device=dev) for name in ("stage", "jammed", "status")),
+                   wp.zeros(shapes["head_gap"], dtype=wp.float64, device=dev),
+                   wp.zeros(shapes["eff"], dtype=wp.float64, device=dev))
+
+    @staticmethod
+    def shapes(rows: int, nc: int, with_effects: bool = False) -> dict:
+        """The shapes of the recorded arrays for ``rows`` rows of ``nc`` cells (:class:`ProgramHistory`)."""
+        n_eff = len(EFFECT_STATE) if with_effects else 0
+        return {"q": (len(HISTORY_QUANTITIES) * rows, nc), "stage": (rows, nc), "jammed": (rows, nc),
+                "status": (rows, nc), "head_gap": (rows, nc), "eff": (n_eff * rows, nc)}
+
+    def quantities(self) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` and ``eff`` on the host as [quantity, row, cell] arrays."""
+        rows, nc = self.stage.shape
+        q, eff = self.q.numpy(), self.eff.numpy()
+        return q.reshape(-1, rows, nc), eff.reshape(-1, rows, nc)
 
     def _arrays(self) -> list:
         return [self.codes, self.q, self.stage, self.jammed, self.status, self.head_gap, self.eff]
@@ -1010,12 +1026,11 @@ def run_batch(params, program: LoadProgram, device: str = "cpu",
         # run is deterministic), not an error after the solve
         capacity = recorded + 64
         s0 = model.state()           # (the run advanced the state in place)
-    hq, hs, hj, hst, hg, he = hist.q, hist.stage, hist.jammed, hist.status, hist.head_gap, hist.eff
-    hqn = hq.numpy()
+    hs, hj, hst, hg = hist.stage, hist.jammed, hist.status, hist.head_gap
+    hqn, hen = hist.quantities()
     values = {name: hqn[j] for j, name in enumerate(HISTORY_QUANTITIES)}
     values.update(head_gap_values(hg.numpy(), model.d_jam))
     if with_effects:
-        hen = he.numpy()
         values.update({name: hen[j] for j, name in enumerate(EFFECT_STATE)})
     status = hst.numpy()
     # a cell without a rest state has no state at all: NaN beside its status (never a made-up number)

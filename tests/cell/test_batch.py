@@ -433,3 +433,48 @@ def test_the_stiffest_dahl_cell_taken_runs_a_cycle_as_coulomb_does():
         h = run_batch([CellParams(**base, friction="dahl", dahl_sigma=DAHL_SIGMA_MAX)], cycles(0.1, 0.5, 1, inc))
         assert np.all(h.status == 0)
         assert abs(np.max(h.values["F"]) - np.max(coulomb.values["F"])) < 1e-5
+
+
+# Warp's array descriptor stores its strides as 32-bit signed byte counts (``int strides[]`` of
+# array_t, warp/native/array.h; the ctypes mirror wraps silently): a contiguous array whose leading
+# stride reaches 2^31 bytes is addressed out of bounds.  Measured on an H200: a [10, 310, 10^6]
+# float64 history (the 3-cycle program's 310 rows of 10^6 cells, first stride 2.48e9 bytes) ended
+# the run in CUDA error 700 (illegal memory access).
+_WARP_STRIDE_LIMIT = 2**31
+
+
+def _contiguous_strides(shape, itemsize):
+    strides, s = [], itemsize
+    for n in reversed(shape):
+        strides.append(s)
+        s *= n
+    return strides[::-1]
+
+
+@pytest.mark.parametrize("rows,cells", [(310, 10**6), (62, 10**7), (3100, 10**6), (310, 2 * 10**7)])
+def test_recorded_rows_keep_every_warp_stride_below_2_gib(rows, cells):
+    """The arrays ProgramHistory.empty allocates for a GPU-sized batch, by their shapes (not
+    allocated: 25 GB and more); the bound is Warp's, above."""
+    from knitsim.cell.batch import ProgramHistory
+    for name, shape in ProgramHistory.shapes(rows, cells, with_effects=True).items():
+        itemsize = 4 if name in ("stage", "jammed", "status") else 8
+        assert max(_contiguous_strides(shape, itemsize)) < _WARP_STRIDE_LIMIT, (name, shape)
+
+
+def test_recorded_rows_read_back_by_quantity_row_and_cell():
+    """ProgramHistory.quantities() against the state itself: after one increment recorded in row 0,
+    quantity k of cell i is the state's q[i, codes[k]] (identity), F = 0 only while slack."""
+    from knitsim.cell.batch import ProgramHistory
+    from knitsim.cell.history import HISTORY_QUANTITIES
+    from knitsim.cell.quantities import CODE
+    model = CellModel.from_params(_random_cells(3, seed=4), "cpu")
+    prog = cycles(0.05, 0.15, 1, max_increment=0.05)
+    solver, state = CellSolver(model), model.state()
+    hist = ProgramHistory.empty(model, len(prog), 1, False)
+    solver.run_program(state, prog, 1, 0, 1, hist)
+    q, eff = hist.quantities()
+    assert q.shape == (len(HISTORY_QUANTITIES), len(prog), 3) and eff.shape == (0, len(prog), 3)
+    sq = state.q.numpy()
+    for k, name in enumerate(HISTORY_QUANTITIES):
+        np.testing.assert_array_equal(q[k, 0], sq[:, CODE[name]])
+    assert np.all(q[:, 1:] == 0.0)

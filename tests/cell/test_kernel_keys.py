@@ -105,7 +105,7 @@ def test_strided_history_holds_every_stride_th_row(device):
     model = CellModel.from_params(cells, device)
     state = model.state()
     hist = CellSolver(model).run_program(state, PROG, stride=3)
-    q = hist.q.numpy()
+    q = hist.quantities()[0]
     rows = np.arange(2, len(PROG), 3)
     np.testing.assert_array_equal(q[HISTORY_QUANTITIES.index("F")], full.values["F"][rows])
     np.testing.assert_array_equal(hist.stage.numpy(), full.stage[rows])
@@ -113,25 +113,25 @@ def test_strided_history_holds_every_stride_th_row(device):
     solver = CellSolver(model)
     state2, fresh = model.state(), model.state()
     hist2 = solver.run_program(state2, PROG, stride=3, per_increment=True)
-    np.testing.assert_array_equal(hist2.q.numpy(), q)
+    np.testing.assert_array_equal(hist2.quantities()[0], q)
     hist2.q.zero_()
     for dst, src in zip(state2._arrays() + [state2.eff], fresh._arrays() + [fresh.eff]):
         wp.copy(dst, src)
     assert solver.run_program(state2, PROG, stride=3, history=hist2, per_increment=True) is hist2
-    np.testing.assert_array_equal(hist2.q.numpy(), q)
+    np.testing.assert_array_equal(hist2.quantities()[0], q)
     # cells sorted by stage before each increment: the same rows, in the caller's order
     state3 = model.state()
     hist3 = CellSolver(model).run_program(state3, PROG, stride=3, per_increment=True, sort_by_stage=True)
-    np.testing.assert_array_equal(hist3.q.numpy(), q)
+    np.testing.assert_array_equal(hist3.quantities()[0], q)
     # two passes per increment (regular increments, then the listed rest), captured and replayed
     solver4, state4 = CellSolver(model), model.state()
     hist4 = solver4.run_program(state4, PROG, stride=3, per_increment=True, compact=True)
-    np.testing.assert_array_equal(hist4.q.numpy(), q)
+    np.testing.assert_array_equal(hist4.quantities()[0], q)
     for dst, src in zip(state4._arrays() + [state4.eff], fresh._arrays() + [fresh.eff]):
         wp.copy(dst, src)
     hist4.q.zero_()
     solver4.run_program(state4, PROG, stride=3, history=hist4, per_increment=True, compact=True)
-    np.testing.assert_array_equal(hist4.q.numpy(), q)
+    np.testing.assert_array_equal(hist4.quantities()[0], q)
 
 
 def test_run_batch_sorted_by_stage_is_the_plain_run(device):
@@ -212,12 +212,12 @@ def test_full_step_in_slices_is_the_one_launch_full_step(device):
     model = CellModel.from_params(cells, device)
     solver, state, fresh = CellSolver(model), model.state(), model.state()
     hist = solver.run_program(state, prog, per_increment=True, compact=True, slices=(1, 1))
-    np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F")], plain.values["F"])
+    np.testing.assert_array_equal(hist.quantities()[0][HISTORY_QUANTITIES.index("F")], plain.values["F"])
     for dst, src in zip(state._arrays() + [state.eff], fresh._arrays() + [fresh.eff]):
         wp.copy(dst, src)
     hist.q.zero_()
     solver.run_program(state, prog, history=hist, per_increment=True, compact=True, slices=(1, 1))
-    np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F")], plain.values["F"])
+    np.testing.assert_array_equal(hist.quantities()[0][HISTORY_QUANTITIES.index("F")], plain.values["F"])
     # the reversal's increment with a budget of one sub-step: cells are suspended after the first
     # sliced launch (its list, the second of the ping-pong), and none is left suspended after the last
     solver, state = CellSolver(model), model.state()
@@ -233,7 +233,7 @@ def test_full_step_in_slices_is_the_one_launch_full_step(device):
     allocated = (sum(a.capacity for a in (sus.active, sus.z, sus.q, sus.real, sus.ints))
                  + sum(lst.capacity for lst, _ in solver._pending2))
     assert memory_per_cell(model, state, len(prog), sliced=True)["suspended"] == allocated / model.cell_count
-    np.testing.assert_array_equal(hist.q.numpy()[HISTORY_QUANTITIES.index("F"), :reversal + 1],
+    np.testing.assert_array_equal(hist.quantities()[0][HISTORY_QUANTITIES.index("F"), :reversal + 1],
                                   plain.values["F"][:reversal + 1])
 
 
