@@ -56,7 +56,7 @@ from ..patch.coupling import COL_NOT_CONVERGED, COL_OK, COLUMN_STATUS_NAMES, HEL
 from ..patch.model import PARAM_NAMES, PatchModel
 from ..patch.runner import PatchHistory
 from .checks import (ENERGY_ERROR_SHARE, FORCE_CAP_RTOL, HEAD_OVERLAP_RTOL, ResultWarning, jam_width_floor, wale_spacing_below_jamming, compressive_rest_state, cut_by_force_cap,
-                     cycle_warnings, cycle_work, energy_creating_loops, force_cap_reached, held_at_force_cap,
+                     cycle_warnings, cycle_work, energy_creating_loops, energy_loop_candidates, force_cap_reached, held_at_force_cap,
                      interpenetration, reloads_below_first_loading)
 from .results import _num, rule_meaning, summary_json, warning_lines, write_result_set
 
@@ -1224,14 +1224,22 @@ def _energy_creating_cells(h: PatchHistory, row_key: str, col_key: str) -> list[
     C0 = np.zeros(n_groups)
     C0[h.group_of_cell.ravel()] = h.C0.ravel()
     ok = np.all(h.groups["status"] == STATUS_OK, axis=0)
+    # the groups whose whole path could hold such a loop, found at once (energy_loop_candidates: a superset);
+    # a group that failed is judged on its rows before the failure, one by one
+    judged = ~ok
+    if ok.any():
+        S = np.vstack([h.group_rest["C"][None, ok], g_C[:, ok]]) / C0[ok] - 1.0
+        Fv = np.vstack([h.group_rest["F"][None, ok], g_F[:, ok]])
+        judged[np.flatnonzero(ok)] = energy_loop_candidates(S, Fv, atol=PATCH_LOOP_ATOL,
+                                                            judge_open=_group_stitch_energy(h, 0) is not None)
     flagged = {}
-    for g in range(n_groups):
+    for g in np.flatnonzero(judged):
         n = int(np.argmin(h.groups["status"][:, g] == STATUS_OK)) if not ok[g] else h.n_increments
         s = np.concatenate([[h.group_rest["C"][g]], g_C[:n, g]]) / C0[g] - 1.0
         f = np.concatenate([[h.group_rest["F"][g]], g_F[:n, g]])
         w = energy_creating_loops(s, f, C0[g], atol=PATCH_LOOP_ATOL, stored_at=_group_stitch_energy(h, g))
         if w:
-            flagged[g] = w[0].message
+            flagged[int(g)] = w[0].message
     if not flagged:
         return []
     where = []

@@ -434,3 +434,52 @@ def test_excursion_finders_against_their_definitions():
         assert checks.reload_excursions(s, atol) == reload
         found += len(closed) + len(reload)
     assert found > 500                                           # the paths do hold excursions
+
+
+def _flagged_one_by_one(S, F, atol, stored):
+    from knitsim.io.checks import energy_creating_loops
+    return np.array([bool(energy_creating_loops(S[:, c], F[:, c], 1.0, atol=atol,
+                                                stored_at=(lambda k: 0.0) if stored else None))
+                     for c in range(S.shape[1])])
+
+
+@pytest.mark.parametrize("stored", [True, False])
+def test_energy_loop_candidates_are_the_paths_energy_creating_loops_flags(stored, monkeypatch):
+    """The vectorised prefilter against the function it filters for, path by path (the oracle: the loop of
+    energy_creating_loops calls it replaces).  A stored energy that never falls (stored_at = 0) makes that
+    function flag every loop whose work is negative beyond its tolerance, so the two sets must be equal, not
+    only the candidates a superset.  Two families: rounded random walks (holds, exact returns, every path its
+    own turning rows) with random-walk forces; and a cycled program (0 -> 0.6 -> 0.1 ..., the crossing
+    excursion of the first cycle, reloads from each peak) warped per path, with a random force offset on
+    each branch, whose paths share their turning rows."""
+    from knitsim.io import checks
+    from knitsim.io.checks import energy_loop_candidates
+
+    rng = np.random.default_rng(11)
+    m, n = 1500, 25
+    S = np.round(np.cumsum(rng.normal(size=(n, m)), axis=0), 1)
+    S[0] = 0.0
+    F = np.abs(np.cumsum(rng.normal(size=(n, m)), axis=0)) * rng.choice([1.0, -1.0], size=(1, m))
+    F[0] = np.abs(F[0])                          # a compressive rest state is not judged: none here
+    for atol in (1e-12, 0.06):
+        expected = _flagged_one_by_one(S, F, atol, stored)
+        got = energy_loop_candidates(S, F, atol=atol, judge_open=stored)
+        assert expected.sum() > 100
+        np.testing.assert_array_equal(got, expected)
+
+    p = np.concatenate([np.arange(0, 61), np.arange(59, 9, -1), np.arange(11, 61), np.arange(59, 9, -1),
+                        np.arange(11, 61)]) / 100.0
+    m = 400
+    a, b = rng.uniform(0.5, 1.5, m), rng.uniform(-0.3, 0.3, m)
+    S = a * p[:, None] + b * p[:, None] ** 2
+    branch = np.cumsum(np.r_[0, np.abs(np.diff(np.sign(np.diff(p)))) > 0, 0])
+    F = 2.0 * S + rng.uniform(0.0, 0.3, size=(branch.max() + 1, m))[branch]
+    F[:, :5] = np.nan                            # kept always (the function itself skips what is not finite)
+    expected = _flagged_one_by_one(S, F, 1e-12, stored)
+    got = energy_loop_candidates(S, F, atol=1e-12, judge_open=stored)
+    assert got[:5].all()
+    assert 20 < expected[5:].sum() < m - 20
+    np.testing.assert_array_equal(got[5:], expected[5:])
+    # judged in blocks of 7 paths: the same
+    monkeypatch.setattr(checks, "CANDIDATE_BLOCK", 7 * S.shape[0])
+    np.testing.assert_array_equal(energy_loop_candidates(S, F, atol=1e-12, judge_open=stored), got)
