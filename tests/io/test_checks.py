@@ -483,3 +483,13 @@ def test_energy_loop_candidates_are_the_paths_energy_creating_loops_flags(stored
     # judged in blocks of 7 paths: the same
     monkeypatch.setattr(checks, "CANDIDATE_BLOCK", 7 * S.shape[0])
     np.testing.assert_array_equal(energy_loop_candidates(S, F, atol=1e-12, judge_open=stored), got)
+
+    # loops that close only within atol (a patch's cells): 0 -> 1 -> delta at F = 1 up and 1 + eta down,
+    # oint F ds = delta - eta (1 - delta); the open end's delta max|F| is added to the tolerance, so
+    # (delta, eta) = (1e-7, 1.5e-7) is not flagged where (0, 1.5e-7) and (1e-7, 3e-7) are
+    cases = [(0.0, 1.5e-7), (1e-7, 1.5e-7), (1e-7, 3e-7), (1e-7, -1e-7)]
+    S = np.array([[0.0, 0.5, 1.0, 0.5, dl] for dl, _ in cases]).T
+    F = np.array([[1.0, 1.0, 1.0, 1.0 + et, 1.0 + et] for _, et in cases]).T
+    expected = _flagged_one_by_one(S, F, 1e-6, stored)
+    assert expected.tolist() == [True, False, True, False]
+    np.testing.assert_array_equal(energy_loop_candidates(S, F, atol=1e-6, judge_open=stored), expected)
