@@ -138,13 +138,29 @@ class BatchHistory:
         """Stage labels (adherence / sliding / jamming / slack) of one cell."""
         return self.label_array(cell).tolist()
 
+    def events_of(self, cell: int) -> list[dict]:
+        """The events of cell ``cell``, in their order in :attr:`events`.
+
+        The events are indexed by cell once per events list (a scan of every event for each cell made a
+        batch's summaries quadratic in its cells: 8.5 ms a cell of 500 random cells over 3 cycles, most of
+        ``reduce_history``'s time, and 15 million events at 10^6 cells)."""
+        key = (id(self.events), len(self.events))
+        cached = self.__dict__.get("_events_by_cell")
+        if cached is None or cached[0] != key:
+            by_cell: dict[int, list] = {}
+            for e in self.events:
+                by_cell.setdefault(int(e.get("cell", 0)), []).append(e)
+            cached = (key, by_cell)
+            self.__dict__["_events_by_cell"] = cached
+        return list(cached[1].get(int(cell), ()))
+
     def cell(self, i: int) -> "BatchHistory":
         """The history of cell ``i`` alone (a one-column BatchHistory)."""
         sl = slice(i, i + 1)
         return BatchHistory(self.strain, self.cycle, self.direction, self.stage[:, sl],
                             self.jammed[:, sl], self.status[:, sl],
                             {k: v[:, sl] for k, v in self.values.items()},
-                            [dict(e, cell=0) for e in self.events if e.get("cell", 0) == i],
+                            [dict(e, cell=0) for e in self.events_of(i)],
                             self.params[i:i + 1],
                             None if self.rest is None else {k: v[sl] for k, v in self.rest.items()})
 

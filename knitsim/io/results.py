@@ -286,7 +286,7 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     C = h.values["C"][:, cell]
     eps_cell = C / p.C0 - 1.0
     n_ok = _stopped_rows(status)
-    events = [e for e in h.events if int(e.get("cell", 0)) == cell]
+    events = h.events_of(cell)
     labels = h.labels(cell)
 
     cycles_out = []
