@@ -387,6 +387,18 @@ def _is_comment(line: str) -> bool:
     return _SHEET_ERROR.fullmatch(first) is None   # a row starting with #DIV/0! is data, not a comment
 
 
+#: a cell that marks a missing value (casefold), not a label: a row starting with one is a data row
+_MISSING_MARKERS = ("n/a", "na", "n.a.", "-", "--", "?", "null", "none", "missing")
+
+
+def _is_label(cell: str, decimal_comma: bool) -> bool:
+    """Whether ``cell`` is a label (``Max force``), as a spreadsheet's footer starts: text with a letter, neither a
+    number, a spreadsheet's error value (``#DIV/0!``) nor a missing-value marker (``N/A``)."""
+    c = _trim(cell)
+    return (any(ch.isalpha() for ch in c) and not _is_number(c, decimal_comma) and _SHEET_ERROR.fullmatch(c) is None
+            and c.casefold() not in _MISSING_MARKERS)
+
+
 def _split(line: str, delim: str) -> list[str]:
     return next(csv.reader([line], delimiter=delim), [])
 
@@ -743,11 +755,14 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     # a spreadsheet's footer (Max force;;8,55;;): rows after the data that fail to read and start with a label,
     # not a number, are no measurement: skipped and said (a blind probe's export was refused at its footer
     # as "'' is not a number")
+    # A row whose first cell is a spreadsheet's error value or a missing-value marker (#DIV/0!, #N/A, N/A) is a
+    # data row with a bad cell, not a label: refused as mid-file (a probe's last row "#DIV/0!;0,85" was skipped
+    # as a footer, the curve's last reading lost with a note, where the same row mid-file is refused)
     bad_rows = {b[0] for b in bad}
     footer = []
     for line, row in reversed(list(zip(numbers, rows))):
         first = next((c.strip() for c in row if c.strip()), "")
-        if line not in bad_rows or _is_number(first, decimal_comma):
+        if line not in bad_rows or not _is_label(first, decimal_comma):
             break
         footer.append(line)
     if footer and len(footer) < len(rows):

@@ -8,6 +8,7 @@ and what is wrong is refused naming the file, its own line number, the column an
 from __future__ import annotations
 
 import codecs
+import re
 
 import numpy as np
 import pytest
@@ -593,6 +594,19 @@ def test_a_spreadsheet_footer_is_skipped_and_said_and_a_label_mid_file_is_not(tm
     q.write_text("\n".join(lines[:3] + ["Max force;0,55"] + lines[3:]) + "\n")
     with pytest.raises(KnitsimInputError, match=r"row 4, column strain: 'Max force' is not a number"):
         read_csv_columns(q, ["strain", "force_per_wale_N"])
+
+
+@pytest.mark.parametrize("first", ["#DIV/0!", "#N/A", "N/A", "-"])
+def test_a_last_row_starting_with_an_error_value_is_refused_not_skipped_as_a_footer(tmp_path, first):
+    """A probe's Excel export whose last row's strain was an error value ("#DIV/0!;0,85") read as a footer: the
+    curve's last reading skipped (with a note), where the same row mid-file is refused.  Hand-made: 5 ';' rows
+    with decimal commas, the last one's strain replaced by a spreadsheet's error value or a missing-value marker.
+    Expected (the README: such a row "is a data row, refused with its row and column"): refused naming row 6."""
+    rows = "".join(f"0,{k}0;0,{k}5\n" for k in range(1, 5))
+    p = tmp_path / "e.csv"
+    p.write_text("strain;force_per_wale_N\n" + rows + f"{first};0,55\n")
+    with pytest.raises(KnitsimInputError, match=rf"row 6, column strain: '{re.escape(first)}' is not a number"):
+        read_csv_columns(p, ["strain", "force_per_wale_N"])
 
 
 def test_an_extension_in_mm_is_named_as_a_length_not_a_strain(tmp_path):
