@@ -438,3 +438,74 @@ def test_a_unit_not_read_is_refused_naming_the_header(header, argv, expected, tm
     assert len(err) == 1 and err[0].startswith("knitsim: error:")
     for text in expected:
         assert text in err[0], err[0]
+
+
+# a Dahl loop typed out (alpha 1, sigma 1, Fc 0.1, +-0.25: F = v Fc + (F_prev - v Fc) exp(-sigma |dx| / Fc) row to
+# row, rounded to the digits written), with rows 4 and 9 of the data pasted twice
+_TYPED_LOOP = """x_mm,F_N
+0.0,0.0
+0.05,0.03935
+0.1,0.06321
+0.1,0.06321
+0.15,0.07769
+0.2,0.08647
+0.25,0.09179
+0.2,0.01633
+0.15,-0.02944
+0.15,-0.02944
+0.1,-0.05721
+0.05,-0.07404
+0.0,-0.08426
+-0.05,-0.09045
+-0.1,-0.09421
+-0.15,-0.09649
+-0.2,-0.09787
+-0.25,-0.09871
+-0.2,-0.02052
+-0.15,0.0269
+-0.1,0.05566
+-0.05,0.07311
+0.0,0.08369
+0.05,0.09011
+0.1,0.094
+0.15,0.09636
+0.2,0.09779
+0.25,0.09866
+0.2,0.02049
+0.15,-0.02692
+0.1,-0.05567
+0.05,-0.07311
+0.0,-0.08369
+-0.05,-0.09011
+-0.1,-0.094
+-0.2,-0.09779
+-0.25,-0.09866
+"""
+
+
+def test_rows_left_out_by_the_reader_are_said(tmp_path, capsys):
+    """A probe's KES loop with every row pasted twice fitted "1201 points" and said nothing of the 1201 rows
+    left out as copies (diagnose and capstan fit say theirs).  The typed loop above has two rows pasted twice:
+    37 lines, 35 points fitted, and the read notes name the copies (rows 5 and 11 of the file)."""
+    p = tmp_path / "loop.csv"
+    p.write_text(_TYPED_LOOP)
+    out = _run_json(capsys, ["dahl", "fit", str(p), "--no-png", "--json"], rc=None)
+    assert out["n_points"] == 35
+    assert any("2 row(s) that repeat the row above" in n and "row(s) 5, 11" in n for n in out["read_notes"])
+    assert main(["dahl", "fit", str(p), "--no-png"]) in (0, 1)
+    assert "read: 2 row(s) that repeat the row above in every column left out as copies" in capsys.readouterr().out
+
+
+def test_a_bad_cell_is_refused_without_the_hint_on_finding_a_labs_columns(tmp_path, capsys):
+    """A probe's KES loop with NaN in row 502 was refused with "a lab's columns are read with their units stated
+    ('K [1/cm]', ...)" appended: a hint on finding columns, for a file whose columns were found.  Expected: the
+    row, column and value alone; a file lacking the columns keeps the hint."""
+    p = tmp_path / "nan.csv"
+    p.write_text("kappa_1_mm,M_N_mm_per_mm\n0,0\n0.1,0.05\n0.2,NaN\n0.1,0.01\n")
+    assert main(["dahl", "fit", str(p), "--no-png"]) == 2
+    err = capsys.readouterr().err
+    assert "row 4, column M_N_mm_per_mm: 'NaN' is not finite" in err and "units stated" not in err
+    q = tmp_path / "other.csv"
+    q.write_text("a,b\n0,0\n0.1,0.05\n0.2,0.07\n0.1,0.01\n")
+    assert main(["dahl", "fit", str(q), "--no-png"]) == 2
+    assert "units stated" in capsys.readouterr().err
