@@ -35,8 +35,8 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
-    PER_CENT_HINT, STRAIN_TOL_REL, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force, refuse_no_response,
-    strain_tolerance, zero_offset_below,
+    PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force,
+    refuse_no_response, refuse_several_tests, strain_tolerance, zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise, reading_jitter, steeper_slopes
 from ..io.table_input import LAB_ALIASES, notes_of, read_csv_columns
@@ -76,8 +76,10 @@ class MeasuredTable:
 def read_table(path: str | Path) -> MeasuredTable:
     """Read a strain-force file (module docstring); refuses what is wrong, naming file, row and column."""
     path = Path(path)
-    cols = drop_copied_rows(read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS,
-                                             aliases=LAB_ALIASES))
+    cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS, aliases=LAB_ALIASES,
+                            labels=TEST_LABELS)
+    refuse_several_tests(path, cols)
+    cols = drop_copied_rows(cols)
     for group in (STRAIN_COLUMNS, TOTAL_COLUMNS):
         both = [c for c in group if c in cols]
         if len(both) > 1:

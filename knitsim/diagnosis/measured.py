@@ -86,6 +86,10 @@ STRAIN_JITTER_SIGMAS = 5.0
 HOLD_TRAVEL_TOLS = 10.0
 #: the fewest data rows of a measured curve file (a shape, and a noise, need more than a line's points)
 MIN_CURVE_ROWS = 4
+#: columns that name the specimen or the test of each row (a lab's file of several tests, stacked): a curve file
+#: holds one test, so more than one value in one of them is refused (:func:`refuse_several_tests`)
+TEST_LABELS = ("specimen", "sample", "specimen_id", "sample_id", "specimen_name", "sample_name", "run", "test",
+               "test_id")
 
 
 @dataclass(frozen=True)
@@ -903,6 +907,27 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
+def refuse_several_tests(source, cols) -> None:
+    """Refuse a file whose rows name more than one specimen or test (a :data:`TEST_LABELS` column, read by
+    :func:`~knitsim.io.table_input.read_csv_columns` as ``labels``, holding two values or more): its curves,
+    stacked, would be read as one test's cycles (a probe's file of specimens A1 and A2, one under the other, was
+    read as two cycles of one curve, the drop from A1's last row to A2's first as an unloading, without a word)."""
+    for name in TEST_LABELS:
+        if name not in cols:
+            continue
+        values = [str(v).strip() for v in cols[name]]
+        first = {}
+        for v, r in zip(values, cols["_row"]):
+            if v and v not in first:
+                first[v] = int(r)
+        if len(first) > 1:
+            shown = ", ".join(f"{v!r} from row {r}" for v, r in list(first.items())[:4])
+            more = f" and {len(first) - 4} more" if len(first) > 4 else ""
+            raise KnitsimInputError(f"{source}: column {name} holds {len(first)} specimens or tests ({shown}{more}): "
+                                    "a file is one test's curve; split it into one file per test (tests of one "
+                                    "specimen are given together, as several files)")
+
+
 def refuse_few_rows(source, rows) -> None:
     """Refuse a measured file of fewer than :data:`MIN_CURVE_ROWS` data rows (``rows``: their line numbers)."""
     if len(rows) < MIN_CURVE_ROWS:
@@ -924,9 +949,10 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
     """
     try:
         cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"),
-                                aliases=LAB_ALIASES)
+                                aliases=LAB_ALIASES, labels=TEST_LABELS)
     except KnitsimInputError as exc:
         raise KnitsimInputError(str(exc) + _total_force_hint(path, str(exc))) from None
+    refuse_several_tests(path, cols)
     cols = drop_copied_rows(cols)
     refuse_few_rows(path, cols["_row"])
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),

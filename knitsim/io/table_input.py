@@ -568,7 +568,8 @@ def header_candidates(path: str | Path) -> list[tuple[int, list[str], list[str |
 
 
 def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterable[str] = (),
-                     numeric: Iterable[str] | None = None, aliases: dict | None = None) -> Columns:
+                     numeric: Iterable[str] | None = None, aliases: dict | None = None,
+                     labels: Iterable[str] = ()) -> Columns:
     """Read named columns of a CSV file (see the module docstring).
 
     Parameters
@@ -589,6 +590,9 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         column's (or per cent, for a strain), in brackets or in a units row, and only where the column's own
         name is absent; noted (``column 'Load (N)' read as load_N``); why one was not taken is in the
         result's ``not_read``.
+    labels : iterable of str, optional
+        Text columns read where the header holds exactly one of each (``specimen``, ``run``), as str arrays:
+        never used to find the header line nor required, so a preamble's ``Sample;A3`` is not taken for it.
 
     Returns
     -------
@@ -635,6 +639,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                                 f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(not_taken) if not_taken else ''}"
                                 f"{hint}")
     present = required + [c for c in optional if _key(c) in keys]
+    # (a label named twice is not read: it is checked, not fitted, and the columns asked for are refused so)
+    labels = [c for c in labels if keys.count(_key(c)) == 1 and c not in present]
     for name in present:
         at = [j for j, k in enumerate(keys) if k == _key(name)]
         if len(at) > 1:
@@ -711,7 +717,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     out = Columns()
     bad = []                              # (row, column, text) of every cell that is not a finite number
     signed: dict[str, int] = {}          # dimensionless columns' cells written with a % sign, counted
-    for name in present:
+    numeric -= set(labels)
+    for name in present + labels:
         j = keys.index(_key(name))
         cells = []
         for line, row in zip(numbers, rows):
@@ -767,7 +774,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         footer.append(line)
     if footer and len(footer) < len(rows):
         keep = np.asarray([line not in footer for line in numbers])
-        for name in present:
+        for name in present + labels:
             out[name] = out[name][keep]
         numbers = [line for line in numbers if line not in footer]
         bad = [b for b in bad if b[0] not in footer]

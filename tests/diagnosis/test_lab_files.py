@@ -470,3 +470,24 @@ def test_a_machine_export_with_a_total_force_is_refused_showing_its_header_and_w
     msg = str(e.value)
     assert "missing column(s) force_per_wale_N (found: Time, Extension, Load, Tensile strain;" in msg
     assert "the file holds a total force (read as load_N)" in msg and "knitsim calibrate" in msg
+
+
+def test_a_file_of_several_specimens_stacked_is_refused_naming_the_column_and_where_each_starts(tmp_path):
+    """A probe's lab file held specimens A1 and A2 one under the other (a `specimen` column, as a tester's
+    export of a test series writes it): diagnose read it as two cycles of one curve, the drop from A1's last
+    row to A2's first as an unloading, without a word; calibrate refused it as a strain that decreases.
+    Hand-made: the loading rows above twice, under specimen A1 and A2.  Expected: refused by both readers naming
+    the column and the row where each specimen starts (rows 2 and 18: 16 rows each); one specimen's label on
+    every row (or on the first only) is read as before."""
+    from knitsim.calibration.specimen import read_table
+    up = "".join(f"{s!r},{f!r}\n" for s, f in _UP)
+    body = "".join(f"A1,{ln}\n" for ln in up.splitlines()) + "".join(f"A2,{ln}\n" for ln in up.splitlines())
+    p = _write(tmp_path, "specimen,strain,force_per_wale_N\n" + body, "two.csv")
+    with pytest.raises(KnitsimInputError, match=r"two\.csv: column specimen holds 2 specimens or tests "
+                                                r"\('A1' from row 2, 'A2' from row 18\)"):
+        read_measured_curve(p)
+    with pytest.raises(KnitsimInputError, match=r"column specimen holds 2 .*'A2' from row 18"):
+        read_table(p)
+    one = _write(tmp_path, "Sample;strain;force_per_wale_N\n" + "".join(
+        f"{'A1' if i == 0 else ''};{s!r};{f!r}\n" for i, (s, f) in enumerate(_UP)), "one.csv")
+    assert len(read_measured_curve(one)) == len(_UP) and len(read_table(one).strain) == len(_UP)
