@@ -624,20 +624,20 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
     units = [_name_and_unit(c)[1] for c in header]
     # a machine's name is taken with its unit in brackets or in a units row under the header (Bluehill's raw data)
     keys, read_as, not_taken = _aliased(header, required + optional, aliases, _units_row(lines, h, delim))
+    asked_strain = [c for c in required + optional if _key(c).startswith("strain")]
+    if asked_strain and not any(_key(c) in keys for c in asked_strain):
+        # an extension in mm where a strain is wanted (a blind probe's Extension [mm] was refused as "no strain
+        # column", the gauge length it needed unnamed): said here and, through not_read, by a caller that asks
+        # for its strain as optional (calibrate: a probe's Extension (mm) file was refused without it)
+        ext = [c for c in header if re.search(r"exten|elong|displac|travel|position", c, re.I)]
+        if ext:
+            not_taken.append(f"{ext[0]!r} is a length, not a strain: write strain = extension / gauge length (both "
+                             f"in mm) in a column named {asked_strain[0]}")
     missing = [c for c in required if _key(c) not in keys]
     if missing:
         # a machine's name without its unit, or with another, is not taken (Load could be kN): say why
-        hint = ""
-        if "strain" in missing:
-            # an extension in mm where a strain is wanted (a blind probe's Extension [mm] was refused as "no
-            # strain column", the gauge length it needed unnamed)
-            ext = [c for c in header if re.search(r"exten|elong|displac|travel|position", c, re.I)]
-            if ext:
-                hint = (f"; {ext[0]!r} is a length, not a strain: write strain = extension / gauge length (both in "
-                        "mm) in a column named strain")
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "
-                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(not_taken) if not_taken else ''}"
-                                f"{hint}")
+                                f"read as {_NAMES[delim]}-separated){'; ' + '; '.join(not_taken) if not_taken else ''}")
     present = required + [c for c in optional if _key(c) in keys]
     # (a label named twice is not read: it is checked, not fitted, and the columns asked for are refused so)
     labels = [c for c in labels if keys.count(_key(c)) == 1 and c not in present]

@@ -619,6 +619,20 @@ def test_an_extension_in_mm_is_named_as_a_length_not_a_strain(tmp_path):
         read_csv_columns(p, ["strain", "force_per_wale_N"])
 
 
+def test_an_extension_in_mm_is_named_where_the_strain_is_asked_for_as_optional(tmp_path):
+    """calibrate asks for its strain as optional (strain or strain_mm_per_mm): a probe's file with Extension (mm)
+    and Load (N) was refused as "no strain column" without the conversion diagnose names.  Expected: the hint in
+    the columns' not_read, and so in calibrate's refusal."""
+    from knitsim.calibration.specimen import read_table
+    p = tmp_path / "e.csv"
+    p.write_text("Extension (mm),load_N\n0,0.1\n1,0.2\n2,0.3\n3,0.4\n")
+    cols = read_csv_columns(p, (), ("strain", "strain_mm_per_mm", "load_N"))
+    assert any("'Extension (mm)' is a length, not a strain: write strain = extension / gauge length" in w
+               for w in cols.not_read)
+    with pytest.raises(KnitsimInputError, match=r"no strain column .*'Extension \(mm\)' is a length, not a strain"):
+        read_table(p)
+
+
 @pytest.mark.parametrize("header", ["strain", "Strain [%]"])
 def test_cells_written_with_a_per_cent_sign_read_as_that_per_cent_once(tmp_path, plain, header):
     # Excel's CSV of a strain column formatted as a percentage writes 10% for 0.1: read as 0.1 under a plain
