@@ -911,14 +911,19 @@ def refuse_several_tests(source, cols) -> None:
     """Refuse a file whose rows name more than one specimen or test (a :data:`TEST_LABELS` column, read by
     :func:`~knitsim.io.table_input.read_csv_columns` as ``labels``, holding two values or more): its curves,
     stacked, would be read as one test's cycles (a probe's file of specimens A1 and A2, one under the other, was
-    read as two cycles of one curve, the drop from A1's last row to A2's first as an unloading, without a word)."""
+    read as two cycles of one curve, the drop from A1's last row to A2's first as an unloading, without a word).
+    Only values that each label :data:`MIN_CURVE_ROWS` rows or more count: a logger's row counter named ``Sample``
+    (1, 2, 3, ...) names no test."""
     for name in TEST_LABELS:
         if name not in cols:
             continue
         values = [str(v).strip() for v in cols[name]]
+        counts: dict[str, int] = {}
+        for v in values:
+            counts[v] = counts.get(v, 0) + 1
         first = {}
         for v, r in zip(values, cols["_row"]):
-            if v and v not in first:
+            if v and v not in first and counts[v] >= MIN_CURVE_ROWS:
                 first[v] = int(r)
         if len(first) > 1:
             shown = ", ".join(f"{v!r} from row {r}" for v, r in list(first.items())[:4])

@@ -478,7 +478,7 @@ def test_a_file_of_several_specimens_stacked_is_refused_naming_the_column_and_wh
     row to A2's first as an unloading, without a word; calibrate refused it as a strain that decreases.
     Hand-made: the loading rows above twice, under specimen A1 and A2.  Expected: refused by both readers naming
     the column and the row where each specimen starts (rows 2 and 18: 16 rows each); one specimen's label on
-    every row (or on the first only) is read as before."""
+    every row (or on the first only), or a logger's row counter named Sample (1, 2, 3, ...), is read as before."""
     from knitsim.calibration.specimen import read_table
     up = "".join(f"{s!r},{f!r}\n" for s, f in _UP)
     body = "".join(f"A1,{ln}\n" for ln in up.splitlines()) + "".join(f"A2,{ln}\n" for ln in up.splitlines())
@@ -491,3 +491,6 @@ def test_a_file_of_several_specimens_stacked_is_refused_naming_the_column_and_wh
     one = _write(tmp_path, "Sample;strain;force_per_wale_N\n" + "".join(
         f"{'A1' if i == 0 else ''};{s!r};{f!r}\n" for i, (s, f) in enumerate(_UP)), "one.csv")
     assert len(read_measured_curve(one)) == len(_UP) and len(read_table(one).strain) == len(_UP)
+    counter = _write(tmp_path, "Sample,strain,force_per_wale_N\n" + "".join(
+        f"{i + 1},{s!r},{f!r}\n" for i, (s, f) in enumerate(_UP)), "counter.csv")
+    assert len(read_measured_curve(counter)) == len(_UP) and len(read_table(counter).strain) == len(_UP)
