@@ -78,8 +78,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     path = Path(path)
     cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS, aliases=LAB_ALIASES,
                             labels=TEST_LABELS)
-    refuse_several_tests(path, cols)
-    cols = drop_copied_rows(cols)
+    cols = drop_copied_rows(refuse_several_tests(path, cols))
     for group in (STRAIN_COLUMNS, TOTAL_COLUMNS):
         both = [c for c in group if c in cols]
         if len(both) > 1:

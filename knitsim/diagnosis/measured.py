@@ -907,13 +907,14 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
-def refuse_several_tests(source, cols) -> None:
+def refuse_several_tests(source, cols):
     """Refuse a file whose rows name more than one specimen or test (a :data:`TEST_LABELS` column, read by
     :func:`~knitsim.io.table_input.read_csv_columns` as ``labels``, holding two values or more): its curves,
     stacked, would be read as one test's cycles (a probe's file of specimens A1 and A2, one under the other, was
     read as two cycles of one curve, the drop from A1's last row to A2's first as an unloading, without a word).
     Only values that each label :data:`MIN_CURVE_ROWS` rows or more count: a logger's row counter named ``Sample``
-    (1, 2, 3, ...) names no test."""
+    (1, 2, 3, ...) names no test.  Returns the columns without the labels (checked, not measured: a row copied
+    under the next counter value is still a copy, :func:`drop_copied_rows`)."""
     for name in TEST_LABELS:
         if name not in cols:
             continue
@@ -931,6 +932,11 @@ def refuse_several_tests(source, cols) -> None:
             raise KnitsimInputError(f"{source}: column {name} holds {len(first)} specimens or tests ({shown}{more}): "
                                     "a file is one test's curve; split it into one file per test (tests of one "
                                     "specimen are given together, as several files)")
+    if not any(name in cols for name in TEST_LABELS):
+        return cols
+    out = Columns({k: v for k, v in cols.items() if k not in TEST_LABELS}, notes=notes_of(cols))
+    out.not_read = getattr(cols, "not_read", ())
+    return out
 
 
 def refuse_few_rows(source, rows) -> None:
@@ -957,8 +963,7 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
                                 aliases=LAB_ALIASES, labels=TEST_LABELS)
     except KnitsimInputError as exc:
         raise KnitsimInputError(str(exc) + _total_force_hint(path, str(exc))) from None
-    refuse_several_tests(path, cols)
-    cols = drop_copied_rows(cols)
+    cols = drop_copied_rows(refuse_several_tests(path, cols))
     refuse_few_rows(path, cols["_row"])
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
