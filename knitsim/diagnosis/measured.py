@@ -976,8 +976,22 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     if notes_of(cols):
         curve = replace(curve, notes=tuple(notes_of(cols)) + tuple(curve.notes))
+    if len(curve) > LONG_CURVE_ROWS:
+        k = -(-len(curve) // THINNED_CURVE_ROWS)
+        curve = replace(curve, notes=tuple(curve.notes) + (
+            f"{len(curve)} rows: each is an increment of every simulation the diagnosis runs, so it will take long "
+            f"(a 5,000-row curve took about a minute a simulation on one core); one row in {k} of the file keeps "
+            f"the curve's shape in ~{-(-len(curve) // k)} rows",))
     check_response(curve)
     return curve
+
+
+#: a measured curve of more rows than this is said, when read, to be slow to diagnose: every row is an increment of
+#: every simulation (program_for_curve).  A probe's logger files, one effect on one core: 1,000 rows 16 s, 5,000 rows
+#: 57 s; 10^5 rows (100 Hz) had not finished the baseline after 8 min
+LONG_CURVE_ROWS = 5000
+#: the rows the note of a long curve suggests thinning it to
+THINNED_CURVE_ROWS = 2000
 
 
 def _total_force_hint(path, message: str) -> str:

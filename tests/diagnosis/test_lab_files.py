@@ -496,3 +496,21 @@ def test_a_file_of_several_specimens_stacked_is_refused_naming_the_column_and_wh
     counter = _write(tmp_path, "Sample,strain,force_per_wale_N\n" + "".join(
         f"{i + 1},{s!r},{f!r}\n" for i, (s, f) in enumerate(rows)), "counter.csv")
     assert len(read_measured_curve(counter)) == len(_UP) and len(read_table(counter).strain) == len(_UP)
+
+
+def test_a_logger_file_of_many_rows_is_read_and_said_to_be_slow(tmp_path):
+    """A logger's pull: 5,001 rows of time, strain [%] (decimal commas) and force with a little noise
+    (hand-written lines).  Read as it is (every row kept), with a note that every row is an increment of each
+    simulation and how to thin it: one row in 3 (5,001 / THINNED_CURVE_ROWS = 2,000, rounded up) keeps 1,667
+    rows.  5,000 rows (LONG_CURVE_ROWS) get no such note."""
+    rng = np.random.default_rng(2)
+    strain = np.linspace(0.0, 40.0, 5001)
+    force = 0.5 * (strain / 100.0) ** 2 + 0.001 + 2e-4 * rng.standard_normal(5001)
+    lines = ["Time (s);Strain (%);force_per_wale_N"] + [
+        f"{0.01 * i:.2f};{s:.5f};{f:.6f}".replace(".", ",") for i, (s, f) in enumerate(zip(strain, force))]
+    c = read_measured_curve(_write(tmp_path, "\n".join(lines) + "\n", name="logger.csv"))
+    assert len(c) == 5001
+    (note,) = [n for n in c.notes if "rows: each is an increment" in n]
+    assert note.startswith("5001 rows") and "one row in 3 of the file" in note and "~1667 rows" in note
+    short = read_measured_curve(_write(tmp_path, "\n".join(lines[:5001]) + "\n", name="short.csv"))
+    assert len(short) == 5000 and not [n for n in short.notes if "rows: each is an increment" in n]
