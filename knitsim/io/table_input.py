@@ -41,7 +41,9 @@ shows it), the column and the value, and what to do:
   ``"(N)"``), and only where the column's own name is absent; said so in the notes (``column 'Load (N)'
   read as load_N``).  Without a unit, or with another, it is not taken (``Load`` could be kN): a missing
   column's refusal says why (:attr:`Columns.not_read` for a caller's own refusal); two cells that would
-  both be one column are refused as a column named twice;
+  both be one column are refused as a column named twice.  So is a column asked for with a unit ending
+  (``force_per_wale_N``, ``rate_mm_s``) written as its name in words with that unit (``Force per wale (N)``,
+  ``Rate [mm/s]``; spaces, hyphens or underscores), where no cell is another column asked for by its own name;
 - refused: a value in a row beyond the header's columns (a shifted or merged row), and a
   column read that is named twice (which one is meant is not said).
 """
@@ -436,14 +438,18 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
     (to find the header line, whose refusal then says why).  Returns (keys, {index: the column it was read as},
     the reasons the aliases present were not taken)."""
     keys = [_name_and_unit(c)[0] for c in cells]
+    own = {_key(n) for n in names}
     taken, why_not = {}, []
-    if not aliases:
-        return keys, taken, why_not
     for name in names:
-        if _key(name) in keys or name not in aliases:
+        # besides the machines' names, the column's own name written out with its unit: "Force per wale (N)" for
+        # force_per_wale_N, "Rate [mm/s]" for rate_mm_s (a blind probe's hand-made header was refused as missing);
+        # never a cell that is another column asked for by its own name ("Strain [%]" is strain, not strain_mm_per_mm)
+        stem = _unit_stem(name)
+        if _key(name) in keys or (name not in aliases and stem is None):
             continue
         for j, cell in enumerate(cells):
-            if j in taken or keys[j] not in aliases[name]:
+            spelled = keys[j] not in own and re.sub(r"[\s_-]+", "_", keys[j]) == stem
+            if j in taken or not (keys[j] in aliases.get(name, ()) or spelled):
                 continue
             unit = _alias_unit(cells, unit_cells, j)
             fits = unit is not None and (_unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name)))
@@ -457,6 +463,16 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                 why_not.append(f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
                                f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: {stated})")
     return keys, taken, why_not
+
+
+def _unit_stem(name: str) -> str | None:
+    """The name of a column asked for without the unit its ending implies (``force_per_wale_N`` ->
+    ``force_per_wale``, ``rate_mm_s`` -> ``rate``), or None where it implies none."""
+    key = _key(name)
+    for end, _ in _UNITS:
+        if key.endswith(end) and len(key) > len(end):
+            return key[:-len(end)]
+    return None
 
 
 def _find_header(lines: list[str], required: list[str], optional: list[str], aliases: dict | None = None) -> int | None:

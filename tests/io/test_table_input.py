@@ -659,3 +659,32 @@ def test_per_cent_cells_with_decimal_commas(tmp_path, text):
     np.testing.assert_array_equal(got["strain"], [0.0, 0.125, 0.25])
     np.testing.assert_array_equal(got["force_per_wale_N"], [0.01, 0.05, 0.1])
     assert len(got.notes) == 1 and got.notes[0].startswith("strain: 3 cell(s) written with a % sign")
+
+
+def test_a_column_named_in_words_with_its_unit_is_read_as_that_column(tmp_path):
+    # Found by a blind probe (hand-made lab files): "Force per wale [N]" was refused as a missing force_per_wale_N.
+    # Expected, from the reading rules (module docstring): a column asked for with a unit ending (_N, _mm_s) may be
+    # written as its name in words (spaces, hyphens or underscores) with that unit in brackets, taken and noted as
+    # a machine's name is; without its unit, or with another, it is not taken, and the refusal says what to write;
+    # a cell that is another column by its own name is never taken for this one.
+    names = ("force_per_wale_N", "rate_mm_s")
+    c = read_csv_columns(_write(tmp_path, "Strain;Force per wale (N);Rate [mm/s]\n0;0,001;1\n0,1;0,03;1\n", "a.csv"),
+                         ("strain",) + names[:1], names[1:])
+    np.testing.assert_array_equal(c["force_per_wale_N"], [0.001, 0.03])
+    np.testing.assert_array_equal(c["rate_mm_s"], [1.0, 1.0])
+    assert c.notes == ("column 'Force per wale (N)' read as force_per_wale_N", "column 'Rate [mm/s]' read as rate_mm_s")
+    c = read_csv_columns(_write(tmp_path, "strain,Force-per_wale [N]\n0,0.001\n0.1,0.03\n", "b.csv"),
+                         ("strain", "force_per_wale_N"))
+    np.testing.assert_array_equal(c["force_per_wale_N"], [0.001, 0.03])
+    for header, why in (("strain,Force per wale", "'Force per wale' is read as force_per_wale_N with its unit "
+                                                  "stated ('Force per wale (N)')"),
+                        ("strain,Force per wale [kN]", "'Force per wale [kN]' is not read as force_per_wale_N: 'kN' "
+                                                       "is not its unit (convert the column: 'Force per wale (N)')")):
+        with pytest.raises(KnitsimInputError) as e:
+            read_csv_columns(_write(tmp_path, header + "\n0,0.001\n0.1,0.03\n", "c.csv"), ("strain", "force_per_wale_N"))
+        assert why in str(e.value), str(e.value)
+    # "Strain [%]" is the strain asked for by its name, not the strain_mm_per_mm asked for beside it
+    c = read_csv_columns(_write(tmp_path, "Strain [%],force_per_wale_N\n0,0.001\n10,0.03\n", "d.csv"), (),
+                         ("strain", "strain_mm_per_mm", "force_per_wale_N"))
+    assert "strain_mm_per_mm" not in c
+    np.testing.assert_allclose(c["strain"], [0.0, 0.1], rtol=1e-15)
