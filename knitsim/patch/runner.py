@@ -67,6 +67,22 @@ RECORD_COPIES = 2
 CELL_FIELDS_COPIES = 1
 
 
+#: bytes a patch scene holds per cell (of the courses x wales grid) from its loading to the end of its run, its
+#: records aside: the per-cell parameter arrays, their origins and rules (object arrays), the grouping of
+#: identical cells and what the outputs derive from them.  Measured (peak resident set, less the 0.1 GB of the
+#: imports): a uniform 1000 x 1000 patch through 6 increments (records negligible), 1.7 GB for its 10^6 cells
+#: (load_patch_scene alone, uniform or random phi0: 1.06 GB; with the grouping 1.27-1.39 GB; 2000 x 2000, 4.3 GB
+#: and 5.1 GB).  A 7000 x 7000 patch (49 million cells, under the 50 million cap) was killed for memory while its
+#: scene loaded, at 24 GB, without a word (a blind probe)
+SCENE_BYTES_PER_CELL = 1700
+
+
+def scene_memory_bytes(n_cells: int) -> int:
+    """The memory a patch of ``n_cells`` cells needs for its per-cell scene [bytes], its records aside
+    (:data:`SCENE_BYTES_PER_CELL`; :func:`record_memory_bytes` counts the records)."""
+    return int(n_cells) * SCENE_BYTES_PER_CELL
+
+
 def record_memory_bytes(n_groups: int, n_increments: int, cell_fields: bool = True,
                         cells_increments: int | None = None) -> int:
     """The memory a run of ``n_groups`` groups through ``n_increments`` increments needs at its peak for its

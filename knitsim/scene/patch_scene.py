@@ -436,8 +436,22 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                                         "and gauge length)")
         courses, wales = doc["patch"]["courses"], doc["patch"]["wales"]
     shape = (courses, wales)
+    # the key that set the count across (a specimen's strips, not a [patch] it does not have)
+    count_key = "specimen.strips" if specimen else "patch.wales"
     if courses * wales > 50_000_000:
-        raise error("patch.wales", wales, f"{courses} x {wales} cells is more than 50 million")
+        raise error(count_key, wales, f"{courses} x {wales} cells is more than 50 million")
+    # the scene's own per-cell arrays against the machine's memory, before they are allocated (a 7000 x 7000 patch
+    # was killed part-way through loading, at 24 GB, without a word); the run's records are checked before the
+    # solve (knitsim.cli.run.check_record_memory)
+    from ..patch import runner as _runner
+    need, free = _runner.scene_memory_bytes(courses * wales), _runner.available_memory_bytes()
+    if free is not None and need > free:
+        gib = 2.0 ** 30
+        raise error(count_key, wales, f"{courses:,} x {wales:,} = {courses * wales:,} cells need about "
+                    f"{need / gib:.3g} GiB for the patch's per-cell parameters alone "
+                    f"({_runner.SCENE_BYTES_PER_CELL} bytes a cell), more than the {free / gib:.3g} GiB free on this "
+                    "machine: it would be killed part-way; run a smaller patch"
+                    + (" (fewer strips or bands: each is a block of identical stitches)" if specimen else ""))
 
     # base cell (the yarn / knit / friction / rules tables, as a cell scene)
     raw_base = {t: validate(PATCH_SCENE.fields[t], data.get(t, {}), t, fill_defaults=False) for t in _CELL_TABLES}

@@ -155,3 +155,28 @@ def test_absurd_friction_and_a_zone_that_changes_nothing_are_refused():
         load_patch_scene(base(zones=[{"courses": [0, 2]}]))
     assert load_patch_scene(base(friction={"m": 4.0})).model.fields["m"].max() == 4.0
     assert load_patch_scene(base(friction={"mu_k": 0.2, "coiling_angle_deg": 110.0})).model.fields["m"].max() > 0.1
+
+
+def test_a_patch_too_large_for_the_free_memory_is_refused_before_its_arrays(monkeypatch):
+    # expectation: the project's rule that an absurd size is refused before any work, with the figure that
+    # knitsim.patch.runner.SCENE_BYTES_PER_CELL states (measured: a 1000 x 1000 patch peaks at 1.7 GB); a blind
+    # probe's 7000 x 7000 patch (under the 50 million cap) was killed for memory at 24 GB while its scene loaded
+    from knitsim.patch import runner
+    need = runner.scene_memory_bytes(4 * 3)
+    assert need == 12 * runner.SCENE_BYTES_PER_CELL
+    monkeypatch.setattr(runner, "available_memory_bytes", lambda: need - 1)
+    with pytest.raises(KnitsimInputError, match=r"^patch\.wales = 3: 4 x 3 = 12 cells need about .* GiB .* more "
+                                                r"than the .* GiB free on this machine"):
+        load_patch_scene(base())
+    monkeypatch.setattr(runner, "available_memory_bytes", lambda: need)
+    assert load_patch_scene(base()).model.cell_count == 12
+
+
+def test_the_cell_count_cap_of_a_specimen_names_its_strips():
+    # the count across a specimen is specimen.strips (a blind probe was told "patch.wales = 10000", a key its
+    # scene did not have); refused before anything is built
+    doc = base(specimen={"width": 1e5, "gauge_length": 1e5, "strips": 10_000, "bands": 10_000})
+    del doc["patch"]
+    with pytest.raises(KnitsimInputError, match=r"^specimen\.strips = 10000: 10000 x 10000 cells is more than 50 "
+                                                r"million"):
+        load_patch_scene(doc)
