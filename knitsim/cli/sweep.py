@@ -15,7 +15,8 @@ reason (what ``--json`` prints, and what the plot's title counts).  Exit
 status 1 when the solver failed on a sample (a missing result), as ``knitsim
 cell`` and ``run`` do for a failed cell, or when the plot could not be drawn
 (``plot_error`` in ``summary.json``; the results are written).  Chunks run on a local Dask
-cluster with one worker process per core unless ``--workers 0`` (in this
+cluster with one worker process per core (no more than the chunks to run;
+``--workers N``: at most the cores) unless ``--workers 0`` (in this
 process) or ``--scheduler tcp://host:port`` (an existing cluster).  Killing a
 run keeps the finished chunks; ``--resume`` finishes it.  One sweep at a time
 writes into a folder (:func:`knitsim.io.output_dir.output_lock`): a second one
@@ -48,7 +49,7 @@ def register(subparsers) -> None:
     parser.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
     add_output_flags(parser, resumable=True)
     parser.add_argument("--workers", type=int, default=None, metavar="N",
-                        help="local Dask worker processes (default: one per core); 0: run in this process")
+                        help="local Dask worker processes, at most one per core (default: one per core, no more than the chunks to run); 0: run in this process")
     parser.add_argument("--scheduler", metavar="ADDR", default=None,
                         help="address of an existing Dask scheduler, e.g. tcp://host:8786 "
                              "(workers need knitsim and --out on a shared file system)")
@@ -81,12 +82,11 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import plan_sweep
+    from ..sweep.runner import check_workers, plan_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
-    if args.workers is not None and args.workers < 0:
-        raise KnitsimInputError(f"--workers = {args.workers}: expected 0 (no Dask) or a positive number")
+    check_workers(args.workers, args.scheduler)
     if args.chunk_size is not None and args.chunk_size < 1:
         raise KnitsimInputError(f"--chunk-size = {args.chunk_size}: expected a whole number >= 1")
     # (errors of a --sweep file name that file, not the scene)

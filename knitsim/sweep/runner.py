@@ -768,6 +768,23 @@ def _workers_ignore_sigint():
         signal.signal(signal.SIGINT, old)
 
 
+def check_workers(workers: int | None, scheduler: str | None = None) -> None:
+    """Refuse a number of local Dask workers that is negative, or more than this machine's cores (with no
+    ``scheduler``, which then runs the chunks on its own workers): each worker is a single-threaded process
+    (Warp's CPU backend runs a launch on one thread) holding its own Python, Dask and Warp, so more of them than
+    cores only share the cores, at about 40 MB each (a blind probe's --workers 1000 on 2 cores started 513
+    processes holding 21 GB before it was stopped)."""
+    if workers is None:
+        return
+    if workers < 0:
+        raise KnitsimInputError(f"--workers = {workers}: expected 0 (no Dask) or a positive number")
+    cores = os.cpu_count() or 1
+    if not scheduler and workers > cores:
+        raise KnitsimInputError(f"--workers = {workers}: more than the {cores} core(s) of this machine (each worker "
+                                f"is a single-threaded process: more of them only share the cores, each holding its "
+                                f"own memory); use at most {cores}, or leave --workers out (one per core)")
+
+
 def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int | None,
               scheduler: str | None, stream) -> None:
     try:
@@ -782,7 +799,8 @@ def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int |
             except (OSError, TimeoutError, ValueError) as exc:
                 raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
         else:
-            n = workers or os.cpu_count() or 1
+            # no more workers than chunks to run: a worker without a chunk only costs its start and its memory
+            n = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
             with _workers_ignore_sigint():
                 cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                        dashboard_address=None, silence_logs=40)
@@ -851,8 +869,7 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
         A chunk failed in a Dask worker (finished chunks are kept).
     """
     out = Path(out_dir)
-    if workers is not None and workers < 0:
-        raise KnitsimInputError(f"--workers = {workers}: expected 0 (no Dask) or a positive number")
+    check_workers(workers, scheduler)
     _prepare_out(plan, out, resume)
     # summary.json says the outputs beside it are complete: not while this run changes them (an interrupted
     # resume of a finished sweep would leave the old one beside new chunks)

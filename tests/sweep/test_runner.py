@@ -192,3 +192,41 @@ def test_a_compressive_rest_state_is_a_flagged_sample(tmp_path):
     assert first.split(",")[col] == "1"
     from knitsim.sweep.plots import _marks, _title
     assert "1 with a compressive rest state" in _title("sweep", _marks(ds))
+
+
+def test_local_workers_beyond_the_cores_are_refused_and_never_more_than_the_chunks(tmp_path, monkeypatch):
+    # expectation: the project's rule that an absurd limit is refused before any work; a worker is a
+    # single-threaded process (Warp's CPU backend runs a launch on one thread, the module docstring), so more of
+    # them than cores only share the cores (a blind probe's --workers 1000 on 2 cores started 513 processes
+    # holding 21 GB before it was stopped)
+    from knitsim.cli import main
+    monkeypatch.setattr(runner.os, "cpu_count", lambda: 2)
+    plan = plan_sweep(SCENE, GRID)
+    with pytest.raises(KnitsimInputError, match=r"^--workers = 3: more than the 2 core\(s\) of this machine"):
+        run_sweep(plan, tmp_path / "r", workers=3, progress=None, plots=False)
+    assert not (tmp_path / "r").exists()
+    runner.check_workers(3, scheduler="tcp://host:8786")       # an existing cluster's workers are its own
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[load]\ntype = "monotonic"\n'
+                     'target_strain = 0.2\nmax_increment = 0.1\n[sweep]\nmethod = "grid"\n[sweep.parameters]\n'
+                     '"friction.m" = { values = [0.1, 0.2] }\n')
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "c"), "--workers", "3"]) == 2
+    assert not (tmp_path / "c").exists()
+
+    # the default (one per core) starts no more workers than there are chunks to run
+    import dask.distributed
+
+    class Started(Exception):
+        pass
+
+    started = []
+
+    def cluster(n_workers, **kw):
+        started.append(n_workers)
+        raise Started
+
+    monkeypatch.setattr(runner.os, "cpu_count", lambda: 8)
+    monkeypatch.setattr(dask.distributed, "LocalCluster", cluster)
+    with pytest.raises(Started):
+        runner._run_dask([{"chunk": 0}, {"chunk": 1}], None, [], None, None, None)
+    assert started == [2]
