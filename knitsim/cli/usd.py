@@ -25,7 +25,7 @@ from pathlib import Path
 
 from ..errors import KnitsimInputError
 from ..io.results import add_output_flags, prepare_output_file
-from ..usd.from_results import LAYOUTS
+from ..usd.from_results import LAYOUTS, MAX_POINTS, MIN_POINTS
 from .common import add_json_flag, print_json
 
 COLOR_CHOICES = ("stage", "phi", "force", "material", "strain")
@@ -48,7 +48,7 @@ def add_usd_options(p, prefix: str = "") -> None:
                    help="write increments 0, N, 2N, ... counted from the rest state, and the last one written; "
                         "default 1")
     p.add_argument("--usd-points", dest="usd_points", type=int, default=None, metavar="N",
-                   help="points per quarter centreline (>= 6, default 9)")
+                   help="points per quarter centreline (6 to 1000, default 9)")
     p.add_argument("--usd-layout", dest="usd_layout", default=dflt("usd_layout"), metavar="LAYOUT",
                    help="courses (one yarn curve per course), instanced (one stitch shape per distinct cell, "
                         "placed at every stitch of it) or auto (default: instanced when the distinct cells are "
@@ -75,8 +75,11 @@ def check_usd_options(args) -> None:
         raise KnitsimInputError(f"{args.usd_stride_flag} = {args.usd_stride}: must be >= 1")
     if args.usd_layout not in LAYOUTS:
         raise KnitsimInputError(f"--usd-layout = {args.usd_layout!r}: expected one of {', '.join(LAYOUTS)}")
-    if args.usd_points is not None and args.usd_points < 6:
-        raise KnitsimInputError(f"--usd-points = {args.usd_points}: must be >= 6")
+    if args.usd_points is not None and args.usd_points < MIN_POINTS:
+        raise KnitsimInputError(f"--usd-points = {args.usd_points}: must be >= {MIN_POINTS}")
+    if args.usd_points is not None and args.usd_points > MAX_POINTS:
+        raise KnitsimInputError(f"--usd-points = {args.usd_points}: must be <= {MAX_POINTS} (200 points already "
+                                "draw the centreline within 1e-4 mm; the file grows with them)")
 
 
 def register(subparsers) -> None:

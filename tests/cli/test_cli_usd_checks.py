@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import csv
 
+import numpy as np
+
 import pytest
 
 pxr = pytest.importorskip("pxr")
 
 from knitsim.cli import main  # noqa: E402
+from knitsim.errors import KnitsimInputError  # noqa: E402
 
 SCENE = """title = "uniform E-glass small"
 engine = "warp"
@@ -108,3 +111,19 @@ def test_run_cut_by_the_force_cap_says_what_its_usd_leaves_out(tmp_path, scene, 
     assert f"increments {held[1]}-{n} of {n} not written" in err and "time code k is increment k + 1" not in err
     assert list(read_specimen_usd(tmp_path / "again.usda").time_codes) == list(range(0, held[0] + 1))
     assert "force_cap_reached" in err                                # the run's own warning, repeated
+
+
+def test_an_absurd_number_of_usd_points_is_refused_before_any_work(tmp_path, scene, capsys):
+    # expectation: the project's rule that an absurd limit is refused before any work; the bound is
+    # knitsim.usd.from_results.MAX_POINTS (200 points already draw the elastica within 1e-4 mm, measured); a
+    # blind probe's --usd-points 1000000 wrote 8.6 GB in 462 s for a 12-cell patch
+    from knitsim.usd.from_results import MAX_POINTS, quarter_centrelines
+    rc = main(["run", str(scene), "--out", str(tmp_path / "e5"), "--no-progress", "--usd", str(tmp_path / "p.usda"),
+               "--usd-points", str(MAX_POINTS + 1)])
+    _one_line_error(capsys, rc, f"--usd-points = {MAX_POINTS + 1}: must be <= {MAX_POINTS}")
+    assert not (tmp_path / "e5").exists() and not (tmp_path / "p.usda").exists()
+    (tmp_path / "res").mkdir()
+    rc = main(["usd", str(tmp_path / "res"), "--out", str(tmp_path / "q.usda"), "--usd-points", "1000000"])
+    _one_line_error(capsys, rc, "--usd-points = 1000000: must be <= ")
+    with pytest.raises(KnitsimInputError, match=r"n_points = 1001: must be an integer in \[6, 1000\]"):
+        quarter_centrelines(np.zeros((1, 5)), 0.31, 0.58, n_points=MAX_POINTS + 1)
