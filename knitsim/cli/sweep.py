@@ -32,7 +32,10 @@ from ..cell.engine import ENGINES
 from ..errors import KnitsimInputError
 from ..io.output_dir import output_lock
 from ..io.results import add_output_flags, prepare_output_dir, scene_inputs
-from .common import add_json_flag, naming_scene, print_json, resume_command
+from .common import Progress, add_json_flag, naming_scene, print_json, resume_command
+
+#: samples from which the validation of a sweep's samples shows its progress (about 1 ms a sample: 5 s)
+PLAN_PROGRESS_SAMPLES = 5000
 
 
 def register(subparsers) -> None:
@@ -104,7 +107,14 @@ def _run(args) -> int:
         raise KnitsimInputError("--resume and --overwrite: choose one (finish the sweep in --out, or replace it)")
     with contextlib.redirect_stdout(sys.stderr):     # Warp's banner must not reach stdout (--json)
         with naming_scene(args.scene, "sweep"):
-            plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine, device=args.device)
+            # (each sample's scene is validated, about 1 ms a sample: said for a long sweep, nothing for a short one)
+            validating = Progress(spec.samples, "knitsim sweep: validating the samples' scenes: samples",
+                                  enabled=spec.samples >= PLAN_PROGRESS_SAMPLES)
+            try:
+                plan = plan_sweep(args.scene, spec, overrides=args.overrides, engine=args.engine,
+                                  device=args.device, progress=validating)
+            finally:
+                validating.close()
     out_dir = args.out if args.out is not None else f"{Path(args.scene).stem}_sweep"
     # one sweep at a time in a folder (two --resume at once both ran the missing chunks and wrote the results),
     # held before --overwrite empties it

@@ -266,7 +266,7 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
 
 def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | None = None,
                overrides: list[str] = (), engine: str | None = None, device: str | None = None,
-               chunk_size: int | None = None) -> SweepPlan:
+               chunk_size: int | None = None, progress=None) -> SweepPlan:
     """Read and validate a sweep completely: every sample's scene, before any solve.
 
     Parameters
@@ -282,6 +282,9 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         Replace the scene's engine / device.
     chunk_size : int, optional
         Replace ``sweep.chunk_size``.
+    progress : callable, optional
+        ``progress(done, total)`` after each sample's scene is validated (about 1 ms a sample: a blind
+        probe's 50,000-sample Latin hypercube spent 50 s here without a word, 10^7 samples would take hours).
 
     Returns
     -------
@@ -351,6 +354,8 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
             loads.append(s.resolved["load"])
         group.append(group_of[gkey])
         params.append(s.params)
+        if progress is not None:
+            progress(i + 1, len(table))
     group = np.asarray(group, dtype=np.int64)
     if invalid:
         first = next(iter(invalid.values()))

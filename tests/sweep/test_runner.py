@@ -230,3 +230,23 @@ def test_local_workers_beyond_the_cores_are_refused_and_never_more_than_the_chun
     with pytest.raises(Started):
         runner._run_dask([{"chunk": 0}, {"chunk": 1}], None, [], None, None, None)
     assert started == [2]
+
+
+def test_the_validation_of_a_long_sweeps_samples_shows_its_progress(tmp_path, monkeypatch, capsys):
+    # expectation: the project's rule that long work shows progress; each sample's scene is validated before any
+    # solve, about 1 ms a sample (a blind probe's 50,000-sample Latin hypercube spent 50 s there without a word)
+    calls = []
+    plan = plan_sweep(SCENE, GRID, progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(i, plan.n_samples) for i in range(1, plan.n_samples + 1)]
+    from knitsim.cli import main
+    from knitsim.cli import sweep as cli_sweep
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[load]\ntype = "monotonic"\n'
+                     'target_strain = 0.2\nmax_increment = 0.1\n[sweep]\nmethod = "grid"\n[sweep.parameters]\n'
+                     '"friction.m" = { values = [0.1, 0.2] }\n')
+    monkeypatch.setattr(cli_sweep, "PLAN_PROGRESS_SAMPLES", 2)        # a long sweep, as far as the CLI knows
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--no-plot"]) == 0
+    assert "knitsim sweep: validating the samples' scenes: samples: 2/2 (100%)" in capsys.readouterr().err
+    monkeypatch.setattr(cli_sweep, "PLAN_PROGRESS_SAMPLES", 3)        # a short one: nothing said
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "p"), "--workers", "0", "--no-plot"]) == 0
+    assert "validating" not in capsys.readouterr().err
