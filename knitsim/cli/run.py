@@ -361,6 +361,25 @@ def _run_locked(args) -> int:
         if scene.engine == "warp":
             from .. import warp_runtime
             device = warp_runtime.resolve_device(scene.device)
+        # --resume: the checkpoint against this scene, engine and device before the domain check (a blind probe's
+        # --resume --engine reference of a warp run's checkpoint was refused only after the reference engine's
+        # 51 s rest-state check of its 144 cells)
+        ck = Path(args.out if args.out is not None else f"{Path(args.scene).stem}_out") / CHECKPOINT_NAME
+        head = None
+        if args.resume:
+            if not ck.is_file():
+                raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
+            try:
+                head = read_checkpoint_header(ck)
+            except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
+                raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
+            # another scene (or map, library, device...): refused here, before "resuming from ..." is said
+            why = resume_refusal(ck, head, scene.model, scene.program, engine=scene.engine, device=device,
+                                 dedup=scene.dedup, **scene.solver_options)
+            if why:
+                raise KnitsimInputError(why)
+            if args.usd is not None:
+                _usd_on_resume(args.usd, head, ck)
         # the model's domain, before any output is touched (a cell without a rest state: error)
         domain_warnings = check_patch_domain(
             scene.model, scene.program.strain, scene.engine, device, scene.dedup,
@@ -377,23 +396,8 @@ def _run_locked(args) -> int:
                              overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME + "/"),
                              inputs=scene_inputs(args.scene))
-    ck = out / CHECKPOINT_NAME
+    ck = out / CHECKPOINT_NAME             # (the checkpoint read above, by the folder as prepared)
     total = len(scene.program)
-    head = None
-    if args.resume:
-        if not ck.is_file():
-            raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
-        try:
-            head = read_checkpoint_header(ck)
-        except Exception as exc:  # noqa: BLE001 - a damaged file is a user-level problem
-            raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
-        # another scene (or map, library, device...): refused here, before "resuming from ..." is said
-        why = resume_refusal(ck, head, scene.model, scene.program, engine=scene.engine, device=device,
-                             dedup=scene.dedup, **scene.solver_options)
-        if why:
-            raise KnitsimInputError(why)
-        if args.usd is not None:
-            _usd_on_resume(args.usd, head, ck)
     resume_cmd = resume_command(args, out)
     # what a later command needs to know of this run: how to resume it, and the --usd file it may replace
     import os

@@ -598,6 +598,31 @@ def test_a_resume_of_a_changed_scene_is_refused_before_it_says_it_resumes(tmp_pa
     assert "resuming from" in capsys.readouterr().err
 
 
+def test_a_resume_on_another_engine_is_refused_before_the_domain_check(tmp_path, capsys, monkeypatch):
+    # a blind probe: `--resume --engine reference` of a warp run's checkpoint (12 x 12 random patch) was refused
+    # only after the reference engine's rest-state check of its 144 cells, 51 s.  Expected (the project's rule:
+    # refused before any work): the refusal, with nothing of the domain check run, the checkpoint kept
+    import knitsim.cli.run as cli_run
+    scene = _scene(tmp_path)
+    out = tmp_path / "o"
+    restore = _interrupt_after(monkeypatch, 2)
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])) == 130
+    restore()
+    capsys.readouterr()
+
+    def no_domain_check(*a, **kw):
+        raise AssertionError("the domain check ran before the resume was refused")
+
+    monkeypatch.setattr(cli_run, "check_patch_domain", no_domain_check)
+    rc = main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume",
+                                  "--engine", "reference"]))
+    err = capsys.readouterr().err
+    assert rc == 2 and "was computed by the warp engine, this run uses reference" in err, err
+    assert (out / "checkpoint.pkl").is_file() and "Traceback" not in err
+    rc = main(_argv(monkeypatch, ["run", str(scene), "--out", str(tmp_path / "none"), "--no-progress", "--resume"]))
+    assert rc == 2 and "no checkpoint" in capsys.readouterr().err and not (tmp_path / "none").exists()
+
+
 # ------------------------------------------------------------------------ one command at a time in a folder
 
 
