@@ -178,8 +178,11 @@ def check_domain(p: CellParams, where: str = "cell", domain: ParameterDomain = D
         raise KnitsimInputError(f"{where}: {why}")
 
 
-def rest_state_problem(p: CellParams) -> str | None:
+def rest_state_problem(p: CellParams, engine: str = "reference") -> str | None:
     """None when the cell has an admissible rest state, otherwise why not (one line).
+
+    ``engine``: the engine whose verdict the words are for; with ``"warp"`` (its rest-state solve already found
+    none) a tight loop's refusal says so rather than suggesting that engine.
 
     The rest state is Table 4's initial state {C = C0, W = W0, L, phi = phi0}
     (float64 reference, :func:`knitsim.cell.inverse.initial_state`).  It is
@@ -228,8 +231,10 @@ def rest_state_problem(p: CellParams) -> str | None:
                 return (f"no rest state found: the quarter loop at C0 = {p.C0:g}, W0 = {p.W0:g} mm, continued in L "
                         f"from L / (2 C0 + W0 - 4 d) = 1.9, was followed down to {last.state.L / closing:.4g} (there "
                         f"alpha - gamma = {last.x[0] - last.x[2]:.2g} rad: the inflection A close to the contact B), "
-                        f"L = {p.L:g} mm asks for {p.L / closing:.4g}; the Warp engine's rest-state solve "
-                        "(engine = \"warp\") may reach tighter loops")
+                        f"L = {p.L:g} mm asks for {p.L / closing:.4g}; "
+                        + ("the Warp engine's rest-state solve, which reaches tighter loops, found none either"
+                           if engine == "warp" else
+                           "the Warp engine's rest-state solve (engine = \"warp\") may reach tighter loops"))
         except (RuntimeError, KnitsimInputError):
             pass
     if res is None:

@@ -312,3 +312,18 @@ def test_a_tight_cell_the_warp_engine_solves_is_not_refused_for_the_reference_s_
     assert main(["cell", str(path), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert "no rest state found" in err and "was followed down to 1.78" in err and 'engine = "warp"' in err
+
+
+def test_a_tight_cell_the_warp_engine_cannot_start_is_refused_without_suggesting_that_engine(tmp_path, capsys):
+    """The same corner cell tighter, L ratio 1.70 (L = 1.615 mm), below where the Warp engine's rest-state solve
+    reaches (a blind probe: the refusal of an engine = "warp" cell suggested the Warp engine "may reach tighter
+    loops").  Expected: refused before any work (exit 2), the reference's continuation saying where its branch
+    ended, and that the Warp engine, the one asked for, found none either."""
+    path = tmp_path / "tighter.toml"
+    path.write_text(TIGHT_CELL.format(engine="warp").replace("L = 1.68625", "L = 1.615"))
+    assert main(["cell", str(path), "--out", str(tmp_path / "w")]) == 2
+    err = capsys.readouterr().err
+    assert "no rest state found" in err and "asks for 1.7;" in err
+    assert "the Warp engine's rest-state solve, which reaches tighter loops, found none either" in err
+    assert "may reach tighter loops" not in err
+    assert not (tmp_path / "w" / "summary.json").exists()
