@@ -145,6 +145,19 @@ def _run(args) -> int:
         raise KnitsimInputError(f"RESULTS_DIR = {str(args.results)!r}: has cells.nc but no summary.json, which "
                                 "knitsim run writes last: the results are incomplete (a run stopped while writing "
                                 "them); run it again with --overwrite")
+    if folder.is_dir() and (folder / "summary.json").is_file():
+        # its warnings (a failed or capped run, energy, overlaps) go into the file: a summary that does not read
+        # would drop them without a word (a blind probe's `echo '{' > summary.json` exported silently)
+        import json
+        try:
+            doc = json.loads((folder / "summary.json").read_text())
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise KnitsimInputError(f"RESULTS_DIR = {str(args.results)!r}: its summary.json does not read ({exc}): "
+                                    "the results are damaged; run the scene again with --overwrite") from None
+        if not isinstance(doc, dict):
+            raise KnitsimInputError(f"RESULTS_DIR = {str(args.results)!r}: its summary.json holds no summary (a "
+                                    f"{type(doc).__name__}): the results are damaged; run the scene again with "
+                                    "--overwrite")
     prepare_output_file(args.out, args.overwrite)
     # writable before any work: the parent a folder, and a file can be created in it (pxr's own error came
     # as a traceback after the export)

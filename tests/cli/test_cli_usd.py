@@ -110,6 +110,9 @@ def test_usd_of_a_run_that_warned_of_held_forces_says_so(run_dir, tmp_path, caps
     (["usd", "{tmp}/nostate", "--out", "{tmp}/x.usda"], "no per-cell states"),
     # a set without summary.json (written last): a run stopped while writing its results (a blind probe)
     (["usd", "{tmp}/nosummary", "--out", "{tmp}/x.usda"], "no summary.json"),
+    # a summary.json that does not read (a blind probe's `echo '{' > summary.json` exported, its warnings dropped)
+    (["usd", "{tmp}/badsummary", "--out", "{tmp}/x.usda"], "its summary.json does not read"),
+    (["usd", "{tmp}/listsummary", "--out", "{tmp}/x.usda"], "its summary.json holds no summary (a list)"),
     (["usd", "{run}/o", "--out", "{tmp}/x.usda", "--color-by", "colour"], "--color-by = 'colour'"),
     (["usd", "{run}/o", "--out", "{tmp}/x.usda", "--stride", "0"], "--stride = 0"),
     (["usd", "{run}/o", "--out", "{tmp}/x.obj"], "must end in .usda"),
@@ -124,6 +127,10 @@ def test_bad_input_exits_2(run_dir, tmp_path, capsys, argv, needle):
     shutil.copy(run_dir / "o" / "summary.json", tmp_path / "nostate")
     shutil.copytree(run_dir / "o", tmp_path / "nosummary")
     (tmp_path / "nosummary" / "summary.json").unlink()
+    shutil.copytree(run_dir / "o", tmp_path / "badsummary")
+    (tmp_path / "badsummary" / "summary.json").write_text("{\n")
+    shutil.copytree(run_dir / "o", tmp_path / "listsummary")
+    (tmp_path / "listsummary" / "summary.json").write_text("[]\n")
     argv = [a.format(tmp=tmp_path, run=run_dir) for a in argv]
     rc = main(argv)
     err = capsys.readouterr().err
