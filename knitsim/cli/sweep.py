@@ -85,7 +85,7 @@ def _announce_domain(plan) -> None:
 
 
 def _run(args) -> int:
-    from ..sweep.runner import check_workers, plan_sweep
+    from ..sweep.runner import check_scheduler, check_workers, plan_sweep
     from ..sweep.spec import parse_sweep, split_scene
     from ..scene.schema import load_toml
 
@@ -116,6 +116,7 @@ def _run(args) -> int:
             finally:
                 validating.close()
     out_dir = args.out if args.out is not None else f"{Path(args.scene).stem}_sweep"
+    check_scheduler(args.scheduler)                  # (before the folder is made)
     # one sweep at a time in a folder (two --resume at once both ran the missing chunks and wrote the results),
     # held before --overwrite empties it
     with output_lock(out_dir, "sweep"):

@@ -790,6 +790,26 @@ def check_workers(workers: int | None, scheduler: str | None = None) -> None:
                                 f"own memory); use at most {cores}, or leave --workers out (one per core)")
 
 
+#: how long a connection to a ``--scheduler`` is tried before it is refused
+SCHEDULER_TIMEOUT = "20s"
+
+
+def check_scheduler(scheduler: str | None) -> None:
+    """Refuse a ``scheduler`` address that cannot be connected to, before any output is written (a blind probe's
+    unreachable address was refused after the sweep's folder, manifest and chunks/ were made: a plain rerun was
+    then refused as a folder that already holds results)."""
+    if not scheduler:
+        return
+    try:
+        from dask.distributed import Client
+    except ImportError as exc:  # pragma: no cover - a declared dependency
+        raise KnitsimInputError(f"--scheduler: Dask is not available ({exc}); use --workers 0") from None
+    try:
+        Client(scheduler, timeout=SCHEDULER_TIMEOUT).close()
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
+
+
 def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int | None,
               scheduler: str | None, stream) -> None:
     try:
@@ -800,7 +820,7 @@ def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int |
     try:
         if scheduler:
             try:
-                client = Client(scheduler, timeout="20s")
+                client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
             except (OSError, TimeoutError, ValueError) as exc:
                 raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
         else:

@@ -250,3 +250,19 @@ def test_the_validation_of_a_long_sweeps_samples_shows_its_progress(tmp_path, mo
     monkeypatch.setattr(cli_sweep, "PLAN_PROGRESS_SAMPLES", 3)        # a short one: nothing said
     assert main(["sweep", str(scene), "--out", str(tmp_path / "p"), "--workers", "0", "--no-plot"]) == 0
     assert "validating" not in capsys.readouterr().err
+
+
+def test_an_unreachable_scheduler_is_refused_before_the_sweeps_folder_is_made(tmp_path, monkeypatch):
+    # expectation: the project's rule that bad input is refused before any work and leaves no output (a blind
+    # probe's unreachable --scheduler was refused after sweep.json and chunks/ were written; a plain rerun was
+    # then refused as a folder that already holds results).  Port 1 of the loopback has no scheduler.
+    from knitsim.cli import main
+    monkeypatch.setattr(runner, "SCHEDULER_TIMEOUT", "1s")
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[load]\ntype = "monotonic"\n'
+                     'target_strain = 0.2\nmax_increment = 0.1\n[sweep]\nmethod = "grid"\n[sweep.parameters]\n'
+                     '"friction.m" = { values = [0.1, 0.2] }\n')
+    with pytest.raises(KnitsimInputError, match=r"^--scheduler = 'tcp://127.0.0.1:1': cannot connect"):
+        runner.check_scheduler("tcp://127.0.0.1:1")
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "c"), "--scheduler", "tcp://127.0.0.1:1"]) == 2
+    assert not (tmp_path / "c").exists()
