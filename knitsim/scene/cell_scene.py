@@ -63,6 +63,14 @@ ENGINES = ("warp", "reference")
 LOAD_TYPES = ("monotonic", "cycles", "piecewise")
 
 
+def degrees_hint(phi0: float) -> str:
+    """A friction angle beyond pi/2 rad cannot be one (phimax = atan(m) < pi/2): said to look like degrees."""
+    if not (isinstance(phi0, (int, float)) and abs(phi0) > math.pi / 2):
+        return ""
+    return (f"; {phi0:g} looks like degrees: phi0 is in radians ({phi0:g} deg = {math.radians(phi0):.4g} rad; "
+            "friction.phi0_deg takes degrees)")
+
+
 def _device_check(v: str) -> str | None:
     if v in ("cpu", "cuda", "auto") or (v.startswith("cuda:") and v[5:].isdigit()):
         return None
@@ -386,7 +394,8 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
         phi0 = {"phimax": phimax, "-phimax": -phimax}.get(phi_val, phi_val) if isinstance(phi_val, str) else phi_val
     if abs(phi0) > phimax + 1e-12:
         raise error(phi_path, phi_val, f"must lie in [-phimax, phimax] = [{-phimax:.4g}, {phimax:.4g}] rad "
-                    f"(= +/-{math.degrees(phimax):.4g} deg, m = {m:.4g})" + org.where())
+                    f"(= +/-{math.degrees(phimax):.4g} deg, m = {m:.4g})"
+                    + (degrees_hint(phi0) if "phi0_deg" not in f else "") + org.where())
     phi0 = max(-phimax, min(phimax, phi0))
     notes["phi0_source"] = f"{phi_path} = {fmt(phi_val)}"
 

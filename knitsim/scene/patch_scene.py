@@ -105,7 +105,7 @@ from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSE
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
-from .cell_scene import (ENGINES, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
+from .cell_scene import (ENGINES, degrees_hint, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
                          _knit_table, _load_table, _materials_field, _merge, _Origins, _program, _resolve_cell,
                          _provenance_table, _rules_table, _yarn_table, library_of)
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
@@ -350,7 +350,8 @@ def _check_cells(fields: dict, origins: dict, friction) -> None:
     bad = np.abs(fields["phi0"]) > phimax + 1e-12
     if bad.any():
         fail("phi0", bad, lambda i, j: f"must lie in [-phimax, phimax] = [{-phimax[i, j]:.4g}, {phimax[i, j]:.4g}] "
-                                       f"rad (m = {fields['m'][i, j]:.4g} from {origins['m'][i, j]})")
+                                       f"rad (= +/-{np.degrees(phimax[i, j]):.4g} deg, m = {fields['m'][i, j]:.4g} "
+                                       f"from {origins['m'][i, j]})" + degrees_hint(float(fields["phi0"][i, j])))
 
 
 def _knit_of(name: str, lib, key: str) -> tuple:

@@ -90,6 +90,16 @@ def test_phi0_forms():
     assert load_cell_scene(scene(friction__phi0_deg=5.0)).params[0].phi0 == pytest.approx(math.radians(5.0))
     refused(scene(friction__phi0=0.3), r"^friction\.phi0 = 0\.3: must lie in \[-phimax, phimax\] = \[-0\.1974, 0\.1974\] rad")
     refused(scene(friction__phi0=0.0, friction__phi0_deg=1.0), r"^friction\.phi0_deg = 1\.0: give either")
+    # a friction angle beyond pi/2 rad cannot be one (phimax = atan(m) < pi/2): 30 is said to look like degrees
+    # (a blind probe's phi0 = 30 was refused by the bound alone); 0.3 rad is not, and phi0_deg = 30 is degrees
+    refused(scene(friction__phi0=30), r"^friction\.phi0 = 30\.0: .* rad \(= \+/-11\.31 deg, m = 0\.2\); 30 looks like "
+                                      r"degrees: phi0 is in radians \(30 deg = 0\.5236 rad; friction\.phi0_deg")
+    with pytest.raises(KnitsimInputError) as e:
+        load_cell_scene(scene(friction__phi0=0.3))
+    assert "looks like degrees" not in str(e.value)
+    with pytest.raises(KnitsimInputError) as e:
+        load_cell_scene(scene(friction__phi0_deg=30.0))
+    assert "looks like degrees" not in str(e.value)
 
 
 @pytest.mark.parametrize("changes, match", [
