@@ -203,7 +203,10 @@ def quarter_loop(alpha, beta, gamma, phi, P, B, d, *, a=None, rho=None) -> Quart
     sh = _shape(alpha, beta, gamma, phi, a, rho)
     alpha, beta, gamma, phi = sh["alpha"], sh["beta"], sh["gamma"], sh["phi"]
     P = np.asarray(P, dtype=np.float64)
-    lam = np.sqrt(B / P)                                   # lengths scale with sqrt(B/P)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        # (a trial point of a solver at P -> 0 gives inf lengths, which it rejects: no warning on the console,
+        # where a blind probe's d = 1e-4 cell printed NumPy's before its refusal)
+        lam = np.sqrt(B / P)                               # lengths scale with sqrt(B/P)
     s_ab = lam * sh["s_ab"]
     x0 = lam * sh["x0"]
     y0 = lam * sh["y0"]

@@ -154,3 +154,16 @@ def test_stored_energy_is_the_integrated_rods(state):
     assert u > 0 and u == pytest.approx(o.bending_energy, rel=1e-8)
     # (B/2) theta'^2 ds with theta' ~ sqrt(P/B): U = sqrt(B P) x (a function of the angles)
     assert float(stored_energy(al, be, ga, ph, 4.0 * p, B)) == pytest.approx(2.0 * u, rel=1e-12)
+
+
+def test_a_trial_point_at_zero_tension_gives_infinite_lengths_without_a_warning():
+    """P -> 0: the lengths scale with sqrt(B / P) (eq 8's normalisation), so they are infinite there; a solver's
+    trial point may land on it and rejects it.  No NumPy warning may reach the console (a blind probe's
+    d = 1e-4 cell printed two before its one-line refusal)."""
+    import warnings
+
+    from knitsim.cell.quarter_loop import quarter_loop
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        q = quarter_loop(1.2, 0.3, 0.2, 0.0, 0.0, 0.31, 0.58)
+    assert not np.isfinite(q.s_AB) and not np.isfinite(q.L)
