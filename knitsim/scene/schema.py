@@ -250,6 +250,10 @@ def validate(schema: Table, data: Any, path: str = "", fill_defaults: bool = Tru
 def load_toml(path: str | Path) -> dict:
     """Parse a TOML file, turning I/O and syntax errors into one-line input errors."""
     path = Path(path)
+    if path.is_dir():
+        tomls = sorted(p.name for p in path.glob("*.toml"))[:5]
+        raise KnitsimInputError(f"{path}: a folder, not a scene file" + (f" (it holds {', '.join(tomls)})" if tomls
+                                                                          else ""))
     if not path.is_file():
         raise KnitsimInputError(f"{path}: no such scene file")
     try:

@@ -134,3 +134,14 @@ def test_describe_lists_every_key():
     assert "knit.L: float [mm] required -- stitch length" in lines
     assert any(line.startswith("[[cells]]") for line in lines)
     assert "cells[i].knit.W0: float [mm] default 4.4 -- wale width" in lines
+
+
+def test_a_folder_given_as_the_scene_is_said_to_be_one(tmp_path):
+    # a blind probe's `knitsim run FOLDER` was told "no such scene file" of a folder that exists; expected: it is
+    # named a folder, with the scenes it holds
+    from knitsim.scene.schema import load_toml
+    (tmp_path / "a.toml").write_text("title = 'a'\n")
+    with pytest.raises(KnitsimInputError, match=r": a folder, not a scene file \(it holds a\.toml\)$"):
+        load_toml(tmp_path)
+    with pytest.raises(KnitsimInputError, match=r"none\.toml: no such scene file$"):
+        load_toml(tmp_path / "none.toml")
