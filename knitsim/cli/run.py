@@ -321,8 +321,13 @@ def first_loading_of_patch(model, scene, device: str, progress=None):
 def _run(args) -> int:
     # one command at a time in a folder: two at once (a second --resume while the first runs) write over each
     # other's checkpoint and results (knitsim.io.output_dir.output_lock; held before --overwrite empties it)
-    with output_lock(args.out if args.out is not None else f"{Path(args.scene).stem}_out", "run"):
+    with output_lock(_out_dir(args), "run"):
         return _run_locked(args)
+
+
+def _out_dir(args) -> str:
+    """The run's output folder: --out, else the scene's name with ``_out``."""
+    return args.out if args.out is not None else f"{Path(args.scene).stem}_out"
 
 
 def _run_locked(args) -> int:
@@ -364,7 +369,7 @@ def _run_locked(args) -> int:
         # --resume: the checkpoint against this scene, engine and device before the domain check (a blind probe's
         # --resume --engine reference of a warp run's checkpoint was refused only after the reference engine's
         # 51 s rest-state check of its 144 cells)
-        ck = Path(args.out if args.out is not None else f"{Path(args.scene).stem}_out") / CHECKPOINT_NAME
+        ck = Path(_out_dir(args)) / CHECKPOINT_NAME
         head = None
         if args.resume:
             if not ck.is_file():
@@ -392,7 +397,7 @@ def _run_locked(args) -> int:
         # (printed with the summary's warnings at the end)
         domain_warnings += [{k: v for k, v in w.items() if k != "cell"}
                             for w in calibration_warnings(scene.calibration_flags)]
-    out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
+    out = prepare_output_dir(_out_dir(args),
                              overwrite=args.overwrite,
                              resume=args.resume, resumable=True, writes=PATCH_OUTPUT_FILES + (CHECKPOINT_NAME, CHECKPOINT_ROWS_NAME + "/"),
                              inputs=scene_inputs(args.scene))
