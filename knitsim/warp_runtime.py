@@ -27,6 +27,16 @@ def kernel_cache_dir() -> Path:
     return Path.home() / ".cache" / "knitsim" / "warp"
 
 
+def usable_cores() -> int:
+    """The cores this process may run on: its CPU affinity where the system reports one (a container or a
+    batch job limited to a few cores reports the host's count through ``os.cpu_count()``), else
+    ``os.cpu_count()``."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):    # (macOS and Windows have no sched_getaffinity)
+        return max(1, os.cpu_count() or 1)
+
+
 def init() -> None:
     """Initialise Warp once, quietly, with the stable kernel cache."""
     global _initialised
@@ -88,7 +98,7 @@ def preload(modules, device: str) -> None:
         if wm not in mods:
             mods.append(wm)
     if mods:
-        wp.force_load(device=device, modules=mods, max_workers=max(1, min(len(mods), os.cpu_count() or 1)))
+        wp.force_load(device=device, modules=mods, max_workers=max(1, min(len(mods), usable_cores())))
 
 
 def cuda_available() -> bool:

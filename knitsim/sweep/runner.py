@@ -69,6 +69,7 @@ from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir, record_outputs
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
 from ..scene.schema import fmt, load_toml, set_value
+from ..warp_runtime import usable_cores
 from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
@@ -783,7 +784,7 @@ def check_workers(workers: int | None, scheduler: str | None = None) -> None:
         return
     if workers < 0:
         raise KnitsimInputError(f"--workers = {workers}: expected 0 (no Dask) or a positive number")
-    cores = os.cpu_count() or 1
+    cores = usable_cores()
     if not scheduler and workers > cores:
         raise KnitsimInputError(f"--workers = {workers}: more than the {cores} core(s) of this machine (each worker "
                                 f"is a single-threaded process: more of them only share the cores, each holding its "
@@ -825,7 +826,7 @@ def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int |
                 raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
         else:
             # no more workers than chunks to run: a worker without a chunk only costs its start and its memory
-            n = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
+            n = max(1, min(workers or usable_cores(), len(tasks)))
             with _workers_ignore_sigint():
                 cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                        dashboard_address=None, silence_logs=40)

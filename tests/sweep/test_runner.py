@@ -200,7 +200,7 @@ def test_local_workers_beyond_the_cores_are_refused_and_never_more_than_the_chun
     # them than cores only share the cores (a blind probe's --workers 1000 on 2 cores started 513 processes
     # holding 21 GB before it was stopped)
     from knitsim.cli import main
-    monkeypatch.setattr(runner.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(runner, "usable_cores", lambda: 2)
     plan = plan_sweep(SCENE, GRID)
     with pytest.raises(KnitsimInputError, match=r"^--workers = 3: more than the 2 core\(s\) of this machine"):
         run_sweep(plan, tmp_path / "r", workers=3, progress=None, plots=False)
@@ -225,7 +225,7 @@ def test_local_workers_beyond_the_cores_are_refused_and_never_more_than_the_chun
         started.append(n_workers)
         raise Started
 
-    monkeypatch.setattr(runner.os, "cpu_count", lambda: 8)
+    monkeypatch.setattr(runner, "usable_cores", lambda: 8)
     monkeypatch.setattr(dask.distributed, "LocalCluster", cluster)
     with pytest.raises(Started):
         runner._run_dask([{"chunk": 0}, {"chunk": 1}], None, [], None, None, None)
