@@ -11,7 +11,8 @@ CRLF line ends, decimal commas after ``;``: :mod:`knitsim.io.table_input`) with 
 ``cycle`` (optional)
     cycle number from 1 (a new loading branch starts a new cycle);
 ``direction`` (optional)
-    ``load`` or ``unload``;
+    ``load`` or ``unload``, in any case, or another word for them (:func:`direction_signs`: ``loading`` /
+    ``unloading``, ``up`` / ``down``, ``L`` / ``U``, ``+`` / ``-``, ``1`` / ``-1``);
 ``rate_mm_s`` (optional)
     crosshead rate [mm/s], > 0.
 
@@ -64,7 +65,14 @@ from .noise import STRAIN_JITTER_MIN_ROWS, CurveNoise, curve_noise, reading_jitt
 
 REQUIRED = ("strain", "force_per_wale_N")
 OPTIONAL = ("cycle", "direction", "rate_mm_s")
-_DIRECTIONS = {"load": 1, "unload": -1, "loading": 1, "unloading": -1}
+#: the words of a direction column (any case, spaces around trimmed): +1 loading, -1 unloading.  A lab writes
+#: load / unload, loading / unloading, up / down, + / - or 1 / -1 (a blind probe's up / down and L / U files were
+#: refused); a reloading is a loading
+_DIRECTIONS = {"load": 1, "loading": 1, "reload": 1, "reloading": 1, "up": 1, "+": 1,
+               "unload": -1, "unloading": -1, "down": -1, "-": -1}
+#: one-letter codes, read by the column's other letters: ``U`` is an unloading beside ``L`` (load / unload) and a
+#: loading beside ``D`` (up / down); alone, or beside both, which one is meant is not said (refused)
+_DIRECTION_LETTERS = {"l": 1, "d": -1}
 
 #: a force this many noise sd below zero is kept as a reading around zero; lower is refused
 NEGATIVE_SIGMAS = 5.0
@@ -376,6 +384,48 @@ def settle_turns(strain: np.ndarray, direction: np.ndarray, jitter: float) -> np
     return s
 
 
+def direction_signs(source: str, direction, row) -> np.ndarray:
+    """The sign of each row of a direction column (+1 loading, -1 unloading): the words of :data:`_DIRECTIONS` in
+    any case, ``1`` / ``-1`` (numbers, or cells that read as them: ``+1``, ``-1.0``), and the letters ``L`` / ``U``
+    or ``U`` / ``D`` (:data:`_DIRECTION_LETTERS`: ``U`` read by the column's other letters).  ``-`` is also a
+    missing-value mark: read as an unloading only where the column holds ``+`` too.  Anything else is refused,
+    naming the row (``row(i)``), the column and the value."""
+    keys = [v.strip().casefold() if isinstance(v, str) else v for v in direction]
+    letters = {k for k in keys if isinstance(k, str) and k in ("l", "u", "d")}
+    u_sign = -1 if "d" not in letters and "l" in letters else 1 if "l" not in letters and "d" in letters else None
+    plus = "+" in keys
+    d = np.empty(len(keys), np.int32)
+    for i, (v, key) in enumerate(zip(direction, keys)):
+        if isinstance(key, str) and key in _DIRECTIONS and (key != "-" or plus):
+            d[i] = _DIRECTIONS[key]
+            continue
+        if isinstance(key, str) and key in _DIRECTION_LETTERS:
+            d[i] = _DIRECTION_LETTERS[key]
+            continue
+        if key == "u" and u_sign is not None:
+            d[i] = u_sign
+            continue
+        try:
+            num = float(key)
+        except (TypeError, ValueError):
+            num = None
+        if num in (1.0, -1.0):
+            d[i] = int(num)
+            continue
+        if key == "u":
+            why = ("beside L (load / unload) and D (up / down) alike" if {"l", "d"} <= letters else
+                   "without an L or a D beside it in the column")
+            raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} reads as an unloading "
+                                    f"(L / U) or a loading (U / D), {why}: which one is meant is not said; write "
+                                    "load / unload (or up / down) in full")
+        if key == "-":
+            raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} marks an unloading (+ / -) or "
+                                    "a missing value, and the column holds no '+' to tell: write load / unload")
+        raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} is not 'load' or 'unload' (nor "
+                                "another word for them: loading / unloading, up / down, L / U, + / -, 1 / -1)")
+    return d
+
+
 def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None, source: str = "curve",
                       rows=None, noise_N: float | None = None, strain_tol: float | None = None) -> MeasuredCurve:
     """Validate arrays into a :class:`MeasuredCurve` (see the module docstring).
@@ -385,7 +435,8 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     strain, force : array_like
         Strain of the course length [-] and force per wale [N].
     cycle, direction, rate_mm_s : array_like, optional
-        ``direction`` holds ``"load"`` / ``"unload"`` or +1 / -1.
+        ``direction`` holds ``"load"`` / ``"unload"`` (or another word for them: :func:`direction_signs`)
+        or +1 / -1.
     source : str
         Name used in messages.
     rows : array_like of int, optional
@@ -447,16 +498,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     if direction is None:
         inf_cycle, d = infer_branches(s, f, tol)
     else:
-        d = np.empty(n, np.int32)
-        for i, v in enumerate(direction):
-            key = v.strip().lower() if isinstance(v, str) else v
-            if key in _DIRECTIONS:
-                d[i] = _DIRECTIONS[key]
-            elif not isinstance(key, str) and key in (1, -1):
-                d[i] = int(key)
-            else:
-                raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} "
-                                        "is not 'load' or 'unload'")
+        d = direction_signs(source, direction, row)
         inf_cycle = _cycles_from_direction(d)
         # within a direction the strain may step back by jitter (<= tol) only
         clean = _monotone(s, d)

@@ -514,3 +514,41 @@ def test_a_logger_file_of_many_rows_is_read_and_said_to_be_slow(tmp_path):
     assert note.startswith("5001 rows") and "one row in 3 of the file" in note and "~1667 rows" in note
     short = read_measured_curve(_write(tmp_path, "\n".join(lines[:5001]) + "\n", name="short.csv"))
     assert len(short) == 5000 and not [n for n in short.notes if "rows: each is an increment" in n]
+
+
+@pytest.mark.parametrize("load, unload", [("up", "down"), ("Up", "Down"), ("L", "U"), ("l", "u"), ("U", "D"),
+                                          ("loading", "unloading"), ("LOADING", "UNLOADING"), ("Load", "Unload"),
+                                          ("load", "unload"), ("+", "-"), ("1", "-1"), ("+1", "-1")])
+def test_a_direction_column_in_a_labs_own_words_reads_as_load_and_unload(tmp_path, load, unload):
+    """A blind probe's direction columns written up / down and L / U were refused (only load / unload and
+    loading / unloading were read).  Hand-made: the two branches above (16 rows loading, 10 unloading) with the
+    direction typed in each vocabulary.  Expected: the words typed, +1 for the first 16 rows and -1 for the last
+    10, and the same curve as with load / unload; U is an unloading beside L and a loading beside D."""
+    def curve(a, b, name):
+        dirs = [a] * 16 + [b] * 10
+        return read_measured_curve(_write(tmp_path, _csv(ROWS, header="strain,force_per_wale_N,direction",
+                                                         extra=dirs), name))
+    c, ref = curve(load, unload, "words.csv"), curve("load", "unload", "ref.csv")
+    assert list(c.direction) == [1] * 16 + [-1] * 10
+    np.testing.assert_array_equal(c.strain, ref.strain)
+    np.testing.assert_array_equal(c.cycle, ref.cycle)
+
+
+@pytest.mark.parametrize("dirs, row, value, why", [
+    # U alone: load / unload's U or up / down's U, not said
+    (["U"] * 26, "row 2", "'U'", "which one is meant is not said"),
+    # U beside L and D alike
+    (["L"] * 15 + ["U"] + ["D"] * 10, "row 17", "'U'", "which one is meant is not said"),
+    # '-' without '+': a missing-value mark as often as an unloading
+    (["load"] * 16 + ["-"] * 10, "row 18", "'-'", "missing value"),
+    # a word that is no direction
+    (["load"] * 16 + ["sideways"] * 10, "row 18", "'sideways'", "is not 'load' or 'unload'"),
+    (["load"] * 16 + ["0"] * 10, "row 18", "'0'", "is not 'load' or 'unload'"),
+])
+def test_a_direction_that_is_not_said_is_refused_naming_row_column_and_value(tmp_path, dirs, row, value, why):
+    # (expected: the row of the first such cell, header = row 1, as typed)
+    p = _write(tmp_path, _csv(ROWS, header="strain,force_per_wale_N,direction", extra=dirs))
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(p)
+    msg = str(e.value)
+    assert str(p) in msg and f"{row}, column direction: {value}" in msg and why in msg, msg
