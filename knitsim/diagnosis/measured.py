@@ -9,7 +9,8 @@ CRLF line ends, decimal commas after ``;``: :mod:`knitsim.io.table_input`) with 
 ``force_per_wale_N``
     force per wale [N];
 ``cycle`` (optional)
-    cycle number from 1 (a new loading branch starts a new cycle);
+    cycle number from 1 (a new loading branch starts a new cycle); a column numbered from 0, as a logger
+    may count, is read as numbered from 1 and said so (:attr:`MeasuredCurve.notes`);
 ``direction`` (optional)
     ``load`` or ``unload``, in any case, or another word for them (:func:`direction_signs`: ``loading`` /
     ``unloading``, ``up`` / ``down``, ``L`` / ``U``, ``+`` / ``-``, ``1`` / ``-1``);
@@ -509,21 +510,35 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
             raise KnitsimInputError(
                 f"{source}: row {row(i)}, column strain: {float(s[i]):g} {what} by {abs(float(s[i] - clean[i])):.3g} "
                 f"(more than the jitter tolerance {tol:.3g}); check the direction column or the row order")
+    cycle_note = ()
     if cycle is None:
         c = inf_cycle
     else:
         craw = np.asarray(cycle, float)
         for i, v in enumerate(craw):
-            if not (np.isfinite(v) and v == round(v) and v >= 1):
+            if not (np.isfinite(v) and v == round(v) and v >= 0):
                 raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {float(v):g} is not a whole "
-                                        "number >= 1")
-        c = craw.astype(np.int32)
+                                        "number >= 1 (or >= 0, in a column numbered from 0)")
+        c = craw.astype(np.int64)
+        # (the refusals name the file's own numbers)
+        down = np.nonzero(np.diff(c) < 0)[0]
+        if len(down):
+            i = int(down[0]) + 1
+            raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} is below the cycle of row "
+                                    f"{row(i - 1)} ({int(c[i - 1])}): cycles count up, one more with each new loading "
+                                    "branch; check the column or the row order")
         # the cycle must follow the branches: it changes exactly where a new loading branch starts
         bad = np.nonzero(c != inf_cycle - inf_cycle[0] + c[0])[0]
         if len(bad):
             i = bad[0]
             raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} does not match the branches "
                                     "(a cycle starts with each new loading branch)")
+        if c[0] == 0:
+            # a logger that counts from 0 (0, 0, ..., 1, 1, ...): the same cycles, numbered from 1 as the package
+            # numbers them (a blind probe's such file was refused at its first row)
+            c = c + 1
+            cycle_note = ("column cycle numbered from 0: read as numbered from 1 (its cycle 0 is cycle 1)",)
+        c = c.astype(np.int32)
     r = None
     if rate_mm_s is not None:
         r = np.asarray(rate_mm_s, float)
@@ -539,7 +554,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     noise = curve_noise(clean, f, c, d, source, noise_N, strain_sd=jitter)
     refuse_negative_force(source, f, noise, row)
     found = strain_slips(clean, f, d, noise)
-    notes, slips = (), ()
+    notes, slips = cycle_note, ()
     if found:
         slips = tuple(row(k) for k, *_ in found)
         k, jump, times, tells = found[0]

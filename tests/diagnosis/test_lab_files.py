@@ -552,3 +552,44 @@ def test_a_direction_that_is_not_said_is_refused_naming_row_column_and_value(tmp
         read_measured_curve(p)
     msg = str(e.value)
     assert str(p) in msg and f"{row}, column direction: {value}" in msg and why in msg, msg
+
+
+# the two branches above and a reloading to 0.2: a second cycle
+_RELOAD = [(0.12, 0.031), (0.14, 0.042), (0.16, 0.049), (0.18, 0.063), (0.20, 0.071)]
+
+
+def test_a_cycle_column_numbered_from_0_reads_as_the_same_cycles_and_says_so(tmp_path):
+    """A logger that counts its cycles from 0 (0, 0, ..., 1, 1) was refused at its first row ("0 is not a whole
+    number >= 1").  Hand-made: the branches above and a reloading (26 rows of cycle 0, 5 of cycle 1).  Expected:
+    the cycles of the twin numbered from 1 and of the file without the column (inferred from the strain's
+    turning points): 1 for the first 26 rows, 2 for the last 5; and a note on the read line."""
+    rows = ROWS + _RELOAD
+    c = read_measured_curve(_write(tmp_path, _csv(rows, header="strain,force_per_wale_N,cycle",
+                                                  extra=["0"] * 26 + ["1"] * 5), "from0.csv"))
+    one = read_measured_curve(_write(tmp_path, _csv(rows, header="strain,force_per_wale_N,cycle",
+                                                    extra=["1"] * 26 + ["2"] * 5), "from1.csv"))
+    bare = read_measured_curve(_write(tmp_path, _csv(rows), "bare.csv"))
+    assert list(c.cycle) == [1] * 26 + [2] * 5
+    np.testing.assert_array_equal(c.cycle, one.cycle)
+    np.testing.assert_array_equal(c.cycle, bare.cycle)
+    np.testing.assert_array_equal(c.direction, bare.direction)
+    assert "column cycle numbered from 0: read as numbered from 1 (its cycle 0 is cycle 1)" in c.notes
+    assert not any("cycle" in n for n in one.notes)
+
+
+@pytest.mark.parametrize("cycles, where", [
+    # a cycle that goes back (0 after 1): the 30th data row, row 31 (header = row 1)
+    (["0"] * 26 + ["1"] * 3 + ["0"] * 2, "row 31, column cycle: 0 is below the cycle of row 30 (1)"),
+    (["1"] * 26 + ["2"] * 3 + ["1"] * 2, "row 31, column cycle: 1 is below the cycle of row 30 (2)"),
+    # not a whole number (the 27th data row, row 28), or below 0
+    (["0"] * 26 + ["0.5"] * 5, "row 28, column cycle: 0.5 is not a whole number"),
+    (["-1"] * 26 + ["0"] * 5, "row 2, column cycle: -1 is not a whole number"),
+    # numbered from 0, but the new cycle written where the loading has not started again (row 20: the 19th data
+    # row, unloading)
+    (["0"] * 18 + ["1"] * 13, "row 20, column cycle: 1 does not match the branches"),
+])
+def test_a_wrong_cycle_column_is_refused_naming_row_column_and_its_own_value(tmp_path, cycles, where):
+    p = _write(tmp_path, _csv(ROWS + _RELOAD, header="strain,force_per_wale_N,cycle", extra=cycles))
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(p)
+    assert str(p) in str(e.value) and where in str(e.value), str(e.value)
