@@ -18,8 +18,8 @@ shows it), the column and the value, and what to do:
 - header names matched after trimming spaces and quotes, in any case
   (``Strain``, `` FORCE_PER_WALE_N ``); the keys returned are the names asked for;
 - a unit after a header name, in brackets (``strain [-]``, ``force_per_wale_N (N)``,
-  ``V_mm_s [mm/s]``), when it is the unit the name implies (``_N``: N, ``_mm``: mm,
-  ``_mm_s``: mm/s, ``_1_mm``: 1/mm; others dimensionless: ``-``, ``1``, ``mm/mm``);
+  ``V_mm_s [mm/s]``), when it is the unit the name implies (``_N``: N, ``_per_wale_N``: N or N/wale,
+  ``_mm``: mm, ``_mm_s``: mm/s, ``_1_mm``: 1/mm; others dimensionless: ``-``, ``1``, ``mm/mm``);
   a dimensionless column (a strain) stated in per cent (``Strain [%]``, ``strain (%)``, ``strain %``,
   ``percent``, ``pct``) is read divided by 100 and said so (:attr:`Columns.notes`); another unit
   (``F0_N [kN]``, ``force_per_wale_N [%]``) is refused naming the header cell;
@@ -36,7 +36,9 @@ shows it), the column and the value, and what to do:
   a units row that disagree, ``strain [-]`` over ``%``, are refused).
   Text in a number column further down is refused as before;
 - a test machine's own names for a column, where the caller gives them (``aliases``: ``Tensile strain (%)``
-  for ``strain``, ``Load (N)`` for ``load_N``; :data:`LAB_ALIASES`): taken only with a unit that is the
+  for ``strain``, ``Load (N)`` for ``load_N``, ``Force per wale [N/wale]`` and ``force [N/wale]`` for
+  ``force_per_wale_N``; :data:`LAB_ALIASES`, where a name written with a unit stands for the column only with
+  that unit: ``Force (N)`` is no force per wale): taken only with a unit that is the
   column's (or per cent, for a strain), in brackets or in a units row under the header (``"Load"`` over
   ``"(N)"``), and only where the column's own name is absent; said so in the notes (``column 'Load (N)'
   read as load_N``).  Without a unit, or with another, it is not taken (``Load`` could be kN): a missing
@@ -68,9 +70,15 @@ _DELIMITERS = (",", ";", "\t")
 BAD_CELLS_LISTED = 10
 #: test machines' names of the columns the package reads (any case; with the column's unit, in brackets or a units row):
 #: Instron Bluehill's "Tensile strain (%)" and "Load (N)", Zwick testXpert's "Standard force (N)"
+#: and a lab's own names of the force per wale ("Force per wale (N)", "Force per wale [N/wale]").  A name written with
+#: a unit (``"force [N/wale]"``) stands for the column only with that unit: ``Force [N/wale]`` is a force per wale,
+#: ``Force (N)`` a total force
 LAB_ALIASES = {"strain": ("tensile strain", "engineering strain"),
                "load_N": ("load", "tensile load"),
-               "force_N": ("force", "tensile force", "standard force")}
+               "force_N": ("force", "tensile force", "standard force"),
+               "force_per_wale_N": ("force per wale", "force_per_wale", "force/wale", "load per wale", "load_per_wale",
+                                    "load/wale", "force [N/wale]", "load [N/wale]", "tensile force [N/wale]",
+                                    "tensile load [N/wale]", "standard force [N/wale]")}
 #: a column read in per cent whose values all lie within this (as fractions: 2 %) is said to look like fractions:
 #: a knit is tested to tens of per cent, and 0.6 or 1.2 under a ``%`` header is far likelier 60 % or 120 % than
 #: 0.6 % or 1.2 % (a note, not a refusal: a test that small is told, and read as written)
@@ -317,8 +325,10 @@ def _key(name: str) -> str:
 #: a header cell with its unit: ``strain [-]``, ``force_per_wale_N (N)``, ``V_mm_s [mm/s]``
 _WITH_UNIT = re.compile(r"^(.*?\S)\s*[\[(]\s*([^\])]*?)\s*[\])]$")
 #: the units a column's name implies, by the end of its name (casefold, no spaces); else dimensionless
+#: (a force per wale: N, or N/wale, the unit a lab writes for it: ``force_per_wale_N [N/wale]``)
 _UNITS = (("_1_mm", ("1/mm", "mm^-1", "mm-1")), ("_n_mm_per_mm", ("nmm/mm", "n.mm/mm", "n*mm/mm")),
-          ("_mm_per_mm", ("mm/mm", "-", "1", "")), ("_mm_s", ("mm/s",)), ("_n", ("n",)), ("_mm", ("mm",)))
+          ("_mm_per_mm", ("mm/mm", "-", "1", "")), ("_mm_s", ("mm/s",)),
+          ("_per_wale_n", ("n", "n/wale", "n/wales", "nperwale")), ("_n", ("n",)), ("_mm", ("mm",)))
 _DIMENSIONLESS = ("-", "1", "", "mm/mm", "m/m")
 
 
@@ -373,7 +383,7 @@ def _implied_unit(name: str) -> str:
         return asked
     for end, units in _UNITS:
         if key.endswith(end):
-            return {"_n": "N", "_n_mm_per_mm": "N.mm/mm"}.get(end, units[0])
+            return {"_n": "N", "_per_wale_n": "N", "_n_mm_per_mm": "N.mm/mm"}.get(end, units[0])
     return "N"
 
 
@@ -434,7 +444,9 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
     """The keys of a header line's ``cells``, where a cell that is an alias of a column asked for (``names``) stands
     for it: its unit (in brackets, or in the units row ``unit_cells`` under it) fits the column's (or says per
     cent, for a dimensionless column), and the column's own name is absent.  Every such cell takes the column's
-    key (two of them are then refused as a column named twice).  ``strict=False`` takes an alias whatever its unit
+    key (two of them are then refused as a column named twice).  An alias written with a unit (``"force [N/wale]"``)
+    stands for the column only with that unit, and says nothing of a cell with another (``Force (N)``: a total force,
+    not a force per wale).  ``strict=False`` takes any other alias whatever its unit
     (to find the header line, whose refusal then says why).  Returns (keys, {index: the column it was read as},
     the reasons the aliases present were not taken)."""
     keys = [_name_and_unit(c)[0] for c in cells]
@@ -448,10 +460,20 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
         if _key(name) in keys or (name not in aliases and stem is None):
             continue
         for j, cell in enumerate(cells):
+            if j in taken:
+                continue
             spelled = keys[j] not in own and re.sub(r"[\s_-]+", "_", keys[j]) == stem
-            if j in taken or not (keys[j] in aliases.get(name, ()) or spelled):
+            with_unit = [split_unit(a)[1] for a in aliases.get(name, ()) if _key(a) == keys[j]]
+            if not (with_unit or spelled):
                 continue
             unit = _alias_unit(cells, unit_cells, j)
+            if with_unit and None not in with_unit:
+                # a name that stands for the column only with its unit (force [N/wale]: Force (N) is a total force,
+                # no force per wale): taken with it, else not this column (nothing to say)
+                if unit is not None and _unit_norm(unit) in {_unit_norm(u) for u in with_unit}:
+                    keys[j] = _key(name)
+                    taken[j] = name
+                continue
             fits = unit is not None and (_unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name)))
             if fits or not strict:
                 keys[j] = _key(name)
@@ -460,9 +482,16 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                 bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
                 stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else
                                                                      (_implied_unit(name),)))
-                why_not.append(f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
-                               f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: {stated})")
-    return keys, taken, why_not
+                why_not.append((j, f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
+                                f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: "
+                                f"{stated})"))
+    # (a cell not read as one column may be another's: Force [N/wale] is no force_N, and is force_per_wale_N)
+    return keys, taken, [why for j, why in why_not if j not in taken]
+
+
+def _unit_norm(unit: str) -> str:
+    """A unit as units are compared: case folded, without spaces (``N / wale`` is ``n/wale``)."""
+    return unit.casefold().replace(" ", "")
 
 
 def _unit_stem(name: str) -> str | None:
@@ -471,7 +500,9 @@ def _unit_stem(name: str) -> str | None:
     key = _key(name)
     for end, _ in _UNITS:
         if key.endswith(end) and len(key) > len(end):
-            return key[:-len(end)]
+            # (the per-wale ending names the quantity as well as its unit: force_per_wale_N's stem is force_per_wale,
+            # never force, which would take a total force's "Force (N)" for a force per wale)
+            return key[:-len("_n" if end == "_per_wale_n" else end)]
     return None
 
 
@@ -502,7 +533,7 @@ def _likeliest_header(lines: list[str], names: list[str], aliases: dict) -> int 
     machines' names (``aliases``, whatever their units), else the first non-comment line, so that the refusal
     shows the header the file has (a blind probe's Bluehill export was refused as having found its preamble's
     ``Results Table 1``), or None for a file of blank lines and comments."""
-    known = {_key(c) for c in names} | {a for alts in aliases.values() for a in alts}
+    known = {_key(c) for c in names} | {_key(a) for alts in aliases.values() for a in alts}
     best, best_n = None, 0
     # (a header is near the top: the first HEADER_SCAN_LINES lines, not a 200,000-row file's every row)
     for i, ln in enumerate(lines[:HEADER_SCAN_LINES]):

@@ -593,3 +593,17 @@ def test_a_wrong_cycle_column_is_refused_naming_row_column_and_its_own_value(tmp
     with pytest.raises(KnitsimInputError) as e:
         read_measured_curve(p)
     assert str(p) in str(e.value) and where in str(e.value), str(e.value)
+
+
+@pytest.mark.parametrize("header", ["force_per_wale_N [N/wale]", "Force per wale [N/wale]", "force [N/wale]"])
+def test_diagnose_and_calibrate_read_a_force_in_N_per_wale_as_the_force_per_wale(tmp_path, header):
+    """A blind probe's three headers of a force per wale in N/wale were refused by diagnose.  Expected: the curve of
+    the twin typed with force_per_wale_N (the same numbers); calibrate reads it as a force per wale, not a total."""
+    from knitsim.calibration.specimen import read_table
+    p = _write(tmp_path, _csv(_UP, header=f"strain,{header}"), "wale.csv")
+    c = read_measured_curve(p)
+    ref = read_measured_curve(_write(tmp_path, _csv(_UP), "ref.csv"))
+    np.testing.assert_array_equal(c.force, ref.force)
+    np.testing.assert_array_equal(c.strain, ref.strain)
+    t = read_table(p)
+    assert not t.total and np.array_equal(t.force, read_table(tmp_path / "ref.csv").force)

@@ -688,3 +688,53 @@ def test_a_column_named_in_words_with_its_unit_is_read_as_that_column(tmp_path):
                          ("strain", "strain_mm_per_mm", "force_per_wale_N"))
     assert "strain_mm_per_mm" not in c
     np.testing.assert_allclose(c["strain"], [0.0, 0.1], rtol=1e-15)
+
+
+@pytest.mark.parametrize("header, units, note", [
+    # the package's name with the unit a lab writes for a force per wale: no other name, nothing to say
+    ("force_per_wale_N [N/wale]", None, None),
+    ("force_per_wale_N", "N/wale", None),
+    # a lab's own name of the force per wale, with N or N/wale (in brackets or in a units row)
+    ("Force per wale [N/wale]", None, "column 'Force per wale [N/wale]' read as force_per_wale_N"),
+    ("Force per wale (N)", None, "column 'Force per wale (N)' read as force_per_wale_N"),
+    ("Force per wale", "N/wale", "column 'Force per wale' read as force_per_wale_N"),
+    # a force whose unit says per wale
+    ("force [N/wale]", None, "column 'force [N/wale]' read as force_per_wale_N"),
+    ("Load (N / wale)", None, "column 'Load (N / wale)' read as force_per_wale_N"),
+])
+def test_a_force_per_wale_stated_in_N_per_wale_reads_as_force_per_wale_N(tmp_path, header, units, note):
+    """A blind probe's force_per_wale_N [N/wale], Force per wale [N/wale] and force [N/wale] were refused (N/wale
+    was not the unit of force_per_wale_N, and no other name was read for it).  Expected: the numbers of the plain
+    twin (typed the same), and a note naming the cell where it is not the package's own name."""
+    from knitsim.io.table_input import LAB_ALIASES
+    rows = [("0.0", "-0.002"), ("0.1", "0.053"), ("0.2", "0.098"), ("0.1", "0.018")]
+    p = _write(tmp_path, _table(["strain", header], rows, units=["-", units] if units else None))
+    c = read_csv_columns(p, REQ, aliases=LAB_ALIASES)
+    twin = read_csv_columns(_write(tmp_path, _table(list(REQ), rows), "twin.csv"), REQ)
+    np.testing.assert_array_equal(c["force_per_wale_N"], twin["force_per_wale_N"])
+    np.testing.assert_array_equal(c["strain"], twin["strain"])
+    assert c.notes == ((note,) if note else ()), c.notes
+
+
+def test_a_total_force_is_not_read_as_a_force_per_wale_and_a_per_wale_unit_on_a_total_is_refused(tmp_path):
+    """Force (N) is a total force: a force per wale only with its unit N/wale (the names of a total force stand for
+    the force per wale with that unit only), so diagnose's columns do not take it (calibrate reads it as force_N);
+    Force per wale without a unit, or in kN, is not read, and the refusal says why; a total force's own name with a
+    per-wale unit (load_N [N/wale]) says two things, and is refused naming the header cell."""
+    from knitsim.io.table_input import LAB_ALIASES
+    body = "0.0,-0.002\n0.1,0.053\n0.2,0.098\n"
+    total = _write(tmp_path, "strain,Force (N)\n" + body, "total.csv")
+    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) force_per_wale_N"):
+        read_csv_columns(total, REQ, aliases=LAB_ALIASES)
+    c = read_csv_columns(total, (), ("strain", "load_N", "force_N", "force_per_wale_N"), aliases=LAB_ALIASES)
+    assert "force_N" in c and "force_per_wale_N" not in c and c.notes == ("column 'Force (N)' read as force_N",)
+    for header, why in (("Force per wale", "'Force per wale' is read as force_per_wale_N with its unit stated "
+                                           "('Force per wale (N)')"),
+                        ("Force per wale [kN]", "'Force per wale [kN]' is not read as force_per_wale_N: 'kN' is not "
+                                                "its unit")):
+        with pytest.raises(KnitsimInputError) as e:
+            read_csv_columns(_write(tmp_path, f"strain,{header}\n" + body, "bad.csv"), REQ, aliases=LAB_ALIASES)
+        assert why in str(e.value), str(e.value)
+    with pytest.raises(KnitsimInputError, match=r"row 1, column 'load_N \[N/wale\]': the unit 'N/wale' is not that "
+                                                r"of load_N"):
+        read_csv_columns(_write(tmp_path, "strain,load_N [N/wale]\n" + body, "load.csv"), ("strain", "load_N"))
