@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
     PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force,
-    refuse_no_response, refuse_several_tests, strain_tolerance, zero_offset_below,
+    refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance, zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise, reading_jitter, steeper_slopes
 from ..io.table_input import LAB_ALIASES, notes_of, read_csv_columns
@@ -113,6 +113,8 @@ def read_table(path: str | Path) -> MeasuredTable:
         raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is negative beyond a "
                                 f"zero offset ({limit:.3g}): a tensile test starts at strain 0")
     tol = strain_tolerance(strain)
+    # rows in reverse order (or a log from the peak) are said as such, as the diagnosis says them
+    refuse_reversed_rows(str(path), strain, tol, lambda i: int(rows[i]), s_name)
     clean = np.maximum.accumulate(strain)
     back = np.nonzero(clean - strain > tol)[0]
     if len(back):

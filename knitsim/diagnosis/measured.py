@@ -385,6 +385,27 @@ def settle_turns(strain: np.ndarray, direction: np.ndarray, jitter: float) -> np
     return s
 
 
+def refuse_reversed_rows(source: str, strain, tol: float, row, column: str = "strain") -> None:
+    """Refuse a file whose strain only decreases from its first row (by more than ``tol``, never rising by more
+    than ``tol`` on the way): rows in reverse order (sorted descending, a log read bottom up) or a log that starts
+    at the peak.  A test is replayed from rest in the order of its rows, so such a file was read as a loading to its
+    first row that no row records and an unloading: a blind probe's reversed pull got a confident ``unexplained``
+    from diagnose (calibrate refused it at its second row, as a strain that decreases).  Both readers of a file
+    (:func:`read_measured_curve`, :func:`knitsim.calibration.specimen.read_table`) refuse it so, naming the file, the
+    first and the last row (``row(i)``: the spreadsheet row of entry i) and what to do; which of the two it is, the
+    rows cannot tell (a loading read backwards also falls steeply from its first row).  :func:`curve_from_arrays`
+    keeps the replay's convention for arrays made in code: the first row ends a loading from rest."""
+    s = np.asarray(strain, float)
+    if len(s) < 2 or not s[0] - s[-1] > tol or np.any(s - np.minimum.accumulate(s) > tol):
+        return
+    raise KnitsimInputError(
+        f"{source}: column {column}: the strain only decreases, from {float(s[0]):g} at row {row(0)} to "
+        f"{float(s[-1]):g} at row {row(len(s) - 1)}: the rows look reversed (sorted descending, or a log read from "
+        "its end) or the log starts at the peak, without the loading that reached it.  A test is read from rest "
+        "(strain 0) in the order its rows were measured: give them in that order (by time or the logger's row "
+        "count), from the start of the loading (the knit's unloading depends on the loading that reached it)")
+
+
 def direction_signs(source: str, direction, row) -> np.ndarray:
     """The sign of each row of a direction column (+1 loading, -1 unloading): the words of :data:`_DIRECTIONS` in
     any case, ``1`` / ``-1`` (numbers, or cells that read as them: ``+1``, ``-1.0``), and the letters ``L`` / ``U``
@@ -1029,6 +1050,10 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
         raise KnitsimInputError(str(exc) + _total_force_hint(path, str(exc))) from None
     cols = drop_copied_rows(refuse_several_tests(path, cols))
     refuse_few_rows(path, cols["_row"])
+    # (a file only: arrays made in code keep the convention that the first row ends a loading from rest, as a
+    # hand-made unloading logged from its peak does, tests/diagnosis/test_diagnose.py)
+    refuse_reversed_rows(str(path), cols["strain"], strain_tolerance(cols["strain"]),
+                         lambda i: int(cols["_row"][i]))
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     if notes_of(cols):

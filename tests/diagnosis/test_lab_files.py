@@ -607,3 +607,33 @@ def test_diagnose_and_calibrate_read_a_force_in_N_per_wale_as_the_force_per_wale
     np.testing.assert_array_equal(c.strain, ref.strain)
     t = read_table(p)
     assert not t.total and np.array_equal(t.force, read_table(tmp_path / "ref.csv").force)
+
+
+@pytest.mark.parametrize("direction", [None, "unload", "load"])
+def test_rows_in_reverse_order_are_refused_by_diagnose_and_calibrate_saying_so(tmp_path, direction):
+    """A blind probe's pull with its rows reversed (sorted descending by Excel: the strain only decreasing from its
+    first row) got a confident `unexplained` from diagnose, read as a loading to 0.3 that no row records and an
+    unloading; calibrate refused it at its second row as a strain that decreases.  Hand-made: the loading rows
+    above, last first (rows 2-17: 0.3 down to 0).  Expected: both refuse it naming the file, the first and the last
+    row with their strains, and saying the rows look reversed or the log starts at the peak; with a direction
+    column too (every row unload, or load), where it was refused as a strain that "increases within an unload
+    branch" (or decreases within a load branch).  The same rows in order are read (the test above)."""
+    from knitsim.calibration.specimen import read_table
+    rows = _UP[::-1]
+    if direction is None:
+        text = _csv(rows)
+    else:
+        text = _csv(rows, header="strain,force_per_wale_N,direction", extra=[direction] * len(rows))
+    p = _write(tmp_path, text, "reversed.csv")
+    said = (f"{p}: column strain: the strain only decreases, from 0.3 at row 2 to 0 at row 17: the rows look "
+            "reversed (sorted descending")
+    for read in (read_measured_curve, read_table):
+        with pytest.raises(KnitsimInputError) as e:
+            read(p)
+        assert said in str(e.value) and "the log starts at the peak" in str(e.value), str(e.value)
+    # a log whose strain goes down and back up is no reversed file (read as before: the strain does not only
+    # decrease), all 20 rows; the same rows as arrays in Python keep the replay's convention (the first row ends a
+    # loading from rest: one loading row, 15 unloading)
+    assert len(read_measured_curve(_write(tmp_path, _csv(_DOWN + _UP[6:]), "down_then_up.csv"))) == 20
+    from knitsim.diagnosis.measured import curve_from_arrays
+    assert list(curve_from_arrays(*np.array(rows).T).direction) == [1] + [-1] * 15
