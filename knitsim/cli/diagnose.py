@@ -4,8 +4,9 @@ disagree, and which effect explains it.
     knitsim diagnose MEASURED.csv [MORE.csv ...] --scene SCENE.toml --json OUT.json --report OUT.html
 
 Each CSV is a measured curve of the same specimen: columns strain,
-force_per_wale_N, optional cycle, direction (load / unload), rate_mm_s; comma,
-semicolon or tab separated, Excel's UTF-8 BOM and decimal commas accepted.
+force_per_wale_N (N or N/wale), optional cycle (from 1, or from 0), direction
+(load / unload, up / down, L / U, + / -), rate_mm_s; comma, semicolon or tab
+separated, Excel's UTF-8 BOM and decimal commas accepted.
 Each curve's noise is estimated from that curve alone unless given (--noise-N
 FILE=SD, or the scene's [diagnosis] noise_N / [[diagnosis.noise]]). The scene
 says what is known of the specimen and what is calibrated.
