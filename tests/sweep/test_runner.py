@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import time
 
 import numpy as np
@@ -266,3 +267,35 @@ def test_an_unreachable_scheduler_is_refused_before_the_sweeps_folder_is_made(tm
         runner.check_scheduler("tcp://127.0.0.1:1")
     assert main(["sweep", str(scene), "--out", str(tmp_path / "c"), "--scheduler", "tcp://127.0.0.1:1"]) == 2
     assert not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("method", ["grid", "lhs"])
+def test_a_flagged_samples_parameters_are_those_the_dataset_holds_at_its_index(method):
+    # expectation (an independent selection): each listed sample's parameters are the dataset's values at that
+    # sample's index, read one by one with xarray's isel (what the listing did per sample before it read each
+    # parameter's values once); a grid with a text parameter and two cells, a Latin hypercube of one cell
+    import xarray as xr
+    rng = np.random.default_rng(3)
+    if method == "grid":
+        m, rule = np.linspace(0.0, 0.4, 7), np.array(["dusserre", "hong_constant_t"])
+        dims = ("friction.m", "rules.unloading_rule", "cell")
+        flag = (rng.uniform(size=(7, 2, 2)) < 0.4).astype(np.int8)
+        ds = xr.Dataset({"final_status": (dims, np.zeros(flag.shape, np.int32)),
+                         "expected_end": (dims, np.ones(flag.shape, np.int8)), "zero_force_cycle": (dims, flag)},
+                        coords={"friction.m": m, "rules.unloading_rule": rule})
+        keys, lead = ["friction.m", "rules.unloading_rule"], ["friction.m", "rules.unloading_rule"]
+    else:
+        n = 40
+        flag = (rng.uniform(size=n) < 0.4).astype(np.int8)
+        ds = xr.Dataset({"final_status": ("sample", np.zeros(n, np.int32)), "expected_end": ("sample", np.ones(n, np.int8)),
+                         "zero_force_cycle": ("sample", flag), "friction.m": ("sample", rng.uniform(0.0, 0.4, n)),
+                         "yarn.B": ("sample", rng.uniform(0.2, 0.4, n))})
+        keys, lead = ["friction.m", "yarn.B"], ["sample"]
+    ds.attrs["parameters"], ds.attrs["method"] = json.dumps(keys), method
+    listed = runner.warning_samples(ds, "zero_force_cycle")
+    assert len(listed) == int(flag.sum()) > 0
+    for entry, idx in zip(listed, np.argwhere(flag == 1)):
+        point = ds.isel(dict(zip(lead, (int(i) for i in idx[:len(lead)]))))
+        assert entry["parameters"] == {k: point[k].values.item() for k in keys}
+        assert entry["sample"] == int(np.ravel_multi_index(tuple(idx[:len(lead)]), flag.shape[:len(lead)]))
+        assert entry["cell"] == (int(idx[-1]) if method == "grid" else None)
