@@ -1058,6 +1058,9 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     if notes_of(cols):
         curve = replace(curve, notes=tuple(notes_of(cols)) + tuple(curve.notes))
+    start = unrecorded_loading(curve, strain_tolerance(cols["strain"]))
+    if start:
+        curve = replace(curve, notes=tuple(curve.notes) + (start,))
     if len(curve) > LONG_CURVE_ROWS:
         k = -(-len(curve) // THINNED_CURVE_ROWS)
         curve = replace(curve, notes=tuple(curve.notes) + (
@@ -1066,6 +1069,21 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
             f"the curve's shape in ~{-(-len(curve) // k)} rows",))
     check_response(curve)
     return curve
+
+
+def unrecorded_loading(curve: MeasuredCurve, tol: float) -> str | None:
+    """What to say of a file that starts by unloading (its first row above strain 0 by more than ``tol``, its second
+    row lower): the loading that reached the first row is not in the file, and the replay (:func:`program_for_curve`)
+    makes it one monotonic loading from rest, whose force no row checks.  A log started at a peak reads so; its
+    unloading and later cycles depend on that loading (a blind probe: such a file was read without a word).  None
+    for a file that starts by loading, from rest or from a pretension."""
+    s = curve.strain
+    if len(s) < 2 or not s[0] > tol or curve.direction[1] != -1:
+        return None
+    row = int(curve.rows[0]) if curve.rows is not None else 1
+    return (f"starts by unloading from strain {float(s[0]):.4g} (row {row}, {float(curve.force[0]):.3g} N per wale): the "
+            "loading that reached it is not in the file; it is replayed as one loading from rest to that strain, "
+            "which no row checks (the unloading and later cycles depend on it)")
 
 
 #: a measured curve of more rows than this is said, when read, to be slow to diagnose: every row is an increment of

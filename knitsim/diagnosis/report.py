@@ -414,6 +414,12 @@ def render_report(result: dict) -> str:
     inputs = result.get("inputs") or []
     if inputs:
         out.append("<p>Measured curves: " + ", ".join(f"<code>{_e(p)}</code>" for p in inputs) + "</p>\n")
+    # how each file was read (a lab's column names taken for ours, a cycle column from 0, a log that starts by
+    # unloading): said on the console's read line and here, where the verdict is read
+    read = [(Path(str(c.get("source"))).name, n) for c in result["curves"] for n in c.get("read_notes") or ()]
+    if read:
+        out.append("<p>How the files were read:</p>\n<ul>\n" + "".join(
+            f"<li><code>{_e(src)}</code>: {_e(n)}</li>\n" for src, n in read) + "</ul>\n")
     probs = verdict.get("probabilities") or {}
     if probs:
         out.append("<p>Probabilities (BIC weights over the candidates and none): " + ", ".join(

@@ -637,3 +637,23 @@ def test_rows_in_reverse_order_are_refused_by_diagnose_and_calibrate_saying_so(t
     assert len(read_measured_curve(_write(tmp_path, _csv(_DOWN + _UP[6:]), "down_then_up.csv"))) == 20
     from knitsim.diagnosis.measured import curve_from_arrays
     assert list(curve_from_arrays(*np.array(rows).T).direction) == [1] + [-1] * 15
+
+
+def test_a_log_that_starts_by_unloading_is_read_and_says_its_loading_is_not_in_the_file(tmp_path):
+    """A log started at the peak of a cycled test (hand-written rows: 0.6 down to 0.3, up to 0.6, down again):
+    read as before, the first row the end of a loading from rest that the replay makes up, and now said on the read
+    line with its strain, row and force (a blind probe: such a file was read without a word).  Expected values are
+    the file's own first row.  A log that starts by loading, from rest or from a pretension at 0.1 (the paper's
+    cycles run 0.1 - 0.6), gets no such note."""
+    lines = ["strain,force_per_wale_N", "0.600,4.40", "0.550,1.20", "0.500,0.61", "0.450,0.30", "0.400,0.12",
+             "0.350,0.05", "0.300,0.01", "0.350,0.08", "0.400,0.20", "0.450,0.45", "0.500,1.00", "0.550,2.10",
+             "0.600,4.30", "0.550,1.10", "0.500,0.58", "0.450,0.28", "0.400,0.11"]
+    c = read_measured_curve(_write(tmp_path, "\n".join(lines) + "\n", "peak_first.csv"))
+    (note,) = [n for n in c.notes if "starts by unloading" in n]
+    assert note.startswith("starts by unloading from strain 0.6 (row 2, 4.4 N per wale)") and "not in the file" in note
+    assert list(c.direction[:3]) == [1, -1, -1]
+    for first in (["0.000,0.00", "0.100,0.05", "0.200,0.10"], ["0.100,0.05", "0.200,0.10"]):
+        rows = ["strain,force_per_wale_N"] + first + ["0.300,0.15", "0.400,0.40", "0.500,1.00", "0.600,4.30",
+                                                      "0.550,1.10", "0.500,0.58", "0.450,0.28", "0.400,0.11"]
+        loads = read_measured_curve(_write(tmp_path, "\n".join(rows) + "\n", "loads_first.csv"))
+        assert not [n for n in loads.notes if "starts by unloading" in n]

@@ -293,3 +293,16 @@ def test_the_plots_say_a_verdict_is_not_confident():
     assert _best_label({"verdict": {"effect": "yarn_compaction", "confident": False}}) == \
         "best model: yarn_compaction (not confident)"
     assert _best_label({"verdict": {"effect": "yarn_compaction", "confident": True}}) == "best model: yarn_compaction"
+
+
+def test_how_the_files_were_read_is_said_in_the_report(result):
+    # expectation: the reader's notes (a lab's column taken for ours, a cycle column from 0, a log that starts by
+    # unloading) go where the verdict is read, the report, not only on the console's read line; escaped like
+    # every string from a user's file; no section where no file needed a note
+    assert "How the files were read" not in report.render_report(result)
+    result["curves"][0]["read_notes"] = ["column 'Force per wale [N/wale]' read as force_per_wale_N", EVIL]
+    result["curves"][1]["read_notes"] = []
+    text = report.render_report(result)
+    assert "How the files were read" in text
+    assert "<li><code>a.csv</code>: column &#x27;Force per wale [N/wale]&#x27; read as force_per_wale_N</li>" in text
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text and "<script" not in text.lower()
