@@ -473,11 +473,20 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                 if unit is not None and _unit_norm(unit) in {_unit_norm(u) for u in with_unit}:
                     keys[j] = _key(name)
                     taken[j] = name
+                elif unit is not None and _per_wale(unit):
+                    # a force per wale in another unit (Force [kN/wale]): said as this column's, converted to its own
+                    bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
+                    why_not.append((j, f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: "
+                                       f"{bare + ' [' + with_unit[0] + ']'!r})"))
                 continue
             fits = unit is not None and (_unit_fits(name, unit) or (_is_per_cent(unit) and _dimensionless(name)))
             if fits or not strict:
                 keys[j] = _key(name)
                 taken[j] = name
+            elif unit is not None and _per_wale(unit) and not _key(name).endswith("per_wale_n"):
+                # (a per-wale unit on a total force's name: the conversion to that total would mislead; a force per
+                # wale's own names say it)
+                continue
             else:
                 bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
                 stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else
@@ -487,6 +496,12 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                                 f"{stated})"))
     # (a cell not read as one column may be another's: Force [N/wale] is no force_N, and is force_per_wale_N)
     return keys, taken, [why for j, why in why_not if j not in taken]
+
+
+def _per_wale(unit: str) -> bool:
+    """Whether ``unit`` is per wale (``N/wale``, ``kN / wale``, ``N per wale``)."""
+    u = _unit_norm(unit)
+    return u.endswith("/wale") or u.endswith("/wales") or u.endswith("perwale")
 
 
 def _unit_norm(unit: str) -> str:

@@ -738,3 +738,21 @@ def test_a_total_force_is_not_read_as_a_force_per_wale_and_a_per_wale_unit_on_a_
     with pytest.raises(KnitsimInputError, match=r"row 1, column 'load_N \[N/wale\]': the unit 'N/wale' is not that "
                                                 r"of load_N"):
         read_csv_columns(_write(tmp_path, "strain,load_N [N/wale]\n" + body, "load.csv"), ("strain", "load_N"))
+
+
+def test_a_force_per_wale_in_another_unit_is_told_to_convert_to_N_per_wale_not_to_a_total_force(tmp_path):
+    # expectation (the reading rules: a name written with a unit stands for the column only with that unit): a
+    # helper's probe found 'Force [kN/wale]' told to convert to 'Force (N)' (calibrate), a total force, and diagnose
+    # said nothing of it; it is a force per wale in kN, so both refusals name force_per_wale_N and its unit, N/wale,
+    # and neither suggests the total
+    from knitsim.calibration.specimen import read_table
+    from knitsim.io.table_input import LAB_ALIASES
+    path = _write(tmp_path, "strain,Force [kN/wale]\n0.0,0.0\n0.1,0.0001\n0.2,0.0003\n0.3,0.0008\n0.2,0.0002\n",
+                  "kn.csv")
+    for read in (lambda: read_csv_columns(path, REQ, aliases=LAB_ALIASES), lambda: read_table(path)):
+        with pytest.raises(KnitsimInputError) as e:
+            read()
+        msg = str(e.value)
+        assert ("'Force [kN/wale]' is not read as force_per_wale_N: 'kN/wale' is not its unit (convert the column: "
+                "'Force [N/wale]')") in msg, msg
+        assert "'Force (N)'" not in msg, msg
