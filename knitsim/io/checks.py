@@ -201,7 +201,7 @@ def loop_work_tolerance(strain: np.ndarray, force: np.ndarray) -> float:
 
 def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                           what: str = "the cell", atol: float = 1e-12,
-                          stored_at: Callable[[int], float] | None = None) -> list[ResultWarning]:
+                          stored_at: Callable[[int], float] | None = None, first: bool = False) -> list[ResultWarning]:
     """Warnings for closed load-then-unload excursions whose work ``oint F dC`` is negative, and, with
     ``stored_at``, for unload-then-reload excursions from a peak whose work is negative while the stored
     bending energy did not fall.
@@ -232,6 +232,8 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
         branch rather than at its turning point (:func:`crossing_excursions`; the first cycle of a program
         whose lower strain is above 0: E-glass, 0 -> 0.8 -> 0.32, -0.875 N mm with the stored energy up
         0.19 N mm), with the start interpolated between rows.  Without ``stored_at`` these loops are not judged.
+    first : bool
+        Stop at the first warning (a caller that asks only whether the path warns: a sweep's flag).
 
     A loop that starts at a compressive rest state (``force[0] < 0``: Table 4's initial state at C0, W0
     needs the grips to push) is not judged: that state is not free, and a path that comes back to its
@@ -256,6 +258,8 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"per wale < 0; force {f[j]:.3g} N back at strain {s[j]:g} against {f[i]:.3g} N on the way up): not "
                 f"a hysteresis; friction only dissipates, the energy comes from Table 4's frozen force closures (T "
                 f"frozen on unloading from a jammed state) (README, 'Loops that return energy')"))
+            if first:
+                return out
     if stored_at is None:
         return out
     for k, t, j in crossing_excursions(s, atol, turns):
@@ -277,6 +281,8 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"against {fx:.3g} N on the way up) while the bending energy stored in the stitch rose by "
                 f"{dU:.3g} N mm: no stored energy was released; it comes from Table 4's closures (README, 'Loops "
                 f"that return energy')"))
+            if first:
+                return out
     for i, j in reload_excursions(s, atol, turns):
         w = dissipated_energy(s[i:j + 1], f[i:j + 1])
         gap = abs(s[j] - s[i]) * float(np.max(np.abs(f[i:j + 1])))
@@ -298,6 +304,8 @@ def energy_creating_loops(strain: np.ndarray, force: np.ndarray, C0: float,
                 f"(oint F dC = {w * C0:.3g} N mm per wale < 0; force {f[j]:.3g} N back at strain {s[j]:g} against "
                 f"{f[i]:.3g} N at the peak) while {stored}; it comes from Table 4's closures (README, 'Loops that "
                 f"return energy')"))
+            if first:
+                return out
     return out
 
 
@@ -450,6 +458,13 @@ def _negative_excursions(s, f, absf, work, size, between, turns, atol, judge_ope
     return keep
 
 
+def is_compressive(force_rest):
+    """:func:`compressive_rest_state`'s rule: a finite rest force per wale below 0 (a number, or an array of them:
+    :func:`knitsim.sweep.runner.reduce_history` judges a batch at once)."""
+    f = np.asarray(force_rest, float)
+    return np.isfinite(f) & (f < 0.0)
+
+
 def compressive_rest_state(force_rest: float, what: str = "the cell") -> list[ResultWarning]:
     """A warning when the rest state's force per wale is compressive (< 0).
 
@@ -459,7 +474,7 @@ def compressive_rest_state(force_rest: float, what: str = "the cell") -> list[Re
     released.  Its stored energy comes back in the first unloading that goes slack, so loops from rest are
     not judged (:func:`energy_creating_loops`)."""
     f = float(force_rest)
-    if not (np.isfinite(f) and f < 0.0):
+    if not is_compressive(f):
         return []
     return [ResultWarning(
         "rest_state_compressive",
@@ -566,13 +581,19 @@ def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wa
     unit, strain_name : str
         For the messages.
     """
+    return (unloading_only_cycles(strain, cycle, direction, strain_name=strain_name)
+            + load_cycle_warnings(peaks, strain, force, cycle, direction, unit=unit, strain_name=strain_name))
+
+
+def load_cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wale",
+                        strain_name: str = "strain") -> list[ResultWarning]:
+    """:func:`cycle_warnings` but :func:`unloading_only_cycles` (which a sweep's flags do not carry), in its order."""
     empty = list(_empty_cycles(peaks))
     skip = [int(c) for c, _, _, _ in empty]
     rows = (strain, force, cycle, direction)
     below = reloads_below_earlier_loading(*rows, unit=unit, strain_name=strain_name, skip=skip)
     flagged = set(skip) | {w.cycle for w in below}
-    return (unloading_only_cycles(strain, cycle, direction, strain_name=strain_name)
-            + [_zero_force_warning(found, unit) for found in empty]
+    return ([_zero_force_warning(found, unit) for found in empty]
             + below
             + reloads_without_shakedown(peaks, strain, cycle, direction, unit=unit, strain_name=strain_name,
                                         flagged=flagged)
@@ -688,22 +709,34 @@ def reloads_below_first_loading(strain, force, cycle, direction, ref_strain, ref
     if len(rs) < 2:
         return []
     flagged = set(int(k) for k in flagged)
-    worst, top, unloaded, turn = None, 0.0, False, None
-    for i in range(len(s)):
-        if d[i] < 0:
-            if not unloaded or (i > 0 and d[i - 1] > 0):
-                turn = (float(s[i - 1]) if i > 0 else 0.0, float(s[i]))
-            unloaded = True
-        elif (unloaded and s[i] > top + 1e-12 and s[i] <= rs[-1] and np.isfinite(f[i])
-              and int(c[i]) not in flagged):
-            ref = float(np.interp(s[i], rs, rf))
-            if ref > 0 and f[i] < share * ref and (worst is None or f[i] / ref < worst[0]):
-                worst = (f[i] / ref, i, ref, turn, top)
-        if np.isfinite(s[i]):
-            top = max(top, float(s[i]))
-    if worst is None:
+    if not len(s):
         return []
-    r, i, ref, (peak, low), before = worst
+    # (by rows at once: a sweep judges every cell; the loop over rows took 0.5 ms a cell)
+    # the largest finite strain before each row (0 before any), and whether an unloading came before it
+    reached = np.concatenate([[-np.inf], np.maximum.accumulate(np.where(np.isfinite(s), s, -np.inf))[:-1]])
+    top = np.where(reached > 0.0, reached, 0.0)
+    down = d < 0
+    unloaded = np.concatenate([[False], np.logical_or.accumulate(down)[:-1]])
+    # a loading row past the earlier maximum, after an unloading, within the pull's strains, in a cycle not flagged
+    with np.errstate(invalid="ignore"):
+        judged = (~down & unloaded & (s > top + 1e-12) & (s <= rs[-1]) & np.isfinite(f)
+                  & ~np.isin(c, list(flagged)))
+    rows = np.flatnonzero(judged)
+    if not len(rows):
+        return []
+    ref_at = np.interp(s[rows], rs, rf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        low_rows = (ref_at > 0) & (f[rows] < share * ref_at)
+    if not low_rows.any():
+        return []
+    cand = np.flatnonzero(low_rows)
+    k = cand[np.argmin(f[rows[cand]] / ref_at[cand])]     # the largest shortfall, the first of equal ones
+    i, ref = int(rows[k]), float(ref_at[k])
+    r, before = f[i] / ref, float(top[i])
+    # the unloading before it: from the row before its first unloading row (0 at the start) to that row
+    starts = np.flatnonzero(down & (~unloaded | np.concatenate([[False], d[:-1] > 0])))
+    u = int(starts[starts < i][-1])
+    peak, low = (float(s[u - 1]) if u > 0 else 0.0, float(s[u]))
     return [ResultWarning("reload_below_first_loading", cycle=int(c[i]), message=(
         f"past the earlier maximum ({strain_name} {before:.4g}), the loading after the unloading from {peak:.4g} "
         f"to {low:.4g} carries {f[i]:.3g} {unit} at {strain_name} {s[i]:.4g}, {r:.0%} of the {ref:.3g} {unit} of a "
@@ -916,6 +949,16 @@ def _branch_text(direction: np.ndarray | None, rows: np.ndarray) -> str:
         dirs, " while loading and unloading")
 
 
+def below_jamming_width(W: np.ndarray, d_jam) -> tuple[np.ndarray, np.ndarray]:
+    """Where the wale spacing ``W`` [n, k] is below 4 ``d_jam`` (scalar or one per column) by more than
+    :data:`WALE_SPACING_RTOL` (:func:`wale_spacing_below_jamming`'s rule, also judged on a whole batch at once by
+    :func:`knitsim.sweep.runner.reduce_history`), and the limit 4 ``d_jam`` per element."""
+    W = np.asarray(W, float)
+    lim = 4.0 * np.broadcast_to(np.asarray(d_jam, float), W.shape)
+    with np.errstate(invalid="ignore"):
+        return W < lim * (1.0 - WALE_SPACING_RTOL), lim
+
+
 def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: str = "cell",
                                direction: np.ndarray | None = None, strain_is: str = "strain",
                                note: str = "") -> list[ResultWarning]:
@@ -943,9 +986,7 @@ def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: s
     W = np.asarray(W, float)
     if W.ndim == 1:
         W = W[:, None]
-    lim = 4.0 * np.broadcast_to(np.asarray(d_jam, float), W.shape)
-    with np.errstate(invalid="ignore"):
-        flags = W < lim * (1.0 - WALE_SPACING_RTOL)
+    flags, lim = below_jamming_width(W, d_jam)
     if not flags.any():
         return []
     rows = np.nonzero(flags.any(axis=1))[0]
@@ -964,6 +1005,19 @@ def wale_spacing_below_jamming(strain: np.ndarray, W: np.ndarray, d_jam, what: s
         f"{len(cols)} {what}(s), down to W = {ratio:.3g} x 4 w: the legs of neighbouring loops would pass through "
         f"each other across the wale, so these forces are not the knit's (jamming_criterion = \"head_gap\" does "
         f"not hold W >= 4 w after the heads touch; \"w_4d\" does)")]
+
+
+def heads_overlap(flags: np.ndarray, gap: np.ndarray, d_jam) -> np.ndarray:
+    """Where the heads overlap (:func:`interpenetration`'s rule, also judged on a whole batch at once by
+    :func:`knitsim.sweep.runner.reduce_history`): ``flags`` [n, k] set (``values["interpenetrating"]``) and the
+    gap ``gap`` [n, k] below the in-plane width ``d_jam`` (scalar or one per column) by more than
+    :data:`HEAD_OVERLAP_RTOL` of it."""
+    flags = np.asarray(flags) > 0
+    # an overlap below HEAD_OVERLAP_RTOL of the width is rounding, not heads passing through each other (a blind
+    # probe's warning for 2.2e-5 mm in one increment)
+    with np.errstate(invalid="ignore"):
+        return flags & ~(np.broadcast_to(np.asarray(d_jam, float), flags.shape) - np.asarray(gap, float)
+                         <= HEAD_OVERLAP_RTOL * np.broadcast_to(np.asarray(d_jam, float), flags.shape))
 
 
 def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_jam,
@@ -991,15 +1045,11 @@ def interpenetration(strain: np.ndarray, flags: np.ndarray, gap: np.ndarray, d_j
     note : str
         Appended after the strains, e.g. ``" (cell strains 0.31 to 0.69)"``.
     """
-    flags = np.asarray(flags) > 0
+    flags = np.asarray(flags)
     if flags.ndim == 1:
         flags = flags[:, None]
         gap = np.asarray(gap)[:, None]
-    # an overlap below HEAD_OVERLAP_RTOL of the width is rounding, not heads passing through each other (a blind
-    # probe's warning for 2.2e-5 mm in one increment)
-    with np.errstate(invalid="ignore"):
-        flags = flags & ~(np.broadcast_to(np.asarray(d_jam, float), flags.shape) - np.asarray(gap, float)
-                          <= HEAD_OVERLAP_RTOL * np.broadcast_to(np.asarray(d_jam, float), flags.shape))
+    flags = heads_overlap(flags, gap, d_jam)
     if not flags.any():
         return []
     rows = np.nonzero(flags.any(axis=1))[0]
