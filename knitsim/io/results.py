@@ -29,6 +29,7 @@ them.
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import shutil
@@ -41,9 +42,9 @@ import numpy as np
 
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK, BatchHistory
 from ..cell.material import DEFAULT_FORCE_CAP_TEXT
-from ..cell.stages import LABEL_CODES, stage_label
+from ..cell.stages import LABEL_CODES, stage_label, stage_label_codes
 from ..errors import KnitsimInputError
-from .checks import (compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
+from .checks import (ENERGY_KINDS, compressive_rest_state, cut_by_force_cap, cycle_warnings, cycle_work, energy_creating_loops,
                      interpenetration, jam_width_floor, reloads_below_first_loading,
                      wale_spacing_below_jamming)
 from .jsonable import json_text
@@ -176,10 +177,13 @@ def _stopped_rows(status: np.ndarray) -> int:
     the increment it could not finish of a failed cell.  The rows after it repeat
     that state at strains the cell never reached (dropped).
     """
-    bad = np.nonzero(status != STATUS_OK)[0]
-    if not len(bad):
-        return len(status)
-    return int(bad[0]) + 1
+    return int(stopped_rows(np.asarray(status)[:, None])[0])
+
+
+def stopped_rows(status: np.ndarray) -> np.ndarray:
+    """:func:`_stopped_rows` of every column of ``status`` [n, k] at once (int64, shape [k])."""
+    bad = np.asarray(status) != STATUS_OK
+    return np.where(bad.any(axis=0), bad.argmax(axis=0) + 1, bad.shape[0]).astype(np.int64)
 
 
 #: what the stage rules mean to a Dahl cell: nothing (its friction state follows the slip at B through every
@@ -227,31 +231,235 @@ def _stitch_energy(h, cell: int, B: float):
     from ..cell.quarter_loop import stitch_energy_along
 
     names = ("alpha", "beta", "gamma", "phi", "P")
-    return stitch_energy_along([h.rest[n][cell] for n in names],
-                               np.stack([np.asarray(h.values[n])[:, cell] for n in names], axis=1), B)
+    # each row's energy once (the check of a loop from a loading asks for its start row twice)
+    return functools.lru_cache(maxsize=None)(stitch_energy_along(
+        [h.rest[n][cell] for n in names], np.stack([np.asarray(h.values[n])[:, cell] for n in names], axis=1), B))
 
 
 def _with_events(s_path, f_path, i_path, path, events, C0):
     """A cycle's path with each located event (its C and F) put between the rows of its increment; ``path``:
-    the rows of ``s_path`` (after a rest-state row where ``s_path`` is one longer).  ``i_path`` (the program's
-    strain, for closure) takes the event's own strain: it is judged at the ends only."""
+    the rows of ``s_path`` (after a rest-state row where ``s_path`` is one longer), increasing.  ``i_path`` (the
+    program's strain, for closure) takes the event's own strain: it is judged at the ends only."""
     lead = len(s_path) - len(path)
-    at = {int(r): lead + k for k, r in enumerate(path)}
-    extra = [(at[int(e["increment"])], float(e["C"]) / C0 - 1.0, float(e["F"])) for e in events
-             if int(e.get("increment", -1)) in at and at[int(e["increment"])] > 0 and "C" in e and "F" in e
-             and np.isfinite(e["C"]) and np.isfinite(e["F"])]
+    if len(path) and int(path[-1]) - int(path[0]) == len(path) - 1:
+        # consecutive rows (a cycle's): an event's place without a table of every row (reduce_history's time)
+        first, last = int(path[0]), int(path[-1])
+
+        def place(inc):
+            return lead + inc - first if first <= inc <= last else None
+    else:
+        place = {int(r): lead + k for k, r in enumerate(path)}.get
+    extra = []
+    for e in events:
+        pos = place(int(e.get("increment", -1)))
+        if (pos is not None and pos > 0 and "C" in e and "F" in e and np.isfinite(e["C"])
+                and np.isfinite(e["F"])):
+            extra.append((pos, float(e["C"]) / C0 - 1.0, float(e["F"])))
     if not extra:
         return s_path, f_path, i_path
-    s, f, i = list(s_path), list(f_path), list(i_path)
-    order: dict = {}
-    for pos, e_s, e_f in extra:                     # events of one increment in the order they happened
-        order.setdefault(pos, []).append((e_s, e_f))
-    for pos in sorted(order, reverse=True):         # from the last: earlier positions stay valid
-        pts = order[pos]
-        s[pos:pos] = [x for x, _ in pts]
-        f[pos:pos] = [y for _, y in pts]
-        i[pos:pos] = [x for x, _ in pts]
-    return np.asarray(s), np.asarray(f), np.asarray(i)
+    # before the rows of their increments, those of one increment in the order they happened (a stable sort of
+    # the places: an event's just before its row's)
+    order = np.argsort(np.concatenate([np.arange(len(s_path)), [pos - 0.5 for pos, _, _ in extra]]), kind="stable")
+    e_s, e_f = [x for _, x, _ in extra], [y for _, _, y in extra]
+    return (np.concatenate([np.asarray(s_path, float), e_s])[order],
+            np.concatenate([np.asarray(f_path, float), e_f])[order],
+            np.concatenate([np.asarray(i_path, float), e_s])[order])
+
+
+class SummaryRows:
+    """The load program's rows as every cell's summary reads them (:func:`cell_summary`): built once for a
+    batch (:func:`summarise`, :func:`knitsim.sweep.runner.reduce_history`), not once per cell."""
+
+    def __init__(self, history: BatchHistory):
+        self.strain = np.asarray(history.strain, float)
+        self.cycle = np.asarray(history.cycle)
+        self.direction = np.asarray(history.direction)
+        #: (cycle number, its rows) of each cycle, in order
+        self.cycles = [(k, np.nonzero(self.cycle == k)[0]) for k in np.unique(self.cycle)]
+
+
+#: how a cycle's residual strain was found (:func:`cycle_numbers`' ``residual_from``): not at all, at a located
+#: slack event, interpolated between the rows around the zero of the force
+RESIDUAL_FROM = (None, "event", "interpolated")
+
+
+def cycle_numbers(h: BatchHistory, cells, n_ok, events: list, rows_of: SummaryRows) -> dict[str, np.ndarray]:
+    """The numbers of :func:`cell_summary`'s ``cycles`` (its docstring says what each is) of the cells ``cells``
+    at once, each over its first ``n_ok`` rows (:func:`stopped_rows`), with its ``events``
+    (:meth:`BatchHistory.events_of`, one list per cell).
+
+    Returns
+    -------
+    dict of str to ndarray, shape [len(cells), len(rows_of.cycles)]
+        ``reached`` (the cell has rows in the cycle: the others' values are NaN / -1), ``peak_force_per_wale_N``,
+        ``strain_at_peak``, ``residual_strain`` (NaN: none), ``residual_from`` (index into
+        :data:`RESIDUAL_FROM`), ``energy_N_per_strain``, ``energy_kind`` (index into
+        :data:`knitsim.io.checks.ENERGY_KINDS`), ``closed``.
+    """
+    cells = np.asarray(cells, dtype=np.int64)
+    n_ok = np.asarray(n_ok, dtype=np.int64)
+    m, nq = len(cells), len(rows_of.cycles)
+    out = {k: np.full((m, nq), np.nan) for k in ("peak_force_per_wale_N", "strain_at_peak", "residual_strain",
+                                                  "energy_N_per_strain")}
+    out["reached"] = np.zeros((m, nq), bool)
+    out["residual_from"] = np.zeros((m, nq), np.int8)
+    out["energy_kind"] = np.full((m, nq), -1, np.int8)
+    out["closed"] = np.zeros((m, nq), bool)
+    if not m:
+        return out
+    Fh, Ch, St = h.force_per_wale, h.values["C"], h.status
+    C0 = np.array([h.params[c].C0 for c in cells])
+    strain, direction = rows_of.strain, rows_of.direction
+    rest_F = None if h.rest is None else np.asarray(h.rest["F"])[cells]
+    kind_index = {k: i for i, k in enumerate(ENERGY_KINDS)}
+    slack = [[e for e in ev if e.get("kind") == "slack" and "C" in e] for ev in events]
+    col = np.arange(m)
+    for q, (_, R) in enumerate(rows_of.cycles):
+        if not len(R):
+            continue
+        nv = np.sum(R[:, None] < n_ok[None, :], axis=0)          # the cell's rows of the cycle: R[:nv]
+        reached = nv > 0
+        out["reached"][:, q] = reached
+        if not reached.any():
+            continue
+        F = Fh[np.ix_(R, cells)]
+        valid = np.arange(len(R))[:, None] < nv
+        j = R[np.argmax(np.where(valid, F, -np.inf), axis=0)]
+        peak = Fh[j, cells]
+        # (the imposed strain; where the cell stopped inside an increment, its own strain there)
+        at_peak = np.where(St[j, cells] == STATUS_OK, strain[j], Ch[j, cells] / C0 - 1.0)
+        if R[0] == 0 and rest_F is not None:
+            # a first cycle that unloads from rest peaks at the rest state (a blind probe read 0 N at -0.005)
+            from_rest = rest_F > peak
+            peak = np.where(from_rest, rest_F, peak)
+            at_peak = np.where(from_rest, 0.0, at_peak)
+        out["peak_force_per_wale_N"][:, q] = np.where(reached, peak, np.nan)
+        out["strain_at_peak"][:, q] = np.where(reached, at_peak, np.nan)
+        # residual strain: where F reaches 0 on this cycle's unloading branch (its rows U[:nu]), at a located slack
+        # event, else between the rows of the first step from F > 0 to F <= 0 (from the row before the branch)
+        U = R[direction[R] < 0]
+        nu = np.sum(U[:, None] < n_ok[None, :], axis=0)
+        if len(U):
+            P = np.concatenate([[U[0] - 1], U]) if U[0] > 0 else U
+            lead = len(P) - len(U)
+            Fa, Fb = Fh[np.ix_(P[:-1], cells)], Fh[np.ix_(P[1:], cells)]
+            down = (Fa > 0) & (Fb <= 0) & (np.arange(len(P) - 1)[:, None] < (nu + lead - 1))
+            has = down.any(axis=0) & (nu > 0)
+            if has.any():
+                t_at = np.argmax(down, axis=0)
+                a, b = P[t_at], P[t_at + 1]
+                fa, fb = Fh[a, cells], Fh[b, cells]
+                ea, eb = Ch[a, cells] / C0 - 1.0, Ch[b, cells] / C0 - 1.0
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t = fa / (fa - fb)
+                    res = ea + t * (eb - ea)
+                out["residual_strain"][has, q] = res[has]
+                out["residual_from"][has, q] = 2
+            for i in np.flatnonzero(nu > 0):
+                lo, hi = int(U[0]), int(U[nu[i] - 1])
+                hit = [e for e in slack[i] if lo <= int(e["increment"]) <= hi]
+                if hit:
+                    out["residual_strain"][i, q] = float(hit[0]["C"]) / h.params[cells[i]].C0 - 1.0
+                    out["residual_from"][i, q] = 1
+        # the cycle's work along its path (from the row before it; the first cycle from the rest state)
+        loads = direction[R] > 0
+        first_load = int(np.argmax(loads)) if loads.any() else len(R)
+        path_all = np.concatenate([[R[0] - 1], R]) if R[0] > 0 else R
+        lead = len(path_all) - len(R)
+        for i in np.flatnonzero(reached):
+            c = int(cells[i])
+            path = path_all[:lead + int(nv[i])]
+            eps = Ch[path, c] / C0[i] - 1.0
+            f_path = Fh[path, c]
+            # closure judged on the program's strain (a slack cell's own stays where its force reached 0)
+            i_path = np.where(St[path, c] == STATUS_OK, strain[path], eps)
+            s_path = eps
+            if R[0] == 0 and rest_F is not None:          # the first cycle starts from the rest state
+                s_path = np.concatenate([[0.0], s_path])
+                f_path = np.concatenate([[rest_F[i]], f_path])
+                i_path = np.concatenate([[0.0], i_path])
+            # the located events inside the cycle's increments (a slide onset, a slack), between their rows: the
+            # kinks there are the trapezoids' error, O(increment) without them (a blind probe: a cycle's energy
+            # 32 % low at max_increment 0.1, 4 % at 0.02; with them within 0.1 % at 0.1)
+            s_path, f_path, i_path = _with_events(s_path, f_path, i_path, path, events[i], h.params[c].C0)
+            work = cycle_work(s_path, f_path, bool(nu[i] > 0), loads=bool(first_load < nv[i]), imposed=i_path)
+            out["energy_N_per_strain"][i, q] = work["value"]
+            # hysteresis (closed cycle), work (open), loading_work, unloading_work (a cycle that never loads)
+            out["energy_kind"][i, q] = kind_index[work["kind"]]
+            out["closed"][i, q] = work["closed"]
+    return out
+
+
+def cycle_entries(h: BatchHistory, cell: int, n_ok: int, events: list, rows_of: SummaryRows) -> list[dict]:
+    """The ``cycles`` of :func:`cell_summary` (its docstring says what each number is): one entry per cycle
+    that the cell reached, over its first ``n_ok`` rows (:func:`_stopped_rows`), with its ``events``
+    (:meth:`BatchHistory.events_of`): :func:`cycle_numbers` of the one cell."""
+    num = cycle_numbers(h, [cell], [n_ok], [events], rows_of)
+    C0 = h.params[cell].C0
+    out = []
+    for q, (k, _) in enumerate(rows_of.cycles):
+        if not num["reached"][0, q]:
+            continue
+        res, how = float(num["residual_strain"][0, q]), RESIDUAL_FROM[int(num["residual_from"][0, q])]
+        value = float(num["energy_N_per_strain"][0, q])
+        out.append({"cycle": int(k), "peak_force_per_wale_N": float(num["peak_force_per_wale_N"][0, q]),
+                    "strain_at_peak": float(num["strain_at_peak"][0, q]),
+                    "residual_strain": None if how is None else res, "residual_strain_from": how,
+                    "energy_N_per_strain": value, "energy_N_mm": value * C0,
+                    "energy_kind": ENERGY_KINDS[int(num["energy_kind"][0, q])], "closed": bool(num["closed"][0, q])})
+    return out
+
+
+def first_jamming_rows(codes: np.ndarray, n_ok) -> np.ndarray:
+    """Per column of stage label codes ``codes`` [n, k] (:meth:`BatchHistory.label_codes`), the first of its
+    first ``n_ok`` rows (one number per column) labelled jamming; -1 where none is."""
+    codes = np.asarray(codes)
+    jammed = (codes == LABEL_CODES["jamming"]) & (np.arange(codes.shape[0])[:, None] < np.asarray(n_ok))
+    return np.where(jammed.any(axis=0), jammed.argmax(axis=0), -1)
+
+
+def first_jamming(events: list, jam_row: int, C, C0: float) -> tuple[float | None, str | None]:
+    """``strain_at_first_jamming`` and ``strain_at_first_jamming_from`` of :func:`cell_summary`: at the cell's
+    first located ``jam`` event, else at its first jammed row ``jam_row`` (:func:`first_jamming_rows`; -1:
+    none) of its course lengths ``C``."""
+    jam = [e for e in events if e.get("kind") == "jam" and "C" in e]
+    if jam:
+        return float(jam[0]["C"]) / C0 - 1.0, "event"
+    if jam_row < 0:
+        return None, None
+    return float(C[jam_row] / C0 - 1.0), "row"
+
+
+def stop_point(h: BatchHistory, cell: int, final: int) -> dict:
+    """Where the cell stopped (:func:`cell_summary`): ``stop_row`` (its first row not ok; None where it ran the
+    program), ``expected_end`` (completed, or stopped at the force cap), and, of a failed cell, its
+    ``last_converged_strain`` and ``last_converged_force_per_wale_N``; ``stopped_at_strain`` the imposed strain
+    of the stop row."""
+    flagged = np.flatnonzero(h.status[:, cell] != STATUS_OK)
+    stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
+    expected = final in (STATUS_OK, STATUS_FORCE_CAP)
+    failed = stop_row is not None and not expected
+    return {"stop_row": stop_row, "expected_end": expected,
+            "stopped_at_strain": None if stop_row is None else float(h.strain[stop_row]),  # imposed strain
+            # where a failed cell stays: its last converged state, inside the increment it could not finish (the
+            # state its later rows hold, status not ok; the strain and force the stop's reason names)
+            "last_converged_strain": float(h.values["C"][stop_row, cell]) / h.params[cell].C0 - 1.0 if failed else None,
+            "last_converged_force_per_wale_N": float(h.force_per_wale[stop_row, cell]) if failed else None}
+
+
+def reference_warnings(rows_of: SummaryRows, F_ok, n_ok: int, warnings, reference) -> list:
+    """:func:`knitsim.io.checks.reloads_below_first_loading` of a cell's first ``n_ok`` rows (force ``F_ok``)
+    against ``reference`` (:func:`first_loading_curve`; None: none), leaving out the cycles its cycle
+    ``warnings`` flagged already."""
+    if reference is None:
+        return []
+    # the same knit pulled monotonically (summarise's reference): a reload past the earlier maximum that
+    # stays below it
+    ref_s, ref_F = reference
+    below = {int(w.cycle) for w in warnings if w.code in ("reload_below_earlier_loading", "zero_force_cycle")
+             and w.cycle is not None}
+    return reloads_below_first_loading(rows_of.strain[:n_ok], F_ok, rows_of.cycle[:n_ok],
+                                       rows_of.direction[:n_ok], ref_s, ref_F, flagged=below)
 
 
 def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict | None = None,
@@ -279,100 +487,39 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
     the state it reached inside the failed increment and holds on its later rows
     (the strain and force its stop reason names).
     """
-    h = history
+    return _cell_summary(history, cell, label, notes, reference, SummaryRows(history))
+
+
+def _cell_summary(h: BatchHistory, cell: int, label: str, notes: dict | None, reference,
+                  rows_of: SummaryRows) -> dict:
     p = h.params[cell]
     F = h.force_per_wale[:, cell]
     status = h.status[:, cell]
-    C = h.values["C"][:, cell]
-    eps_cell = C / p.C0 - 1.0
     n_ok = _stopped_rows(status)
     events = h.events_of(cell)
-    labels = h.labels(cell)
-
-    cycles_out = []
-    for k in np.unique(h.cycle):
-        rows = np.nonzero(h.cycle == k)[0]
-        rows = rows[rows < n_ok]
-        if len(rows) == 0:
-            continue
-        entry: dict[str, Any] = {"cycle": int(k)}
-        j = rows[np.argmax(F[rows])]
-        entry["peak_force_per_wale_N"] = float(F[j])
-        # (the imposed strain; where the cell stopped inside an increment, its own strain there)
-        entry["strain_at_peak"] = float(h.strain[j] if status[j] == STATUS_OK else eps_cell[j])
-        if rows[0] == 0 and h.rest is not None and h.rest["F"][cell] > F[j]:
-            # a first cycle that unloads from rest peaks at the rest state (a blind probe read 0 N at -0.005)
-            entry["peak_force_per_wale_N"], entry["strain_at_peak"] = float(h.rest["F"][cell]), 0.0
-        # residual strain: where F reaches 0 on this cycle's unloading branch
-        unload = rows[h.direction[rows] < 0]
-        res, how = None, None
-        slack = [e for e in events if e.get("kind") == "slack" and "C" in e
-                 and len(unload) and unload[0] <= int(e["increment"]) <= unload[-1]]
-        if slack:
-            res, how = float(slack[0]["C"]) / p.C0 - 1.0, "event"
-        elif len(unload):
-            prev = np.concatenate([[unload[0] - 1], unload]) if unload[0] > 0 else unload
-            for a, b in zip(prev[:-1], prev[1:]):
-                if F[a] > 0 >= F[b]:
-                    t = F[a] / (F[a] - F[b])
-                    res, how = float(eps_cell[a] + t * (eps_cell[b] - eps_cell[a])), "interpolated"
-                    break
-        entry["residual_strain"] = res
-        entry["residual_strain_from"] = how
-        path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows
-        s_path, f_path = eps_cell[path], F[path]
-        # closure judged on the program's strain (a slack cell's own stays where its force reached 0)
-        i_path = np.where(status[path] == STATUS_OK, np.asarray(h.strain, float)[path], eps_cell[path])
-        if rows[0] == 0 and h.rest is not None:     # the first cycle starts from the rest state
-            s_path = np.concatenate([[0.0], s_path])
-            f_path = np.concatenate([[h.rest["F"][cell]], f_path])
-            i_path = np.concatenate([[0.0], i_path])
-        # the located events inside the cycle's increments (a slide onset, a slack), between their rows: the
-        # kinks there are the trapezoids' error, O(increment) without them (a blind probe: a cycle's energy
-        # 32 % low at max_increment 0.1, 4 % at 0.02; with them within 0.1 % at 0.1)
-        s_path, f_path, i_path = _with_events(s_path, f_path, i_path, path, events, p.C0)
-        work = cycle_work(s_path, f_path, bool(len(unload)), loads=bool(np.any(h.direction[rows] > 0)),
-                          imposed=i_path)
-        entry["energy_N_per_strain"] = work["value"]
-        entry["energy_N_mm"] = work["value"] * p.C0
-        # hysteresis (closed cycle), work (open), loading_work, unloading_work (a cycle that never loads)
-        entry["energy_kind"] = work["kind"]
-        entry["closed"] = work["closed"]
-        cycles_out.append(entry)
-
-    jam = [e for e in events if e.get("kind") == "jam" and "C" in e]
-    if jam:
-        jam_strain, jam_from = float(jam[0]["C"]) / p.C0 - 1.0, "event"
-    else:
-        rows = [i for i in range(n_ok) if labels[i] == "jamming"]
-        jam_strain, jam_from = (float(eps_cell[rows[0]]), "row") if rows else (None, None)
+    cycles_out = cycle_entries(h, cell, n_ok, events, rows_of)
+    jam_strain, jam_from = first_jamming(events, int(first_jamming_rows(stage_label_codes(h.stage[:, cell:cell + 1], h.jammed[:, cell:cell + 1]), n_ok)[0]),
+                                         h.values["C"][:, cell], p.C0)
 
     counts = {STATUS_NAMES[int(s)]: int(np.sum(status == s)) for s in np.unique(status)}
     final = int(status[-1])
     flag = next((e for e in events if e.get("kind") == "flag"), None)
-    flagged = np.nonzero(status != STATUS_OK)[0]
-    stop_row = int(flagged[0]) if len(flagged) else None   # the increment where the cell stopped
+    stop = stop_point(h, cell, final)
+    stop_row, expected = stop["stop_row"], stop["expected_end"]
     cut = []
     if final == STATUS_OK:
-        end, expected = "completed the load program", True
+        end = "completed the load program"
     elif final == STATUS_FORCE_CAP:
         cut = cut_by_force_cap(h.strain, h.direction, h.cycle, stop_row, p.cap_N)
-        end, expected = (f"stopped at the force cap (force per wale = {p.cap_N:g} N), "
-                         + ("before the program's unloadings: later cycles not run (warning "
-                            "program_cut_by_force_cap)" if cut else "the expected end of a run to the cap")), True
+        end = (f"stopped at the force cap (force per wale = {p.cap_N:g} N), "
+               + ("before the program's unloadings: later cycles not run (warning "
+                  "program_cut_by_force_cap)" if cut else "the expected end of a run to the cap"))
     else:
         reason = flag.get("reason", "") if flag else ""
-        end, expected = f"FAILED ({STATUS_NAMES[final]}): {reason}", False
+        end = f"FAILED ({STATUS_NAMES[final]}): {reason}"
     peaks = [(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out]
     warnings = cut + cycle_warnings(peaks, h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok])
-    if reference is not None:
-        # the same knit pulled monotonically (summarise's reference): a reload past the earlier maximum that
-        # stays below it
-        ref_s, ref_F = reference
-        below = {int(w.cycle) for w in warnings if w.code in ("reload_below_earlier_loading", "zero_force_cycle")
-                 and w.cycle is not None}
-        warnings += reloads_below_first_loading(h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok],
-                                                ref_s, ref_F, flagged=below)
+    warnings += reference_warnings(rows_of, F[:n_ok], n_ok, warnings, reference)
     if h.rest is not None:
         warnings += compressive_rest_state(h.rest["F"][cell])
     if h.rest is not None and n_ok:
@@ -394,13 +541,10 @@ def cell_summary(history: BatchHistory, cell: int, label: str = "", notes: dict 
         "final_status": STATUS_NAMES[final],
         "end": end,
         "expected_end": expected,
-        "stopped_at_strain": None if stop_row is None else float(h.strain[stop_row]),  # imposed strain
+        "stopped_at_strain": stop["stopped_at_strain"],
         "final_force_per_wale_N": float(F[n_ok - 1]) if n_ok else None,
-        # where a failed cell stays: its last converged state, inside the increment it could not finish (the
-        # state its later rows hold, status not ok; the strain and force the stop's reason names)
-        "last_converged_strain": (float(h.values["C"][stop_row, cell]) / p.C0 - 1.0
-                                  if stop_row is not None and not expected else None),
-        "last_converged_force_per_wale_N": float(F[stop_row]) if stop_row is not None and not expected else None,
+        "last_converged_strain": stop["last_converged_strain"],
+        "last_converged_force_per_wale_N": stop["last_converged_force_per_wale_N"],
         "status_counts": counts,
         "strain_at_first_jamming": jam_strain,
         "strain_at_first_jamming_from": jam_from,
@@ -417,7 +561,8 @@ def summarise(history: BatchHistory, labels: list[str] | None = None, notes: lis
     for the check of a reload past the earlier maximum against the first loading's continuation."""
     labels = labels or [f"cell {i}" for i in range(history.n_cells)]
     notes = notes or [{} for _ in range(history.n_cells)]
-    cells = [cell_summary(history, i, labels[i], notes[i], reference=first_loading_curve(reference, i))
+    rows_of = SummaryRows(history)
+    cells = [_cell_summary(history, i, labels[i], notes[i], first_loading_curve(reference, i), rows_of)
              for i in range(history.n_cells)]
     out = dict(info)
     out.update(n_cells=history.n_cells, n_increments=int(len(history.strain)),
