@@ -892,7 +892,7 @@ def dissipated_energy(strain: np.ndarray, force: np.ndarray) -> float:
         # numpy would broadcast a strain and a force of other lengths into a number (a blind probe)
         raise KnitsimInputError(f"dissipated_energy: strain {strain.shape} and force {force.shape} must be 1-D arrays "
                                 "of one length")
-    return float(np.sum(0.5 * (force[1:] + force[:-1]) * np.diff(strain)))
+    return float((0.5 * (force[1:] + force[:-1]) * (strain[1:] - strain[:-1])).sum())
 
 
 def dissipated_energy_error(strain: np.ndarray, force: np.ndarray) -> float:

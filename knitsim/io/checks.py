@@ -99,7 +99,7 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool
     s, f = np.asarray(strain, float), np.asarray(force, float)
     w = dissipated_energy(s, f) if len(s) > 1 else 0.0
     c = s if imposed is None else np.asarray(imposed, float)
-    span = float(np.ptp(c)) if len(c) else 0.0
+    span = float(c.max() - c.min()) if len(c) else 0.0
     closed = bool(unloads and len(c) > 1 and abs(c[-1] - c[0]) <= 1e-9 * max(span, 1e-12))
     hysteresis, work, loading_work, unloading_work = ENERGY_KINDS
     kind = hysteresis if closed else (loading_work if not unloads else work if loads else unloading_work)
@@ -588,21 +588,41 @@ def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wa
 def load_cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wale",
                         strain_name: str = "strain") -> list[ResultWarning]:
     """:func:`cycle_warnings` but :func:`unloading_only_cycles` (which a sweep's flags do not carry), in its order."""
-    empty = list(_empty_cycles(peaks))
-    skip = [int(c) for c, _, _, _ in empty]
+    return load_cycle_warnings_of([peaks], strain, np.asarray(force, float)[:, None], cycle, direction, unit,
+                                  strain_name)[0]
+
+
+def load_cycle_warnings_of(peaks, strain, force, cycle, direction, unit: str = "N per wale",
+                           strain_name: str = "strain") -> list[list[ResultWarning]]:
+    """:func:`load_cycle_warnings` of the columns of ``force`` [n, m] (cells of a batch on the same rows; ``peaks``:
+    one list per column) at once: a list of warnings per column."""
+    empty = [list(_empty_cycles(p)) for p in peaks]
+    skips = [[int(c) for c, _, _, _ in e] for e in empty]
     rows = (strain, force, cycle, direction)
-    below = reloads_below_earlier_loading(*rows, unit=unit, strain_name=strain_name, skip=skip)
-    flagged = set(skip) | {w.cycle for w in below}
-    return ([_zero_force_warning(found, unit) for found in empty]
-            + below
-            + reloads_without_shakedown(peaks, strain, cycle, direction, unit=unit, strain_name=strain_name,
-                                        flagged=flagged)
-            + reloads_above_first_loading(*rows, unit=unit, strain_name=strain_name, skip=skip))
+    below = reloads_below_earlier_loading_of(*rows, unit=unit, strain_name=strain_name, skips=skips)
+    above = reloads_above_first_loading_of(*rows, unit=unit, strain_name=strain_name, skips=skips)
+    tops = loading_tops(strain, cycle, direction)
+    return [[_zero_force_warning(found, unit) for found in empty[c]]
+            + below[c]
+            + reloads_without_shakedown(peaks[c], strain, cycle, direction, unit=unit, strain_name=strain_name,
+                                        flagged=set(skips[c]) | {w.cycle for w in below[c]}, tops=tops)
+            + above[c] for c in range(len(peaks))]
+
+
+def loading_tops(strain, cycle, direction) -> dict:
+    """Cycle -> the largest strain its loading rows reach (cycles that do not load left out)."""
+    s, c, d = np.asarray(strain, float), np.asarray(cycle), np.asarray(direction)
+    top = {}
+    for k in np.unique(c):
+        load = (c == k) & (d > 0) & np.isfinite(s)
+        if np.any(load):
+            top[int(k)] = float(s[load].max())
+    return top
 
 
 def reloads_without_shakedown(peaks, strain, cycle, direction, unit: str = "N per wale",
                               strain_name: str = "strain", flagged=(),
-                              ratio: float = SHAKEDOWN_RATIO) -> list[ResultWarning]:
+                              ratio: float = SHAKEDOWN_RATIO, tops: dict | None = None) -> list[ResultWarning]:
     """A warning where cycles that load to the same strain keep losing peak force after their first reload.
 
     A measured knit settles: its second cycle peaks lower than its first, its third close to its second
@@ -627,14 +647,11 @@ def reloads_without_shakedown(peaks, strain, cycle, direction, unit: str = "N pe
         Cycles other checks flagged (zero_force_cycle, reload_below_earlier_loading).
     ratio : float
         A later reload's peak over the previous cycle's below which the loss goes on.
+    tops : dict, optional
+        :func:`loading_tops` of the rows, where known (the cells of a batch on the same rows share it).
     """
-    s, c, d = np.asarray(strain, float), np.asarray(cycle), np.asarray(direction)
     flagged = set(int(k) for k in flagged)
-    top = {}                                           # cycle -> the largest strain its loading reaches
-    for k in np.unique(c):
-        load = (c == k) & (d > 0) & np.isfinite(s)
-        if np.any(load):
-            top[int(k)] = float(s[load].max())
+    top = loading_tops(strain, cycle, direction) if tops is None else tops
     runs, run = [], []
     for k, p in peaks:
         k = int(k)
@@ -1097,49 +1114,83 @@ def reloads_below_earlier_loading(strain, force, cycle, direction, unit: str = "
     share : float
         Share of the earlier force below which a reload is flagged.
     """
+    return reloads_below_earlier_loading_of(strain, np.asarray(force, float)[:, None], cycle, direction, unit,
+                                            strain_name, [skip], share)[0]
+
+
+def _same_rows(ok: np.ndarray):
+    """(columns, rows) of the columns of ``ok`` [n, m] (bool) that hold the same rows: a batch's cells judged at
+    once where the same rows of theirs count."""
+    n, m = ok.shape
+    if not m:
+        return []
+    if ok.all():
+        return [(np.arange(m), np.ones(n, bool))]
+    packed = np.ascontiguousarray(np.packbits(ok, axis=0).T)
+    _, first, inverse = np.unique(packed.view(np.dtype((np.void, packed.shape[1]))).ravel(), return_index=True,
+                                  return_inverse=True)
+    inverse = np.asarray(inverse).ravel()
+    return [(np.flatnonzero(inverse == u), ok[:, first[u]]) for u in range(len(first))]
+
+
+def reloads_below_earlier_loading_of(strain, force, cycle, direction, unit: str = "N per wale",
+                                     strain_name: str = "strain", skips=None,
+                                     share: float = RELOAD_SHARE_MIN) -> list[list[ResultWarning]]:
+    """:func:`reloads_below_earlier_loading` of the columns of ``force`` [n, m] (cells of a batch on the same rows;
+    ``skips``: one ``skip`` per column) at once: a list of warnings per column."""
     s = np.asarray(strain, float)
-    f = np.asarray(force, float)
+    F = np.asarray(force, float)
     cyc = np.asarray(cycle)
     dirn = np.asarray(direction)
-    ok = np.isfinite(f) & np.isfinite(s)
-    skip = set(int(k) for k in skip)
-    out = []
-    for k in np.unique(cyc[ok]):
-        earlier = np.nonzero(ok & (cyc < k))[0]
-        if not len(earlier) or int(k) in skip:
-            continue
-        i = earlier[np.argmax(s[earlier])]          # where the strain first reached the earlier maximum
-        s0, f0 = s[i], f[i]
-        load = np.nonzero(ok & (cyc == k) & (dirn > 0))[0]
-        if not f0 > 0 or not len(load) or s[load].max() < s0 - 1e-12:
-            continue
-        j = load[np.nonzero(s[load] >= s0 - 1e-12)[0][0]]
-        fk = f[j]
-        if j > 0 and ok[j - 1] and s[j] > s[j - 1] and s[j - 1] < s0:
-            fk = f[j - 1] + (f[j] - f[j - 1]) * (s0 - s[j - 1]) / (s[j] - s[j - 1])
-        # a new maximum strain that peaks below an earlier peak: the envelope falls as the knit is stretched
-        # further (each reload starts sliding at a lower Rn), which the share at the earlier maximum may pass
-        rows_k = np.nonzero(ok & (cyc == k))[0]
-        jk = rows_k[np.argmax(f[rows_k])]
-        ip = earlier[np.argmax(f[earlier])]
-        if fk < share * f0:
-            out.append(ResultWarning(
-                "reload_below_earlier_loading", cycle=int(k), message=(
-                    f"cycle {int(k)} carries {fk:.3g} {unit} at {strain_name} {s0:.4g}, {fk / f0:.0%} of the "
-                    f"{f0:.3g} {unit} the knit carried there in cycle {int(cyc[i])} (where it first reached that "
-                    f"strain): Table 4's sliding stage keeps the contact's normal force Rn at its value where "
-                    f"sliding began, and this reload began sliding at a lower one, so its branch stays below the "
-                    f"earlier loading there and beyond (a measured knit reloads to most of its earlier force: "
-                    f"5 N, then 4 N in Dusserre 2015 Fig. 10)")))
-        elif s[load].max() > s0 + 1e-9 and f[jk] < ENVELOPE_SHARE_MIN * f[ip]:
-            out.append(ResultWarning(
-                "reload_below_earlier_loading", cycle=int(k), message=(
-                    f"cycle {int(k)} stretches the knit further than before ({strain_name} {s[load].max():.4g}) but "
-                    f"peaks at {f[jk]:.3g} {unit}, {f[jk] / f[ip]:.0%} of the {f[ip]:.3g} {unit} of cycle "
-                    f"{int(cyc[ip])} at {strain_name} {s[ip]:.4g}: the knit's envelope falls as it is stretched "
-                    f"further (Table 4's sliding stage keeps the contact's normal force Rn at its value where sliding "
-                    f"began, and each reload begins sliding at a lower one); a measured knit's envelope rises with "
-                    f"the strain")))
+    m = F.shape[1]
+    skips = [set(int(k) for k in sk) for sk in (skips if skips is not None else [()] * m)]
+    out = [[] for _ in range(m)]
+    for cols, ok in _same_rows(np.isfinite(F) & np.isfinite(s)[:, None]):
+        f = F[:, cols]
+        for k in np.unique(cyc[ok]):
+            earlier = np.nonzero(ok & (cyc < k))[0]
+            judged = np.array([int(k) not in skips[c] for c in cols])
+            if not len(earlier) or not judged.any():
+                continue
+            i = earlier[np.argmax(s[earlier])]          # where the strain first reached the earlier maximum
+            s0, f0 = s[i], f[i]
+            load = np.nonzero(ok & (cyc == k) & (dirn > 0))[0]
+            judged &= f0 > 0
+            if not judged.any() or not len(load) or s[load].max() < s0 - 1e-12:
+                continue
+            j = load[np.nonzero(s[load] >= s0 - 1e-12)[0][0]]
+            fk = f[j]
+            if j > 0 and ok[j - 1] and s[j] > s[j - 1] and s[j - 1] < s0:
+                fk = f[j - 1] + (f[j] - f[j - 1]) * (s0 - s[j - 1]) / (s[j] - s[j - 1])
+            # a new maximum strain that peaks below an earlier peak: the envelope falls as the knit is stretched
+            # further (each reload starts sliding at a lower Rn), which the share at the earlier maximum may pass
+            rows_k = np.nonzero(ok & (cyc == k))[0]
+            g_all = np.arange(len(cols))
+            jk = rows_k[np.argmax(f[rows_k], axis=0)]
+            ip = earlier[np.argmax(f[earlier], axis=0)]
+            low = judged & (fk < share * f0)
+            envelope = judged & ~low & (s[load].max() > s0 + 1e-9) & (f[jk, g_all] < ENVELOPE_SHARE_MIN * f[ip, g_all])
+            for g in np.flatnonzero(low | envelope):
+                c, fk_g, f0_g = int(cols[g]), fk[g], f0[g]
+                if low[g]:
+                    out[c].append(ResultWarning(
+                        "reload_below_earlier_loading", cycle=int(k), message=(
+                            f"cycle {int(k)} carries {fk_g:.3g} {unit} at {strain_name} {s0:.4g}, {fk_g / f0_g:.0%} of "
+                            f"the {f0_g:.3g} {unit} the knit carried there in cycle {int(cyc[i])} (where it first "
+                            f"reached that strain): Table 4's sliding stage keeps the contact's normal force Rn at its "
+                            f"value where sliding began, and this reload began sliding at a lower one, so its branch "
+                            f"stays below the earlier loading there and beyond (a measured knit reloads to most of its "
+                            f"earlier force: 5 N, then 4 N in Dusserre 2015 Fig. 10)")))
+                else:
+                    fj, fi, ipg = f[jk[g], g], f[ip[g], g], ip[g]
+                    out[c].append(ResultWarning(
+                        "reload_below_earlier_loading", cycle=int(k), message=(
+                            f"cycle {int(k)} stretches the knit further than before ({strain_name} "
+                            f"{s[load].max():.4g}) but peaks at {fj:.3g} {unit}, {fj / fi:.0%} of the {fi:.3g} {unit} "
+                            f"of cycle {int(cyc[ipg])} at {strain_name} {s[ipg]:.4g}: the knit's envelope falls as it "
+                            f"is stretched further (Table 4's sliding stage keeps the contact's normal force Rn at its "
+                            f"value where sliding began, and each reload begins sliding at a lower one); a measured "
+                            f"knit's envelope rises with the strain")))
     return out
 
 
@@ -1167,44 +1218,58 @@ def reloads_above_first_loading(strain, force, cycle, direction, unit: str = "N 
     floor : float
         Share of the largest earlier peak by which the reload must exceed the first loading too.
     """
-    s = np.asarray(strain, float)
-    f = np.asarray(force, float)
-    cyc = np.asarray(cycle)
-    dirn = np.asarray(direction)
-    ok = np.flatnonzero(np.isfinite(f) & np.isfinite(s))
-    s, f, cyc, dirn = s[ok], f[ok], cyc[ok], dirn[ok]
-    # the first loading: loading rows beyond every strain before them (strictly increasing in the strain)
-    reached = np.maximum.accumulate(s)
-    first = (dirn > 0) & (s > np.concatenate([[-np.inf], reached[:-1]]))
-    skip = set(int(k) for k in skip)
-    out = []
-    for k in np.unique(cyc):
-        before = cyc < k
-        virgin = np.flatnonzero(first & before)
-        if int(k) in skip or len(virgin) < 2 or not before.any():
-            continue
-        peak = float(np.max(f[before]))
-        load = np.flatnonzero((cyc == k) & (dirn > 0) & (s >= s[virgin[0]]) & (s <= s[virgin[-1]]))
-        if not peak > 0 or not len(load):
-            continue
-        f_first = np.interp(s[load], s[virgin], f[virgin])
-        above = (f[load] > factor * f_first) & (f[load] - f_first > floor * peak)
-        if not above.any():
-            continue
-        at = np.flatnonzero(above)
-        j = at[np.argmax(f[load][at] - f_first[at])]
-        r = load[j]
-        c_first = int(cyc[virgin[min(np.searchsorted(s[virgin], s[r]), len(virgin) - 1)]])
-        lo, hi = float(s[load][at].min()), float(s[load][at].max())
-        span = f"{strain_name} {lo:.4g}" if hi == lo else f"{strain_name}s {lo:.4g} to {hi:.4g}"
-        out.append(ResultWarning(
-            "reload_above_first_loading",
-            f"cycle {int(k)} reloads above the first loading: {f[r]:.3g} {unit} at {strain_name} {s[r]:.4g}, "
-            + (f"{f[r] / f_first[j]:.1f} times the " if f_first[j] > 0 else "against the ")
-            + f"{f_first[j]:.3g} {unit} the knit carried there when first loaded "
-            f"(cycle {c_first}), over {span}: friction at the crossing only resists the slip, so a knit reloads "
-            f"at or below its first loading; the cause is the model's: Table 4's loading stages hold a force (Rn, or "
-            f"T after a mirror reload) at its value where the stage began, and this reload began from a state of "
-            f"higher contact force than the first loading did (README, 'Reloads above the first loading')"))
+    return reloads_above_first_loading_of(strain, np.asarray(force, float)[:, None], cycle, direction, unit,
+                                          strain_name, [skip], factor, floor)[0]
+
+
+def reloads_above_first_loading_of(strain, force, cycle, direction, unit: str = "N per wale",
+                                   strain_name: str = "strain", skips=None, factor: float = RELOAD_ABOVE_FACTOR,
+                                   floor: float = RELOAD_ABOVE_FLOOR) -> list[list[ResultWarning]]:
+    """:func:`reloads_above_first_loading` of the columns of ``force`` [n, m] (cells of a batch on the same rows;
+    ``skips``: one ``skip`` per column) at once: a list of warnings per column."""
+    s_all = np.asarray(strain, float)
+    F = np.asarray(force, float)
+    m = F.shape[1]
+    skips = [set(int(k) for k in sk) for sk in (skips if skips is not None else [()] * m)]
+    out = [[] for _ in range(m)]
+    for cols, ok_rows in _same_rows(np.isfinite(F) & np.isfinite(s_all)[:, None]):
+        ok = np.flatnonzero(ok_rows)
+        s, cyc, dirn = s_all[ok], np.asarray(cycle)[ok], np.asarray(direction)[ok]
+        f = F[np.ix_(ok, cols)]
+        # the first loading: loading rows beyond every strain before them (strictly increasing in the strain)
+        reached = np.maximum.accumulate(s)
+        first = (dirn > 0) & (s > np.concatenate([[-np.inf], reached[:-1]]))
+        for k in np.unique(cyc):
+            before = cyc < k
+            virgin = np.flatnonzero(first & before)
+            if len(virgin) < 2 or not before.any():
+                continue
+            peak = np.max(f[before], axis=0)
+            load = np.flatnonzero((cyc == k) & (dirn > 0) & (s >= s[virgin[0]]) & (s <= s[virgin[-1]]))
+            judged = np.array([int(k) not in skips[c] for c in cols]) & (peak > 0)
+            if not judged.any() or not len(load):
+                continue
+            g_judged = np.flatnonzero(judged)
+            f_first = np.stack([np.interp(s[load], s[virgin], f[virgin, g]) for g in g_judged], axis=1)
+            f_load = f[load][:, g_judged]
+            above = (f_load > factor * f_first) & (f_load - f_first > floor * peak[g_judged])
+            for h in np.flatnonzero(above.any(axis=0)):
+                g = g_judged[h]
+                at = np.flatnonzero(above[:, h])
+                j = at[np.argmax(f_load[at, h] - f_first[at, h])]
+                r, fr, ff = load[j], f[load[j], g], f_first[j, h]
+                c_first = int(cyc[virgin[min(np.searchsorted(s[virgin], s[r]), len(virgin) - 1)]])
+                lo, hi = float(s[load][at].min()), float(s[load][at].max())
+                span = f"{strain_name} {lo:.4g}" if hi == lo else f"{strain_name}s {lo:.4g} to {hi:.4g}"
+                out[int(cols[g])].append(ResultWarning(
+                    "reload_above_first_loading",
+                    f"cycle {int(k)} reloads above the first loading: {fr:.3g} {unit} at {strain_name} {s[r]:.4g}, "
+                    + (f"{fr / ff:.1f} times the " if ff > 0 else "against the ")
+                    + f"{ff:.3g} {unit} the knit carried there when first loaded "
+                    f"(cycle {c_first}), over {span}: friction at the crossing only resists the slip, so a knit "
+                    f"reloads at or below its first loading; the cause is the model's: Table 4's loading stages hold "
+                    f"a force (Rn, or T after a mirror reload) at its value where the stage began, and this reload "
+                    f"began from a state of higher contact force than the first loading did (README, 'Reloads above "
+                    f"the first loading')"))
     return out
 
