@@ -236,25 +236,26 @@ def _stitch_energy(h, cell: int, B: float):
         [h.rest[n][cell] for n in names], np.stack([np.asarray(h.values[n])[:, cell] for n in names], axis=1), B))
 
 
-def _with_events(s_path, f_path, i_path, path, events, C0):
-    """A cycle's path with each located event (its C and F) put between the rows of its increment; ``path``:
-    the rows of ``s_path`` (after a rest-state row where ``s_path`` is one longer), increasing.  ``i_path`` (the
-    program's strain, for closure) takes the event's own strain: it is judged at the ends only."""
+def _event_points(events, C0) -> list[tuple[int, float, float]]:
+    """(increment, strain C / C0 - 1, force) of each located event of a cell that has a finite C and F, in order:
+    what :func:`_with_events` puts between the rows."""
+    return [(int(e.get("increment", -1)), float(e["C"]) / C0 - 1.0, float(e["F"])) for e in events
+            if "C" in e and "F" in e and math.isfinite(e["C"]) and math.isfinite(e["F"])]
+
+
+def _with_events(s_path, f_path, i_path, path, points):
+    """A cycle's path with each located event (:func:`_event_points`) put between the rows of its increment;
+    ``path``: the rows of ``s_path`` (after a rest-state row where ``s_path`` is one longer), increasing.
+    ``i_path`` (the program's strain, for closure) takes the event's own strain: it is judged at the ends only."""
     lead = len(s_path) - len(path)
     if len(path) and int(path[-1]) - int(path[0]) == len(path) - 1:
         # consecutive rows (a cycle's): an event's place without a table of every row (reduce_history's time)
         first, last = int(path[0]), int(path[-1])
-
-        def place(inc):
-            return lead + inc - first if first <= inc <= last else None
+        extra = [(lead + inc - first, e_s, e_f) for inc, e_s, e_f in points
+                 if first <= inc <= last and lead + inc - first > 0]
     else:
-        place = {int(r): lead + k for k, r in enumerate(path)}.get
-    extra = []
-    for e in events:
-        pos = place(int(e.get("increment", -1)))
-        if (pos is not None and pos > 0 and "C" in e and "F" in e and np.isfinite(e["C"])
-                and np.isfinite(e["F"])):
-            extra.append((pos, float(e["C"]) / C0 - 1.0, float(e["F"])))
+        at = {int(r): lead + k for k, r in enumerate(path)}
+        extra = [(at[inc], e_s, e_f) for inc, e_s, e_f in points if inc in at and at[inc] > 0]
     if not extra:
         return s_path, f_path, i_path
     # before the rows of their increments, those of one increment in the order they happened (a stable sort of
@@ -313,6 +314,7 @@ def cycle_numbers(h: BatchHistory, cells, n_ok, events: list, rows_of: SummaryRo
     rest_F = None if h.rest is None else np.asarray(h.rest["F"])[cells]
     kind_index = {k: i for i, k in enumerate(ENERGY_KINDS)}
     slack = [[e for e in ev if e.get("kind") == "slack" and "C" in e] for ev in events]
+    points = [_event_points(ev, h.params[c].C0) for c, ev in zip(cells, events)]
     col = np.arange(m)
     for q, (_, R) in enumerate(rows_of.cycles):
         if not len(R):
@@ -366,13 +368,16 @@ def cycle_numbers(h: BatchHistory, cells, n_ok, events: list, rows_of: SummaryRo
         first_load = int(np.argmax(loads)) if loads.any() else len(R)
         path_all = np.concatenate([[R[0] - 1], R]) if R[0] > 0 else R
         lead = len(path_all) - len(R)
+        # (a cycle's rows are consecutive: the path a slice of rows, no copies to gather)
+        run = len(R) and int(R[-1]) - int(R[0]) == len(R) - 1
         for i in np.flatnonzero(reached):
             c = int(cells[i])
             path = path_all[:lead + int(nv[i])]
-            eps = Ch[path, c] / C0[i] - 1.0
-            f_path = Fh[path, c]
+            take = slice(int(path[0]), int(path[-1]) + 1) if run else path
+            eps = Ch[take, c] / C0[i] - 1.0
+            f_path = Fh[take, c]
             # closure judged on the program's strain (a slack cell's own stays where its force reached 0)
-            i_path = np.where(St[path, c] == STATUS_OK, strain[path], eps)
+            i_path = np.where(St[take, c] == STATUS_OK, strain[take], eps)
             s_path = eps
             if R[0] == 0 and rest_F is not None:          # the first cycle starts from the rest state
                 s_path = np.concatenate([[0.0], s_path])
@@ -381,7 +386,7 @@ def cycle_numbers(h: BatchHistory, cells, n_ok, events: list, rows_of: SummaryRo
             # the located events inside the cycle's increments (a slide onset, a slack), between their rows: the
             # kinks there are the trapezoids' error, O(increment) without them (a blind probe: a cycle's energy
             # 32 % low at max_increment 0.1, 4 % at 0.02; with them within 0.1 % at 0.1)
-            s_path, f_path, i_path = _with_events(s_path, f_path, i_path, path, events[i], h.params[c].C0)
+            s_path, f_path, i_path = _with_events(s_path, f_path, i_path, path, points[i])
             work = cycle_work(s_path, f_path, bool(nu[i] > 0), loads=bool(first_load < nv[i]), imposed=i_path)
             out["energy_N_per_strain"][i, q] = work["value"]
             # hysteresis (closed cycle), work (open), loading_work, unloading_work (a cycle that never loads)

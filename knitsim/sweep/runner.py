@@ -547,7 +547,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
     from ..cell.history import STATUS_FORCE_CAP
     from ..cell.stages import stage_label_codes
     from ..io.checks import (below_jamming_width, energy_creating_loops, energy_loop_candidates, heads_overlap,
-                             is_compressive, jam_width_floor, load_cycle_warnings)
+                             is_compressive, jam_width_floor, load_cycle_warnings_of)
     from ..io.results import (SummaryRows, _stitch_energy, cycle_numbers, first_jamming, first_jamming_rows,
                               first_loading_curve, reference_warnings, stop_point, stopped_rows)
 
@@ -581,13 +581,11 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
     block = max(1, REDUCE_BLOCK // max(n_rows, 1))
     events = [h.events_of(c) for c in range(n)]
     qs = [(q, int(k) - 1) for q, (k, _) in enumerate(rows_of.cycles)]     # the out column of each cycle
-    peaks = np.full((n, len(rows_of.cycles)), np.nan)
-    reached_all = np.zeros((n, len(rows_of.cycles)), bool)
+    cycle_warnings = [[] for _ in range(n)]
     for c0 in range(0, n, block):
         cols = slice(c0, min(n, c0 + block))
         ok = n_ok[cols]
         num = cycle_numbers(h, np.arange(cols.start, cols.stop), ok, events[cols], rows_of)
-        peaks[cols], reached_all[cols] = num["peak_force_per_wale_N"], num["reached"]
         for q, j in qs:
             reached = num["reached"][:, q]
             for k in CYCLE_VARS:
@@ -597,6 +595,14 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
             out["energy_kind"][cols, j] = np.where(reached, num["energy_kind"][:, q], -1)
             out["closed"][cols, j] = np.where(reached, num["closed"][:, q], -1)
             out["peak_at_force_cap"][cols, j] = np.where(reached, 0, -1)
+        # the cycle checks, for the cells with the same rows (stopped at the same row) at once
+        for v in np.unique(ok):
+            at = c0 + np.flatnonzero(ok == v)
+            peaks = [[(k, float(num["peak_force_per_wale_N"][c - c0, q])) for q, (k, _) in enumerate(rows_of.cycles)
+                      if num["reached"][c - c0, q]] for c in at]
+            for c, w in zip(at, load_cycle_warnings_of(peaks, rows_of.strain[:v], np.asarray(F_all[:v, at]),
+                                                       rows_of.cycle[:v], rows_of.direction[:v])):
+                cycle_warnings[c] = w
         live = np.arange(n_rows)[:, None] < ok
         jam_rows[cols] = first_jamming_rows(stage_label_codes(h.stage[:, cols], h.jammed[:, cols]), ok)
         if "interpenetrating" in h.values:
@@ -633,9 +639,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
         for k in _STOP_VARS:
             out[k][c] = np.nan if stop[k] is None else stop[k]
         F_ok = F_all[:k_ok, c]
-        warnings = load_cycle_warnings([(k, float(peaks[c, q])) for q, (k, _) in enumerate(rows_of.cycles)
-                                        if reached_all[c, q]],
-                                       rows_of.strain[:k_ok], F_ok, rows_of.cycle[:k_ok], rows_of.direction[:k_ok])
+        warnings = cycle_warnings[c]
         warnings += reference_warnings(rows_of, F_ok, k_ok, warnings, first_loading_curve(reference, c))
         codes = {w.code for w in warnings}
         for k in cycle_flags:
