@@ -12,6 +12,7 @@ growing amplitude whose reloads past the earlier maximum are judged against a mo
 """
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 
@@ -171,3 +172,23 @@ def test_cycle_checks_of_many_columns_equal_the_checks_of_each(batches):
     each = [checks.load_cycle_warnings(peaks[c], h.strain, F[:, c], h.cycle, h.direction) for c in range(h.n_cells)]
     assert [[w.as_dict() for w in ws] for ws in many] == [[w.as_dict() for w in ws] for ws in each]
     assert sum(len(ws) for ws in each) > 10
+
+
+def test_rows_past_a_cells_stop_are_not_judged(batches):
+    """The rows after a cell's stop hold its stopped state (the engine's); rows that hold something else there
+    (overlapping heads, W below 4 w, another force) must still not count, as cell_summary reads only the rows
+    up to the stop."""
+    h, ref, n_cycles = batches["paper"]
+    h = copy.deepcopy(h)
+    status = np.asarray(h.status)
+    stopped = [c for c in range(h.n_cells) if status[-1, c] in (STATUS_FORCE_CAP, STATUS_NO_CONVERGENCE)
+               and (status[:, c] != STATUS_OK).argmax() + 2 < len(h.strain)]
+    assert len(stopped) >= 4
+    for c in stopped:
+        after = (status[:, c] != STATUS_OK).argmax() + 1
+        h.values["interpenetrating"][after:, c] = 1.0
+        h.values["head_gap"][after:, c] = 0.0
+        h.values["W"][after:, c] = 0.1
+        h.values["F"][after:, c] = -1.0
+    red = reduce_history(h, n_cycles, curves=True)
+    assert _differ(red, _by_cell_summary(h, n_cycles)) == []
