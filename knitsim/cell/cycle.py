@@ -892,7 +892,15 @@ def dissipated_energy(strain: np.ndarray, force: np.ndarray) -> float:
         # numpy would broadcast a strain and a force of other lengths into a number (a blind probe)
         raise KnitsimInputError(f"dissipated_energy: strain {strain.shape} and force {force.shape} must be 1-D arrays "
                                 "of one length")
-    return float((0.5 * (force[1:] + force[:-1]) * (strain[1:] - strain[:-1])).sum())
+    return float(dissipated_energies(strain[None, :], force[None, :])[0])
+
+
+def dissipated_energies(strain: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """:func:`dissipated_energy` of each row of ``strain`` and ``force`` [k, n] (paths of one length), at once.
+
+    Each row's trapezoids are summed as NumPy sums a 1-D array (a C-contiguous row reduced along it: the same
+    pairwise summation), so a row's value is :func:`dissipated_energy`'s of that row, to the last bit."""
+    return (0.5 * (force[:, 1:] + force[:, :-1]) * (strain[:, 1:] - strain[:, :-1])).sum(axis=1)
 
 
 def dissipated_energy_error(strain: np.ndarray, force: np.ndarray) -> float:

@@ -99,11 +99,21 @@ def cycle_work(strain: np.ndarray, force: np.ndarray, unloads: bool, loads: bool
     s, f = np.asarray(strain, float), np.asarray(force, float)
     w = dissipated_energy(s, f) if len(s) > 1 else 0.0
     c = s if imposed is None else np.asarray(imposed, float)
-    span = float(c.max() - c.min()) if len(c) else 0.0
-    closed = bool(unloads and len(c) > 1 and abs(c[-1] - c[0]) <= 1e-9 * max(span, 1e-12))
-    hysteresis, work, loading_work, unloading_work = ENERGY_KINDS
-    kind = hysteresis if closed else (loading_work if not unloads else work if loads else unloading_work)
-    return {"kind": kind, "closed": closed, "value": float(w)}
+    span = c.max() - c.min() if len(c) else 0.0
+    closed, kind = work_kinds(unloads, loads, len(c), c[0] if len(c) else 0.0, c[-1] if len(c) else 0.0, span)
+    return {"kind": ENERGY_KINDS[int(kind)], "closed": bool(closed), "value": float(w)}
+
+
+def work_kinds(unloads, loads, n, first, last, span) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cycle_work`'s ``closed`` and ``kind`` (an index into :data:`ENERGY_KINDS`) of paths (numbers, or
+    arrays of them: knitsim.io.results.cycle_numbers judges many cells' cycles at once) that unload or not, load
+    or not, of ``n`` rows whose closure strain goes from ``first`` to ``last`` over a range ``span`` (max - min)."""
+    span = np.asarray(span, float)
+    # (max(span, 1e-12), NaN kept as Python's max keeps it)
+    closed = (np.asarray(unloads, bool) & (np.asarray(n) > 1)
+              & (np.abs(np.asarray(last, float) - first) <= 1e-9 * np.where(1e-12 > span, 1e-12, span)))
+    kind = np.where(closed, 0, np.where(~np.asarray(unloads, bool), 2, np.where(np.asarray(loads, bool), 1, 3)))
+    return closed, kind
 
 
 def _turns(s: np.ndarray) -> list[int]:
