@@ -529,10 +529,12 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
 
     The numbers and flags are ``cell_summary``'s, from the same functions, without what a sweep does not keep
     (messages, rules, parameters): the program's rows are read once for the batch
-    (:class:`~knitsim.io.results.SummaryRows`), the stop rows, first jammed rows and the flags of simple rules
-    (heads_interpenetrate, wale_spacing_below_jamming, rest_state_compressive) judged for every cell at once,
-    and a cell's loops judged for energy only where :func:`knitsim.io.checks.energy_loop_candidates` says one
-    may warn (issue 15: 2.4 ms a cell on the host, against a GPU's 0.3 ms).
+    (:class:`~knitsim.io.results.SummaryRows`); the cycles' numbers (:func:`~knitsim.io.results.cycle_numbers`),
+    the cycle checks (:func:`~knitsim.io.checks.load_cycle_warnings_of`, the cells of one stop row together),
+    the stop rows, first jammed rows and the flags of the row rules (heads_interpenetrate,
+    wale_spacing_below_jamming, rest_state_compressive) judged for blocks of cells at once; and a cell's loops judged for energy only where :func:`knitsim.io.checks.energy_loop_candidates` says one
+    may warn, up to the first warning (issue 15: at 5.7 ms a cell, a 10^5-sample GPU sweep spent ~570 s here
+    against ~30 s solving; benchmarks/bench_reduce_history.py).
 
     Returns
     -------
@@ -581,7 +583,8 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
     block = max(1, REDUCE_BLOCK // max(n_rows, 1))
     events = [h.events_of(c) for c in range(n)]
     qs = [(q, int(k) - 1) for q, (k, _) in enumerate(rows_of.cycles)]     # the out column of each cycle
-    cycle_warnings = [[] for _ in range(n)]
+    # the flags of the cycle checks and the check against the monotonic pull
+    cycle_flags = [k for k in _WARNING_FLAGS if k not in ("heads_interpenetrate", "wale_spacing_below_jamming")]
     for c0 in range(0, n, block):
         cols = slice(c0, min(n, c0 + block))
         ok = n_ok[cols]
@@ -602,7 +605,10 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
                       if num["reached"][c - c0, q]] for c in at]
             for c, w in zip(at, load_cycle_warnings_of(peaks, rows_of.strain[:v], np.asarray(F_all[:v, at]),
                                                        rows_of.cycle[:v], rows_of.direction[:v])):
-                cycle_warnings[c] = w
+                w += reference_warnings(rows_of, F_all[:v, c], int(v), w, first_loading_curve(reference, c))
+                codes = {x.code for x in w}
+                for k in cycle_flags:
+                    out[k][c] = int(k in codes)
         live = np.arange(n_rows)[:, None] < ok
         jam_rows[cols] = first_jamming_rows(stage_label_codes(h.stage[:, cols], h.jammed[:, cols]), ok)
         if "interpenetrating" in h.values:
@@ -621,7 +627,6 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
                 cand = energy_loop_candidates(np.broadcast_to(S[:v + 1, None], (v + 1, len(at))),
                                               np.vstack([rest_F[at][None, :], np.asarray(F_all[:v, at])]))
                 loops[at[cand]] = True
-    cycle_flags = [k for k in _WARNING_FLAGS if k not in ("heads_interpenetrate", "wale_spacing_below_jamming")]
     final_status = out["final_status"]
     for c in range(n):
         p = params[c]
@@ -639,11 +644,6 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
         for k in _STOP_VARS:
             out[k][c] = np.nan if stop[k] is None else stop[k]
         F_ok = F_all[:k_ok, c]
-        warnings = cycle_warnings[c]
-        warnings += reference_warnings(rows_of, F_ok, k_ok, warnings, first_loading_curve(reference, c))
-        codes = {w.code for w in warnings}
-        for k in cycle_flags:
-            out[k][c] = int(k in codes)
         if loops[c]:
             out["loop_creates_energy"][c] = int(bool(energy_creating_loops(
                 np.concatenate([[0.0], rows_of.strain[:k_ok]]), np.concatenate([[rest_F[c]], F_ok]), p.C0,
