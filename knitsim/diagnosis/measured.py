@@ -1102,8 +1102,10 @@ def _total_force_hint(path, message: str) -> str:
         return ""
     try:
         cols = read_csv_columns(path, [], ("load_N", "force_N"), numeric=(), aliases=LAB_ALIASES)
-    except KnitsimInputError:
-        return ""
+    except KnitsimInputError as exc:
+        # a total force's name with a per-wale unit (load_N [N/wale]) says two things: the reading of that total
+        # refuses it naming the header cell, which is what to fix (before, only "missing force_per_wale_N")
+        return f"; {exc}" if "/wale" in str(exc) else ""
     total = next((k for k in ("load_N", "force_N") if k in cols), None)
     if total is None:
         return ""

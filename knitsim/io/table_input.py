@@ -724,9 +724,12 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         row (``line`` below it); a dimensionless column stated in per cent is noted in ``per_cent``."""
         pct = not _unit_fits(name, unit) and _is_per_cent(unit) and _dimensionless(name)
         if not pct and not _unit_fits(name, unit):
+            # (a per-wale unit on a total force's name: the column is most likely a force per wale, named wrong)
+            what = ("name the column force_per_wale_N if it holds a force per wale, else convert it to the total "
+                    "force in N" if _per_wale(unit) and not _key(name).endswith("per_wale_n") else
+                    "convert the column and write the unit its name implies, or none")
             raise KnitsimInputError(f"{path}: row {line}, column {cell!r}: the unit {unit!r} is not that of {name} "
-                                    f"(its name says its unit); convert the column and write the unit its name "
-                                    f"implies, or none.")
+                                    f"(its name says its unit); {what}.")
         stated = units[keys.index(_key(name))] if line != h + 1 else None     # the header cell's, under it
         if stated is not None and stated.strip() and unit.strip() and pct != (name in per_cent):
             # one says per cent, the other a fraction: which one is meant is not said

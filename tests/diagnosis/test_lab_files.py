@@ -657,3 +657,17 @@ def test_a_log_that_starts_by_unloading_is_read_and_says_its_loading_is_not_in_t
                                                       "0.550,1.10", "0.500,0.58", "0.450,0.28", "0.400,0.11"]
         loads = read_measured_curve(_write(tmp_path, "\n".join(rows) + "\n", "loads_first.csv"))
         assert not [n for n in loads.notes if "starts by unloading" in n]
+
+
+def test_a_total_forces_name_with_a_per_wale_unit_is_refused_saying_the_unit_is_the_problem(tmp_path):
+    """A helper's probe: `load_N [N/wale]` (a force per wale under a total force's name, or a total force with a
+    wrong unit: the file cannot say which) was refused by diagnose as a missing force_per_wale_N only.  Expected
+    (the reading rules: a unit must be the one the name implies): the refusal names the header cell and its unit
+    and says both ways out."""
+    p = _write(tmp_path, "strain,load_N [N/wale]\n0,0\n0.1,0.01\n0.2,0.03\n0.3,0.08\n0.2,0.02\n", "ln.csv")
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(p)
+    msg = str(e.value)
+    assert "missing column(s) force_per_wale_N" in msg
+    assert ("row 1, column 'load_N [N/wale]': the unit 'N/wale' is not that of load_N (its name says its unit); name "
+            "the column force_per_wale_N if it holds a force per wale, else convert it to the total force in N") in msg
