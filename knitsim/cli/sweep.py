@@ -84,6 +84,12 @@ def _announce_domain(plan) -> None:
                   file=sys.stderr, flush=True)
 
 
+def _more(what: str, summary: dict) -> str:
+    """Where the samples a warning does not print are: summary.json's list (with --json), or, past the ones it
+    lists, results.csv / results.nc (``<what>_listed``)."""
+    return summary.get(f"{what}_listed") or f"summary.json's {what} list; --json prints it"
+
+
 def _run(args) -> int:
     from ..sweep.runner import check_scheduler, check_workers, plan_sweep
     from ..sweep.spec import parse_sweep, split_scene
@@ -158,7 +164,7 @@ def _run_locked(args, plan, out_dir) -> int:
               f"after fixing the cause, finish with: {resume_cmd}", file=sys.stderr, flush=True)
         return 1
     summary = run.summary                            # written to summary.json by run_sweep
-    failed, n_bad = summary["failed"], len(summary["failed"])
+    failed, n_bad = summary["failed"], summary["failed_count"]
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
           f"{run.wall_s:.1f} s; wrote {', '.join(sorted(summary['files']))} to {out}", file=sys.stderr, flush=True)
     if n_bad:
@@ -169,7 +175,7 @@ def _run_locked(args, plan, out_dir) -> int:
                   f"{'' if f.get('cell') is None else ' cell ' + str(f['cell'])}: {f['reason']}",
                   file=sys.stderr, flush=True)
         if n_bad > 20:
-            print(f"  ... and {n_bad - 20} more (summary failed list with --json)", file=sys.stderr, flush=True)
+            print(f"  ... and {n_bad - 20} more ({_more('failed', summary)})", file=sys.stderr, flush=True)
     for what, note in (("no_rest_state", "outside the model, not solved: NaN in results.nc, grey squares / "
                                          "//-hatched in the plots"),
                        ("outside_domain", "outside the domain's box, solved (an extrapolation: convergence is "
@@ -205,15 +211,14 @@ def _run_locked(args, plan, out_dir) -> int:
                                                 "loading work if it never unloaded (energy_kind), later cycles NaN "
                                                 "in results.nc / results.csv; grey stars and triangles in the "
                                                 "plots")):
-        rows = summary[what]
-        if rows:
-            print(f"knitsim sweep: warning: {len(rows)} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
+        rows, count = summary[what], summary[f"{what}_count"]
+        if count:
+            print(f"knitsim sweep: warning: {count} sample cell(s) {what} ({note}):", file=sys.stderr, flush=True)
             for f in rows[:10]:
                 print(f"  sample {f['sample']}{'' if f.get('cell') is None else ' cell ' + str(f['cell'])}: "
                       f"{f['reason']}", file=sys.stderr, flush=True)
-            if len(rows) > 10:
-                print(f"  ... and {len(rows) - 10} more (summary {what} list with --json)", file=sys.stderr,
-                      flush=True)
+            if count > 10:
+                print(f"  ... and {count - 10} more ({_more(what, summary)})", file=sys.stderr, flush=True)
     if run.plot_error:
         # the results are complete without the figure; the status says something is missing
         print(f"knitsim sweep: error: plot_sweep.png could not be drawn ({run.plot_error}); results.nc, "

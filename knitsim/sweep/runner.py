@@ -14,8 +14,9 @@ Output directory ``OUT``::
     OUT/results.nc                 xarray Dataset (netCDF3 through SciPy)
     OUT/results.csv                one row per sample, cell and cycle
     OUT/plot_*.png                 (knitsim.sweep.plots)
-    OUT/summary.json               the run's figures and every flagged sample cell with its reason
-                                   (:func:`sweep_summary`; also :attr:`SweepRun.summary`)
+    OUT/summary.json               the run's figures, each kind of flag counted and its first SUMMARY_LISTED
+                                   sample cells listed with their reason (:func:`sweep_summary`; also
+                                   :attr:`SweepRun.summary`)
 
 A chunk file is written through a temporary sibling and a rename, by the
 process that computed it (in-process, or the Dask worker), so a run that is
@@ -1016,9 +1017,10 @@ def run_sweep(plan: SweepPlan, out_dir: str | Path, resume: bool = False, worker
 
 
 def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
-    """The ``summary.json`` document of a finished run: its figures, its files and every flagged sample
-    cell with its reason (failed, no rest state, outside the domain's box, a loop that returns energy, a
-    compressive rest state, stopped at the force cap in any cycle, the last included)."""
+    """The ``summary.json`` document of a finished run: its figures, its files and the flagged sample cells
+    with their reasons (failed, no rest state, outside the domain's box, a loop that returns energy, a
+    compressive rest state, stopped at the force cap in any cycle, the last included), each kind counted and
+    listed up to :data:`SUMMARY_LISTED` (:func:`_listing`)."""
     from ..cell.domain import DOMAIN_NO_REST_STATE, DOMAIN_OUTSIDE_BOX
 
     ds, out = run.dataset, run.out
@@ -1028,21 +1030,23 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
     compressive = compressive_rest_samples(ds)
     capped = capped_samples(ds)
     warned = {k: warning_samples(ds, k) for k in _WARNING_FLAGS}
+    outside = domain_samples(ds, DOMAIN_OUTSIDE_BOX)
     return {
         "out": str(out), "hash": plan.hash, "method": plan.spec.method, "parameters": plan.spec.keys,
         "samples": plan.n_samples, "cells_per_sample": plan.n_cells, "chunks": len(plan.chunks),
         "computed_chunks": len(run.computed), "skipped_chunks": len(run.skipped), "wall_s": run.wall_s,
-        "samples_per_s": run.samples_per_s, "cells_not_finished": len(failed) + len(no_rest), "failed": failed,
+        "samples_per_s": run.samples_per_s, "cells_not_finished": len(failed) + len(no_rest),
+        **_listing("failed", failed),
         # outside the model (no rest state: not solved) and outside the domain's box (solved, extrapolated)
-        "no_rest_state": no_rest, "outside_domain": domain_samples(ds, DOMAIN_OUTSIDE_BOX),
+        **_listing("no_rest_state", no_rest), **_listing("outside_domain", outside),
         # a closed loop that returns energy (oint F dC < 0: Table 4's frozen force closures), flagged not fixed
-        "loop_creates_energy_count": len(energy), "loop_creates_energy": energy,
+        **_listing("loop_creates_energy", energy),
         # a rest state the grips must push to hold (F < 0 at C0, W0): not free at rest
-        "rest_state_compressive_count": len(compressive), "rest_state_compressive": compressive,
+        **_listing("rest_state_compressive", compressive),
         # stopped at the force cap in any cycle (a stop, not a failure): that peak the cap, later cycles NaN
-        "stopped_at_force_cap_count": len(capped), "stopped_at_force_cap": capped,
+        **_listing("stopped_at_force_cap", capped),
         # the cell's own warnings (knitsim cell's): overlapping heads, a cycle that lost nearly all its force
-        **{key: v for k, rows in warned.items() for key, v in ((f"{k}_count", len(rows)), (k, rows))},
+        **{key: v for k, rows in warned.items() for key, v in _listing(k, rows).items()},
         "files": {k: str(v) for k, v in run.files.items()},
         # the base scene's values (or the library materials it names) come from a flagged calibration: every
         # sample's do (knitsim.io.checks.calibration_warnings)
@@ -1051,6 +1055,25 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
         # the plot could not be drawn (the results are complete without it): why
         **({"plot_error": run.plot_error} if run.plot_error else {}),
     }
+
+
+#: flagged samples listed by name in a sweep's summary.json, per kind of flag (the rest counted, and each sample's flag
+#: in results.csv / results.nc): a 50,000-sample sweep's lists were 46 MB, ~360 bytes a listed sample
+SUMMARY_LISTED = 1000
+
+#: the variable of results.csv / results.nc that holds each listing's flag for every sample
+_LISTED_VARIABLE = {"failed": "final_status and expected_end", "no_rest_state": "domain", "outside_domain": "domain",
+                    "stopped_at_force_cap": "peak_at_force_cap"}
+
+
+def _listing(key: str, rows: list[dict]) -> dict:
+    """A listing of summary.json: ``key`` (the first :data:`SUMMARY_LISTED` samples), ``key_count`` (all of them)
+    and, where some are left out, ``key_listed`` saying where every sample's flag is."""
+    out = {f"{key}_count": len(rows), key: rows[:SUMMARY_LISTED]}
+    if len(rows) > SUMMARY_LISTED:
+        out[f"{key}_listed"] = (f"the first {SUMMARY_LISTED} of {len(rows)}; every sample's flag is in results.csv and "
+                                f"results.nc ({_LISTED_VARIABLE.get(key, key)})")
+    return out
 
 
 def write_results(out: Path, ds, plots: bool = True) -> dict[str, Path | str]:

@@ -227,3 +227,25 @@ def test_a_sweep_on_a_flagged_calibrations_materials_says_so_in_its_summary(tmp_
     assert "NOT ONE YOU CAN USE" in capsys.readouterr().err
     codes = [w["code"] for w in json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"]]
     assert codes == ["from_unusable_calibration"]
+
+
+def test_a_long_listing_of_flagged_samples_is_cut_in_summary_json_and_counted_whole(tmp_path, capsys, monkeypatch):
+    # expectation: a 50,000-sample sweep's summary.json listed every flagged sample with its reason (46 MB); it lists
+    # the first SUMMARY_LISTED of each kind (here 2 of the 3 failing samples of the test above: E-glass pulled to
+    # strain 1.0 under a 1e12 N cap fails up its jammed branch whatever m), counts all of them, says where every
+    # sample's flag is, and the console counts all three and points there too
+    from knitsim.sweep import runner
+    monkeypatch.setattr(runner, "SUMMARY_LISTED", 2)
+    scene = tmp_path / "s.toml"
+    scene.write_text('engine = "warp"\ndevice = "cpu"\n[yarn]\nmaterial = "e_glass"\n[knit]\n'
+                     'material = "e_glass_plain"\n[friction]\nm = 0.2\nphi0 = 0.0\n[rules]\nforce_cap_N = 1e12\n'
+                     '[load]\ntype = "monotonic"\ntarget_strain = 1.0\nmax_increment = 0.02\n[sweep]\n'
+                     'method = "grid"\n[sweep.parameters]\n"friction.m" = { min = 0.1, max = 0.3, count = 3 }\n')
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--no-plot"]) == 1
+    err = capsys.readouterr().err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["failed_count"] == 3 and [f["sample"] for f in s["failed"]] == [0, 1, 2][:2]
+    assert s["failed_listed"] == ("the first 2 of 3; every sample's flag is in results.csv and results.nc "
+                                  "(final_status and expected_end)")
+    assert s["no_rest_state_count"] == 0 and "no_rest_state_listed" not in s
+    assert "warning: 3 sample cell(s) failed" in err
