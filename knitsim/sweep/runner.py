@@ -70,7 +70,6 @@ from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir, record_outputs
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
 from ..scene.schema import fmt, load_toml, set_value
-from ..warp_runtime import usable_cores
 from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
@@ -857,6 +856,8 @@ def check_workers(workers: int | None, scheduler: str | None = None) -> None:
         return
     if workers < 0:
         raise KnitsimInputError(f"--workers = {workers}: expected 0 (no Dask) or a positive number")
+    from ..warp_runtime import usable_cores     # (Warp itself imported only where a sweep runs)
+
     cores = usable_cores()
     if not scheduler and workers > cores:
         raise KnitsimInputError(f"--workers = {workers}: more than the {cores} core(s) of this machine (each worker "
@@ -899,6 +900,8 @@ def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int |
                 raise KnitsimInputError(f"--scheduler = {scheduler!r}: cannot connect ({exc})") from None
         else:
             # no more workers than chunks to run: a worker without a chunk only costs its start and its memory
+            from ..warp_runtime import usable_cores
+
             n = max(1, min(workers or usable_cores(), len(tasks)))
             with _workers_ignore_sigint():
                 cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,

@@ -10,6 +10,7 @@ import pytest
 
 from knitsim.cell.engine import simulate
 from knitsim.errors import KnitsimInputError
+from knitsim import warp_runtime
 from knitsim.sweep import runner
 from knitsim.sweep.runner import assemble, plan_sweep, run_sweep
 
@@ -201,7 +202,7 @@ def test_local_workers_beyond_the_cores_are_refused_and_never_more_than_the_chun
     # them than cores only share the cores (a blind probe's --workers 1000 on 2 cores started 513 processes
     # holding 21 GB before it was stopped)
     from knitsim.cli import main
-    monkeypatch.setattr(runner, "usable_cores", lambda: 2)
+    monkeypatch.setattr(warp_runtime, "usable_cores", lambda: 2)
     plan = plan_sweep(SCENE, GRID)
     with pytest.raises(KnitsimInputError, match=r"^--workers = 3: more than the 2 core\(s\) of this machine"):
         run_sweep(plan, tmp_path / "r", workers=3, progress=None, plots=False)
@@ -226,7 +227,7 @@ def test_local_workers_beyond_the_cores_are_refused_and_never_more_than_the_chun
         started.append(n_workers)
         raise Started
 
-    monkeypatch.setattr(runner, "usable_cores", lambda: 8)
+    monkeypatch.setattr(warp_runtime, "usable_cores", lambda: 8)
     monkeypatch.setattr(dask.distributed, "LocalCluster", cluster)
     with pytest.raises(Started):
         runner._run_dask([{"chunk": 0}, {"chunk": 1}], None, [], None, None, None)
