@@ -53,6 +53,7 @@ simulated force (and stage labels) at the measured rows.
 """
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -1004,9 +1005,7 @@ def refuse_several_tests(source, cols):
         if name not in cols:
             continue
         values = [str(v).strip() for v in cols[name]]
-        counts: dict[str, int] = {}
-        for v in values:
-            counts[v] = counts.get(v, 0) + 1
+        counts = Counter(values)
         first = {}
         for v, r in zip(values, cols["_row"]):
             if v and v not in first and counts[v] >= MIN_CURVE_ROWS:
@@ -1052,13 +1051,13 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
     refuse_few_rows(path, cols["_row"])
     # (a file only: arrays made in code keep the convention that the first row ends a loading from rest, as a
     # hand-made unloading logged from its peak does, tests/diagnosis/test_diagnose.py)
-    refuse_reversed_rows(str(path), cols["strain"], strain_tolerance(cols["strain"]),
-                         lambda i: int(cols["_row"][i]))
+    tol = strain_tolerance(cols["strain"])
+    refuse_reversed_rows(str(path), cols["strain"], tol, lambda i: int(cols["_row"][i]))
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     if notes_of(cols):
         curve = replace(curve, notes=tuple(notes_of(cols)) + tuple(curve.notes))
-    start = unrecorded_loading(curve, strain_tolerance(cols["strain"]))
+    start = unrecorded_loading(curve, tol)
     if start:
         curve = replace(curve, notes=tuple(curve.notes) + (start,))
     if len(curve) > LONG_CURVE_ROWS:
