@@ -467,6 +467,7 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
             if not (with_unit or spelled):
                 continue
             unit = _alias_unit(cells, unit_cells, j)
+            bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))     # the cell's name without its unit
             if with_unit and None not in with_unit:
                 # a name that stands for the column only with its unit (force [N/wale]: Force (N) is a total force,
                 # no force per wale): taken with it, else not this column (nothing to say)
@@ -475,7 +476,6 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                     taken[j] = name
                 elif unit is not None and _per_wale(unit):
                     # a force per wale in another unit (Force [kN/wale]): said as this column's, converted to its own
-                    bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
                     why_not.append((j, f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: "
                                        f"{bare + ' [' + with_unit[0] + ']'!r})"))
                 continue
@@ -483,12 +483,11 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
             if fits or not strict:
                 keys[j] = _key(name)
                 taken[j] = name
-            elif unit is not None and _per_wale(unit) and not _key(name).endswith("per_wale_n"):
+            elif unit is not None and _per_wale(unit) and not _per_wale_column(name):
                 # (a per-wale unit on a total force's name: the conversion to that total would mislead; a force per
                 # wale's own names say it)
                 continue
             else:
-                bare = re.sub(r"\s*([\[(].*|%)$", "", _trim(cell))
                 stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else
                                                                      (_implied_unit(name),)))
                 why_not.append((j, f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
@@ -502,6 +501,11 @@ def _per_wale(unit: str) -> bool:
     """Whether ``unit`` is per wale (``N/wale``, ``kN / wale``, ``N per wale``)."""
     u = _unit_norm(unit)
     return u.endswith("/wale") or u.endswith("/wales") or u.endswith("perwale")
+
+
+def _per_wale_column(name: str) -> bool:
+    """Whether the column asked for as ``name`` is a force per wale (``force_per_wale_N``)."""
+    return _key(name).endswith("_per_wale_n")
 
 
 def _unit_norm(unit: str) -> str:
@@ -726,7 +730,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         if not pct and not _unit_fits(name, unit):
             # (a per-wale unit on a total force's name: the column is most likely a force per wale, named wrong)
             what = ("name the column force_per_wale_N if it holds a force per wale, else convert it to the total "
-                    "force in N" if _per_wale(unit) and not _key(name).endswith("per_wale_n") else
+                    "force in N" if _per_wale(unit) and not _per_wale_column(name) else
                     "convert the column and write the unit its name implies, or none")
             raise KnitsimInputError(f"{path}: row {line}, column {cell!r}: the unit {unit!r} is not that of {name} "
                                     f"(its name says its unit); {what}.")
