@@ -52,7 +52,8 @@ def register(subparsers) -> None:
     parser.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
     add_output_flags(parser, resumable=True)
     parser.add_argument("--workers", type=int, default=None, metavar="N",
-                        help="local Dask worker processes, at most one per core (default: one per core, no more than the chunks to run); 0: run in this process")
+                        help="local Dask worker processes, at most one per core (default: one per core, no more "
+                             "than the chunks to run); 0: run in this process")
     parser.add_argument("--scheduler", metavar="ADDR", default=None,
                         help="address of an existing Dask scheduler, e.g. tcp://host:8786 "
                              "(workers need knitsim and --out on a shared file system)")

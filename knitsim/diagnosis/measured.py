@@ -1080,8 +1080,8 @@ def unrecorded_loading(curve: MeasuredCurve, tol: float) -> str | None:
     if len(s) < 2 or not s[0] > tol or curve.direction[1] != -1:
         return None
     row = int(curve.rows[0]) if curve.rows is not None else 1
-    return (f"starts by unloading from strain {float(s[0]):.4g} (row {row}, {float(curve.force[0]):.3g} N per wale): the "
-            "loading that reached it is not in the file; it is replayed as one loading from rest to that strain, "
+    return (f"starts by unloading from strain {float(s[0]):.4g} (row {row}, {float(curve.force[0]):.3g} N per wale): "
+            "the loading that reached it is not in the file; it is replayed as one loading from rest to that strain, "
             "which no row checks (the unloading and later cycles depend on it)")
 
 

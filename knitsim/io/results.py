@@ -502,8 +502,8 @@ def _cell_summary(h: BatchHistory, cell: int, label: str, notes: dict | None, re
     n_ok = _stopped_rows(status)
     events = h.events_of(cell)
     cycles_out = cycle_entries(h, cell, n_ok, events, rows_of)
-    jam_strain, jam_from = first_jamming(events, int(first_jamming_rows(stage_label_codes(h.stage[:, cell:cell + 1], h.jammed[:, cell:cell + 1]), n_ok)[0]),
-                                         h.values["C"][:, cell], p.C0)
+    codes = stage_label_codes(h.stage[:, cell:cell + 1], h.jammed[:, cell:cell + 1])
+    jam_strain, jam_from = first_jamming(events, int(first_jamming_rows(codes, n_ok)[0]), h.values["C"][:, cell], p.C0)
 
     counts = {STATUS_NAMES[int(s)]: int(np.sum(status == s)) for s in np.unique(status)}
     final = int(status[-1])

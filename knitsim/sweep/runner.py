@@ -532,8 +532,9 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
     (:class:`~knitsim.io.results.SummaryRows`); the cycles' numbers (:func:`~knitsim.io.results.cycle_numbers`),
     the cycle checks (:func:`~knitsim.io.checks.load_cycle_warnings_of`, the cells of one stop row together),
     the stop rows, first jammed rows and the flags of the row rules (heads_interpenetrate,
-    wale_spacing_below_jamming, rest_state_compressive) judged for blocks of cells at once; and a cell's loops judged for energy only where :func:`knitsim.io.checks.energy_loop_candidates` says one
-    may warn, up to the first warning (issue 15: at 5.7 ms a cell, a 10^5-sample GPU sweep spent ~570 s here
+    wale_spacing_below_jamming, rest_state_compressive) judged for blocks of cells at once; and a cell's loops
+    judged for energy only where :func:`knitsim.io.checks.energy_loop_candidates` says one may warn, up to the
+    first warning (issue 15: at 5.7 ms a cell, a 10^5-sample GPU sweep spent ~570 s here
     against ~30 s solving; benchmarks/bench_reduce_history.py).
 
     Returns
