@@ -12,7 +12,7 @@ the code run is the library's):
   located event: what a resume from that event would save);
 - the column trials per increment, and how far each increment's first trial misses the column tolerance.
 
-Usage (the README's "Where the specimen's core goes now" was measured so)::
+Usage (benchmarks/README.md's "Where the specimen's core goes now" was measured so)::
 
     python benchmarks/profile_specimen.py [--increments K]
 """

@@ -97,7 +97,7 @@ kept on the increment's side of the committed ones.  Not so at the rest state
 solver stops: no convergence over one long step) bounds its model halfway
 between that length and its nearest good trial (bisection towards the
 failure).  A trial from the committed state may fail where shorter steps do
-not (on SF- near R = 0, README "Where the patch's time goes", cause 1): a
+not (on SF- near R = 0, benchmarks/README.md, "Where the patch's time goes", cause 1): a
 column that has not converged after its trials (or after 8 of them when a cell
 of it failed in the last) is taken back to its committed state and brought to u in
 ``sub_increments`` equal sub-increments, each solved and committed in turn.

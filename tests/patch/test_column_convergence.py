@@ -8,7 +8,7 @@ each increment the grip's): by the identity of series equilibrium, the force the
 at every committed length must equal the column force (to the coupling's tolerance), for every cell,
 at every increment, slack included (F = 0).  The cells differ in phi0 across [-phimax, phimax], as in
 a random-phi0 patch: some slide, some stick, and they go slack at different lengths, the cases that
-the coupling must converge on (README, "Where the patch's time goes").
+the coupling must converge on (benchmarks/README.md, "Where the patch's time goes").
 """
 from __future__ import annotations
 
