@@ -932,8 +932,9 @@ class ProgramHistory:
 #: on a GPU, a batch of at least this many cells runs one launch per increment with its cells sorted by
 #: stage, each increment in two passes (run_batch).  At 10^6 random cells x 62 increments on an H200,
 #: same run (bench_table.py; benchmarks/README.md, "Two passes per increment"): 6.03 x 10^6
-#: cell-increments / s, against 5.30 x 10^6 sorted in one pass and 2.91 x 10^6 in one launch per range; below this size the per-increment sort
-#: and launches cost more than the warps' divergence they save
+#: cell-increments / s, against 5.30 x 10^6 sorted in one pass and 2.91 x 10^6 in one launch per
+#: range; below this size the per-increment sort and launches cost more than the warps' divergence
+#: they save
 SORT_BY_STAGE_MIN_CELLS = 10_000
 #: CellSolver.step (the patch's trials) runs in two passes from this many cells, on any device: on one
 #: CPU core a 23 x 20 random-phi0 patch through the 3 cycles took 6.82 instead of 7.26 CPU s (1.06 x),
