@@ -820,6 +820,18 @@ class _Problem:
                         raise KnitsimInputError(f"specimens.{s.name}.pretension_sd: needed > 0 to fit the pretension "
                                                 "per specimen (the sd of its prior: how far the tester's pretension "
                                                 "may have stretched the knit before the strain origin)")
+        for s in self.sp:
+            for n in GEOMETRY:
+                u = s.uncertainty.get(n, 0.0)
+                if u > 0 and n not in setup.per_specimen:
+                    # a stated uncertainty of a geometry not fitted would be ignored, the fit holding the value as
+                    # stated, exactly (a probe's L stated 1 % off with sd 0.02, L not in per_specimen: one yarn
+                    # read as two, p = 1e-12, m 5 standard errors off, nothing said of L)
+                    raise KnitsimInputError(
+                        f"specimens.{s.name}.uncertainty.{n} = {u!r}: {n} is not fitted (not in "
+                        f"calibration.per_specimen), so the fit would hold it at its stated {s.knit[n]:g} mm exactly "
+                        f"and ignore this uncertainty: add {n} to calibration.per_specimen, or set "
+                        f"uncertainty.{n} = 0 (known)")
         if len(set(shared)) != len(shared) or len(set(setup.per_specimen)) != len(setup.per_specimen):
             raise KnitsimInputError("calibration: a variable is listed twice")
         if not self.sp:

@@ -273,8 +273,8 @@ def test_an_interrupted_calibration_resumes_to_the_same_fit_without_redoing_work
     assert ticks[0] == ("starts screened", 4, 4)            # resumed: the screening was done
     # another setup does not take this checkpoint
     with pytest.raises(KnitsimInputError, match="belongs to other specimens or another calibration setup"):
-        calibrate_joint(specimens, JointSetup(base=base, shared=("B",), max_increment=STEP), checkpoint=ck,
-                        resume=True)
+        calibrate_joint(specimens, JointSetup(base=base, shared=("B",), per_specimen=("W0",), max_increment=STEP),
+                        checkpoint=ck, resume=True)
 
 
 def test_pretension_of_a_model_curve_is_recovered():

@@ -157,3 +157,22 @@ def test_a_start_inside_its_bounds_is_not_refused(tmp_path, e_glass_calibration)
     (tmp_path / "cal.toml").write_text(dumps(doc))
     scene = load_calibration_scene(tmp_path / "cal.toml")
     check_setup(scene.specimens, scene.setup)
+
+
+def test_an_uncertainty_of_a_geometry_not_fitted_is_refused(tmp_path, capsys, e_glass_calibration):
+    """uncertainty.L = 0.02 while L is not in calibration.per_specimen: before, the fit held L at its stated
+    value exactly, the uncertainty ignored without a word (a probe's L stated 1 % off: one yarn read as two,
+    p = 1e-12); a zero uncertainty (known) and a fitted L are accepted."""
+    doc = e_glass_calibration("refusals")
+    doc["specimens"][0]["uncertainty"] = {"L": 0.02}
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert ("specimens.tight.uncertainty.L = 0.02: L is not fitted (not in calibration.per_specimen), so the fit "
+            "would hold it at its stated 14.1 mm exactly") in line, line
+    doc["specimens"][0]["uncertainty"] = {"L": 0.0}
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    load_calibration_scene(tmp_path / "cal.toml")
+    doc["specimens"][0]["uncertainty"] = {"L": 0.02}
+    doc["calibration"]["per_specimen"] = ["L"]
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    load_calibration_scene(tmp_path / "cal.toml")
