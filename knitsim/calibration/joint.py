@@ -871,6 +871,7 @@ class _Problem:
         self.k = len(self.vars)
         if self.k == 0:
             raise KnitsimInputError("calibration: nothing to fit (shared and per_specimen are empty)")
+        self._check_knits()
         self._check_starts()
         for s in self.sp:
             self._check_reach(s)
@@ -985,6 +986,18 @@ class _Problem:
     @property
     def hi(self) -> np.ndarray:
         return np.array([v.hi for v in self.vars])
+
+    def _check_knits(self) -> None:
+        """Refuse a specimen whose knit as stated is no cell with the start yarn (the cell's own check, e.g. W0
+        below 4 d: a W0 in cm), naming the specimen: before, only the first specimen's knit was checked (the scene's
+        start cell), and a later one's ran the whole fit to a RuntimeError traceback ("the calibrated point is
+        not an admissible cell")."""
+        for s in self.sp:
+            try:
+                self.base.replace(**s.knit).validated(where="cell")
+            except KnitsimInputError as exc:
+                raise KnitsimInputError(f"specimens.{s.name}.knit: the start yarn on this knit as stated: {exc}") \
+                    from None
 
     def _check_starts(self) -> None:
         """Refuse a start (the scene's value) outside its variable's bounds: the fit would start from the nearest

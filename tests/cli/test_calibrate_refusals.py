@@ -176,3 +176,21 @@ def test_an_uncertainty_of_a_geometry_not_fitted_is_refused(tmp_path, capsys, e_
     doc["calibration"]["per_specimen"] = ["L"]
     (tmp_path / "cal.toml").write_text(dumps(doc))
     load_calibration_scene(tmp_path / "cal.toml")
+
+
+@pytest.mark.parametrize("shared", [["B", "m"], ["B", "m", "in_plane_width"]])
+def test_a_later_specimens_knit_that_is_no_cell_is_refused_naming_it(tmp_path, capsys, e_glass_calibration, shared):
+    """The second specimen's W0 given in cm (0.44 for 4.4 mm): W0 < 4 x the in-plane width 0.79 mm (the cell's own
+    check, Hong 2002: loops jammed at rest).  Before, only the first specimen's knit was checked: with shared
+    B, m the fit ran to the end and stopped on a RuntimeError traceback ("the calibrated point is not an
+    admissible cell"); with the in-plane width fitted it was refused as that width's start outside "[0.79,
+    0.11]"."""
+    doc = e_glass_calibration("refusals")
+    doc["calibration"]["shared"] = shared
+    doc["specimens"].append(dict(doc["specimens"][0], name="loose", curve="b.csv",
+                                 knit={"L": 14.1, "W0": 0.44, "C0": 2.7}))
+    (tmp_path / "b.csv").write_text(_curve(0.2).replace(",0.5", ",0.6"))
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert "specimens.loose.knit: the start yarn on this knit as stated: " in line, line
+    assert "loops jammed at rest: W0 = 0.44 < 4 in_plane_width" in line, line
