@@ -73,6 +73,32 @@ _GEOMETRY_TABLE = Table({k: Field(("float",), REQUIRED, f"stated {k}", "mm", min
 _UNCERTAINTY_TABLE = Table({k: Field(("float",), 0.0, f"relative sd of the stated {k}", min=0.0, max=0.5)
                             for k in GEOMETRY}, "relative sd of each stated value (0: known)")
 
+#: the longest a file's name may be (bytes: Linux and macOS; NTFS counts 255 UTF-16 units)
+NAME_MAX = 255
+#: what a specimen's name is joined with to name the files written (knitsim.calibration.outputs)
+_SPECIMEN_FILES = ("fit_{}.png", "{}.cell.toml", "{}.patch.toml")
+
+
+def _specimen_name_check(name) -> str | None:
+    """A specimen's name names the files written for it (``fit_NAME.png``, ``NAME.cell.toml``,
+    ``NAME.patch.toml``): refused where it cannot (a folder separator, no name, beyond :data:`NAME_MAX`)
+    before the fit, which would otherwise run to a traceback when the files are written (a probe's
+    ``"mid/2"``: FileNotFoundError; 250 characters: "File name too long")."""
+    if not isinstance(name, str):
+        return None
+    files = ", ".join(f.format("NAME") for f in _SPECIMEN_FILES)
+    if not name.strip():
+        return f"empty: it names the files written for the specimen ({files})"
+    sep = next((c for c in ("/", "\\", "\0") if c in name), None)
+    if sep is not None:
+        return f"holds {sep!r}, which no file name may hold: it names the files written for the specimen ({files})"
+    longest = max(len(f.format(name).encode()) for f in _SPECIMEN_FILES)
+    if longest > NAME_MAX:
+        return (f"too long: it names the files written for the specimen ({files}), the longest of them "
+                f"{longest} bytes, more than a file name may have ({NAME_MAX})")
+    return None
+
+
 #: the schema of a calibration scene
 CALIBRATION_SCENE = Table({
     "title": Field(("str",), OPTIONAL, "free text"),
@@ -118,7 +144,8 @@ CALIBRATION_SCENE = Table({
         "seed": Field(("int",), 0, "seed of the starts", min=0),
     }, "what is fitted", required=True),
     "specimens": TableArray(Table({
-        "name": Field(("str",), REQUIRED, "the knit's name in the library written"),
+        "name": Field(("str",), REQUIRED, "the knit's name in the library written (and in the files written for "
+                      "the specimen: fit_NAME.png, NAME.cell.toml, NAME.patch.toml)", check=_specimen_name_check),
         "width": Field(("float",), REQUIRED, "specimen width across the wales", "mm", min=0.0, min_inclusive=False),
         "gauge_length": Field(("float",), REQUIRED, "distance between the grips", "mm", min=0.0,
                               min_inclusive=False),

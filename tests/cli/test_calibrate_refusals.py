@@ -194,3 +194,30 @@ def test_a_later_specimens_knit_that_is_no_cell_is_refused_naming_it(tmp_path, c
     line = _one_line_refusal(tmp_path, rc, cap)
     assert "specimens.loose.knit: the start yarn on this knit as stated: " in line, line
     assert "loops jammed at rest: W0 = 0.44 < 4 in_plane_width" in line, line
+
+
+@pytest.mark.parametrize("name, expect", [
+    ("tight/2", "specimens[0].name = \"tight/2\": holds '/', which no file name may hold"),
+    ("  ", "specimens[0].name = \"  \": empty"),
+    # fit_NAME.png, NAME.cell.toml, NAME.patch.toml: the longest is NAME + 11 bytes, 246 + 11 = 257 > 255
+    ("t" * 246, "the longest of them 257 bytes, more than a file name may have (255)"),
+])
+def test_a_specimen_name_that_cannot_name_its_files_is_refused(tmp_path, capsys, e_glass_calibration, name, expect):
+    """The specimen's name names the files written for it: before, "tight/2" ran the whole fit and stopped on a
+    FileNotFoundError traceback when writing tight/2.cell.toml, and a 250-character name on "File name too
+    long" (OSError)."""
+    doc = e_glass_calibration("refusals")
+    doc["specimens"][0]["name"] = name
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert expect in line, line
+
+
+def test_a_specimen_name_of_the_longest_file_name_is_accepted(tmp_path, e_glass_calibration):
+    """244 bytes + ".patch.toml" = 255 bytes, the most a file name may have: accepted."""
+    doc = e_glass_calibration("refusals")
+    doc["specimens"][0]["name"] = "t" * 244
+    (tmp_path / "a.csv").write_text(_curve(0.2))
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    load_calibration_scene(tmp_path / "cal.toml")
+    (tmp_path / ("t" * 244 + ".patch.toml")).write_text("")      # the file system takes it
