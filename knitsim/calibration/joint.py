@@ -1443,12 +1443,34 @@ def _force_scale_flag(fit: "SpecimenFit") -> str:
     return ""
 
 
-def _note(name: str, side: str, specimen: str | None, effect_var=None, stated: bool = True) -> str:
+def _stated_end(name: str, side: str, bounds, end: float | None) -> bool:
+    """Whether the bound ``side`` that variable ``name`` reached is the scene's own ``calibration.bounds.NAME``
+    (``bounds``: its [low, high]) rather than the variable's natural end that :data:`_BOUND_NOTES` or the
+    geometry's 4 sd explain (m = 0, phi0 = +-phimax, pretension 0, the in-plane width at d: ``end`` is the
+    reported bound, max(d, low)).  A probe's m bounded to [0.3, 1] and ending at 0.3 read "no friction at the
+    crossing"."""
+    u = float(bounds[0] if side == "low" else bounds[1])
+    if name in GEOMETRY:
+        return True                         # the stated factors replace the 4 sd
+    if name in ("m", "pretension"):
+        return side == "high" or u > 0.0
+    if name == "phi0":
+        return abs(u) < 1.0                 # a fraction of phimax
+    if name in ("in_plane_width", "d") and end is not None:
+        return abs(float(end) - u) <= 1e-9 * max(abs(u), 1e-300)
+    return True
+
+
+def _note(name: str, side: str, specimen: str | None, effect_var=None, stated: bool = True, bounds=None,
+          end: float | None = None) -> str:
     """What the bound ``side`` of variable ``name`` means.  An effect's variable (``effect_var``,
     :class:`knitsim.diagnosis.effects.Variable`) whose range the scene did not state (``stated`` False) ends at
     its search's own ends: one where the effect vanishes (a blind probe's compaction_k at 0 on curves without
     compaction read "the low end of the stated range", though none was stated), the others beyond which lies
-    more of it (``Variable.more``)."""
+    more of it (``Variable.more``).  A bound the scene stated (``bounds``, its [low, high]; ``end``, the bound
+    reported) is said as such where it is not the variable's natural end (:func:`_stated_end`)."""
+    if bounds is not None and _stated_end(name, side, bounds, end):
+        return f"the {side} end of the stated range"
     if (name, side) in _BOUND_NOTES:
         return _BOUND_NOTES[(name, side)]
     if name in GEOMETRY:
@@ -1763,7 +1785,8 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
             stated = 0.0
             dev = float(x[j] / pb.sp[spi].pretension_sd)
         unit = UNITS.get(nme, pb.effect_vars[nme].unit if nme in pb.effect_vars else "")
-        note = _note(nme, side, spname, pb.effect_vars.get(nme), nme in pb.user_bounds) if side else ""
+        note = (_note(nme, side, spname, pb.effect_vars.get(nme), nme in pb.user_bounds, pb.user_bounds.get(nme),
+                      float(los[j] if side == "low" else his[j])) if side else "")
         if side == "high" and nme in ("d", "in_plane_width") and nme in pb.user_bounds \
                 and his[j] >= pb.user_bounds[nme][1] * (1 - 1e-12):
             note = "the high end of the stated range (below W0/4 of the narrowest knit)"

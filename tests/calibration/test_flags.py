@@ -244,6 +244,26 @@ def test_an_effect_at_the_end_of_its_search_is_said_for_what_that_end_means():
     assert _note("compaction_k", "low", None, var["compaction_k"], stated=True) == "the low end of the stated range"
 
 
+@pytest.mark.parametrize("name, side, bounds, end, natural", [
+    ("m", "low", (0.3, 1.0), 0.3, "no friction at the crossing"),
+    ("phi0", "high", (-0.5, 0.5), None, "+phimax"),
+    ("pretension", "low", (0.01, 0.05), 0.01, "0: the knit at rest"),
+    ("in_plane_width", "low", (0.77, 1.0), 0.77, "the compact diameter d"),      # d = 0.56 < 0.77: the scene's end
+    ("W0", "high", (0.9, 1.1), 4.84, "4 sd of its stated value"),
+])
+def test_a_bound_the_scene_stated_is_said_as_stated_not_as_the_natural_end(name, side, bounds, end, natural):
+    """A probe's m bounded to [0.3, 1] ended at 0.3 and was flagged "no friction at the crossing" (m = 0's
+    meaning); each variable's natural end is said only where the scene's bound is that end (or none is
+    stated)."""
+    from knitsim.calibration.joint import _note
+    assert _note(name, side, None, None, True, bounds, end) == f"the {side} end of the stated range"
+    assert natural in _note(name, side, None, None, False)
+    natural_bounds = {"m": (0.0, 1.0), "phi0": (-1.0, 1.0), "pretension": (0.0, 0.05),
+                      "in_plane_width": (0.3, 1.0)}
+    if name in natural_bounds:       # the scene's bound at the natural end (the in-plane width's low end is d)
+        assert natural in _note(name, side, None, None, True, natural_bounds[name], 0.56 if end else None)
+
+
 def test_a_specimen_on_another_force_scale_is_flagged_first():
     """A blind probe: a specimen in kN under a `load_N` header was flagged for its misfit and a bound, nothing said
     of the unit.  Hand-made fits: the model carries 0.6 N at rest and up to 2 N; readings a thousand times smaller

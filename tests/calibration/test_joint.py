@@ -327,3 +327,18 @@ def test_pretension_of_a_model_curve_is_recovered():
     fh = run_patch(fm, pretensioned(monotonic(grip[-1], step), fm.grip_offset, 0.005))
     rows = np.searchsorted(fh.grip_strain, grip - 1e-9)
     np.testing.assert_allclose(fh.force_N[rows], fit.simulated_N, rtol=1e-9)
+
+
+def test_m_held_above_the_truth_by_the_scenes_bound_is_said_at_the_stated_end():
+    """Model curves of m = 0.45 fitted with m bounded to [0.6, 0.8]: m ends at 0.6, the low end the scene stated,
+    which the flag must say (before: "no friction at the crossing", the meaning of m = 0)."""
+    specimens = [SpecimenData(f"knit{i}", s, y, sd, None, None, True, WIDTH, GAUGE, dict(k))
+                 for i, ((s, y, sd), k) in enumerate(zip(_curves(), KNITS))]
+    base = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.7, in_plane_width=0.79, force_cap_N=200.0)
+    setup = JointSetup(base=base, shared=("B", "m"), per_specimen=(), max_increment=STEP, starts=2, refine=1,
+                       max_nfev=20, bounds={"B": (0.05, 2.0), "m": (0.6, 0.8)})
+    r = calibrate_joint(specimens, setup)
+    e = r.estimate("m")
+    assert e.at_bound == "low" and e.value == pytest.approx(0.6), (e.value, e.at_bound)
+    flag = next(f for f in r.flags if f.startswith("m = "))
+    assert "the low end of the stated range" in flag and "no friction" not in flag, flag
