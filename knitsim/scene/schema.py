@@ -280,7 +280,9 @@ def _parse_text(f: Field, text: str, key: str) -> Any:
                 continue
         elif t == "bool" and s in ("true", "false"):
             return s == "true"
-        elif t == "float_list" and s.startswith("["):
+        elif t in ("float_list", "str_list") and s.startswith("["):
+            # a TOML array, as in the scene (before, a str_list had no branch: --set effects.on=["..."] or
+            # calibration.per_specimen=[...] was refused whatever was typed); its items are checked by validate
             try:
                 return tomllib.loads(f"v = {s}")["v"]
             except tomllib.TOMLDecodeError:

@@ -21,6 +21,7 @@ SCHEMA = Table({
     "phi0": Field(("float", "str"), 0.0, check=lambda v: None if not isinstance(v, str) or v == "phimax"
                   else 'expected a number or "phimax"'),
     "waypoints": Field(("float_list",), OPTIONAL),
+    "on": Field(("str_list",), OPTIONAL, choices=("a", "b")),
     "knit": KNIT,
     "cells": TableArray(Table({"knit": KNIT}), min_items=1),
 })
@@ -110,6 +111,19 @@ def test_set_value_converts_by_type():
 def test_set_value_errors(assignment, match):
     with pytest.raises(KnitsimInputError, match=match):
         set_value({"cells": [{}]}, SCHEMA, assignment)
+
+
+def test_set_value_takes_a_list_of_strings_as_a_toml_array():
+    """--set effects.on=["yarn_compaction"] or calibration.per_specimen=["phi0", "W0"]: a list of strings was
+    refused whatever was typed ("expected a list of strings"); now read as the scene writes it (a TOML array),
+    its items checked by validate (choices, repeats) as a scene's are."""
+    data = set_value({}, SCHEMA, 'on=["a", "b"]')
+    doc = {"knit": {"L": 14.1}, "cells": [{"knit": {"L": 1.0}}]}
+    assert data == {"on": ["a", "b"]} and validate(SCHEMA, {**doc, **data})["on"] == ["a", "b"]
+    assert set_value({}, SCHEMA, "on=[]") == {"on": []}
+    err(set_value(doc, SCHEMA, 'on=["a", "c"]'), r'^on\[1\] = "c": expected one of a, b$')
+    with pytest.raises(KnitsimInputError, match=r'^on = "a": expected a list of strings$'):
+        set_value({}, SCHEMA, "on=a")
 
 
 def test_set_value_nan_is_refused_by_validation():
