@@ -549,21 +549,31 @@ HEADER_SCAN_LINES = 200
 
 def _likeliest_header(lines: list[str], names: list[str], aliases: dict) -> int | None:
     """Where no line names every required column: the first non-comment line naming most of ``names`` or of the
-    machines' names (``aliases``, whatever their units), else the first non-comment line, so that the refusal
-    shows the header the file has (a blind probe's Bluehill export was refused as having found its preamble's
-    ``Results Table 1``), or None for a file of blank lines and comments."""
+    machines' names (``aliases``, whatever their units), else, above the first row of two numbers, the first line
+    of the most labels (a header in the lab's own words: ``Zeit;Dehnung;Standardkraft`` under a preamble's
+    ``Test report``, which a probe's refusal listed as the header found), else the first non-comment line, so that
+    the refusal shows the header the file has (a blind probe's Bluehill export was refused as having found its
+    preamble's ``Results Table 1``), or None for a file of blank lines and comments."""
     known = {_key(c) for c in names} | {_key(a) for alts in aliases.values() for a in alts}
     best, best_n = None, 0
+    labelled, labels_n = None, 0
     # (a header is near the top: the first HEADER_SCAN_LINES lines, not a 200,000-row file's every row)
     for i, ln in enumerate(lines[:HEADER_SCAN_LINES]):
         if not ln.strip() or _is_comment(ln):
             continue
         if best is None:
             best = i
-        n = sum(_name_and_unit(c)[0] in known for c in _split(ln, _delimiter(ln)))
+        delim = _delimiter(ln)
+        cells = _split(ln, delim)
+        n = sum(_name_and_unit(c)[0] in known for c in cells)
         if n > best_n:
             best, best_n = i, n
-    return best
+        if best_n == 0 and sum(_is_number(_trim(c), delim != ",") for c in cells) >= 2:
+            break      # the data begin: the header is above
+        k = sum(_is_label(c, delim != ",") for c in cells)
+        if k > labels_n:
+            labelled, labels_n = i, k
+    return best if best_n > 0 or labelled is None else labelled
 
 
 def has_columns(path: str | Path, names: Iterable[str]) -> bool:

@@ -233,14 +233,26 @@ def test_a_file_without_the_columns_is_refused_listing_what_was_found(tmp_path):
 
 def test_a_preamble_without_the_columns_lists_the_line_naming_most_of_them(tmp_path):
     # No line holds both names: the line naming most of them is read as the header and listed (a blind probe's
-    # Bluehill export was refused as having found its preamble's first line); with none named, the first line
+    # Bluehill export was refused as having found its preamble's first line); with none named, the line of the most
+    # labels above the data (a probe's German export, below, was refused as having found "Test report, , , ")
     text = "Specimen: A3\nstrain,force\n0,0.1\n"
     p = _write(tmp_path, text)
     with pytest.raises(KnitsimInputError, match=r"missing column\(s\) force_per_wale_N \(found: strain, force; "
                                                 r"read as comma-separated\)"):
         read_csv_columns(p, REQ)
     p = _write(tmp_path, "Specimen: A3\neps,F\n0,0.1\n", "none.csv")
-    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) strain, force_per_wale_N \(found: Specimen: A3; "):
+    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) strain, force_per_wale_N \(found: eps, F; "):
+        read_csv_columns(p, REQ)
+    # hand-made: a title, a specimen and a date line, a blank line, the header in German, a units row, two rows
+    text = ("Test report;;\r\nSpecimen;E-glass A3;\r\nDate;29.11.2026;\r\n;;\r\nZeit;Dehnung;Standardkraft\r\n"
+            "s;%;N\r\n0,0;0,0;0,01\r\n0,5;1,0;0,07\r\n")
+    p = _write(tmp_path, text, "de.csv")
+    with pytest.raises(KnitsimInputError, match=r"missing column\(s\) strain, force_per_wale_N \(found: Zeit, Dehnung, "
+                                                r"Standardkraft; read as semicolon-separated\)"):
+        read_csv_columns(p, REQ)
+    # a file of numbers only: no line of labels above them, the first line is listed
+    p = _write(tmp_path, "0,0.1\n1,0.2\n", "bare.csv")
+    with pytest.raises(KnitsimInputError, match=r"\(found: 0, 0.1; read as comma-separated\)"):
         read_csv_columns(p, REQ)
 
 
