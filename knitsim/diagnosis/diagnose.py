@@ -1871,6 +1871,7 @@ def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None, drift=None) ->
                  "slack_start": None if slack is None else slack[i],
                  "drift": None if drift is None else drift[i],
                  "glitch_rows": list(getattr(c, "glitches", ())), "stall_rows": list(getattr(c, "stalls", ())),
+                 "hold_rows": list(getattr(c, "holds", ())),
                  "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
                                 "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
                                                              bc["labels"])}}
@@ -1943,9 +1944,11 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     data = _Data(curves, setup, noise.weights(curves))
     # rows of a force glitch (measured.force_glitches: a block that leaves the curve and comes back) are left out
     # from the start: a block of them moves the fit before any outlier can be judged against it
+    # (and so are a relaxing hold's rows after its first, measured.force_holds: the model keeps one force there)
     for c, w in zip(curves, data.weights):
-        if getattr(c, "glitches", ()):
-            w[np.isin(c.rows if c.rows is not None else np.arange(len(c)) + 2, c.glitches)] = 0.0
+        for left_out in (getattr(c, "glitches", ()), getattr(c, "holds", ())):
+            if left_out:
+                w[np.isin(c.rows if c.rows is not None else np.arange(len(c)) + 2, left_out)] = 0.0
     base_fit, outliers = calibrate_step(data, say)
     for c, fc, nz in zip(curves, base_fit["curves"], noise.curves):
         for row in getattr(c, "glitches", ()):
@@ -2017,6 +2020,14 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += "; " + "; ".join(
             f"{Path(c.source).name}: the force stalls at row {c.stalls[0]} while the strain runs on (a grip slip, or "
             "the knit's own stick-slip), and the rows after it are read at a strain the knit did not take" for c in stalled)
+    # a hold whose force relaxes (measured.force_holds): its rows left out, the branches after it from a relaxed knit
+    held = [c for c in curves if getattr(c, "holds", ())]
+    if held:
+        verdict.confident = False
+        verdict.reason += "; " + "; ".join(
+            f"{Path(c.source).name}: the force relaxes at one strain (a hold; {len(c.holds)} row(s) from row "
+            f"{c.holds[0]} left out), which the model, rate-independent, lacks, and the branches after it start from "
+            "a relaxed knit" for c in held)
     glitched = [c for c in curves if getattr(c, "glitches", ())]
     if glitched:
         verdict.reason += "; " + "; ".join(

@@ -53,6 +53,7 @@ simulated force (and stage labels) at the measured rows.
 """
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -150,6 +151,9 @@ class MeasuredCurve:
     #: rows (spreadsheet numbers) where the force stalls on a steep loading while the strain runs on
     #: (:func:`force_stalls`: a grip slip seen in the force)
     stalls: tuple = ()
+    #: rows (spreadsheet numbers) of a hold whose force relaxes at one strain (:func:`force_holds`), but each hold's
+    #: first: left out of the fit
+    holds: tuple = ()
 
     def __len__(self) -> int:
         return len(self.strain)
@@ -574,9 +578,27 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     clean = settle_turns(_monotone(s, d), d, jitter)
     refuse_merged_branches(source, clean, f, c, d, row)
     noise = curve_noise(clean, f, c, d, source, noise_N, strain_sd=jitter)
+    # a hold whose force relaxes (force_holds): its rows after the first are left out of the fit, of the noise
+    # estimate (their steps are the relaxation, not scatter) and of the glitch and stall checks (not their
+    # neighbours: a hold's rows beside the steep rows that reach it made those read as a glitch)
+    held = force_holds(s, f, c, d, noise) if noise.known else []
+    kept = np.ones(len(f), bool)
+    for i, j, _ in held:
+        kept[i + 1:j] = False
+    if held:
+        noise = curve_noise(clean[kept], f[kept], c[kept], d[kept], source, noise_N,
+                            strain_sd=reading_jitter(s[kept], d[kept]))
     refuse_negative_force(source, f, noise, row)
     found = strain_slips(clean, f, d, noise)
     notes, slips = cycle_note, ()
+    if held:
+        notes += (f"{len(held)} hold(s) whose force relaxes at one strain: "
+                  + ", ".join(f"rows {row(i)}-{row(j - 1)} at strain {float(clean[i]):.4g}, {change:+.3g} N"
+                              for i, j, change in held[:4])
+                  + (", ..." if len(held) > 4 else "")
+                  + "; the model has no relaxation (it is rate-independent): each hold's rows but its first are left "
+                    "out of the fit, and the branches after it start from a relaxed knit the model does not know, so "
+                    "no verdict on this curve is confident",)
     if found:
         slips = tuple(row(k) for k, *_ in found)
         k, jump, times, tells = found[0]
@@ -590,14 +612,19 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     glitches, stalls = (), ()
     if noise.known:
         # (in noise sd: a curve whose noise is assumed, read off a figure or an envelope, cannot tell)
-        blocks = force_glitches(clean, f, c, d, noise)
+        at = np.flatnonzero(kept)       # (the rows checked: a relaxing hold's left out, mapped back by `at`)
+        blocks = [(int(at[i]), int(at[j - 1]) + 1, z) for i, j, z in force_glitches(clean[kept], f[kept], c[kept],
+                                                                                      d[kept], noise)]
         if blocks:
             glitches = tuple(row(k) for i, j, _ in blocks for k in range(i, j))
             notes += (f"{len(blocks)} short block(s) of rows whose force leaves the curve and comes back: "
                       + ", ".join(f"rows {row(i)}-{row(j - 1)} ({z:+.0f} sd)" for i, j, z in blocks[:4])
                       + (", ..." if len(blocks) > 4 else "")
                       + " (a load-cell glitch, a yarn snapping and re-seating?); left out of the fit",)
-        found = force_stalls(clean, f, d, noise, skip=[k for i, j, _ in blocks for k in range(i, j)])
+        inside = np.cumsum(kept) - 1    # (a row's index among the rows checked)
+        found = [(int(at[k]), m, short) for k, m, short in
+                 force_stalls(clean[kept], f[kept], d[kept], noise,
+                              skip=[int(inside[k]) for i, j, _ in blocks for k in range(i, j)])]
         if found:
             stalls = tuple(row(k) for k, *_ in found)
             k, m, short = found[0]
@@ -608,7 +635,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                       f"the knit's own stick-slip, which the model lacks)?{more}; the rows after it are read at a strain "
                       "the knit did not take, so no verdict on this curve is confident",)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise, notes, slips, glitches,
-                         stalls)
+                         stalls, tuple(row(k) for k in np.flatnonzero(~kept)))
 
 
 #: a step of the strain this many times the median step of its branch is a jump (:func:`strain_slips`)
@@ -671,6 +698,56 @@ GLITCH_SIGMAS = 6.0
 GLITCH_ROW_SIGMAS = 3.0
 #: ... and the slopes on its two sides within this factor of each other (:func:`force_glitches`)
 GLITCH_BEND = 4.0
+
+
+#: a hold (:func:`force_holds`): at least this many rows of a branch in a row at one strain ...
+HOLD_MIN_ROWS = 4
+#: ... whose force moves against the branch (falls on a loading, rises on an unloading) by more than this many
+#: standard errors of the line through them
+HOLD_SIGMAS = 5.0
+#: rows "at one strain": within this share of the branch's mean step of the first (its travel over its rows: a
+#: logger's steady step is more), or within the curve's jitter tolerance (strain_tolerance)
+HOLD_STEP_SHARE = 0.1
+
+
+def force_holds(strain, force, cycle, direction, noise) -> list[tuple[int, int, float]]:
+    """Holds whose force relaxes: ``(start, end, change)``, rows ``start..end-1`` of one branch at one strain *as
+    read* (``strain`` the column as read, not the running extreme: a slack reload read as the unloading going on
+    keeps the extreme while its strain runs on), each within :data:`HOLD_STEP_SHARE` of the branch's mean step, or
+    the curve's jitter tolerance (:func:`strain_tolerance`), of the first; at least :data:`HOLD_MIN_ROWS` of them,
+    whose force moves against the branch's direction (falls on a loading, rises on an unloading: a relaxation, or
+    the recovery of an unloading held) by more than :data:`HOLD_SIGMAS` standard errors of the line through them in
+    the row order (each row weighted by its noise sd); ``change`` the line's change over the hold [N].
+
+    A step-and-hold test (a hold at each peak, the force relaxing by a few per cent) holds rows that the model,
+    rate-independent, keeps at one force: a probe's hold of 20 rows at the first peak of the model's own cycles,
+    relaxing by 6 %, read as a confident ``yarn_extension`` (its jamming rows before the hold taken for a force
+    glitch, the hold's rows being their neighbours).  A force that moves *with* the branch at one strain is not a
+    hold: a logger faster than its extensometer writes a ramp's rising force at one strain."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    d = np.asarray(direction)
+    sd = np.maximum(noise.sd_at(f), 1e-300)
+    jitter_tol = strain_tolerance(s)
+    out = []
+    for a, b in _branches(cycle, direction):
+        if b - a < HOLD_MIN_ROWS:
+            continue
+        tol = max(HOLD_STEP_SHARE * float(np.mean(np.abs(np.diff(s[a:b])))), jitter_tol)
+        lo = a
+        while lo < b:
+            hi = lo + 1
+            while hi < b and abs(s[hi] - s[lo]) <= tol:
+                hi += 1
+            if hi - lo >= HOLD_MIN_ROWS:      # rows lo..hi-1 at one strain
+                t = np.arange(hi - lo, dtype=float)
+                ww = 1.0 / sd[lo:hi] ** 2
+                tm = float(np.sum(ww * t) / np.sum(ww))
+                sxx = float(np.sum(ww * (t - tm) ** 2))
+                change = float(np.sum(ww * (t - tm) * f[lo:hi]) / sxx) * (hi - lo - 1)
+                if -change * float(d[lo]) > HOLD_SIGMAS * (hi - lo - 1) / math.sqrt(sxx):
+                    out.append((lo, hi, change))
+            lo = hi
+    return out
 
 
 def _row_sd(strain, force, cycle, direction, noise) -> np.ndarray:
