@@ -157,7 +157,8 @@ def _workbook_text(path: str, digest: bytes) -> tuple[str, str]:
     two numbers and another does, the first such (a workbook whose active sheet is a chart or a summary); which
     one, of how many, is said in :attr:`Columns.notes`.  Cells hold the values Excel last computed
     (a formula's cached result; a file written by a program that never computed its formulas has none: those
-    cells read empty and are refused as such, naming the row).  Numbers keep every digit (no rounding to the
+    cells read as the formula said never computed, ``=B3/2 (a formula never computed)``, and are refused as text,
+    naming the row: :func:`_formulas_never_computed`).  Numbers keep every digit (no rounding to the
     cells' display format).  Legacy .xls and OpenDocument sheets are refused, saying how to save them."""
     path = Path(path)
     with open(path, "rb") as f:
@@ -213,6 +214,8 @@ def _workbook_text(path: str, digest: bytes) -> tuple[str, str]:
         ws = active
         if not any(_numeric_row(r) for r in rows(active)):
             ws = next((w for w in sheets if w is not active and any(_numeric_row(r) for r in rows(w))), active)
+        if any(v is None for r in rows(ws) for v in r):
+            _formulas_never_computed(path, ws.title, rows_of[ws.title])
         import io
         buf = io.StringIO()
         out = csv.writer(buf, delimiter="\t", lineterminator="\n")
@@ -225,6 +228,31 @@ def _workbook_text(path: str, digest: bytes) -> tuple[str, str]:
                f"the first with rows of numbers; the active one, {active.title!r}, has none")
         return buf.getvalue(), (f"an Excel workbook: read its sheet {ws.title!r} ({why}"
                                 + (f"; sheets: {listed}" if len(sheets) > 1 else "") + ")")
+    finally:
+        book.close()
+
+
+def _formulas_never_computed(path: Path, title: str, rows: list[tuple]) -> None:
+    """Write a formula whose value was never computed (a workbook written by a program, not saved by a spreadsheet:
+    its cells hold no cached value) into its empty cell of ``rows`` (the sheet ``title`` as read), as
+    ``=C2/23 (a formula never computed)``, so that a refusal says why the cell is empty (a probe's workbook
+    of formulas written with openpyxl was refused as ``'' is not a number``, row after row, the formulas unnamed)."""
+    import warnings
+
+    import openpyxl
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        book = openpyxl.load_workbook(path, read_only=True, data_only=False)
+    try:
+        for i, r in enumerate(book[title].iter_rows(min_row=1)):
+            if i >= len(rows):
+                break
+            cells = list(rows[i])
+            for j, c in enumerate(r):
+                f = getattr(c, "value", None)
+                if j < len(cells) and cells[j] is None and isinstance(f, str) and f.startswith("="):
+                    cells[j] = f"{f} (a formula never computed)"
+            rows[i] = tuple(cells)
     finally:
         book.close()
 

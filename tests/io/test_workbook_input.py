@@ -69,8 +69,10 @@ def test_a_formula_keeps_the_value_excel_computed_and_one_never_computed_is_refu
     cells = _data_sheet(preamble=False)
     cells["B2"] = "=B3/2"                       # a formula (row 2 of the data)
     p = _book(tmp_path / "m.xlsx", [("Data", cells)])
-    # as written by a program that never computed it: no cached value, refused naming the row and column
-    with pytest.raises(KnitsimInputError, match=r"m\.xlsx.*row 2.*force_per_wale_N"):
+    # as written by a program that never computed it: no cached value, refused naming the row, the column and the
+    # formula, said never computed (a probe's workbook of such formulas was refused as "'' is not a number")
+    with pytest.raises(KnitsimInputError, match=r"m\.xlsx: row 2, column force_per_wale_N: '=B3/2 \(a formula never "
+                                                r"computed\)' is not a number"):
         read_csv_columns(p, REQ, numeric=REQ)
     # as Excel saves it: the formula with its last computed value (<v>), which is read
     with zipfile.ZipFile(p) as z:
