@@ -889,6 +889,17 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                      f"read as a footer (starting with a label, not a number: "
                      f"{next(c.strip() for c in rows[len(numbers)] if c.strip())!r}): skipped")
     out.notes = tuple(([book_note] if book_note else []) + notes)
+    read_cols = [keys.index(_key(c)) for c in present]
+    again = [line for line, r in zip(numbers, rows) if line in {b[0] for b in bad}
+             and all(j < len(r) and _trim(r[j]) == header[j] for j in read_cols)]
+    if again:
+        # a second table under the first (a machine's export of a test series: each specimen's header and rows one
+        # under the other): said as such, not as the header's names refused as numbers (a probe's two tests in one
+        # file read "row 8, column strain: 'strain' is not a number")
+        raise KnitsimInputError(f"{path}: row {again[0]} repeats the header of row {h + 1}"
+                                + (f" (and rows {', '.join(map(str, again[1:4]))}{', ...' if len(again) > 4 else ''})"
+                                   if len(again) > 1 else "")
+                                + ": several tests one under the other? Give each test its own file")
     if bad:
         # every bad cell at once, in row order (a blind probe fixed one, ran again and met the next)
         bad.sort(key=lambda b: b[0])

@@ -768,3 +768,20 @@ def test_a_force_per_wale_in_another_unit_is_told_to_convert_to_N_per_wale_not_t
         assert ("'Force [kN/wale]' is not read as force_per_wale_N: 'kN/wale' is not its unit (convert the column: "
                 "'Force [N/wale]')") in msg, msg
         assert "'Force (N)'" not in msg, msg
+
+
+def test_a_second_table_under_the_first_is_refused_as_several_tests(tmp_path):
+    from knitsim.io.table_input import LAB_ALIASES
+    # A machine's export of a test series: each test's header (and units row) and rows one under the other.  A probe's
+    # two tests in one file were refused as "row 8, column strain: 'strain' is not a number".  Hand-made: the
+    # header at row 2 (under a title), a units row, 3 rows, a blank line, the same header at row 8 and its rows.
+    text = ('Results\n"Strain [%]";"Standard force [N/wale]"\n"%";"N/wale"\n0;0,01\n5;0,12\n10;0,23\n\n'
+            '"Strain [%]";"Standard force [N/wale]"\n"%";"N/wale"\n0;0,02\n5;0,13\n10;0,25\n')
+    p = _write(tmp_path, text, "series.csv")
+    with pytest.raises(KnitsimInputError, match=r"series\.csv: row 8 repeats the header of row 2: several tests one "
+                                                r"under the other\? Give each test its own file$"):
+        read_csv_columns(p, REQ, aliases=LAB_ALIASES)
+    # a header's name in one cell of a data row is text in a number cell, as before
+    p = _write(tmp_path, "strain,force_per_wale_N\n0,0.01\nstrain,0.12\n0.1,0.23\n", "one.csv")
+    with pytest.raises(KnitsimInputError, match=r"row 3, column strain: 'strain' is not a number"):
+        read_csv_columns(p, REQ)
