@@ -677,9 +677,9 @@ class JointResult:
             if e.at_bound in ("low", "high"):
                 out.append(f"{e.label} = {e.value:.4g}{_unit_text(e.unit)} is at its {e.at_bound} bound ({e.bound_note})")
         for e in self.estimates:
-            if e.not_identified or (e.at_bound == "not identified"):
+            if e.specimen is None and _unidentified(e):
                 out.append(f"{e.label} = {e.value:.4g} +- {e.std_error:.4g}{_unit_text(e.unit)} is not identified: "
-                           + (e.not_identified or e.bound_note or "its standard error is not finite"))
+                           + _unidentified(e))
         for f in self.fits:
             if f.status != "ok":
                 out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
@@ -738,9 +738,45 @@ class JointResult:
 
     @property
     def notes(self) -> list[str]:
-        """Notes, not flags: each specimen whose fitted force offset exceeds OFFSET_NOTE_SHARE of its peak
-        measured force and OFFSET_NOTE_SE standard errors (a re-probe: offsets within 1 SE of 0 got the note),
-        with the cause its sign suggests."""
+        """Notes, not flags: :attr:`offset_notes` and :attr:`knit_notes`."""
+        return self.offset_notes + self.knit_notes
+
+    @property
+    def knit_notes(self) -> list[str]:
+        """:meth:`knit_notes_of` every specimen."""
+        return [x for f in self.fits for x in self.knit_notes_of(f.name)]
+
+    def knit_notes_of(self, specimen: str) -> list[str]:
+        """A specimen's own knit variable (phi0, L, W0, C0, pretension) that the rows do not set, with the
+        variable it trades off against (its strongest correlation).  A note, not a flag: the yarn is what a
+        calibration is used for, and its standard errors come from the covariance of every variable, so they
+        include the freedom of the knit's (the yarn's own rules, a bound, a rival start, its standard error,
+        flag it where that freedom reaches it); the specimen's scenes hold one of the values that fit as well.
+        (A probe's three knits of one yarn: each knit's phi0 and W0 correlated -0.999, and every calibration,
+        the yarn recovered within 1.6 standard errors, was NOT A CALIBRATION YOU CAN USE.)  A knit variable
+        at a bound stays a flag: the bound holds the fit, and the yarn with it."""
+        out = []
+        labels = [e.label for e in self.estimates]
+        for i, e in enumerate(self.estimates):
+            why = _unidentified(e)
+            if e.specimen != specimen or not why:
+                continue
+            row = np.abs(np.nan_to_num(np.asarray(self.correlation[i], dtype=float), nan=0.0))
+            row[i] = 0.0
+            j = int(np.argmax(row)) if row.size else 0
+            partner = (f"; it trades off against {labels[j]} (correlation {self.correlation[i, j]:+.3f})"
+                       if row.size and row[j] > 0.9 else "")
+            out.append(f"specimen {e.specimen}: its knit's {e.name} = {e.value:.4g} +- {e.std_error:.4g}"
+                       f"{_unit_text(e.unit)} is not identified ({why}){partner}: the yarn's standard errors "
+                       f"include this freedom, so the yarn stands; the specimen's scenes hold one of the values "
+                       f"that fit as well")
+        return out
+
+    @property
+    def offset_notes(self) -> list[str]:
+        """Each specimen whose fitted force offset exceeds OFFSET_NOTE_SHARE of its peak measured force and
+        OFFSET_NOTE_SE standard errors (a re-probe: offsets within 1 SE of 0 got the note), with the cause its
+        sign suggests."""
         out = []
         for f in self.fits:
             share = f.offset_share
@@ -757,7 +793,8 @@ class JointResult:
 
     @property
     def usable(self) -> bool:
-        """No flag: converged, every cell solved, no parameter at a bound or not identified, one yarn."""
+        """No flag: converged, every cell solved, no parameter at a bound, no yarn parameter not identified
+        (a specimen's own knit variable not identified is a note: :attr:`knit_notes`), one yarn."""
         return self.success and not self.flags
 
     def as_dict(self, curves: bool = True) -> dict:
@@ -1440,6 +1477,13 @@ def _force_scale_flag(fit: "SpecimenFit") -> str:
         return (f"specimen {fit.name}: every reading (the largest {top:.3g} N {what}) is below the force the fitted "
                 f"knit carries at rest ({rest:.3g} N, {rest / max(top, 1e-300):.3g} times more): a force in another "
                 "unit (kN read as N)? Check the column's unit (and the specimen's width) before anything else")
+    return ""
+
+
+def _unidentified(e: "Estimate") -> str:
+    """Why estimate ``e`` is not identified (its rule), or ``""`` where the rows set it."""
+    if e.not_identified or e.at_bound == "not identified":
+        return e.not_identified or e.bound_note or "its standard error is not finite"
     return ""
 
 

@@ -98,6 +98,12 @@ def _fit_line(f) -> str:
     return f"fit: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}{off}"
 
 
+def _knit_notes_of(result: JointResult, f) -> str:
+    """Lines (each after a newline) of :attr:`JointResult.knit_notes` of specimen ``f``: its own knit variables
+    that the rows do not set, said in its scenes' headers."""
+    return "".join(f"\nnote: {x}" for x in result.knit_notes_of(f.name))
+
+
 def _provenance(result: JointResult, source: str) -> dict:
     """A flagged calibration's scenes carry its flags (the runs on them say so: material_library.flagged_materials)."""
     return ({"provenance": {"source": f"knitsim calibrate {source}".strip(), "flags": list(result.flags)}}
@@ -121,7 +127,7 @@ def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu")
     header = (f"Specimen {f.name}, calibrated jointly with {', '.join(g.name for g in result.fits if g is not f) or 'no other'}"
               f" by knitsim calibrate {source}\n"
               f"the cell of one stitch: force per wale; the specimen's total force is {f.wales:.6g} x it "
-              f"(its wales)\n{_fit_line(f)}{pre_line}\nunits N, mm, rad")
+              f"(its wales)\n{_fit_line(f)}{_knit_notes_of(result, f)}{pre_line}\nunits N, mm, rad")
     return dumps(doc, header=_header(result, header))
 
 
@@ -145,7 +151,7 @@ def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, ga
               + "; curve.csv force_N is the total force"
               + (f"\npretension: the knit is at strain {pre:.4g} at grip strain 0 ({f.pretension_N:.4g} N; the run "
                  "starts at rest, at negative grip strain)" if pre else "")
-              + f"\n{_fit_line(f)}\nunits N, mm, rad")
+              + f"\n{_fit_line(f)}{_knit_notes_of(result, f)}\nunits N, mm, rad")
     return dumps(doc, header=_header(result, header))
 
 
@@ -200,7 +206,9 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
     if not flags:
         oy = r.one_yarn
         lines += ["No flag: the optimiser converged, every cell solved, and no parameter is at a bound or not "
-                  "identified (standard error finite and at most half its range)"
+                  "identified (standard error finite and at most half its range"
+                  + ("; a specimen's own knit variable that is not identified is noted under its knit" if r.knit_notes
+                     else "") + ")"
                   + ("; the specimens look like one yarn (below)." if oy is not None and oy.ran else "."), ""]
     lines += ["## The yarn (shared by every specimen)", "", "| parameter | value | std error | unit | range | flag |",
               "|---|---|---|---|---|---|"]
@@ -219,6 +227,7 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
         if e.specimen is not None:
             lines.append(f"| {e.specimen} | {e.name} | {_fmt(e.value)} | {_fmt(e.std_error)} | {e.unit} | "
                          f"{_fmt(e.stated)} | {_fmt(e.deviation_sd)} | {_flag_cell(e)} |")
+    lines += [""] + [f"- Note: {x}." for x in r.knit_notes]
     lines += ["", "phi0 in rad (a fraction of phimax = atan(m) in the fit); pretension: the knit's strain at grip "
               "strain 0 (the tester's pretension before the strain origin; rows at knit strain "
               "(1 + pretension)(1 + grip strain) - 1).", "", "## Fits", "",
@@ -286,7 +295,7 @@ def zero_md(result: JointResult) -> list[str]:
     for f in r.fits:
         out.append(f"| {f.name} | {f.offset_N:+.4g} | {_fmt(f.offset_se_N)} | {f.offset_unit} | {_fmt(f.peak_N)} | "
                    f"{100 * f.offset_share:.3g} % | {_fmt(f.pretension_N)} |")
-    notes = r.notes
+    notes = r.offset_notes
     if notes:
         out += [""] + [f"- Note: {x}." for x in notes]
     return out

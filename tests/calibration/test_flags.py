@@ -103,7 +103,8 @@ def _result(estimates, success=True, converged=True, status="ok", message="conve
 
 def test_each_reason_is_one_flag_and_the_report_leads_with_it():
     """Hand-built estimates: d at its high bound; compaction_k with an sd 1000 x its range; phi0 with an
-    infinite sd; B fine; and a cell that did not solve.  Each is one flag, naming the rule."""
+    infinite sd; B fine; and a cell that did not solve.  Each is one flag, naming the rule, but the specimen's
+    own phi0: a note under its knit, not a flag (test_a_knit_variable_not_identified_is_a_note_not_a_flag)."""
     es = [Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3),
           Estimate("d", None, 0.2877, 0.001, "mm", 0.1, 0.2877, "high", "the high end of the stated range"),
           Estimate("compaction_k", None, 12.0, 1.45e4, "1/N", 0.0, 100.0, "not identified", "",
@@ -113,10 +114,11 @@ def test_each_reason_is_one_flag_and_the_report_leads_with_it():
     r = _result(es, success=False, converged=True, status="not converged",
                 message="converged; a specimen's cell did not solve on every row")
     flags = r.flags
-    assert len(flags) == 4, flags                       # no optimiser flag: it converged
+    assert len(flags) == 3, flags                       # no optimiser flag: it converged
     assert any(f.startswith("d = ") and "high bound" in f for f in flags)
     assert any(f.startswith("compaction_k") and "larger than half its range" in f for f in flags)
-    assert any(f.startswith("phi0[tight]") and "not finite" in f for f in flags)
+    assert not any(f.startswith("phi0[tight]") for f in flags)
+    assert len(r.knit_notes) == 1 and "its knit's phi0" in r.knit_notes[0] and "not finite" in r.knit_notes[0]
     assert any("specimen tight" in f and "did not solve" in f for f in flags)
     assert not any(f.startswith("B ") for f in flags)
     d = r.as_dict(curves=False)
@@ -125,7 +127,7 @@ def test_each_reason_is_one_flag_and_the_report_leads_with_it():
     rep = report_md(r, "t", "s.toml", [])
     assert rep.index(UNUSABLE) < rep.index("## The yarn") and "No parameter is at a bound" not in rep
     assert "NOT IDENTIFIED" in rep and "at high bound" in rep
-    assert cell_scene_of(r, 0, "s.toml").startswith(f"# {UNUSABLE}: 4 flags")
+    assert cell_scene_of(r, 0, "s.toml").startswith(f"# {UNUSABLE}: 3 flags")
     assert UNUSABLE in library_of(r, "glass", "s.toml")["title"]
 
 
@@ -281,3 +283,45 @@ def test_a_specimen_on_another_force_scale_is_flagged_first():
     r = _result(es)
     r.fits[0] = fit
     assert r.flags == []
+
+
+def test_a_knit_variable_not_identified_is_a_note_not_a_flag():
+    """A probe's three knits of one yarn (the yarn recovered within 1.6 standard errors in 24 of 24 estimates):
+    each knit's phi0 traded off against its W0 (correlation -0.999), phi0 not identified, and every calibration
+    read NOT A CALIBRATION YOU CAN USE.  The yarn is what is used, and its standard errors come from the full
+    covariance (marginal over the knit's variables), so a knit's own variable that the rows do not set is a note
+    where the user looks (console notes, calibration.json notes, report.md under the knit, the specimen's scenes)
+    and the calibration stays usable; the same variable at a bound, or a yarn parameter not identified, stays a
+    flag.  Hand-built estimates: the rules themselves (identification_rule), not a run."""
+    b = Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)
+    phi0 = Estimate("phi0", "tight", 0.05, 0.4, "rad", -0.29, 0.29, "not identified",
+                    not_identified=identification_rule(0.4, -0.29, 0.29, "rad"))
+    w0 = Estimate("W0", "tight", 4.4, 0.05, "mm", 3.8, 5.0, stated=4.4, deviation_sd=0.0)
+    corr = np.array([[1.0, 0.1, 0.0], [0.1, 1.0, -0.999], [0.0, -0.999, 1.0]])
+    setup = JointSetup(base=_fit().params, shared=("B",), per_specimen=("phi0", "W0"), max_increment=0.02)
+    r = JointResult([b, phi0, w0], corr, [_fit()], 1.0, 10, 3, 0.1, True, "converged",
+                    [{"start": 0, "chi2_start": 2.0, "chi2": 1.0, "nfev": 3}], 3, 0.1, setup, _fit().params,
+                    True, "converged")
+    assert r.flags == [] and r.usable, r.flags
+    (note,) = r.knit_notes
+    assert note.startswith("specimen tight: its knit's phi0 = 0.05 +- 0.4 rad is not identified")
+    assert "larger than half its range" in note and "W0[tight] (correlation -0.999)" in note
+    assert r.notes == r.knit_notes and r.as_dict(curves=False)["notes"] == [note]
+    rep = report_md(r, "t", "s.toml", [])
+    assert UNUSABLE not in rep and f"- Note: {note}." in rep
+    assert rep.index(note) > rep.index("## Each specimen's knit")
+    scene = cell_scene_of(r, 0, "s.toml")
+    assert not scene.startswith(f"# {UNUSABLE}") and f"# note: {note}" in scene
+    tomllib.loads(scene)
+    # the same knit variable at its bound: a flag (the bound holds the fit, and the yarn with it)
+    at_bound = Estimate("phi0", "tight", 0.29, 0.4, "rad", -0.29, 0.29, "high", "phi0 at +phimax",
+                        not_identified=identification_rule(0.4, -0.29, 0.29, "rad"))
+    r2 = JointResult([b, at_bound, w0], corr, [_fit()], 1.0, 10, 3, 0.1, True, "converged", r.starts, 3, 0.1,
+                     setup, _fit().params, True, "converged")
+    assert not r2.usable and any(f.startswith("phi0[tight]") and "high bound" in f for f in r2.flags)
+    # a yarn parameter not identified: a flag
+    b_loose = Estimate("B", None, 0.31, 10.0, "N mm^2", 0.01, 9.3, "not identified",
+                       not_identified=identification_rule(10.0, 0.01, 9.3, "N mm^2"))
+    r3 = JointResult([b_loose, phi0, w0], corr, [_fit()], 1.0, 10, 3, 0.1, True, "converged", r.starts, 3, 0.1,
+                     setup, _fit().params, True, "converged")
+    assert not r3.usable and any(f.startswith("B = ") and "not identified" in f for f in r3.flags)
