@@ -54,7 +54,8 @@ from typing import Any
 from .. import materials
 from ..cell.load_program import LoadProgram, cycles, monotonic, piecewise_linear
 from ..cell.material import CellParams
-from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, FRICTION_MODELS, JAMMING_CRITERIA, RELOAD_RULES, UNLOADING_RULES
+from ..cell.stages import (DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, FRICTION_MODELS, JAMMING_CRITERIA,
+                           M_MAX, M_TOO_LARGE, RELOAD_RULES, UNLOADING_RULES)
 from ..errors import KnitsimInputError
 from ..friction.coiling import m_eq10
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
@@ -381,6 +382,12 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
     else:
         raise KnitsimInputError(f"{org.path('friction', 'm')}: missing{org.where()} (give friction.m, "
                                 "friction.mu_k with coiling_angle_deg, or yarn.material)")
+    if m > M_MAX:
+        # named by the key that set it (before, the engines' backstop named "cell.m", in no file: a blind probe)
+        if "m" in f:
+            raise error(org.path("friction", "m"), m, M_TOO_LARGE + org.where())
+        raise error(org.path("friction", "mu_k"), f["mu_k"], f"eq 10 gives m = {m:.4g} ({notes['m_source']}): "
+                    + M_TOO_LARGE + org.where())
     phimax = math.atan(m)
 
     if "phi0" in f and "phi0_deg" in f:

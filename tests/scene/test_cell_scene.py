@@ -138,6 +138,18 @@ def test_bad_scenes_refused_naming_key_and_value(changes, match):
     refused(scene(**changes), match)
 
 
+def test_a_friction_ratio_above_m_max_is_named_by_the_key_that_set_it():
+    # a blind probe's friction.m = 11.5 was refused as "cell.m = 11.5", a key in no scene (the engines' backstop);
+    # eq 10 at a coiling angle near 180 deg: m = tanh(mu theta / 2) tan(theta / 2) = 503 at 179.9 deg, mu_k 0.3
+    refused(scene(friction__m=11.5), r"^friction\.m = 11\.5: a friction ratio Rt/Rn above 5 ")
+    d = scene(friction={"mu_k": 0.3, "coiling_angle_deg": 179.9})
+    refused(d, r"^friction\.mu_k = 0\.3: eq 10 gives m = 503 \(eq 10: mu_k = 0\.3, coiling angle = 179\.9 deg\): "
+               r"a friction ratio Rt/Rn above 5 ")
+    d = scene()
+    d["cells"] = [{}, {"friction": {"m": 6.0}}]
+    refused(d, r"^cells\[1\]\.friction\.m = 6\.0: a friction ratio .* \(in cells\[1\]\)$")
+
+
 def test_cycles_lower_must_be_below_upper():
     load = {"type": "cycles", "lower_strain": 0.6, "upper_strain": 0.6, "cycles": 3}
     refused(scene(load=load), r"^load\.lower_strain = 0\.6: must be < load\.upper_strain = 0\.6$")
