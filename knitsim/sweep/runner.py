@@ -259,8 +259,10 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
     (:data:`NOT_SWEPT`: a blind probe's sweep over ``engine`` ran every sample on warp and labelled one of
     them reference), naming it."""
     if key in NOT_SWEPT:
+        # (the command has --engine and --device, no --title: a blind probe was told to use --title)
+        option = f", or --{key}" if key in ("engine", "device") else ""
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: the whole sweep "
-                                f"runs with one {key} (give it in the scene, or --{key} for engine and device)")
+                                f"runs with one {key} (give it in the scene{option})")
     try:
         _set(copy.deepcopy(doc), key, value)
     except KnitsimInputError as exc:

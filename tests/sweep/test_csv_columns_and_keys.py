@@ -45,6 +45,12 @@ def test_engine_and_device_are_not_swept():
     for key, vals in (("engine", ["warp", "reference"]), ("device", ["cpu", "cuda"])):
         with pytest.raises(KnitsimInputError, match=rf'sweep.parameters."{key}": not a parameter of the cells'):
             plan_sweep(SCENE, {"parameters": {key: {"values": vals}}})
+    # the title too, and the message names no option the command lacks (it said "--title for engine and device")
+    with pytest.raises(KnitsimInputError, match=r'^sweep.parameters."title": not a parameter of the cells: the whole '
+                                                r'sweep runs with one title \(give it in the scene\)$'):
+        plan_sweep(SCENE, {"parameters": {"title": {"values": ["a", "b"]}}})
+    with pytest.raises(KnitsimInputError, match=r"\(give it in the scene, or --engine\)$"):
+        plan_sweep(SCENE, {"parameters": {"engine": {"values": ["warp", "reference"]}}})
 
 
 def test_a_text_parameter_beside_flagged_samples_is_plotted(tmp_path):
