@@ -159,6 +159,19 @@ def _check_yarn_law(path: str, where: str, y: dict) -> None:
         _number(path, f"{where}.rules.force_cap_N", r["force_cap_N"])
 
 
+def _check_yarn_tables(path: str, where: str, y: dict) -> None:
+    """A yarn's ``friction``, ``rules`` and ``effects`` tables against the scene's tables of those names (the
+    keys they may hold and their types): the library fills a scene's tables from them, whose checks then named
+    the scene's key (a blind probe's ``mu = 0.2`` in a library yarn's friction was refused as the scene's
+    ``friction.mu``, in no file the user wrote it in)."""
+    from .scene.cell_scene import _effects_table, _friction_table, _rules_table
+    from .scene.schema import validate
+    for t, table in (("friction", _friction_table(False)), ("rules", _rules_table(False)),
+                     ("effects", _effects_table())):
+        if t in y:
+            validate(table, y[t], f"{path}: {where}.{t}", fill_defaults=False)
+
+
 def _flags(path: str, key: str, v) -> tuple:
     if not (isinstance(v, list) and all(isinstance(x, str) for x in v)):
         raise KnitsimInputError(f"{path}: {key} = {v!r}: expected a list of strings (a calibration's flags)")
@@ -219,6 +232,7 @@ def parse_library(doc: dict, path: str) -> MaterialLibrary:
             if t in y and not isinstance(y[t], dict):
                 raise KnitsimInputError(f"{path}: {where}.{t}: expected a table")
         _check_yarn_law(path, where, y)
+        _check_yarn_tables(path, where, y)
         w = y.get("in_plane_width")
         yarns[name] = LibraryYarn(name, _number(path, f"{where}.d", y["d"]), _number(path, f"{where}.B", y["B"]),
                                   None if w is None else _number(path, f"{where}.in_plane_width", w),

@@ -171,6 +171,10 @@ def test_a_zone_outside_a_specimens_strips_or_bands_names_them(lib):
     ({"model": "coulomb", "m": -0.1}, {}, r"yarns\.z\.friction\.m = -0\.1: the friction ratio must be >= 0"),
     ({"m": 0.2}, {"unloading_rule": "hong"}, r"yarns\.z\.rules\.unloading_rule = 'hong': expected one of"),
     ({"m": 0.2}, {"force_cap_N": -1.0}, r"yarns\.z\.rules\.force_cap_N = -1\.0: must be > 0"),
+    # a key the scene's table of that name does not hold: refused as the scene's friction.mu before (a blind probe)
+    ({"mu": 0.2}, {}, r"yarns\.z\.friction\.mu = 0\.2: unknown key \(expected one of model, m, mu_k, "),
+    ({"m": 0.2}, {"force_cap": 3.0}, r"yarns\.z\.rules\.force_cap = 3\.0: unknown key \(expected one of "),
+    ({"m": 0.2, "phi0": "zero"}, {}, r"yarns\.z\.friction\.phi0 = \"zero\": expected a number \[rad\]"),
 ])
 def test_a_bad_law_in_a_library_yarn_names_the_file(tmp_path, friction, rules, msg):
     # a blind probe's typo in a library yarn was reported as the scene's zones[0].friction.model
@@ -178,4 +182,15 @@ def test_a_bad_law_in_a_library_yarn_names_the_file(tmp_path, friction, rules, m
     path.write_text(dumps(library_document([LibraryYarn("z", d=0.2, B=0.02, friction=friction, rules=rules)],
                                            [LibraryKnit("k", "z", 4.0, 1.0, 0.8)])))
     with pytest.raises(KnitsimInputError, match=str(path).replace(".", r"\.") + ": " + msg):
+        load_library(path)
+
+
+def test_an_unknown_effect_key_in_a_library_yarn_names_the_file(tmp_path):
+    # the yarn's effects fill the scene's [effects]: a misspelt parameter was refused as the scene's effects key
+    path = tmp_path / "lib.toml"
+    path.write_text(dumps(library_document([LibraryYarn("z", d=0.2, B=0.02, friction={"m": 0.2},
+                                                        effects={"on": ["yarn_compaction"], "compaction": 12.0})],
+                                           [LibraryKnit("k", "z", 4.0, 1.0, 0.8)])))
+    with pytest.raises(KnitsimInputError, match=str(path).replace(".", r"\.") + r": yarns\.z\.effects\.compaction = "
+                                                "12\\.0: unknown key"):
         load_library(path)
