@@ -33,7 +33,7 @@ def naming_scene(path, command: str | None = None) -> Iterator[None]:
 
 #: top-level tables or keys that only one command's scenes have
 _SCENE_KEYS = {"cell": ("cells",), "run": ("patch", "specimen", "zones", "maps", "seed", "grades", "solver"),
-               "sweep": ("sweep",), "calibrate": ("calibration", "specimens")}
+               "sweep": ("sweep",), "calibrate": ("calibration", "specimens"), "diagnose": ("diagnosis",)}
 
 
 def _other_command_hint(path, command: str | None) -> str:

@@ -73,7 +73,7 @@ def run(args) -> int:
     # every input is checked before any solve
     json_out = _check_out(args.json_out, ".json", "--json", args.overwrite)
     report = _check_out(args.report, ".html", "--report", args.overwrite)
-    with naming_scene(args.scene):
+    with naming_scene(args.scene, "diagnose"):
         setup = load_diagnosis_scene(args.scene, device=args.device)
     if args.effects:
         setup = replace(setup, effects=check_effects([e.strip() for e in args.effects.split(",") if e.strip()],

@@ -49,7 +49,12 @@ def test_a_scene_for_another_command_is_named_so(tmp_path, capsys):
              ("run", scenes / "calibration" / "do2020" / "calibrate.toml", "`knitsim calibrate`"),
              ("calibrate", scenes / "random_phi0.toml", "`knitsim run`"),
              # a blind probe's sweep of a patch scene read only "seed = 3: unknown key"
-             ("sweep", scenes / "random_phi0.toml", "`knitsim run`: it has patch, maps, seed")]
+             ("sweep", scenes / "random_phi0.toml", "`knitsim run`: it has patch, maps, seed"),
+             # a blind probe's run of a diagnosis scene read only "diagnosis = {...}: unknown key"
+             ("run", scenes / "diagnosis" / "real" / "singal2024_acrylic_stockinette_y.toml",
+              "`knitsim diagnose`: it has diagnosis"),
+             ("cell", scenes / "diagnosis" / "real" / "singal2024_acrylic_stockinette_y.toml",
+              "`knitsim diagnose`: it has diagnosis")]
     for cmd, scene, hint in cases:
         assert main([cmd, str(scene), "--out", str(tmp_path / cmd)]) == 2
         assert f"(this is a scene for {hint}" in capsys.readouterr().err
@@ -62,6 +67,10 @@ def test_a_scene_for_another_command_is_named_so(tmp_path, capsys):
     # a sweep's scene is a cell scene (its cells included): a typo in one gets no hint either
     assert main(["sweep", str(bad), "--out", str(tmp_path / "t")]) == 2
     assert "this is a scene for" not in capsys.readouterr().err
+    # diagnose given a patch scene: the command that reads it, beside the missing [diagnosis]
+    curve = scenes / "diagnosis" / "real" / "singal2024_acrylic_stockinette_y.csv"
+    assert main(["diagnose", str(curve), "--scene", str(scenes / "random_phi0.toml")]) == 2
+    assert "(this is a scene for `knitsim run`: it has patch, maps, seed)" in capsys.readouterr().err
     # usd on a cell's results
     assert main(["cell", str(scenes / "paper" / "e_glass_monotonic.toml"), "--out", str(tmp_path / "c")]) == 0
     capsys.readouterr()
