@@ -387,11 +387,22 @@ def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: 
         raise KnitsimInputError(f"{flag} = {str(p)!r}: is a folder")
     if p.exists() and not overwrite:
         raise KnitsimInputError(f"{flag} = {str(p)!r}: exists; add --overwrite to replace it")
-    probe = p.resolve().parent
-    while not probe.exists():
+    probe = p.absolute().parent
+    while not probe.exists() and probe != probe.parent:
         probe = probe.parent
-    if not os.access(probe, os.W_OK):
-        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot write under {probe}")
+    # the nearest existing folder must take a new file (the missing ones below it are created when the file is
+    # written): before, os.access passed a parent that is a file ("afile/x.png") and /proc (root may "write"
+    # there, nothing can be created), and the file failed as a traceback after the work (a blind probe's
+    # `knitsim usd --quicklook afile/x.png`, after the USD was written; diagnose's --json, after its fits)
+    if not probe.is_dir():
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot be written: {probe} is a file, not a folder")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".knitsim-probe-", dir=probe)
+        os.close(fd)
+        os.remove(name)
+    except OSError as exc:
+        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot be written: no file can be created in {probe} "
+                                f"({exc.strerror or exc})") from None
     return p
 
 

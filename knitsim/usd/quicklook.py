@@ -240,6 +240,9 @@ def render_quicklook(usd_path, png_path, *, dpi: int = 150, title: str | None = 
                                        f"colour: {colour}" if colour else "") if p)
         title = f"{scene_title}\n{second}" if scene_title else second
     fig.suptitle(title + note, fontsize=11)
+    # missing folders are created, as the USD file's are (its path was checked before the export: a folder
+    # missing below a writable one passed, and the PNG then failed as a traceback after the USD was written)
+    os.makedirs(os.path.dirname(os.path.abspath(png_path)), exist_ok=True)
     fig.savefig(png_path, dpi=dpi)
     plt.close(fig)
     return png_path

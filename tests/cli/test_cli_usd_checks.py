@@ -81,6 +81,22 @@ def test_usd_path_under_a_file_refused_before_the_solve(tmp_path, scene, capsys)
     _one_line_error(capsys, rc, "--out = ", "is a file, not a folder")
 
 
+def test_a_quicklook_that_cannot_be_written_is_refused_before_the_export(tmp_path, scene, capsys):
+    # a blind probe's `knitsim usd RES --out u.usda --quicklook afile/x.png` wrote the USD, then a traceback
+    assert main(["run", str(scene), "--out", str(tmp_path / "res"), "--no-progress"]) == 0
+    capsys.readouterr()
+    (tmp_path / "afile").write_text("")
+    rc = main(["usd", str(tmp_path / "res"), "--out", str(tmp_path / "u.usda"),
+               "--quicklook", str(tmp_path / "afile" / "x.png")])
+    _one_line_error(capsys, rc, "--quicklook = ", "afile is a file, not a folder")
+    assert not (tmp_path / "u.usda").exists()
+    # a missing folder is created, as the USD file's is (the PNG failed there: FileNotFoundError)
+    rc = main(["usd", str(tmp_path / "res"), "--out", str(tmp_path / "u.usda"),
+               "--quicklook", str(tmp_path / "new" / "q" / "x.png")])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "new" / "q" / "x.png").stat().st_size > 1000
+
+
 @pytest.mark.parametrize("opts,flag", [(["--usd-stride", "3"], "--usd-stride"), (["--color-by", "phi"], "--color-by"),
                                        (["--usd-layout", "courses"], "--usd-layout"),
                                        (["--usd-points", "7"], "--usd-points")])

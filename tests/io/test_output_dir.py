@@ -135,6 +135,24 @@ def test_an_unwritable_out_is_refused_before_any_work(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+def test_an_unwritable_output_file_is_refused_before_any_work(tmp_path, proc_refuses_files):
+    # a single output file (usd --quicklook, diagnose --json / --report, dahl --out): os.access passed a
+    # parent that is a file and /proc (root), and the file failed as a traceback after the work (a blind probe)
+    from knitsim.io.output_dir import prepare_output_file
+    f = tmp_path / "a_file"
+    f.write_text("")
+    for p in (f / "x.png", f / "sub" / "x.png"):
+        with pytest.raises(KnitsimInputError, match=r"^--quicklook = .*: cannot be written: .*a_file is a file, not "
+                                                    r"a folder$"):
+            prepare_output_file(p, flag="--quicklook")
+    with pytest.raises(KnitsimInputError, match=r"^--json = '/proc/x\.json': cannot be written: no file can be "
+                                                r"created in /proc "):
+        prepare_output_file(f"{proc_refuses_files}/x.json", flag="--json")
+    # a folder still missing below a writable one is fine (the writer creates it); the probe leaves nothing
+    assert prepare_output_file(tmp_path / "new" / "x.png") == tmp_path / "new" / "x.png"
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["a_file"]
+
+
 def test_scene_inputs_are_the_scene_and_the_files_its_strings_name(tmp_path):
     d = _user_folder(tmp_path, PATCH_SCENE)
     (d / "phi0_map.csv").write_text("0,0\n0,0\n")
