@@ -362,6 +362,7 @@ def _plot(path: Path, x, F, fit, xcol: str, fcol: str, source: Path | None = Non
         ax.set_title(title, fontsize=9)
     fig.tight_layout()
     try:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)   # missing folders created, as every output's are
         fig.savefig(path, dpi=120)
     except OSError as exc:
         raise KnitsimInputError(f"--png = {str(path)!r}: cannot write ({exc.strerror})") from None
@@ -515,6 +516,7 @@ def run_simulate(args) -> int:
                     noise=args.noise * params.Fc, seed=args.seed)
     out = prepare_output_file(args.out, args.overwrite)
     try:
+        out.parent.mkdir(parents=True, exist_ok=True)          # missing folders created, as every output's are
         with out.open("w", newline="", encoding="utf-8") as fh:
             w = csv.writer(fh)
             w.writerow([xcol, fcol])

@@ -76,6 +76,16 @@ def test_simulate_then_fit_xF_columns(tmp_path, capsys):
         assert abs(out["parameters"][name] - true) <= 3 * out["stderr"][name]
 
 
+def test_outputs_in_a_missing_folder_are_written_there(tmp_path, capsys):
+    # the folder policy of every output file (prepare_output_file: the missing folders below a writable one are
+    # created): simulate's --out and fit's --png were refused after the work, "cannot write (No such file ...)"
+    csv = tmp_path / "new" / "a" / "loop.csv"
+    assert main(["dahl", "simulate", "--row", "yarn", "--out", str(csv)]) == 0, capsys.readouterr().err
+    png = tmp_path / "plots" / "b" / "fit.png"
+    assert main(["dahl", "fit", str(csv), "--png", str(png)]) in (0, 1), capsys.readouterr().err
+    assert csv.stat().st_size > 100 and png.stat().st_size > 1000
+
+
 def _write(path, header, rows):
     path.write_text(header + "\n" + "\n".join(rows) + "\n")
     return str(path)
