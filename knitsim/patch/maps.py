@@ -278,5 +278,12 @@ def build_map(spec: dict, shape: tuple[int, int], base, path: str, seed: int = 0
                 raise _err(f"{path}.scale", scale, "\"phimax\" scales the initial friction angle phi0 only")
             if phimax is None:
                 raise _err(f"{path}.scale", scale, "needs the cells' phimax (friction ratio m)")
+            # low and high are fractions of phimax: beyond 1 every such cell leaves the friction cone, and the
+            # cell check then named a drawn value as if given in degrees (a blind probe's low = -30, high = 30)
+            for key, v in (("low", low), ("high", high)):
+                if abs(v) > 1.0:
+                    raise _err(f"{path}.{key}", v, "with scale = \"phimax\", low and high are fractions of each "
+                               "cell's phimax = atan m, within [-1, 1] (phi0 in the friction cone); for an angle in "
+                               "radians use scale = \"absolute\"")
             out *= np.broadcast_to(np.asarray(phimax, dtype=np.float64), shape)
     return out

@@ -73,6 +73,21 @@ def test_random_reproducible_and_bounded():
         build_map(dict(spec), SHAPE, 0.0, "maps.d", phimax=phimax, name="d")
 
 
+def test_a_phimax_scaled_range_beyond_the_cone_names_low_or_high():
+    # low and high are fractions of phimax: a blind probe's low = -30, high = 30 was refused at a drawn cell,
+    # "maps.phi0 = -5.46 ... -5.46 looks like degrees", a value in no file and a wrong hint
+    phimax = np.full(SHAPE, np.arctan(0.2))
+    spec = {"type": "random", "low": -30.0, "high": 30.0, "seed": 7, "scale": "phimax"}
+    with pytest.raises(KnitsimInputError, match=r'^maps\.phi0\.low = -30\.0: with scale = "phimax", low and high '
+                                                r"are fractions of each cell's phimax = atan m, within \[-1, 1\]"):
+        build_map(spec, SHAPE, 0.0, "maps.phi0", phimax=phimax, name="phi0")
+    with pytest.raises(KnitsimInputError, match=r"^maps\.phi0\.high = 1\.5: "):
+        build_map(dict(spec, low=0.0, high=1.5), SHAPE, 0.0, "maps.phi0", phimax=phimax, name="phi0")
+    # the cone's own edges, [-1, 1], stay allowed (the limit case)
+    got = build_map(dict(spec, low=-1.0, high=1.0), SHAPE, 0.0, "maps.phi0", phimax=phimax, name="phi0")
+    assert np.all(np.abs(got) <= phimax)
+
+
 @pytest.mark.parametrize("axis, shape", [("wales", (4, 1)), ("courses", (1, 3))])
 def test_a_gradient_along_one_cell_is_refused(axis, shape):
     # start on the first cell and end on the last cannot both hold with one cell: a blind probe's end = -3 on
