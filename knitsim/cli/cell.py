@@ -88,7 +88,7 @@ def _run(args) -> int:
     check_engine(scene.engine)   # (before the domain check, which asks the engine for the rest states)
     # (the Warp engine's rest states: one small CPU launch, before the run's device is up; its messages, if
     # any, on stderr: stdout carries only the results)
-    with contextlib.redirect_stdout(sys.stderr):
+    with contextlib.redirect_stdout(sys.stderr), naming_scene(args.scene):   # (a refusal names the scene)
         domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain, engine=scene.engine)
     domain_warnings += calibration_warnings(scene.calibration_flags)
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",

@@ -385,11 +385,13 @@ def _run_locked(args) -> int:
                 raise KnitsimInputError(why)
             if args.usd is not None:
                 _usd_on_resume(args.usd, head, ck)
-        # the model's domain, before any output is touched (a cell without a rest state: error)
-        domain_warnings = check_patch_domain(
-            scene.model, scene.program.strain, scene.engine, device, scene.dedup,
-            cell_fields=scene.output["cell_fields"],
-            cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])))
+        # the model's domain, before any output is touched (a cell without a rest state: error, naming the scene
+        # as every error of the scene does)
+        with naming_scene(args.scene):
+            domain_warnings = check_patch_domain(
+                scene.model, scene.program.strain, scene.engine, device, scene.dedup,
+                cell_fields=scene.output["cell_fields"],
+                cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])))
         overlaps = zone_overlaps(scene.resolved)
         for w in overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)

@@ -75,3 +75,20 @@ def test_a_bad_scene_names_its_file_then_its_key(tmp_path, capsys, command, text
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"knitsim: error: {scene}: {key}"), err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_cell_without_a_rest_state_is_refused_naming_the_scene(tmp_path, capsys):
+    """Every error of a scene names its file first (a key alone does not say which of a user's scenes is wrong);
+    the domain check's refusal did not (a blind probe: "knitsim: error: 2 of 12 cell(s) have no admissible rest
+    state ..."). A loose E-glass loop, L = 16 mm (W0 4.4, C0 2.7): its contact would pull at rest."""
+    scene = REPO / "scenes" / "random_phi0.toml"
+    rc = main(["run", str(scene), "--out", str(tmp_path / "o"), "--set", "knit.L=16.0", *SMALL])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith(f"knitsim: error: {scene}: 6 of 6 cell(s) have no admissible rest state"), err
+    assert not (tmp_path / "o").exists()
+    # knitsim cell likewise
+    cell = REPO / "scenes" / "paper" / "e_glass_monotonic.toml"
+    assert main(["cell", str(cell), "--out", str(tmp_path / "c"), "--set", "knit.L=16.0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"knitsim: error: {cell}: ") and "no rest state" in err, err
+    assert not (tmp_path / "c").exists()
