@@ -386,6 +386,16 @@ def record_from_results(results_dir) -> PatchRecord:
             raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: holds the results of `knitsim cell` (single cells, "
                                     "no patch to lay out); `knitsim usd` draws a `knitsim run` folder: run the "
                                     "scene as a patch (`knitsim run` with [patch] wales = 1, courses = 1 for one cell)")
+        if (d / "sweep.json").is_file():
+            # a sweep's folder (results.nc, sweep.json): samples of cells, no patch (a blind probe read "was the
+            # run made with output.cell_fields = false?", of a run it never was)
+            raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: holds the results of `knitsim sweep` (samples of "
+                                    "single cells, no patch to lay out); `knitsim usd` draws a `knitsim run` folder: "
+                                    "run a sample's scene as a patch (`knitsim run` with [patch] wales and courses)")
+        if not (d / "columns.csv").is_file():
+            # no run wrote here: not a patch's results (a folder of other files, or of another command)
+            raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: not a results folder of `knitsim run` (no cells.nc, "
+                                    "no columns.csv); give the --out folder of a `knitsim run`")
         raise KnitsimInputError(f"RESULTS_DIR = {str(d)!r}: no cells.nc (was the run made with output.cell_fields "
                                 "= false?)")
     import xarray as xr

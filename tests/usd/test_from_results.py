@@ -223,6 +223,27 @@ def test_results_folder_equals_history(tmp_path, mixed):
     assert all(np.array_equal(full.fields[n][1:], ro.fields[n]) for n in ro.fields)
 
 
+def test_a_folder_of_no_run_is_named_for_what_it_is(tmp_path):
+    # a blind probe's `knitsim usd` of a sweep's folder and of a folder of other files both read "no cells.nc
+    # (was the run made with output.cell_fields = false?)", of runs that never were
+    sweep = tmp_path / "sweep"
+    sweep.mkdir()
+    for name in ("sweep.json", "results.nc", "results.csv", "summary.json"):
+        (sweep / name).write_text("{}")
+    with pytest.raises(KnitsimInputError, match=r"holds the results of `knitsim sweep` \(samples of single cells"):
+        record_from_results(sweep)
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("x")
+    with pytest.raises(KnitsimInputError, match=r": not a results folder of `knitsim run` \(no cells\.nc, no "
+                                                r"columns\.csv\)"):
+        record_from_results(other)
+    # a run without cells.nc (its columns.csv there): the option that leaves it out is still named
+    (other / "columns.csv").write_text("increment,column\n")
+    with pytest.raises(KnitsimInputError, match=r"output\.cell_fields = false"):
+        record_from_results(other)
+
+
 def test_bad_input(tmp_path, mixed):
     m, h = mixed
     with pytest.raises(KnitsimInputError, match="not a directory"):
