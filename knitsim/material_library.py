@@ -298,7 +298,7 @@ def library_document(yarns: list[LibraryYarn], knits: list[LibraryKnit], title: 
     return doc
 
 
-def expand(cell: dict, lib: MaterialLibrary | None, where: str = "") -> dict:
+def expand(cell: dict, lib: MaterialLibrary | None, where: str = "", filled: dict | None = None) -> dict:
     """Fill a raw (not yet defaulted) cell's tables from the library materials it names.
 
     ``cell`` holds the scene's ``yarn``, ``knit``, ``friction``, ``rules`` and ``effects`` tables as
@@ -307,6 +307,10 @@ def expand(cell: dict, lib: MaterialLibrary | None, where: str = "") -> dict:
     neither d nor B; a ``yarn.material`` of the library gives d, B, the in-plane width, the friction
     law, the rules and the effects likewise.  The library names are removed (the result is explicit);
     built-in names are left to :mod:`knitsim.materials`.  Returns a new dict.
+
+    ``filled``, where given, receives ``(table, key) -> "knits.NAME of FILE"`` (or the yarn's) for every value
+    the library gave: a check of the scene then names where the value came from (a blind probe's W0 of a
+    library knit was refused as the scene's ``knit.W0``, which the scene does not state).
     """
     import copy
     out = copy.deepcopy(cell)
@@ -316,31 +320,39 @@ def expand(cell: dict, lib: MaterialLibrary | None, where: str = "") -> dict:
         out.setdefault(t, {})
     pre = f"{where}." if where else ""
     y, k, f = out["yarn"], out["knit"], out["friction"]
+    filled = {} if filled is None else filled
+
+    def give(table: str, key: str, value, source: str) -> None:
+        if key not in out[table]:
+            out[table][key] = value
+            filled[(table, key)] = f"{source} of {lib.path}"
+
     kname = k.get("material")
     if kname is not None and kname in lib.knits:
         knit = lib.knits[kname]
         del k["material"]
         for key in ("L", "W0", "C0"):
-            k.setdefault(key, getattr(knit, key))
-        if knit.phi0 is not None and "phi0" not in f and "phi0_deg" not in f:
-            f["phi0"] = knit.phi0
+            give("knit", key, getattr(knit, key), f"knits.{kname}")
+        if knit.phi0 is not None and "phi0_deg" not in f:
+            give("friction", "phi0", knit.phi0, f"knits.{kname}")
         if "material" not in y and "d" not in y and "B" not in y:
             y["material"] = knit.yarn
     yname = y.get("material")
     if yname is not None and yname in lib.yarns:
         yarn = lib.yarns[yname]
         del y["material"]
-        y.setdefault("d", yarn.d)
-        y.setdefault("B", yarn.B)
+        source = f"yarns.{yname}"
+        give("yarn", "d", yarn.d, source)
+        give("yarn", "B", yarn.B, source)
         if yarn.in_plane_width is not None:
-            y.setdefault("in_plane_width", yarn.in_plane_width)
+            give("yarn", "in_plane_width", yarn.in_plane_width, source)
         explicit_m = any(key in f for key in ("m", "mu_k", "coiling_angle_deg"))
         for key, v in yarn.friction.items():
             if key == "m" and explicit_m:
                 continue
-            f.setdefault(key, v)
+            give("friction", key, v, source)
         for key, v in yarn.rules.items():
-            out["rules"].setdefault(key, v)
+            give("rules", key, v, source)
         if yarn.effects and not out["effects"]:
             out["effects"] = dict(yarn.effects)
     elif yname is not None and yname not in _builtin_yarns():

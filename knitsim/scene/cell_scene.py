@@ -301,13 +301,19 @@ def _merge(base: dict, over: dict) -> dict:
 class _Origins:
     """Key paths of the values of one cell, for messages."""
 
-    def __init__(self, index: int | None, over: dict):
-        self.index, self.over = index, over
+    def __init__(self, index: int | None, over: dict, library: dict | None = None):
+        # library: (table, key) -> the library entry that gave the value (material_library.expand's ``filled``)
+        self.index, self.over, self.library = index, over, library or {}
 
     def path(self, table: str, key: str) -> str:
         if self.index is not None and key in self.over.get(table, {}):
             return f"cells[{self.index}].{table}.{key}"
-        return f"{table}.{key}"
+        return f"{table}.{key}" + self.from_library(table, key)
+
+    def from_library(self, table: str, key: str) -> str:
+        """`` (from knits.NAME of FILE)`` where a material library gave the value, else ``""``."""
+        src = self.library.get((table, key))
+        return f" (from {src})" if src else ""
 
     def where(self) -> str:
         return f" (in cells[{self.index}])" if self.index is not None else ""
@@ -558,9 +564,10 @@ def load_cell_scene(source: str | Path | dict, overrides: list[str] = (),
     for i, over in enumerate(cells_over):
         index = None if over is None else i
         where = "" if index is None else f"cells[{i}]"
-        merged = expand(_merge(raw_base, over or {}), lib, where)
+        filled: dict = {}
+        merged = expand(_merge(raw_base, over or {}), lib, where, filled)
         merged = validate(cell_defaults, merged, where, fill_defaults=True)
-        org = _Origins(index, over or {})
+        org = _Origins(index, over or {}, filled)
         tables, note = _resolve_cell(merged, org)
         label = (over or {}).get("label") or (base.get("title") if over is None else None) or f"cell {i}"
         p = CellParams(B=tables["yarn"]["B"], d=tables["yarn"]["d"], L=tables["knit"]["L"],

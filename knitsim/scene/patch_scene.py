@@ -226,7 +226,7 @@ class _ZoneOrigins(_Origins):
     def path(self, table: str, key: str) -> str:
         if key in self.over.get(table, {}):
             return f"zones[{self.index}].{table}.{key}"
-        return f"{table}.{key}"
+        return f"{table}.{key}" + self.from_library(table, key)
 
     def where(self) -> str:
         return f" (in zones[{self.index}])"
@@ -456,8 +456,9 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
 
     # base cell (the yarn / knit / friction / rules tables, as a cell scene)
     raw_base = {t: validate(PATCH_SCENE.fields[t], data.get(t, {}), t, fill_defaults=False) for t in _CELL_TABLES}
-    merged = validate(_cell_table(True), expand(_merge(raw_base, {}), lib), "", fill_defaults=True)
-    base_tables, _ = _resolve_cell(merged, _Origins(None, {}))
+    filled: dict = {}
+    merged = validate(_cell_table(True), expand(_merge(raw_base, {}), lib, "", filled), "", fill_defaults=True)
+    base_tables, _ = _resolve_cell(merged, _Origins(None, {}, filled))
     rules = dict(base_tables["rules"])
     rules["friction"] = base_tables["friction"]["model"]
     # rules and effects per cell (a patch mixes materials: Coulomb and Dahl regions, rule sets, effects)
@@ -474,7 +475,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
 
     def zone_tables(raw_over: dict, where: str, org) -> dict:
         merged = _merge(raw_base, raw_over)
-        zm = validate(_cell_table(True), expand(merged, lib, where), where, fill_defaults=True)
+        zm = validate(_cell_table(True), expand(merged, lib, where, org.library), where, fill_defaults=True)
         return _resolve_cell(zm, org)[0]
 
     def put(ztables: dict, ci, wi, origin_of) -> dict:

@@ -194,3 +194,26 @@ def test_an_unknown_effect_key_in_a_library_yarn_names_the_file(tmp_path):
     with pytest.raises(KnitsimInputError, match=str(path).replace(".", r"\.") + r": yarns\.z\.effects\.compaction = "
                                                 "12\\.0: unknown key"):
         load_library(path)
+
+
+def test_a_library_value_a_scene_check_refuses_names_its_library_entry(tmp_path):
+    """A knit of the library jammed at rest with its yarn (W0 = 1.0 < 4 d = 1.04 mm), and a phi0 given in degrees
+    (5, beyond atan 0.3 = 0.29 rad): a blind probe read "knit.W0 = 0.44: must be >= 4 d" of a scene that states
+    no W0. Expected: the scene's key, the library entry and file that gave it (cell scene, patch, a zone)."""
+    path = tmp_path / "lib.toml"
+    path.write_text(dumps(library_document([YARN], [LibraryKnit("tight", "y", L=4.5, W0=1.0, C0=0.9),
+                                                    LibraryKnit("deg", "y", L=4.5, W0=1.2, C0=0.9, phi0=5.0), A])))
+    src = str(path).replace(".", r"\.")
+    w0 = rf"^knit\.W0 \(from knits\.tight of {src}\) = 1\.0: must be >= 4 d = 1\.04 mm \(yarn\.d \(from yarns\.y "
+    with pytest.raises(KnitsimInputError, match=w0):
+        load_cell_scene({"materials": str(path), "knit": {"material": "tight"}, "load": LOAD})
+    with pytest.raises(KnitsimInputError, match=w0):
+        load_patch_scene({"materials": str(path), "patch": {"wales": 2, "courses": 2},
+                          "knit": {"material": "tight"}, "load": LOAD})
+    with pytest.raises(KnitsimInputError, match=rf"^friction\.phi0 \(from knits\.deg of {src}\) = 5\.0: must lie in "
+                                                r".*5 looks like degrees.* \(in zones\[0\]\)$"):
+        load_patch_scene({"materials": str(path), "patch": {"wales": 2, "courses": 2}, "knit": {"material": "a"},
+                          "zones": [{"wales": [0, 1], "knit": {"material": "deg"}}], "load": LOAD})
+    # a value the scene states itself is named as before
+    with pytest.raises(KnitsimInputError, match=r"^knit\.W0 = 1\.0: must be >= 4 d"):
+        load_cell_scene({"materials": str(path), "knit": {"material": "a", "W0": 1.0}, "load": LOAD})
