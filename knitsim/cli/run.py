@@ -372,6 +372,11 @@ def _run_locked(args) -> int:
         ck = Path(_out_dir(args)) / CHECKPOINT_NAME
         head = None
         if args.resume:
+            if not ck.is_file() and (ck.parent / "summary.json").is_file():
+                # a finished run removes its checkpoint: "no checkpoint" read as if the run were lost
+                raise KnitsimInputError(f"--resume: the run in {ck.parent} is finished (its summary.json is "
+                                        "written, last): nothing to resume; its results are there (--overwrite "
+                                        "runs it again)")
             if not ck.is_file():
                 raise KnitsimInputError(f"--resume: no checkpoint {ck} to resume from")
             try:

@@ -92,3 +92,15 @@ def test_a_cell_without_a_rest_state_is_refused_naming_the_scene(tmp_path, capsy
     err = capsys.readouterr().err
     assert err.startswith(f"knitsim: error: {cell}: ") and "no rest state" in err, err
     assert not (tmp_path / "c").exists()
+
+
+def test_resume_of_a_finished_run_says_it_is_finished(tmp_path, capsys):
+    # a finished run removes its checkpoint: --resume read "no checkpoint ... to resume from", as if lost (a probe)
+    scene, out = REPO / "scenes" / "random_phi0.toml", tmp_path / "o"
+    assert main(["run", str(scene), "--out", str(out), *SMALL]) == 0
+    before = (out / "summary.json").read_bytes()
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--resume", *SMALL]) == 2
+    err = capsys.readouterr().err
+    assert f"--resume: the run in {out} is finished (its summary.json is written, last): nothing to resume" in err
+    assert (out / "summary.json").read_bytes() == before             # nothing touched
