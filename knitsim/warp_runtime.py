@@ -27,14 +27,54 @@ def kernel_cache_dir() -> Path:
     return Path.home() / ".cache" / "knitsim" / "warp"
 
 
+#: where a Linux container's control group says how much CPU time it may use (cgroup v2 at its root,
+#: cgroup v1 under cpu/)
+CGROUP_ROOT = Path("/sys/fs/cgroup")
+
+
+def cgroup_cpu_limit(root: Path = CGROUP_ROOT) -> int | None:
+    """The cores a CPU quota of the process's control group amounts to (its quota over its period, rounded
+    up), or None where none is set or none can be read.
+
+    A container started with ``--cpus 2`` (Docker, Kubernetes limits, a CI runner) keeps every core of its
+    host in its affinity and in ``os.cpu_count()``; only the quota says it gets two cores' worth of time:
+    ``cpu.max`` = "quota period" in cgroup v2 ("max" where unlimited), ``cpu.cfs_quota_us`` (-1 where
+    unlimited) and ``cpu.cfs_period_us`` in cgroup v1."""
+    def read(path: Path) -> str | None:
+        try:
+            return path.read_text().strip()
+        except OSError:
+            return None
+
+    quota = period = None
+    v2 = read(root / "cpu.max")
+    if v2 is not None:
+        parts = v2.split()
+        if len(parts) == 2 and parts[0] != "max":
+            quota, period = parts
+    else:
+        q, per = read(root / "cpu" / "cpu.cfs_quota_us"), read(root / "cpu" / "cpu.cfs_period_us")
+        if q is not None and per is not None:
+            quota, period = q, per
+    try:
+        q, per = int(quota), int(period)
+    except (TypeError, ValueError):
+        return None
+    if q <= 0 or per <= 0:
+        return None
+    return max(1, -(-q // per))
+
+
 def usable_cores() -> int:
     """The cores this process may run on: its CPU affinity where the system reports one (a container or a
     batch job limited to a few cores reports the host's count through ``os.cpu_count()``), else
-    ``os.cpu_count()``."""
+    ``os.cpu_count()``; fewer where its control group's CPU quota allows fewer (:func:`cgroup_cpu_limit`)."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cores = max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):    # (macOS and Windows have no sched_getaffinity)
-        return max(1, os.cpu_count() or 1)
+        cores = max(1, os.cpu_count() or 1)
+    quota = cgroup_cpu_limit()
+    return cores if quota is None else min(cores, quota)
 
 
 def init() -> None:

@@ -10,6 +10,14 @@ from knitsim import warp_runtime
 warp_runtime.init()
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config) -> int:
+    """``-n auto`` (the README's test command) starts one worker per core this process may use: its CPU
+    affinity and its control group's quota (knitsim.warp_runtime.usable_cores), not the host's cores that
+    pytest-xdist counts (a 2-core CI container on a 64-core host would start 64 workers)."""
+    return warp_runtime.usable_cores()
+
+
 @pytest.fixture(params=warp_runtime.available_devices())
 def device(request) -> str:
     """A Warp device alias: ``"cpu"``, plus ``"cuda:0"`` when a GPU is present."""
