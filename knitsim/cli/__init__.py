@@ -41,7 +41,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``knitsim`` console command."""
+    """Entry point of the ``knitsim`` console command.
+
+    SIGTERM is taken as a Ctrl-C (:func:`knitsim.cli.common.sigterm_as_ctrl_c`): the commands that checkpoint
+    save their work and say how to resume; the exit status is then 143 (128 + SIGTERM, what a shell, ``timeout``
+    and a batch scheduler read as "ended by SIGTERM", as before), not Ctrl-C's 130."""
+    import signal
+
+    from .common import sigterm_as_ctrl_c
+
+    with sigterm_as_ctrl_c() as terminated:
+        status = _main(argv)
+    return 128 + int(signal.SIGTERM) if terminated and status == 130 else status
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         # (inside: a Ctrl-C while the parser's imports load, the first half second, is an interrupt too)
         parser = build_parser()

@@ -31,6 +31,40 @@ def naming_scene(path, command: str | None = None) -> Iterator[None]:
         raise KnitsimInputError(f"{path}: {msg}{hint}") from None
 
 
+@contextlib.contextmanager
+def sigterm_as_ctrl_c() -> Iterator[list]:
+    """SIGTERM (a batch scheduler's time limit, ``kill``, ``timeout``) taken as a Ctrl-C while the block runs:
+    it goes to the SIGINT handler in force when it arrives (:func:`knitsim.patch.runner.run_patch`'s, which
+    lets the increment under way finish and checkpoints it), else raises KeyboardInterrupt; so every command
+    that saves its work and says how to resume on Ctrl-C does so on SIGTERM too (before, SIGTERM ended the
+    process at once: ``knitsim run`` kept only its last periodic checkpoint and said nothing).  Yields a list
+    that holds the signal once one came (:func:`knitsim.cli.main` exits 143 for it).  The previous handler is
+    restored after; a SIGTERM that was ignored when the block began stays ignored, and outside the main thread
+    (where no handler can be set) nothing changes."""
+    import signal
+    import threading
+
+    got: list = []
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) == signal.SIG_IGN):
+        yield got
+        return
+
+    def on_sigterm(signum, frame):
+        got.append(signum)
+        handler = signal.getsignal(signal.SIGINT)
+        if callable(handler):
+            handler(signal.SIGINT, frame)
+        else:                              # Ctrl-C ignored (a job in the background) or default: still stop
+            raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, on_sigterm)
+    try:
+        yield got
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 #: top-level tables or keys that only one command's scenes have
 _SCENE_KEYS = {"cell": ("cells",), "run": ("patch", "specimen", "zones", "maps", "seed", "grades", "solver"),
                "sweep": ("sweep",), "calibrate": ("calibration", "specimens"), "diagnose": ("diagnosis",)}

@@ -336,6 +336,66 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_wri
         assert (out / name).read_bytes() == (full / name).read_bytes(), name
 
 
+def test_sigterm_checkpoints_says_how_to_resume_and_the_resume_equals_the_uninterrupted_run(tmp_path, capsys,
+                                                                                          monkeypatch):
+    # SIGTERM (a batch scheduler's time limit, kill, timeout) is taken as a Ctrl-C: before, the process died at
+    # once with no message, keeping only the last periodic checkpoint (none here: checkpoint_every is past the
+    # program's end). Sent to a real process once its progress says 10% of the increments are done.
+    import os
+    import signal
+    import subprocess
+
+    text = PATCH.replace("max_increment = 0.05", "max_increment = 0.002").replace(
+        "checkpoint_every = 1", "checkpoint_every = 100000")
+    scene = _scene(tmp_path, text)
+    total = len(cycles(0.1, 0.3, 1, 0.002))
+    full = tmp_path / "full"
+    assert main(["run", str(scene), "--out", str(full), "--no-progress"]) == 0
+    out = tmp_path / "o"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    p = subprocess.Popen([sys.executable, "-m", "knitsim", "run", str(scene), "--out", str(out)], cwd=tmp_path,
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in p.stderr:
+        if "knitsim run: increments: " in line:        # the first progress line (10%): a few increments in
+            p.send_signal(signal.SIGTERM)
+            break
+    err = p.stderr.read()
+    p.stdout.read()
+    # 143 = 128 + SIGTERM, as before and as a scheduler reads it (Ctrl-C: 130)
+    assert p.wait() == 143, err
+    m = re.search(r"interrupted; (\d+)/(\d+) increment\(s\) kept in the checkpoint .*; continue with: (.*)", err)
+    assert m, err
+    done = int(m.group(1))
+    assert int(m.group(2)) == total and 0 < done < total
+    assert (out / "checkpoint.pkl").is_file() and not (out / "summary.json").exists()
+    cmd = shlex.split(m.group(3).strip())
+    assert cmd[:2] == ["knitsim", "run"] and cmd[-1] == "--resume"
+    assert main(_argv(monkeypatch, cmd[1:] + ["--no-progress"])) == 0
+    assert f"resuming from {out / 'checkpoint.pkl'}: {done} of {total}" in capsys.readouterr().err
+    for name in ("curve.csv", "columns.csv"):                # the uninterrupted run's, bit for bit
+        assert (out / name).read_bytes() == (full / name).read_bytes(), name
+
+
+def test_sigterm_as_ctrl_c_restores_the_handler_and_keeps_an_ignored_sigterm_ignored():
+    import os
+    import signal
+
+    from knitsim.cli.common import sigterm_as_ctrl_c
+    before = signal.getsignal(signal.SIGTERM)
+    with sigterm_as_ctrl_c() as got, pytest.raises(KeyboardInterrupt):
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1000):                                # (delivered at the next bytecode)
+            pass
+    assert got == [signal.SIGTERM] and signal.getsignal(signal.SIGTERM) is before
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    try:
+        with sigterm_as_ctrl_c() as got:
+            os.kill(os.getpid(), signal.SIGTERM)             # ignored: nothing raised
+        assert got == []
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
 def test_an_interrupted_usd_export_leaves_no_file_that_looks_whole(tmp_path, capsys, monkeypatch):
     import knitsim.usd.from_results as fr
     scene = _scene(tmp_path)
