@@ -8,7 +8,8 @@ and printed by the commands:
     after a cycle that carried load: the knit went slack and took (almost) no load
     again up to the upper strain.  With
     Table 4 it has physical reasons (README, "the reload pocket"), but a user
-    must see it rather than read ``all_converged: true``.
+    must see it rather than read ``all_converged: true``.  Where the cycle never loads past the residual
+    strain an earlier unloading left (the slack knit's length), the message says that instead.
 ``reload_below_earlier_loading``
     A later cycle whose loading, where it passes the largest strain of the cycles before it, carries less
     than :data:`RELOAD_SHARE_MIN` of the force the knit carried there before
@@ -555,14 +556,43 @@ def zero_force_cycles(peaks, unit: str = "N per wale", fraction: float = ZERO_CY
     return [_zero_force_warning(found, unit) for found in _empty_cycles(peaks, fraction)]
 
 
-def _zero_force_warning(found, unit: str) -> ResultWarning:
+def _zero_force_warning(found, unit: str, slack=None, strain_name: str = "strain") -> ResultWarning:
+    """The ``zero_force_cycle`` warning of ``found`` (:func:`_empty_cycles`).  ``slack``: (the cycle's highest
+    strain, the residual strain the cycles before it left, the cycle that left it), where the first is at or below
+    the second (:func:`_slack_reload`): the program asks for less than the slack knit's length, a plainer cause
+    than the reload pocket, said instead."""
     c1, p1, c0, p0 = found
+    if slack is not None:
+        top, res, ck = slack
+        return ResultWarning(
+            "zero_force_cycle", cycle=int(c1), message=(
+                f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): its highest "
+                f"{strain_name}, {top:.4g}, is at or below the residual {strain_name} {res:.4g} that cycle {ck}'s "
+                f"unloading left: the program asks for less than the slack knit's length, so the knit stays slack; "
+                f"load past {res:.4g} to load it again"))
     return ResultWarning(
         "zero_force_cycle", cycle=int(c1), message=(
             f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
             f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
             f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
             f"pocket')"))
+
+
+def _slack_reload(c1: int, strain, cycle, residuals):
+    """(cycle ``c1``'s highest strain, the slack length, the cycle that left it) where that strain is at or
+    below the slack length: the residual strain of the last cycle before ``c1`` whose unloading reached zero
+    force (``residuals``: cycle -> residual strain, None or NaN where it did not); else None."""
+    if not residuals:
+        return None
+    left = [(int(k), float(r)) for k, r in residuals.items()
+            if int(k) < int(c1) and r is not None and np.isfinite(r)]
+    s = np.asarray(strain, float)[np.asarray(cycle) == c1]
+    s = s[np.isfinite(s)]
+    if not left or not len(s):
+        return None
+    ck, res = max(left)
+    top = float(s.max())
+    return (top, res, ck) if top <= res else None
 
 
 def _empty_cycles(peaks, fraction: float = ZERO_CYCLE_FRACTION):
@@ -578,7 +608,7 @@ def _empty_cycles(peaks, fraction: float = ZERO_CYCLE_FRACTION):
 
 
 def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wale",
-                   strain_name: str = "strain") -> list[ResultWarning]:
+                   strain_name: str = "strain", residuals: dict | None = None) -> list[ResultWarning]:
     """The warnings on a program's cycles: :func:`unloading_only_cycles`, :func:`zero_force_cycles`, then, for
     the cycles that carry load, :func:`reloads_below_earlier_loading` and :func:`reloads_above_first_loading`.
 
@@ -590,29 +620,36 @@ def cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wa
         The recorded rows (the checks' own parameters).
     unit, strain_name : str
         For the messages.
+    residuals : dict, optional
+        Cycle -> its residual strain (None where its unloading did not reach zero force), as the summary
+        located it: a cycle that carries no force because it does not load past the slack length an earlier
+        cycle left is said to be one (:func:`_slack_reload`), not pointed to the reload pocket.
     """
     return (unloading_only_cycles(strain, cycle, direction, strain_name=strain_name)
-            + load_cycle_warnings(peaks, strain, force, cycle, direction, unit=unit, strain_name=strain_name))
+            + load_cycle_warnings(peaks, strain, force, cycle, direction, unit=unit, strain_name=strain_name,
+                                  residuals=residuals))
 
 
 def load_cycle_warnings(peaks, strain, force, cycle, direction, unit: str = "N per wale",
-                        strain_name: str = "strain") -> list[ResultWarning]:
+                        strain_name: str = "strain", residuals: dict | None = None) -> list[ResultWarning]:
     """:func:`cycle_warnings` but :func:`unloading_only_cycles` (which a sweep's flags do not carry), in its order."""
     return load_cycle_warnings_of([peaks], strain, np.asarray(force, float)[:, None], cycle, direction, unit,
-                                  strain_name)[0]
+                                  strain_name, residuals=None if residuals is None else [residuals])[0]
 
 
 def load_cycle_warnings_of(peaks, strain, force, cycle, direction, unit: str = "N per wale",
-                           strain_name: str = "strain") -> list[list[ResultWarning]]:
-    """:func:`load_cycle_warnings` of the columns of ``force`` [n, m] (cells of a batch on the same rows; ``peaks``:
-    one list per column) at once: a list of warnings per column."""
+                           strain_name: str = "strain", residuals: list | None = None) -> list[list[ResultWarning]]:
+    """:func:`load_cycle_warnings` of the columns of ``force`` [n, m] (cells of a batch on the same rows; ``peaks``
+    and ``residuals``: one per column) at once: a list of warnings per column."""
     empty = [list(_empty_cycles(p)) for p in peaks]
     skips = [[int(c) for c, _, _, _ in e] for e in empty]
     rows = (strain, force, cycle, direction)
     below = reloads_below_earlier_loading_of(*rows, unit=unit, strain_name=strain_name, skips=skips)
     above = reloads_above_first_loading_of(*rows, unit=unit, strain_name=strain_name, skips=skips)
     tops = loading_tops(strain, cycle, direction)
-    return [[_zero_force_warning(found, unit) for found in empty[c]]
+    res = residuals or [None] * len(peaks)
+    return [[_zero_force_warning(found, unit, _slack_reload(found[0], strain, cycle, res[c]), strain_name)
+             for found in empty[c]]
             + below[c]
             + reloads_without_shakedown(peaks[c], strain, cycle, direction, unit=unit, strain_name=strain_name,
                                         flagged=set(skips[c]) | {w.cycle for w in below[c]}, tops=tops)

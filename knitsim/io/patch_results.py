@@ -1065,7 +1065,8 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     # the rows the figures use: the grip strains up to a stop
     end = len(F) if stop is None else stop
     warnings = stop_warnings + cycle_warnings(peaks, e[:end], h.force_per_wale_N[:end], h.cycle[:end],
-                                              h.direction[:end], strain_name="grip strain")
+                                              h.direction[:end], strain_name="grip strain",
+                                              residuals={c["cycle"]: c["residual_grip_strain"] for c in cycles})
     if reference is not None and reference.n_increments:
         # the same patch pulled monotonically (knitsim run's first-loading reference, where the program reloads
         # past an earlier maximum): a reload past the earlier maximum that stays below it; the reference's rows

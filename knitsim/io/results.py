@@ -522,7 +522,8 @@ def _cell_summary(h: BatchHistory, cell: int, label: str, notes: dict | None, re
         reason = flag.get("reason", "") if flag else ""
         end = f"FAILED ({STATUS_NAMES[final]}): {reason}"
     peaks = [(c["cycle"], c["peak_force_per_wale_N"]) for c in cycles_out]
-    warnings = cut + cycle_warnings(peaks, h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok])
+    warnings = cut + cycle_warnings(peaks, h.strain[:n_ok], F[:n_ok], h.cycle[:n_ok], h.direction[:n_ok],
+                                    residuals={c["cycle"]: c["residual_strain"] for c in cycles_out})
     warnings += reference_warnings(rows_of, F[:n_ok], n_ok, warnings, reference)
     if h.rest is not None:
         warnings += compressive_rest_state(h.rest["F"][cell])

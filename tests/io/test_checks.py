@@ -33,6 +33,48 @@ def test_zero_force_cycles(peaks, n):
     assert len(w) == n and all(x.code == "zero_force_cycle" for x in w)
 
 
+def test_a_cycle_that_stays_below_the_slack_length_says_so_not_the_reload_pocket():
+    """Hand-made rows: cycle 1 loads to 0.55 (peak 0.16 N per wale) and unloads to 0.1, its force reaching 0 at
+    0.239 (its residual strain: the slack knit's length); cycle 2 reloads only to 0.2 and back: below 0.239 the
+    knit is slack and can carry nothing, whatever the friction law (a plainer cause than the reload pocket,
+    which the warning named before); cycle 3 loads to 0.3, past the slack length, and still carries nothing:
+    that one is the pocket's case, its message unchanged."""
+    from knitsim.io.checks import cycle_warnings
+
+    strain = np.array([0.1, 0.3, 0.55, 0.3, 0.1, 0.15, 0.2, 0.15, 0.1, 0.2, 0.3])
+    cycle = np.array([1, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3])
+    direction = np.array([1, 1, 1, -1, -1, 1, 1, -1, -1, 1, 1])
+    force = np.array([0.02, 0.08, 0.16, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    peaks = [(1, 0.16), (2, 0.0), (3, 0.0)]
+    w = cycle_warnings(peaks, strain, force, cycle, direction, residuals={1: 0.239, 2: None, 3: None})
+    two, three = [x for x in w if x.code == "zero_force_cycle"]
+    assert two.cycle == 2 and "reload pocket" not in two.message
+    assert ("its highest strain, 0.2, is at or below the residual strain 0.239 that cycle 1's unloading left: the "
+            "program asks for less than the slack knit's length") in two.message
+    assert three.cycle == 3 and "reload pocket" in three.message and "slack knit's length" not in three.message
+    # no residual strains given (the sweep's flags): the message as before
+    assert all("reload pocket" in x.message for x in cycle_warnings(peaks, strain, force, cycle, direction)
+               if x.code == "zero_force_cycle")
+
+
+def test_a_cell_reloaded_below_its_residual_strain_is_told_so():
+    """The program 0 -> 0.55 -> 0.1 -> 0.2 -> 0.1 -> 0.2 (another engineer's): cycle 1 left the E-glass knit
+    slack up to its residual strain, above 0.2 (the summary's own number), so cycles 2 and 3, which reload to
+    0.2 only, carry no force: each warning names its cycle, 0.2 and that residual strain."""
+    from knitsim.cell.load_program import piecewise_linear
+
+    h = run_batch([CellParams(**EGLASS, m=0.2, phi0=0.0, force_cap_N=10.0)],
+                  piecewise_linear([0.55, 0.1, 0.2, 0.1, 0.2], 0.01))
+    s = summarise(h, ["c"])
+    res = s["cells"][0]["cycles"][0]["residual_strain"]
+    assert res > 0.2
+    w = [x for x in s["warnings"] if x["code"] == "zero_force_cycle"]
+    assert [x["message"].split(" peaks")[0] for x in w] == ["cycle 2", "cycle 3"]
+    for x in w:
+        assert (f"its highest strain, 0.2, is at or below the residual strain {res:.4g} that cycle 1's unloading "
+                "left") in x["message"] and "reload pocket" not in x["message"]
+
+
 def test_interpenetration_message_names_first_strain_and_depth():
     strain = np.array([0.1, 0.2, 0.3, 0.4])
     gap = np.array([[1.0, 0.9], [0.7, 0.8], [0.55, 0.75], [0.6, 0.7]])
