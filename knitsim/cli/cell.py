@@ -132,6 +132,9 @@ def _run(args) -> int:
         # a cycle that only unloads has no loaded peak: its figure is its start (warning cycle_without_loading)
         peaks = ", ".join(f"{cy['peak_force_per_wale_N']:.3g}"
                           + (" (unloading only: its start)" if cy.get("energy_kind") == "unloading_work" else "")
+                          # (knitsim run's peak stops at the last increment completed before cells failed)
+                          + (f" (the last converged state, at strain {cy['strain_at_peak']:.4g}, inside the "
+                             "increment the cell could not finish)" if cy.get("peak_is_last_converged_state") else "")
                           for cy in c["cycles"])
         jam = c["strain_at_first_jamming"]
         print(f"{c['label']}: {c['end']}; peak force per wale per cycle [N]: {peaks}; "

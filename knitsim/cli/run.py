@@ -528,11 +528,18 @@ def _run_locked(args) -> int:
                 # the peak per wale is the cap only where every column is at it; else it mixes capped and free ones
                 peak += (" (= force cap)" if not n_col or n_cap >= n_col
                          else f" ({n_cap} of {n_col} columns at their force cap)")
+            failed_note = ""
+            if (c.get("peak_before_failed_increment")
+                    and c["force_per_wale_N_held_on_failed_increment"] != c["peak_force_per_wale_N"]):
+                # (knitsim cell's peak counts a failed cell's last converged state: this one does not)
+                failed_note = (f" (over the increments completed before cells failed; on the failed increment the "
+                               f"grips held {c['force_per_wale_N_held_on_failed_increment']:.4g} N per wale, the "
+                               "failed cells' last converged state, which knitsim cell's peak counts)")
             how = {"slack_lengths": "located", "linear": "between rows", "secant": "extrapolated"}.get(
                 c.get("residual_grip_strain_from"), "")
             if c.get("held_rows"):
                 work += f" (includes {c['held_rows']} held row(s): not the knit's force)"
             print(f"cycle {c['cycle']}: peak {peak} at grip strain "
-                  f"{c['grip_strain_at_peak']:.3g}; residual strain {'-' if res is None else f'{res:.4g}'}"
+                  f"{c['grip_strain_at_peak']:.3g}{failed_note}; residual strain {'-' if res is None else f'{res:.4g}'}"
                   f"{f' ({how})' if res is not None and how else ''}; {work}")
     return 0 if summary["all_expected_end"] else 1

@@ -983,6 +983,12 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
     # where columns stop converging for good, or after cells stopped at their cap with unloadings left, the
     # grip force is not the knit's: the cycle figures stop there (_run_stop)
     stop, cut_at, stop_warnings = _run_stop(h, model, layout, row_key, col_key, fc)
+    # a stop where cells failed: the grips hold their last converged state on that row (at a grip strain the
+    # row does not record), which knitsim cell's peak counts (its row of the failed increment) and this
+    # peak does not: said in the cut cycle's entry, with that force, so that the two can be compared
+    from ..cell.history import STATUS_EVENT_NOT_LOCATED, STATUS_NO_CONVERGENCE
+    failed_stop = stop is not None and bool(np.isin(np.asarray(h.groups["status"])[stop],
+                                                     (STATUS_NO_CONVERGENCE, STATUS_EVENT_NOT_LOCATED)).any())
     # rows whose grip force holds columns that are not the knit's (not converged, or a stopped cell's last
     # state), other than at the force cap (its own warning): a cycle figure over them is not the knit's
     # (a column held at its cells' force cap too: its force is the cap, constant while the grip moves, and a
@@ -1028,6 +1034,9 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
         if len(rows) < len(cycle_rows):
             # cut where the force stops being the knit's: no work over a part of a cycle (_run_stop's warning)
             entry["cut_at_grip_strain"] = cut_at
+            if failed_stop:
+                entry["peak_before_failed_increment"] = True
+                entry["force_per_wale_N_held_on_failed_increment"] = float(h.force_per_wale_N[stop])
             cycles.append(entry)
             continue
         path = np.concatenate([[rows[0] - 1], rows]) if rows[0] > 0 else rows

@@ -510,6 +510,14 @@ def _cell_summary(h: BatchHistory, cell: int, label: str, notes: dict | None, re
     flag = next((e for e in events if e.get("kind") == "flag"), None)
     stop = stop_point(h, cell, final)
     stop_row, expected = stop["stop_row"], stop["expected_end"]
+    if stop["last_converged_strain"] is not None:
+        # a failed cell's row of the increment it could not finish holds its last converged state (at its own
+        # strain): a cycle whose peak is that state says so (knitsim run's cycle figures stop before the
+        # increment where cells failed: its peak is over the increments completed)
+        for c in cycles_out:
+            if (c["cycle"] == int(rows_of.cycle[stop_row])
+                    and c["peak_force_per_wale_N"] == stop["last_converged_force_per_wale_N"]):
+                c["peak_is_last_converged_state"] = True
     cut = []
     if final == STATUS_OK:
         end = "completed the load program"

@@ -71,6 +71,11 @@ def test_failed_cells_cut_the_cycle_figures_and_say_where_and_why():
     assert c1["peak_force_N"] == 5.0 and c1["grip_strain_at_peak"] == 0.3
     assert not [k for k in c1 if k.endswith("_N_mm")]
     assert s["all_converged"] is False
+    # the rule said (knitsim cell's peak counts a failed cell's last converged state): the peak is over the
+    # rows before the failure; on the failed row the grips held (1.5 + 2.0) / 2 = 1.75 N per wale (the first
+    # column at 10 x 0.2 - 0.5, the failed one held at 2 N)
+    assert c1["peak_before_failed_increment"] is True
+    assert c1["force_per_wale_N_held_on_failed_increment"] == 1.75
 
 
 def _unconverged_history(hold: bool):
@@ -124,6 +129,31 @@ def test_without_failed_cells_nothing_is_cut():
     assert not [w for w in s["warnings"] if w["code"] == "run_stopped_by_failed_cells"]
     assert all("cut_at_grip_strain" not in c for c in s["cycles"])
     assert "hysteresis_energy_N_mm" in s["cycles"][1]
+
+
+def test_a_failed_runs_peak_and_the_cells_say_which_rule_each_uses():
+    """A uniform 1 x 1 patch is its cell bit for bit (README, "Patches"). Pulled to 0.9 under a 1e12 N cap it
+    fails up the jammed branch inside an increment; knitsim cell's peak is the cell's last converged state
+    inside that increment (README: it "counts in its cycle's peak"), knitsim run's stops at the increments
+    completed before it (its figures are cut there): two documented rules, two numbers (240 against 91 N per
+    wale at increments of 0.01). Each summary says which it used, and the force the run's grips held on the
+    failed increment is the cell's peak, bit for bit."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import monotonic
+    from knitsim.io.results import summarise
+    from knitsim.patch.runner import run_patch
+
+    cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.0, force_cap_N=1e12)
+    prog = monotonic(0.9, 0.01)
+    model = PatchModel.uniform(cell, 1, 1)
+    h = run_patch(model, prog)
+    (run_cycle,) = patch_summary(h, h.info["ref_length_mm"], model=model)["cycles"]
+    (cell_cycle,) = summarise(run_batch([cell], prog))["cells"][0]["cycles"]
+    assert cell_cycle["peak_is_last_converged_state"] is True
+    assert run_cycle["peak_before_failed_increment"] is True
+    assert run_cycle["force_per_wale_N_held_on_failed_increment"] == cell_cycle["peak_force_per_wale_N"]
+    assert run_cycle["peak_force_per_wale_N"] < cell_cycle["peak_force_per_wale_N"]
+    assert run_cycle["grip_strain_at_peak"] < cell_cycle["strain_at_peak"] < run_cycle["cut_at_grip_strain"]
 
 
 def test_knitsim_run_of_a_specimen_failing_up_the_jammed_branch_says_so(tmp_path, capsys):
