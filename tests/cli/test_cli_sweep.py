@@ -102,6 +102,39 @@ def test_interrupt_keeps_finished_chunks_and_tells_how_to_resume(tmp_path, capsy
     assert rc == 0 and doc["computed_chunks"] == 1 and doc["skipped_chunks"] == 1
 
 
+def test_sigterm_is_taken_as_a_ctrl_c_keeping_the_finished_chunks(tmp_path, capsys, monkeypatch):
+    # a batch scheduler's time limit (SIGTERM) while chunk 1 of 2 runs: before, the process died at once
+    # without a word; now as a Ctrl-C (the finished chunk kept, the command that finishes it said), exit 143
+    import os
+    import signal
+
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    out = tmp_path / "o"
+    real = runner.run_chunk
+
+    def terminated(task):
+        if task["chunk"] == 1:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return real(task)
+
+    def not_taken(signum, frame):                   # (the old code's fate, without killing the test process)
+        raise AssertionError("SIGTERM reached the handler in force before knitsim: not taken as a Ctrl-C")
+
+    monkeypatch.setattr(runner, "run_chunk", terminated)
+    before = signal.signal(signal.SIGTERM, not_taken)
+    argv = ["sweep", str(scene), "--out", str(out), "--workers", "0"]
+    monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
+    try:
+        rc = main(argv)
+        assert signal.getsignal(signal.SIGTERM) is not_taken         # the handler given back
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    err = capsys.readouterr().err
+    assert rc == 143 and "interrupted; 1/2 finished chunk(s) kept" in err and err.rstrip().endswith("--resume")
+    assert [p.name for p in (out / "chunks").iterdir()] == ["chunk_00000.npz"]
+
+
 def test_a_second_sweep_into_a_folder_in_use_is_refused_and_a_dead_ones_lock_taken_over(tmp_path, capsys,
                                                                                           monkeypatch):
     # an interrupted sweep (chunk 1 of 2 not run), then its folder's lock held by another process that runs
