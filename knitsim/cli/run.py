@@ -534,7 +534,8 @@ def _run_locked(args) -> int:
                 # (knitsim cell's peak counts a failed cell's last converged state: this one does not)
                 failed_note = (f" (over the increments completed before cells failed; on the failed increment the "
                                f"grips held {c['force_per_wale_N_held_on_failed_increment']:.4g} N per wale, the "
-                               "failed cells' last converged state, which knitsim cell's peak counts)")
+                               "failed cells' columns at their last converged state, which knitsim cell's peak "
+                               "counts)")
             how = {"slack_lengths": "located", "linear": "between rows", "secant": "extrapolated"}.get(
                 c.get("residual_grip_strain_from"), "")
             if c.get("held_rows"):
