@@ -12,7 +12,8 @@ continues from it (same results as an uninterrupted run; from a finished solve
 it writes the outputs without solving again, on the device that solved: another
 is refused).  On Ctrl-C, during the solve or while the outputs are written, the
 command says what the checkpoint holds and prints the command that continues
-the run (exit status 130; SIGTERM is taken as a Ctrl-C, exit status 143: :func:`knitsim.cli.main`).  Results (:mod:`knitsim.io.patch_results`) go to
+the run (exit status 130; SIGTERM is taken as a Ctrl-C, exit status 143: :func:`knitsim.cli.main`).
+Results (:mod:`knitsim.io.patch_results`) go to
 ``DIR`` (default ``<scene stem>_out``), the USD file first, then the result set
 (``summary.json`` last: its presence marks a complete set); the checkpoint and its
 rows are removed once they are written.
