@@ -62,7 +62,8 @@ def sigterm_as_ctrl_c() -> Iterator[list]:
     try:
         yield got
     finally:
-        signal.signal(signal.SIGTERM, old)
+        # (None: a handler installed outside Python, which Python cannot put back; the default is what it can)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if old is None else old)
 
 
 #: top-level tables or keys that only one command's scenes have
