@@ -520,6 +520,10 @@ class OneYarnCheck:
         (in prior sds) in the joint fit, where any is fitted.
     threshold : float
         p below which it flags (:data:`ONE_YARN_P`).
+    objective : str
+        The calibration's objective.  The chi2s are always the mid-line's (Gaussian rows): under ``"band"``,
+        whose box likelihood has no residual variance for the F test to read (0 anywhere inside the band), the
+        check tests the mid-line fit the band likelihood started from (:func:`calibrate_joint`).
     """
 
     ran: bool
@@ -540,6 +544,7 @@ class OneYarnCheck:
     wall_s: float = 0.0
     largest_pull: tuple | None = None
     threshold: float = ONE_YARN_P
+    objective: str = "midline"
 
     @property
     def chi2_own(self) -> float:
@@ -569,7 +574,9 @@ class OneYarnCheck:
             return ""
         pull = self.pull_text()
         return (f"the specimens do not look like one yarn (p = {self.p:.2g} < {self.threshold:g}): with a yarn each "
-                f"({', '.join(self.shared)}) they fit better than noise explains (chi2 {self.chi2_joint:.4g} -> "
+                f"({', '.join(self.shared)}) they fit better than noise explains ("
+                + ("the mid-line fit the band likelihood started from: " if self.objective == "band" else "")
+                + f"chi2 {self.chi2_joint:.4g} -> "
                 f"{self.chi2_own:.4g}, F = {self.F:.3g} on {self.dof} and {self.dof_resid} dof), each its own "
                 f"{self.yarn_text()}; one yarn makes both curves only with worse rows or knits moved from their "
                 "stated values" + (f" (the largest move: {pull})" if pull else "") + ": they are different yarns, "
@@ -580,6 +587,7 @@ class OneYarnCheck:
                 "shared": list(self.shared), "chi2_joint": self.chi2_joint, "chi2_own": self.chi2_own if self.ran else None,
                 "chi2_joint_each": list(self.chi2_joint_each), "chi2_own_each": list(self.chi2_own_each),
                 "dof": self.dof, "dof_resid": self.dof_resid, "F": self.F, "p": self.p, "threshold": self.threshold,
+                "objective": self.objective,
                 "own_yarns": [dict(y) for y in self.own_yarns], "units": dict(self.units),
                 "converged": list(self.converged), "nfev": self.nfev, "wall_s": self.wall_s,
                 "largest_pull": None if self.largest_pull is None else
@@ -1908,19 +1916,29 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
 
     def own_refine(x0, what, problem, k):
         return own_done[k] if k < len(own_done) else refine(x0, what, problem, "one_yarn")
+    # the check's F test reads the drop of chi2 against the residual variance of Gaussian rows (of any scale); the
+    # band likelihood's cost is no such variance (a box: 0 anywhere inside the band, whatever the scatter, so its
+    # "residual variance" is the few rows near an edge, and one yarn on a +-4 % band read p = 7e-32): under the band
+    # objective it tests the mid-line fit the band likelihood started from (the best), a Gaussian fit of the same rows
+    x_check, conv_check = x, bool(sol.success)
+    if setup.objective == "band":
+        _, _, msol = min(mids, key=lambda t: (t[0], t[1]))
+        x_check, conv_check = msol.x, bool(msol.success)
+        pb.objective = "midline"
     try:
-        check = _one_yarn_check(pb, x, estimates, own_refine, say, bool(sol.success), all_ok)
+        check = _one_yarn_check(pb, x_check, own_refine, say, conv_check, all_ok)
     except KeyboardInterrupt:
         save()
         raise
+    finally:
+        pb.objective = setup.objective
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k_total, s2, bool(sol.success) and all_ok, msg, starts,
                        int(sol.nfev), wall_before + time.perf_counter() - t0,
                        setup, cells[0], bool(sol.success), str(sol.message), check)
 
 
-def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, converged: bool,
-                    cells_ok: bool) -> OneYarnCheck:
+def _one_yarn_check(pb: _Problem, x: np.ndarray, refine, say, converged: bool, cells_ok: bool) -> OneYarnCheck:
     """Do the specimens look like one yarn?  (:class:`OneYarnCheck`.)
 
     Each specimen is refitted alone with every shared variable its own (its knit, phi0, pretension and
@@ -1932,6 +1950,13 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
     smaller (the test conservative); the geometry priors let a specimen's own yarn trade with its knit, so
     fewer than ``dof`` directions are free and the test is conservative again.
 
+    The rows are read under ``pb.objective``, which must be a Gaussian one (the mid-line: ``x`` is then the
+    mid-line solution under the band objective, :func:`calibrate_joint`): the F test's denominator is the residual
+    variance, and a box likelihood's cost is none (inside the band it is 0, whatever the scatter).  That variance is
+    taken at 1 where it is below (the rows scatter less than their stated sds): the priors' terms have scale 1 by
+    construction, and a drop of the knits' prior cost read against the rows' smaller scatter would flag one yarn
+    (sds are scaled up, never down, as the Birge ratio is).
+
     ``refine(x0, what, problem, k)`` refines specimen ``k``'s problem from ``x0`` (the calibration's own,
     checkpointed); ``say`` reports progress.
     """
@@ -1939,10 +1964,17 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
     t0 = time.perf_counter()
     names = tuple(s.name for s in pb.sp)
     shared = tuple(pb.shared)
-    pulls = [e for e in estimates if e.deviation_sd is not None and math.isfinite(e.deviation_sd)]
-    top = max(pulls, key=lambda e: abs(e.deviation_sd), default=None)
-    base = {"specimens": names, "shared": shared, "largest_pull": None if top is None else
-            (top.label, float(top.deviation_sd), float(top.stated), top.unit)}
+    # the per-specimen prior furthest from its stated value at x (as the estimates read it: x / prior sd)
+    pulls = []
+    for v, xi in zip(pb.vars, x):
+        if v.name in GEOMETRY or v.name == "pretension":
+            s = pb.sp[v.specimen]
+            sd = s.uncertainty[v.name] if v.name in GEOMETRY else s.pretension_sd
+            stated = s.knit[v.name] if v.name in GEOMETRY else 0.0
+            if sd > 0 and math.isfinite(xi / sd):
+                pulls.append((f"{v.name}[{s.name}]", float(xi / sd), float(stated), UNITS.get(v.name, "")))
+    top = max(pulls, key=lambda t: abs(t[1]), default=None)
+    base = {"specimens": names, "shared": shared, "largest_pull": top, "objective": pb.setup.objective}
 
     def skipped(why):
         return OneYarnCheck(False, why, **base)
@@ -1996,13 +2028,17 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, estimates: list, refine, say, c
         conv.append(bool(sol.success))
         nfev += int(sol.nfev)
     drop = max(0.0, sum(joint_each) - sum(own_each))
-    resid = sum(own_each) / dof_resid
+    # the residual variance, never below the stated sds' 1: the priors' terms have that scale by construction,
+    # and rows that scatter less than their stated sd (a band's half-width, the specimens' scatter, around a
+    # mid-line that scatters less) would read the priors' drop as a difference of yarns (one yarn on +-4 % bands
+    # of stated knits 0.5 prior sd off: p = 2e-18, the drop the knits' priors'); sds are scaled up, not down
+    resid = max(sum(own_each) / dof_resid, 1.0)
     F = (drop / q) / resid if resid > 0 else (math.inf if drop > 0 else 0.0)
     p = float(f_dist.sf(F, q, dof_resid)) if math.isfinite(F) else 0.0
     units = {n: UNITS.get(n, pb.effect_vars[n].unit if n in pb.effect_vars else "") for n in shared}
     return OneYarnCheck(True, "", names, shared, float(sum(joint_each)), tuple(joint_each), tuple(own_each), q,
                         dof_resid, float(F), p, tuple(yarns), units, tuple(conv), nfev, time.perf_counter() - t0,
-                        base["largest_pull"])
+                        base["largest_pull"], objective=pb.setup.objective)
 
 
 __all__ = ["rival_rule", "rival_spread", "CalibrationInterrupted", "check_setup", "check_zero", "ZERO_MODES", "ZERO_CHECK_SD", "ZERO_CHECK_SHARE", "OneYarnCheck", "ONE_YARN_P", "identification_rule", "NOT_IDENTIFIED_SHARE", "fingerprint", "JointSetup", "Estimate", "SpecimenFit", "JointResult", "calibrate_joint", "YARN_VARIABLES",

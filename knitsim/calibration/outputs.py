@@ -309,7 +309,11 @@ def one_yarn_md(result: JointResult) -> list[str]:
     out = ["", "## One yarn?", ""]
     if not c.ran:
         return out + [f"Not tested: {c.why_not}."]
-    out += [f"Each specimen refitted alone with its own {', '.join(c.shared)} (its knit, phi0 and priors as in the "
+    band = getattr(c, "objective", "midline") == "band"
+    out += [("Tested on the mid-line fit the band likelihood started from (each row at its band's mid-line, sd = "
+             "half-width): the F test reads the drop of chi2 against the residual variance of Gaussian rows, and the "
+             "band likelihood's cost is none (0 anywhere inside the band, whatever the scatter). " if band else "")
+            + f"Each specimen refitted alone with its own {', '.join(c.shared)} (its knit, phi0 and priors as in the "
             f"joint fit), from the joint solution: chi2 {c.chi2_joint:.4g} -> {c.chi2_own:.4g} with "
             f"{c.dof} variables more; F = (drop / {c.dof}) / (chi2 / {c.dof_resid}) = {c.F:.3g}, p = {c.p:.2g} "
             f"(the upper tail of F({c.dof}, {c.dof_resid}): the chance of a drop this large if they are one yarn; "

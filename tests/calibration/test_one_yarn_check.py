@@ -174,3 +174,54 @@ def test_the_flag_line_of_a_hand_built_check():
     assert "B 0.2516 | 0.6509 N mm^2; m 0.4 | 0.41 (tight | loose)" in line
     assert "L[loose], 2.8 prior sd from its stated 16 mm" in line
     assert OneYarnCheck(True, p=0.002).flag() == "" and not OneYarnCheck(False, "one specimen").flagged
+
+
+def _band_files(tmp_path, half=0.04):
+    """Hand-made band files of ONE yarn on three knits, as a lab would give its specimens' scatter: the model's
+    curve (B 0.25, d 0.56, in-plane width 0.75, m 0.25, phi0 0; the knits below, force of a 60 mm wide specimen)
+    times 1 - half read every 0.005 of strain (low) and times 1 + half every 0.0042 (high), to strain 0.45.  The
+    scene states each knit's W0 and C0 0.3 to 0.6 prior sd (6 %) off the truth, as a lab's measured knit is."""
+    from knitsim.calibration.scene import load_calibration_scene
+    truth = {"tight": (12.2, 4.15, 2.45), "mid": (13.5, 4.4, 2.7), "loose": (14.6, 4.8, 2.9)}
+    stated = {"tight": (12.2, 4.3, 2.38), "mid": (13.5, 4.25, 2.8), "loose": (14.6, 4.95, 2.85)}
+    specimens = []
+    for name, (L, W0, C0) in truth.items():
+        h = run_batch([CellParams(B=0.25, d=0.56, in_plane_width=0.75, m=0.25, phi0=0.0, L=L, W0=W0, C0=C0,
+                                  force_cap_N=8.0)], monotonic(0.45, 0.002))
+        assert np.all(h.status == 0)
+        s, F = h.strain, h.force_per_wale[:, 0] * 60.0 / W0
+        for tag, factor, step in (("low", 1 - half, 0.005), ("high", 1 + half, 0.0042)):
+            g = np.arange(0.0, s[-1] - 1e-9, step)
+            (tmp_path / f"{name}_{tag}.csv").write_text(
+                "strain;load_N\n" + "".join(f"{a:.5f};{b:.5f}\n" for a, b in zip(g, factor * np.interp(g, s, F))))
+        L_, W_, C_ = stated[name]
+        specimens.append(f'[[specimens]]\nname = "{name}"\nwidth = 60.0\ngauge_length = 100.0\n'
+                         f'band = ["{name}_low.csv", "{name}_high.csv"]\nknit = {{ L = {L_}, W0 = {W_}, C0 = {C_} }}\n'
+                         'uncertainty = { L = 0.0, W0 = 0.06, C0 = 0.06 }\n')
+    (tmp_path / "cal.toml").write_text(
+        '[yarn]\nd = 0.56\nB = 0.15\nin_plane_width = 0.65\n[friction]\nmodel = "coulomb"\nm = 0.35\nphi0 = 0.0\n'
+        '[rules]\nforce_cap_N = 8.0\n[calibration]\nshared = ["B", "in_plane_width", "m"]\n'
+        'per_specimen = ["phi0", "W0", "C0"]\nbounds = { B = [0.02, 1.0], in_plane_width = [0.56, 1.0], m = [0.02, 1.0] }\n'
+        'max_increment = 0.005\nrow_step = 0.01\nstarts = 16\nrefine = 2\nmax_nfev = 40\nseed = 3\nobjective = "band"\n'
+        + "\n".join(specimens))
+    return load_calibration_scene(tmp_path / "cal.toml")
+
+
+def test_one_yarn_on_bands_is_not_flagged(tmp_path):
+    """One yarn's +-4 % bands on three knits, fitted with the band likelihood.  The old check read the box
+    likelihood's cost as a chi2 (0 anywhere inside a band: its "residual variance" 0.025 / 120 was the few rows at
+    an edge) and the drop of the knits' prior cost (scale 1 by construction) against it: p = 1e-89, "not one
+    yarn", NOT A CALIBRATION YOU CAN USE.  The check now tests the mid-line fit the band likelihood started from
+    (Gaussian rows) and reads the drop against a residual variance of at least the stated sds' 1 (the mid-line
+    of a band made from one curve scatters far less than the half-width it is weighted by: chi2 / (n - k) ~
+    0.01, and that alone had also flagged it, p = 2e-18)."""
+    sc = _band_files(tmp_path)
+    r = calibrate_joint(sc.specimens, sc.setup)
+    c = r.one_yarn
+    assert c.ran, c.why_not
+    assert not c.flagged and c.p > 0.05, c.p
+    assert c.objective == "band"
+    assert not any("one yarn" in f for f in r.flags), r.flags
+    # the chi2s are the mid-line's: the joint one is the mid-line fit's, above the band fit's cost
+    assert c.chi2_joint > r.chi2
+    assert "Tested on the mid-line fit the band likelihood started from" in report_md(r, "t", "s.toml", [])
