@@ -148,6 +148,37 @@ def test_a_start_outside_its_bounds_and_an_absurd_range_are_refused(tmp_path, ca
     assert expect in line, line
 
 
+@pytest.mark.parametrize("phi0, bounds, expect", [
+    # 5 degrees typed as radians: phimax = atan(0.3) = 0.2915 rad (the fixture's m); 5 deg = 0.08727 rad.  Before,
+    # the start was clipped to +phimax without a word, while B, d, the width and m starts out of range were refused
+    (5.0, None, "specimens.tight.phi0 = 5 rad: specimen tight's phi0 start lies outside its range [-0.2915, 0.2915] "
+                "rad (+-phimax = atan(m), m = 0.3 the start) (in degrees it would be 0.08727 rad)"),
+    # inside +-phimax, outside bounds.phi0 = [-0.5, 0.5] of it: +-0.1457 rad
+    (0.2, [-0.5, 0.5], "specimens.tight.phi0 = 0.2 rad: specimen tight's phi0 start lies outside its range "
+                       "[-0.1457, 0.1457] rad (calibration.bounds.phi0 x phimax, m = 0.3 the start)"),
+])
+def test_a_phi0_start_outside_its_range_is_refused(tmp_path, capsys, e_glass_calibration, phi0, bounds, expect):
+    doc = e_glass_calibration("refusals")
+    doc["calibration"]["per_specimen"] = ["phi0"]
+    doc["specimens"][0]["phi0"] = phi0
+    if bounds:
+        doc["calibration"]["bounds"] = {"phi0": bounds}
+    rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+    line = _one_line_refusal(tmp_path, rc, cap)
+    assert expect in line, line
+
+
+def test_a_phi0_start_inside_its_range_is_not_refused(tmp_path, e_glass_calibration):
+    from knitsim.calibration.joint import check_setup
+    doc = e_glass_calibration("inside")
+    doc["calibration"]["per_specimen"] = ["phi0"]
+    doc["specimens"][0]["phi0"] = -0.29            # within -0.2915
+    (tmp_path / "a.csv").write_text(_curve(0.2))
+    (tmp_path / "cal.toml").write_text(dumps(doc))
+    scene = load_calibration_scene(tmp_path / "cal.toml")
+    check_setup(scene.specimens, scene.setup)
+
+
 def test_a_start_inside_its_bounds_is_not_refused(tmp_path, e_glass_calibration):
     # the fixture's B 0.31 and m 0.3 inside [0.05, 2] and [0.1, 0.9]: the scene loads and its setup is accepted
     from knitsim.calibration.joint import check_setup
