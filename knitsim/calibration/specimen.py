@@ -531,6 +531,14 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
         how = "half-width of the band"
         sigma = np.maximum(np.maximum(half, accuracy_rel * np.abs(target)), 1e-6 * scale)
         rule = f"{how}, at least {100 * accuracy_rel:.3g} % of the force (the machine's accuracy)"
+        if cur is None:
+            # the mid-line is the envelopes interpolated between their readings: its miss at a row is the mean
+            # of theirs (:func:`_interpolation_sd`, as a curve's rows take it); without it a knee between two
+            # readings of an envelope left one row many sds off and one yarn on +-4 % bands read as two
+            e_interp = 0.5 * (_interpolation_sd(lo_t, strain) + _interpolation_sd(hi_t, strain))
+            if np.any(e_interp > 0):
+                sigma = np.sqrt(sigma ** 2 + e_interp ** 2)
+                rule += "; with the interpolation's error where a row falls between an envelope's readings"
     else:
         if noise_N is None:
             # where the curve's scatter grows with the force, each row's own sd (knitsim.diagnosis.noise)

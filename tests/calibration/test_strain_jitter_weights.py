@@ -62,3 +62,24 @@ def test_a_row_between_readings_across_a_knee_weighs_its_interpolation_error(tmp
     assert miss[0] == pytest.approx(0.1475, rel=1e-9) and sd[0] >= miss[0]   # the knee's row: its miss covered
     assert sd[1] == 0.0 and miss[1] < 1e-12                 # on a reading
     assert sd[2] == 0.0                                     # a straight stretch: no change of slope
+
+
+def test_a_band_row_between_readings_across_a_knee_weighs_the_envelopes_interpolation_error(tmp_path):
+    """A band's mid-line is its envelopes interpolated between their readings, as a curve is: its rows take the
+    same chord term (before, only a curve's did: a band's knee row kept the half-width alone).  Envelopes 0.95 and
+    1.05 x g(s) = 2 + 100 max(0, s - 0.1) N, read every 0.04; the row at 0.10 lies between the readings at 0.08
+    and 0.12, the slope 0 before and 100 x factor after: each envelope's term is 100 x factor x (0.02 x 0.02) /
+    0.04 = factor, their mean 1.0 N; with the half-width 0.05 x 3 N: sd = sqrt(0.15^2 + 1) (by hand).  A row on a
+    reading (0.12) and one on a straight stretch (0.30) keep the half-width."""
+    def g(s):
+        return 2.0 + 100.0 * np.maximum(0.0, s - 0.1)
+    s = 0.04 * np.arange(11)
+    for name, factor in (("lo.csv", 0.95), ("hi.csv", 1.05)):
+        (tmp_path / name).write_text("strain,load_N\n" + "".join(f"{a:.4f},{factor * b:.6f}\n" for a, b in zip(s, g(s))))
+    sp = specimen_from_files("b", width_mm=50.0, gauge_length_mm=100.0, knit=KNIT,
+                             band=(tmp_path / "lo.csv", tmp_path / "hi.csv"), row_step=0.02)
+    at = {round(float(x), 4): i for i, x in enumerate(sp.strain)}
+    assert sp.sigma_N[at[0.1]] == pytest.approx(np.hypot(0.15, 1.0), rel=1e-6)
+    assert sp.sigma_N[at[0.12]] == pytest.approx(0.05 * g(0.12), rel=1e-6)
+    assert sp.sigma_N[at[0.3]] == pytest.approx(0.05 * g(0.3), rel=1e-6)
+    assert "interpolation" in sp.sigma_rule
