@@ -1049,7 +1049,7 @@ class _Problem:
         bound without a word (a blind probe's B = 5 with bounds [0.05, 2])."""
         b, W0s = self.base, [s.knit["W0"] for s in self.sp]
         for v in self.vars:
-            if v.name == "phi0" and b.phimax > 0:
+            if v.name == "phi0":
                 # a specimen's own start (specimens.NAME.phi0, else friction.phi0), a fraction of phimax at the
                 # start's m: outside the range it was clipped to its end without a word (degrees typed as rad)
                 given = self.setup.phi0_starts[v.specimen] if v.specimen < len(self.setup.phi0_starts) else None
@@ -1060,7 +1060,7 @@ class _Problem:
                            if abs(math.radians(value)) <= b.phimax else "")
                     raise KnitsimInputError(
                         f"{key} = {value:g} rad: specimen {self.sp[v.specimen].name}'s phi0 start lies outside its "
-                        f"range [{v.lo * b.phimax:.4g}, {v.hi * b.phimax:.4g}] rad ("
+                        f"range [{v.lo * b.phimax + 0.0:.4g}, {v.hi * b.phimax + 0.0:.4g}] rad ("
                         + ("+-phimax = atan(m)" if (v.lo, v.hi) == (-1.0, 1.0) else "calibration.bounds.phi0 x phimax")
                         + f", m = {b.m:g} the start){deg}: the fit would start from the nearest end; give phi0 in "
                         "radians within it")

@@ -156,9 +156,14 @@ def test_a_start_outside_its_bounds_and_an_absurd_range_are_refused(tmp_path, ca
     # inside +-phimax, outside bounds.phi0 = [-0.5, 0.5] of it: +-0.1457 rad
     (0.2, [-0.5, 0.5], "specimens.tight.phi0 = 0.2 rad: specimen tight's phi0 start lies outside its range "
                        "[-0.1457, 0.1457] rad (calibration.bounds.phi0 x phimax, m = 0.3 the start)"),
+    # a start m of 0 (no friction: phimax = 0) leaves phi0 no room: before, its start was set to 0 without a word
+    (0.05, "m0", "specimens.tight.phi0 = 0.05 rad: specimen tight's phi0 start lies outside its range [0, 0] rad "
+                 "(+-phimax = atan(m), m = 0 the start)"),
 ])
 def test_a_phi0_start_outside_its_range_is_refused(tmp_path, capsys, e_glass_calibration, phi0, bounds, expect):
     doc = e_glass_calibration("refusals")
+    if bounds == "m0":
+        doc["friction"]["m"], bounds = 0.0, None
     doc["calibration"]["per_specimen"] = ["phi0"]
     doc["specimens"][0]["phi0"] = phi0
     if bounds:
