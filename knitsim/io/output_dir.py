@@ -387,23 +387,28 @@ def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: 
         raise KnitsimInputError(f"{flag} = {str(p)!r}: is a folder")
     if p.exists() and not overwrite:
         raise KnitsimInputError(f"{flag} = {str(p)!r}: exists; add --overwrite to replace it")
-    probe = p.absolute().parent
-    while not probe.exists() and probe != probe.parent:
+    check_file_can_be_created(p, f"{flag} = {str(p)!r}")
+    return p
+
+
+def check_file_can_be_created(path: str | Path, where: str) -> None:
+    """Refuse, as ``where: cannot be written: ...``, a file path whose nearest existing folder takes no new file
+    (the missing folders below it are created when the file is written): the folder is probed by creating and
+    removing a file in it.  ``os.access`` passed a parent that is a file (``afile/x.png``) and ``/proc`` (root may
+    "write" there, nothing can be created), and the file failed as a traceback after the work (a blind probe's
+    ``knitsim usd --quicklook afile/x.png``, after the USD was written; diagnose's --json, after its fits)."""
+    probe = Path(os.path.abspath(path)).parent
+    while not os.path.lexists(probe) and probe != probe.parent:
         probe = probe.parent
-    # the nearest existing folder must take a new file (the missing ones below it are created when the file is
-    # written): before, os.access passed a parent that is a file ("afile/x.png") and /proc (root may "write"
-    # there, nothing can be created), and the file failed as a traceback after the work (a blind probe's
-    # `knitsim usd --quicklook afile/x.png`, after the USD was written; diagnose's --json, after its fits)
     if not probe.is_dir():
-        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot be written: {probe} is a file, not a folder")
+        raise KnitsimInputError(f"{where}: cannot be written: {probe} is a file, not a folder")
     try:
         fd, name = tempfile.mkstemp(prefix=".knitsim-probe-", dir=probe)
         os.close(fd)
         os.remove(name)
     except OSError as exc:
-        raise KnitsimInputError(f"{flag} = {str(p)!r}: cannot be written: no file can be created in {probe} "
+        raise KnitsimInputError(f"{where}: cannot be written: no file can be created in {probe} "
                                 f"({exc.strerror or exc})") from None
-    return p
 
 
 def add_output_flags(parser, resumable: bool = False, what: str = "results") -> None:

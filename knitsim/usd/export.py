@@ -375,7 +375,7 @@ def check_usd_path(path, flag: str | None = None) -> str:
     KnitsimInputError
         One line naming the path and why it cannot be written.
     """
-    import tempfile
+    from ..io.output_dir import check_file_can_be_created
 
     p = os.fspath(path)
     where = f"{flag} = {p!r}" if flag else f"path={p!r}"
@@ -383,22 +383,7 @@ def check_usd_path(path, flag: str | None = None) -> str:
         raise KnitsimInputError(f"{where}: must end in .usda, .usdc or .usd")
     if os.path.isdir(p):
         raise KnitsimInputError(f"{where}: is a folder")
-    parent = os.path.dirname(os.path.abspath(p))
-    probe = parent
-    while not os.path.lexists(probe):
-        up = os.path.dirname(probe)
-        if up == probe:
-            break
-        probe = up
-    if not os.path.isdir(probe):
-        raise KnitsimInputError(f"{where}: cannot be written: {probe} is a file, not a folder")
-    try:
-        fd, name = tempfile.mkstemp(prefix=".knitsim-usd-probe-", dir=probe)
-        os.close(fd)
-        os.remove(name)
-    except OSError as exc:
-        raise KnitsimInputError(f"{where}: cannot be written: no file can be created in {probe} "
-                                f"({exc.strerror or exc})") from None
+    check_file_can_be_created(p, where)
     return p
 
 
