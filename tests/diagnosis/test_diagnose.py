@@ -548,6 +548,32 @@ def test_an_effect_pressed_against_a_bound_that_leaves_a_misfit_larger_than_the_
     assert not pressed_and_short(cand(1.02, True), at)
 
 
+def test_an_effect_that_a_pure_force_scale_explains_as_well_is_not_named_confidently():
+    """The model's own three cycles 0.20-0.72 x 1.1 with B held fixed (tests/diagnosis/data/README.md: a wrong
+    wale count or width, or B 10 % off).  No effect is there, but the baseline at B 0.31 misses the jammed
+    branches (chi2/dof ~49) and bending_hysteresis removed 85 % of the excess, leaving chi2/dof 8.3 with no
+    parameter at a bound: named, confident.  The model's force is proportional to B (the elastica and the
+    Coulomb friction are homogeneous in it), so the baseline with B free is the baseline times a factor, which
+    must come out 1.1 (the file's own factor) with the friction of the file (m 0.20, phi0 0.05 rad) and fit
+    within the noise; it beats the effect, and the verdict is not confident and says so."""
+    from pathlib import Path
+
+    from knitsim.diagnosis.diagnose import STRONG
+    from knitsim.diagnosis.measured import read_measured_curve
+    curve = read_measured_curve(Path(__file__).parent / "data" / "eglass_3cycles_to0.72_x1.1_noise2mN.csv")
+    base = NOMINAL.replace(m=0.25, phi0=0.0, unloading_rule="dusserre", reload_rule="mirror_unloading",
+                           force_cap_N=50.0)
+    r = diagnose([curve], DiagnosisSetup(base=base, effects=("bending_hysteresis", "normal_load_friction"),
+                                         pair=False)).as_dict()
+    v = r["verdict"]
+    assert v["effect"] == "bending_hysteresis" and r["candidates"][0]["within_noise"] is False
+    assert not v["confident"] and v["reason"].startswith("a pure force scale explains the curves as well")
+    sc = r["force_scale"]
+    assert sc["factor"] == pytest.approx(1.1, rel=0.01)
+    assert sc["params"]["m"] == pytest.approx(0.20, abs=0.005) and sc["within_noise"] is True
+    assert sc["bic_minus_effect"] < -STRONG and sc["rivals_effect"]
+
+
 def test_a_curve_the_model_made_is_not_read_as_a_gap_beside_a_cliff_of_chi2():
     """Nothing is missing (tests/diagnosis/data/README.md: the model's own curve at m 0.20, phi0 0.05 rad,
     2 mN of noise, made and sampled outside the package's generators).  Started from m 0.25, phi0 0, the
