@@ -470,6 +470,10 @@ def render_report(result: dict) -> str:
 
     # where
     out.append("<h2>Where: the gap per stage</h2>\n")
+    if noise.get("baseline_within_noise") is True:
+        # a within-noise chi2 excess shared out reads as a gap where there is none (a `none` names no stage)
+        out.append("<p>The baseline fits within the noise: there is no gap beyond it, and the shares below are "
+                   "of the noise's own chi2.</p>\n")
     headers = ["stage", "n", "RMS [N]", "max |error| [N]", "share"]
     if best is not None:
         headers.append(f"RMS with {best.get('effect')} [N]")

@@ -598,6 +598,24 @@ def test_a_curve_the_model_made_is_not_read_as_a_gap_beside_a_cliff_of_chi2():
 
 
 
+def test_the_console_shares_out_no_gap_where_the_baseline_fits_within_the_noise():
+    """A confident `none` ("nothing is missing") printed "gap by stage: unloading_sliding 82 %": the share of a
+    chi2 excess that lies within the noise, which reads as a gap.  Where the baseline is within the noise the line
+    says there is no gap (the README: a `none` verdict names no stage); beyond it the shares are printed as before.
+    Hand-set results: the shares' figures themselves are gap.stage_gap's (tested there)."""
+    from knitsim.cli.diagnose import _stage_line
+
+    def result(within):
+        return {"where": ["unloading_sliding", "loading_sliding"],
+                "baseline": {"stages": {"unloading_sliding": {"share": 0.82}, "loading_sliding": {"share": 0.18}}},
+                "noise": {"baseline_within_noise": within}}
+    line = _stage_line(result(True))
+    assert line.startswith("gap by stage: none beyond the noise") and "%" not in line and "unloading" not in line
+    assert _stage_line(result(False)) == "gap by stage: unloading_sliding 82%, loading_sliding 18%"
+    # no curve's noise known (adequacy not judged): the shares are printed, as before
+    assert _stage_line(result(None)) == "gap by stage: unloading_sliding 82%, loading_sliding 18%"
+
+
 def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_path, capsys):
     """The model's own single cycle (tests/diagnosis/data/README.md): no stage's chi2 exceeds its rows, so the
     chi2 excess has no share to give out (gap.stage_gap: NaN).  The console printed "nan%" for every stage;

@@ -306,3 +306,13 @@ def test_how_the_files_were_read_is_said_in_the_report(result):
     assert "How the files were read" in text
     assert "<li><code>a.csv</code>: column &#x27;Force per wale [N/wale]&#x27; read as force_per_wale_N</li>" in text
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text and "<script" not in text.lower()
+
+
+def test_a_baseline_within_the_noise_has_no_gap_to_share_out(result):
+    """The stage table of a baseline within its noise shares out the noise's own chi2 excess: said above it, so
+    that a `none` verdict's "unloading_sliding 82 %" is not read as a gap (the console says the same,
+    tests/diagnosis/test_diagnose.py)."""
+    said = "The baseline fits within the noise: there is no gap beyond it"
+    assert said not in report.render_report(result)
+    result["noise"]["baseline_within_noise"] = True
+    assert said in report.render_report(result)
