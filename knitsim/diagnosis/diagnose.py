@@ -86,7 +86,9 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    :data:`PAIR_PARTNERS` next effects with a positive score of their own.
 8. **Verdict** (:func:`verdict_step`): ``effect`` when an effect clears both
    thresholds (not confident when another is within :data:`STRONG` of it, its
-   fit did not converge, or a curve's noise had to be assumed); else ``none``
+   fit did not converge, a curve's noise had to be assumed, or, where it leaves
+   the curves beyond their noise, a pure force scale fits as well:
+   :func:`force_scale_step`); else ``none``
    when the baseline is within noise ("the model explains these curves within
    their noise"); else ``unexplained``: the baseline is outside the noise and
    no effect brings it near, and where the gap lies is reported instead of the
