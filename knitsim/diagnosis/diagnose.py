@@ -86,9 +86,8 @@ JSON of ``knitsim diagnose`` and the HTML report's input):
    :data:`PAIR_PARTNERS` next effects with a positive score of their own.
 8. **Verdict** (:func:`verdict_step`): ``effect`` when an effect clears both
    thresholds (not confident when another is within :data:`STRONG` of it, its
-   fit did not converge, a curve's noise had to be assumed, or, where it leaves
-   the curves beyond their noise, a pure force scale fits as well:
-   :func:`force_scale_step`); else ``none``
+   fit did not converge, a curve's noise had to be assumed, or a pure force
+   scale fits as well: :func:`force_scale_step`); else ``none``
    when the baseline is within noise ("the model explains these curves within
    their noise"); else ``unexplained``: the baseline is outside the noise and
    no effect brings it near, and where the gap lies is reported instead of the
@@ -1582,20 +1581,20 @@ def capped_candidates(candidates: list, named: str | None) -> str:
 
 def force_scale_step(data: _Data, base_fit: dict, named: CandidateResult, n: int, noise: NoiseModel,
                      say) -> dict | None:
-    """The named effect against a pure force scale, where the effect leaves the curves beyond their noise.
+    """The named effect against a pure force scale.
 
-    An effect that does not close the gap may stand in for a cause outside the seven effects, and the
-    simplest is a factor on the force: a wale count or specimen width off (the force per wale is the total
-    over their ratio), or the yarn's B off.  The model's force is proportional to B (the elastica and the
-    Coulomb friction, whose normal force is the elastica's, are homogeneous in it; the force cap and the
-    slack and cap events' tolerances scale with B / d^2), so the baseline refitted with B free *is* the
-    baseline times a fitted factor.  It is fitted here (from the baseline's optimum at B times the weighted
-    least-squares factor of its curves, and at the scene's B) and weighed against the effect by BIC as two
-    candidates are (:data:`STRONG`): where it is not beaten by more than that, the data cannot tell the effect
-    from a force scale, and the verdict is not confident (a probe's model-made cycles x 1.1 with B held fixed
-    were named ``bending_hysteresis``, confident, removing 85 % of the excess with chi2/dof 8.2 left; the
-    scale explains them within their noise).  None where B is free already (the scale is in the baseline)
-    or the fit fails.
+    An effect may stand in for a cause outside the seven effects, and the simplest is a factor on the force:
+    a wale count or specimen width off (the force per wale is the total over their ratio), or the yarn's B
+    off.  The model's force is proportional to B (the elastica and the Coulomb friction, whose normal force
+    is the elastica's, are homogeneous in it; the default force cap and the slack and cap events' tolerances
+    scale with B / d^2), so the baseline refitted with B free *is* the baseline times a fitted factor.  It is
+    fitted here (from the baseline's optimum at B times the weighted least-squares factor of its curves,
+    and at the scene's B) and weighed against the effect by BIC as two candidates are (:data:`STRONG`):
+    where it is not beaten by more than that, the data cannot tell the effect from a force scale, and the
+    verdict is not confident (a probe's model-made cycles x 1.1 with B held fixed were named
+    ``bending_hysteresis``, confident, removing 85 % of the excess with chi2/dof 8.2 left, where the scale
+    explains them within their noise; x 1.03 were named within the noise, chi2/dof 1.07, and the scale
+    fits them at 0.79).  None where B is free already (the scale is in the baseline) or the fit fails.
     """
     setup = data.setup
     if "B" in setup.free:
@@ -2052,8 +2051,9 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
                            f"{named.chi2_per_dof:.3g} > {SHORT_CHI2_PER_DOF:g}): the effect may stand in for a cause the "
                            "model cannot reach (free a property held fixed, such as B, to see), so it is not confirmed")
     scale = None
-    if named is not None and named.within_noise is False:
-        # an effect that leaves the curves beyond their noise, against the simplest cause outside the effects
+    if named is not None:
+        # the named effect against the simplest cause outside the effects (a probe's forces x 1.03 were named
+        # bending_hysteresis, confident, within the noise; x 1.1 with chi2/dof 8.2 left)
         scale = force_scale_step(data, base_fit, named, n, noise, say)
         if scale is not None and scale["rivals_effect"]:
             verdict.confident = False
