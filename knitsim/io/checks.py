@@ -564,18 +564,15 @@ def _zero_force_warning(found, unit: str, slack=None, strain_name: str = "strain
     c1, p1, c0, p0 = found
     if slack is not None:
         top, res, ck = slack
-        return ResultWarning(
-            "zero_force_cycle", cycle=int(c1), message=(
-                f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): its highest "
-                f"{strain_name}, {top:.4g}, is at or below the residual {strain_name} {res:.4g} that cycle {ck}'s "
-                f"unloading left: the program asks for less than the slack knit's length, so the knit stays slack; "
-                f"load past {res:.4g} to load it again"))
-    return ResultWarning(
-        "zero_force_cycle", cycle=int(c1), message=(
-            f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): the knit "
-            f"takes (almost) no load again up to the upper strain, after an unloading that left it slack or a "
-            f"force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
-            f"pocket')"))
+        why = (f"its highest {strain_name}, {top:.4g}, is at or below the residual {strain_name} {res:.4g} that "
+               f"cycle {ck}'s unloading left: the program asks for less than the slack knit's length, so the knit "
+               f"stays slack; load past {res:.4g} to load it again")
+    else:
+        why = ("the knit takes (almost) no load again up to the upper strain, after an unloading that left it slack "
+               "or a force that decays from cycle to cycle (each unloading leaving it longer) (README, 'the reload "
+               "pocket')")
+    return ResultWarning("zero_force_cycle", cycle=int(c1), message=(
+        f"cycle {c1} peaks at {p1:.3g} {unit}, {p1 / p0:.1%} of cycle {c0} ({p0:.3g} {unit}): {why}"))
 
 
 def _slack_reload(c1: int, strain, cycle, residuals):
