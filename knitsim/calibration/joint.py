@@ -1032,6 +1032,17 @@ class _Problem:
     def hi(self) -> np.ndarray:
         return np.array([v.hi for v in self.vars])
 
+    def prior_pull(self, name: str, specimen: int | None, value: float) -> tuple[float | None, float | None]:
+        """(stated value, distance from it in prior sds) of a knit variable with a prior: L, W0, C0 (stated in the
+        scene, ``value`` their fitted relative change) and the pretension (stated 0); (None, None) for any other
+        variable, and a distance of None where the prior's sd is 0 or the distance is not finite."""
+        if name not in GEOMETRY and name != "pretension":
+            return None, None
+        s = self.sp[specimen]
+        stated, sd = (s.knit[name], s.uncertainty[name]) if name in GEOMETRY else (0.0, s.pretension_sd)
+        dev = float(value) / sd if sd > 0 else math.nan
+        return float(stated), (dev if math.isfinite(dev) else None)
+
     def _check_knits(self) -> None:
         """Refuse a specimen whose knit as stated is no cell with the start yarn (the cell's own check, e.g. W0
         below 4 d: a W0 in cm), naming the specimen: before, only the first specimen's knit was checked (the scene's
@@ -1845,13 +1856,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         span = hi_f[j] - lo_f[j]
         side = "low" if x[j] - lo_f[j] <= BOUND_TOL * span else ("high" if hi_f[j] - x[j] <= BOUND_TOL * span else None)
         spname = None if spi is None else pb.sp[spi].name
-        stated = dev = None
-        if nme in GEOMETRY:
-            stated = pb.sp[spi].knit[nme]
-            dev = float(x[j] / pb.sp[spi].uncertainty[nme])
-        elif nme == "pretension":
-            stated = 0.0
-            dev = float(x[j] / pb.sp[spi].pretension_sd)
+        stated, dev = pb.prior_pull(nme, spi, x[j])
         unit = UNITS.get(nme, pb.effect_vars[nme].unit if nme in pb.effect_vars else "")
         note = (_note(nme, side, spname, pb.effect_vars.get(nme), nme in pb.user_bounds, pb.user_bounds.get(nme),
                       float(los[j] if side == "low" else his[j])) if side else "")
@@ -1983,12 +1988,9 @@ def _one_yarn_check(pb: _Problem, x: np.ndarray, refine, say, converged: bool, c
     # the per-specimen prior furthest from its stated value at x (as the estimates read it: x / prior sd)
     pulls = []
     for v, xi in zip(pb.vars, x):
-        if v.name in GEOMETRY or v.name == "pretension":
-            s = pb.sp[v.specimen]
-            sd = s.uncertainty[v.name] if v.name in GEOMETRY else s.pretension_sd
-            stated = s.knit[v.name] if v.name in GEOMETRY else 0.0
-            if sd > 0 and math.isfinite(xi / sd):
-                pulls.append((f"{v.name}[{s.name}]", float(xi / sd), float(stated), UNITS.get(v.name, "")))
+        stated, dev = pb.prior_pull(v.name, v.specimen, xi)
+        if dev is not None:
+            pulls.append((f"{v.name}[{pb.sp[v.specimen].name}]", dev, stated, UNITS.get(v.name, "")))
     top = max(pulls, key=lambda t: abs(t[1]), default=None)
     base = {"specimens": names, "shared": shared, "largest_pull": top, "objective": pb.setup.objective}
 
