@@ -322,8 +322,13 @@ def expand(cell: dict, lib: MaterialLibrary | None, where: str = "", filled: dic
     y, k, f = out["yarn"], out["knit"], out["friction"]
     filled = {} if filled is None else filled
 
+    from .scene.cell_scene import CELL_SCENE
+    alternatives = CELL_SCENE.fields["friction"]
+
     def give(table: str, key: str, value, source: str) -> None:
-        if key not in out[table]:
+        # not where the scene states the quantity, in any of its ways (m or mu_k; phi0, phi0_deg or phi0_fraction)
+        others = alternatives.others_than(key) if table == "friction" else ()
+        if key not in out[table] and not any(o in out[table] for o in others):
             out[table][key] = value
             filled[(table, key)] = f"{source} of {lib.path}"
 
@@ -333,7 +338,7 @@ def expand(cell: dict, lib: MaterialLibrary | None, where: str = "", filled: dic
         del k["material"]
         for key in ("L", "W0", "C0"):
             give("knit", key, getattr(knit, key), f"knits.{kname}")
-        if knit.phi0 is not None and "phi0_deg" not in f:
+        if knit.phi0 is not None:
             give("friction", "phi0", knit.phi0, f"knits.{kname}")
         if "material" not in y and "d" not in y and "B" not in y:
             y["material"] = knit.yarn
@@ -346,10 +351,7 @@ def expand(cell: dict, lib: MaterialLibrary | None, where: str = "", filled: dic
         give("yarn", "B", yarn.B, source)
         if yarn.in_plane_width is not None:
             give("yarn", "in_plane_width", yarn.in_plane_width, source)
-        explicit_m = any(key in f for key in ("m", "mu_k", "coiling_angle_deg"))
         for key, v in yarn.friction.items():
-            if key == "m" and explicit_m:
-                continue
             give("friction", key, v, source)
         for key, v in yarn.rules.items():
             give("rules", key, v, source)

@@ -17,7 +17,7 @@ A cell scene is a TOML file (see ``scenes/paper/``)::
     [friction]
     model = "coulomb"            # or "dahl" (needs dahl_sigma [1/mm])
     m = 0.20                     # or mu_k + coiling_angle_deg (eq 10)
-    phi0 = 0.0                   # [rad], or phi0_deg, or "phimax" / "-phimax"
+    phi0 = 0.0                   # [rad], or phi0_deg, or phi0_fraction (of phimax), or "phimax" / "-phimax"
 
     [rules]
     unloading_rule = "dusserre"  # or "hong_constant_t"
@@ -110,6 +110,14 @@ def _coiling_in_degrees(v) -> str | None:
     return None
 
 
+#: keys of the friction table that state one quantity in different ways: a cell or an override (``--set``, a
+#: sweep's sample) that sets one drops the others the scene said
+FRICTION_ALTERNATIVES = ((("m",), ("mu_k", "coiling_angle_deg")),
+                         (("phi0",), ("phi0_deg",), ("phi0_fraction",)))
+#: the keys that state a cell's initial friction angle
+PHI0_KEYS = tuple(k for g in FRICTION_ALTERNATIVES[1] for k in g)
+
+
 def _friction_table(defaults: bool) -> Table:
     d = (lambda v: v) if defaults else (lambda v: OPTIONAL)
     return Table({
@@ -124,9 +132,11 @@ def _friction_table(defaults: bool) -> Table:
                       check=lambda v: None if not isinstance(v, str) or v in ("phimax", "-phimax")
                       else 'expected a number [rad], "phimax" or "-phimax"'),
         "phi0_deg": Field(("float",), OPTIONAL, "initial friction angle in degrees", "deg"),
+        "phi0_fraction": Field(("float",), OPTIONAL, "initial friction angle as a fraction of phimax = atan(m)",
+                               min=-1.0, max=1.0),
         "dahl_sigma": Field(("float",), d(0.0), "Dahl stiffness of tan(phi) per unit slip (model = dahl)",
                             "1/mm", min=0.0),
-    }, "friction at the loop crossing (section 3.3)")
+    }, "friction at the loop crossing (section 3.3)", alternatives=FRICTION_ALTERNATIVES)
 
 
 def _rules_table(defaults: bool) -> Table:
@@ -227,9 +237,6 @@ CELL_SCENE = Table({
 })
 
 _CELL_TABLES = ("yarn", "knit", "friction", "rules", "effects")
-# keys that are alternatives: a cell that sets one drops the others inherited from the base
-_ALTERNATIVES = {"friction": (("m",), ("mu_k", "coiling_angle_deg")),
-                 "friction_phi0": (("phi0",), ("phi0_deg",))}
 _LOAD_KEYS = {"monotonic": ("target_strain",), "cycles": ("lower_strain", "upper_strain", "cycles"),
               "piecewise": ("waypoints",)}
 
@@ -287,13 +294,10 @@ def _merge(base: dict, over: dict) -> dict:
     for t in _CELL_TABLES:
         o = over.get(t, {})
         if t == "friction":
-            for groups in (_ALTERNATIVES["friction"], _ALTERNATIVES["friction_phi0"]):
-                for g in groups:
-                    if any(k in o for k in g):
-                        for other in groups:
-                            if other is not g:
-                                for k in other:
-                                    out[t].pop(k, None)
+            # a cell that states a quantity one way drops the base's other ways (FRICTION_ALTERNATIVES)
+            for key in o:
+                for other in CELL_SCENE.fields["friction"].others_than(key):
+                    out[t].pop(other, None)
         out[t].update(o)
     return out
 
@@ -396,11 +400,17 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
                     + M_TOO_LARGE + org.where())
     phimax = math.atan(m)
 
-    if "phi0" in f and "phi0_deg" in f:
-        raise error(org.path("friction", "phi0_deg"), f["phi0_deg"],
-                    "give either friction.phi0 or friction.phi0_deg, not both" + org.where())
+    given = [k for k in PHI0_KEYS if k in f]
+    if len(given) > 1:
+        raise error(org.path("friction", given[1]), f[given[1]],
+                    f"give one of friction.phi0, phi0_deg and phi0_fraction, not {' and '.join(given)}"
+                    + org.where())
     if "phi0_deg" in f:
         phi0, phi_path, phi_val = math.radians(f["phi0_deg"]), org.path("friction", "phi0_deg"), f["phi0_deg"]
+    elif "phi0_fraction" in f:
+        # within [-1, 1] by the schema, so within the cone whatever m is (a sweep over m and phi0 together)
+        phi_val, phi_path = f["phi0_fraction"], org.path("friction", "phi0_fraction")
+        phi0 = phi_val * phimax
     else:
         phi_val = f.get("phi0", 0.0)
         phi_path = org.path("friction", "phi0")

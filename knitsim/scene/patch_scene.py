@@ -105,7 +105,7 @@ from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSE
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
 from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
-from .cell_scene import (ENGINES, degrees_hint, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
+from .cell_scene import (ENGINES, PHI0_KEYS, degrees_hint, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
                          _knit_table, _load_table, _materials_field, _merge, _Origins, _program, _resolve_cell,
                          _provenance_table, _rules_table, _yarn_table, library_of)
 from .schema import OPTIONAL, REQUIRED, Field, Table, TableArray, dumps, error, fmt, load_toml, set_value, validate
@@ -537,7 +537,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
             knit = {key: v for key, v in raw_base["knit"].items() if key != "material"}
             knit.update(L=(1 - t) * La + t * Lb, W0=(1 - t) * Wa + t * Wb, C0=(1 - t) * Ca + t * Cb)
             friction = dict(raw_base["friction"])
-            if pa is not None and "phi0" not in friction and "phi0_deg" not in friction:
+            if pa is not None and not any(key in friction for key in PHI0_KEYS):
                 friction["phi0"] = (1 - t) * pa + t * pb
             yarn = dict(raw_base["yarn"])
             if not any(key in yarn for key in ("material", "d", "B")):

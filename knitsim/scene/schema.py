@@ -85,12 +85,21 @@ class Table:
     """A TOML table: named fields, sub-tables and arrays of tables.
 
     ``required``: the table must be present (else it is filled from its
-    fields' defaults when it is absent).
+    fields' defaults when it is absent).  ``alternatives``: groups of keys
+    that state one quantity in different ways (``phi0`` / ``phi0_deg`` /
+    ``phi0_fraction``); an override of one (``--set``, a sweep's sample)
+    replaces whatever the document said through the others of its groups.
     """
 
     fields: dict[str, Any]
     doc: str = ""
     required: bool = False
+    alternatives: tuple[tuple[tuple[str, ...], ...], ...] = ()
+
+    def others_than(self, key: str) -> tuple[str, ...]:
+        """The keys that state ``key``'s quantity another way (none where ``key`` is in no group)."""
+        return tuple(k for groups in self.alternatives if any(key in g for g in groups)
+                     for g in groups if key not in g for k in g)
 
 
 @dataclass(frozen=True)
@@ -299,7 +308,8 @@ def set_value(data: dict, schema: Table, assignment: str) -> dict:
     """Apply one ``key.path=value`` override (``--set``) to a parsed document.
 
     The key path may index arrays of tables, ``cells[1].friction.m=0.3``; the
-    entry must exist.  The text is converted by the field's type (so
+    entry must exist.  A key with alternatives (:attr:`Table.alternatives`)
+    replaces them: ``friction.phi0_deg=3`` on a scene stating ``phi0 = 0``.  The text is converted by the field's type (so
     ``yarn.B=abc`` is refused naming the key) and range-checked later by
     :func:`validate`.  ``data`` is modified in place and returned.
     """
@@ -343,6 +353,8 @@ def set_value(data: dict, schema: Table, assignment: str) -> dict:
             if not last:
                 raise KnitsimInputError(f"--set {key}: {where} is a value, not a table")
             node[name] = _parse_text(sub, text, key)
+            for other in spec.others_than(name):
+                node.pop(other, None)      # the override states this quantity: the document's other way goes
     return data
 
 

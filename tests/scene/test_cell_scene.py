@@ -89,7 +89,8 @@ def test_phi0_forms():
     assert load_cell_scene(scene(friction__phi0="-phimax")).params[0].phi0 == -phimax
     assert load_cell_scene(scene(friction__phi0_deg=5.0)).params[0].phi0 == pytest.approx(math.radians(5.0))
     refused(scene(friction__phi0=0.3), r"^friction\.phi0 = 0\.3: must lie in \[-phimax, phimax\] = \[-0\.1974, 0\.1974\] rad")
-    refused(scene(friction__phi0=0.0, friction__phi0_deg=1.0), r"^friction\.phi0_deg = 1\.0: give either")
+    refused(scene(friction__phi0=0.0, friction__phi0_deg=1.0),
+            r"^friction\.phi0_deg = 1\.0: give one of friction\.phi0, phi0_deg and phi0_fraction, not phi0 and phi0_deg")
     # a friction angle beyond pi/2 rad cannot be one (phimax = atan(m) < pi/2): 30 is said to look like degrees
     # (a blind probe's phi0 = 30 was refused by the bound alone); 0.3 rad is not, and phi0_deg = 30 is degrees
     refused(scene(friction__phi0=30), r"^friction\.phi0 = 30\.0: .* rad \(= \+/-11\.31 deg, m = 0\.2\); 30 looks like "
@@ -100,6 +101,33 @@ def test_phi0_forms():
     with pytest.raises(KnitsimInputError) as e:
         load_cell_scene(scene(friction__phi0_deg=30.0))
     assert "looks like degrees" not in str(e.value)
+
+
+def test_phi0_as_a_fraction_of_phimax():
+    # phi0 = fraction x phimax, phimax = atan(m) (eq 10's cone): the identity at m = 0.2 and at eq 10's m
+    assert load_cell_scene(scene(friction__phi0_fraction=0.5)).params[0].phi0 == pytest.approx(0.5 * math.atan(0.2))
+    p = load_cell_scene(scene(friction={"mu_k": 0.156, "coiling_angle_deg": 110.0, "phi0_fraction": -1.0})).params[0]
+    assert p.phi0 == pytest.approx(-math.atan(p.m), rel=1e-15)
+    refused(scene(friction__phi0_fraction=1.2), r"^friction\.phi0_fraction = 1\.2: must be <= 1")
+    refused(scene(friction__phi0_fraction=0.1, friction__phi0_deg=1.0), r"^friction\.phi0_fraction = 0\.1: give one of")
+    # a batch cell stating phi0 another way drops the base's
+    d = scene(friction__phi0=0.1)
+    d["cells"] = [{}, {"friction": {"phi0_fraction": 0.25}}, {"friction": {"phi0_deg": 2.0}}]
+    s = load_cell_scene(d)
+    assert [c.phi0 for c in s.params] == pytest.approx([0.1, 0.25 * math.atan(0.2), math.radians(2.0)])
+
+
+def test_set_replaces_the_scenes_other_way_of_stating_a_quantity():
+    # before: --set friction.phi0_deg=3 on a scene with phi0 = 0 was refused as both given
+    s = load_cell_scene(scene(friction__phi0=0.0), ["friction.phi0_deg=3"])
+    assert s.params[0].phi0 == pytest.approx(math.radians(3.0))
+    s = load_cell_scene(scene(friction__phi0_deg=3.0), ["friction.phi0_fraction=-0.5"])
+    assert s.params[0].phi0 == pytest.approx(-0.5 * math.atan(0.2))
+    # m stated by eq 10 in the scene, replaced by an explicit m (and the other way round)
+    s = load_cell_scene(scene(friction={"mu_k": 0.156, "coiling_angle_deg": 110.0}), ["friction.m=0.3"])
+    assert s.params[0].m == 0.3
+    s = load_cell_scene(scene(friction={"m": 0.3}), ["friction.mu_k=0.156"])
+    assert s.params[0].m == pytest.approx(0.212, abs=5e-4)   # eq 10 with the yarn's 110 deg (test above)
 
 
 @pytest.mark.parametrize("changes, match", [
@@ -201,3 +229,17 @@ def test_effects_table_makes_the_cells_effects():
     refused({"yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"}, "friction": {"m": 0.2},
              "effects": {"on": ["yarn_compaction"], "compaction_k": -1.0},
              "load": {"type": "monotonic", "target_strain": 0.3}}, "compaction_k")
+
+
+def test_a_library_value_gives_way_to_the_scenes_own_way_of_stating_it(tmp_path):
+    """A library yarn's friction by eq 10 (mu_k, coiling angle) and a knit's phi0: a scene stating m and phi0 its
+    own way keeps them (before: the library's mu_k was added beside the scene's m and refused as both given)."""
+    (tmp_path / "lib.toml").write_text(
+        '[yarns.y]\nd = 0.58\nB = 0.31\n[yarns.y.friction]\nmu_k = 0.156\ncoiling_angle_deg = 110.0\n'
+        '[knits.k]\nyarn = "y"\nL = 14.1\nW0 = 4.4\nC0 = 2.7\nphi0 = 0.05\n')
+    base = {"materials": str(tmp_path / "lib.toml"), "engine": "reference", "knit": {"material": "k"},
+            "load": {"type": "monotonic", "target_strain": 0.5, "max_increment": 0.05}}
+    p = load_cell_scene(base).params[0]
+    assert p.m == pytest.approx(0.212, abs=5e-4) and p.phi0 == 0.05          # the library's, eq 10 (test above)
+    p = load_cell_scene({**base, "friction": {"m": 0.3, "phi0_fraction": 0.5}}).params[0]
+    assert p.m == 0.3 and p.phi0 == pytest.approx(0.5 * math.atan(0.3))

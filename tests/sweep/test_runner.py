@@ -127,6 +127,22 @@ def test_a_sample_violating_w0_ge_4d_is_refused_before_solving(monkeypatch):
         plan_sweep(SCENE, {"parameters": {"knit.W0": {"values": [2.0, 2.1, 4.4, 2.2]}}})
 
 
+def test_phi0_swept_as_a_fraction_of_phimax_reaches_every_samples_cone():
+    """An LHS over m and phi0 together: phi0 in radians over +-0.09 leaves the cone phimax = atan(m) of the
+    samples with m < tan(0.09) (refused before any solve); phi0_fraction is each sample's own cone, phi0 =
+    fraction x atan(m) (the identity), and the scene's phi0 = 0.0 gives way to it."""
+    params = {"friction.m": {"min": 0.0, "max": 0.6}}
+    with pytest.raises(KnitsimInputError, match=r"friction\.phi0 = .*must lie in \[-phimax, phimax\]"):
+        plan_sweep(SCENE, {"method": "lhs", "samples": 40, "seed": 3,
+                           "parameters": {**params, "friction.phi0": {"min": -0.09, "max": 0.09}}})
+    plan = plan_sweep(SCENE, {"method": "lhs", "samples": 40, "seed": 3,
+                              "parameters": {**params, "friction.phi0_fraction": {"min": -0.95, "max": 0.95}}})
+    m, frac = np.array(plan.table).T
+    assert min(m) < np.tan(0.09) and max(np.abs(frac)) > 0.85          # the draw has the samples that were refused
+    phi0 = np.array([cells[0].phi0 for cells in plan.params])
+    np.testing.assert_allclose(phi0, frac * np.arctan(m), rtol=1e-15, atol=0)
+
+
 def test_lhs_dataset_has_a_sample_dimension_with_parameter_coordinates(tmp_path):
     sweep = {"method": "lhs", "samples": 5, "seed": 3, "chunk_size": 5,
              "parameters": {"friction.m": {"min": 0.1, "max": 0.3}, "knit.L": {"min": 13.6, "max": 14.6}}}
