@@ -178,11 +178,42 @@ def check_domain(p: CellParams, where: str = "cell", domain: ParameterDomain = D
         raise KnitsimInputError(f"{where}: {why}")
 
 
-def rest_state_problem(p: CellParams, engine: str = "reference") -> str | None:
+#: L / (2 C0 + W0 - 4 d) of the known rest state the ends of the rest branch are searched from
+REST_RATIO_KNOWN = 1.9
+
+
+def _tightest_rest_ratio(p: CellParams, device: str) -> float | None:
+    """The smallest L / (2 C0 + W0 - 4 d) down to which the Warp engine's rest-state solve finds the cell's rest
+    state, searched from :data:`REST_RATIO_KNOWN` towards the cell's own ratio; None where it finds none there.
+
+    Batched launches of :func:`check_cells` (a grid of 32 ratios, then two finer grids about the first one
+    without a rest state: a last step of (1.9 - the cell's ratio) / 31^3): ~0.3 s, where the reference's continuation in L took
+    ~20 s to word a tight cell's refusal (a cell at ratio 1.2 on the CPU)."""
+    closing = 2.0 * p.C0 + p.W0 - 4.0 * p.d
+    lo, hi = p.L / closing, REST_RATIO_KNOWN
+    if lo >= hi:
+        return None
+    found = None
+    for _ in range(3):
+        ratios = np.linspace(lo, hi, 32)
+        ok = ~check_cells([p.replace(L=float(r * closing)) for r in ratios], engine="warp",
+                          device=device).no_rest_mask
+        if not ok[-1]:
+            return found
+        first = int(np.nonzero(~ok)[0][-1]) + 1 if not ok.all() else 0     # the branch from hi down, unbroken
+        found = float(ratios[first])
+        if first == 0:
+            return found
+        lo, hi = float(ratios[first - 1]), found
+    return found
+
+
+def rest_state_problem(p: CellParams, engine: str = "reference", device: str = "cpu") -> str | None:
     """None when the cell has an admissible rest state, otherwise why not (one line).
 
     ``engine``: the engine whose verdict the words are for; with ``"warp"`` (its rest-state solve already found
-    none) a tight loop's refusal says so rather than suggesting that engine.
+    none) a tight loop's refusal says down to which L ratio that engine finds the loop (batched on ``device``,
+    :func:`_tightest_rest_ratio`), without the reference's continuation.
 
     The rest state is Table 4's initial state {C = C0, W = W0, L, phi = phi0}
     (float64 reference, :func:`knitsim.cell.inverse.initial_state`).  It is
@@ -210,11 +241,19 @@ def rest_state_problem(p: CellParams, engine: str = "reference") -> str | None:
     from .inverse import continue_along, initial_state
 
     closing = 2.0 * p.C0 + p.W0 - 4.0 * p.d
+    if engine == "warp" and p.L < REST_RATIO_KNOWN * closing:
+        tightest = _tightest_rest_ratio(p, device)
+        if tightest is None:
+            return None           # the engine's own reason stands (check_cells: no equilibrium found)
+        return (f"no rest state found: the Warp engine's rest-state solve finds the quarter loop at C0 = {p.C0:g}, "
+                f"W0 = {p.W0:g} mm, phi0 = {p.phi0:g} rad down to L / (2 C0 + W0 - 4 d) = {tightest:.4g} (L = "
+                f"{tightest * closing:.4g} mm), L = {p.L:g} mm asks "
+                f"for {p.L / closing:.4g}")
     res, ok = _solve_rest_state(p)
     if not ok:
         res = None
         try:
-            L1 = 1.9 * closing
+            L1 = REST_RATIO_KNOWN * closing
             s1 = initial_state(p.C0, p.W0, L1, 0.0, p.B, p.d)
             path = continue_along({"C": p.C0, "W": p.W0, "L": L1, "phi": 0.0}, "L", L1, p.L, s1, p.B, p.d,
                                   n_steps=40, max_halvings=14)

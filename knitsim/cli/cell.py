@@ -67,7 +67,7 @@ def check_cells_domain(params, labels, strains, engine: str = "reference", devic
         if check.no_rest_mask[i]:
             # the engine's verdict, worded by the reference's continuation (where its branch ended, or the
             # pulling contact's force); a cell the reference reaches and the engine does not: the engine's words
-            why = rest_state_problem(p, engine) or f"{check.no_rest_reason(i)} (engine = \"{engine}\")"
+            why = rest_state_problem(p, engine, device) or f"{check.no_rest_reason(i)} (engine = \"{engine}\")"
             raise KnitsimInputError(f"{name}: {why} (knitsim.cell.domain)")
         why = rest_at_cap_problem(float(rest_F[i]), p.cap_N)
         if why is not None:
