@@ -70,3 +70,22 @@ def test_usable_cores_are_capped_by_the_cpu_quota(monkeypatch):
     assert warp_runtime.usable_cores() == 2
     monkeypatch.setattr(warp_runtime, "cgroup_cpu_limit", lambda root=None: 128)   # a quota above the affinity
     assert warp_runtime.usable_cores() == 64
+
+
+def test_native_messages_are_silenced_where_sys_stderr_has_no_descriptor():
+    """Warp's native library writes "Could not find or load the NVIDIA CUDA driver" to descriptor 2 at init.
+    Under pytest's capture sys.stderr is an object without a descriptor: the silencer took that as "nothing to
+    silence" and the message, caught by the capture, was printed at the end of every test run on a machine
+    without CUDA.  Checked in a subprocess: a write to descriptor 2 inside the block, sys.stderr a StringIO."""
+    import subprocess
+    import sys
+
+    code = ("import io, os, sys\n"
+            "from knitsim import warp_runtime\n"
+            "sys.stderr = io.StringIO()\n"
+            "with warp_runtime._native_stderr_silenced():\n"
+            "    os.write(2, b'native message\\n')\n"
+            "os.write(2, b'after\\n')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr == "after\n"
