@@ -50,6 +50,7 @@ the last converged state with the flag set: no NaN is reported as a result.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -680,7 +681,7 @@ class CellCycle:
                 return st
             step = C_target - st.C
 
-    def run(self, program: LoadProgram) -> BatchHistory:
+    def run(self, program: LoadProgram, progress: Callable | None = None) -> BatchHistory:
         """Run the whole program; see :func:`run_cell`."""
         p = self.p
         try:
@@ -731,6 +732,8 @@ class CellCycle:
             if st.status != STATUS_OK and not any(e.get("kind") == "flag" for e in events):
                 events.append({"increment": i, "kind": "flag", "reason": st.reason,
                                "status": STATUS_NAMES[st.status]})
+            if progress is not None:
+                progress(i + 1)
         vals.update(head_gap_values(vals["head_gap"], p.d_jam))
         return BatchHistory(np.asarray(program.strain), np.asarray(program.cycle),
                             np.asarray(program.direction), stage[:, None], jammed[:, None],
@@ -845,7 +848,7 @@ MAX_FLOOR_STEPS = 64
 
 
 def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_HALVINGS,
-             stick_closure: str = "release_beta") -> BatchHistory:
+             stick_closure: str = "release_beta", progress: Callable | None = None) -> BatchHistory:
     """Run one cell through a strain program (NumPy reference).
 
     Parameters
@@ -858,6 +861,9 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_H
         Most halvings in a row of a failed sub-step (also bounded by SUBSTEP_FLOOR C0).
     stick_closure : str
         ``"release_beta"`` (default) or ``"table4"``; see :mod:`knitsim.cell.stages`.
+    progress : callable, optional
+        ``progress(done_increments)`` after each increment (a hard increment of this float64 reference can take
+        minutes: a Dahl cell from a compressive rest state took 25-56 s an increment).
 
     Returns
     -------
@@ -870,7 +876,7 @@ def run_cell(params: CellParams, program: LoadProgram, max_halvings: int = MAX_H
     if not isinstance(params, CellParams):
         # (a dict raised AttributeError inside: a blind probe)
         raise KnitsimInputError(f"params = {params!r}: expected a CellParams (knitsim.cell.material)")
-    return CellCycle(params, max_halvings, stick_closure).run(program)
+    return CellCycle(params, max_halvings, stick_closure).run(program, progress)
 
 
 def run_cells_reference(params: list[CellParams], program: LoadProgram,

@@ -56,9 +56,10 @@ def simulate(params: list, program: LoadProgram, engine: str = "warp", device: s
         Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``, ``"auto"``); the
         reference always runs on the CPU.
     progress : callable, optional
-        Called as the run advances; the reference calls
-        ``progress(done_cells, n_cells)`` after each cell, the Warp engine
-        passes it on to :func:`~knitsim.cell.batch.run_batch`.
+        Called as the run advances: the Warp engine passes it on to
+        :func:`~knitsim.cell.batch.run_batch` (``progress(done_increments, n)``, all cells at once); the
+        reference, one cell after the other, calls ``progress(done, n_cells x n_increments)`` after each
+        increment of each cell.
 
     Returns
     -------
@@ -71,8 +72,8 @@ def simulate(params: list, program: LoadProgram, engine: str = "warp", device: s
         return run(params, program, device=warp_runtime.resolve_device(device), progress=progress)
     from .cycle import run_cell
     histories = []
+    m, total = len(program), len(params) * len(program)
     for i, p in enumerate(params):
-        histories.append(run_cell(p, program))
-        if progress is not None:
-            progress(i + 1, len(params))
+        tick = None if progress is None else (lambda k, before=i * m: progress(before + k, total))
+        histories.append(run_cell(p, program, progress=tick))
     return BatchHistory.stack(histories)

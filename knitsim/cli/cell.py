@@ -106,8 +106,9 @@ def _run(args) -> int:
         print(f"knitsim cell: {n} cell(s) x {m} increments, engine {scene.engine}, device {device}",
               file=sys.stderr, flush=True)
         t0 = time.perf_counter()
-        what = ("knitsim cell: increments", len(scene.program)) if scene.engine == "warp" else \
-            ("knitsim cell: cells", len(scene.params))
+        # the reference runs one cell after the other: its unit is a cell's increment
+        what = ("knitsim cell: increments", m) if scene.engine == "warp" or n == 1 else \
+            ("knitsim cell: cell-increments", n * m)
         history = simulate(scene.params, scene.program, engine=scene.engine, device=device,
                            progress=Progress(what[1], what[0]))
         # the first loading's continuation, where the program reloads past an earlier maximum (its check)

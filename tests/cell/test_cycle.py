@@ -166,6 +166,18 @@ def test_deterministic():
     assert a.events == b.events
 
 
+def test_the_reference_reports_each_increment_of_each_cell():
+    """A hard increment of the float64 reference can take minutes (a Dahl cell from a compressive rest state:
+    25-56 s each): `knitsim cell` with it said nothing until a whole cell was done.  simulate's progress now
+    counts cell-increments: two cells x 3 increments give 1..6 of 6, in order (the definition)."""
+    from knitsim.cell.engine import simulate
+
+    calls = []
+    simulate([cell(m=0.2), cell(m=0.1)], monotonic(0.15, 0.05), engine="reference",
+             progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(k, 6) for k in range(1, 7)]
+
+
 def test_head_gap_recorded_and_interpenetration_flag():
     p = cell(m=0.2, phi0=math.atan(0.2))
     h = run_cell(p, monotonic(0.7, 0.05))
