@@ -52,6 +52,10 @@ from ..io.results import add_output_flags
 from .common import Progress, add_json_flag, naming_scene, print_json
 
 
+#: warnings said before the run (zones that overlap, a specimen of few stitches), not again after it
+_SAID_BEFORE_THE_RUN = ("zones_overlap", "specimen_few_stitches")
+
+
 def register(subparsers) -> None:
     """Add ``knitsim run``."""
     p = subparsers.add_parser(
@@ -399,9 +403,9 @@ def _run_locked(args) -> int:
                 cell_fields=scene.output["cell_fields"],
                 cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])))
         overlaps = zone_overlaps(scene.resolved)
-        for w in overlaps:
+        for w in scene.warnings + overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
-        domain_warnings += overlaps
+        domain_warnings += scene.warnings + overlaps
         # (printed with the summary's warnings at the end)
         domain_warnings += [{k: v for k, v in w.items() if k != "cell"}
                             for w in calibration_warnings(scene.calibration_flags)]
@@ -498,7 +502,7 @@ def _run_locked(args) -> int:
         print(f"knitsim run: cells.nc holds {cn['increments_in_file']} of the {cn['increments_in_run']} increments "
               f"(output.cells_stride = {cn['cells_stride']}: {cn['increments_written']})", file=sys.stderr, flush=True)
     for w in summary["warnings"]:
-        if w.get("code") == "zones_overlap":
+        if w.get("code") in _SAID_BEFORE_THE_RUN:
             continue                       # said before the run (summary.json keeps them)
         print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
     if not summary["all_expected_end"]:

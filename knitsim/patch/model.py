@@ -43,6 +43,49 @@ PARAM_NAMES = ("d", "B", "m", "dahl_sigma", "L", "W0", "C0", "phi0", "in_plane_w
 RULE_NAMES = ("friction", "unloading_rule", "reload_rule", "jamming_criterion", "force_cap_N")
 
 
+#: the most wales (courses) a patch holds across (along): a [patch] of single stitches as much as a specimen's
+#: width over W0 (gauge length over C0)
+MAX_STITCHES_PER_AXIS = 100_000
+#: a specimen with fewer stitches than this across (along) has none that is not at a free edge (a grip): the
+#: model's stitch is an interior one, a periodic loop between neighbours like itself on every side
+INTERIOR_STITCHES = 3
+
+
+def specimen_size_notes(width: float, gauge_length: float, wales, courses) -> tuple[str | None, str | None]:
+    """``(refusal, warning)`` of a specimen ``width`` x ``gauge_length`` [mm] whose bands hold ``wales`` across and
+    whose strips hold ``courses`` between the grips (numbers or arrays, each at least one, which the callers check
+    naming their own keys), each None where there is none.
+
+    Refused: more than :data:`MAX_STITCHES_PER_AXIS` on an axis (more than a patch may hold: no grips hold such
+    a specimen, e.g. a gauge length of 1e9 mm).  Warned of: fewer than :data:`INTERIOR_STITCHES` on an axis
+    (every stitch at a free edge or a grip, which the model does not describe), with the sizes read as cm
+    (:func:`cm_hint`)."""
+    wales, courses = np.asarray(wales, float), np.asarray(courses, float)
+    most = max(float(wales.max()), float(courses.max()))
+    if most > MAX_STITCHES_PER_AXIS:
+        return (f"the specimen holds {float(wales.max()):.4g} wales x {float(courses.max()):.4g} courses, more than "
+                f"the {MAX_STITCHES_PER_AXIS:,} a patch may hold on an axis: no grips hold such a specimen (sizes "
+                "are in mm)"), None
+    wales, courses = float(wales.min()), float(courses.min())
+    counts = f"{wales:.4g} wales x {courses:.4g} courses"
+    few = INTERIOR_STITCHES * (1.0 - 1e-9)                 # (13.2 mm / 4.4 mm rounds to 2.9999999999999996)
+    if min(wales, courses) < few:
+        edge = wales < few
+        return None, (f"the specimen {width:.6g} mm wide, {gauge_length:.6g} mm between the grips holds {counts}: "
+                      f"fewer than {INTERIOR_STITCHES} stitches {'across' if edge else 'along'}, every one at a "
+                      f"{'free edge' if edge else 'grip'}, where the model's stitch (an interior, periodic loop) is "
+                      "not the knit's" + cm_hint(width, gauge_length, wales, courses))
+    return None, None
+
+
+def cm_hint(width: float, gauge_length: float, wales: float, courses: float) -> str:
+    """``; if the sizes are in cm, ...``: the sizes in mm and the counts they would make.  Sizes in cm typed as
+    mm make a specimen ten times narrower and shorter than meant (a width of 5 for 5 cm ran as 1.1 wales of
+    E-glass without a word)."""
+    return (f"; if the sizes are in cm, write them in mm (width = {10 * width:.6g}, gauge_length = "
+            f"{10 * gauge_length:.6g}: {10 * wales:.4g} wales x {10 * courses:.4g} courses)")
+
+
 def _number(v) -> float:
     """A parameter as a float field value (None, an absent in-plane width, is NaN)."""
     return float("nan") if v is None else float(v)

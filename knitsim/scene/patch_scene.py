@@ -104,7 +104,7 @@ from ..cell.load_program import LoadProgram, pretensioned
 from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, M_MAX, M_TOO_LARGE
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
-from ..patch.model import PARAM_NAMES, RULE_NAMES, PatchModel
+from ..patch.model import MAX_STITCHES_PER_AXIS, PARAM_NAMES, RULE_NAMES, PatchModel, cm_hint, specimen_size_notes
 from .cell_scene import (ENGINES, PHI0_KEYS, degrees_hint, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
                          _knit_table, _load_table, _materials_field, _merge, _Origins, _program, _resolve_cell,
                          _provenance_table, _rules_table, _yarn_table, library_of)
@@ -154,9 +154,9 @@ PATCH_SCENE = Table({
     "seed": Field(("int",), 0, "default seed of random maps", min=0),
     "patch": Table({
         "wales": Field(("int",), OPTIONAL, "wale columns (in parallel); required without [specimen]",
-                       min=1, max=100_000),
+                       min=1, max=MAX_STITCHES_PER_AXIS),
         "courses": Field(("int",), OPTIONAL, "cells along a column (in series); required without [specimen]",
-                         min=1, max=100_000),
+                         min=1, max=MAX_STITCHES_PER_AXIS),
         "dedup": Field(("bool",), True, "solve identical cells once (exact)"),
     }, "patch size (a patch of single stitches), or only dedup with [specimen]"),
     "specimen": Table({
@@ -271,6 +271,8 @@ class PatchScene:
     source: str = "<dict>"
     #: what the scene's values come from that a flagged calibration wrote, and its flags (as CellScene's)
     calibration_flags: list = field(default_factory=list)
+    #: warnings of the scene itself, said before the run (``{"code", "message"}``: a specimen of few stitches)
+    warnings: list = field(default_factory=list)
 
     @property
     def output(self) -> dict:
@@ -614,21 +616,30 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
     if doc["engine"] == "reference" and any(e.on for e in effects_arr.ravel()):
         raise error("engine", doc["engine"], "the model extensions ([effects]) run on the warp engine only")
 
+    scene_warnings: list[dict] = []
     if specimen:
         # a tester's specimen: each element holds band length / C0 courses and strip width / W0 wales
         G, width, pre = sp["gauge_length"], sp["width"], sp["pretension"]
         course_count = (G / (1.0 + pre) / courses) / fields["C0"]      # the knit at rest between the grips
         wale_count = (width / wales) / fields["W0"]
         # between the grips, every strip holds at least one course; across the width, every band one wale
-        for counts, axis, key, value, what, spacing in (
-                (course_count, 0, "gauge_length", G, "shorter than one course", "C0"),
-                (wale_count, 1, "width", width, "narrower than one wale", "W0")):
-            total = counts.sum(axis=axis)
+        along, across = course_count.sum(axis=0), wale_count.sum(axis=1)
+        cm = cm_hint(width, G, float(across.min()), float(along.min()))
+        for total, axis, key, value, what, spacing in (
+                (along, 0, "gauge_length", G, "shorter than one course", "C0"),
+                (across, 1, "width", width, "narrower than one wale", "W0")):
             if np.any(total < 1.0):
                 k = int(np.argmin(total))
                 line = "strip" if axis == 0 else "band"
                 raise error(f"specimen.{key}", value, f"{what} ({spacing} = {fmt(float(fields[spacing].max()))} mm): "
-                            f"{line} {k} holds {total[k]:.4g} {'courses' if axis == 0 else 'wales'}")
+                            f"{line} {k} holds {total[k]:.4g} {'courses' if axis == 0 else 'wales'}" + cm)
+        # a specimen no grips hold (refused), or one all edges and grips (warned of, before the run)
+        refusal, size_warning = specimen_size_notes(width, G, across, along)
+        if refusal is not None:
+            key = "width" if across.max() > MAX_STITCHES_PER_AXIS else "gauge_length"
+            raise error(f"specimen.{key}", sp[key], refusal)
+        if size_warning is not None:
+            scene_warnings.append({"code": "specimen_few_stitches", "message": size_warning})
         # and every block at least one stitch: a band shorter than a course (a strip narrower than a wale)
         # is a cell standing for a fraction of a stitch
         for counts, key, across, what in ((course_count, "bands", 0, "courses"), (wale_count, "strips", 1, "wales")):
@@ -676,4 +687,4 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         resolved["zones"] = zones_out
     from ..material_library import flagged_materials
     return PatchScene(model, program, doc["engine"], doc["device"], bool(doc["patch"]["dedup"]), resolved,
-                      origins, name, flagged_materials(data, lib))
+                      origins, name, flagged_materials(data, lib), scene_warnings)

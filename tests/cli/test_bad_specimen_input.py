@@ -80,6 +80,17 @@ GRADE = {"from": "e_glass_plain", "to": "e_glass_plain", "axis": "courses"}
     ({"specimen": {"width": 50.0, "gauge_length": 100.0, "bands": 50}},
      r"specimen\.bands = 50: the block at band 0, strip 0 holds 0\.7407 courses, less than one stitch: at most "
      r"37 bands"),
+    # sizes no grips hold: 1e9 mm / C0 = 2.7 mm is 3.7e8 courses, 1e9 / W0 = 4.4 mm 2.3e8 wales, more than the
+    # 100,000 a [patch] may hold (before: run, "a block standing for 420,875,421 stitches", exit 0)
+    ({"specimen": {"width": 50.0, "gauge_length": 1e9}},
+     r"specimen\.gauge_length = 1000000000\.0: the specimen holds 11\.36 wales x 3\.704e\+08 courses, more than "
+     r"the 100,000 a patch may hold"),
+    ({"specimen": {"width": 1e9, "gauge_length": 100.0}},
+     r"specimen\.width = 1000000000\.0: the specimen holds 2\.273e\+08 wales x 37\.04 courses, more than"),
+    # less than a wale across says what the sizes make in mm read as cm (30 / 4.4 = 6.818 wales)
+    ({"specimen": {"width": 3.0, "gauge_length": 100.0}},
+     r"band 0 holds 0\.6818 wales; if the sizes are in cm, write them in mm \(width = 30, gauge_length = 1000: "
+     r"6\.818 wales x 370\.4 courses\)"),
     # a cap below the force per wale the knit carries at rest (E-glass: about 0.02 N, above 0.015 N):
     # no program can load it (before: run, then "the peak 0.02159 N per wale is the cap" and advice to
     # lower the program's strain, which cannot help)
@@ -121,3 +132,31 @@ def test_progress_and_the_out_policy(tmp_path, capsys, e_glass_calibration):
     assert "choose one" in capsys.readouterr().err
     assert main(argv + ["--overwrite", "--no-progress"]) in (0, 1)
     assert "starts screened" not in capsys.readouterr().err
+
+
+def test_a_specimen_of_few_stitches_is_said_before_the_run_with_its_counts_and_the_sizes_in_cm(tmp_path, capsys):
+    # 5 x 10 meant as cm: 5 / W0 = 5 / 4.4 = 1.136 wales x 10 / C0 = 10 / 2.7 = 3.704 courses, every wale at a free
+    # edge (fewer than 3 across: no interior one); in mm 50 x 100, 11.36 x 37.04. Before: run without a word, the
+    # console saying "5 mm wide"
+    import json
+    doc = copy.deepcopy(SPECIMEN)
+    doc["specimen"] = {"width": 5.0, "gauge_length": 10.0}
+    doc["output"] = {"plot": False, "cell_fields": False}
+    (tmp_path / "s.toml").write_text(dumps(doc))
+    rc = main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    lines = err.splitlines()
+    warned = [k for k, line in enumerate(lines) if "specimen 5 mm wide, 10 mm between the grips holds 1.136 wales "
+              "x 3.704 courses: fewer than 3 stitches across" in line]
+    assert len(warned) == 1, err                             # once, before the run's first line
+    assert warned[0] < next(k for k, line in enumerate(lines) if line.startswith("knitsim run: specimen 5 mm wide"))
+    assert "(width = 50, gauge_length = 100: 11.36 wales x 37.04 courses)" in lines[warned[0]]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert [w["code"] for w in summary["warnings"]].count("specimen_few_stitches") == 1
+    # 3 wales and 3 courses hold an interior stitch: nothing said (13.2 = 3 x 4.4, 8.1 = 3 x 2.7)
+    doc["specimen"] = {"width": 13.2, "gauge_length": 8.1}
+    (tmp_path / "s.toml").write_text(dumps(doc))
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out3"), "--no-progress"]) == 0
+    assert "specimen_few_stitches" not in (tmp_path / "out3" / "summary.json").read_text()
+    assert "fewer than 3 stitches" not in capsys.readouterr().err
