@@ -43,16 +43,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``knitsim`` console command.
 
-    SIGTERM is taken as a Ctrl-C (:func:`knitsim.cli.common.sigterm_as_ctrl_c`): the commands that checkpoint
-    save their work and say how to resume; the exit status is then 143 (128 + SIGTERM, what a shell, ``timeout``
-    and a batch scheduler read as "ended by SIGTERM", as before), not Ctrl-C's 130."""
-    import signal
-
+    SIGTERM and SIGHUP are taken as a Ctrl-C (:func:`knitsim.cli.common.sigterm_as_ctrl_c`): the commands that
+    checkpoint save their work and say how to resume; the exit status is then 128 + the signal (143 for SIGTERM,
+    129 for SIGHUP: what a shell, ``timeout`` and a batch scheduler read as "ended by" it, as before), not
+    Ctrl-C's 130."""
     from .common import sigterm_as_ctrl_c
 
     with sigterm_as_ctrl_c() as terminated:
         status = _main(argv)
-    return 128 + int(signal.SIGTERM) if terminated and status == 130 else status
+    return 128 + int(terminated[0]) if terminated and status == 130 else status
 
 
 def _main(argv: list[str] | None) -> int:

@@ -33,24 +33,24 @@ def naming_scene(path, command: str | None = None) -> Iterator[None]:
 
 @contextlib.contextmanager
 def sigterm_as_ctrl_c() -> Iterator[list]:
-    """SIGTERM (a batch scheduler's time limit, ``kill``, ``timeout``) taken as a Ctrl-C while the block runs:
-    it goes to the SIGINT handler in force when it arrives (:func:`knitsim.patch.runner.run_patch`'s, which
-    lets the increment under way finish and checkpoints it), else raises KeyboardInterrupt; so every command
-    that saves its work and says how to resume on Ctrl-C does so on SIGTERM too (before, SIGTERM ended the
-    process at once: ``knitsim run`` kept only its last periodic checkpoint and said nothing).  Yields a list
-    that holds the signal once one came (:func:`knitsim.cli.main` exits 143 for it).  The previous handler is
-    restored after; a SIGTERM that was ignored when the block began stays ignored, and outside the main thread
+    """SIGTERM (a batch scheduler's time limit, ``kill``, ``timeout``) and SIGHUP (the terminal closed, an ssh
+    session dropped) taken as a Ctrl-C while the block runs: each goes to the SIGINT handler in force when it
+    arrives (:func:`knitsim.patch.runner.run_patch`'s, which lets the increment under way finish and checkpoints
+    it), else raises KeyboardInterrupt; so every command that saves its work and says how to resume on Ctrl-C
+    does so on these too (before, SIGTERM ended the process at once: ``knitsim run`` kept only its last periodic
+    checkpoint and said nothing; SIGHUP did so until this handled it too).  Yields a list that holds the signals
+    that came (:func:`knitsim.cli.main` exits 128 + the first: 143, 129).  The previous handlers are restored
+    after; a signal that was ignored when the block began (``nohup``) stays ignored, and outside the main thread
     (where no handler can be set) nothing changes."""
     import signal
     import threading
 
     got: list = []
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGTERM) == signal.SIG_IGN):
+    if threading.current_thread() is not threading.main_thread():
         yield got
         return
 
-    def on_sigterm(signum, frame):
+    def on_signal(signum, frame):
         got.append(signum)
         handler = signal.getsignal(signal.SIGINT)
         if callable(handler):
@@ -58,12 +58,15 @@ def sigterm_as_ctrl_c() -> Iterator[list]:
         else:                              # Ctrl-C ignored (a job in the background) or default: still stop
             raise KeyboardInterrupt
 
-    old = signal.signal(signal.SIGTERM, on_sigterm)
+    taken = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None))
+             if s is not None and signal.getsignal(s) != signal.SIG_IGN]
+    old = {s: signal.signal(s, on_signal) for s in taken}
     try:
         yield got
     finally:
         # (None: a handler installed outside Python, which Python cannot put back; the default is what it can)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL if old is None else old)
+        for s, h in old.items():
+            signal.signal(s, signal.SIG_DFL if h is None else h)
 
 
 #: top-level tables or keys that only one command's scenes have

@@ -12,7 +12,7 @@ continues from it (same results as an uninterrupted run; from a finished solve
 it writes the outputs without solving again, on the device that solved: another
 is refused).  On Ctrl-C, during the solve or while the outputs are written, the
 command says what the checkpoint holds and prints the command that continues
-the run (exit status 130; SIGTERM is taken as a Ctrl-C, exit status 143: :func:`knitsim.cli.main`).
+the run (exit status 130; SIGTERM and SIGHUP are taken as a Ctrl-C, exit status 143 and 129: :func:`knitsim.cli.main`).
 Results (:mod:`knitsim.io.patch_results`) go to
 ``DIR`` (default ``<scene stem>_out``), the USD file first, then the result set
 (``summary.json`` last: its presence marks a complete set); the checkpoint and its
@@ -34,7 +34,7 @@ specimen's ``strips x bands`` blocks with the wales and courses of each strip
 every stitch, each an instance of its block's stitch (:mod:`knitsim.usd.instanced`).
 Exit status 0 when the run ended as expected (summary ``all_expected_end``: no failed cell, no column that
 failed to converge other than one held at its cells' force cap; a stop at the force cap is an expected end,
-its warning shown), 1 otherwise, 2 on bad input, 130 on Ctrl-C, 143 on SIGTERM.
+its warning shown), 1 otherwise, 2 on bad input, 130 on Ctrl-C, 143 on SIGTERM, 129 on SIGHUP.
 """
 from __future__ import annotations
 

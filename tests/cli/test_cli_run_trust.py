@@ -336,13 +336,17 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_wri
         assert (out / name).read_bytes() == (full / name).read_bytes(), name
 
 
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
 def test_sigterm_checkpoints_says_how_to_resume_and_the_resume_equals_the_uninterrupted_run(tmp_path, capsys,
-                                                                                          monkeypatch):
-    # SIGTERM (a batch scheduler's time limit, kill, timeout) is taken as a Ctrl-C: before, the process died at
-    # once with no message, keeping only the last periodic checkpoint (none here: checkpoint_every is past the
-    # program's end). Sent to a real process once its progress says 10% of the increments are done.
+                                                                                          monkeypatch, signame):
+    # SIGTERM (a batch scheduler's time limit, kill, timeout) and SIGHUP (the terminal closed, an ssh session
+    # dropped) are taken as a Ctrl-C: before, the process died at once with no message, keeping only the last
+    # periodic checkpoint (none here: checkpoint_every is past the program's end). Sent to a real process once
+    # its progress says 10% of the increments are done.
     import signal
     import subprocess
+
+    sig = getattr(signal, signame)
 
     text = PATCH.replace("max_increment = 0.05", "max_increment = 0.002").replace(
         "checkpoint_every = 1", "checkpoint_every = 100000")
@@ -359,13 +363,13 @@ def test_sigterm_checkpoints_says_how_to_resume_and_the_resume_equals_the_uninte
     for line in p.stderr:
         before.append(line)
         if "knitsim run: increments: " in line:        # the first progress line (10%): a few increments in
-            p.send_signal(signal.SIGTERM)
+            p.send_signal(sig)
             break
     err = p.stderr.read()
     p.stdout.read()
     assert any("knitsim run: increments: " in line for line in before), "".join(before)
-    # 143 = 128 + SIGTERM, as before and as a scheduler reads it (Ctrl-C: 130)
-    assert p.wait() == 143, err
+    # 143 = 128 + SIGTERM, 129 = 128 + SIGHUP, as before and as a shell or scheduler reads it (Ctrl-C: 130)
+    assert p.wait() == 128 + int(sig), err
     m = re.search(r"interrupted; (\d+)/(\d+) increment\(s\) kept in the checkpoint .*; continue with: (.*)", err)
     assert m, err
     done = int(m.group(1))
@@ -379,24 +383,26 @@ def test_sigterm_checkpoints_says_how_to_resume_and_the_resume_equals_the_uninte
         assert (out / name).read_bytes() == (full / name).read_bytes(), name
 
 
-def test_sigterm_as_ctrl_c_restores_the_handler_and_keeps_an_ignored_sigterm_ignored():
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_sigterm_as_ctrl_c_restores_the_handler_and_keeps_an_ignored_sigterm_ignored(signame):
     import os
     import signal
 
     from knitsim.cli.common import sigterm_as_ctrl_c
-    before = signal.getsignal(signal.SIGTERM)
+    sig = getattr(signal, signame)
+    before = signal.getsignal(sig)
     with sigterm_as_ctrl_c() as got, pytest.raises(KeyboardInterrupt):
-        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), sig)
         for _ in range(1000):                                # (delivered at the next bytecode)
             pass
-    assert got == [signal.SIGTERM] and signal.getsignal(signal.SIGTERM) is before
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    assert got == [sig] and signal.getsignal(sig) is before
+    signal.signal(sig, signal.SIG_IGN)                       # (nohup ignores SIGHUP: it stays ignored)
     try:
         with sigterm_as_ctrl_c() as got:
-            os.kill(os.getpid(), signal.SIGTERM)             # ignored: nothing raised
+            os.kill(os.getpid(), sig)                        # ignored: nothing raised
         assert got == []
     finally:
-        signal.signal(signal.SIGTERM, before)
+        signal.signal(sig, before)
 
 
 def test_an_interrupted_usd_export_leaves_no_file_that_looks_whole(tmp_path, capsys, monkeypatch):
