@@ -54,6 +54,7 @@ import copy
 import hashlib
 import io
 import json
+import logging
 import os
 import platform
 import sys
@@ -835,18 +836,31 @@ def _workers_ignore_sigint():
     """Start worker processes that ignore Ctrl-C: the driver handles it (cancels, closes the cluster, says
     how to resume).  A Ctrl-C at a terminal reaches the whole process group, and each Dask worker process
     printed its own CancelledError / KeyboardInterrupt traceback before the "interrupted" message (a blind
-    probe).  An ignored signal stays ignored in a spawned child; the driver's handler is restored at once."""
+    probe).  An ignored signal stays ignored in a spawned child; the driver's handler is restored at once.
+
+    A SIGTERM or SIGHUP (taken as a Ctrl-C, :func:`knitsim.cli.common.sigterm_as_ctrl_c`) that comes while the
+    block starts the cluster is held until the block ends, then delivered: stopping the cluster's start
+    half-way left it to Dask's exit hook, which printed ``AssertionError: Status.init`` with its traceback
+    after the "interrupted" line (3 of 14 SIGTERMs sent 0.5-11 s into a sweep's start)."""
     import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():   # signal handlers: the main thread's only
         yield
         return
+    held: list = []
+    deferred = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None))
+                if s is not None and callable(signal.getsignal(s))]
+    old_deferred = {s: signal.signal(s, lambda signum, frame: held.append(signum)) for s in deferred}
     old = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+        for s, h in old_deferred.items():
+            signal.signal(s, h)
+        for s in dict.fromkeys(held):
+            signal.raise_signal(s)         # (its own handler again: a Ctrl-C, once the cluster is held)
 
 
 def check_workers(workers: int | None, scheduler: str | None = None) -> None:
@@ -907,8 +921,11 @@ def _run_dask(tasks: list[dict], progress: _Progress, done: list, workers: int |
 
             n = max(1, min(workers or usable_cores(), len(tasks)))
             with _workers_ignore_sigint():
+                # (CRITICAL: a worker's ERROR log of a heartbeat to the scheduler closed under it, with three
+                # tracebacks, came after an interrupted sweep's "interrupted" line; a chunk's failure comes back
+                # on its future, said by knitsim)
                 cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=40)
+                                       dashboard_address=None, silence_logs=logging.CRITICAL)
             client = Client(cluster)
         if stream is not None:
             nw = len(client.scheduler_info().get("workers", {}))
