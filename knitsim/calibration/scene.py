@@ -63,6 +63,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import KnitsimInputError
+from ..patch.model import MAX_STITCHES_PER_AXIS, cm_hint, specimen_size_notes
 from ..scene.cell_scene import _device_check, _effects_table, _friction_table, _rules_table, load_cell_scene
 from ..scene.schema import OPTIONAL, REQUIRED, Field, Table, TableArray, error, load_toml, set_value, validate
 from .joint import ZERO_MODES, JointSetup, check_setup, check_zero
@@ -268,12 +269,20 @@ def load_calibration_scene(source: str | Path | dict, overrides: list[str] = (),
             raise error(f"{where}.band", band, "expected the two envelope files [lower, upper]")
         if band is None and "curve" not in s:
             raise KnitsimInputError(f"{where}: give curve = FILE, band = [LOWER, UPPER], or both")
-        # the specimen holds at least one course between its grips and one wale across its width
+        # the specimen holds at least one course between its grips and one wale across its width, and no more than
+        # a patch may hold (knitsim.patch.model.specimen_size_notes: a size in cm or in um typed as mm)
+        wales, courses = s["width"] / s["knit"]["W0"], s["gauge_length"] / s["knit"]["C0"]
+        cm = cm_hint(s["width"], s["gauge_length"], wales, courses)
         if s["gauge_length"] < s["knit"]["C0"]:
             raise error(f"{where}.gauge_length", s["gauge_length"], f"shorter than one course (knit.C0 = "
-                        f"{s['knit']['C0']:g} mm)")
+                        f"{s['knit']['C0']:g} mm)" + cm)
         if s["width"] < s["knit"]["W0"]:
-            raise error(f"{where}.width", s["width"], f"narrower than one wale (knit.W0 = {s['knit']['W0']:g} mm)")
+            raise error(f"{where}.width", s["width"], f"narrower than one wale (knit.W0 = {s['knit']['W0']:g} mm)"
+                        + cm)
+        refusal, _ = specimen_size_notes(s["width"], s["gauge_length"], wales, courses)
+        if refusal is not None:
+            key = "width" if wales > MAX_STITCHES_PER_AXIS else "gauge_length"
+            raise error(f"{where}.{key}", s[key], refusal)
         if "noise_N" in s and "curve" not in s:
             raise error(f"{where}.noise_N", s["noise_N"], "the noise of a measured curve: give curve = FILE")
         specimens.append(specimen_from_files(

@@ -33,6 +33,13 @@ _DEL = object()
      r"specimens\[0\]\.gauge_length = 2\.0: shorter than one course \(knit\.C0 = 2\.7 mm\)"),
     (("specimens", 0, "width"), 3.0, CURVE,
      r"specimens\[0\]\.width = 3\.0: narrower than one wale \(knit\.W0 = 4\.4 mm\)"),
+    # more than a patch may hold (1e9 / C0 = 2.7 mm: 3.7e8 courses), as the [specimen] of knitsim run; before,
+    # calibrated against as a specimen of 370 million courses
+    (("specimens", 0, "gauge_length"), 1e9, CURVE,
+     r"specimens\[0\]\.gauge_length = 1000000000\.0: the specimen holds .* x 3\.704e\+08 courses, more than the "
+     r"100,000 a patch may hold"),
+    (("specimens", 0, "width"), 3.0, CURVE, r"narrower than one wale .*; if the sizes are in cm, write them in mm "
+                                            r"\(width = 30, "),
     (("specimens", 0, "knit", "C0"), _DEL, CURVE, r"specimens\[0\]\.knit\.C0: missing required key"),
     (None, None, "strain,force_kN\n0,0\n0.1,1\n", r"specimens\[0\]\.curve: .*a\.csv: no force column"),
     (None, None, "strain,load_N\n0,0\n0.1,abc\n", r"specimens\[0\]\.curve: .*a\.csv: row 3, column load_N"),
