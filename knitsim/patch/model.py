@@ -415,6 +415,10 @@ class PatchModel:
         if gauge_length / (1.0 + max(float(pretension), 0.0)) < params.C0:
             raise KnitsimInputError(f"specimen gauge_length = {gauge_length!r} mm: shorter than one course "
                                     f"(C0 = {params.C0:g} mm); lengths are in mm")
+        refusal, _ = specimen_size_notes(width, gauge_length, width / params.W0,
+                                         gauge_length / (1.0 + max(float(pretension), 0.0)) / params.C0)
+        if refusal is not None:
+            raise KnitsimInputError(f"specimen {width!r} x {gauge_length!r} mm: {refusal}")
         base = cls.uniform(params, 1, 1)
         return cls(1, 1, base.fields, base.rules, base.effects,
                    course_count=np.array([[gauge_length / (1.0 + pretension) / params.C0]]),

@@ -135,6 +135,9 @@ def test_the_api_refuses_what_the_scene_refuses():
         PatchModel.specimen(c, width=0.05, gauge_length=0.1)
     with pytest.raises(KnitsimInputError, match="shorter than one course"):
         PatchModel.specimen(c, width=50.0, gauge_length=2.0)
+    # 1e9 mm / C0 = 2.7 mm = 3.7e8 courses: more than a patch may hold (before: a specimen of 370 million courses)
+    with pytest.raises(KnitsimInputError, match=r"3\.704e\+08 courses, more than the 100,000 a patch may hold"):
+        PatchModel.specimen(c, width=50.0, gauge_length=1e9)
     with pytest.raises(KnitsimInputError, match="at least one cell"):
         PatchModel.from_cells([])
     assert PatchModel.specimen(c, width=50.0, gauge_length=100.0).wale_count[0, 0] == pytest.approx(50.0 / 4.4)
