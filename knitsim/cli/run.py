@@ -226,10 +226,11 @@ def resume_command(args, out: Path) -> str:
                         ["--out", str(out)] if args.out is None else [])
 
 
-def interrupted_message(ck: Path | None, total: int, resume_cmd: str, writing: bool = False) -> str:
+def interrupted_message(ck: Path | None, total: int, resume_cmd: str, writing: bool = False,
+                        failed: str | None = None) -> str:
     """What ``knitsim run`` says on Ctrl-C: the checkpoint kept, up to which increment, and the command that
     continues from it; or that nothing was kept.  ``writing``: the Ctrl-C came while the outputs were
-    written, after the solve.
+    written, after the solve; ``failed``: not a Ctrl-C, writing them failed so (an OSError's text: a full disk).
 
     The increment is the checkpoint's own (``done``, :func:`knitsim.patch.runner.read_checkpoint_header`):
     :func:`knitsim.patch.runner.run_patch` writes it on Ctrl-C between two increments, and when the solve is
@@ -237,6 +238,10 @@ def interrupted_message(ck: Path | None, total: int, resume_cmd: str, writing: b
     from ..patch.runner import read_checkpoint_header
 
     during = " while the outputs were written" if writing else ""
+    if failed is not None and ck is not None and ck.is_file():
+        # (a disk that filled, a folder made read-only: the solve is kept, said as an interruption is)
+        return interrupted_message(ck, total, resume_cmd, writing).replace(
+            f"knitsim run: interrupted{during}", f"knitsim run: writing the outputs failed ({failed})", 1)
     if ck is None:
         return (f"knitsim run: interrupted{during}; nothing was kept (output.checkpoint_every = 0: no checkpoint); "
                 "run again from the start")
@@ -480,6 +485,14 @@ def _run_locked(args) -> int:
         print(interrupted_message(ck if keep else None, total, resume_cmd, writing=True), file=sys.stderr,
               flush=True)
         return 130
+    except OSError as exc:
+        # the solve is in the checkpoint: say so and how to write the outputs, not a traceback (a blind probe's
+        # full disk); without a checkpoint the error goes on as it is
+        if not ck.is_file():
+            raise
+        print(interrupted_message(ck, total, resume_cmd, writing=True, failed=str(exc)), file=sys.stderr,
+              flush=True)
+        return 1
     remove_checkpoint(ck)
     if res is not None:
         drawn = (f", {res.stitches:,} stitches drawn as instances of {res.prototypes} stitch "

@@ -336,6 +336,39 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_solve_and_the_resume_wri
         assert (out / name).read_bytes() == (full / name).read_bytes(), name
 
 
+def test_a_disk_that_fills_while_the_outputs_are_written_keeps_the_solve_and_says_how_to_write_them(
+        tmp_path, capsys, monkeypatch):
+    # writing the outputs failed with an OSError (a full disk) after the solve: before, a traceback, the
+    # checkpoint kept without a word of it; now one line that says the solve is kept and the command that
+    # writes the outputs, exit 1, and that command writes what the uninterrupted run writes
+    import errno
+
+    import knitsim.io.patch_results as pr
+    scene = _scene(tmp_path)
+    full = tmp_path / "full"
+    assert main(["run", str(scene), "--out", str(full), "--no-progress"]) == 0
+    out = tmp_path / "o"
+    real_write = pr.write_patch_results
+
+    def disk_full(out_dir, *a, **kw):
+        # (write_result_set writes into a hidden sibling folder first: nothing of it in --out)
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pr, "write_patch_results", disk_full)
+    argv = _argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress"])
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert (f"knitsim run: writing the outputs failed ([Errno 28] No space left on device); the solve is finished "
+            f"and kept: {N_PATCH}/{N_PATCH} increment(s) in the checkpoint") in err, err
+    assert not (out / "summary.json").exists()
+    cmd = err.split("without solving again, with: ")[1].strip().splitlines()[0]
+    monkeypatch.setattr(pr, "write_patch_results", real_write)
+    assert main(_argv(monkeypatch, shlex.split(cmd)[1:])) == 0
+    for name in ("curve.csv", "columns.csv"):                # the uninterrupted run's, bit for bit
+        assert (out / name).read_bytes() == (full / name).read_bytes(), name
+
+
 @pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
 def test_sigterm_checkpoints_says_how_to_resume_and_the_resume_equals_the_uninterrupted_run(tmp_path, capsys,
                                                                                           monkeypatch, signame):
