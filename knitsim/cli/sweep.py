@@ -159,9 +159,11 @@ def _run_locked(args, plan, out_dir) -> int:
         print(f"knitsim sweep: interrupted; {done}/{len(plan.chunks)} finished chunk(s) kept in {out / 'chunks'}; "
               f"finish with: {resume_cmd}", file=sys.stderr, flush=True)
         return 130
-    except SweepChunkError as exc:
-        done = len(list((out / "chunks").glob("chunk_*.npz")))
-        print(f"knitsim sweep: {exc}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
+    except (SweepChunkError, OSError) as exc:
+        # (an OSError: a chunk or a result file that could not be written, a full disk: a traceback before)
+        done = len(list((out / "chunks").glob("chunk_*.npz"))) if (out / "chunks").is_dir() else 0
+        what = str(exc) if isinstance(exc, SweepChunkError) else f"a file could not be written or read ({exc})"
+        print(f"knitsim sweep: {what}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
               f"after fixing the cause, finish with: {resume_cmd}", file=sys.stderr, flush=True)
         return 1
     summary = run.summary                            # written to summary.json by run_sweep

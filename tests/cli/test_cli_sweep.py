@@ -135,6 +135,37 @@ def test_sigterm_is_taken_as_a_ctrl_c_keeping_the_finished_chunks(tmp_path, caps
     assert [p.name for p in (out / "chunks").iterdir()] == ["chunk_00000.npz"]
 
 
+def test_a_disk_that_fills_keeps_the_finished_chunks_and_says_how_to_finish(tmp_path, capsys, monkeypatch):
+    # chunk 1 of 2 cannot be written (a full disk): before, a traceback; now one line with the error, the chunks
+    # kept and the command that finishes the sweep, exit 1; that command finishes it, reusing chunk 0
+    import errno
+
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    scene = _files(tmp_path)
+    out = tmp_path / "o"
+    real = runner.run_chunk
+
+    def disk_full(task):
+        if task["chunk"] == 1:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(task)
+
+    monkeypatch.setattr(runner, "run_chunk", disk_full)
+    argv = ["sweep", str(scene), "--out", str(out), "--workers", "0"]
+    monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert ("knitsim sweep: a file could not be written or read ([Errno 28] No space left on device); 1/2 "
+            "finished chunk(s) kept; after fixing the cause, finish with: ") in err, err
+    assert not (out / "summary.json").exists()
+    monkeypatch.setattr(runner, "run_chunk", real)
+    cmd = err.split("finish with: ", 1)[1].strip()
+    assert main(cmd.split()[1:] + ["--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["computed_chunks"] == 1 and doc["skipped_chunks"] == 1
+
+
 def test_a_second_sweep_into_a_folder_in_use_is_refused_and_a_dead_ones_lock_taken_over(tmp_path, capsys,
                                                                                           monkeypatch):
     # an interrupted sweep (chunk 1 of 2 not run), then its folder's lock held by another process that runs
