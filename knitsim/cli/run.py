@@ -487,8 +487,8 @@ def _run_locked(args) -> int:
         return 130
     except OSError as exc:
         # the solve is in the checkpoint: say so and how to write the outputs, not a traceback (a blind probe's
-        # full disk); without a checkpoint the error goes on as it is
-        if not ck.is_file():
+        # full disk); without a checkpoint the error goes on as it is, and so does a closed pipe (knitsim.cli.main)
+        if not ck.is_file() or isinstance(exc, BrokenPipeError):
             raise
         print(interrupted_message(ck, total, resume_cmd, writing=True, failed=str(exc)), file=sys.stderr,
               flush=True)

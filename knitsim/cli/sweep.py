@@ -160,7 +160,10 @@ def _run_locked(args, plan, out_dir) -> int:
               f"finish with: {resume_cmd}", file=sys.stderr, flush=True)
         return 130
     except (SweepChunkError, OSError) as exc:
-        # (an OSError: a chunk or a result file that could not be written, a full disk: a traceback before)
+        # (an OSError: a chunk or a result file that could not be written, a full disk: a traceback before; a
+        # closed pipe goes on to knitsim.cli.main)
+        if isinstance(exc, BrokenPipeError):
+            raise
         done = len(list((out / "chunks").glob("chunk_*.npz"))) if (out / "chunks").is_dir() else 0
         what = str(exc) if isinstance(exc, SweepChunkError) else f"a file could not be written or read ({exc})"
         print(f"knitsim sweep: {what}; {done}/{len(plan.chunks)} finished chunk(s) kept; "
