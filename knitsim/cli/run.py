@@ -218,6 +218,34 @@ def zone_overlaps(resolved: dict) -> list[dict]:
     return out
 
 
+def _run_keys(resolved: dict) -> dict:
+    """The resolved scene's keys that make the run (not ``title`` or ``[output]``, which --resume may change),
+    flat (``specimen.width``), as plain JSON values: kept in the checkpoint, for :func:`scene_changes`."""
+    import json
+
+    from ..sweep.runner import _flat
+    return _flat(json.loads(json.dumps({k: v for k, v in resolved.items() if k not in ("title", "output")},
+                                       default=str)))
+
+
+def scene_changes(head: dict, resolved: dict) -> str | None:
+    """What changed in the scene since a checkpoint (its header ``head``) was written, in words, for
+    --resume's refusal (:func:`knitsim.patch.runner.resume_refusal`): ``changed since it was written: key old ->
+    new, ...``, or, where no key differs, that a file the scene names changed; None for a checkpoint that did not
+    keep its keys (an older knitsim).  Before, the refusal said "another scene, program or engine" without
+    what (a blind probe)."""
+    from ..sweep.runner import _key_diff
+    old = (head.get("meta") or {}).get("resolved")
+    if not isinstance(old, dict):
+        return None
+    diff = _key_diff(old, _run_keys(resolved))
+    if not diff:
+        return ("its keys are the same: a file it names, a map or a material library, changed since it was "
+                "written")
+    return "changed since it was written: " + ", ".join(diff[:4]) + (f", and {len(diff) - 4} more" if len(diff) > 4
+                                                                      else "")
+
+
 def resume_command(args, out: Path) -> str:
     """The command that continues this run from its checkpoint: the command line as typed, without
     ``--overwrite`` (it and ``--resume`` exclude each other), with ``--out`` and ``--resume``."""
@@ -395,7 +423,8 @@ def _run_locked(args) -> int:
                 raise KnitsimInputError(f"--resume: {ck} is not a readable checkpoint ({exc})") from None
             # another scene (or map, library, device...): refused here, before "resuming from ..." is said
             why = resume_refusal(ck, head, scene.model, scene.program, engine=scene.engine, device=device,
-                                 dedup=scene.dedup, **scene.solver_options)
+                                 dedup=scene.dedup, changes=scene_changes(head, scene.resolved),
+                                 **scene.solver_options)
             if why:
                 raise KnitsimInputError(why)
             if args.usd is not None:
@@ -424,7 +453,8 @@ def _run_locked(args) -> int:
     # what a later command needs to know of this run: how to resume it, and the --usd file it may replace
     import os
     meta = {"resume_command": resume_cmd, "cwd": os.getcwd(), "scene": str(args.scene),
-            "usd": str(Path(args.usd).resolve()) if args.usd is not None else None}
+            "usd": str(Path(args.usd).resolve()) if args.usd is not None else None,
+            "resolved": _run_keys(scene.resolved)}
     with contextlib.redirect_stdout(sys.stderr):
         m = scene.model
         layout = specimen_layout(m)

@@ -546,21 +546,22 @@ def _run_fingerprint(model, program, engine: str, dev_id: str, dedup: bool, solv
 
 
 def resume_refusal(ck: str | Path, head: dict, model: PatchModel, program: LoadProgram, engine: str = "warp",
-                   device: str = "cpu", dedup: bool = True, **solver_options) -> str:
+                   device: str = "cpu", dedup: bool = True, changes: str | None = None, **solver_options) -> str:
     """Why the checkpoint ``ck`` (its header ``head``, :func:`read_checkpoint_header`) cannot be resumed by a run
     of ``model`` and ``program`` (another scene, map, library, program, engine, device or solver option), or
     ``""`` where it can: what :func:`run_patch` refuses, asked before any work (a blind probe's ``knitsim run
     --resume`` said "resuming from ..." and then refused).  So is a chunk of its rows that is missing, or of
-    another size than written (:func:`knitsim.patch.records.chunk_problem`)."""
+    another size than written (:func:`knitsim.patch.records.chunk_problem`).  ``changes``: what changed in the
+    scene, in words (:func:`knitsim.cli.run.scene_changes`), said where the scene is the reason."""
     dev_id = device_identity(engine, device)
     if head.get("fingerprint") != _run_fingerprint(model, program, engine, dev_id, dedup, solver_options):
-        return _resume_mismatch(Path(ck), head, engine, dev_id)
+        return _resume_mismatch(Path(ck), head, engine, dev_id, changes)
     # its rows: every chunk file there, of the size it was written with (their contents are checked as the
     # run reads them)
     return chunk_problem(Path(ck), head["chunks"], int(head["done"])) if "chunks" in head else ""
 
 
-def _resume_mismatch(ck: Path, head: dict, engine: str, dev_id: str) -> str:
+def _resume_mismatch(ck: Path, head: dict, engine: str, dev_id: str, changes: str | None = None) -> str:
     """Why a checkpoint does not fit this run (one line): its device, its engine, or the scene."""
     saved_dev, saved_engine = head.get("device"), head.get("engine")
     if saved_engine is not None and saved_engine != engine:
@@ -576,9 +577,9 @@ def _resume_mismatch(ck: Path, head: dict, engine: str, dev_id: str) -> str:
                 "another scene, program or engine): it cannot be resumed safely; run again without --resume "
                 "(--overwrite)")
     # (before: "remove it or run without --resume", and a plain run into that --out is refused: it holds results)
-    return (f"--resume: {ck} belongs to another scene, program or engine (the scene, or a file it names: a map, a "
-            "material library, changed since it was written); resume with the scene it was written with, or start "
-            "again with --overwrite (or another --out)")
+    what = changes or ("the scene, or a file it names: a map, a material library, changed since it was written")
+    return (f"--resume: {ck} belongs to another scene, program or engine ({what}); resume with the scene it was "
+            "written with, or start again with --overwrite (or another --out)")
 
 
 def all_ok(history: PatchHistory) -> bool:

@@ -694,9 +694,13 @@ def test_a_resume_of_a_changed_scene_is_refused_before_it_says_it_resumes(tmp_pa
                                   "--set", "friction.m=0.25"]))
     err = capsys.readouterr().err
     assert rc == 2 and "belongs to another scene" in err and "--overwrite" in err, err
+    # what changed, named (the scene's m = 0.2; before: "another scene, program or engine" and no more)
+    assert "(changed since it was written: friction.m 0.2 -> 0.25)" in err, err
     assert "resuming from" not in err and "Traceback" not in err
     assert (out / "checkpoint.pkl").is_file() and not (out / "summary.json").exists()
-    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume"])) == 0
+    # a key of [output] may change on --resume: not a change of the run, neither refused nor named
+    assert main(_argv(monkeypatch, ["run", str(scene), "--out", str(out), "--no-progress", "--resume",
+                                    "--set", "output.checkpoint_every=3"])) == 0
     assert "resuming from" in capsys.readouterr().err
 
 
