@@ -241,7 +241,7 @@ def scene_changes(head: dict, resolved: dict) -> str | None:
     diff = _key_diff(old, _run_keys(resolved))
     if not diff:
         return ("its keys are the same: a file it names, a map or a material library, changed since it was "
-                "written")
+                "written, or another knitsim wrote it")
     return "changed since it was written: " + ", ".join(diff[:4]) + (f", and {len(diff) - 4} more" if len(diff) > 4
                                                                       else "")
 
