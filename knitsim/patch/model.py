@@ -81,7 +81,10 @@ def specimen_size_notes(width: float, gauge_length: float, wales, courses) -> tu
 def cm_hint(width: float, gauge_length: float, wales: float, courses: float) -> str:
     """``; if the sizes are in cm, ...``: the sizes in mm and the counts they would make.  Sizes in cm typed as
     mm make a specimen ten times narrower and shorter than meant (a width of 5 for 5 cm ran as 1.1 wales of
-    E-glass without a word)."""
+    E-glass without a word).  ``""`` where the sizes in mm would not make a specimen either (less than a stitch
+    or more than a patch holds on an axis): no hint that does not help."""
+    if not (1.0 <= 10 * min(wales, courses) and 10 * max(wales, courses) <= MAX_STITCHES_PER_AXIS):
+        return ""
     return (f"; if the sizes are in cm, write them in mm (width = {10 * width:.6g}, gauge_length = "
             f"{10 * gauge_length:.6g}: {10 * wales:.4g} wales x {10 * courses:.4g} courses)")
 

@@ -98,6 +98,8 @@ GRADE = {"from": "e_glass_plain", "to": "e_glass_plain", "axis": "courses"}
     ({"specimen": {"width": 3.0, "gauge_length": 100.0}},
      r"band 0 holds 0\.6818 wales; if the sizes are in cm, write them in mm \(width = 30, gauge_length = 1000: "
      r"6\.818 wales x 370\.4 courses\)"),
+    # ... and nothing of cm where 10 times the sizes are no specimen either (0.01 / 4.4 mm: 0.0023 wale)
+    ({"specimen": {"width": 0.001, "gauge_length": 100.0}}, r"band 0 holds 0\.0002273 wales$"),
     # a cap below the force per wale the knit carries at rest (E-glass: about 0.02 N, above 0.015 N):
     # no program can load it (before: run, then "the peak 0.02159 N per wale is the cap" and advice to
     # lower the program's strain, which cannot help)
