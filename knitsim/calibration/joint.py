@@ -162,6 +162,13 @@ OFFSET_NOTE_SE = 2.0
 #: strain 0 is flagged (a load cell zeroed with the knit mounted)
 ZERO_CHECK_SD = 5.0
 ZERO_CHECK_SHARE = 0.05
+#: a specimen whose largest reading per wale is below this many B / L^2 of its fitted yarn and knit (the force that
+#: bends the yarn over its loop length) is flagged as a force in another unit (_force_scale_flag).  Real knits
+#: pulled through a test carry far more: the Do 2020 and Singal 2024 curves 31 to 3800 B / L^2 at any B their
+#: fits reached (their calibration 1900 and 2100; Singal's 24 runs 1600 to 10900 at the authors' B), Dusserre's
+#: E-glass model curves to strain 0.5 about 60; the same in kN read as N, 0.06 to 4 (the fit leaves B or the
+#: knit where the model carries almost nothing: a blind probe's kN file fitted within its noise, no flag)
+BENDING_SCALE_SHARE = 10.0
 
 
 def residual_autocorrelation(r: np.ndarray | None) -> float:
@@ -1493,9 +1500,10 @@ _BOUND_NOTES = {
 def _force_scale_flag(fit: "SpecimenFit") -> str:
     """A specimen whose readings are on another force scale than its fitted knit (the thresholds of
     :func:`knitsim.diagnosis.diagnose.force_scale_mismatch`): every reading below half the force the knit carries
-    at rest (kN read as N), or half of them beyond ten times the most it carries (mN read as N); "" otherwise.  A
-    blind probe's specimen in kN under a `load_N` header was flagged for its misfit and W0 at its bound, nothing
-    said of the unit."""
+    at rest (kN read as N), or half of them beyond ten times the most it carries (mN read as N); or its largest
+    reading per wale below :data:`BENDING_SCALE_SHARE` B / L^2 of the fitted yarn and knit (kN read as N, met by a
+    knit that carries almost nothing); "" otherwise.  A blind probe's specimen in kN under a `load_N` header was
+    flagged for its misfit and W0 at its bound, nothing said of the unit."""
     from ..diagnosis.diagnose import SCALE_ABOVE, SCALE_SHARE
     target = np.asarray(fit.target_N, float)
     sim = np.asarray(fit.simulated_N, float)
@@ -1512,6 +1520,16 @@ def _force_scale_flag(fit: "SpecimenFit") -> str:
         return (f"specimen {fit.name}: every reading (the largest {top:.3g} N {what}) is below the force the fitted "
                 f"knit carries at rest ({rest:.3g} N, {rest / max(top, 1e-300):.3g} times more): a force in another "
                 "unit (kN read as N)? Check the column's unit (and the specimen's width) before anything else")
+    # the fit can also meet such readings with a knit that carries almost nothing (a blind probe's kN file
+    # beside one in N: fitted within its noise, the knit at rest at 1e-5 N per wale): the yarn's own force scale
+    bend = float(fit.params.B) / float(fit.params.L) ** 2
+    per_wale = top / fit.wales if fit.wales > 0 else top
+    if bend > 0 and per_wale < BENDING_SCALE_SHARE * bend:
+        return (f"specimen {fit.name}: its largest reading, {per_wale:.3g} N per wale, is {per_wale / bend:.2g} x "
+                f"B / L^2 of the fitted yarn and knit ({bend:.3g} N, the force that bends the yarn over its loop "
+                f"length; a knit pulled through a test carries tens to thousands of times it, flagged below "
+                f"{BENDING_SCALE_SHARE:g}): a force in another unit (kN read as N)? Check the column's unit (and the "
+                "specimen's width) before anything else")
     return ""
 
 

@@ -325,3 +325,27 @@ def test_a_knit_variable_not_identified_is_a_note_not_a_flag():
     r3 = JointResult([b_loose, phi0, w0], corr, [_fit()], 1.0, 10, 3, 0.1, True, "converged", r.starts, 3, 0.1,
                      setup, _fit().params, True, "converged")
     assert not r3.usable and any(f.startswith("B = ") and "not identified" in f for f in r3.flags)
+
+
+def test_a_specimen_in_kN_met_by_a_knit_that_carries_nothing_is_flagged_as_a_unit():
+    """A probe: a file in kN under a `load_N` header beside one in N (tests/calibration/data's B_lab / 1000) was
+    fitted within its noise by a knit that carries 1e-5 N per wale at rest, no flag; neither rule of the rest force
+    sees it.  Hand-made: the same fit in kN with the knit carrying 1e-5 N at rest is flagged, naming the unit
+    (its largest reading 2e-3 N over 11.4 wales is 0.11 B / L^2 = 0.31 / 14.1^2 N: below BENDING_SCALE_SHARE);
+    the readings in N (113 B / L^2) are not.  Real data: the bundled Do 2020 calibration's specimens (1900 and
+    2100 B / L^2) read no flag, and a thousand times smaller (kN) both are flagged."""
+    from dataclasses import replace
+    kn = replace(_fit(), target_N=_fit().target_N / 1000.0, simulated_N=_fit().simulated_N / 1000.0,
+                 pretension_N=1e-5)
+    assert "kN read as N" in joint._force_scale_flag(kn)
+    assert joint._force_scale_flag(replace(_fit(), pretension_N=1e-5)) == ""
+    from pathlib import Path
+    doc = json.loads((Path(__file__).resolve().parents[2] / "scenes/calibration/do2020/calibrated/calibration.json")
+                     .read_text())
+    for s in doc["specimens"]:
+        p = {k: s["params"][k] for k in ("B", "d", "L", "W0", "C0", "m", "phi0")}
+        c = {k: np.asarray(v, float) for k, v in s["curve"].items() if v is not None}
+        fit = SpecimenFit(s["name"], CellParams(**p), s["wales"], c["strain"], c["target_N"], c["simulated_N"],
+                          c["sigma_N"], None, None, None, 0.0, 0.0, 0.0, "ok", pretension_N=s["pretension_N"])
+        assert joint._force_scale_flag(fit) == "", s["name"]
+        assert "kN read as N" in joint._force_scale_flag(replace(fit, target_N=fit.target_N / 1000.0)), s["name"]
