@@ -34,14 +34,19 @@ specimens' rows are one uniform grid).  Starts: the setup's own point and a
 Latin hypercube over the variables (seeded), screened in one launch; the best
 are refined.
 
-Uncertainty: ``cov = s^2 (J^T J)^-1`` with J the Jacobian of the weighted
+Uncertainty: ``cov = max(s^2, 1) (J^T W J)^-1`` with J the Jacobian of the weighted
 rows and priors in the reported variables (B, d, w in mm, m, effect
 variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
-``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits);
-correlations from it.  A variable within 0.1 % of its range of a bound is
+``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits): scaled up where the rows scatter
+more than their sds, never down (a band's half-width is the scatter between tests, not of the mid-line's rows,
+and the priors' sds are stated: s^2 = 0.002 on a band's mid-line had put the yarn 10 standard errors off).  W
+weighs a specimen's rows by (1 - rho) / (1 + rho), rho >= 0 the lag-1 autocorrelation of its residuals (an
+effective number of independent rows; the mid-line objective: :func:`_row_information`): rows whose errors run
+from one to the next carry less than one reading each (AR(1) noise of 0.8 put 6 of 10 fits' yarn beyond 2 of
+their standard errors); priors weigh 1.  Correlations from it.  A variable within 0.1 % of its range of a bound is
 flagged, with what that bound means; one whose standard error is not finite or
 larger than half its range is flagged not identified (:func:`identification_rule`).  Where another refined start
-fits as well (chi2 within 3.84 s^2 of the best) at a value beyond 3 of its standard errors, the curvature at the
+fits as well (chi2 within 3.84 max(s^2, 1) of the best) at a value beyond 3 of its standard errors, the curvature at the
 best describes one minimum of several: the standard error is widened to that distance / 1.96, and the estimate is
 flagged not identified unless the distance is within a knit's stated sd (:func:`rival_rule`).  So is the best point
 with one variable moved 4 standard errors, the others held, where it fits as well (:func:`_profile_probes`: the
@@ -131,7 +136,7 @@ UNITS = {"B": "N mm^2", "d": "mm", "in_plane_width": "mm", "m": "-", "phi0": "ra
 BOUND_TOL = 1e-3
 #: a parameter whose standard error exceeds this share of its range (high - low) is not identified
 NOT_IDENTIFIED_SHARE = 0.5
-#: a refined start whose chi2 lies within this many s^2 of the best fits as well (chi^2 with 1 dof, 95 %): the
+#: a refined start whose chi2 lies within this many s^2 (the covariance's factor, max(s^2, 1)) of the best fits as well (chi^2 with 1 dof, 95 %): the
 #: profile of each variable reaches its values (:func:`rival_rule`)
 RIVAL_DCHI2 = 3.84
 #: ... and a value of such a start further than this many standard errors from the best shows the standard error
@@ -623,7 +628,11 @@ class JointResult:
     n, k : int
         Rows (and prior rows) and fitted variables.
     s2 : float
-        chi2 / (n - k): the factor on the covariance.
+        chi2 / (n - k).
+    variance_factor : float
+        The covariance's factor, max(s2, 1) (NaN: not recorded).
+    row_information : dict or None
+        Each specimen's information per row in the covariance, (1 - rho) / (1 + rho) (:func:`_row_information`).
     success : bool
         The least squares converged and every specimen's cell solved on every row.
     message : str
@@ -670,6 +679,8 @@ class JointResult:
     converged: bool | None = None
     optimizer_message: str = ""
     one_yarn: OneYarnCheck | None = None
+    variance_factor: float = math.nan
+    row_information: dict | None = None
 
     def estimate(self, name: str, specimen: str | None = None) -> Estimate:
         for e in self.estimates:
@@ -816,7 +827,9 @@ class JointResult:
         return {"estimates": [e.as_dict() for e in self.estimates],
                 "correlation": {"names": [e.label for e in self.estimates], "matrix": self.correlation.tolist()},
                 "specimens": [f.as_dict(curves) for f in self.fits], "chi2": self.chi2, "n": self.n, "k": self.k,
-                "s2": self.s2, "success": self.success, "message": self.message, "flags": self.flags,
+                "s2": self.s2, "variance_factor": self.variance_factor,
+                "row_information": None if self.row_information is None else dict(self.row_information),
+                "success": self.success, "message": self.message, "flags": self.flags,
                 "zero": self.zero, "n_offsets": self.n_offsets,
                 "offsets_N": self.offsets_N, "tares_N": self.tares_N, "notes": self.notes,
                 "usable": self.usable, "converged": self.success if self.converged is None else self.converged,
@@ -1436,9 +1449,27 @@ def _profile_probes(problem: _Problem, x: np.ndarray, cov: np.ndarray, chi2: flo
     return [((float(r @ r) - chi2) / s2, _reported(problem, p)[1]) for r, p in zip(res, pts)]
 
 
+def _row_information(problem: _Problem, r: np.ndarray) -> list[float]:
+    """Each specimen's information per row, (1 - rho) / (1 + rho) with rho the lag-1 autocorrelation of its
+    residuals ``r`` at the solution (clipped at 0; NaN: 0): the variance of a mean of n AR(1) errors is that of
+    n (1 - rho) / (1 + rho) independent ones.  1 under the band objective, whose residuals (0 anywhere inside
+    the band) are no errors to correlate.  A probe's two knits with AR(1) noise of 0.8 (stated sds right): the
+    yarn beyond 2 standard errors of the truth in 6 of 10 seeds, within 1.4 of them with the weights."""
+    out, i = [], 0
+    for s in problem.sp:
+        n = len(s.strain)
+        rho = residual_autocorrelation(r[i:i + n]) if problem.objective == "midline" else math.nan
+        rho = max(rho, 0.0) if math.isfinite(rho) else 0.0
+        out.append((1.0 - rho) / (1.0 + rho))
+        i += n
+    return out
+
+
 def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6,
-                offset_gradient: list | None = None) -> np.ndarray:
-    """Covariance of the reported variables: FD Jacobian in those variables at the solution.
+                offset_gradient: list | None = None, information: list | None = None) -> np.ndarray:
+    """Covariance of the reported variables: FD Jacobian in those variables at the solution, each specimen's
+    rows weighted by its :func:`_row_information` (``information``: a list that gets them), times ``s2`` (the
+    caller's factor, max(s^2, 1)).
 
     With offsets on, the rows are those less each specimen's best offset (projected out in closed form):
     the Jacobian of these projected rows gives, by variable projection (Golub and Pereyra), the covariance
@@ -1460,7 +1491,15 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     if offset_gradient is not None:
         o = np.asarray(offs, float)                       # [points, specimens]
         offset_gradient.append(((o[1:] - o[0]) / h[:, None]).T)
-    cov = s2 * np.linalg.pinv(J.T @ J)
+    info = _row_information(problem, res[0])
+    if information is not None:
+        information.extend(info)
+    w = np.ones(len(res[0]))
+    i = 0
+    for s, q in zip(problem.sp, info):
+        w[i:i + len(s.strain)] = q
+        i += len(s.strain)
+    cov = s2 * np.linalg.pinv(J.T @ (w[:, None] * J))
     # a variable the rows do not move (e.g. a jamming width never reached) is not identified: infinite sd
     norms = np.linalg.norm(J, axis=0)
     dead = norms <= 1e-9 * max(float(norms.max()), 1e-300)
@@ -1470,9 +1509,10 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     return cov
 
 
-def _offset_std_errors(problem: _Problem, fits_bad: list, cov: np.ndarray, G: np.ndarray, s2: float) -> list:
+def _offset_std_errors(problem: _Problem, fits_bad: list, cov: np.ndarray, G: np.ndarray, s2: float,
+                       information: Sequence[float] | None = None) -> list:
     """Standard error of each specimen's fitted offset: the weighted mean's own noise, s2 / sum(1 / sd^2) over
-    its rows that count, plus the variables' share through the offset's dependence on them, g^T cov g (the
+    its rows that count (divided by its rows' information, :func:`_row_information`), plus the variables' share through the offset's dependence on them, g^T cov g (the
     offset's variance in the full fit with the offsets as variables, by block inversion).  A variable the
     rows do not set (infinite variance) moves no offset either: left out."""
     c = np.where(np.isfinite(cov), cov, 0.0)
@@ -1481,7 +1521,8 @@ def _offset_std_errors(problem: _Problem, fits_bad: list, cov: np.ndarray, G: np
         w2 = np.where(bad, 0.0, 1.0 / s.sigma_N ** 2)
         tot = float(np.sum(w2))
         g = np.nan_to_num(G[k]) if G is not None else np.zeros(len(c))
-        var = (s2 / tot if tot > 0 else math.inf) + float(g @ c @ g)
+        q = float(information[k]) if information is not None else 1.0
+        var = (s2 / (q * tot) if tot > 0 and q > 0 else math.inf) + float(g @ c @ g)
         out.append(math.sqrt(max(var, 0.0)))
     return out
 
@@ -1629,7 +1670,7 @@ def rival_rule(value: float, std_error: float, rivals: Sequence[tuple[float, flo
     near = [v for d, v in rivals if d <= RIVAL_DCHI2 and math.isfinite(v)]
     lo, hi = min(near + [value]), max(near + [value])
     k = spread / std_error if std_error > 0 else math.inf
-    return (f"{what} fits as well (chi2 within {RIVAL_DCHI2:g} s^2 of the best) {spread:.4g}{u} "
+    return (f"{what} fits as well (chi2 within {RIVAL_DCHI2:g} max(s^2, 1) of the best) {spread:.4g}{u} "
             f"away, {k:.3g} of the best point's standard errors ({std_error:.4g}{u}): {lo:.4g} .. {hi:.4g}{u} fit "
             "alike")
 
@@ -1855,8 +1896,12 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     n = pb.n_rows + pb.n_prior
     # degrees of freedom: the rows and priors less the variables and, with offsets on, one offset a specimen
     s2 = chi2 / max(n - pb.k_total, 1)
+    # the covariance's factor: scaled up where the rows scatter beyond their sds, never down (a band's half-width,
+    # the stated priors: module docstring)
+    factor = max(s2, 1.0)
     grads: list = []
-    cov = _covariance(pb, x, s2, offset_gradient=grads)
+    info: list = []
+    cov = _covariance(pb, x, factor, offset_gradient=grads, information=info)
     names, y, los, his = _reported(pb, x)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -1866,10 +1911,10 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     estimates = []
     lo_f, hi_f = pb.lo, pb.hi
     # the other refined starts: each one's chi2 above the best's (in s^2) and its reported values
-    rivals = [((c - chi2) / s2 if s2 > 0 else math.inf, _reported(pb, r.x)[1]) for c, r in finals if r is not sol]
+    rivals = [((c - chi2) / factor, _reported(pb, r.x)[1]) for c, r in finals if r is not sol]
     # and the best point with each variable moved 4 standard errors: starts that fall into one valley see no rival (a
     # blind probe's loose knit with the default refine = 3: w 6.5 standard errors off the truth and no flag)
-    probes = _profile_probes(pb, x, cov, chi2, s2)
+    probes = _profile_probes(pb, x, cov, chi2, factor)
     for j, ((nme, spi), val) in enumerate(zip(names, y)):
         span = hi_f[j] - lo_f[j]
         side = "low" if x[j] - lo_f[j] <= BOUND_TOL * span else ("high" if hi_f[j] - x[j] <= BOUND_TOL * span else None)
@@ -1948,7 +1993,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                                 float(tare) if pb.tared else None, float(getattr(s, "rest_N", math.nan)),
                                 float(getattr(s, "rest_sd_N", math.nan))))
     if pb.offsets:
-        ses = _offset_std_errors(pb, fits_bad, cov, grads[0] if grads else None, s2)
+        ses = _offset_std_errors(pb, fits_bad, cov, grads[0] if grads else None, factor, info)
         fits = [replace(f, offset_se_N=float(se_k)) for f, se_k in zip(fits, ses)]
     # do the specimens look like one yarn? each refitted with its own yarn (checkpointed like the fit)
     own_done = state.setdefault("one_yarn", [])
@@ -1974,7 +2019,8 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     msg = str(sol.message) + ("" if all_ok else "; a specimen's cell did not solve on every row")
     return JointResult(estimates, corr, fits, chi2, n, pb.k_total, s2, bool(sol.success) and all_ok, msg, starts,
                        int(sol.nfev), wall_before + time.perf_counter() - t0,
-                       setup, cells[0], bool(sol.success), str(sol.message), check)
+                       setup, cells[0], bool(sol.success), str(sol.message), check, factor,
+                       {s.name: q for s, q in zip(pb.sp, info)})
 
 
 def _one_yarn_check(pb: _Problem, x: np.ndarray, refine, say, converged: bool, cells_ok: bool) -> OneYarnCheck:

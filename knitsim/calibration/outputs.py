@@ -174,6 +174,18 @@ def zero_offsets(specimens) -> list[tuple[str, str, float]]:
     return [(s.name, src, z) for s in specimens for src, z in s.zero_offsets_N]
 
 
+def _covariance_text(r) -> str:
+    """What the covariance's factor and row weights were (report.md), or "" where not recorded."""
+    if not math.isfinite(getattr(r, "variance_factor", math.nan)):
+        return " (the factor on the covariance)"
+    info = getattr(r, "row_information", None) or {}
+    less = ", ".join(f"{name} {q:.2g}" for name, q in info.items() if q < 1.0)
+    return (f" (the covariance's factor max(chi2 / (n - k), 1) = {r.variance_factor:.3g}: scaled up where the rows "
+            "scatter beyond their sds, never down"
+            + (f"; rows whose residuals run from one to the next count less than one reading each, (1 - rho) / "
+               f"(1 + rho) of their lag-1 autocorrelation: {less}" if less else "") + ")")
+
+
 def report_md(result: JointResult, title: str, source: str, files: list[str], zero_offsets: list | None = None,
               read_notes: list | None = None) -> str:
     """A readable report of the calibration."""
@@ -192,7 +204,7 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
              + (f"{r.k} parameters fitted ({r.k - n_off} variables and {n_off} force offsets, one per specimen) "
                 if n_off else f"{r.k} variables fitted (calibration.zero = \"{r.zero}\": no force offset) ")
              + f"to {r.n} rows (priors included); chi2 = {r.chi2:.4g}, "
-             f"chi2 / (n - k) = {r.s2:.3g} (the factor on the covariance). "
+             f"chi2 / (n - k) = {r.s2:.3g}" + _covariance_text(r) + ". "
              + ("Objective: the band likelihood (anywhere inside the band at no cost, just outside a Gaussian of "
                 "the force accuracy, far outside a Cauchy tail), refined from each mid-line fit. "
                 if r.setup.objective == "band" else (

@@ -140,7 +140,9 @@ def test_absolute_is_the_code_before_and_flags_a_tared_zero(tmp_path, capsys):
     m = r.estimate("m")
     assert abs(m.value - 0.20) > 10 * m.std_error
     assert r.one_yarn.flagged
-    assert r.n_offsets == 0 and r.k == len(r.estimates) and not r.offsets_N and not r.tares_N and not r.notes
+    # (no offset's note; a knit's may come: this misfit's residuals run in waves, its rows count less in the
+    # covariance, and knitB's phi0, trading off against B, is not identified)
+    assert r.n_offsets == 0 and r.k == len(r.estimates) and not r.offsets_N and not r.tares_N and not r.offset_notes
     assert all(f.offset_N is None and f.tare_N is None and f.shift_N == 0.0 for f in r.fits)
     zero_flags = [x for x in r.flags if "at rest where the fitted knit carries" in x]
     assert len(zero_flags) == 2
