@@ -711,6 +711,14 @@ class JointResult:
                 out.append(f"specimen {f.name}: its cell did not solve on every row (worst status {f.status}): "
                            "the fitted curve is not the model's")
         out += [z for z in (f.zero_check for f in self.fits) if z]
+        alone = self.unfit_alone
+        for name, c in alone.items():
+            fine = ", ".join(f"{n} {v:.3g}" for n, v in self.own_chi2_per_row.items() if n not in alone)
+            out.append(f"specimen {name} is not made within its noise even with a yarn of its own (the one-yarn "
+                       f"check's fit: chi2 per row {c:.3g}; alone, {fine}): its file, width, wales or knit is not "
+                       "what the model is given (a width or force unit off), or it holds what the model lacks; "
+                       "the shared yarn is pulled by it, so the others' misfit and the one-yarn test read it too: "
+                       "check it, or calibrate without it")
         # per specimen (a re-probe: a clean specimen's rows diluted another's misfit in the pooled s2): its own
         # chi2 per row beyond POOR_FIT_S2 with residuals in waves; or the pooled s2 beyond it with waves
         per_row = {f.name: f.chi2_per_row for f in self.fits}      # rows less the specimen's offset
@@ -739,6 +747,27 @@ class JointResult:
                          "own yarns differ there because the bound holds the joint one; widen it and run again")
             out.append(line)
         return out
+
+    @property
+    def own_chi2_per_row(self) -> dict:
+        """Each specimen's chi2 per row fitted alone with a yarn of its own (the one-yarn check's fits; its rows
+        less its offset; empty where the check did not run)."""
+        c = self.one_yarn
+        if c is None or not c.ran or len(c.chi2_own_each) != len(self.fits):
+            return {}
+        return {f.name: float(v) / max(f.dof_rows, 1) for f, v in zip(self.fits, c.chi2_own_each)}
+
+    @property
+    def unfit_alone(self) -> dict:
+        """The specimens not made within their noise even with a yarn of their own (``name -> chi2 per row``
+        alone): beyond :data:`POOR_FIT_S2` alone, residuals in waves in the joint fit
+        (:data:`POOR_FIT_AUTOCORRELATION`), while another specimen is made alone.  One such specimen pulls the
+        shared yarn and the others with it (a probe's strip given width 6 for 60 mm beside two right ones:
+        the misfit flag named all three, and the one-yarn test read its misfit)."""
+        own = self.own_chi2_per_row
+        waves = {f.name: residual_autocorrelation(f.residuals) > POOR_FIT_AUTOCORRELATION for f in self.fits}
+        bad = {n: v for n, v in own.items() if v > POOR_FIT_S2 and waves.get(n)}
+        return bad if len(bad) < len(own) else {}
 
     @property
     def zero(self) -> str:

@@ -349,3 +349,28 @@ def test_a_specimen_in_kN_met_by_a_knit_that_carries_nothing_is_flagged_as_a_uni
                           c["sigma_N"], None, None, None, 0.0, 0.0, 0.0, "ok", pretension_N=s["pretension_N"])
         assert joint._force_scale_flag(fit) == "", s["name"]
         assert "kN read as N" in joint._force_scale_flag(replace(fit, target_N=fit.target_N / 1000.0)), s["name"]
+
+
+def test_a_specimen_not_made_even_with_a_yarn_of_its_own_is_named():
+    """A probe: a 60 mm strip given width = 6 beside two right specimens of one yarn.  The fit pulled the shared
+    yarn to its bound, the misfit flag named all three specimens, and nothing said which one no yarn makes: the
+    one-yarn check's own fits had it (alone: 0.77, 1.06 and 486 per row).  Hand values, 40 rows each: the
+    specimen whose own-yarn chi2 per row is beyond POOR_FIT_S2 = 4 with residuals in waves is named, the others
+    not; where every specimen fails alone (the model lacks something) the line is not given (the misfit flag
+    says that)."""
+    from dataclasses import replace
+    from knitsim.calibration.joint import OneYarnCheck
+    r = _result([Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)])
+    rows = np.linspace(0.01, 0.4, 40)
+    fits = [replace(r.fits[0], name=n, strain=rows, chi2=c, residuals=WAVE) for n, c in
+            (("knitA", 1544.0), ("knitB", 184.0), ("stripC", 32040.0))]
+
+    def flags(own):
+        check = OneYarnCheck(True, specimens=("knitA", "knitB", "stripC"), shared=("B", "m"), p=1e-33, F=53.0,
+                             dof=4, dof_resid=291, chi2_joint=33768.0, chi2_own_each=own)
+        return [x for x in replace(r, fits=fits, s2=286.0, one_yarn=check).flags
+                if "even with a yarn of its own" in x]
+    named = flags((31.0, 42.4, 19440.0))
+    assert len(named) == 1 and named[0].startswith("specimen stripC ") and "486" in named[0], named
+    assert "knitA 0.775" in named[0] and "knitB 1.06" in named[0]
+    assert flags((400.0, 420.0, 19440.0)) == []
