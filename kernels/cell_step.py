@@ -945,8 +945,11 @@ def reverse(direction: int, q: vecQd, mat: Material, soft_old: int, fsoft_old: w
             stage = int(SLACK)
     else:
         tiny = wp.abs(q[Q_RN]) < _ZERO_CONTACT * wp.max(q[Q_P], wp.float64(1.0e-12))
-        if tiny and mat.mirror != 0 and mat.dahl == 0:
+        if tiny and mat.mirror != 0:
+            # the mirror of the unloading: SF- freezes beta (Coulomb; S+ then T), Dahl's unloading T throughout
             soft = int(Q_BETA)
+            if mat.dahl != 0:
+                soft = int(Q_T)
     fsoft = q[soft]
     if mat.dahl == 0 and mat.m == wp.float64(0.0) and stage != SLACK:
         # frictionless: one curve for loading and unloading, the loading branch's

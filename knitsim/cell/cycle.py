@@ -371,7 +371,10 @@ class CellCycle:
         else:
             st.stage = Stage.SF_LOAD
             tiny = abs(q["Rn"]) < ZERO_CONTACT * max(q["P"], 1e-12)
-            st.soft = "beta" if (tiny and p.reload_rule == "mirror_unloading" and p.friction == "coulomb") else "Rn"
+            # the mirror of the unloading from zero contact: SF- freezes beta (Coulomb; S+ then T), Dahl's
+            # unloading T throughout (Rn frozen at ~0 is the zero-contact family, where a Dahl solve is singular)
+            mirror = tiny and p.reload_rule == "mirror_unloading"
+            st.soft = ("T" if p.friction == "dahl" else "beta") if mirror else "Rn"
         st.frozen_soft = q[st.soft]
 
     # --------------------------------------------------------------- advance

@@ -49,7 +49,9 @@ Rules where Table 4 is silent (switchable; labelled in every output):
     zero-contact family (R = 0, gamma = 0: a free elastica under horizontal end
     loads, the loop narrowing as it lengthens), which carries F = 0: frozen
     there, Rn no longer ties the force to C.  T = -P cos(gamma) = -P is not
-    degenerate there (knitsim issue 13, "the pocket").
+    degenerate there (knitsim issue 13, "the pocket").  A Dahl cell, whose
+    unloading freezes T throughout, freezes T through such a reload (its Dahl
+    solve is singular on the zero-contact family: it failed to converge).
     ``"freeze_rn"``: Table 4 as printed (Rn frozen even if ~0).
 ``jamming_criterion``
     ``"w_4d"``: W = 4d (Hong).  ``"head_gap"``: flag when the centreline

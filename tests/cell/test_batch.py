@@ -324,6 +324,39 @@ def test_reload_from_slack_at_vanishing_contact_stays_in_the_cone(device):
         assert np.all(hist.force_per_wale >= -1e-9)
 
 
+def test_dahl_cell_reloads_from_zero_contact_by_the_mirror_rule(device):
+    """A Dahl cell that goes slack where its contact opens (R = 0: gamma -> 0 with beta + phi != pi/2, eq 7)
+    and reloads, found by a wide Latin-hypercube sweep (3 of 100 Dahl samples inside the domain's box failed;
+    this is one).  The reload froze Rn = 0, where the zero-contact family meets {L, C, Rn = 0} for every C
+    (stages.py, reload_rule) and the Dahl solve is singular: no convergence on cycle 3's reload.  The mirror rule
+    now freezes T there, the mirror of Dahl's unloading (T frozen throughout), as it freezes beta for a Coulomb
+    cell.  Expected, from the rule and the second law: the program runs through; on the reload from zero contact
+    T stays at its value where the cell went slack (the identity the rule imposes) and the knit carries force
+    again (not the zero-force family); each closed cycle dissipates (oint F dC >= 0).  (The float64 reference
+    runs the same rule: the two engines agreed to 1e-10 in C at the slack and the reload through cycle 2 of this
+    cell at increments of 0.05; it is too slow here to be this test's oracle: minutes an increment.)"""
+    p = CellParams(B=0.31, d=0.58, L=14.918938803397834, W0=4.090531206516836, C0=2.9338658508167836,
+                   m=0.49983405155418476, phi0=0.43150291367239846 * math.atan(0.49983405155418476),
+                   force_cap_N=20.0, friction="dahl", dahl_sigma=50.0)
+    prog = cycles(0.10, 0.60, 3, max_increment=0.01)
+    h = run_batch([p], prog, device=device)
+    assert (h.status == 0).all()
+    v = h.values
+    zero_contact = [e for e in h.events if e["kind"] == "reload"
+                    and abs(v["Rn"][e["increment"] - 1, 0]) < 1e-9 * v["P"][e["increment"] - 1, 0]]
+    assert zero_contact
+    for e in zero_contact:
+        i0 = e["increment"]
+        loaded = np.arange(i0, len(prog))[(h.stage[i0:, 0] != int(Stage.SLACK)) & (h.direction[i0:] > 0)]
+        loaded = loaded[loaded < i0 + np.argmax(h.direction[i0:] < 0)]      # this reload's loading rows
+        assert len(loaded) >= 1
+        np.testing.assert_allclose(v["T"][loaded, 0], v["T"][i0 - 1, 0], rtol=1e-9)
+        assert h.force_per_wale[loaded[-1], 0] > 1e-4
+    for c in (1, 2, 3):
+        m = h.cycle == c
+        assert dissipated_energy(h.strain[m], h.force_per_wale[m, 0]) >= -1e-12
+
+
 def test_head_gap_jamming_batch_matches_reference(device):
     """Jamming by contact (jamming_criterion = "head_gap"): the heads of neighbouring loops
     at centreline distance d_jam, located as an event and held as the active constraint of
