@@ -690,9 +690,14 @@ def strain_slips(strain, force, direction, noise) -> list[tuple[int, float, floa
 #: a block of at most this many rows (and at least 2: one row alone is the diagnosis' outlier) whose force leaves
 #: the curve and comes back is a glitch (:func:`force_glitches`)
 GLITCH_MAX_ROWS = 6
-#: the rows on each side of a block that say where the curve runs (a quadratic in the strain through them)
-GLITCH_NEIGHBOURS = 3
-#: every row of a glitch lies beyond GLITCH_ROW_SIGMAS noise sd of that quadratic, on one side, one of them beyond
+#: the rows on each side of a block that say where the curve runs (a polynomial of GLITCH_DEGREE in the strain
+#: through them).  A cubic through 4 rows a side: the quadratic through 3 missed the model's own jammed pull (rows
+#: 0.005 apart, E-glass) by 17-30 mN, beyond 3 sd of its 3 mN, so a 4-row glitch there, 25 % low, was found only
+#: while the glitch itself made the noise read as growing with the force; a cubic through 3 a side bridges a
+#: stall's two offset sides (read as a glitch)
+GLITCH_NEIGHBOURS = 4
+GLITCH_DEGREE = 3
+#: every row of a glitch lies beyond GLITCH_ROW_SIGMAS noise sd of that cubic, on one side, one of them beyond
 #: GLITCH_SIGMAS (the diagnosis' outlier limit), while the neighbours lie within GLITCH_ROW_SIGMAS of it
 GLITCH_SIGMAS = 6.0
 GLITCH_ROW_SIGMAS = 3.0
@@ -803,9 +808,9 @@ def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, in
     against the fit); a block of rows was not: a blind probe's four rows 15 % low in the jammed part of an
     effect-free pull (a neighbour off too, so none isolated) moved the whole fit and read as a confident
     ``unexplained``.  Within a branch, a block of 2 to :data:`GLITCH_MAX_ROWS` rows is a glitch where the
-    quadratic in the strain through the :data:`GLITCH_NEIGHBOURS` rows on each side (weighted by the rows' noise
+    cubic (:data:`GLITCH_DEGREE`) in the strain through the :data:`GLITCH_NEIGHBOURS` rows on each side (weighted by the rows' noise
     sd, ``noise.sd_at``) passes within :data:`GLITCH_ROW_SIGMAS` sd of each of them, every row of the block lies
-    beyond it on one side by more than :data:`GLITCH_ROW_SIGMAS` sd (its own with the quadratic's at the row),
+    beyond it on one side by more than :data:`GLITCH_ROW_SIGMAS` sd (its own with the cubic's at the row),
     one beyond :data:`GLITCH_SIGMAS` and beyond the force the curve gains over one strain step there (its slope,
     the side lines' interpolated, times the median step: a row off by less may be read at a strain, or a time,
     off by less than a step: a 2-row stall of the interpolated Do 2020 6.5 mm curve, 0.5-0.8 of a step, is not
@@ -813,7 +818,7 @@ def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, in
     rows) either both resolved (beyond :data:`GLITCH_ROW_SIGMAS` standard errors), of one sign and within a
     factor :data:`GLITCH_BEND` of each other (a jamming knit stiffens by about 2 over such a window), or both
     flat within their errors and at one level.  A knee (the end of a stick, jamming setting in, the slack toe
-    of a specimen mounted loose: a flat side and a steep one) is no glitch: a quadratic bridges it smoothly and
+    of a specimen mounted loose: a flat side and a steep one) is no glitch: a cubic bridges it smoothly and
     the corner's rows lie off it."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     sd = _row_sd(s, f, cycle, direction, noise)
@@ -829,7 +834,7 @@ def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, in
             after = starts[:, None] + k + np.arange(P)
             nb = np.concatenate([before, after], axis=1)
             blk = starts[:, None] + np.arange(k)
-            at_nb, pred, var, ok = _poly_through(s[nb], f[nb], 1.0 / sd[nb], s[blk], 2)
+            at_nb, pred, var, ok = _poly_through(s[nb], f[nb], 1.0 / sd[nb], s[blk], GLITCH_DEGREE)
             z = (f[blk] - pred) / np.sqrt(sd[blk] ** 2 + var)
             (g1, e1), (g2, e2) = _slopes(s[before], f[before], 1.0 / sd[before]), _slopes(s[after], f[after], 1.0 / sd[after])
             r1, r2 = np.abs(g1) > GLITCH_ROW_SIGMAS * e1, np.abs(g2) > GLITCH_ROW_SIGMAS * e2

@@ -259,6 +259,26 @@ def test_a_force_that_stalls_while_the_strain_runs_on_is_a_grip_slip():
     assert curve_from_arrays(e, f, source="clean.csv", noise_N=0.003).stalls == ()
 
 
+def test_a_glitch_in_the_jammed_part_of_the_models_own_pull_is_found_with_its_noise_as_made():
+    """The model's own pull (E-glass, m 0.20, phi0 0.05 rad, to strain 0.78 at increments 0.005, 3 mN of white noise:
+    tests/diagnosis/test_diagnose.py's glitch case), rows 146-149 x 0.75, the noise given as made (3 mN).  The
+    quadratic through 3 rows a side misses the jammed rows there by 17-30 mN (5-10 sd), so no block could be judged
+    against it and none was found; it was found only where the glitch made the estimated noise grow with the force.
+    Expected (the definition, measured.force_glitches): exactly those rows (spreadsheet 148-151, header = 1); the
+    clean pull has none."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import piecewise_linear
+    from knitsim.cell.material import CellParams
+    cell = CellParams(B=0.31, d=0.58, L=14.1, W0=4.4, C0=2.7, m=0.2, phi0=0.05, unloading_rule="dusserre",
+                      reload_rule="mirror_unloading", force_cap_N=10.0)
+    prog = piecewise_linear([0.0, 0.78], 0.005)
+    F = run_batch([cell], prog).values["F"][:, 0] + np.random.default_rng(7).normal(0.0, 0.003, len(prog.strain))
+    g = F.copy()
+    g[146:150] *= 0.75
+    assert curve_from_arrays(prog.strain, g, source="glitch.csv", noise_N=0.003).glitches == (148, 149, 150, 151)
+    assert curve_from_arrays(prog.strain, F, source="clean.csv", noise_N=0.003).glitches == ()
+
+
 def test_the_bundled_curves_have_no_glitch_and_no_stall():
     """Nothing wrong, nothing flagged: the four real curves of scenes/diagnosis/real (Do 2020, Singal 2024) and
     the hand-made files of tests/diagnosis/data (five: the model's curves with 2 mN of noise, two of them scaled
