@@ -602,7 +602,9 @@ def test_an_effect_within_the_noise_that_a_force_scale_explains_as_well_is_not_n
     """The same model-made cycles x 1.03 (tests/diagnosis/data/README.md): bending_hysteresis brought them within
     their noise (chi2/dof 1.07, score 126) and was named, confident, so that a check asked only where the named
     effect leaves a misfit did not run.  The scale (1.03, the file's own factor) fits as well or better: the
-    verdict is not confident."""
+    verdict is not confident.  (That "within the noise" rested on the file's 2 mN read as 0.00195 N + 0.58 % of
+    the force, the jamming's kinks taken for noise: noise.KINK_SIGMAS.  Read as made, one sd, bending_hysteresis
+    leaves chi2/dof 1.53 and the scale fits within the noise, 0.93: said first.)"""
     from pathlib import Path
 
     from knitsim.diagnosis.measured import read_measured_curve
@@ -611,9 +613,11 @@ def test_an_effect_within_the_noise_that_a_force_scale_explains_as_well_is_not_n
                            force_cap_N=50.0)
     r = diagnose([curve], DiagnosisSetup(base=base, effects=("bending_hysteresis",), pair=False)).as_dict()
     v = r["verdict"]
-    assert v["effect"] == "bending_hysteresis" and r["candidates"][0]["within_noise"] is True
+    assert r["noise"]["curves"][0]["per_N"] == 0
+    assert v["effect"] == "bending_hysteresis"
     assert not v["confident"] and "a pure force scale explains the curves as well" in v["reason"]
     assert r["force_scale"]["factor"] == pytest.approx(1.03, abs=0.004) and r["force_scale"]["rivals_effect"]
+    assert r["force_scale"]["within_noise"] and v["reason"].startswith("a pure force scale")
 
 
 def test_the_console_shares_out_no_gap_where_the_baseline_fits_within_the_noise():
