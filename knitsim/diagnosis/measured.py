@@ -300,8 +300,10 @@ def infer_branches(strain, force=None, tol: float | None = None) -> tuple[np.nda
             follows = True
             if f is not None and ext_i >= 0:
                 # the new direction is -d: unloading, the force must not rise by more than noise;
-                # reloading, not fall
-                follows = (f[i] - f[ext_i]) * -d >= -noise
+                # reloading, not fall.  The force at the turn is the median of the turning row and its two
+                # neighbours: one bad reading there (a spike at the last row of an unloading) was the reference
+                # of every row after it, and a slack reload, ~0 N, read as the unloading going on
+                follows = (f[i] - float(np.median(f[max(ext_i - 1, 0):ext_i + 2]))) * -d >= -noise
             if follows:
                 d = -d
                 if d == 1:

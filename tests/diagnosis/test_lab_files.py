@@ -311,6 +311,23 @@ def test_a_turn_recorded_by_one_row_whose_force_follows_is_a_cycle(tmp_path):
     assert int(np.sum(c.direction == -1)) == 1
 
 
+def test_a_spike_at_the_turning_row_does_not_read_a_slack_reload_as_the_unloading_going_on(tmp_path):
+    """A file without a direction column: a loading to 0.3, an unloading to 0.1 that goes slack (~0 N from 0.24),
+    a reload that stays slack to 0.22 and then rises.  The turning row (strain 0.10) reads 0.030 N, a spike
+    (its neighbours read -0.002 and 0.001).  A reload is taken where the force does not fall below the force at
+    the turn by more than 3 times its noise scale; that force was the spike's own, so the slack reload's rows
+    (0.12 to 0.24, ~0 N) were read as the unloading going on, at a strain running the wrong way.  Expected (the
+    rows typed): the unloading is the 10 rows 0.28 to 0.10, the reload every row after, cycle 2."""
+    down = [(0.28, 0.060), (0.26, 0.020), (0.24, 0.004), (0.22, 0.001), (0.20, -0.002), (0.18, 0.002),
+            (0.16, -0.001), (0.14, 0.002), (0.12, -0.002), (0.10, 0.030)]
+    up = [(0.12, 0.001), (0.14, -0.002), (0.16, 0.002), (0.18, -0.001), (0.20, 0.002), (0.22, 0.003),
+          (0.24, 0.010), (0.26, 0.040), (0.28, 0.090), (0.30, 0.150)]
+    c = read_measured_curve(_write(tmp_path, _csv(_UP + down + up), "spike_at_turn.csv"))
+    n = len(_UP)
+    assert list(c.direction[n:n + len(down)]) == [-1] * len(down)
+    assert list(c.direction[n + len(down):]) == [1] * len(up) and list(c.cycle[n + len(down):]) == [2] * len(up)
+
+
 @pytest.mark.parametrize("offset, read", [(-0.012, True), (0.012, True), (-0.05, False)])
 def test_a_load_cell_zero_below_zero_is_read_as_the_same_zero_above(tmp_path, offset, read):
     # a blind probe: 60 rows of 2 (s - 0.1)^2 N beyond s = 0.1, a +-2 mN zigzag, the zero at -12 mN, was

@@ -321,15 +321,16 @@ def test_a_hold_whose_force_relaxes_is_said_and_its_rows_left_out():
     assert force_holds(eh, rise, ones, ones, c.noise) == []
     assert curve_from_arrays(e, f, source="pull.csv", noise_N=0.003).holds == ()
     # a slack reload (the knit carries ~0 N from strain 0.1 up to 0.5 after an unloading, rising by 10 mN), its turning
-    # row an outlier (+30 mN), without a direction column: the reload's force falls from the turn's, so it is read as
-    # the unloading going on, its replayed strain (the running extreme) held at 0.1 while the strain read runs on.
-    # No hold (a blind-study specimen's reload pocket so read was taken for one by a first form of force_holds, which
-    # read the running extreme)
+    # row an outlier (+30 mN), without a direction column: the reload's force fell from the turn's, so it was read as
+    # the unloading going on, its replayed strain (the running extreme) held at 0.1 while the strain read ran on (a
+    # blind-study specimen's reload pocket so read was taken for a hold by a first form of force_holds, which read the
+    # running extreme).  The force at the turn is now the median of the turning row and its neighbours
+    # (infer_branches): read as the reload it is (tests/diagnosis/test_lab_files.py), and no hold
     rng = np.random.default_rng(2)
     up, down, re = np.linspace(0.0, 0.6, 61), np.linspace(0.59, 0.1, 50), np.linspace(0.11, 0.5, 40)
     force = np.r_[0.05 + 2.0 * up ** 3, 0.43 * ((down - 0.1) / 0.5) ** 3, 0.01 * (re - 0.1) / 0.4]
     force[110] += 0.03
     c = curve_from_arrays(np.r_[up, down, re], force + rng.normal(0.0, 0.002, len(force)), source="slack.csv",
                           noise_N=0.002)
-    assert np.all(c.direction[111:] == -1) and np.all(c.strain[111:] == c.strain[110])    # (read so, as before)
+    assert np.all(c.direction[111:] == 1) and np.all(c.cycle[111:] == 2) and np.all(np.diff(c.strain[111:]) > 0)
     assert c.holds == ()
