@@ -574,6 +574,27 @@ def test_an_effect_that_a_pure_force_scale_explains_as_well_is_not_named_confide
     assert sc["bic_minus_effect"] < -STRONG and sc["rivals_effect"]
 
 
+def test_an_unexplained_gap_that_a_pure_force_scale_explains_says_so():
+    """The same model-made cycles x 1.1 with only normal_load_friction searched: it removes 1 % of the excess, no
+    effect is named, and the verdict was a confident `unexplained` (chi2/dof 48.9) that said nothing of the scale,
+    where an effect's verdict weighs it.  The scale is weighed against the baseline as an effect would be (BIC drop
+    beyond STRONG and a practical chi2 drop): expected 1.1 (the file's own factor), within the noise, said first,
+    and the verdict not confident; the JSON's force_scale holds it (no effect to weigh it against)."""
+    from pathlib import Path
+
+    from knitsim.diagnosis.diagnose import STRONG
+    from knitsim.diagnosis.measured import read_measured_curve
+    curve = read_measured_curve(Path(__file__).parent / "data" / "eglass_3cycles_to0.72_x1.1_noise2mN.csv")
+    base = NOMINAL.replace(m=0.25, phi0=0.0, unloading_rule="dusserre", reload_rule="mirror_unloading",
+                           force_cap_N=50.0)
+    r = diagnose([curve], DiagnosisSetup(base=base, effects=("normal_load_friction",), pair=False)).as_dict()
+    v, sc = r["verdict"], r["force_scale"]
+    assert v["kind"] == "unexplained" and r["noise"]["baseline_within_noise"] is False
+    assert not v["confident"] and v["reason"].startswith("a pure force scale explains the gap (the baseline x 1.1")
+    assert sc["factor"] == pytest.approx(1.1, rel=0.01) and sc["within_noise"] and sc["explains"]
+    assert sc["bic_minus_baseline"] < -STRONG and sc["bic_minus_effect"] is None and not sc["rivals_effect"]
+
+
 def test_a_curve_the_model_made_is_not_read_as_a_gap_beside_a_cliff_of_chi2():
     """Nothing is missing (tests/diagnosis/data/README.md: the model's own curve at m 0.20, phi0 0.05 rad,
     2 mN of noise, made and sampled outside the package's generators).  Started from m 0.25, phi0 0, the
