@@ -980,6 +980,16 @@ def refuse_strain_spikes(source: str, strain, force, tol: float, row) -> None:
         return
     noise = 3.0 * _force_scale(f)
     ds = np.diff(s)
+    # the first row, whose neighbour before it is the rest the test starts from (strain 0): a strain beyond the
+    # rows after it by more than SPIKE_STEPS times their steps, while the force does not fall as the strain goes
+    # back (0.6 typed for 0.0 at the top of a pull from rest: every row below 0.6 was read as the loading going
+    # on at 0.6, the replayed strain being the branch's running extreme, without a word)
+    if n >= 3 and s[0] > 0 and ds[0] < 0 and -ds[0] > SPIKE_STEPS * max(abs(ds[1]), tol) and f[1] >= f[0] - noise:
+        raise KnitsimInputError(
+            f"{source}: row {row(0)}, column strain: {float(s[0]):g} lies beyond the rows after it ({float(s[1]):g} "
+            f"at row {row(1)}, {-ds[0] / max(abs(ds[1]), tol):.0f} times their steps), while the force does not fall "
+            f"as the strain goes back ({float(f[0]):g}, {float(f[1]):g} N): a typo or a logger glitch, not an "
+            "unloading (a knit's force follows its strain back).  Correct or delete the row")
     # (a block with two neighbours on each side: the steps around it say what a jump is; only a step beyond
     # SPIKE_STEPS tolerances can start one, which keeps a 200,000-row file's scan to its few large steps)
     starts = np.flatnonzero(np.abs(ds) > SPIKE_STEPS * tol) + 1

@@ -279,6 +279,24 @@ def test_a_mistyped_strain_is_refused_not_read_as_a_cycle(tmp_path, typo):
     assert "typo" in msg and "Correct or delete the row" in msg
 
 
+def test_a_mistyped_strain_at_the_first_row_is_refused_not_read_as_the_loading_going_on(tmp_path):
+    """The first row's strain typed 0.6 for 0.0 (a pull from rest, rows 0.005 apart, its force rising on): the strain
+    goes back from 0.6 to 0.005 while the force rises, so no unloading was read, and every row below 0.6 was read as
+    the loading going on at 0.6 (the replayed strain is the branch's running extreme), without a word.  Expected:
+    refused naming row 2 (header = 1) and its value.  A log that starts at its peak and unloads (the force falls with
+    the strain) is read, as before (measured.unrecorded_loading)."""
+    rows = _dense_pull()
+    typo = [(0.6, rows[0][1])] + rows[1:]
+    with pytest.raises(KnitsimInputError) as e:
+        read_measured_curve(_write(tmp_path, _csv(typo), "first.csv"))
+    msg = str(e.value)
+    assert "row 2, column strain: 0.6 lies beyond the rows after it" in msg and "Correct or delete the row" in msg
+    down = [(round(0.6 - 0.005 * k, 3), round(0.3 * (1.0 - k / 120.0) ** 3, 5)) for k in range(61)]
+    up = [(round(0.305 + 0.005 * k, 3), round(0.0375 + 0.2625 * (k + 1) / 60.0, 5)) for k in range(60)]
+    c = read_measured_curve(_write(tmp_path, _csv(down + up), "from_peak.csv"))
+    assert np.all(c.direction[1:61] == -1) and np.all(c.direction[61:] == 1)
+
+
 def test_a_block_of_rows_shifted_back_in_strain_is_refused_not_read_as_a_cycle(tmp_path):
     # a blind probe: four rows of an effect-free pull moved 0.046 back in strain (a slipped extensometer), the
     # force rising on through them, no direction column: read as an unloading and a second cycle, and the fit
