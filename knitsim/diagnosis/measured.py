@@ -821,7 +821,10 @@ def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, in
     factor :data:`GLITCH_BEND` of each other (a jamming knit stiffens by about 2 over such a window), or both
     flat within their errors and at one level.  A knee (the end of a stick, jamming setting in, the slack toe
     of a specimen mounted loose: a flat side and a steep one) is no glitch: a cubic bridges it smoothly and
-    the corner's rows lie off it."""
+    the corner's rows lie off it.  Nor is a block that goes on along one side's own line (within
+    :data:`GLITCH_ROW_SIGMAS` of the line through that side's rows): the curve steps between it and the other
+    side (a slack reload taking the force up within a row: the blind study's lab specimen 66, seed 0, rows
+    348-352)."""
     s, f = np.asarray(strain, float), np.asarray(force, float)
     sd = _row_sd(s, f, cycle, direction, noise)
     P = GLITCH_NEIGHBOURS
@@ -847,7 +850,13 @@ def force_glitches(strain, force, cycle, direction, noise) -> list[tuple[int, in
             (m1, v1), (m2, v2) = (_poly_through(s[x], f[x], 1.0 / sd[x], mid[:, None], 1)[1:3] for x in (before, after))
             level = np.abs(m1 - m2)[:, 0] <= GLITCH_ROW_SIGMAS * np.sqrt(v1 + v2)[:, 0]
             smooth = (r1 & r2 & (ratio <= GLITCH_BEND)) | (~r1 & ~r2 & level)
-            hit = ok & smooth & np.all(np.abs(f[nb] - at_nb) <= GLITCH_ROW_SIGMAS * sd[nb], axis=1)
+            # a block that goes on along one side's own line is that side's: the curve steps between the block and
+            # the other side (a slack reload taking the force up again within a row), it does not come back
+            goes_on = np.zeros(len(starts), bool)
+            for x in (before, after):
+                _, line, lvar, _ = _poly_through(s[x], f[x], 1.0 / sd[x], s[blk], 1)
+                goes_on |= np.all(np.abs(f[blk] - line) <= GLITCH_ROW_SIGMAS * np.sqrt(sd[blk] ** 2 + lvar), axis=1)
+            hit = ok & smooth & ~goes_on & np.all(np.abs(f[nb] - at_nb) <= GLITCH_ROW_SIGMAS * sd[nb], axis=1)
             hit &= np.all(z > GLITCH_ROW_SIGMAS, axis=1) | np.all(z < -GLITCH_ROW_SIGMAS, axis=1)
             # one row beyond GLITCH_SIGMAS sd and beyond what the curve's force changes over one strain step there:
             # a row off by less could be read at a strain (a time) off by less than a step
