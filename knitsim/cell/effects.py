@@ -104,6 +104,13 @@ EFFECT_STATE: tuple[str, ...] = ("m_eff", "d_eff", "L_eff", "B_eff", "z_bend", "
 #: largest effective friction ratio (keeps atan(m) well inside (0, pi/2) at vanishing Rn)
 M_EFF_MAX = 5.0
 
+#: each effect's strength and the value at which the effect changes nothing (eq 5 with n = 1 or p = 0; a rigid,
+#: an inextensible yarn; no bending friction); coiling_angle_friction has none (eq 10 at the current angle)
+NEUTRAL_STRENGTH: dict[str, tuple[str, float]] = {
+    "normal_load_friction": ("load_n", 1.0), "velocity_friction": ("rate_p", 0.0),
+    "yarn_compaction": ("compaction_k", 0.0), "bending_hysteresis": ("bend_h", 0.0), "yarn_extension": ("ext_c", 0.0),
+}
+
 
 @dataclass(frozen=True)
 class EffectSet:
@@ -155,6 +162,12 @@ class EffectSet:
     def row(self) -> np.ndarray:
         """The parameters in :data:`PARAM_COLUMNS` order (float64)."""
         return np.array([float(getattr(self, c)) for c in PARAM_COLUMNS], np.float64)
+
+    def inert(self) -> tuple[str, ...]:
+        """The effects switched on whose strength is at the value where they change nothing
+        (:data:`NEUTRAL_STRENGTH`: yarn_compaction with compaction_k = 0, its default, runs as if it were off)."""
+        return tuple(n for n in self.on if n in NEUTRAL_STRENGTH
+                     and getattr(self, NEUTRAL_STRENGTH[n][0]) == NEUTRAL_STRENGTH[n][1])
 
     def with_on(self, *names: str, **params) -> "EffectSet":
         """A copy with ``names`` switched on too and some parameters changed (validated)."""

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from ..cell.engine import ENGINES, check_engine, simulate
-from ..io.checks import calibration_warnings
+from ..io.checks import calibration_warnings, inert_effect_warnings
 from ..io.results import (OUTPUT_FILES, add_output_flags, first_loading, prepare_output_dir, run_info, scene_inputs,
                           summarise, write_cell_results)
 from ..scene.cell_scene import load_cell_scene
@@ -91,6 +91,7 @@ def _run(args) -> int:
     with contextlib.redirect_stdout(sys.stderr), naming_scene(args.scene):   # (a refusal names the scene)
         domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain, engine=scene.engine)
     domain_warnings += calibration_warnings(scene.calibration_flags)
+    domain_warnings += inert_effect_warnings([p.effects for p in scene.params], scene.labels)
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
                              overwrite=args.overwrite,
                              writes=OUTPUT_FILES, inputs=scene_inputs(args.scene))

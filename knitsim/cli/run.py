@@ -47,13 +47,14 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..io.output_dir import output_lock
-from ..io.checks import calibration_warnings
+from ..cell.effects import effect_set_codes
+from ..io.checks import calibration_warnings, inert_effect_warnings
 from ..io.results import add_output_flags
 from .common import Progress, add_json_flag, naming_scene, print_json
 
 
 #: warnings said before the run (zones that overlap, a specimen of few stitches), not again after it
-_SAID_BEFORE_THE_RUN = ("zones_overlap", "specimen_few_stitches")
+_SAID_BEFORE_THE_RUN = ("zones_overlap", "specimen_few_stitches", "effect_without_strength")
 
 
 def register(subparsers) -> None:
@@ -437,6 +438,11 @@ def _run_locked(args) -> int:
                 cell_fields=scene.output["cell_fields"],
                 cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])))
         overlaps = zone_overlaps(scene.resolved)
+        codes, distinct = effect_set_codes(scene.model.effects.ravel())
+        n_cells = codes.size
+        overlaps += inert_effect_warnings(distinct, [f"{k} of the patch's {n_cells} cells"
+                                                     for k in np.bincount(codes, minlength=len(distinct))],
+                                          prefixed=False)
         for w in scene.warnings + overlaps:
             print(f"knitsim run: warning: {w['message']}", file=sys.stderr, flush=True)
         domain_warnings += scene.warnings + overlaps

@@ -982,6 +982,28 @@ def calibration_warnings(flagged) -> list[dict]:
     return out
 
 
+def inert_effect_warnings(effects, labels, prefixed: bool = True) -> list[dict]:
+    """A warning per effect switched on at the strength where it changes nothing (:meth:`EffectSet.inert`),
+    naming the cells (``labels``, one per EffectSet of ``effects``; ``prefixed``: a warning of one cell is
+    printed after its label, which the message then leaves out): a blind probe's README example
+    ``--set 'effects.on=["yarn_compaction"]'`` ran bit for bit as without it (compaction_k defaults to 0)."""
+    from ..cell.effects import NEUTRAL_STRENGTH
+    cells: dict[str, list] = {}
+    for eff, label in zip(effects, labels):
+        for name in eff.inert():
+            cells.setdefault(name, []).append(label)
+    out = []
+    for name, where in cells.items():
+        key, value = NEUTRAL_STRENGTH[name]
+        shown = ", ".join(map(str, where[:5])) + (f" and {len(where) - 5} more" if len(where) > 5 else "")
+        one = prefixed and len(where) == 1
+        out.append({"code": "effect_without_strength", "cell": where[0] if one else "all",
+                    "message": f"effect {name} is on at effects.{key} = {value:g}, where it changes nothing"
+                               f"{'' if one else f' ({shown})'}: give effects.{key} its strength, or leave the "
+                               "effect off"})
+    return out
+
+
 #: overlaps of the heads below this share of the in-plane width are not warned of (a micrometre on a 0.6 mm yarn)
 HEAD_OVERLAP_RTOL = 1e-3
 

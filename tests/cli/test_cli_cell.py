@@ -334,3 +334,18 @@ def test_a_tight_cell_the_warp_engine_cannot_start_is_refused_without_suggesting
     assert found and 1.70 < float(found.group(1)) <= 1.775, err
     assert "may reach tighter loops" not in err
     assert not (tmp_path / "w" / "summary.json").exists()
+
+
+def test_the_readme_s_effect_example_at_the_default_strength_is_warned_of(tmp_path, capsys):
+    """The README's --set 'effects.on=["yarn_compaction"]' with compaction_k at its default 0 runs bit for bit as
+    without the effect (the law's own limit, a rigid yarn): said on the console and in summary.json (a blind
+    probe: nothing was said); with a strength given, nothing is."""
+    scene = Path(__file__).resolve().parents[2] / "scenes" / "paper" / "e_glass_monotonic.toml"
+    args = ["cell", str(scene), "--set", 'effects.on=["yarn_compaction"]', "--set", "load.max_increment=0.1"]
+    assert main(args + ["--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "effect yarn_compaction is on at effects.compaction_k = 0, where it changes nothing" in err
+    codes = [w["code"] for w in json.loads((tmp_path / "a" / "summary.json").read_text())["warnings"]]
+    assert "effect_without_strength" in codes
+    assert main(args + ["--set", "effects.compaction_k=5", "--out", str(tmp_path / "b")]) == 0
+    assert "changes nothing" not in capsys.readouterr().err

@@ -535,3 +535,29 @@ def test_energy_loop_candidates_are_the_paths_energy_creating_loops_flags(stored
     expected = _flagged_one_by_one(S, F, 1e-6, stored)
     assert expected.tolist() == [True, False, True, False]
     np.testing.assert_array_equal(energy_loop_candidates(S, F, atol=1e-6, judge_open=stored), expected)
+
+
+def test_an_effect_on_at_its_neutral_strength_is_warned_of():
+    """Each effect's strength at the value where its law changes nothing (eq 5 with n = 1 or p = 0, a rigid or
+    inextensible yarn, no bending friction: knitsim.cell.effects.NEUTRAL_STRENGTH) is warned of, naming the
+    cells; coiling_angle_friction has no such value (eq 10 at the current angle) and is never warned of.
+    A blind probe: the README's --set 'effects.on=["yarn_compaction"]' ran bit for bit as without it."""
+    from knitsim.cell.effects import EffectSet
+    from knitsim.io.checks import inert_effect_warnings
+
+    sets = [EffectSet(on=("yarn_compaction", "coiling_angle_friction")),          # compaction_k = 0 (default)
+            EffectSet(on=("yarn_compaction",), compaction_k=5.0),                  # a strength: nothing to say
+            EffectSet(on=("normal_load_friction", "velocity_friction", "bending_hysteresis", "yarn_extension")),
+            EffectSet(on=("normal_load_friction",), load_n=0.8), EffectSet()]
+    assert [s.inert() for s in sets] == [("yarn_compaction",), (), ("normal_load_friction", "velocity_friction",
+                                         "bending_hysteresis", "yarn_extension"), (), ()]
+    w = inert_effect_warnings(sets, ["a", "b", "c", "d", "e"])
+    assert [x["cell"] for x in w] == ["a", "c", "c", "c", "c"]
+    assert w[0]["message"] == ("effect yarn_compaction is on at effects.compaction_k = 0, where it changes nothing: "
+                               "give effects.compaction_k its strength, or leave the effect off")
+    assert "effects.load_n = 1," in w[1]["message"]
+    # several cells: one warning naming them; unprefixed (a patch's summary): the cells said in the message
+    w = inert_effect_warnings([sets[0], sets[0]], ["a", "b"])
+    assert len(w) == 1 and w[0]["cell"] == "all" and "changes nothing (a, b):" in w[0]["message"]
+    w = inert_effect_warnings([sets[0]], ["12 of the patch's 12 cells"], prefixed=False)
+    assert "(12 of the patch's 12 cells)" in w[0]["message"]
