@@ -181,12 +181,27 @@ def plain_help(text: str) -> str:
     return text.replace("``", "'").replace("::\n", ":\n")
 
 
+def program_name() -> str:
+    """``knitsim`` as the user typed it: ``.venv/bin/knitsim`` where that is how it was called (the README's
+    commands) and ``knitsim`` is not the same program on the PATH; plain ``knitsim`` otherwise (the PATH's,
+    a test, the API)."""
+    import os
+    import shutil
+    prog = sys.argv[0] if sys.argv else ""
+    if os.path.basename(prog) != "knitsim":
+        return "knitsim"
+    found = shutil.which("knitsim")
+    if found is not None and os.path.realpath(found) == os.path.realpath(prog):
+        return "knitsim"
+    return prog
+
+
 def resume_command(command: str, fallback_argv: list[str], extra: list[str] = ()) -> str:
-    """The command line that continues an interrupted ``knitsim COMMAND``: as typed (``sys.argv``; where it
-    was not called as ``knitsim COMMAND ...``, a test or the API, ``fallback_argv``), without ``--resume``
-    and ``--overwrite`` (which would discard the finished work, and excludes ``--resume``), with ``extra``
-    and ``--resume`` added."""
+    """The command line that continues an interrupted ``knitsim COMMAND``: as typed (:func:`program_name` and
+    ``sys.argv``; where it was not called as ``knitsim COMMAND ...``, a test or the API, ``fallback_argv``),
+    without ``--resume`` and ``--overwrite`` (which would discard the finished work, and excludes
+    ``--resume``), with ``extra`` and ``--resume`` added."""
     import shlex
     argv = sys.argv[2:] if len(sys.argv) > 2 and sys.argv[1] == command else list(fallback_argv)
     argv = [a for a in argv if a not in ("--resume", "--overwrite")] + list(extra) + ["--resume"]
-    return f"knitsim {command} " + " ".join(shlex.quote(a) for a in argv)
+    return f"{shlex.quote(program_name())} {command} " + " ".join(shlex.quote(a) for a in argv)

@@ -76,3 +76,26 @@ def test_a_scene_for_another_command_is_named_so(tmp_path, capsys):
     capsys.readouterr()
     assert main(["usd", str(tmp_path / "c"), "--out", str(tmp_path / "c.usda")]) == 2
     assert "holds the results of `knitsim cell`" in capsys.readouterr().err
+
+
+def test_a_resume_command_calls_knitsim_as_it_was_typed(monkeypatch, tmp_path):
+    """The README runs `.venv/bin/knitsim ...`; the resume hint printed bare `knitsim run ...`, which is not on
+    a shell's PATH after those commands (a probe of the README's examples).  The hint now calls the program as
+    typed where the PATH's `knitsim` is another (or none), and `knitsim` where it is the same."""
+    import os
+
+    from knitsim.cli.common import resume_command
+
+    venv = tmp_path / ".venv" / "bin"
+    venv.mkdir(parents=True)
+    prog = venv / "knitsim"
+    prog.write_text("#!/bin/sh\n")
+    prog.chmod(0o755)
+    monkeypatch.setattr("sys.argv", [".venv/bin/knitsim", "run", "s.toml", "--overwrite"])
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PATH", "/nonexistent")
+    assert resume_command("run", []) == ".venv/bin/knitsim run s.toml --resume"
+    monkeypatch.setenv("PATH", str(venv) + os.pathsep + "/nonexistent")
+    assert resume_command("run", []) == "knitsim run s.toml --resume"
+    monkeypatch.setattr("sys.argv", ["/usr/bin/pytest", "-x"])                 # a test or the API
+    assert resume_command("run", ["s.toml"]) == "knitsim run s.toml --resume"
