@@ -390,8 +390,11 @@ def test_sigterm_checkpoints_says_how_to_resume_and_the_resume_equals_the_uninte
     out = tmp_path / "o"
     # the knitsim this interpreter imports (installed, or editable): not the source tree on PYTHONPATH, whose
     # knitsim.kernels exists only as installed (setup.py maps kernels/ to it)
+    # the child's disposition the default: a test run under nohup (or a CI runner that ignores SIGHUP) passes
+    # an ignored SIGHUP on to its children, which knitsim then rightly leaves ignored
     p = subprocess.Popen([sys.executable, "-m", "knitsim", "run", str(scene), "--out", str(out)], cwd=tmp_path,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(sig, signal.SIG_DFL))
     before = []
     for line in p.stderr:
         before.append(line)
@@ -423,19 +426,20 @@ def test_sigterm_as_ctrl_c_restores_the_handler_and_keeps_an_ignored_sigterm_ign
 
     from knitsim.cli.common import sigterm_as_ctrl_c
     sig = getattr(signal, signame)
-    before = signal.getsignal(sig)
-    with sigterm_as_ctrl_c() as got, pytest.raises(KeyboardInterrupt):
-        os.kill(os.getpid(), sig)
-        for _ in range(1000):                                # (delivered at the next bytecode)
-            pass
-    assert got == [sig] and signal.getsignal(sig) is before
-    signal.signal(sig, signal.SIG_IGN)                       # (nohup ignores SIGHUP: it stays ignored)
+    inherited = signal.signal(sig, signal.SIG_DFL)           # (a test run under nohup inherits SIGHUP ignored)
     try:
+        before = signal.getsignal(sig)
+        with sigterm_as_ctrl_c() as got, pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), sig)
+            for _ in range(1000):                            # (delivered at the next bytecode)
+                pass
+        assert got == [sig] and signal.getsignal(sig) is before
+        signal.signal(sig, signal.SIG_IGN)                   # (nohup ignores SIGHUP: it stays ignored)
         with sigterm_as_ctrl_c() as got:
             os.kill(os.getpid(), sig)                        # ignored: nothing raised
         assert got == []
     finally:
-        signal.signal(sig, before)
+        signal.signal(sig, inherited)
 
 
 def test_an_interrupted_usd_export_leaves_no_file_that_looks_whole(tmp_path, capsys, monkeypatch):

@@ -227,15 +227,19 @@ def test_a_sigterm_while_the_cluster_starts_is_taken_once_it_is_started(signame)
     from knitsim.cli.common import sigterm_as_ctrl_c
     sig = getattr(signal, signame)
     reached = []
-    with sigterm_as_ctrl_c() as got:
-        inside = signal.getsignal(sig)
-        with pytest.raises(KeyboardInterrupt):
-            with runner._workers_ignore_sigint():
-                os.kill(os.getpid(), sig)
-                for _ in range(1000):                        # (a handler runs at the next bytecode)
-                    pass
-                reached.append("the cluster assigned")
-        assert signal.getsignal(sig) is inside and got == [sig]
+    inherited = signal.signal(sig, signal.SIG_DFL)           # (a test run under nohup inherits SIGHUP ignored)
+    try:
+        with sigterm_as_ctrl_c() as got:
+            inside = signal.getsignal(sig)
+            with pytest.raises(KeyboardInterrupt):
+                with runner._workers_ignore_sigint():
+                    os.kill(os.getpid(), sig)
+                    for _ in range(1000):                    # (a handler runs at the next bytecode)
+                        pass
+                    reached.append("the cluster assigned")
+            assert signal.getsignal(sig) is inside and got == [sig]
+    finally:
+        signal.signal(sig, inherited)
     assert reached == ["the cluster assigned"]
 
 
