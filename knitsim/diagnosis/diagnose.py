@@ -1580,6 +1580,18 @@ def capped_candidates(candidates: list, named: str | None) -> str:
             + " than was searched, so a low probability does not rule it out")
 
 
+def _scale_fit(scale: dict) -> str:
+    """How the force scale fits, as the verdicts say it: the factor, B for the scene's, chi2/dof."""
+    return (f"the baseline x {scale['factor']:.4g}, B {scale['B']:.4g} for {scale['B_scene']:.4g}: chi2/dof "
+            f"{scale['chi2_per_dof']:.4g}{' (within noise)' if scale['within_noise'] else ''}")
+
+
+def _scale_said(reason: str, said: str, scale: dict, first: str) -> str:
+    """The verdict's reason with the force scale said: first where the scale alone fits within the noise (it is
+    then the simpler explanation, ``first`` joining the rest), else after it."""
+    return said + first + reason if scale["within_noise"] else reason + "; " + said
+
+
 def force_scale_step(data: _Data, base_fit: dict, named: CandidateResult | None, n: int, noise: NoiseModel,
                      say) -> dict | None:
     """The named effect against a pure force scale.
@@ -2070,28 +2082,21 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         scale = force_scale_step(data, base_fit, named, n, noise, say)
         if scale is not None and scale["rivals_effect"]:
             verdict.confident = False
-            said = (f"a pure force scale explains the curves as well as {named.effect} or better (the baseline x "
-                    f"{scale['factor']:.4g}, B {scale['B']:.4g} for {scale['B_scene']:.4g}: chi2/dof "
-                    f"{scale['chi2_per_dof']:.4g}{' (within noise)' if scale['within_noise'] else ''} against "
-                    f"{named.chi2_per_dof:.4g} with {named.effect}; BIC {scale['bic_minus_effect']:+.4g}): the forces "
-                    "may be off by a factor (the wale count or the width the force was divided by, or B), which the "
-                    "effect stands in for")
-            # said first where the scale alone fits within the noise: it is then the simpler explanation
-            verdict.reason = (said + "; as an effect: " + verdict.reason if scale["within_noise"]
-                              else verdict.reason + "; " + said)
+            said = (f"a pure force scale explains the curves as well as {named.effect} or better ({_scale_fit(scale)} "
+                    f"against {named.chi2_per_dof:.4g} with {named.effect}; BIC {scale['bic_minus_effect']:+.4g}): the "
+                    "forces may be off by a factor (the wale count or the width the force was divided by, or B), which "
+                    "the effect stands in for")
+            verdict.reason = _scale_said(verdict.reason, said, scale, "; as an effect: ")
     elif verdict.kind == "unexplained" and adequacy.within_noise is False:
         # the gap no effect explains may be a factor on the force, weighed against the baseline as an effect is
         # (a probe's cycles x 1.1: a confident `unexplained`, chi2/dof 48.9, where the scale fits at 0.92)
         scale = force_scale_step(data, base_fit, None, n, noise, say)
         if scale is not None and scale["explains"]:
             verdict.confident = False
-            said = (f"a pure force scale explains the gap (the baseline x {scale['factor']:.4g}, B {scale['B']:.4g} for "
-                    f"{scale['B_scene']:.4g}: chi2/dof {scale['chi2_per_dof']:.4g}"
-                    f"{' (within noise)' if scale['within_noise'] else ''} against {adequacy.chi2_per_dof:.4g}; BIC "
-                    f"{scale['bic_minus_baseline']:+.4g}): the forces may be off by a factor (the wale count or the "
+            said = (f"a pure force scale explains the gap ({_scale_fit(scale)} against {adequacy.chi2_per_dof:.4g}; "
+                    f"BIC {scale['bic_minus_baseline']:+.4g}): the forces may be off by a factor (the wale count or the "
                     "width the force was divided by, or B held fixed)")
-            verdict.reason = (said + "; as the effects go: " + verdict.reason if scale["within_noise"]
-                              else verdict.reason + "; " + said)
+            verdict.reason = _scale_said(verdict.reason, said, scale, "; as the effects go: ")
     capped = capped_candidates(candidates, verdict.effect)
     if capped:
         verdict.confident = False
