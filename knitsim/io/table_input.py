@@ -738,6 +738,17 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             not_taken.append(f"{ext[0]!r} is a length, not a strain: write strain = extension / gauge length (both "
                              f"in mm) in a column named {asked_strain[0]}")
     missing = [c for c in required if _key(c) not in keys]
+    for c in missing:
+        # a column named for another unit of force than the one asked for (load_kN where load_N is read: a probe's
+        # file was refused as "missing load_N" without a word of its unit)
+        if c.endswith("_N"):
+            other = re.compile(rf"^{re.escape(_key(c)[:-2])}_(kn|dan|cn|mn|lbf|kgf|gf)$")
+            for cell in header:
+                m = other.match(_key(cell))
+                if m:
+                    unit = split_unit(cell)[0][len(c) - 1:]
+                    not_taken.append(f"{cell!r} is a force in {unit}, not in N: convert it to N and name the "
+                                     f"column {c}")
     if missing:
         # a machine's name without its unit, or with another, is not taken (Load could be kN): say why
         raise KnitsimInputError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(header)}; "

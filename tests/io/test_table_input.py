@@ -785,3 +785,15 @@ def test_a_second_table_under_the_first_is_refused_as_several_tests(tmp_path):
     p = _write(tmp_path, "strain,force_per_wale_N\n0,0.01\nstrain,0.12\n0.1,0.23\n", "one.csv")
     with pytest.raises(KnitsimInputError, match=r"row 3, column strain: 'strain' is not a number"):
         read_csv_columns(p, REQ)
+
+
+@pytest.mark.parametrize("cell, unit", [("load_kN", "kN"), ("Load_lbf", "lbf"), ("load_daN", "daN")])
+def test_a_force_column_named_for_another_unit_is_said_as_such(tmp_path, cell, unit):
+    """A probe's calibration file headed `load_kN` where `load_N` is read was refused as "missing column
+    load_N" without a word of its unit (a `force [kN]` header was already told): the refusal names the unit and
+    what to write."""
+    f = tmp_path / "t.csv"
+    f.write_text(f"strain,{cell}\n0,0\n0.1,0.001\n0.2,0.002\n0.3,0.003\n")
+    with pytest.raises(KnitsimInputError, match=rf"missing column\(s\) load_N .*'{cell}' is a force in {unit}, not "
+                                                 r"in N: convert it to N and name the column load_N$"):
+        read_csv_columns(f, ["strain", "load_N"])
