@@ -1473,6 +1473,22 @@ def solve_dahl_at(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64
         xn, qn, ok = solve_dahl(xs, q_old, s, jammed, soft, fs, mat, C, -1, wp.float64(0.0))
         if not ok and solved:
             xn, qn, ok = solve_dahl(x, q_old, s, jammed, soft, fs, mat, C, -1, wp.float64(0.0))
+    if not ok:
+        # the stick trial or its Dahl solve failed (near a vanishing contact force the stick branch runs off the
+        # cone, ill-conditioned): the slip direction whose Dahl solve has its root on its own side (solve_dahl
+        # checks s xi >= 0), where exactly one has; else the increment fails as before (and is halved)
+        xp, qp, okp = solve_dahl(x, q_old, wp.float64(1.0), jammed, soft, fs, mat, C, -1, wp.float64(0.0))
+        xm, qm, okm = solve_dahl(x, q_old, wp.float64(-1.0), jammed, soft, fs, mat, C, -1, wp.float64(0.0))
+        if okp and not okm:
+            xn = xp
+            qn = qp
+            s = wp.float64(1.0)
+            ok = True
+        elif okm and not okp:
+            xn = xm
+            qn = qm
+            s = wp.float64(-1.0)
+            ok = True
     return xn, qn, s, ok
 
 

@@ -17,6 +17,7 @@ import pytest
 
 from knitsim.cell.batch import CellModel, CellSolver, run_batch
 from knitsim.cell.cycle import dissipated_energy, run_cells_reference
+from knitsim.cell.effects import EffectSet
 from knitsim.cell.history import solver_stop_reason
 from knitsim.cell.load_program import cycles, monotonic, piecewise_linear
 from knitsim.cell.material import CellParams
@@ -355,6 +356,31 @@ def test_dahl_cell_reloads_from_zero_contact_by_the_mirror_rule(device):
     for c in (1, 2, 3):
         m = h.cycle == c
         assert dissipated_energy(h.strain[m], h.force_per_wale[m, 0]) >= -1e-12
+
+
+@pytest.mark.parametrize("effect, geometry, m, phi0_fraction", [
+    (dict(on=("coiling_angle_friction",)), (13.3112, 3.5205, 2.5631), 0.403, 0.486),
+    (dict(on=("velocity_friction",), rate_p=0.1), (15.2985, 4.3908, 2.9659), 0.1537, 0.4558),
+])
+def test_dahl_cell_with_a_friction_effect_takes_the_slip_direction_its_dahl_solve_allows(device, effect, geometry,
+                                                                                           m, phi0_fraction):
+    """Dahl cells whose friction ratio an effect moves (eq 10 at the current angle; eq 5's rate) found by a wide
+    Latin-hypercube sweep: 9 and 10 of 100 samples inside the domain's box failed (Dahl alone: 0), each where the
+    stick trial that picks the slip direction did not converge (an unloading at ~1e-3 N per wale just after a
+    reversal, the first increment from a compressive rest state), every halving failing alike.  The direction is
+    now the one whose Dahl solve has its root on its own side (solve_dahl's s xi >= 0 check) where exactly one
+    has.  Expected: the three cycles run through (all 100 samples did), every force finite, and each closed cycle
+    dissipates (the second law: oint F dC >= 0; these cells' loops return no energy)."""
+    L, W0, C0 = geometry
+    p = CellParams(B=0.31, d=0.58, L=L, W0=W0, C0=C0, m=m, phi0=phi0_fraction * math.atan(m), force_cap_N=20.0,
+                   friction="dahl", dahl_sigma=20.0, effects=EffectSet(**effect))
+    prog = cycles(0.10, 0.60, 3, max_increment=0.01)
+    h = run_batch([p], prog, device=device)
+    assert (h.status == 0).all(), [e for e in h.events if e["kind"] == "flag"]
+    assert np.isfinite(h.force_per_wale).all()
+    for c in (1, 2, 3):
+        k = h.cycle == c
+        assert dissipated_energy(h.strain[k], h.force_per_wale[k, 0]) >= -1e-12
 
 
 def test_head_gap_jamming_batch_matches_reference(device):
