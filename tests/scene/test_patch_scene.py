@@ -180,3 +180,12 @@ def test_the_cell_count_cap_of_a_specimen_names_its_strips():
     with pytest.raises(KnitsimInputError, match=r"^specimen\.strips = 10000: 10000 x 10000 cells is more than 50 "
                                                 r"million"):
         load_patch_scene(doc)
+
+
+def test_an_absurd_trial_limit_is_refused_before_any_work():
+    """solver.max_iterations = 10^8 was taken (a blind probe): a column that does not converge would then try
+    that often every increment, a hang.  The coupling converges in 2-4 trials an increment on the paper's
+    specimen, its slowest column-increment in 61 (benchmarks/README.md): above 1000 is refused naming the key."""
+    assert load_patch_scene(base(solver={"max_iterations": 1000})).solver_options["max_iterations"] == 1000
+    with pytest.raises(KnitsimInputError, match=r"solver\.max_iterations = 100000000: must be <= 1000"):
+        load_patch_scene(base(solver={"max_iterations": 100_000_000}))
