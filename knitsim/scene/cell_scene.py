@@ -165,6 +165,11 @@ def _effects_table() -> Table:
     return Table(fields, "model extensions (knitsim.cell.effects): off by default")
 
 
+#: the keys each load.type takes (an override of load.type drops the others': Table.variants)
+LOAD_KEYS = {"monotonic": ("target_strain",), "cycles": ("lower_strain", "upper_strain", "cycles"),
+             "piecewise": ("waypoints",)}
+
+
 def _load_table() -> Table:
     return Table({
         "type": Field(("str",), REQUIRED, "monotonic, cycles or piecewise", choices=LOAD_TYPES),
@@ -177,7 +182,7 @@ def _load_table() -> Table:
         "waypoints": Field(("float_list",), OPTIONAL, "piecewise: strains to pass through, from rest"),
         "max_increment": Field(("float",), 0.005, "largest strain increment (at most 0.1: a row every 10 % of "
                                "strain cannot show a cycle's stages)", min=0.0, min_inclusive=False, max=0.1),
-    }, "strain-controlled load program of the course length", required=True)
+    }, "strain-controlled load program of the course length", required=True, variants=("type", LOAD_KEYS))
 
 
 def _cell_table(defaults: bool) -> Table:
@@ -237,8 +242,6 @@ CELL_SCENE = Table({
 })
 
 _CELL_TABLES = ("yarn", "knit", "friction", "rules", "effects")
-_LOAD_KEYS = {"monotonic": ("target_strain",), "cycles": ("lower_strain", "upper_strain", "cycles"),
-              "piecewise": ("waypoints",)}
 
 
 @dataclass
@@ -483,10 +486,10 @@ def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram,
     """
     kind = load["type"]
     for key in ("target_strain", "lower_strain", "upper_strain", "cycles", "waypoints"):
-        if key in load and key not in _LOAD_KEYS[kind]:
+        if key in load and key not in LOAD_KEYS[kind]:
             raise error(f"load.{key}", load[key], f"not used by load.type = {fmt(kind)} "
-                        f"(it takes {', '.join('load.' + k for k in _LOAD_KEYS[kind])})")
-    for key in _LOAD_KEYS[kind]:
+                        f"(it takes {', '.join('load.' + k for k in LOAD_KEYS[kind])})")
+    for key in LOAD_KEYS[kind]:
         if key not in load:
             raise KnitsimInputError(f"load.{key}: missing (load.type = {fmt(kind)} needs it)")
     inc = load["max_increment"]
@@ -521,7 +524,7 @@ def _program(load: dict, cells: list[dict], limit_of=None) -> tuple[LoadProgram,
         prog = cycles(load["lower_strain"], load["upper_strain"], load["cycles"], inc)
     else:
         prog = piecewise_linear(load["waypoints"], inc)
-    resolved = {"type": kind, **{k: load[k] for k in _LOAD_KEYS[kind]}, "max_increment": inc}
+    resolved = {"type": kind, **{k: load[k] for k in LOAD_KEYS[kind]}, "max_increment": inc}
     return prog, resolved
 
 

@@ -202,7 +202,7 @@ PATCH_SCENE = Table({
                                                      f"{_EFFECT_OF[n]} is on)") for n in _EFFECT_OF}},
                   "per-cell maps, applied after the zones"),
     "load": Table(dict(_load_table().fields), "grip strain program (grip displacement / column rest length)",
-                  required=True),
+                  required=True, variants=_load_table().variants),
     "output": Table({
         "plot": Field(("bool",), True, "write PNG plots"),
         "cell_fields": Field(("bool",), True, "write per-cell fields over time (cells.nc)"),

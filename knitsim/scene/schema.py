@@ -95,6 +95,16 @@ class Table:
     doc: str = ""
     required: bool = False
     alternatives: tuple[tuple[tuple[str, ...], ...], ...] = ()
+    #: a key whose value chooses which of the table's keys apply, and those keys by value (``load.type``:
+    #: ``target_strain`` for ``"monotonic"``, ...): an override of it drops the keys of the other choices
+    variants: tuple[str, dict[str, tuple[str, ...]]] | None = None
+
+    def not_of(self, key: str, value: Any) -> tuple[str, ...]:
+        """The keys that the choice ``key = value`` leaves out (none where ``key`` chooses nothing)."""
+        if self.variants is None or key != self.variants[0]:
+            return ()
+        keep = self.variants[1].get(value, ())
+        return tuple(k for group in self.variants[1].values() for k in group if k not in keep)
 
     def others_than(self, key: str) -> tuple[str, ...]:
         """The keys that state ``key``'s quantity another way (none where ``key`` is in no group)."""
@@ -309,7 +319,9 @@ def set_value(data: dict, schema: Table, assignment: str) -> dict:
 
     The key path may index arrays of tables, ``cells[1].friction.m=0.3``; the
     entry must exist.  A key with alternatives (:attr:`Table.alternatives`)
-    replaces them: ``friction.phi0_deg=3`` on a scene stating ``phi0 = 0``.  The text is converted by the field's type (so
+    replaces them: ``friction.phi0_deg=3`` on a scene stating ``phi0 = 0``; a
+    choosing key (:attr:`Table.variants`) drops the keys of the other choices:
+    ``load.type=cycles`` on a monotonic scene drops its ``target_strain``.  The text is converted by the field's type (so
     ``yarn.B=abc`` is refused naming the key) and range-checked later by
     :func:`validate`.  ``data`` is modified in place and returned.
     """
@@ -353,8 +365,8 @@ def set_value(data: dict, schema: Table, assignment: str) -> dict:
             if not last:
                 raise KnitsimInputError(f"--set {key}: {where} is a value, not a table")
             node[name] = _parse_text(sub, text, key)
-            for other in spec.others_than(name):
-                node.pop(other, None)      # the override states this quantity: the document's other way goes
+            for other in spec.others_than(name) + spec.not_of(name, node[name]):
+                node.pop(other, None)      # the override states this quantity (or chooses): the document's other way goes
     return data
 
 

@@ -243,3 +243,19 @@ def test_a_library_value_gives_way_to_the_scenes_own_way_of_stating_it(tmp_path)
     assert p.m == pytest.approx(0.212, abs=5e-4) and p.phi0 == 0.05          # the library's, eq 10 (test above)
     p = load_cell_scene({**base, "friction": {"m": 0.3, "phi0_fraction": 0.5}}).params[0]
     assert p.m == 0.3 and p.phi0 == pytest.approx(0.5 * math.atan(0.3))
+
+
+def test_set_load_type_drops_the_other_types_keys():
+    """`--set load.type=cycles` on a monotonic scene was refused for the scene's own target_strain ("not used by
+    load.type = cycles"), which --set cannot remove (a probe of the README's `--set overrides any scene key`).
+    An override of the choosing key drops the other types' keys; the new type's are then asked for by name.
+    A file that states both is still refused (the scene says two programs)."""
+    base = scene()                                   # monotonic to 0.5
+    refused(base, r'^load\.lower_strain: missing \(load\.type = "cycles" needs it\)$', ["load.type=cycles"])
+    s = load_cell_scene(base, ["load.type=cycles", "load.lower_strain=0.1", "load.upper_strain=0.3",
+                               "load.cycles=2", "load.max_increment=0.1"])
+    # 0 -> 0.3 -> 0.1 -> 0.3 -> 0.1 at steps of 0.1: 3 + 2 + 2 + 2 increments
+    assert s.program.waypoints == (0.0, 0.3, 0.1, 0.3, 0.1) and len(s.program) == 9
+    both = scene(load={"type": "cycles", "target_strain": 0.5, "lower_strain": 0.1, "upper_strain": 0.3,
+                       "cycles": 2})
+    refused(both, r'^load\.target_strain = 0\.5: not used by load\.type = "cycles"')
