@@ -74,18 +74,26 @@ def test_bad_input_exits_2_with_one_line_naming_the_key(tmp_path, capsys, sweep,
     assert not (tmp_path / "o").exists()          # refused before anything was written
 
 
-def test_interrupt_keeps_finished_chunks_and_tells_how_to_resume(tmp_path, capsys, monkeypatch):
+def _second_chunk_does(tmp_path, monkeypatch, action):
+    """A two-chunk sweep scene whose chunk 1 first runs ``action`` (an interrupt, a signal, a full disk):
+    (scene, out, the real run_chunk)."""
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    scene = _files(tmp_path)
-    out = tmp_path / "o"
     real = runner.run_chunk
 
-    def interrupted(task):
+    def chunk(task):
         if task["chunk"] == 1:
-            raise KeyboardInterrupt
+            action()
         return real(task)
 
-    monkeypatch.setattr(runner, "run_chunk", interrupted)
+    monkeypatch.setattr(runner, "run_chunk", chunk)
+    return _files(tmp_path), tmp_path / "o", real
+
+
+def test_interrupt_keeps_finished_chunks_and_tells_how_to_resume(tmp_path, capsys, monkeypatch):
+    def interrupt():
+        raise KeyboardInterrupt
+
+    scene, out, real = _second_chunk_does(tmp_path, monkeypatch, interrupt)
     # run with --overwrite, as typed (sys.argv): a blind probe was told to finish with "--overwrite --resume",
     # which is refused; the command it is given must run as printed
     argv = ["sweep", str(scene), "--out", str(out), "--workers", "0", "--overwrite"]
@@ -108,20 +116,11 @@ def test_sigterm_is_taken_as_a_ctrl_c_keeping_the_finished_chunks(tmp_path, caps
     import os
     import signal
 
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-    scene = _files(tmp_path)
-    out = tmp_path / "o"
-    real = runner.run_chunk
-
-    def terminated(task):
-        if task["chunk"] == 1:
-            os.kill(os.getpid(), signal.SIGTERM)
-        return real(task)
+    scene, out, real = _second_chunk_does(tmp_path, monkeypatch, lambda: os.kill(os.getpid(), signal.SIGTERM))
 
     def not_taken(signum, frame):                   # (the old code's fate, without killing the test process)
         raise AssertionError("SIGTERM reached the handler in force before knitsim: not taken as a Ctrl-C")
 
-    monkeypatch.setattr(runner, "run_chunk", terminated)
     before = signal.signal(signal.SIGTERM, not_taken)
     argv = ["sweep", str(scene), "--out", str(out), "--workers", "0"]
     monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
@@ -140,17 +139,10 @@ def test_a_disk_that_fills_keeps_the_finished_chunks_and_says_how_to_finish(tmp_
     # kept and the command that finishes the sweep, exit 1; that command finishes it, reusing chunk 0
     import errno
 
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-    scene = _files(tmp_path)
-    out = tmp_path / "o"
-    real = runner.run_chunk
+    def disk_full():
+        raise OSError(errno.ENOSPC, "No space left on device")
 
-    def disk_full(task):
-        if task["chunk"] == 1:
-            raise OSError(errno.ENOSPC, "No space left on device")
-        return real(task)
-
-    monkeypatch.setattr(runner, "run_chunk", disk_full)
+    scene, out, real = _second_chunk_does(tmp_path, monkeypatch, disk_full)
     argv = ["sweep", str(scene), "--out", str(out), "--workers", "0"]
     monkeypatch.setattr(sys, "argv", ["knitsim"] + argv)
     assert main(argv) == 1
