@@ -224,8 +224,8 @@ def _run_keys(resolved: dict) -> dict:
     flat (``specimen.width``), as plain JSON values: kept in the checkpoint, for :func:`scene_changes`."""
     import json
 
-    from ..sweep.runner import _flat
-    return _flat(json.loads(json.dumps({k: v for k, v in resolved.items() if k not in ("title", "output")},
+    from ..scene.schema import flat_keys
+    return flat_keys(json.loads(json.dumps({k: v for k, v in resolved.items() if k not in ("title", "output")},
                                        default=str)))
 
 
@@ -235,11 +235,11 @@ def scene_changes(head: dict, resolved: dict) -> str | None:
     new, ...``, or, where no key differs, that a file the scene names changed; None for a checkpoint that did not
     keep its keys (an older knitsim).  Before, the refusal said "another scene, program or engine" without
     what (a blind probe)."""
-    from ..sweep.runner import _key_diff
+    from ..scene.schema import key_changes
     old = (head.get("meta") or {}).get("resolved")
     if not isinstance(old, dict):
         return None
-    diff = _key_diff(old, _run_keys(resolved))
+    diff = key_changes(old, _run_keys(resolved))
     if not diff:
         return ("its keys are the same: a file it names, a map or a material library, changed since it was "
                 "written, or another knitsim wrote it")

@@ -314,6 +314,22 @@ def _parse_text(f: Field, text: str, key: str) -> Any:
     raise KnitsimInputError(f"{key} = {json.dumps(text)}: expected {want}")
 
 
+def flat_keys(d: Any, prefix: str = "") -> dict:
+    """``{"a.b[0].c": value}`` of a nested JSON document (a sweep's or a run's keys, for :func:`key_changes`)."""
+    if isinstance(d, dict):
+        return {k2: v for k, x in d.items() for k2, v in flat_keys(x, f"{prefix}.{k}" if prefix else str(k)).items()}
+    if isinstance(d, list) and any(isinstance(x, (dict, list)) for x in d):
+        return {k2: v for i, x in enumerate(d) for k2, v in flat_keys(x, f"{prefix}[{i}]").items()}
+    return {prefix: d}
+
+
+def key_changes(a: dict, b: dict) -> list[str]:
+    """``"key old -> new"`` for each key of two flat tables (:func:`flat_keys`) whose values differ (``(none)``
+    where absent): what --resume's refusals name."""
+    return [f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in sorted(set(a) | set(b), key=str)
+            if a.get(k) != b.get(k)]
+
+
 def set_value(data: dict, schema: Table, assignment: str) -> dict:
     """Apply one ``key.path=value`` override (``--set``) to a parsed document.
 

@@ -70,7 +70,7 @@ from ..io import checks
 from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir, record_outputs
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
-from ..scene.schema import fmt, load_toml, set_value
+from ..scene.schema import flat_keys, fmt, key_changes, load_toml, set_value
 from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
@@ -463,21 +463,6 @@ def sweep_hash(plan: SweepPlan, inputs: dict | None = None) -> str:
     return _sha(canonical_json(what))
 
 
-def _flat(d: Any, prefix: str = "") -> dict:
-    """``{"a.b[0].c": value}`` of a nested JSON document."""
-    if isinstance(d, dict):
-        return {k2: v for k, x in d.items() for k2, v in _flat(x, f"{prefix}.{k}" if prefix else str(k)).items()}
-    if isinstance(d, list) and any(isinstance(x, (dict, list)) for x in d):
-        return {k2: v for i, x in enumerate(d) for k2, v in _flat(x, f"{prefix}[{i}]").items()}
-    return {prefix: d}
-
-
-def _key_diff(a: dict, b: dict) -> list[str]:
-    """``"key old -> new"`` for each key of two flat tables whose values differ (``(none)`` where absent)."""
-    return [f"{k} {a.get(k, '(none)')} -> {b.get(k, '(none)')}" for k in sorted(set(a) | set(b), key=str)
-            if a.get(k) != b.get(k)]
-
-
 def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
     """What differs between a manifest's sweep and ``plan``, in words (for --resume's refusal)."""
     was = old.get("inputs")
@@ -490,7 +475,8 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
             if key == "spec" and isinstance(old.get("spec"), dict):
                 # name its keys (a blind probe's --resume --curves read "the [sweep] table differs": the option
                 # --curves sets sweep.curves, which the run being resumed did not keep)
-                diff = _key_diff(_flat(old["spec"], "sweep"), _flat(json.loads(json.dumps(plan.spec.table)), "sweep"))
+                diff = key_changes(flat_keys(old["spec"], "sweep"),
+                                   flat_keys(json.loads(json.dumps(plan.spec.table)), "sweep"))
                 if diff:
                     name += " (" + ", ".join(diff[:3]) + (", ..." if len(diff) > 3 else "") + (
                         "; --curves sets sweep.curves" if any(d.startswith("sweep.curves ") for d in diff) else "") + ")"
@@ -501,8 +487,8 @@ def _changes(old: dict, plan: SweepPlan, inputs: dict) -> str:
         a_cells = old.get("base_resolved", {}).get("cells", [])
         b_cells = json.loads(json.dumps(plan.base.resolved.get("cells", [])))
         one = len(a_cells) == len(b_cells) == 1
-        diff = _key_diff(_flat(a_cells[0] if one else a_cells, "" if one else "cells"),
-                         _flat(b_cells[0] if one else b_cells, "" if one else "cells"))
+        diff = key_changes(flat_keys(a_cells[0] if one else a_cells, "" if one else "cells"),
+                           flat_keys(b_cells[0] if one else b_cells, "" if one else "cells"))
         # a changed scene, sample table or knitsim explains changed cells; else what the scene names did
         upstream = any(was.get(k) != inputs[k] for k in ("knitsim", "spec", "samples", "scene"))
         olds = was.get("samples_cells")
