@@ -1523,11 +1523,8 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     info = _row_information(problem, res[0])
     if information is not None:
         information.extend(info)
-    w = np.ones(len(res[0]))
-    i = 0
-    for s, q in zip(problem.sp, info):
-        w[i:i + len(s.strain)] = q
-        i += len(s.strain)
+    rows = np.repeat(info, [len(s.strain) for s in problem.sp])     # each specimen's rows, in their order
+    w = np.concatenate([rows, np.ones(len(res[0]) - len(rows))])      # the priors' rows after them weigh 1
     cov = s2 * np.linalg.pinv(J.T @ (w[:, None] * J))
     # a variable the rows do not move (e.g. a jamming width never reached) is not identified: infinite sd
     norms = np.linalg.norm(J, axis=0)

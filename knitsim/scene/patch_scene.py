@@ -94,7 +94,7 @@ from __future__ import annotations
 
 import copy
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -201,8 +201,7 @@ PATCH_SCENE = Table({
                    **{n: Table(_map_table(n).fields, f"per-cell map of the effect parameter {n} (cells whose effect "
                                                      f"{_EFFECT_OF[n]} is on)") for n in _EFFECT_OF}},
                   "per-cell maps, applied after the zones"),
-    "load": Table(dict(_load_table().fields), "grip strain program (grip displacement / column rest length)",
-                  required=True, variants=_load_table().variants),
+    "load": replace(_load_table(), doc="grip strain program (grip displacement / column rest length)"),
     "output": Table({
         "plot": Field(("bool",), True, "write PNG plots"),
         "cell_fields": Field(("bool",), True, "write per-cell fields over time (cells.nc)"),
