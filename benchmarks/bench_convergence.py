@@ -16,6 +16,14 @@ paper's program (3 cycles 0.10-0.60, Dusserre 2015 section 2.3, increment
     python benchmarks/bench_convergence.py --device cuda --cells 1000000
     python benchmarks/bench_convergence.py --no-sweeps --cells 2000 --failures fails.json
     python benchmarks/bench_convergence.py --no-sweeps --cells 1000000 --chunk 5000 --jobs 16 --store conv_chunks
+
+``--dahl-sigma`` runs every random cell with Dahl friction (that rate), ``--effects`` switches kernel
+effects on for every random cell, at the strengths of ``--effect-param`` (the EffectSet defaults leave
+most effects without strength: normal-load n = 1, rate p = 0, compaction k = 0, bending h = 0,
+extension c = 0):
+
+    python benchmarks/bench_convergence.py --no-sweeps --cells 2000 --dahl-sigma 20 \\
+        --effects bending_hysteresis --effect-param bend_h=0.3
 """
 from __future__ import annotations
 
@@ -34,8 +42,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SWEEPS = ("scenes/sweeps/e_glass_lhs.toml", "scenes/sweeps/e_glass_friction_sweep.toml")
 
 
-def random_domain_cells(n: int, seed: int = 0, domain=None) -> list:
-    """N cells drawn from the documented domain (see the module docstring)."""
+def random_domain_cells(n: int, seed: int = 0, domain=None, friction: dict | None = None) -> list:
+    """N cells drawn from the documented domain (see the module docstring); ``friction``: CellParams
+    fields given to every cell (``friction``, ``dahl_sigma``, ``effects``), the draws unchanged."""
     from knitsim.cell.domain import DOMAIN
     from knitsim.cell.material import CellParams
 
@@ -61,7 +70,7 @@ def random_domain_cells(n: int, seed: int = 0, domain=None) -> list:
                               reload_rule=("mirror_unloading", "freeze_rn")[int(r[10] * 2)],
                               jamming_criterion=("w_4d", "head_gap")[int(r[11] * 2)],
                               in_plane_width=djam if wide else None,
-                              force_cap_N=20.0 * B / d ** 2))
+                              force_cap_N=20.0 * B / d ** 2, **(friction or {})))
     return out
 
 
@@ -92,7 +101,21 @@ def run_states(cells: list, program, device: str) -> dict:
             "finite": np.all(np.isfinite(x), axis=1), "first_bad_increment": first_bad}
 
 
-def run_chunk(n: int, seed: int, device: str, increment: float, chunk: int, start: int) -> dict:
+def friction_fields(dahl_sigma: float, effects: tuple, effect_params: dict) -> dict:
+    """The CellParams fields of ``--dahl-sigma``, ``--effects`` and ``--effect-param`` (empty: the
+    Coulomb cells without effects of the domain)."""
+    from knitsim.cell.effects import EffectSet
+
+    out = {}
+    if dahl_sigma > 0:
+        out.update(friction="dahl", dahl_sigma=dahl_sigma)
+    if effects or effect_params:
+        out["effects"] = EffectSet(on=tuple(effects), **effect_params)
+    return out
+
+
+def run_chunk(n: int, seed: int, device: str, increment: float, chunk: int, start: int,
+              friction: dict | None = None) -> dict:
     """The counts of one chunk of random cells (cells start .. start + chunk of the seed's stream)."""
     from knitsim import warp_runtime
     from knitsim.cell.history import STATUS_NAMES
@@ -101,7 +124,7 @@ def run_chunk(n: int, seed: int, device: str, increment: float, chunk: int, star
 
     warp_runtime.init()
     prog = cycles(0.10, 0.60, 3, max_increment=increment)
-    cells = random_domain_cells(min(chunk, n - start), seed=seed * 1_000_003 + start // chunk)
+    cells = random_domain_cells(min(chunk, n - start), seed=seed * 1_000_003 + start // chunk, friction=friction)
     t0 = time.process_time()
     r = run_states(cells, prog, device)
     counts, where, failures = collections.Counter(), collections.Counter(), []
@@ -121,7 +144,7 @@ def run_chunk(n: int, seed: int, device: str, increment: float, chunk: int, star
 
 
 def bench_random(n: int, seed: int, device: str, increment: float, chunk: int, jobs: int = 1,
-                 store: Path | None = None) -> dict:
+                 store: Path | None = None, friction: dict | None = None, tag: str = "") -> dict:
     """Counts over N random cells, in chunks; with ``jobs`` > 1 the chunks run in worker processes
     (Warp's CPU backend runs a launch on one thread); with ``store`` each finished chunk is kept
     there as JSON and a re-run with the same arguments only runs the chunks still missing."""
@@ -132,7 +155,7 @@ def bench_random(n: int, seed: int, device: str, increment: float, chunk: int, j
     done = {}
     if store is not None:
         store.mkdir(parents=True, exist_ok=True)
-        key = lambda st: store / f"seed{seed}_incr{increment:g}_chunk{chunk}_n{n}_start{st}.json"  # noqa: E731
+        key = lambda st: store / f"seed{seed}_incr{increment:g}_chunk{chunk}_n{n}{tag}_start{st}.json"  # noqa: E731
         for st in starts:
             if key(st).exists():
                 done[st] = json.loads(key(st).read_text())
@@ -151,12 +174,12 @@ def bench_random(n: int, seed: int, device: str, increment: float, chunk: int, j
     if jobs > 1 and len(todo) > 1:
         ctx = multiprocessing.get_context("spawn")
         with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx) as ex:
-            futs = [ex.submit(run_chunk, n, seed, device, increment, chunk, st) for st in todo]
+            futs = [ex.submit(run_chunk, n, seed, device, increment, chunk, st, friction) for st in todo]
             for f in concurrent.futures.as_completed(futs):
                 keep(f.result())
     else:
         for st in todo:
-            keep(run_chunk(n, seed, device, increment, chunk, st))
+            keep(run_chunk(n, seed, device, increment, chunk, st, friction))
     dt = time.perf_counter() - t0
     parts = [done[st] for st in starts]
     counts, where = collections.Counter(), collections.Counter()
@@ -199,7 +222,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--jobs", type=int, default=1, help="worker processes for the random chunks (CPU: one core each)")
     ap.add_argument("--store", default=None,
                     help="keep each finished chunk here; a re-run with the same arguments resumes")
+    ap.add_argument("--dahl-sigma", type=float, default=0.0, help="Dahl friction at this rate for every random cell "
+                    "(0: Coulomb)")
+    ap.add_argument("--effects", default="", help="comma-separated kernel effects switched on for every random cell")
+    ap.add_argument("--effect-param", action="append", default=[], metavar="NAME=VALUE",
+                    help="an effect strength (EffectSet field), e.g. bend_h=0.3 (repeatable)")
     a = ap.parse_args(argv)
+    effects = tuple(e for e in a.effects.split(",") if e)
+    params = {k: float(v) for k, v in (kv.split("=", 1) for kv in a.effect_param)}
+    friction = friction_fields(a.dahl_sigma, effects, params)
+    tag = "".join([f"_dahl{a.dahl_sigma:g}" if a.dahl_sigma > 0 else ""] + [f"_{e}" for e in effects]
+                  + [f"_{k}{v:g}" for k, v in sorted(params.items())])
 
     from knitsim import warp_runtime
     warp_runtime.init()
@@ -212,8 +245,8 @@ def main(argv=None) -> dict:
     rnd = None
     if a.cells > 0:
         rnd = bench_random(a.cells, a.seed, device, a.increment, a.chunk, jobs=a.jobs,
-                           store=Path(a.store) if a.store else None)
-        rows.append((f"random domain cells, paper's program (incr {a.increment:g}, seed {a.seed})",
+                           store=Path(a.store) if a.store else None, friction=friction, tag=tag)
+        rows.append((f"random domain cells{tag.replace('_', ' ')}, paper's program (incr {a.increment:g}, seed {a.seed})",
                      rnd["cells"], rnd["counts"], rnd["nan"], rnd["seconds"]))
     cols = ("ok", "force_cap", "no_rest_state", "no_convergence", "event_not_located")
     print(f"device {device}")
