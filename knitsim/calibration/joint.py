@@ -73,7 +73,9 @@ the grips carries about 0 N, and a lab usually zeroes its load cell with the spe
   readings, :func:`knitsim.calibration.specimen.rest_reading`), more than 5 noise sd and more than 5 % of
   its peak below the fitted model's force at grip strain 0: a file tared with the knit mounted, fitted as
   absolute, moves m by tens of standard errors (a probe: m 0.103 +- 0.002 against the true 0.20) and
-  reads one yarn as two.
+  reads one yarn as two.  The reading at rest is no row of the fit: it is flagged only where it costs more
+  than ZERO_CHECK_SD^2 as one more row against the fit's freedom there (:func:`_zero_costs`), else noted as
+  a zero that cannot be checked (few rows, or rows from past the knit's first slide).
 - ``"tared"``: the file's zero is the model's state at grip strain 0 (its rest state): each row is fitted
   as the model's force less the model's rest force, from the same simulation (the batch's rest state).  No
   parameter is added; the report gives the force subtracted (:attr:`SpecimenFit.tare_N`).  Refused with a
@@ -373,6 +375,15 @@ class SpecimenFit:
     rest_N, rest_sd_N : float
         The specimen's files' force at rest and its sd (:attr:`SpecimenData.rest_N`; NaN: not known), for
         the zero check of ``zero = "absolute"`` (:attr:`zero_check`).
+    pretension_se_N : float
+        The standard error of ``pretension_N`` from the fit's covariance (:func:`_zero_std_errors`; inf: the
+        rows do not set it; NaN: not known).
+    zero_cost, zero_witness_N, zero_witness_dchi2 : float
+        The zero check's statistic (:func:`_zero_costs`; NaN: not computed, read as (gap / rest_sd_N)^2): the
+        least, over points on the fit's cheapest path to the file's reading at rest (the covariance's, to
+        first order), of the rows' chi2 rise in s^2 plus ((model at grip strain 0 - rest_N) / rest_sd_N)^2:
+        the cost of that reading as one more row; to first order (gap / sqrt(rest_sd^2 + pretension_se^2))^2.
+        The model's force at grip strain 0 at that point, and its chi2 rise in s^2.
     """
 
     name: str
@@ -401,6 +412,10 @@ class SpecimenFit:
     tare_N: float | None = None
     rest_N: float = math.nan
     rest_sd_N: float = math.nan
+    pretension_se_N: float = math.nan
+    zero_cost: float = math.nan
+    zero_witness_N: float = math.nan
+    zero_witness_dchi2: float = math.nan
 
     @property
     def shift_N(self) -> float:
@@ -411,24 +426,49 @@ class SpecimenFit:
             return -float(self.tare_N)
         return 0.0
 
-    @property
-    def zero_check(self) -> str | None:
-        """With ``zero = "absolute"``: the flag of a file that reads at rest more than ZERO_CHECK_SD noise sd
-        and more than ZERO_CHECK_SHARE of its peak below the fitted model's force at grip strain 0
-        (``pretension_N``), or None: a load cell zeroed with the knit mounted.  The fit is shared: one
-        specimen's wrong zero pulls the yarn and can show in another's check (a re-probe's tared file left the
-        other, right one flagged), so the flag names the disagreement, not which file is wrong."""
+    def _zero_gap(self) -> tuple[float, float, float] | None:
+        """With ``zero = "absolute"``: (the gap the zero check reads, the model's force at grip strain 0 less the
+        file's at rest; the file's sd there; the check's statistic in sd, sqrt(``zero_cost``), or gap / sd where
+        that was not computed), or None where either force is not known."""
         if self.zero != "absolute" or not (math.isfinite(self.rest_N) and math.isfinite(self.pretension_N)):
             return None
-        gap = self.pretension_N - self.rest_N
         sd = self.rest_sd_N if math.isfinite(self.rest_sd_N) else 0.0
+        gap = self.pretension_N - self.rest_N
+        if not math.isnan(self.zero_cost):
+            return gap, sd, math.sqrt(max(self.zero_cost, 0.0))
+        return gap, sd, (gap / sd if sd > 0 else math.inf)
+
+    def _zero_screened(self) -> tuple[float, float, float] | None:
+        """:meth:`_zero_gap` where the file reads at rest below the fitted model's force at grip strain 0 by more
+        than ZERO_CHECK_SD of its noise sd and ZERO_CHECK_SHARE of its peak (what the check then reads against
+        the fit's freedom), else None."""
+        g = self._zero_gap()
+        if g is None:
+            return None
+        gap, sd, _ = g
         # below only: above, the first readings of a clean file (rows the fit does not include: they start at one
         # row step) lay 20 sd above a fit within its noise in a probe's clean pair, which a flag would misread
         if not (gap > ZERO_CHECK_SD * sd and gap > ZERO_CHECK_SHARE * self.peak_N):
             return None
+        return g
+
+    @property
+    def zero_check(self) -> str | None:
+        """With ``zero = "absolute"``: the flag of a file that reads at rest more than ZERO_CHECK_SHARE of its peak
+        below the fitted model's force at grip strain 0 (``pretension_N``), and beyond ZERO_CHECK_SD sd by the
+        check's statistic (``zero_cost``: the file's reading at rest as one more row, against the fit's freedom
+        there), or None: a load cell zeroed with the knit mounted.  Where the rows do not set the force at rest
+        (few rows, or rows from past the knit's first slide) a fit about as good makes the file's reading, and
+        :attr:`zero_note` says the zero cannot be told instead.  The fit is shared: one
+        specimen's wrong zero pulls the yarn and can show in another's check (a re-probe's tared file left the
+        other, right one flagged), so the flag names the disagreement, not which file is wrong."""
+        g = self._zero_screened()
+        if g is None or not g[2] > ZERO_CHECK_SD:
+            return None
+        gap, sd, n_sd = g
         unit = " per wale" if self.offset_unit == "N per wale" else ""
         # (gap > 0 here: only a reading below the model is flagged)
-        by = (f"{gap / sd:.3g} noise sd and " if sd > 0 else "") + f"{100 * gap / max(self.peak_N, 1e-300):.3g} % of its peak"
+        by = (f"{n_sd:.3g} sd and " if math.isfinite(n_sd) else "") + f"{100 * gap / max(self.peak_N, 1e-300):.3g} % of its peak"
         if gap > self.peak_N:
             # the knit at rest carries more than the file's largest reading: no zero explains that, a scale does
             # (a blind probe's kN read as N, 493 % of the peak, was sent to zero = "tared")
@@ -442,6 +482,25 @@ class SpecimenFit:
                 'with the knit mounted? set [calibration] zero = "tared" (or "fitted"); or its force scale (unit, '
                 "wales, width) is not the model's (the fit is shared: a wrong zero or scale in any specimen's file can "
                 "show here)")
+
+    @property
+    def zero_note(self) -> str | None:
+        """With ``zero = "absolute"``: where the file reads at rest below the fitted model's force at grip strain 0
+        by more than ZERO_CHECK_SD noise sd and ZERO_CHECK_SHARE of its peak, but within ZERO_CHECK_SD sd by the
+        check's statistic (``zero_cost``: a fit of its rows about as good makes the file's reading): the zero
+        cannot be told, said (a note, not a flag), else None.  A zero taken with the knit mounted would read so
+        too, and is not seen."""
+        g = self._zero_screened()
+        if g is None or g[2] > ZERO_CHECK_SD:
+            return None
+        unit = " per wale" if self.offset_unit == "N per wale" else ""
+        return (f"specimen {self.name}: its zero cannot be checked: the file reads {self.rest_N:.4g} N{unit} at rest, "
+                f"the fitted knit carries {self.pretension_N:.4g} +- {self.pretension_se_N:.3g} N{unit} at grip strain "
+                f"0, and a fit of the rows worse by chi2 {self.zero_witness_dchi2:.3g} s^2 carries "
+                f"{self.zero_witness_N:.4g} N{unit} there ({g[2]:.3g} sd from the file's reading, counting both; "
+                f"flagged beyond {ZERO_CHECK_SD:g}): its rows (grip strain {float(self.strain[0]):g} to "
+                f"{float(self.strain[-1]):g}) do not set the force at rest. A load cell zeroed with the knit mounted "
+                'would not be seen: if it was, set [calibration] zero = "tared"')
 
     @property
     def dof_rows(self) -> int:
@@ -472,6 +531,8 @@ class SpecimenFit:
                "zero": self.zero, "tare_N": self.tare_N,
                "rest_N": self.rest_N if math.isfinite(self.rest_N) else None,
                "rest_sd_N": self.rest_sd_N if math.isfinite(self.rest_sd_N) else None,
+               "pretension_se_N": None if math.isnan(self.pretension_se_N) else self.pretension_se_N,
+               "zero_cost": None if math.isnan(self.zero_cost) else self.zero_cost,
                "pretension": self.pretension, "pretension_N": self.pretension_N,
                "in_band_tolerant": self.in_band_tolerant, "objective": self.objective,
                "rms_N": self.rms_N, "rms_rel": self.rms_rel, "chi2": self.chi2, "rows": int(len(self.strain)),
@@ -793,8 +854,13 @@ class JointResult:
 
     @property
     def notes(self) -> list[str]:
-        """Notes, not flags: :attr:`offset_notes` and :attr:`knit_notes`."""
-        return self.offset_notes + self.knit_notes
+        """Notes, not flags: :attr:`offset_notes`, :attr:`zero_notes` and :attr:`knit_notes`."""
+        return self.offset_notes + self.zero_notes + self.knit_notes
+
+    @property
+    def zero_notes(self) -> list[str]:
+        """Each specimen whose zero the check of ``zero = "absolute"`` cannot tell (:attr:`SpecimenFit.zero_note`)."""
+        return [z for z in (f.zero_note for f in self.fits) if z]
 
     @property
     def knit_notes(self) -> list[str]:
@@ -1268,6 +1334,17 @@ class _Problem:
         program does not resolve)."""
         return float(sim[2])
 
+    def at_grip_zero(self, k: int, sim: tuple, own: dict) -> float:
+        """Force per wale of specimen ``k``'s model at grip strain 0, from its simulation (``simulate``): its rest
+        state's, or with a pretension the fit's program read at the pretension strain (linearly from the rest
+        state below the first increment).  What the zero check compares the file's reading at rest with
+        (:attr:`SpecimenFit.pretension_N`, its standard error from the covariance's points: :func:`_covariance`)."""
+        e_p = float(own.get("pretension", self.sp[k].pretension)) if self.pretension else 0.0
+        if e_p <= 0.0:
+            return float(sim[2])
+        return float(np.interp(e_p, np.concatenate(([0.0], self.program.strain)),
+                               np.concatenate(([float(sim[2])], sim[0]))))
+
     def offset(self, s: SpecimenData, force: np.ndarray, bad: np.ndarray) -> float:
         """Specimen ``s``'s best force offset [its force column's units] for the model force ``force`` at its
         rows: ``knitsim diagnose``'s law (:func:`knitsim.diagnosis.calibrate.offset_of`), the weighted mean
@@ -1285,10 +1362,12 @@ class _Problem:
             return s.band_residuals(fitted_to)
         return (fitted_to - s.target_N) / s.sigma_N
 
-    def residuals(self, x: np.ndarray, sims: list, offsets_out: list | None = None) -> np.ndarray:
+    def residuals(self, x: np.ndarray, sims: list, offsets_out: list | None = None,
+                  zeros_out: list | None = None) -> np.ndarray:
         """Weighted rows of every specimen (less each one's best force offset, with offsets on), then the
         geometry priors.  ``offsets_out``: a list the specimens' offsets are appended to (0 where a cell
-        is inadmissible)."""
+        is inadmissible); ``zeros_out``: one the specimens' model forces at grip strain 0 are appended to, in
+        their force column's units (:meth:`at_grip_zero`; NaN where a cell is inadmissible)."""
         shared, own = self.model_values(x)
         parts = []
         for k, s in enumerate(self.sp):
@@ -1298,7 +1377,11 @@ class _Problem:
                 parts.append(fail)
                 if offsets_out is not None:
                     offsets_out.append(0.0)
+                if zeros_out is not None:
+                    zeros_out.append(math.nan)
                 continue
+            if zeros_out is not None:
+                zeros_out.append(w * self.at_grip_zero(k, sims[k], own[k]))
             f, st = self.at_rows(k, sims[k], own[k])
             if self.tared:                # the file's 0 N is the model's force at grip strain 0
                 f = f - self.at_zero(k, sims[k], own[k])
@@ -1317,9 +1400,11 @@ class _Problem:
                 parts.append(np.array([xi / s.pretension_sd]))     # prior: the strain origin at face value
         return np.concatenate(parts)
 
-    def evaluate_points(self, X: Sequence[np.ndarray], offsets_out: list | None = None) -> list[np.ndarray]:
+    def evaluate_points(self, X: Sequence[np.ndarray], offsets_out: list | None = None,
+                        zeros_out: list | None = None) -> list[np.ndarray]:
         """Residual vectors of several points, all in one launch (``offsets_out``: a list that gets each
-        point's list of specimen offsets)."""
+        point's list of specimen offsets; ``zeros_out``: each point's list of the specimens' model forces at
+        grip strain 0, :meth:`residuals`)."""
         jobs = []
         for x in X:
             for k, c in enumerate(self.cells_at(np.asarray(x))):
@@ -1328,10 +1413,12 @@ class _Problem:
         S = len(self.sp)
         out = []
         for i, x in enumerate(X):
-            offs = []
-            out.append(self.residuals(np.asarray(x), sims[i * S:(i + 1) * S], offs))
+            offs, zs = [], []
+            out.append(self.residuals(np.asarray(x), sims[i * S:(i + 1) * S], offs, zs))
             if offsets_out is not None:
                 offsets_out.append(offs)
+            if zeros_out is not None:
+                zeros_out.append(zs)
         return out
 
     def evaluate_with_jacobian(self, x: np.ndarray, rel_step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
@@ -1495,7 +1582,8 @@ def _row_information(problem: _Problem, r: np.ndarray) -> list[float]:
 
 
 def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6,
-                offset_gradient: list | None = None, information: list | None = None) -> np.ndarray:
+                offset_gradient: list | None = None, information: list | None = None,
+                zero_gradient: list | None = None) -> np.ndarray:
     """Covariance of the reported variables: FD Jacobian in those variables at the solution, each specimen's
     rows weighted by its :func:`_row_information` (``information``: a list that gets them), times ``s2`` (the
     caller's factor, max(s^2, 1)).
@@ -1504,7 +1592,8 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     the Jacobian of these projected rows gives, by variable projection (Golub and Pereyra), the covariance
     of the variables marginal over the offsets, the same block as the full fit with the offsets as
     variables.  ``offset_gradient``: a list that gets the array [specimens, k] of d offset / d variable (the
-    offsets' share of the variables' uncertainty, :func:`_offset_std_errors`)."""
+    offsets' share of the variables' uncertainty, :func:`_offset_std_errors`); ``zero_gradient``: one that gets
+    the array [specimens, k] of d (model force at grip strain 0) / d variable (:func:`_zero_std_errors`)."""
     names, y, los, his = _reported(problem, x)
     k = len(y)
 
@@ -1515,11 +1604,15 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     h = np.where(y + h > np.array(his), -h, h)
     pts = [fit_vars(y)] + [fit_vars(y + h[j] * np.eye(k)[j]) for j in range(k)]
     offs: list = []
-    res = problem.evaluate_points(pts, offs)
+    zs: list = []
+    res = problem.evaluate_points(pts, offs, zs)
     J = np.stack([(res[j + 1] - res[0]) / h[j] for j in range(k)], axis=1)
     if offset_gradient is not None:
         o = np.asarray(offs, float)                       # [points, specimens]
         offset_gradient.append(((o[1:] - o[0]) / h[:, None]).T)
+    if zero_gradient is not None:
+        z = np.asarray(zs, float)                         # [points, specimens]
+        zero_gradient.append(((z[1:] - z[0]) / h[:, None]).T)
     info = _row_information(problem, res[0])
     if information is not None:
         information.extend(info)
@@ -1550,6 +1643,83 @@ def _offset_std_errors(problem: _Problem, fits_bad: list, cov: np.ndarray, G: np
         q = float(information[k]) if information is not None else 1.0
         var = (s2 / (q * tot) if tot > 0 and q > 0 else math.inf) + float(g @ c @ g)
         out.append(math.sqrt(max(var, 0.0)))
+    return out
+
+
+def _zero_std_errors(cov: np.ndarray, G: np.ndarray | None, n: int) -> list:
+    """Standard error of each specimen's model force at grip strain 0 (:attr:`SpecimenFit.pretension_se_N`): the
+    delta method, sqrt(g^T cov g), g its gradient over the variables (``G``, [specimens, k]: :func:`_covariance`).
+    Infinite where it moves with a variable the rows do not set (infinite variance), or where its gradient is not
+    known (a neighbour's cell inadmissible); NaN for every specimen without ``G``.  The rows of the fit start at
+    one row step: where they are few, or start past the knit's first slide, the force at rest is an extrapolation
+    that they may not determine (a 5-row file up to strain 0.02 fitted within its noise with its knit's force at
+    rest 2.6 times the file's reading, and was flagged as a wrong zero)."""
+    if G is None:
+        return [math.nan] * n
+    dead = ~np.isfinite(np.diag(cov))
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    out = []
+    for g in np.asarray(G, float):
+        if not np.all(np.isfinite(g)) or np.any(dead & (g != 0.0)):
+            out.append(math.inf)
+            continue
+        out.append(math.sqrt(max(float(g @ c @ g), 0.0)))
+    return out
+
+
+#: the zero check's path (:func:`_zero_costs`): fractions of the first-order step from the best point to the model
+#: force at grip strain 0 that the file reads at rest (first order, the least cost lies at se^2 / (se^2 + sd^2))
+ZERO_PATH = (0.0, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+
+
+def _zero_costs(pb: _Problem, x: np.ndarray, cov: np.ndarray, G: np.ndarray | None, fits: list,
+                factor: float) -> list:
+    """The zero check's statistic for each specimen that reads at rest well below its fitted model
+    (:meth:`SpecimenFit._zero_screened`; (NaN, NaN, NaN) for the others): (cost, the model's force at grip
+    strain 0 where it is least, the rows' chi2 rise there in s^2).
+
+    The file's reading at rest (``rest_N``, sd ``rest_sd_N``) is not a row of the fit (they start at one row
+    step), so whether it disagrees with the model is the cost of it as one more row: the least over the
+    variables of the rows' chi2 rise (in the covariance's factor s^2, ``factor``) plus ((model at rest - rest_N) / sd)^2.
+    It is sought on the path the covariance makes cheapest to first order, y - t gap cov g / (g^T cov g) in the
+    reported variables (g: d model at rest / d variable, ``G``; :data:`ZERO_PATH`), one batched evaluation: to
+    first order its least is (gap / sqrt(sd^2 + g^T cov g))^2, the delta method, and where the model is not
+    linear there (a knit's phi0 against B, near its bound) the points are evaluated, not extrapolated (the
+    tared pair of tests/calibration/data: one standard error of the model at rest, 0.26 N, cost chi2 37 s^2).
+    A variable the rows do not set (infinite variance) that moves the force at rest is the path itself."""
+    names, y, _, _ = _reported(pb, x)
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    dead = ~np.isfinite(np.diag(cov))
+    out = []
+    for k, f in enumerate(fits):
+        g = None if G is None else np.asarray(G[k], float)
+        if f._zero_screened() is None or g is None or not np.all(np.isfinite(g)):
+            out.append((math.nan, math.nan, math.nan))
+            continue
+        gap, sd = f.pretension_N - f.rest_N, f.rest_sd_N
+        if not sd > 0:                               # a reading of no noise: no fit makes it but the best's own
+            out.append((math.inf, f.pretension_N, 0.0))
+            continue
+        free = np.flatnonzero(dead & (g != 0.0))
+        if len(free):
+            j = int(free[np.argmax(np.abs(g[free]))])
+            step = -(gap / g[j]) * np.eye(len(g))[j]
+        else:
+            d = c @ g
+            var = float(g @ d)
+            step = -(gap / var) * d if var > 0 else np.zeros(len(g))
+        pts = [np.clip(_fit_variables(pb, x, names, y + t * step), pb.lo, pb.hi) for t in ZERO_PATH]
+        zs: list = []
+        res = pb.evaluate_points(pts, None, zs)
+        chi0, z0 = float(res[0] @ res[0]), zs[0][k]
+        best = (math.nan, math.nan, math.nan)
+        for r, z in zip(res, zs):
+            at = f.pretension_N + (z[k] - z0)        # the specimen's own run's force at rest, moved as the fit's
+            rise = (float(r @ r) - chi0) / factor
+            cost = rise + ((at - f.rest_N) / sd) ** 2
+            if math.isfinite(cost) and not cost >= best[0]:
+                best = (cost, at, rise)
+        out.append(best)
     return out
 
 
@@ -1927,7 +2097,8 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     factor = max(s2, 1.0)
     grads: list = []
     info: list = []
-    cov = _covariance(pb, x, factor, offset_gradient=grads, information=info)
+    zero_grads: list = []
+    cov = _covariance(pb, x, factor, offset_gradient=grads, information=info, zero_gradient=zero_grads)
     names, y, los, his = _reported(pb, x)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -2021,6 +2192,13 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     if pb.offsets:
         ses = _offset_std_errors(pb, fits_bad, cov, grads[0] if grads else None, factor, info)
         fits = [replace(f, offset_se_N=float(se_k)) for f, se_k in zip(fits, ses)]
+    # the standard error of each model's force at grip strain 0: what the zero check reads the gap against
+    zses = _zero_std_errors(cov, zero_grads[0] if zero_grads else None, len(fits))
+    fits = [replace(f, pretension_se_N=float(se_k)) for f, se_k in zip(fits, zses)]
+    if pb.zero == "absolute":
+        costs = _zero_costs(pb, x, cov, zero_grads[0] if zero_grads else None, fits, factor)
+        fits = [replace(f, zero_cost=float(q), zero_witness_N=float(z), zero_witness_dchi2=float(dc))
+                for f, (q, z, dc) in zip(fits, costs)]
     # do the specimens look like one yarn? each refitted with its own yarn (checkpointed like the fit)
     own_done = state.setdefault("one_yarn", [])
 

@@ -294,8 +294,9 @@ def zero_md(result: JointResult) -> list[str]:
     if not r.n_offsets:
         return ["", "The files' zero: absolute (calibration.zero = \"absolute\"): each file's 0 N is taken as the "
                 "model's 0 N. A load cell zeroed with the knit mounted reads the model's force at grip strain 0 as "
-                "zero: such a file (it reads at rest well below the fitted knit's force there) is flagged; set "
-                "calibration.zero = \"tared\" (or \"fitted\") for it."]
+                "zero: such a file (it reads at rest well below the fitted knit's force there, beyond 5 sd of the "
+                "gap: its noise at rest and the fit's standard error of that force) is flagged; set "
+                "calibration.zero = \"tared\" (or \"fitted\") for it."] + [f"- Note: {x}." for x in r.zero_notes]
     out = ["", "## Force offsets (one per specimen; calibration.zero = \"fitted\")", "",
            "Each specimen's rows are fitted by the model plus a constant: the weighted least-squares offset of its "
            "rows (weights 1 / sd^2, the law of `knitsim diagnose`), projected out of the fit (the covariance above "

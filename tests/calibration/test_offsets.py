@@ -386,3 +386,38 @@ def test_the_zero_check_says_a_force_scale_where_the_knit_at_rest_outweighs_the_
     zero = fit(2.0, 0.3, 0.0).zero_check
     assert 'a load cell zeroed with the knit mounted? set [calibration] zero = "tared"' in zero
     assert "force scale (unit, wales, width)" in zero
+
+
+def test_the_zero_check_cannot_tell_where_the_rows_do_not_set_the_force_at_rest(tmp_path):
+    """A lab's test stopped at strain 0.024: B_lab.csv's first 6 readings (knitB, its zero right: the true knit's
+    rest force 0.1293 N plus the recipe's -0.003 N zero and noise), fitted alone.  Its 4 rows (0.005 .. 0.02, past
+    the knit's first slide) fit within their noise at a force at rest of 0.33 N, and the check before flagged it:
+    the file's 0.1225 N at rest lies more than 5 noise sd and 5 % of its peak below that.  But the rows do not set
+    the force at rest: the check's statistic, the cost of the reading at rest as one more row (SpecimenFit.zero_cost,
+    the chi2 rise of a fit of the rows plus the reading's own ((model - file) / sd)^2), is within 5^2, and so is
+    that of an independent witness, the true knit (B 0.31, m 0.20, phi0 0.03: data/README.md), its chi2 from the
+    fit's rows and its force at rest from the NumPy rest state (rest_force_per_wale): no flag, a note."""
+    from knitsim.calibration.joint import ZERO_CHECK_SD, ZERO_CHECK_SHARE, _Problem
+    lines = (DATA / "B_lab.csv").read_bytes().decode("utf-8-sig").splitlines()
+    short = tmp_path / "B_short.csv"
+    short.write_text("\n".join(lines[:4 + 6]) + "\n")
+    doc = _scene("A_lab.csv", "B_lab.csv", None)
+    doc["specimens"] = [dict(doc["specimens"][1], curve=str(short))]
+    sc = load_calibration_scene(doc)
+    r = calibrate_joint(sc.specimens, sc.setup)
+    f = r.fits[0]
+    gap = f.pretension_N - f.rest_N
+    # the check before: it flagged this file
+    assert gap > ZERO_CHECK_SD * f.rest_sd_N and gap > ZERO_CHECK_SHARE * f.peak_N, (gap, f.rest_sd_N, f.peak_N)
+    assert f.zero_check is None and not [x for x in r.flags if "at grip strain 0" in x], r.flags
+    assert f.zero_cost <= ZERO_CHECK_SD ** 2
+    note = [x for x in r.notes if x.startswith("specimen knitB: its zero cannot be checked")]
+    assert len(note) == 1 and f"reads {f.rest_N:.4g} N at rest" in note[0] and 'zero = "tared"' in note[0]
+    # the witness: the true knit, its rows' chi2 by the fit's residuals, its force at rest by the NumPy reference
+    pb = _Problem(sc.specimens, sc.setup)
+    truth = np.array([math.log(0.31), 0.20, PHI0["knitB"] / math.atan(0.20)])
+    assert [v.name for v in pb.vars] == ["B", "m", "phi0"]
+    res = pb.evaluate_points([truth])[0]
+    rise = (float(res @ res) - r.chi2) / max(r.s2, 1.0)
+    at_rest = _rest_N("knitB")
+    assert rise + ((at_rest - f.rest_N) / f.rest_sd_N) ** 2 <= ZERO_CHECK_SD ** 2, (rise, at_rest, f.rest_N)
