@@ -503,6 +503,12 @@ class SpecimenFit:
                 'would not be seen: if it was, set [calibration] zero = "tared"')
 
     @property
+    def force_unit(self) -> str:
+        """The unit of its forces as read (``target_N``, ``rms_N``, ``pretension_N``): ``"N"`` (total) or ``"N per
+        wale"`` (a force-per-wale column: a probe's per-wale file was reported with an RMS of 0.00032 "N")."""
+        return "N per wale" if self.offset_unit == "N per wale" else "N"
+
+    @property
     def dof_rows(self) -> int:
         """Its rows less its fitted offset (the degrees of freedom of its chi2 per row)."""
         return len(self.strain) - (0 if self.offset_N is None else 1)

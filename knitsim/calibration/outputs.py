@@ -95,7 +95,7 @@ def _fit_line(f) -> str:
            "zero: this scene runs the model itself)")
     off += ("" if tare is None else f"; of the model less its force at grip strain 0, {tare:.4g} {f.offset_unit} (a "
             "file tared with the knit mounted: this scene runs the model itself)")
-    return f"fit: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}{off}"
+    return f"fit: RMS {f.rms_N:.4g} {f.force_unit} ({100 * f.rms_rel:.2g} %){band}{off}"
 
 
 def _knit_notes_of(result: JointResult, f) -> str:
@@ -122,7 +122,7 @@ def cell_scene_of(result: JointResult, k: int, source: str, device: str = "cpu")
                    "max_increment": result.setup.max_increment}
     pre_line = ("" if pre == 0 else
                 f"\npretensioned specimen: the cell's strain is the knit's, (1 + {pre:.6g})(1 + grip strain) - 1 "
-                f"(grip strain 0 at {pre:.6g}, where it carries {f.pretension_N:.4g} N); the patch scene runs in "
+                f"(grip strain 0 at {pre:.6g}, where it carries {f.pretension_N:.4g} {f.force_unit}); the patch scene runs in "
                 "grip strain")
     header = (f"Specimen {f.name}, calibrated jointly with {', '.join(g.name for g in result.fits if g is not f) or 'no other'}"
               f" by knitsim calibrate {source}\n"
@@ -149,7 +149,7 @@ def patch_scene_of(result: JointResult, k: int, source: str, width_mm: float, ga
               f"{width_mm / f.params.W0:.4g} wales (width / W0), {gauge_length_mm / (1 + pre) / f.params.C0:.4g} "
               + ("courses (gauge length / (1 + pretension) / C0)" if pre else "courses (gauge length / C0)")
               + "; curve.csv force_N is the total force"
-              + (f"\npretension: the knit is at strain {pre:.4g} at grip strain 0 ({f.pretension_N:.4g} N; the run "
+              + (f"\npretension: the knit is at strain {pre:.4g} at grip strain 0 ({f.pretension_N:.4g} {f.force_unit}; the run "
                  "starts at rest, at negative grip strain)" if pre else "")
               + f"\n{_fit_line(f)}{_knit_notes_of(result, f)}\nunits N, mm, rad")
     return dumps(doc, header=_header(result, header))
@@ -243,15 +243,15 @@ def report_md(result: JointResult, title: str, source: str, files: list[str], ze
     lines += ["", "phi0 in rad (a fraction of phimax = atan(m) in the fit); pretension: the knit's strain at grip "
               "strain 0 (the tester's pretension before the strain origin; rows at knit strain "
               "(1 + pretension)(1 + grip strain) - 1).", "", "## Fits", "",
-              "| specimen | wales (width / W0) | rows | in the band | in the band +- force accuracy | RMS [N] | "
-              "RMS / RMS force | chi2 | pretension | force at grip strain 0 [N] | cells |",
+              "| specimen | wales (width / W0) | rows | in the band | in the band +- force accuracy | RMS | "
+              "RMS / RMS force | chi2 | pretension | force at grip strain 0 | cells |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for f in r.fits:
         band = "-" if f.in_band_fraction is None else f"{100 * f.in_band_fraction:.0f} %"
         tol = "-" if f.in_band_tolerant is None else f"{100 * f.in_band_tolerant:.0f} %"
-        lines.append(f"| {f.name} | {f.wales:.4g} | {len(f.strain)} | {band} | {tol} | {f.rms_N:.4g} | "
-                     f"{100 * f.rms_rel:.2g} % | {f.chi2:.4g} | {f.pretension:.4g} | {f.pretension_N:.4g} | "
-                     f"{f.status} |")
+        lines.append(f"| {f.name} | {f.wales:.4g} | {len(f.strain)} | {band} | {tol} | {f.rms_N:.4g} {f.force_unit} | "
+                     f"{100 * f.rms_rel:.2g} % | {f.chi2:.4g} | {f.pretension:.4g} | {f.pretension_N:.4g} "
+                     f"{f.force_unit} | {f.status} |")
     lines += ["", "In the band: the share of the rows (of the strain range) where the model lies between the two "
               "envelopes; +- force accuracy: the band widened by the force reading's accuracy "
               "(calibration.force_accuracy, of the force) on either side: where the envelopes meet or cross the band "
@@ -372,10 +372,11 @@ def plot_fit(fit, title: str = "", flags: list[str] | tuple = ()) -> bytes:
     ax.plot(fit.strain, shown_N, color="tab:blue", lw=1.6,
             label=f"calibrated model {off:+.3g} N (fitted offset)" if off is not None else
             f"calibrated model - {tare:.3g} N (tared at grip strain 0)" if tare is not None else "calibrated model")
-    ax.set_ylabel("force [N]")
+    ax.set_ylabel("force per wale [N]" if fit.force_unit == "N per wale" else "force [N]")
     frac = "" if fit.in_band_fraction is None else f", {100 * fit.in_band_fraction:.0f} % in the band"
     bad = "" if fit.status == "ok" else f", CELL {fit.status.upper()}"
-    ax.set_title(title or f"{fit.name}: RMS {fit.rms_N:.3g} N ({100 * fit.rms_rel:.2g} %){frac}{bad}", fontsize=10)
+    ax.set_title(title or f"{fit.name}: RMS {fit.rms_N:.3g} {fit.force_unit} ({100 * fit.rms_rel:.2g} %){frac}{bad}",
+                 fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax2.axhline(0, color="k", lw=0.8)

@@ -151,14 +151,14 @@ def _run_locked(args) -> int:
         for f in result.fits:
             band = "" if f.in_band_fraction is None else f"; {100 * f.in_band_fraction:.0f} % of the strain range " \
                                                          "inside the band"
-            print(f"{f.name}: RMS {f.rms_N:.4g} N ({100 * f.rms_rel:.2g} %){band}; chi2 per row "
+            print(f"{f.name}: RMS {f.rms_N:.4g} {f.force_unit} ({100 * f.rms_rel:.2g} %){band}; chi2 per row "
                   f"{f.chi2_per_row:.3g}; cells {f.status}"
                   + ("" if f.status == "ok" else " (DID NOT SOLVE ON EVERY ROW)"))
         for f in result.fits:
             if f.offset_N is not None:
                 print(f"{f.name}: force offset {f.offset_N:+.4g} +- {f.offset_se_N:.2g} {f.offset_unit} "
                       f"({100 * f.offset_share:.3g} % of its peak measured force; the model's force at grip strain 0 "
-                      f"{f.pretension_N:.4g} N)")
+                      f"{f.pretension_N:.4g} {f.force_unit})")
             if f.tare_N is not None:
                 print(f"{f.name}: tared at the model's force at grip strain 0: {f.tare_N:.4g} N"
                       + ("" if f.offset_unit == "N (total)" else " per wale"))

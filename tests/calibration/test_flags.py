@@ -374,3 +374,21 @@ def test_a_specimen_not_made_even_with_a_yarn_of_its_own_is_named():
     assert len(named) == 1 and named[0].startswith("specimen stripC ") and "486" in named[0], named
     assert "knitA 0.775" in named[0] and "knitB 1.06" in named[0]
     assert flags((400.0, 420.0, 19440.0)) == []
+
+
+def test_a_force_per_wale_specimen_is_reported_per_wale():
+    """A specimen read from a force_per_wale_N column (SpecimenFit.offset_unit "N per wale", as calibrate_joint
+    sets it) has its forces per wale: its RMS and its force at grip strain 0 are said per wale in the report's
+    Fits table and its scene's fit line (a probe's per-wale file read "RMS 0.0003195 N" on the console and in the
+    report; the same test as a total force over its 10 wales, 0.003195 N); a total force's stay in N."""
+    from dataclasses import replace
+    from knitsim.calibration.outputs import _fit_line
+    r = _result([Estimate("B", None, 0.31, 0.01, "N mm^2", 0.01, 9.3)])
+    r.fits[0] = replace(r.fits[0], offset_unit="N per wale", rms_N=0.0003195, pretension_N=0.0129)
+    assert r.fits[0].force_unit == "N per wale"
+    report = report_md(r, "t", "s.toml", [])
+    row = next(line for line in report.splitlines() if line.startswith("| tight |"))
+    assert "0.0003195 N per wale" in row and "0.0129 N per wale" in row
+    assert "fit: RMS 0.0003195 N per wale" in cell_scene_of(r, 0, "s.toml")
+    total = replace(r.fits[0], offset_unit="N (total)")
+    assert total.force_unit == "N" and "fit: RMS 0.0003195 N (" in _fit_line(total)
