@@ -652,14 +652,17 @@ class OneYarnCheck:
         if not self.flagged:
             return ""
         pull = self.pull_text()
+        # two specimens, or more (a probe's four read "makes both curves", "neither's")
+        both, neither = (("both curves", "neither's") if len(self.specimens) == 2 else
+                         (f"all {len(self.specimens)} curves", "none of theirs"))
         return (f"the specimens do not look like one yarn (p = {self.p:.2g} < {self.threshold:g}): with a yarn each "
                 f"({', '.join(self.shared)}) they fit better than noise explains ("
                 + ("the mid-line fit the band likelihood started from: " if self.objective == "band" else "")
                 + f"chi2 {self.chi2_joint:.4g} -> "
                 f"{self.chi2_own:.4g}, F = {self.F:.3g} on {self.dof} and {self.dof_resid} dof), each its own "
-                f"{self.yarn_text()}; one yarn makes both curves only with worse rows or knits moved from their "
+                f"{self.yarn_text()}; one yarn makes {both} only with worse rows or knits moved from their "
                 "stated values" + (f" (the largest move: {pull})" if pull else "") + ": they are different yarns, "
-                "or the model cannot make both curves with one yarn; the yarn calibrated on them is neither's")
+                f"or the model cannot make {both} with one yarn; the yarn calibrated on them is {neither}")
 
     def as_dict(self) -> dict:
         return {"ran": self.ran, "why_not": self.why_not, "flagged": self.flagged, "specimens": list(self.specimens),

@@ -174,6 +174,17 @@ def test_the_flag_line_of_a_hand_built_check():
     assert "B 0.2516 | 0.6509 N mm^2; m 0.4 | 0.41 (tight | loose)" in line
     assert "L[loose], 2.8 prior sd from its stated 16 mm" in line
     assert OneYarnCheck(True, p=0.002).flag() == "" and not OneYarnCheck(False, "one specimen").flagged
+    assert "makes both curves only" in line and "is neither's" in line
+
+
+def test_the_flag_line_of_more_than_two_specimens_counts_them():
+    """Four specimens (a probe's three knits of one yarn and one of 3 x its B): the flag read "one yarn makes both
+    curves" and "the yarn calibrated on them is neither's"; the count is the specimens'."""
+    c = OneYarnCheck(True, "", ("A", "B", "C", "S"), ("B",), 100.0, (25.0,) * 4, (10.0,) * 4, 3, 390, 50.0, 1e-20,
+                     tuple({"B": b} for b in (0.31, 0.29, 0.31, 0.91)), {"B": "N mm^2"})
+    line = c.flag()
+    assert "one yarn makes all 4 curves only" in line and "cannot make all 4 curves with one yarn" in line
+    assert line.endswith("the yarn calibrated on them is none of theirs") and "both" not in line
 
 
 def _band_files(tmp_path, half=0.04):
