@@ -74,8 +74,8 @@ the grips carries about 0 N, and a lab usually zeroes its load cell with the spe
   its peak below the fitted model's force at grip strain 0: a file tared with the knit mounted, fitted as
   absolute, moves m by tens of standard errors (a probe: m 0.103 +- 0.002 against the true 0.20) and
   reads one yarn as two.  The reading at rest is no row of the fit: it is flagged only where it costs more
-  than ZERO_CHECK_SD^2 as one more row against the fit's freedom there (:func:`_zero_costs`), else noted as
-  a zero that cannot be checked (few rows, or rows from past the knit's first slide).
+  than ZERO_CHECK_SD^2 as one more row (a refit with it, :func:`_zero_costs`), else noted as a zero that
+  cannot be checked (few rows, rows from past the knit's first slide, a knit free within its priors).
 - ``"tared"``: the file's zero is the model's state at grip strain 0 (its rest state): each row is fitted
   as the model's force less the model's rest force, from the same simulation (the batch's rest state).  No
   parameter is added; the report gives the force subtracted (:attr:`SpecimenFit.tare_N`).  Refused with a
@@ -380,10 +380,9 @@ class SpecimenFit:
         rows do not set it; NaN: not known).
     zero_cost, zero_witness_N, zero_witness_dchi2 : float
         The zero check's statistic (:func:`_zero_costs`; NaN: not computed, read as (gap / rest_sd_N)^2): the
-        least, over points on the fit's cheapest path to the file's reading at rest (the covariance's, to
-        first order), of the rows' chi2 rise in s^2 plus ((model at grip strain 0 - rest_N) / rest_sd_N)^2:
-        the cost of that reading as one more row; to first order (gap / sqrt(rest_sd^2 + pretension_se^2))^2.
-        The model's force at grip strain 0 at that point, and its chi2 rise in s^2.
+        cost of the file's reading at rest as one more row, the least (a refit with it) of the rows' chi2 rise
+        in s^2 plus ((model at grip strain 0 - rest_N) / rest_sd_N)^2; to first order (gap / sqrt(rest_sd^2 +
+        pretension_se^2))^2.  The model's force at grip strain 0 at that point, and its chi2 rise in s^2.
     """
 
     name: str
@@ -1077,6 +1076,8 @@ class _Problem:
             top = pretension_strain(float(longest.strain[-1]), float(top_pre))
             self.program = monotonic(top, setup.max_increment)
         self.calls = 0
+        # the zero check's refit (_zero_costs): (specimen, the reading at rest it is to make, its sd), one row more
+        self.rest_row: tuple | None = None
         # the rows' objective now (a band fit's first stage is the mid-line fit: calibrate_joint)
         self.objective = "midline"
 
@@ -1379,6 +1380,7 @@ class _Problem:
         their force column's units (:meth:`at_grip_zero`; NaN where a cell is inadmissible)."""
         shared, own = self.model_values(x)
         parts = []
+        rest_row = FAIL_RESIDUAL * 1e3                 # the zero check's row where its cell is inadmissible
         for k, s in enumerate(self.sp):
             w = s.wales(own[k]["W0"]) if s.total else 1.0
             fail = FAIL_RESIDUAL * np.maximum(1.0, np.abs(s.target_N) / s.sigma_N)
@@ -1391,6 +1393,8 @@ class _Problem:
                 continue
             if zeros_out is not None:
                 zeros_out.append(w * self.at_grip_zero(k, sims[k], own[k]))
+            if self.rest_row is not None and self.rest_row[0] == k:
+                rest_row = (w * self.at_grip_zero(k, sims[k], own[k]) - self.rest_row[1]) / self.rest_row[2]
             f, st = self.at_rows(k, sims[k], own[k])
             if self.tared:                # the file's 0 N is the model's force at grip strain 0
                 f = f - self.at_zero(k, sims[k], own[k])
@@ -1407,6 +1411,8 @@ class _Problem:
             elif v.name == "pretension":
                 s = self.sp[v.specimen]
                 parts.append(np.array([xi / s.pretension_sd]))     # prior: the strain origin at face value
+        if self.rest_row is not None:
+            parts.append(np.array([rest_row]))
         return np.concatenate(parts)
 
     def evaluate_points(self, X: Sequence[np.ndarray], offsets_out: list | None = None,
@@ -1676,59 +1682,44 @@ def _zero_std_errors(cov: np.ndarray, G: np.ndarray | None, n: int) -> list:
     return out
 
 
-#: the zero check's path (:func:`_zero_costs`): fractions of the first-order step from the best point to the model
-#: force at grip strain 0 that the file reads at rest (first order, the least cost lies at se^2 / (se^2 + sd^2))
-ZERO_PATH = (0.0, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
-
-
-def _zero_costs(pb: _Problem, x: np.ndarray, cov: np.ndarray, G: np.ndarray | None, fits: list,
-                factor: float) -> list:
+def _zero_costs(pb: _Problem, x: np.ndarray, fits: list, factor: float, refit) -> list:
     """The zero check's statistic for each specimen that reads at rest well below its fitted model
     (:meth:`SpecimenFit._zero_screened`; (NaN, NaN, NaN) for the others): (cost, the model's force at grip
     strain 0 where it is least, the rows' chi2 rise there in s^2).
 
     The file's reading at rest (``rest_N``, sd ``rest_sd_N``) is not a row of the fit (they start at one row
     step), so whether it disagrees with the model is the cost of it as one more row: the least over the
-    variables of the rows' chi2 rise (in the covariance's factor s^2, ``factor``) plus ((model at rest - rest_N) / sd)^2.
-    It is sought on the path the covariance makes cheapest to first order, y - t gap cov g / (g^T cov g) in the
-    reported variables (g: d model at rest / d variable, ``G``; :data:`ZERO_PATH`), one batched evaluation: to
-    first order its least is (gap / sqrt(sd^2 + g^T cov g))^2, the delta method, and where the model is not
-    linear there (a knit's phi0 against B, near its bound) the points are evaluated, not extrapolated (the
-    tared pair of tests/calibration/data: one standard error of the model at rest, 0.26 N, cost chi2 37 s^2).
-    A variable the rows do not set (infinite variance) that moves the force at rest is the path itself."""
-    names, y, _, _ = _reported(pb, x)
-    c = np.where(np.isfinite(cov), cov, 0.0)
-    dead = ~np.isfinite(np.diag(cov))
+    variables of the rows' chi2 rise (in the covariance's factor s^2, ``factor``) plus ((model at rest -
+    rest_N) / sd)^2, a likelihood ratio.  Sought by a refit from the best point ``x`` with that row added
+    (``refit(x0, what)``: the calibration's refinement, bounds and checkpoint, :attr:`_Problem.rest_row`); the
+    cost at ``x`` itself, (gap / sd)^2, where that is less.  To first order it is (gap / sqrt(sd^2 + se^2))^2
+    (the delta method, se = ``pretension_se_N``), but the model is far from linear there: a probe's three knits
+    with W0, C0 and phi0 free read se = 1.5 N at rest (linear), while one standard error along the covariance's
+    line cost chi2 2148 s^2; the tared pair of tests/calibration/data one of 0.26 N, and 37 s^2."""
     out = []
     for k, f in enumerate(fits):
-        g = None if G is None else np.asarray(G[k], float)
-        if f._zero_screened() is None or g is None or not np.all(np.isfinite(g)):
+        if f._zero_screened() is None:
             out.append((math.nan, math.nan, math.nan))
             continue
         gap, sd = f.pretension_N - f.rest_N, f.rest_sd_N
         if not sd > 0:                               # a reading of no noise: no fit makes it but the best's own
             out.append((math.inf, f.pretension_N, 0.0))
             continue
-        free = np.flatnonzero(dead & (g != 0.0))
-        if len(free):
-            j = int(free[np.argmax(np.abs(g[free]))])
-            step = -(gap / g[j]) * np.eye(len(g))[j]
-        else:
-            d = c @ g
-            var = float(g @ d)
-            step = -(gap / var) * d if var > 0 else np.zeros(len(g))
-        pts = [np.clip(_fit_variables(pb, x, names, y + t * step), pb.lo, pb.hi) for t in ZERO_PATH]
         zs: list = []
-        res = pb.evaluate_points(pts, None, zs)
-        chi0, z0 = float(res[0] @ res[0]), zs[0][k]
-        best = (math.nan, math.nan, math.nan)
-        for r, z in zip(res, zs):
-            at = f.pretension_N + (z[k] - z0)        # the specimen's own run's force at rest, moved as the fit's
-            rise = (float(r @ r) - chi0) / factor
-            cost = rise + ((at - f.rest_N) / sd) ** 2
-            if math.isfinite(cost) and not cost >= best[0]:
-                best = (cost, at, rise)
-        out.append(best)
+        chi0 = float(np.sum(pb.evaluate_points([x], None, zs)[0] ** 2))
+        # the specimen's own run's force at rest (pretension_N) moves as the fit's program's (at_grip_zero)
+        shift = f.pretension_N - zs[0][k]
+        pb.rest_row = (k, f.rest_N - shift, sd)
+        try:
+            sol = refit(x, f"zero check of {f.name}")
+        finally:
+            pb.rest_row = None
+        zs = []
+        rise = (float(np.sum(pb.evaluate_points([sol.x], None, zs)[0] ** 2)) - chi0) / factor
+        at = zs[0][k] + shift
+        cost = rise + ((at - f.rest_N) / sd) ** 2
+        out.append(min((cost, at, rise), ((gap / sd) ** 2, f.pretension_N, 0.0),
+                       key=lambda c: c[0] if math.isfinite(c[0]) else math.inf))
     return out
 
 
@@ -2205,7 +2196,18 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     zses = _zero_std_errors(cov, zero_grads[0] if zero_grads else None, len(fits))
     fits = [replace(f, pretension_se_N=float(se_k)) for f, se_k in zip(fits, zses)]
     if pb.zero == "absolute":
-        costs = _zero_costs(pb, x, cov, zero_grads[0] if zero_grads else None, fits, factor)
+        zero_done = state.setdefault("zero_check", [])
+        refits = [0]
+
+        def zero_refine(x0, what):
+            i = refits[0]
+            refits[0] += 1
+            return zero_done[i] if i < len(zero_done) else refine(x0, what, pb, "zero_check")
+        try:
+            costs = _zero_costs(pb, x, fits, factor, zero_refine)
+        except KeyboardInterrupt:
+            save()
+            raise
         fits = [replace(f, zero_cost=float(q), zero_witness_N=float(z), zero_witness_dchi2=float(dc))
                 for f, (q, z, dc) in zip(fits, costs)]
     # do the specimens look like one yarn? each refitted with its own yarn (checkpointed like the fit)
