@@ -519,8 +519,9 @@ def _aliased(cells: list[str], names: list[str], aliases: dict, unit_cells: list
                 stated = " or ".join(repr(f"{bare} ({u})") for u in (("%", "-") if _dimensionless(name) else
                                                                      (_implied_unit(name),)))
                 why_not.append((j, f"{cell!r} is read as {name} with its unit stated ({stated})" if unit is None else
-                                f"{cell!r} is not read as {name}: {unit!r} is not its unit (convert the column: "
-                                f"{stated})"))
+                                f"{cell!r} is not read as {name}: {unit!r} is not its unit"
+                                + (f", {PER_WIDTH_HINT}" if _per_width(unit) and _knit_force_column(name) else "")
+                                + f" (convert the column: {stated})"))
     # (a cell not read as one column may be another's: Force [N/wale] is no force_N, and is force_per_wale_N)
     return keys, taken, [why for j, why in why_not if j not in taken]
 
@@ -529,6 +530,22 @@ def _per_wale(unit: str) -> bool:
     """Whether ``unit`` is per wale (``N/wale``, ``kN / wale``, ``N per wale``)."""
     u = _unit_norm(unit)
     return u.endswith("/wale") or u.endswith("/wales") or u.endswith("perwale")
+
+
+def _per_width(unit: str) -> bool:
+    """Whether ``unit`` is a force per length (``N/mm``, ``kN/m``, ``N/cm``): a lab's load per specimen width."""
+    return re.fullmatch(r"[mk]?n/(mm|cm|m)", _unit_norm(unit)) is not None
+
+
+#: what a force per width is (a probe's 'Load [N/mm]' was told to convert the column to 'Load (N)', not how)
+PER_WIDTH_HINT = ("a force per width: times the specimen's width (in that length unit) it is the total force, times "
+                  "the wale spacing W0 the force per wale")
+
+
+def _knit_force_column(name: str) -> bool:
+    """Whether the column asked for as ``name`` is a knit's force (``load_N``, ``force_N``, ``force_per_wale_N``),
+    which a force per width converts to (:data:`PER_WIDTH_HINT`)."""
+    return _key(name) in ("load_n", "force_n") or _per_wale_column(name)
 
 
 def _per_wale_column(name: str) -> bool:
@@ -780,6 +797,8 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
             # (a per-wale unit on a total force's name: the column is most likely a force per wale, named wrong)
             what = ("name the column force_per_wale_N if it holds a force per wale, else convert it to the total "
                     "force in N" if _per_wale(unit) and not _per_wale_column(name) else
+                    f"{PER_WIDTH_HINT}: convert the column and write the unit its name implies, or none"
+                    if _per_width(unit) and _knit_force_column(name) else
                     "convert the column and write the unit its name implies, or none")
             raise KnitsimInputError(f"{path}: row {line}, column {cell!r}: the unit {unit!r} is not that of {name} "
                                     f"(its name says its unit); {what}.")

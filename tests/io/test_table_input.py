@@ -797,3 +797,27 @@ def test_a_force_column_named_for_another_unit_is_said_as_such(tmp_path, cell, u
     with pytest.raises(KnitsimInputError, match=rf"missing column\(s\) load_N .*'{cell}' is a force in {unit}, not "
                                                  r"in N: convert it to N and name the column load_N$"):
         read_csv_columns(f, ["strain", "load_N"])
+
+
+def test_a_force_per_width_is_refused_saying_what_it_is(tmp_path):
+    # Found by a probe (hand-made lab files): 'Load [N/mm]', a load per specimen width, was refused with "convert the
+    # column: 'Load (N)'", as kN is, without saying how (a width is no factor of a unit).  Expected, from the reading
+    # rules: still refused (a force per width is neither a total force nor a force per wale), naming the header
+    # cell and saying that the width, or the wale spacing, converts it; a unit in kN keeps its own advice.
+    from knitsim.io.table_input import LAB_ALIASES, PER_WIDTH_HINT
+    names = ("strain", "load_N", "force_N", "force_per_wale_N")
+    for header in ("strain,Load [N/mm]", "strain,Load (kN/m)"):
+        p = _write(tmp_path, header + "\n0,0\n0.1,1\n0.2,2\n0.3,3\n", "w.csv")
+        with pytest.raises(KnitsimInputError) as e:
+            read_csv_columns(p, ("load_N",), names, aliases=LAB_ALIASES)
+        assert f"'{header.split(',')[1]}' is not read as load_N" in str(e.value) and PER_WIDTH_HINT in str(e.value)
+    for header, cell in (("strain,load_N [N/mm]\n", "'load_N [N/mm]'"), ("strain,force_per_wale_N\n-,N/mm\n",
+                                                                         "'force_per_wale_N'")):
+        p = _write(tmp_path, header + "0,0\n0.1,1\n0.2,2\n0.3,3\n", "w2.csv")
+        with pytest.raises(KnitsimInputError) as e:
+            read_csv_columns(p, ("strain",), names, aliases=LAB_ALIASES)
+        assert f"column {cell}: the unit 'N/mm' is not that of" in str(e.value) and PER_WIDTH_HINT in str(e.value)
+    p = _write(tmp_path, "strain,Load [kN]\n0,0\n0.1,1\n", "k.csv")
+    with pytest.raises(KnitsimInputError) as e:
+        read_csv_columns(p, ("load_N",), names, aliases=LAB_ALIASES)
+    assert PER_WIDTH_HINT not in str(e.value) and "'kN' is not its unit (convert the column: 'Load (N)')" in str(e.value)
