@@ -81,14 +81,16 @@ def register(subparsers) -> None:
 
 
 def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: bool = True,
-                       cell_fields: bool = True, cells_increments: int | None = None) -> list[dict]:
+                       cell_fields: bool = True, cells_increments: int | None = None,
+                       origins: dict | None = None) -> list[dict]:
     """Before any solve: every distinct cell of the patch against the model's domain (knitsim.cell.domain), and
     the run's records against the machine's memory (:func:`check_record_memory`; ``cell_fields``: cells.nc is
     written, holding ``cells_increments`` increments, default all).
 
     A cell without an admissible rest state is an error (one line: how many cells, the first one's
-    course and wale, the reason): the model cannot run it, and a column holding it has no rest state
-    either.  So is a cell whose rest state already carries its force cap (no program can load it).  Cells outside the domain's box, and a grip program whose strains leave it, are an
+    course and wale, the reason, and, given the scene's ``origins`` (:attr:`PatchScene.origins`), that cell's
+    C0, W0, L and phi0 with the key that set each: a zone's, a map's or the base knit's): the model cannot run
+    it, and a column holding it has no rest state either.  So is a cell whose rest state already carries its force cap (no program can load it).  Cells outside the domain's box, and a grip program whose strains leave it, are an
     extrapolation: returned as ``outside_domain`` warnings for the summary (how many cells, by the
     quantity outside).  Identical cells are checked once (the patch's grouping).  The strains the cells
     reach are judged after the run, from the results (a pretension, or cells in series with stiffer ones,
@@ -97,6 +99,7 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     import numpy as np
 
     from ..cell.domain import DOMAIN, check_cell_arrays
+    from ..scene.schema import fmt
 
     grouping = model.grouping(dedup=True)
     n_cells = int(grouping.group_of_cell.size)
@@ -111,14 +114,18 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     check = check_cell_arrays(grouping.cells, engine=engine, device=device)
     cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=grouping.n_groups)
     caps = np.asarray(grouping.cells["force_cap_N"], dtype=np.float64)
-    for bad, why_of, what, source in (
-            (check.no_rest_mask, check.no_rest_reason, "have no admissible rest state", " (knitsim.cell.domain)"),
-            (check.at_cap_mask(caps), lambda g: check.at_cap_reason(g, caps[g]), "cannot be loaded", "")):
+    for bad, why_of, what, source, named in (
+            (check.no_rest_mask, check.no_rest_reason, "have no admissible rest state", " (knitsim.cell.domain)",
+             ("C0", "W0", "L", "phi0")),
+            (check.at_cap_mask(caps), lambda g: check.at_cap_reason(g, caps[g]), "cannot be loaded", "", ())):
         if bad.any():
             n = int(cells_of[bad].sum())
             i, j = np.argwhere(bad[grouping.group_of_cell])[0]
+            # the keys that set the cell (a zone's knit.L, a gradient map: a blind probe's refusal named neither)
+            keys = "" if origins is None or not named else "; there " + ", ".join(
+                f"{k} = {fmt(float(model.fields[k][i, j]))} ({origins[k][i, j]})" for k in named)
             raise KnitsimInputError(f"{n} of {n_cells} cell(s) {what}, e.g. course {i}, wale {j}: "
-                                    f"{why_of(int(grouping.group_of_cell[i, j]))}{source}")
+                                    f"{why_of(int(grouping.group_of_cell[i, j]))}{source}{keys}")
     warnings = []
     out = check.outside_mask
     if out.any():
@@ -436,7 +443,8 @@ def _run_locked(args) -> int:
             domain_warnings = check_patch_domain(
                 scene.model, scene.program.strain, scene.engine, device, scene.dedup,
                 cell_fields=scene.output["cell_fields"],
-                cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])))
+                cells_increments=len(strided_increments(scene.program.direction, scene.output["cells_stride"])),
+                origins=scene.origins)
         overlaps = zone_overlaps(scene.resolved)
         codes, distinct = effect_set_codes(scene.model.effects.ravel())
         n_cells = codes.size

@@ -94,6 +94,31 @@ def test_a_cell_without_a_rest_state_is_refused_naming_the_scene(tmp_path, capsy
     assert not (tmp_path / "c").exists()
 
 
+_TIGHT_BASE = ('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[friction]\nm = 0.2\n'
+               '[load]\ntype = "monotonic"\ntarget_strain = 0.1\nmax_increment = 0.05\n')
+
+
+@pytest.mark.parametrize("cells, key", [
+    ('[patch]\nwales = 2\ncourses = 2\n[[zones]]\nlabel = "tight"\ncourses = [1, 2]\nknit = { L = 10.0 }\n',
+     "L = 10.0 (zones[0].knit.L)"),
+    ('[patch]\nwales = 3\ncourses = 2\n[maps.L]\ntype = "gradient"\naxis = "wales"\nstart = 14.1\nend = 9.0\n',
+     "L = 11.55 (maps.L)"),
+], ids=["zone", "gradient"])
+def test_a_cell_without_a_rest_state_names_the_zone_or_map_that_set_it(tmp_path, capsys, cells, key):
+    """A zone or a gradient that leaves some cells without a rest state is refused naming the key that set them
+    and its value at the cell named (the scene's own text: L = 10 in zones[0]; the gradient 14.1 -> 9.0 over 3
+    wales puts 11.55 on wale 1, E-glass's rest state needs about 14): the refusal named neither (a blind probe:
+    "4 of 4 cell(s) have no admissible rest state, e.g. course 1, wale 0: no rest state: ..."). Exit 2, no
+    output folder."""
+    scene = tmp_path / "tight.toml"
+    scene.write_text(cells + _TIGHT_BASE)
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "have no admissible rest state" in err and key in err and "Traceback" not in err, err
+    assert "C0 = 2.7 (knit.C0), W0 = 4.4 (knit.W0)" in err, err
+    assert not (tmp_path / "o").exists()
+
+
 def test_resume_of_a_finished_run_says_it_is_finished(tmp_path, capsys):
     # a finished run removes its checkpoint: --resume read "no checkpoint ... to resume from", as if lost (a probe)
     scene, out = REPO / "scenes" / "random_phi0.toml", tmp_path / "o"
