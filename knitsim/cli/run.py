@@ -90,7 +90,9 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     A cell without an admissible rest state is an error (one line: how many cells, the first one's
     course and wale, the reason, and, given the scene's ``origins`` (:attr:`PatchScene.origins`), that cell's
     C0, W0, L and phi0 with the key that set each: a zone's, a map's or the base knit's): the model cannot run
-    it, and a column holding it has no rest state either.  So is a cell whose rest state already carries its force cap (no program can load it).  Cells outside the domain's box, and a grip program whose strains leave it, are an
+    it, and a column holding it has no rest state either.  So is a cell whose rest state already carries its force
+    cap (no program can load it; the key that set the cap named likewise).  Cells outside the domain's box, and a
+    grip program whose strains leave it, are an
     extrapolation: returned as ``outside_domain`` warnings for the summary (how many cells, by the
     quantity outside).  Identical cells are checked once (the patch's grouping).  The strains the cells
     reach are judged after the run, from the results (a pretension, or cells in series with stiffer ones,
@@ -117,13 +119,15 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     for bad, why_of, what, source, named in (
             (check.no_rest_mask, check.no_rest_reason, "have no admissible rest state", " (knitsim.cell.domain)",
              ("C0", "W0", "L", "phi0")),
-            (check.at_cap_mask(caps), lambda g: check.at_cap_reason(g, caps[g]), "cannot be loaded", "", ())):
+            (check.at_cap_mask(caps), lambda g: check.at_cap_reason(g, caps[g]), "cannot be loaded", "",
+             ("force_cap_N",))):
         if bad.any():
             n = int(cells_of[bad].sum())
             i, j = np.argwhere(bad[grouping.group_of_cell])[0]
             # the keys that set the cell (a zone's knit.L, a gradient map: a blind probe's refusal named neither)
-            keys = "" if origins is None or not named else "; there " + ", ".join(
-                f"{k} = {fmt(float(model.fields[k][i, j]))} ({origins[k][i, j]})" for k in named)
+            keys = "" if origins is None or not named else "; that cell's " + ", ".join(
+                f"{k} = {fmt(float(model.fields[k][i, j] if k in model.fields else caps[grouping.group_of_cell[i, j]]))} "
+                f"({origins[k][i, j]})" for k in named)
             raise KnitsimInputError(f"{n} of {n_cells} cell(s) {what}, e.g. course {i}, wale {j}: "
                                     f"{why_of(int(grouping.group_of_cell[i, j]))}{source}{keys}")
     warnings = []

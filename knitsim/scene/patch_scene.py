@@ -260,7 +260,7 @@ class PatchScene:
     resolved : dict
         The scene with every default filled (a valid scene itself, :meth:`to_toml`).
     origins : dict of str to ndarray of str
-        Key path that set each cell's parameter (for messages).
+        Key path that set each cell's parameter, and its ``force_cap_N`` (for messages).
     source : str
     """
 
@@ -477,6 +477,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                    "m": "friction.m", "phi0": "friction.phi0", "dahl_sigma": "friction.dahl_sigma",
                    "in_plane_width": "yarn.in_plane_width"}
     origins = {n: np.full(shape, _BASE_PATHS[n], dtype=object) for n in PARAM_NAMES}
+    # and the force cap's (a zone's rules.force_cap_N below a cell's rest force is refused naming it)
+    origins["force_cap_N"] = np.full(shape, _Origins(None, {}, filled).path("rules", "force_cap_N"), dtype=object)
 
     def zone_tables(raw_over: dict, where: str, org) -> dict:
         merged = _merge(raw_base, raw_over)
@@ -568,7 +570,8 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                                     "effects table (zones[k].knit = { W0 = ... }), or leave it out")
         raw_over = {t: validate(PATCH_SCENE.fields["zones"].item.fields[t], data["zones"][z].get(t, {}),
                                 f"zones[{z}].{t}", fill_defaults=False) for t in zone_names}
-        ztables = zone_tables(raw_over, f"zones[{z}]", _ZoneOrigins(z, raw_over))
+        zorg = _ZoneOrigins(z, raw_over)
+        ztables = zone_tables(raw_over, f"zones[{z}]", zorg)
         ci = index_range(zone.get("courses", [0, courses]), courses, f"zones[{z}].courses", "courses", counted_courses)
         wi = index_range(zone.get("wales", [0, wales]), wales, f"zones[{z}].wales", "wales", counted_wales)
 
@@ -581,6 +584,7 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
                 return f"zones[{z}].{tbl}.{n}"
             return None
         zres = put(ztables, ci, wi, origin_of)
+        origins["force_cap_N"][ci, wi] = zorg.path("rules", "force_cap_N")
         if "label" in zone:
             zres = {"label": zone["label"], **zres}
         zones_out.append(zres)

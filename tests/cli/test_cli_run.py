@@ -103,19 +103,24 @@ _TIGHT_BASE = ('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"
      "L = 10.0 (zones[0].knit.L)"),
     ('[patch]\nwales = 3\ncourses = 2\n[maps.L]\ntype = "gradient"\naxis = "wales"\nstart = 14.1\nend = 9.0\n',
      "L = 11.55 (maps.L)"),
-], ids=["zone", "gradient"])
-def test_a_cell_without_a_rest_state_names_the_zone_or_map_that_set_it(tmp_path, capsys, cells, key):
-    """A zone or a gradient that leaves some cells without a rest state is refused naming the key that set them
-    and its value at the cell named (the scene's own text: L = 10 in zones[0]; the gradient 14.1 -> 9.0 over 3
-    wales puts 11.55 on wale 1, E-glass's rest state needs about 14): the refusal named neither (a blind probe:
-    "4 of 4 cell(s) have no admissible rest state, e.g. course 1, wale 0: no rest state: ..."). Exit 2, no
-    output folder."""
+    ('[patch]\nwales = 2\ncourses = 2\n[[zones]]\ncourses = [1, 2]\nrules = { force_cap_N = 0.01 }\n',
+     "force_cap_N = 0.01 (zones[0].rules.force_cap_N)"),
+], ids=["zone", "gradient", "cap"])
+def test_a_cell_the_model_cannot_run_names_the_zone_or_map_that_set_it(tmp_path, capsys, cells, key):
+    """A zone or a gradient that leaves some cells without a rest state, or a zone's force cap below the rest
+    force (E-glass's 0.022 N per wale), is refused naming the key that set them and its value at the cell named
+    (the scene's own text: L = 10 in zones[0]; the gradient 14.1 -> 9.0 over 3 wales puts 11.55 on wale 1,
+    E-glass's rest state needs about 14; the zone's cap 0.01 N): the refusal named neither (a blind probe:
+    "2 of 4 cell(s) have no admissible rest state, e.g. course 1, wale 0: no rest state: ..."; "raise
+    force_cap_N" of a scene whose [rules] cap is 10 N). Exit 2, no output folder."""
     scene = tmp_path / "tight.toml"
     scene.write_text(cells + _TIGHT_BASE)
     assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
     err = capsys.readouterr().err
-    assert "have no admissible rest state" in err and key in err and "Traceback" not in err, err
-    assert "C0 = 2.7 (knit.C0), W0 = 4.4 (knit.W0)" in err, err
+    assert ("have no admissible rest state" in err or "cannot be loaded" in err) and "Traceback" not in err, err
+    assert f"that cell's {key}" in err or f", {key}" in err, err
+    if "rest state" in err:
+        assert "that cell's C0 = 2.7 (knit.C0), W0 = 4.4 (knit.W0)" in err, err
     assert not (tmp_path / "o").exists()
 
 
