@@ -917,9 +917,11 @@ def dissipated_energy_error(strain: np.ndarray, force: np.ndarray) -> float:
 
     Richardson's estimate at order 1: the trapezoids over every row against those over every other row of
     each branch (the path split where the strain turns; each branch keeps its first and last row), ``|E_h -
-    E_2h|``.  Exact for a piecewise linear force with its kinks on the rows (both sums agree); of the size of
-    the error where a kink (a slide onset, a reversal's steep drop) falls between rows, which the trapezoids
-    cut off at the order of the increment.  0 for a path of fewer than three rows.
+    E_2h|`` of each branch, summed over the branches (of the whole path, a loading branch's difference and an
+    unloading branch's cancelled: a patch's cycle 18 % under-resolved read as 2 %).  Exact for a piecewise
+    linear force with its kinks on the rows (both sums agree); of the size of the error where a kink (a slide
+    onset, a reversal's steep drop) falls between rows, which the trapezoids cut off at the order of the
+    increment.  0 for a path of fewer than three rows.
     """
     s = np.asarray(strain, float)
     f = np.asarray(force, float)
@@ -934,5 +936,10 @@ def dissipated_energy_error(strain: np.ndarray, force: np.ndarray) -> float:
             rows.append(end)
         keep += rows[1:]
         start = end
+    # each branch's |E_h - E_2h|, summed: the branches' differences do not cancel (a loading branch's kink cut by
+    # +a and an unloading branch's by -a are an error of about 2a where the branches differ, not 0)
     k = np.asarray(keep)
-    return abs(dissipated_energy(s, f) - dissipated_energy(s[k], f[k]))
+    bounds = np.concatenate([[0], np.searchsorted(k, ends)])
+    return float(sum(abs(dissipated_energy(s[k[a]:k[b] + 1], f[k[a]:k[b] + 1]) - dissipated_energy(s[k[a:b + 1]],
+                                                                                                    f[k[a:b + 1]]))
+                     for a, b in zip(bounds[:-1], bounds[1:])))
