@@ -1461,7 +1461,10 @@ class PatchSolver:
                 any_failed = self._colmax((failed & g_live).astype(float), 0.0) > 0
                 any_capped = self._colmax(((t["status"] == STATUS_FORCE_CAP) & g_live).astype(float), 0.0) > 0
             prev_failed = np.where(live, any_failed, prev_failed)
-            prev_capped = np.where(live, any_capped, prev_capped)
+            # any trial of the increment, not only the last: the bisection towards a trial stopped at the cap keeps
+            # the last one just below it (a blind probe's zone capped at 0.12 N: held, not stopped, then resumed
+            # on the grip's reversal at 66 N per wale)
+            prev_capped = prev_capped | (live & any_capped)
             iters[live] += 1
             # each good trial's own tangent (before the converged columns are accepted: the backend
             # keeps it as the committed state's); on the device the good trials are marked there
@@ -1548,7 +1551,8 @@ class PatchSolver:
             pts.C_min = np.maximum(dir_min, np.where(np.isfinite(fail_lo), 0.5 * (good_lo + fail_lo), -np.inf))
         if on_dev:
             self.k = trials.fallback_tangents()
-        # whether a cell of the column failed in the column's last trial (and whether one stopped at its cap)
+        # whether a cell of the column failed in the column's last trial (and whether one stopped at its cap in
+        # any of its trials)
         last_failed = prev_failed if last is not None else np.zeros(self.n_cls, bool)
         return done_cls & active_cls, iters, jump_cls, last_failed, prev_capped
 

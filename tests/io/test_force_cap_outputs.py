@@ -312,3 +312,27 @@ def test_group_column_reductions_against_the_membership_matrix():
                               bad_col.astype(int) @ member.astype(int) > 0)
         at = rng.random((n, n_groups)) < 0.3
         assert np.array_equal(_any_by(at[:, pair_g], pair_c, wales), at.astype(int) @ member.T.astype(int) > 0)
+
+
+def test_a_zone_capped_below_the_column_force_stops_its_column_and_is_never_passed():
+    """A blind probe's 2 x 2 E-glass patch whose one cell (course 1, wale 1) is a zone capped at 0.12 N (cycles
+    0.1-0.45 at 0.01): its column could not pass the cap, but the coupling's last trial, kept just below the cap
+    by the bisection towards the trial that stopped there, did not say so: the column was held (not converged)
+    while the grip went on to 0.45, then, on the grip's reversal, solved from there on the unloading branch at
+    66.7 N per wale (cycle 1's peak printed as 33.3 N per wale, its work negative, exit 0).  Expected: cells in
+    series carry one force, so the column never carries more than its weakest cell's cap (FORCE_CAP_RTOL); it
+    stops there on cycle 1's loading, as a uniform column's cell does, and the program is cut there."""
+    from knitsim.scene.patch_scene import load_patch_scene
+    sc = load_patch_scene({"engine": "warp", "device": "cpu", "patch": {"wales": 2, "courses": 2},
+                           "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+                           "friction": {"m": 0.2, "phi0": 0.0}, "rules": {"force_cap_N": 10.0},
+                           "zones": [{"courses": [1, 2], "wales": [1, 2], "rules": {"force_cap_N": 0.12}}],
+                           "load": {"type": "cycles", "lower_strain": 0.1, "upper_strain": 0.45, "cycles": 2,
+                                    "max_increment": 0.01}})
+    h = run_patch(sc.model, sc.program)
+    F1 = np.asarray(h.column_force_N)[:, 1]               # one wale a column: its force per wale
+    assert F1.max() <= 0.12 * (1.0 + FORCE_CAP_RTOL), F1.max()
+    s = patch_summary(h, h.info["ref_length_mm"], model=sc.model)
+    (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
+    assert cut["message"].startswith("1 of 2 wale column(s) stopped at the force cap (0.12 N per wale)"), cut
+    assert [c["cycle"] for c in s["cycles"]] == [1] and s["cycles"][0]["peak_force_per_wale_N"] < 0.13
