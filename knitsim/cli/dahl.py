@@ -149,8 +149,9 @@ def register(subparsers) -> None:
     sim = sub.add_parser(
         "simulate", help="write a synthetic KES-like Dahl loop to a CSV file",
         description="Write a loop 0 -> +A -> -A -> ... -> 0 of F = B x + F_dahl(x) (+ noise). Parameters are in "
-                    "the units of the columns (defaults: sigma, B in N.mm^2/mm, Fc in N.mm/mm), or taken from a "
-                    "row of the paper's table (--row, converted from gf.cm^2/cm and gf.cm/cm).")
+                    "the units of the columns (defaults: sigma, B in N.mm^2/mm, Fc in N.mm/mm; or as --columns states "
+                    "them, 'K [1/cm],M [gf cm/cm]'), or taken from a row of the paper's table (--row, converted from "
+                    "gf.cm^2/cm and gf.cm/cm to the columns' units).")
     sim.add_argument("--sigma", type=float, help="Dahl stiffness sigma (dF/dx at F = 0)")
     sim.add_argument("--Fc", type=float, help="Coulomb force Fc")
     sim.add_argument("--alpha", type=float, default=None,
@@ -159,8 +160,8 @@ def register(subparsers) -> None:
                      help="take sigma, Fc, alpha from this row of dahl_kes.toml ("
                           + ", ".join(repr(r["sample"]) for r in dahl_kes()["dahl"]) + ")")
     sim.add_argument("--B", type=float, default=0.0, help="elastic stiffness in parallel (default 0)")
-    sim.add_argument("--amplitude", type=float, default=KES_AMPLITUDE_1_MM,
-                     help=f"largest |x| (default {KES_AMPLITUDE_1_MM} 1/mm = KES 2.5 1/cm)")
+    sim.add_argument("--amplitude", type=float, default=None,
+                     help=f"largest |x|, in the x column's unit (default {KES_AMPLITUDE_1_MM} 1/mm = KES 2.5 1/cm)")
     sim.add_argument("--cycles", type=int, default=3, help="number of full swings (default 3)")
     sim.add_argument("--points", type=int, default=100, help="samples per quarter cycle (default 100)")
     sim.add_argument("--noise", type=float, default=0.0,
@@ -482,9 +483,34 @@ def run_fit(args) -> int:
     return 1 if flags else 0
 
 
+def _written_factors(xcol: str, fcol: str) -> tuple[float, float]:
+    """The factors from the units the columns to write state to the internal units (1 for our own names and for a
+    column stating no unit: the columns' own units), refused as :func:`_resolve_columns` refuses a file's header."""
+    factors = []
+    for name in (xcol, fcol):
+        unit = split_unit(name)[1]
+        if _bare(name).casefold() in _OWN or unit is None or unit.strip().casefold() in _NO_UNIT:
+            factors.append((None, 1.0))
+            continue
+        parsed = parse_unit(unit)
+        if parsed is None or parsed[0] == "moment":
+            raise KnitsimInputError(f"--columns: {_unread(name, unit, parsed)}: {_WHAT_TO_WRITE}")
+        factors.append(parsed)
+    pair = (factors[0][0], factors[1][0])
+    if None not in pair and pair not in _PAIRS:
+        raise KnitsimInputError(f"--columns: {xcol!r} ({pair[0]}) and {fcol!r} ({pair[1]}) are no loop knitsim dahl "
+                                f"fit reads (input, then output): {_WHAT_TO_WRITE}")
+    return factors[0][1], factors[1][1]
+
+
 def run_simulate(args) -> int:
     """``knitsim dahl simulate``."""
     xcol, fcol = _parse_columns(args.columns)
+    # the values are written in the units the columns state ('K [1/cm]', 'M [gf cm/cm]'), which `dahl fit` reads
+    # back: a blind probe's --row yarn under those columns wrote 1/mm and N.mm/mm, which the fit read as 1/cm and
+    # gf cm/cm (sigma 0.006 and Fc 0.00014 gf units for the row's 0.061 and 0.014)
+    fx, fF = _written_factors(xcol, fcol)
+    amplitude = KES_AMPLITUDE_1_MM / fx if args.amplitude is None else args.amplitude
     if args.row is not None:
         if args.sigma is not None or args.Fc is not None:
             raise KnitsimInputError("--row: give either --row or --sigma/--Fc, not both")
@@ -505,14 +531,15 @@ def run_simulate(args) -> int:
         raise KnitsimInputError(f"--alpha = {alpha!r}: must be in [{ALPHA_MIN:g}, {ALPHA_MAX:g}] (the range "
                                 "`dahl fit` identifies)")
     if args.row is not None:
-        params = DahlParams(r["sigma"] * GF_N * CM_MM, r["Fc"] * GF_N, alpha)
+        # N.mm^2/mm and N.mm/mm, then in the columns' units (F = fF F_written, x = fx x_written)
+        params = DahlParams(r["sigma"] * GF_N * CM_MM * fx / fF, r["Fc"] * GF_N / fF, alpha)
     else:
         params = DahlParams(args.sigma, args.Fc, alpha)
     if not (math.isfinite(args.noise) and args.noise >= 0):
         raise KnitsimInputError(f"--noise = {args.noise!r}: must be >= 0")
     if not math.isfinite(args.B):
         raise KnitsimInputError(f"--B = {args.B!r}: must be finite")
-    x, F = kes_loop(params, args.amplitude, args.cycles, args.points, B=args.B,
+    x, F = kes_loop(params, amplitude, args.cycles, args.points, B=args.B,
                     noise=args.noise * params.Fc, seed=args.seed)
     out = prepare_output_file(args.out, args.overwrite)
     try:

@@ -519,3 +519,28 @@ def test_a_bad_cell_is_refused_without_the_hint_on_finding_a_labs_columns(tmp_pa
     q.write_text("a,b\n0,0\n0.1,0.05\n0.2,0.07\n0.1,0.01\n")
     assert main(["dahl", "fit", str(q), "--no-png"]) == 2
     assert "units stated" in capsys.readouterr().err
+
+
+def test_simulate_writes_the_units_its_columns_state(tmp_path, capsys):
+    """A probe: `dahl simulate --row yarn --columns 'K [1/cm],M [gf cm/cm]'` wrote the loop in 1/mm and
+    N.mm/mm under those headers, and `dahl fit` read it back as 1/cm and gf cm/cm: sigma 0.006 and Fc 0.00014
+    gf units for the row's 0.061 and 0.014.  Expected, by hand: the same loop as under the default columns
+    (kappa_1_mm, M_N_mm_per_mm) written in KES units, curvature x 10 (1 cm = 10 mm) and moment / 9.80665e-3
+    (1 gf = 9.80665e-3 N), so the KES range 2.5 1/cm and the fit's gf values the row's; a unit not per width is
+    refused before anything is written."""
+    mm, cm = tmp_path / "mm.csv", tmp_path / "cm.csv"
+    assert main(["dahl", "simulate", "--row", "yarn", "--points", "40", "--out", str(mm)]) == 0
+    assert main(["dahl", "simulate", "--row", "yarn", "--points", "40", "--columns", "K [1/cm],M [gf cm/cm]",
+                 "--out", str(cm)]) == 0
+    capsys.readouterr()
+    k_mm, M_mm = np.loadtxt(mm, delimiter=",", skiprows=1, unpack=True)
+    k_cm, M_cm = np.loadtxt(cm, delimiter=",", skiprows=1, unpack=True)
+    assert np.max(np.abs(k_cm)) == pytest.approx(2.5, rel=1e-12)
+    assert k_cm == pytest.approx(k_mm * 10.0, rel=1e-9)
+    assert M_cm == pytest.approx(M_mm / 9.80665e-3, rel=1e-9, abs=1e-15)
+    got = _run_json(capsys, ["dahl", "fit", str(cm), "--no-png", "--json"])["kes_units"]
+    assert got["sigma"]["value"] == pytest.approx(YARN["sigma"], rel=1e-3)
+    assert got["Fc"]["value"] == pytest.approx(YARN["Fc"], rel=1e-3)
+    bad = tmp_path / "bad.csv"
+    assert main(["dahl", "simulate", "--row", "yarn", "--columns", "K [1/cm],M [gf cm]", "--out", str(bad)]) == 2
+    assert "'M [gf cm]'" in capsys.readouterr().err and not bad.exists()
