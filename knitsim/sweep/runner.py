@@ -537,6 +537,7 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
         ``force_per_wale_N`` of shape ``[n_cells, n_increments]``.
     """
     from ..cell.history import STATUS_FORCE_CAP
+    from ..cell.domain import rest_at_cap_problem
     from ..cell.stages import stage_label_codes
     from ..io.checks import (below_jamming_width, energy_creating_loops, energy_loop_candidates, heads_overlap,
                              is_compressive, jam_width_floor, load_cycle_warnings_of)
@@ -622,7 +623,12 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
         p = params[c]
         k_ok = int(n_ok[c])
         final = int(final_status[c])
-        if final == STATUS_FORCE_CAP:
+        # a rest state already at or above the cap: the cell stopped at rest (knitsim.cell.history.rest_at_cap_reason),
+        # its peak the rest force, not the cap (a probe's cap of 0.0045 N under the rest force 0.0216 N was listed
+        # "stopped at its force cap in cycle 1, whose peak is the cap", stopped at the first increment's strain 0.02)
+        at_rest = (final == STATUS_FORCE_CAP and rest_F is not None
+                   and rest_at_cap_problem(float(rest_F[c]), p.cap_N) is not None)
+        if final == STATUS_FORCE_CAP and not at_rest:
             # the cycle of the located cap state (the cell's first row not ok, kept): its peak is the cap
             out["peak_at_force_cap"][c, int(rows_of.cycle[k_ok - 1]) - 1] = 1
         jam, _ = first_jamming(events[c], int(jam_rows[c]), h.values["C"][:, c], p.C0)
@@ -633,6 +639,8 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
         out["expected_end"][c] = 1 if stop["expected_end"] else 0
         for k in _STOP_VARS:
             out[k][c] = np.nan if stop[k] is None else stop[k]
+        if at_rest:
+            out["stopped_at_strain"][c] = 0.0
         F_ok = F_all[:k_ok, c]
         if loops[c]:
             out["loop_creates_energy"][c] = int(bool(energy_creating_loops(
@@ -1299,7 +1307,7 @@ def assemble(out_dir: str | Path):
                   "attribute domain_reasons",
         "stopped_at_strain": "a failed cell: the imposed strain of the increment it could not finish; a cell "
                              "stopped at its force cap: the imposed strain of the increment it reached the cap in "
-                             "(NaN: it ran the whole program)",
+                             "(0: at rest, its rest state at or above the cap; NaN: it ran the whole program)",
         "last_converged_strain": "a failed cell: the strain C/C0 - 1 of its last converged state, inside that "
                                  "increment (NaN: it did not fail)",
         "last_converged_force_per_wale_N": "a failed cell: its force per wale there (NaN: it did not fail)",
@@ -1500,17 +1508,22 @@ def capped_samples(ds) -> list[dict]:
     cycles = [int(c) for c in ds["cycle"].values]
     missing = np.isnan(peaks)
 
-    def reason(i, c, st, dom):
+    def reason(i, c, st, dom, at):
         idx = np.unravel_index(i, peaks.shape[:len(order) - ("cell" in ds.dims)]) + (((c,) if "cell" in ds.dims else ()))
         lost = [cyc for cyc, m in zip(cycles, missing[idx]) if m]
         last = max((cyc for cyc, m in zip(cycles, missing[idx]) if not m), default=None)
+        if at.get("stopped_at_strain") == 0.0 and last is not None:
+            # stopped at rest (its rest state already at the cap): no cycle ran, its cycle-1 peak is the rest force
+            return (f"stopped at rest: its force per wale at rest, {peaks[idx][cycles.index(last)]:.4g} N, is already "
+                    "at or above its force cap: no load program can start from it (no cycle run; cycle 1's peak is "
+                    "the rest force); raise rules.force_cap_N above the rest force")
         at = (f"in cycle {last}, whose peak is the cap and whose energy is loading work only (the rest of the "
               "program not run)" if last is not None else "")
         gone = (f"before cycle{'s' if len(lost) > 1 else ''} {', '.join(str(x) for x in lost)}: not run (NaN)"
                 if lost else "")
         return f"stopped at its force cap {'; '.join(t for t in (at, gone) if t)}; raise rules.force_cap_N to run it all"
 
-    return _sample_listing(ds, lambda st, ok, dom: st == STATUS_FORCE_CAP, reason)
+    return _sample_listing(ds, lambda st, ok, dom: st == STATUS_FORCE_CAP, reason, extra=("stopped_at_strain",))
 
 
 def _flagged_samples(ds, var: str, reason: str) -> list[dict]:

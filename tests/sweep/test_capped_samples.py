@@ -44,3 +44,25 @@ def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
     np.testing.assert_allclose(star.get_offsets(), [[0.05, 0.05]], rtol=1e-9)
     line1 = peak_ax.get_lines()[0]
     assert line1.get_label() == "cycle 1" and np.isnan(line1.get_ydata()[0]) and np.isfinite(line1.get_ydata()[1])
+
+
+def test_a_sample_stopped_at_rest_is_not_said_to_peak_at_the_cap(tmp_path):
+    """A probe's Latin hypercube of rules.force_cap_N in [0.001, 0.03] N: the samples whose cap is under the cell's
+    rest force were listed "stopped at its force cap in cycle 1, whose peak is the cap" (peak_at_force_cap = 1,
+    stopped_at_strain the first increment's 0.05 here), their peak the rest force, above the cap.  Expected: the
+    rest force per wale 2 P sin(gamma) of the NumPy reference's rest state (0.0216 N; model.md) is the peak, the
+    cell stopped at rest (strain 0), its peak not the cap; a cap above the rest force is reached while loading,
+    as before."""
+    from knitsim.cell.inverse import initial_state
+
+    rest = initial_state(2.7, 4.4, 14.1, 0.0, 0.31, 0.58).state
+    F_rest = float(2.0 * rest.P * np.sin(rest.gamma))
+    plan = plan_sweep(SCENE, {"parameters": {"rules.force_cap_N": {"values": [0.5 * F_rest, 0.05]}}})
+    ds = run_sweep(plan, tmp_path / "o", workers=0, progress=None, plots=False).dataset
+    assert ds["final_status"].values.tolist() == [STATUS_FORCE_CAP, STATUS_FORCE_CAP]
+    np.testing.assert_allclose(ds["peak_force_per_wale_N"].values[0, 0], F_rest, rtol=1e-6)
+    assert ds["peak_at_force_cap"].values[:, 0].tolist() == [0, 1]
+    assert ds["stopped_at_strain"].values[0] == 0.0 and ds["stopped_at_strain"].values[1] > 0.0
+    at_rest, loading = capped_samples(ds)
+    assert at_rest["reason"].startswith(f"stopped at rest: its force per wale at rest, {F_rest:.4g} N")
+    assert "whose peak is the cap" not in at_rest["reason"] and "in cycle 1, whose peak is the cap" in loading["reason"]
