@@ -16,6 +16,8 @@ predict
 from __future__ import annotations
 
 import argparse
+import math
+import re
 import sys
 
 import numpy as np
@@ -65,7 +67,8 @@ def register(subparsers) -> None:
     fit = sub.add_parser("fit", help="fit b, p, n to capstan records",
                          description="Fit eq 5's (b, p, n) to capstan records by least squares on F1. "
                                      "CSV columns: F0_N, F1_N, V_mm_s, direction (ascent/descent); a lab's F0, F1 (or T0, T1), V "
-                                     "with their unit in brackets or a units row (F0 (N), V [mm/s]). "
+                                     "with their unit in brackets or a units row (F0 (N), V [mm/s]); a wrap column "
+                                     "(wrap [deg], wrap_turns) must be the rig's, 180 deg (90 a cylinder). "
                                      "A parameter that ends at a bound of the fit (b >= 1e-6, |p| <= 1, "
                                      "0.3 <= n <= 1) or whose standard error is not finite is flagged as not "
                                      "identified; so are residuals far above the capstan test's scatter "
@@ -168,6 +171,59 @@ def _drop_copies(cols, resolution) -> tuple[dict, str | None]:
     return out, "; ".join(parts)
 
 
+#: a header's name for the wrap angle of the records (any case, its unit stated or ending the name) and the units
+#: it may be written in, in rad
+_WRAP_WORDS = ("wrap", "theta", "turns")
+_WRAP_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0, "\u00b0": math.pi / 180.0,
+               "rad": 1.0, "turn": 2.0 * math.pi, "turns": 2.0 * math.pi, "rev": 2.0 * math.pi, "revs": 2.0 * math.pi}
+
+
+def check_wrap_column(path) -> str | None:
+    """Refuse records whose file states a wrap angle other than the set-up's; a read note where it states that one.
+
+    The fit models the paper's rig (section 2.4): two cylinders each wrapped ``pi/2``, ``theta0 + theta1 = pi``
+    in eq 1, and the crossings of that wrap (``--layout``).  A column of the header line naming the wrap (``wrap``,
+    ``theta``, ``turns`` or ``angle`` alone, not a coiling angle; its unit in brackets, a units row or ending its name: deg, rad, turns) is read:
+    every row at ``pi`` (the total) or every row at ``pi/2`` (each cylinder) is the rig's, said in a note; any
+    other value, or no unit, is refused naming the row, the column and the value.  A probe's records with a column
+    ``wrap_turns = 2`` were fitted as the rig's half turn without a word (b then about 4 times off)."""
+    from ..io.table_input import header_candidates, split_unit
+
+    f1_names = {"f1_n"} | set(CAPSTAN_ALIASES["F1_N"])
+    for line, cells, units in header_candidates(path):
+        bare = [split_unit(c)[0].strip().casefold() for c in cells]
+        if not f1_names & set(bare):
+            continue
+        for j, name in enumerate(bare):
+            if not (name == "angle" or any(w in name for w in _WRAP_WORDS)):
+                continue
+            unit = units[j] if units[j] is not None else split_unit(cells[j])[1]
+            if unit is None:
+                tail = re.split(r"[\s_/()\[\]-]+", name.strip())[-1]
+                unit = tail if tail in _WRAP_UNITS else None
+            if unit is None or unit.strip().casefold() not in _WRAP_UNITS:
+                raise KnitsimInputError(
+                    f"{path}: row {line}, column {cells[j]!r}: a wrap angle " + (f"in {unit!r}, a unit not read"
+                    if unit is not None else "without a unit") + ": state it in deg, rad or turns ('wrap [deg]')")
+            to_rad = _WRAP_UNITS[unit.strip().casefold()]
+            asked = f"{split_unit(cells[j])[0]} [{unit}]"
+            col = read_csv_columns(path, (asked,), numeric=(asked,))
+            rig = [w for w in (capstan.CYLINDERS * capstan.THETA_EACH, capstan.THETA_EACH)
+                   if abs(col[asked][0] * to_rad - w) <= 1e-3 * w]          # the total, or each cylinder's
+            for r, v in zip(col["_row"], col[asked]):
+                if not (rig and abs(v * to_rad - rig[0]) <= 1e-3 * rig[0]):
+                    deg = "" if to_rad == math.pi / 180.0 else f" ({math.degrees(v * to_rad):.4g} deg)"
+                    raise KnitsimInputError(
+                        f"{path}: row {int(r)}, column {cells[j]!r}: a wrap of {v:g} {unit}{deg}"
+                        + (f", the rows above {col[asked][0]:g}" if rig else "") + ": knitsim capstan fit models the paper's rig only, two "
+                        "cylinders each wrapped 90 deg (theta0 + theta1 = 180 deg in eq 1) and their crossings; "
+                        "records of another wrap cannot be fitted by it")
+            return (f"column {cells[j]!r} read as the wrap: the rig's "
+                    f"({'180 deg in all' if rig[0] > capstan.THETA_EACH else '90 deg a cylinder'})")
+        return None
+    return None
+
+
 def _run_fit(args) -> int:
     if args.fix_p is not None:
         lo, hi = capstan.FIT_LOWER[1], capstan.FIT_UPPER[1]
@@ -179,6 +235,8 @@ def _run_fit(args) -> int:
     disc = _discretisation(args)
     cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3], aliases=CAPSTAN_ALIASES)
     read_notes = list(getattr(cols, "notes", ()))         # a lab's column names read as ours: said
+    wrap = check_wrap_column(args.file)                   # a wrap stated beside the records: the rig's, or refused
+    read_notes += [wrap] if wrap else []
     # F1's own last digit (F0 repeats between replicates: the same dead weight)
     raw = read_csv_columns(args.file, ("F1_N",), numeric=(), aliases=CAPSTAN_ALIASES)
     f1_res = {int(r): capstan.decimal_resolution(c) for r, c in zip(raw["_row"], raw["F1_N"])}

@@ -265,3 +265,32 @@ def test_a_labs_headers_with_units_are_read_and_a_wrong_unit_refused(tmp_path, c
     err = capsys.readouterr().err
     assert "'F0 [kN]' is not read as F0_N: 'kN' is not its unit (convert the column: 'F0 (N)')" in err
     assert "'V [m/min]' is not read as V_mm_s: 'm/min' is not its unit (convert the column: 'V (mm/s)')" in err
+
+
+def _with_wrap(tmp_path, header: str, values) -> Path:
+    """Table 2's e-glass records (scenes/capstan/e_glass_table2.csv) with a wrap column typed beside them."""
+    rows = (REPO / "scenes" / "capstan" / "e_glass_table2.csv").read_text().splitlines()
+    path = tmp_path / "wrap.csv"
+    path.write_text("\n".join([rows[0] + "," + header] + [r + f",{v}" for r, v in zip(rows[1:], values)]) + "\n")
+    return path
+
+
+def test_a_wrap_column_other_than_the_rig_is_refused(tmp_path, capsys):
+    """A probe's records with a column wrap_turns = 2 were fitted as the rig's (two cylinders of 90 deg, theta0 +
+    theta1 = pi in eq 1) without a word: by eq 1, ln(F1/F0) = mu theta, so a lab's 4 pi wrap makes its friction
+    4 times smaller than the b fitted.  Expected: a wrap other than the rig's refused naming the row, the column
+    and the value (2 turns = 720 deg by hand); the rig's wrap, stated in turns (0.5), deg (90 a cylinder) or rad,
+    read and said, the fit unchanged; a wrap column without a unit refused; a coiling angle is not a wrap."""
+    plain = _json(capsys, ["capstan", "fit", str(REPO / "scenes" / "capstan" / "e_glass_table2.csv"), "--json"])
+    assert main(["capstan", "fit", str(_with_wrap(tmp_path, "wrap_turns", [2] * 8))]) == 2
+    err = capsys.readouterr().err
+    assert "row 2, column 'wrap_turns': a wrap of 2 turns (720 deg)" in err and "90 deg" in err
+    assert main(["capstan", "fit", str(_with_wrap(tmp_path, "wrap [deg]", [180] * 7 + [360]))]) == 2
+    assert "row 9, column 'wrap [deg]': a wrap of 360 deg" in capsys.readouterr().err
+    for header, v in (("wrap_turns", 0.5), ("wrap [deg]", 90), ("theta (rad)", math.pi)):
+        got = _json(capsys, ["capstan", "fit", str(_with_wrap(tmp_path, header, [v] * 8)), "--json"])
+        assert got["b"] == plain["b"] and any("read as the wrap: the rig's" in n for n in got["read_notes"])
+    assert main(["capstan", "fit", str(_with_wrap(tmp_path, "wrap", [180] * 8))]) == 2
+    assert "a wrap angle without a unit" in capsys.readouterr().err
+    got = _json(capsys, ["capstan", "fit", str(_with_wrap(tmp_path, "coiling angle [deg]", [110] * 8)), "--json"])
+    assert got["b"] == plain["b"] and got["read_notes"] == []
