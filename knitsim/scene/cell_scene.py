@@ -435,6 +435,13 @@ def _resolve_cell(cell: dict, org: _Origins) -> tuple[dict, dict]:
         raise error(org.path("friction", "dahl_sigma"), sigma, DAHL_SIGMA_TOO_STIFF + org.where())
     if model == "coulomb" and sigma != 0:
         raise error(org.path("friction", "dahl_sigma"), sigma, DAHL_SIGMA_UNUSED + org.where())
+    if model == "dahl" and not m > 0:
+        # named by the key that set it (before, the batch's backstop named "cells[0].m", in no file: a probe's
+        # friction.m = 0 with friction.model = "dahl"), as the patch scene names it
+        key = "m" if "m" in f else "mu_k" if "mu_k" in f else None
+        raise error(org.path("friction", key) if key else org.path("yarn", "material"),
+                    f[key] if key else y.get("material"), "Dahl friction needs m > 0 (saturation tan(phi) = m)"
+                    + org.where())
 
     out = {
         "yarn": dict(({"material": y["material"]} if "material" in y else {}), d=d, B=B,

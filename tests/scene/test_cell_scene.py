@@ -143,6 +143,10 @@ def test_set_replaces_the_scenes_other_way_of_stating_a_quantity():
     (dict(friction__mu_k=0.15), r"^friction\.mu_k = 0\.15: give either friction\.m or friction\.mu_k"),
     (dict(friction__model="dahl"), r'^friction\.dahl_sigma = 0\.0: friction\.model = "dahl" needs a stiffness > 0'),
     (dict(friction__model="dahl", friction__dahl_sigma=1e7), r'^friction\.dahl_sigma = 10000000\.0: above 1e\+06 1/mm'),
+    # a probe's friction.m = 0 under Dahl friction (its saturation tan(phi) = m) was refused as "cells[0].m", a key
+    # in no file (the batch's backstop); named as the patch scene names it
+    (dict(friction__model="dahl", friction__dahl_sigma=100.0, friction__m=0.0),
+     r'^friction\.m = 0\.0: Dahl friction needs m > 0'),
     # a blind probe's --set friction.dahl_sigma=5 on a Coulomb scene ran Coulomb without a word
     (dict(friction__dahl_sigma=5.0), r'^friction\.dahl_sigma = 5\.0: not used by friction\.model = "coulomb"'),
     (dict(rules__unloading_rule="hong"), r'^rules\.unloading_rule = "hong": expected one of dusserre, hong_constant_t$'),
