@@ -630,6 +630,20 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     if fix_p is None and len(np.unique(V)) < 2:
         raise KnitsimInputError(f"{source}: all records have V_mm_s = {V[0]:g}; the velocity exponent p needs two "
                                 "velocities: hold it fixed (knitsim capstan fit --fix-p P; fix_p=P in Python)")
+    # records repeating one test condition are one equation: the residuals' Jacobian has as many distinct rows as
+    # conditions, and its pseudo-inverse gave finite standard errors to parameters the data do not set (a probe's
+    # five repeats of one condition, p fixed: b and n "+- 0.00045" and "+- 8.7e-05", corr(b, n) = 1.000, exit 0)
+    loads = {(f, s) for f, s in zip(F0.tolist(), signs)}
+    if len(loads) < 2:
+        raise KnitsimInputError(f"{source}: all records have F0_N = {F0[0]:g} on {dirs[0]}; the load exponent n "
+                                "needs two normal loads at the crossings: add records at a second dead weight F0, or "
+                                "of the other direction")
+    conditions = len({(f, v, s) for f, v, s in zip(F0.tolist(), V.tolist(), signs)})
+    if conditions < k:
+        raise KnitsimInputError(f"{source}: the records hold {conditions} test conditions (F0_N, V_mm_s, direction; "
+                                f"repeats of one are one), which cannot identify {k} parameters: add conditions"
+                                + (", or hold p fixed (knitsim capstan fit --fix-p P; fix_p=P in Python)"
+                                   if fix_p is None else ""))
 
     def full(x):
         return (x[0], float(fix_p), x[1]) if fix_p is not None else tuple(x)

@@ -215,6 +215,28 @@ def test_fit_bad_records(F0, F1, V, d, field):
         cap.fit_friction_law(F0, F1, V, d)
 
 
+def test_fit_refuses_records_of_too_few_test_conditions():
+    """A probe's five repeats of one condition (F0 6.31 N, ascent, 1 mm/s; p fixed) were fitted with b and n
+    "+- 0.00045" and "+- 8.7e-05", corr(b, n) = 1.000, exit 0; and two conditions (6.31 N at 0.2 mm/s, 12.62 N
+    at 10 mm/s, ascent) gave all three of (b, p, n) with small errors.  By hand: repeats of one condition are
+    one equation for F1, so k parameters need k distinct (F0, V, direction), and n, the load exponent, two
+    normal loads (a second F0, or the other direction).  Made with Table 3's e-glass law at the set-up's
+    crossings, so every record is a law's."""
+    law = cap.table3_params("e_glass")
+    F1 = [cap.predict_f1(6.31, 1.0, "ascent", *law)] * 5
+    with pytest.raises(KnitsimInputError, match="the load exponent n needs two normal loads"):
+        cap.fit_friction_law([6.31] * 5, F1, [1.0] * 5, ["ascent"] * 5, fix_p=0.0)
+    F0, V = [6.31] * 3 + [12.62] * 3, [0.2] * 3 + [10.0] * 3
+    F1 = [cap.predict_f1(f, v, "ascent", *law) for f, v in zip(F0, V)]
+    with pytest.raises(KnitsimInputError, match="2 test conditions .* cannot identify 3 parameters"):
+        cap.fit_friction_law(F0, F1, V, ["ascent"] * 6)
+    # the same two conditions with p held: two equations for (b, n), a fit; ascent and descent at one F0 too
+    assert cap.fit_friction_law(F0, F1, V, ["ascent"] * 6, fix_p=law[1]).success
+    d = ["ascent"] * 3 + ["descent"] * 3
+    F1 = [cap.predict_f1(6.31, 1.0, x, *law) for x in d]
+    assert cap.fit_friction_law([6.31] * 6, F1, [1.0] * 6, d, fix_p=law[1]).success
+
+
 def test_eq4_error_claim_needs_fine_steps():
     # Section 2.4: "the error [of eq 4 vs eq 3] on the final result has been
     # checked to be less than 0.2 %".  At the set-up's 16-strand crossings the
