@@ -213,7 +213,10 @@ _PAIRS = (("curvature", "moment per width"), ("displacement", "force"))
 def _columns_by_unit(path: Path) -> tuple[str, str] | None:
     """The loop's columns found by their units, where they lack our names: on the first line stating two units
     or more of which one is a curvature, a length, a moment or a force, one curvature and one moment per width
-    (or one displacement and one force), asked for as ``name [unit]``; None if no line states such units."""
+    (or one displacement and one force), asked for as ``name [unit]``; None if no line states such units.  A line
+    whose units make no loop is refused only where no later line makes one (a preamble ``Sample;yarn A`` over the
+    header ``K;M`` reads that header as its units row, ``M`` a metre: a probe's KES file was refused so)."""
+    refusal = None
     for line, cells, units in header_candidates(path):
         stated = {j: u for j, u in enumerate(units) if u is not None and u.strip().casefold() not in _NO_UNIT}
         if len(stated) < 2:
@@ -234,10 +237,12 @@ def _columns_by_unit(path: Path) -> tuple[str, str] | None:
             # per width, or a unit shortened: which one is not said
             why += [f"{cells[j]!r} states a force: write a bending moment per width as gf cm/cm or N mm/mm"
                     for j in by_quantity["force"]]
-        raise KnitsimInputError(
+        refusal = refusal or KnitsimInputError(
             f"{path}: row {line}: the columns {', '.join(repr(cells[j]) for j in stated)} state their units, but not "
             f"one curvature and one bending moment per width, nor one displacement and one force"
             + (f" ({'; '.join(why)})" if why else "") + f": {_WHAT_TO_WRITE}; or name the two columns with --columns X,F")
+    if refusal is not None:
+        raise refusal
     return None
 
 

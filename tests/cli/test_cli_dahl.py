@@ -392,6 +392,9 @@ def _kes_native_loop(sigma=YARN["sigma"], Fc=YARN["Fc"], A=2.5, per_branch=60, c
     ("K [1/cm],M [gf cm/cm]", []),
     ("K (cm^-1),M (gf.cm/cm)", []),
     ("Specimen: yarn A\nK;M\n1/cm;gf cm/cm", []),                 # a preamble and a units row
+    # a preamble of two cells over a header with a units row: the header read as the preamble's units row (M, a
+    # metre) was refused (a probe)
+    ("Sample;yarn A\nK;M\ncm-1;gf.cm/cm", []),
     ("K [1/cm],M [gf cm/cm]", ["--columns", "K [1/cm],M [gf cm/cm]"]),
     ("K,M", ["--columns", "K [1/cm],M [gf·cm/cm]"]),               # units given where the file states none
 ])
