@@ -174,8 +174,9 @@ def _drop_copies(cols, resolution) -> tuple[dict, str | None]:
 #: a header's name for the wrap angle of the records (any case, its unit stated or ending the name) and the units
 #: it may be written in, in rad
 _WRAP_WORDS = ("wrap", "theta", "turns")
-_WRAP_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0, "\u00b0": math.pi / 180.0,
-               "rad": 1.0, "turn": 2.0 * math.pi, "turns": 2.0 * math.pi, "rev": 2.0 * math.pi, "revs": 2.0 * math.pi}
+_WRAP_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0,
+               "\u00b0": math.pi / 180.0, "rad": 1.0,
+               "turn": 2.0 * math.pi, "turns": 2.0 * math.pi, "rev": 2.0 * math.pi, "revs": 2.0 * math.pi}
 
 
 def check_wrap_column(path) -> str | None:
@@ -183,10 +184,11 @@ def check_wrap_column(path) -> str | None:
 
     The fit models the paper's rig (section 2.4): two cylinders each wrapped ``pi/2``, ``theta0 + theta1 = pi``
     in eq 1, and the crossings of that wrap (``--layout``).  A column of the header line naming the wrap (``wrap``,
-    ``theta``, ``turns`` or ``angle`` alone, not a coiling angle; its unit in brackets, a units row or ending its name: deg, rad, turns) is read:
-    every row at ``pi`` (the total) or every row at ``pi/2`` (each cylinder) is the rig's, said in a note; any
-    other value, or no unit, is refused naming the row, the column and the value.  A probe's records with a column
-    ``wrap_turns = 2`` were fitted as the rig's half turn without a word (b then about 4 times off)."""
+    ``theta``, ``turns`` or ``angle`` alone, not a coiling angle; its unit deg, rad or turns in brackets, a units
+    row or ending its name) is read: every row at ``pi`` (the total) or every row at ``pi/2`` (each cylinder) is
+    the rig's, said in a note; any other value, or no unit, is refused naming the row, the column and the value.
+    A probe's records with a column ``wrap_turns = 2`` were fitted as the rig's half turn without a word (b then
+    about 4 times off)."""
     from ..io.table_input import header_candidates, split_unit
 
     f1_names = {"f1_n"} | set(CAPSTAN_ALIASES["F1_N"])
@@ -215,9 +217,10 @@ def check_wrap_column(path) -> str | None:
                     deg = "" if to_rad == math.pi / 180.0 else f" ({math.degrees(v * to_rad):.4g} deg)"
                     raise KnitsimInputError(
                         f"{path}: row {int(r)}, column {cells[j]!r}: a wrap of {v:g} {unit}{deg}"
-                        + (f", the rows above {col[asked][0]:g}" if rig else "") + ": knitsim capstan fit models the paper's rig only, two "
-                        "cylinders each wrapped 90 deg (theta0 + theta1 = 180 deg in eq 1) and their crossings; "
-                        "records of another wrap cannot be fitted by it")
+                        + (f", the rows above {col[asked][0]:g}" if rig else "")
+                        + ": knitsim capstan fit models the paper's rig only, two cylinders each wrapped 90 deg "
+                        "(theta0 + theta1 = 180 deg in eq 1) and their crossings; records of another wrap cannot be "
+                        "fitted by it")
             return (f"column {cells[j]!r} read as the wrap: the rig's "
                     f"({'180 deg in all' if rig[0] > capstan.THETA_EACH else '90 deg a cylinder'})")
         return None

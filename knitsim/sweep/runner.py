@@ -536,8 +536,8 @@ def reduce_history(history, n_cycles: int, curves: bool = False, reference=None)
         if the cell never jams), and with ``curves`` the force per wale
         ``force_per_wale_N`` of shape ``[n_cells, n_increments]``.
     """
-    from ..cell.history import STATUS_FORCE_CAP
     from ..cell.domain import rest_at_cap_problem
+    from ..cell.history import STATUS_FORCE_CAP
     from ..cell.stages import stage_label_codes
     from ..io.checks import (below_jamming_width, energy_creating_loops, energy_loop_candidates, heads_overlap,
                              is_compressive, jam_width_floor, load_cycle_warnings_of)
@@ -1508,11 +1508,11 @@ def capped_samples(ds) -> list[dict]:
     cycles = [int(c) for c in ds["cycle"].values]
     missing = np.isnan(peaks)
 
-    def reason(i, c, st, dom, at):
+    def reason(i, c, st, dom, stop):
         idx = np.unravel_index(i, peaks.shape[:len(order) - ("cell" in ds.dims)]) + (((c,) if "cell" in ds.dims else ()))
         lost = [cyc for cyc, m in zip(cycles, missing[idx]) if m]
         last = max((cyc for cyc, m in zip(cycles, missing[idx]) if not m), default=None)
-        if at.get("stopped_at_strain") == 0.0 and last is not None:
+        if stop.get("stopped_at_strain") == 0.0 and last is not None:
             # stopped at rest (its rest state already at the cap): no cycle ran, its cycle-1 peak is the rest force
             return (f"stopped at rest: its force per wale at rest, {peaks[idx][cycles.index(last)]:.4g} N, is already "
                     "at or above its force cap: no load program can start from it (no cycle run; cycle 1's peak is "
