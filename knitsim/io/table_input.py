@@ -834,7 +834,10 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
                 # the numbers taken as a fraction and as N)
                 for name in present:
                     j = keys.index(_key(name))
-                    refuse_unit(name, row_units[j] if j < len(row_units) else "", line, header[j])
+                    # a blank cell (or one an export left off the row's end) states no unit: the header's holds (a
+                    # probe's ',,,,turns' under F0_N was refused: "the unit '' is not that of F0_N")
+                    if j < len(row_units) and row_units[j].strip():
+                        refuse_unit(name, row_units[j], line, header[j])
                 continue
         extra = [j for j in range(len(header), len(r)) if r[j].strip()]
         if extra:

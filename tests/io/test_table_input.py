@@ -62,6 +62,8 @@ def test_the_plain_twin_reads_as_typed(plain):
     "[-],[N],(-),",                  # bracketed units, an empty cell
     "mm/mm,N,,",                     # a strain as mm/mm, empty cells mixed in
     '"(-)","[N]","",""',             # quoted by Excel
+    "-,,-,-",                        # no unit under the force: its name's (force_per_wale_N) holds
+    "mm/mm",                         # the row ends after its first unit (an export drops trailing empty cells)
 ])
 def test_a_units_row_under_the_header_is_skipped(tmp_path, plain, units):
     # Lab practice: exports from tensile testers write the units on the line under the names (each the
