@@ -41,6 +41,7 @@ from ..cell.load_program import cycles, monotonic
 from ..cell.material import CellParams
 from ..data import dusserre2015 as _data
 from ..errors import KnitsimInputError
+from . import check_increment
 
 FORCE_CUTS = ("2Psin", "2P")
 
@@ -256,9 +257,11 @@ def run(increment: float = 0.01, jamming_criterion: str = "w_4d", force_cut: str
     """
     if force_cut not in FORCE_CUTS:
         raise KnitsimInputError(f"force_cut = {force_cut!r}: expected one of {', '.join(FORCE_CUTS)}")
-    if not (math.isfinite(increment) and 0 < increment <= 0.1):
-        raise KnitsimInputError(f"increment = {increment!r}: must lie in (0, 0.1]")
     data = _data()
+    t = data["tensile_test"]
+    # the monotonic runs, or the cyclic one: up to its upper strain, then 2 n - 1 half cycles
+    check_increment(increment, 0.1, max(target, t["cycle_upper_strain"] + (2 * t["cycles"] - 1)
+                                        * (t["cycle_upper_strain"] - t["cycle_lower_strain"])))
     claims = data["claims"]
     obs = data["tensile_test"]["observed_cyclic_e_glass"]
     base = dict(jamming_criterion=jamming_criterion)
@@ -380,7 +383,6 @@ def run(increment: float = 0.01, jamming_criterion: str = "w_4d", force_cut: str
         (PARTLY, f"{spread:.0%} apart: shifted, converging slowly") if spread <= 0.3 else
         (NOT_REPRODUCED, f"{spread:.0%} apart"))
     # (e): cyclic, phi0 = 0, m = 0.2 (Fig. 11) vs experiment (Fig. 10)
-    t = data["tensile_test"]
     prog = cycles(t["cycle_lower_strain"], t["cycle_upper_strain"], t["cycles"], increment)
     f1, f2 = obs["max_force_per_wale_N"]["cycle_1"], obs["max_force_per_wale_N"]["cycle_2"]
     lower, upper = t["cycle_lower_strain"], t["cycle_upper_strain"]

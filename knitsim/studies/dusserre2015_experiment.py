@@ -46,6 +46,7 @@ from ..cell.load_program import cycles
 from ..cell.material import CellParams
 from ..data import dusserre2015 as _data
 from ..errors import KnitsimInputError
+from . import check_increment
 
 
 @dataclass(frozen=True)
@@ -382,8 +383,9 @@ def run(increment: float = 0.01, device: str = "cpu", names=None, progress=None)
     progress : callable, optional
         ``progress(name)`` before each candidate.
     """
-    if not (math.isfinite(increment) and 0 < increment <= 0.05):
-        raise KnitsimInputError(f"increment = {increment!r}: must lie in (0, 0.05]")
+    t = _data()["tensile_test"]
+    # its program (:func:`program`): two cycles, up to the upper strain, then three half cycles
+    check_increment(increment, 0.05, t["cycle_upper_strain"] + 3 * (t["cycle_upper_strain"] - t["cycle_lower_strain"]))
     cands = candidates()
     if names:
         known = {c.name for c in cands}

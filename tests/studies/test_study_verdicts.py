@@ -20,6 +20,7 @@ import pytest
 from knitsim.cell.cycle import CellCycle
 from knitsim.cell.domain import rest_force_per_wale
 from knitsim.data import dusserre2015
+from knitsim.errors import KnitsimInputError
 from knitsim.studies import dusserre2015 as study
 
 _T = dusserre2015()["tensile_test"]
@@ -156,3 +157,20 @@ def test_the_initial_slope_does_not_depend_on_the_increment():
     rows = [next(r for r in study.run(increment=inc, target=0.3)["rows"]
                  if r["claim"] == "d" and r["quantity"].startswith("initial slope")) for inc in (0.05, 0.01)]
     assert rows[0]["ours"] == rows[1]["ours"] and rows[0]["verdict"] == rows[1]["verdict"]
+
+
+@pytest.mark.parametrize("name, travel", [("dusserre2015", 3.1), ("dusserre2015-experiment", 2.1)])
+def test_an_increment_too_small_is_refused_as_the_increment_given(name, travel):
+    """A probe's `knitsim study dusserre2015 --increment 1e-9` was refused naming load.max_increment and
+    load.cycles, keys no study has.  The expected count is the strain the study's cyclic program travels (the
+    paper's 0.1-0.6: up to 0.6, then 5 half cycles of 0.5 for 3 cycles, 3 for the experiment's 2) over the
+    increment, a hand count; refused before any cell is solved (the refusal comes at once)."""
+    from knitsim.studies import dusserre2015 as study
+    from knitsim.studies import dusserre2015_experiment as exp
+
+    run = study.run if name == "dusserre2015" else exp.run
+    with pytest.raises(KnitsimInputError) as e:
+        run(increment=1e-7)
+    msg = str(e.value)
+    assert msg.startswith("increment = 1e-07:") and "load." not in msg
+    assert f"{round(travel / 1e-7)} increments" in msg
