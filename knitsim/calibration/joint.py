@@ -36,7 +36,9 @@ are refined.
 
 Uncertainty: ``cov = max(s^2, 1) (J^T W J)^-1`` with J the Jacobian of the weighted
 rows and priors in the reported variables (B, d, w in mm, m, effect
-variables, phi0 in rad, L, W0, C0 in mm), computed at the solution, and
+variables, phi0 in rad, L, W0, C0 in mm), computed at the solution (its steps taken in the fit's own variables,
+phi0 a fraction of the cone atan(m), and carried to the reported ones by the chain rule; a step that makes a cell
+inadmissible or a row fail is no derivative: :func:`_covariance`), and
 ``s^2 = chi^2 / (n - k)`` (1 when the sds are right and the model fits): scaled up where the rows scatter
 more than their sds, never down (a band's half-width is the scatter between tests, not of the mid-line's rows,
 and the priors' sds are stated: s^2 = 0.002 on a band's mid-line had put the yarn 10 standard errors off).  W
@@ -1373,19 +1375,24 @@ class _Problem:
         return (fitted_to - s.target_N) / s.sigma_N
 
     def residuals(self, x: np.ndarray, sims: list, offsets_out: list | None = None,
-                  zeros_out: list | None = None) -> np.ndarray:
+                  zeros_out: list | None = None, failed_out: list | None = None) -> np.ndarray:
         """Weighted rows of every specimen (less each one's best force offset, with offsets on), then the
         geometry priors.  ``offsets_out``: a list the specimens' offsets are appended to (0 where a cell
         is inadmissible); ``zeros_out``: one the specimens' model forces at grip strain 0 are appended to, in
-        their force column's units (:meth:`at_grip_zero`; NaN where a cell is inadmissible)."""
+        their force column's units (:meth:`at_grip_zero`; NaN where a cell is inadmissible); ``failed_out``: one
+        that gets a boolean array over the residuals, True where a residual is the fail residual
+        (:data:`FAIL_RESIDUAL`: an inadmissible cell, or a row at or after a failed increment), no model's."""
         shared, own = self.model_values(x)
         parts = []
+        failed = []
         rest_row = FAIL_RESIDUAL * 1e3                 # the zero check's row where its cell is inadmissible
+        rest_failed = True
         for k, s in enumerate(self.sp):
             w = s.wales(own[k]["W0"]) if s.total else 1.0
             fail = FAIL_RESIDUAL * np.maximum(1.0, np.abs(s.target_N) / s.sigma_N)
             if sims[k] is None:
                 parts.append(fail)
+                failed.append(np.ones(len(fail), bool))
                 if offsets_out is not None:
                     offsets_out.append(0.0)
                 if zeros_out is not None:
@@ -1395,6 +1402,7 @@ class _Problem:
                 zeros_out.append(w * self.at_grip_zero(k, sims[k], own[k]))
             if self.rest_row is not None and self.rest_row[0] == k:
                 rest_row = (w * self.at_grip_zero(k, sims[k], own[k]) - self.rest_row[1]) / self.rest_row[2]
+                rest_failed = False
             f, st = self.at_rows(k, sims[k], own[k])
             if self.tared:                # the file's 0 N is the model's force at grip strain 0
                 f = f - self.at_zero(k, sims[k], own[k])
@@ -1405,21 +1413,27 @@ class _Problem:
                 offsets_out.append(off)
             r = self.row_residuals(s, w * f, off)
             parts.append(np.where(bad, fail, r))
+            failed.append(np.asarray(bad, bool))
         for v, xi in zip(self.vars, x):
             if v.name in GEOMETRY:
                 parts.append(np.array([xi / self.sp[v.specimen].uncertainty[v.name]]))
+                failed.append(np.zeros(1, bool))
             elif v.name == "pretension":
                 s = self.sp[v.specimen]
                 parts.append(np.array([xi / s.pretension_sd]))     # prior: the strain origin at face value
+                failed.append(np.zeros(1, bool))
         if self.rest_row is not None:
             parts.append(np.array([rest_row]))
+            failed.append(np.array([rest_failed]))
+        if failed_out is not None:
+            failed_out.append(np.concatenate(failed))
         return np.concatenate(parts)
 
     def evaluate_points(self, X: Sequence[np.ndarray], offsets_out: list | None = None,
-                        zeros_out: list | None = None) -> list[np.ndarray]:
+                        zeros_out: list | None = None, failed_out: list | None = None) -> list[np.ndarray]:
         """Residual vectors of several points, all in one launch (``offsets_out``: a list that gets each
         point's list of specimen offsets; ``zeros_out``: each point's list of the specimens' model forces at
-        grip strain 0, :meth:`residuals`)."""
+        grip strain 0; ``failed_out``: each point's mask of fail residuals, :meth:`residuals`)."""
         jobs = []
         for x in X:
             for k, c in enumerate(self.cells_at(np.asarray(x))):
@@ -1429,7 +1443,7 @@ class _Problem:
         out = []
         for i, x in enumerate(X):
             offs, zs = [], []
-            out.append(self.residuals(np.asarray(x), sims[i * S:(i + 1) * S], offs, zs))
+            out.append(self.residuals(np.asarray(x), sims[i * S:(i + 1) * S], offs, zs, failed_out))
             if offsets_out is not None:
                 offsets_out.append(offs)
             if zeros_out is not None:
@@ -1598,10 +1612,25 @@ def _row_information(problem: _Problem, r: np.ndarray) -> list[float]:
 
 def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1e-6,
                 offset_gradient: list | None = None, information: list | None = None,
-                zero_gradient: list | None = None) -> np.ndarray:
-    """Covariance of the reported variables: FD Jacobian in those variables at the solution, each specimen's
-    rows weighted by its :func:`_row_information` (``information``: a list that gets them), times ``s2`` (the
-    caller's factor, max(s^2, 1)).
+                zero_gradient: list | None = None, unknown: list | None = None) -> np.ndarray:
+    """Covariance of the reported variables: FD Jacobian at the solution, each specimen's rows weighted by its
+    :func:`_row_information` (``information``: a list that gets them), times ``s2`` (the caller's factor,
+    max(s^2, 1)).
+
+    The steps are taken in the fit's own variables (B's log, d and the in-plane width as fractions of their
+    ranges, phi0 as a fraction of the friction cone phimax = atan(m), a geometry's log factor), inward from a
+    bound as the fit's own Jacobian steps (:meth:`_Problem.evaluate_with_jacobian`), and the Jacobian is carried
+    to the reported variables by the chain rule, J_y = J_x dx/dy (dx/dy by central differences of
+    :func:`_fit_variables`, arithmetic only): the covariance of the reported variables is then the delta
+    method's, dy/dx cov_x (dy/dx)^T.  Stepped in the reported variables (phi0 in rad held), m stepped down
+    from its bound shrank the cone below a phi0 at +-phimax: every cell inadmissible, the fail residuals
+    (:data:`FAIL_RESIDUAL`) read as a derivative of 4e11 and every standard error collapsed (B 0.3033 +-
+    1.3e-11 N mm^2, m 0.6 +- 5.4e-9 on a probe's four specimens of two yarns).
+
+    A step whose point holds a fail residual that the solution does not (an inadmissible cell, a row after a
+    failed increment) is no derivative: it is taken the other way, then 10 times smaller either way, within the
+    bounds.  Where every try fails the variable's derivative is not known, and so is the covariance: NaN
+    throughout (``unknown``: a list that gets such variables' labels), not a number read off fail residuals.
 
     With offsets on, the rows are those less each specimen's best offset (projected out in closed form):
     the Jacobian of these projected rows gives, by variable projection (Golub and Pereyra), the covariance
@@ -1611,26 +1640,51 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     the array [specimens, k] of d (model force at grip strain 0) / d variable (:func:`_zero_std_errors`)."""
     names, y, los, his = _reported(problem, x)
     k = len(y)
-
-    def fit_vars(yv: np.ndarray) -> np.ndarray:
-        return _fit_variables(problem, x, names, yv)
-
-    h = rel_step * np.maximum(np.abs(y), 1e-3)
-    h = np.where(y + h > np.array(his), -h, h)
-    pts = [fit_vars(y)] + [fit_vars(y + h[j] * np.eye(k)[j]) for j in range(k)]
+    x = np.asarray(x, float)
+    lo, hi = problem.lo, problem.hi
+    h = rel_step * np.maximum(np.abs(x), 1.0)
+    h = np.where(x + h > hi, -h, h)
+    pts = [x] + [x + h[j] * np.eye(k)[j] for j in range(k)]
     offs: list = []
     zs: list = []
-    res = problem.evaluate_points(pts, offs, zs)
+    failed: list = []
+    res = problem.evaluate_points(pts, offs, zs, failed)
+    clean = [bool(np.array_equal(failed[j + 1], failed[0])) for j in range(k)]
+    tries = [(j, t) for j in range(k) if not clean[j] for t in (-h[j], h[j] / 10.0, -h[j] / 10.0)
+             if lo[j] <= x[j] + t <= hi[j]]
+    if tries:
+        o2: list = []
+        z2: list = []
+        f2: list = []
+        r2 = problem.evaluate_points([x + t * np.eye(k)[j] for j, t in tries], o2, z2, f2)
+        for (j, t), r, o, z, f in zip(tries, r2, o2, z2, f2):
+            if not clean[j] and np.array_equal(f, failed[0]):
+                res[j + 1], offs[j + 1], zs[j + 1], h[j], clean[j] = r, o, z, t, True
     J = np.stack([(res[j + 1] - res[0]) / h[j] for j in range(k)], axis=1)
+    # the chain rule to the reported variables: dx/dy, column j the fit variables' change with reported variable j
+    hy = rel_step * np.maximum(np.abs(y), 1e-3)
+    dxdy = np.stack([(_fit_variables(problem, x, names, y + hy[j] * np.eye(k)[j])
+                      - _fit_variables(problem, x, names, y - hy[j] * np.eye(k)[j])) / (2.0 * hy[j])
+                     for j in range(k)], axis=1)
+    J = J @ dxdy
     if offset_gradient is not None:
         o = np.asarray(offs, float)                       # [points, specimens]
-        offset_gradient.append(((o[1:] - o[0]) / h[:, None]).T)
+        offset_gradient.append(((o[1:] - o[0]) / h[:, None]).T @ dxdy)
     if zero_gradient is not None:
         z = np.asarray(zs, float)                         # [points, specimens]
-        zero_gradient.append(((z[1:] - z[0]) / h[:, None]).T)
+        zero_gradient.append(((z[1:] - z[0]) / h[:, None]).T @ dxdy)
     info = _row_information(problem, res[0])
     if information is not None:
         information.extend(info)
+    if not all(clean):
+        if unknown is not None:
+            unknown.extend(v.name if v.specimen is None else f"{v.name}[{problem.sp[v.specimen].name}]"
+                           for v, ok in zip(problem.vars, clean) if not ok)
+        if offset_gradient is not None:
+            offset_gradient[-1] = np.full_like(offset_gradient[-1], np.nan)
+        if zero_gradient is not None:
+            zero_gradient[-1] = np.full_like(zero_gradient[-1], np.nan)
+        return np.full((k, k), np.nan)
     rows = np.repeat(info, [len(s.strain) for s in problem.sp])     # each specimen's rows, in their order
     w = np.concatenate([rows, np.ones(len(res[0]) - len(rows))])      # the priors' rows after them weigh 1
     cov = s2 * np.linalg.pinv(J.T @ (w[:, None] * J))
@@ -1649,6 +1703,8 @@ def _offset_std_errors(problem: _Problem, fits_bad: list, cov: np.ndarray, G: np
     its rows that count (divided by its rows' information, :func:`_row_information`), plus the variables' share through the offset's dependence on them, g^T cov g (the
     offset's variance in the full fit with the offsets as variables, by block inversion).  A variable the
     rows do not set (infinite variance) moves no offset either: left out."""
+    if np.isnan(cov).any():                     # the covariance is not known (:func:`_covariance`): nor are these
+        return [math.nan] * len(problem.sp)
     c = np.where(np.isfinite(cov), cov, 0.0)
     out = []
     for k, (s, bad) in enumerate(zip(problem.sp, fits_bad)):
@@ -1821,11 +1877,16 @@ def _note(name: str, side: str, specimen: str | None, effect_var=None, stated: b
     return f"the {side} end of the stated range"
 
 
-def identification_rule(std_error: float, low: float, high: float, unit: str = "") -> str:
-    """Why an estimate is not identified, or ``""`` when it is: its standard error is not finite (the rows
-    do not depend on it), or larger than :data:`NOT_IDENTIFIED_SHARE` (half) of its range ``high - low``
-    (any value in the range fits as well).  All in the estimate's unit."""
+def identification_rule(std_error: float, low: float, high: float, unit: str = "", unknown: str = "") -> str:
+    """Why an estimate is not identified, or ``""`` when it is: its standard error is not known (NaN: no
+    derivative could be taken, :func:`_covariance`; ``unknown`` names the variables whose steps failed), not
+    finite (the rows do not depend on it), or larger than :data:`NOT_IDENTIFIED_SHARE` (half) of its range
+    ``high - low`` (any value in the range fits as well).  All in the estimate's unit."""
     u = f" {unit}" if unit else ""
+    if math.isnan(std_error):
+        return ("its standard error is not known: " + (f"{unknown}'s" if unknown else "a variable's")
+                + " finite-difference step, either way and 10 times smaller, made a cell inadmissible or a row fail "
+                "where the best point's do not, so the rows' derivative there (and the covariance) is not known")
     if not math.isfinite(std_error):
         return "its standard error is not finite: the rows do not depend on it"
     if std_error > NOT_IDENTIFIED_SHARE * (high - low):
@@ -2098,7 +2159,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     grads: list = []
     info: list = []
     zero_grads: list = []
-    cov = _covariance(pb, x, factor, offset_gradient=grads, information=info, zero_gradient=zero_grads)
+    unknown: list = []
+    cov = _covariance(pb, x, factor, offset_gradient=grads, information=info, zero_gradient=zero_grads,
+                      unknown=unknown)
     names, y, los, his = _reported(pb, x)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -2127,7 +2190,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
         mine = [(d, float(v[j])) for d, v in rivals]
         probed = [(d, float(v[j])) for d, v in probes]
         se_j = max(float(se[j]), rival_spread(float(val), float(se[j]), mine + probed) / 1.96)
-        unid = identification_rule(se_j, float(los[j]), float(his[j]), unit)
+        unid = identification_rule(se_j, float(los[j]), float(his[j]), unit, ", ".join(unknown))
         prior = (float(stated * pb.sp[spi].uncertainty[nme]) if nme in GEOMETRY else
                  float(pb.sp[spi].pretension_sd) if nme == "pretension" else 0.0)
         rival = "" if unid else (rival_rule(float(val), float(se[j]), mine, unit, tolerance=prior)
@@ -2135,7 +2198,9 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
                                                what=PROBE_WHAT))
         if unid or rival:
             side = side or "not identified"
-            note = (note + "; " if note else "") + ("the rows do not depend on it (not identified)"
+            note = (note + "; " if note else "") + ("its standard error is not known (not identified)"
+                                                    if np.isnan(se[j]) else
+                                                    "the rows do not depend on it (not identified)"
                                                     if not np.isfinite(se[j]) else
                                                     "another start fits as well far away (not identified)" if rival
                                                     else "standard error above half its range (not identified)")

@@ -19,8 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from knitsim.calibration.joint import _row_information, calibrate_joint
+from knitsim.calibration.joint import (JointSetup, _covariance, _fit_variables, _Problem, _reported,
+                                       _row_information, calibrate_joint, identification_rule)
 from knitsim.calibration.scene import load_calibration_scene
+from knitsim.calibration.specimen import SpecimenData
 
 DATA = Path(__file__).resolve().parent / "data"
 KNITS = {"knitA": {"L": 14.1, "W0": 4.4, "C0": 2.7}, "knitB": {"L": 16.0, "W0": 5.0, "C0": 3.06}}
@@ -109,3 +111,96 @@ def test_row_information_is_one_for_errors_that_change_sign_and_small_for_a_wave
     info = _row_information(pb, np.concatenate([(-1.0) ** np.arange(40), wave, [3.0]]))   # a prior last
     assert info[0] == 1.0 and info[1] == pytest.approx((1 - rho) / (1 + rho), rel=1e-12)
     assert _row_information(SimpleNamespace(sp=pb.sp, objective="band"), np.concatenate([wave, wave])) == [1.0, 1.0]
+
+
+# ------------------------------------------------ the covariance at a bound, and steps that leave the admissible cells
+EDGE_STEP, EDGE_INCREMENT = 0.025, 0.005
+
+
+def _edge_problem():
+    """One hand-made specimen, knitA's model curve (B 0.31, m 0.20, phi0 0: tests/calibration/data/truth_knitA.toml)
+    read every 0.025 to 0.5 with 1 % + 5 mN noise sds (no noise added: the covariance does not need a minimum), B
+    and m shared (m bounded to [0.05, 0.3]), phi0 its own; and the point of the probe's defect: m at its high bound,
+    phi0 at +phimax = atan(m) (fit variable 1, a fraction of the cone)."""
+    from knitsim.cell.batch import run_batch
+    from knitsim.cell.load_program import monotonic
+    from knitsim.cell.material import CellParams
+    truth = CellParams(B=0.31, d=0.58, m=0.2, force_cap_N=10.0, **KNITS["knitA"])
+    h = run_batch([truth], monotonic(0.5, EDGE_INCREMENT))
+    strain = EDGE_STEP * np.arange(1, 21)
+    F = np.interp(strain, h.strain, h.force_per_wale[:, 0]) * 50.0 / KNITS["knitA"]["W0"]
+    sd = 0.01 * np.abs(F) + 0.005
+    sp = SpecimenData("knitA", strain, F, sd, None, None, True, 50.0, 100.0, dict(KNITS["knitA"]), {})
+    base = CellParams(B=0.25, d=0.58, m=0.25, force_cap_N=10.0, **KNITS["knitA"])
+    setup = JointSetup(base=base, shared=("B", "m"), per_specimen=("phi0",), max_increment=EDGE_INCREMENT,
+                       starts=0, refine=1, bounds={"B": (0.05, 1.0), "m": (0.05, 0.3)})
+    pb = _Problem([sp], setup)
+    x = np.array([math.log(0.31), 0.3, 1.0])
+    assert x[1] == pb.hi[1] and x[2] == pb.hi[2]
+    return pb, x
+
+
+def _reported_jacobian_covariance(pb, x, steps):
+    """Independent reference: the covariance from a forward-difference Jacobian taken in the reported variables
+    themselves (B in N mm^2, m, phi0 in rad held), with the given steps (each variable's sign chosen by the
+    caller so that every stepped cell is admissible), weighted as :func:`_covariance` weighs the rows."""
+    names, y, *_ = _reported(pb, x)
+    pts = [x] + [_fit_variables(pb, x, names, y + steps[j] * np.eye(len(y))[j]) for j in range(len(y))]
+    for p in pts:                                        # every stepped cell admissible, every row solved
+        cells = pb.cells_at(p)
+        assert all(c is not None for c in cells)
+        assert all(np.all(sim[1] == 0) for sim in pb.simulate(list(enumerate(cells))))
+    res = pb.evaluate_points(pts)
+    J = np.stack([(res[j + 1] - res[0]) / steps[j] for j in range(len(y))], axis=1)
+    info = _row_information(pb, res[0])
+    w = np.concatenate([np.repeat(info, [len(s.strain) for s in pb.sp]),
+                        np.ones(len(res[0]) - sum(len(s.strain) for s in pb.sp))])
+    return np.linalg.inv(J.T @ (w[:, None] * J)), y
+
+
+def test_standard_errors_at_m_bound_with_phi0_at_the_cone_edge_are_not_collapsed():
+    """The probe's defect (four specimens of two yarns, m at its bound 0.6, every phi0 at +-phimax): the covariance
+    stepped m down from its bound with phi0 held in rad, outside the narrower cone, every stepped cell inadmissible;
+    the fail residuals read as a derivative of 4e11 and B = 0.3033 +- 1.3e-11 N mm^2, m = 0.6 +- 5.4e-9 followed.
+    Now the steps are taken in the fit's variables (phi0 a fraction of the cone) and carried to the reported ones by
+    the chain rule.  Expected: the covariance of the Jacobian taken in the reported variables with m stepped *up*
+    (beyond the bound the cone is wider: every cell admissible) and phi0 down (into the cone), an independent
+    parametrisation and step; the two agree to the finite differences' error."""
+    pb, x = _edge_problem()
+    y = _reported(pb, x)[1]
+    ref, _ = _reported_jacobian_covariance(pb, x, 1e-6 * np.abs(y) * np.array([1.0, 1.0, -1.0]))
+    cov = _covariance(pb, x, 1.0)
+    se, se_ref = np.sqrt(np.diag(cov)), np.sqrt(np.diag(ref))
+    assert np.all(np.isfinite(se)) and np.all(se_ref > 1e-4 * np.abs(y)), (se, se_ref)
+    np.testing.assert_allclose(se, se_ref, rtol=1e-3)
+    corr = cov[0, 1] / (se[0] * se[1])
+    assert corr == pytest.approx(ref[0, 1] / (se_ref[0] * se_ref[1]), abs=1e-3)
+
+
+def test_a_step_that_leaves_the_admissible_cells_is_taken_the_other_way_or_its_standard_error_is_not_known():
+    """A stepped point whose cell is inadmissible (or whose rows fail where the best point's solve) is no
+    derivative.  Here B's forward step is made inadmissible by hand: the covariance takes it the other way, and
+    agrees with the one whose steps all pass (forward and backward differences: to their error, 1e-3).  With
+    B's every step inadmissible its derivative, and so the whole covariance, is not known: NaN (not a number read
+    off the fail residuals: on the old code B's standard error collapsed to ~1e-10 of its value), B named, and the
+    rule says "not known"."""
+    pb, x = _edge_problem()
+    x = np.array([math.log(0.31), 0.2, 0.0])            # inside every bound
+    clean = _covariance(pb, x, 1.0)
+    own = pb.cells_at
+
+    def forward_fails(p):
+        return [None] * len(pb.sp) if p[0] > x[0] else own(p)
+    pb.cells_at = forward_fails
+    cov = _covariance(pb, x, 1.0)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), np.sqrt(np.diag(clean)), rtol=1e-3)
+
+    def every_step_fails(p):
+        return [None] * len(pb.sp) if p[0] != x[0] else own(p)
+    pb.cells_at = every_step_fails
+    unknown: list = []
+    zero_gradient: list = []
+    cov = _covariance(pb, x, 1.0, unknown=unknown, zero_gradient=zero_gradient)
+    assert np.all(np.isnan(cov)) and unknown == ["B"] and np.all(np.isnan(zero_gradient[0]))
+    rule = identification_rule(math.sqrt(cov[1, 1]), 0.05, 0.3, "", ", ".join(unknown))
+    assert rule.startswith("its standard error is not known: B's finite-difference step"), rule
