@@ -1640,8 +1640,10 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
     the array [specimens, k] of d (model force at grip strain 0) / d variable (:func:`_zero_std_errors`)."""
     names, y, los, his = _reported(problem, x)
     k = len(y)
-    x = np.asarray(x, float)
     lo, hi = problem.lo, problem.hi
+    # the fit variables of the reported values: x itself but where the map is singular (at m = 0 any fraction of
+    # the cone is phi0 = 0: the fraction 0, so that m's step holds phi0 as the reported variables do)
+    x = np.clip(_fit_variables(problem, x, names, y), lo, hi)
     h = rel_step * np.maximum(np.abs(x), 1.0)
     h = np.where(x + h > hi, -h, h)
     pts = [x] + [x + h[j] * np.eye(k)[j] for j in range(k)]

@@ -117,7 +117,7 @@ def test_row_information_is_one_for_errors_that_change_sign_and_small_for_a_wave
 EDGE_STEP, EDGE_INCREMENT = 0.025, 0.005
 
 
-def _edge_problem():
+def _edge_problem(m_low: float = 0.05):
     """One hand-made specimen, knitA's model curve (B 0.31, m 0.20, phi0 0: tests/calibration/data/truth_knitA.toml)
     read every 0.025 to 0.5 with 1 % + 5 mN noise sds (no noise added: the covariance does not need a minimum), B
     and m shared (m bounded to [0.05, 0.3]), phi0 its own; and the point of the probe's defect: m at its high bound,
@@ -133,7 +133,7 @@ def _edge_problem():
     sp = SpecimenData("knitA", strain, F, sd, None, None, True, 50.0, 100.0, dict(KNITS["knitA"]), {})
     base = CellParams(B=0.25, d=0.58, m=0.25, force_cap_N=10.0, **KNITS["knitA"])
     setup = JointSetup(base=base, shared=("B", "m"), per_specimen=("phi0",), max_increment=EDGE_INCREMENT,
-                       starts=0, refine=1, bounds={"B": (0.05, 1.0), "m": (0.05, 0.3)})
+                       starts=0, refine=1, bounds={"B": (0.05, 1.0), "m": (m_low, 0.3)})
     pb = _Problem([sp], setup)
     x = np.array([math.log(0.31), 0.3, 1.0])
     assert x[1] == pb.hi[1] and x[2] == pb.hi[2]
@@ -155,7 +155,7 @@ def _reported_jacobian_covariance(pb, x, steps):
     info = _row_information(pb, res[0])
     w = np.concatenate([np.repeat(info, [len(s.strain) for s in pb.sp]),
                         np.ones(len(res[0]) - sum(len(s.strain) for s in pb.sp))])
-    return np.linalg.inv(J.T @ (w[:, None] * J)), y
+    return np.linalg.pinv(J.T @ (w[:, None] * J)), y
 
 
 def test_standard_errors_at_m_bound_with_phi0_at_the_cone_edge_are_not_collapsed():
@@ -175,6 +175,21 @@ def test_standard_errors_at_m_bound_with_phi0_at_the_cone_edge_are_not_collapsed
     np.testing.assert_allclose(se, se_ref, rtol=1e-3)
     corr = cov[0, 1] / (se[0] * se[1])
     assert corr == pytest.approx(ref[0, 1] / (se_ref[0] * se_ref[1]), abs=1e-3)
+
+
+def test_at_m_zero_the_steps_hold_phi0_as_the_reported_variables_do():
+    """At m = 0 (its natural low bound, "no friction at the crossing") every fraction of the cone is phi0 = 0: the map
+    from the fit's variables to the reported ones is singular there.  Stepped from the fit's fraction (0.7 here) m's
+    step would move phi0 by 0.7 dm; the covariance steps from the fraction of the reported phi0 (0), so m's
+    derivative holds phi0 = 0 as the reported variables' Jacobian does (the reference, its phi0 column zero: phi0
+    not identified, infinite)."""
+    pb, _ = _edge_problem(m_low=0.0)
+    x = np.array([math.log(0.31), 0.0, 0.7])
+    y = _reported(pb, x)[1]
+    ref, _ = _reported_jacobian_covariance(pb, x, 1e-6 * np.maximum(np.abs(y), 1e-3))
+    cov = _covariance(pb, x, 1.0)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov))[:2], np.sqrt(np.diag(ref))[:2], rtol=1e-3)
+    assert cov[2, 2] == math.inf
 
 
 def test_a_step_that_leaves_the_admissible_cells_is_taken_the_other_way_or_its_standard_error_is_not_known():
