@@ -898,9 +898,10 @@ class JointResult:
             partner = (f"; it trades off against {labels[j]} (correlation {self.correlation[i, j]:+.3f})"
                        if row.size and row[j] > 0.9 else "")
             out.append(f"specimen {e.specimen}: its knit's {e.name} = {e.value:.4g} +- {e.std_error:.4g}"
-                       f"{_unit_text(e.unit)} is not identified ({why}){partner}: the yarn's standard errors "
-                       f"include this freedom, so the yarn stands; the specimen's scenes hold one of the values "
-                       f"that fit as well")
+                       f"{_unit_text(e.unit)} is not identified ({why}){partner}: "
+                       + ("the yarn's standard errors are not known either (flagged)" if math.isnan(e.std_error) else
+                          "the yarn's standard errors include this freedom, so the yarn stands; the specimen's "
+                          "scenes hold one of the values that fit as well"))
         return out
 
     @property
@@ -2168,7 +2169,7 @@ def calibrate_joint(specimens: Sequence[SpecimenData], setup: JointSetup,
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(np.where(np.isfinite(se), se, np.nan), np.where(np.isfinite(se), se, np.nan))
-    corr = np.where(np.isfinite(corr), corr, 0.0)
+    corr = np.where(np.isfinite(corr) | np.isnan(cov), corr, 0.0)     # NaN where the covariance is not known
     np.fill_diagonal(corr, 1.0)
     estimates = []
     lo_f, hi_f = pb.lo, pb.hi

@@ -392,3 +392,23 @@ def test_a_force_per_wale_specimen_is_reported_per_wale():
     assert "fit: RMS 0.0003195 N per wale" in cell_scene_of(r, 0, "s.toml")
     total = replace(r.fits[0], offset_unit="N (total)")
     assert total.force_unit == "N" and "fit: RMS 0.0003195 N (" in _fit_line(total)
+
+
+def test_a_standard_error_not_known_is_flagged_as_such_and_the_knit_note_does_not_vouch_for_the_yarn():
+    """A covariance that could not be taken (knitsim.calibration.joint._covariance: every finite-difference step of a
+    variable made a cell inadmissible or a row fail) is NaN throughout.  The shared variable's flag says its standard
+    error is not known, naming the variable whose steps failed (not "the rows do not depend on it", the rule of an
+    infinite one), and the knit's note does not say "the yarn stands" (before: "the yarn's standard errors include
+    this freedom, so the yarn stands", beside a yarn whose standard errors were not known)."""
+    why = "m"
+    es = [Estimate("m", None, 0.6, math.nan, "-", 0.05, 0.6, "high", "the high end of the stated range",
+                   not_identified=identification_rule(math.nan, 0.05, 0.6, "-", why)),
+          Estimate("phi0", "tight", 0.54, math.nan, "rad", -0.54, 0.54, "high", "+phimax",
+                   not_identified=identification_rule(math.nan, -0.54, 0.54, "rad", why))]
+    r = _result(es)
+    (flag,) = [f for f in r.flags if "not identified" in f]
+    assert flag.startswith("m = 0.6 +- nan is not identified: its standard error is not known: m's finite-difference "
+                           "step"), flag
+    (note,) = r.knit_notes
+    assert "is not known" in note and "the yarn stands" not in note and "not known either" in note, note
+    assert identification_rule(math.inf, 0.05, 0.6) == "its standard error is not finite: the rows do not depend on it"
