@@ -70,7 +70,12 @@ A curve whose noise cannot be estimated says so (:attr:`CurveNoise.estimable`):
   caught (its deviations correlate at about -0.45 to -0.53): its noise is
   read as a smaller white noise;
 - an estimate below :data:`SMOOTH_REL` of the curve's force range (a curve
-  read to the last digit of a smooth law).
+  read to the last digit of a smooth law);
+- a scatter no larger than the rounding to the last digit written, q, gives
+  alone: q / sqrt(12), up to :data:`ROUNDING_SIGMAS` standard errors of its
+  estimate (:func:`rounding_scatter`; points read off a figure and rounded).
+  A scatter above it is noise read through the rounding, and its sd, the
+  rounding's variance q^2 / 12 included, is what the fit's rows scatter by.
 
 It is then given :data:`ASSUMED_REL` of its force range (a curve digitised
 from a figure is read to about half a percent of its range) and the evidence
@@ -100,8 +105,13 @@ CORRELATED_RATIO_MIN = 1.25
 #: specimens, seed 0, white noise with strain jitter and outliers: z at most +3.66, ratio at most 1.25 at 318 rows;
 #: none is taken, so none of its verdicts changes)
 CORRELATED_SIGMAS = 4.0
-#: a scatter about the cubics below this many times the last digit written is the rounding, not the noise
-ROUNDING_STEPS = 1.0
+#: a curve rounded to a last digit q scatters about the cubics by q / sqrt(12) from the rounding alone (a uniform error on
+#: (-q/2, q/2), independent from row to row where the curve moves by more than q between rows: an identity), and the
+#: estimate of that sd is known to sqrt(KAPPA / n) relative; a scatter within this many of those standard errors above
+#: it is the rounding, not the noise (:func:`rounding_scatter`).  Before, any scatter below q itself was read so: a
+#: logger printing 0.01 N over noise of sd 0.004 N (a scatter of sqrt(0.004^2 + 0.01^2 / 12) = 0.0049 N) was read as a
+#: rounded smooth curve and given 0.5 % of its range, 5 times its sd
+ROUNDING_SIGMAS = 4.0
 #: MAD to sd for Gaussian noise
 MAD_TO_SD = 1.4826
 #: clip of the scaled chord differences, in robust sd
@@ -417,6 +427,14 @@ def written_resolution(values) -> float:
     return 0.0
 
 
+def rounding_scatter(step: float, n: int) -> float:
+    """The largest scatter about the cubics [N] that ``n`` deviations of a curve written to the last digit ``step``
+    show from the rounding alone: ``step / sqrt(12)`` (:data:`ROUNDING_SIGMAS`) plus :data:`ROUNDING_SIGMAS` standard
+    errors of its estimate, ``sqrt(KAPPA / n)`` relative.  A scatter above it holds noise of its own, and the rows'
+    sd is that scatter (the rounding's variance ``step^2 / 12`` included: the fit compares the rounded rows)."""
+    return step / math.sqrt(12.0) * (1.0 + ROUNDING_SIGMAS * math.sqrt(KAPPA / max(n, 1)))
+
+
 def cubic_deviations(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
     """Scaled deviations ``|f_i - p(s_i)| / sqrt(1 + sum w_k^2)`` of each row from the cubic ``p`` through its
     two neighbours on each side (one branch, strain strictly monotone; ``w`` the Lagrange weights), and
@@ -543,10 +561,11 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
                "the cubic through their neighbours (white noise scatters alike): noise correlated from row to row "
                "(a load cell's filter slower than the logger, or a smoothed curve), whose size the neighbours "
                "understate")
-    elif step > 0 and len(zc_all) >= MIN_SAMPLES and clipped_sd(zc_all) < ROUNDING_STEPS * step:
-        why = (f"its rows scatter by {clipped_sd(zc_all):.2g} N about the cubic through their neighbours, within "
-               f"the last digit its forces are written to ({step:g} N): the rounding of a curve read off a "
-               "figure or a smooth law, not measurement noise")
+    elif step > 0 and len(zc_all) >= MIN_SAMPLES and clipped_sd(zc_all) < rounding_scatter(step, len(zc_all)):
+        why = (f"its rows scatter by {clipped_sd(zc_all):.2g} N about the cubic through their neighbours, what the "
+               f"rounding to the last digit its forces are written to ({step:g} N) gives alone ({step:g} / sqrt(12) = "
+               f"{step / math.sqrt(12.0):.2g} N): the rounding of a curve read off a figure or a smooth law, not "
+               "measurement noise")
     else:
         # from the chords, as the blind study was run and scored (v14: 120 cases).  The cubics' sd is closer
         # where the curve bends hard (a jamming pull's 3 mN read 3.9 on the chords, 3.3 on the cubics), but

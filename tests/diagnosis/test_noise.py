@@ -58,8 +58,27 @@ def test_a_smooth_curve_says_its_noise_cannot_be_estimated(kind):
     assert rho > WHITE_RHO_MAX
     c = curve_noise(s, f, one, one, kind)
     assert c.method == "assumed" and not c.estimable and not c.known
-    assert ("in step" if kind == "smooth law" else "within the last digit its forces are written to (0.0001 N)") \
+    assert ("in step" if kind == "smooth law" else "the rounding to the last digit its forces are written to (0.0001 N)") \
         in c.note and "--noise-N" in c.note
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_noise_read_through_a_coarse_last_digit_is_estimated_with_the_roundings_variance(seed):
+    """A logger printing 0.01 N over white noise of sd 0.004 N (below the digit): each row is the curve plus the
+    noise plus a rounding error uniform on (-0.005, 0.005), independent of the noise where the curve moves by more
+    than the digit between rows, so the rows scatter about the curve by sqrt(0.004^2 + 0.01^2 / 12) = 0.00493 N
+    (the rounding's variance q^2 / 12: an identity).  The estimate is that within 4 standard errors (relative se
+    about 1 / sqrt(600)); before, any scatter below the digit itself was read as a rounded smooth curve and the
+    noise assumed at 0.5 % of the force range, 0.025 N, 5 times too large.  The same law rounded without noise
+    still says its noise cannot be estimated (its scatter, 0.01 / sqrt(12) = 0.0029 N, is the rounding alone)."""
+    s = np.linspace(0.0, 0.6, N)
+    f0 = 0.5 * (np.exp(4.0 * s) - 1.0)                  # 0 .. 5 N: about 0.05 N between rows at the end
+    f = np.round((f0 + np.random.default_rng(seed).normal(0.0, 0.004, N)) / 0.01) * 0.01
+    c = curve_noise(s, f, ONE, ONE, "logger 0.01 N")
+    assert c.method == "estimated" and c.estimable
+    assert c.sigma_N == pytest.approx(np.sqrt(0.004 ** 2 + 0.01 ** 2 / 12.0), rel=4.0 / np.sqrt(N))
+    smooth = curve_noise(s[100:], np.round(f0[100:] / 0.01) * 0.01, ONE[100:], ONE[100:], "rounded law")
+    assert smooth.method == "assumed" and "rounding" in smooth.note
 
 
 def _stiffening(s):
