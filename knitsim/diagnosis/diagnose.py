@@ -116,7 +116,7 @@ from .calibrate import calibrate_baseline, default_bounds, rss_of_cells
 from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects, variables_for
 from .gap import curve_indicators, stage_gap
 from .measured import NEGATIVE_SIGMAS, MeasuredCurve, check_reachable, check_response, reachable_strain
-from .noise import CurveNoise, curve_noise, row_slopes
+from .noise import OUTLIER_SIGMAS, CurveNoise, curve_noise, row_slopes
 
 #: BIC difference counted as very strong evidence (Kass and Raftery 1995, 2 ln B > 10)
 STRONG = 10.0
@@ -134,7 +134,7 @@ SIZE_FLOOR_SD = 0.5
 #: one-sided 99.9 % point of the normal distribution: chi^2 within dof + Z sqrt(2 dof) is within noise
 WITHIN_NOISE_Z = 3.09
 #: a row this many sd off the calibrated baseline, whose neighbours are within OUTLIER_NEIGHBOUR_Z, is an outlier
-OUTLIER_Z = 6.0
+OUTLIER_Z = OUTLIER_SIGMAS
 OUTLIER_NEIGHBOUR_Z = 3.0
 
 

@@ -81,6 +81,29 @@ def test_noise_read_through_a_coarse_last_digit_is_estimated_with_the_roundings_
     assert smooth.method == "assumed" and "rounding" in smooth.note
 
 
+def test_heavy_tailed_noise_weights_the_rows_as_the_fit_counts_them():
+    """Student t noise with 3 degrees of freedom (scale 0.01 N, sd 0.0173 N) on a smooth pull of 1200 rows, 20 draws.
+    Every row within the fit's outlier limit (6 sd) counts in chi^2, so the sd that weights the rows is the noise's
+    RMS within it: weighted so, the true curve's rows give chi^2 per row 1 (an identity; the median of the 20 draws
+    within 0.1 of it).  Before, the clipped RMS corrected for a Gaussian's truncation cut off the tail's variance:
+    the true curve read chi^2 per row 1.17 (median of these 20 draws), a long file `unexplained`.  Gaussian noise of the
+    same sd on the same curve is read as before: no tail factor in any draw, the sd within 4 standard errors."""
+    n = 1200
+    s = np.linspace(0.0, 0.6, n)
+    f0 = 0.5 * (np.exp(4.0 * s) - 1.0)
+    one = np.ones(n, int)
+    per_row = []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        e = 0.01 * rng.standard_t(3, n)
+        c = curve_noise(s, f0 + e, one, one, "t3")
+        z = e / c.sigma_N
+        per_row.append(float(np.mean(z[np.abs(z) < 6.0] ** 2)))
+        g = curve_noise(s, f0 + rng.normal(0.0, 0.0173, n), one, one, "gauss")
+        assert "heavy-tailed" not in g.note and g.sigma_N == pytest.approx(0.0173, rel=4.0 / np.sqrt(n))
+    assert np.median(per_row) == pytest.approx(1.0, abs=0.1)
+
+
 def _stiffening(s):
     """A pull that stiffens as a knit jams: 0.02 N at the start, 3.6 N at strain 0.6 (hand-made law)."""
     return 0.02 + 0.05 * (np.exp(7.0 * s) - 1.0)
