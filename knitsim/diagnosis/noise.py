@@ -134,6 +134,9 @@ OUTLIER_SIGMAS = 6.0
 TAIL_RATIO_SE = 0.2
 #: the ratio read as heavy tails beyond this many of those standard errors above 1
 TAIL_SIGMAS = 4.0
+#: no heavy-tail factor where the strain's jitter times the slope of the steepest 5 % of the rows exceeds this share
+#: of the force's sd (those rows scatter more by the jitter, which their own sd takes up)
+JITTER_TAIL_SHARE = 0.5
 #: n var(sigma_hat / sigma) of the clipped-RMS estimate of n chord differences (module docstring)
 KAPPA = 1.0
 #: likelihood ratio (2 delta log L) from which the noise is read as growing with the force (chi^2_1 at 1e-3)
@@ -582,12 +585,12 @@ def curve_noise(strain, force, cycle, direction, source: str = "curve", given: f
                 strain_sd: float = 0.0) -> CurveNoise:
     """The noise of one curve: ``given`` [N], or estimated from its rows (module docstring); with the strain
     column's jitter ``strain_sd`` (:func:`strain_jitter` of the strain as read), given or estimated."""
-    out = _force_noise(strain, force, cycle, direction, source, given, strain_sd > 0)
+    out = _force_noise(strain, force, cycle, direction, source, given, strain_sd)
     return replace(out, strain_sd=float(strain_sd)) if strain_sd > 0 else out
 
 
 def _force_noise(strain, force, cycle, direction, source: str, given: float | None,
-                 jitters: bool = False) -> CurveNoise:
+                 strain_sd: float = 0.0) -> CurveNoise:
     """The force's part of :func:`curve_noise`."""
     f = np.asarray(force, float)
     span = float(np.max(f) - min(float(np.min(f)), 0.0)) if len(f) else 0.0
@@ -640,9 +643,11 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
                                       how + f"; the sd grows with the force, {a:.3g} N + {100.0 * b:.3g} % of it "
                                       f"(x{growth:.3g} over the curve's forces; likelihood ratio {lr:.3g} against one sd)",
                                       2.0 * KAPPA / n_used, b)
-            # heavy tails (tail_factor); not where the strain jitters: its steep rows scatter more, which the rows'
-            # own sd takes up (CurveNoise.sd_at), and their mixture with the gentle rows reads as a heavy tail
-            heavy = 1.0 if jitters else tail_factor(zc_all, jumps)
+            # heavy tails (tail_factor); not where the strain jitters enough to widen the steep rows' scatter (by
+            # over half the force's sd on the steepest 5 % of the rows): the rows' own sd takes that up
+            # (CurveNoise.sd_at), and their mixture with the gentle rows reads as a heavy tail
+            steep = float(np.percentile(row_slopes(strain, force, cycle, direction), 95.0)) if strain_sd > 0 else 0.0
+            heavy = 1.0 if strain_sd * steep > JITTER_TAIL_SHARE * sigma else tail_factor(zc_all, jumps)
             if heavy > 1.0:
                 how += (f"; heavy-tailed: the scatter within {OUTLIER_SIGMAS:g} sd (where the fit keeps a row) is "
                         f"x{heavy:.3g} that within the clip, and the sd is raised so")

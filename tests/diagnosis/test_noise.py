@@ -97,6 +97,8 @@ def test_heavy_tailed_noise_weights_the_rows_as_the_fit_counts_them():
         rng = np.random.default_rng(seed)
         e = 0.01 * rng.standard_t(3, n)
         c = curve_noise(s, f0 + e, one, one, "t3")
+        # a strain column's float rounding read as a jitter (1e-17: a program's own steps) moves nothing
+        assert curve_noise(s, f0 + e, one, one, "t3", strain_sd=1e-17).sigma_N == c.sigma_N
         z = e / c.sigma_N
         per_row.append(float(np.mean(z[np.abs(z) < 6.0] ** 2)))
         g = curve_noise(s, f0 + rng.normal(0.0, 0.0173, n), one, one, "gauss")
