@@ -493,7 +493,7 @@ def clipped_sd(z: np.ndarray) -> float:
     return float(math.sqrt(np.mean(inside * inside) / _TRUNC)) if len(inside) else 0.0
 
 
-def tail_factor(z: np.ndarray, jumps=None) -> float:
+def tail_factor(z: np.ndarray, jumps=None, pairs=None) -> float:
     """How much larger the noise's sd is than :func:`clipped_sd` reads it, where its tails are heavier than a
     Gaussian's: the sd read through a clip at :data:`OUTLIER_SIGMAS` of itself (iterated from :func:`clipped_sd`:
     every row within it counts in the fit's chi^2) over :func:`clipped_sd`, taken where it exceeds 1 by more than
@@ -507,17 +507,36 @@ def tail_factor(z: np.ndarray, jumps=None) -> float:
     and 1.00 for Gaussian noise (sd 0.008).  ``jumps`` (:func:`_cubic_signed`): a deviation whose row's outer
     segments change slope by more than :data:`KINK_SIGMAS` robust sd is left out, as :func:`level_model` leaves it
     (where the knit jams the slope changes 50-fold between rows, which no cubic follows: the model's own cycles to
-    0.72 with 2 mN of Gaussian noise read 1.29 with those rows)."""
+    0.72 with 2 mN of Gaussian noise read 1.29 with those rows).  ``pairs`` (:func:`_cubic_signed`: deviations of
+    neighbouring rows): the two deviations on each side of one beyond the clip are left out too, as the fit leaves
+    out a row that far off: a single outlier row moves the cubics of its neighbours by 2/3 of itself (the Lagrange
+    weights of the rows beside it), which then lie between the two clips (a blind-study lab curve of Gaussian
+    noise with one outlier row read 1.05 with them, 1.00 without)."""
     z = np.abs(np.asarray(z, float))
+    keep = np.ones(len(z), bool)
     if jumps is not None and len(z):
         robust = MAD_TO_SD * float(np.median(z))
-        z = z[~(np.asarray(jumps, float) > KINK_SIGMAS * robust)]
-    base = clipped_sd(z)
-    if len(z) < MIN_SAMPLES or not base > 0:
+        keep = ~(np.asarray(jumps, float) > KINK_SIGMAS * robust)
+    nxt = np.full(len(z), -1)
+    for a, b in (pairs or ()):
+        nxt[a] = b
+    prv = np.full(len(z), -1)
+    prv[nxt[nxt >= 0]] = np.flatnonzero(nxt >= 0)
+    base = clipped_sd(z[keep])
+    if np.count_nonzero(keep) < MIN_SAMPLES or not base > 0:
         return 1.0
     wide, sd = _truncated_second_moment(OUTLIER_SIGMAS), base
     for _ in range(100):
-        inside = z[z < OUTLIER_SIGMAS * sd]
+        out = np.flatnonzero(z >= OUTLIER_SIGMAS * sd)
+        near = np.zeros(len(z), bool)
+        for step in (nxt, prv):
+            k = out
+            for _ in range(2):
+                k = step[k]
+                k = k[k >= 0]
+                near[k] = True
+        zz = z[keep & ~near]
+        inside = zz[zz < OUTLIER_SIGMAS * sd]
         new = math.sqrt(float(np.mean(inside * inside)) / wide)
         done = abs(new - sd) <= 1e-9 * sd
         sd = new
@@ -647,7 +666,7 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
             # over half the force's sd on the steepest 5 % of the rows): the rows' own sd takes that up
             # (CurveNoise.sd_at), and their mixture with the gentle rows reads as a heavy tail
             steep = float(np.percentile(row_slopes(strain, force, cycle, direction), 95.0)) if strain_sd > 0 else 0.0
-            heavy = 1.0 if strain_sd * steep > JITTER_TAIL_SHARE * sigma else tail_factor(zc_all, jumps)
+            heavy = 1.0 if strain_sd * steep > JITTER_TAIL_SHARE * sigma else tail_factor(zc_all, jumps, cpairs)
             if heavy > 1.0:
                 how += (f"; heavy-tailed: the scatter within {OUTLIER_SIGMAS:g} sd (where the fit keeps a row) is "
                         f"x{heavy:.3g} that within the clip, and the sd is raised so")
