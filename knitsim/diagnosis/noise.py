@@ -543,7 +543,7 @@ def tail_factor(z: np.ndarray, jumps=None, pairs=None) -> float:
         if done:
             break
     ratio = sd / base
-    return ratio if ratio > 1.0 + TAIL_SIGMAS * TAIL_RATIO_SE / math.sqrt(len(z)) else 1.0
+    return ratio if ratio > 1.0 + TAIL_SIGMAS * TAIL_RATIO_SE / math.sqrt(len(zz)) else 1.0
 
 
 def level_model(z: np.ndarray, levels: np.ndarray, jumps=None) -> tuple[float, float, float] | None:
