@@ -322,18 +322,25 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
             for i in g:
                 sims[i] = hist
         def resid(j):
-            return np.concatenate([_project(force_at_rows(sims[i], rows[i], j)[0] - c.force, ws[i], offsets)
-                                   for i, c in enumerate(curves)])
-        r0 = resid(0)
+            # a row the model gives no force at (a cell without a rest state, status no_rest_state: every row
+            # NaN) is no prediction: its residual is 0 here, before the offset's projection (which would spread
+            # the NaN over its curve), and counted at FAILED_ROW_Z below (scipy stopped the whole diagnosis at
+            # such a start of a race: "Residuals are not finite in the initial point", blind study seed 2, case 5)
+            e = [force_at_rows(sims[i], rows[i], j)[0] - c.force for i, c in enumerate(curves)]
+            return (np.concatenate([_project(np.where(np.isfinite(ei), ei, 0.0), ws[i], offsets)
+                                    for i, ei in enumerate(e)]),
+                    np.concatenate([~np.isfinite(ei) for ei in e]))
+        r0, no_force = resid(0)
         J = np.empty((len(r0), k))
         for j in range(k):
             # the Jacobian of the model as simulated (a neighbour that fails near the boundary of the
             # region where the model runs must not make the step vanish); the residual itself is penalised
-            J[:, j] = (resid(j + 1) - r0) / h[j]
-        r = r0
+            rj, no_force_j = resid(j + 1)
+            J[:, j] = np.where(no_force | no_force_j, 0.0, (rj - r0) / h[j])
+        failed = no_force
         if penalise_failed:
-            failed = np.concatenate([_failed_rows(sims[i], rows[i], 0) for i in range(len(curves))])
-            r = _penalised(r0, failed, np.concatenate(ws))
+            failed = failed | np.concatenate([_failed_rows(sims[i], rows[i], 0) for i in range(len(curves))])
+        r = _penalised(r0, failed, np.concatenate(ws))
         cache[key] = (r, J, sims)
         return cache[key]
 

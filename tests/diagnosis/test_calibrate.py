@@ -110,6 +110,20 @@ def test_rows_the_simulation_did_not_reach_count_at_least_ten_sd():
     assert out[4] == pytest.approx(-np.hypot(4.0, 10.0))
 
 
+def test_a_start_without_a_rest_state_is_counted_not_a_crash(curve):
+    # The E-glass knit with a yarn of d = 0.35 mm (in d's default range) has no rest state (status
+    # no_rest_state, every row NaN): a race's start there stopped the whole diagnosis with scipy's "Residuals
+    # are not finite in the initial point" (blind study seed 2, case 5).  Such rows are no prediction: each
+    # counts FAILED_ROW_Z (sqrt(0 + 10^2)), so the chi^2 is the rows' count times 100 (an identity), the
+    # Jacobian there is 0 and the fit stays where it started, its status naming why
+    from knitsim.diagnosis.calibrate import FAILED_ROW_Z
+    r = calibrate_baseline(curve, TRUE.replace(m=0.3, phi0=0.0), free=("m", "phi0", "d"), max_increment=0.02,
+                           x0={"m": 0.12, "phi0": 0.9, "d": 0.35})
+    assert r["curves"][0]["final_status"] == "no_rest_state"
+    assert r["chi2"] == pytest.approx(r["n"] * FAILED_ROW_Z ** 2)
+    assert r["values"]["d"] == pytest.approx(0.35)
+
+
 def test_a_variable_pushed_to_its_bound_is_reported_at_it(curve):
     """The curve's m is 0.2 (TRUE); with m's search bounded to [0.3, 0.5] the least-squares optimum
     lies on the lower bound (chi^2 rises away from 0.2 on that side: one basin), which the fit must
