@@ -252,12 +252,23 @@ def _compressive(ds) -> np.ndarray:
     return _flag(ds, "rest_state_compressive")
 
 
-def _capped(ds) -> np.ndarray:
-    """Where a sample's cell stopped at its force cap (the rest of the program not run: the peak of the cycle it
-    stopped in is the cap, later cycles NaN)."""
+def _at_rest(ds) -> np.ndarray:
+    """Where a sample's cell stopped at rest: its rest state at or above its force cap (``stopped_at_strain`` 0, no
+    cycle run; its cycle-1 values are the rest state's, not a cycle's: knitsim.sweep.runner.capped_samples)."""
     from ..cell.history import STATUS_FORCE_CAP
 
-    return np.asarray(ds["final_status"].values) == STATUS_FORCE_CAP
+    capped = np.asarray(ds["final_status"].values) == STATUS_FORCE_CAP
+    if "stopped_at_strain" not in ds.data_vars:
+        return np.zeros(capped.shape, bool)
+    return capped & (np.asarray(ds["stopped_at_strain"].values) == 0.0)
+
+
+def _capped(ds) -> np.ndarray:
+    """Where a sample's cell stopped at its force cap while running the program (the rest of the program not run:
+    the peak of the cycle it stopped in is the cap, later cycles NaN); one stopped at rest is :func:`_at_rest`."""
+    from ..cell.history import STATUS_FORCE_CAP
+
+    return (np.asarray(ds["final_status"].values) == STATUS_FORCE_CAP) & ~_at_rest(ds)
 
 
 def _failed(ds) -> np.ndarray:
@@ -286,6 +297,13 @@ def _not_the_knits(ds, q: str, cycle) -> np.ndarray:
     return off
 
 
+def _cycle_values(ds, q: str, cycle) -> np.ndarray:
+    """Quantity ``q`` of ``cycle`` as drawn: NaN for a sample stopped at rest (:func:`_at_rest`: it ran no cycle, its
+    cycle-1 values are its rest state's; a probe's rest force was drawn as cycle 1's peak), marked at the axis foot."""
+    y = np.asarray(ds[q].sel(cycle=cycle).values, dtype=float)
+    return np.where(_at_rest(ds).reshape(y.shape), np.nan, y)
+
+
 def _energy_label(ds, cycle) -> str:
     """What the energy of ``cycle`` is where it is the knit's (hysteresis of a closed cycle, work of an open
     one), for the legend."""
@@ -308,6 +326,7 @@ class _Marks:
     outside: np.ndarray
     energy: np.ndarray
     capped: np.ndarray
+    at_rest: np.ndarray
     compressive: np.ndarray
     heads: np.ndarray
     zero_force: np.ndarray
@@ -323,7 +342,7 @@ class _Marks:
 
 
 def _marks(ds) -> _Marks:
-    return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds), _compressive(ds),
+    return _Marks(_failed(ds), _no_rest(ds), _outside(ds), _energy(ds), _capped(ds), _at_rest(ds), _compressive(ds),
                   _flag(ds, "heads_interpenetrate"), _flag(ds, "zero_force_cycle"),
                   _flag(ds, "reload_below_earlier_loading"), _flag(ds, "reload_loss_continues"),
                   _flag(ds, "reload_above_first_loading"))
@@ -336,6 +355,8 @@ _TITLE_PHRASES = (
     ("outside", "outside the domain's box (ringed / dotted): extrapolated"),
     ("capped", "stopped at the force cap: peak = the cap and energy = loading work (grey star, off the lines / "
                "++-hatched), the rest not run (grey triangle / --hatched)"),
+    ("at_rest", "stopped at rest: its rest force at or above the force cap, no cycle run (grey triangle / "
+                "--hatched; its values the rest state's, off the lines)"),
     ("energy", "with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)"),
     ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; orange)"),
     ("heads", "with overlapping heads of neighbouring loops (heads_interpenetrate; orange)"),
@@ -346,7 +367,7 @@ _TITLE_PHRASES = (
 )
 #: the same kinds, short (the flags of the cells not plotted)
 _SHORT = {"failed": "failed", "no_rest": "no rest state", "outside": "outside the box", "capped": "stopped at the "
-          "force cap", "energy": "loop returns energy", "compressive": "compressive rest state",
+          "force cap", "at_rest": "stopped at rest (cap)", "energy": "loop returns energy", "compressive": "compressive rest state",
           "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading",
           "reload_loss": "reload loss continues", "reload_above": "reload above first loading"}
 
@@ -369,7 +390,8 @@ def _mark_axis(ax, xs, marks: _Marks, lines: bool = False) -> None:
     lo = ax.get_ylim()[0]
     for mask, style, label, gap in ((marks.failed, FAILED_STYLE, "failed", True),
                                     (marks.no_rest, NO_REST_STYLE, "no rest state", True),
-                                    (marks.capped, CAPPED_STYLE, "stopped at the force cap", False)):
+                                    (marks.capped, CAPPED_STYLE, "stopped at the force cap", False),
+                                    (marks.at_rest, CAPPED_STYLE, "stopped at rest (cap)", False)):
         if mask.any():
             if lines and gap:
                 for xv in xs[mask]:
@@ -389,8 +411,8 @@ def _lines(ds, key: str, title: str, others: str = "") -> bytes:
     for ax, (q, ylabel) in zip(axes[0], QUANTITIES):
         labelled = False
         for n, c in enumerate(cycles):
-            y = np.asarray(ds[q].sel(cycle=c).values, dtype=float)
-            off = _not_the_knits(ds, q, c)
+            y = _cycle_values(ds, q, c)
+            off = _not_the_knits(ds, q, c) & np.isfinite(y)
             label = _energy_label(ds, c) if q == "energy_N_mm" else f"cycle {int(c)}"
             style = _cycle_style(n)
             if names is not None:                # names have an order, not a scale: points, not a trend line
@@ -422,7 +444,7 @@ def _heatmaps(ds, keys: list[str], title: str, others: str = "") -> bytes:
     xe, ye = _edges(x), _edges(y)
     for r, c in enumerate(cycles):
         for ax, (q, label) in zip(axes[r], QUANTITIES):
-            z = t[q].sel(cycle=c).values
+            z = _cycle_values(t, q, c)
             off = _not_the_knits(t, q, c)
             # a value that is not the knit's stays out of the colour scale (a 10 N cap would set it)
             im = ax.pcolormesh(xe, ye, np.ma.masked_invalid(np.where(off, np.nan, z)), shading="flat",
@@ -432,7 +454,7 @@ def _heatmaps(ds, keys: list[str], title: str, others: str = "") -> bytes:
             _hatch(ax, xe, ye, mk.outside, "..", None)
             _hatch(ax, xe, ye, mk.energy, "\\\\", None, edge="tab:red")
             _hatch(ax, xe, ye, mk.warned & ~mk.energy, "oo", None, edge="tab:orange")
-            _hatch(ax, xe, ye, mk.capped & np.isnan(z), "--", "0.85")
+            _hatch(ax, xe, ye, (mk.capped & np.isnan(z)) | mk.at_rest, "--", "0.85")
             _hatch(ax, xe, ye, off, "++", "0.85")
             cb = fig.colorbar(im, ax=ax, shrink=0.85)
             cb.formatter.set_useOffset(False)
@@ -490,8 +512,8 @@ def _scatter(ds, keys: list[str], title: str, others: str, grid: bool) -> bytes:
             _name_ticks(ax, ticks[k])
             labelled = False
             for n, c in enumerate(cycles):
-                y = np.asarray(flat[q].sel(cycle=c).values, dtype=float)
-                off = _not_the_knits(flat, q, c)
+                y = _cycle_values(flat, q, c)
+                off = _not_the_knits(flat, q, c) & np.isfinite(y)
                 keep = ~skip & ~off
                 name = _energy_label(flat, c) if q == "energy_N_mm" else f"cycle {c}"
                 ax.scatter(xs[k][keep], y[keep], s=10 if n else 8, alpha=0.7, label=name,

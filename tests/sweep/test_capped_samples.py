@@ -46,7 +46,7 @@ def test_capped_sample_is_listed_and_marked(tmp_path, monkeypatch):
     assert line1.get_label() == "cycle 1" and np.isnan(line1.get_ydata()[0]) and np.isfinite(line1.get_ydata()[1])
 
 
-def test_a_sample_stopped_at_rest_is_not_said_to_peak_at_the_cap(tmp_path):
+def test_a_sample_stopped_at_rest_is_not_said_to_peak_at_the_cap(tmp_path, monkeypatch):
     """A probe's Latin hypercube of rules.force_cap_N in [0.001, 0.03] N: the samples whose cap is under the cell's
     rest force were listed "stopped at its force cap in cycle 1, whose peak is the cap" (peak_at_force_cap = 1,
     stopped_at_strain the first increment's 0.05 here), their peak the rest force, above the cap.  Expected: the
@@ -66,3 +66,17 @@ def test_a_sample_stopped_at_rest_is_not_said_to_peak_at_the_cap(tmp_path):
     at_rest, loading = capped_samples(ds)
     assert at_rest["reason"].startswith(f"stopped at rest: its force per wale at rest, {F_rest:.4g} N")
     assert "whose peak is the cap" not in at_rest["reason"] and "in cycle 1, whose peak is the cap" in loading["reason"]
+    # the plot says so too: one stopped at rest (marked at the axis foot, its rest force on no line and no star),
+    # one at the cap (its title said "2 stopped at the force cap: peak = the cap", the rest force drawn as cycle 1's)
+    figs = []
+    monkeypatch.setattr(plots, "_png", lambda fig: figs.append(fig) or b"")
+    plots.plot_sweep(ds, tmp_path / "o")
+    (fig,) = figs
+    title = " ".join(fig._suptitle.get_text().split())
+    assert "1 stopped at the force cap: peak = the cap" in title and "1 stopped at rest:" in title
+    peak_ax = fig.axes[0]
+    assert np.isnan(peak_ax.get_lines()[0].get_ydata()[0])
+    (foot,) = [col for col in peak_ax.collections if col.get_label() == "stopped at rest (cap)"]
+    np.testing.assert_allclose(foot.get_offsets()[:, 0], [0.5 * F_rest])
+    stars = [col for col in peak_ax.collections if col.get_label() == "peak = the force cap (not the knit's)"]
+    assert not any(np.isclose(col.get_offsets()[:, 0], 0.5 * F_rest).any() for col in stars)
