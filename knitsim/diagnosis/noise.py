@@ -522,8 +522,10 @@ def tail_factor(z: np.ndarray, jumps=None, pairs=None) -> float:
         nxt[a] = b
     prv = np.full(len(z), -1)
     prv[nxt[nxt >= 0]] = np.flatnonzero(nxt >= 0)
+    if np.count_nonzero(keep) < MIN_SAMPLES:
+        return 1.0
     base = clipped_sd(z[keep])
-    if np.count_nonzero(keep) < MIN_SAMPLES or not base > 0:
+    if not base > 0:
         return 1.0
     wide, sd = _truncated_second_moment(OUTLIER_SIGMAS), base
     for _ in range(100):

@@ -306,3 +306,17 @@ def test_kinks_of_the_models_own_jamming_cycles_are_not_noise_that_grows_with_th
     grows = [curve_noise(s, f0 + (0.002 + 0.01 * np.maximum(f0, 0.0)) * np.random.default_rng(seed).standard_normal(
         len(f0)), c, d, "load cell").per_N for seed in range(5)]
     assert sum(g > 0 for g in grows) >= 4
+
+
+def test_the_tail_factor_of_too_few_deviations_is_one_without_an_empty_mean():
+    # A log that starts by unloading, or a logger reading each strain twice, leaves every cubic deviation out
+    # (kinks, or none at all): the factor is 1 by its own rule (fewer than MIN_SAMPLES), and it was reached through
+    # the median of an empty array (numpy's "Mean of empty slice" RuntimeWarning in every such diagnosis).
+    import warnings
+
+    from knitsim.diagnosis.noise import MIN_SAMPLES, tail_factor
+    z = np.linspace(0.1, 2.0, MIN_SAMPLES + 5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert tail_factor(z, jumps=np.full(len(z), 1e9)) == 1.0       # every deviation at a kink
+        assert tail_factor(np.array([])) == 1.0
