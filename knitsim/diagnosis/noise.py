@@ -230,11 +230,14 @@ STRAIN_JITTER_MIN_ROWS = 50
 def strain_jitter(strain) -> float:
     """The sd of a strain column's own jitter (an extensometer's noise): 1.4826 x the median of
     ``|s[i-1] - 2 s[i] + s[i+1]|`` / sqrt(6), which a steady ramp cancels and whose median keeps the few
-    turning points out; 0 below :data:`STRAIN_JITTER_MIN_ROWS` rows."""
+    turning points out; 0 below :data:`STRAIN_JITTER_MIN_ROWS` rows, and 0 within the floats' own rounding of the
+    strains (8 ulp of the largest: a program's strains, i x 0.01 in float64, read 8.4e-18 of "jitter", which
+    ``knitsim diagnose`` printed)."""
     s = np.asarray(strain, float)
     if len(s) < STRAIN_JITTER_MIN_ROWS:
         return 0.0
-    return float(1.4826 * np.median(np.abs(np.diff(s, 2))) / np.sqrt(6.0))
+    e = float(1.4826 * np.median(np.abs(np.diff(s, 2))) / np.sqrt(6.0))
+    return e if e > 8.0 * np.finfo(float).eps * float(np.max(np.abs(s))) else 0.0
 
 
 #: the lag-one correlation of a branch's strain steps below which their scatter is read as the reading's jitter

@@ -320,3 +320,18 @@ def test_the_tail_factor_of_too_few_deviations_is_one_without_an_empty_mean():
         warnings.simplefilter("error")
         assert tail_factor(z, jumps=np.full(len(z), 1e9)) == 1.0       # every deviation at a kink
         assert tail_factor(np.array([])) == 1.0
+
+
+def test_a_programs_float_rounding_is_no_strain_jitter():
+    # Strains written by a program (0.013 + i x 0.0037 in float64) have second differences of a few ulp: read as
+    # 1.7e-17 of "jitter" (a probe's 8.4e-18, printed by knitsim diagnose).  Expected: 0 there (the floats'
+    # rounding, 8 ulp of the largest strain, is no extensometer's noise), while a real jitter of sd 1e-6 is still
+    # read within the estimate's scatter (1.4826 x the median of |second differences| / sqrt(6), ~200 rows: +-20 %).
+    from knitsim.cell.load_program import cycles
+    from knitsim.diagnosis.noise import reading_jitter, strain_jitter
+    s = 0.013 + np.arange(200) * 0.0037
+    assert np.median(np.abs(np.diff(s, 2))) > 0.0                     # the rounding is there to be read
+    prog = cycles(0.1, 0.6, 3, 0.01)
+    assert strain_jitter(s) == 0.0 and reading_jitter(prog.strain, prog.direction) == 0.0
+    jittered = s + np.random.default_rng(1).normal(0.0, 1e-6, len(s))
+    assert strain_jitter(jittered) == pytest.approx(1e-6, rel=0.2)
