@@ -356,7 +356,7 @@ _TITLE_PHRASES = (
     ("capped", "stopped at the force cap: peak = the cap and energy = loading work (grey star, off the lines / "
                "++-hatched), the rest not run (grey triangle / --hatched)"),
     ("at_rest", "stopped at rest: its rest force at or above the force cap, no cycle run (grey triangle / "
-                "--hatched; its values the rest state's, off the lines)"),
+                "--hatched; no value drawn: its cycle-1 values are the rest state's)"),
     ("energy", "with a closed loop that returns energy (red diamond / red-hatched: loop_creates_energy)"),
     ("compressive", "with a compressive rest state (not free at rest: rest_state_compressive; orange)"),
     ("heads", "with overlapping heads of neighbouring loops (heads_interpenetrate; orange)"),
@@ -367,8 +367,8 @@ _TITLE_PHRASES = (
 )
 #: the same kinds, short (the flags of the cells not plotted)
 _SHORT = {"failed": "failed", "no_rest": "no rest state", "outside": "outside the box", "capped": "stopped at the "
-          "force cap", "at_rest": "stopped at rest (cap)", "energy": "loop returns energy", "compressive": "compressive rest state",
-          "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading",
+          "force cap", "at_rest": "stopped at rest (cap)", "energy": "loop returns energy",
+          "compressive": "compressive rest state", "heads": "heads overlap", "zero_force": "zero-force cycle", "reload_below": "reload below earlier loading",
           "reload_loss": "reload loss continues", "reload_above": "reload above first loading"}
 
 
