@@ -262,7 +262,12 @@ def _resolve_columns(path: Path, names: tuple[str, str]) -> tuple[list[dict], tu
         A unit not known (naming the header and what to write), a moment not per unit width, two quantities
         that are no loop (a curvature and a force), or one column converted while the other's unit is not stated.
     """
-    found = stated_units(path, names)
+    return _columns_read(stated_units(path, names), names, str(path))
+
+
+def _columns_read(found: dict, names: tuple[str, str], where: str) -> tuple[list[dict], tuple[str, str] | None]:
+    """:func:`_resolve_columns` of the header cells and units ``found`` for the two names (``{name: (cell, unit)}``;
+    a name not there is its own cell, its unit not stated); refusals start with ``where``."""
     cols = []
     for name in names:
         cell, unit = found.get(name, (name, None))
@@ -278,11 +283,11 @@ def _resolve_columns(path: Path, names: tuple[str, str]) -> tuple[list[dict], tu
             continue
         parsed = parse_unit(unit)
         if parsed is None or parsed[0] == "moment":
-            raise KnitsimInputError(f"{path}: {_unread(cell, unit, parsed)}: {_WHAT_TO_WRITE}")
+            raise KnitsimInputError(f"{where}: {_unread(cell, unit, parsed)}: {_WHAT_TO_WRITE}")
         asked = split_unit(name)[1]
         if asked is not None and parse_unit(asked) != parsed:
             # --columns 'M [N mm/mm]' over a file's 'M [gf cm/cm]': which one holds is not said
-            raise KnitsimInputError(f"{path}: --columns names {name!r}, but the file states {unit!r} for "
+            raise KnitsimInputError(f"{where}: --columns names {name!r}, but the file states {unit!r} for "
                                     f"{cell!r}: give the column's name as the file has it, or correct its unit")
         cols.append({"name": f"{_bare(cell)} [{unit}]", "header": cell, "unit": unit, "quantity": parsed[0],
                      "factor": parsed[1], "stated": True})
@@ -290,7 +295,7 @@ def _resolve_columns(path: Path, names: tuple[str, str]) -> tuple[list[dict], tu
     if None not in pair:
         if pair not in _PAIRS:
             raise KnitsimInputError(
-                f"{path}: the columns {cols[0]['header']!r} ({pair[0]}) and {cols[1]['header']!r} ({pair[1]}) are no "
+                f"{where}: the columns {cols[0]['header']!r} ({pair[0]}) and {cols[1]['header']!r} ({pair[1]}) are no "
                 f"loop knitsim dahl fit reads (input, then output): {_WHAT_TO_WRITE}")
         return cols, pair
     known = [c for c in cols if c["quantity"] is not None and c["factor"] != 1.0]
@@ -298,7 +303,7 @@ def _resolve_columns(path: Path, names: tuple[str, str]) -> tuple[list[dict], tu
         # converting one column and not the other would give parameters in a mixture of units
         other = next(c for c in cols if c["quantity"] is None)
         raise KnitsimInputError(
-            f"{path}: the column {known[0]['header']!r} states its unit ({known[0]['unit']}) and {other['header']!r} "
+            f"{where}: the column {known[0]['header']!r} states its unit ({known[0]['unit']}) and {other['header']!r} "
             f"does not: state it ({_WHAT_TO_WRITE})")
     return cols, None
 
@@ -489,23 +494,11 @@ def run_fit(args) -> int:
 
 
 def _written_factors(xcol: str, fcol: str) -> tuple[float, float]:
-    """The factors from the units the columns to write state to the internal units (1 for our own names and for a
-    column stating no unit: the columns' own units), refused as :func:`_resolve_columns` refuses a file's header."""
-    factors = []
-    for name in (xcol, fcol):
-        unit = split_unit(name)[1]
-        if _bare(name).casefold() in _OWN or unit is None or unit.strip().casefold() in _NO_UNIT:
-            factors.append((None, 1.0))
-            continue
-        parsed = parse_unit(unit)
-        if parsed is None or parsed[0] == "moment":
-            raise KnitsimInputError(f"--columns: {_unread(name, unit, parsed)}: {_WHAT_TO_WRITE}")
-        factors.append(parsed)
-    pair = (factors[0][0], factors[1][0])
-    if None not in pair and pair not in _PAIRS:
-        raise KnitsimInputError(f"--columns: {xcol!r} ({pair[0]}) and {fcol!r} ({pair[1]}) are no loop knitsim dahl "
-                                f"fit reads (input, then output): {_WHAT_TO_WRITE}")
-    return factors[0][1], factors[1][1]
+    """The factors from the units the columns to write state to the internal units (1 for our own names and for
+    columns stating no unit: the columns' own units), refused as a file with that header would be by `dahl fit`
+    (:func:`_columns_read`)."""
+    cols, _ = _columns_read({n: (n, split_unit(n)[1]) for n in (xcol, fcol)}, (xcol, fcol), "--columns")
+    return cols[0]["factor"], cols[1]["factor"]
 
 
 def run_simulate(args) -> int:

@@ -547,3 +547,14 @@ def test_simulate_writes_the_units_its_columns_state(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     assert main(["dahl", "simulate", "--row", "yarn", "--columns", "K [1/cm],M [gf cm]", "--out", str(bad)]) == 2
     assert "'M [gf cm]'" in capsys.readouterr().err and not bad.exists()
+
+
+def test_simulate_refuses_columns_that_fit_would_refuse(tmp_path, capsys):
+    """`dahl simulate --columns 'K [1/cm],M'` converted the curvature and wrote the moment in N.mm/mm under a header
+    stating no unit: a file `dahl fit` then refuses (one column converted, the other's unit not stated).  The
+    columns to write are now read by the rule that reads a file's header (one function), so simulate refuses it
+    before writing, naming both columns."""
+    out = tmp_path / "mix.csv"
+    assert main(["dahl", "simulate", "--row", "yarn", "--columns", "K [1/cm],M", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'K [1/cm]' states its unit" in err and "'M' does not" in err and not out.exists()
