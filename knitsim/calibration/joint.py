@@ -1756,6 +1756,7 @@ def _zero_costs(pb: _Problem, x: np.ndarray, fits: list, factor: float, refit) -
     with W0, C0 and phi0 free read se = 1.5 N at rest (linear), while one standard error along the covariance's
     line cost chi2 2148 s^2; the tared pair of tests/calibration/data one of 0.26 N, and 37 s^2."""
     out = []
+    best: tuple | None = None                        # (chi2, model forces at grip strain 0) at x, evaluated once
     for k, f in enumerate(fits):
         if f._zero_screened() is None:
             out.append((math.nan, math.nan, math.nan))
@@ -1764,16 +1765,18 @@ def _zero_costs(pb: _Problem, x: np.ndarray, fits: list, factor: float, refit) -
         if not sd > 0:                               # a reading of no noise: no fit makes it but the best's own
             out.append((math.inf, f.pretension_N, 0.0))
             continue
-        zs: list = []
-        chi0 = float(np.sum(pb.evaluate_points([x], None, zs)[0] ** 2))
+        if best is None:
+            zs0: list = []
+            best = (float(np.sum(pb.evaluate_points([x], None, zs0)[0] ** 2)), zs0[0])
+        chi0 = best[0]
         # the specimen's own run's force at rest (pretension_N) moves as the fit's program's (at_grip_zero)
-        shift = f.pretension_N - zs[0][k]
+        shift = f.pretension_N - best[1][k]
         pb.rest_row = (k, f.rest_N - shift, sd)
         try:
             sol = refit(x, f"zero check of {f.name}")
         finally:
             pb.rest_row = None
-        zs = []
+        zs: list = []
         rise = (float(np.sum(pb.evaluate_points([sol.x], None, zs)[0] ** 2)) - chi0) / factor
         at = zs[0][k] + shift
         cost = rise + ((at - f.rest_N) / sd) ** 2
