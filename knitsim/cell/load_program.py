@@ -194,6 +194,12 @@ def pretensioned(program: LoadProgram, offset: float, max_increment: float = 0.0
                        tuple([0.0] + [w + offset for w in program.waypoints]))
 
 
+def cycles_travel(lower: float, upper: float, n_cycles: int) -> float:
+    """The strain :func:`cycles` travels: from rest up to ``upper``, then ``2 n - 1`` half cycles of ``upper -
+    lower`` (what sets its length at a given increment)."""
+    return upper + (2 * n_cycles - 1) * (upper - lower)
+
+
 def cycles(lower: float, upper: float, n_cycles: int, max_increment: float = 0.005) -> LoadProgram:
     """``n_cycles`` cycles: load to ``upper``, unload to ``lower``, repeat.
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cell.cycle import run_cell
-from ..cell.load_program import cycles, monotonic
+from ..cell.load_program import cycles, cycles_travel, monotonic
 from ..cell.material import CellParams
 from ..data import dusserre2015 as _data
 from ..errors import KnitsimInputError
@@ -259,9 +259,9 @@ def run(increment: float = 0.01, jamming_criterion: str = "w_4d", force_cut: str
         raise KnitsimInputError(f"force_cut = {force_cut!r}: expected one of {', '.join(FORCE_CUTS)}")
     data = _data()
     t = data["tensile_test"]
-    # the monotonic runs, or the cyclic one: up to its upper strain, then 2 n - 1 half cycles
-    check_increment(increment, 0.1, max(target, t["cycle_upper_strain"] + (2 * t["cycles"] - 1)
-                                        * (t["cycle_upper_strain"] - t["cycle_lower_strain"])))
+    # the monotonic runs, or the cyclic one
+    check_increment(increment, 0.1, max(target, cycles_travel(t["cycle_lower_strain"], t["cycle_upper_strain"],
+                                                              t["cycles"])))
     claims = data["claims"]
     obs = data["tensile_test"]["observed_cyclic_e_glass"]
     base = dict(jamming_criterion=jamming_criterion)

@@ -42,7 +42,7 @@ from scipy.optimize import least_squares
 
 from ..cell.batch import run_batch
 from ..cell.effects import EffectSet
-from ..cell.load_program import cycles
+from ..cell.load_program import cycles, cycles_travel
 from ..cell.material import CellParams
 from ..data import dusserre2015 as _data
 from ..errors import KnitsimInputError
@@ -384,8 +384,8 @@ def run(increment: float = 0.01, device: str = "cpu", names=None, progress=None)
         ``progress(name)`` before each candidate.
     """
     t = _data()["tensile_test"]
-    # its program (:func:`program`): two cycles, up to the upper strain, then three half cycles
-    check_increment(increment, 0.05, t["cycle_upper_strain"] + 3 * (t["cycle_upper_strain"] - t["cycle_lower_strain"]))
+    # its program (:func:`program`): two cycles
+    check_increment(increment, 0.05, cycles_travel(t["cycle_lower_strain"], t["cycle_upper_strain"], 2))
     cands = candidates()
     if names:
         known = {c.name for c in cands}
