@@ -225,7 +225,7 @@ def zone_overlaps(resolved: dict) -> list[dict]:
         where = "on" if n == covered.size else "within"
         out.append({"code": "zones_overlap", "message": (
             f"{name_a} and {name_b} overlap {where} courses [{c0}, {c1}) x wales [{w0}, {w1}) ({n} cells): there "
-            f"the cells are the base scene with the own keys of {name_b}, not those of {name_a} (zones do not stack; "
+            f"the cells are the base scene with the keys of {name_b} alone, not those of {name_a} (zones do not stack; "
             "the later one is on top); give the overlap its own zone with every key it needs")})
     return out
 

@@ -451,7 +451,7 @@ def written_resolution(values) -> float:
 
 def rounding_scatter(step: float, n: int) -> float:
     """The largest scatter about the cubics [N] that ``n`` deviations of a curve written to the last digit ``step``
-    show from the rounding alone: ``step / sqrt(12)`` (:data:`ROUNDING_SIGMAS`) plus :data:`ROUNDING_SIGMAS` standard
+    show from the rounding alone: ``step / sqrt(12)`` plus :data:`ROUNDING_SIGMAS` standard
     errors of its estimate, ``sqrt(KAPPA / n)`` relative.  A scatter above it holds noise of its own, and the rows'
     sd is that scatter (the rounding's variance ``step^2 / 12`` included: the fit compares the rounded rows)."""
     return step / math.sqrt(12.0) * (1.0 + ROUNDING_SIGMAS * math.sqrt(KAPPA / max(n, 1)))

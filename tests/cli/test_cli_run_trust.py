@@ -244,7 +244,7 @@ max_increment = 0.05
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     (w,) = [w for w in s["warnings"] if w["code"] == "zones_overlap"]
     assert w["message"].startswith("grade 'g' and zone 'z' overlap on courses [1, 3) x wales [0, 2) (4 cells): "
-                                   "there the cells are the base scene with the own keys of zone 'z', not those of "
+                                   "there the cells are the base scene with the keys of zone 'z' alone, not those of "
                                    "grade 'g' ")
     assert "''s" not in w["message"]             # a quoted name with a possessive read zone 'z''s
     assert err.count("overlap on courses") == 1 and err.count("knitsim run: warning: " + w["message"]) == 1
