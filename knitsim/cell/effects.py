@@ -101,8 +101,14 @@ PARAM_COLUMNS: tuple[str, ...] = (
 #: columns of the per-cell effective state (knitsim.kernels.effects)
 EFFECT_STATE: tuple[str, ...] = ("m_eff", "d_eff", "L_eff", "B_eff", "z_bend", "P_rest", "Rn_rest")
 
-#: largest effective friction ratio (keeps atan(m) well inside (0, pi/2) at vanishing Rn)
-M_EFF_MAX = 5.0
+#: largest effective friction ratio (eq 5 with n < 1 grows without bound as Rn -> 0): a ratio the Table 4 cell
+#: converges at.  Measured (benchmarks/bench_convergence.py's 300 domain cells with m replaced, the paper's
+#: program at 0.01): m = 1, every cell with a rest state finishes; 1.1: 3 fail; 1.5: 52; 2: 115; 5: all (the
+#: T-frozen stick after a reversal leaves the cone by its + edge and runs to the contact's opening).  At the
+#: cap 5 that was, normal-load friction n = 0.5 failed on 46 of those cells, n = 0.8 on 4; now 0.  A ratio of 1
+#: is a friction angle of 45 degrees, beyond the apparent ratios 0.06-0.6 of Dusserre's section 3.4 (eq 10 over
+#: the coiling angles at rest and jammed) and the domain's 0.05-0.5
+M_EFF_MAX = 1.0
 
 #: each effect's strength and the value at which the effect changes nothing (eq 5 with n = 1 or p = 0; a rigid,
 #: an inextensible yarn; no bending friction); coiling_angle_friction has none (eq 10 at the current angle)
