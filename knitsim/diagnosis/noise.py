@@ -78,8 +78,12 @@ A curve whose noise cannot be estimated says so (:attr:`CurveNoise.estimable`):
   rounding's variance q^2 / 12 included, is what the fit's rows scatter by.
 
 It is then given :data:`ASSUMED_REL` of its force range (a curve digitised
-from a figure is read to about half a percent of its range) and the evidence
-it contributes is marked as resting on an assumed noise.
+from a figure is read to about half a percent of its range), but no less than
+the rounding's own sd, q / sqrt(12) (every row written to q is off the curve
+by up to q / 2: a logger printing 0.01 N over a 0.17 N curve was given
+0.0009 N, a third of that, and its -0.01 N readings at rest refused as below
+zero by 11 sd), and the evidence it contributes is marked as resting on an
+assumed noise.
 """
 from __future__ import annotations
 
@@ -679,6 +683,11 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
         why = (f"its rows scatter by {sigma:.2g} N, below {SMOOTH_REL:g} of its force range: a digitised or "
                "smoothed curve, whose scatter is not measurement noise")
     assumed = ASSUMED_REL * span if span > 0 else 1e-6
+    floor = step / math.sqrt(12.0)
+    if floor > assumed:
+        return CurveNoise(source, floor, "assumed", len(z), False,
+                          f"noise not estimable ({why}); assumed the rounding's own sd, {step:g} / sqrt(12) = "
+                          f"{floor:.3g} N, above {ASSUMED_REL:g} of the force range (give it with --noise-N FILE=SD)")
     return CurveNoise(source, assumed, "assumed", len(z), False,
                       f"noise not estimable ({why}); assumed {ASSUMED_REL:g} of the force range, {assumed:.3g} N "
                       "(give it with --noise-N FILE=SD)")

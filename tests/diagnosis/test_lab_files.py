@@ -169,6 +169,22 @@ def test_strain_jitter_inside_an_unload_branch_with_direction_and_cycle_columns(
     assert c.strain_read[i] == rows[i][0]             # the strain as read is kept beside it
 
 
+
+def test_a_logger_printing_a_coarse_digit_keeps_its_readings_of_one_digit_below_zero(tmp_path):
+    """A load cell printing 0.01 N: a pull 0 -> 0.6 (0.034 + 0.23 strain N, noise 2 mN) and an unloading that goes
+    slack, the zero at -2 mN, so that some readings at rest print -0.01.  Its noise is the rounding's (assumed,
+    0.01 / sqrt(12) = 0.0029 N: noise.curve_noise); -0.01 is 3.5 of those sd below zero, a reading around zero, kept.
+    Before, the noise was assumed at 0.5 % of the force range (0.00085 N) and the file refused at its first -0.01."""
+    rng = np.random.default_rng(4)
+    up = np.linspace(0.0, 0.6, 61)
+    down = np.linspace(0.59, 0.1, 50)
+    f = np.concatenate([0.034 + 0.23 * up, np.zeros(len(down))]) - 0.002 + rng.normal(0.0, 0.002, 111)
+    rows = [(float(s), float(round(x, 2))) for s, x in zip(np.round(np.r_[up, down], 4), f)]
+    assert min(x for _, x in rows) == -0.01
+    c = read_measured_curve(_write(tmp_path, _csv(rows)))
+    assert c.noise.sigma_N == pytest.approx(0.01 / np.sqrt(12.0)) and c.noise.method == "assumed"
+    assert min(c.force) == -0.01 and len(c.force) == 111
+
 def test_a_few_rows_without_a_noise_estimate_refuse_a_negative_spike(tmp_path):
     """Eight rows give no noise estimate (the reader assumes 0.5 % of the range and says so); a reading
     of -0.4 N is then not an outlier of a known noise but a wrong zero or sign: refused."""

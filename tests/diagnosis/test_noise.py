@@ -81,6 +81,24 @@ def test_noise_read_through_a_coarse_last_digit_is_estimated_with_the_roundings_
     assert smooth.method == "assumed" and "rounding" in smooth.note
 
 
+
+def test_a_curve_written_to_a_coarse_digit_is_not_assumed_more_precise_than_that_digit():
+    """A logger printing 0.01 N over a small curve (0.03 -> 0.17 N, white noise of sd 0.002 N below the digit):
+    its scatter is the rounding's alone, so its noise is assumed.  Every row is off the curve by the rounding,
+    uniform on (-0.005, 0.005): sd 0.01 / sqrt(12) = 0.00289 N (an identity), which no assumed sd may undercut.
+    0.5 % of the force range is 0.00085 N: the true curve's rows would read 11 times chi2's expectation, and a
+    reading of -0.01 N at rest (a -2 mN zero) would be 12 of those sd below zero, a file refused.  The assumed sd
+    is the rounding's; the true curve's rows scatter by sqrt(0.002^2 + 0.01^2 / 12) = 0.0035 N (the noise read
+    through the rounding), no less than it."""
+    n = 300
+    s = np.linspace(0.0, 0.6, n)
+    f0 = 0.034 + 0.23 * s
+    f = np.round((f0 + np.random.default_rng(3).normal(0.0, 0.002, n)) / 0.01) * 0.01
+    c = curve_noise(s, f, np.ones(n, int), np.ones(n, int), "logger 0.01 N")
+    assert c.method == "assumed" and not c.known and "rounding" in c.note
+    assert c.sigma_N == pytest.approx(0.01 / np.sqrt(12.0), rel=1e-9)
+    assert c.sigma_N <= np.sqrt(np.mean((f - f0) ** 2)) <= 1.3 * c.sigma_N
+
 def test_heavy_tailed_noise_weights_the_rows_as_the_fit_counts_them():
     """Student t noise with 3 degrees of freedom (scale 0.01 N, sd 0.0173 N) on a smooth pull of 1200 rows, 20 draws.
     Every row within the fit's outlier limit (6 sd) counts in chi^2, so the sd that weights the rows is the noise's
