@@ -177,7 +177,8 @@ def _stage_line(result: dict) -> str:
     if all(v is None or not math.isfinite(v) for v in shares.values()):
         # no stage's chi2 exceeds what its rows' noise gives: there is no gap to share out
         return "gap by stage: none beyond the noise (no stage's chi2 exceeds its row count)"
-    if nz.get("baseline_within_noise") is True:
+    if nz.get("baseline_within_noise") is True or (result.get("verdict") or {}).get("kind") == "none":
+        # (a `none` where every curve's noise is assumed: the baseline within that assumed noise)
         return ("gap by stage: none beyond the noise (the baseline fits within it; how its chi2 falls on the stages "
                 "is the noise's)")
     return "gap by stage: " + ", ".join(f"{k} {v:.0%}" if v is not None and math.isfinite(v) else f"{k} n/a"

@@ -1660,7 +1660,12 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
     fit_txt = (f"chi2/dof = {adequacy.chi2_per_dof:.4g} (expected 1 +- {adequacy.expected_sd:.2g} for noise alone)")
     assumed = [n.source for n in noise.curves if not n.known]
     named = [c for c in fitted if c.significant and c.practical]
-    if not named and adequacy.within_noise:
+    # every curve's noise assumed (adequacy not judged) and the baseline within it by the same rule: no gap to place
+    # in a stage, nor to call unexplained (a logger printing 0.01 N over a 0.17 N curve, its noise assumed at the
+    # rounding's sd, had chi2/dof 0.89 read as `unexplained`, "none of them fits within the noise"); `none`, not
+    # confident: the noise is a guess
+    within_assumed = adequacy.within_noise is None and adequacy.excess <= adequacy.tolerance
+    if not named and (adequacy.within_noise or within_assumed):
         small = [c for c in fitted if c.significant and not c.practical]
         aside = "" if not small else (
             f"; {small[0].effect} has evidence (BIC score {small[0].score:.3g}, probability "
@@ -1676,6 +1681,11 @@ def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: 
                       f"probabilities, but its BIC score {c.score:.3g} is below the {STRONG:g} that naming an effect "
                       "needs: weak evidence, not a finding")
         # (no stage: where the largest of gaps within the noise lies is the noise's, not a finding)
+        if within_assumed:
+            return Verdict("none", None, None, 0.0, False,
+                           f"the model explains these curves within their assumed noise: {fit_txt}; the noise of "
+                           f"{', '.join(assumed)} is assumed, not measured, so nothing smaller than it can be seen (give "
+                           f"it with --noise-N FILE=SD){aside}", [], probs)
         return Verdict("none", None, None, 0.0, True,
                        f"the model explains these curves within their noise: {fit_txt}{aside}", [], probs)
     if not named:

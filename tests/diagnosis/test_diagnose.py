@@ -456,6 +456,31 @@ def test_a_none_verdict_beside_a_heavier_effect_says_its_evidence_is_weak():
     assert "weighs" not in verdict_step(adequacy, light, loc, {}, NoiseModel([]), []).reason
 
 
+
+def test_a_baseline_within_an_assumed_noise_is_none_not_confident_not_unexplained():
+    """Step 8 on hand-set candidates, every curve's noise assumed (within_noise None: not judged).  A baseline at
+    chi2/dof 0.89 on 300 dof (a probe's logger file printing 0.01 N, its noise assumed at the rounding's sd) lies
+    within that noise by the adequacy's own rule (chi2 - dof <= 3.09 sd x dof), so no gap is seen: the verdict is
+    `none`, not confident (the noise is a guess), naming no stage, and saying that an effect's heavier probability
+    is weak evidence.  Before, it read `unexplained`, "the largest gap
+    is in stage loading_sliding ... none of them fits within the noise".  Beyond that tolerance (chi2/dof 1.5, 6
+    sd) it stays `unexplained`, not confident."""
+    from knitsim.diagnosis.diagnose import Adequacy, CandidateResult, Localisation, NoiseModel, verdict_step
+    from knitsim.diagnosis.noise import CurveNoise
+    noise = NoiseModel([CurveNoise("logger.csv", 0.00289, "assumed", 304, False, "assumed")])
+    loc = Localisation(keys=["loading_sliding"], stages={}, where=["loading_sliding"])
+    cands = [CandidateResult("bending_hysteresis", "", True, score=9.4, probability=0.98, significant=False)]
+    sd = (2.0 / 300) ** 0.5
+    within = Adequacy(chi2=266.0, dof=300, chi2_per_dof=266 / 300, expected_sd=sd, within_noise=None, excess=-34.0)
+    v = verdict_step(within, cands, loc, {"stages": {}}, noise, [])
+    assert v.kind == "none" and not v.confident and v.stage is None
+    assert "within their assumed noise" in v.reason and "logger.csv" in v.reason and "--noise-N" in v.reason
+    # its heavier probability without the evidence to be named is said, as beside a `none` of known noise
+    assert "bending_hysteresis weighs 0.98" in v.reason and "weak evidence" in v.reason
+    beyond = Adequacy(chi2=450.0, dof=300, chi2_per_dof=1.5, expected_sd=sd, within_noise=None, excess=150.0)
+    v = verdict_step(beyond, cands, loc, {"stages": {}}, noise, [])
+    assert v.kind == "unexplained" and not v.confident
+
 def test_a_verdict_on_curves_that_carry_almost_no_force_is_not_confident():
     """A hand-made unloading logged at the slack end: 60 rows from strain 0.6 down to 0.1, the first two
     carrying 3 and 1 N per wale, the rest a load cell reading 0 +- 4 mN (white noise). Within its noise
@@ -655,8 +680,10 @@ def test_the_console_shares_out_no_gap_where_the_baseline_fits_within_the_noise(
     line = _stage_line(result(True))
     assert line.startswith("gap by stage: none beyond the noise") and "%" not in line and "unloading" not in line
     assert _stage_line(result(False)) == "gap by stage: unloading_sliding 82%, loading_sliding 18%"
-    # no curve's noise known (adequacy not judged): the shares are printed, as before
+    # no curve's noise known (adequacy not judged): the shares are printed, as before, but where the verdict is
+    # `none` (the baseline within the assumed noise: verdict_step) there is no gap to share out either
     assert _stage_line(result(None)) == "gap by stage: unloading_sliding 82%, loading_sliding 18%"
+    assert _stage_line(dict(result(None), verdict={"kind": "none"})).startswith("gap by stage: none beyond the noise")
 
 
 def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_path, capsys):
