@@ -582,8 +582,11 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     noise = curve_noise(clean, f, c, d, source, noise_N, strain_sd=jitter)
     # a hold whose force relaxes (force_holds): its rows after the first are left out of the fit, of the noise
     # estimate (their steps are the relaxation, not scatter) and of the glitch and stall checks (not their
-    # neighbours: a hold's rows beside the steep rows that reach it made those read as a glitch)
-    held = force_holds(s, f, c, d, noise) if noise.known else []
+    # neighbours: a hold's rows beside the steep rows that reach it made those read as a glitch).  Sought where the
+    # noise is assumed too, in its assumed sd: a hold's relaxation is what makes a step-and-hold file's noise read as
+    # correlated (the raw frames of Singal 2024's acrylic run 5), and a logger printing 0.01 N has its noise assumed
+    # at the rounding's sd; both read their holds as the loading going on, without a word
+    held = force_holds(s, f, c, d, noise)
     kept = np.ones(len(f), bool)
     for i, j, _ in held:
         kept[i + 1:j] = False

@@ -174,6 +174,26 @@ def test_a_step_and_hold_pull_is_one_loading_not_cycles():
     assert np.all(direction[-10:] == -1) and np.all(direction[:270] == 1) and cycle[-1] == 1
 
 
+
+def test_a_hold_is_sought_where_the_noise_is_assumed():
+    """A logger printing 0.01 N (its noise assumed at the rounding's sd, 0.01 / sqrt(12) = 0.0029 N: no scatter
+    beyond the digit's), a pull 0 -> 0.6 (0.05 + 0.5 strain N, 2 mN of noise) paused at strain 0.3 for 12 rows
+    while the force relaxes by 10 % (0.02 N, exponentially, 3 rows' time).  The line through the hold's 13 rows
+    falls by 0.017 N, 6.5 of its standard errors in that assumed sd (measured.force_holds: beyond HOLD_SIGMAS = 5):
+    the hold is said and its 12 added rows left out.  Before, holds were sought only where the noise was known, and
+    this one was read as the loading going on, without a word."""
+    rng = np.random.default_rng(6)
+    s = np.arange(0.0, 0.6 + 1e-9, 0.005)
+    f = 0.05 + 0.5 * s + rng.normal(0.0, 0.002, len(s))
+    k = 60
+    relax = (0.05 + 0.5 * s[k]) * (1.0 - 0.1 * (1.0 - np.exp(-np.arange(1, 13) / 3.0))) + rng.normal(0.0, 0.002, 12)
+    sh, fh = np.r_[s[:k + 1], np.full(12, s[k]), s[k + 1:]], np.round(np.r_[f[:k + 1], relax, f[k + 1:]], 2)
+    c = curve_from_arrays(sh, fh, source="pause.csv")
+    assert c.noise.method == "assumed" and not c.noise.known
+    assert c.holds == tuple(range(k + 3, k + 15))       # spreadsheet rows (header = 1) of the 12 added rows
+    assert "1 hold(s) whose force relaxes at one strain: rows 62-74 at strain 0.3" in c.notes[-1]
+    assert curve_from_arrays(s, np.round(f, 2), source="pull.csv").holds == ()
+
 def test_a_turn_read_with_jitter_is_settled_on_its_branch_to_the_lines_sd():
     """settle_turns: a ramp 0 -> 0.3 -> 0.1 at steps of 0.005 read with a jitter of sd 2e-4 (numpy, 400
     seeds).  The line through the turning row and the 20 rows before it gives the turn with the sd of a
