@@ -1955,6 +1955,7 @@ def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None, drift=None) ->
                  "drift": None if drift is None else drift[i],
                  "glitch_rows": list(getattr(c, "glitches", ())), "stall_rows": list(getattr(c, "stalls", ())),
                  "hold_rows": list(getattr(c, "holds", ())),
+                 "late_turn_rows": list(getattr(c, "late_turns", ())),
                  "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
                                 "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,
                                                              bc["labels"])}}
@@ -2133,6 +2134,15 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
             f"{Path(c.source).name}: the force relaxes at one strain (a hold; {len(c.holds)} row(s) from row "
             f"{c.holds[0]} left out), which the model, rate-independent, lacks, and the branches after it start from "
             "a relaxed knit" for c in held)
+    # a turn that no row records (measured.unrecorded_turns): the replay turns short of the grip, and the later
+    # branches remember where it turned
+    late = [c for c in curves if getattr(c, "late_turns", ())]
+    if late:
+        verdict.confident = False
+        verdict.reason += "; " + "; ".join(
+            f"{Path(c.source).name}: row {c.late_turns[0]} ends its branch but reads the next one already (the turn "
+            "was not recorded), so the replay turns short of where the grip turned, and the branches after it start "
+            "from another state of the knit" for c in late)
     glitched = [c for c in curves if getattr(c, "glitches", ())]
     if glitched:
         verdict.reason += "; " + "; ".join(

@@ -154,6 +154,9 @@ class MeasuredCurve:
     #: rows (spreadsheet numbers) of a hold whose force relaxes at one strain (:func:`force_holds`), but each hold's
     #: first: left out of the fit
     holds: tuple = ()
+    #: rows (spreadsheet numbers) that end a branch already on the next one: the turn between them and the row before
+    #: was not recorded (:func:`unrecorded_turns`)
+    late_turns: tuple = ()
 
     def __len__(self) -> int:
         return len(self.strain)
@@ -639,8 +642,19 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                       f"steps around) while the strain runs on, and rises again as steeply as before: a grip slip (or "
                       f"the knit's own stick-slip, which the model lacks)?{more}; the rows after it are read at a strain "
                       "the knit did not take, so no verdict on this curve is confident",)
+    late = ()
+    if noise.known:
+        found = unrecorded_turns(f, d, noise)
+        if found:
+            late = tuple(row(k) for k in found)
+            notes += (f"{len(found)} turn(s) not recorded: row(s) {', '.join(map(str, late[:4]))}"
+                      + (", ..." if len(found) > 4 else "")
+                      + f" end a branch, a step further along it than the row before, but read the next branch already (row "
+                        f"{late[0]}: {float(f[found[0]]):.4g} N against {float(f[found[0] - 1]):.4g} N); the replay turns "
+                        "at such a row's strain, short of where the grip turned, and the knit's later branches depend on "
+                        "it, so no verdict on this curve is confident (log the turning points)",)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise, notes, slips, glitches,
-                         stalls, tuple(row(k) for k in np.flatnonzero(~kept)))
+                         stalls, tuple(row(k) for k in np.flatnonzero(~kept)), late)
 
 
 #: a step of the strain this many times the median step of its branch is a jump (:func:`strain_slips`)
@@ -718,6 +732,35 @@ HOLD_SIGMAS = 5.0
 #: rows "at one strain": within this share of the branch's mean step of the first (its travel over its rows: a
 #: logger's steady step is more), or within the curve's jitter tolerance (strain_tolerance)
 HOLD_STEP_SHARE = 0.1
+
+
+#: a branch's last row that moves against its branch from the row before by more than this many sd of their
+#: difference is on the next branch already (:func:`unrecorded_turns`)
+TURN_SIGMAS = 5.0
+
+
+def unrecorded_turns(force, direction, noise) -> list[int]:
+    """Rows that end a branch but read the next branch already: the turn lies between such a row and the row before
+    it, and no row records it.  A logger sampling in time rarely writes the grip's turning point: its last "loading"
+    row (the strain still above the row before it) is read after the grip turned, on the unloading, its force below
+    the row before by more than :data:`TURN_SIGMAS` sd of their difference (a knit's loading does not lose force as
+    its strain grows; nor an unloading gain it), and not below the row after it by as much (that is a spike, an
+    outlier).  The replay turns at that row's strain, short of the grip's, and the knit's later branches remember
+    where it turned (slack, beta or T frozen there): a probe's model-made cycles 0.1-0.6, 2 mN of noise, sampled at
+    irregular steps without the turning rows (peaks read at 0.5989, 0.5947, 0.5979), read as a confident
+    `unexplained`, chi2/dof 3.1, the first peak's row 18.6 sd off."""
+    f, d = np.asarray(force, float), np.asarray(direction)
+    sd = np.maximum(noise.sd_at(f), 1e-300)
+    out = []
+    for t in range(1, len(f) - 1):
+        if d[t] == d[t + 1] or d[t - 1] != d[t]:
+            continue
+        back = (f[t] - f[t - 1]) * float(d[t])
+        ahead = (f[t] - f[t + 1]) * float(d[t])
+        if (back < -TURN_SIGMAS * math.hypot(sd[t], sd[t - 1])
+                and ahead >= -TURN_SIGMAS * math.hypot(sd[t], sd[t + 1])):
+            out.append(t)
+    return out
 
 
 def force_holds(strain, force, cycle, direction, noise) -> list[tuple[int, int, float]]:

@@ -194,6 +194,33 @@ def test_a_hold_is_sought_where_the_noise_is_assumed():
     assert "1 hold(s) whose force relaxes at one strain: rows 62-74 at strain 0.3" in c.notes[-1]
     assert curve_from_arrays(s, np.round(f, 2), source="pull.csv").holds == ()
 
+
+def test_a_turn_that_no_row_records_is_said():
+    """A logger sampling in time: the grip pulls to 0.6 (0.03 + 0.23 strain N) and unloads steeply (0.168 - 8 x the
+    strain travelled back), but the rows read 0.58 on the loading and then 0.595, 0.585, ... on the unloading (2 mN
+    of noise, given).  The row at 0.595 is a step further along the loading than the row before, yet reads 0.128 N
+    against 0.163 N, 12 sd of their difference below it: the grip had turned (a knit's loading does not lose force as
+    it stretches), so the turn is not recorded and said (measured.unrecorded_turns; a probe's model-made cycles so
+    sampled read as a confident `unexplained`).  The same file with its turning row (0.6, 0.168 N) says nothing, nor
+    does one whose turning row is a spike (0.068 N, below the row after it by 30 sd: an outlier)."""
+    from knitsim.diagnosis.measured import TURN_SIGMAS
+    rng = np.random.default_rng(3)
+    up = np.round(np.arange(0.0, 0.58 + 1e-9, 0.01), 4)
+    down = np.r_[0.595, np.round(np.arange(0.585, 0.1 - 1e-9, -0.01), 4)]
+
+    def force(s, unloading):
+        return np.maximum(0.168 - 8.0 * (0.6 - s), 0.0) if unloading else 0.03 + 0.23 * s
+    noise = rng.normal(0.0, 0.002, len(up) + len(down) + 1)
+    e, f = np.r_[up, down], np.r_[force(up, False), force(down, True)] + noise[:-1]
+    c = curve_from_arrays(e, f, source="late.csv", noise_N=0.002)
+    assert TURN_SIGMAS == 5.0 and c.late_turns == (len(up) + 2,)     # the row at 0.595 (header = row 1)
+    assert "1 turn(s) not recorded: row(s) 61" in c.notes[-1] and "no verdict on this curve is confident" in c.notes[-1]
+    top = len(up)
+    e2, f2 = np.r_[up, 0.6, down], np.r_[force(up, False), 0.168, force(down, True)] + noise
+    assert curve_from_arrays(e2, f2, source="turn.csv", noise_N=0.002).late_turns == ()
+    f2[top] -= 0.1
+    assert curve_from_arrays(e2, f2, source="spike.csv", noise_N=0.002).late_turns == ()
+
 def test_a_turn_read_with_jitter_is_settled_on_its_branch_to_the_lines_sd():
     """settle_turns: a ramp 0 -> 0.3 -> 0.1 at steps of 0.005 read with a jitter of sd 2e-4 (numpy, 400
     seeds).  The line through the turning row and the 20 rows before it gives the turn with the sd of a
