@@ -99,7 +99,7 @@ def register(subparsers) -> None:
     pred.add_argument("--fibre", choices=capstan.FIBRES, default=None, help="Table 3 parameters of this fibre")
     pred.add_argument("--b", type=float, default=None, help="eq 5 coefficient b")
     pred.add_argument("--p", type=float, default=None, help="eq 5 velocity exponent p")
-    pred.add_argument("--n", type=float, default=None, help="eq 5 normal-load exponent n")
+    pred.add_argument("--n", type=float, default=None, help="eq 5 normal-load exponent n, 0 < n <= 1 (1: Amontons)")
     _add_discretisation(pred)
     add_json_flag(pred)
     pred.set_defaults(func=_run_predict)

@@ -192,10 +192,24 @@ def _check_finite(name: str, value: float) -> float:
     return v
 
 
+#: Largest normal-load exponent of eqs 2 and 5, n = 1: Amontons (friction proportional to the normal load).  Howell's
+#: n comes from the real contact area growing as Fn^n, 2/3 (elastic) to 1 (plastic); Table 3's are 0.93-0.95.  An
+#: n > 1 makes mu_k = b V^p Fn^(n-1) grow without bound with the load, and Howell's capstan dF/dtheta = a F^n blow
+#: up at a finite wrap (F^(1-n) = F0^(1-n) - (n-1) a theta reaches 0): no tension at all beyond it.  The upper
+#: end of the fit's box (FIT_UPPER) and the check of every law given (:func:`predict_f1`, ``capstan predict``)
+HOWELL_N_MAX = 1.0
+
+
 def _check_howell_n(n: float) -> float:
-    """Howell's index: ``Ft = a Fn^n`` with n > 0 (n = 1 is Amontons; n <= 0 would make the friction
-    force fall as the normal load rises)."""
-    return _check_positive("n", n)
+    """Howell's index: ``Ft = a Fn^n`` with ``0 < n <= HOWELL_N_MAX = 1`` (n = 1 is Amontons; n <= 0 would make the
+    friction force fall as the normal load rises; n > 1: :data:`HOWELL_N_MAX`)."""
+    v = _check_positive("n", n)
+    if v > HOWELL_N_MAX:
+        raise KnitsimInputError(
+            f"n = {v:.10g}: the normal-load exponent of eq 5 is at most {HOWELL_N_MAX:g} (Amontons: friction "
+            "proportional to the normal load); n > 1 makes mu_k = b V^p Fn^(n-1) grow without bound with the load, "
+            "and the capstan's tension diverge at a finite wrap (dF/dtheta = a F^n)")
+    return v
 
 
 def howell_a(b: float, p: float, V: float) -> float:
@@ -372,9 +386,10 @@ def predict_f1(F0: float, V: float, direction: str, b: float, p: float, n: float
     F0 = _check_positive("F0_N", F0)
     V = _check_positive("V_mm_s", V)
     a = howell_a(_check_positive("b", b), float(p), V)
+    n = _check_howell_n(n)
     F = F0
     for dth in crossing_angles(disc):
-        F = crossing_update(F, dth, a, float(n), s, disc.exact)
+        F = crossing_update(F, dth, a, n, s, disc.exact)
     return F
 
 
@@ -509,7 +524,7 @@ PARAM_NAMES = ("b", "p", "n")
 #: friction coefficient), ``|p| <= 1`` (a weak velocity dependence), ``n`` in
 #: ``[0.3, 1]`` (Howell's exponent for fibres; ``n = 1`` is Amontons' law).
 FIT_LOWER = (1e-6, -1.0, 0.3)
-FIT_UPPER = (10.0, 1.0, 1.0)
+FIT_UPPER = (10.0, 1.0, HOWELL_N_MAX)
 #: n at its upper bound 1 (the Amontons limit) is a usable law when the data pull beyond it by at most this many
 #: standard errors of n (:func:`fit_friction_law`)
 AMONTONS_PULL_SE = 2.0

@@ -117,6 +117,17 @@ def test_predict_negative_tension(capsys):
     assert "F0_N" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("n", ["1.2", "0", "-1"])
+def test_predict_refuses_a_load_exponent_outside_the_law(capsys, n):
+    """n in (0, 1], the range the fit's box ends at (n = 1: Amontons).  Before, --n 1.2 printed F1 = 12.1 N (mu_k
+    0.207, above n = 1's 0.162 at the same b), --n 0 and -1 an F1 each: the march never checked n."""
+    argv = ["capstan", "predict", "--F0", "6.31", "--V", "1", "--direction", "ascent", "--b", "0.16", "--p", "0.02",
+            "--n", n]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and f"n = {float(n):g}" in err
+
+
 # ------------------------------------------------- believable results (audit)
 _HEADER = "F0_N,F1_N,V_mm_s,direction\n"
 

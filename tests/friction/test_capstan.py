@@ -61,6 +61,15 @@ def test_eq1_bad_input(F0, F1, direction, field):
     (lambda: cap.predict_f1_continuous(-6.31, 0.5, "ascent", 0.1, 0.1, 0.8), "F0_N"),
     (lambda: cap.tangential_load_eq2([1.0, -1.0], 0.1, 0.1, 0.8, 0.5), "Fn_N"),
     (lambda: cap.mu_k_eq5(0.1, 0.1, 0.8, 0.5, 0.0), "Fn_N"),
+    # the crossing march checked n as the closed forms do: n = 0 and -1 were marched to an F1 (mu_k 0.06, 0.02)
+    (lambda: cap.predict_f1(6.31, 1.0, "ascent", 0.16, 0.02, 0.0), "n"),
+    (lambda: cap.predict_f1(6.31, 1.0, "descent", 0.16, 0.02, -1.0), "n"),
+    # n > 1 (the fit's box stops at 1, Amontons): mu_k grows without bound with the load, and Howell's capstan
+    # F^(1-n) = F0^(1-n) - (n-1) a theta diverges at a finite wrap; predict gave F1 = 12.1 N at n = 1.2
+    (lambda: cap.predict_f1(6.31, 1.0, "ascent", 0.16, 0.02, 1.2), "n = 1.2: .* at most 1"),
+    (lambda: cap.predict_f1(6.31, 1.0, "descent", 0.16, 0.02, 1.0000001), "n = 1.0000001"),
+    (lambda: cap.predict_f1_continuous(6.31, 1.0, "ascent", 0.16, 0.02, 1.2), "n = 1.2"),
+    (lambda: cap.mu_k_eq5(0.16, 0.02, 1.2, 1.0, 1.0), "n = 1.2"),
 ])
 def test_howell_law_refuses_what_it_cannot_mean(call, field):
     with pytest.raises(KnitsimInputError, match=field):
