@@ -550,6 +550,26 @@ def decimal_resolution(cell: str) -> float:
     return 0.5 * 10.0 ** exp
 
 
+#: Two values within this share of their size are one value, equal up to float rounding (a dead weight converted
+#: from cN as 631 * 0.01 is 6.3100000000000005 beside a typed 6.31); a test's written digits are far coarser
+FLOAT_EQUAL_RTOL = 1e-9
+
+
+def one_value_each(x) -> np.ndarray:
+    """``x`` with values equal within :data:`FLOAT_EQUAL_RTOL` replaced by the smallest of them: what tells test
+    conditions apart (F0_N, V_mm_s).  A probe's records at 6.31 and 6.3100000000000005 N, one direction, passed as two
+    normal loads and gave n = 1 +/- 0.53, exit 0, where the same records written 6.31 are refused."""
+    x = np.asarray(x, dtype=float)
+    out = x.copy()
+    order = np.argsort(x, kind="stable")
+    first = None
+    for i in order:
+        if first is None or abs(x[i] - first) > FLOAT_EQUAL_RTOL * max(abs(x[i]), abs(first)):
+            first = x[i]
+        out[i] = first
+    return out
+
+
 def check_friction_present(F0, F1, resolution_N=None, source: str = "records") -> None:
     """Refuse records that carry no friction: ``F1 = F0`` on every row.
 
@@ -560,7 +580,7 @@ def check_friction_present(F0, F1, resolution_N=None, source: str = "records") -
     """
     F0 = np.asarray(F0, dtype=float)
     F1 = np.asarray(F1, dtype=float)
-    tol = 1e-9 * np.maximum(np.abs(F0), np.abs(F1))
+    tol = FLOAT_EQUAL_RTOL * np.maximum(np.abs(F0), np.abs(F1))
     if resolution_N is not None:
         tol = np.maximum(tol, np.broadcast_to(np.asarray(resolution_N, dtype=float), F0.shape))
     if F0.size and np.all(np.abs(F1 - F0) <= tol):
@@ -642,18 +662,20 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     m, k = len(F0), len(free)
     if m <= k:
         raise KnitsimInputError(f"{source}: {m} record(s) cannot identify {k} parameters (need more than {k})")
-    if fix_p is None and len(np.unique(V)) < 2:
+    # conditions told apart beyond float rounding (one_value_each): 6.31 and 6.3100000000000005 N are one dead weight
+    F0c, Vc = one_value_each(F0), one_value_each(V)
+    if fix_p is None and len(np.unique(Vc)) < 2:
         raise KnitsimInputError(f"{source}: all records have V_mm_s = {V[0]:g}; the velocity exponent p needs two "
                                 "velocities: hold it fixed (knitsim capstan fit --fix-p P; fix_p=P in Python)")
     # records repeating one test condition are one equation: the residuals' Jacobian has as many distinct rows as
     # conditions, and its pseudo-inverse gave finite standard errors to parameters the data do not set (a probe's
     # five repeats of one condition, p fixed: b and n "+- 0.00045" and "+- 8.7e-05", corr(b, n) = 1.000, exit 0)
-    loads = {(f, s) for f, s in zip(F0.tolist(), signs)}
+    loads = {(f, s) for f, s in zip(F0c.tolist(), signs)}
     if len(loads) < 2:
         raise KnitsimInputError(f"{source}: all records have F0_N = {F0[0]:g} on {dirs[0]}; the load exponent n "
                                 "needs two normal loads at the crossings: add records at a second dead weight F0, or "
                                 "of the other direction")
-    conditions = len({(f, v, s) for f, v, s in zip(F0.tolist(), V.tolist(), signs)})
+    conditions = len({(f, v, s) for f, v, s in zip(F0c.tolist(), Vc.tolist(), signs)})
     if conditions < k:
         raise KnitsimInputError(f"{source}: the records hold {conditions} test conditions (F0_N, V_mm_s, direction; "
                                 f"repeats of one are one), which cannot identify {k} parameters: add conditions"
@@ -815,6 +837,7 @@ def goodness_of_fit(F0, F1, V, signs, residuals, dof: int) -> dict:
     from scipy import stats
 
     F0, F1, V, r = (np.asarray(x, dtype=float) for x in (F0, F1, V, residuals))
+    F0, V = one_value_each(F0), one_value_each(V)            # one condition, whatever the float rounding
     sd = paper_scatter_N(F1)
     out = {"scale": "paper_sd", "scale_sd_N": float(np.median(sd)), "test": "chi2", "statistic": None,
            "p_value": None, "repeat_sd_N": None, "repeat_dof": None, "flags": [], "notes": []}

@@ -246,6 +246,26 @@ def test_fit_refuses_records_of_too_few_test_conditions():
     assert cap.fit_friction_law([6.31] * 6, F1, [1.0] * 6, d, fix_p=law[1]).success
 
 
+def test_conditions_equal_up_to_float_rounding_are_one():
+    """A dead weight converted from cN as 631 * 0.01 is 6.3100000000000005 N: beside a typed 6.31 it is the same
+    weight, so records at the two, one direction, are all at one normal load, refused as records written 6.31 are
+    (before: fitted, n = 1 +/- 0.53 with p held, "usable", exit 0).  Likewise a speed 1.0000000000000002 beside 1
+    is one speed (before: p fitted with a standard error of 0).  Records of Table 3's e-glass law."""
+    law = cap.table3_params("e_glass")
+    F0 = [6.31, 631 * 0.01] * 3
+    assert len(set(F0)) == 2                                   # the float rounding this is about
+    V = [0.2, 0.2, 1.0, 1.0, 10.0, 10.0]
+    F1 = [cap.predict_f1(f, v, "ascent", *law) * (1 + 0.002 * (-1) ** i) for i, (f, v) in enumerate(zip(F0, V))]
+    for fix_p in (None, 0.02):
+        with pytest.raises(KnitsimInputError, match="the load exponent n needs two normal loads"):
+            cap.fit_friction_law(F0, F1, V, ["ascent"] * 6, fix_p=fix_p)
+    F0, V, d = [6.31, 12.62, 6.31, 12.62, 6.31], [1.0, 0.1 * 3 / 0.3, 1.0, 1.0, 0.1 * 3 / 0.3], ["ascent"] * 4 + ["descent"]
+    assert len(set(V)) == 2
+    F1 = [cap.predict_f1(f, v, dd, *law) for f, v, dd in zip(F0, V, d)]
+    with pytest.raises(KnitsimInputError, match="all records have V_mm_s = 1; the velocity exponent p needs two"):
+        cap.fit_friction_law(F0, F1, V, d)
+
+
 def test_eq4_error_claim_needs_fine_steps():
     # Section 2.4: "the error [of eq 4 vs eq 3] on the final result has been
     # checked to be less than 0.2 %".  At the set-up's 16-strand crossings the
