@@ -82,7 +82,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from ..errors import KnitsimInputError, require_finite
-from .identification import at_bound, parameter_status  # noqa: F401  (at_bound: re-exported)
+from .identification import at_bound, covariance, parameter_status  # noqa: F401  (at_bound: re-exported)
 
 #: Wrap angle on each cylinder, theta0 = theta1 = pi/2 (section 2.4).
 THETA_EACH = 0.5 * np.pi
@@ -620,7 +620,8 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     Least squares on the load-cell tension ``F1`` (the paper fitted its raw F1
     records) with :func:`scipy.optimize.least_squares` inside the box
     :data:`FIT_LOWER` - :data:`FIT_UPPER`.  Standard errors are
-    ``sqrt(diag(s^2 (J^T J)^-1))`` with ``s^2 = SSR / (m - k)``, or, from :data:`HC_MIN_DOF` residual
+    ``sqrt(diag(s^2 (J^T J)^-1))`` with ``s^2 = SSR / (m - k)`` (:func:`~knitsim.friction.identification.covariance`,
+    shared with the Dahl fit: infinite where ``J`` is singular), or, from :data:`HC_MIN_DOF` residual
     degrees of freedom on, the sandwich (HC3) ones where larger: they hold when the noise grows
     with the tension, as a load cell's does.
 
@@ -740,7 +741,7 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     dof = m - k
     s2 = 2.0 * res.cost / dof
     J = res.jac
-    cov = s2 * np.linalg.pinv(J.T @ J)
+    cov = covariance(J, s2)                       # infinite where J is singular: the data do not set the parameters
     # the sandwich (HC3) covariance holds where the noise is not one sd for every record: a load cell's
     # scatter grows with its reading, and the paper's records span 6.31 to 12.62 N.  With 0.5 % relative
     # noise the pooled s^2 gave p's standard error at half its spread over 60 noise draws, and a 5 SE
@@ -920,7 +921,9 @@ def _sandwich_hc3(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     1985): ``(J^T J)^-1 J^T diag(r_i^2 / (1 - h_i)^2) J (J^T J)^-1``, h the leverages ``diag(J (J^T J)^-1
     J^T)``.  Valid whatever the noise of each record; infinite where a record has leverage 1 (it alone
     sets a parameter)."""
-    A = np.linalg.pinv(J.T @ J)
+    A = covariance(J, 1.0)
+    if not np.all(np.isfinite(A)):
+        return A
     h = np.einsum("ij,jk,ik->i", J, A, J)
     with np.errstate(divide="ignore", invalid="ignore"):
         w = (r / (1.0 - h)) ** 2

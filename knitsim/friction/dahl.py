@@ -55,7 +55,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import KnitsimInputError, require_finite
-from .identification import parameter_status
+from .identification import covariance, parameter_status
 
 #: Fewest samples accepted for an identification.
 MIN_FIT_POINTS = 20
@@ -571,19 +571,6 @@ MIN_TRANSITION_ROWS = 2
 SIGMA_RESOLVED_CHI2 = 25.0
 
 
-def _covariance(J: np.ndarray, s2: float) -> np.ndarray:
-    """``s2 (J^T J)^-1`` by the SVD of ``J`` (V diag(1/sv^2) V^T); infinite everywhere where ``J`` is singular
-    or not finite (its parameters undetermined)."""
-    k = J.shape[1]
-    with np.errstate(all="ignore"):
-        if np.all(np.isfinite(J)):
-            _, sv, vt = np.linalg.svd(J, full_matrices=False)
-            tol = np.finfo(float).eps * max(J.shape) * (sv[0] if sv.size else 0.0)
-            if sv.size == k and np.all(sv > tol):
-                return (vt.T / sv ** 2) @ vt * s2
-    return np.full((k, k), np.inf)
-
-
 def _sigma_lower_bound(residual, theta, names, lower, upper, s2, xn, branches):
     """Whether the loop bounds sigma from below only: ``(bound, d_chi2, shown)`` (the bound, the rise of
     chi^2 at the sharp limit, the rows the fitted transition shows on) or None.
@@ -895,7 +882,7 @@ def fit_dahl_loop(x, F, *, elastic=False, alpha=1.0, initial=None, labels=("x", 
         """The covariance of the parameters ``cols`` (the others held), in the reported units, p x p (inf
         outside ``cols``); their standard errors go into ``stderr``."""
         cov = np.full((p, p), np.inf)
-        cov[np.ix_(cols, cols)] = _covariance(J[:, cols], s2) * np.outer(sc[cols], sc[cols])
+        cov[np.ix_(cols, cols)] = covariance(J[:, cols], s2) * np.outer(sc[cols], sc[cols])
         for i in cols:
             stderr[names[i]] = float(math.sqrt(cov[i, i])) if math.isfinite(cov[i, i]) and cov[i, i] >= 0 else math.inf
         return cov
