@@ -82,7 +82,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from ..errors import KnitsimInputError, require_finite
-from .identification import at_bound, covariance, parameter_status  # noqa: F401  (at_bound: re-exported)
+from .identification import at_bound, covariance, parameter_status, wider_than_box  # noqa: F401  (at_bound: re-exported)
 
 #: Wrap angle on each cylinder, theta0 = theta1 = pi/2 (section 2.4).
 THETA_EACH = 0.5 * np.pi
@@ -778,7 +778,9 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     # usable law bounded from one side (a blind probe's exact n = 1 yarn was called "NOT A FRICTION LAW YOU
     # CAN USE"); data that need n > 1 (friction growing faster than the load) stay flagged at the bound
     pull = float(-(np.linalg.pinv(J) @ res.fun)[-1]) if free[-1] == 2 else math.inf
+    # (and n's standard error within its box: one wider bounds nothing, wider_than_box, and 2 of them pull anywhere)
     if (status.get("n") == "at_upper_bound" and res.success and np.isfinite(se[2]) and se[2] > 0
+            and not wider_than_box(float(se[2]), FIT_LOWER[2], FIT_UPPER[2])
             and pull <= AMONTONS_PULL_SE * float(se[2])):
         text = next(w for w in warns if w.startswith("n = "))
         flags.remove(text)

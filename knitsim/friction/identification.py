@@ -2,8 +2,9 @@
 
 A fit's value is believable only where the data set it.  A parameter is *not identified* when it ends
 at a bound of the search (the bound, not the data, set it), when its standard error is not finite, or
-0 while the residual is not (a singular Jacobian), or, for a parameter that must be positive, larger
-than its value (its one-standard-error interval reaches 0).  The statuses and the sentences go to the
+0 while the residual is not (a singular Jacobian), or wider than the search's box (the data narrow it to
+nothing the box does not), or, for a parameter that must be positive, larger than its value (its
+one-standard-error interval reaches 0).  The statuses and the sentences go to the
 user (the printed table, the JSON, the plot title), not to a log.
 """
 from __future__ import annotations
@@ -50,6 +51,15 @@ def at_bound(value: float, lower: float, upper: float, rtol: float = AT_BOUND_RT
     return None
 
 
+def wider_than_box(stderr: float, lower: float, upper: float) -> bool:
+    """A standard error larger than the width of a finite box ``[lower, upper]``: one standard error either side
+    spans every value the fit searches, so the data do not narrow the parameter (a capstan probe's speeds
+    proportional to the dead weight set only p + n: p "0.45 +/- 52" and n "0.52 +/- 52" in a box of width 2 and
+    0.7 were "identified")."""
+    width = float(upper) - float(lower)
+    return bool(np.isfinite(width) and np.isfinite(stderr) and stderr > width)
+
+
 def parameter_status(names: Sequence[str], values: Sequence[float], stderr: Sequence[float],
                      lower: Sequence[float], upper: Sequence[float], fixed: Sequence[str] = (),
                      exact_fit: bool = False, positive: Sequence[str] = (), shown: Sequence[float] | None = None,
@@ -66,6 +76,9 @@ def parameter_status(names: Sequence[str], values: Sequence[float], stderr: Sequ
     exact_fit : bool
         Zero residual: every standard error is legitimately 0; one warning says so instead.
     positive : names that must be > 0 (a standard error above the value: not identified)
+    (any parameter whose standard error exceeds the width of a finite box, :func:`wider_than_box`, is not
+    identified: ``stderr`` is compared with ``upper - lower``, so a parameter with a finite box is given in the
+    units of its bounds)
     shown : the reported values where they differ from ``values`` (a fit in scaled units)
     atol : per parameter, an absolute tolerance added at its bounds (a floor such as 1e-12)
     bound_text : per parameter, how its lower bound is written for the user (e.g. ``"0"``)
@@ -95,6 +108,10 @@ def parameter_status(names: Sequence[str], values: Sequence[float], stderr: Sequ
             status[nm] = "not_identified"
             warns.append(f"{nm} = {sv:.4g} has a standard error of {se:g}: the data do not determine it "
                          "(not identified)")
+        elif wider_than_box(se, lo, hi):
+            status[nm] = "not_identified"
+            warns.append(f"{nm} = {sv:.4g} has a standard error of {se:.2g}, wider than every value the fit searches "
+                         f"({lo:g} to {hi:g}): the data do not narrow it (not identified)")
         elif nm in positive and se > abs(sv):
             status[nm] = "not_identified"
             warns.append(f"{nm} = {sv:.4g} has a standard error of {se:.2g}, larger than the value: the data do not "

@@ -309,6 +309,23 @@ def test_standard_errors_match_the_analytic_jacobian(records):
     np.testing.assert_allclose(res.stderr, np.sqrt(s2 * np.sum(Ri ** 2, axis=1)), rtol=rtol)
 
 
+def test_speeds_proportional_to_the_dead_weight_identify_neither_p_nor_n():
+    """Records at (F0, V) = (6.31 N, 1), (12.62, 2), (25.24, 4) mm/s, ascent, 3 repeats each, of Table 3's e-glass
+    law with 0.3 % noise.  By hand: eqs 3-5 are homogeneous in the tension, so F1 / F0 depends on b V^p F0^(n-1) (and
+    on n alone only through the slight growth of the tension along the wrap); with V = F0 / 6.31 that is
+    b 6.31^-p F0^(p+n-1): the records set p + n, neither alone.  Both came out "identified", p +/- 305 in its box of
+    width 2 and n +/- 307 (0.7), n even "at the Amontons limit, n >= -504"."""
+    law = cap.table3_params("e_glass")
+    F0, V = [6.31, 12.62, 25.24] * 3, [1.0, 2.0, 4.0] * 3
+    rng = np.random.default_rng(5)
+    F1 = [cap.predict_f1(f, v, "ascent", *law) * (1 + 0.003 * rng.standard_normal()) for f, v in zip(F0, V)]
+    res = cap.fit_friction_law(F0, F1, V, ["ascent"] * 9)
+    assert not res.usable
+    for name, i in (("p", 1), ("n", 2)):
+        assert res.stderr[i] > cap.FIT_UPPER[i] - cap.FIT_LOWER[i]
+        assert res.param_status[name] in ("not_identified", "at_upper_bound", "at_lower_bound")
+
+
 def test_eq4_error_claim_needs_fine_steps():
     # Section 2.4: "the error [of eq 4 vs eq 3] on the final result has been
     # checked to be less than 0.2 %".  At the set-up's 16-strand crossings the

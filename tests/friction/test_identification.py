@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from knitsim.friction.identification import covariance
+from knitsim.friction.identification import covariance, parameter_status
 
 
 def test_a_singular_jacobian_has_infinite_errors():
@@ -19,3 +19,11 @@ def test_covariance_of_a_full_rank_jacobian_by_hand():
     cofactor formula, det = 14 * 58.25 - 28.5^2 = 3.25."""
     J = np.array([[1.0, 2.5], [2.0, 4.0], [3.0, 6.0]])
     np.testing.assert_allclose(covariance(J, 2.0), 2.0 * np.array([[58.25, -28.5], [-28.5, 14.0]]) / 3.25, rtol=1e-12)
+
+
+def test_a_standard_error_wider_than_the_box_is_not_identified():
+    """By hand: p = 0.1 +/- 2.5 in the box [-1, 1] (width 2): one standard error either side spans the whole box;
+    p = 0.1 +/- 1.5 does not.  A box open at one end (Dahl's sigma, Fc) has no width: no such rule."""
+    st, w = parameter_status(["p", "q", "sigma"], [0.1, 0.1, 5.0], [2.5, 1.5, 1e6], [-1, -1, 0], [1, 1, np.inf])
+    assert st == {"p": "not_identified", "q": "identified", "sigma": "identified"}
+    assert len(w) == 1 and w[0].startswith("p = 0.1 has a standard error of 2.5, wider than every value")
