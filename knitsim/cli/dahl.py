@@ -189,6 +189,11 @@ def _choose_columns(path: Path, columns: str | None) -> tuple[str, str]:
     # missing kappa_1_mm), else the KES names (the refusal names them)
     for names in (KES_COLUMNS, XF_COLUMNS):
         if has_columns(path, names):
+            # our names as written; a lab's that stand for them (x, F for x_mm, F_N) are read by the units they state,
+            # as any lab's columns are (a probe's 'x [cm]', 'F [gf]', the --help's own example, was refused as not
+            # x_mm's unit, 'F [mN]' as not F_N's, where 'disp [cm]', 'force [gf]' were converted)
+            if len(stated_units(path, names)) < len(names):
+                return _columns_by_unit(path) or names
             return names
     return _columns_by_unit(path) or KES_COLUMNS
 

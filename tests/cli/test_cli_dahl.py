@@ -434,6 +434,26 @@ def test_a_kes_loop_in_kes_units_fits_as_the_same_loop_in_ours(tmp_path, capsys)
         assert one["parameters"][name] == pytest.approx(two["parameters"][name], rel=1e-6, abs=1e-12)
 
 
+@pytest.mark.parametrize("header, to_mm, to_N", [
+    ("x [cm],F [gf]", 10.0, 9.80665e-3),          # the --help's own example
+    ("x [mm],F [mN]", 1.0, 1e-3),
+    ("X (cm),F (cN)", 10.0, 1e-2),
+])
+def test_a_displacement_and_force_named_x_and_f_are_read_by_their_units(header, to_mm, to_N, tmp_path, capsys):
+    """A lab's 'x', 'F' stand for x_mm, F_N by name, and the reader refused them in any other unit ("'cm' is not its
+    unit", "'gf' is not its unit") where 'disp [cm]', 'force [gf]' were converted, and dahl fit --help names 'x [cm],
+    F [gf]' as read.  Expected: the same numbers converted by hand (x times to_mm, F times to_N) under our names fit
+    the same law."""
+    ks, M = _kes_native_loop()
+    a = _write(tmp_path / "a.csv", header, [f"{k:.12g},{f:.12g}" for k, f in zip(ks, M)])
+    b = _write(tmp_path / "b.csv", "x_mm,F_N", [f"{k * to_mm:.12g},{f * to_N:.12g}" for k, f in zip(ks, M)])
+    one = _run_json(capsys, ["dahl", "fit", a, "--no-png", "--json"])
+    two = _run_json(capsys, ["dahl", "fit", b, "--no-png", "--json"])
+    assert one["units"]["sigma"] == "N/mm" and one["units"]["Fc"] == "N"
+    for name in ("sigma", "Fc", "F0"):
+        assert one["parameters"][name] == pytest.approx(two["parameters"][name], rel=1e-6, abs=1e-12)
+
+
 @pytest.mark.parametrize("header, argv, expected", [
     ("K [1/cm],M [lbf in/in]", [], ["'M [lbf in/in]'", "'lbf in/in' is not one", "'M [gf cm/cm]'"]),
     ("K [1/cm],M [gf cm]", [], ["'M [gf cm]' states a moment", "not a moment per unit width", "gf cm/cm"]),
