@@ -91,21 +91,39 @@ def parse_unit(unit: str) -> tuple[str, float] | None:
     x 0.1 to 1/mm; a moment per width in gf.cm/cm is 9.80665e-3 N x 10 mm / 10 mm, so x 9.80665e-3 to
     N.mm/mm (the widths' cm cancel the lever arm's; the same number as gf -> N).
     """
+    parts = _unit_parts(unit)
+    if parts is None:
+        return None
+    quantity, force, lengths = parts
+    if quantity == "curvature":
+        return quantity, 1.0 / _LENGTH_MM[lengths[0]]
+    if quantity == "displacement":
+        return quantity, _LENGTH_MM[lengths[0]]
+    if quantity == "force":
+        return quantity, _FORCE_N[force]
+    if quantity == "moment per width":
+        return quantity, _FORCE_N[force] * _LENGTH_MM[lengths[0]] / _LENGTH_MM[lengths[1]]
+    return quantity, _FORCE_N[force] * _LENGTH_MM[lengths[0]]
+
+
+def _unit_parts(unit: str) -> tuple[str, str | None, tuple[str, ...]] | None:
+    """:func:`parse_unit`'s reading of a unit: the quantity, its force unit (None for a length or a curvature) and
+    its length units, as keys of :data:`_FORCE_N` and :data:`_LENGTH_MM`; None for a unit not known."""
     u = unit.casefold().strip()
     for sep in ("\u00b7", "\u22c5", "*", "\u00d7", " "):    # a middle dot, a star, a space: one product, gf.cm
         u = u.replace(sep, ".")
     u = re.sub(r"\.+", ".", u).strip(".").replace("./", "/").replace("/.", "/")
     u = u.replace("\u207b\u00b9", "^-1").replace("**-1", "^-1")
     if m := re.fullmatch(rf"1/{_L}|{_L}\^?-1", u):
-        return "curvature", 1.0 / _LENGTH_MM[m.group(1) or m.group(2)]
+        return "curvature", None, (m.group(1) or m.group(2),)
     if m := re.fullmatch(_L, u):
-        return "displacement", _LENGTH_MM[m.group(1)]
+        return "displacement", None, (m.group(1),)
     if m := re.fullmatch(_F, u):
-        return "force", _FORCE_N[m.group(1)]
+        return "force", m.group(1), ()
     if m := re.fullmatch(rf"{_F}\.?{_L}/{_L}", u):
-        return "moment per width", _FORCE_N[m.group(1)] * _LENGTH_MM[m.group(2)] / _LENGTH_MM[m.group(3)]
+        return "moment per width", m.group(1), (m.group(2), m.group(3))
     if m := re.fullmatch(rf"{_F}\.?{_L}", u):
-        return "moment", _FORCE_N[m.group(1)] * _LENGTH_MM[m.group(2)]
+        return "moment", m.group(1), (m.group(2),)
     return None
 
 
@@ -313,13 +331,27 @@ def _columns_read(found: dict, names: tuple[str, str], where: str) -> tuple[list
     return cols, None
 
 
+def _identities(unit: str) -> str:
+    """The identities that make a unit's factor to the internal unit: ``1 gf = 0.00980665 N; cm/cm = mm/mm``,
+    ``1 m = 1000 mm``, ``1 cN = 0.01 N`` (a probe's 'K [1/m]' was said converted by "1 cm = 10 mm", 'F [cN]' by
+    "1 gf = 9.80665e-3 N")."""
+    _, force, lengths = _unit_parts(unit)
+    out = []
+    if force is not None and force != "n":
+        out.append(f"1 {force[:-1] + 'N' if force.endswith('n') else force} = {_FORCE_N[force]:g} N")
+    if len(lengths) == 2:            # per width: the lever arm's length over the width's
+        out.append(f"{lengths[0]}/{lengths[1]} = {_LENGTH_MM[lengths[0]] / _LENGTH_MM[lengths[1]]:g} mm/mm")
+    elif lengths and _LENGTH_MM[lengths[0]] != 1.0:
+        out.append(f"1 {lengths[0]} = {_LENGTH_MM[lengths[0]]:g} mm")
+    return "; ".join(out)
+
+
 def _read_note(col: dict) -> str:
     """The ``read:`` line of a column read in a unit it states (the conversion, and why its factor)."""
     internal = INTERNAL_UNIT[col["quantity"]]
     if col["factor"] == 1.0:
         return f"column {col['header']!r} read as the {col['quantity']} in {internal}"
-    why = {"curvature": "1 cm = 10 mm", "displacement": "1 cm = 10 mm",
-           "force": "1 gf = 9.80665e-3 N", "moment per width": "1 gf = 9.80665e-3 N; cm/cm = mm/mm"}[col["quantity"]]
+    why = _identities(col["unit"])
     return (f"column {col['header']!r} read as the {col['quantity']} in {col['unit']}: x {col['factor']:.6g} to "
             f"{internal} ({why})")
 

@@ -454,6 +454,23 @@ def test_a_displacement_and_force_named_x_and_f_are_read_by_their_units(header, 
         assert one["parameters"][name] == pytest.approx(two["parameters"][name], rel=1e-6, abs=1e-12)
 
 
+@pytest.mark.parametrize("header, notes", [
+    ("K [1/m],M [kN cm/m]", ["x 0.001 to 1/mm (1 m = 1000 mm)", "x 10 to N.mm/mm (1 kN = 1000 N; cm/m = 0.01 mm/mm)"]),
+    ("disp [mm],force [cN]", ["read as the displacement in mm", "x 0.01 to N (1 cN = 0.01 N)"]),
+    ("K [1/cm],M [gf cm/cm]", ["x 0.1 to 1/mm (1 cm = 10 mm)", "(1 gf = 0.00980665 N; cm/cm = 1 mm/mm)"]),
+])
+def test_a_conversion_is_explained_by_its_own_units(header, notes, tmp_path, capsys):
+    """The read: line's reason for a factor is the identity of the column's own units, by hand (1 m = 1000 mm, so
+    1/m = 0.001 1/mm; 1 kN cm/m = 1000 N x 10 mm / 1000 mm = 10 N.mm/mm).  Before, every curvature, 1/m included, was
+    explained by "1 cm = 10 mm" and every force, cN included, by "1 gf = 9.80665e-3 N"."""
+    ks, M = _kes_native_loop()
+    path = _write(tmp_path / "a.csv", header, [f"{k:.12g},{f:.12g}" for k, f in zip(ks, M)])
+    out = _run_json(capsys, ["dahl", "fit", path, "--no-png", "--json"], rc=None)
+    assert len(out["read_notes"]) == 2
+    for got, want in zip(out["read_notes"], notes):
+        assert want in got
+
+
 @pytest.mark.parametrize("header, argv, expected", [
     ("K [1/cm],M [lbf in/in]", [], ["'M [lbf in/in]'", "'lbf in/in' is not one", "'M [gf cm/cm]'"]),
     ("K [1/cm],M [gf cm]", [], ["'M [gf cm]' states a moment", "not a moment per unit width", "gf cm/cm"]),
