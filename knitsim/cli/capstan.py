@@ -183,12 +183,14 @@ def check_wrap_column(path) -> str | None:
     """Refuse records whose file states a wrap angle other than the set-up's; a read note where it states that one.
 
     The fit models the paper's rig (section 2.4): two cylinders each wrapped ``pi/2``, ``theta0 + theta1 = pi``
-    in eq 1, and the crossings of that wrap (``--layout``).  A column of the header line naming the wrap (``wrap``,
+    in eq 1, and the crossings of that wrap (``--layout``).  The columns of the header line naming the wrap (``wrap``,
     ``theta``, ``turns`` or ``angle`` alone, not a coiling angle; its unit deg, rad or turns in brackets, a units
-    row or ending its name) is read: every row at ``pi`` (the total) or every row at ``pi/2`` (each cylinder) is
-    the rig's, said in a note; any other value, or no unit, is refused naming the row, the column and the value.
-    A probe's records with a column ``wrap_turns = 2`` were fitted as the rig's half turn without a word (b then
-    about 4 times off)."""
+    row or ending its name) are read: one column is the total wrap or each cylinder's, every row at ``pi`` (the total)
+    or every row at ``pi/2`` (each cylinder); two are eq 1's ``theta0`` and ``theta1``, each cylinder's, every row at
+    ``pi/2``; the rig's is said in a note; any other value, a column without a unit, or more columns than the rig's
+    cylinders, is refused naming the row, the column and the value.  A probe's records with a column
+    ``wrap_turns = 2`` were fitted as the rig's half turn without a word (b then about 4 times off); another's
+    ``theta0 [deg] = 90`` and ``theta1 [deg] = 180`` (270 deg in all) as the rig's, its second column not read."""
     from ..io.table_input import header_candidates, split_unit
 
     f1_names = {"f1_n"} | set(CAPSTAN_ALIASES["F1_N"])
@@ -196,9 +198,19 @@ def check_wrap_column(path) -> str | None:
         bare = [split_unit(c)[0].strip().casefold() for c in cells]
         if not f1_names & set(bare):
             continue
-        for j, name in enumerate(bare):
-            if not (name == "angle" or any(w in name for w in _WRAP_WORDS)):
-                continue
+        wraps = [j for j, name in enumerate(bare) if name == "angle" or any(w in name for w in _WRAP_WORDS)]
+        if not wraps:
+            return None
+        if len(wraps) > capstan.CYLINDERS:
+            raise KnitsimInputError(
+                f"{path}: row {line}: {len(wraps)} wrap columns ({', '.join(repr(cells[j]) for j in wraps)}): the rig "
+                f"has {capstan.CYLINDERS} cylinders (theta0, theta1 in eq 1); give the total wrap or each cylinder's")
+        # the rig's wrap a column may state: the total or each cylinder's (one column), each cylinder's (two)
+        rigs = ((capstan.CYLINDERS * capstan.THETA_EACH, capstan.THETA_EACH) if len(wraps) == 1
+                else (capstan.THETA_EACH,))
+        said = []
+        for j in wraps:
+            name = bare[j]
             unit = units[j] if units[j] is not None else split_unit(cells[j])[1]
             if unit is None:
                 tail = re.split(r"[\s_/()\[\]-]+", name.strip())[-1]
@@ -210,20 +222,21 @@ def check_wrap_column(path) -> str | None:
             to_rad = _WRAP_UNITS[unit.strip().casefold()]
             asked = f"{split_unit(cells[j])[0]} [{unit}]"
             col = read_csv_columns(path, (asked,), numeric=(asked,))
-            rig = [w for w in (capstan.CYLINDERS * capstan.THETA_EACH, capstan.THETA_EACH)
-                   if abs(col[asked][0] * to_rad - w) <= 1e-3 * w]          # the total, or each cylinder's
+            rig = [w for w in rigs if abs(col[asked][0] * to_rad - w) <= 1e-3 * w]
             for r, v in zip(col["_row"], col[asked]):
                 if not (rig and abs(v * to_rad - rig[0]) <= 1e-3 * rig[0]):
                     deg = "" if to_rad == math.pi / 180.0 else f" ({math.degrees(v * to_rad):.4g} deg)"
                     raise KnitsimInputError(
                         f"{path}: row {int(r)}, column {cells[j]!r}: a wrap of {v:g} {unit}{deg}"
                         + (f", the rows above {col[asked][0]:g}" if rig else "")
+                        + (f" (one of {len(wraps)} wrap columns, each a cylinder's)" if len(wraps) > 1 else "")
                         + ": knitsim capstan fit models the paper's rig only, two cylinders each wrapped 90 deg "
                         "(theta0 + theta1 = 180 deg in eq 1) and their crossings; records of another wrap cannot be "
                         "fitted by it")
-            return (f"column {cells[j]!r} read as the wrap: the rig's "
-                    f"({'180 deg in all' if rig[0] > capstan.THETA_EACH else '90 deg a cylinder'})")
-        return None
+            said.append(repr(cells[j]))
+            total = rig[0] > capstan.THETA_EACH
+        return (f"column{'s' if len(said) > 1 else ''} {' and '.join(said)} read as the wrap: the rig's "
+                f"({'180 deg in all' if total else '90 deg a cylinder'})")
     return None
 
 

@@ -286,6 +286,27 @@ def _with_wrap(tmp_path, header: str, values) -> Path:
     return path
 
 
+def test_eq1s_two_wrap_columns_are_each_read(tmp_path, capsys):
+    """Eq 1 writes the wrap as theta0 + theta1; a lab's file with both columns had its first read and its second
+    ignored: theta0 = 90 deg, theta1 = 180 deg (270 deg in all: by eq 1, b some 1.5 times off) was fitted as the
+    rig's "90 deg a cylinder".  Expected: two wrap columns are the two cylinders', each 90 deg on every row (the
+    rig's, section 2.4), else refused naming the row, the column and the value; more columns than the rig's two
+    cylinders refused."""
+    plain = _json(capsys, ["capstan", "fit", str(REPO / "scenes" / "capstan" / "e_glass_table2.csv"), "--json"])
+    assert main(["capstan", "fit", str(_with_wrap(tmp_path, "theta0 [deg],theta1 [deg]", ["90,180"] * 8))]) == 2
+    err = capsys.readouterr().err
+    assert "row 2, column 'theta1 [deg]': a wrap of 180 deg (one of 2 wrap columns, each a cylinder's)" in err
+    assert main(["capstan", "fit", str(_with_wrap(tmp_path, "theta0 [deg],theta1 [deg]", ["180,180"] * 8))]) == 2
+    assert "column 'theta0 [deg]': a wrap of 180 deg" in capsys.readouterr().err
+    got = _json(capsys, ["capstan", "fit", str(_with_wrap(tmp_path, "theta0 [deg],theta1 [rad]",
+                                                          [f"90,{math.pi / 2}"] * 8)), "--json"])
+    assert got["b"] == plain["b"]
+    assert "columns 'theta0 [deg]' and 'theta1 [rad]' read as the wrap: the rig's (90 deg a cylinder)" in got["read_notes"]
+    assert main(["capstan", "fit", str(_with_wrap(tmp_path, "theta0 [deg],theta1 [deg],wrap [deg]",
+                                                  ["90,90,180"] * 8))]) == 2
+    assert "3 wrap columns" in capsys.readouterr().err
+
+
 def test_a_wrap_column_other_than_the_rig_is_refused(tmp_path, capsys):
     """A probe's records with a column wrap_turns = 2 were fitted as the rig's (two cylinders of 90 deg, theta0 +
     theta1 = pi in eq 1) without a word: by eq 1, ln(F1/F0) = mu theta, so a lab's 4 pi wrap makes its friction
