@@ -326,6 +326,19 @@ def test_speeds_proportional_to_the_dead_weight_identify_neither_p_nor_n():
         assert res.param_status[name] in ("not_identified", "at_upper_bound", "at_lower_bound")
 
 
+def test_the_amontons_limit_needs_a_bound_inside_the_box():
+    """Hand-made records at dead weights 6.31 and 6.3101 N (one weight in practice), ascent, p held: n comes out at 1
+    with a standard error of 0.53, and was called "at the Amontons limit, n >= 0.13 (one-sided 95 %)", usable, exit
+    0.  By hand: 1 - 1.645 x 0.53 = 0.13, below every n the fit searches (0.3): the records bound nothing; n is at
+    the bound, not identified."""
+    F0 = [6.31, 6.3101, 6.31, 6.3101, 6.31, 6.31]
+    F1 = [10.30, 10.50, 10.83, 10.31, 10.49, 10.85]
+    V = [0.2, 1.0, 10.0, 0.2, 1.0, 10.0]
+    res = cap.fit_friction_law(F0, F1, V, ["ascent"] * 6, fix_p=0.02)
+    assert res.params[2] == pytest.approx(1.0) and 1.0 - 1.645 * res.stderr[2] < cap.FIT_LOWER[2]
+    assert res.param_status["n"] == "at_upper_bound" and not res.usable
+
+
 def test_eq4_error_claim_needs_fine_steps():
     # Section 2.4: "the error [of eq 4 vs eq 3] on the final result has been
     # checked to be less than 0.2 %".  At the set-up's 16-strand crossings the
