@@ -24,7 +24,9 @@ holds that, on the rows the fit uses:
 Files: CSV (``,`` ``;`` or tab, :mod:`knitsim.io.table_input`) with a strain
 column (``strain`` or ``strain_mm_per_mm``) and a force column, the total
 force (``load_N`` or ``force_N``) or the force per wale
-(``force_per_wale_N``).  Units N and mm; strain dimensionless.
+(``force_per_wale_N``).  Units N and mm; strain dimensionless.  A ``cycle`` column, where there is one, is
+checked as the diagnosis checks it: a loading curve is one cycle
+(:func:`knitsim.diagnosis.measured.read_cycle_column`).
 """
 from __future__ import annotations
 
@@ -36,7 +38,8 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
     PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force,
-    refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance, zero_offset_below,
+    read_cycle_column, refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance,
+    zero_offset_below,
 )
 from ..diagnosis.noise import CurveNoise, curve_noise, reading_jitter, steeper_slopes
 from ..io.table_input import LAB_ALIASES, notes_of, read_csv_columns
@@ -76,8 +79,8 @@ class MeasuredTable:
 def read_table(path: str | Path) -> MeasuredTable:
     """Read a strain-force file (module docstring); refuses what is wrong, naming file, row and column."""
     path = Path(path)
-    cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS, aliases=LAB_ALIASES,
-                            labels=TEST_LABELS)
+    cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS + ("cycle",),
+                            aliases=LAB_ALIASES, labels=TEST_LABELS)
     cols = drop_copied_rows(refuse_several_tests(path, cols))
     for group in (STRAIN_COLUMNS, TOTAL_COLUMNS):
         both = [c for c in group if c in cols]
@@ -124,6 +127,10 @@ def read_table(path: str | Path) -> MeasuredTable:
                                 "reads loading curves (strain non-decreasing)")
     if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
+    if "cycle" in cols:
+        # a loading curve is one branch, one cycle: a cycle column that changes in it (a step counter, two logs
+        # pasted one after the other) is refused as the diagnosis refuses it (before, it was not read)
+        read_cycle_column(str(path), cols["cycle"], np.ones(len(strain), int), lambda i: int(rows[i]))
     # the force as the diagnosis reads it: a reading around zero is kept, a wrong sign or zero and a
     # force that never rises above the noise (all zero, not connected) are refused
     one = np.ones(len(clean), int)

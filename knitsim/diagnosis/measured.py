@@ -458,6 +458,55 @@ def direction_signs(source: str, direction, row) -> np.ndarray:
     return d
 
 
+def read_cycle_column(source: str, cycle, branch_cycle, row) -> tuple[np.ndarray, tuple]:
+    """A file's ``cycle`` column checked against the cycles of its branches, ``branch_cycle`` (from the strain's
+    turning points or the ``direction`` column; all 1 for a calibration's loading curve): returns it numbered from
+    1, as ``int32``, and the note to give where the file numbers it from 0 (a logger's count), else ``()``.
+
+    Raises
+    ------
+    KnitsimInputError
+        Naming the file, the row (``row(i)``), the column and the file's own value: a cycle that is not a whole
+        number >= 0, one that goes back, and one that does not change where a new loading branch starts or
+        changes where none does (a step counter of a ramp program, two tests' logs pasted one after the other:
+        before, a calibration read such a column without a word).
+    """
+    craw = np.asarray(cycle, float)
+    for i, v in enumerate(craw):
+        if not (np.isfinite(v) and v == round(v) and v >= 0):
+            raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {float(v):g} is not a whole "
+                                    "number >= 1 (or >= 0, in a column numbered from 0)")
+    c = craw.astype(np.int64)
+    # (the refusals name the file's own numbers)
+    down = np.nonzero(np.diff(c) < 0)[0]
+    if len(down):
+        i = int(down[0]) + 1
+        raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} is below the cycle of row "
+                                f"{row(i - 1)} ({int(c[i - 1])}): cycles count up, one more with each new loading "
+                                "branch; check the column or the row order")
+    # the cycle must follow the branches: it changes exactly where a new loading branch starts
+    b = np.asarray(branch_cycle, np.int64)
+    bad = np.nonzero(c != b - b[0] + c[0])[0]
+    if len(bad):
+        i = int(bad[0])
+        if b[i] == b[i - 1]:
+            where = (f"changes from {int(c[i - 1])} (row {row(i - 1)}) where no new loading branch starts (the strain "
+                     "goes on in one direction through it)")
+        elif c[i] == c[i - 1]:
+            where = f"stays the cycle of row {row(i - 1)} where a new loading branch starts"
+        else:
+            where = f"follows {int(c[i - 1])} (row {row(i - 1)}) where one new loading branch starts"
+        raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} does not match the branches: it "
+                                f"{where}; a cycle starts with each new loading branch. If the column counts "
+                                "something else (a step of the test program), rename it")
+    if c[0] == 0:
+        # a logger that counts from 0 (0, 0, ..., 1, 1, ...): the same cycles, numbered from 1 as the package
+        # numbers them (a blind probe's such file was refused at its first row)
+        return (c + 1).astype(np.int32), ("column cycle numbered from 0: read as numbered from 1 (its cycle 0 is "
+                                          "cycle 1)",)
+    return c.astype(np.int32), ()
+
+
 def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None, source: str = "curve",
                       rows=None, noise_N: float | None = None, strain_tol: float | None = None) -> MeasuredCurve:
     """Validate arrays into a :class:`MeasuredCurve` (see the module docstring).
@@ -545,31 +594,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     if cycle is None:
         c = inf_cycle
     else:
-        craw = np.asarray(cycle, float)
-        for i, v in enumerate(craw):
-            if not (np.isfinite(v) and v == round(v) and v >= 0):
-                raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {float(v):g} is not a whole "
-                                        "number >= 1 (or >= 0, in a column numbered from 0)")
-        c = craw.astype(np.int64)
-        # (the refusals name the file's own numbers)
-        down = np.nonzero(np.diff(c) < 0)[0]
-        if len(down):
-            i = int(down[0]) + 1
-            raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} is below the cycle of row "
-                                    f"{row(i - 1)} ({int(c[i - 1])}): cycles count up, one more with each new loading "
-                                    "branch; check the column or the row order")
-        # the cycle must follow the branches: it changes exactly where a new loading branch starts
-        bad = np.nonzero(c != inf_cycle - inf_cycle[0] + c[0])[0]
-        if len(bad):
-            i = bad[0]
-            raise KnitsimInputError(f"{source}: row {row(i)}, column cycle: {int(c[i])} does not match the branches "
-                                    "(a cycle starts with each new loading branch)")
-        if c[0] == 0:
-            # a logger that counts from 0 (0, 0, ..., 1, 1, ...): the same cycles, numbered from 1 as the package
-            # numbers them (a blind probe's such file was refused at its first row)
-            c = c + 1
-            cycle_note = ("column cycle numbered from 0: read as numbered from 1 (its cycle 0 is cycle 1)",)
-        c = c.astype(np.int32)
+        c, cycle_note = read_cycle_column(source, cycle, inf_cycle, row)
     r = None
     if rate_mm_s is not None:
         r = np.asarray(rate_mm_s, float)

@@ -646,6 +646,25 @@ def test_a_wrong_cycle_column_is_refused_naming_row_column_and_its_own_value(tmp
     assert str(p) in str(e.value) and where in str(e.value), str(e.value)
 
 
+def test_a_cycle_column_that_changes_inside_a_loading_is_refused_by_calibrate_as_by_diagnose(tmp_path):
+    """A hand-made loading (_UP, 16 rows, the strain rising throughout) with a cycle column 1 on its first 9 rows and 2
+    on the last 7 (a ramp program's step counter, or two logs pasted one after the other): calibrate read it
+    without a word (the column was not read).  Expected: both readers refuse it at the first row of cycle 2, the
+    10th data row, row 11 (header = row 1), naming the column, the file's value and the row it changed from; the
+    same column all 1 (one loading, one cycle) is read by both."""
+    from knitsim.calibration.specimen import read_table
+    p = _write(tmp_path, _csv(_UP, header="strain,force_per_wale_N,cycle", extra=["1"] * 9 + ["2"] * 7))
+    for read in (read_table, read_measured_curve):
+        with pytest.raises(KnitsimInputError) as e:
+            read(p)
+        assert str(p) in str(e.value), str(e.value)
+        assert "row 11, column cycle: 2 does not match the branches: it changes from 1 (row 10) where no new " \
+               "loading branch starts" in str(e.value), str(e.value)
+    one = _write(tmp_path, _csv(_UP, header="strain,force_per_wale_N,cycle", extra=["1"] * 16), "one.csv")
+    assert len(read_table(one).strain) == 16
+    assert list(read_measured_curve(one).cycle) == [1] * 16
+
+
 @pytest.mark.parametrize("header", ["force_per_wale_N [N/wale]", "Force per wale [N/wale]", "force [N/wale]"])
 def test_diagnose_and_calibrate_read_a_force_in_N_per_wale_as_the_force_per_wale(tmp_path, header):
     """A blind probe's three headers of a force per wale in N/wale were refused by diagnose.  Expected: the curve of
