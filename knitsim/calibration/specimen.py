@@ -37,7 +37,8 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
-    PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, refuse_few_rows, refuse_negative_force,
+    PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, flat_top_note, flat_tops,
+    refuse_few_rows, refuse_negative_force,
     read_cycle_column, refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance,
     zero_offset_below,
 )
@@ -145,8 +146,17 @@ def read_table(path: str | Path) -> MeasuredTable:
     # force has no offset term (left in, a -10 mN zero on a 55 N curve moved phi0 by 3 to 7 sd in a blind
     # probe).  A zero above zero is not told from the knit's own force at rest or a pretension: left in
     zero = _rest_level(force, noise.sigma_N, zero_offset_below(force, noise.sigma_N))
+    notes = notes_of(cols)
+    # a force flat at its largest reading while the strain moves on: a saturated load cell, said (a probe's pull
+    # clipped at 80 % of its peak read only as a misfit)
+    tops = flat_tops(strain, force, tol)
+    if tops:
+        i = tops[0][0]
+        notes += (flat_top_note(tops, strain, force, row, column, "N" if f_total else "N per wale")
+                  + f"; a fit reads them as the knit's unless the specimen's end_strain stops below them "
+                  f"({float(clean[i - 1]):.4g}, its last row below the limit)",)
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
-                         rows, s_name, noise, zero, reading_jitter(strain, one), notes_of(cols))
+                         rows, s_name, noise, zero, reading_jitter(strain, one), notes)
 
 
 def pretension_strain(grip_strain, pretension: float):

@@ -2126,6 +2126,15 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += "; " + "; ".join(
             f"{Path(c.source).name}: the force stalls at row {c.stalls[0]} while the strain runs on (a grip slip, or "
             "the knit's own stick-slip), and the rows after it are read at a strain the knit did not take" for c in stalled)
+    # a force flat at its largest reading while the strain moves on (measured.flat_tops): the rows hold the load
+    # cell's limit, read by every fit as the knit's force
+    flat = [c for c in curves if getattr(c, "flat_top", ())]
+    if flat:
+        verdict.confident = False
+        verdict.reason += "; " + "; ".join(
+            f"{Path(c.source).name}: the force is flat at its largest reading over {len(c.flat_top)} rows from row "
+            f"{c.flat_top[0]} while the strain moves on (a saturated load cell?), which the model reads as the knit's "
+            "force" for c in flat)
     # a hold whose force relaxes (measured.force_holds): its rows left out, the branches after it from a relaxed knit
     held = [c for c in curves if getattr(c, "holds", ())]
     if held:

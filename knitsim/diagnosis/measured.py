@@ -157,6 +157,9 @@ class MeasuredCurve:
     #: rows (spreadsheet numbers) that end a branch already on the next one: the turn between them and the row before
     #: was not recorded (:func:`unrecorded_turns`)
     late_turns: tuple = ()
+    #: rows (spreadsheet numbers) where the force is flat at its largest reading while the strain moves on
+    #: (:func:`flat_tops`: a saturated load cell)
+    flat_top: tuple = ()
 
     def __len__(self) -> int:
         return len(self.strain)
@@ -507,6 +510,63 @@ def read_cycle_column(source: str, cycle, branch_cycle, row) -> tuple[np.ndarray
     return c.astype(np.int32), ()
 
 
+#: a run of at least this many rows whose force is the column's largest reading while the strain moves on is a flat
+#: top (:func:`flat_tops`)
+FLAT_TOP_ROWS = 4
+#: ... where the loading that reached it rose, over a strain as long as the run's, by more than this many steps of
+#: the column's printed resolution (a curve that rises by less prints one value over several rows)
+FLAT_TOP_RISE_STEPS = 3.0
+
+
+def force_resolution(force) -> float:
+    """The force column's printed resolution: the smallest difference between two distinct readings [N] (0 for a
+    column of one value).  Readings printed to 5 decimals differ by 1e-5 or more."""
+    u = np.unique(np.asarray(force, float))
+    return float(np.min(np.diff(u))) if len(u) > 1 else 0.0
+
+
+def flat_tops(strain, force, tol: float) -> list[tuple[int, int]]:
+    """Runs ``(i, j)`` (rows ``i .. j - 1``) of :data:`FLAT_TOP_ROWS` rows or more whose force is the column's
+    largest reading, the same number, while the strain moves by more than ``tol`` over them: a load cell (or its
+    amplifier, or a logger's range) that saturated, flat at its limit over the top of the loading (or of every
+    cycle's), or a force limit of the test.  A run counts only where the loading that reached it rose, over the
+    rows before it spanning as much strain as the run does (or all of that loading where it is shorter), by more
+    than :data:`FLAT_TOP_RISE_STEPS` steps of the printed resolution (:func:`force_resolution`): a curve whose rise
+    over the run is below the last printed digit prints one value there, rising or not.  A hold at the top (the
+    strain within ``tol``: the 30 fps frames of a step-and-hold test, Singal 2024's acrylic stockinette X run 3
+    holding 29.38 N over 5 rows) is no flat top.  The rows are what the file measured at the limit, not the knit's
+    force: a fit reads them as a knit that stopped stiffening (a probe's pull clipped at 80 % of its peak over its
+    last 38 rows read only as a misfit, the clipping never named)."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    if len(f) < FLAT_TOP_ROWS:
+        return []
+    top, q = float(np.max(f)), force_resolution(f)
+    at = np.r_[False, f == top, False]
+    edges = np.flatnonzero(np.diff(at.astype(int)))
+    runs = []
+    for i, j in zip(edges[::2], edges[1::2]):
+        span = float(np.max(s[i:j]) - np.min(s[i:j]))
+        if j - i < FLAT_TOP_ROWS or not span > tol or i == 0:
+            continue
+        k = i - 1                               # back along the loading that reached the run, as far as its span
+        while k > 0 and s[k - 1] <= s[k] + tol and s[k] > s[i] - span:
+            k -= 1
+        if top - f[k] > FLAT_TOP_RISE_STEPS * q:
+            runs.append((int(i), int(j)))
+    return runs
+
+
+def flat_top_note(runs, strain, force, row, column: str, unit: str = "N") -> str:
+    """The read note of :func:`flat_tops`' runs (the first four named), naming the force, the rows and the strains."""
+    s = np.asarray(strain, float)
+    i0, _ = runs[0]
+    where = ", ".join(f"rows {row(i)}-{row(j - 1)} (strain {float(np.min(s[i:j])):.4g} to {float(np.max(s[i:j])):.4g})"
+                      for i, j in runs[:4]) + (", ..." if len(runs) > 4 else "")
+    return (f"the force column {column} is flat at {float(force[i0]):.6g} {unit}, its largest reading, over {where} while "
+            "the strain moves on: a saturated load cell (or a force limit of the test)? Those rows hold the limit, not "
+            "the knit's force")
+
+
 def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None, source: str = "curve",
                       rows=None, noise_N: float | None = None, strain_tol: float | None = None) -> MeasuredCurve:
     """Validate arrays into a :class:`MeasuredCurve` (see the module docstring).
@@ -642,6 +702,11 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
         notes = (f"the strain jumps by {jump:.3g} ({times:.1f} times its steps around) between rows {row(k)} and "
                  f"{row(k + 1)}, {what}{more}; a slip would be read as the knit's stretch, so no verdict on this "
                  "curve is confident",)
+    # a force flat at its largest reading while the strain moves on (flat_tops): a saturated load cell, said
+    tops = flat_tops(s, f, tol)
+    if tops:
+        notes += (flat_top_note(tops, s, f, row, "force_per_wale_N", "N per wale")
+                  + "; no verdict on this curve is confident",)
     glitches, stalls = (), ()
     if noise.known:
         # (in noise sd: a curve whose noise is assumed, read off a figure or an envelope, cannot tell)
@@ -679,7 +744,8 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                         "at such a row's strain, short of where the grip turned, and the knit's later branches depend on "
                         "it, so no verdict on this curve is confident (log the turning points)",)
     return MeasuredCurve(clean, f, np.asarray(c, np.int32), d, r, source, row_no, s, noise, notes, slips, glitches,
-                         stalls, tuple(row(k) for k in np.flatnonzero(~kept)), late)
+                         stalls, tuple(row(k) for k in np.flatnonzero(~kept)), late_turns=late,
+                         flat_top=tuple(row(k) for i, j in tops for k in range(i, j)))
 
 
 #: a step of the strain this many times the median step of its branch is a jump (:func:`strain_slips`)

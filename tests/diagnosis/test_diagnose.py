@@ -708,6 +708,35 @@ def test_the_console_says_no_stage_has_a_gap_where_none_exceeds_the_noise(tmp_pa
         assert 0 < float(se) and abs(float(value) - truth) <= 3 * float(se), line
 
 
+def test_a_force_clipped_flat_at_its_largest_reading_leaves_no_verdict_confident(tmp_path, capsys):
+    """The model's own single cycle (tests/diagnosis/data/README.md), every force above 80 % of its peak written as
+    that limit (a load cell that saturated: 21 rows over the top of the loading and the start of the unloading).
+    Expected: the read line names the flat force and its rows (measured.flat_tops), and the verdict is not
+    confident, its reason naming the file and the flat rows."""
+    from pathlib import Path
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nd = 0.58\nB = 0.31\n[knit]\nL = 14.1\nW0 = 4.4\nC0 = 2.7\n[friction]\nm = 0.25\n'
+                     '[rules]\nunloading_rule = "dusserre"\nreload_rule = "mirror_unloading"\nforce_cap_N = 10.0\n'
+                     '[diagnosis]\nfree = ["m", "phi0"]\neffects = ["bending_hysteresis"]\n')
+    lines = (Path(__file__).parent / "data" / "eglass_1cycle_m0.20_phi0.05_noise2mN.csv").read_text().splitlines()
+    j = lines[0].split(",").index("force_per_wale_N")
+    limit = round(0.8 * max(float(ln.split(",")[j]) for ln in lines[1:]), 6)
+    out_lines = [lines[0]]
+    for ln in lines[1:]:
+        cells = ln.split(",")
+        cells[j] = repr(min(float(cells[j]), limit))
+        out_lines.append(",".join(cells))
+    flat = [i + 2 for i, ln in enumerate(out_lines[1:]) if float(ln.split(",")[j]) == limit]
+    csv = tmp_path / "clipped.csv"
+    csv.write_text("\n".join(out_lines) + "\n")
+    main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet"])
+    out = capsys.readouterr().out
+    assert f"flat at {limit:g} N per wale, its largest reading, over rows {flat[0]}-{flat[-1]}" in out, out
+    verdict = next(ln for ln in out.splitlines() if ln.startswith("verdict:"))
+    assert "not confident" in verdict and f"clipped.csv: the force is flat at its largest reading over {len(flat)} " \
+        f"rows from row {flat[0]}" in verdict, verdict
+
+
 def test_the_console_says_a_parameter_at_its_bound_instead_of_an_error(tmp_path, capsys):
     """The same file (truth m 0.20), m bounded to [0.15, 0.19] and in_plane_width free (a single cycle that never
     jams: the data do not constrain it, and it rests on its lower bound 0.58 = d): the baseline line says m is at

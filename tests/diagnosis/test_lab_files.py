@@ -646,6 +646,44 @@ def test_a_wrong_cycle_column_is_refused_naming_row_column_and_its_own_value(tmp
     assert str(p) in str(e.value) and where in str(e.value), str(e.value)
 
 
+def _pull(step=0.01, end=0.5, noise=0.002, digits=5):
+    """A hand-made pull: f = 0.5 s + 2 s^3 N (0.5 N at s = 0.5, the steepest at the top) plus a fixed +-``noise``
+    pattern, printed to ``digits`` decimals."""
+    s = np.round(np.arange(0.0, end + step / 2, step), 6)
+    f = 0.5 * s + 2.0 * s ** 3 + noise * np.array([1, -1, 0.5, -0.5, 0])[np.arange(len(s)) % 5]
+    return s, np.round(f, digits)
+
+
+def test_a_force_flat_at_its_largest_reading_is_said_a_saturated_load_cell(tmp_path):
+    """A load cell that saturated at 80 % of the pull's peak (every reading above it written as the limit) read as
+    a misfit only, the clipping never named.  Hand-made: _pull() clipped at 0.4 N; the rows above it are counted
+    from the formula (independent of the check).  Expected: calibrate's read note and the diagnosis' name the
+    force, its rows (header = row 1) and strains; the diagnosis lists the rows (no verdict confident).  Not said:
+    the pull unclipped, the top held at one strain for 5 rows (a step-and-hold's frames: Singal 2024's acrylic
+    stockinette X run 3 holds 29.38 N over 5 rows), and the same pull read every 0.005 and printed to 0.1 N, whose
+    top 0.5 N runs over 6 rows because it rises by less than a printed digit there."""
+    from knitsim.calibration.specimen import read_table
+    s, f = _pull()
+    flat = np.flatnonzero(f > 0.4)
+    assert flat[-1] == len(s) - 1 and len(flat) >= 4
+    clipped = np.minimum(f, 0.4)
+    p = _write(tmp_path, _csv(list(zip(s.tolist(), clipped.tolist())), header="strain,load_N"), "clip.csv")
+    rows = f"rows {flat[0] + 2}-{flat[-1] + 2} (strain {s[flat[0]]:.4g} to 0.5)"
+    note = [n for n in read_table(p).notes if "flat" in n]
+    assert len(note) == 1 and f"the force column load_N is flat at 0.4 N, its largest reading, over {rows}" in note[0]
+    assert "a saturated load cell" in note[0] and f"end_strain stops below them ({s[flat[0] - 1]:.4g}, its last row below" in note[0], note
+    w = _write(tmp_path, _csv(list(zip(s.tolist(), clipped.tolist()))), "clip_wale.csv")
+    c = read_measured_curve(w)
+    assert list(c.flat_top) == [int(i) + 2 for i in flat]
+    assert any(f"is flat at 0.4 N per wale, its largest reading, over {rows}" in n for n in c.notes), c.notes
+    held = list(zip(s.tolist(), f.tolist())) + [(0.5, float(f[-1]))] * 4
+    fine, coarse = _pull(step=0.005, digits=1)
+    assert np.count_nonzero(coarse == coarse.max()) >= 4
+    for rows_ in (list(zip(s.tolist(), f.tolist())), held, list(zip(fine.tolist(), coarse.tolist()))):
+        q = _write(tmp_path, _csv(rows_, header="strain,load_N"), "ok.csv")
+        assert not any("flat" in n for n in read_table(q).notes)
+
+
 def test_a_cycle_column_that_changes_inside_a_loading_is_refused_by_calibrate_as_by_diagnose(tmp_path):
     """A hand-made loading (_UP, 16 rows, the strain rising throughout) with a cycle column 1 on its first 9 rows and 2
     on the last 7 (a ramp program's step counter, or two logs pasted one after the other): calibrate read it
