@@ -981,17 +981,17 @@ class _Problem:
                 raise KnitsimInputError(f"calibration.per_specimen: {n!r} is not a specimen variable (expected one of "
                                         f"{', '.join(SPECIMEN_VARIABLES)})")
             if n in GEOMETRY:
-                for s in self.sp:
+                for i, s in enumerate(self.sp):
                     if not s.uncertainty.get(n, 0.0) > 0:
-                        raise KnitsimInputError(f"specimens.{s.name}.uncertainty.{n}: needed > 0 to fit {n} per "
+                        raise KnitsimInputError(f"specimens[{i}].uncertainty.{n}: needed > 0 to fit {n} per "
                                                 "specimen (its relative measurement uncertainty)")
             if n == "pretension":
-                for s in self.sp:
+                for i, s in enumerate(self.sp):
                     if not s.pretension_sd > 0:
-                        raise KnitsimInputError(f"specimens.{s.name}.pretension_sd: needed > 0 to fit the pretension "
+                        raise KnitsimInputError(f"specimens[{i}].pretension_sd: needed > 0 to fit the pretension "
                                                 "per specimen (the sd of its prior: how far the tester's pretension "
                                                 "may have stretched the knit before the strain origin)")
-        for s in self.sp:
+        for i, s in enumerate(self.sp):
             for n in GEOMETRY:
                 u = s.uncertainty.get(n, 0.0)
                 if u > 0 and n not in setup.per_specimen:
@@ -999,7 +999,7 @@ class _Problem:
                     # stated, exactly (a probe's L stated 1 % off with sd 0.02, L not in per_specimen: one yarn
                     # read as two, p = 1e-12, m 5 standard errors off, nothing said of L)
                     raise KnitsimInputError(
-                        f"specimens.{s.name}.uncertainty.{n} = {u!r}: {n} is not fitted (not in "
+                        f"specimens[{i}].uncertainty.{n} = {u!r}: {n} is not fitted (not in "
                         f"calibration.per_specimen), so the fit would hold it at its stated {s.knit[n]:g} mm exactly "
                         f"and ignore this uncertainty: add {n} to calibration.per_specimen, or set "
                         f"uncertainty.{n} = 0 (known)")
@@ -1044,8 +1044,8 @@ class _Problem:
             raise KnitsimInputError("calibration: nothing to fit (shared and per_specimen are empty)")
         self._check_knits()
         self._check_starts()
-        for s in self.sp:
-            self._check_reach(s)
+        for i, s in enumerate(self.sp):
+            self._check_reach(s, f"specimens[{i}]")
         self.n_rows = sum(len(s.strain) for s in self.sp)
         self.n_prior = sum(1 for v in self.vars if v.name in GEOMETRY or v.name == "pretension")
         self.zero = check_zero(setup.zero, "JointSetup.zero")
@@ -1085,7 +1085,7 @@ class _Problem:
         self.objective = "midline"
 
     # ------------------------------------------------------------ bounds
-    def _check_reach(self, s: SpecimenData) -> None:
+    def _check_reach(self, s: SpecimenData, where: str) -> None:
         """Refuse rows the specimen's knit cannot reach in the loosest case the fit allows: a quarter-stitch
         cell is a straight yarn at C = C0 (1 + knit strain) = L/2 (:func:`reachable_strain`), at L's upper
         bound and C0's lower bound where they are fitted, through the largest pretension (knit strain
@@ -1109,7 +1109,7 @@ class _Problem:
                + (f" ({', '.join(loose)}: the loosest the fit allows)" if loose else "")
                + (f"; through a pretension of {pre:.4g}, knit strain = (1 + {pre:.4g})(1 + grip strain) - 1"
                   if pre > 0 else ""))
-        check_reach(s, grip, why)
+        check_reach(s, grip, why, where)
 
     def _fit_bounds(self, name: str, s: SpecimenData | None = None) -> tuple[float, float]:
         b = self.base
@@ -1176,11 +1176,12 @@ class _Problem:
         below 4 d: a W0 in cm), naming the specimen: before, only the first specimen's knit was checked (the scene's
         start cell), and a later one's ran the whole fit to a RuntimeError traceback ("the calibrated point is
         not an admissible cell")."""
-        for s in self.sp:
+        for i, s in enumerate(self.sp):
             try:
                 self.base.replace(**s.knit).validated(where="cell")
             except KnitsimInputError as exc:
-                raise KnitsimInputError(f"specimens.{s.name}.knit: the start yarn on this knit as stated: {exc}") \
+                raise KnitsimInputError(f"specimens[{i}].knit: the start yarn on specimen {s.name}'s knit as stated: "
+                                        f"{exc}") \
                     from None
 
     def _check_starts(self) -> None:
@@ -1189,12 +1190,12 @@ class _Problem:
         b, W0s = self.base, [s.knit["W0"] for s in self.sp]
         for v in self.vars:
             if v.name == "phi0":
-                # a specimen's own start (specimens.NAME.phi0, else friction.phi0), a fraction of phimax at the
+                # a specimen's own start (specimens[i].phi0, else friction.phi0), a fraction of phimax at the
                 # start's m: outside the range it was clipped to its end without a word (degrees typed as rad)
                 given = self.setup.phi0_starts[v.specimen] if v.specimen < len(self.setup.phi0_starts) else None
                 value = b.phi0 if given is None else given
                 if not v.lo * b.phimax - 1e-12 <= value <= v.hi * b.phimax + 1e-12:
-                    key = (f"specimens.{self.sp[v.specimen].name}.phi0" if given is not None else "friction.phi0")
+                    key = f"specimens[{v.specimen}].phi0" if given is not None else "friction.phi0"
                     deg = (f" (in degrees it would be {math.radians(value):.4g} rad)"
                            if abs(math.radians(value)) <= b.phimax else "")
                     raise KnitsimInputError(

@@ -609,16 +609,16 @@ def refuse_repeated_tests(specimens) -> None:
     KnitsimInputError
         Naming both specimens' keys and files.
     """
-    seen: dict[str, tuple[str, str, str]] = {}
-    for s in specimens:
+    seen: dict[str, tuple[int, str, str]] = {}
+    for i, s in enumerate(specimens):
         for key, source, digest in getattr(s, "file_rows", ()):
-            if digest in seen and seen[digest][0] != s.name:
-                name0, key0, source0 = seen[digest]
+            if digest in seen and seen[digest][0] != i:
+                i0, key0, source0 = seen[digest]
                 raise KnitsimInputError(
-                    f"specimens.{s.name}.{key}: {source} holds the same rows as specimens.{name0}.{key0} ({source0}): "
+                    f"specimens[{i}].{key}: {source} holds the same rows as specimens[{i0}].{key0} ({source0}): "
                     "the same test given twice, or a copy of it; its rows would count twice (standard errors "
                     "too small, one yarn checked against itself). Give each test once")
-            seen.setdefault(digest, (s.name, key, source))
+            seen.setdefault(digest, (i, key, source))
 
 
 def _swapped_band(lo_t: MeasuredTable, hi_t: MeasuredTable, strain: np.ndarray, a: np.ndarray, b: np.ndarray,

@@ -224,8 +224,8 @@ def test_one_test_given_to_two_specimens_is_refused_before_any_work(tmp_path):
                                     row_step=0.02) for n, c in (("first", "a.csv"), ("second", second))]
     from knitsim.calibration.joint import check_setup
     for copy in ("a.csv", "a_excel.csv"):
-        with pytest.raises(KnitsimInputError, match=rf"specimens\.second\.curve: .*{copy.replace('.', r'[.]')} holds the "
-                                                     r"same rows as specimens\.first\.curve \(.*a\.csv\)"):
+        with pytest.raises(KnitsimInputError, match=rf"specimens\[1\]\.curve: .*{copy.replace('.', r'[.]')} holds the "
+                                                     r"same rows as specimens\[0\]\.curve \(.*a\.csv\)"):
             check_setup(specimens(copy), setup)
     check_setup(specimens("b.csv"), setup)                  # another test: read
     # the command: refused with exit status 2, nothing written

@@ -43,7 +43,7 @@ def test_strain_in_per_cent_is_refused_naming_file_row_column_and_value(tmp_path
     """Strains 0..20 (per cent of 0..0.2): 20 >= 1.611, refused at the file's largest strain, row 12."""
     rc, cap = _run(tmp_path, capsys, e_glass_calibration("refusals"), _curve(20.0))
     line = _one_line_refusal(tmp_path, rc, cap)
-    assert re.search(r"specimens\.tight: .*a\.csv: row 12, column strain: 20 is a strain the specimen's knit "
+    assert re.search(r"specimens\[0\]: .*a\.csv: row 12, column strain: 20 is a strain the specimen's knit "
                      r"cannot reach", line), line
     assert "grip strain < 1.611" in line
     assert "Is the column in per cent? A strain of 5 % is 0.05." in line
@@ -151,13 +151,13 @@ def test_a_start_outside_its_bounds_and_an_absurd_range_are_refused(tmp_path, ca
 @pytest.mark.parametrize("phi0, bounds, expect", [
     # 5 degrees typed as radians: phimax = atan(0.3) = 0.2915 rad (the fixture's m); 5 deg = 0.08727 rad.  Before,
     # the start was clipped to +phimax without a word, while B, d, the width and m starts out of range were refused
-    (5.0, None, "specimens.tight.phi0 = 5 rad: specimen tight's phi0 start lies outside its range [-0.2915, 0.2915] "
+    (5.0, None, "specimens[0].phi0 = 5 rad: specimen tight's phi0 start lies outside its range [-0.2915, 0.2915] "
                 "rad (+-phimax = atan(m), m = 0.3 the start) (in degrees it would be 0.08727 rad)"),
     # inside +-phimax, outside bounds.phi0 = [-0.5, 0.5] of it: +-0.1457 rad
-    (0.2, [-0.5, 0.5], "specimens.tight.phi0 = 0.2 rad: specimen tight's phi0 start lies outside its range "
+    (0.2, [-0.5, 0.5], "specimens[0].phi0 = 0.2 rad: specimen tight's phi0 start lies outside its range "
                        "[-0.1457, 0.1457] rad (calibration.bounds.phi0 x phimax, m = 0.3 the start)"),
     # a start m of 0 (no friction: phimax = 0) leaves phi0 no room: before, its start was set to 0 without a word
-    (0.05, "m0", "specimens.tight.phi0 = 0.05 rad: specimen tight's phi0 start lies outside its range [0, 0] rad "
+    (0.05, "m0", "specimens[0].phi0 = 0.05 rad: specimen tight's phi0 start lies outside its range [0, 0] rad "
                  "(+-phimax = atan(m), m = 0 the start)"),
 ])
 def test_a_phi0_start_outside_its_range_is_refused(tmp_path, capsys, e_glass_calibration, phi0, bounds, expect):
@@ -203,7 +203,7 @@ def test_an_uncertainty_of_a_geometry_not_fitted_is_refused(tmp_path, capsys, e_
     doc["specimens"][0]["uncertainty"] = {"L": 0.02}
     rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
     line = _one_line_refusal(tmp_path, rc, cap)
-    assert ("specimens.tight.uncertainty.L = 0.02: L is not fitted (not in calibration.per_specimen), so the fit "
+    assert ("specimens[0].uncertainty.L = 0.02: L is not fitted (not in calibration.per_specimen), so the fit "
             "would hold it at its stated 14.1 mm exactly") in line, line
     doc["specimens"][0]["uncertainty"] = {"L": 0.0}
     (tmp_path / "cal.toml").write_text(dumps(doc))
@@ -228,8 +228,29 @@ def test_a_later_specimens_knit_that_is_no_cell_is_refused_naming_it(tmp_path, c
     (tmp_path / "b.csv").write_text(_curve(0.2).replace(",0.5", ",0.6"))
     rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
     line = _one_line_refusal(tmp_path, rc, cap)
-    assert "specimens.loose.knit: the start yarn on this knit as stated: " in line, line
+    assert "specimens[1].knit: the start yarn on specimen loose's knit as stated: " in line, line
     assert "loops jammed at rest: W0 = 0.44 < 4 in_plane_width" in line, line
+
+
+def test_every_refusal_names_a_specimen_by_its_key_path(tmp_path, capsys, e_glass_calibration):
+    """A second specimen, "loose" ([[specimens]] table 1 from 0): refusals made while its file is read named it
+    specimens[1] (``specimens[1].curve: ...``) and those of the fit's checks specimens.loose (its strain beyond
+    reach, its uncertainty of a geometry not fitted, a copy of the first specimen's file).  Expected: every one
+    names it by the key path the scene's checks and ``--set specimens[1].width=...`` use, specimens[1]."""
+    doc = e_glass_calibration("refusals")
+    doc["specimens"].append(dict(doc["specimens"][0], name="loose", curve="b.csv"))
+    cases = [("b.csv", "strain,load_N\n0,0\n0.1,x\n0.2,1\n0.3,2\n", {}, "specimens[1].curve: "),
+             ("b.csv", _curve(20.0), {}, "specimens[1]: "),
+             ("b.csv", _curve(0.2).replace(",0.5", ",0.6"), {"uncertainty": {"L": 0.02}},
+              "specimens[1].uncertainty.L = 0.02: "),
+             ("b.csv", _curve(0.2), {}, "specimens[1].curve: ")]
+    for name, text, keys, expect in cases:
+        (tmp_path / name).write_text(text)
+        doc["specimens"][1] = dict(doc["specimens"][0], name="loose", curve="b.csv", **keys)
+        rc, cap = _run(tmp_path, capsys, doc, _curve(0.2))
+        line = _one_line_refusal(tmp_path, rc, cap)
+        assert line.startswith(f"knitsim: error: {expect}") or f": {expect}" in line, line
+        assert "specimens.loose" not in line, line
 
 
 @pytest.mark.parametrize("name, expect", [

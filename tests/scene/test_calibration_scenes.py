@@ -86,7 +86,7 @@ def test_pretension_scene_fits_each_specimens_pretension():
     from knitsim.calibration.joint import _Problem
     from knitsim.errors import KnitsimInputError
     from dataclasses import replace
-    with pytest.raises(KnitsimInputError, match="specimens.jersey_4p5.pretension_sd"):
+    with pytest.raises(KnitsimInputError, match=r"specimens\[0\]\.pretension_sd"):
         _Problem([replace(sc.specimens[0], pretension_sd=0.0), sc.specimens[1]], sc.setup)
 
 
