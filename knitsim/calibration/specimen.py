@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
     PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, flat_top_note, flat_tops,
-    refuse_few_rows, refuse_negative_force,
+    pasted_block, pasted_note, refuse_few_rows, refuse_negative_force,
     read_cycle_column, refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance,
     zero_offset_below,
 )
@@ -123,9 +123,11 @@ def read_table(path: str | Path) -> MeasuredTable:
     back = np.nonzero(clean - strain > tol)[0]
     if len(back):
         i = int(back[0])
+        block = pasted_block(strain, force, tol)
+        pasted = f" ({pasted_note(block, lambda k: int(rows[k]))})" if block is not None and block[0] == i else ""
         raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is below the rows before "
-                                f"(up to {float(clean[i])!r}) by more than the jitter tolerance {tol:.3g}; a calibration "
-                                "reads loading curves (strain non-decreasing)")
+                                f"(up to {float(clean[i])!r}) by more than the jitter tolerance {tol:.3g}{pasted}; a "
+                                "calibration reads loading curves (strain non-decreasing)")
     if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
     if "cycle" in cols:

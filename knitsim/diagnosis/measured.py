@@ -1263,6 +1263,33 @@ def refuse_several_tests(source, cols):
     return out
 
 
+def pasted_block(strain, force, tol: float) -> tuple[int, int, int] | None:
+    """``(i, j, m)``: the first block of rows ``i .. i + m - 1`` that starts where the strain steps back below the
+    rows before it by more than ``tol`` and repeats rows ``j .. j + m - 1`` before it exactly, in strain and force,
+    while its strain moves on by more than ``tol`` (rows of a loading pasted twice); None where there is none.  A
+    reload retraces no earlier readings to the last digit of both columns; a hold may (Singal 2024's video frames:
+    0.01 N and 1e-5 of strain, 2 or 3 rows at one reading repeated after the tracked strain jittered back, within
+    3e-5 of strain), and is no block.  Only the first row of each step back is looked up (once per cycle of a
+    cyclic log)."""
+    s, f = np.asarray(strain, float), np.asarray(force, float)
+    back = np.maximum.accumulate(s) - s > tol
+    for i in np.flatnonzero(back & ~np.r_[False, back[:-1]]):
+        for j in np.flatnonzero((s[:i] == s[i]) & (f[:i] == f[i])):
+            m = 1
+            while i + m < len(s) and j + m < i and s[i + m] == s[j + m] and f[i + m] == f[j + m]:
+                m += 1
+            if m >= 2 and s[i + m - 1] - s[i] > tol:
+                return int(i), int(j), m
+    return None
+
+
+def pasted_note(block, row) -> str:
+    """What a refusal of a step back adds where :func:`pasted_block` found the rows it starts to be a copy."""
+    i, j, m = block
+    return (f"rows {row(i)}-{row(i + m - 1)} repeat rows {row(j)}-{row(j + m - 1)} in strain and force: rows pasted "
+            "twice? Delete the copy")
+
+
 def refuse_few_rows(source, rows) -> None:
     """Refuse a measured file of fewer than :data:`MIN_CURVE_ROWS` data rows (``rows``: their line numbers)."""
     if len(rows) < MIN_CURVE_ROWS:
@@ -1293,6 +1320,13 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
     # hand-made unloading logged from its peak does, tests/diagnosis/test_diagnose.py)
     tol = strain_tolerance(cols["strain"])
     refuse_reversed_rows(str(path), cols["strain"], tol, lambda i: int(cols["_row"][i]))
+    # a block of rows pasted again after later ones (the strain back to an earlier reading and on, repeating it in
+    # both columns): without a direction column, read as a short unloading and reload or, within 10 tolerances of
+    # travel, as a hold at the running maximum (a probe's 10 rows pasted back 0.047 were read so, without a word)
+    block = pasted_block(cols["strain"], cols["force_per_wale_N"], tol)
+    if block is not None:
+        raise KnitsimInputError(f"{path}: {pasted_note(block, lambda i: int(cols['_row'][i]))} (a test never "
+                                "retraces its readings to the last digit of both columns)")
     curve = curve_from_arrays(cols["strain"], cols["force_per_wale_N"], cols.get("cycle"), cols.get("direction"),
                               cols.get("rate_mm_s"), source=str(path), rows=cols["_row"], noise_N=noise_N)
     if notes_of(cols):

@@ -684,6 +684,28 @@ def test_a_force_flat_at_its_largest_reading_is_said_a_saturated_load_cell(tmp_p
         assert not any("flat" in n for n in read_table(q).notes)
 
 
+def test_rows_pasted_again_after_later_rows_are_refused_as_a_copy(tmp_path):
+    """A hand-made loading (_UP, 16 rows from strain 0 to 0.30) with its data rows 5-8 (strains 0.08-0.14, file rows
+    6-9) pasted again after data row 12 (file row 13): the strain steps back from 0.22 to 0.08 and on, the forces
+    those of the rows copied.  diagnose read it without a word (a probe's 10 such rows, 0.047 back, as a hold at
+    the running maximum: the strain held, the forces falling and rising again); calibrate refused it only as a
+    loading whose strain goes back.  Expected: both name the copy, rows 14-17 repeating rows 6-9; the same file
+    with the block's forces changed in their last digit (a reload that retraces the loading) is no copy."""
+    from knitsim.calibration.specimen import read_table
+    rows = _UP[:12] + _UP[4:8] + _UP[12:]
+    p = _write(tmp_path, _csv(rows), "pasted.csv")
+    for read in (read_measured_curve, read_table):
+        with pytest.raises(KnitsimInputError) as e:
+            read(p)
+        assert str(p) in str(e.value) and "rows 14-17 repeat rows 6-9 in strain and force: rows pasted twice?" \
+            in str(e.value), str(e.value)
+    other = _UP[:12] + [(s, f + 0.001) for s, f in _UP[4:8]] + _UP[12:]
+    with pytest.raises(KnitsimInputError) as e:
+        read_table(_write(tmp_path, _csv(other), "reload.csv"))
+    assert "pasted twice" not in str(e.value), str(e.value)
+    assert not any("pasted twice" in n for n in read_measured_curve(_write(tmp_path, _csv(other), "reload.csv")).notes)
+
+
 def test_a_cycle_column_that_changes_inside_a_loading_is_refused_by_calibrate_as_by_diagnose(tmp_path):
     """A hand-made loading (_UP, 16 rows, the strain rising throughout) with a cycle column 1 on its first 9 rows and 2
     on the last 7 (a ramp program's step counter, or two logs pasted one after the other): calibrate read it
