@@ -501,6 +501,12 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
     lo_t = hi_t = None
     if band is not None:
         lo_t, hi_t = read(band[0], "band[0]"), read(band[1], "band[1]")
+        if _rows_digest(lo_t) == _rows_digest(hi_t):
+            # one test as both envelopes (a copy, or the same file under another path): a band of no width, each row
+            # weighed by the machine's accuracy as if tests did not scatter (a probe's copy was fitted without a word)
+            raise KnitsimInputError(f"{where}.band: {lo_t.source} and {hi_t.source} hold the same rows: one test as "
+                                    "both envelopes, a band of no width; give the two envelopes of the tests' scatter, "
+                                    "or the one test as curve = FILE")
         tables += [lo_t, hi_t]
     if cur is not None:
         tables.append(cur)

@@ -43,3 +43,21 @@ def test_a_gap_in_the_strain_is_said_naming_its_readings_and_the_rows_made_up(tm
     steps[[300, 700, 1100, 1500]] = 0.01
     holds = np.r_[0.0, np.cumsum(steps)]
     assert not _gap_notes(_write(tmp_path / "holds.csv", holds, _force(holds)))
+
+
+def test_one_test_given_as_both_envelopes_of_a_band_is_refused(tmp_path):
+    """band = [a.csv, a copy of it]: a band of no width, every row weighed by the machine's accuracy (0.5 % of the
+    force) as if the tests did not scatter; fitted without a word.  Expected: refused naming the key and both files;
+    two envelopes that differ (the copy's forces +2 %) are read."""
+    import pytest
+    from knitsim.errors import KnitsimInputError
+    s = np.round(np.arange(0.0, 0.5 + 1e-9, 0.01), 6)
+    a = _write(tmp_path / "a.csv", s, _force(s))
+    (tmp_path / "a_copy.csv").write_text(a.read_text())
+    with pytest.raises(KnitsimInputError) as e:
+        specimen_from_files("k", width_mm=50.0, gauge_length_mm=100.0, knit=KNIT, band=(a, tmp_path / "a_copy.csv"),
+                            where="specimens[0]")
+    assert str(e.value).startswith(f"specimens[0].band: {a} and {tmp_path / 'a_copy.csv'} hold the same rows"), e.value
+    hi = _write(tmp_path / "hi.csv", s, 1.02 * _force(s))
+    sp = specimen_from_files("k", width_mm=50.0, gauge_length_mm=100.0, knit=KNIT, band=(a, hi))
+    assert sp.has_band and np.all(sp.band_high_N > sp.band_low_N)
