@@ -80,8 +80,8 @@ class MeasuredTable:
 def read_table(path: str | Path) -> MeasuredTable:
     """Read a strain-force file (module docstring); refuses what is wrong, naming file, row and column."""
     path = Path(path)
-    cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS + ("cycle",),
-                            aliases=LAB_ALIASES, labels=TEST_LABELS)
+    cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS, aliases=LAB_ALIASES,
+                            labels=TEST_LABELS + ("cycle",))
     cols = drop_copied_rows(refuse_several_tests(path, cols))
     for group in (STRAIN_COLUMNS, TOTAL_COLUMNS):
         both = [c for c in group if c in cols]
@@ -130,10 +130,11 @@ def read_table(path: str | Path) -> MeasuredTable:
                                 "calibration reads loading curves (strain non-decreasing)")
     if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
-    if "cycle" in cols:
+    cycle = _cycle_numbers(cols.get("cycle"))
+    if cycle is not None:
         # a loading curve is one branch, one cycle: a cycle column that changes in it (a step counter, two logs
         # pasted one after the other) is refused as the diagnosis refuses it (before, it was not read)
-        read_cycle_column(str(path), cols["cycle"], np.ones(len(strain), int), lambda i: int(rows[i]))
+        read_cycle_column(str(path), cycle, np.ones(len(strain), int), lambda i: int(rows[i]))
     # the force as the diagnosis reads it: a reading around zero is kept, a wrong sign or zero and a
     # force that never rises above the noise (all zero, not connected) are refused
     one = np.ones(len(clean), int)
@@ -159,6 +160,24 @@ def read_table(path: str | Path) -> MeasuredTable:
                   f"({float(clean[i - 1]):.4g}, its last row below the limit)",)
     return MeasuredTable(np.asarray(clean, float), np.asarray(force, float) - zero, f_total is not None, str(path),
                          rows, s_name, noise, zero, reading_jitter(strain, one), notes)
+
+
+def _cycle_numbers(cells) -> np.ndarray | None:
+    """A calibration file's ``cycle`` column (its cells as text) as numbers, a blank cell the cycle of the row above
+    (a logger that writes the count where a cycle starts); None without the column, or where a cell is no number
+    (a column of words counts no cycle the reader knows: it is not read, as before)."""
+    if cells is None:
+        return None
+    out, last = [], float("nan")
+    for c in cells:
+        c = str(c).strip()
+        if c:
+            try:
+                last = float(c.replace(",", "."))
+            except ValueError:
+                return None
+        out.append(last)
+    return np.asarray(out, float) if out and np.isfinite(out[0]) else None
 
 
 def pretension_strain(grip_strain, pretension: float):

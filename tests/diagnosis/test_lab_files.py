@@ -723,6 +723,14 @@ def test_a_cycle_column_that_changes_inside_a_loading_is_refused_by_calibrate_as
     one = _write(tmp_path, _csv(_UP, header="strain,force_per_wale_N,cycle", extra=["1"] * 16), "one.csv")
     assert len(read_table(one).strain) == 16
     assert list(read_measured_curve(one).cycle) == [1] * 16
+    # calibrate, which reads no cycle, reads a count written only where a cycle starts (blank below: the cycle of
+    # the row above) and a column of words as before; 2 written half way is refused there too
+    for extra in (["1"] + [""] * 15, ["ramp"] * 16):
+        assert len(read_table(_write(tmp_path, _csv(_UP, header="strain,force_per_wale_N,cycle", extra=extra),
+                                     "blank.csv")).strain) == 16
+    with pytest.raises(KnitsimInputError, match="row 11, column cycle: 2 does not match"):
+        read_table(_write(tmp_path, _csv(_UP, header="strain,force_per_wale_N,cycle",
+                                         extra=["1"] + [""] * 8 + ["2"] + [""] * 6), "blank2.csv"))
 
 
 @pytest.mark.parametrize("header", ["force_per_wale_N [N/wale]", "Force per wale [N/wale]", "force [N/wale]"])
