@@ -524,8 +524,8 @@ def specimen_from_files(name: str, *, width_mm: float, gauge_length_mm: float, k
             # one test as both envelopes (a copy, or the same file under another path): a band of no width, each row
             # weighed by the machine's accuracy as if tests did not scatter (a probe's copy was fitted without a word)
             raise KnitsimInputError(f"{where}.band: {lo_t.source} and {hi_t.source} hold the same rows: one test as "
-                                    "both envelopes, a band of no width; give the two envelopes of the tests' scatter, "
-                                    "or the one test as curve = FILE")
+                                    "both envelopes, a band of no width; give the two envelopes of the tests' "
+                                    "scatter, or the one test as curve = FILE")
         tables += [lo_t, hi_t]
     if cur is not None:
         tables.append(cur)
@@ -628,8 +628,9 @@ def _gap_notes(t: MeasuredTable, rows: np.ndarray) -> tuple:
     """``((file, note), ...)`` of each gap in a file's strain that holds rows of the fit: a step between two readings
     wider than :data:`GAP_RANGE_SHARE` of its strain range and :data:`GAP_MEDIAN_STEPS` times its median step (rows
     lost from the log, two files pasted with a part missing).  The fit's rows there are the straight line between
-    the two readings, weighed as measured: said, naming the rows and the strains (a probe's pull with 40 % of its
-    range missing was fitted without a word).  The irregular steps of real logs are no gap: Singal 2024's video
+    the two readings, weighed as rows between close readings are (the noise, and the chord's miss from the slopes
+    just beside the gap: not what the gap hides): said, naming the rows and the strains (a probe's pull with 40 % of
+    its range missing was fitted without a word).  The irregular steps of real logs are no gap: Singal 2024's video
     frames (89 runs, clamp and pin strains) step by at most 5.3 % of their range (the widest 50 to 70 times their
     median, between holds), Do 2020's envelopes by 0.15 %, its model curves by 6.7 % at one step (1 times)."""
     s, _ = _readings(t)
@@ -649,8 +650,9 @@ def _gap_notes(t: MeasuredTable, rows: np.ndarray) -> tuple:
         out.append((t.source, f"no reading between strain {a:.4g} (row {ra}) and {b:.4g} (row {rb}), "
                               f"{100 * (b - a) / span:.0f} % of its strain range and {(b - a) / np.median(step):.0f} "
                               f"times its median step: the fit's {inside} row(s) there are the straight line between "
-                              "the two readings, weighed as measured; if rows are missing from the file, give them, or "
-                              "fit below the gap (end_strain)"))
+                              "the two readings, weighed by the noise and the slopes just beside the gap, not by what "
+                              "it hides; if rows are missing from the file, give them, or fit below the gap "
+                              "(end_strain)"))
     return tuple(out)
 
 

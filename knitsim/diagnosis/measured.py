@@ -562,9 +562,9 @@ def flat_top_note(runs, strain, force, row, column: str, unit: str = "N") -> str
     i0, _ = runs[0]
     where = ", ".join(f"rows {row(i)}-{row(j - 1)} (strain {float(np.min(s[i:j])):.4g} to {float(np.max(s[i:j])):.4g})"
                       for i, j in runs[:4]) + (", ..." if len(runs) > 4 else "")
-    return (f"the force column {column} is flat at {float(force[i0]):.6g} {unit}, its largest reading, over {where} while "
-            "the strain moves on: a saturated load cell (or a force limit of the test)? Those rows hold the limit, not "
-            "the knit's force")
+    return (f"the force column {column} is flat at {float(force[i0]):.6g} {unit}, its largest reading, over {where} "
+            "while the strain moves on: a saturated load cell (or a force limit of the test)? Those rows hold the "
+            "limit, not the knit's force")
 
 
 def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None, source: str = "curve",

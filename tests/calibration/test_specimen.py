@@ -24,11 +24,12 @@ def _gap_notes(path):
 
 def test_a_gap_in_the_strain_is_said_naming_its_readings_and_the_rows_made_up(tmp_path):
     """A pull read every 0.01 to 0.5 with its readings from 0.11 to 0.29 lost: the fit's rows (every 0.005) between
-    0.10 and 0.30 were the chord between two readings, weighed as measured, without a word.  Expected (counted by
-    hand): the gap 0.1 (row 12: header row 1, strain 0 row 2) to 0.3 (row 13), 40 % of the strain range and 20 times
-    the median step (0.01), 39 rows of the fit strictly inside (0.105 .. 0.295).  Not said: the same pull complete,
-    steps of 0.01 +- 50 % (irregular), and a log of steps 1e-4 with 4 jumps of 0.01 (5 % of its range, 100 times
-    its median step: a step-and-hold test's moves between holds, as Singal 2024's video frames step by up to 5.3 %)."""
+    0.10 and 0.30 were the chord between two readings, weighed as rows between close readings, without a word.
+    Expected (counted by hand): the gap 0.1 (row 12: header row 1, strain 0 row 2) to 0.3 (row 13), 40 % of the
+    strain range and 20 times the median step (0.01), 39 rows of the fit strictly inside (0.105 .. 0.295).  Not
+    said: the same pull complete, steps of 0.01 +- 50 % (irregular), and a log of steps 1e-4 with 4 jumps of 0.01
+    (5 % of its range, 100 times its median step: a step-and-hold test's moves between holds, as Singal 2024's
+    video frames step by up to 5.3 %)."""
     s = np.round(np.arange(0.0, 0.5 + 1e-9, 0.01), 6)
     keep = (s <= 0.1 + 1e-9) | (s >= 0.3 - 1e-9)
     notes = _gap_notes(_write(tmp_path / "gap.csv", s[keep], _force(s[keep])))

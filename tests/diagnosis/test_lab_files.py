@@ -671,7 +671,8 @@ def test_a_force_flat_at_its_largest_reading_is_said_a_saturated_load_cell(tmp_p
     rows = f"rows {flat[0] + 2}-{flat[-1] + 2} (strain {s[flat[0]]:.4g} to 0.5)"
     note = [n for n in read_table(p).notes if "flat" in n]
     assert len(note) == 1 and f"the force column load_N is flat at 0.4 N, its largest reading, over {rows}" in note[0]
-    assert "a saturated load cell" in note[0] and f"end_strain stops below them ({s[flat[0] - 1]:.4g}, its last row below" in note[0], note
+    assert "a saturated load cell" in note[0], note
+    assert f"end_strain stops below them ({s[flat[0] - 1]:.4g}, its last row below" in note[0], note
     w = _write(tmp_path, _csv(list(zip(s.tolist(), clipped.tolist()))), "clip_wale.csv")
     c = read_measured_curve(w)
     assert list(c.flat_top) == [int(i) + 2 for i in flat]
