@@ -1954,7 +1954,7 @@ def _curves_out(curves, base_fit, best_fit, pair_fit, slack=None, drift=None) ->
                  "slack_start": None if slack is None else slack[i],
                  "drift": None if drift is None else drift[i],
                  "glitch_rows": list(getattr(c, "glitches", ())), "stall_rows": list(getattr(c, "stalls", ())),
-                 "hold_rows": list(getattr(c, "holds", ())),
+                 "hold_rows": list(getattr(c, "holds", ())), "flat_top_rows": list(getattr(c, "flat_top", ())),
                  "late_turn_rows": list(getattr(c, "late_turns", ())),
                  "indicators": {"measured": curve_indicators(c.strain, c.force, c.cycle, c.direction),
                                 "baseline": curve_indicators(c.strain, bc["simulated"], c.cycle, c.direction,

@@ -729,8 +729,9 @@ def test_a_force_clipped_flat_at_its_largest_reading_leaves_no_verdict_confident
     flat = [i + 2 for i, ln in enumerate(out_lines[1:]) if float(ln.split(",")[j]) == limit]
     csv = tmp_path / "clipped.csv"
     csv.write_text("\n".join(out_lines) + "\n")
-    main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet"])
+    main(["diagnose", str(csv), "--scene", str(scene), "--no-pair", "--quiet", "--json", str(tmp_path / "d.json")])
     out = capsys.readouterr().out
+    assert json.loads((tmp_path / "d.json").read_text())["curves"][0]["flat_top_rows"] == flat
     assert f"flat at {limit:g} N per wale, its largest reading, over rows {flat[0]}-{flat[-1]}" in out, out
     verdict = next(ln for ln in out.splitlines() if ln.startswith("verdict:"))
     assert "not confident" in verdict and f"clipped.csv: the force is flat at its largest reading over {len(flat)} " \
