@@ -178,8 +178,10 @@ def test_the_calibration_refuses_the_forces_the_diagnosis_refuses(tmp_path):
     def table(name, force):
         (tmp_path / name).write_text("strain,force_per_wale_N\n" + "".join(f"{a},{b}\n" for a, b in zip(s, force)))
         return tmp_path / name
-    # the column's sign reversed (a load cell mounted the other way): below zero beyond the noise
-    with pytest.raises(KnitsimInputError, match=r"sign\.csv: row 3, column force_per_wale_N: -0\.1 N is below zero"):
+    # the column's sign reversed (a load cell mounted the other way): below zero beyond the noise. Typed to 0.1 N, its
+    # noise is assumed no smaller than the rounding's sd, 0.1 / sqrt(12) = 0.0289 N: -0.1 N is 3.5 of those (within
+    # 5), -0.2 N 6.9, the first row refused
+    with pytest.raises(KnitsimInputError, match=r"sign\.csv: row 4, column force_per_wale_N: -0\.2 N is below zero"):
         read_table(table("sign.csv", [0.0, -0.1, -0.2, -0.3, -0.4, -0.5]))
     # a load cell not connected: zero on every row (before: a ZeroDivisionError inside the fit, and a
     # checkpoint left behind that blocked the next run)
