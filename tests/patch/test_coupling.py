@@ -143,3 +143,35 @@ def test_columns_of_different_friction_laws_and_rules_are_their_cells(device):
     h = run_patch(model, prog, device=device)
     np.testing.assert_allclose(h.column_force_N, single, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(h.force_N, single.sum(axis=1), rtol=1e-12)
+
+
+def test_a_series_column_that_cannot_pass_a_cap_stops_at_it(device):
+    """An E-glass / basalt column (Table 1's two yarns, section 2.2's knits, caps of 10 N) pulled past where its
+    cells, in series, reach the cap.  Expected, by series equilibrium and the single cells (each run alone to its
+    cap: at the cap F the column's length is the sum of the cells' lengths at F): the program's last grip
+    displacement lies beyond that sum, so the column stops at the cap as a uniform column's cell does (status
+    force_cap, within FORCE_CAP_RTOL of it, never above).  Before, the jammed branch is so steep there (9.43 N at
+    grip strain 0.73, 13.5 N beyond the cap at 0.74) that the column's sub-increments all failed: it was held as
+    not converged at 9.43 N, 5.7 % under the cap, then resumed on the grip's reversal."""
+    from knitsim.cell.history import STATUS_FORCE_CAP
+    from knitsim.io.checks import FORCE_CAP_RTOL
+    basalt = CellParams(B=0.20, d=0.56, L=13.1, W0=4.4, C0=2.7, m=0.17, force_cap_N=10.0)
+    top = 0.76
+    h = run_patch(PatchModel.from_cells([[P], [basalt]]), monotonic(top, 0.01), device=device)
+    # each cell alone: its length where it stops at the cap (bounded by the cell's own location of the event)
+    at_cap = []
+    for p in (P, basalt):
+        cell = run_batch([p], monotonic(1.0, 0.002), device=device)
+        k = int(np.flatnonzero(cell.status[:, 0] == STATUS_FORCE_CAP)[0])
+        assert cell.force_per_wale[k, 0] == pytest.approx(10.0, rel=1e-9)
+        at_cap.append(cell.values["C"][k, 0] - p.C0)
+    assert top * (P.C0 + basalt.C0) > sum(at_cap)        # the grip goes past the column's length at the cap
+    F = h.column_force_N[:, 0]
+    assert F.max() <= 10.0 * (1.0 + 1e-9)
+    status = np.asarray(h.groups["status"])
+    capped = np.flatnonzero((status == STATUS_FORCE_CAP).any(axis=1))
+    assert capped.size, f"never stopped at the cap: held at {F[-1]:.4g} N"
+    k = int(capped[0])
+    assert F[k] >= (1.0 - FORCE_CAP_RTOL) * 10.0 and np.all(F[k:] == F[k])
+    assert (status[:k] == 0).all() and (status[-1] == STATUS_FORCE_CAP).any()
+

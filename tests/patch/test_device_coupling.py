@@ -238,5 +238,7 @@ def test_a_patch_with_failing_columns_runs_the_same_with_the_bookkeeping_on_the_
         _assert_same(device, b.force_N[rows], a.force_N[rows], "force_N")
         for name in ("column_force_N", "column_slack_mm"):
             _assert_same(device, getattr(b, name)[ok], getattr(a, name)[ok], name)
-    # the run met what the test is for: columns left unconverged and many trials per column-increment
-    assert np.count_nonzero(a.column_status == 1) >= 5 and np.max(a.column_iterations) >= 10
+    # the run met what the test is for: columns that did not converge (failed trials, sub-increments) and many
+    # trials per column-increment; those columns cannot pass their capped cells and are brought to the cap, where
+    # they stop (PatchSolver._approach_force_cap; before, held there unconverged: status 1)
+    assert np.count_nonzero(a.column_status == 2) >= 5 and np.max(a.column_iterations) >= 10
