@@ -1313,8 +1313,12 @@ class PatchSolver:
         self.jump_columns = jump_cls & not_conv
         if np.any(not_conv):
             # committed as it stands and flagged, unless a cell failed in the last trial: then the
-            # column keeps its previous state (flagged) and the next increment tries again from it
-            be.accept(not_conv[col] & ~last_failed[col])
+            # column keeps its previous state (flagged) and the next increment tries again from it.  So does a
+            # column whose trials stopped a cell at its cap while loading (it is brought to the cap below):
+            # committed as it stood, its cells at the cap beside cells above it, the column was stopped there
+            # carrying more than its weakest cell's cap (E-glass cells at 6.17 N per wale beside one capped at 6 N)
+            keep = last_failed | (last_capped & (int(direction) > 0))
+            be.accept(not_conv[col] & ~keep[col])
         status = np.where(stopped_cls, COL_STOPPED, COL_OK)
         status = np.where(not_conv | skip_cls, COL_NOT_CONVERGED, status)
         self.held = np.where(not_conv | skip_cls, self.held + 1, 0)

@@ -175,3 +175,18 @@ def test_a_series_column_that_cannot_pass_a_cap_stops_at_it(device):
     assert F[k] >= (1.0 - FORCE_CAP_RTOL) * 10.0 and np.all(F[k:] == F[k])
     assert (status[:k] == 0).all() and (status[-1] == STATUS_FORCE_CAP).any()
 
+
+def test_a_column_stopped_at_its_weakest_cells_cap_carries_one_force_no_more_than_that_cap(device):
+    """A column of E-glass stitches with one stitch of a stiffer yarn capped at 6 N per wale between them, pulled
+    to grip strain 0.8.  Expected, from series equilibrium: at every increment every cell of the column carries the
+    column's force (to the coupling's tolerance), so the column never carries more than its weakest cell's cap and
+    stops there.  Before, a column whose last trial left the capped cell at 6 N (status ok) beside E-glass
+    cells at 6.17 N was committed as it stood and stopped at the cap: cells 0.17 N apart, the column's force
+    reported 6.11 N per wale, above the cap its weakest cell cannot pass."""
+    from knitsim.cell.history import STATUS_FORCE_CAP
+    other = P.replace(B=0.5, d=0.62, L=14.5, W0=4.6, C0=2.8, m=0.35, force_cap_N=6.0)
+    h = run_patch(PatchModel.from_cells([[P], [other], [P]]), monotonic(0.8, 0.01), device=device)
+    F = np.asarray(h.groups["F"])
+    assert (F.max(axis=1) - F.min(axis=1)).max() <= 1e-10 + 1e-8 * F.max()
+    assert h.column_force_N.max() <= 6.0 * (1.0 + 1e-9)
+    assert (np.asarray(h.groups["status"])[-1] == STATUS_FORCE_CAP).any()
