@@ -101,6 +101,7 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     import numpy as np
 
     from ..cell.domain import DOMAIN, check_cell_arrays
+    from ..patch.model import cell_name
     from ..scene.schema import fmt
 
     grouping = model.grouping(dedup=True)
@@ -124,11 +125,13 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
         if bad.any():
             n = int(cells_of[bad].sum())
             i, j = np.argwhere(bad[grouping.group_of_cell])[0]
+            # a specimen's block by band and strip, as its zones and maps index them (before, "course 1, wale 0")
+            unit, where = ("block" if model.blocks else "cell"), cell_name(int(i), int(j), model.blocks)
             # the keys that set the cell (a zone's knit.L, a gradient map: a blind probe's refusal named neither)
-            keys = "" if origins is None or not named else "; that cell's " + ", ".join(
+            keys = "" if origins is None or not named else f"; that {unit}'s " + ", ".join(
                 f"{k} = {fmt(float(model.fields[k][i, j] if k in model.fields else caps[grouping.group_of_cell[i, j]]))} "
                 f"({origins[k][i, j]})" for k in named)
-            raise KnitsimInputError(f"{n} of {n_cells} cell(s) {what}, e.g. course {i}, wale {j}: "
+            raise KnitsimInputError(f"{n} of {n_cells} {unit}(s) {what}, e.g. {where}: "
                                     f"{why_of(int(grouping.group_of_cell[i, j]))}{source}{keys}")
     warnings = []
     out = check.outside_mask

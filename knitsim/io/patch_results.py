@@ -169,8 +169,7 @@ def specimen_layout(model: PatchModel | None, shape: tuple[int, int] | None = No
         return SpecimenLayout(False, ones, ones, None, None, np.full(shape[1], np.nan), np.full(shape[0], np.nan),
                               np.ones(shape[1]), np.full(shape[1], float(shape[0])), float(shape[0] * shape[1]))
     cc, wc = np.asarray(model.course_count, float), np.asarray(model.wale_count, float)
-    # a specimen between grips is blocks of stitches even where a block happens to hold one stitch
-    blocks = model.gauge_length is not None or not model.unit_counts
+    blocks = model.blocks
     W0, C0 = model.fields["W0"], model.fields["C0"]
     strip_w = (wc * W0).mean(axis=0)
     band_l = (cc * C0).mean(axis=1)

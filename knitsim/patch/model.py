@@ -78,6 +78,14 @@ def specimen_size_notes(width: float, gauge_length: float, wales, courses) -> tu
     return None, None
 
 
+def cell_name(i: int, j: int, blocks: bool = False, bracketed: bool = False) -> str:
+    """Cell ``[i, j]`` of a patch as its scene indexes it: ``course i, wale j``, or a specimen's ``band i, strip j``
+    (``blocks``: its zones and maps index bands and strips, and a block holds many courses); ``bracketed``:
+    ``cell [course i, wale j]``, ``block [band i, strip j]``."""
+    where = f"band {i}, strip {j}" if blocks else f"course {i}, wale {j}"
+    return f"{'block' if blocks else 'cell'} [{where}]" if bracketed else where
+
+
 def cm_hint(width: float, gauge_length: float, wales: float, courses: float) -> str:
     """``; if the sizes are in cm, ...``: the sizes in mm and the counts they would make.  Sizes in cm typed as
     mm make a specimen ten times narrower and shorter than meant (a width of 5 for 5 cm ran as 1.1 wales of
@@ -457,6 +465,12 @@ class PatchModel:
     def unit_counts(self) -> bool:
         """Every cell a single stitch (the classic ``courses x wales`` patch)."""
         return bool(np.all(self.course_count == 1.0) and np.all(self.wale_count == 1.0))
+
+    @property
+    def blocks(self) -> bool:
+        """Its cells are blocks of stitches (``bands x strips``): a specimen between grips, even where a block
+        happens to hold one stitch, or cells of other counts."""
+        return self.gauge_length is not None or not self.unit_counts
 
     def column_rest_length(self) -> np.ndarray:
         """Rest length of each wale column, sum of course count x C0 along it [mm], shape [wales]."""

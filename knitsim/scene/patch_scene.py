@@ -104,7 +104,8 @@ from ..cell.load_program import LoadProgram, pretensioned
 from ..cell.stages import DAHL_SIGMA_MAX, DAHL_SIGMA_TOO_STIFF, DAHL_SIGMA_UNUSED, M_MAX, M_TOO_LARGE
 from ..errors import KnitsimInputError
 from ..patch.maps import AXES, MAP_TYPES, PROFILES, SCALES, build_map, index_range
-from ..patch.model import MAX_STITCHES_PER_AXIS, PARAM_NAMES, RULE_NAMES, PatchModel, cm_hint, specimen_size_notes
+from ..patch.model import (MAX_STITCHES_PER_AXIS, PARAM_NAMES, RULE_NAMES, PatchModel, cell_name, cm_hint,
+                           specimen_size_notes)
 from .cell_scene import (ENGINES, PHI0_KEYS, degrees_hint, _CELL_TABLES, _cell_table, _device_check, _effects_table, _friction_table,
                          _knit_table, _load_table, _materials_field, _merge, _Origins, _program, _resolve_cell,
                          _provenance_table, _rules_table, _yarn_table, library_of)
@@ -300,12 +301,13 @@ def _cell_values(tables: dict) -> dict:
             "in_plane_width": tables["yarn"].get("in_plane_width", float("nan"))}
 
 
-def _check_cells(fields: dict, origins: dict, friction) -> None:
-    """Per-cell conditions of section 3.1 / 3.3 (as CellParams.validated), naming the key that set the value."""
+def _check_cells(fields: dict, origins: dict, friction, blocks: bool = False) -> None:
+    """Per-cell conditions of section 3.1 / 3.3 (as CellParams.validated), naming the key that set the value and
+    the cell (a specimen's block by band and strip: ``blocks``)."""
     def fail(name, mask, why):
         i, j = (int(v) for v in np.argwhere(mask)[0])
         v = float(fields[name][i, j])
-        raise KnitsimInputError(f"{origins[name][i, j]} = {fmt(v)}: {why(i, j)} at cell [course {i}, wale {j}]")
+        raise KnitsimInputError(f"{origins[name][i, j]} = {fmt(v)}: {why(i, j)} at {cell_name(i, j, blocks, True)}")
 
     for name in ("d", "B", "L", "W0", "C0"):
         bad = ~(fields[name] > 0)
@@ -617,9 +619,9 @@ def load_patch_scene(source: str | Path | dict, overrides: list[str] = (), engin
         values = build_map(spec, shape, current, f"maps.{n}", doc["seed"], base_dir, name=n, counted=counted)
         for i, j in zip(*np.nonzero(on)):
             effects_arr[i, j] = _replace(effects_arr[i, j], **{n: float(values[i, j])}).validated(
-                where=f"maps.{n} at cell [course {i}, wale {j}]")
+                where=f"maps.{n} at {cell_name(i, j, specimen, True)}")
         maps_out[n] = spec
-    _check_cells(fields, origins, rule_arr["friction"])
+    _check_cells(fields, origins, rule_arr["friction"], blocks=specimen)
     if doc["engine"] == "reference" and any(e.on for e in effects_arr.ravel()):
         raise error("engine", doc["engine"], "the model extensions ([effects]) run on the warp engine only")
 

@@ -103,8 +103,18 @@ GRADE = {"from": "e_glass_plain", "to": "e_glass_plain", "axis": "courses"}
     # a cap below the force per wale the knit carries at rest (E-glass: about 0.02 N, above 0.015 N):
     # no program can load it (before: run, then "the peak 0.02159 N per wale is the cap" and advice to
     # lower the program's strain, which cannot help)
-    ({"rules": {"force_cap_N": 0.015}}, r"cell\(s\) cannot be loaded, e\.g\. course 0, wale 0: its force per "
+    ({"rules": {"force_cap_N": 0.015}}, r"block\(s\) cannot be loaded, e\.g\. band 0, strip 0: its force per "
                                         r"wale at rest, 0\.02\d* N, is already at or above force_cap_N = 0\.015 N"),
+    # a block is named by band and strip, as the specimen's zones and maps index it (before, "course 1, wale 0",
+    # read as the second of a strip's courses): a zone too tight for a rest state in band 1 of strip 0, and a map's
+    # phi0 outside the cone (m = 0.2: |phi0| <= 0.1974 rad), first in band 0 of strip 1 (0 -> 0.3 across)
+    ({"specimen": {"width": 50.0, "gauge_length": 100.0, "strips": 2, "bands": 3},
+      "zones": [{"courses": [1, 2], "wales": [0, 1], "knit": {"L": 9.0}}]},
+     r"^knitsim: error: .*: 1 of 6 block\(s\) have no admissible rest state, e\.g\. band 1, strip 0: .*; that "
+     r"block's C0 = 2\.7 \(knit\.C0\), W0 = 4\.4 \(knit\.W0\), L = 9\.0 \(zones\[0\]\.knit\.L\)"),
+    ({"specimen": {"width": 50.0, "gauge_length": 100.0, "strips": 2, "bands": 3},
+      "maps": {"phi0": {"type": "gradient", "axis": "wales", "start": 0.0, "end": 0.3}}},
+     r"maps\.phi0 = 0\.3: must lie in .* at block \[band 0, strip 1\]$"),
 ])
 def test_specimen_and_grades_refuse_bad_input_in_one_line(tmp_path, capsys, edit, match):
     doc = copy.deepcopy(SPECIMEN)
