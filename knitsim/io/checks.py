@@ -444,9 +444,11 @@ def _negative_excursions(s, f, absf, work, size, between, turns, atol, judge_ope
         k = start + (top - start) - under[::-1].argmax(axis=0)       # the last row at or below s[j]
         k = np.where(has, np.minimum(k, top - 1), start)
         sk, sk1, fk, fk1 = s[k, cols], s[k + 1, cols], f[k, cols], f[k + 1, cols]
+        # (a path without such an excursion, k its start: where its first rows hold one strain, tt is infinite and
+        # fx NaN, unread; outside this block a patch's held column printed numpy's RuntimeWarning on the console)
         with np.errstate(divide="ignore", invalid="ignore"):
             tt = (sj - sk) / (sk1 - sk)
-        fx = fk + tt * (fk1 - fk)
+            fx = fk + tt * (fk1 - fk)
         w = 0.5 * (fx + fk1) * (sk1 - sj) + (work[j] - work[k + 1, cols])
         fmax = np.maximum(_span(absf, k + 1, j, False)[0], np.abs(fx))
         smax, smin = _span(s, k + 1, j)

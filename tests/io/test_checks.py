@@ -561,3 +561,21 @@ def test_an_effect_on_at_its_neutral_strength_is_warned_of():
     assert len(w) == 1 and w[0]["cell"] == "all" and "changes nothing (a, b):" in w[0]["message"]
     w = inert_effect_warnings([sets[0]], ["12 of the patch's 12 cells"], prefixed=False)
     assert "(12 of the patch's 12 cells)" in w[0]["message"]
+
+
+def test_energy_loop_candidates_of_a_held_path_beside_a_crossing_one_say_nothing_on_the_console():
+    """Two paths of one turning row: one crosses its loading after the turn (0 -> 0.3 -> 0.15), the other holds its
+    first two rows at one strain (a patch's column held from its first increment) and ends below its start.  Each
+    path's verdict is its own (an identity: the same as judged alone) and numpy says nothing: before, the held
+    path's interpolation at its first rows (a zero strain step) multiplied infinity by zero outside the error
+    state, and `knitsim run` printed "RuntimeWarning: invalid value encountered in multiply" (a blind probe's
+    tight / loose column)."""
+    import warnings
+
+    from knitsim.io.checks import energy_loop_candidates
+    S = np.array([[0.0, 0.1, 0.2, 0.3, 0.15], [0.0, 0.0, 0.1, 0.2, -0.05]]).T
+    F = np.array([[0.0, 1.0, 2.0, 3.0, 1.0], [1.0, 1.0, 2.0, 3.0, 0.5]]).T
+    alone = np.concatenate([energy_loop_candidates(S[:, [c]], F[:, [c]]) for c in range(2)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(energy_loop_candidates(S, F), alone)
