@@ -1274,11 +1274,19 @@ class PatchSolver:
         # columns that did not converge in HELD_RETRIES loading increments in a row hold until the grip turns:
         # loading further takes them further from the balance they could not reach.  Not while unloading: a
         # column held short of the grip converges again once the grip comes back to its cells' lengths
+        # (it holds until then)
         if int(direction) != self.direction:
             self.held[:] = 0
         skip_cls = ~stopped_cls & (self.held >= HELD_RETRIES) & (int(direction) > 0)
-        active_cls = ~stopped_cls & ~skip_cls
         single_cls = self._single_cls
+        if int(direction) < 0:
+            # ... and while unloading, a column held short of the grip holds until the grip has come back to its
+            # cells' lengths: before, solved at once on the grip's reversal, its cells were sent along their
+            # unloading branches to lengths longer than they held (a blind probe's tight / loose column, held at
+            # 0.003 N from grip strain 0.02 to 0.3, then its cells at 1,800 N per wale under a cap of 20 N)
+            short = u > self._committed_columns(c)["n_dC"] + LENGTH_RTOL * self._col_length
+            skip_cls |= ~stopped_cls & ~single_cls & short
+        active_cls = ~stopped_cls & ~skip_cls
         # exact strain of a single-group (uniform) column: the cell itself at the grip strain
         u_single = np.where(self._at_ref_length, float(grip_strain), u / self._group_length)
         be.begin_increment()

@@ -190,3 +190,31 @@ def test_a_column_stopped_at_its_weakest_cells_cap_carries_one_force_no_more_tha
     assert (F.max(axis=1) - F.min(axis=1)).max() <= 1e-10 + 1e-8 * F.max()
     assert h.column_force_N.max() <= 6.0 * (1.0 + 1e-9)
     assert (np.asarray(h.groups["status"])[-1] == STATUS_FORCE_CAP).any()
+
+
+def test_a_column_held_short_of_the_grip_holds_on_unloading_until_the_grip_comes_back(device):
+    """A column of a tight stitch (L / (2 C0 + W0 - 4 d) = 1.64, 10.4 N per wale at rest) between two loose ones
+    (0.02 and 0.0002 N): its cells' rest forces cannot balance near rest with every cell moving in the grip's
+    direction, so it is held (not converged) from its first increments while the grip goes to 0.296.  Expected
+    (README, "Runs that stop"): a held column keeps its state until the grip comes back to its cells' lengths, so
+    its cells keep the held state while the grip unloads to 0.182, above them, and no cell ever carries more than
+    its force cap (20 N).  Before, solved at once on the grip's reversal, its cells were sent along their unloading
+    branches to lengths longer than they held: 2,485 N per wale, status ok, under a cap of 20 N."""
+    from knitsim.scene.patch_scene import load_patch_scene
+    zones = [{"courses": [k, k + 1], "knit": dict(C0=C0, W0=W0, L=L), "friction": {"m": 0.148, "phi0": phi0}}
+             for k, (C0, W0, L, phi0) in enumerate([(2.9603, 3.6983, 13.5663, 0.0532),
+                                                    (2.4927, 4.1334, 11.1565, -0.0624),
+                                                    (2.9500, 4.3284, 15.6725, 0.1183)])]
+    sc = load_patch_scene({"engine": "warp", "device": device, "patch": {"wales": 1, "courses": 3},
+                           "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+                           "friction": {"m": 0.148}, "rules": {"force_cap_N": 20.0}, "zones": zones,
+                           "load": {"type": "piecewise", "waypoints": [0.296, 0.182, 0.314], "max_increment": 0.01}})
+    h = run_patch(sc.model, sc.program, device=device)
+    F, C = np.asarray(h.groups["F"]), np.asarray(h.groups["C"])
+    assert np.all(np.abs(F) <= 20.0)
+    u = h.grip_strain * h.info["ref_length_mm"]
+    length = (C - np.array([2.9603, 2.4927, 2.9500])).sum(axis=1)    # the cells' lengths' sum [mm]
+    top = int(np.flatnonzero(np.asarray(h.direction) < 0)[0]) - 1    # the grip's first reversal, at 0.296
+    held = (h.column_status[:, 0] != COL_OK) & (np.asarray(h.direction) < 0) & (u > length + 1e-9)
+    assert held.sum() >= 5, held.sum()                                # the grip unloads above the held cells
+    assert np.all(C[held] == C[top]) and np.all(F[held] == F[top])
