@@ -191,19 +191,24 @@ def zone_overlaps(resolved: dict) -> list[dict]:
     from ..scene.patch_scene import grade_of_zone
 
     zones = resolved.get("zones") or []
+    grades = [grade_of_zone(z) for z in zones]
+    labels = [z.get("label") for z, g in zip(zones, grades) if g is None]
 
-    def source(z: dict) -> tuple[str, str]:
-        # (key, name): a grade by its name, else a zone by label, else by rectangle (grade elements come first in
-        # the resolved list: an index would not be the scene's [[zones]] index)
-        grade = grade_of_zone(z)
+    def source(i: int, z: dict) -> tuple[str, str]:
+        # (key, name): a grade by its name (its elements one source), else a zone by its place in the list (two
+        # zones of one label are two zones: keyed by label, their overlap read as a grade's tiling and went
+        # unsaid), named by label, by label and rectangle where zones share it, else by rectangle (grade elements
+        # come first in the resolved list: an index would not be the scene's [[zones]] index)
+        grade = grades[i]
         if grade is not None:
             return "grade:" + grade, (f"grade {grade!r}" if not grade.startswith("grades[") else grade)
-        name = (f"zone {z['label']!r}" if z.get("label") else
-                f"the zone on courses [{z['courses'][0]}, {z['courses'][1]}) x wales [{z['wales'][0]}, "
-                f"{z['wales'][1]})")
-        return f"zone:{name}", name
+        rect = f"courses [{z['courses'][0]}, {z['courses'][1]}) x wales [{z['wales'][0]}, {z['wales'][1]})"
+        label = z.get("label")
+        name = ((f"zone {label!r}" + (f" on {rect}" if labels.count(label) > 1 else "")) if label else
+                f"the zone on {rect}")
+        return f"zone:{i}", name
 
-    sources = [source(z) for z in zones]
+    sources = [source(i, z) for i, z in enumerate(zones)]
     pairs: dict[tuple[str, str], list[tuple[int, int, int, int]]] = {}
     names: dict[str, str] = dict(sources)
     for b in range(len(zones)):

@@ -213,6 +213,40 @@ max_increment = 0.05
     assert not [w for w in s["warnings"] if w["code"] == "zones_overlap"]
 
 
+def test_two_zones_of_one_label_that_overlap_are_warned_of(tmp_path, capsys):
+    # Two zones both labelled "x" on courses [0, 2) and [1, 3) of a 3 x 2 patch share course 1 (2 cells, hand-
+    # counted): the later one's keys alone hold there, as for zones of two labels.  Before, zones were told apart by
+    # their label, so the two read as one grade's elements (which tile without overlap) and nothing was said.
+    body = """
+[patch]
+wales = 2
+courses = 3
+[yarn]
+material = "e_glass"
+[knit]
+material = "e_glass_plain"
+[[zones]]
+label = "x"
+courses = [0, 2]
+friction = { phi0 = 0.1 }
+[[zones]]
+label = "x"
+courses = [1, 3]
+knit = { L = 14.0 }
+[load]
+type = "monotonic"
+target_strain = 0.1
+max_increment = 0.05
+"""
+    assert main(["run", str(_scene(tmp_path, body)), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    capsys.readouterr()
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    (w,) = [w for w in s["warnings"] if w["code"] == "zones_overlap"]
+    assert w["message"].startswith("zone 'x' on courses [0, 2) x wales [0, 2) and zone 'x' on courses [1, 3) x wales "
+                                   "[0, 2) overlap on courses [1, 2) x wales [0, 2) (2 cells): there the cells are the "
+                                   "base scene with the keys of zone 'x' on courses [1, 3) x wales [0, 2) alone"), w
+
+
 def test_a_zone_over_a_grade_is_one_warning_said_once(tmp_path, capsys):
     # A grade along the courses of a 4-course patch is 4 elements (one per course) in the resolved scene; a zone
     # on courses [1, 3) of both wales overlaps 2 of them, 4 cells in all (hand-counted).  One warning names the
