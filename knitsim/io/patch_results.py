@@ -629,7 +629,7 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
     return out
 
 
-def _unbalanced_rest_columns(h: PatchHistory, col_key: str) -> list[ResultWarning]:
+def _unbalanced_rest_columns(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:
     """``rest_state_unbalanced``: columns whose cells carry different forces at rest.
 
     Each cell's rest state is its own (C = C0, its phi0); cells in series carry one force, so a column of
@@ -650,9 +650,13 @@ def _unbalanced_rest_columns(h: PatchHistory, col_key: str) -> list[ResultWarnin
     if not bad.size:
         return []
     j = int(bad[np.argmax((hi - lo)[bad])])
+    # where in the column (a blind probe's tight stitch at 10.4 N between loose ones: the warning named the column
+    # alone, and the column, held from its first increment, nothing else)
+    at = f"lowest at {row_key} {int(np.argmin(F[:, j]))}, highest at {row_key} {int(np.argmax(F[:, j]))}"
     return [ResultWarning("rest_state_unbalanced", (
         f"{bad.size} of {F.shape[1]} {col_key} column(s) carry unequal forces at rest (their cells' own rest states; "
-        f"the widest, {col_key} {j}: {lo[j]:.4g} to {hi[j]:.4g} N per wale): not an equilibrium of cells in series. "
+        f"the widest, {col_key} {j}: {lo[j]:.4g} to {hi[j]:.4g} N per wale, {at}): not an equilibrium of cells in "
+        "series. "
         "The first increment balances them with every cell moving in the grip's direction (a cell that shortens "
         "there moves back along its loading branch rather than reversing), so the first rows are approximate, and "
         "curve.csv's row 0 is the mean of the unequal rest forces"))]
@@ -1124,7 +1128,7 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                     if c["peak_is_force_cap"] and c["columns_at_force_cap_at_peak"] >= h.shape[1]]
     warnings += _force_cap_warnings(h, fc, layout, max(capped_peaks) if capped_peaks else None)
     warnings += _compressive_rest_cells(h, row_key, col_key)
-    warnings += _unbalanced_rest_columns(h, col_key)
+    warnings += _unbalanced_rest_columns(h, row_key, col_key)
     warnings += _energy_creating_cells(h, row_key, col_key)
     out = dict(info)
     cells = int(h.shape[0] * h.shape[1])

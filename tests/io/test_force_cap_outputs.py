@@ -264,6 +264,9 @@ def test_a_series_column_of_unequal_rest_forces_is_said_to_be_unbalanced_at_rest
     h, s = _zoned("courses", 10.0, cycles_n=1)
     (w,) = [w for w in s["warnings"] if w["code"] == "rest_state_unbalanced"]
     assert "2 of 2 wale column(s)" in w["message"] and "0.02159 to 0.1026" in w["message"]
+    # and where: the E-glass course 0 lowest, the basalt zone's course 1 highest (a column of a tight stitch between
+    # loose ones, held from its first increment, was named by its wale alone)
+    assert "0.02159 to 0.1026 N per wale, lowest at course 0, highest at course 1)" in w["message"], w["message"]
     hu = run_patch(PatchModel.uniform(P, 2, 2), monotonic(0.1, 0.05))
     su = patch_summary(hu, hu.info["ref_length_mm"], model=PatchModel.uniform(P, 2, 2))
     assert not [w for w in su["warnings"] if w["code"] == "rest_state_unbalanced"]
