@@ -31,6 +31,10 @@ measured ~0 N by chance).  It is not the default: on the way to its optimum
 a fit may cross parameter sets that fail, and the penalty's cliff stops it
 there (a normal-load fit stayed at chi^2 1779 instead of reaching 1193).
 
+A free ``strain_scale`` k (:data:`knitsim.diagnosis.effects.STRAIN_SCALE`: the strain read is k times the
+knit's, an extensometer's gauge length off) replays every curve at strain / k: the point and its
+other neighbours share one launch per program at k, its own neighbour runs at k + h.
+
 Standard errors: ``cov = s^2 (J^T J)^-1`` of the weighted residuals, with
 ``s^2 = chi^2 / (n - k)`` (1 when the weights are the true noise), mapped to
 (m, phi0) by the delta method through phi0 = f atan(m).
@@ -38,6 +42,7 @@ Standard errors: ``cov = s^2 (J^T J)^-1`` of the weighted residuals, with
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
@@ -47,7 +52,7 @@ from ..cell.batch import run_batch
 from ..cell.history import STATUS_FORCE_CAP, STATUS_NAMES, STATUS_OK
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
-from .effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
+from .effects import BASELINE_VARIABLES, EFFECT_SPECS, STRAIN_SCALE, build_params, check_effects
 from .gap import stage_keys
 from .measured import MeasuredCurve, force_at_rows, program_for_curve
 
@@ -57,7 +62,7 @@ def _to_params(base: CellParams, free: Sequence[str], x: np.ndarray, effects: tu
 
 
 def _variables(free: tuple, effects: tuple) -> dict:
-    known = dict(BASELINE_VARIABLES)
+    known = dict(BASELINE_VARIABLES, **{STRAIN_SCALE.name: STRAIN_SCALE})
     for e in effects:
         known.update({v.name: v for v in EFFECT_SPECS[e].variables})
     for name in free:
@@ -224,7 +229,8 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     free : sequence of str
         Names of the fitted variables: ``m``, ``phi0`` (as a fraction of
         phimax, see the module docstring), ``B``, ``d``, and the variables of
-        the ``effects`` (:mod:`knitsim.diagnosis.effects`).
+        the ``effects`` (:mod:`knitsim.diagnosis.effects`); ``strain_scale``, a factor on the
+        measured strain (module docstring).
     bounds : dict, optional
         ``name -> (low, high)`` in the fitted variable (phi0: fraction in [-1, 1]);
         default m in [0, 1], phi0 in [-1, 1], others 0.5x..2x their base value.
@@ -290,7 +296,17 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     start.update(x0 or {})
     x_start = np.clip(np.array([start[n] for n in free], float), lo, hi)
 
-    programs, rows, group_list = _replay_programs(curves, max_increment)
+    replays: dict[float, tuple] = {}
+
+    def replay(scale: float) -> tuple:
+        # the programs and rows of the replay at strain / scale (curves that share a program share it at any scale)
+        if scale not in replays:
+            scaled = curves if scale == 1.0 else [replace(c, strain=c.strain / scale) for c in curves]
+            replays[scale] = _replay_programs(scaled, max_increment)
+        return replays[scale]
+
+    group_list = replay(1.0)[2]
+    j_scale = free.index(STRAIN_SCALE.name) if STRAIN_SCALE.name in free else None
     ws = _curve_weights(curves, weights)
     n_rows = int(sum(np.count_nonzero(w) for w in ws))
     k = len(free)
@@ -315,18 +331,30 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
         h = steps(x)
         points = [x] + [x + h[j] * np.eye(k)[j] for j in range(k)]
         cells = [_to_params(base, free, p, effects, fixed) for p in points]
-        sims = [None] * len(curves)
-        for g in group_list:
-            counter["calls"] += 1
-            hist = run_batch(cells, programs[g[0]], device=device)
-            for i in g:
-                sims[i] = hist
+        # per curve and point: (history, the point's cell in it, the rows); one launch per program and strain scale
+        sims = [[None] * len(points) for _ in curves]
+        by_scale: dict[float, list] = {}
+        for j, p in enumerate(points):
+            by_scale.setdefault(1.0 if j_scale is None else float(p[j_scale]), []).append(j)
+        for scale, idx in by_scale.items():
+            programs, rows, _ = replay(scale)
+            for g in group_list:
+                counter["calls"] += 1
+                hist = run_batch([cells[j] for j in idx], programs[g[0]], device=device)
+                for i in g:
+                    for cell, j in enumerate(idx):
+                        sims[i][j] = (hist, cell, rows[i])
+
+        def at_rows(i, j):
+            hist, cell, rows = sims[i][j]
+            return force_at_rows(hist, rows, cell)[0]
+
         def resid(j):
             # a row the model gives no force at (a cell without a rest state, status no_rest_state: every row
             # NaN) is no prediction: its residual is 0 here, before the offset's projection (which would spread
             # the NaN over its curve), and counted at FAILED_ROW_Z below (scipy stopped the whole diagnosis at
             # such a start of a race: "Residuals are not finite in the initial point", blind study seed 2, case 5)
-            e = [force_at_rows(sims[i], rows[i], j)[0] - c.force for i, c in enumerate(curves)]
+            e = [at_rows(i, j) - c.force for i, c in enumerate(curves)]
             return (np.concatenate([_project(np.where(np.isfinite(ei), ei, 0.0), ws[i], offsets)
                                     for i, ei in enumerate(e)]),
                     np.concatenate([~np.isfinite(ei) for ei in e]))
@@ -339,7 +367,8 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
             J[:, j] = np.where(no_force | no_force_j, 0.0, (rj - r0) / h[j])
         failed = no_force
         if penalise_failed:
-            failed = failed | np.concatenate([_failed_rows(sims[i], rows[i], 0) for i in range(len(curves))])
+            failed = failed | np.concatenate([_failed_rows(hist, r, cell)
+                                              for hist, cell, r in (sim[0] for sim in sims)])
         r = _penalised(r0, failed, np.concatenate(ws))
         cache[key] = (r, J, sims)
         return cache[key]
@@ -367,13 +396,14 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     se = {n: float(math.sqrt(max(cov[j, j], 0.0))) for j, n in enumerate(free)}
     out_curves, rss, offs = [], 0.0, {}
     for i, c in enumerate(curves):
-        fs, lab = force_at_rows(sims[i], rows[i], 0)
+        hist, cell, rows = sims[i][0]
+        fs, lab = force_at_rows(hist, rows, cell)
         off = offset_of(fs - c.force, ws[i]) if offsets else 0.0
         offs[c.source] = off
         fs = fs + off
         e = (fs - c.force)[ws[i] > 0]
         rss += float(e @ e)
-        st = sims[i].status[:, 0]
+        st = hist.status[:, cell]
         out_curves.append({"source": c.source, "strain": c.strain, "measured": c.force, "simulated": fs,
                            "labels": lab, "keys": stage_keys(lab, c.direction, c.cycle),
                            "final_status": STATUS_NAMES[int(st[-1])], "offset_N": off})

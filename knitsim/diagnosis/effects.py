@@ -119,6 +119,13 @@ BASELINE_VARIABLES: dict[str, Variable] = {
                                "the yarn's in-plane width that jams loops (W = 4 w), in [d, W0/4)"),
 }
 
+#: a factor k on the measured strain (an extensometer's gauge length or factor off: the strain read is k times the
+#: knit's): the replay runs at strain / k.  Not a parameter of the knit, and no scene frees it:
+#: :func:`knitsim.diagnosis.calibrate.calibrate_baseline` applies it to the strain it replays, and the diagnosis
+#: weighs it against an effect or the baseline as it weighs a force scale (:func:`knitsim.diagnosis.diagnose.scale_step`)
+STRAIN_SCALE = Variable("strain_scale", (0.8, 1.25), lambda p: 1.0, "-",
+                        "factor on the measured strain: the replay at strain / k")
+
 #: baseline parameters the blind study's diagnosis calibrates: the friction (m, phi0) and the geometry
 #: that its generator scatters from specimen to specimen (d, L, C0; W0 moves the curve least), which an
 #: effect would otherwise absorb (a false alarm); defined here so that the CLI needs no study import
@@ -206,7 +213,7 @@ def check_effects(names, where: str = "diagnosis.effects") -> tuple[str, ...]:
 def variables_for(free: tuple[str, ...], effects: tuple[str, ...]) -> tuple[Variable, ...]:
     """The fit variables of the baseline ``free`` set with ``effects`` added."""
     drop = {r for e in effects for r in EFFECT_SPECS[e].replaces}
-    out = [BASELINE_VARIABLES[n] for n in free if n not in drop]
+    out = [STRAIN_SCALE if n == STRAIN_SCALE.name else BASELINE_VARIABLES[n] for n in free if n not in drop]
     for e in effects:
         out.extend(EFFECT_SPECS[e].variables)
     return tuple(out)

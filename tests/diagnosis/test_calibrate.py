@@ -189,3 +189,25 @@ def test_default_bounds_of_d_keep_every_corner_a_knit(curve, monkeypatch, free):
     assert hi[free.index("d")] == pytest.approx(0.999 * W0_low / 4.0)
     for corner in itertools.product(*zip(lo, hi)):
         build_params(TRUE, (), dict(zip(free, corner)))     # raises KnitsimInputError where W0 < 4 d
+
+
+def test_a_strain_scale_replays_the_curve_at_strain_over_k(curve):
+    """A free ``strain_scale`` k replays the measured strain at strain / k (an extensometer's gauge length off: the
+    strain read k times the knit's).  Identity: the synthetic curve with its strain read x 1.03 is fitted, with
+    m and phi0, at k within 3 standard errors of 1.03 and the friction within 3 of the truth; and at a given
+    point the fit's chi2 is that of the same cell replayed on the curve at strain / k (one evaluation, k held:
+    max_nfev 1 returns its start).  The point and its other neighbours share one launch, k's own neighbour a
+    second (two launches per evaluation)."""
+    from dataclasses import replace
+    read = replace(curve, strain=curve.strain * 1.03)
+    r = calibrate_baseline(read, TRUE.replace(m=0.3, phi0=0.0), free=("m", "phi0", "strain_scale"),
+                           max_increment=0.02, x0={"strain_scale": 1.0})
+    for name, truth in (("strain_scale", 1.03), ("m", TRUE.m), ("phi0", TRUE.phi0)):
+        se = r["std_errors"][name]
+        assert 0 < se and abs(r["values"][name] - truth) <= 3 * se, (name, r["values"][name], se)
+    assert r["rms_N"] == pytest.approx(NOISE_N, rel=0.25)
+    x0 = {"m": 0.21, "phi0": -0.4, "strain_scale": 1.02}
+    at = calibrate_baseline(read, TRUE, free=tuple(x0), max_increment=0.02, x0=x0, max_nfev=1)
+    same = calibrate_baseline(replace(read, strain=read.strain / 1.02), TRUE, free=("m", "phi0"),
+                              max_increment=0.02, x0={"m": 0.21, "phi0": -0.4}, max_nfev=1)
+    assert at["chi2"] == pytest.approx(same["chi2"], rel=1e-12) and at["n_batch_calls"] == 2 * at["nfev"]
