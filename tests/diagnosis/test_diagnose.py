@@ -597,6 +597,8 @@ def test_an_effect_that_a_pure_force_scale_explains_as_well_is_not_named_confide
     assert sc["factor"] == pytest.approx(1.1, rel=0.01)
     assert sc["params"]["m"] == pytest.approx(0.20, abs=0.005) and sc["within_noise"] is True
     assert sc["bic_minus_effect"] < -STRONG and sc["rivals_effect"]
+    # a factor on the force is no factor on the strain: the strain scale (tests below) does not rival the effect
+    assert r["strain_scale"]["bic_minus_effect"] > STRONG and not r["strain_scale"]["rivals_effect"]
 
 
 def test_an_unexplained_gap_that_a_pure_force_scale_explains_says_so():
@@ -618,6 +620,98 @@ def test_an_unexplained_gap_that_a_pure_force_scale_explains_says_so():
     assert not v["confident"] and v["reason"].startswith("a pure force scale explains the gap (the baseline x 1.1")
     assert sc["factor"] == pytest.approx(1.1, rel=0.01) and sc["within_noise"] and sc["explains"]
     assert sc["bic_minus_baseline"] < -STRONG and sc["bic_minus_effect"] is None and not sc["rivals_effect"]
+    # the strain scale lowers the chi2 too (11.7 per dof), but the force scale is named as the better of the two
+    assert r["strain_scale"]["bic_minus_baseline"] - sc["bic_minus_baseline"] > STRONG
+    assert "the force scale fits better than the strain scale" in v["reason"]
+
+
+def _strain_scaled(name: str, effects=("bending_hysteresis",)) -> dict:
+    from pathlib import Path
+
+    from knitsim.diagnosis.measured import read_measured_curve
+    curve = read_measured_curve(Path(__file__).parent / "data" / name)
+    base = NOMINAL.replace(m=0.25, phi0=0.0, unloading_rule="dusserre", reload_rule="mirror_unloading",
+                           force_cap_N=50.0)
+    return diagnose([curve], DiagnosisSetup(base=base, effects=effects, pair=False)).as_dict()
+
+
+def test_an_unexplained_gap_that_a_strain_scale_explains_names_the_strain():
+    """The model's own cycles 0.20-0.72 with the strain x 1.03 (tests/diagnosis/data/README.md: an extensometer's
+    gauge length 3 % short; no effect, the knit of the file).  The baseline misses the jammed branches by far
+    (chi2/dof ~4000) and the verdict was `unexplained`, saying only that a force scale (x 0.5, at the end of B's
+    search, chi2/dof 282) explains the gap: the force blamed for the strain.  The strain scale (the replay at
+    strain / k, weighed against the baseline as an effect is) must come out 1.03, the file's own factor, within
+    its standard error, with the friction of the file (m 0.20, phi0 0.05 rad), within the noise; said first, as
+    the better of the two scales, and the verdict not confident."""
+    from knitsim.diagnosis.diagnose import STRONG
+    r = _strain_scaled("eglass_3cycles_to0.72_strain_x1.03_noise2mN.csv")
+    v, sc, fs = r["verdict"], r["strain_scale"], r["force_scale"]
+    assert v["kind"] == "unexplained" and r["noise"]["baseline_within_noise"] is False and not v["confident"]
+    assert abs(sc["factor"] - 1.03) <= sc["factor_se"], (sc["factor"], sc["factor_se"])
+    assert sc["params"]["m"] == pytest.approx(0.20, abs=0.005) and sc["params"]["phi0"] == pytest.approx(0.05, abs=0.01)
+    assert sc["within_noise"] and sc["explains"] and sc["bic_minus_baseline"] < -STRONG
+    assert v["reason"].startswith("a pure strain scale explains the gap (the replay at strain / 1.03")
+    assert "the strain may be off: read x 1.03 the knit's" in v["reason"]
+    # both scales lower the chi2 beyond the size threshold here; the reason says which fits better
+    assert fs["explains"] and fs["bic_minus_baseline"] - sc["bic_minus_baseline"] > STRONG
+    assert "the strain scale fits better than the force scale" in v["reason"]
+
+
+def test_the_probes_strain_x103_cycles_below_jamming_name_the_strain_not_the_force():
+    """The outside probe's file (tests/diagnosis/data/README.md): the model's own cycles 0.1-0.6 with the strain
+    x 1.03.  The old verdict, `unexplained`, said that "a pure force scale x 1.043 explains the gap ... the forces
+    may be off".  The strain scale fits within the noise and better than the force scale by far: named first.  Below
+    jamming the factor trades with the friction (the README: strain / 1.014 and / 1.030 fit within 1 in chi2 of
+    each other), so only its range is asked here, a few per cent above 1."""
+    from knitsim.diagnosis.diagnose import STRONG
+    r = _strain_scaled("eglass_3cycles_strain_x1.03_noise2mN.csv")
+    v, sc, fs = r["verdict"], r["strain_scale"], r["force_scale"]
+    assert v["kind"] == "unexplained" and not v["confident"]
+    assert 1.01 < sc["factor"] < 1.035 and sc["within_noise"] and sc["explains"]
+    assert v["reason"].startswith("a pure strain scale explains the gap")
+    assert fs["bic_minus_baseline"] - sc["bic_minus_baseline"] > STRONG
+    assert "the strain scale fits better than the force scale" in v["reason"]
+
+
+def test_where_both_scales_explain_the_gap_the_reason_says_which_fits_better_or_that_none_can_tell():
+    """Hand-set scale fits (scale_step's keys): both explain an unexplained gap; the better (lower BIC) is said
+    first, and the reason says which fits better where their BICs differ by more than STRONG, else that the data
+    cannot tell them apart; said before the reason where one fits within the noise, after it otherwise."""
+    from knitsim.diagnosis.diagnose import STRONG, scales_said
+
+    def scale(kind, bic, within):
+        sc = {"kind": kind, "factor": 1.03, "factor_se": 0.001, "chi2_per_dof": 1.0 if within else 1.5,
+              "within_noise": within, "bic_minus_baseline": bic, "bic_minus_effect": None}
+        return dict(sc, B=0.32, B_scene=0.31) if kind == "force" else sc
+    text = scales_said("REASON", [scale("force", -100.0, False), scale("strain", -100.0 - 2 * STRONG, True)],
+                       None, 1.8)
+    assert text.startswith("a pure strain scale explains the gap (the replay at strain / 1.03 +- 0.001")
+    assert text.index("a pure force scale") > text.index("the strain may be off: read x 1.03 the knit's")
+    assert "the strain scale fits better than the force scale (BIC -20)" in text and text.endswith("REASON")
+    text = scales_said("REASON", [scale("force", -100.0, False), scale("strain", -100.0 + STRONG / 2, False)],
+                       None, 1.8)
+    assert text.startswith("REASON; a pure force scale explains the gap")
+    assert "the data cannot tell the force scale from the strain scale (BIC within 10: 5)" in text
+
+
+def test_the_strain_scale_raises_no_alarm_on_an_effect_free_curve():
+    """No false alarm: on the model's own effect-free cycles (2 mN of noise; the file of the next test) the strain
+    scale, weighed against the baseline as an effect is, must not explain anything (its BIC drop is noise's) and
+    must come out 1 within 3 of its standard errors (the scale the file was made at)."""
+    from pathlib import Path
+
+    from knitsim.diagnosis.diagnose import (_Data, calibrate_step, capped_setup, noise_step, scale_step)
+    from knitsim.diagnosis.measured import read_measured_curve
+    curve = read_measured_curve(Path(__file__).parent / "data" / "eglass_3cycles_m0.20_phi0.05_noise2mN.csv")
+    setup = DiagnosisSetup(base=NOMINAL.replace(m=0.25, phi0=0.0, unloading_rule="dusserre",
+                                                reload_rule="mirror_unloading", force_cap_N=10.0),
+                           effects=("bending_hysteresis",), pair=False).validated()
+    noise = noise_step([curve], setup)
+    data = _Data([curve], capped_setup(setup, [curve]), noise.weights([curve]))
+    base_fit, _ = calibrate_step(data, lambda msg: None)
+    sc = scale_step(data, base_fit, None, len(curve), noise, lambda msg: None, "strain")
+    assert not sc["explains"] and sc["within_noise"]
+    assert abs(sc["factor"] - 1.0) <= 3.0 * sc["factor_se"], (sc["factor"], sc["factor_se"])
 
 
 def test_a_curve_the_model_made_is_not_read_as_a_gap_beside_a_cliff_of_chi2():
