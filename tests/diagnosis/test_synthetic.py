@@ -53,9 +53,9 @@ def test_the_curves_carry_no_label():
     # the measured-curve format: strain, force, cycle, direction, rate (+ a source name), and what a
     # reader of a file derives from those (spreadsheet rows, the strain as read, the curve's own noise, what the
     # reader did that the user is told: a strain read in per cent; the rows where the strain jumps alone, and those of a
-    # hold whose force relaxes)
+    # hold whose force relaxes, the rows that end a branch on the next one, and those flat at the force's largest reading)
     assert names == {"strain", "force", "cycle", "direction", "rate_mm_s", "source", "rows", "strain_read", "noise",
-                     "notes", "slips", "glitches", "stalls", "holds"}
+                     "notes", "slips", "glitches", "stalls", "holds", "late_turns", "flat_top"}
     for c in case.curves:
         assert type(c) is MeasuredCurve
         assert "dahl" not in c.source and "effect" not in c.source
