@@ -113,7 +113,8 @@ from ..cell.effects import EFFECT_NAMES
 from ..cell.material import CellParams
 from ..errors import KnitsimInputError
 from .calibrate import calibrate_baseline, default_bounds, rss_of_cells
-from .effects import BASELINE_VARIABLES, EFFECT_SPECS, STRAIN_SCALE, build_params, check_effects, variables_for
+from .effects import (BASELINE_VARIABLES, EFFECT_SPECS, STRAIN_SCALE, build_params, check_effects, dahl_limit_note,
+                      variables_for)
 from .gap import curve_indicators, stage_gap
 from .measured import NEGATIVE_SIGMAS, MeasuredCurve, check_reachable, check_response, reachable_strain
 from .noise import OUTLIER_SIGMAS, CurveNoise, curve_noise, row_slopes
@@ -1460,6 +1461,9 @@ def score_step(setup: DiagnosisSetup, fits: dict, base: dict, adequacy: Adequacy
             cand.significant = cand.practical = False
             cand.note = (f"not judged: some increments did not converge on {', '.join(cand.flagged_curves)} "
                          "(those rows keep the last converged force)")
+        if name == "dahl_transition" and dahl_limit_note(setup.base):
+            # its chi^2 far above the baseline's is no failed search: no Dahl stiffness makes this baseline's cell
+            cand.note = "; ".join(t for t in (cand.note, dahl_limit_note(setup.base)) if t)
         out.append(cand)
     fitted = sorted((c for c in out if c.score is not None), key=lambda c: -c.score)
     # BIC weights over "none" (the baseline, score 0) and the candidates whose fits ran through
@@ -2152,6 +2156,16 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
         verdict.reason += (f"; its fit is at a bound of its search and leaves a misfit larger than the noise (chi2/dof "
                            f"{named.chi2_per_dof:.3g} > {SHORT_CHI2_PER_DOF:g}): the effect may stand in for a cause the "
                            "model cannot reach (free a property held fixed, such as B, to see), so it is not confirmed")
+    if named is not None and named.effect == "dahl_transition" and dahl_limit_note(setup.base) and any(
+            named.at_bounds.get(v.name) not in (None, *v.more) for v in EFFECT_SPECS[named.effect].variables):
+        # named at the Coulomb end of its stiffness, where its law is Coulomb's with Hong's unloading: what it adds
+        # to this baseline is that unloading, not a transition of finite slip (a Hong-made effect-free file against
+        # a dusserre baseline: named, confident, sigma at the end of its search, where the baseline with Hong's rule is `none`)
+        verdict.confident = False
+        verdict.reason += ("; its Dahl stiffness ended at the Coulomb end of its search, where the Dahl law is Coulomb "
+                           "switching with T held through the whole unloading: what it adds to this baseline is that "
+                           f"unloading, not a gradual stick-slip (calibrate the baseline with unloading_rule = "
+                           f"\"hong_constant_t\", the scene's [rules], to see whether the rule alone explains the curves)")
     # the named effect, or an unexplained gap, against the simplest causes outside the effects: a factor on the
     # force (a probe's forces x 1.03 were named bending_hysteresis, confident, within the noise; x 1.1 with
     # chi2/dof 8.2 left; x 1.1 with only normal_load_friction searched a confident `unexplained`, chi2/dof 48.9,
