@@ -2160,12 +2160,13 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
             named.at_bounds.get(v.name) not in (None, *v.more) for v in EFFECT_SPECS[named.effect].variables):
         # named at the Coulomb end of its stiffness, where its law is Coulomb's with Hong's unloading: what it adds
         # to this baseline is that unloading, not a transition of finite slip (a Hong-made effect-free file against
-        # a dusserre baseline: named, confident, sigma at the end of its search, where the baseline with Hong's rule is `none`)
+        # a dusserre baseline: named, confident, sigma at the end of its search; with Hong's rule the verdict is `none`)
         verdict.confident = False
         verdict.reason += ("; its Dahl stiffness ended at the Coulomb end of its search, where the Dahl law is Coulomb "
                            "switching with T held through the whole unloading: what it adds to this baseline is that "
-                           f"unloading, not a gradual stick-slip (calibrate the baseline with unloading_rule = "
-                           f"\"hong_constant_t\", the scene's [rules], to see whether the rule alone explains the curves)")
+                           "unloading, not a gradual stick-slip (calibrate the baseline with unloading_rule = "
+                           "\"hong_constant_t\", the scene's [rules], to see whether the rule alone explains the "
+                           "curves)")
     # the named effect, or an unexplained gap, against the simplest causes outside the effects: a factor on the
     # force (a probe's forces x 1.03 were named bending_hysteresis, confident, within the noise; x 1.1 with
     # chi2/dof 8.2 left; x 1.1 with only normal_load_friction searched a confident `unexplained`, chi2/dof 48.9,

@@ -1189,20 +1189,20 @@ def test_the_dahl_candidate_contains_a_hong_baseline_not_a_dusserre_one_and_says
 
     def dahl_of(r):
         return next(c for c in r["candidates"] if c["effect"] == "dahl_transition")
-    r = diagnose([curve], DiagnosisSetup(base=hong.replace(**start), effects=("dahl_transition",), pair=False)).as_dict()
+    only_dahl = {"effects": ("dahl_transition",), "pair": False}
+    r = diagnose([curve], DiagnosisSetup(base=hong.replace(**start), **only_dahl)).as_dict()
     assert r["verdict"]["kind"] == "none", r["verdict"]["reason"]
     c = dahl_of(r)
     assert c["chi2"] <= r["baseline"]["chi2"] + 0.1, (c["chi2"], r["baseline"]["chi2"], c["params"])
     assert c["note"] == ""
-    r = diagnose([curve], DiagnosisSetup(base=dusserre.replace(**start), effects=("dahl_transition",),
-                                         pair=False)).as_dict()
+    r = diagnose([curve], DiagnosisSetup(base=dusserre.replace(**start), **only_dahl)).as_dict()
     v, c = r["verdict"], dahl_of(r)
     assert v["effect"] == "dahl_transition" and c["at_bounds"] == {"log10_dahl_sigma": "upper"}
     assert not v["confident"] and 'unloading_rule = "hong_constant_t"' in v["reason"]
     assert "not a gradual stick-slip" in v["reason"] and "not nested in this baseline" in c["note"]
     dahl = dusserre.replace(friction="dahl", dahl_sigma=20.0)
-    r = diagnose([_cycles_file(dahl, 7, "dahl.csv")], DiagnosisSetup(base=dusserre.replace(**start),
-                                                                      effects=("dahl_transition",), pair=False)).as_dict()
+    r = diagnose([_cycles_file(dahl, 7, "dahl.csv")],
+                 DiagnosisSetup(base=dusserre.replace(**start), **only_dahl)).as_dict()
     v, c = r["verdict"], dahl_of(r)
     assert v["effect"] == "dahl_transition" and v["confident"], v["reason"]
     assert c["at_bounds"] == {} and 1.0 < c["params"]["log10_dahl_sigma"] < 1.6
