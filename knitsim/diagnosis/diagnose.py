@@ -111,6 +111,7 @@ import numpy as np
 
 from ..cell.effects import EFFECT_NAMES
 from ..cell.material import CellParams
+from ..cell.stages import DAHL_SIGMA_MAX
 from ..errors import KnitsimInputError
 from .calibrate import calibrate_baseline, default_bounds, rss_of_cells
 from .effects import (BASELINE_VARIABLES, EFFECT_SPECS, STRAIN_SCALE, build_params, check_effects, dahl_limit_note,
@@ -221,6 +222,11 @@ class DiagnosisSetup:
                                         "(|phi0| <= phimax), so its bounds lie within [-1, 1]")
             if k in ("B", "d", "in_plane_width", "L", "W0", "C0") and lo <= 0:
                 raise KnitsimInputError(f"diagnosis.bounds[{k!r}] = {v!r}: {k} must stay > 0")
+            if k == "log10_dahl_sigma" and hi > math.log10(DAHL_SIGMA_MAX):
+                # (a bound of 7 failed mid-fit, after the baseline's calibration, naming cell.dahl_sigma)
+                raise KnitsimInputError(f"diagnosis.bounds[{k!r}] = {v!r}: the Dahl stiffness is searched up to "
+                                        f"{math.log10(DAHL_SIGMA_MAX):g} ({DAHL_SIGMA_MAX:g} 1/mm), the largest a cell "
+                                        "takes, where the Dahl law is already Coulomb friction to 1e-6 N")
         if not (isinstance(self.max_nfev, int) and not isinstance(self.max_nfev, bool) and self.max_nfev >= 2):
             raise KnitsimInputError(f"diagnosis.max_nfev = {self.max_nfev!r}: expected a whole number >= 2")
         given = self.noise_N.values() if isinstance(self.noise_N, dict) else (

@@ -528,10 +528,15 @@ def test_a_setup_built_in_python_is_checked_as_the_scene_is():
                     (dict(bounds={"B": (0.1, 0.7)}), r"bounds\['B'\]: not a fitted variable"),
                     (dict(bounds={"phi0": (-5.0, 5.0)}), r"a fraction of phimax"),
                     (dict(free="phi0"), r"expected a list of names"),
-                    (dict(max_nfev=0), r"max_nfev = 0")):
+                    (dict(max_nfev=0), r"max_nfev = 0"),
+                    # the largest Dahl stiffness a cell takes is 10^6 / mm (cell.stages.DAHL_SIGMA_MAX): a bound of
+                    # 10^7 failed mid-fit, after the baseline's calibration, naming cell.dahl_sigma
+                    (dict(bounds={"log10_dahl_sigma": (0.0, 7.0)}),
+                     r"log10_dahl_sigma'\] = \(0.0, 7.0\): .* up to 6 ")):
         with pytest.raises(KnitsimInputError, match=msg):
             DiagnosisSetup(base=NOMINAL, **kw).validated()
     DiagnosisSetup(base=NOMINAL, bounds={"m": (0.05, 0.5)}).validated()
+    DiagnosisSetup(base=NOMINAL, bounds={"log10_dahl_sigma": (0.0, 6.0)}).validated()
 
 
 def test_two_curves_met_halfway_are_said_to_disagree():
