@@ -1607,6 +1607,10 @@ def _scale_fit(scale: dict) -> str:
     how = (f"the baseline x {scale['factor']:.4g}, B {scale['B']:.4g} for {scale['B_scene']:.4g}"
            if scale["kind"] == "force" else
            f"the replay at strain / {scale['factor']:.4g} +- {scale['factor_se']:.2g}")
+    if scale.get("at_bounds"):
+        # the factor is the search's end, not an estimate: the data ask for more (a blind study's compaction, its
+        # strain scale at 1.25, was read "strain / 1.25 +- 0.061" as if measured)
+        how += " (the end of its search: the data ask for more, the value is not an estimate)"
     return f"{how}: chi2/dof {scale['chi2_per_dof']:.4g}{' (within noise)' if scale['within_noise'] else ''}"
 
 

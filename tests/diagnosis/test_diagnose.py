@@ -697,6 +697,11 @@ def test_where_both_scales_explain_the_gap_the_reason_says_which_fits_better_or_
                        None, 1.8)
     assert text.startswith("REASON; a pure force scale explains the gap")
     assert "the data cannot tell the force scale from the strain scale (BIC within 10: 5)" in text
+    # a factor at the end of its search (calibrate.at_bounds) is said to be so, not quoted as an estimate (the blind
+    # study's case 39, compaction, v22: its strain scale at the search's 1.25 read "strain / 1.25 +- 0.061")
+    text = scales_said("REASON", [dict(scale("strain", -100.0, False), factor=1.25, at_bounds={"strain_scale": "upper"})],
+                       None, 1.8)
+    assert "strain / 1.25 +- 0.001 (the end of its search: the data ask for more, the value is not an estimate)" in text
 
 
 def test_the_strain_scale_raises_no_alarm_on_an_effect_free_curve():
