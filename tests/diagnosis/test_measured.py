@@ -345,14 +345,14 @@ def test_a_slack_reload_taking_the_force_up_within_a_row_is_no_glitch():
 
 def test_the_bundled_curves_have_no_glitch_and_no_stall():
     """Nothing wrong, nothing flagged: the four real curves of scenes/diagnosis/real (Do 2020, Singal 2024) and
-    the hand-made files of tests/diagnosis/data (five: the model's curves with 2 mN of noise, two of them scaled
-    by a factor) have no force glitch and no stall (measured at this commit; the interpolated Do 2020 6.5 mm
+    the hand-made files of tests/diagnosis/data (seven: the model's curves with 2 mN of noise, two of them with the
+    force scaled by a factor, two with the strain) have no force glitch and no stall (measured at this commit; the interpolated Do 2020 6.5 mm
     curve has a 2-row flat of 0.5-0.8 of a step, which the one-step rule keeps)."""
     from pathlib import Path
     root = Path(__file__).resolve().parents[2]
     files = sorted((root / "scenes" / "diagnosis" / "real").glob("*.csv")) + sorted(
         (root / "tests" / "diagnosis" / "data").glob("*.csv"))
-    assert len(files) == 9
+    assert len(files) == 11
     for p in files:
         c = read_measured_curve(p)
         assert c.glitches == () and c.stalls == (), p.name
