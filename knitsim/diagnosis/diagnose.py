@@ -1729,6 +1729,32 @@ def scale_step(data: _Data, base_fit: dict, named: CandidateResult | None, n: in
     return out
 
 
+#: what a curve's reading found (a MeasuredCurve field of spreadsheet rows, knitsim.diagnosis.measured) that withdraws
+#: a verdict's confidence, and how the reason says it (from those rows)
+READING_CAVEATS = (
+    # a strain that jumps alone (measured.strain_slips): a slip would be fitted as the knit's stretch
+    ("slips", lambda rows: f"the strain jumps alone at row {rows[0]} (a grip or extensometer slip, or rows missing "
+                           "from the log), which the model reads as the knit's stretch"),
+    # the force stalls while the strain runs on (measured.force_stalls): a grip slip seen in the force
+    ("stalls", lambda rows: f"the force stalls at row {rows[0]} while the strain runs on (a grip slip, or the knit's "
+                            "own stick-slip), and the rows after it are read at a strain the knit did not take"),
+    # a force flat at its largest reading while the strain moves on (measured.flat_tops): the rows hold the load
+    # cell's limit, read by every fit as the knit's force
+    ("flat_top", lambda rows: f"the force is flat at its largest reading over {len(rows)} rows from row {rows[0]} "
+                              "while the strain moves on (a saturated load cell?), which the model reads as the "
+                              "knit's force"),
+    # a hold whose force relaxes (measured.force_holds): its rows left out, the branches after it from a relaxed knit
+    ("holds", lambda rows: f"the force relaxes at one strain (a hold; {len(rows)} row(s) from row {rows[0]} left "
+                           "out), which the model, rate-independent, lacks, and the branches after it start from a "
+                           "relaxed knit"),
+    # a turn that no row records (measured.unrecorded_turns): the replay turns short of the grip, and the later
+    # branches remember where it turned
+    ("late_turns", lambda rows: f"row {rows[0]} ends its branch but reads the next one already (the turn was not "
+                                "recorded), so the replay turns short of where the grip turned, and the branches "
+                                "after it start from another state of the knit"),
+)
+
+
 def verdict_step(adequacy: Adequacy, candidates: list, loc: Localisation, base: dict, noise: NoiseModel,
                  indist: list) -> Verdict:
     """Step 8 (module docstring)."""
@@ -2193,46 +2219,12 @@ def diagnose(curves: Sequence[MeasuredCurve], setup: DiagnosisSetup,
     if capped:
         verdict.confident = False
         verdict.reason += "; " + capped
-    # a strain that jumps alone (measured.strain_slips): a slip would be fitted as the knit's stretch
-    slipped = [c for c in curves if getattr(c, "slips", ())]
-    if slipped:
-        verdict.confident = False
-        verdict.reason += "; " + "; ".join(
-            f"{Path(c.source).name}: the strain jumps alone at row {c.slips[0]} (a grip or extensometer slip, or "
-            "rows missing from the log), which the model reads as the knit's stretch" for c in slipped)
-    # the force stalls while the strain runs on (measured.force_stalls): a grip slip seen in the force
-    stalled = [c for c in curves if getattr(c, "stalls", ())]
-    if stalled:
-        verdict.confident = False
-        verdict.reason += "; " + "; ".join(
-            f"{Path(c.source).name}: the force stalls at row {c.stalls[0]} while the strain runs on (a grip slip, or "
-            "the knit's own stick-slip), and the rows after it are read at a strain the knit did not take" for c in stalled)
-    # a force flat at its largest reading while the strain moves on (measured.flat_tops): the rows hold the load
-    # cell's limit, read by every fit as the knit's force
-    flat = [c for c in curves if getattr(c, "flat_top", ())]
-    if flat:
-        verdict.confident = False
-        verdict.reason += "; " + "; ".join(
-            f"{Path(c.source).name}: the force is flat at its largest reading over {len(c.flat_top)} rows from row "
-            f"{c.flat_top[0]} while the strain moves on (a saturated load cell?), which the model reads as the knit's "
-            "force" for c in flat)
-    # a hold whose force relaxes (measured.force_holds): its rows left out, the branches after it from a relaxed knit
-    held = [c for c in curves if getattr(c, "holds", ())]
-    if held:
-        verdict.confident = False
-        verdict.reason += "; " + "; ".join(
-            f"{Path(c.source).name}: the force relaxes at one strain (a hold; {len(c.holds)} row(s) from row "
-            f"{c.holds[0]} left out), which the model, rate-independent, lacks, and the branches after it start from "
-            "a relaxed knit" for c in held)
-    # a turn that no row records (measured.unrecorded_turns): the replay turns short of the grip, and the later
-    # branches remember where it turned
-    late = [c for c in curves if getattr(c, "late_turns", ())]
-    if late:
-        verdict.confident = False
-        verdict.reason += "; " + "; ".join(
-            f"{Path(c.source).name}: row {c.late_turns[0]} ends its branch but reads the next one already (the turn "
-            "was not recorded), so the replay turns short of where the grip turned, and the branches after it start "
-            "from another state of the knit" for c in late)
+    # what the reading found in a curve that the model reads as the knit's: said, and the verdict not confident
+    for attr, what in READING_CAVEATS:
+        found = [c for c in curves if getattr(c, attr, ())]
+        if found:
+            verdict.confident = False
+            verdict.reason += "; " + "; ".join(f"{Path(c.source).name}: {what(getattr(c, attr))}" for c in found)
     glitched = [c for c in curves if getattr(c, "glitches", ())]
     if glitched:
         verdict.reason += "; " + "; ".join(
