@@ -64,7 +64,8 @@ from ..cell.history import BatchHistory
 from ..cell.load_program import LoadProgram, piecewise_linear
 from ..errors import KnitsimInputError
 from ..io.table_input import LAB_ALIASES, Columns, notes_of, read_csv_columns
-from .noise import STRAIN_JITTER_MIN_ROWS, CurveNoise, curve_noise, reading_jitter, strain_jitter  # noqa: F401
+from .noise import (STRAIN_JITTER_MIN_ROWS, CurveNoise, curve_noise, reading_jitter, strain_jitter,  # noqa: F401
+                    written_resolution)
 
 REQUIRED = ("strain", "force_per_wale_N")
 OPTIONAL = ("cycle", "direction", "rate_mm_s")
@@ -518,21 +519,15 @@ FLAT_TOP_ROWS = 4
 FLAT_TOP_RISE_STEPS = 3.0
 
 
-def force_resolution(force) -> float:
-    """The force column's printed resolution: the smallest difference between two distinct readings [N] (0 for a
-    column of one value).  Readings printed to 5 decimals differ by 1e-5 or more."""
-    u = np.unique(np.asarray(force, float))
-    return float(np.min(np.diff(u))) if len(u) > 1 else 0.0
-
-
 def flat_tops(strain, force, tol: float) -> list[tuple[int, int]]:
     """Runs ``(i, j)`` (rows ``i .. j - 1``) of :data:`FLAT_TOP_ROWS` rows or more whose force is the column's
     largest reading, the same number, while the strain moves by more than ``tol`` over them: a load cell (or its
     amplifier, or a logger's range) that saturated, flat at its limit over the top of the loading (or of every
     cycle's), or a force limit of the test.  A run counts only where the loading that reached it rose, over the
     rows before it spanning as much strain as the run does (or all of that loading where it is shorter), by more
-    than :data:`FLAT_TOP_RISE_STEPS` steps of the printed resolution (:func:`force_resolution`): a curve whose rise
-    over the run is below the last printed digit prints one value there, rising or not.  A hold at the top (the
+    than :data:`FLAT_TOP_RISE_STEPS` steps of the printed resolution (:func:`~knitsim.diagnosis.noise
+    .written_resolution`, the last decimal place, as the noise's rounding reads it): a curve whose rise over the run
+    is below the last printed digit prints one value there, rising or not.  A hold at the top (the
     strain within ``tol``: the 30 fps frames of a step-and-hold test, Singal 2024's acrylic stockinette X run 3
     holding 29.38 N over 5 rows) is no flat top.  The rows are what the file measured at the limit, not the knit's
     force: a fit reads them as a knit that stopped stiffening (a probe's pull clipped at 80 % of its peak over its
@@ -540,7 +535,7 @@ def flat_tops(strain, force, tol: float) -> list[tuple[int, int]]:
     s, f = np.asarray(strain, float), np.asarray(force, float)
     if len(f) < FLAT_TOP_ROWS:
         return []
-    top, q = float(np.max(f)), force_resolution(f)
+    top, q = float(np.max(f)), written_resolution(f)
     at = np.r_[False, f == top, False]
     edges = np.flatnonzero(np.diff(at.astype(int)))
     runs = []
