@@ -150,6 +150,10 @@ _OPENING_BISECTIONS = wp.constant(OPENING_BISECTIONS)
 #: rounds and relative tolerance of the secant on B(C) at a located event (bending_fixed_point)
 _BEND_ROUNDS = wp.constant(20)
 _BEND_RTOL = wp.constant(wp.float64(1.0e-13))
+#: the secant also stops where it no longer gains within this relative tolerance (the event solve's own
+#: noise in C; its conditions are met to NEWTON_TOL, 1e-11 of d, and an ill-conditioned event C follows them
+#: more loosely)
+_BEND_NOISE_RTOL = wp.constant(wp.float64(1.0e-10))
 
 #: condition code of the Dahl residual in a condition set (quantity codes are >= 0)
 COND_DAHL = wp.constant(-1)
@@ -1130,6 +1134,8 @@ def bending_fixed_point(x: vec5d, q: vecQd, st: int, codes: wp.vec4i, tg: vec4d,
     cb = C
     gb = wp.float64(0.0)
     tol = _BEND_RTOL * wp.max(wp.float64(1.0), wp.abs(C))
+    floor = _BEND_NOISE_RTOL * wp.max(wp.float64(1.0), wp.abs(C))
+    g_last = wp.float64(0.0)
     settled = bool(False)
     if s == STATUS_CONVERGED:
         ga = qn[Q_C] - ca
@@ -1139,8 +1145,14 @@ def bending_fixed_point(x: vec5d, q: vecQd, st: int, codes: wp.vec4i, tg: vec4d,
         if s == STATUS_CONVERGED and not settled:
             xn, qn, s = newton(xn, codes, tg, dp, stiffness_at(mat, cb), mat.d)
             if s == STATUS_CONVERGED:
+                g_last = gb
                 gb = qn[Q_C] - cb
                 if wp.abs(gb) <= tol:
+                    settled = True
+                elif k > 0 and wp.abs(gb) <= floor and wp.abs(gb) >= wp.abs(g_last):
+                    # the secant no longer gains: g is at the noise of the event's own solve (its C to
+                    # NEWTON_TOL of an ill-conditioned event condition, e.g. F = 0 at the slack point), where
+                    # it wanders by 1e-12..2e-11 mm round after round and never meets the 1e-13 above
                     settled = True
                 else:
                     cn = qn[Q_C]  # the plain fixed point where the secant's slope is degenerate
@@ -1490,6 +1502,33 @@ def solve_dahl_at(x: vec5d, q_old: vecQd, jammed: int, soft: int, fs: wp.float64
             s = wp.float64(-1.0)
             ok = True
     return xn, qn, s, ok
+
+
+@wp.func
+def dahl_event_by_bisection(x: vec5d, q_old: vecQd, s: wp.float64, jammed: int, soft: int, fs: wp.float64,
+                            mat: Material, C_from: wp.float64, C_goal: wp.float64, kind: int, stage: int):
+    """An event of a Dahl sub-step under bending hysteresis located by bisection on its sign, where the
+    event solve with C free (solve_dahl, B(C) by bending_fixed_point) failed: its event C follows the B at
+    which it is read so steeply (d C_e / d c ~ -100 at a slack point while B falls fast after a reversal) that
+    the secant runs off.  Each point is solved at its C imposed, so B is that of its own C exactly; the event
+    value is <= 0 at C_from (the sub-step's start) and > 0 at C_goal (its end); a point with no solution
+    counts as past the event (as branch_sign_change).  Returns (x_a, q_a): the last point before the
+    event, within OPENING_XTOL max(1, C) of it (the start itself where no point before it is found)."""
+    xa = x
+    qa = q_old
+    Ca = C_from
+    Cb = C_goal
+    for k in range(_OPENING_BISECTIONS):
+        if wp.abs(Cb - Ca) > _OPENING_XTOL * wp.max(wp.float64(1.0), wp.abs(Cb)):
+            Cm = wp.float64(0.5) * (Ca + Cb)
+            xm, qm, okm = solve_dahl(xa, q_old, s, jammed, soft, fs, mat, Cm, -1, wp.float64(0.0))
+            if okm and event_value(kind, xm, qm, stage, mat) <= wp.float64(0.0):
+                xa = xm
+                qa = qm
+                Ca = Cm
+            else:
+                Cb = Cm
+    return xa, qa
 
 
 @wp.func
@@ -2358,6 +2397,10 @@ def _advance_cell_variant(regular_only: bool, sliced: bool = False):
                                                 xe, qe, oke = solve_dahl(xg, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
                                                 if not oke:
                                                     xe, qe, oke = solve_dahl(xt, tq, se, tjam, tsoft, tfs, matg, Ck, code, etg)
+                                                if bends(matg) and not (oke and in_range(qe[Q_C], tC, Ck)):
+                                                    xe, qe = dahl_event_by_bisection(tx, tq, se, tjam, tsoft, tfs, matg, tC, Ck, kind,
+                                                                                     tstage)
+                                                    oke = True
                                                 if not (oke and in_range(qe[Q_C], tC, Ck)):
                                                     failed = True  # the reference's root search raises
                                                 elif best_kind < 0 or wp.abs(qe[Q_C] - tC) < wp.abs(best_C - tC):
