@@ -33,6 +33,9 @@ _COLUMNS = ("F0_N", "F1_N", "V_mm_s", "direction")
 #: reads a tester's ``Load (N)`` (knitsim.io.table_input.LAB_ALIASES)
 CAPSTAN_ALIASES = {"F0_N": ("f0", "t0", "input tension"), "F1_N": ("f1", "t1", "output tension"),
                    "V_mm_s": ("v", "velocity", "speed")}
+#: the tensions, read in any force unit the file states (mN, cN, kN, gf: knitsim.io.units, the table ``knitsim dahl
+#: fit`` converts by) and converted to N
+_FORCES = ("F0_N", "F1_N")
 
 
 def _add_discretisation(parser: argparse.ArgumentParser) -> None:
@@ -107,13 +110,60 @@ def register(subparsers) -> None:
 
 
 
+def _force_columns(path) -> dict[str, tuple[str, float, str]]:
+    """The tensions a lab states in another force unit than N (``F0 [cN]``, ``T1`` over a units row's ``mN``): for
+    each of ``F0_N`` and ``F1_N`` so stated, the name to ask the reader for, the factor to N and its read note.  The
+    units are :mod:`knitsim.io.units`', ``knitsim dahl fit``'s: before, a capstan file in cN was refused where that
+    command converted a force in cN.  Our own names (``F0_N``) say their unit; one stated beside them is checked by
+    the reader, and a unit not known is refused by it naming the header."""
+    from ..io.table_input import header_candidates, split_unit
+    from ..io.units import identities, parse_unit
+
+    names = {c: {c.casefold(), *CAPSTAN_ALIASES[c]} for c in _FORCES}
+    for _, cells, units in header_candidates(path):
+        bare = [split_unit(c)[0].strip().casefold() for c in cells]
+        at = {c: [j for j, b in enumerate(bare) if b in names[c]] for c in _FORCES}
+        if not all(at.values()):
+            continue
+        out = {}
+        for c in _FORCES:
+            if len(at[c]) != 1 or bare[at[c][0]] == c.casefold() or units[at[c][0]] is None:
+                continue                     # (named twice, our own name, no unit stated: the reader says)
+            j = at[c][0]
+            unit = units[j].strip()
+            parsed = parse_unit(unit)
+            if parsed is None or parsed[0] != "force" or parsed[1] == 1.0:
+                continue
+            out[c] = (f"{split_unit(cells[j])[0]} [{unit}]", parsed[1],
+                      f"column {cells[j]!r} read as {c} in {unit}: x {parsed[1]:g} to N ({identities(unit)})")
+        return out
+    return {}
+
+
+def _read_records(path, names, numeric) -> tuple[dict, dict]:
+    """:func:`read_csv_columns` of the records' columns ``names`` (``numeric`` of them as numbers), the tensions in N
+    where the file states another force unit (:func:`_force_columns`), keyed by our names; and the factor each
+    tension was read by (1 for N), for its written resolution."""
+    forces = _force_columns(path)
+    asked = [forces[c][0] if c in forces else c for c in names]
+    cols = read_csv_columns(path, asked, numeric=[a for a, c in zip(asked, names) if c in numeric],
+                            aliases=CAPSTAN_ALIASES)
+    notes = [forces[c][2] for c in names if c in forces] + list(getattr(cols, "notes", ()))
+    for a, c in zip(asked, names):
+        if c in forces:
+            v = cols.pop(a)
+            cols[c] = v * forces[c][1] if c in numeric else v
+    cols.notes = tuple(notes)
+    return cols, {c: forces[c][1] if c in forces else 1.0 for c in _FORCES}
+
+
 def _resolution(path, rows) -> np.ndarray:
     """Per-record resolution [N] of F1_N - F0_N: half the last digit written in each of the two cells.
 
     ``rows`` are the spreadsheet rows of the records read as numbers; the cells are read again as text.
     """
-    raw = read_csv_columns(path, ("F0_N", "F1_N"), numeric=(), aliases=CAPSTAN_ALIASES)
-    res = {int(r): capstan.decimal_resolution(a) + capstan.decimal_resolution(b)
+    raw, to_N = _read_records(path, ("F0_N", "F1_N"), numeric=())
+    res = {int(r): to_N["F0_N"] * capstan.decimal_resolution(a) + to_N["F1_N"] * capstan.decimal_resolution(b)
            for r, a, b in zip(raw["_row"], raw["F0_N"], raw["F1_N"])}
     return np.array([res.get(int(r), 0.0) for r in rows])
 
@@ -249,13 +299,13 @@ def _run_fit(args) -> int:
             raise KnitsimInputError(f"--fix-p = {args.fix_p:g}: must be in [{lo:g}, {hi:g}] (|p| <= 1, the fit's "
                                     "box for the velocity exponent)")
     disc = _discretisation(args)
-    cols = read_csv_columns(args.file, _COLUMNS, numeric=_COLUMNS[:3], aliases=CAPSTAN_ALIASES)
-    read_notes = list(getattr(cols, "notes", ()))         # a lab's column names read as ours: said
+    cols, _ = _read_records(args.file, _COLUMNS, numeric=_COLUMNS[:3])
+    read_notes = list(getattr(cols, "notes", ()))         # a lab's column names (and force units) read as ours: said
     wrap = check_wrap_column(args.file)                   # a wrap stated beside the records: the rig's, or refused
     read_notes += [wrap] if wrap else []
     # F1's own last digit (F0 repeats between replicates: the same dead weight)
-    raw = read_csv_columns(args.file, ("F1_N",), numeric=(), aliases=CAPSTAN_ALIASES)
-    f1_res = {int(r): capstan.decimal_resolution(c) for r, c in zip(raw["_row"], raw["F1_N"])}
+    raw, to_N = _read_records(args.file, ("F1_N",), numeric=())
+    f1_res = {int(r): to_N["F1_N"] * capstan.decimal_resolution(c) for r, c in zip(raw["_row"], raw["F1_N"])}
     cols, copies = _drop_copies(cols, np.array([f1_res.get(int(r), 0.0) for r in cols["_row"]]))
     res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
                                    disc, fix_p=args.fix_p, source=str(args.file),

@@ -41,90 +41,23 @@ from ..friction.dahl import ALPHA_MAX, ALPHA_MIN, DahlParams, fit_dahl_loop, kes
 from ..friction.identification import FLAG_TEXT
 from ..io.results import add_output_flags, prepare_output_file
 from ..io.table_input import has_columns, header_candidates, notes_of, split_unit, stated_units
+from ..io.units import CM_MM, GF_N, INTERNAL_UNIT, parse_unit
+from ..io.units import identities as _identities
 from .common import add_json_flag, plain_help, print_json, read_csv_columns
 
 KES_COLUMNS = ("kappa_1_mm", "M_N_mm_per_mm")
 XF_COLUMNS = ("x_mm", "F_N")
-#: gram-force [N] and centimetre [mm]: the KES units of the paper's table
-GF_N = 9.80665e-3
-CM_MM = 10.0
 #: KES-FB2 pure-bending range, +-2.5 1/cm, in 1/mm
 KES_AMPLITUDE_1_MM = 2.5 / CM_MM
 #: a kappa_1_mm column beyond this many times the KES range is warned of as a curvature in 1/cm
 KES_UNIT_CHECK = 4.0
 
-#: lengths a column's unit may be written in, in mm (casefold): 1 cm = 10 mm, 1 m = 1000 mm, 1 um = 1e-3 mm
-_LENGTH_MM = {"mm": 1.0, "cm": CM_MM, "m": 1000.0, "um": 1e-3, "\u00b5m": 1e-3, "\u03bcm": 1e-3}
-#: forces, in N (casefold): 1 gf = 1 g x 9.80665 m/s^2 (standard gravity) = 9.80665e-3 N; 1 mN = 1e-3 N,
-#: 1 cN = 1e-2 N, 1 kN = 1e3 N
-_FORCE_N = {"n": 1.0, "mn": 1e-3, "cn": 1e-2, "kn": 1e3, "gf": GF_N}
-_L = "(" + "|".join(sorted(_LENGTH_MM, key=len, reverse=True)) + ")"
-_F = "(" + "|".join(sorted(_FORCE_N, key=len, reverse=True)) + ")"
-#: the quantities a column may hold, with the unit it is read in inside (KES: curvature, moment per width)
-INTERNAL_UNIT = {"curvature": "1/mm", "moment per width": "N.mm/mm", "displacement": "mm", "force": "N"}
 #: dimensionless units (a column stated so is read as it is, in the columns' own units)
 _NO_UNIT = ("-", "1", "", "mm/mm", "m/m")
 #: what to write, for a refusal
 _WHAT_TO_WRITE = ("write a KES loop as a curvature in 1/cm or 1/mm ('K [1/cm]') and a bending moment per width "
                   "in gf cm/cm or N mm/mm ('M [gf cm/cm]'), or a loop of a displacement in mm, cm or m and a force "
                   "in N, mN, cN or gf ('x [mm]', 'F [N]')")
-
-
-def parse_unit(unit: str) -> tuple[str, float] | None:
-    """The quantity a column's unit says and the factor that converts it to the internal unit.
-
-    Parameters
-    ----------
-    unit : str
-        As a header writes it: ``1/cm``, ``cm^-1``, ``gf cm/cm``, ``gf.cm/cm``, ``N mm/mm``, ``mm``, ``gf``.
-
-    Returns
-    -------
-    (str, float) or None
-        A key of :data:`INTERNAL_UNIT` and the factor (value in the internal unit = factor x value as
-        written), ``("moment", factor to N.mm)`` for a moment not per unit width (refused by the caller: it
-        needs the specimen's width), or None for a unit not known.
-
-    Notes
-    -----
-    The factors follow from 1 gf = 9.80665e-3 N and 1 cm = 10 mm: a curvature in 1/cm is 1/(10 mm), so
-    x 0.1 to 1/mm; a moment per width in gf.cm/cm is 9.80665e-3 N x 10 mm / 10 mm, so x 9.80665e-3 to
-    N.mm/mm (the widths' cm cancel the lever arm's; the same number as gf -> N).
-    """
-    parts = _unit_parts(unit)
-    if parts is None:
-        return None
-    quantity, force, lengths = parts
-    if quantity == "curvature":
-        return quantity, 1.0 / _LENGTH_MM[lengths[0]]
-    if quantity == "displacement":
-        return quantity, _LENGTH_MM[lengths[0]]
-    if quantity == "force":
-        return quantity, _FORCE_N[force]
-    if quantity == "moment per width":
-        return quantity, _FORCE_N[force] * _LENGTH_MM[lengths[0]] / _LENGTH_MM[lengths[1]]
-    return quantity, _FORCE_N[force] * _LENGTH_MM[lengths[0]]
-
-
-def _unit_parts(unit: str) -> tuple[str, str | None, tuple[str, ...]] | None:
-    """:func:`parse_unit`'s reading of a unit: the quantity, its force unit (None for a length or a curvature) and
-    its length units, as keys of :data:`_FORCE_N` and :data:`_LENGTH_MM`; None for a unit not known."""
-    u = unit.casefold().strip()
-    for sep in ("\u00b7", "\u22c5", "*", "\u00d7", " "):    # a middle dot, a star, a space: one product, gf.cm
-        u = u.replace(sep, ".")
-    u = re.sub(r"\.+", ".", u).strip(".").replace("./", "/").replace("/.", "/")
-    u = u.replace("\u207b\u00b9", "^-1").replace("**-1", "^-1")
-    if m := re.fullmatch(rf"1/{_L}|{_L}\^?-1", u):
-        return "curvature", None, (m.group(1) or m.group(2),)
-    if m := re.fullmatch(_L, u):
-        return "displacement", None, (m.group(1),)
-    if m := re.fullmatch(_F, u):
-        return "force", m.group(1), ()
-    if m := re.fullmatch(rf"{_F}\.?{_L}/{_L}", u):
-        return "moment per width", m.group(1), (m.group(2), m.group(3))
-    if m := re.fullmatch(rf"{_F}\.?{_L}", u):
-        return "moment", m.group(1), (m.group(2),)
-    return None
 
 
 def register(subparsers) -> None:
@@ -329,21 +262,6 @@ def _columns_read(found: dict, names: tuple[str, str], where: str) -> tuple[list
             f"{where}: the column {known[0]['header']!r} states its unit ({known[0]['unit']}) and {other['header']!r} "
             f"does not: state it ({_WHAT_TO_WRITE})")
     return cols, None
-
-
-def _identities(unit: str) -> str:
-    """The identities that make a unit's factor to the internal unit: ``1 gf = 0.00980665 N; cm/cm = mm/mm``,
-    ``1 m = 1000 mm``, ``1 cN = 0.01 N`` (a probe's 'K [1/m]' was said converted by "1 cm = 10 mm", 'F [cN]' by
-    "1 gf = 9.80665e-3 N")."""
-    _, force, lengths = _unit_parts(unit)
-    out = []
-    if force is not None and force != "n":
-        out.append(f"1 {force[:-1] + 'N' if force.endswith('n') else force} = {_FORCE_N[force]:g} N")
-    if len(lengths) == 2:            # per width: the lever arm's length over the width's
-        out.append(f"{lengths[0]}/{lengths[1]} = {_LENGTH_MM[lengths[0]] / _LENGTH_MM[lengths[1]]:g} mm/mm")
-    elif lengths and _LENGTH_MM[lengths[0]] != 1.0:
-        out.append(f"1 {lengths[0]} = {_LENGTH_MM[lengths[0]]:g} mm")
-    return "; ".join(out)
 
 
 def _read_note(col: dict) -> str:

@@ -253,7 +253,8 @@ def test_a_labs_headers_with_units_are_read_and_a_wrong_unit_refused(tmp_path, c
     ';', decimal commas, CRLF, a preamble), the columns named T0, T1, V with a units row (N, N, mm/s), and an
     operator column.  Before: refused as "missing column(s) F0_N, F1_N, V_mm_s".  Now the same fit as the
     bundled file (the same numbers, so the same b, p, n exactly), the names read said on the console; a column
-    in kN or m/min is refused naming the unit and the header to write."""
+    in m/min is refused naming the unit and the header to write (a force in kN is converted:
+    test_tensions_in_cn_mn_or_kn_are_converted_as_dahl_fit_converts)."""
     src = (REPO / "scenes/capstan/e_glass_table2.csv").read_text().splitlines()[1:]
     rows = [r.split(",") for r in src]
     text = "\ufeffSpecimen;E-glass A\r\nT0;T1;V;direction;operator\r\n(N);(N);(mm/s);;\r\n" + "".join(
@@ -274,8 +275,42 @@ def test_a_labs_headers_with_units_are_read_and_a_wrong_unit_refused(tmp_path, c
     (tmp_path / "kn.csv").write_text("F0 [kN],F1 [kN],V [m/min],direction\n" + "\n".join(src) + "\n")
     assert main(["capstan", "fit", str(tmp_path / "kn.csv")]) == 2
     err = capsys.readouterr().err
-    assert "'F0 [kN]' is not read as F0_N: 'kN' is not its unit (convert the column: 'F0 (N)')" in err
     assert "'V [m/min]' is not read as V_mm_s: 'm/min' is not its unit (convert the column: 'V (mm/s)')" in err
+    assert "F0_N" not in err.split("missing column(s)")[1].split("(found")[0]
+
+
+def test_tensions_in_cn_mn_or_kn_are_converted_as_dahl_fit_converts(tmp_path, capsys):
+    """Table 2's e-glass records (scenes/capstan/e_glass_table2.csv) with the tensions written in cN (x 100, brackets),
+    in mN (x 1000, a units row under a lab's T0;T1 header) and in kN (/ 1000): the same numbers once read (1 cN = 0.01
+    N, 1 mN = 1e-3 N, 1 kN = 1e3 N: knitsim.io.units, the table knitsim dahl fit converts by), so the same b, p, n as
+    the bundled file in N, within the float rounding of the conversion, and the conversion said on a read: line.
+    Before, every such file was refused as "missing column(s) F0_N, F1_N" ('cN' is not its unit), though `knitsim dahl
+    fit` converts a force in cN or mN."""
+    from decimal import Decimal
+
+    src = [r.split(",") for r in (REPO / "scenes/capstan/e_glass_table2.csv").read_text().splitlines()[1:]]
+    ref = _json(capsys, ["capstan", "fit", str(REPO / "scenes/capstan/e_glass_table2.csv"), "--json"])
+
+    def scaled(cell, power):              # the written digits moved by a power of ten: exactly the same number
+        return format(Decimal(cell).scaleb(power), "f")
+
+    files = {"cn.csv": "F0 [cN],F1 [cN],V [mm/s],direction\n" + "".join(
+                 f"{scaled(a, 2)},{scaled(b, 2)},{v},{d}\n" for a, b, v, d in src),
+             "mn.csv": "T0;T1;V;direction\nmN;mN;mm/s;\n" + "".join(
+                 f"{scaled(a, 3)};{scaled(b, 3)};{v};{d}\n" for a, b, v, d in src),
+             "kn.csv": "F0 (kN),F1 (kN),V (mm/s),direction\n" + "".join(
+                 f"{scaled(a, -3)},{scaled(b, -3)},{v},{d}\n" for a, b, v, d in src)}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+        got = _json(capsys, ["capstan", "fit", str(tmp_path / name), "--json"])
+        assert got["records"] == 8
+        for k in "bpn":
+            assert got[k] == pytest.approx(ref[k], rel=1e-6), (name, k)
+        unit = {"cn.csv": "cN", "mn.csv": "mN", "kn.csv": "kN"}[name]
+        factor = {"cN": "0.01", "mN": "0.001", "kN": "1000"}[unit]
+        assert any(f"read as F1_N in {unit}: x {factor} to N (1 {unit} = {factor} N)" in n for n in got["read_notes"])
+    assert main(["capstan", "fit", str(tmp_path / "cn.csv")]) == 0
+    assert "  read: column 'F0 [cN]' read as F0_N in cN: x 0.01 to N (1 cN = 0.01 N)" in capsys.readouterr().out
 
 
 def _with_wrap(tmp_path, header: str, values) -> Path:
