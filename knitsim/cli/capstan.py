@@ -309,7 +309,8 @@ def _run_fit(args) -> int:
     cols, copies = _drop_copies(cols, np.array([f1_res.get(int(r), 0.0) for r in cols["_row"]]))
     res = capstan.fit_friction_law(cols["F0_N"], cols["F1_N"], cols["V_mm_s"], list(cols["direction"]),
                                    disc, fix_p=args.fix_p, source=str(args.file),
-                                   resolution_N=_resolution(args.file, cols["_row"]), rows=cols["_row"])
+                                   resolution_N=_resolution(args.file, cols["_row"]), rows=cols["_row"],
+                                   reading_resolution_N=[f1_res.get(int(r), 0.0) for r in cols["_row"]])
     status = 0 if res.usable else 1
     if args.json:
         out = res.as_dict()

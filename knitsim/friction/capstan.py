@@ -616,7 +616,8 @@ def validate_records(F0: Sequence[float], F1: Sequence[float], V: Sequence[float
 
 def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRETISATION,
                      fix_p: float | None = None, x0: Sequence[float] = (0.15, 0.01, 0.93),
-                     source: str = "records", resolution_N=None, rows=None) -> FitResult:
+                     source: str = "records", resolution_N=None, rows=None,
+                     reading_resolution_N=None) -> FitResult:
     """Identify ``(b, p, n)`` of eq 5 from capstan records (Table 3).
 
     Least squares on the load-cell tension ``F1`` (the paper fitted its raw F1
@@ -651,6 +652,11 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
         only to recognise records without friction.
     rows : array_like of int, optional
         Spreadsheet row of each record, for error messages.
+    reading_resolution_N : float or array_like, optional
+        Half the last digit written of each ``F1`` [N] (``"10.45"``: 0.005): the readings' rounding, a variance
+        ``h^2 / 3`` each (a uniform error in ``[-h, h]``).  Where ``s^2`` is below its mean (residuals below what
+        the written digits allow), the covariance is the rounding's, ``A J^T diag(h^2 / 3) J A``, ``A = (J^T J)^-1``:
+        the standard errors the written digits allow, not ~0.
     """
     if fix_p is not None:
         fp = float(fix_p)
@@ -742,8 +748,22 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
             "what a law of the fit's box (b <= 10, |p| <= 1, 0.3 <= n <= 1) makes over the crossings)")
     dof = m - k
     s2 = 2.0 * res.cost / dof
+    # the readings' rounding: F1 written to 0.01 N is known to +-0.005 N at best, a variance h^2 / 3 per reading
+    # that no fit removes.  Residuals below it (records that fit to the last digit, e.g. made by a model and
+    # rounded) set s^2 below what the written digits allow: a probe's 4 rounded records, 1 dof, gave b, p and n
+    # "+/- 1e-16", identified
+    q = np.zeros(m)
+    if reading_resolution_N is not None:
+        h = np.broadcast_to(np.asarray(reading_resolution_N, dtype=float), F1.shape)
+        q = np.where(np.isfinite(h), h, 0.0) ** 2 / 3.0
+    rounding_floor = s2 < float(np.mean(q))
     J = res.jac
     cov = covariance(J, s2)                       # infinite where J is singular: the data do not set the parameters
+    if rounding_floor:
+        # the rounding's own covariance, each reading's h_i^2 / 3 carried through the least-squares estimate:
+        # (J^T J)^-1 J^T diag(q) J (J^T J)^-1 (one q for every reading: q (J^T J)^-1)
+        A = covariance(J, 1.0)
+        cov = A @ (J.T * q) @ J @ A if np.all(np.isfinite(A)) else A
     # the sandwich (HC3) covariance holds where the noise is not one sd for every record: a load cell's
     # scatter grows with its reading, and the paper's records span 6.31 to 12.62 N.  With 0.5 % relative
     # noise the pooled s^2 gave p's standard error at half its spread over 60 noise draws, and a 5 SE
@@ -768,7 +788,8 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
             corr[i, j] = c[a_i, a_j]
     params = tuple(float(v) for v in full(res.x))
     status, warns = parameter_status(PARAM_NAMES, params, se, FIT_LOWER, FIT_UPPER,
-                                     fixed=("p",) if fix_p is not None else (), exact_fit=res.cost == 0.0,
+                                     fixed=("p",) if fix_p is not None else (),
+                                     exact_fit=res.cost == 0.0 and not np.any(q > 0.0),
                                      positive=("b",))
     # what makes the law not usable: a parameter the data do not set, the optimiser's failure, residuals
     # beyond the test's scatter (the zero-residual note is a caveat on the standard errors, not a flag)
@@ -796,6 +817,10 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     if not res.success:
         warns.append(f"the optimiser did not converge: {res.message}")
         flags.append(warns[-1])
+    if rounding_floor:
+        warns.append(f"the residuals (RMS {np.sqrt(2.0 * res.cost / m):.3g} N) are below the rounding of the F1 "
+                     f"readings as written (RMS {math.sqrt(float(np.mean(q))):.2g} N, half a last digit over sqrt(3) "
+                     "each): the standard errors are those of that rounding, the least the written digits allow")
     gof = goodness_of_fit(F0, F1, V, signs, res.fun, dof)
     for w in gof.pop("flags"):
         warns.append(w)
@@ -909,7 +934,7 @@ def goodness_of_fit(F0, F1, V, signs, residuals, dof: int) -> dict:
                 f"the residuals (RMS {np.sqrt(np.mean(r ** 2)):.3g} N) are far below the capstan test's scatter "
                 f"(chi2 = {chi:.3g} on {dof} dof, P(chi2 this small) = {low:.1g}): a more repeatable test than "
                 "the paper's, or records that are not raw measurements (averaged, rounded, or made by a model); "
-                "the standard errors rest on the residuals, not on that scatter")
+                "the standard errors rest on the residuals (or the readings' rounding, where larger), not on that scatter")
         if p < GOF_ALPHA and not lof_flagged:
             out["flags"].append(
                 f"the residuals (RMS {np.sqrt(np.mean(r ** 2)):.3g} N) are far above the capstan test's scatter "

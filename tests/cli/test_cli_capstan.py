@@ -361,3 +361,21 @@ def test_a_wrap_column_other_than_the_rig_is_refused(tmp_path, capsys):
     assert "a wrap angle without a unit" in capsys.readouterr().err
     got = _json(capsys, ["capstan", "fit", str(_with_wrap(tmp_path, "coiling angle [deg]", [110] * 8)), "--json"])
     assert got["b"] == plain["b"] and got["read_notes"] == []
+
+
+def test_standard_errors_floored_by_the_written_digits_of_f1(tmp_path, capsys):
+    """Three conditions and a replicate written to 0.01 N that the law fits exactly (residual 4e-16 N): before,
+    `capstan fit` printed b "+/- 3.7e-16", identified.  The F1 cells' own last digit (half of it, h) now floors the
+    residual variance at h^2 / 3: the same values written with one more digit (h 10 times smaller) give standard
+    errors 10 times smaller (an identity of the formula sqrt(h^2 / 3 diag((J^T J)^-1)), J the same), said in a warning."""
+    rows = [("11.0", "17.18", "0.2", "ascent"), ("10.0", "6.03", "10", "descent"), ("11.0", "17.18", "0.2", "ascent"),
+            ("12.62", "7.66", "10", "descent")]
+    got = {}
+    for extra in ("", "0"):
+        path = tmp_path / f"exact{extra}.csv"
+        path.write_text("F0_N,F1_N,V_mm_s,direction\n" + "".join(f"{a},{b}{extra},{v},{d}\n" for a, b, v, d in rows))
+        got[extra] = _json(capsys, ["capstan", "fit", str(path), "--json"])
+    for k in "bpn":
+        assert got[""][f"{k}_stderr"] > 1e-4 * got[""][k]
+        assert got[""][f"{k}_stderr"] / got["0"][f"{k}_stderr"] == pytest.approx(10.0, rel=1e-6)
+    assert any("below the rounding of the F1 readings" in w for w in got[""]["warnings"])

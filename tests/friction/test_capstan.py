@@ -309,6 +309,36 @@ def test_standard_errors_match_the_analytic_jacobian(records):
     np.testing.assert_allclose(res.stderr, np.sqrt(s2 * np.sum(Ri ** 2, axis=1)), rtol=rtol)
 
 
+def test_standard_errors_are_at_least_those_of_the_readings_rounding():
+    """Three test conditions and a replicate of one, F1 from Table 3's e-glass law (eq 4's fine march) written to
+    0.01 N as a lab writes it, the replicate with the same digits: three parameters fit the three conditions exactly
+    (residual ~1e-16 N), and s^2 = SSR / dof gave b, p and n "+/- 1e-16", identified.  The readings are known to
+    +-0.005 N at best, a variance h^2 / 3 each (uniform rounding error in [-h, h]): the standard errors are now
+    sqrt(diag(h^2 / 3 (J^T J)^-1)), checked against that formula on the analytic Jacobian of the march (forward
+    sensitivities, inverted by QR) at the fitted point, within 1e-4; and the same digits with one more written
+    (17.180: h = 0.0005) give 10 times smaller ones.  Without a resolution given the fit is as before."""
+    disc = cap.Discretisation(layout="uniform", steps=24, exact=False)
+    law = cap.table3_params("e_glass")
+    F0, V, d = [6.31, 12.62, 6.31, 6.31], [0.2, 0.2, 10.0, 0.2], ["ascent", "ascent", "descent", "ascent"]
+    F1 = [round(cap.predict_f1(f, v, x, *law, disc), 2) for f, v, x in zip(F0, V, d)]
+    bare = cap.fit_friction_law(F0, F1, V, d, disc)
+    assert bare.rms_N < 1e-12 and max(bare.stderr) < 1e-10          # the exact fit, as before
+    res = cap.fit_friction_law(F0, F1, V, d, disc, reading_resolution_N=0.005)
+    assert res.params == pytest.approx(bare.params, rel=1e-12)
+    J = np.array([_f1_and_jacobian_eq4(f, v, x, *res.params, disc)[1] for f, v, x in zip(F0, V, d)])
+    Ri = scipy.linalg.solve_triangular(np.linalg.qr(J, mode="r"), np.eye(3))
+    np.testing.assert_allclose(res.stderr, np.sqrt(0.005 ** 2 / 3.0 * np.sum(Ri ** 2, axis=1)), rtol=1e-4)
+    assert res.identified and res.usable
+    assert any("below the rounding of the F1 readings" in w for w in res.warnings)
+    finer = cap.fit_friction_law(F0, F1, V, d, disc, reading_resolution_N=[0.0005] * 4)
+    np.testing.assert_allclose(np.array(res.stderr) / np.array(finer.stderr), 10.0, rtol=1e-9)
+    # residuals above the rounding: the floor changes nothing (Table 2's e-glass records, written to 1e-6 N)
+    r = cap.table2_records("e_glass")
+    a = cap.fit_friction_law(r["F0_N"], r["F1_N"], r["V_mm_s"], list(r["direction"]), disc)
+    b = cap.fit_friction_law(r["F0_N"], r["F1_N"], r["V_mm_s"], list(r["direction"]), disc, reading_resolution_N=5e-7)
+    assert a.stderr == b.stderr
+
+
 def test_speeds_proportional_to_the_dead_weight_identify_neither_p_nor_n():
     """Records at (F0, V) = (6.31 N, 1), (12.62, 2), (25.24, 4) mm/s, ascent, 3 repeats each, of Table 3's e-glass
     law with 0.3 % noise.  By hand: eqs 3-5 are homogeneous in the tension, so F1 / F0 depends on b V^p F0^(n-1) (and

@@ -57,22 +57,25 @@ def test_descent_crossing_beyond_the_stop_limit_is_refused_not_nan():
 
 def test_fit_of_a_friction_ratio_of_20_succeeds(tmp_path, capsys):
     # The probe's mu_20.csv without its speed factor: F1/F0 = 20 on ascent, 1/20 on descent, at two F0
-    # and three speeds.  F1/F0 does not depend on F0 (Amontons, n = 1: the bound of the box, flagged, exit
-    # 1) nor on V (p = 0); with n = 1 eq 3 gives 20 = ((1+t)/(1-t))^8, so b = t / tan(pi/16).  Before the
-    # fix the search met a law that stopped the yarn on descent and crashed in brentq (NaN).
+    # and three speeds.  F1/F0 does not depend on F0 (Amontons, n = 1) nor on V (p = 0); with n = 1 eq 3
+    # gives 20 = ((1+t)/(1-t))^8, so b = t / tan(pi/16).  Before the fix the search met a law that stopped
+    # the yarn on descent and crashed in brentq (NaN).  The records fit exactly: n's standard error was 0,
+    # and n = 1 flagged at the bound (exit 1); it is now the written digits' (126.2: +-0.05 N), 5e-5, and the
+    # data sit at the Amontons limit, a usable law bounded from one side (n_status amontons_limit, exit 0)
     r = 20.0 ** (1 / 8)
     b_expected = (r - 1) / (r + 1) / math.tan(_H)
     rows = [f"{F0},{F0 * 20:.10g},{V},ascent\n{F0},{F0 / 20:.10g},{V},descent\n"
             for F0 in (6.31, 12.62) for V in (0.2, 1, 10)]
     path = _csv(tmp_path, "".join(rows))
-    assert main(["capstan", "fit", path, "--json"]) == 1
+    assert main(["capstan", "fit", path, "--json"]) == 0
     cap_ = capsys.readouterr()
     out = json.loads(cap_.out)
     assert "Traceback" not in cap_.err
-    assert out["n"] == pytest.approx(1.0, abs=1e-3) and out["n_status"] == "at_upper_bound"
+    assert out["n"] == pytest.approx(1.0, abs=1e-3) and out["n_status"] == "amontons_limit"
+    assert 1e-6 < out["n_stderr"] < 1e-3
     assert out["b"] == pytest.approx(b_expected, rel=1e-4)
     assert abs(out["p"]) < 1e-4
-    assert out["usable"] is False
+    assert out["usable"] is True
 
 
 def test_fit_of_friction_ratio_30_at_one_newton_succeeds(tmp_path, capsys):
