@@ -119,8 +119,11 @@ def _read_map_csv(f: Path, path: str) -> tuple[np.ndarray, tuple[int, list[str]]
             labels = (r, cells)
             continue                                        # a row of labels
         for k, (c, v) in enumerate(zip(cells, vals), start=1):
-            if v is None or v == "text":
-                what = "empty" if v is None else f"{c!r} is not a number"
+            if v is None or v == "text" or not np.isfinite(v):
+                # (a NaN or inf cell, e.g. a spreadsheet's #NUM! written as NaN, named as an empty one is: a probe's
+                # map was refused as "the array must hold finite numbers only", no cell named)
+                what = ("empty" if v is None else f"{c!r} is not a number" if v == "text"
+                        else f"{c!r} is not a finite number")
                 raise _err(path, str(f), f"row {r}, column {k}: {what} (a map holds one number per cell, one row "
                                          f"per course, separated by {sep})")
         if rows and len(vals) != len(rows[0]):
@@ -164,8 +167,17 @@ def read_array_file(file: str | Path, shape: tuple[int, int], path: str,
                        "if it is a row of the map, write its cells as numbers")
         raise _err(path, str(file), f"array of shape {tuple(a.shape)}, expected {axes} = {tuple(shape)}{hint}"
                                     f"{skipped}")
-    if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
-        raise _err(path, str(file), "the array must hold finite numbers only")
+    if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
+        raise _err(path, str(file), f"an array of {a.dtype}: the map must hold real numbers")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        # the first cell that is not finite, and how many are not (a probe's NaN was refused as "the array must hold
+        # finite numbers only", the cell not named among 10^4)
+        from .model import cell_name
+        i, j = (int(v) for v in np.argwhere(bad)[0])
+        more = f" ({int(bad.sum())} cells in all)" if bad.sum() > 1 else ""
+        raise _err(path, str(file), f"{a[i, j]} at {cell_name(i, j, counted is not None, True)} (index [{i}, {j}])"
+                                    f"{more}: the map must hold finite numbers only")
     return a.astype(np.float64)
 
 

@@ -168,3 +168,24 @@ def test_a_map_csv_of_the_wrong_shape_names_the_row_it_skipped_as_labels(tmp_pat
     (tmp_path / "short.csv").write_text("1,2,3\n4,5,6\n")
     with pytest.raises(KnitsimInputError, match=r"shape \(2, 3\), expected \(courses, wales\) = \(4, 3\)$"):
         build_map({"type": "file", "path": "short.csv"}, SHAPE, 0.0, "maps.phi0", base_dir=tmp_path)
+
+
+def test_a_map_file_with_a_nan_names_the_cell(tmp_path):
+    """A NaN (or inf) in a map file is refused naming where it is: a .npy by its cell (course and wale; a specimen's
+    band and strip) and index, a CSV by its row and column as its other bad cells are.  Before: "the array must hold
+    finite numbers only", no cell named, among every cell of the map."""
+    a = np.full(SHAPE, 14.1)
+    a[2, 1] = np.nan
+    a[3, 0] = np.inf
+    np.save(tmp_path / "L.npy", a)
+    with pytest.raises(KnitsimInputError, match=r"nan at cell \[course 2, wale 1\] \(index \[2, 1\]\) \(2 cells in all\): "
+                                                r"the map must hold finite numbers only"):
+        build_map({"type": "file", "path": "L.npy"}, SHAPE, 1.0, "maps.L", base_dir=tmp_path)
+    with pytest.raises(KnitsimInputError, match=r"nan at block \[band 2, strip 1\]"):
+        build_map({"type": "file", "path": "L.npy"}, SHAPE, 1.0, "maps.L", base_dir=tmp_path,
+                  counted=("bands", "strips"))
+    rows = [";".join("14,1" for _ in range(3))] * 4
+    rows[2] = "14,1;NaN;14,1"
+    (tmp_path / "L.csv").write_text("course;a;b\n" + "\n".join(rows) + "\n")       # a row of labels first: row 4
+    with pytest.raises(KnitsimInputError, match=r"row 4, column 2: 'NaN' is not a finite number"):
+        build_map({"type": "file", "path": "L.csv"}, SHAPE, 1.0, "maps.L", base_dir=tmp_path)
