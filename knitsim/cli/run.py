@@ -80,6 +80,12 @@ def register(subparsers) -> None:
     p.set_defaults(func=_run)
 
 
+#: the keys that set each quantity of the domain's box (knitsim.cell.domain.quantity_name), named in a patch's
+#: outside_domain warning with the zone, map or table that set them
+_DOMAIN_KEYS = {"d": ("d",), "B": ("B",), "W0 / d_jam": ("W0", "d"), "C0 / d": ("C0", "d"),
+                "L / (2 C0 + W0 - 4 d)": ("L", "C0", "W0", "d"), "m": ("m",), "phi0": ("phi0", "m")}
+
+
 def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: bool = True,
                        cell_fields: bool = True, cells_increments: int | None = None,
                        origins: dict | None = None) -> list[dict]:
@@ -100,7 +106,7 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     """
     import numpy as np
 
-    from ..cell.domain import DOMAIN, check_cell_arrays
+    from ..cell.domain import DOMAIN, check_cell_arrays, quantity_name
     from ..patch.model import cell_name
     from ..scene.schema import fmt
 
@@ -117,6 +123,17 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
     check = check_cell_arrays(grouping.cells, engine=engine, device=device)
     cells_of = np.bincount(grouping.group_of_cell.ravel(), minlength=grouping.n_groups)
     caps = np.asarray(grouping.cells["force_cap_N"], dtype=np.float64)
+
+    def keys_of(i: int, j: int, named) -> str:
+        """``; that cell's K = V (the key that set it), ...`` of cell [i, j] for the keys ``named`` ("" without
+        the scene's origins)."""
+        if origins is None or not named:
+            return ""
+        unit = "block" if model.blocks else "cell"
+        return f"; that {unit}'s " + ", ".join(
+            f"{k} = {fmt(float(model.fields[k][i, j] if k in model.fields else caps[grouping.group_of_cell[i, j]]))} "
+            f"({origins[k][i, j]})" for k in named if k in origins)
+
     for bad, why_of, what, source, named in (
             (check.no_rest_mask, check.no_rest_reason, "have no admissible rest state", " (knitsim.cell.domain)",
              ("C0", "W0", "L", "phi0")),
@@ -128,19 +145,25 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
             # a specimen's block by band and strip, as its zones and maps index them (before, "course 1, wale 0")
             unit, where = ("block" if model.blocks else "cell"), cell_name(int(i), int(j), model.blocks)
             # the keys that set the cell (a zone's knit.L, a gradient map: a blind probe's refusal named neither)
-            keys = "" if origins is None or not named else f"; that {unit}'s " + ", ".join(
-                f"{k} = {fmt(float(model.fields[k][i, j] if k in model.fields else caps[grouping.group_of_cell[i, j]]))} "
-                f"({origins[k][i, j]})" for k in named)
+            keys = keys_of(int(i), int(j), named)
             raise KnitsimInputError(f"{n} of {n_cells} {unit}(s) {what}, e.g. {where}: "
                                     f"{why_of(int(grouping.group_of_cell[i, j]))}{source}{keys}")
     warnings = []
     out = check.outside_mask
     if out.any():
         by = ", ".join(f"{k} ({v})" for k, v in check.outside_counts(cells_of).items())
-        example = check.outside_reason(int(np.argmax(out)))
+        g = int(np.argmax(out))
+        # the example's cell and the keys that set its quantity (a blind probe's warning named neither: which of
+        # 10^4 cells, set by which zone or map?)
+        i, j = (int(v) for v in np.argwhere(grouping.group_of_cell == g)[0])
+        w = model.fields.get("in_plane_width")
+        named = _DOMAIN_KEYS[quantity_name(int(check.outside_code[g]))]
+        if "d" in named and w is not None and np.isfinite(w[i, j]) and named[0] == "W0":
+            named = ("W0", "in_plane_width")          # d_jam is the in-plane width where given
         warnings.append({"code": "outside_domain",
                          "message": f"extrapolation: {int(cells_of[out].sum())} of {n_cells} cell(s) outside the "
-                                    f"model's domain box, by quantity: {by}; e.g. {example}"})
+                                    f"model's domain box, by quantity: {by}; e.g. {cell_name(i, j, model.blocks, True)}: "
+                                    f"{check.outside_reason(g)}{keys_of(i, j, named)}"})
     why = DOMAIN.why_program_outside(grip_strains)
     if why is not None:
         warnings.append({"code": "outside_domain", "message": f"extrapolation: grip {why}"})

@@ -121,7 +121,10 @@ def _old_check_patch_domain(model, grip_strains, engine, device):
         if why is not None:
             name = why.split(" = ")[0]
             counts[name] = counts.get(name, 0) + int(cells_of[g])
-            example = example or why
+            if example is None:
+                # the example named by its first cell (course, wale), as check_patch_domain now names it
+                i, j = (int(v) for v in np.argwhere(grouping.group_of_cell == g)[0])
+                example = f"cell [course {i}, wale {j}]: {why}"
     if counts:
         n = int(sum(cells_of[g] for g, why in enumerate(outside) if why is not None))
         by = ", ".join(f"{k} ({v})" for k, v in counts.items())
@@ -267,6 +270,22 @@ def test_zones_with_cells_outside_the_box_warn_as_before():
     new = check_patch_domain(sc.model, [0.0, 0.7], "warp", "cpu", True)
     assert new == _old_check_patch_domain(sc.model, [0.0, 0.7], "warp", "cpu")
     assert len(new) == 2 and "m (2530)" in new[0]["message"] and "grip load strains" in new[1]["message"]
+    # with the scene's origins, the example's cell and the key that set the quantity outside (before: "e.g. m = 0.6
+    # outside the model's domain [0.05, 0.5]", neither the cell nor the zone named)
+    # (the base friction back inside the box: only the zone's cells outside)
+    assert named_example(sc, "e.g. cell [course 0, wale 0]: m = 0.02 outside the model's domain [0.05, 0.5] "
+                             "(knitsim.cell.domain); that cell's m = 0.02 (friction.m)")
+    del doc["friction"]["m"]
+    sc = load_patch_scene(doc)
+    named = check_patch_domain(sc.model, [0.0, 0.7], "warp", "cpu", True, origins=sc.origins)
+    i, j = (int(v) for v in np.argwhere(sc.model.fields["m"] == 0.6)[0])
+    assert named[0]["message"].endswith(f"e.g. cell [course {i}, wale {j}]: m = 0.6 outside the model's domain "
+                                        "[0.05, 0.5] (knitsim.cell.domain); that cell's m = 0.6 (zones[0].friction.m)")
+
+
+def named_example(sc, tail: str) -> bool:
+    """Whether check_patch_domain's outside_domain warning of scene ``sc``, given its origins, ends with ``tail``."""
+    return check_patch_domain(sc.model, [0.0, 0.7], "warp", "cpu", True, origins=sc.origins)[0]["message"].endswith(tail)
 
 
 @pytest.mark.parametrize("drop", [(), ("L ratio above, pulls",), ("L ratio above, pulls", "L ratio below")])
@@ -410,7 +429,7 @@ def test_the_warning_names_the_quantities_in_the_order_the_groups_first_hold_the
     model = _patch([known["inside"], known["m above"], known["d above"], known["B below"]], courses=4)
     new = check_patch_domain(model, STRAINS, "warp", "cpu", True)
     assert new == _old_check_patch_domain(model, STRAINS, "warp", "cpu")
-    assert "by quantity: m (4), d (4), B (4); e.g. m = 0.6" in new[0]["message"], new
+    assert "by quantity: m (4), d (4), B (4); e.g. cell [course 0, wale 1]: m = 0.6" in new[0]["message"], new
 
 
 def test_an_infinite_in_plane_width_of_a_patch_is_no_width_as_before():
