@@ -125,6 +125,7 @@ from ..diagnosis.calibrate import offset_of
 from ..diagnosis.effects import BASELINE_VARIABLES, EFFECT_SPECS, build_params, check_effects
 from ..diagnosis.measured import MeasuredCurve, program_for_curve, reachable_strain
 from ..errors import KnitsimInputError
+from ..friction.identification import covariance
 from .specimen import GEOMETRY, SpecimenData, check_reach, pretension_strain, refuse_repeated_tests
 
 #: yarn variables that may be shared (besides the effects' own)
@@ -1691,12 +1692,25 @@ def _covariance(problem: _Problem, x: np.ndarray, s2: float, rel_step: float = 1
         return np.full((k, k), np.nan)
     rows = np.repeat(info, [len(s.strain) for s in problem.sp])     # each specimen's rows, in their order
     w = np.concatenate([rows, np.ones(len(res[0]) - len(rows))])      # the priors' rows after them weigh 1
-    cov = s2 * np.linalg.pinv(J.T @ (w[:, None] * J))
-    # a variable the rows do not move (e.g. a jamming width never reached) is not identified: infinite sd
+    return weighted_covariance(J, w, s2)
+
+
+def weighted_covariance(J: np.ndarray, w: np.ndarray, s2: float) -> np.ndarray:
+    """``s2 (J^T diag(w) J)^-1`` by the capstan and Dahl fits' routine (:func:`knitsim.friction.identification.
+    covariance`, the SVD of ``sqrt(w) J``: infinite where it is singular), over the variables the rows move; a
+    variable they do not move (a column of ``J`` within 1e-9 of the largest's norm: a jamming width never
+    reached) has an infinite variance and no covariance, and leaves the others' as they are.
+
+    Before, the pseudo-inverse of ``J^T W J`` dropped a direction it could not invert: two variables that trade
+    exactly (columns proportional) each got a finite standard error, "identified", where the rows set only their
+    combination."""
+    k = J.shape[1]
     norms = np.linalg.norm(J, axis=0)
-    dead = norms <= 1e-9 * max(float(norms.max()), 1e-300)
-    cov[dead, :] = 0.0
-    cov[:, dead] = 0.0
+    dead = norms <= 1e-9 * max(float(norms.max()) if k else 0.0, 1e-300)
+    cov = np.zeros((k, k))
+    live = np.flatnonzero(~dead)
+    if live.size:
+        cov[np.ix_(live, live)] = covariance(np.sqrt(np.asarray(w, float))[:, None] * J[:, live], s2)
     cov[dead, dead] = np.inf
     return cov
 

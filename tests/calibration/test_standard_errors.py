@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from knitsim.calibration.joint import (JointSetup, _covariance, _fit_variables, _Problem, _reported,
-                                       _row_information, calibrate_joint, identification_rule)
+                                       _row_information, calibrate_joint, identification_rule, weighted_covariance)
 from knitsim.calibration.scene import load_calibration_scene
 from knitsim.calibration.specimen import SpecimenData
 
@@ -219,3 +219,26 @@ def test_a_step_that_leaves_the_admissible_cells_is_taken_the_other_way_or_its_s
     assert np.all(np.isnan(cov)) and unknown == ["B"] and np.all(np.isnan(zero_gradient[0]))
     rule = identification_rule(math.sqrt(cov[1, 1]), 0.05, 0.3, "", ", ".join(unknown))
     assert rule.startswith("its standard error is not known: B's finite-difference step"), rule
+
+
+# ------------------------------------------------ the covariance's matrix: the capstan and Dahl fits' routine
+def test_weighted_covariance_by_hand_and_a_singular_direction_not_identified():
+    """``s2 (J^T W J)^-1`` (knitsim.calibration.joint.weighted_covariance, by the SVD of sqrt(w) J as the capstan and Dahl
+    fits take theirs).  By hand: J = [[1, 2.5], [2, 4], [3, 6]], w = [4, 1, 1]: sqrt(w) J = [[2, 5], [2, 4], [3, 6]],
+    its J^T J = [[17, 36], [36, 77]], det 17 * 77 - 36^2 = 13, the inverse by the 2 x 2 cofactor formula; a third
+    column of zeros (a variable the rows do not move) is infinite and leaves the others so.  Two variables that trade
+    exactly (columns [1, 2, 3] and [2, 4, 6]: only their combination is set) are infinite, not identified
+    (identification_rule); before, the pseudo-inverse of J^T W J gave each a finite standard error (0.08 and 0.16 here),
+    "identified"."""
+    J = np.array([[1.0, 2.5, 0.0], [2.0, 4.0, 0.0], [3.0, 6.0, 0.0]])
+    w = np.array([4.0, 1.0, 1.0])
+    cov = weighted_covariance(J, w, 2.0)
+    np.testing.assert_allclose(cov[:2, :2], 2.0 * np.array([[77.0, -36.0], [-36.0, 17.0]]) / 13.0, rtol=1e-12)
+    assert cov[2, 2] == math.inf and np.all(cov[2, :2] == 0.0) and np.all(cov[:2, 2] == 0.0)
+    J[:, 1] = 2.0 * J[:, 0]
+    J[:, 2] = [1.0, 0.0, 1.0]
+    cov = weighted_covariance(J, np.ones(3), 1.0)
+    se = np.sqrt(np.diag(cov))
+    assert np.all(np.isinf(se[:2]))
+    for j in range(2):
+        assert identification_rule(float(se[j]), 0.0, 10.0) == "its standard error is not finite: the rows do not depend on it"
