@@ -918,7 +918,7 @@ def held_at_force_cap(force: np.ndarray, status: np.ndarray, cap_N, column_not_o
 def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells: int, cells_at_cap: int,
                       cells_stopped: int, columns: int, columns_at_cap: int, peak: float | None = None,
                       what: str = "cell", column: str = "column", unit: str = "N per wale",
-                      remedy: str = "") -> list[ResultWarning]:
+                      remedy: str = "", cap_text: str | None = None) -> list[ResultWarning]:
     """A warning when the force of a patch is its cells' force cap from some grip strain on.
 
     The cap stops a cell (status ``force_cap``), or holds a column that cannot pass it (not converged, its
@@ -943,6 +943,9 @@ def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells:
         and the unit of the forces.
     remedy : str
         Appended to the message (another way out, e.g. a smaller pretension).
+    cap_text : str, optional
+        The cap as the message says it, in place of ``cap_N`` in ``unit`` (a specimen's cap per wale of its
+        strip where a capped block's wales are not its strip's mean).
     """
     at = np.asarray(at_cap, bool)
     if not at.any():
@@ -955,6 +958,7 @@ def force_cap_reached(grip_strain: np.ndarray, at_cap: np.ndarray, cap_N, cells:
     else:
         caps = np.unique(np.asarray(cap_N, float).ravel())
         cap = f"{caps[0]:g} {unit}" if len(caps) == 1 else f"{caps.min():g}-{caps.max():g} {unit}"
+    cap = cap if cap_text is None else cap_text
     how = []
     if cells_stopped:
         how.append(f"{cells_stopped} stopped at it, status force_cap")

@@ -588,15 +588,17 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
     cells_of = np.bincount(np.asarray(h.group_of_cell).ravel(), minlength=len(fc.group_at_cap))
     at_cell = fc.group_at_cap[h.group_of_cell]
     what, column = ("block", "strip") if layout.blocks else ("cell", "wale column")
+    cap_text, strip_caps = _specimen_cap(h, fc, layout, at_cell)
     out = force_cap_reached(h.grip_strain, fc.rows, fc.caps, cells=int(h.group_of_cell.size),
                             cells_at_cap=int(cells_of[fc.group_at_cap].sum()),
                             cells_stopped=int(cells_of[fc.group_stopped].sum()),
                             columns=int(h.shape[1]), columns_at_cap=int(at_cell.any(axis=0).sum()), peak=peak,
                             what=what, column=column, remedy=(
                                 f", or a smaller specimen.pretension ({pre:g}: the knit starts stretched)"
-                                if (pre := float(h.info.get("pretension") or 0.0)) > 0 else ""))
+                                if (pre := float(h.info.get("pretension") or 0.0)) > 0 else ""), cap_text=cap_text)
     if fc.first_stop is not None:
-        cap = float(np.max(fc.caps)) if fc.caps is not None and len(fc.caps) else float("nan")
+        caps = strip_caps if strip_caps is not None else fc.caps
+        cap = float(np.max(caps)) if caps is not None and len(caps) else float("nan")
         # cut_by_force_cap decides whether unloadings were left (its wording is a cell's: rewritten for a patch)
         cut = cut_by_force_cap(h.grip_strain, h.direction, h.cycle, fc.first_stop, cap)
         k = fc.first_stop
@@ -621,12 +623,40 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
                        f"{float(h.grip_strain[min(col_first)]):.4g})")
         out += [ResultWarning(w.code, (
             f"{n_stop} of {n_cols} {column}(s) stopped at the force cap"
-            + (f" ({cap:g} N per wale)" if np.isfinite(cap) else "")
+            + (f" ({cap:.4g} N per wale{' of the strip' if strip_caps is not None else ''})" if np.isfinite(cap) else "")
             + f" at grip strain {float(h.grip_strain[k]):.4g} in cycle {c_stop} of {c_last}: from there the stopped "
             f"{column}(s) keep their last state while the grip moves on (curve.csv's columns_held){others}, so the "
             f"grip force is not the knit's and the figures of {rest} are not given; raise force_cap_N to run "
             f"{'them' if c_last > c_stop else 'it'}")) for w in cut[:1]]
     return out
+
+
+def _specimen_cap(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayout,
+                  at_cell: np.ndarray) -> tuple[str | None, np.ndarray | None]:
+    """A specimen's force cap as its force per wale says it, where a capped block's wales are not its strip's mean:
+    the message's cap and the caps per wale of the strip of the blocks at the cap; ``(None, None)`` elsewhere.
+
+    A block's cap is per wale of the block (``force_cap_N`` of its cell); its strip carries one total force, cap x
+    the block's wales, and the specimen's force per wale is that total over the strip's mean wales.  A probe's
+    specimen of two bands, 6.82 and 5.45 wales, capped at 0.5 N per wale, read "the force is the force cap (0.5 N
+    per wale) ... the peak 0.4426 N per wale is the cap": the narrow band's blocks at 0.5 N per wale of their 5.45
+    wales, 2.727 N, are 0.4444 N per wale of the strip's 6.136."""
+    if not layout.blocks or fc.caps is None or not at_cell.any():
+        return None, None
+    caps_g = np.zeros(len(fc.group_at_cap))
+    caps_g[fc.group_at_cap] = fc.caps
+    wales = np.broadcast_to(np.asarray(layout.wale_count, float), at_cell.shape)
+    strip_wales = np.broadcast_to(np.asarray(layout.column_wales, float)[None, :], at_cell.shape)
+    block_cap = caps_g[np.asarray(h.group_of_cell)]
+    per_strip = block_cap * wales / strip_wales
+    if np.allclose(per_strip[at_cell], block_cap[at_cell], rtol=1e-9, atol=0.0):
+        return None, None
+    i, j = (int(v) for v in np.argwhere(at_cell)[0])
+    vals = np.unique(np.round(per_strip[at_cell], 12))
+    head = f"{vals[0]:.4g}" if len(vals) == 1 else f"{vals.min():.4g}-{vals.max():.4g}"
+    return (f"{head} N per wale of the strip: e.g. the block at band {i}, strip {j} capped at {block_cap[i, j]:g} N "
+            f"per wale of its {wales[i, j]:.4g} wales, {block_cap[i, j] * wales[i, j]:.4g} N in all, over the strip's "
+            f"{strip_wales[i, j]:.4g} wales"), per_strip[at_cell]
 
 
 def _unbalanced_rest_columns(h: PatchHistory, row_key: str, col_key: str) -> list[ResultWarning]:

@@ -339,3 +339,31 @@ def test_a_zone_capped_below_the_column_force_stops_its_column_and_is_never_pass
     (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
     assert cut["message"].startswith("1 of 2 wale column(s) stopped at the force cap (0.12 N per wale)"), cut
     assert [c["cycle"] for c in s["cycles"]] == [1] and s["cycles"][0]["peak_force_per_wale_N"] < 0.13
+
+
+def test_a_specimens_cap_is_said_per_wale_of_the_strip_where_its_bands_differ_in_wales():
+    """A specimen 30 mm wide, one strip of two bands: E-glass (W0 4.4 mm: 30 / 4.4 = 6.818 wales) and a zone of W0
+    5.5 mm (5.455 wales), capped at 0.5 N per wale, cycled to grip strain 0.5.  The strip's bands carry one total
+    force, so the narrow band's blocks reach their cap at 0.5 x 30 / 5.5 = 2.727 N, which is, over the strip's mean
+    6.136 wales (the divisor of the specimen's force per wale), 0.5 x (1 / 5.5) / ((1 / 4.4 + 1 / 5.5) / 2) =
+    0.5 x 8.8 / 9.9 = 0.4444 N per wale (by hand).  Before, the warning said "the force is the force cap (0.5 N per
+    wale) ... the peak 0.4426 N per wale is the cap", two figures 11 % apart, and the program's cut "(0.5 N per
+    wale)"; now both give the cap per wale of the strip, which the peak per wale meets within FORCE_CAP_RTOL."""
+    from knitsim.scene.patch_scene import load_patch_scene
+    sc = load_patch_scene({"engine": "warp", "device": "cpu",
+                           "specimen": {"width": 30.0, "gauge_length": 40.0, "strips": 1, "bands": 2},
+                           "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+                           "friction": {"m": 0.2}, "rules": {"force_cap_N": 0.5},
+                           "zones": [{"courses": [1, 2], "knit": {"W0": 5.5}}],
+                           "load": {"type": "cycles", "lower_strain": 0.1, "upper_strain": 0.5, "cycles": 2,
+                                    "max_increment": 0.02}})
+    h = run_patch(sc.model, sc.program)
+    s = patch_summary(h, h.info["ref_length_mm"], model=sc.model)
+    cap = 0.5 * 8.8 / 9.9
+    (w,) = [w for w in s["warnings"] if w["code"] == "force_cap_reached"]
+    assert "the force is the force cap (0.4444 N per wale of the strip: e.g. the block at band 1, strip 0 capped at " \
+           "0.5 N per wale of its 5.455 wales, 2.727 N in all, over the strip's 6.136 wales)" in w["message"], w
+    peak = s["cycles"][0]["peak_force_per_wale_N"]
+    assert abs(peak - cap) <= FORCE_CAP_RTOL * cap and s["cycles"][0]["peak_is_force_cap"]
+    (cut,) = [w for w in s["warnings"] if w["code"] == "program_cut_by_force_cap"]
+    assert cut["message"].startswith("1 of 1 strip(s) stopped at the force cap (0.4444 N per wale of the strip)"), cut
