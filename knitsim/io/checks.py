@@ -1007,7 +1007,31 @@ def inert_effect_warnings(effects, labels, prefixed: bool = True) -> list[dict]:
                     "message": f"effect {name} is on at effects.{key} = {value:g}, where it changes nothing"
                                f"{'' if one else f' ({shown})'}: give effects.{key} its strength, or leave the "
                                "effect off"})
+    out += _beyond_howell(effects, labels, prefixed)
     return out
+
+
+def _beyond_howell(effects, labels, prefixed: bool) -> list[dict]:
+    """A warning where ``normal_load_friction`` is on with ``load_n`` above Howell's bound (``knitsim.friction.capstan.
+    HOWELL_N_MAX`` = 1, what ``knitsim capstan`` fits and predicts): the cell takes n up to 2 and the diagnosis
+    searches 0.4-1.6, both sides of n = 1, but friction rising faster than the crossing's load is no Howell law and
+    its n no capstan's (README, "The normal-load exponent n").  Before, a cell of n = 1.5 ran without a word, where
+    ``capstan predict --n 1.5`` is refused."""
+    from ..friction.capstan import HOWELL_N_MAX
+    where = [label for eff, label in zip(effects, labels)
+             if "normal_load_friction" in eff.on and eff.load_n > HOWELL_N_MAX]
+    if not where:
+        return []
+    ns = {e.load_n for e in effects if "normal_load_friction" in e.on and e.load_n > HOWELL_N_MAX}
+    top = f"= {max(ns):g}" if len(ns) == 1 else f"up to {max(ns):g}"
+    shown = ", ".join(map(str, where[:5])) + (f" and {len(where) - 5} more" if len(where) > 5 else "")
+    one = prefixed and len(where) == 1
+    return [{"code": "normal_load_beyond_howell", "cell": where[0] if one else "all",
+             "message": f"effect normal_load_friction is on at effects.load_n {top}"
+                        f"{'' if one else f' ({shown})'}, above Howell's n <= {HOWELL_N_MAX:g} (eq 2: the contact area "
+                        "grows as Fn^n, n from 2/3 elastic to 1 Amontons; Table 3: 0.909-0.948): the friction ratio "
+                        "rises with the crossing's load, an effective exponent, not a yarn's Howell index (knitsim "
+                        "capstan refuses it)"}]
 
 
 #: overlaps of the heads below this share of the in-plane width are not warned of (a micrometre on a 0.6 mm yarn)

@@ -563,6 +563,29 @@ def test_an_effect_on_at_its_neutral_strength_is_warned_of():
     assert "(12 of the patch's 12 cells)" in w[0]["message"]
 
 
+def test_a_normal_load_exponent_above_howells_bound_is_warned_of():
+    """Howell's law (eq 2) has n <= 1 (knitsim.friction.capstan.HOWELL_N_MAX, the bound `capstan fit` searches and
+    `capstan predict` checks: the contact area grows as Fn^n, n from 2/3 to 1).  A cell's normal_load_friction takes
+    0 < n <= 2 (the diagnosis searches 0.4-1.6, both sides of n = 1): n = 1.5 runs, but is now said to be no Howell
+    law, naming the cells; n = 0.8 and the limit n = 1 are (n = 1: only its own warning, no strength), and n just
+    above 1 is not.  Before, n = 1.5 ran without a word where `capstan predict --n 1.5` is refused."""
+    from knitsim.cell.effects import EffectSet
+    from knitsim.friction.capstan import HOWELL_N_MAX
+    from knitsim.io.checks import inert_effect_warnings
+
+    def n(v):
+        return EffectSet(on=("normal_load_friction",), load_n=v)
+
+    assert HOWELL_N_MAX == 1.0
+    assert inert_effect_warnings([n(0.8), n(0.909)], ["a", "b"]) == []
+    assert [w["code"] for w in inert_effect_warnings([n(1.0)], ["a"])] == ["effect_without_strength"]
+    (w,) = inert_effect_warnings([n(0.8), n(1.5)], ["a", "b"])
+    assert w["code"] == "normal_load_beyond_howell" and w["cell"] == "b"
+    assert w["message"].startswith("effect normal_load_friction is on at effects.load_n = 1.5, above Howell's n <= 1")
+    (w,) = inert_effect_warnings([n(1.5), n(1 + 1e-12), EffectSet()], ["a", "b", "c"])
+    assert w["cell"] == "all" and "effects.load_n up to 1.5 (a, b), above" in w["message"]
+
+
 def test_energy_loop_candidates_of_a_held_path_beside_a_crossing_one_say_nothing_on_the_console():
     """Two paths of one turning row: one crosses its loading after the turn (0 -> 0.3 -> 0.15), the other holds its
     first two rows at one strain (a patch's column held from its first increment) and ends below its start.  Each
