@@ -161,7 +161,8 @@ def check_patch_domain(model, grip_strains, engine: str, device: str, dedup: boo
         if "d" in named and w is not None and np.isfinite(w[i, j]) and named[0] == "W0":
             named = ("W0", "in_plane_width")          # d_jam is the in-plane width where given
         warnings.append({"code": "outside_domain",
-                         "message": f"extrapolation: {int(cells_of[out].sum())} of {n_cells} cell(s) outside the "
+                         "message": f"extrapolation: {int(cells_of[out].sum())} of {n_cells} "
+                                    f"{'block' if model.blocks else 'cell'}(s) outside the "
                                     f"model's domain box, by quantity: {by}; e.g. {cell_name(i, j, model.blocks, True)}: "
                                     f"{check.outside_reason(g)}{keys_of(i, j, named)}"})
     why = DOMAIN.why_program_outside(grip_strains)

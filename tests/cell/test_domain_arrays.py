@@ -283,6 +283,21 @@ def test_zones_with_cells_outside_the_box_warn_as_before():
                                         "[0.05, 0.5] (knitsim.cell.domain); that cell's m = 0.6 (zones[0].friction.m)")
 
 
+def test_a_specimens_outside_domain_warning_names_blocks():
+    """A specimen's cells are blocks of stitches, named by band and strip (as its zones index them): its warning
+    counts blocks and names the example block and the key that set its quantity (a probe's read "1 of 1 cell(s)
+    outside ... e.g. m = 0.6", neither the block nor the key named)."""
+    sc = load_patch_scene({"engine": "warp", "device": "cpu",
+                           "specimen": {"width": 30.0, "gauge_length": 40.0, "strips": 2, "bands": 1},
+                           "yarn": {"material": "e_glass"}, "knit": {"material": "e_glass_plain"},
+                           "friction": {"m": 0.2}, "zones": [{"wales": [1, 2], "friction": {"m": 0.6}}],
+                           "load": {"type": "monotonic", "target_strain": 0.05, "max_increment": 0.01}})
+    (w,) = check_patch_domain(sc.model, sc.program.strain, "warp", "cpu", True, origins=sc.origins)
+    assert w["message"] == ("extrapolation: 1 of 2 block(s) outside the model's domain box, by quantity: m (1); e.g. "
+                            "block [band 0, strip 1]: m = 0.6 outside the model's domain [0.05, 0.5] "
+                            "(knitsim.cell.domain); that block's m = 0.6 (zones[0].friction.m)")
+
+
 def named_example(sc, tail: str) -> bool:
     """Whether check_patch_domain's outside_domain warning of scene ``sc``, given its origins, ends with ``tail``."""
     return check_patch_domain(sc.model, [0.0, 0.7], "warp", "cpu", True, origins=sc.origins)[0]["message"].endswith(tail)
