@@ -33,9 +33,9 @@ _COLUMNS = ("F0_N", "F1_N", "V_mm_s", "direction")
 #: reads a tester's ``Load (N)`` (knitsim.io.table_input.LAB_ALIASES)
 CAPSTAN_ALIASES = {"F0_N": ("f0", "t0", "input tension"), "F1_N": ("f1", "t1", "output tension"),
                    "V_mm_s": ("v", "velocity", "speed")}
-#: the tensions, read in any force unit the file states (mN, cN, kN, gf: knitsim.io.units, the table ``knitsim dahl
-#: fit`` converts by) and converted to N
-_FORCES = ("F0_N", "F1_N")
+#: the tensions and the speed, read in any unit the file states (tensions: mN, cN, kN, gf, knitsim.io.units's table,
+#: the one ``knitsim dahl fit`` converts by; the speed: mm/min, m/min, cm/s, ...) and converted to N and mm/s
+_CONVERTED = ("F0_N", "F1_N", "V_mm_s")
 
 
 def _add_discretisation(parser: argparse.ArgumentParser) -> None:
@@ -110,41 +110,49 @@ def register(subparsers) -> None:
 
 
 
-def _force_columns(path) -> dict[str, tuple[str, float, str]]:
-    """The tensions a lab states in another force unit than N (``F0 [cN]``, ``T1`` over a units row's ``mN``): for
-    each of ``F0_N`` and ``F1_N`` so stated, the name to ask the reader for, the factor to N and its read note.  The
-    units are :mod:`knitsim.io.units`', ``knitsim dahl fit``'s: before, a capstan file in cN was refused where that
-    command converted a force in cN.  Our own names (``F0_N``) say their unit; one stated beside them is checked by
-    the reader, and a unit not known is refused by it naming the header."""
+def _converted_columns(path) -> dict[str, tuple[str, float, str]]:
+    """The records' columns a lab states in another unit than ours (``F0 [cN]``, ``T1`` over a units row's ``mN``,
+    ``V [mm/min]``): for each of ``F0_N``, ``F1_N`` and ``V_mm_s`` so stated, the name to ask the reader for, the
+    factor to N (mm/s) and its read note.  The units are :mod:`knitsim.io.units`', the tensions' ``knitsim dahl
+    fit``'s: before, a capstan file in cN was refused where that command converted a force in cN, and a speed in
+    mm/min (a tester's crosshead rate) was refused.  Our own names (``F0_N``) say their unit; one stated beside them
+    is checked by the reader, and a unit not known is refused by it naming the header."""
     from ..io.table_input import header_candidates, split_unit
-    from ..io.units import identities, parse_unit
+    from ..io.units import identities, parse_unit, speed_factor, speed_identity
 
-    names = {c: {c.casefold(), *CAPSTAN_ALIASES[c]} for c in _FORCES}
+    def factor(c: str, unit: str) -> tuple[float, str] | None:
+        if c == "V_mm_s":
+            f = speed_factor(unit)
+            return None if f is None else (f, f"mm/s ({speed_identity(unit)})")
+        parsed = parse_unit(unit)
+        return None if parsed is None or parsed[0] != "force" else (parsed[1], f"N ({identities(unit)})")
+
+    names = {c: {c.casefold(), *CAPSTAN_ALIASES[c]} for c in _CONVERTED}
     for _, cells, units in header_candidates(path):
         bare = [split_unit(c)[0].strip().casefold() for c in cells]
-        at = {c: [j for j, b in enumerate(bare) if b in names[c]] for c in _FORCES}
-        if not all(at.values()):
+        at = {c: [j for j, b in enumerate(bare) if b in names[c]] for c in _CONVERTED}
+        if not (at["F0_N"] and at["F1_N"]):
             continue
         out = {}
-        for c in _FORCES:
+        for c in _CONVERTED:
             if len(at[c]) != 1 or bare[at[c][0]] == c.casefold() or units[at[c][0]] is None:
                 continue                     # (named twice, our own name, no unit stated: the reader says)
             j = at[c][0]
             unit = units[j].strip()
-            parsed = parse_unit(unit)
-            if parsed is None or parsed[0] != "force" or parsed[1] == 1.0:
+            got = factor(c, unit)
+            if got is None or got[0] == 1.0:
                 continue
-            out[c] = (f"{split_unit(cells[j])[0]} [{unit}]", parsed[1],
-                      f"column {cells[j]!r} read as {c} in {unit}: x {parsed[1]:g} to N ({identities(unit)})")
+            out[c] = (f"{split_unit(cells[j])[0]} [{unit}]", got[0],
+                      f"column {cells[j]!r} read as {c} in {unit}: x {got[0]:.6g} to {got[1]}")
         return out
     return {}
 
 
 def _read_records(path, names, numeric) -> tuple[dict, dict]:
     """:func:`read_csv_columns` of the records' columns ``names`` (``numeric`` of them as numbers), the tensions in N
-    where the file states another force unit (:func:`_force_columns`), keyed by our names; and the factor each
-    tension was read by (1 for N), for its written resolution."""
-    forces = _force_columns(path)
+    and the speed in mm/s where the file states another unit (:func:`_converted_columns`), keyed by our names; and the
+    factor each was read by (1 for ours), for the tensions' written resolution."""
+    forces = _converted_columns(path)
     asked = [forces[c][0] if c in forces else c for c in names]
     cols = read_csv_columns(path, asked, numeric=[a for a, c in zip(asked, names) if c in numeric],
                             aliases=CAPSTAN_ALIASES)
@@ -154,7 +162,7 @@ def _read_records(path, names, numeric) -> tuple[dict, dict]:
             v = cols.pop(a)
             cols[c] = v * forces[c][1] if c in numeric else v
     cols.notes = tuple(notes)
-    return cols, {c: forces[c][1] if c in forces else 1.0 for c in _FORCES}
+    return cols, {c: forces[c][1] if c in forces else 1.0 for c in _CONVERTED}
 
 
 def _resolution(path, rows) -> np.ndarray:

@@ -93,3 +93,26 @@ def identities(unit: str) -> str:
     elif lengths and LENGTH_MM[lengths[0]] != 1.0:
         out.append(f"1 {lengths[0]} = {LENGTH_MM[lengths[0]]:g} mm")
     return "; ".join(out)
+
+
+#: speeds a column's unit may be written in: the factor to mm/s as written (casefold, no spaces): 1 mm/min = 1/60
+#: mm/s (a tensile tester's crosshead rate, Dusserre's 50 mm/min), 1 m/min = 1000/60 mm/s, 1 cm/s = 10 mm/s.
+#: Apart from :func:`parse_unit`'s quantities: ``knitsim dahl fit`` reads no speed column
+_SPEED_TEXT = {"mm/s": "1", "mm/min": "1/60", "cm/s": "10", "cm/min": "10/60", "m/s": "1000", "m/min": "1000/60"}
+SPEED_MM_S = {u: (float(t.split("/")[0]) / float(t.split("/")[1]) if "/" in t else float(t)) for u, t in _SPEED_TEXT.items()}
+
+
+def _speed_key(unit: str) -> str:
+    return unit.casefold().replace(" ", "").replace("sec", "s")
+
+
+def speed_factor(unit: str) -> float | None:
+    """The factor that converts a speed written in ``unit`` (``mm/min``, ``m / min``, ``mm/sec``) to mm/s, or None for
+    a unit not in :data:`SPEED_MM_S`."""
+    return SPEED_MM_S.get(_speed_key(unit))
+
+
+def speed_identity(unit: str) -> str:
+    """The identity that makes a speed unit's factor (``1 mm/min = 1/60 mm/s``; "" for mm/s or a unit not known)."""
+    t = _SPEED_TEXT.get(_speed_key(unit))
+    return "" if t in (None, "1") else f"1 {unit.strip()} = {t} mm/s"
