@@ -623,7 +623,8 @@ def _force_cap_warnings(h: PatchHistory, fc: ForceCapRows, layout: SpecimenLayou
                        f"{float(h.grip_strain[min(col_first)]):.4g})")
         out += [ResultWarning(w.code, (
             f"{n_stop} of {n_cols} {column}(s) stopped at the force cap"
-            + (f" ({cap:.4g} N per wale{' of the strip' if strip_caps is not None else ''})" if np.isfinite(cap) else "")
+            + ((f" ({cap:.4g} N per wale of the strip)" if strip_caps is not None else f" ({cap:g} N per wale)")
+               if np.isfinite(cap) else "")
             + f" at grip strain {float(h.grip_strain[k]):.4g} in cycle {c_stop} of {c_last}: from there the stopped "
             f"{column}(s) keep their last state while the grip moves on (curve.csv's columns_held){others}, so the "
             f"grip force is not the knit's and the figures of {rest} are not given; raise force_cap_N to run "
