@@ -37,8 +37,8 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
-    PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, compression_limit, drop_copied_rows, flat_top_note, flat_tops,
-    pasted_block, pasted_note, refuse_few_rows, refuse_negative_force,
+    PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, TIME_LABELS, compression_limit, drop_copied_rows, flat_top_note,
+    flat_tops, pasted_block, pasted_note, refuse_few_rows, refuse_negative_force,
     read_cycle_column, refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance,
     zero_offset_below,
 )
@@ -81,7 +81,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     """Read a strain-force file (module docstring); refuses what is wrong, naming file, row and column."""
     path = Path(path)
     cols = read_csv_columns(path, (), STRAIN_COLUMNS + TOTAL_COLUMNS + PER_WALE_COLUMNS, aliases=LAB_ALIASES,
-                            labels=TEST_LABELS + ("cycle",))
+                            labels=TEST_LABELS + ("cycle",) + TIME_LABELS)
     cols = drop_copied_rows(refuse_several_tests(path, cols))
     for group in (STRAIN_COLUMNS, TOTAL_COLUMNS):
         both = [c for c in group if c in cols]

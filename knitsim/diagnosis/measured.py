@@ -102,6 +102,10 @@ MIN_CURVE_ROWS = 4
 #: holds one test, so more than one value in one of them is refused (:func:`refuse_several_tests`)
 TEST_LABELS = ("specimen", "sample", "specimen_id", "sample_id", "specimen_name", "sample_name", "run", "test",
                "test_id")
+#: columns that say when each row was read (a logger's time, a video's frame): read as text where the header holds
+#: one, only to tell a second reading from a copy (:func:`drop_copied_rows`), never fitted
+TIME_LABELS = ("time", "time_s", "t", "t_s", "test_time", "test time", "elapsed_time", "elapsed time", "total_time",
+               "total time", "timestamp", "frame", "zeit", "temps", "tiempo")
 
 
 @dataclass(frozen=True)
@@ -1210,21 +1214,29 @@ def drop_copied_rows(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The columns read from a file (:func:`~knitsim.io.table_input.read_csv_columns`, ``_row`` the line
     numbers) without a row that repeats the row above it in every column: a row copied (pasted twice, a
     logger writing one record twice) is not a second measurement, and counted twice it would weigh
-    twice and read as zero noise.  A row at the same strain with another force is kept: a second reading.
-    The notes of the columns (:class:`knitsim.io.table_input.Columns`) are kept, with one more naming the rows
-    dropped (a blind probe's file read "711 rows" and said nothing of the copies it had left out)."""
+    twice and read as zero noise.  A row at the same strain with another force is kept: a second reading.  So is
+    one read at another time (a :data:`TIME_LABELS` column, read as a label: a logger's or a video's reading that
+    repeats the one before at a later time, as a slow ramp or a hold printed coarsely does; Singal 2024's acrylic
+    run 5 has 268 such frames of its 2168, its holds' relaxation among them, which were dropped as copies).  The
+    time columns are compared, then left out of the columns returned.  The notes of the columns
+    (:class:`knitsim.io.table_input.Columns`) are kept, with one more naming the rows dropped (a blind probe's file
+    read "711 rows" and said nothing of the copies it had left out)."""
     names = [k for k in cols if k != "_row"]
     n = len(cols["_row"])
     copy = np.zeros(n, bool)
     if n > 1:
         copy[1:] = np.logical_and.reduce([cols[k][1:] == cols[k][:-1] for k in names])
+    kept = [k for k in cols if k not in TIME_LABELS]
     if not copy.any():
-        return cols
-    rows = [int(r) for r in np.asarray(cols["_row"])[copy]]
-    note = (f"{len(rows)} row(s) that repeat the row above in every column left out as copies (row(s) "
-            + ", ".join(map(str, rows[:8])) + (", ..." if len(rows) > 8 else "") + ")")
-    out = Columns({k: v[~copy] for k, v in cols.items()}, notes=tuple(notes_of(cols)) + (note,))
-    out.not_read = cols.not_read
+        if len(kept) == len(cols):
+            return cols
+        note = ()
+    else:
+        rows = [int(r) for r in np.asarray(cols["_row"])[copy]]
+        note = (f"{len(rows)} row(s) that repeat the row above in every column left out as copies (row(s) "
+                + ", ".join(map(str, rows[:8])) + (", ..." if len(rows) > 8 else "") + ")",)
+    out = Columns({k: cols[k][~copy] for k in kept}, notes=tuple(notes_of(cols)) + note)
+    out.not_read = getattr(cols, "not_read", ())
     return out
 
 
@@ -1306,7 +1318,7 @@ def read_measured_curve(path: str | Path, noise_N: float | None = None) -> Measu
     """
     try:
         cols = read_csv_columns(path, REQUIRED, OPTIONAL, numeric=("strain", "force_per_wale_N", "cycle", "rate_mm_s"),
-                                aliases=LAB_ALIASES, labels=TEST_LABELS)
+                                aliases=LAB_ALIASES, labels=TEST_LABELS + TIME_LABELS)
     except KnitsimInputError as exc:
         raise KnitsimInputError(str(exc) + _total_force_hint(path, str(exc))) from None
     cols = drop_copied_rows(refuse_several_tests(path, cols))

@@ -64,6 +64,26 @@ def test_a_copied_row_is_read_once_and_a_second_reading_at_one_strain_is_kept(tm
     assert len(plain.force) == 6
 
 
+@pytest.mark.parametrize("time_header", ["time_s", "Time (s)", "frame"])
+def test_a_reading_repeated_at_a_later_time_is_kept_and_a_pasted_row_is_not(tmp_path, time_header):
+    # Lab practice: a logger writes strain and force every 0.5 s, printed to 1e-4 and 0.01 N; on a slow ramp (and
+    # at a hold) two readings in a row can print alike, as Singal 2024's video frames do (268 of acrylic run 5's
+    # 2168).  The time column shows rows 4 and 5 are two readings: both are kept (7 rows of 7), by hand.  Row 8
+    # of the second file repeats row 7 in every column, its time too: a row pasted twice, read once.
+    text = (f"{time_header},strain,force_per_wale_N\n0.0,0.0000,0.00\n0.5,0.0010,0.02\n1.0,0.0020,0.05\n"
+            "1.5,0.0020,0.05\n2.0,0.0030,0.07\n2.5,0.0040,0.10\n3.0,0.0050,0.13\n")
+    kept = read_measured_curve(_write(tmp_path, text, "logged.csv"))
+    np.testing.assert_array_equal(kept.rows, [2, 3, 4, 5, 6, 7, 8])
+    np.testing.assert_array_equal(kept.force, [0.0, 0.02, 0.05, 0.05, 0.07, 0.10, 0.13])
+    assert not any("copies" in n for n in kept.notes)
+    pasted = read_measured_curve(_write(tmp_path, text + "3.0,0.0050,0.13\n", "pasted.csv"))
+    np.testing.assert_array_equal(pasted.rows, [2, 3, 4, 5, 6, 7, 8])
+    assert any("row(s) 9" in n and "copies" in n for n in pasted.notes)
+    from knitsim.calibration.specimen import read_table
+    table = read_table(_write(tmp_path, text, "logged_pull.csv"))
+    np.testing.assert_array_equal(table.rows, [2, 3, 4, 5, 6, 7, 8])
+
+
 def test_an_extensometer_noisier_than_the_range_tolerance_does_not_cut_a_pull_into_cycles():
     """A pull 0 -> 0.75 in 300 rows (steps of 0.0025) read by an extensometer with jitter of sd 1e-3, above
     1e-3 of the range (7.5e-4): its steps back of 2-4e-3 are jitter (5 sd of the strain's own jitter, read
