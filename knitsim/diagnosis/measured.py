@@ -266,10 +266,18 @@ def refuse_negative_force(source: str, force, noise: CurveNoise, row, column: st
 def strain_tolerance(strain) -> float:
     """Strain jitter tolerated inside a branch: :data:`STRAIN_TOL_REL` of the strain range, or
     :data:`STRAIN_JITTER_SIGMAS` sd of the strain's own jitter (:func:`strain_jitter`) where that is more
-    (>= 1e-9)."""
+    (>= 1e-9) and the steps scatter as a jittering reading's do (:func:`~knitsim.diagnosis.noise.reading_jitter`,
+    on the branches that tolerance reads).  Steps that vary while each strain is read exactly (a log at irregular
+    strains, rows picked by hand) have second differences too, and were read as a jitter: steps of 0.01 +- 30 %
+    to 0.6 as 9e-4 of it, a tolerance of 4.8e-3, so that a real unloading of 0.03 and its reload (within 10
+    tolerances of travel: :data:`HOLD_TRAVEL_TOLS`) were read as a hold and their rows left out as a force glitch."""
     s = np.asarray(strain, float)
     span = float(np.max(s) - min(float(np.min(s)), 0.0)) if len(s) else 0.0
-    return max(1e-9, STRAIN_TOL_REL * span, STRAIN_JITTER_SIGMAS * strain_jitter(s))
+    tol = max(1e-9, STRAIN_TOL_REL * span)
+    wide = STRAIN_JITTER_SIGMAS * strain_jitter(s)
+    if wide > tol:
+        wide = STRAIN_JITTER_SIGMAS * reading_jitter(s, infer_branches(s, None, wide)[1])
+    return max(tol, wide)
 
 
 def _force_scale(force) -> float:

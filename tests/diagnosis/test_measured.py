@@ -418,3 +418,28 @@ def test_a_hold_whose_force_relaxes_is_said_and_its_rows_left_out():
                           noise_N=0.002)
     assert np.all(c.direction[111:] == 1) and np.all(c.cycle[111:] == 2) and np.all(np.diff(c.strain[111:]) > 0)
     assert c.holds == ()
+
+
+def test_a_short_unloading_in_a_log_at_irregular_strains_is_an_unloading_not_a_hold():
+    """A log written at irregular strains, each read exactly (steps 0.01 +- 30 %, to 0.6), with an unloading of
+    0.03 in three rows and a reload of two at row 42: its second differences read 9e-4 of "jitter", which made the
+    tolerance 4.8e-3 and the unloading (travel 0.03, within 10 tolerances) a hold, its rows then left out as a
+    force glitch.  Steps that vary while read exactly are no jitter (their lag-one correlation is ~0, not -1/2):
+    the tolerance is 1e-3 of the range, 6e-4, and the branches are those the file was made with (by
+    construction, and as the same rows with their direction column read): load to row 41, unload 3 rows,
+    reload."""
+    from knitsim.diagnosis.measured import strain_tolerance
+    rng = np.random.default_rng(2)
+    s = np.cumsum(0.01 * (1.0 + 0.3 * rng.uniform(-1.0, 1.0, 60)))
+    s *= 0.6 / s[-1]
+    f = 0.02 + 2.0 * s ** 3 + rng.normal(0.0, 0.002, len(s))
+    top, ftop = s[40], 0.02 + 2.0 * s[40] ** 3
+    s = np.r_[s[:41], top - np.array([0.01, 0.02, 0.03]), top - np.array([0.02, 0.01]), s[41:]]
+    f = np.r_[f[:41], ftop - np.array([0.1, 0.18, 0.22]), ftop - 0.22 + np.array([0.05, 0.12]), f[41:]]
+    made = np.r_[np.ones(41), -np.ones(3), np.ones(len(s) - 44)].astype(int)
+    assert strain_tolerance(s) == pytest.approx(6e-4)
+    c = curve_from_arrays(s, f)
+    np.testing.assert_array_equal(c.direction, made)
+    np.testing.assert_array_equal(c.cycle, np.r_[np.ones(44), np.full(len(s) - 44, 2)])
+    assert c.glitches == () and c.holds == ()
+    np.testing.assert_array_equal(curve_from_arrays(s, f, direction=made).cycle, c.cycle)
