@@ -14,7 +14,9 @@ shows it), the column and the value, and what to do:
 - decimal commas where the delimiter is ``;`` or a tab (``0,125``), and in quoted cells of a
   comma-separated file (``"0,125"``) when at least one of its numbers reads only that way (``1,250``
   alone could be 1250: such a file is refused); thousands separators with a decimal point
-  (``"1,234.5"``; ``1.234,5`` in a ``;`` or tab file);
+  (``"1,234.5"``; ``1.234,5`` in a ``;`` or tab file), and thousands grouped by a space (``1 234,5``: a French or
+  Nordic spreadsheet's formatted value, with a no-break or narrow no-break space) or an apostrophe (``1'234.5``:
+  a Swiss one) in any file;
 - header names matched after trimming spaces and quotes, in any case
   (``Strain``, `` FORCE_PER_WALE_N ``); the keys returned are the names asked for;
 - a unit after a header name, in brackets (``strain [-]``, ``force_per_wale_N (N)``,
@@ -286,12 +288,22 @@ _DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
 _GROUPED_POINT = re.compile(r"[+-]?\d{1,3}(?:,\d{3})+\.\d*")
 #: thousands grouped with points and a decimal comma (``1.234,5``: a German spreadsheet's formatted value)
 _GROUPED_COMMA = re.compile(r"[+-]?\d{1,3}(?:\.\d{3})+,\d+")
+#: thousands grouped with a space (plain, no-break U+00A0, narrow no-break U+202F, thin U+2009: a French, Nordic or
+#: SI-style spreadsheet's formatted value, ``1 234,5``) or an apostrophe (``1'234.5``, Swiss): no decimal mark, so
+#: read the same under either decimal convention
+_GROUPED_SPACE = re.compile(r"[+-]?[1-9]\d{0,2}([ \u00a0\u202f\u2009'\u2019])\d{3}(?:\1\d{3})*(?:[.,]\d*)?")
+
+
+def _ungrouped(cell: str) -> str:
+    """``cell`` without the spaces or apostrophes that group its thousands (:data:`_GROUPED_SPACE`), else as is."""
+    m = _GROUPED_SPACE.fullmatch(cell)
+    return cell.replace(m.group(1), "") if m else cell
 
 
 def _number(cell: str, decimal_comma: bool, per_cent: bool = False) -> float:
     """A cell's number; ``per_cent``: divided by 100, exactly (the decimal number written, shifted by two
     places, then rounded once: ``5.123`` in per cent reads as ``0.05123`` does)."""
-    c = cell.strip().replace("\u2212", "-")       # a typographic minus sign
+    c = _ungrouped(cell.strip().replace("\u2212", "-"))       # (a typographic minus sign)
     if decimal_comma and "," in c and "." not in c:
         c = c.replace(",", ".")
     elif decimal_comma and _GROUPED_COMMA.fullmatch(c):
@@ -320,7 +332,7 @@ def _comma_file_decimal_comma(path: Path, rows: list[list[str]], numbers: list[i
     plain decimal-comma number and at least one of them reads only that way (:func:`_ambiguous_comma`);
     when every one reads both ways the file is refused, naming the first."""
     # (a per-cent cell's sign is not part of its number: "12,5%")
-    cells = [(line, name, row[j].strip().removesuffix("%").rstrip()) for line, row in zip(numbers, rows)
+    cells = [(line, name, _ungrouped(row[j].strip().removesuffix("%").rstrip())) for line, row in zip(numbers, rows)
              for j, name in zip(columns, names) if j < len(row) and "," in row[j]]
     if not cells or not all(_DECIMAL_COMMA.fullmatch(c) for _, _, c in cells):
         return False

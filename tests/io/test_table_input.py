@@ -105,11 +105,25 @@ def test_comma_numbers_that_read_two_ways_are_refused_naming_both_readings(tmp_p
 @pytest.mark.parametrize("text", [
     'strain,force_per_wale_N\n0.1,"1,234.5"\n0.2,"2,000.25"\n',      # en-US formatted values, quoted
     "strain;force_per_wale_N\n0,1;1.234,5\n0,2;2.000,25\n",           # German formatted values
+    # French Excel's formatted values: thousands grouped by a no-break space (older) or a narrow no-break space
+    # (Windows 10+), a decimal comma; before, refused as "'1\xa0234,5' is not a number"
+    "strain;force_per_wale_N\n0,1;1\u00a0234,5\n0,2;2\u00a0000,25\n",
+    "strain;force_per_wale_N\n0,1;1\u202f234,5\n0,2;2\u202f000,25\n",
+    "strain\tforce_per_wale_N\n0,1\t1 234,5\n0,2\t2 000,25\n",         # a plain space, tab-separated
+    'strain,force_per_wale_N\n0.1,"1 234,5"\n0.2,"2 000,25"\n',          # LibreOffice fr, comma-separated
+    "strain,force_per_wale_N\n0.1,1'234.5\n0.2,2\u2019000.25\n",         # Swiss: an apostrophe, a decimal point
 ])
 def test_thousands_separators_with_a_decimal_mark_are_read(tmp_path, text):
     cols = read_csv_columns(_write(tmp_path, text), REQ)
     np.testing.assert_array_equal(cols["force_per_wale_N"], [1234.5, 2000.25])
     np.testing.assert_array_equal(cols["strain"], [0.1, 0.2])
+
+
+@pytest.mark.parametrize("cell", ["0 125", "1 23", "1 234 56", "1 234\u00a0567"])
+def test_a_space_that_groups_no_thousands_is_not_read_as_one(tmp_path, cell):
+    # (a leading 0, a group of two digits, or two different separators group no thousands: refused as text)
+    with pytest.raises(KnitsimInputError, match="row 3, column force_per_wale_N"):
+        read_csv_columns(_write(tmp_path, f"strain;force_per_wale_N\n0,1;0,5\n0,2;{cell}\n"), REQ)
 
 
 def test_a_units_row_with_a_number_in_it_is_data_and_refused(tmp_path):
