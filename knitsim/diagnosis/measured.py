@@ -865,7 +865,9 @@ def force_holds(strain, force, cycle, direction, noise) -> list[tuple[int, int, 
     """Holds whose force relaxes: ``(start, end, change)``, rows ``start..end-1`` of one branch at one strain *as
     read* (``strain`` the column as read, not the running extreme: a slack reload read as the unloading going on
     keeps the extreme while its strain runs on), each within :data:`HOLD_STEP_SHARE` of the branch's mean step, or
-    the curve's jitter tolerance (:func:`strain_tolerance`), of the first; at least :data:`HOLD_MIN_ROWS` of them,
+    the curve's jitter tolerance (:func:`strain_tolerance`), of the first (on a loading, or below it by up to
+    :data:`HOLD_TRAVEL_TOLS` jitter tolerances, as far as :func:`infer_branches` keeps a strain that goes back in the
+    loading: a clamp or extensometer that settles, creeping back, while the force relaxes); at least :data:`HOLD_MIN_ROWS` of them,
     whose force moves against the branch's direction (falls on a loading, rises on an unloading: a relaxation, or
     the recovery of an unloading held) by more than :data:`HOLD_SIGMAS` standard errors of the line through them in
     the row order (each row weighted by its noise sd); ``change`` the line's change over the hold [N].
@@ -884,10 +886,14 @@ def force_holds(strain, force, cycle, direction, noise) -> list[tuple[int, int, 
         if b - a < HOLD_MIN_ROWS:
             continue
         tol = max(HOLD_STEP_SHARE * float(np.mean(np.abs(np.diff(s[a:b])))), jitter_tol)
+        # (on a loading, the strain may creep back over a hold, as far as infer_branches keeps in the loading: a
+        # clamp or extensometer that settles while the force relaxes; on an unloading not, where a slack reload
+        # read as the unloading going on runs back, its force flat at ~0 and then rising)
+        back = HOLD_TRAVEL_TOLS * jitter_tol if d[a] > 0 else tol
         lo = a
         while lo < b:
             hi = lo + 1
-            while hi < b and abs(s[hi] - s[lo]) <= tol:
+            while hi < b and -back <= s[hi] - s[lo] <= tol:
                 hi += 1
             if hi - lo >= HOLD_MIN_ROWS:      # rows lo..hi-1 at one strain
                 t = np.arange(hi - lo, dtype=float)

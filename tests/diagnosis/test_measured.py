@@ -215,6 +215,26 @@ def test_a_hold_is_sought_where_the_noise_is_assumed():
     assert curve_from_arrays(s, np.round(f, 2), source="pull.csv").holds == ()
 
 
+def test_a_hold_whose_strain_creeps_back_is_a_hold():
+    """A clamp or extensometer that settles while the force relaxes (Singal 2024's video-tracked pins drift by up to
+    0.001 over a hold): a pull 0 -> 0.6 (0.05 + 0.5 strain N, 2 mN of noise, given), paused after strain 0.3 for 12
+    rows while the force relaxes by 10 % (exponentially, 3 rows' time) and the strain read creeps back by 0.0024,
+    evenly: 4 of the curve's jitter tolerances (6e-4), within the 10 that infer_branches keeps in the loading.
+    Expected from the definition (measured.force_holds, the creep allowed on a loading): one loading, one hold of
+    the 12 added rows (spreadsheet rows k + 3 ..., header = 1), left out.  Before, only rows within one tolerance of
+    the hold's first counted as held: nothing was said, and the 12 relaxing rows were fitted as the loading at 0.3."""
+    rng = np.random.default_rng(6)
+    s = np.arange(0.0, 0.6 + 1e-9, 0.005)
+    f = 0.05 + 0.5 * s + rng.normal(0.0, 0.002, len(s))
+    k, t = 60, np.arange(1, 13)
+    relax = (0.05 + 0.5 * s[k]) * (1.0 - 0.1 * (1.0 - np.exp(-t / 3.0))) + rng.normal(0.0, 0.002, 12)
+    sh, fh = np.r_[s[:k + 1], s[k] - 0.0024 * t / 12, s[k + 1:]], np.r_[f[:k + 1], relax, f[k + 1:]]
+    c = curve_from_arrays(sh, fh, source="creep.csv", noise_N=0.002)
+    assert c.cycle.max() == 1 and np.all(c.direction == 1)
+    assert c.holds == tuple(range(k + 3, k + 15))
+    assert "1 hold(s) whose force relaxes at one strain: rows 62-74 at strain 0.3" in c.notes[-1]
+
+
 def test_a_turn_that_no_row_records_is_said():
     """A logger sampling in time: the grip pulls to 0.6 (0.03 + 0.23 strain N) and unloads steeply (0.168 - 8 x the
     strain travelled back), but the rows read 0.58 on the loading and then 0.595, 0.585, ... on the unloading (2 mN
