@@ -706,9 +706,9 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
                 "where the force is too flat to tell rows missing from the log from a grip or extensometer slip")
         more = (f" (and at {len(found) - 1} more row(s): {', '.join(map(str, slips[1:4]))}"
                 + (", ..." if len(found) > 4 else "") + ")") if len(found) > 1 else ""
-        notes = (f"the strain jumps by {jump:.3g} ({times:.1f} times its steps around) between rows {row(k)} and "
-                 f"{row(k + 1)}, {what}{more}; a slip would be read as the knit's stretch, so no verdict on this "
-                 "curve is confident",)
+        notes += (f"the strain jumps by {jump:.3g} ({times:.1f} times its steps around) between rows {row(k)} and "
+                  f"{row(k + 1)}, {what}{more}; a slip would be read as the knit's stretch, so no verdict on this "
+                  "curve is confident",)
     # a force flat at its largest reading while the strain moves on (flat_tops): a saturated load cell, said
     tops = flat_tops(s, f, tol)
     if tops:

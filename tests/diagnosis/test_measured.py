@@ -463,3 +463,24 @@ def test_a_short_unloading_in_a_log_at_irregular_strains_is_an_unloading_not_a_h
     np.testing.assert_array_equal(c.cycle, np.r_[np.ones(44), np.full(len(s) - 44, 2)])
     assert c.glitches == () and c.holds == ()
     np.testing.assert_array_equal(curve_from_arrays(s, f, direction=made).cycle, c.cycle)
+
+
+def test_a_slip_note_keeps_the_notes_before_it():
+    """A pull logged with a cycle column counted from 0 and a hold whose force relaxes, then a grip slip (the strain
+    jumps by 0.02, 4 steps, between rows 51 and 52 while the force moves as over one step): the read notes say all
+    three (the cycle column, the hold, the slip).  Before, the slip's note replaced the notes before it, so the read
+    line, the JSON's read_notes and the report said nothing of the cycle column read from 0 nor of the hold whose
+    rows were left out of the fit."""
+    rng = np.random.default_rng(0)
+    s = np.arange(1, 41) * 0.005
+    k, t = 19, np.arange(1, 11)
+    f = 0.02 + 0.5 * s
+    relax = f[k] * (1.0 - 0.1 * (1.0 - np.exp(-t / 3.0)))
+    s = np.r_[s[:k + 1], np.full(10, s[k]), s[k + 1:]]
+    f = np.r_[f[:k + 1], relax, f[k + 1:]]
+    knit = np.r_[s[-1] + 0.005 * np.arange(1, 41)]
+    s, f = np.r_[s, knit + 0.015], np.r_[f, 0.02 + 0.5 * knit]      # the slip: the strain read 0.015 ahead from row 52
+    c = curve_from_arrays(s, f + rng.normal(0.0, 0.001, len(s)), cycle=np.zeros(len(s)), noise_N=0.001)
+    assert c.slips == (len(s) - 40 + 1,) and c.holds == tuple(range(k + 3, k + 13))
+    assert [n.split(":")[0].split(" (")[0] for n in c.notes] == [
+        "column cycle numbered from 0", "1 hold(s) whose force relaxes at one strain", "the strain jumps by 0.02"]
