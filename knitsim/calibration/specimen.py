@@ -37,8 +37,8 @@ import numpy as np
 
 from ..errors import KnitsimInputError
 from ..diagnosis.measured import (
-    PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, TIME_LABELS, compression_limit, drop_copied_rows, flat_top_note,
-    flat_tops, pasted_block, pasted_note, refuse_few_rows, refuse_negative_force,
+    HOLD_TRAVEL_TOLS, PER_CENT_HINT, STRAIN_TOL_REL, TEST_LABELS, TIME_LABELS, compression_limit, drop_copied_rows,
+    flat_top_note, flat_tops, force_holds, hold_note, pasted_block, pasted_note, refuse_few_rows, refuse_negative_force,
     read_cycle_column, refuse_no_response, refuse_reversed_rows, refuse_several_tests, strain_tolerance,
     zero_offset_below,
 )
@@ -119,15 +119,23 @@ def read_table(path: str | Path) -> MeasuredTable:
     tol = strain_tolerance(strain)
     # rows in reverse order (or a log from the peak) are said as such, as the diagnosis says them
     refuse_reversed_rows(str(path), strain, tol, lambda i: int(rows[i]), s_name)
+    # rows pasted again after later ones, refused as the diagnosis refuses them
+    block = pasted_block(strain, force, tol)
+    if block is not None:
+        raise KnitsimInputError(f"{path}: {pasted_note(block, lambda k: int(rows[k]))} (a test never retraces its "
+                                "readings to the last digit of both columns)")
+    # a strain back by at most HOLD_TRAVEL_TOLS tolerances below the rows before is a hold's, kept in the loading at
+    # the running maximum as the diagnosis keeps it (infer_branches): a clamp or extensometer settling while the force
+    # relaxes, a tracked strain wandering at rest (Singal 2024's raw video frames, 21 stockinette runs, were every one
+    # refused at a step back of 4 to 7 tolerances, most at rest near strain 0); beyond, an unloading
     clean = np.maximum.accumulate(strain)
-    back = np.nonzero(clean - strain > tol)[0]
+    back = np.nonzero(clean - strain > HOLD_TRAVEL_TOLS * tol)[0]
     if len(back):
         i = int(back[0])
-        block = pasted_block(strain, force, tol)
-        pasted = f" ({pasted_note(block, lambda k: int(rows[k]))})" if block is not None and block[0] == i else ""
         raise KnitsimInputError(f"{path}: row {rows[i]}, column {s_name}: {float(strain[i])!r} is below the rows before "
-                                f"(up to {float(clean[i])!r}) by more than the jitter tolerance {tol:.3g}{pasted}; a "
-                                "calibration reads loading curves (strain non-decreasing)")
+                                f"(up to {float(clean[i])!r}) by more than a hold's creep ({HOLD_TRAVEL_TOLS:g} times "
+                                f"the jitter tolerance {tol:.3g}): an unloading? A calibration reads loading curves "
+                                "(strain non-decreasing)")
     if len(clean) < 2 or clean[-1] <= clean[0]:
         raise KnitsimInputError(f"{path}: the strain does not increase (needs a loading curve)")
     cycle = _cycle_numbers(cols.get("cycle"))
@@ -140,6 +148,17 @@ def read_table(path: str | Path) -> MeasuredTable:
     one = np.ones(len(clean), int)
     noise = curve_noise(clean, force, one, one, source=str(path))
     column = f_total or f_wale
+    # a hold whose force relaxes (force_holds): its rows but its first are left out, as the diagnosis leaves them
+    # out, and said (the model keeps one force at one strain; fitted, the relaxed rows pull the knit down)
+    held = force_holds(strain, force, one, one, noise)
+    held_note = ()
+    if held:
+        held_note = (hold_note(held, clean, lambda i: int(rows[i]), "N" if f_total else "N per wale"),)
+        kept = np.ones(len(clean), bool)
+        for i, j, _ in held:
+            kept[i + 1:j] = False
+        strain, clean, force, rows, one = strain[kept], clean[kept], force[kept], rows[kept], one[kept]
+        noise = curve_noise(clean, force, one, one, source=str(path))
 
     def row(i):
         return int(rows[i])
@@ -149,7 +168,7 @@ def read_table(path: str | Path) -> MeasuredTable:
     # force has no offset term (left in, a -10 mN zero on a 55 N curve moved phi0 by 3 to 7 sd in a blind
     # probe).  A zero above zero is not told from the knit's own force at rest or a pretension: left in
     zero = _rest_level(force, noise.sigma_N, zero_offset_below(force, noise.sigma_N))
-    notes = notes_of(cols)
+    notes = notes_of(cols) + held_note
     # a force flat at its largest reading while the strain moves on: a saturated load cell, said (a probe's pull
     # clipped at 80 % of its peak read only as a misfit)
     tops = flat_tops(strain, force, tol)

@@ -692,13 +692,7 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     found = strain_slips(clean, f, d, noise)
     notes, slips = cycle_note, ()
     if held:
-        notes += (f"{len(held)} hold(s) whose force relaxes at one strain: "
-                  + ", ".join(f"rows {row(i)}-{row(j - 1)} at strain {float(clean[i]):.4g}, {change:+.3g} N"
-                              for i, j, change in held[:4])
-                  + (", ..." if len(held) > 4 else "")
-                  + "; the model has no relaxation (it is rate-independent): each hold's rows but its first are left "
-                    "out of the fit, and the branches after it start from a relaxed knit the model does not know, so "
-                    "no verdict on this curve is confident",)
+        notes += (hold_note(held, clean, row) + ", so no verdict on this curve is confident",)
     if found:
         slips = tuple(row(k) for k, *_ in found)
         k, jump, times, tells = found[0]
@@ -905,6 +899,16 @@ def force_holds(strain, force, cycle, direction, noise) -> list[tuple[int, int, 
                     out.append((lo, hi, change))
             lo = hi
     return out
+
+
+def hold_note(held, strain, row, unit: str = "N") -> str:
+    """What the readers say of the holds :func:`force_holds` found (``row(i)``: the spreadsheet row of entry i)."""
+    return (f"{len(held)} hold(s) whose force relaxes at one strain: "
+            + ", ".join(f"rows {row(i)}-{row(j - 1)} at strain {float(strain[i]):.4g}, {change:+.3g} {unit}"
+                        for i, j, change in held[:4])
+            + (", ..." if len(held) > 4 else "")
+            + "; the model has no relaxation (it is rate-independent): each hold's rows but its first are left out of "
+              "the fit, and the loading after it starts from a relaxed knit the model does not know")
 
 
 def _row_sd(strain, force, cycle, direction, noise) -> np.ndarray:
