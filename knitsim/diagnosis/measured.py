@@ -908,7 +908,7 @@ def hold_note(held, strain, row, unit: str = "N") -> str:
                         for i, j, change in held[:4])
             + (", ..." if len(held) > 4 else "")
             + "; the model has no relaxation (it is rate-independent): each hold's rows but its first are left out of "
-              "the fit, and the loading after it starts from a relaxed knit the model does not know")
+              "the fit, and the curve after it starts from a relaxed knit the model does not know")
 
 
 def _row_sd(strain, force, cycle, direction, noise) -> np.ndarray:
