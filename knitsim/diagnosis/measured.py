@@ -341,10 +341,43 @@ def infer_branches(strain, force=None, tol: float | None = None) -> tuple[np.nda
         while j < len(s) and direction[j] == -1:
             j += 1
         top = float(np.max(s[max(i - 1, 0):i + 1]))
-        if top - float(np.min(s[i:j])) <= HOLD_TRAVEL_TOLS * tol:
+        if top - float(np.min(s[i:j])) <= HOLD_TRAVEL_TOLS * tol or (f is not None and _force_stays(s, f, direction, i, j, noise)):
             direction[i:j] = 1
         i = j
     return _cycles_from_direction(direction), direction
+
+
+#: a "branch back" whose force falls by less than this share of what the loading before it rose over the same
+#: strains (less the noise) is no unloading (:func:`_force_stays`)
+UNLOAD_DROP_SHARE = 0.5
+
+
+def _force_stays(s, f, direction, i: int, j: int, noise: float) -> bool:
+    """Whether the force stays up while the strain goes back over rows ``i .. j-1`` (read as an unloading by
+    :func:`infer_branches`): an unloading lies below the loading that reached its turn (friction dissipates: at a
+    strain below the turn the unloading's force is at most the loading's), so its force falls from the turn's at least
+    by what the loading rose over the strains it went back over.  One that falls by less than
+    :data:`UNLOAD_DROP_SHARE` of that, less ``noise`` (three times the force's noise scale), is a strain read going
+    back while the knit did not (a clamp or pin tracked on video settling over a hold, as Singal 2024's raw frames
+    do by up to 25 tolerances: a monotonic test read as 2 to 6 cycles).  Forces are medians of a row and its
+    neighbours (one bad reading is no turn)."""
+    a = i
+    while a > 0 and direction[a - 1] == 1:         # the loading before: its rows
+        a -= 1
+    if i - a < 2:
+        return False
+    t = a + int(np.argmax(s[a:i]))                 # the turn: the loading's largest strain
+    low = i + int(np.argmin(s[i:j]))               # how far back the strain went
+    below = np.flatnonzero(s[a:t + 1] >= s[low])
+    if not len(below):
+        return False
+    m = a + int(below[0])                           # the loading's first row at that strain
+
+    def at(r, lo, hi):
+        return float(np.median(f[max(r - 1, lo):min(r + 2, hi)]))
+    rise = at(t, a, i) - at(m, a, i)
+    drop = at(t, a, i) - at(low, i, j)
+    return drop < UNLOAD_DROP_SHARE * rise - noise
 
 
 def _cycles_from_direction(direction: np.ndarray) -> np.ndarray:

@@ -484,3 +484,30 @@ def test_a_slip_note_keeps_the_notes_before_it():
     assert c.slips == (len(s) - 40 + 1,) and c.holds == tuple(range(k + 3, k + 13))
     assert [n.split(":")[0].split(" (")[0] for n in c.notes] == [
         "column cycle numbered from 0", "1 hold(s) whose force relaxes at one strain", "the strain jumps by 0.02"]
+
+
+def test_a_strain_read_going_back_while_the_force_stays_up_is_no_unloading():
+    """A monotonic step-and-hold pull whose strain, tracked on video, goes back during a hold by far more than a
+    hold's creep while the force stays (Singal 2024's acrylic stockinette Y run 3, clamp strain: back by 0.007, 25
+    tolerances, the force 29.33 -> 29.2 N; of Singal's 165 raw curves, which hold no unloading, 9 read as 2 to 6
+    cycles).  Hand-made: 0 -> 0.5 in steps of 0.005 (tol 5e-4), the force 0.05 + 4 strain^2 N (1 mN of noise); at
+    strain 0.3 (0.41 N) 20 rows whose strain recedes to 0.28 (40 tolerances) while the force relaxes by 1 %, then the
+    pull goes on.  An unloading lies below the loading that reached its turn (friction dissipates), so its force
+    falls at least by what the loading rose over the strain it goes back over: here 4 (0.3^2 - 0.28^2) = 0.046 N,
+    where these rows fall by 0.004 N (below half of it less 3 noise scales, measured._force_stays).  Expected: one
+    loading, one cycle.  The same 20 rows falling as an unloading does (to 0.3 N, more than the 0.046 N the law asks)
+    stay an unloading and a reload: two cycles."""
+    rng = np.random.default_rng(4)
+    s = np.arange(1, 101) * 0.005
+    f = 0.05 + 4.0 * s ** 2
+    k, t = 59, np.arange(1, 21)
+    back = s[k] - 0.02 * t / 20
+    held = f[k] * (1.0 - 0.01 * t / 20)
+    sh = np.r_[s[:k + 1], back, s[k + 1:]]
+    noise = rng.normal(0.0, 0.001, len(sh))
+    c = curve_from_arrays(sh, np.r_[f[:k + 1], held, f[k + 1:]] + noise)
+    assert c.cycle.max() == 1 and np.all(c.direction == 1)
+    unload = f[k] - (f[k] - 0.3) * np.sqrt(t / 20)
+    c = curve_from_arrays(sh, np.r_[f[:k + 1], unload, f[k + 1:]] + noise)
+    np.testing.assert_array_equal(c.direction, np.r_[np.ones(k + 1), -np.ones(20), np.ones(100 - k - 1)])
+    assert c.cycle.max() == 2
