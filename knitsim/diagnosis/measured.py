@@ -341,7 +341,9 @@ def infer_branches(strain, force=None, tol: float | None = None) -> tuple[np.nda
         while j < len(s) and direction[j] == -1:
             j += 1
         top = float(np.max(s[max(i - 1, 0):i + 1]))
-        if top - float(np.min(s[i:j])) <= HOLD_TRAVEL_TOLS * tol or (f is not None and _force_stays(s, f, direction, i, j, noise)):
+        # (and one whose force stays up while its strain goes back farther: _force_stays)
+        if (top - float(np.min(s[i:j])) <= HOLD_TRAVEL_TOLS * tol
+                or (f is not None and _force_stays(s, f, direction, i, j, noise))):
             direction[i:j] = 1
         i = j
     return _cycles_from_direction(direction), direction
@@ -894,10 +896,11 @@ def force_holds(strain, force, cycle, direction, noise) -> list[tuple[int, int, 
     keeps the extreme while its strain runs on), each within :data:`HOLD_STEP_SHARE` of the branch's mean step, or
     the curve's jitter tolerance (:func:`strain_tolerance`), of the first (on a loading, or below it by up to
     :data:`HOLD_TRAVEL_TOLS` jitter tolerances, as far as :func:`infer_branches` keeps a strain that goes back in the
-    loading: a clamp or extensometer that settles, creeping back, while the force relaxes); at least :data:`HOLD_MIN_ROWS` of them,
-    whose force moves against the branch's direction (falls on a loading, rises on an unloading: a relaxation, or
-    the recovery of an unloading held) by more than :data:`HOLD_SIGMAS` standard errors of the line through them in
-    the row order (each row weighted by its noise sd); ``change`` the line's change over the hold [N].
+    loading: a clamp or extensometer that settles, creeping back, while the force relaxes); at least
+    :data:`HOLD_MIN_ROWS` of them, whose force moves against the branch's direction (falls on a loading, rises on an
+    unloading: a relaxation, or the recovery of an unloading held) by more than :data:`HOLD_SIGMAS` standard errors of
+    the line through them in the row order (each row weighted by its noise sd); ``change`` the line's change over the
+    hold [N].
 
     A step-and-hold test (a hold at each peak, the force relaxing by a few per cent) holds rows that the model,
     rate-independent, keeps at one force: a probe's hold of 20 rows at the first peak of the model's own cycles,
