@@ -77,6 +77,8 @@ _DIRECTIONS = {"load": 1, "loading": 1, "reload": 1, "reloading": 1, "up": 1, "+
 #: one-letter codes, read by the column's other letters: ``U`` is an unloading beside ``L`` (load / unload) and a
 #: loading beside ``D`` (up / down); alone, or beside both, which one is meant is not said (refused)
 _DIRECTION_LETTERS = {"l": 1, "d": -1}
+#: a test program's word for a hold (the grip stopped while the force relaxes): the branch it is in goes on
+_HOLD_WORDS = ("hold", "holding", "dwell", "pause", "relax", "relaxation")
 
 #: a force this many noise sd below zero is kept as a reading around zero; lower is refused
 NEGATIVE_SIGMAS = 5.0
@@ -471,8 +473,10 @@ def direction_signs(source: str, direction, row) -> np.ndarray:
     """The sign of each row of a direction column (+1 loading, -1 unloading): the words of :data:`_DIRECTIONS` in
     any case, ``1`` / ``-1`` (numbers, or cells that read as them: ``+1``, ``-1.0``), and the letters ``L`` / ``U``
     or ``U`` / ``D`` (:data:`_DIRECTION_LETTERS`: ``U`` read by the column's other letters).  ``-`` is also a
-    missing-value mark: read as an unloading only where the column holds ``+`` too.  Anything else is refused,
-    naming the row (``row(i)``), the column and the value."""
+    missing-value mark: read as an unloading only where the column holds ``+`` too.  A hold (:data:`_HOLD_WORDS`: a
+    test program's segment, the grip stopped) is the branch it is in, the row above's (a loading on the first row:
+    the test starts at rest); before, ``hold`` was refused as no direction.  Anything else is refused, naming the row
+    (``row(i)``), the column and the value."""
     keys = [v.strip().casefold() if isinstance(v, str) else v for v in direction]
     letters = {k for k in keys if isinstance(k, str) and k in ("l", "u", "d")}
     u_sign = -1 if "d" not in letters and "l" in letters else 1 if "l" not in letters and "d" in letters else None
@@ -481,6 +485,9 @@ def direction_signs(source: str, direction, row) -> np.ndarray:
     for i, (v, key) in enumerate(zip(direction, keys)):
         if isinstance(key, str) and key in _DIRECTIONS and (key != "-" or plus):
             d[i] = _DIRECTIONS[key]
+            continue
+        if isinstance(key, str) and key in _HOLD_WORDS:
+            d[i] = d[i - 1] if i else 1
             continue
         if isinstance(key, str) and key in _DIRECTION_LETTERS:
             d[i] = _DIRECTION_LETTERS[key]
@@ -505,7 +512,8 @@ def direction_signs(source: str, direction, row) -> np.ndarray:
             raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} marks an unloading (+ / -) or "
                                     "a missing value, and the column holds no '+' to tell: write load / unload")
         raise KnitsimInputError(f"{source}: row {row(i)}, column direction: {v!r} is not 'load' or 'unload' (nor "
-                                "another word for them: loading / unloading, up / down, L / U, + / -, 1 / -1)")
+                                "another word for them: loading / unloading, up / down, L / U, + / -, 1 / -1; nor "
+                                "'hold')")
     return d
 
 

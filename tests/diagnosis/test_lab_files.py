@@ -585,6 +585,25 @@ def test_a_direction_column_in_a_labs_own_words_reads_as_load_and_unload(tmp_pat
     np.testing.assert_array_equal(c.cycle, ref.cycle)
 
 
+@pytest.mark.parametrize("word", ["hold", "Hold", "HOLD", "dwell", "pause", "relaxation"])
+def test_a_hold_in_the_direction_column_is_the_branch_it_is_in(tmp_path, word):
+    """A test program's segments written in the direction column: load, a hold at the peak (the grip stopped while the
+    force relaxes), unload, a hold at the valley.  Before, 'hold' was refused as no direction.  Hand-made: the two
+    branches above, with 3 rows at the peak strain 0.30 (0.153 -> 0.150 -> 0.148 -> 0.147 N) and 2 at the valley 0.10
+    (0.018 -> 0.019 -> 0.020 N) labelled so.  Expected: each hold is the branch it is in (the row above's), so the
+    directions are those of the same file labelled load / unload in its place (an identity), one cycle."""
+    rows = _UP + [(0.30, 0.150), (0.30, 0.148), (0.30, 0.147)] + _DOWN + [(0.10, 0.019), (0.10, 0.020)]
+    held = ["load"] * 16 + [word] * 3 + ["unload"] * 10 + [word] * 2
+    plain = ["load"] * 19 + ["unload"] * 12
+    c = read_measured_curve(_write(tmp_path, _csv(rows, header="strain,force_per_wale_N,direction", extra=held),
+                                   "held.csv"))
+    ref = read_measured_curve(_write(tmp_path, _csv(rows, header="strain,force_per_wale_N,direction", extra=plain),
+                                     "plain.csv"))
+    assert list(c.direction) == [1] * 19 + [-1] * 12
+    np.testing.assert_array_equal(c.cycle, ref.cycle)
+    np.testing.assert_array_equal(c.strain, ref.strain)
+
+
 @pytest.mark.parametrize("dirs, row, value, why", [
     # U alone: load / unload's U or up / down's U, not said
     (["U"] * 26, "row 2", "'U'", "which one is meant is not said"),
