@@ -691,15 +691,18 @@ def curve_from_arrays(strain, force, cycle=None, direction=None, rate_mm_s=None,
     else:
         d = direction_signs(source, direction, row)
         inf_cycle = _cycles_from_direction(d)
-        # within a direction the strain may step back by jitter (<= tol) only
+        # within a direction the strain may step back by a hold's creep (<= HOLD_TRAVEL_TOLS tolerances) only, as
+        # infer_branches keeps it in its branch without the column (before, by one tolerance: a hold whose strain
+        # crept back by 4 while the force relaxed was refused with the column and read as a hold without it)
         clean = _monotone(s, d)
-        back = np.nonzero(np.abs(s - clean) > tol)[0]
+        back = np.nonzero(np.abs(s - clean) > HOLD_TRAVEL_TOLS * tol)[0]
         if len(back):
             i = back[0]
             what = "decreases within a load branch" if d[i] > 0 else "increases within an unload branch"
             raise KnitsimInputError(
                 f"{source}: row {row(i)}, column strain: {float(s[i]):g} {what} by {abs(float(s[i] - clean[i])):.3g} "
-                f"(more than the jitter tolerance {tol:.3g}); check the direction column or the row order")
+                f"(more than a hold's creep, {HOLD_TRAVEL_TOLS:g} times the jitter tolerance {tol:.3g}); check the "
+                "direction column or the row order")
     cycle_note = ()
     if cycle is None:
         c = inf_cycle
