@@ -147,6 +147,9 @@ def _curve_weights(curves, weights) -> list[np.ndarray]:
 
 #: least weighted residual of a row the simulation did not reach (module docstring)
 FAILED_ROW_Z = 10.0
+#: replays at strain / k kept besides the measured strain's (calibrate_baseline's cache): a fit's point and its
+#: finite-difference steps
+REPLAYS_KEPT = 4
 
 
 def _failed_rows(history, rows: np.ndarray, cell: int) -> np.ndarray:
@@ -299,10 +302,14 @@ def calibrate_baseline(curves, base: CellParams, free: Sequence[str] = ("m", "ph
     replays: dict[float, tuple] = {}
 
     def replay(scale: float) -> tuple:
-        # the programs and rows of the replay at strain / scale (curves that share a program share it at any scale)
+        # the programs and rows of the replay at strain / scale (curves that share a program share it at any scale).
+        # Kept: the measured strain's and the last few scales' (a fit's point and its finite-difference steps);
+        # each evaluation of a new k is new, so a cache of every one grew over the fit
         if scale not in replays:
             scaled = curves if scale == 1.0 else [replace(c, strain=c.strain / scale) for c in curves]
             replays[scale] = _replay_programs(scaled, max_increment)
+            for old in [k for k in replays if k != 1.0][:-REPLAYS_KEPT]:
+                del replays[old]
         return replays[scale]
 
     group_list = replay(1.0)[2]

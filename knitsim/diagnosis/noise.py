@@ -453,12 +453,18 @@ def written_resolution(values) -> float:
     return 0.0
 
 
+def rounding_sd(step: float) -> float:
+    """The sd of a reading written to the last digit ``step`` about the value it rounds [N]: ``step / sqrt(12)``
+    (a uniform error over one digit, variance ``step^2 / 12``)."""
+    return step / math.sqrt(12.0)
+
+
 def rounding_scatter(step: float, n: int) -> float:
     """The largest scatter about the cubics [N] that ``n`` deviations of a curve written to the last digit ``step``
     show from the rounding alone: ``step / sqrt(12)`` plus :data:`ROUNDING_SIGMAS` standard
     errors of its estimate, ``sqrt(KAPPA / n)`` relative.  A scatter above it holds noise of its own, and the rows'
     sd is that scatter (the rounding's variance ``step^2 / 12`` included: the fit compares the rounded rows)."""
-    return step / math.sqrt(12.0) * (1.0 + ROUNDING_SIGMAS * math.sqrt(KAPPA / max(n, 1)))
+    return rounding_sd(step) * (1.0 + ROUNDING_SIGMAS * math.sqrt(KAPPA / max(n, 1)))
 
 
 def cubic_deviations(strain, force, cycle, direction) -> tuple[np.ndarray, np.ndarray]:
@@ -646,7 +652,7 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
     elif step > 0 and len(zc_all) >= MIN_SAMPLES and clipped_sd(zc_all) < rounding_scatter(step, len(zc_all)):
         why = (f"its rows scatter by {clipped_sd(zc_all):.2g} N about the cubic through their neighbours, what the "
                f"rounding to the last digit its forces are written to ({step:g} N) gives alone ({step:g} / sqrt(12) = "
-               f"{step / math.sqrt(12.0):.2g} N): the rounding of a curve read off a figure or a smooth law, not "
+               f"{rounding_sd(step):.2g} N): the rounding of a curve read off a figure or a smooth law, not "
                "measurement noise")
     else:
         # from the chords, as the blind study was run and scored (v14: 120 cases).  The cubics' sd is closer
@@ -683,7 +689,7 @@ def _force_noise(strain, force, cycle, direction, source: str, given: float | No
         why = (f"its rows scatter by {sigma:.2g} N, below {SMOOTH_REL:g} of its force range: a digitised or "
                "smoothed curve, whose scatter is not measurement noise")
     assumed = ASSUMED_REL * span if span > 0 else 1e-6
-    floor = step / math.sqrt(12.0)
+    floor = rounding_sd(step)
     if floor > assumed:
         return CurveNoise(source, floor, "assumed", len(z), False,
                           f"noise not estimable ({why}); assumed the rounding's own sd, {step:g} / sqrt(12) = "
