@@ -273,6 +273,35 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: {msg}") from None
 
 
+def _check_overrides_kept(doc: dict, overrides: list[str], spec: SweepSpec) -> None:
+    """Refuse a ``--set`` that a swept key replaces in some sample by stating its quantity another way (the
+    schema's alternatives: ``friction.phi0`` against a sweep of ``friction.phi0_deg``, ``friction.m`` against
+    ``friction.mu_k``) or by a choice that leaves it out (``load.type``): each sample's value is set by the
+    schema's own rule (:func:`~knitsim.scene.schema.set_value`), and an override gone from the result was dropped
+    there without a word (a blind probe's ``--set friction.phi0=0.1`` on a sweep of ``friction.phi0_deg``)."""
+    kept = flat_keys(doc)
+    for a in overrides:
+        key = a.split("=", 1)[0].strip()
+        if key not in kept:
+            continue
+        for p in spec.parameters:
+            # which keys a value drops depends on the value only for a choosing key (a name: load.type): a number
+            # is tried once (an axis may hold 10^7 of them)
+            vals = (p.low,) if p.values is None else tuple(dict.fromkeys(
+                [p.values[0]] + [v for v in p.values if isinstance(v, (str, bool))]))
+            for v in vals:
+                trial = copy.deepcopy(doc)
+                try:
+                    _set(trial, p.key, v)
+                except KnitsimInputError:
+                    continue                           # (the key itself is judged by _check_key)
+                if key not in flat_keys(trial):
+                    raise KnitsimInputError(
+                        f"--set {a}: the sweep's {p.key} = {fmt(v)} removes {key} from the sample's scene (one "
+                        "quantity stated two ways, or a choice of keys without it): the --set would be dropped "
+                        "without a word; drop one of the two")
+
+
 def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | None = None,
                overrides: list[str] = (), engine: str | None = None, device: str | None = None,
                chunk_size: int | None = None, progress=None) -> SweepPlan:
@@ -327,6 +356,7 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
             raise KnitsimInputError(f"--set {a}: {key} is a parameter of the sweep (its values come from "
                                     "[sweep.parameters]): drop one of the two")
         set_value(scene_doc, CELL_SCENE, a)
+    _check_overrides_kept(scene_doc, overrides, spec)
     # a library file (materials = FILE) is relative to the scene, as for knitsim cell and run
     base_dir = None if source == "<dict>" else Path(source).resolve().parent
     base = _load_sample(scene_doc, [], (), base_dir, engine, device)

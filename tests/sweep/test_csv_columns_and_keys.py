@@ -115,6 +115,27 @@ def test_a_set_of_a_swept_key_is_refused():
     plan_sweep(SCENE, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}}, overrides=["friction.phi0=0.05"])
 
 
+def test_a_set_that_a_swept_key_states_another_way_is_refused():
+    # a blind probe: --set friction.phi0=0.1 on a sweep of friction.phi0_deg ran every sample at the swept phi0_deg
+    # (the sample's value removes the other ways of stating phi0, the schema's alternatives), without a word
+    import pytest
+    from knitsim.errors import KnitsimInputError
+    for swept, override in (("friction.phi0_deg", "friction.phi0=0.1"), ("friction.phi0", "friction.phi0_deg=3"),
+                            ("friction.phi0_fraction", "friction.phi0=0.1")):
+        values = [-0.5, 0.5] if swept == "friction.phi0_fraction" else [-0.05, 0.05]
+        with pytest.raises(KnitsimInputError, match=rf"--set {override}: the sweep's {swept} = .* removes "
+                                                    rf"{override.split('=')[0]}"):
+            plan_sweep(SCENE, {"parameters": {swept: {"values": values}}}, overrides=[override])
+    # a choosing key: a sample of load.type = "cycles" leaves the --set target_strain out
+    with pytest.raises(KnitsimInputError, match=r"--set load.target_strain=0.5: the sweep's load.type"):
+        plan_sweep(SCENE, {"parameters": {"load.type": {"values": ["cycles", "monotonic"]}}},
+                   overrides=["load.target_strain=0.5"])
+    # another quantity is kept by every sample: runs, at the --set value
+    plan = plan_sweep(SCENE, {"parameters": {"friction.phi0_deg": {"values": [-1.0, 1.0]}}},
+                      overrides=["friction.m=0.3"])
+    assert [cells[0].m for cells in plan.params] == [0.3, 0.3]
+
+
 def test_a_damaged_chunk_is_computed_again_on_resume(tmp_path, capsys):
     # a blind probe: a chunk file that is not a valid archive ended --resume in a BadZipFile traceback
     sweep = {"chunk_size": 1, "parameters": {"friction.m": {"values": [0.1, 0.2]}}}
