@@ -186,7 +186,9 @@ def _param(key: str, raw: Any, method: str) -> tuple[SweepParameter, dict]:
                 raise KnitsimInputError(f"{where}.values[{i}] = {fmt(v)}: expected a number, string or boolean")
             if isinstance(v, float) and not math.isfinite(v):
                 raise KnitsimInputError(f"{where}.values[{i}] = {fmt(v)}: must be finite")
-        if len(set(map(canonical_json, vals))) != len(vals):
+        # a number by its value: 0 and 0.0 are one grid value (a blind probe's [0, 0.0] made two samples of m = 0 and
+        # a coordinate that repeats, which xarray cannot select by)
+        if len({float(v) if _number(v) else canonical_json(v) for v in vals}) != len(vals):
             raise KnitsimInputError(f"{where}.values = {fmt(vals)}: values repeat (each grid value once)")
         # ints stay ints (an int field such as load.cycles takes them; a float field converts them)
         return SweepParameter(key, values=tuple(vals)), {"values": vals}

@@ -68,6 +68,9 @@ def test_hash_changes_with_the_spec():
     ({"chunk_size": 0, "parameters": {"friction.m": {"values": [0.1]}}}, ["sweep.chunk_size"]),
     ({"size": 3, "parameters": {"friction.m": {"values": [0.1]}}}, ["sweep.size", "unknown"]),
     ({"parameters": {"friction.m": {"values": [0.1, 0.1]}}}, ['"friction.m"', "repeat"]),
+    # one number written as an int and as a float (both are m = 0: two samples of one, a coordinate that repeats)
+    ({"parameters": {"friction.m": {"values": [0, 0.0]}}}, ['"friction.m"', "repeat"]),
+    ({"parameters": {"load.cycles": {"values": [2, 3, 2.0]}}}, ['"load.cycles"', "repeat"]),
 ])
 def test_bad_tables_are_refused_naming_the_key(table, words):
     with pytest.raises(KnitsimInputError) as exc:
