@@ -145,6 +145,9 @@ def _run_locked(args, plan, out_dir) -> int:
     for w in calibration_warnings(getattr(plan.base, "calibration_flags", [])):
         # the sweep's base scene (or the library it names) is a flagged calibration's: every sample is
         print(f"knitsim sweep: warning: {w['message']}", file=sys.stderr, flush=True)
+    for w in plan.warnings:
+        # a swept key that a cell states itself: that cell is not swept
+        print(f"knitsim sweep: warning: {w['message']}", file=sys.stderr, flush=True)
     workers = args.workers
     if workers is None and plan.device != "cpu" and not args.scheduler:
         workers = 1                                   # one GPU: one worker process feeds it

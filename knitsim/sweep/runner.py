@@ -178,6 +178,9 @@ class SweepPlan:
     domain: np.ndarray | None = None
     #: per sample and cell, the reason of a non-zero domain code (None inside)
     domain_reasons: list | None = None
+    #: what the user should know before the results (``code``, ``message``): a swept key that a cell of the scene
+    #: states itself (:func:`_cells_not_swept`); printed by the command, in summary.json's ``warnings``
+    warnings: list = field(default_factory=list)
 
     @property
     def n_samples(self) -> int:
@@ -302,6 +305,38 @@ def _check_overrides_kept(doc: dict, overrides: list[str], spec: SweepSpec) -> N
                         "without a word; drop one of the two")
 
 
+def _cells_not_swept(doc: dict, spec: SweepSpec, labels: list) -> list[dict]:
+    """Warnings for a swept key of the base tables (``friction.m``) that a cell of ``[[cells]]`` states itself
+    (``friction = { m = 0.4 }``, or another way, ``mu_k``): a cell's own keys replace the base's
+    (:func:`knitsim.scene.cell_scene._merge`), so that cell keeps its value in every sample.  Warned, not refused (a
+    control cell held fixed is a design); before, not said: a blind probe's cell ran one value through the sweep,
+    its results repeated under every value of the axis."""
+    from ..scene.cell_scene import _CELL_TABLES
+
+    out = []
+    for p in spec.parameters:
+        table, _, name = p.key.partition(".")
+        if table not in _CELL_TABLES or "." in name:
+            continue
+        same = (name,) + CELL_SCENE.fields[table].others_than(name)
+        own = {}                                       # cell index -> the key it states the quantity by
+        for i, cell in enumerate(doc.get("cells") or []):
+            sub = cell.get(table) if isinstance(cell, dict) else None
+            for k in same:
+                if isinstance(sub, dict) and k in sub:
+                    own.setdefault(i, k)
+        if own:
+            i, k = next(iter(own.items()))
+            label = labels[i] if i < len(labels) else f"cells[{i}]"
+            out.append({"code": "swept_key_set_by_cell",
+                        "message": f"sweep.parameters.{json.dumps(p.key)}: {len(own)} of the scene's {len(labels)} "
+                                   f"cell(s) set {table}.{name} themselves (e.g. cells[{i}].{table}.{k} = "
+                                   f"{fmt(doc['cells'][i][table][k])}, cell {label}): they keep their own value in "
+                                   "every sample, the sweep does not reach them (remove a cell's own value if it "
+                                   "should follow the sweep)"})
+    return out
+
+
 def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | None = None,
                overrides: list[str] = (), engine: str | None = None, device: str | None = None,
                chunk_size: int | None = None, progress=None) -> SweepPlan:
@@ -410,6 +445,7 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
             chunks.append(Chunk(len(chunks), g, idx[a:a + spec.chunk_size]))
     plan = SweepPlan(spec, scene_doc, base, base.engine, dev, table, params, programs, loads, group, chunks,
                      list(base.labels), source, domain=domain, domain_reasons=reasons)
+    plan.warnings = _cells_not_swept(scene_doc, spec, list(base.labels))
     plan.inputs = sweep_inputs(plan)
     plan.hash = sweep_hash(plan, plan.inputs)
     return plan
@@ -1098,7 +1134,8 @@ def sweep_summary(plan: SweepPlan, run: SweepRun) -> dict:
         # the base scene's values (or the library materials it names) come from a flagged calibration: every
         # sample's do (knitsim.io.checks.calibration_warnings)
         "warnings": [{k: v for k, v in w.items() if k != "cell"}
-                     for w in checks.calibration_warnings(getattr(plan.base, "calibration_flags", []))],
+                     for w in checks.calibration_warnings(getattr(plan.base, "calibration_flags", []))]
+        + list(plan.warnings),
         # the plot could not be drawn (the results are complete without it): why
         **({"plot_error": run.plot_error} if run.plot_error else {}),
     }

@@ -167,6 +167,25 @@ def test_load_keys_group_samples_by_program_and_cells_multiply(tmp_path):
     np.testing.assert_allclose(np.nanmax(ds["imposed_strain"].values, axis=1), [0.3, 0.4])
 
 
+def test_a_swept_key_that_a_cell_sets_itself_is_warned(tmp_path):
+    # a blind probe: a sweep of friction.m over a scene whose cell b states its own m (or phi0 another way, phi0_deg)
+    # ran b at its own value in every sample, its results repeated under every m, without a word: a cell's own keys
+    # replace the base tables' (cell_scene._merge); warned (a control cell held fixed is a design), not refused
+    scene = dict(SCENE, cells=[{"label": "a"}, {"label": "b", "friction": {"m": 0.3, "phi0_deg": 1.0}}])
+    sweep = {"parameters": {"friction.m": {"values": [0.1, 0.2]}, "friction.phi0": {"values": [0.0, 0.05]},
+                            "knit.L": {"values": [14.0, 14.1]}}}
+    plan, run = _run(tmp_path, sweep, scene)
+    # the identity the warning states: cell b's friction is one in every sample, cell a's follows the sweep
+    assert {(c[1].m, c[1].phi0) for c in plan.params} == {(0.3, float(np.radians(1.0)))}
+    assert len({(c[0].m, c[0].phi0) for c in plan.params}) == 4
+    assert [w["code"] for w in plan.warnings] == ["swept_key_set_by_cell"] * 2
+    assert "cells[1].friction.m = 0.3, cell b" in plan.warnings[0]["message"]
+    assert "cells[1].friction.phi0_deg = 1" in plan.warnings[1]["message"]
+    assert run.summary["warnings"] == plan.warnings
+    # a key no cell sets (knit.L), or a scene whose cells set none of the swept keys: no warning
+    assert plan_sweep(dict(SCENE, cells=[{"label": "a"}, {"label": "b", "knit": {"C0": 2.8}}]), sweep).warnings == []
+
+
 def test_two_worker_local_dask_cluster_gives_the_in_process_results(tmp_path):
     _, ref = _run(tmp_path, name="local")
     t0 = time.perf_counter()
