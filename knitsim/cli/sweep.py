@@ -177,8 +177,11 @@ def _run_locked(args, plan, out_dir) -> int:
     print(f"knitsim sweep: {len(run.computed)} chunk(s) computed, {len(run.skipped)} reused, "
           f"{run.wall_s:.1f} s; wrote {', '.join(sorted(summary['files']))} to {out}", file=sys.stderr, flush=True)
     if n_bad:
-        print(f"knitsim sweep: warning: {n_bad} sample cell(s) failed (no results: NaN in results.nc, grey in "
-              "the plots):", file=sys.stderr, flush=True)
+        # the fraction, as the domain's counts say theirs (a blind probe's "7 sample cell(s) failed" left the
+        # reader to find the total 40 lines above)
+        n_all = plan.n_samples * plan.n_cells
+        print(f"knitsim sweep: warning: {n_bad} of {n_all} sample cell(s) failed ({100 * n_bad / n_all:.3g} %; no "
+              "results: NaN in results.nc, grey in the plots):", file=sys.stderr, flush=True)
         for f in failed[:20]:
             print(f"  sample {f['sample']} ({', '.join(f'{k} = {v:.6g}' if isinstance(v, float) else f'{k} = {v}' for k, v in f['parameters'].items())})"
                   f"{'' if f.get('cell') is None else ' cell ' + str(f['cell'])}: {f['reason']}",
