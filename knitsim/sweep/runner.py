@@ -834,6 +834,9 @@ def _prepare_out(plan: SweepPlan, out: Path, resume: bool) -> None:
             raise KnitsimInputError(
                 f"--resume: {out} holds a different sweep: the resolved inputs differ from those of its finished "
                 f"chunks ({_changes(old, plan, inputs)}); reusing them would mix two sweeps: {advice}")
+        # a chunks/ folder removed (a finished sweep's, results.nc holding them all): its chunks are computed again
+        # (before, each chunk's write failed, "after fixing the cause, finish with --resume", which failed again)
+        (out / CHUNK_DIR).mkdir(exist_ok=True)
         return
     if mpath.exists() or (out / CHUNK_DIR).exists():
         raise KnitsimInputError(f"--out = {str(out)!r}: already holds a sweep; add --resume to finish it, "

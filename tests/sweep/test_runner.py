@@ -73,6 +73,18 @@ def test_delete_one_chunk_and_resume_recomputes_only_it(tmp_path, monkeypatch):
     assert run2.dataset.identical(ref)
 
 
+def test_resume_after_the_chunks_folder_was_removed_computes_them_all_again(tmp_path):
+    # a blind probe: a finished sweep's chunks/ removed (results.nc holds them), --resume failed on every chunk's
+    # write ("after fixing the cause, finish with --resume", which failed again): the folder is made again and every
+    # chunk computed, the results those of the uninterrupted run
+    import shutil
+    plan, run = _run(tmp_path)
+    shutil.rmtree(tmp_path / "out" / "chunks")
+    run2 = run_sweep(plan_sweep(SCENE, GRID), tmp_path / "out", resume=True, workers=0, progress=None, plots=False)
+    assert sorted(run2.computed) == [0, 1, 2] and run2.skipped == []
+    assert run2.dataset.identical(run.dataset)
+
+
 def test_failure_in_a_chunk_keeps_earlier_chunks_and_resume_completes(tmp_path, monkeypatch):
     _, full = _run(tmp_path, name="full")
     real = runner.run_chunk
