@@ -394,9 +394,23 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
     _check_overrides_kept(scene_doc, overrides, spec)
     # a library file (materials = FILE) is relative to the scene, as for knitsim cell and run
     base_dir = None if source == "<dict>" else Path(source).resolve().parent
-    base = _load_sample(scene_doc, [], (), base_dir, engine, device)
+    try:
+        base = _load_sample(scene_doc, [], (), base_dir, engine, device)
+    except KnitsimInputError:
+        base = None
     for p in spec.parameters:
         _check_key(scene_doc, p.key, p.values[0] if p.values is not None else p.low)
+    table = spec.sample_table()
+    keys = spec.keys
+    if base is None:
+        # a scene that leaves a swept key to the sweep (no knit.L, every sample gives one) is not a scene alone: its
+        # base is its first sample's (before, refused as "knit.L: missing", and a --set of it as a swept key); a
+        # scene that fails there too is refused naming that sample
+        try:
+            base = _load_sample(scene_doc, keys, table[0], base_dir, engine, device)
+        except KnitsimInputError as exc:
+            vals = ", ".join(f"{k} = {fmt(v)}" for k, v in zip(keys, table[0]))
+            raise KnitsimInputError(f"sweep sample 0 ({vals}): {exc}") from None
 
     if base.engine == "warp":
         from .. import warp_runtime
@@ -404,8 +418,6 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
     else:
         dev = "cpu"
 
-    table = spec.sample_table()
-    keys = spec.keys
     params, group, programs, loads, group_of = [], [], [], [], {}
     n_cells = len(base.params)
     invalid: dict = {}

@@ -198,6 +198,22 @@ def test_a_swept_key_that_a_cell_sets_itself_is_warned(tmp_path):
     assert plan_sweep(dict(SCENE, cells=[{"label": "a"}, {"label": "b", "knit": {"C0": 2.8}}]), sweep).warnings == []
 
 
+def test_a_scene_that_leaves_the_swept_keys_to_the_sweep_runs():
+    # a blind probe's hand-made scene gave knit W0 and C0 and left L to the sweep: refused as "knit.L: missing";
+    # and a sweep of friction.dahl_sigma over --set friction.model=dahl as "dahl_sigma = 0.0: needs a stiffness > 0",
+    # its --set refused as a swept key: no way to run either from the command line.  The base is then the first
+    # sample's scene; every sample gets its values (E-glass, Table 1 and section 2.2, written out)
+    scene = dict(SCENE, yarn={"d": 0.58, "B": 0.31}, knit={"W0": 4.4, "C0": 2.7})
+    plan = plan_sweep(scene, {"parameters": {"knit.L": {"values": [14.0, 14.1]}}})
+    assert [cells[0].L for cells in plan.params] == [14.0, 14.1]
+    plan = plan_sweep(SCENE, {"parameters": {"friction.dahl_sigma": {"values": [5.0, 50.0]}}},
+                      overrides=["friction.model=dahl"])
+    assert [cells[0].dahl_sigma for cells in plan.params] == [5.0, 50.0]
+    # a scene that misses a key the sweep does not give is refused, naming the key and the sample
+    with pytest.raises(KnitsimInputError, match=r"sweep sample 0 \(friction.m = 0.1\): knit.L: missing"):
+        plan_sweep(scene, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}})
+
+
 def test_two_worker_local_dask_cluster_gives_the_in_process_results(tmp_path):
     _, ref = _run(tmp_path, name="local")
     t0 = time.perf_counter()
