@@ -386,6 +386,21 @@ def set_value(data: dict, schema: Table, assignment: str) -> dict:
     return data
 
 
+def field_at(schema: Table, key: str) -> Field | None:
+    """The :class:`Field` a key path names (``cells[1].knit.L``: the knit table's ``L``), or None where the path
+    names no value of the schema (an unknown key, a table).  What a key path's value is, its unit among it, for
+    outputs labelled by key paths (a sweep's axes); :func:`set_value` refuses such paths, naming them."""
+    spec: Any = schema
+    for part in key.split("."):
+        m = _PART.match(part)
+        if not m or not isinstance(spec, Table) or m.group(1) not in spec.fields:
+            return None
+        spec = spec.fields[m.group(1)]
+        if isinstance(spec, TableArray):
+            spec = spec.item
+    return spec if isinstance(spec, Field) else None
+
+
 # --------------------------------------------------------------- TOML output
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
 

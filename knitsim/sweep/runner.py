@@ -70,7 +70,7 @@ from ..io import checks
 from ..io.jsonable import json_text
 from ..io.results import atomic_write_bytes, atomic_write_text, cell_summary, check_output_dir, record_outputs
 from ..scene.cell_scene import CELL_SCENE, load_cell_scene
-from ..scene.schema import flat_keys, fmt, key_changes, load_toml, set_value
+from ..scene.schema import field_at, flat_keys, fmt, key_changes, load_toml, set_value
 from .spec import SweepSpec, canonical_json, parse_sweep, split_scene
 
 MANIFEST = "sweep.json"
@@ -1421,6 +1421,10 @@ def assemble(out_dir: str | Path):
                                    flag_meanings=" ".join(ENERGY_KINDS.values()))
     for k in keys:
         ds[k].attrs["key_path"] = k
+        # the axis's unit, the scene field's (a reader of results.nc could not tell knit.L's mm from phi0's rad)
+        f = field_at(CELL_SCENE, k)
+        if f is not None and f.unit:
+            ds[k].attrs["units"] = f.unit
     ds.attrs.update({
         "title": str(man["base_resolved"].get("title", "")), "method": spec["method"],
         "parameters": json.dumps(keys), "spec": json.dumps(spec), "sweep_hash": man["hash"],

@@ -167,6 +167,23 @@ def test_lhs_dataset_has_a_sample_dimension_with_parameter_coordinates(tmp_path)
     assert [p[0].L for p in plan.params] == list(ds["knit.L"].values)
 
 
+@pytest.mark.parametrize("method", ["grid", "lhs"])
+def test_the_swept_parameters_axes_carry_their_units_in_results_nc(tmp_path, method):
+    # a blind probe: results.nc labelled its axes by key path only, knit.L's mm and phi0_deg's deg not said, while
+    # every result variable had its units; the unit is the scene field's (knitsim.scene.cell_scene)
+    import xarray as xr
+    params = {"knit.L": {"min": 14.0, "max": 14.2}, "friction.phi0_deg": {"min": -2.0, "max": 2.0},
+              "friction.m": {"min": 0.15, "max": 0.25}}
+    if method == "grid":
+        params = {k: dict(v, count=2) for k, v in params.items()}
+    sweep = {"method": method, "parameters": params, **({"samples": 3} if method == "lhs" else {})}
+    _run(tmp_path, sweep)
+    with xr.open_dataset(tmp_path / "out" / "results.nc") as ds:
+        assert ds["knit.L"].attrs["units"] == "mm" and ds["friction.phi0_deg"].attrs["units"] == "deg"
+        assert "units" not in ds["friction.m"].attrs                     # a ratio: the scene states no unit
+        assert ds["knit.L"].attrs["key_path"] == "knit.L"
+
+
 def test_load_keys_group_samples_by_program_and_cells_multiply(tmp_path):
     scene = dict(SCENE, cells=[{"label": "a"}, {"label": "b", "friction": {"m": 0.3}}])
     sweep = {"chunk_size": 8, "curves": True, "parameters": {"load.upper_strain": {"values": [0.3, 0.4]}}}
