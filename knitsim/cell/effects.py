@@ -98,6 +98,13 @@ PARAM_COLUMNS: tuple[str, ...] = (
     "compaction_k", "compaction_min", "bend_h", "bend_sigma", "ext_c",
 )
 
+#: the parameters of each effect (the module's table): a parameter of an effect that is off changes nothing
+EFFECT_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "coiling_angle_friction": ("coil_mu_k",), "normal_load_friction": ("load_n", "load_ref_N"),
+    "velocity_friction": ("rate_p", "rate_ref_mm_s"), "yarn_compaction": ("compaction_k", "compaction_min"),
+    "bending_hysteresis": ("bend_h", "bend_sigma"), "yarn_extension": ("ext_c",),
+}
+
 #: columns of the per-cell effective state (knitsim.kernels.effects)
 EFFECT_STATE: tuple[str, ...] = ("m_eff", "d_eff", "L_eff", "B_eff", "z_bend", "P_rest", "Rn_rest")
 

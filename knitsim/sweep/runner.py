@@ -337,6 +337,27 @@ def _cells_not_swept(doc: dict, spec: SweepSpec, labels: list) -> list[dict]:
     return out
 
 
+def _check_effect_axes(spec: SweepSpec, params: list) -> None:
+    """Refuse an axis of an effect's parameter (``effects.bend_h``) where no cell of any sample has that effect on
+    (``effects.on``): the kernels do not read it, every sample runs the same cells (a blind probe's sweep of
+    ``effects.bend_h`` without bending_hysteresis on gave one result under every value, without a word).  A scene
+    may state the parameters of effects that are off (a calibration writes them all); an axis of one is a mistake."""
+    from ..cell.effects import EFFECT_PARAMETERS
+
+    owner = {c: name for name, cols in EFFECT_PARAMETERS.items() for c in cols}
+    swept = [(p.key, owner[p.key.rsplit(".", 1)[-1]]) for p in spec.parameters
+             if p.key.rsplit(".", 2)[-2:-1] == ["effects"] and p.key.rsplit(".", 1)[-1] in owner]
+    if not swept:
+        return
+    on = {n for cells in params for c in cells for n in c.effects.on}
+    for key, effect in swept:
+        if effect not in on:
+            raise KnitsimInputError(
+                f"sweep.parameters.{json.dumps(key)}: a parameter of the effect {effect}, which no cell has on "
+                f"(effects.on): every sample would run the same cells; add \"{effect}\" to effects.on, or leave "
+                "the axis out")
+
+
 def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | None = None,
                overrides: list[str] = (), engine: str | None = None, device: str | None = None,
                chunk_size: int | None = None, progress=None) -> SweepPlan:
@@ -449,6 +470,7 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
                 f"{', '.join(map(str, list(invalid)[1:6]))}{', ...' if len(invalid) > 6 else ''}; narrow the "
                 "ranges or leave those values out)") if len(invalid) > 1 else ""
         raise KnitsimInputError(first + more)
+    _check_effect_axes(spec, params)
     domain, reasons = _domain_of(params, programs, group, base.engine, dev)
     chunks = []
     for g in range(len(programs)):

@@ -231,6 +231,22 @@ def test_a_scene_that_leaves_the_swept_keys_to_the_sweep_runs():
         plan_sweep(scene, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}})
 
 
+def test_an_axis_of_an_effect_that_no_cell_has_on_is_refused(tmp_path):
+    # a blind probe: a sweep of effects.bend_h without bending_hysteresis on ran one result under every h, without a
+    # word (the kernels read an effect's parameters only where it is on)
+    sweep = {"parameters": {"effects.bend_h": {"values": [0.1, 0.5]}}}
+    with pytest.raises(KnitsimInputError, match=r'"effects.bend_h": a parameter of the effect bending_hysteresis, '
+                                                r'which no cell has on'):
+        plan_sweep(SCENE, sweep)
+    with pytest.raises(KnitsimInputError, match=r'"cells\[0\].effects.ext_c": .* yarn_extension'):
+        plan_sweep(dict(SCENE, cells=[{"label": "a"}]), {"parameters": {"cells[0].effects.ext_c": {"values": [0.0, 0.01]}}})
+    # on (in one cell of the scene, or the base): the axis changes the results
+    scene = dict(SCENE, cells=[{"label": "a"}, {"label": "b", "effects": {"on": ["bending_hysteresis"]}}])
+    plan, run = _run(tmp_path, sweep, scene)
+    peaks = run.dataset["peak_force_per_wale_N"].sel(cycle=2).values     # [h, cell]
+    assert peaks[0, 0] == peaks[1, 0] and peaks[0, 1] != peaks[1, 1]
+
+
 def test_two_worker_local_dask_cluster_gives_the_in_process_results(tmp_path):
     _, ref = _run(tmp_path, name="local")
     t0 = time.perf_counter()
