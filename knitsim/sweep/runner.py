@@ -256,6 +256,9 @@ def _load_sample(scene_doc: dict, keys: list[str], row: tuple, base_dir: Path | 
 
 #: scene keys that say how a sweep runs, not what it simulates: one value for every sample
 NOT_SWEPT = ("engine", "device", "title")
+#: scene keys a sweep does not read at all (knitsim cell's plot.png; what wrote the scene), with what says it instead
+NOT_READ = {"output.plot": "a sweep draws plot_sweep.png unless --no-plot",
+            "provenance.source": "it names what wrote the scene"}
 
 
 def _check_key(doc: dict, key: str, value: Any) -> None:
@@ -267,6 +270,10 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
         option = f", or --{key}" if key in ("engine", "device") else ""
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: the whole sweep "
                                 f"runs with one {key} (give it in the scene{option})")
+    if key in NOT_READ:
+        # (a blind probe's sweep of output.plot ran two identical samples)
+        raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: a sweep does not "
+                                f"read it ({NOT_READ[key]}): every sample would run the same cells")
     try:
         _set(copy.deepcopy(doc), key, value)
     except KnitsimInputError as exc:

@@ -51,6 +51,11 @@ def test_engine_and_device_are_not_swept():
         plan_sweep(SCENE, {"parameters": {"title": {"values": ["a", "b"]}}})
     with pytest.raises(KnitsimInputError, match=r"\(give it in the scene, or --engine\)$"):
         plan_sweep(SCENE, {"parameters": {"engine": {"values": ["warp", "reference"]}}})
+    # keys a sweep does not read (a blind probe's sweep of output.plot ran two identical samples)
+    for key, vals in (("output.plot", [True, False]), ("provenance.source", ["a", "b"])):
+        with pytest.raises(KnitsimInputError, match=rf'^sweep.parameters."{key}": not a parameter of the cells: a '
+                                                    r'sweep does not read it .*every sample would run the same cells$'):
+            plan_sweep(SCENE, {"parameters": {key: {"values": vals}}})
 
 
 def test_a_text_parameter_beside_flagged_samples_is_plotted(tmp_path):
