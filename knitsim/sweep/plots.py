@@ -178,6 +178,13 @@ def render_sweep(ds) -> dict[str, bytes]:
         others = ("cells not plotted: " + "; ".join(flagged)) if flagged else ""
         ds = ds.isel(cell=0)
     grid = ds.attrs["method"] == "grid"
+    if grid:
+        # lines and heat-map cells in the order of the values, not the order the sweep gives them (a blind probe's
+        # "friction.m" = [0.3, 0.1, 0.45, 0.2] drew its lines back and forth, and its heat-map cells over each other,
+        # on an axis 13.95-14.7 for knit.L values 13.8-14.4); names keep the sweep's order (_positions)
+        for k in keys:
+            if _positions(ds[k].values)[1] is None:
+                ds = ds.sortby(k)
     if grid and len(keys) == 1:
         data = _lines(ds, keys[0], head, others)
     elif grid and len(keys) == 2:

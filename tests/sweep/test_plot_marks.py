@@ -61,3 +61,32 @@ def test_a_parameter_of_names_is_drawn_as_points(tmp_path, monkeypatch):
     ds = run_sweep(plan, tmp_path / "num", workers=0, progress=None, plots=False).dataset
     (fig,) = _figures(ds, tmp_path, monkeypatch)
     assert any(ln.get_linestyle() != "None" for ax in fig.axes for ln in ax.get_lines())
+
+
+def test_a_grid_given_unsorted_is_drawn_in_the_order_of_its_values(tmp_path, monkeypatch):
+    # a blind probe: "friction.m" = [0.3, 0.1, 0.45, 0.2] drew its lines back and forth between the points, and with
+    # a second axis (knit.L [14.4, 13.8, 14.1]) heat-map cells over each other on an axis 13.95-14.7 (the edges are
+    # midpoints of neighbouring values); the figure does not depend on the order the values are given in
+    from matplotlib.collections import QuadMesh
+    plan = plan_sweep(SCENE, {"parameters": {"friction.m": {"values": [0.3, 0.1, 0.2]}}})
+    ds = run_sweep(plan, tmp_path / "one", workers=0, progress=None, plots=False).dataset
+    (fig,) = _figures(ds, tmp_path, monkeypatch)
+    lines = [ln.get_xdata() for ax in fig.axes for ln in ax.get_lines() if len(ln.get_xdata()) == 3]
+    assert lines and all(list(x) == [0.1, 0.2, 0.3] for x in lines)
+    plan = plan_sweep(SCENE, {"parameters": {"friction.m": {"values": [0.3, 0.1, 0.2]},
+                                             "knit.L": {"values": [14.2, 13.9]}}})
+    ds = run_sweep(plan, tmp_path / "two", workers=0, progress=None, plots=False).dataset
+    (fig,) = _figures(ds, tmp_path, monkeypatch)
+    maps = [ax for ax in fig.axes if ax.get_xlabel() == "knit.L"]     # (not the colour bars)
+    meshes = [c for ax in maps for c in ax.collections if isinstance(c, QuadMesh)]
+    assert len(meshes) == len(maps) == 6                               # 3 quantities x cycles 1 and 3
+    for mesh in meshes:
+        xy = mesh.get_coordinates()                       # [y edge, x edge, (x, y)]
+        xe, ye = xy[0, :, 0], xy[:, 0, 1]
+        np.testing.assert_allclose(xe, [13.75, 14.05, 14.35])            # knit.L 13.9, 14.2: midpoint edges
+        np.testing.assert_allclose(ye, [0.05, 0.15, 0.25, 0.35])         # friction.m 0.1, 0.2, 0.3
+        # each cell holds its sample's value: the peak of cycle 1 at (m, L)
+        z = np.asarray(mesh.get_array()).reshape(3, 2)
+        if mesh.axes is maps[0]:
+            want = ds["peak_force_per_wale_N"].sel(cycle=1).sortby("friction.m").sortby("knit.L")
+            np.testing.assert_array_equal(z, want.transpose("friction.m", "knit.L").values)
