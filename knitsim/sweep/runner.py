@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import csv
 import hashlib
 import io
 import json
@@ -1482,7 +1483,11 @@ def dataset_csv(ds) -> str:
     idx = np.indices(shape).reshape(len(shape), -1)
     lead_shape = shape[: len(lead)]
     sample = np.ravel_multi_index(idx[: len(lead)], lead_shape) if lead_shape else np.zeros(idx.shape[1], int)
-    lines = [",".join(cols)]
+    # csv quoting (a value or cell label holding a comma, "E-glass, m 0.2", split its row into one column more than
+    # the header: a blind probe's pandas read the label into the cell column); other rows are as they were
+    buf = io.StringIO()
+    lines = csv.writer(buf, lineterminator="\n")
+    lines.writerow(cols)
     from ..cell.domain import DOMAIN_NAMES
     from ..cell.history import STATUS_NAMES
     names = {**STATUS_NAMES, -1: "not_run"}
@@ -1519,8 +1524,8 @@ def dataset_csv(ds) -> str:
         row += ["" if int(flat[k][r]) < 0 else str(int(flat[k][r])) for k in _WARNING_FLAGS]
         if has_domain:
             row.append(domain_names.get(int(flat["domain"][r]), "?"))
-        lines.append(",".join(row))
-    return "\n".join(lines) + "\n"
+        lines.writerow(row)
+    return buf.getvalue()
 
 
 __all__ = ["assemble", "dataset_csv", "SweepPlan", "SweepRun", "Chunk", "SweepChunkError", "plan_sweep",

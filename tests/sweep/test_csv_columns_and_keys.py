@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 
 import numpy as np
 
@@ -38,6 +39,22 @@ def test_every_row_has_a_value_under_every_header_column(tmp_path):
     assert rec[1]["final_status"] not in ("ok", "force_cap")
 
 
+def test_a_cell_label_or_value_holding_a_comma_stays_in_its_column(tmp_path):
+    # a blind probe's hand-made scene named its cells "E-glass, m 0.2": each row of results.csv had one column more
+    # than its header, and pandas read the label's second half as the cycle; the file is quoted as CSV quotes
+    scene = dict(SCENE, cells=[{"label": "E-glass, m 0.2"}, {"label": 'say "b"', "friction": {"m": 0.3}}])
+    plan = plan_sweep(scene, {"parameters": {"knit.L": {"values": [14.0, 14.1]}}})
+    ds = run_sweep(plan, tmp_path / "out", workers=0, progress=None, plots=False).dataset
+    rows = list(csv.reader(io.StringIO((tmp_path / "out" / "results.csv").read_text())))
+    header, data = rows[0], rows[1:]
+    assert len(data) == 2 * 2 * 1 and all(len(r) == len(header) for r in data)
+    col = {k: header.index(k) for k in ("cell", "cell_label", "cycle", "knit.L")}
+    assert [(r[col["cell"]], r[col["cell_label"]], r[col["cycle"]]) for r in data[:2]] == [
+        ("0", "E-glass, m 0.2", "1"), ("1", 'say "b"', "1")]
+    assert [float(r[col["knit.L"]]) for r in data] == [14.0, 14.0, 14.1, 14.1]
+    assert list(ds["cell_label"].values) == ["E-glass, m 0.2", 'say "b"']
+
+
 def test_engine_and_device_are_not_swept():
     # a blind probe's sweep over engine ran both samples on warp, one labelled "reference"
     import pytest
@@ -53,7 +70,7 @@ def test_engine_and_device_are_not_swept():
         plan_sweep(SCENE, {"parameters": {"engine": {"values": ["warp", "reference"]}}})
     # keys a sweep does not read (a blind probe's sweep of output.plot ran two identical samples)
     for key, vals in (("output.plot", [True, False]), ("provenance.source", ["a", "b"])):
-        with pytest.raises(KnitsimInputError, match=rf'^sweep.parameters."{key}": not a parameter of the cells: a '
+        with pytest.raises(KnitsimInputError, match=rf'^sweep.parameters."{re.escape(key)}": not a parameter of the cells: a '
                                                     r'sweep does not read it .*every sample would run the same cells$'):
             plan_sweep(SCENE, {"parameters": {key: {"values": vals}}})
 
