@@ -58,6 +58,7 @@ import json
 import logging
 import os
 import platform
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -259,7 +260,8 @@ def _load_sample(scene_doc: dict, keys: list[str], row: tuple, base_dir: Path | 
 NOT_SWEPT = ("engine", "device", "title")
 #: scene keys a sweep does not read at all (knitsim cell's plot.png; what wrote the scene), with what says it instead
 NOT_READ = {"output.plot": "a sweep draws plot_sweep.png unless --no-plot",
-            "provenance.source": "it names what wrote the scene"}
+            "provenance.source": "it names what wrote the scene",
+            "cells[].label": "it names the cell in the outputs, whose cell_label is the scene's"}
 
 
 def _check_key(doc: dict, key: str, value: Any) -> None:
@@ -271,10 +273,11 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
         option = f", or --{key}" if key in ("engine", "device") else ""
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: the whole sweep "
                                 f"runs with one {key} (give it in the scene{option})")
-    if key in NOT_READ:
+    generic = re.sub(r"\[\d+\]", "[]", key)               # (cells[1].label: cells[].label)
+    if generic in NOT_READ:
         # (a blind probe's sweep of output.plot ran two identical samples)
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: not a parameter of the cells: a sweep does not "
-                                f"read it ({NOT_READ[key]}): every sample would run the same cells")
+                                f"read it ({NOT_READ[generic]}): every sample would run the same cells")
     try:
         _set(copy.deepcopy(doc), key, value)
     except KnitsimInputError as exc:

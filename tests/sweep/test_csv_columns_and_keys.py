@@ -69,7 +69,8 @@ def test_engine_and_device_are_not_swept():
     with pytest.raises(KnitsimInputError, match=r"\(give it in the scene, or --engine\)$"):
         plan_sweep(SCENE, {"parameters": {"engine": {"values": ["warp", "reference"]}}})
     # keys a sweep does not read (a blind probe's sweep of output.plot ran two identical samples)
-    for key, vals in (("output.plot", [True, False]), ("provenance.source", ["a", "b"])):
+    for key, vals in (("output.plot", [True, False]), ("provenance.source", ["a", "b"]),
+                      ("cells[0].label", ["a", "b"])):
         with pytest.raises(KnitsimInputError, match=rf'^sweep.parameters."{re.escape(key)}": not a parameter of the cells: a '
                                                     r'sweep does not read it .*every sample would run the same cells$'):
             plan_sweep(SCENE, {"parameters": {key: {"values": vals}}})
