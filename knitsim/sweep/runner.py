@@ -427,9 +427,9 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
     # a library file (materials = FILE) is relative to the scene, as for knitsim cell and run
     base_dir = None if source == "<dict>" else Path(source).resolve().parent
     try:
-        base = _load_sample(scene_doc, [], (), base_dir, engine, device)
-    except KnitsimInputError:
-        base = None
+        base, base_error = _load_sample(scene_doc, [], (), base_dir, engine, device), None
+    except KnitsimInputError as exc:
+        base, base_error = None, exc
     for p in spec.parameters:
         _check_key(scene_doc, p.key, p.values[0] if p.values is not None else p.low)
     table = spec.sample_table()
@@ -441,6 +441,8 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         try:
             base = _load_sample(scene_doc, keys, table[0], base_dir, engine, device)
         except KnitsimInputError as exc:
+            if str(exc) == str(base_error):          # the scene's own mistake, not the sweep's: said as before
+                raise base_error from None
             vals = ", ".join(f"{k} = {fmt(v)}" for k, v in zip(keys, table[0]))
             raise KnitsimInputError(f"sweep sample 0 ({vals}): {exc}") from None
 

@@ -226,9 +226,14 @@ def test_a_scene_that_leaves_the_swept_keys_to_the_sweep_runs():
     plan = plan_sweep(SCENE, {"parameters": {"friction.dahl_sigma": {"values": [5.0, 50.0]}}},
                       overrides=["friction.model=dahl"])
     assert [cells[0].dahl_sigma for cells in plan.params] == [5.0, 50.0]
-    # a scene that misses a key the sweep does not give is refused, naming the key and the sample
-    with pytest.raises(KnitsimInputError, match=r"sweep sample 0 \(friction.m = 0.1\): knit.L: missing"):
+    # a scene that misses a key the sweep does not give is refused as before, naming the key
+    with pytest.raises(KnitsimInputError, match=r"^knit.L: missing"):
         plan_sweep(scene, {"parameters": {"friction.m": {"values": [0.1, 0.2]}}})
+    # one whose first sample fails otherwise: that sample is named (knit.W0 = 2.2 below 4 d = 2.32 mm)
+    with pytest.raises(KnitsimInputError, match=r"^sweep sample 0 \(knit.L = 14.0, knit.W0 = 2.2\): knit.W0 = 2.2: "
+                                                r"must be >= 4 d"):
+        plan_sweep(dict(scene, knit={"C0": 2.7}), {"parameters": {"knit.L": {"values": [14.0]},
+                                                                  "knit.W0": {"values": [2.2, 4.4]}}})
 
 
 def test_an_axis_of_an_effect_that_no_cell_has_on_is_refused(tmp_path):
