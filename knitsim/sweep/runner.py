@@ -287,33 +287,58 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: {msg}") from None
 
 
+_KEPT = object()
+
+
+def _remover(doc: dict, key: str, p) -> Any:
+    """The value of the swept parameter ``p`` whose setting removes ``key`` from ``doc`` (by the schema's own rule,
+    :func:`~knitsim.scene.schema.set_value`: one quantity stated another way, ``friction.phi0`` / ``phi0_deg``, or a
+    choice of keys without it, ``load.type``), else :data:`_KEPT`.  Which keys a value removes depends on the value
+    only for a choosing key (a name): a number is tried once (an axis may hold 10^7 of them)."""
+    vals = (p.low,) if p.values is None else tuple(dict.fromkeys(
+        [p.values[0]] + [v for v in p.values if isinstance(v, (str, bool))]))
+    for v in vals:
+        trial = copy.deepcopy(doc)
+        try:
+            _set(trial, p.key, v)
+        except KnitsimInputError:
+            continue                                   # (the key itself is judged by _check_key)
+        if key not in flat_keys(trial):
+            return v
+    return _KEPT
+
+
 def _check_overrides_kept(doc: dict, overrides: list[str], spec: SweepSpec) -> None:
-    """Refuse a ``--set`` that a swept key replaces in some sample by stating its quantity another way (the
-    schema's alternatives: ``friction.phi0`` against a sweep of ``friction.phi0_deg``, ``friction.m`` against
-    ``friction.mu_k``) or by a choice that leaves it out (``load.type``): each sample's value is set by the
-    schema's own rule (:func:`~knitsim.scene.schema.set_value`), and an override gone from the result was dropped
-    there without a word (a blind probe's ``--set friction.phi0=0.1`` on a sweep of ``friction.phi0_deg``)."""
+    """Refuse a ``--set`` that a swept key removes from some sample (:func:`_remover`; a blind probe's ``--set
+    friction.phi0=0.1`` on a sweep of ``friction.phi0_deg`` was dropped by every sample without a word), and an axis
+    that a later axis removes (``friction.phi0`` and ``friction.phi0_deg`` both swept: every sample ran the later
+    one's value, labelled with both)."""
     kept = flat_keys(doc)
     for a in overrides:
         key = a.split("=", 1)[0].strip()
         if key not in kept:
             continue
         for p in spec.parameters:
-            # which keys a value drops depends on the value only for a choosing key (a name: load.type): a number
-            # is tried once (an axis may hold 10^7 of them)
-            vals = (p.low,) if p.values is None else tuple(dict.fromkeys(
-                [p.values[0]] + [v for v in p.values if isinstance(v, (str, bool))]))
-            for v in vals:
-                trial = copy.deepcopy(doc)
-                try:
-                    _set(trial, p.key, v)
-                except KnitsimInputError:
-                    continue                           # (the key itself is judged by _check_key)
-                if key not in flat_keys(trial):
-                    raise KnitsimInputError(
-                        f"--set {a}: the sweep's {p.key} = {fmt(v)} removes {key} from the sample's scene (one "
-                        "quantity stated two ways, or a choice of keys without it): the --set would be dropped "
-                        "without a word; drop one of the two")
+            v = _remover(doc, key, p)
+            if v is not _KEPT:
+                raise KnitsimInputError(
+                    f"--set {a}: the sweep's {p.key} = {fmt(v)} removes {key} from the sample's scene (one "
+                    "quantity stated two ways, or a choice of keys without it): the --set would be dropped "
+                    "without a word; drop one of the two")
+    params = spec.parameters
+    for i, a in enumerate(params):
+        trial = copy.deepcopy(doc)
+        try:
+            _set(trial, a.key, a.values[0] if a.values is not None else a.low)
+        except KnitsimInputError:
+            continue
+        for b in params[i + 1:]:
+            v = _remover(trial, a.key, b)
+            if v is not _KEPT:
+                raise KnitsimInputError(
+                    f"sweep.parameters.{json.dumps(a.key)}: the later axis {json.dumps(b.key)} = {fmt(v)} removes "
+                    f"it from the sample's scene (one quantity stated two ways, or a choice of keys without it): "
+                    f"those samples would run {b.key} alone, labelled with both; sweep one of the two")
 
 
 def _cells_not_swept(doc: dict, spec: SweepSpec, labels: list) -> list[dict]:

@@ -159,6 +159,25 @@ def test_a_set_that_a_swept_key_states_another_way_is_refused():
     assert [cells[0].m for cells in plan.params] == [0.3, 0.3]
 
 
+def test_two_axes_stating_one_quantity_are_refused():
+    # a blind probe swept friction.phi0 and friction.phi0_deg together: every sample ran the later axis's phi0_deg
+    # (it removes phi0 from the sample's scene), results.nc labelled by both, the phi0 axis changing nothing
+    import pytest
+    from knitsim.errors import KnitsimInputError
+    for first, later, vals in (("friction.phi0", "friction.phi0_deg", [-1.0, 1.0]),
+                               ("friction.m", "friction.mu_k", [0.15, 0.2]),
+                               ("load.upper_strain", "load.type", ["cycles", "monotonic"])):
+        with pytest.raises(KnitsimInputError, match=rf'^sweep.parameters."{first}": the later axis "{later}" = .* '
+                                                    r'removes it'):
+            plan_sweep(SCENE, {"parameters": {first: {"values": [0.5, 0.55] if first.startswith("load") else
+                                                      [0.05, 0.1]}, later: {"values": vals}}})
+    # two quantities: both reach every sample
+    plan = plan_sweep(SCENE, {"parameters": {"friction.m": {"values": [0.1, 0.3]},
+                                             "friction.phi0_deg": {"values": [-1.0, 1.0]}}})
+    assert sorted({(c[0].m, round(float(np.degrees(c[0].phi0)), 12)) for c in plan.params}) == [
+        (0.1, -1.0), (0.1, 1.0), (0.3, -1.0), (0.3, 1.0)]
+
+
 def test_a_damaged_chunk_is_computed_again_on_resume(tmp_path, capsys):
     # a blind probe: a chunk file that is not a valid archive ended --resume in a BadZipFile traceback
     sweep = {"chunk_size": 1, "parameters": {"friction.m": {"values": [0.1, 0.2]}}}
