@@ -401,3 +401,13 @@ def test_a_flagged_samples_parameters_are_those_the_dataset_holds_at_its_index(m
         assert entry["parameters"] == {k: point[k].values.item() for k in keys}
         assert entry["sample"] == int(np.ravel_multi_index(tuple(idx[:len(lead)]), flag.shape[:len(lead)]))
         assert entry["cell"] == (int(idx[-1]) if method == "grid" else None)
+
+
+def test_a_slow_chunks_rate_is_not_printed_as_zero():
+    # a blind probe's reference-engine sweep: 4 samples in one chunk of 151 s printed "0.0 samples/s"
+    import io as _io
+    out = _io.StringIO()
+    progress = runner._Progress(out, total_chunks=1, total_samples=4, done_chunks=0)
+    progress.t0 -= 151.0
+    progress(4)
+    assert "chunks 1/1, 0.0265 samples/s" in out.getvalue()                  # 4 / 151 s
