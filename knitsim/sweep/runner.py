@@ -287,6 +287,16 @@ def _check_key(doc: dict, key: str, value: Any) -> None:
         raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: {msg}") from None
 
 
+def _check_lhs_key(key: str) -> None:
+    """Refuse a Latin-hypercube range over a whole-number key (``load.cycles``): its draws are real numbers, and
+    every sample but a whole one was refused as such, with advice to narrow the range (a blind probe)."""
+    f = field_at(CELL_SCENE, key)
+    if f is not None and "int" in f.types and "float" not in f.types:
+        raise KnitsimInputError(f"sweep.parameters.{json.dumps(key)}: a whole number, which a Latin hypercube cannot "
+                                "draw (its samples are real numbers): give it as a grid axis, values = [...] or min, "
+                                "max and count (method = \"grid\"), or as one value in the scene")
+
+
 _KEPT = object()
 
 
@@ -457,6 +467,8 @@ def plan_sweep(scene: str | Path | dict, sweep: str | Path | dict | SweepSpec | 
         base, base_error = None, exc
     for p in spec.parameters:
         _check_key(scene_doc, p.key, p.values[0] if p.values is not None else p.low)
+        if spec.method == "lhs":
+            _check_lhs_key(p.key)
     table = spec.sample_table()
     keys = spec.keys
     if base is None:

@@ -129,6 +129,20 @@ def test_a_grid_range_over_a_whole_number_key_runs():
     assert sorted({float(c.force_cap_N) for cells in plan.params for c in cells}) == [10.0, 12.5]
 
 
+def test_a_latin_hypercube_over_a_whole_number_key_is_refused_naming_the_grid():
+    # a blind probe: an LHS of load.cycles in [1, 3] refused its samples one by one ("load.cycles =
+    # 2.3713749647447466: expected a whole number ... narrow the ranges"), which no range can mend
+    import pytest
+    from knitsim.errors import KnitsimInputError
+    with pytest.raises(KnitsimInputError, match=r'^sweep.parameters."load.cycles": a whole number, which a Latin '
+                                                r'hypercube cannot draw .*grid axis'):
+        plan_sweep(SCENE, {"method": "lhs", "samples": 3, "parameters": {"load.cycles": {"min": 1, "max": 3}}})
+    # a real-valued key of the same table draws as before
+    plan = plan_sweep(SCENE, {"method": "lhs", "samples": 3, "parameters": {"load.upper_strain": {"min": 0.5,
+                                                                                              "max": 0.6}}})
+    assert all(0.5 <= row[0] < 0.6 for row in plan.table)
+
+
 def test_a_set_of_a_swept_key_is_refused():
     # a blind probe: --set friction.m=0.3 on a sweep of friction.m was overridden by the sweep without a word
     import pytest
