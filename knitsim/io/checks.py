@@ -992,13 +992,30 @@ def inert_effect_warnings(effects, labels, prefixed: bool = True) -> list[dict]:
     """A warning per effect switched on at the strength where it changes nothing (:meth:`EffectSet.inert`),
     naming the cells (``labels``, one per EffectSet of ``effects``; ``prefixed``: a warning of one cell is
     printed after its label, which the message then leaves out): a blind probe's README example
-    ``--set 'effects.on=["yarn_compaction"]'`` ran bit for bit as without it (compaction_k defaults to 0)."""
-    from ..cell.effects import NEUTRAL_STRENGTH
+    ``--set 'effects.on=["yarn_compaction"]'`` ran bit for bit as without it (compaction_k defaults to 0).
+    And one per effect that is off with a parameter set away from its default (``--set effects.bend_h=0.5``
+    without bending_hysteresis on ran bit for bit as without it, a blind probe): the kernels read an effect's
+    parameters only where it is on (a calibration writes every parameter, the off effects' at their defaults:
+    not warned)."""
+    from ..cell.effects import EFFECT_PARAMETERS, NO_EFFECTS, NEUTRAL_STRENGTH
     cells: dict[str, list] = {}
+    unused: dict[str, list] = {}
     for eff, label in zip(effects, labels):
         for name in eff.inert():
             cells.setdefault(name, []).append(label)
+        for name, params in EFFECT_PARAMETERS.items():
+            set_ = [c for c in params if getattr(eff, c) != getattr(NO_EFFECTS, c)]
+            if name not in eff.on and set_:
+                unused.setdefault(name, []).append((label, set_[0], getattr(eff, set_[0])))
     out = []
+    for name, where in unused.items():
+        _, key, value = where[0]
+        shown = ", ".join(str(w[0]) for w in where[:5]) + (f" and {len(where) - 5} more" if len(where) > 5 else "")
+        one = prefixed and len(where) == 1
+        out.append({"code": "effect_parameter_unused", "cell": where[0][0] if one else "all",
+                    "message": f"effects.{key} = {value:g} is a parameter of the effect {name}, which is off "
+                               f"(effects.on){'' if one else f' ({shown})'}: it changes nothing; switch the effect "
+                               "on, or leave the parameter out"})
     for name, where in cells.items():
         key, value = NEUTRAL_STRENGTH[name]
         shown = ", ".join(map(str, where[:5])) + (f" and {len(where) - 5} more" if len(where) > 5 else "")

@@ -336,6 +336,27 @@ def test_a_tight_cell_the_warp_engine_cannot_start_is_refused_without_suggesting
     assert not (tmp_path / "w" / "summary.json").exists()
 
 
+def test_a_parameter_of_an_effect_that_is_off_is_warned_of(tmp_path, capsys):
+    """--set effects.bend_h=0.5 without bending_hysteresis in effects.on runs bit for bit as without it (the kernels
+    read an effect's parameters only where it is on: checked here on curve.csv), and was not said (a blind probe):
+    warned on the console and in summary.json; with the effect on, it changes the curve and nothing is said."""
+    scene = Path(__file__).resolve().parents[2] / "scenes" / "paper" / "e_glass_cyclic.toml"
+    args = ["cell", str(scene), "--set", "load.max_increment=0.05"]
+    assert main(args + ["--out", str(tmp_path / "plain")]) == 0
+    assert main(args + ["--set", "effects.bend_h=0.5", "--out", str(tmp_path / "off")]) == 0
+    err = capsys.readouterr().err
+    assert ("effects.bend_h = 0.5 is a parameter of the effect bending_hysteresis, which is off (effects.on): it "
+            "changes nothing") in err
+    codes = [w["code"] for w in json.loads((tmp_path / "off" / "summary.json").read_text())["warnings"]]
+    assert "effect_parameter_unused" in codes
+    curve = {d: (tmp_path / d / "curve.csv").read_text() for d in ("plain", "off")}
+    assert curve["plain"] == curve["off"]
+    assert main(args + ["--set", "effects.bend_h=0.5", "--set", 'effects.on=["bending_hysteresis"]',
+                        "--out", str(tmp_path / "on")]) == 0
+    assert "changes nothing" not in capsys.readouterr().err
+    assert (tmp_path / "on" / "curve.csv").read_text() != curve["plain"]
+
+
 def test_the_readme_s_effect_example_at_the_default_strength_is_warned_of(tmp_path, capsys):
     """The README's --set 'effects.on=["yarn_compaction"]' with compaction_k at its default 0 runs bit for bit as
     without the effect (the law's own limit, a rigid yarn): said on the console and in summary.json (a blind

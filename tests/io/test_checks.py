@@ -561,6 +561,15 @@ def test_an_effect_on_at_its_neutral_strength_is_warned_of():
     assert len(w) == 1 and w[0]["cell"] == "all" and "changes nothing (a, b):" in w[0]["message"]
     w = inert_effect_warnings([sets[0]], ["12 of the patch's 12 cells"], prefixed=False)
     assert "(12 of the patch's 12 cells)" in w[0]["message"]
+    # an effect that is off with a parameter away from its default: warned (it changes nothing); at its default, as
+    # a calibration writes every parameter, not
+    off = [EffectSet(bend_h=0.5), EffectSet(on=("yarn_compaction",), compaction_k=5.0, coil_mu_k=0.3, bend_h=0.0),
+           EffectSet(ext_c=0.01, rate_p=0.2)]
+    w = inert_effect_warnings(off, ["a", "b", "c"])
+    assert [(x["code"], x["cell"]) for x in w] == [("effect_parameter_unused", "a"), ("effect_parameter_unused", "c"),
+                                                   ("effect_parameter_unused", "c")]
+    assert w[0]["message"].startswith("effects.bend_h = 0.5 is a parameter of the effect bending_hysteresis, which "
+                                      "is off (effects.on): it changes nothing")
 
 
 def test_a_normal_load_exponent_above_howells_bound_is_warned_of():
