@@ -81,6 +81,34 @@ def check_cells_domain(params, labels, strains, engine: str = "reference", devic
     return warnings
 
 
+def _overrides_not_reaching(path: str, overrides: list[str], labels: list) -> list[dict]:
+    """A warning per ``--set`` of a base key (``friction.m=0.3``) that cells of ``[[cells]]`` state themselves
+    (:func:`knitsim.scene.cell_scene.cells_stating`): their own value wins, the --set does not reach them (a blind
+    probe's --set friction.m=0.3 ran a cell of m = 0.4 at 0.4, said only in summary.json's params)."""
+    from ..scene.cell_scene import CELL_SCENE, cells_stating
+    from ..scene.schema import fmt, load_toml, set_value
+
+    if not overrides:
+        return []
+    doc = load_toml(path)
+    for a in overrides:
+        set_value(doc, CELL_SCENE, a)            # (as the scene was read: a --set of a cell's key is its own value)
+    out = []
+    for a in overrides:
+        key = a.split("=", 1)[0].strip()
+        own = cells_stating(doc, key)
+        if own:
+            i, k = next(iter(own.items()))
+            table = key.partition(".")[0]
+            names = ", ".join(str(labels[j]) for j in list(own)[:5]) + (", ..." if len(own) > 5 else "")
+            out.append({"code": "set_key_set_by_cell", "cell": "all",
+                        "message": f"--set {a}: {len(own)} of the scene's {len(labels)} cell(s) ({names}) set {key} "
+                                   f"themselves (e.g. cells[{i}].{table}.{k} = {fmt(doc['cells'][i][table][k])}): "
+                                   f"their own value wins, the --set does not reach them (--set cells[{i}].{table}."
+                                   f"{k}=... for one)"})
+    return out
+
+
 def _run(args) -> int:
     t_command = time.perf_counter()
     with naming_scene(args.scene, "cell"):
@@ -91,6 +119,7 @@ def _run(args) -> int:
     with contextlib.redirect_stdout(sys.stderr), naming_scene(args.scene):   # (a refusal names the scene)
         domain_warnings = check_cells_domain(scene.params, scene.labels, scene.program.strain, engine=scene.engine)
     domain_warnings += calibration_warnings(scene.calibration_flags)
+    domain_warnings += _overrides_not_reaching(args.scene, args.overrides, scene.labels)
     domain_warnings += inert_effect_warnings([p.effects for p in scene.params], scene.labels)
     out = prepare_output_dir(args.out if args.out is not None else f"{Path(args.scene).stem}_out",
                              overwrite=args.overwrite,

@@ -305,6 +305,24 @@ def _merge(base: dict, over: dict) -> dict:
     return out
 
 
+def cells_stating(doc: dict, key: str) -> dict[int, str]:
+    """The cells of ``doc``'s ``[[cells]]`` that state the base tables' key path ``key`` (``friction.m``)
+    themselves, by that key or another way of its quantity (``friction.mu_k``): cell index -> the key.  Their own
+    value replaces the base's (:func:`_merge`), so a value given to the base key (``--set friction.m=0.3``, a sweep's
+    axis) does not reach them.  Empty for a key of no cell table, or one that indexes a cell (``cells[1]...``)."""
+    table, _, name = key.partition(".")
+    if table not in _CELL_TABLES or not name or "." in name:
+        return {}
+    same = (name,) + CELL_SCENE.fields[table].others_than(name)
+    own: dict[int, str] = {}
+    for i, cell in enumerate(doc.get("cells") or []):
+        sub = cell.get(table) if isinstance(cell, dict) else None
+        for k in same:
+            if isinstance(sub, dict) and k in sub:
+                own.setdefault(i, k)
+    return own
+
+
 class _Origins:
     """Key paths of the values of one cell, for messages."""
 

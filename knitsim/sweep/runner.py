@@ -357,20 +357,12 @@ def _cells_not_swept(doc: dict, spec: SweepSpec, labels: list) -> list[dict]:
     (:func:`knitsim.scene.cell_scene._merge`), so that cell keeps its value in every sample.  Warned, not refused (a
     control cell held fixed is a design); before, not said: a blind probe's cell ran one value through the sweep,
     its results repeated under every value of the axis."""
-    from ..scene.cell_scene import _CELL_TABLES
+    from ..scene.cell_scene import cells_stating
 
     out = []
     for p in spec.parameters:
+        own = cells_stating(doc, p.key)
         table, _, name = p.key.partition(".")
-        if table not in _CELL_TABLES or "." in name:
-            continue
-        same = (name,) + CELL_SCENE.fields[table].others_than(name)
-        own = {}                                       # cell index -> the key it states the quantity by
-        for i, cell in enumerate(doc.get("cells") or []):
-            sub = cell.get(table) if isinstance(cell, dict) else None
-            for k in same:
-                if isinstance(sub, dict) and k in sub:
-                    own.setdefault(i, k)
         if own:
             i, k = next(iter(own.items()))
             label = labels[i] if i < len(labels) else f"cells[{i}]"

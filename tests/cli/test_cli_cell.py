@@ -336,6 +336,29 @@ def test_a_tight_cell_the_warp_engine_cannot_start_is_refused_without_suggesting
     assert not (tmp_path / "w" / "summary.json").exists()
 
 
+def test_a_set_that_a_cell_states_itself_is_warned_of(tmp_path, capsys):
+    """--set friction.m=0.3 on a scene whose second cell states its own m (or phi0 as phi0_deg) does not reach that
+    cell: a cell's own keys replace the base's; the summary's params showed it, nothing else (a blind probe)."""
+    scene = tmp_path / "s.toml"
+    scene.write_text('[yarn]\nmaterial = "e_glass"\n[knit]\nmaterial = "e_glass_plain"\n[friction]\nm = 0.2\n'
+                     'phi0 = 0.0\n[rules]\nforce_cap_N = 10.0\n[load]\ntype = "monotonic"\ntarget_strain = 0.2\n'
+                     'max_increment = 0.1\n[[cells]]\nlabel = "a"\n[[cells]]\nlabel = "b"\n'
+                     'friction = { m = 0.4, phi0_deg = 1.0 }\n')
+    assert main(["cell", str(scene), "--set", "friction.m=0.3", "--set", "friction.phi0=0.05",
+                 "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert ("--set friction.m=0.3: 1 of the scene's 2 cell(s) (b) set friction.m themselves (e.g. cells[1].friction.m "
+            "= 0.4): their own value wins") in err
+    assert "--set friction.phi0=0.05: 1 of the scene's 2 cell(s) (b) set friction.phi0 themselves (e.g. " \
+           "cells[1].friction.phi0_deg = 1" in err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert [c["params"]["m"] for c in s["cells"]] == [0.3, 0.4]                # what the warning says
+    assert [w["code"] for w in s["warnings"]].count("set_key_set_by_cell") == 2
+    # a --set of a key no cell states: nothing said
+    assert main(["cell", str(scene), "--set", "knit.L=14.0", "--out", str(tmp_path / "p")]) == 0
+    assert "set_key_set_by_cell" not in (tmp_path / "p" / "summary.json").read_text()
+
+
 def test_a_parameter_of_an_effect_that_is_off_is_warned_of(tmp_path, capsys):
     """--set effects.bend_h=0.5 without bending_hysteresis in effects.on runs bit for bit as without it (the kernels
     read an effect's parameters only where it is on: checked here on curve.csv), and was not said (a blind probe):
