@@ -12,7 +12,8 @@ separate file holds only the ``[sweep]`` table)::
     chunk_size = 256           # samples per chunk (one batched engine call per chunk)
     curves = false             # also keep force per wale vs increment of every cell
 
-    [sweep.parameters]         # key paths of the scene, as for --set; order = dimension order
+    [sweep.parameters]         # key paths of the scene, as for --set, quoted (unquoted, TOML reads friction.m as a
+                               # table friction holding m: refused, saying so); order = dimension order
     "friction.m" = { values = [0.0, 0.1, 0.2, 0.3] }     # grid axis: explicit values
     "knit.L" = { min = 13.0, max = 15.0, count = 5 }      # grid axis: linspace(min, max, count)
     "friction.phi0" = { min = -0.2, max = 0.2 }           # lhs: uniform range
@@ -165,8 +166,18 @@ def _param(key: str, raw: Any, method: str) -> tuple[SweepParameter, dict]:
     if not isinstance(raw, dict):
         raise KnitsimInputError(f"{where} = {fmt(raw)}: expected a table, e.g. {{ values = [0.1, 0.2] }} "
                                 "or { min = 0.1, max = 0.3 }")
+    entry = ("values", "min", "max", "count")
+    if raw and not any(k in raw for k in entry) and all(isinstance(v, dict) for v in raw.values()):
+        # an unquoted key path: TOML reads friction.m = {...} as a table friction holding m (a blind probe was told
+        # 'sweep.parameters."friction".m = {...}: unknown key')
+        def paths(prefix, t):
+            return [q for k, v in t.items() for q in (paths(f"{prefix}.{k}", v) if isinstance(v, dict) and v and
+                                                      not any(e in v for e in entry) else [f"{prefix}.{k}"])]
+        found = paths(key, raw)
+        raise KnitsimInputError(f"{where} = {fmt(raw)}: a table of {', '.join(found)}, not a sweep entry: TOML reads "
+                                f"an unquoted key path as nested tables; quote it: {json.dumps(found[0])} = {{ ... }}")
     allowed = ("values",) if "values" in raw else ("min", "max", "count")
-    unknown = [k for k in raw if k not in ("values", "min", "max", "count")]
+    unknown = [k for k in raw if k not in entry]
     if unknown:
         raise KnitsimInputError(f"{where}.{unknown[0]} = {fmt(raw[unknown[0]])}: unknown key "
                                 "(expected values, or min, max and count)")

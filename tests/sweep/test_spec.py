@@ -86,3 +86,20 @@ def test_split_scene_needs_a_sweep_table():
         split_scene({"load": {"type": "monotonic"}})
     scene, table, src = split_scene({"load": {}, "sweep": {"parameters": {}}})
     assert "sweep" not in scene and table == {"parameters": {}} and src == "scene"
+
+
+def test_an_unquoted_key_path_is_refused_saying_to_quote_it():
+    # a hand-made sweep file's [sweep.parameters] friction.m = { values = [...] } (unquoted) is, by TOML, a table
+    # friction holding m: a blind probe was told 'sweep.parameters."friction".m = {...}: unknown key'
+    import tomllib
+    table = tomllib.loads('[sweep.parameters]\nfriction.m = { values = [0.1, 0.2] }\n'
+                          'knit = { L = { min = 13.0, max = 14.0, count = 2 } }\n')["sweep"]
+    with pytest.raises(KnitsimInputError, match=r'^sweep.parameters."friction" = .*: a table of friction.m, not a sweep '
+                                                r'entry: .* quote it: "friction.m" = \{ ... \}$'):
+        parse_sweep(table)
+    with pytest.raises(KnitsimInputError, match=r'a table of knit.L, .*"knit.L" = '):
+        parse_sweep({"parameters": {"knit": table["parameters"]["knit"]}})
+    # quoted: the two axes
+    spec = parse_sweep({"parameters": {"friction.m": {"values": [0.1, 0.2]},
+                                       "knit.L": {"min": 13.0, "max": 14.0, "count": 2}}})
+    assert spec.keys == ["friction.m", "knit.L"] and spec.samples == 4
