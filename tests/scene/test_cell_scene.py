@@ -182,6 +182,21 @@ def test_a_friction_ratio_above_m_max_is_named_by_the_key_that_set_it():
     refused(d, r"^cells\[1\]\.friction\.m = 6\.0: a friction ratio .* \(in cells\[1\]\)$")
 
 
+def test_a_cycle_count_beyond_the_increment_limit_is_refused_before_its_strains_are_listed():
+    # a blind probe's load.cycles = 10^9 was killed for memory (22 GB) before the increments' check: the reach
+    # check listed the program's 2 x 10^9 corner strains.  At 10^7 cycles that list is 2 x 10^7 references,
+    # 160 MB; the refusal (2 x 10^7 x 2 branches of 0.3 / 0.05 = 6 increments: more than 10^6) needs none of it
+    import tracemalloc
+    load = {"type": "cycles", "lower_strain": 0.1, "upper_strain": 0.4, "cycles": 10**7, "max_increment": 0.05}
+    tracemalloc.start()
+    try:
+        refused(scene(load=load), r"^load\.max_increment = 0\.05: load\.cycles = 10000000 gives 120000000 increments ")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16e6      # a tenth of the list's 160 MB
+
+
 def test_cycles_lower_must_be_below_upper():
     load = {"type": "cycles", "lower_strain": 0.6, "upper_strain": 0.6, "cycles": 3}
     refused(scene(load=load), r"^load\.lower_strain = 0\.6: must be < load\.upper_strain = 0\.6$")
