@@ -1123,8 +1123,11 @@ def patch_summary(h: PatchHistory, ref_length: float, model: PatchModel | None =
                                                 strain_name="grip strain", flagged=below)
     if under_resolved:
         warnings.append(ResultWarning("energy_under_resolved", (
+            # (a share only of an energy larger than its error: a cycle whose rows retrace each other, its hysteresis
+            # -7.7e-19 N mm of rounding, read "+/-0.00056 N mm (73477348050127616 %)")
             "; ".join(f"cycle {k}'s {kind} {v:.4g} N mm is resolved to about +/-{err:.2g} N mm ({100 * err / abs(v):.0f} %)"
-                      if v else f"cycle {k}'s {kind} {v:.4g} N mm is resolved to about +/-{err:.2g} N mm"
+                      if abs(v) > err else f"cycle {k}'s {kind} {v:.4g} N mm is resolved to about +/-{err:.2g} N mm "
+                      "(more than the value: not told from 0)"
                       for k, kind, v, err in under_resolved)
             + f" (energy_error_estimate_N_mm: the trapezoids over every row against every other row): the rows cut the "
             "kinks between them (slide onsets, the steep drop after a reversal); a smaller load.max_increment resolves "
