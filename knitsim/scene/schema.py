@@ -275,9 +275,13 @@ def load_toml(path: str | Path) -> dict:
                                                                           else ""))
     if not path.is_file():
         raise KnitsimInputError(f"{path}: no such scene file")
+    import codecs
+    raw = path.read_bytes()
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        # a byte-order mark as editors write one (Notepad's "UTF-8 with BOM", "Unicode"): the text it marks (before,
+        # a scene saved so was refused as "not valid TOML (Invalid statement (at line 1, column 1))")
+        utf16 = raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+        return tomllib.loads(raw.decode("utf-16" if utf16 else "utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:
         raise KnitsimInputError(f"{path}: not valid TOML ({exc})") from None
     except UnicodeDecodeError as exc:

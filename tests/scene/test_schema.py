@@ -159,3 +159,23 @@ def test_a_folder_given_as_the_scene_is_said_to_be_one(tmp_path):
         load_toml(tmp_path)
     with pytest.raises(KnitsimInputError, match=r"none\.toml: no such scene file$"):
         load_toml(tmp_path / "none.toml")
+
+
+def test_a_scene_saved_with_a_byte_order_mark_reads_as_its_text(tmp_path):
+    # a blind probe's scene saved by an editor as "UTF-8 with BOM" was refused as "not valid TOML (Invalid
+    # statement (at line 1, column 1))", a line that reads right in the editor; expected: the same document as
+    # the file without the mark (the mark is no character of the text), of UTF-16 ("Unicode") too
+    import codecs
+
+    from knitsim.scene.schema import load_toml
+    text = 'title = "Maschenware für Glas"\n[load]\ntype = "monotonic"\ntarget_strain = 0.2\n'
+    plain = tmp_path / "plain.toml"
+    plain.write_text(text, encoding="utf-8")
+    for name, raw in (("bom8.toml", codecs.BOM_UTF8 + text.encode("utf-8")),
+                      ("bom16.toml", codecs.BOM_UTF16_LE + text.encode("utf-16-le"))):
+        (tmp_path / name).write_bytes(raw)
+        assert load_toml(tmp_path / name) == load_toml(plain), name
+    # text of no byte-order mark that is not UTF-8 is refused as before, naming the encoding it needs
+    (tmp_path / "latin1.toml").write_bytes(text.encode("latin-1"))
+    with pytest.raises(KnitsimInputError, match=r"latin1\.toml: not UTF-8 text"):
+        load_toml(tmp_path / "latin1.toml")
