@@ -454,6 +454,12 @@ def run_patch(model: PatchModel, program: LoadProgram, engine: str = "warp", dev
         if stop or clean[0]:
             raise KeyboardInterrupt
         stop.append(signum)
+        # said at once: an increment can take minutes (the reference engine, a large patch), and a Ctrl-C that
+        # said nothing until it ended read as a hang
+        import sys
+        print(f"knitsim: interrupted: increment {i + 1} of {n} finishes first, then the checkpoint is written; "
+              f"interrupt again to stop at once, keeping the last checkpoint (increment {written})",
+              file=sys.stderr, flush=True)
 
     old_handler = None
     if ck is not None and threading.current_thread() is threading.main_thread():

@@ -105,7 +105,7 @@ def test_a_bad_patch_cell_is_named_by_its_place_before_any_work():
         run_patch(bad, cycles(0.10, 0.40, 1, 0.05), dedup=False)
 
 
-def test_a_ctrl_c_during_an_increment_checkpoints_after_it(tmp_path, monkeypatch):
+def test_a_ctrl_c_during_an_increment_checkpoints_after_it(tmp_path, monkeypatch, capsys):
     # The solver updates its tangents and branch history inside an increment: a checkpoint saved there would
     # resume onto another trial path. A Ctrl-C (SIGINT) arriving inside increment 3 lets it finish; the
     # checkpoint then holds 4 increments and the resumed run equals the uninterrupted one bit for bit.
@@ -127,6 +127,11 @@ def test_a_ctrl_c_during_an_increment_checkpoints_after_it(tmp_path, monkeypatch
     monkeypatch.setattr(coupling.PatchSolver, "step", step_with_ctrl_c)
     with pytest.raises(KeyboardInterrupt):
         run_patch(_model(), prog, checkpoint=ck, checkpoint_every=0)
+    # said when the Ctrl-C comes, not when the increment ends (an increment may take minutes: a blind probe's
+    # reference-engine patch said nothing to a Ctrl-C for minutes): increment 4 (index 3) of the program's 14
+    # (0.4 / 0.05 = 8 up, 0.3 / 0.05 = 6 down), no checkpoint written before it (checkpoint_every = 0)
+    assert ("knitsim: interrupted: increment 4 of 14 finishes first, then the checkpoint is written; interrupt "
+            "again to stop at once, keeping the last checkpoint (increment 0)") in capsys.readouterr().err
     monkeypatch.setattr(coupling.PatchSolver, "step", step)
     resumed = run_patch(_model(), prog, checkpoint=ck, resume=True)
     assert resumed.info["resumed_from"] == 4
