@@ -132,13 +132,13 @@ def _run(args) -> int:
 
 def _run_locked(args, plan, out_dir) -> int:
     """The sweep into ``out_dir``, whose lock this command holds."""
-    from ..sweep.runner import SWEEP_OUTPUTS, SweepChunkError, run_sweep
+    from ..sweep.runner import MANIFEST, SWEEP_OUTPUTS, SweepChunkError, run_sweep
 
     # only once every sample is planned (validated): --overwrite emptied the folder of an earlier sweep before a
     # typo'd key or a bad sample was refused (a blind probe lost its results to it)
     out = prepare_output_dir(out_dir,
                              overwrite=args.overwrite,
-                             resume=args.resume, resumable=True, writes=SWEEP_OUTPUTS,
+                             resume=args.resume, resumable=MANIFEST, writes=SWEEP_OUTPUTS,
                              inputs=scene_inputs(args.scene) + scene_inputs(args.sweep))
     _announce_domain(plan)
     from ..io.checks import calibration_warnings

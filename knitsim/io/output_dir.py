@@ -320,7 +320,7 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: bool = False,
-                       resumable: bool = False, writes: Iterable[str] = (),
+                       resumable: bool | str = False, writes: Iterable[str] = (),
                        inputs: Iterable[str | Path] = ()) -> Path:
     """The one policy of every command that writes into ``--out``, applied before any work.
 
@@ -330,8 +330,9 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: boo
         The folder.
     overwrite, resume : bool
         The command's flags.  ``resume``: the caller then checks that there is something to resume.
-    resumable : bool
-        The command can resume (said in the refusal).
+    resumable : bool or str
+        The command can resume (said in the refusal); a name: it can resume a folder that holds that file (its
+        manifest), so that a folder of another command's results is not offered a ``--resume`` that then fails.
     writes : iterable of str
         The names the command writes (sub-folders with a trailing ``/``): one of them present but
         not recorded as knitsim's is a user's file, refused, ``--overwrite`` or not.
@@ -346,7 +347,8 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: boo
     if recorded and not resume:
         if not overwrite:
             shown = ", ".join(n.rstrip("/") for n in recorded[:4]) + (", ..." if len(recorded) > 4 else "")
-            hint = " or --resume to continue it" if resumable else ""
+            can = (out / resumable).exists() if isinstance(resumable, str) else bool(resumable)
+            hint = " or --resume to continue it" if can else ""
             raise KnitsimInputError(f"--out = {str(out)!r}: already holds results ({shown}); add --overwrite to "
                                     f"replace them{hint}, or choose another --out (--overwrite removes only the "
                                     "files knitsim wrote there)")

@@ -205,7 +205,15 @@ def test_resume_without_a_sweep_and_rerun_over_one_exit_2(tmp_path, capsys, monk
     assert "nothing to resume" in capsys.readouterr().err
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--no-plot"]) == 0
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0"]) == 2
-    assert "already holds results (sweep.json, chunks, results.nc" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "already holds results (sweep.json, chunks, results.nc" in err and "or --resume to continue it" in err
+    # a folder of a cell run holds no sweep to resume: --resume is not offered (it then failed: sweep.json not found)
+    (tmp_path / "cell.toml").write_text(SCENE)
+    assert main(["cell", str(tmp_path / "cell.toml"), "--out", str(tmp_path / "c")]) == 0
+    capsys.readouterr()
+    assert main(["sweep", str(scene), "--out", str(tmp_path / "c"), "--workers", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "already holds results" in err and "--resume" not in err
     (tmp_path / "s.toml").write_text(SCENE + SWEEP.replace("0.3]", "0.25]"))
     assert main(["sweep", str(scene), "--out", str(tmp_path / "o"), "--workers", "0", "--resume"]) == 2
     assert "different sweep" in capsys.readouterr().err
