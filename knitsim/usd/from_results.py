@@ -655,10 +655,19 @@ class Timeline:
                    if int(stride) != 1 else ""))
         if self.last_row + 1 < self.n_rows:
             out["increments_not_written"] = f"{last + 1}-{n_run}"
-            out["why_not_written"] = (
-                f"from increment {last + 1} on every column is held (stopped at its cells' "
-                f"force cap, failed cells, or not converging: see run.warning_codes): the run moves the grip on while "
-                f"the knit keeps the state of increment {last}, which is the last written")
+            why = ("stopped at its cells' force cap, failed cells, or not converging: see run.warning_codes")
+            if self.sparse:
+                # the increment where the hold began may lie between two saved ones: its state is the one drawn at
+                # `last`, but which increment it is only curve.csv (every increment) says
+                prev = self.increment(self.last_row - 1) if self.last_row > 0 else 0
+                out["why_not_written"] = (
+                    f"every column is held ({why}) from an increment in {prev + 1}-{last} on (the results hold some "
+                    f"increments only; curve.csv's columns_held gives which): the run moves the grip on while the "
+                    f"knit keeps the state it had there, drawn at increment {last}, the last written")
+            else:
+                out["why_not_written"] = (
+                    f"from increment {last + 1} on every column is held ({why}): the run moves the grip on while "
+                    f"the knit keeps the state of increment {last}, which is the last written")
         return out
 
 

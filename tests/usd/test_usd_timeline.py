@@ -179,6 +179,9 @@ def test_a_strided_folder_of_a_run_cut_by_the_force_cap_ends_at_its_first_saved_
     tl = u.info["timeline"]
     assert list(tl["saved_increments"]) == [4, 6, 8, 10] and tl["increments_in_run"] == 10
     assert tl["last_increment_written"] == 4 and tl["increments_not_written"] == "5-10"
+    # where the hold began is not among the saved increments: said as the span it lies in (curve.csv: 3), not as
+    # "from increment 5 on" (a probe's strided export named a later increment than the run's own USD)
+    assert "from an increment in 1-4 on" in tl["why_not_written"] and "from increment 5" not in tl["why_not_written"]
     # the increment drawn at time code 4 is cells.nc's increment 4 (its strain)
     import xarray as xr
     with xr.open_dataset(out / "cells.nc", engine="h5netcdf") as ds:
