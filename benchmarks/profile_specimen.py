@@ -82,12 +82,14 @@ def main(argv=None) -> None:
 
     def patch_trial(self, strain, direction, increment, mask=None):
         m = np.ones(self.n, bool) if mask is None else np.asarray(mask, bool)
-        warm = self._warm.copy()
+        # (the coupling's trials on the device keep the warm flags in control.warm and return no rows: read them)
+        warm = (self.control.warm.numpy() != 0) if self.device_trials else self._warm.copy()
         C_start = self.s0.C.numpy()
         stage0, jam0 = self.s0.stage.numpy(), self.s0.jammed.numpy() != 0
         event_C = getattr(self, "_profile_event_C", np.full(self.n, np.nan))
         now["regular"] = now["full"] = 0.0
-        t = trial(self, strain, direction, increment, mask)
+        out = trial(self, strain, direction, increment, mask)
+        t = out if out else self.trial_state()
         rows.append((int((~warm & m).sum()), int((warm & m).sum()), now["regular"], now["full"]))
         pending = np.zeros(self.n, bool)
         for cells, count in self.solver._pending:
@@ -119,7 +121,7 @@ def main(argv=None) -> None:
             carries = fmax > 1e-6
             first_miss.append(((fmax - fmin) / (ps.force_tol + ps.force_rtol * np.abs(fmax)))[carries])
             solver["first"] = False
-        return t
+        return out
 
     coupling.PatchSolver.__init__ = patch_init
     coupling.WarpBackend.trial = patch_trial
