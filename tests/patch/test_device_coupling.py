@@ -230,8 +230,9 @@ def test_a_patch_with_failing_columns_runs_the_same_with_the_bookkeeping_on_the_
         # FORCE_CAP_RTOL's 0.99); the NumPy run itself ends those alike columns both ways.  Both runs flag them
         # (not the knit's state).  So: where the statuses differ both are flagged, and the values agree to 1e-12
         # wherever both runs' columns converged (every column of a row, for the grip force).  (Measured before such
-        # columns were brought to their cap and stopped there, PatchSolver._approach_force_cap; this branch has not
-        # run on CUDA since: a column stopped at the cap is flagged too, status 2.)
+        # columns were brought to their cap and stopped there, PatchSolver._approach_force_cap, where a column
+        # stopped at the cap is flagged too, status 2; this branch passed again after that change, on an H200,
+        # 2026-11-30.)
         differ = b.column_status != a.column_status
         assert np.all((a.column_status[differ] != 0) & (b.column_status[differ] != 0))
         ok = (a.column_status == 0) & (b.column_status == 0)
