@@ -289,6 +289,13 @@ def kes_loop_path(amplitude, cycles=3, points_per_quarter=100):
     if int(points_per_quarter) < 2:
         raise KnitsimInputError(f"points_per_quarter = {points_per_quarter!r}: must be >= 2")
     n = int(points_per_quarter)
+    # a quarter of n samples, (2 cycles - 1) half swings of 2 n and a last quarter: 1 + 4 n cycles samples, as
+    # long as a load program may be (a probe's `dahl simulate --points 1000000000` was killed for memory)
+    from ..cell.load_program import MAX_INCREMENTS
+    samples = 1 + 4 * n * int(cycles)
+    if samples > MAX_INCREMENTS + 1:
+        raise KnitsimInputError(f"cycles = {cycles!r} and points_per_quarter = {points_per_quarter!r} make a path of "
+                                f"{samples} samples (more than {MAX_INCREMENTS + 1}): give fewer cycles or points")
     vertices = [0.0] + [amplitude, -amplitude] * int(cycles) + [0.0]
     parts = [np.array([0.0])]
     for a, b in zip(vertices[:-1], vertices[1:]):

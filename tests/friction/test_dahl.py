@@ -556,3 +556,18 @@ def test_a_drifting_loop_is_said_not_to_close():
     assert fit.closure["drift"] == pytest.approx(0.3 * Fc, rel=0.10)
     assert any(f.startswith("the loop does not close") for f in fit.loop_flags)
     assert fit_dahl_loop(x, F + 0.005 * Fc * ramp).loop_flags == []
+
+
+def test_kes_loop_path_longer_than_a_load_program_is_refused_before_it_is_built():
+    # the path has 1 + 4 n cycles samples (a quarter of n, 2 cycles - 1 half swings of 2 n, a last quarter: the
+    # default 100 x 3 gives 1201); a load program may have at most MAX_INCREMENTS increments, MAX_INCREMENTS + 1
+    # samples.  Before, any length was built: `dahl simulate --points 1000000000` was killed for memory.
+    from knitsim.cell.load_program import MAX_INCREMENTS
+    assert kes_loop_path(1.0).size == 1 + 4 * 100 * 3
+    n_ok = MAX_INCREMENTS // 4                            # 1 + 4 n = MAX_INCREMENTS + 1: the longest accepted
+    assert kes_loop_path(1.0, cycles=1, points_per_quarter=n_ok).size == MAX_INCREMENTS + 1
+    with pytest.raises(KnitsimInputError, match=r"cycles = 1 and points_per_quarter = 250001 make a path of "
+                                                r"1000005 samples"):
+        kes_loop_path(1.0, cycles=1, points_per_quarter=n_ok + 1)
+    with pytest.raises(KnitsimInputError, match="points_per_quarter"):
+        kes_loop_path(1.0, cycles=10**8, points_per_quarter=100)
