@@ -129,6 +129,12 @@ def _run_locked(args) -> int:
                                     "(the plan of --cases)")
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the study in --out, or replace it)")
+    if not args.summary_only:
+        # the device before any work (and before --overwrite empties --out): a probe's --device cuda:7 on a machine
+        # without CUDA recorded its 40 cases as generator failures, and a study "complete", exit 0
+        from .. import warp_runtime
+        with contextlib.redirect_stdout(sys.stderr):   # Warp's banner must not reach stdout (--json)
+            args.device = warp_runtime.resolve_device(args.device)
     prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume or args.summary_only, resumable=True,
                        writes=STUDY_OUTPUTS)
 

@@ -179,6 +179,21 @@ def test_cli_bad_input_exits_2(argv, tmp_path, capsys):
     assert err.startswith("knitsim: error: --") and "Traceback" not in err
 
 
+@pytest.mark.parametrize("device", ["tpu", "cuda:7"])
+def test_cli_device_that_cannot_run_is_refused_before_any_case(device, tmp_path, capsys):
+    """A device Warp cannot run on is refused (exit 2, naming it) before the study starts: before, each case
+    failed in its generator on it, stored as a failure that --resume kept, and the study was summarised
+    complete, exit 0.  'tpu' is no Warp device anywhere; 'cuda:7' only where CUDA is absent."""
+    from knitsim import warp_runtime
+    if device.startswith("cuda") and warp_runtime.cuda_available():
+        pytest.skip("CUDA present: cuda:7 may run")
+    out = tmp_path / "o"
+    assert main(["diagnose-study", "--cases", "2", "--device", device, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"knitsim: error: device = {device!r}") and "Traceback" not in err
+    assert not (out / "cases").exists() and not (out / "summary.json").exists()
+
+
 def test_cli_non_integer_cases_exits_2(tmp_path):
     with pytest.raises(SystemExit) as exc:
         main(["diagnose-study", "--cases", "many", "--out", str(tmp_path)])
