@@ -227,7 +227,9 @@ def cyclic_rows(run: CyclicRun, f1: float, f2: float, residual_obs: float, lower
         wr = (f"no residual strain: the force stays at or above {run.min_unload_force:.3g} N on the first unloading "
               f"down to the lower strain {lower:g} (experiment: {residual_obs:g})")
     add("residual strain after cycle 1 (F = 0 on unloading)", residual_obs, run.residual, vr, wr)
-    add("strain at jamming (first loading)", None, run.jam, CONTEXT, "context for the other rows")
+    # a run that does not jam has no such strain: said, not left as a bare nan (null in the JSON)
+    add("strain at jamming (first loading)", None, run.jam, CONTEXT, "context for the other rows"
+        + ("" if math.isfinite(run.jam) else f"; none: the run does not jam by {upper:g} ({crit})"))
     add("force per wale at 0.6, cycle 1 [N]", f1, p1, v1, w1 + ("" if v1 == REPRODUCED else "; " + low))
     return rows
 

@@ -61,6 +61,9 @@ def test_cyclic_verdicts_of_a_run_that_goes_slack_and_does_not_jam():
     assert "does not jam by 0.6" in peak and "30x below" in peak
     second = rows["second peak higher than first"]["why"]
     assert "slack at 0.31" in second and "lower (0.01338 against 0.1666 N)" in second
+    # no jam event (jam NaN): the context row says there is none, where it printed a bare "nan" with no word
+    jam = rows["strain at jamming (first loading)"]
+    assert "none: the run does not jam by 0.6 (jamming at W = 4d)" in jam["why"]
 
 
 def test_cyclic_verdict_says_higher_when_the_second_peak_is_higher():
