@@ -359,7 +359,8 @@ def run_fit(args) -> int:
     cols, pair = _resolve_columns(path, names)
     png = None
     if not args.no_png:
-        png = prepare_output_file(args.png or path.with_name(path.stem + "_dahl_fit.png"), args.overwrite, "--png")
+        png = prepare_output_file(args.png or path.with_name(path.stem + "_dahl_fit.png"), args.overwrite, "--png",
+                                  suffix=".png")
     from ..diagnosis.measured import drop_copied_rows
     try:
         raw = read_csv_columns(path, [c["name"] for c in cols])

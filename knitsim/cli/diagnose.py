@@ -50,11 +50,7 @@ def register(subparsers) -> None:
 
 def _check_out(path: str | None, suffix: str, flag: str, overwrite: bool) -> Path | None:
     from ..io.results import prepare_output_file
-    if path is None:
-        return None
-    if Path(path).suffix.lower() != suffix:
-        raise KnitsimInputError(f"{flag} = {path!r}: expected a {suffix} file")
-    return prepare_output_file(path, overwrite, flag)
+    return prepare_output_file(path, overwrite, flag, suffix=suffix)
 
 
 def run(args) -> int:

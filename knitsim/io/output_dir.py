@@ -380,11 +380,16 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, resume: boo
     return out
 
 
-def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: str = "--out") -> Path | None:
-    """The same policy for a command's single output file: an existing one is refused unless ``overwrite``."""
+def prepare_output_file(path: str | Path | None, overwrite: bool = False, flag: str = "--out",
+                        suffix: str | None = None) -> Path | None:
+    """The same policy for a command's single output file: an existing one is refused unless ``overwrite``; with
+    ``suffix`` (``".png"``) one of another suffix is refused, before the work (a probe's ``dahl fit --png fit.txt``
+    ended, after the fit, in matplotlib's traceback "Format 'txt' is not supported")."""
     if path is None:
         return None
     p = Path(path)
+    if suffix is not None and p.suffix.lower() != suffix:
+        raise KnitsimInputError(f"{flag} = {str(path)!r}: expected a {suffix} file")
     if p.is_dir():
         raise KnitsimInputError(f"{flag} = {str(p)!r}: is a folder")
     if p.exists() and not overwrite:

@@ -86,6 +86,21 @@ def test_outputs_in_a_missing_folder_are_written_there(tmp_path, capsys):
     assert csv.stat().st_size > 100 and png.stat().st_size > 1000
 
 
+@pytest.mark.parametrize("name", ["fit.txt", "loop.csv", "fit"])
+def test_png_of_another_suffix_is_refused_before_the_fit(name, tmp_path, capsys):
+    # --png names a PNG (OUT.png): another suffix is refused, exit 2, before the fit, the file untouched.  Before,
+    # the fit ran and matplotlib's traceback ended it ("Format 'txt' is not supported"); 'loop.csv' with
+    # --overwrite, the loop's own file, came that close to being replaced by a plot
+    csv = tmp_path / "loop.csv"
+    shutil.copy(BUNDLED, csv)
+    png = tmp_path / name
+    before = csv.read_bytes()
+    assert main(["dahl", "fit", str(csv), "--png", str(png), "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"knitsim: error: --png = {str(png)!r}: expected a .png file") and "Traceback" not in err
+    assert csv.read_bytes() == before and (name == "loop.csv" or not png.exists())
+
+
 def _write(path, header, rows):
     path.write_text(header + "\n" + "\n".join(rows) + "\n")
     return str(path)
