@@ -633,12 +633,19 @@ def _likeliest_header(lines: list[str], names: list[str], aliases: dict) -> int 
     return best if best_n > 0 or labelled is None else labelled
 
 
+def _existing_file(path: str | Path) -> Path:
+    """``path`` as a Path, refused where it is no file: a folder is said to be one (a probe's ``dahl fit .`` was
+    told "no such file")."""
+    path = Path(path)
+    if not path.is_file():
+        raise KnitsimInputError(f"{path}: is a folder, not a file" if path.is_dir() else f"{path}: no such file")
+    return path
+
+
 def has_columns(path: str | Path, names: Iterable[str]) -> bool:
     """Whether a line of the file names every column of ``names``, as :func:`read_csv_columns` finds its
     header (any case, after a preamble or ``#`` comments, in any of the encodings it reads)."""
-    path = Path(path)
-    if not path.is_file():
-        raise KnitsimInputError(f"{path}: no such file")
+    path = _existing_file(path)
     return _find_header(_text(path).splitlines(), list(names), []) is not None
 
 
@@ -659,9 +666,7 @@ def stated_units(path: str | Path, names: Iterable[str]) -> dict[str, tuple[str,
         (``K [1/cm]``), else in a units row under the header, else in brackets after the name asked for,
         else None.  Columns not found are left out (reading them then refuses them as missing).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise KnitsimInputError(f"{path}: no such file")
+    path = _existing_file(path)
     lines = _text(path).splitlines()
     names = list(names)
     h = _find_header(lines, names, [])
@@ -685,9 +690,7 @@ def header_candidates(path: str | Path) -> list[tuple[int, list[str], list[str |
     units rather than their names: each line (of the first :data:`HEADER_SCAN_LINES`, not blank nor a comment)
     as its 1-based line number, its cells and the unit each states (in brackets after its name, or in a units
     row under it; None where none is stated)."""
-    path = Path(path)
-    if not path.is_file():
-        raise KnitsimInputError(f"{path}: no such file")
+    path = _existing_file(path)
     lines = _text(path).splitlines()
     out = []
     for i, ln in enumerate(lines[:HEADER_SCAN_LINES]):
@@ -737,9 +740,7 @@ def read_csv_columns(path: str | Path, required: Iterable[str], optional: Iterab
         per cent (its header cell or the units row) is read divided by 100, and
         noted as ``strain column 'Strain [%]' read in per cent (divided by 100)``.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise KnitsimInputError(f"{path}: no such file")
+    path = _existing_file(path)
     text, book_note = _text_and_note(path)
     lines = text.splitlines()
     if not any(ln.strip() for ln in lines):

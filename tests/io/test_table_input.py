@@ -837,3 +837,15 @@ def test_a_force_per_width_is_refused_saying_what_it_is(tmp_path):
     with pytest.raises(KnitsimInputError) as e:
         read_csv_columns(p, ("load_N",), names, aliases=LAB_ALIASES)
     assert PER_WIDTH_HINT not in str(e.value) and "'kN' is not its unit (convert the column: 'Load (N)')" in str(e.value)
+
+
+def test_a_folder_given_as_the_file_is_said_to_be_a_folder(tmp_path):
+    # the reader's four entry points share one check: a folder is named as one (a probe's `knitsim dahl fit .`
+    # was told "no such file"), a missing path is still "no such file"
+    from knitsim.io.table_input import has_columns, header_candidates, stated_units
+    for read in (lambda p: read_csv_columns(p, ["a"]), lambda p: has_columns(p, ["a"]),
+                 lambda p: stated_units(p, ["a"]), lambda p: list(header_candidates(p))):
+        with pytest.raises(KnitsimInputError, match=r": is a folder, not a file$"):
+            read(tmp_path)
+        with pytest.raises(KnitsimInputError, match=r"nope\.csv: no such file$"):
+            read(tmp_path / "nope.csv")
