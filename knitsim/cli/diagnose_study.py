@@ -24,6 +24,7 @@ import argparse
 import contextlib
 import math
 import sys
+from pathlib import Path
 
 from ..diagnosis.effects import BASELINE_VARIABLES, DEFAULT_STUDY_FREE
 from ..errors import KnitsimInputError
@@ -129,6 +130,10 @@ def _run_locked(args) -> int:
                                     "(the plan of --cases)")
     if args.resume and args.overwrite:
         raise KnitsimInputError("--resume and --overwrite: choose one (continue the study in --out, or replace it)")
+    if args.summary_only and not (Path(args.out) / "cases").is_dir():
+        # (a probe's --summary-only with a mistyped --out created that folder and an empty study's summary in it)
+        raise KnitsimInputError(f"--summary-only: --out = {args.out!r} holds no study (no cases/ folder): nothing to "
+                                "summarise; run the study first (without --summary-only), or give its --out")
     if not args.summary_only:
         # the device before any work (and before --overwrite empties --out): a probe's --device cuda:7 on a machine
         # without CUDA recorded its 40 cases as generator failures, and a study "complete", exit 0

@@ -194,6 +194,20 @@ def test_cli_device_that_cannot_run_is_refused_before_any_case(device, tmp_path,
     assert not (out / "cases").exists() and not (out / "summary.json").exists()
 
 
+def test_cli_summary_only_of_a_folder_without_a_study_is_refused(tmp_path, capsys):
+    """--summary-only summarises the cases in --out: where it holds none (no cases/ folder; a mistyped --out),
+    it is refused, exit 2, and no folder is left.  Before, the folder was created with an empty study's
+    summary in it, "0 of 2 planned cases", exit 0."""
+    out = tmp_path / "mistyped"
+    assert main(["diagnose-study", "--cases", "2", "--summary-only", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("knitsim: error: --summary-only:") and "holds no study" in err
+    assert not out.exists()
+    (tmp_path / "empty").mkdir()
+    assert main(["diagnose-study", "--cases", "2", "--summary-only", "--out", str(tmp_path / "empty")]) == 2
+    assert list((tmp_path / "empty").iterdir()) == []
+
+
 def test_cli_non_integer_cases_exits_2(tmp_path):
     with pytest.raises(SystemExit) as exc:
         main(["diagnose-study", "--cases", "many", "--out", str(tmp_path)])
