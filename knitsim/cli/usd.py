@@ -162,7 +162,7 @@ def _run(args) -> int:
     # writable before any work: the parent a folder, and a file can be created in it (pxr's own error came
     # as a traceback after the export)
     check_usd_path(args.out, "--out")
-    prepare_output_file(args.quicklook, args.overwrite, "--quicklook")
+    prepare_output_file(args.quicklook, args.overwrite, "--quicklook", suffix=".png")
     device = warp_runtime.resolve_device(args.device)
     res = export_results(args.results, args.out, color_by=args.color_by, stride=args.usd_stride,
                          n_points=args.usd_points or DEFAULT_POINTS, device=device, quicklook=args.quicklook,

@@ -90,6 +90,11 @@ def test_a_quicklook_that_cannot_be_written_is_refused_before_the_export(tmp_pat
                "--quicklook", str(tmp_path / "afile" / "x.png")])
     _one_line_error(capsys, rc, "--quicklook = ", "afile is a file, not a folder")
     assert not (tmp_path / "u.usda").exists()
+    # a quick-look of another format than the PNG it is (a probe's dahl fit --png fit.txt: matplotlib's traceback
+    # "Format 'txt' is not supported" after the work)
+    rc = main(["usd", str(tmp_path / "res"), "--out", str(tmp_path / "u.usda"), "--quicklook", str(tmp_path / "q.txt")])
+    _one_line_error(capsys, rc, "--quicklook = ", "expected a .png file")
+    assert not (tmp_path / "u.usda").exists()
     # a missing folder is created, as the USD file's is (the PNG failed there: FileNotFoundError)
     rc = main(["usd", str(tmp_path / "res"), "--out", str(tmp_path / "u.usda"),
                "--quicklook", str(tmp_path / "new" / "q" / "x.png")])
