@@ -496,6 +496,29 @@ def test_a_verdict_on_curves_that_carry_almost_no_force_is_not_confident():
     assert "only 2 of 60 rows (3%) carry force above 5 noise sd" in d.verdict.reason
 
 
+def test_no_share_of_an_excess_that_lies_within_the_noise():
+    """Step 6 on a hand-set fit: a candidate's share of the baseline's excess over noise is drop / excess, a number
+    only where that excess is beyond the noise.  A probe's effect-free cycles (NumPy reference, m 0.35, 906 dof, an
+    excess of 17.8 in chi2 within the noise's tolerance of 230) had coiling_angle_friction, 18,173 worse than the
+    baseline, read "share of gap -102064%" (-18173.3 / 17.8, a share of noise); now none.  Beyond the noise the
+    share is the quotient, here by hand: a drop of 250 of an excess of 500 is 0.5."""
+    from knitsim.diagnosis.diagnose import Adequacy, Localisation, score_step
+    setup = DiagnosisSetup(base=NOMINAL, free=("m", "phi0"), effects=("coiling_angle_friction",))
+    measured, keep = np.zeros(4), np.ones(4, bool)
+    loc = Localisation(keys=["loading_sliding"] * 4, stages={}, where=["loading_sliding"])
+
+    def share(base_chi2, fit_chi2, within):
+        base = {"chi2": base_chi2, "k": 2, "rss_N2": 1.0, "stages": {}}
+        fit = {"values": {}, "std_errors": {}, "chi2": fit_chi2, "k": 3, "nfev": 1,
+               "curves": [{"simulated": np.full(4, 0.1), "final_status": "ok", "source": "x"}]}
+        ad = Adequacy(chi2=base_chi2, dof=906, chi2_per_dof=base_chi2 / 906, expected_sd=0.082, within_noise=within,
+                      excess=base_chi2 - 906)
+        return score_step(setup, {"coiling_angle_friction": fit}, base, ad, loc, measured, keep, [], 4)[0].share_of_excess
+
+    assert share(923.8, 923.8 + 18173.3, True) is None
+    assert share(1406.0, 1156.0, False) == pytest.approx(0.5)
+
+
 def test_an_effect_that_removes_less_than_half_of_a_clear_excess_is_not_confident():
     """Step 8 on hand-set candidates: a baseline beyond its noise (chi2 1,493 on 1,000 dof), one effect with
     the evidence (BIC score 58) and the size (its drop clears half the excess at the excess's 95 % lower bound)
