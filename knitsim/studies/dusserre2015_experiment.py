@@ -46,6 +46,7 @@ from ..cell.load_program import cycles, cycles_travel
 from ..cell.material import CellParams
 from ..data import dusserre2015 as _data
 from ..errors import KnitsimInputError
+from ..friction.identification import wider_than_box
 from . import check_increment
 
 
@@ -269,6 +270,19 @@ def _standard_errors(free, J: np.ndarray) -> tuple[dict, str]:
     return std, "; ".join(notes)
 
 
+def identified_parameters(free, std: dict, note: str) -> set:
+    """The names of ``free`` that the scalars identify: a finite standard error no wider than the parameter's search
+    range (:func:`~knitsim.friction.identification.wider_than_box`: one standard error either side spanning every value
+    searched does not narrow it; a probe's phi0_fraction "1 +/- 12" in [-1, 1] was reported AT BOUND and its value
+    quoted as a finding), or one the note calls correlated with the others (its bound is then still said)."""
+    out = set()
+    for p in free:
+        se = std.get(p.name, math.nan)
+        if (math.isfinite(se) and not wider_than_box(se, p.lo, p.hi)) or (not math.isfinite(se) and "correlated" in note):
+            out.add(p.name)
+    return out
+
+
 @dataclass
 class Fit:
     """Outcome of calibrating one candidate."""
@@ -348,7 +362,7 @@ def calibrate(candidate: Candidate, increment: float = 0.01, device: str = "cpu"
     std, note = _standard_errors(free, J)
     plausible = {p.name: bool(p.plausible[0] - 1e-12 <= values[p.name] <= p.plausible[1] + 1e-12) for p in free}
     # a parameter the scalars do not identify has no calibrated value: its bound is not a finding
-    identified = {p.name for p in free if math.isfinite(std.get(p.name, math.nan)) or "correlated" in note}
+    identified = identified_parameters(free, std, note)
     at_bound = [p.name for p in free if p.name in identified
                 and min(values[p.name] - p.lo, p.hi - values[p.name]) <= 1e-3 * (p.hi - p.lo)]
     sc = {"peak_cycle_1_N": s.peak_cycle_1_N, "peak_cycle_2_N": s.peak_cycle_2_N,
@@ -399,7 +413,9 @@ def run(increment: float = 0.01, device: str = "cpu", names=None, progress=None)
             progress(c.name)
         fits.append(calibrate(c, increment, device))
     best = min(fits, key=lambda f: (not f.reached, len(f.misses), f.cost))
-    shown = ", ".join(f"{k} = {v:.4g}" for k, v in best.values.items() if math.isfinite(best.std_errors.get(k, 0.0)))
+    kept = identified_parameters([p for c in candidates() if c.name == best.candidate for p in c.free], best.std_errors,
+                                 best.note)
+    shown = ", ".join(f"{k} = {v:.4g}" for k, v in best.values.items() if k in kept)
     if best.reached:
         verdict = f"{best.candidate} reaches every target within its tolerance with plausible values ({shown})"
     else:
@@ -438,6 +454,8 @@ def table_text(result: dict) -> str:
             if not math.isfinite(se if se is not None else math.nan) and "not identified" in f["note"] \
                     and name in f["note"]:
                 flags.append("not identified: any value in its range gives the same scalars")
+            elif se is not None and wider_than_box(se, *r["bounds"]):
+                flags.append("not identified: its standard error is wider than its range")
             if not f["plausible"][name]:
                 flags.append("IMPLAUSIBLE")
             lines.append(f"    {name} = {num(v)} +/- {num(se, 2)} {r['unit']}  (plausible {r['plausible'][0]:.3g}.."

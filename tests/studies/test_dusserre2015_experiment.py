@@ -81,3 +81,24 @@ def test_study_finds_a_candidate_and_explains_the_equal_peaks(tmp_path):
     assert not paper["reached"] and "peak_cycle_1_N" in paper["misses"]
     assert exp.table_text(res).count("[") >= len(res["fits"])
     assert all(p.exists() for p in exp.figures(res, tmp_path, increment=0.02))
+
+
+def test_a_parameter_whose_standard_error_spans_its_range_is_not_identified_nor_at_bound():
+    """One standard error either side wider than the search range spans every value searched: the scalars do not
+    narrow it (identification.wider_than_box, as the capstan fit reads it). A probe's phi0_fraction "1 +/- 12" in
+    [-1, 1] was reported AT BOUND and its value quoted in the verdict. Hand-set fits: a standard error of 12 in a
+    range of width 2 (not identified), 0.05 (identified), NaN with a correlation note (identified: its bound still
+    said, as before)."""
+    P = exp.Parameter
+    a, b = P("a", -1.0, 1.0, "-", (-1.0, 1.0), "hand"), P("b", 0.0, 1.0, "-", (0.0, 1.0), "hand")
+    assert exp.identified_parameters([a, b], {"a": 12.0, "b": 0.05}, "") == {"b"}
+    assert exp.identified_parameters([a, b], {"a": math.nan, "b": 0.05}, "correlated beyond") == {"a", "b"}
+    fit = exp.Fit("hand", "hand-set", {"a": 1.0, "b": 0.5}, {"a": 12.0, "b": 0.05}, {"a": True, "b": True},
+                  {n: {"bounds": [p.lo, p.hi], "plausible": list(p.plausible), "unit": "-", "why": "hand"}
+                   for n, p in (("a", a), ("b", b))},
+                  {"peak_cycle_1_N": 5.0, "peak_cycle_2_N": 5.0, "residual_strain": 0.15, "force_at_lower_strain_N": 0.0,
+                   "heads_overlap_from_strain": math.nan, "max_overlap_mm": 0.0}, {}, True, 0.0, at_bound=[])
+    text = exp.table_text({"targets": [], "fits": [fit.as_dict()], "verdict": "v"})
+    line_a = next(t for t in text.splitlines() if t.strip().startswith("a = "))
+    assert "not identified: its standard error is wider than its range" in line_a and "AT BOUND" not in line_a
+    assert "not identified" not in next(t for t in text.splitlines() if t.strip().startswith("b = "))
