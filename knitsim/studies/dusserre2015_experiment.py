@@ -415,7 +415,8 @@ def run(increment: float = 0.01, device: str = "cpu", names=None, progress=None)
     best = min(fits, key=lambda f: (not f.reached, len(f.misses), f.cost))
     kept = identified_parameters([p for c in candidates() if c.name == best.candidate for p in c.free], best.std_errors,
                                  best.note)
-    shown = ", ".join(f"{k} = {v:.4g}" for k, v in best.values.items() if k in kept)
+    shown = ", ".join(f"{k} = {v:.4g}" for k, v in best.values.items()
+                      if k in kept and math.isfinite(best.std_errors.get(k, math.nan)))
     if best.reached:
         verdict = f"{best.candidate} reaches every target within its tolerance with plausible values ({shown})"
     else:
