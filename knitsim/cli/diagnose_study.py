@@ -155,7 +155,7 @@ def _run_locked(args) -> int:
                                 include_none_fraction=args.none_fraction, noise_rel=args.noise_rel,
                                 scatter_rel=args.scatter_rel, device=args.device, progress=progress, free=free,
                                 resume=True, jobs=args.jobs, summary_only=args.summary_only,
-                                specimen=args.specimen, materials=materials, only=only)
+                                specimen=args.specimen, materials=materials, only=only, replace_other=False)
     except KeyboardInterrupt:
         print(f"knitsim diagnose-study: interrupted; the finished cases are kept in {args.out}/cases and "
               f"summarised in {args.out}/summary.md (marked partial); resume with: {_resume_command(args)}",

@@ -449,13 +449,29 @@ def _run_case(spec: dict, key_config: dict, path: Path, args: dict) -> dict:
     return json.loads(_json_bytes(rec))
 
 
+def _differs(old: dict, spec: dict, key_config: dict) -> str:
+    """What differs between a stored case and the plan entry and configuration asked for, in words."""
+    def short(v) -> str:
+        t = repr(v)
+        return t if len(t) <= 40 else t[:37] + "..."
+
+    have, want = dict(old.get("config") or {}), key_config
+    keys = [k for k in sorted(set(have) | set(want)) if have.get(k) != want.get(k)]
+    if keys:
+        return "; ".join(f"{k} {short(have.get(k))} there, {short(want.get(k))} asked" for k in keys[:3])
+    a, b = dict(old.get("spec") or {}), spec
+    keys = [k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+    return "its plan entry differs (another seed?): " + "; ".join(
+        f"{k} {short(a.get(k))} there, {short(b.get(k))} asked" for k in keys[:3])
+
+
 def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = None,
               include_none_fraction: float | None = None, noise_rel: float | None = None,
               scatter_rel: float | None = None, device: str = "cpu", progress: Callable | None = None, resume: bool = True,
               rates: Sequence[float] = STUDY_RATES, max_increment: float = 0.01,
               candidate_effects: Sequence[str] = EFFECT_NAMES, free: Sequence[str] = None, jobs: int = 1,
               summary_only: bool = False, specimen: str = "lab", materials: Sequence[str] | None = None,
-              only: Sequence[int] | None = None) -> dict:
+              only: Sequence[int] | None = None, replace_other: bool = True) -> dict:
     """Run (or resume) a blind study and write its summary.
 
     Parameters
@@ -491,6 +507,11 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         ``progress(done, total, eta_s, record)`` after each case (``eta_s`` None until one case ran here).
     resume : bool
         Keep finished case files whose plan entry and configuration match.
+    replace_other : bool
+        With ``resume``: a finished case file of another plan entry or configuration (a study run with another
+        seed, noise or candidate list into this folder) is run again and replaced (the default); False: refused
+        before any case runs, naming the file and what differs (``knitsim diagnose-study --resume``: a probe's
+        resume with another seed replaced every finished case without a word).
     rates : sequence of float
         Test rates of every case [mm/s] (one curve each).
     max_increment : float
@@ -575,10 +596,14 @@ def run_study(n_cases: int, seed: int, out_dir, effects: Sequence[str] | None = 
         if resume and path.exists():
             try:
                 old = json.loads(path.read_text())
-                if old.get("spec") == spec and old.get("config") == key_config:
-                    rec = old
             except (OSError, ValueError):
-                rec = None
+                old = None              # (a file cut short by a kill: run again)
+            if isinstance(old, dict) and old.get("spec") == spec and old.get("config") == key_config:
+                rec = old
+            elif isinstance(old, dict) and not replace_other:
+                raise KnitsimInputError(
+                    f"--resume: {path} is a case of another study ({_differs(old, spec, key_config)}): resuming "
+                    "would replace it; give the first study's settings, or --overwrite, or another --out")
         if rec is None:
             if only is None or spec["index"] in only:
                 todo.append((spec, path))

@@ -125,6 +125,26 @@ def test_interrupted_study_keeps_its_cases_and_says_it_is_partial(tmp_path, monk
     assert "Partial" not in (tmp_path / "summary.md").read_text()
 
 
+def test_a_resume_into_another_studys_folder_is_refused_where_asked_before_any_case_runs(tmp_path, monkeypatch):
+    """`knitsim diagnose-study --resume` (replace_other=False) with another seed or noise than the study in --out: a
+    probe's resume with another seed ran every case again and replaced the finished ones without a word (and
+    --summary-only overwrote the summary). Refused, naming the case file and what differs; nothing runs, nothing is
+    replaced (the library's default, replace_other=True, still reruns: test_resume_skips_finished_cases)."""
+    calls = []
+    _fake_study(monkeypatch, calls)
+    study.run_study(3, 1, tmp_path, specimen="single")
+    first = (tmp_path / "cases" / "case_0000.json").read_text()
+    with pytest.raises(KnitsimInputError, match=r"case_0000\.json is a case of another study \(.*noise_rel 0\.013\d* there, 0\.05 asked"):
+        study.run_study(3, 1, tmp_path, noise_rel=0.05, specimen="single", replace_other=False)
+    with pytest.raises(KnitsimInputError, match=r"case_0000\.json is a case of another study \(its plan entry differs"):
+        study.run_study(3, 2, tmp_path, specimen="single", replace_other=False)
+    with pytest.raises(KnitsimInputError, match=r"another study"):
+        study.run_study(3, 2, tmp_path, specimen="single", replace_other=False, summary_only=True)
+    assert len(calls) == 3 and (tmp_path / "cases" / "case_0000.json").read_text() == first
+    # the same study resumes as before
+    assert study.run_study(3, 1, tmp_path, specimen="single", replace_other=False)["cases_resumed"] == 3
+
+
 def test_resume_skips_finished_cases(tmp_path, monkeypatch):
     calls = []
     _fake_study(monkeypatch, calls)
