@@ -92,6 +92,8 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from ..friction.identification import rounding_sd
+
 #: chords needed for an estimate
 MIN_SAMPLES = 10
 #: an estimated sd below this fraction of the force range is not measurement noise (digitised, smoothed)
@@ -451,12 +453,6 @@ def written_resolution(values) -> float:
         if np.all(np.abs(scaled - np.round(scaled)) <= 1e-6 * np.maximum(1.0, np.abs(scaled))):
             return 10.0 ** -k
     return 0.0
-
-
-def rounding_sd(step: float) -> float:
-    """The sd of a reading written to the last digit ``step`` about the value it rounds [N]: ``step / sqrt(12)``
-    (a uniform error over one digit, variance ``step^2 / 12``)."""
-    return step / math.sqrt(12.0)
 
 
 def rounding_scatter(step: float, n: int) -> float:

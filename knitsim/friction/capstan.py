@@ -82,7 +82,7 @@ import numpy as np
 from scipy.optimize import brentq, least_squares
 
 from ..errors import KnitsimInputError, require_finite
-from .identification import at_bound, covariance, parameter_status  # noqa: F401  (at_bound: re-exported)
+from .identification import at_bound, covariance, parameter_status, rounding_sd  # noqa: F401  (at_bound: re-exported)
 
 #: Wrap angle on each cylinder, theta0 = theta1 = pi/2 (section 2.4).
 THETA_EACH = 0.5 * np.pi
@@ -755,7 +755,7 @@ def fit_friction_law(F0, F1, V, direction, disc: Discretisation = DEFAULT_DISCRE
     q = np.zeros(m)
     if reading_resolution_N is not None:
         h = np.broadcast_to(np.asarray(reading_resolution_N, dtype=float), F1.shape)
-        q = np.where(np.isfinite(h), h, 0.0) ** 2 / 3.0
+        q = rounding_sd(2.0 * np.where(np.isfinite(h), h, 0.0)) ** 2    # (h: half a digit)
     rounding_floor = s2 < float(np.mean(q))
     J = res.jac
     cov = covariance(J, s2)                       # infinite where J is singular: the data do not set the parameters

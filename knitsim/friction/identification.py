@@ -21,6 +21,14 @@ FLAG_TEXT = {"at_lower_bound": "AT LOWER BOUND: not identified", "at_upper_bound
              "not_identified": "NOT IDENTIFIED", "lower_bound_only": "ONLY A LOWER BOUND: not identified"}
 
 
+def rounding_sd(step):
+    """The sd of a reading written to the last digit ``step`` about the value it rounds (same units):
+    ``step / sqrt(12)``, a uniform error over one digit (variance ``step^2 / 12``; half a digit ``h`` either side:
+    ``h^2 / 3``).  The one rounding law of the capstan fit's floor on its standard errors and of the diagnosis's
+    noise (:mod:`knitsim.diagnosis.noise`)."""
+    return step / np.sqrt(12.0)
+
+
 def covariance(J: np.ndarray, s2: float) -> np.ndarray:
     """Covariance of least-squares parameters, ``s2 (J^T J)^-1``, by the SVD of ``J`` (V diag(1/sv^2) V^T): the one
     routine of the capstan and Dahl fits.  Infinite everywhere where ``J`` is singular (a singular value below
